@@ -1,0 +1,66 @@
+"""Helpers shared by the subcommands: JSON summaries, tables, progress bars."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from typing import Any, Iterable
+
+import numpy as np
+
+__all__ = ["emit", "add_json_flag", "format_table", "to_jsonable", "progress"]
+
+
+def add_json_flag(p) -> None:
+    p.add_argument(
+        "--json", action="store_true", help="print one JSON summary object as the last line"
+    )
+
+
+def to_jsonable(obj: Any) -> Any:
+    """Numpy scalars/arrays and non-finite floats to plain JSON values."""
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        return to_jsonable(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def emit(summary: dict, as_json: bool, human: str | None = None) -> None:
+    """Print the human-readable text, or the JSON summary as the last line."""
+    if as_json:
+        sys.stdout.write(json.dumps(to_jsonable(summary), sort_keys=False) + "\n")
+    elif human is not None:
+        sys.stdout.write(human.rstrip("\n") + "\n")
+
+
+def format_table(rows: Iterable[Iterable[Any]], header: Iterable[str]) -> str:
+    rows = [[_fmt(c) for c in r] for r in rows]
+    header = list(header)
+    widths = [max(len(str(h)), *(len(r[i]) for r in rows)) if rows else len(str(h))
+              for i, h in enumerate(header)]
+    line = "  ".join(str(h).ljust(w) for h, w in zip(header, widths))
+    out = [line, "  ".join("-" * w for w in widths)]
+    out += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    return "\n".join(out)
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it"):
+    """A tqdm progress bar on stderr (disabled when not wanted or not a terminal)."""
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=desc, unit=unit, disable=not enabled, file=sys.stderr,
+                leave=False)

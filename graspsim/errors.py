@@ -1,0 +1,71 @@
+"""One exception tree for graspsim.
+
+Every error a user can trigger is a :class:`GraspsimError`. Messages say what was wrong
+and what would have been valid. Errors from third-party libraries (h5py, coacd, fcl,
+mujoco) are wrapped with ``raise ... from err`` so the original traceback survives.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "GraspsimError",
+    "InvalidParameterError",
+    "PrimitiveError",
+    "GripperError",
+    "NoFeasibleGraspError",
+    "MapFileError",
+    "MapDatabaseError",
+    "PointCloudError",
+    "IdentificationError",
+    "MeshError",
+    "SimulationError",
+    "DependencyNotInstalled",
+]
+
+
+class GraspsimError(Exception):
+    """Base class of every error raised by graspsim."""
+
+
+class InvalidParameterError(GraspsimError, ValueError):
+    """A configuration value is out of its valid range or of the wrong kind."""
+
+
+class PrimitiveError(InvalidParameterError):
+    """Impossible shape-primitive dimensions (zero, negative, self-intersecting, NaN)."""
+
+
+class GripperError(InvalidParameterError):
+    """An inconsistent gripper specification."""
+
+
+class NoFeasibleGraspError(GraspsimError):
+    """The object cannot be grasped at all with the given gripper (e.g. too wide)."""
+
+
+class MapFileError(GraspsimError, OSError):
+    """A map file is missing, truncated, foreign or cannot be written."""
+
+
+class MapDatabaseError(GraspsimError):
+    """The FS map database cannot answer or store a request."""
+
+
+class PointCloudError(GraspsimError, ValueError):
+    """A point cloud cannot be read or processed (empty, NaN-only, degenerate)."""
+
+
+class IdentificationError(GraspsimError):
+    """Primitive identification could not run (not: ran and failed to identify)."""
+
+
+class MeshError(GraspsimError):
+    """A mesh cannot be read, repaired or decomposed."""
+
+
+class SimulationError(GraspsimError):
+    """A simulation could not be built or run (bad scene, bad map keys, bad mass)."""
+
+
+class DependencyNotInstalled(GraspsimError, ImportError):
+    """An optional backend is needed but not installed; the message says what to install."""

@@ -1,0 +1,251 @@
+"""Two-jaw parallel gripper specification (Festo HGPL-25-60-A style by default).
+
+One :class:`GripperSpec` drives both the planner's collision geometry and the MuJoCo
+model, so the two can never disagree about the gripper.
+
+Wrist frame (DESIGN.md §3): origin at the centre of the housing's mounting face (the
+flange), z = approach direction (towards the fingertips), x = jaw closing axis,
+y = z × x. All parts are boxes aligned with the wrist frame:
+
+* housing: ``housing_size`` (x, y, z), occupying z in [0, Hz];
+* two jaws (carriages): ``jaw_size``, below the housing, z in [Hz, Hz + Jz];
+* two flat fingers: ``finger_size`` (thickness x, width y, length z) below the jaws;
+  their inner faces are the pads, at x = ±opening/2;
+* an arm keep-out: the robot's wrist behind the flange, z in [-arm_length, 0], with
+  the housing's x-y footprint (the planner must not put the arm inside the object).
+
+No data sheet is at hand. Every value is a named parameter; the defaults below are
+estimates for the HGPL-25-60-A (type code HGPL-<bore mm>-<stroke per jaw mm>) and for
+home-made aluminium fingers, each with its derivation in the field's comment.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+
+from graspsim.errors import GripperError
+
+__all__ = ["GripperSpec", "CollisionBoxes", "HGPL_25_60_A"]
+
+
+@dataclass(frozen=True)
+class CollisionBoxes:
+    """Wrist-frame boxes of the gripper at some opening.
+
+    names: (B,) part names; centers, half_extents: (B, 3) [m] in the wrist frame.
+    x_sign: (B,) -1/0/+1: the box's x centre moves by x_sign * opening / 2.
+    """
+
+    names: tuple[str, ...]
+    centers: np.ndarray
+    half_extents: np.ndarray
+    x_sign: np.ndarray
+
+
+@dataclass(frozen=True)
+class GripperSpec:
+    """A two-jaw parallel gripper with flat fingers. Lengths [m], masses [kg], SI."""
+
+    name: str = "festo_hgpl_25_60_a"
+    # Housing: ~180 mm long to carry two 60 mm strokes plus the 30 mm jaws
+    # (2 * (60 + 30) = 180), 50 mm wide and 60 mm tall (estimated from the size-25 bore).
+    housing_size: tuple[float, float, float] = (0.180, 0.050, 0.060)
+    # Jaw carriages protruding 15 mm below the housing, full housing width, 30 mm long.
+    jaw_size: tuple[float, float, float] = (0.030, 0.050, 0.015)
+    # Flat aluminium fingers: 10 mm thick, 20 mm wide, 80 mm long below the jaw.
+    finger_size: tuple[float, float, float] = (0.010, 0.020, 0.080)
+    # Contact region of the finger's inner face, measured from the fingertip.
+    pad_length: float = 0.040
+    # Contacts closer than this to the tip or to the pad's upper end are not planned.
+    contact_depth_margin: float = 0.005
+    # 60 mm stroke per jaw (the "-60" of the type code).
+    stroke_per_jaw: float = 0.060
+    # Pad-to-pad gap with both jaws fully closed (fingers touching).
+    closed_gap: float = 0.0
+    # Extra opening on each side when the gripper is placed at the pose (pre-grasp).
+    approach_clearance: float = 0.005
+    # Grip force per jaw = efficiency * pressure * piston area (bore 25 mm, 6 bar).
+    bore: float = 0.025
+    pressure: float = 6.0e5
+    efficiency: float = 0.85
+    # Flow-limited closing speed of each jaw (a pneumatic gripper closes its 60 mm
+    # stroke in roughly 0.3 s with standard throttles).
+    closing_speed: float = 0.20
+    # Masses: housing 1.3 kg (same order as the catalogue mass of this size), jaws
+    # 80 g, fingers 43 g (aluminium 10 x 20 x 80 mm).
+    housing_mass: float = 1.30
+    jaw_mass: float = 0.08
+    finger_mass: float = 0.043
+    # Robot wrist behind the flange, kept out of the object by the planner.
+    arm_length: float = 0.10
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name == "name":
+                if not isinstance(v, str) or not v:
+                    raise GripperError(f"gripper name must be a non-empty string, got {v!r}")
+                continue
+            if isinstance(v, (tuple, list, np.ndarray)):
+                t = tuple(float(x) for x in v)
+                if len(t) != 3 or not all(math.isfinite(x) and x > 0 for x in t):
+                    raise GripperError(f"{f.name} must be three positive lengths [m], got {v!r}")
+                object.__setattr__(self, f.name, t)
+                continue
+            try:
+                fv = float(v)
+            except (TypeError, ValueError):
+                raise GripperError(f"{f.name} must be a number, got {v!r}") from None
+            lower_ok = fv >= 0 if f.name in ("closed_gap", "arm_length") else fv > 0
+            if not (math.isfinite(fv) and lower_ok):
+                bound = ">= 0" if f.name in ("closed_gap", "arm_length") else "> 0"
+                raise GripperError(f"{f.name} must be finite and {bound}, got {v!r}")
+            object.__setattr__(self, f.name, fv)
+        if not 0 < self.efficiency <= 1:
+            raise GripperError(f"efficiency must be in (0, 1], got {self.efficiency!r}")
+        if self.pad_length > self.finger_size[2]:
+            raise GripperError(
+                f"pad_length {self.pad_length} m exceeds the finger length {self.finger_size[2]} m"
+            )
+        if 2 * self.contact_depth_margin >= self.pad_length:
+            raise GripperError(
+                f"contact_depth_margin {self.contact_depth_margin} m leaves no pad: must be < "
+                f"pad_length / 2 = {self.pad_length / 2} m"
+            )
+        if self.finger_size[0] > self.jaw_size[0] or self.finger_size[1] > self.jaw_size[1]:
+            raise GripperError("fingers must not be thicker or wider than the jaws they sit on")
+        reach = self.max_opening / 2 + self.jaw_size[0]
+        if reach > self.housing_size[0] / 2 + 1e-12:
+            raise GripperError(
+                f"housing length {self.housing_size[0]} m cannot carry the jaws at full opening: "
+                f"needs >= {2 * reach:.4f} m"
+            )
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def min_opening(self) -> float:
+        """Smallest pad-to-pad gap [m]."""
+        return self.closed_gap
+
+    @property
+    def max_opening(self) -> float:
+        """Largest pad-to-pad gap [m]: closed gap + both strokes."""
+        return self.closed_gap + 2.0 * self.stroke_per_jaw
+
+    @property
+    def max_grasp_width(self) -> float:
+        """Widest object chord that can be grasped with the approach clearance [m]."""
+        return self.max_opening - 2.0 * self.approach_clearance
+
+    @property
+    def grip_force(self) -> float:
+        """Closing force per jaw [N]: efficiency * pressure * pi * bore^2 / 4."""
+        return self.efficiency * self.pressure * math.pi * self.bore**2 / 4.0
+
+    @property
+    def jaw_base_z(self) -> float:
+        """z of the jaws' lower face, where the fingers start [m]."""
+        return self.housing_size[2] + self.jaw_size[2]
+
+    @property
+    def fingertip_z(self) -> float:
+        """z of the fingertips in the wrist frame [m]."""
+        return self.jaw_base_z + self.finger_size[2]
+
+    @property
+    def total_mass(self) -> float:
+        return self.housing_mass + 2 * (self.jaw_mass + self.finger_mass)
+
+    def contact_depths(self, step: float) -> np.ndarray:
+        """Contact distances from the fingertip sampled along the pad [m]."""
+        if not step > 0:
+            raise GripperError(f"depth step must be > 0 m, got {step!r}")
+        lo, hi = self.contact_depth_margin, self.pad_length - self.contact_depth_margin
+        n = int(math.floor((hi - lo) / step + 1e-9)) + 1
+        return lo + step * np.arange(n)
+
+    def tcp_offset(self, depth: float | np.ndarray) -> np.ndarray:
+        """z of the grasp point (TCP) in the wrist frame for a contact ``depth`` from the
+        fingertip [m]. The TCP lies on the wrist z axis at every opening (symmetric jaws)."""
+        return self.fingertip_z - np.asarray(depth, dtype=float)
+
+    def T_wrist_tcp(self, depth: float, opening: float | None = None) -> np.ndarray:
+        """4x4 transform of the TCP in the wrist frame. ``opening`` is accepted for
+        asymmetric grippers; this symmetric one does not depend on it."""
+        if opening is not None:
+            self.check_opening(opening)
+        T = np.eye(4)
+        T[2, 3] = float(self.tcp_offset(depth))
+        return T
+
+    def check_opening(self, opening: float) -> None:
+        if not (self.min_opening - 1e-12 <= opening <= self.max_opening + 1e-12):
+            raise GripperError(
+                f"opening {opening} m outside the gripper's range "
+                f"[{self.min_opening}, {self.max_opening}] m"
+            )
+
+    def collision_boxes(self) -> CollisionBoxes:
+        """Part boxes in the wrist frame; x centres move with the opening (``x_sign``)."""
+        hx, hy, hz = (0.5 * v for v in self.housing_size)
+        jx, jy, jz = (0.5 * v for v in self.jaw_size)
+        fx, fy, fz = (0.5 * v for v in self.finger_size)
+        Hz, Jb = self.housing_size[2], self.jaw_base_z
+        names = ("arm", "housing", "jaw_neg", "jaw_pos", "finger_neg", "finger_pos")
+        centers = np.array(
+            [
+                [0.0, 0.0, -0.5 * self.arm_length],
+                [0.0, 0.0, hz],
+                [-jx, 0.0, Hz + jz],
+                [jx, 0.0, Hz + jz],
+                [-fx, 0.0, Jb + fz],
+                [fx, 0.0, Jb + fz],
+            ]
+        )
+        half = np.array(
+            [[hx, hy, 0.5 * self.arm_length], [hx, hy, hz], [jx, jy, jz], [jx, jy, jz],
+             [fx, fy, fz], [fx, fy, fz]]
+        )
+        sign = np.array([0, 0, -1, 1, -1, 1])
+        keep = half[:, 2] > 0
+        return CollisionBoxes(
+            tuple(n for n, k in zip(names, keep) if k), centers[keep], half[keep], sign[keep]
+        )
+
+    def boxes_at(self, opening: float) -> tuple[np.ndarray, np.ndarray]:
+        """Box centres and half extents (B, 3) in the wrist frame at a pad gap."""
+        self.check_opening(opening)
+        b = self.collision_boxes()
+        c = b.centers.copy()
+        c[:, 0] += b.x_sign * 0.5 * opening
+        return c, b.half_extents
+
+    # ------------------------------------------------------------------ storage
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "GripperSpec":
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise GripperError(f"unknown gripper parameters {unknown}; valid: {sorted(known)}")
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+    @classmethod
+    def from_json(cls, text: str) -> "GripperSpec":
+        try:
+            return cls.from_dict(json.loads(text))
+        except json.JSONDecodeError as err:
+            raise GripperError(f"gripper configuration is not valid JSON: {err}") from err
+
+
+HGPL_25_60_A = GripperSpec()

@@ -1,0 +1,27 @@
+"""Shared fixtures: seeded generators and the paper's reference primitives."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Sphere
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(12345)
+
+
+PAPER_SHAPES = {
+    "box": Box(0.06, 0.06, 0.06),
+    "cylinder": Cylinder(0.02, 0.20),
+    "sphere": Sphere(0.035),
+    "cone": Cone(0.04, 0.02, 0.10),
+    "half_toroid": HalfToroid(0.04, 0.01),
+}
+
+
+@pytest.fixture(params=sorted(PAPER_SHAPES))
+def shape(request):
+    return PAPER_SHAPES[request.param]

@@ -1,0 +1,67 @@
+import math
+
+import numpy as np
+import pytest
+
+from graspsim.errors import GripperError
+from graspsim.gripper import HGPL_25_60_A, GripperSpec
+
+
+def test_defaults_follow_the_type_code():
+    g = HGPL_25_60_A
+    assert g.stroke_per_jaw == pytest.approx(0.060)
+    assert g.max_opening == pytest.approx(0.120)
+    assert g.bore == pytest.approx(0.025)
+    # 0.85 * 6 bar * pi * (12.5 mm)^2 = 250 N per jaw
+    assert g.grip_force == pytest.approx(0.85 * 6e5 * math.pi * 0.0125**2)
+    assert 200 < g.grip_force < 300
+
+
+def test_tcp_lies_on_the_pad_at_the_contact_depth():
+    g = HGPL_25_60_A
+    depths = g.contact_depths(0.005)
+    assert depths[0] == pytest.approx(g.contact_depth_margin)
+    assert depths[-1] <= g.pad_length - g.contact_depth_margin + 1e-12
+    T = g.T_wrist_tcp(depths[0], opening=0.05)
+    assert T[2, 3] == pytest.approx(g.fingertip_z - depths[0])
+
+
+def test_boxes_open_symmetrically_and_touch_the_pads():
+    g = HGPL_25_60_A
+    c, h = g.boxes_at(0.05)
+    names = g.collision_boxes().names
+    fpos = names.index("finger_pos")
+    fneg = names.index("finger_neg")
+    assert c[fpos, 0] - h[fpos, 0] == pytest.approx(0.025)
+    assert c[fneg, 0] + h[fneg, 0] == pytest.approx(-0.025)
+    assert c[fpos, 2] + h[fpos, 2] == pytest.approx(g.fingertip_z)
+    with pytest.raises(GripperError):
+        g.boxes_at(0.2)
+
+
+def test_json_round_trip():
+    g = GripperSpec(pressure=4e5, finger_size=(0.01, 0.025, 0.07))
+    assert GripperSpec.from_json(g.to_json()) == g
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"stroke_per_jaw": 0},
+        {"pressure": -1},
+        {"finger_size": (0.01, 0.02)},
+        {"pad_length": 0.5},
+        {"efficiency": 1.5},
+        {"housing_size": (0.05, 0.05, 0.06)},
+        {"contact_depth_margin": 0.03},
+        {"bore": float("nan")},
+    ],
+)
+def test_inconsistent_specs_raise(kwargs):
+    with pytest.raises(GripperError):
+        GripperSpec(**kwargs)
+
+
+def test_unknown_parameter_names_are_reported():
+    with pytest.raises(GripperError, match="valid"):
+        GripperSpec.from_dict({"nope": 1})

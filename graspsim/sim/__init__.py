@@ -1,0 +1,61 @@
+"""MuJoCo validation of grasps: gripper model, scenes, trial protocols, batched runs.
+
+The only package (besides the environments) that imports mujoco. Build once, run many::
+
+    obj = object_from_shape(Cylinder(0.02, 0.20))
+    scene = build_scene(obj, HGPL_25_60_A, SimSettings())
+    results = run_trials(scene, T_obj_wrist, widths, LiftPlace(), threads=2)
+    results.counts(), results.success_rate
+
+or, for a map file, ``simulate_map(path, top=50)``.
+"""
+
+from __future__ import annotations
+
+import ctypes.util
+import os
+import sys
+
+
+def _default_gl() -> None:
+    """Pick a headless OpenGL backend for offscreen rendering, before mujoco loads."""
+    if "mujoco" in sys.modules or os.environ.get("MUJOCO_GL"):
+        return
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        if ctypes.util.find_library("EGL"):
+            os.environ["MUJOCO_GL"] = "egl"
+        elif ctypes.util.find_library("OSMesa"):
+            os.environ["MUJOCO_GL"] = "osmesa"
+
+
+_default_gl()
+
+from graspsim.sim.batch import initial_states, pregrasp_opening, run_trials, start_penetration  # noqa: E402
+from graspsim.sim.mapsim import MapTrials, map_object, select_grasps, simulate_map, write_results  # noqa: E402
+from graspsim.sim.meshes import CoacdParams, convex_parts, load_mesh  # noqa: E402
+from graspsim.sim.model import GripperPhysics, build_gripper_spec, gripper_xml  # noqa: E402
+from graspsim.sim.noise import ExecutionNoise  # noqa: E402
+from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape  # noqa: E402
+from graspsim.sim.outcomes import TrialOutcome  # noqa: E402
+from graspsim.sim.protocols import PROTOCOLS, LiftPlace, Protocol, Tug, make_protocol  # noqa: E402
+from graspsim.sim.results import RESULT_GROUPS, TrialResults  # noqa: E402
+from graspsim.sim.scene import Scene, SimSettings, build_scene, resting_pose  # noqa: E402
+
+__all__ = [
+    "GripperPhysics", "build_gripper_spec", "gripper_xml",
+    "SimObject", "object_from_shape", "object_from_mesh", "CoacdParams", "convex_parts", "load_mesh",
+    "SimSettings", "Scene", "build_scene", "resting_pose",
+    "Protocol", "LiftPlace", "Tug", "PROTOCOLS", "make_protocol", "ExecutionNoise",
+    "TrialOutcome", "TrialResults", "RESULT_GROUPS",
+    "run_trials", "start_penetration", "initial_states", "pregrasp_opening",
+    "MapTrials", "simulate_map", "select_grasps", "map_object", "write_results",
+    "render_trial",
+]
+
+
+def __getattr__(name: str):
+    if name == "render_trial":  # keeps PIL out of plain imports
+        from graspsim.sim.render import render_trial
+
+        return render_trial
+    raise AttributeError(f"module 'graspsim.sim' has no attribute {name!r}")

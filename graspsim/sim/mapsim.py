@@ -1,0 +1,182 @@
+"""Simulating the grasps of a map file and writing the results back into it.
+
+The map's object (a primitive, a compound, or a mesh reference) becomes the simulated
+object; with ``mesh=`` a given mesh -- the real object -- replaces it, placed by the
+map's recorded cloud->object transform ``meta.extra["T_cloud_obj"]`` (mesh and cloud
+share a frame), as the paper tested maps planned from primitives on real objects.
+
+Results go to ``grasps/qualities/mujoco`` (``lift_place``) or
+``grasps/qualities/mujoco_tug`` (``tug``), one row per grasp of the map: rows not
+simulated hold outcome -1, object_in_gripper -1 and NaN metrics, and ``simulated`` says
+which rows were. Simulating more rows later with the same protocol, scene and noise
+merges; anything else replaces the group.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from graspsim.errors import GraspsimError, InvalidParameterError, SimulationError
+from graspsim.gripper import GripperSpec
+from graspsim.maps import GraspabilityMap, load_map, read_sim_results, write_sim_results
+from graspsim.primitives import shape_from_dict
+from graspsim.sim.batch import run_trials
+from graspsim.sim.noise import ExecutionNoise
+from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape
+from graspsim.sim.protocols import LiftPlace, Protocol
+from graspsim.sim.results import RESULT_GROUPS, TrialResults
+from graspsim.sim.scene import Scene, SimSettings, build_scene
+from graspsim.transforms import invert_transform
+
+__all__ = ["MapTrials", "select_grasps", "map_object", "map_gripper", "simulate_map",
+           "write_results"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class MapTrials:
+    """Results of simulating some rows of a map: ``index`` (n,) the map rows, in the
+    order of ``results``; ``scene`` the compiled scene; ``group`` where they were
+    written (None if not written)."""
+
+    index: np.ndarray
+    results: TrialResults
+    scene: Scene
+    group: str | None
+
+
+def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int | None = None,
+                  min_grade: float | None = None, rng: np.random.Generator | None = None) -> np.ndarray:
+    """Map row indices to simulate: the ``top`` best by grade, or ``sample`` grasps
+    spread uniformly over the surface among those with grade > ``min_grade``, or all."""
+    if top is not None and sample is not None:
+        raise InvalidParameterError("give top or sample, not both")
+    rows = np.arange(len(gmap))
+    if min_grade is not None:
+        rows = rows[gmap.grade > min_grade]
+    if top is not None:
+        if top < 0:
+            raise InvalidParameterError(f"top must be >= 0, got {top}")
+        return rows[np.argsort(-gmap.grade[rows], kind="stable")[:top]]
+    if sample is not None:
+        if sample < 0:
+            raise InvalidParameterError(f"sample must be >= 0, got {sample}")
+        sub = gmap.select(rows).sample_uniform_surface(sample, rng or np.random.default_rng(0))
+        # recover the rows the sampler picked (it returns a map, not indices)
+        key = lambda m, i: (m.wrist_position[i].tobytes(), m.wrist_quat[i].tobytes(),  # noqa: E731
+                            m.contacts[i].tobytes())
+        where: dict = {}
+        for r in rows:
+            where.setdefault(key(gmap, r), []).append(r)
+        return np.array([where[key(sub, i)].pop(0) for i in range(len(sub))], dtype=int)
+    return rows
+
+
+def map_gripper(gmap: GraspabilityMap) -> GripperSpec:
+    if not gmap.meta.gripper:
+        raise SimulationError("the map records no gripper (meta.gripper is empty)")
+    return GripperSpec.from_dict(gmap.meta.gripper)
+
+
+def _given_mass(obj: dict) -> float | None:
+    m = obj.get("mass")
+    if m is None or (isinstance(m, float) and math.isnan(m)):
+        return None
+    m = float(m)
+    if not (math.isfinite(m) and m > 0):
+        raise SimulationError(f"the map's object mass must be > 0 kg, got {m!r}")
+    return m
+
+
+def map_object(gmap: GraspabilityMap, *, mesh: str | os.PathLike | None = None,
+               mesh_scale: float = 1.0, mass: float | None = None, density: float = 1000.0,
+               map_dir: str | os.PathLike | None = None, cache_dir=None) -> SimObject:
+    """The object to simulate for a map (see the module docstring). ``mass`` overrides
+    the map's; otherwise the map's mass, or ``density`` x volume if it has none."""
+    obj = gmap.meta.object or {}
+    mass = mass if mass is not None else _given_mass(obj)
+    if mesh is not None:
+        T = gmap.meta.extra.get("T_cloud_obj")
+        if T is None:
+            log.warning("map has no T_cloud_obj: assuming the mesh is in the object frame")
+            T_obj_mesh = None
+        else:
+            T_obj_mesh = invert_transform(np.asarray(T, float).reshape(4, 4))
+        return object_from_mesh(mesh, T_obj_mesh=T_obj_mesh, scale=mesh_scale, mass=mass,
+                                density=density, cache_dir=cache_dir)
+    if obj.get("file"):
+        path = Path(obj["file"])
+        if not path.is_absolute() and map_dir is not None:
+            path = Path(map_dir) / path
+        return object_from_mesh(path, scale=float(obj.get("scale", 1.0)), mass=mass,
+                                density=density, cache_dir=cache_dir)
+    if "primitive" not in obj:
+        raise SimulationError("the map's object has neither a primitive nor a mesh file; "
+                              "pass mesh= to simulate against a mesh")
+    try:
+        shape = shape_from_dict(obj)
+    except GraspsimError as err:
+        raise SimulationError(f"cannot rebuild the map's object {obj!r}: {err}") from err
+    return object_from_shape(shape, mass=mass, density=density)
+
+
+def write_results(path: str | os.PathLike, n_rows: int, index: np.ndarray,
+                  results: TrialResults) -> str:
+    """Store results for map rows ``index`` in the map file (merging earlier rows of the
+    same protocol and scene); returns the group written."""
+    group = RESULT_GROUPS.get(results.protocol["name"], "grasps/qualities/mujoco_" + results.protocol["name"])
+    info = results.info()
+    arrays = {"simulated": np.zeros(n_rows, bool)}
+    for k, v in results.arrays().items():
+        fill = np.nan if np.issubdtype(v.dtype, np.floating) else -1
+        arrays[k] = np.full(n_rows, fill, dtype=v.dtype)
+    old = read_sim_results(path, group)
+    same = all(old.get("info", {}).get(k) == info[k] for k in ("protocol", "scene", "noise"))
+    if old and same and "simulated" in old:
+        keep = np.asarray(old["simulated"], bool)
+        for k in arrays:
+            if k in old and len(old[k]) == n_rows:
+                arrays[k][keep] = np.asarray(old[k])[keep]
+    for k, v in results.arrays().items():
+        arrays[k][index] = v
+    arrays["simulated"][index] = True
+    write_sim_results(path, arrays, group=group, attrs_json=info)
+    return group
+
+
+def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
+                 top: int | None = None, sample: int | None = None, min_grade: float | None = None,
+                 threads: int | None = None, seed: int = 0, noise: ExecutionNoise | None = None,
+                 mesh: str | os.PathLike | None = None, mesh_scale: float = 1.0,
+                 mass: float | None = None, settings: SimSettings | None = None,
+                 write: bool = True, cache_dir=None, on_progress=None) -> MapTrials:
+    """Simulate grasps of the map file ``path`` and (``write``) store the results in it.
+
+    settings: defaults to :class:`SimSettings` with the pad friction of the map's quality
+    model (the planner's mu). Selection: see :func:`select_grasps` (``seed`` also draws
+    the uniform sample).
+    """
+    path = Path(path)
+    gmap = load_map(path)
+    gripper = map_gripper(gmap)
+    if settings is None:
+        mu = gmap.meta.quality.get("friction")
+        settings = SimSettings(friction=float(mu)) if mu else SimSettings()
+    rng = np.random.default_rng(seed)
+    index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng)
+    obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,
+                     map_dir=path.parent, cache_dir=cache_dir)
+    scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity)
+    results = run_trials(scene, gmap.T_obj_wrist[index], gmap.width[index], protocol,
+                         threads=threads, seed=seed, noise=noise, on_progress=on_progress)
+    results = replace(results, extra={"map_file": str(path),
+                                      "mesh": None if mesh is None else str(mesh)})
+    group = write_results(path, len(gmap), index, results) if write and len(index) else None
+    return MapTrials(index=index, results=results, scene=scene, group=group)

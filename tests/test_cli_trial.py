@@ -1,0 +1,46 @@
+"""`graspsim trial`: outcome table, JSON summary, results in the file, clear errors."""
+
+import json
+
+import numpy as np
+
+from graspsim.cli import main
+from graspsim.maps import read_sim_results, save_map
+from graspsim.primitives import Cylinder
+from graspsim.sim.testing import grasp_pose, hand_made_map
+
+
+def _map(tmp_path, n=4):
+    ang = np.linspace(0.0, np.pi / 2, n)
+    T = np.stack([grasp_pose([0, 0, 0], [-np.cos(a), -np.sin(a), 0], [-np.sin(a), np.cos(a), 0])
+                  for a in ang])
+    m = hand_made_map(Cylinder(0.02, 0.20), T, np.full(n, 0.04), grades=np.linspace(0.5, 0.9, n))
+    return save_map(m, tmp_path / "cyl.h5")
+
+
+def test_json_summary_and_results_in_the_file(tmp_path, capsys):
+    path = _map(tmp_path)
+    assert main(["trial", str(path), "--top", "3", "--threads", "1", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["trials"] == 3 and summary["counts"]["success"] == 3
+    assert summary["success_rate"] == 1.0 and summary["trials_per_second"] > 0
+    assert set(summary["counts"]) >= {"success", "start_collision", "sim_unstable"}
+    assert read_sim_results(path)["simulated"].sum() == 3
+
+
+def test_table_output_tug_sample_and_noise(tmp_path, capsys):
+    path = _map(tmp_path)
+    code = main(["trial", str(path), "--protocol", "tug", "--sample", "2", "--min-grade", "0.6",
+                 "--noise", "--seed", "2", "--threads", "2", "--no-write"])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "outcome" in out and "success rate" in out
+    assert read_sim_results(path) == {}
+
+
+def test_bad_input_exits_with_a_clear_error(tmp_path, capsys):
+    assert main(["trial", str(tmp_path / "missing.h5")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    path = _map(tmp_path)
+    assert main(["trial", str(path), "--mass", "-1", "--no-write"]) == 2
+    assert "mass" in capsys.readouterr().err

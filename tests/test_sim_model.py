@@ -1,0 +1,92 @@
+"""The gripper model: generated from the spec, agrees with the planner's boxes, and the
+static model folder in mjcf/ is what the spec generates."""
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from graspsim.errors import InvalidParameterError
+from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.sim.export import default_folder, model_files
+from graspsim.sim.model import NAMES, GripperPhysics, build_gripper_spec
+
+MJCF = Path(__file__).resolve().parents[1] / "mjcf"
+
+
+def _step_warning_free(model: mujoco.MjModel, seconds: float = 1.0, ctrl: float = 0.0) -> mujoco.MjData:
+    data = mujoco.MjData(model)
+    data.ctrl[:] = ctrl
+    mujoco.mj_step(model, data, nstep=int(round(seconds / model.opt.timestep)))
+    assert all(w.number == 0 for w in data.warning), [w.number for w in data.warning]
+    assert np.all(np.isfinite(data.qpos))
+    return data
+
+
+@pytest.mark.parametrize("path", sorted(MJCF.rglob("*.xml")), ids=lambda p: str(p.relative_to(MJCF)))
+def test_every_mjcf_compiles_and_steps_one_second_without_warnings(path):
+    model = mujoco.MjModel.from_xml_path(str(path))
+    for ctrl in (-1.0, 1.0):  # jaws driven into both end stops
+        _step_warning_free(model, 1.0, ctrl)
+
+
+def test_model_folder_matches_the_spec():
+    folder = default_folder(HGPL_25_60_A)
+    for name, text in model_files(HGPL_25_60_A).items():
+        assert (folder / name).read_text() == text, (
+            f"{folder / name} is stale: regenerate with `python -m graspsim.sim.export`")
+    assert (folder / "LICENSE").is_file()
+
+
+@pytest.mark.parametrize("opening", [0.0, 0.013, 0.05, 0.12])
+def test_model_boxes_coincide_with_the_planner_boxes(opening):
+    g = HGPL_25_60_A
+    m = build_gripper_spec(g).compile()
+    d = mujoco.MjData(m)
+    d.qpos[m.joint(NAMES.jaw_neg).qposadr[0]] = opening / 2
+    d.qpos[m.joint(NAMES.jaw_pos).qposadr[0]] = opening / 2
+    mujoco.mj_kinematics(m, d)
+    w = m.body(NAMES.wrist).id
+    Rw, pw = d.xmat[w].reshape(3, 3), d.xpos[w]
+    centers, half = g.boxes_at(opening)
+    names = g.collision_boxes().names
+    for k, name in enumerate(names):
+        if name == "arm":  # planner keep-out, not simulated
+            with pytest.raises(KeyError):
+                m.geom(name)
+            continue
+        gid = m.geom(name).id
+        c = Rw.T @ (d.geom_xpos[gid] - pw)
+        R = Rw.T @ d.geom_xmat[gid].reshape(3, 3)
+        np.testing.assert_allclose(c, centers[k], atol=1e-12)
+        np.testing.assert_allclose(np.abs(R) @ m.geom_size[gid], half[k], atol=1e-12)
+    # the pads' inner faces are the planner's contact planes
+    fp, fn = m.geom(NAMES.finger_pos).id, m.geom(NAMES.finger_neg).id
+    assert (Rw.T @ (d.geom_xpos[fp] - pw))[0] - m.geom_size[fp][0] == pytest.approx(opening / 2, abs=1e-12)
+    assert (Rw.T @ (d.geom_xpos[fn] - pw))[0] + m.geom_size[fn][0] == pytest.approx(-opening / 2, abs=1e-12)
+
+
+def test_drive_closes_at_the_flow_limit_and_pushes_with_the_grip_force():
+    g = GripperSpec(closing_speed=0.1)
+    spec = build_gripper_spec(g, grip_force=120.0)
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    d.qpos[m.joint(NAMES.jaw_neg).qposadr[0]] = d.qpos[m.joint(NAMES.jaw_pos).qposadr[0]] = 0.05
+    d.ctrl[0] = -1.0  # valve: close
+    mujoco.mj_step(m, d, nstep=50)  # 0.1 s: mid-stroke
+    v = d.qvel[m.joint(NAMES.jaw_pos).dofadr[0]]
+    assert v == pytest.approx(-g.closing_speed, rel=0.02)
+    mujoco.mj_step(m, d, nstep=500)  # stalled at the end stop: full force, no motion
+    assert abs(d.actuator_force[0]) == pytest.approx(120.0, rel=1e-9)
+    assert abs(d.qvel[m.joint(NAMES.jaw_pos).dofadr[0]]) < 1e-6
+
+
+def test_physics_parameters_are_validated():
+    with pytest.raises(InvalidParameterError, match="jaw_armature"):
+        GripperPhysics(jaw_armature=0.0)
+    with pytest.raises(InvalidParameterError, match="pad_solimp"):
+        GripperPhysics(pad_solimp=(0.9, 0.95))
+    with pytest.raises(InvalidParameterError, match="grip_force"):
+        build_gripper_spec(HGPL_25_60_A, grip_force=-1.0)

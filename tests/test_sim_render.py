@@ -1,0 +1,41 @@
+"""Offscreen renders of a trial's key moments (skipped without a headless GL backend)."""
+
+import numpy as np
+import pytest
+
+from graspsim.primitives import Box
+from graspsim.sim import LiftPlace, build_scene, object_from_shape
+from graspsim.sim.testing import grasp_pose
+
+
+@pytest.fixture(scope="module")
+def gl():
+    import mujoco
+
+    from graspsim.sim.render import gl_backend
+
+    m = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='.1'/></worldbody></mujoco>")
+    try:
+        r = mujoco.Renderer(m, 32, 32)
+        r.close()
+    except Exception as err:  # no EGL/OSMesa, or mujoco was imported with GLFW and no display
+        pytest.skip(f"no headless OpenGL (MUJOCO_GL={gl_backend()!r}): {err}; "
+                    "install libegl1 or libosmesa6")
+
+
+def test_render_writes_key_moments_and_a_gif(gl, tmp_path):
+    from PIL import Image
+
+    from graspsim.sim.render import render_trial
+
+    scene = build_scene(object_from_shape(Box(0.06, 0.06, 0.06)))
+    T = grasp_pose([0, 0, 0], [-1, 0, 0], [0, 1, 0])
+    paths = render_trial(scene, T, 0.06, tmp_path, LiftPlace(), size=(120, 160), gif=True, gif_fps=5)
+    names = sorted(p.name for p in paths)
+    assert names == sorted(["trial_open.png", "trial_closed.png", "trial_lifted.png",
+                            "trial_placed.png", "trial.gif"])
+    opened = np.asarray(Image.open(tmp_path / "trial_open.png"))
+    lifted = np.asarray(Image.open(tmp_path / "trial_lifted.png"))
+    assert opened.shape == (120, 160, 3) and opened.std() > 5
+    assert np.abs(opened.astype(int) - lifted.astype(int)).mean() > 1  # the object moved
+    assert Image.open(tmp_path / "trial.gif").n_frames > 5

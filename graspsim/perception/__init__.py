@@ -1,0 +1,34 @@
+"""Run-time perception (paper 2.2-2.3): point-cloud input, minimum-volume bounding
+boxes and the hierarchical fit-and-split, MLESAC primitive fitting, the four shape
+features, rule-based identification, and the known/familiar decision."""
+
+from __future__ import annotations
+
+from graspsim.perception.classify import Shape, classify
+from graspsim.perception.features import ShapeFeatures, shape_features
+from graspsim.perception.identify import (
+    Identification,
+    IdentificationStatus,
+    IdentifyConfig,
+    PartResult,
+    identify,
+    identify_cluster,
+)
+from graspsim.perception.io import LoadedCloud, check_cloud, read_point_cloud
+from graspsim.perception.match import MatchDecision, MatchKind, classify_match
+from graspsim.perception.mlesac import ModelFit, fit_model, mixture_loglik
+from graspsim.perception.mvbb import OrientedBox, min_volume_box, pca_box
+from graspsim.perception.normals import LocalSurface, estimate_local_surface, remove_outliers
+from graspsim.perception.split import Split, best_split, theta_star
+
+__all__ = [
+    "Shape", "classify", "ShapeFeatures", "shape_features",
+    "Identification", "IdentificationStatus", "IdentifyConfig", "PartResult",
+    "identify", "identify_cluster",
+    "LoadedCloud", "check_cloud", "read_point_cloud",
+    "MatchDecision", "MatchKind", "classify_match",
+    "ModelFit", "fit_model", "mixture_loglik",
+    "OrientedBox", "min_volume_box", "pca_box",
+    "LocalSurface", "estimate_local_surface", "remove_outliers",
+    "Split", "best_split", "theta_star",
+]

@@ -1,0 +1,271 @@
+"""Primitive identification of a segmented object cloud (paper 2.2-2.3).
+
+The paper's loop: the whole cloud starts as one cluster; each cluster is identified
+(MLESAC fits of all five models, four features, rule base); an unidentified cluster
+goes back to the hierarchical MVBB fit-and-split; a split is only made while it gains
+enough volume (theta* < theta_th, eq. 1) and leaves ``min_cluster_points`` on both
+sides. When no split is allowed and clusters remain unidentified, identification has
+*failed* and the result still lists the identified parts (for a partial map).
+
+Preprocessing, once per cloud: statistical outlier removal, PCA normals with outward
+orientation, sensor-noise estimate. Every random draw comes from the caller's
+generator, clusters are visited breadth first, so the same seed gives the same result.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import deque
+from dataclasses import dataclass, field, replace
+from enum import Enum
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from graspsim.errors import InvalidParameterError
+from graspsim.perception.classify import Shape, classify
+from graspsim.perception.features import ShapeFeatures, shape_features
+from graspsim.perception.io import check_cloud
+from graspsim.perception.mlesac import ModelFit, fit_model, rescore, residual_sigma
+from graspsim.perception.mvbb import OrientedBox, min_volume_box
+from graspsim.perception.normals import estimate_local_surface, remove_outliers
+from graspsim.perception.shapes import KINDS, fit_to_object
+from graspsim.perception.split import best_split, theta_star
+
+__all__ = ["IdentificationStatus", "IdentifyConfig", "PartResult", "Identification",
+           "identify", "identify_cluster"]
+
+log = logging.getLogger(__name__)
+
+
+class IdentificationStatus(str, Enum):
+    IDENTIFIED = "identified"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class IdentifyConfig:
+    """repetitions: MLESAC samples per model; theta: split threshold theta_th of eq. (1);
+    min_cluster_points: smallest cluster a split may leave; noise: sensor sigma [m]
+    (None: estimated from the cloud); sample_quantile: samples are drawn from the points
+    whose surface variation is below this quantile (most reliable normals); max_parts:
+    cap on clusters; link_factor, min_connected: a cluster is one continuous surface
+    when its largest connected component, linking points closer than link_factor times
+    the median point spacing, holds min_connected of its points; max_noise_ratio: the
+    noise may be at most this fraction of the cluster's bounding-box diagonal; the
+    rest are the classifier's thresholds (see classify)."""
+
+    repetitions: int = 10
+    theta: float = 0.5
+    min_cluster_points: int = 30
+    noise: float | None = None
+    remove_outliers: bool = True
+    refine: bool = True
+    sample_quantile: float = 0.7
+    max_parts: int = 16
+    link_factor: float = 4.0
+    min_connected: float = 0.5
+    max_noise_ratio: float = 0.03
+    min_fit_rate: float = 0.85
+    fit_margin: float = 0.03
+    symmetry_tol: float = 2.5
+    taper_tol: float = 3.0
+
+    def __post_init__(self) -> None:
+        checks = [
+            ("repetitions", self.repetitions >= 1 and int(self.repetitions) == self.repetitions, ">= 1, an integer"),
+            ("theta", 0.0 < self.theta <= 1.0, "in (0, 1]"),
+            ("min_cluster_points", self.min_cluster_points >= 10, ">= 10"),
+            ("noise", self.noise is None or self.noise > 0, "> 0 m or None"),
+            ("sample_quantile", 0.0 < self.sample_quantile <= 1.0, "in (0, 1]"),
+            ("max_parts", self.max_parts >= 1, ">= 1"),
+            ("link_factor", self.link_factor > 0, "> 0"),
+            ("min_connected", 0.0 < self.min_connected <= 1.0, "in (0, 1]"),
+            ("max_noise_ratio", self.max_noise_ratio > 0, "> 0"),
+            ("min_fit_rate", 0.0 < self.min_fit_rate <= 1.0, "in (0, 1]"),
+            ("fit_margin", 0.0 <= self.fit_margin < 1.0, "in [0, 1)"),
+            ("symmetry_tol", self.symmetry_tol > 0, "> 0"),
+            ("taper_tol", self.taper_tol > 0, "> 0"),
+        ]
+        for name, ok, valid in checks:
+            if not ok:
+                raise InvalidParameterError(f"{name} must be {valid}, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class PartResult:
+    """One cluster. shape: the class; dims: named dims [m] ({} if unidentified);
+    T_world_obj (4, 4): object frame of DESIGN.md §3 (the cluster's MVBB frame if
+    unidentified); fit_rate, rms [m]: of the chosen model (best model if unidentified);
+    indices: (n,) indices of the cluster's points in the input cloud; noise: the sigma
+    [m] the final fit rates were scored with; reason: why a cluster is unidentified
+    ("" when identified)."""
+
+    shape: Shape
+    dims: dict[str, float]
+    T_world_obj: np.ndarray
+    fit_rate: float
+    rms: float
+    indices: np.ndarray
+    features: ShapeFeatures
+    noise: float
+    fits: dict[str, ModelFit | None] = field(repr=False)
+    reason: str = ""
+
+    @property
+    def n_points(self) -> int:
+        return int(len(self.indices))
+
+    def primitive(self):
+        """The identified :class:`~graspsim.primitives.Primitive`, or None."""
+        if self.shape is Shape.UNIDENTIFIED:
+            return None
+        from graspsim.primitives import make_primitive
+
+        return make_primitive(self.shape.value, **self.dims)
+
+    def to_dict(self) -> dict:
+        return {"primitive": self.shape.value, "dims": dict(self.dims),
+                "pose": self.T_world_obj.tolist(), "fit_rate": self.fit_rate,
+                "rms": self.rms, "points": self.n_points, "noise": self.noise,
+                "reason": self.reason,
+                "fit_rates": dict(self.features.fit_rates)}
+
+
+@dataclass(frozen=True, eq=False)
+class Identification:
+    """status; parts: identified clusters; unidentified: clusters left over when the
+    split threshold was reached; n_removed: outliers dropped; noise: the cloud's
+    initial sigma estimate [m] (each part rescores with a sharper one, ``part.noise``);
+    n_splits: splits made; seconds: wall time (the only non-deterministic field)."""
+
+    status: IdentificationStatus
+    parts: tuple[PartResult, ...]
+    unidentified: tuple[PartResult, ...]
+    n_points: int
+    n_removed: int
+    noise: float
+    n_splits: int
+    seconds: float
+
+    def to_dict(self) -> dict:
+        return {"status": self.status.value, "parts": [p.to_dict() for p in self.parts],
+                "unidentified": [p.to_dict() for p in self.unidentified],
+                "n_points": self.n_points, "n_removed": self.n_removed, "noise": self.noise,
+                "n_splits": self.n_splits, "seconds": self.seconds}
+
+
+def _continuity(points: np.ndarray, link_factor: float) -> float:
+    """Fraction of the points in the largest component of the graph linking points
+    closer than ``link_factor`` times the median nearest-neighbour distance."""
+    tree = cKDTree(points)
+    spacing = float(np.median(tree.query(points, k=2)[0][:, 1]))
+    pairs = tree.query_pairs(link_factor * max(spacing, 1e-9), output_type="ndarray")
+    n = len(points)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    return float(np.bincount(labels).max() / n)
+
+
+def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.ndarray,
+                     noise: float, rng: np.random.Generator, config: IdentifyConfig,
+                     indices: np.ndarray | None = None) -> PartResult:
+    """Fit all models to one cluster (n, 3) [m] with unit normals (n, 3) and classify.
+
+    sample_pool: indices (into the cluster) that minimal samples are drawn from. A
+    cluster that is not one continuous surface, or whose noise is large for its size,
+    is unidentified without fitting."""
+    indices = np.arange(len(points)) if indices is None else indices
+    size = float(np.linalg.norm(np.ptp(points, axis=0)))
+    reason = ""
+    if noise > config.max_noise_ratio * size:
+        reason = f"noise {noise * 1000:.2f} mm is too large for a {size * 100:.1f} cm cluster"
+    elif (frac := _continuity(points, config.link_factor)) < config.min_connected:
+        reason = f"not one continuous surface: largest connected part {100 * frac:.0f} %"
+    if reason:
+        feats = ShapeFeatures(0.0, 0.0, float("nan"), float("nan"), float("nan"), {})
+        return PartResult(Shape.UNIDENTIFIED, {}, np.eye(4), 0.0, float("inf"), indices, feats,
+                          noise, {}, reason)
+    fits = {k: fit_model(k, points, normals, rng, repetitions=config.repetitions,
+                         sigma=noise, candidates=sample_pool, refine=config.refine)
+            for k in KINDS}
+    # second pass on the noise: the spread of the most likely model's residuals is a
+    # sharper sigma than the local estimate; all fits are rescored with it
+    ok = [f for f in fits.values() if f is not None]
+    if ok:
+        top = max(ok, key=lambda f: f.loglik)
+        s1 = residual_sigma(top, points)
+        if np.isfinite(s1):
+            noise = float(np.clip(s1, 0.5 * noise, 1.5 * noise))
+            fits = {k: (rescore(f, points, noise) if f is not None else None) for k, f in fits.items()}
+    feats = shape_features(points, fits)
+    shape = classify(feats, noise, min_fit_rate=config.min_fit_rate,
+                     fit_margin=config.fit_margin, symmetry_tol=config.symmetry_tol,
+                     taper_tol=config.taper_tol)
+    if shape is Shape.UNIDENTIFIED:
+        best = max(ok, key=lambda f: f.fit_rate, default=None)
+        reason = (f"no model fits: best {best.kind} explains {100 * best.fit_rate:.0f} % of the points"
+                  if best else "no model could be hypothesised")
+        return PartResult(shape, {}, np.eye(4), best.fit_rate if best else 0.0,
+                          best.rms if best else float("inf"), indices, feats, noise, fits, reason)
+    fit = fits[shape.value]
+    prim, T = fit_to_object(shape.value, fit.R, fit.t, fit.dims)
+    return PartResult(shape, prim.dims, T, fit.fit_rate, fit.rms, indices, feats, noise, fits)
+
+
+def _unidentified(part: PartResult, box: OrientedBox) -> PartResult:
+    return replace(part, T_world_obj=box.T_world_box.copy())
+
+
+def identify(points: np.ndarray, *, rng: np.random.Generator,
+             config: IdentifyConfig | None = None) -> Identification:
+    """Identify the shape primitives of an object cloud (N, 3), world frame [m]."""
+    t0 = time.perf_counter()
+    cfg = config or IdentifyConfig()
+    pts_all = check_cloud(points, min_points=cfg.min_cluster_points)
+    keep = remove_outliers(pts_all) if cfg.remove_outliers else np.ones(len(pts_all), bool)
+    if keep.sum() < cfg.min_cluster_points:
+        keep[:] = True
+    kept = np.flatnonzero(keep)
+    pts = pts_all[kept]
+    surf = estimate_local_surface(pts)
+    noise = float(cfg.noise) if cfg.noise is not None else surf.noise
+    reliable = surf.flatness <= np.quantile(surf.flatness, cfg.sample_quantile)
+
+    # leaves of the hierarchy: (local indices, MVBB or None for the unsplit root)
+    queue: deque[tuple[np.ndarray, OrientedBox | None]] = deque([(np.arange(len(pts)), None)])
+    done: list[tuple[PartResult, OrientedBox | None]] = []
+    failed: list[tuple[PartResult, OrientedBox]] = []
+    n_splits = 0
+    while queue:
+        idx, box = queue.popleft()
+        sub = pts[idx]
+        pool = np.flatnonzero(reliable[idx])
+        part = identify_cluster(sub, surf.normals[idx], pool, noise, rng, cfg, kept[idx])
+        if part.shape is not Shape.UNIDENTIFIED:
+            done.append((part, box))
+            continue
+        box = box if box is not None else min_volume_box(sub)
+        n_leaves = len(done) + len(failed) + len(queue) + 1
+        split = None
+        if n_leaves < cfg.max_parts and len(idx) >= 2 * cfg.min_cluster_points:
+            split = best_split(sub, box, min_points=cfg.min_cluster_points)
+        if split is not None:
+            others = sum(b.volume for _, b in done + failed if b is not None)
+            others += sum(b.volume for _, b in queue if b is not None)
+            theta = theta_star(box.volume, (split.boxes[0].volume, split.boxes[1].volume), others)
+            log.debug("split of %d points: area ratio %.3f, theta* %.3f (threshold %.3f)",
+                      len(idx), split.area_ratio, theta, cfg.theta)
+            if theta < cfg.theta:
+                n_splits += 1
+                queue.append((idx[split.mask], split.boxes[0]))
+                queue.append((idx[~split.mask], split.boxes[1]))
+                continue
+        failed.append((_unidentified(part, box), box))
+    status = IdentificationStatus.FAILED if failed else IdentificationStatus.IDENTIFIED
+    return Identification(status, tuple(p for p, _ in done), tuple(p for p, _ in failed),
+                          len(pts_all), int(len(pts_all) - len(kept)), noise, n_splits,
+                          time.perf_counter() - t0)

@@ -1,0 +1,192 @@
+"""MLESAC (Torr & Zisserman 2000): maximum-likelihood sample consensus.
+
+Residuals e of a hypothesis are modelled as a mixture of Gaussian inliers and uniform
+outliers::
+
+    p(e) = gamma * N(e; 0, sigma^2) + (1 - gamma) / nu
+
+with the mixing weight gamma estimated per hypothesis by EM and the hypothesis scored
+by its log-likelihood. All hypotheses of a model are scored at once ((H, N) arrays).
+The best one is then refined by robust least squares (scipy, soft-L1) on its inliers;
+the refined model replaces it only if its likelihood is higher.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from graspsim.errors import InvalidParameterError
+from graspsim.perception.hypotheses import SAMPLE_SIZE, hypothesise, plausible
+from graspsim.perception.shapes import KINDS, model_sdf
+
+__all__ = ["ModelFit", "mixture_loglik", "fit_model", "rescore", "residual_sigma"]
+
+_LOG_SQRT_2PI = 0.5 * np.log(2.0 * np.pi)
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """Best fit of one model kind to a cloud.
+
+    R (3, 3), t (3,): ``T_world_fit`` (see :mod:`shapes`); dims (k,) [m];
+    loglik: mixture log-likelihood of all points; gamma: inlier mixing weight;
+    fit_rate: fraction of points whose inlier posterior exceeds 1/2 (paper eq. 2);
+    rms: RMS residual of those inliers [m]; inliers: (N,) bool;
+    n_hypotheses / n_valid: samples drawn / non-degenerate; refined: LSQ kept.
+    """
+
+    kind: str
+    R: np.ndarray
+    t: np.ndarray
+    dims: np.ndarray
+    loglik: float
+    gamma: float
+    fit_rate: float
+    rms: float
+    inliers: np.ndarray
+    n_hypotheses: int
+    n_valid: int
+    refined: bool
+
+
+def mixture_loglik(residuals: np.ndarray, sigma: float, nu: float, *, em_iters: int = 5):
+    """Log-likelihood (H,), mixing weight gamma (H,) and inlier posteriors (H, N) of
+    residuals (H, N) [m] under the Gaussian/uniform mixture; gamma by EM from 1/2."""
+    e2 = (np.asarray(residuals, float) / sigma) ** 2
+    log_g = -0.5 * e2 - _LOG_SQRT_2PI - np.log(sigma)
+    g = np.exp(log_g)
+    u = 1.0 / nu
+    gamma = np.full(e2.shape[0], 0.5)
+    for _ in range(em_iters):
+        pin = gamma[:, None] * g
+        post = pin / (pin + (1.0 - gamma[:, None]) * u)
+        gamma = np.clip(post.mean(axis=1), 1e-6, 1.0 - 1e-6)
+    pin = gamma[:, None] * g
+    total = pin + (1.0 - gamma[:, None]) * u
+    return np.log(total).sum(axis=1), gamma, pin / total
+
+
+def fit_model(
+    kind: str,
+    points: np.ndarray,
+    normals: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    repetitions: int,
+    sigma: float,
+    candidates: np.ndarray | None = None,
+    refine: bool = True,
+    max_refine_points: int = 300,
+) -> ModelFit | None:
+    """MLESAC fit of one model ``kind`` to points (N, 3) with unit normals (N, 3).
+
+    repetitions: minimal samples drawn (one hypothesis each); sigma: inlier noise [m];
+    candidates: indices of the points samples are drawn from (default all; e.g. the
+    points with the most reliable normals). Scoring always uses all points.
+    Returns None when no sample gave a valid hypothesis.
+    """
+    if kind not in KINDS:
+        raise InvalidParameterError(f"unknown model kind {kind!r}; valid: {KINDS}")
+    if repetitions < 1:
+        raise InvalidParameterError(f"repetitions must be >= 1, got {repetitions!r}")
+    n = len(points)
+    nu = float(np.linalg.norm(np.ptp(points, axis=0))) + 10.0 * sigma
+    pool = np.arange(n) if candidates is None else np.asarray(candidates)
+    if len(pool) < SAMPLE_SIZE[kind]:
+        pool = np.arange(n)
+    idx = pool[rng.integers(0, len(pool), size=(repetitions, SAMPLE_SIZE[kind]))]
+    R, t, dims, valid = hypothesise(kind, points, normals, idx, sigma)
+    valid &= np.all(np.isfinite(dims), axis=1) & np.all(dims >= 0, axis=1)
+    valid &= np.all(np.isfinite(t), axis=1) & np.all(np.isfinite(R), axis=(1, 2))
+    if not np.any(valid):
+        return None
+    R, t, dims = R[valid], t[valid], dims[valid]
+    ll, gamma, post = mixture_loglik(np.nan_to_num(model_sdf(kind, R, t, dims, points), nan=nu),
+                                     sigma, nu)
+    b = int(np.argmax(ll))
+    best = (R[b], t[b], dims[b], ll[b], gamma[b], post[b])
+    refined = False
+    if refine:
+        cand = _refine(kind, best[0], best[1], best[2], points, best[5] > 0.5, sigma,
+                       max_refine_points)
+        if cand is not None and plausible(kind, cand[2], nu - 10.0 * sigma)[0]:
+            r_ll, r_gamma, r_post = mixture_loglik(model_sdf(kind, *cand, points), sigma, nu)
+            if r_ll[0] > best[3]:
+                best = (cand[0][0], cand[1][0], cand[2][0], r_ll[0], r_gamma[0], r_post[0])
+                refined = True
+    Rb, tb, db, llb, gb, pb = best
+    inl = pb > 0.5
+    res = model_sdf(kind, Rb[None], tb[None], db[None], points)[0]
+    rms = float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else float("inf")
+    return ModelFit(kind, Rb, tb, db, float(llb), float(gb), float(inl.mean()), rms, inl,
+                    repetitions, int(valid.sum()), refined)
+
+
+def residual_sigma(fit: ModelFit, points: np.ndarray) -> float:
+    """Robust standard deviation (1.4826 MAD) of a fit's inlier residuals [m]."""
+    res = model_sdf(fit.kind, fit.R[None], fit.t[None], fit.dims[None], points)[0][fit.inliers]
+    return float(1.4826 * np.median(np.abs(res))) if len(res) else float("nan")
+
+
+def rescore(fit: ModelFit, points: np.ndarray, sigma: float) -> ModelFit:
+    """The same model scored with another noise sigma [m] (fit rate, gamma, inliers)."""
+    nu = float(np.linalg.norm(np.ptp(points, axis=0))) + 10.0 * sigma
+    res = model_sdf(fit.kind, fit.R[None], fit.t[None], fit.dims[None], points)
+    ll, gamma, post = mixture_loglik(res, sigma, nu)
+    inl = post[0] > 0.5
+    rms = float(np.sqrt(np.mean(res[0][inl] ** 2))) if inl.any() else float("inf")
+    return replace(fit, loglik=float(ll[0]), gamma=float(gamma[0]), fit_rate=float(inl.mean()),
+                   rms=rms, inliers=inl)
+
+
+def _refine(kind, R0, t0, d0, points, inliers, sigma, max_points, max_nfev=12):
+    """Soft-L1 least squares of the signed distances of (a stride subsample of) the
+    inliers over pose and dims. Returns batched (R, t, dims) with H = 1, or None.
+    The forward-difference Jacobian is one batched SDF call over all perturbations."""
+    sel = np.flatnonzero(inliers)
+    if len(sel) < 2 * (6 + len(d0)):
+        return None
+    if len(sel) > max_points:
+        sel = sel[np.linspace(0, len(sel) - 1, max_points).astype(int)]
+    p = points[sel]
+    scale = max(float(np.max(d0)), 10.0 * sigma)
+    k = len(d0)
+    eps = 1e-7
+
+    def unpack(X):  # X (H, 6 + k)
+        R = np.einsum("ij,hjk->hik", R0, _rodrigues(X[:, :3]))
+        return R, t0 + X[:, 3:6] * scale, np.abs(X[:, 6:]) * scale
+
+    def fun(x):
+        return model_sdf(kind, *unpack(x[None]), p)[0] / sigma
+
+    def jac(x):
+        X = np.vstack([x, x + eps * np.eye(len(x))])
+        F = model_sdf(kind, *unpack(X), p) / sigma
+        return ((F[1:] - F[0]) / eps).T
+
+    x0 = np.concatenate([np.zeros(6), d0 / scale])
+    try:
+        sol = least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=2.0, max_nfev=max_nfev,
+                            ftol=1e-4, xtol=1e-4, method="trf")
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    if not np.all(np.isfinite(sol.x)):
+        return None
+    return unpack(sol.x[None])
+
+
+def _rodrigues(w: np.ndarray) -> np.ndarray:
+    """Rotation matrices (H, 3, 3) of rotation vectors w (H, 3) [rad]."""
+    th = np.linalg.norm(w, axis=1)
+    K = np.zeros((len(w), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
+    small = th < 1e-6
+    ths = np.where(small, 1.0, th)
+    a = np.where(small, 1.0, np.sin(ths) / ths)[:, None, None]
+    b = np.where(small, 0.5, (1.0 - np.cos(ths)) / ths**2)[:, None, None]
+    return np.eye(3) + a * K + b * (K @ K)

@@ -1,0 +1,108 @@
+"""Primitive models as the fitters see them: batched signed distances in a *fit frame*.
+
+A model hypothesis is a pose ``(R, t)`` = ``T_world_fit`` and a dims vector in the
+primitive's ``dim_names`` order. The fit frame is the primitive's object frame up to a
+shift along its axis, chosen so the formulas are simple and the fit well conditioned:
+
+* box, cylinder, sphere: centred (= object frame);
+* cone: on the axis at mid-height, z from the bottom face towards the top face;
+* half-toroid: the ring centre (the geometric frame), symmetry axis z, kept half +y.
+
+Every function here is vectorised over H hypotheses and N points: distances are
+(H, N) arrays for points (N, 3) and poses (H, 3, 3), (H, 3), dims (H, k).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from graspsim.primitives import make_primitive
+from graspsim.transforms import make_transform
+
+__all__ = ["KINDS", "DIM_NAMES", "to_local", "sdf_local", "model_sdf", "fit_to_object"]
+
+#: Model kinds in the order of their simplicity (ties go to the earlier one).
+KINDS: tuple[str, ...] = ("sphere", "cylinder", "box", "cone", "half_toroid")
+DIM_NAMES: dict[str, tuple[str, ...]] = {
+    "sphere": ("radius",),
+    "cylinder": ("radius", "height"),
+    "box": ("x", "y", "z"),
+    "cone": ("bottom_radius", "top_radius", "height"),
+    "half_toroid": ("major_radius", "minor_radius"),
+}
+
+
+def to_local(R: np.ndarray, t: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """World points (N, 3) into H fit frames: (H, N, 3) = (p - t_h) R_h.
+
+    Written as three broadcast products: a BLAS matmul with an inner dimension of 3
+    is slower, and much slower when OpenBLAS threads compete for busy cores."""
+    d = points[None, :, :] - t[:, None, :]
+    return (d[..., 0, None] * R[:, None, 0, :] + d[..., 1, None] * R[:, None, 1, :]
+            + d[..., 2, None] * R[:, None, 2, :])
+
+
+def sdf_local(kind: str, q: np.ndarray, dims: np.ndarray) -> np.ndarray:
+    """Signed distance (H, N) [m] of fit-frame points q (H, N, 3) to models dims (H, k)."""
+    d = [dims[:, i, None] for i in range(dims.shape[1])]
+    x, y, z = q[..., 0], q[..., 1], q[..., 2]
+    if kind == "sphere":
+        return np.sqrt(x * x + y * y + z * z) - d[0]
+    if kind == "box":
+        qq = np.abs(q) - 0.5 * dims[:, None, :]
+        out = np.sqrt(np.sum(np.maximum(qq, 0.0) ** 2, axis=-1))
+        return out + np.minimum(np.max(qq, axis=-1), 0.0)
+    if kind == "cylinder":
+        dr = np.sqrt(x * x + y * y) - d[0]
+        dz = np.abs(z) - 0.5 * d[1]
+        return np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0)) + np.minimum(np.maximum(dr, dz), 0.0)
+    if kind == "cone":
+        r0, r1, h = d
+        rho = np.sqrt(x * x + y * y)
+        zb = z + 0.5 * h  # base at 0
+        d_bot = np.hypot(rho - np.minimum(rho, r0), zb)
+        d_top = np.hypot(rho - np.minimum(rho, r1), zb - h)
+        ex, ez = r1 - r0, h
+        s = np.clip(((rho - r0) * ex + zb * ez) / np.maximum(ex * ex + ez * ez, 1e-30), 0.0, 1.0)
+        d_side = np.hypot(rho - (r0 + s * ex), zb - s * ez)
+        dist = np.minimum(np.minimum(d_bot, d_top), d_side)
+        inside = (zb >= 0.0) & (zb <= h) & (rho * h <= r0 * h + (r1 - r0) * zb)
+        return np.where(inside, -dist, dist)
+    if kind == "half_toroid":
+        R, r = d
+        torus = np.hypot(np.hypot(x, y) - R, z) - r
+        upper = np.where(torus < 0.0, np.maximum(torus, -y), torus)
+        caps = np.minimum(
+            np.hypot(np.maximum(np.hypot(x - R, z) - r, 0.0), y),
+            np.hypot(np.maximum(np.hypot(x + R, z) - r, 0.0), y),
+        )
+        return np.where(y >= 0.0, upper, caps)
+    raise ValueError(f"unknown model kind {kind!r}; valid: {KINDS}")
+
+
+def model_sdf(kind: str, R: np.ndarray, t: np.ndarray, dims: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Signed distances (H, N) of world points (N, 3) to H posed models."""
+    return sdf_local(kind, to_local(R, t, points), dims)
+
+
+def fit_to_object(kind: str, R: np.ndarray, t: np.ndarray, dims: np.ndarray):
+    """One fit (R (3, 3), t (3,), dims (k,)) -> (primitive, T_world_obj (4, 4)), after
+    canonicalising: box edges sorted so z is the longest; cone bottom_radius >= top."""
+    R, t, dims = np.array(R, float), np.array(t, float), np.array(dims, float)
+    if kind == "box":
+        order = np.argsort(dims, kind="stable")
+        dims, R = dims[order], R[:, order]
+        if np.linalg.det(R) < 0:
+            R[:, 0] = -R[:, 0]
+    elif kind == "cone" and dims[1] > dims[0]:
+        dims = dims[[1, 0, 2]]
+        R = R @ np.diag([1.0, -1.0, -1.0])
+    elif kind == "sphere":
+        R = np.eye(3)
+    prim = make_primitive(kind, **dict(zip(DIM_NAMES[kind], map(float, dims))))
+    shift = np.zeros(3)
+    if kind == "cone":
+        shift = prim.com_geo - np.array([0.0, 0.0, 0.5 * dims[2]])
+    elif kind == "half_toroid":
+        shift = prim.com_geo
+    return prim, make_transform(R, t + R @ shift)

@@ -19,7 +19,10 @@ __all__ = ["main", "build_parser"]
 
 # Each module defines ``register(subparsers)``; its parsers set ``func`` returning a
 # summary dict.
-COMMAND_MODULES: tuple[str, ...] = ("graspsim.cli.trial",)
+COMMAND_MODULES: tuple[str, ...] = (
+    "graspsim.cli.identify",
+    "graspsim.cli.trial",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -56,3 +56,17 @@ from graspsim.primitives.clouds import SyntheticCloud, synthetic_cloud  # noqa: 
 from graspsim.primitives.compound import Compound  # noqa: E402
 
 __all__ += ["Compound", "SyntheticCloud", "synthetic_cloud"]
+
+
+def shape_from_dict(d: dict):
+    """A Primitive or Compound from ``to_dict()`` output (the ``object`` of a map)."""
+    if d.get("primitive") == "compound":
+        try:
+            parts = [primitive_from_dict(p) for p in d["parts"]]
+            return Compound(tuple(parts), __import__("numpy").asarray(d["poses"], float))
+        except (KeyError, TypeError) as err:
+            raise PrimitiveError(f"not a compound description: {d!r}") from err
+    return primitive_from_dict(d)
+
+
+__all__ += ["shape_from_dict"]

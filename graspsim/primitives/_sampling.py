@@ -43,7 +43,7 @@ def disk_samples(
     """Flat disk in the plane spanned by unit ``u``, ``v``; normal u x v; polar rings."""
     nr = cells(radius, step)
     dr = radius / nr
-    pts, areas, cover = [], [], 0.0
+    pts, areas, tang, cover = [], [], [], 0.0
     u, v = np.asarray(u, float), np.asarray(v, float)
     for k in range(nr):
         rho = (k + 0.5) * dr
@@ -53,14 +53,18 @@ def disk_samples(
         th = (np.arange(nt) + 0.5) * dt
         pts.append(center + rho * (np.cos(th)[:, None] * u + np.sin(th)[:, None] * v))
         areas.append(np.full(nt, 2.0 * math.pi * rho * dr / nt))
+        ring = 0.0
         for rc in (rho - dr / 2, rho + dr / 2):
             for half in (dt / 2, 0.0):
                 d2 = rho**2 + rc**2 - 2.0 * rho * rc * math.cos(half)
-                cover = max(cover, math.sqrt(max(d2, 0.0)))
-        cover = max(cover, 2.0 * rho * math.sin(dt / 4) if nt > 1 else rho)
+                ring = max(ring, math.sqrt(max(d2, 0.0)))
+        ring = max(ring, 2.0 * rho * math.sin(dt / 4) if nt > 1 else rho)
+        tang.append(np.full(nt, ring))
+        cover = max(cover, ring)
     pts = np.concatenate(pts)
     n = np.cross(u, v)
-    return SurfaceSamples(pts, np.broadcast_to(n, pts.shape).copy(), np.concatenate(areas), cover)
+    return SurfaceSamples(pts, np.broadcast_to(n, pts.shape).copy(), np.concatenate(areas), cover,
+                          tangent_radius=np.concatenate(tang), normal_height=np.zeros(len(pts)))
 
 
 def revolution_samples(
@@ -80,7 +84,7 @@ def revolution_samples(
     ds = length / ns
     s = (np.arange(ns) + 0.5) * ds
     rho, z, nr, nz = (np.asarray(a, float) for a in profile(s))
-    pts, nrm, areas = [], [], []
+    pts, nrm, areas, tang, height = [], [], [], [], []
     cover = 0.0
     edges = np.asarray(profile(np.linspace(0.0, length, ns + 1))[0], float)
     for j in range(ns):
@@ -92,12 +96,18 @@ def revolution_samples(
         pts.append(np.column_stack([rho[j] * c, rho[j] * si, np.full(nt, z[j])]))
         nrm.append(np.column_stack([nr[j] * c, nr[j] * si, np.full(nt, nz[j])]))
         areas.append(np.full(nt, rho[j] * dt * ds))
-        # distance from the cell's sample (azimuth 0 by symmetry) to corners/edge midpoints
+        # offsets of the cell's corners and edge midpoints from its sample (azimuth 0 by
+        # symmetry), split along the sample's normal and its tangent plane
         sc = np.array([s[j] - ds / 2, s[j], s[j] + ds / 2])
         rc, zc, _, _ = (np.asarray(a, float) for a in profile(sc))
+        cell_t, cell_h = 0.0, 0.0
         for half in (-dt / 2, 0.0, dt / 2):
-            d = np.sqrt(
-                (rc * math.cos(half) - rho[j]) ** 2 + (rc * math.sin(half)) ** 2 + (zc - z[j]) ** 2
-            )
-            cover = max(cover, float(d.max()))
-    return SurfaceSamples(np.concatenate(pts), np.concatenate(nrm), np.concatenate(areas), cover)
+            d = np.stack([rc * math.cos(half) - rho[j], rc * math.sin(half), zc - z[j]], axis=1)
+            h = d[:, 0] * nr[j] + d[:, 2] * nz[j]
+            cell_h = max(cell_h, float(np.abs(h).max()))
+            cell_t = max(cell_t, float(np.sqrt(np.maximum((d**2).sum(1) - h**2, 0.0)).max()))
+            cover = max(cover, float(np.sqrt((d**2).sum(1)).max()))
+        tang.append(np.full(nt, cell_t))
+        height.append(np.full(nt, cell_h))
+    return SurfaceSamples(np.concatenate(pts), np.concatenate(nrm), np.concatenate(areas), cover,
+                          tangent_radius=np.concatenate(tang), normal_height=np.concatenate(height))

@@ -32,18 +32,35 @@ class SurfaceSamples:
     points, normals: (N, 3) object frame [m], outward unit normals.
     areas: (N,) surface area each sample stands for [m^2].
     cover_radius: every surface point lies within this distance of a sample [m].
+    tangent_radius, normal_height: (N,) extent of each sample's cell (the surface patch
+        it stands for) along its tangent plane and along its normal [m]; every point of
+        the cell lies within them (flat cells have normal_height 0).
     """
 
     points: np.ndarray
     normals: np.ndarray
     areas: np.ndarray
     cover_radius: float
+    tangent_radius: np.ndarray | None = None
+    normal_height: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = len(self.points)
+        if self.tangent_radius is None:
+            object.__setattr__(self, "tangent_radius", np.full(n, float(self.cover_radius)))
+        if self.normal_height is None:
+            object.__setattr__(self, "normal_height", np.zeros(n))
 
     def __len__(self) -> int:
         return len(self.points)
 
     def shifted(self, offset: np.ndarray) -> "SurfaceSamples":
         return replace(self, points=self.points + np.asarray(offset, float))
+
+    def select(self, mask) -> "SurfaceSamples":
+        return replace(self, points=self.points[mask], normals=self.normals[mask],
+                       areas=self.areas[mask], tangent_radius=self.tangent_radius[mask],
+                       normal_height=self.normal_height[mask])
 
     @staticmethod
     def concat(parts: list["SurfaceSamples"]) -> "SurfaceSamples":
@@ -52,6 +69,8 @@ class SurfaceSamples:
             normals=np.concatenate([p.normals for p in parts]),
             areas=np.concatenate([p.areas for p in parts]),
             cover_radius=max(p.cover_radius for p in parts),
+            tangent_radius=np.concatenate([p.tangent_radius for p in parts]),
+            normal_height=np.concatenate([p.normal_height for p in parts]),
         )
 
 

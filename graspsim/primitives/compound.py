@@ -71,7 +71,8 @@ class Compound:
             keep = np.ones(len(pts), bool)
             for j in others:
                 keep &= self.parts[j].sdf(self._part_points(j, pts)) >= -1e-9
-            out.append(SurfaceSamples(pts[keep], nrm[keep], smp.areas[keep], smp.cover_radius))
+            out.append(SurfaceSamples(pts[keep], nrm[keep], smp.areas[keep], smp.cover_radius,
+                                      smp.tangent_radius[keep], smp.normal_height[keep]))
         return SurfaceSamples.concat(out)
 
     def part_index(self, points: np.ndarray) -> np.ndarray:

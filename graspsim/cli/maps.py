@@ -1,0 +1,203 @@
+"""Subcommands for full-scale maps: ``map``, ``db``, ``show``, ``info``."""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+from graspsim.cli._common import add_json_flag, emit, format_table, progress
+
+__all__ = ["register"]
+
+_DIM_HELP = {
+    "x": "box edge along x [m]", "y": "box edge along y [m]", "z": "box edge along z [m]",
+    "radius": "cylinder/sphere radius [m]", "height": "cylinder/cone height [m]",
+    "bottom_radius": "cone base radius [m]", "top_radius": "cone top radius [m] (0: full cone)",
+    "major_radius": "half-toroid ring radius [m]", "minor_radius": "half-toroid tube radius [m]",
+}
+
+
+def _add_dims(p) -> None:
+    g = p.add_argument_group("dimensions (metres; the ones the primitive takes)")
+    for name, text in _DIM_HELP.items():
+        g.add_argument(f"--{name.replace('_', '-')}", dest=f"dim_{name}", type=float, help=text)
+
+
+def _shape_from_args(args):
+    from graspsim.primitives import make_primitive
+
+    dims = {k[4:]: v for k, v in vars(args).items() if k.startswith("dim_") and v is not None}
+    return make_primitive(args.primitive, **dims)
+
+
+def _add_generation(p) -> None:
+    g = p.add_argument_group("generation")
+    g.add_argument("--surface-step", type=float, default=0.005, help="contact spacing [m] (0.005)")
+    g.add_argument("--rotation-step-deg", type=float, default=11.0, help="rotation step [deg] (11)")
+    g.add_argument("--closing-cone-deg", type=float, default=22.0,
+                   help="closing directions up to this angle from the inward normal [deg] (22)")
+    g.add_argument("--depth-step", type=float, default=0.01, help="contact depths along the pad [m] (0.01)")
+    g.add_argument("--tolerance", type=float, default=0.00025,
+                   help="poses closer than this to touching count as colliding [m] (0.00025)")
+    g.add_argument("--mu", type=float, default=0.5, help="friction coefficient of the grade (0.5)")
+    g.add_argument("--threads", type=int, default=None, help="CPU threads (default: all cores)")
+
+
+def _config(args):
+    from graspsim.maps.generate import MapConfig
+    from graspsim.quality import QualityModel
+
+    cfg = MapConfig(surface_step=args.surface_step, rotation_step=math.radians(args.rotation_step_deg),
+                    closing_cone=math.radians(args.closing_cone_deg), depth_step=args.depth_step,
+                    collision_tolerance=args.tolerance)
+    return cfg, QualityModel(friction=args.mu)
+
+
+def _cmd_map(args) -> int:
+    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.maps.io import save_map
+    from graspsim.maps.metrics import map_rates
+
+    shape = _shape_from_args(args)
+    cfg, quality = _config(args)
+    out = Path(args.output)
+    if not out.parent.is_dir():
+        from graspsim.errors import MapFileError
+
+        raise MapFileError(f"cannot write {out}: folder {out.parent} does not exist")
+    t0 = time.perf_counter()
+    with progress(100, f"map {shape.kind}", enabled=not args.json, unit="%") as bar:
+        def report(frac: float) -> None:
+            bar.n = int(100 * frac)
+            bar.refresh()
+
+        gmap = generate_fs_map(shape, HGPL_25_60_A, quality, cfg, mass=args.mass,
+                               threads=args.threads, progress=report)
+    seconds = time.perf_counter() - t0
+    save_map(gmap, out)
+    rates = map_rates(gmap)
+    if args.plot:
+        from graspsim.plots import plot_map
+
+        plot_map(gmap, args.plot)
+    summary = {"file": str(out), "object": gmap.meta.object, "grasps": len(gmap),
+               "accepted": int(gmap.accepted.sum()), "SR": rates.sr, "VR": rates.vr,
+               "seconds": seconds, "timing": gmap.meta.timing}
+    human = (f"{shape}: {len(gmap)} collision-free grasps, {summary['accepted']} with grade > "
+             f"{gmap.threshold:g}; SR {rates.sr:.3f}, VR {rates.vr:.3f}; {seconds:.2f} s -> {out}")
+    emit(summary, args.json, human)
+    return 0
+
+
+def _cmd_show(args) -> int:
+    from graspsim.maps.io import load_map
+    from graspsim.plots import plot_map
+
+    gmap = load_map(args.file)
+    plot_map(gmap, args.output, what=args.what, min_grade=args.min_grade)
+    emit({"file": args.file, "image": args.output, "grasps": len(gmap),
+          "plotted_min_grade": args.min_grade}, args.json, f"wrote {args.output}")
+    return 0
+
+
+def _cmd_info(args) -> int:
+    from graspsim.maps.io import load_map, read_sim_results
+    from graspsim.maps.metrics import map_rates
+
+    gmap = load_map(args.file)
+    s = gmap.summary()
+    rates = map_rates(gmap)
+    s.update(file=args.file, SR=rates.sr, VR=rates.vr, quality=gmap.meta.quality,
+             resolution=gmap.meta.resolution, timing=gmap.meta.timing, gripper=gmap.meta.gripper["name"],
+             simulated=sorted(k for k in read_sim_results(args.file) if k != "info"))
+    rows = [(k, s[k]) for k in ("method", "grasps", "accepted", "threshold", "grade_mean",
+                                "grade_max", "parts", "SR", "VR", "gripper")]
+    human = f"{args.file}: {gmap.meta.object}\n" + format_table(rows, ["field", "value"])
+    emit(s, args.json, human)
+    return 0
+
+
+def _cmd_db(args) -> int:
+    from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid
+
+    cfg, quality = _config(args)
+    db = MapDatabase(args.root, quality=quality, config=cfg)
+    if args.db_command == "build":
+        kinds = args.primitives or list(PAPER_SHAPES)
+        shapes = []
+        for k in kinds:
+            base = PAPER_SHAPES.get(k.replace("-", "_"))
+            if base is None:
+                from graspsim.errors import MapDatabaseError
+
+                raise MapDatabaseError(f"unknown primitive {k!r}; valid: {sorted(PAPER_SHAPES)}")
+            shapes += size_grid(base, args.grid) if args.grid else [base]
+        t0 = time.perf_counter()
+        with progress(len(shapes), "FS database", enabled=not args.json, unit="map") as bar:
+            records = db.build(shapes, threads=args.threads,
+                               progress=lambda i, n, s: bar.update(1))
+        rows = [(e["primitive"], e["dims"], e["grasps"], e["accepted"], e["seconds"]) for e in records]
+        emit({"root": str(db.root), "maps": records, "seconds": time.perf_counter() - t0}, args.json,
+             format_table(rows, ["primitive", "dims [m]", "grasps", "accepted", "build s"]))
+    elif args.db_command == "list":
+        ents = db.entries()
+        emit({"root": str(db.root), "maps": ents}, args.json,
+             format_table([(e["primitive"], e["dims"], e["grasps"], e["file"]) for e in ents],
+                          ["primitive", "dims [m]", "grasps", "file"]))
+    else:  # lookup
+        shape = _shape_from_args(args)
+        m = db.lookup(shape.kind, shape.dims)
+        emit({"primitive": shape.kind, "dims": shape.dims, "match": m.match,
+              "nearest": m.entry, "distance": m.distance}, args.json,
+             f"{shape}: {m.match or 'no map of this primitive'}"
+             + (f" (nearest stored: {m.entry['dims']}, {m.distance * 100:.2f} cm off)" if m.entry else ""))
+    return 0
+
+
+def register(sub) -> None:
+    p = sub.add_parser("map", help="generate a full-scale graspability map of a primitive",
+                       description="Surface-to-voxel FS map of a shape primitive for the "
+                       "Festo HGPL-25-60-A style gripper; writes an HDF5 map file.")
+    p.add_argument("primitive", help="box, cylinder, sphere, cone or half_toroid")
+    _add_dims(p)
+    p.add_argument("-o", "--output", required=True, help="map file to write (.h5)")
+    p.add_argument("--mass", type=float, default=None, help="object mass [kg] (default: 500 kg/m^3)")
+    p.add_argument("--plot", default=None, help="also save a PNG of the map")
+    _add_generation(p)
+    add_json_flag(p)
+    p.set_defaults(func=_cmd_map)
+
+    p = sub.add_parser("show", help="plot a map file as a 3-D scatter coloured by grade")
+    p.add_argument("file", help="map file (.h5)")
+    p.add_argument("-o", "--output", required=True, help="image to write (.png)")
+    p.add_argument("--what", choices=["grasp_point", "wrist"], default="grasp_point",
+                   help="plot grasp points (default) or wrist positions")
+    p.add_argument("--min-grade", type=float, default=0.0, help="plot grasps above this grade")
+    add_json_flag(p)
+    p.set_defaults(func=_cmd_show)
+
+    p = sub.add_parser("info", help="summarise a map file")
+    p.add_argument("file", help="map file (.h5)")
+    add_json_flag(p)
+    p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("db", help="the full-scale map database (build, list, lookup)")
+    dbs = p.add_subparsers(dest="db_command", metavar="ACTION")
+    dbs.required = True
+    for name, text in (("build", "build the paper's five primitives (and a size grid)"),
+                       ("list", "list stored maps"), ("lookup", "known / familiar decision")):
+        q = dbs.add_parser(name, help=text)
+        q.add_argument("--root", default=None, help="database folder (default $GRASPSIM_DB or "
+                       "~/.cache/graspsim/db)")
+        _add_generation(q)
+        add_json_flag(q)
+        if name == "build":
+            q.add_argument("--primitives", nargs="+", default=None, help="subset of the five")
+            q.add_argument("--grid", type=float, nargs="+", default=None,
+                           help="size scale factors, e.g. 0.5 0.75 1 1.5 2")
+        if name == "lookup":
+            q.add_argument("primitive")
+            _add_dims(q)
+        q.set_defaults(func=_cmd_db)

@@ -1,0 +1,16 @@
+"""Graspability maps: data structure, FS generation, metrics, storage, database."""
+
+from __future__ import annotations
+
+from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
+from graspsim.maps.io import load_map, read_sim_results, save_map, write_sim_results
+
+__all__ = [
+    "COLUMNS",
+    "GraspabilityMap",
+    "MapMeta",
+    "load_map",
+    "save_map",
+    "write_sim_results",
+    "read_sim_results",
+]

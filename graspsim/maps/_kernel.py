@@ -1,0 +1,372 @@
+"""Compiled collision sweep of the surface-to-voxel generator (numba).
+
+Geometry of the test
+--------------------
+For one closing line (grasp point GP, closing axis u, pre-grasp opening o) the
+gripper's roll phi about u and its contact depth d (distance of the contact from the
+fingertip along the pad) are swept. A point q of the object has line-frame
+coordinates s = (q-GP).u, a = (q-GP).e1, b = (q-GP).e2 (e1 x e2 = u). At roll phi the
+wrist axes are x = u, z = cos(phi) e1 + sin(phi) e2, y = z x x, so q has wrist
+coordinates x = s, y = a sin(phi) - b cos(phi), z_w = t + fingertip_z - d with
+t = a cos(phi) + b sin(phi).
+
+The gripper is three nested "columns": each finger's footprint in (x, y) lies inside
+its jaw's, each jaw's inside the housing's, and everything behind the housing is the
+robot arm. A point in the footprint of part k therefore collides iff its z_w is below
+part k's top face, i.e. iff t + off_k <= d with off_k = fingertip_z - top_k. One
+minimum per roll answers all depths: pose (phi, d) collides iff min_q (t_q + off) <= d.
+
+Exactness
+---------
+The object is represented by surface samples on two levels. Each coarse sample c
+stands for the surface patch nearest to it; from its fine children the kernel knows
+the patch's tangential radius ``rt`` and its height ``h`` along c's normal n, so along
+any unit direction e the patch reaches at most rt * sqrt(1 - (n.e)^2) + h |n.e| + f
+from c (f = the fine cover radius). Coarse tests grow each part by exactly that reach
+(small where the surface is tangent to a part's face, the common near miss): no coarse
+hit means no collision; a coarse sample inside a part (it lies on the surface) means a
+certain collision. Depths in between are refined with the fine children, grown by f:
+exact except that poses within f of touching count as colliding (conservative).
+
+Loops run with the rolls innermost so that numba vectorises them (element-wise minima
+over the roll axis; horizontal min-reductions do not vectorise).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+__all__ = ["sweep_lines"]
+
+# A large finite sentinel: fastmath lets LLVM assume there are no infinities.
+_BIG = np.float32(1e9)
+
+
+@njit(cache=True, fastmath=True, inline="always")
+def _xoff(s, lo, hi, off):
+    return off if (s >= lo and s <= hi) else _BIG
+
+
+@njit(cache=True, fastmath=True)
+def _gather(Q, NQ, RT, HN, gp, u, e1, e2, ho, fp, fmargin, reach2,
+            idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH):
+    """Collect the coarse samples that can touch the gripper on this line and their
+    per-sample data; returns the count. fp rows finger/jaw/housing:
+    (x_inner, x_outer, half_width_y, off, unused); sided parts sit at |x| in
+    [o/2 + x_inner, o/2 + x_outer], the housing at |x| <= x_outer."""
+    n = 0
+    for i in range(Q.shape[0]):
+        dx = Q[i, 0] - gp[0]
+        dy = Q[i, 1] - gp[1]
+        dz = Q[i, 2] - gp[2]
+        s = dx * u[0] + dy * u[1] + dz * u[2]
+        a = dx * e1[0] + dy * e1[1] + dz * e1[2]
+        b = dx * e2[0] + dy * e2[1] + dz * e2[2]
+        ns = NQ[i, 0] * u[0] + NQ[i, 1] * u[1] + NQ[i, 2] * u[2]
+        rt = RT[i]
+        hn = HN[i]
+        ans = abs(ns)
+        # |n x e_x| <= |n.e1| + |n.e2|
+        na_ = abs(NQ[i, 0] * e1[0] + NQ[i, 1] * e1[1] + NQ[i, 2] * e1[2])
+        nb_ = abs(NQ[i, 0] * e2[0] + NQ[i, 1] * e2[1] + NQ[i, 2] * e2[2])
+        mx = rt * min(na_ + nb_, np.float32(1.0)) + hn * ans + fmargin
+        sa = abs(s)
+        fo = _xoff(sa, ho + fp[0, 0] - mx, ho + fp[0, 1] + mx, fp[0, 3])
+        jo = _xoff(sa, ho + fp[1, 0] - mx, ho + fp[1, 1] + mx, fp[1, 3])
+        hh = _xoff(sa, np.float32(-1.0), fp[2, 1] + mx, fp[2, 3])
+        rho2 = a * a + b * b
+        if fo < _BIG or (jo < _BIG and rho2 >= reach2[1]) or (hh < _BIG and rho2 >= reach2[2]):
+            idx[n] = i
+            ca[n] = a
+            cb[n] = b
+            cna[n] = NQ[i, 0] * e1[0] + NQ[i, 1] * e1[1] + NQ[i, 2] * e1[2]
+            cnb[n] = NQ[i, 0] * e2[0] + NQ[i, 1] * e2[1] + NQ[i, 2] * e2[2]
+            cns[n] = ans
+            crt[n] = rt
+            chn[n] = hn
+            oF[n] = fo
+            oJ[n] = jo
+            oH[n] = hh
+            xF[n] = _xoff(sa, ho + fp[0, 0], ho + fp[0, 1], fp[0, 3])
+            xJ[n] = _xoff(sa, ho + fp[1, 0], ho + fp[1, 1], fp[1, 3])
+            xH[n] = _xoff(sa, np.float32(-1.0), fp[2, 1], fp[2, 3])
+            n += 1
+    return n
+
+
+@njit(cache=True, fastmath=True)
+def _roll_minima(n, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH, cr, sr,
+                 hyF, hyJ, hyH, fmargin, vin, vex):
+    """Per roll: vex = exact min of t + off; vin = its conservative lower bound."""
+    R = cr.shape[0]
+    for r in range(R):
+        vin[r] = _BIG
+        vex[r] = _BIG
+    for k in range(n):
+        a = ca[k]
+        b = cb[k]
+        na = cna[k]
+        nb = cnb[k]
+        ns = cns[k]
+        rt = crt[k]
+        hn = chn[k]
+        f = oF[k]
+        j = oJ[k]
+        h = oH[k]
+        ef = xF[k]
+        ej = xJ[k]
+        eh = xH[k]
+        for r in range(R):
+            c = cr[r]
+            s = sr[r]
+            y = abs(a * s - b * c)
+            t = a * c + b * s
+            ny = abs(na * s - nb * c)
+            nt = abs(na * c + nb * s)
+            # sqrt(1 - ny^2) = |(nt, ns)| <= nt + ns: no square roots in the hot loop
+            my = rt * (nt + ns) + hn * ny + fmargin
+            mt = rt * (ny + ns) + hn * nt + fmargin
+            # a point belongs to every part whose x and y ranges both contain it;
+            # x-membership is encoded in the offsets (_BIG when outside)
+            o = h if y <= hyH + my else _BIG
+            o2 = j if y <= hyJ + my else _BIG
+            o = o2 if o2 < o else o
+            o2 = f if y <= hyF + my else _BIG
+            o = o2 if o2 < o else o
+            v = t - mt + o
+            vin[r] = v if v < vin[r] else vin[r]
+            o = eh if y <= hyH else _BIG
+            o2 = ej if y <= hyJ else _BIG
+            o = o2 if o2 < o else o
+            o2 = ef if y <= hyF else _BIG
+            o = o2 if o2 < o else o
+            v = t + o
+            vex[r] = v if v < vex[r] else vex[r]
+
+
+@njit(cache=True, fastmath=True, inline="always")
+def _patch_value(a, b, na, nb, ns, rt, hn, f, jj, h, c, s, hyF, hyJ, hyH, fmargin):
+    """Conservative value t - m_t + off of a sample's surface patch at roll (c, s)."""
+    y = abs(a * s - b * c)
+    t = a * c + b * s
+    ny = abs(na * s - nb * c)
+    nt = abs(na * c + nb * s)
+    my = rt * (nt + ns) + hn * ny + fmargin
+    mt = rt * (ny + ns) + hn * nt + fmargin
+    o = h if y <= hyH + my else _BIG
+    o2 = jj if y <= hyJ + my else _BIG
+    o = o2 if o2 < o else o
+    o2 = f if y <= hyF + my else _BIG
+    o = o2 if o2 < o else o
+    return t - mt + o
+
+
+@njit(cache=True, fastmath=True)
+def _refine(n, idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, nu, cu, su, dhi, best,
+            M, NM, RTM, HNM, mstart, F, NF, RTF, HNF, fstart, gp, u, e1, e2, ho, fp, fmargin, hit):
+    """Fine-level minima ``best[j]`` of t - f + off for the ``nu`` uncertain rolls
+    (cos cu[j], sin su[j]): descend from every coarse candidate whose patch value
+    reaches that roll's deepest uncertain depth ``dhi[j]`` to its middle-level
+    children (same patch test), and from those to their fine samples, each tested
+    with its own cell's extent (tangential radius RTF, normal height HNF)."""
+    hyF, hyJ, hyH = fp[0, 2], fp[1, 2], fp[2, 2]
+    for j in range(nu):
+        best[j] = _BIG
+    for k in range(n):
+        cnt = 0
+        for j in range(nu):
+            v = _patch_value(ca[k], cb[k], cna[k], cnb[k], cns[k], crt[k], chn[k], oF[k],
+                             oJ[k], oH[k], cu[j], su[j], hyF, hyJ, hyH, fmargin)
+            cnt += 1 if v <= dhi[j] else 0
+        if cnt == 0:
+            continue
+        i = idx[k]
+        for m in range(mstart[i], mstart[i + 1]):
+            dx = M[m, 0] - gp[0]
+            dy = M[m, 1] - gp[1]
+            dz = M[m, 2] - gp[2]
+            sa = abs(dx * u[0] + dy * u[1] + dz * u[2])
+            ma = dx * e1[0] + dy * e1[1] + dz * e1[2]
+            mb = dx * e2[0] + dy * e2[1] + dz * e2[2]
+            mna = NM[m, 0] * e1[0] + NM[m, 1] * e1[1] + NM[m, 2] * e1[2]
+            mnb = NM[m, 0] * e2[0] + NM[m, 1] * e2[1] + NM[m, 2] * e2[2]
+            mns = abs(NM[m, 0] * u[0] + NM[m, 1] * u[1] + NM[m, 2] * u[2])
+            rt = RTM[m]
+            hn = HNM[m]
+            mx = rt * min(abs(mna) + abs(mnb), np.float32(1.0)) + hn * mns + fmargin
+            mf = _xoff(sa, ho + fp[0, 0] - mx, ho + fp[0, 1] + mx, fp[0, 3])
+            mj = _xoff(sa, ho + fp[1, 0] - mx, ho + fp[1, 1] + mx, fp[1, 3])
+            mh = _xoff(sa, np.float32(-1.0), fp[2, 1] + mx, fp[2, 3])
+            if mh >= _BIG:
+                continue
+            cnt = 0
+            for j in range(nu):
+                v = _patch_value(ma, mb, mna, mnb, mns, rt, hn, mf, mj, mh, cu[j], su[j],
+                                 hyF, hyJ, hyH, fmargin)
+                cnt += 1 if v <= dhi[j] else 0
+            if cnt == 0:
+                continue
+            for q in range(fstart[m], fstart[m + 1]):
+                dx = F[q, 0] - gp[0]
+                dy = F[q, 1] - gp[1]
+                dz = F[q, 2] - gp[2]
+                sa = abs(dx * u[0] + dy * u[1] + dz * u[2])
+                fa = dx * e1[0] + dy * e1[1] + dz * e1[2]
+                fb = dx * e2[0] + dy * e2[1] + dz * e2[2]
+                fna = NF[q, 0] * e1[0] + NF[q, 1] * e1[1] + NF[q, 2] * e1[2]
+                fnb = NF[q, 0] * e2[0] + NF[q, 1] * e2[1] + NF[q, 2] * e2[2]
+                fns = abs(NF[q, 0] * u[0] + NF[q, 1] * u[1] + NF[q, 2] * u[2])
+                rtf = RTF[q]
+                hnf = HNF[q]
+                # the fine sample's own cell: exact up to its extent in each direction
+                mx = rtf * min(abs(fna) + abs(fnb), np.float32(1.0)) + hnf * fns
+                qf = _xoff(sa, ho + fp[0, 0] - mx, ho + fp[0, 1] + mx, fp[0, 3])
+                qj = _xoff(sa, ho + fp[1, 0] - mx, ho + fp[1, 1] + mx, fp[1, 3])
+                qh = _xoff(sa, np.float32(-1.0), fp[2, 1] + mx, fp[2, 3])
+                if qh >= _BIG:
+                    continue
+                for j in range(nu):
+                    v = _patch_value(fa, fb, fna, fnb, fns, rtf, hnf, qf, qj, qh, cu[j], su[j],
+                                     hyF, hyJ, hyH, np.float32(0.0))
+                    best[j] = v if v < best[j] else best[j]
+            hit[0] += 1
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart, F, NF, RTF,
+                HNF, fstart, fp, reach2, cos_r, sin_r, depths, fmargin, refine, free, n_refined):
+    """Collision sweep over lines x rolls x depths.
+
+    gp, u, e1, e2: (L, 3) float32 line frames; half_open: (L,) pre-grasp opening / 2.
+    Q, NQ: (Mc, 3) coarse samples and their normals; RT, HN: (Mc,) tangential radius
+    and normal height of each sample's patch. M, NM, RTM, HNM: the same for the middle
+    level, ordered by coarse parent (parent i owns M[mstart[i]:mstart[i+1]]); F, NF:
+    (Mf, 3) fine samples and normals ordered by middle parent (m owns
+    F[fstart[m]:fstart[m+1]]), RTF, HNF: (Mf,) the extent of each fine sample's cell. fp: (3, 5) footprints; reach2: (3,)
+    squared minimum distance from the closing axis at which jaws / housing can be hit.
+    cos_r, sin_r: (R,) roll angles; depths: (D,) increasing contact depths [m].
+    refine: resolve uncertain poses with the fine level (else they count as colliding).
+    Writes free (L, R, D) = 1 for collision-free poses and n_refined (L,), the number
+    of rolls that needed the fine level.
+    """
+    L = gp.shape[0]
+    R = cos_r.shape[0]
+    D = depths.shape[0]
+    Mc = Q.shape[0]
+    nchunk = min(L, 512)
+    hyF, hyJ, hyH = fp[0, 2], fp[1, 2], fp[2, 2]
+    for ch in prange(nchunk):
+        idx = np.empty(Mc, np.int32)
+        buf = np.empty((13, Mc), np.float32)
+        ca, cb, cna, cnb, cns, crt, chn = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5], buf[6]
+        oF, oJ, oH, xF, xJ, xH = buf[7], buf[8], buf[9], buf[10], buf[11], buf[12]
+        vin = np.empty(R, np.float32)
+        vex = np.empty(R, np.float32)
+        ur = np.empty(R, np.int64)
+        cu = np.empty(R, np.float32)
+        su = np.empty(R, np.float32)
+        dhi = np.empty(R, np.float32)
+        best = np.empty(R, np.float32)
+        hit = np.zeros(1, np.int64)
+        for li in range(ch, L, nchunk):
+            ho = half_open[li]
+            n = _gather(Q, NQ, RT, HN, gp[li], u[li], e1[li], e2[li], ho, fp, fmargin, reach2,
+                        idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH)
+            _roll_minima(n, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH, cos_r,
+                         sin_r, hyF, hyJ, hyH, fmargin, vin, vex)
+            nu = 0
+            for r in range(R):
+                d_hi = -_BIG
+                for k in range(D):
+                    d = depths[k]
+                    if d < vin[r]:
+                        free[li, r, k] = 1
+                    elif d < vex[r]:
+                        d_hi = d
+                if d_hi > -_BIG:
+                    ur[nu] = r
+                    cu[nu] = cos_r[r]
+                    su[nu] = sin_r[r]
+                    dhi[nu] = d_hi
+                    nu += 1
+            if nu > 0 and refine:
+                _refine(n, idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, nu, cu, su, dhi,
+                        best, M, NM, RTM, HNM, mstart, F, NF, RTF, HNF, fstart, gp[li],
+                        u[li], e1[li], e2[li], ho, fp, fmargin, hit)
+                for j in range(nu):
+                    r = ur[j]
+                    for k in range(D):
+                        d = depths[k]
+                        if d >= vin[r] and d < vex[r] and d < best[j]:
+                            free[li, r, k] = 1
+            n_refined[li] = nu
+
+
+@njit(cache=True, parallel=True, fastmath=False)
+def assemble_rows(free, u, e1, e2, gp, cos_r, sin_r, tcp, offsets, line_cols, pair_cols,
+                  line_scalars, wrist, quat, rows_vec, rows_c, rows_n, rows_scalar):
+    """Fill the map's row columns for every free pose, in (line, roll, depth) order.
+
+    free: (L, R, D) uint8; u, e1, e2, gp: (L, 3) line frames and grasp points; tcp: (D,)
+    wrist-to-grasp-point distance along z per depth; offsets: (L + 1,) first row of each
+    line. Per-line data copied to each of the line's rows: line_cols (L, 3) -> rows_vec
+    (N, 3); pair_cols (L, 2, 2, 3) (contacts, normals) -> rows_c, rows_n (N, 2, 3);
+    line_scalars (L, S) -> rows_scalar (S, N). Computes wrist (N, 3) and quat (N, 4)
+    w,x,y,z of the wrist axes x = u, z = cos e1 + sin e2, y = z x x.
+    """
+    L, R, D = free.shape
+    S = line_scalars.shape[1]
+    for li in prange(L):
+        row = offsets[li]
+        if offsets[li + 1] == row:
+            continue
+        ux, uy, uz = u[li, 0], u[li, 1], u[li, 2]
+        for r in range(R):
+            c, s = cos_r[r], sin_r[r]
+            zx = c * e1[li, 0] + s * e2[li, 0]
+            zy = c * e1[li, 1] + s * e2[li, 1]
+            zz = c * e1[li, 2] + s * e2[li, 2]
+            yx = zy * uz - zz * uy
+            yy = zz * ux - zx * uz
+            yz = zx * uy - zy * ux
+            w, x, y, z = _quat(ux, yx, zx, uy, yy, zy, uz, yz, zz)
+            for k in range(D):
+                if free[li, r, k]:
+                    wrist[row, 0] = gp[li, 0] - tcp[k] * zx
+                    wrist[row, 1] = gp[li, 1] - tcp[k] * zy
+                    wrist[row, 2] = gp[li, 2] - tcp[k] * zz
+                    quat[row, 0] = w
+                    quat[row, 1] = x
+                    quat[row, 2] = y
+                    quat[row, 3] = z
+                    for j in range(3):
+                        rows_vec[row, j] = line_cols[li, j]
+                    for a in range(2):
+                        for j in range(3):
+                            rows_c[row, a, j] = pair_cols[li, 0, a, j]
+                            rows_n[row, a, j] = pair_cols[li, 1, a, j]
+                    for j in range(S):
+                        rows_scalar[j, row] = line_scalars[li, j]
+                    row += 1
+
+
+@njit(cache=True, inline="always")
+def _quat(m00, m01, m02, m10, m11, m12, m20, m21, m22):
+    """Rotation matrix -> unit quaternion w, x, y, z with w >= 0 (Shepperd's method)."""
+    tr = m00 + m11 + m22
+    if tr > 0.0:
+        S = np.sqrt(tr + 1.0) * 2.0
+        w, x, y, z = 0.25 * S, (m21 - m12) / S, (m02 - m20) / S, (m10 - m01) / S
+    elif m00 > m11 and m00 > m22:
+        S = np.sqrt(1.0 + m00 - m11 - m22) * 2.0
+        w, x, y, z = (m21 - m12) / S, 0.25 * S, (m01 + m10) / S, (m02 + m20) / S
+    elif m11 > m22:
+        S = np.sqrt(1.0 + m11 - m00 - m22) * 2.0
+        w, x, y, z = (m02 - m20) / S, (m01 + m10) / S, 0.25 * S, (m12 + m21) / S
+    else:
+        S = np.sqrt(1.0 + m22 - m00 - m11) * 2.0
+        w, x, y, z = (m10 - m01) / S, (m02 + m20) / S, (m12 + m21) / S, 0.25 * S
+    if w < 0.0:
+        return -w, -x, -y, -z
+    return w, x, y, z

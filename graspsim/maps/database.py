@@ -1,0 +1,202 @@
+"""The full-scale (FS) map database: a folder of map files plus an index.
+
+Maps are keyed by primitive, dimensions, gripper and generation settings; missing
+entries are built on demand. ``lookup`` answers the paper's known/familiar question
+(section 2.4): *known* when a stored map of the same primitive lies within ``tol``
+(1 cm) on every dimension, *familiar* when only other sizes of that primitive exist.
+
+Layout::
+
+    ROOT/index.json                     one record per stored map (written atomically)
+    ROOT/<primitive>/<key>.h5           the maps (written atomically)
+
+The default root is ``$GRASPSIM_DB`` or ``~/.cache/graspsim/db``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from graspsim._atomic import atomic_write_text
+from graspsim.errors import MapDatabaseError, MapFileError
+from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.maps.io import load_map, save_map
+from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Primitive, Sphere, make_primitive
+from graspsim.quality import QualityModel
+
+__all__ = ["MapDatabase", "DatabaseMatch", "PAPER_SHAPES", "default_root", "size_grid",
+           "classify_match"]
+
+log = logging.getLogger(__name__)
+
+# The five primitives of the paper's database (section 3.1). The paper gives only the
+# cylinder's size (r = 2 cm, h = 20 cm); the others are chosen to be graspable by the
+# HGPL-25-60 (chords up to 11 cm) and of similar scale: a 6 cm cube, a 3.5 cm ball, a
+# cup-like frustum and a handle-sized half-toroid.
+PAPER_SHAPES: dict[str, Primitive] = {
+    "box": Box(0.06, 0.06, 0.06),
+    "cylinder": Cylinder(0.02, 0.20),
+    "sphere": Sphere(0.035),
+    "cone": Cone(0.04, 0.02, 0.10),
+    "half_toroid": HalfToroid(0.04, 0.01),
+}
+
+
+def default_root() -> Path:
+    return Path(os.environ.get("GRASPSIM_DB", Path.home() / ".cache" / "graspsim" / "db"))
+
+
+def size_grid(shape: Primitive, scales: Iterable[float]) -> list[Primitive]:
+    """Copies of ``shape`` with every dimension multiplied by each scale factor."""
+    out = []
+    for s in scales:
+        if not s > 0:
+            raise MapDatabaseError(f"size scale factors must be > 0, got {s!r}")
+        out.append(shape.with_dims(**{k: v * s for k, v in shape.dims.items()}))
+    return out
+
+
+def _digest(obj) -> str:
+    return hashlib.sha1(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:10]
+
+
+@dataclass(frozen=True)
+class DatabaseMatch:
+    """match: ``"known"``, ``"familiar"`` or None; entry: the index record of the
+    nearest stored map of that primitive (None if there is none); distance: its largest
+    per-dimension difference [m]."""
+
+    match: str | None
+    entry: dict | None
+    distance: float
+
+
+def classify_match(kind: str, dims: dict[str, float], stored: list[dict],
+                   tol: float = 0.01) -> DatabaseMatch:
+    """Known / familiar / None against index records ``{"primitive", "dims", ...}``."""
+    same = [e for e in stored if e["primitive"] == kind]
+    if not same:
+        return DatabaseMatch(None, None, float("inf"))
+    keys = sorted(dims)
+    target = np.array([dims[k] for k in keys])
+    dist = [float(np.max(np.abs(np.array([e["dims"][k] for k in keys]) - target))) for e in same]
+    i = int(np.argmin(dist))
+    return DatabaseMatch("known" if dist[i] <= tol + 1e-12 else "familiar", same[i], dist[i])
+
+
+class MapDatabase:
+    """FS maps on disk for one gripper, quality model and generation config."""
+
+    def __init__(self, root: str | os.PathLike | None = None, *,
+                 gripper: GripperSpec = HGPL_25_60_A, quality: QualityModel | None = None,
+                 config: MapConfig | None = None, tol: float = 0.01):
+        self.root = Path(root) if root is not None else default_root()
+        self.gripper = gripper
+        self.quality = quality or QualityModel()
+        self.config = config or MapConfig()
+        self.tol = float(tol)
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise MapDatabaseError(f"cannot create map database folder {self.root}: {err}") from err
+        self._settings = _digest({"gripper": gripper.to_dict(), "quality": self.quality.to_dict(),
+                                  "config": self.config.to_dict()})
+
+    # ------------------------------------------------------------------ index
+    @property
+    def index_path(self) -> Path:
+        return self.root / "index.json"
+
+    def _read_index(self) -> list[dict]:
+        if not self.index_path.exists():
+            return []
+        try:
+            data = json.loads(self.index_path.read_text())
+            return list(data["maps"])
+        except (OSError, ValueError, KeyError, TypeError) as err:
+            raise MapDatabaseError(
+                f"database index {self.index_path} is damaged ({err}); delete it and run "
+                "`graspsim db build` again to rebuild it from the map files") from err
+
+    def _write_index(self, records: list[dict]) -> None:
+        atomic_write_text(self.index_path, json.dumps({"format": "graspsim-db-1", "maps": records},
+                                                      indent=1, sort_keys=True),
+                          error=MapDatabaseError)
+
+    def entries(self) -> list[dict]:
+        """Index records of the maps built with this database's settings."""
+        return [e for e in self._read_index() if e.get("settings") == self._settings]
+
+    def key(self, shape: Primitive) -> str:
+        dims = "_".join(f"{k}{v * 1000:.1f}" for k, v in shape.dims.items())
+        return f"{shape.kind}_{dims}_{self.gripper.name}_{self._settings}"
+
+    def path(self, shape: Primitive) -> Path:
+        return self.root / shape.kind / f"{self.key(shape)}.h5"
+
+    # ------------------------------------------------------------------ queries
+    def lookup(self, kind: str, dims: dict[str, float], tol: float | None = None) -> DatabaseMatch:
+        """Known / familiar decision for a primitive of ``kind`` with ``dims`` [m]."""
+        kind = make_primitive(kind, **dims).kind  # validates and normalises the name
+        return classify_match(kind, dims, self.entries(), self.tol if tol is None else tol)
+
+    def contains(self, shape: Primitive) -> bool:
+        return any(e["key"] == self.key(shape) for e in self.entries()) and self.path(shape).exists()
+
+    def get(self, shape: Primitive, *, build: bool = True, threads: int | None = None) -> GraspabilityMap:
+        """The FS map of ``shape``: loaded if stored (and readable), built otherwise."""
+        p = self.path(shape)
+        if self.contains(shape):
+            try:
+                return load_map(p)
+            except MapFileError as err:
+                log.warning("rebuilding damaged database map %s: %s", p, err)
+        if not build:
+            raise MapDatabaseError(f"no map of {shape} in {self.root}")
+        return self.add(shape, threads=threads)
+
+    def load_entry(self, entry: dict) -> GraspabilityMap:
+        return load_map(self.root / entry["file"])
+
+    # ------------------------------------------------------------------ building
+    def add(self, shape: Primitive, *, threads: int | None = None, progress=None) -> GraspabilityMap:
+        """Generate and store the FS map of ``shape`` (replacing any stored one)."""
+        t0 = time.perf_counter()
+        gmap = generate_fs_map(shape, self.gripper, self.quality, self.config, threads=threads,
+                               progress=progress)
+        p = self.path(shape)
+        p.parent.mkdir(exist_ok=True)
+        save_map(gmap, p)
+        record = {"key": self.key(shape), "primitive": shape.kind, "dims": shape.dims,
+                  "gripper": self.gripper.name, "settings": self._settings,
+                  "file": str(p.relative_to(self.root)), "grasps": len(gmap),
+                  "accepted": int(gmap.accepted.sum()), "seconds": time.perf_counter() - t0,
+                  "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        records = [e for e in self._read_index() if e["key"] != record["key"]] + [record]
+        self._write_index(records)
+        log.info("database: stored %s (%d grasps)", shape, len(gmap))
+        return gmap
+
+    def build(self, shapes: Iterable[Primitive], *, threads: int | None = None,
+              progress=None) -> list[dict]:
+        """Build every missing map (resumable: stored maps are skipped). ``progress`` is
+        called with (done, total, shape) after each shape."""
+        shapes = list(shapes)
+        for i, s in enumerate(shapes):
+            if not self.contains(s):
+                self.add(s, threads=threads)
+            if progress:
+                progress(i + 1, len(shapes), s)
+        keys = {self.key(s) for s in shapes}
+        return [e for e in self.entries() if e["key"] in keys]

@@ -1,0 +1,440 @@
+"""Full-scale (FS) graspability maps by the surface-to-voxel method (paper 2.1, ref. [9]).
+
+The object surface is scanned at ``surface_step``; from every first contact p1 the
+closing directions u are sampled on rings around the inward normal at the rotation
+step (up to ``closing_cone``); the second contact p2 is where the line leaves the
+object; openings the gripper cannot span are rejected; then the gripper's roll about
+u (rotation step) and the contact depth along the pad (``depth_step``) are swept, the
+wrist pose follows from the gripper's kinematics, and every pose whose gripper
+(fingers and jaws opened to the contact width plus clearance, housing, arm) collides
+with the object is rejected by the compiled sweep in ``_kernel``. All collision-free
+poses are kept with their grade, low grades included.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+import os
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from graspsim import __version__
+from graspsim.errors import GripperError, InvalidParameterError, NoFeasibleGraspError
+from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.quality import QualityModel
+from graspsim.transforms import normalize
+
+__all__ = [
+    "MapConfig",
+    "ClosingLines",
+    "generate_fs_map",
+    "closing_directions",
+    "closing_lines",
+    "collision_free",
+    "sweep_collisions",
+    "roll_angles",
+    "object_description",
+]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class MapConfig:
+    """Resolution of the surface-to-voxel scan (paper 3.1 defaults).
+
+    surface_step: spacing of first contacts on the surface [m] (paper: 0.5 cm).
+    rotation_step: angular step of closing directions and roll [rad] (paper: 11 deg).
+    closing_cone: largest angle between a closing direction and the inward normal at
+        the first contact [rad]; two rotation steps (22 deg) by default, covering the
+        friction cone of the default mu = 0.5 (26.6 deg). Grasps still leave the cone
+        through the second contact (alpha is the larger of both angles), so maps keep
+        q_fc = 0 grasps; widen the cone for calibration studies.
+    depth_step: spacing of contact depths along the finger pad [m]; 1 cm gives four
+        depths on the default 4 cm pad (near the tip, middle, towards the root).
+    min_width: thinnest chord accepted as a grasp [m].
+    collision_step: spacing of the coarse collision samples [m].
+    collision_tolerance: poses closer than this to touching count as colliding [m];
+        the fine collision samples are spaced to guarantee it.
+    collision_refine: resolve poses near the coarse level's margin with the fine level;
+        off, every pose within the coarse margin (a few mm) counts as colliding.
+    density: object density for the recorded mass [kg/m^3] (ignored if mass given).
+    """
+
+    surface_step: float = 0.005
+    rotation_step: float = math.radians(11.0)
+    closing_cone: float = math.radians(22.0)
+    depth_step: float = 0.010
+    min_width: float = 0.002
+    collision_step: float = 0.004
+    collision_tolerance: float = 0.00025
+    collision_refine: bool = True
+    density: float = 500.0
+
+    def __post_init__(self) -> None:
+        for name in ("surface_step", "rotation_step", "depth_step", "min_width",
+                     "collision_step", "collision_tolerance", "density"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise InvalidParameterError(f"MapConfig.{name} must be > 0, got {v!r}")
+        if not 0 <= self.closing_cone < math.pi / 2:
+            raise InvalidParameterError(
+                f"closing_cone must be in [0, pi/2) rad, got {self.closing_cone!r}")
+        if self.rotation_step > math.pi / 2:
+            raise InvalidParameterError(f"rotation_step must be <= pi/2, got {self.rotation_step!r}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def closing_directions(normals: np.ndarray, cone: float, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Closing directions around the inward normals.
+
+    normals: (M, 3) outward unit normals. Returns u (M, K, 3) unit directions -- ring 0
+    is the inward normal itself, ring k is k * step away with ~2 pi sin(k step) / step
+    azimuths -- and their angles to the inward normal (K,) [rad].
+    """
+    rings = int(math.floor(cone / step + 1e-9))
+    polar, azim = [0.0], [0.0]
+    for k in range(1, rings + 1):
+        th = k * step
+        n = max(1, round(2 * math.pi * math.sin(th) / step))
+        polar += [th] * n
+        azim += list(2 * math.pi * np.arange(n) / n)
+    polar, azim = np.array(polar), np.array(azim)
+    t1, t2 = _tangents(normals)
+    inward = -normals
+    u = (np.cos(polar)[None, :, None] * inward[:, None, :]
+         + (np.sin(polar) * np.cos(azim))[None, :, None] * t1[:, None, :]
+         + (np.sin(polar) * np.sin(azim))[None, :, None] * t2[:, None, :])
+    return normalize(u), polar
+
+
+def _tangents(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors (N, 3) completing unit ``v`` (N, 3) to a right-handed frame
+    (t1 x t2 = v), chosen deterministically."""
+    helper = np.where(np.abs(v[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = normalize(np.cross(helper, v))
+    return t1, np.cross(v, t1)
+
+
+def object_description(shape, mass: float | None, density: float) -> dict:
+    """The ``object`` metadata of a map: primitive/compound dict + com + mass [kg]."""
+    d = dict(shape.to_dict())
+    m = float(mass) if mass is not None else density * shape.volume
+    if not m > 0:
+        raise InvalidParameterError(f"object mass must be > 0 kg, got {m!r}")
+    d.update(com=[0.0, 0.0, 0.0], mass=m, volume=float(shape.volume))
+    return d
+
+
+def _footprints(g: GripperSpec) -> tuple[np.ndarray, np.ndarray]:
+    """Kernel description of the nested finger/jaw/housing columns and the minimum
+    distance from the closing axis at which jaw and housing can be reached."""
+    fx, fy, _ = g.finger_size
+    jx, jy, _ = g.jaw_size
+    hx, hy, hz = g.housing_size
+    if not (fx <= jx and fy <= jy and jy <= hy and g.max_opening / 2 + jx <= hx / 2 + 1e-12):
+        raise GripperError(
+            "the collision sweep needs nested footprints: finger inside jaw inside housing "
+            f"(finger {g.finger_size}, jaw {g.jaw_size}, housing {g.housing_size})")
+    ft = g.fingertip_z
+    fp = np.array([
+        [0.0, fx, fy / 2, 0.0, 1.0],                        # finger: top = fingertip
+        [0.0, jx, jy / 2, ft - g.jaw_base_z, 1.0],          # jaw: top = jaw's lower face
+        [0.0, hx / 2, hy / 2, ft - hz, 0.0],                # housing + arm: top = housing face
+    ], dtype=np.float32)
+    return fp, fp[:, 3]
+
+
+def _patches(parents, children, parent_normals, grow):
+    """Assign ``children`` (K, 3) to their nearest parent and measure each parent's
+    patch: the largest tangential and normal (along the parent's normal) offsets of
+    its children, each grown by the child's own reach ``grow`` (K,) (0 for samples
+    that stand only for themselves). Returns the children's order by parent, RT, HN
+    (P,) and CSR offsets (P + 1,)."""
+    _, parent = cKDTree(parents).query(children)
+    order = np.argsort(parent, kind="stable")
+    parent = parent[order]
+    d = children[order] - parents[parent]
+    n = parent_normals[parent]
+    h = np.sum(d * n, axis=1)
+    rt = np.linalg.norm(d - h[:, None] * n, axis=1)
+    P = len(parents)
+    RT = np.zeros(P)
+    HN = np.zeros(P)
+    g = np.broadcast_to(np.asarray(grow, float), (len(children),))[order]
+    np.maximum.at(RT, parent, rt + g)
+    np.maximum.at(HN, parent, np.abs(h) + g)
+    start = np.concatenate([[0], np.cumsum(np.bincount(parent, minlength=P))]).astype(np.int64)
+    return order, RT, HN, start
+
+
+@functools.lru_cache(maxsize=8)
+def _sample_levels(shape, cfg: MapConfig) -> dict[str, np.ndarray | float]:
+    """The three-level collision sample hierarchy (coarse -> middle -> fine).
+
+    Every surface point lies within ``fine_cover`` of a fine sample; each fine sample
+    belongs to its nearest middle sample and each middle one to its nearest coarse
+    one. A sample's patch (RT: tangential radius, HN: height along its normal) bounds
+    where the surface points it stands for can be. Children arrays are ordered by
+    parent with CSR offsets.
+    """
+    coarse = shape.surface_samples(min(cfg.collision_step, shape.size_scale))
+    fstep = cfg.collision_tolerance * 1.3  # cell-centre grids cover ~ step / sqrt(2)
+    fine = shape.surface_samples(fstep)
+    while fine.cover_radius > cfg.collision_tolerance:
+        fstep *= 0.9
+        fine = shape.surface_samples(fstep)
+    # middle level: geometric mean spacing, so both refinement steps have ~equal fan-out
+    mid = shape.surface_samples(math.sqrt(fstep * min(cfg.collision_step, shape.size_scale)))
+    f_order, RTM, HNM, fstart = _patches(mid.points, fine.points, mid.normals, 0.0)
+    # a middle patch reaches at most hypot(RT, HN) from its sample in any direction
+    # (Cauchy-Schwarz), which grows the coarse patches that contain it
+    m_order, RT, HN, mstart = _patches(coarse.points, mid.points, coarse.normals,
+                                       np.hypot(RTM, HNM))
+    # reorder the middle level (and its patch data / fine offsets) by coarse parent
+    Mp, NMp = mid.points[m_order], mid.normals[m_order]
+    RTMp, HNMp = RTM[m_order], HNM[m_order]
+    counts = np.diff(fstart)[m_order]
+    fstart_new = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    # fine samples, grouped by middle parent in the middle level's new order
+    within = np.arange(fstart_new[-1]) - np.repeat(fstart_new[:-1], counts)
+    fsel = f_order[np.repeat(fstart[:-1][m_order], counts) + within]
+    return {"Q": coarse.points, "NQ": coarse.normals, "RT": RT, "HN": HN,
+            "M": Mp, "NM": NMp, "RTM": RTMp, "HNM": HNMp, "mstart": mstart,
+            "F": fine.points[fsel], "NF": fine.normals[fsel], "RTF": fine.tangent_radius[fsel],
+            "HNF": fine.normal_height[fsel], "fstart": fstart_new,
+            "fine_cover": float(fine.cover_radius)}
+
+
+@dataclass(frozen=True)
+class ClosingLines:
+    """Feasible closing lines of a scan: contacts p1, p2 (L, 3), outward normals
+    n1, n2 (L, 3), closing axis u (L, 3), contact distance width (L,), grasp point
+    gp (L, 3), a roll frame e1, e2 (L, 3) with e1 x e2 = u, and ``outside`` (L,):
+    the points just behind both pads lie outside the object."""
+
+    p1: np.ndarray
+    p2: np.ndarray
+    n1: np.ndarray
+    n2: np.ndarray
+    u: np.ndarray
+    width: np.ndarray
+    gp: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    outside: np.ndarray
+    contacts: int
+    directions: int
+
+
+def closing_lines(shape, gripper: GripperSpec, cfg: MapConfig) -> ClosingLines:
+    """Scan the surface: first contacts, closing directions, second contacts, and the
+    lines whose width fits the gripper's opening range."""
+    smp = shape.surface_samples(cfg.surface_step)
+    u, _ = closing_directions(smp.normals, cfg.closing_cone, cfg.rotation_step)
+    M, K = u.shape[:2]
+    p1 = np.repeat(smp.points, K, axis=0)
+    n1 = np.repeat(smp.normals, K, axis=0)
+    u = u.reshape(-1, 3)
+    width = shape.ray_exit(p1, u)
+    clearance = gripper.approach_clearance
+    ok = np.isfinite(width) & (width >= max(cfg.min_width, gripper.min_opening)) \
+        & (width + 2 * clearance <= gripper.max_opening + 1e-12)
+    if not np.any(ok):
+        widest = float(np.nanmax(np.where(np.isfinite(width), width, np.nan)))
+        raise NoFeasibleGraspError(
+            f"no chord of {shape} fits {gripper.name}: the grasp width plus 2 x "
+            f"{clearance} m clearance must lie in [{gripper.min_opening}, "
+            f"{gripper.max_opening}] m; the object's chords span up to {widest:.4f} m")
+    p1, n1, u, width = p1[ok], n1[ok], u[ok], width[ok]
+    p2 = p1 + width[:, None] * u
+    # a finger inside the object (possible on non-convex shapes): test the points
+    # just behind both pads
+    back = clearance + 0.5 * gripper.finger_size[0]
+    outside = (shape.sdf(p1 - back * u) > 0) & (shape.sdf(p2 + back * u) > 0)
+    e1, e2 = _tangents(u)
+    return ClosingLines(p1, p2, n1, shape.normals(p2), u, width, 0.5 * (p1 + p2), e1, e2,
+                        outside, int(M), int(K))
+
+
+def roll_angles(cfg: MapConfig) -> np.ndarray:
+    """Rolls about the closing axis: a whole number of steps around the circle [rad]."""
+    n = max(1, round(2 * math.pi / cfg.rotation_step))
+    return 2 * math.pi * np.arange(n) / n
+
+
+def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapConfig,
+                     threads: int | None = None, progress=None, *, rolls: np.ndarray | None = None,
+                     depths: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+    """Collision-free flags (L, R, D) uint8 of every line x roll x depth, and stats.
+    Rolls [rad] and contact depths [m] default to the config's sampling."""
+    import numba
+
+    from graspsim.maps import _kernel
+
+    lv = _sample_levels(shape, cfg)
+    fmargin = lv["fine_cover"]
+    fp, offs = _footprints(gripper)
+    depths = np.sort(np.asarray(gripper.contact_depths(cfg.depth_step) if depths is None else depths,
+                                np.float32))
+    reach = float(np.max(lv["RT"] + lv["HN"])) + fmargin
+    reach2 = np.maximum(0.0, offs - depths[-1] - reach) ** 2
+    roll = roll_angles(cfg) if rolls is None else np.asarray(rolls, float)
+    L, R, D = len(lines.u), len(roll), len(depths)
+    free = np.zeros((L, R, D), np.uint8)
+    n_ref = np.zeros(L, np.int32)
+    f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
+    static = (f32(lv["Q"]), f32(lv["NQ"]), f32(lv["RT"]), f32(lv["HN"]), f32(lv["M"]),
+              f32(lv["NM"]), f32(lv["RTM"]), f32(lv["HNM"]), lv["mstart"], f32(lv["F"]),
+              f32(lv["NF"]), f32(lv["RTF"]), f32(lv["HNF"]), lv["fstart"], fp, f32(reach2),
+              f32(np.cos(roll)), f32(np.sin(roll)), depths, np.float32(fmargin),
+              bool(cfg.collision_refine))
+    old = numba.get_num_threads()
+    if threads is not None:
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    try:
+        n_batches = max(1, min(16, L // 2048)) if progress else 1
+        for bi, sl in enumerate(np.array_split(np.arange(L), n_batches)):
+            if len(sl) == 0:
+                continue
+            a, b = sl[0], sl[-1] + 1
+            _kernel.sweep_lines(f32(lines.gp[a:b]), f32(lines.u[a:b]), f32(lines.e1[a:b]),
+                                f32(lines.e2[a:b]),
+                                f32(0.5 * lines.width[a:b] + gripper.approach_clearance),
+                                *static, free[a:b], n_ref[a:b])
+            if progress:
+                progress((bi + 1) / n_batches)
+        used = numba.get_num_threads()
+    finally:
+        numba.set_num_threads(old)
+    free[~lines.outside] = 0
+    stats = {"refined_rolls": int(n_ref.sum()), "coarse_samples": int(len(lv["Q"])),
+             "middle_samples": int(len(lv["M"])), "fine_samples": int(len(lv["F"])),
+             "fine_cover": fmargin, "threads": int(used)}
+    return free, stats
+
+
+def collision_free(shape, gripper: GripperSpec, T_obj_wrist: np.ndarray, opening: np.ndarray,
+                   config: MapConfig | None = None, threads: int | None = None) -> np.ndarray:
+    """(N,) bool: the gripper at wrist poses ``T_obj_wrist`` (N, 4, 4), jaws at pad gaps
+    ``opening`` (N,) [m], does not touch the object (same exact-or-conservative test
+    as map generation; poses within ``collision_tolerance`` of touching count as
+    colliding)."""
+    cfg = config or MapConfig()
+    T = np.asarray(T_obj_wrist, float).reshape(-1, 4, 4)
+    opening = np.broadcast_to(np.asarray(opening, float), (len(T),))
+    if np.any(opening < gripper.min_opening - 1e-12) or np.any(opening > gripper.max_opening + 1e-12):
+        raise InvalidParameterError(
+            f"openings must lie in [{gripper.min_opening}, {gripper.max_opening}] m")
+    if len(T) == 0:
+        return np.zeros(0, bool)
+    x, z = T[:, :3, 0], T[:, :3, 2]
+    d0 = gripper.contact_depth_margin
+    gp = T[:, :3, 3] + (gripper.fingertip_z - d0) * z
+    # one line per pose with roll 0 = the pose's own approach axis: e1 = z, e2 = x X z
+    lines = ClosingLines(p1=gp, p2=gp, n1=z, n2=z, u=x, width=opening - 2 * gripper.approach_clearance,
+                         gp=gp, e1=z, e2=np.cross(x, z), outside=np.ones(len(T), bool),
+                         contacts=len(T), directions=1)
+    free, _ = sweep_collisions(shape, lines, gripper, cfg, threads, rolls=np.zeros(1),
+                               depths=np.array([d0]))
+    return free[:, 0, 0].astype(bool)
+
+
+def generate_fs_map(
+    shape,
+    gripper: GripperSpec = HGPL_25_60_A,
+    quality: QualityModel | None = None,
+    config: MapConfig | None = None,
+    *,
+    mass: float | None = None,
+    threads: int | None = None,
+    progress=None,
+) -> GraspabilityMap:
+    """Full-scale graspability map of ``shape`` (a Primitive or Compound).
+
+    Returns every collision-free pose with its grade (``map.accepted`` marks grade >
+    threshold). ``threads`` limits numba's threads (default: all cores);
+    ``progress`` is an optional callable ``progress(done_fraction)``.
+    Raises :class:`NoFeasibleGraspError` if no chord of the object fits the gripper.
+    """
+    quality = quality or QualityModel()
+    cfg = config or MapConfig()
+    timing: dict[str, float] = {}
+    t0 = time.perf_counter()
+    lines = closing_lines(shape, gripper, cfg)
+    timing["lines"] = time.perf_counter() - t0
+
+    t = time.perf_counter()
+    d_ref = quality.reference_distance(shape.circumradius)
+    q = quality.evaluate(lines.p1, lines.p2, lines.n1, lines.n2, shape.com, d_ref)
+    timing["quality"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    free, stats = sweep_collisions(shape, lines, gripper, cfg, threads, progress)
+    timing["collision"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    roll = roll_angles(cfg)
+    depths = gripper.contact_depths(cfg.depth_step)
+    cols = _assemble(free, lines, roll, gripper.fingertip_z - depths, q)
+    n_rows = len(cols["grade"])
+    gmap = GraspabilityMap(
+        **cols,
+        part=np.zeros(n_rows, np.int16),
+        meta=MapMeta(
+            object=object_description(shape, mass, cfg.density),
+            gripper=gripper.to_dict(),
+            quality={**quality.to_dict(), "d_ref": d_ref},
+            resolution={**cfg.to_dict(), "n_roll": len(roll), "n_depth": len(depths),
+                        "closing_directions": lines.directions},
+            method="surface_to_voxel",
+            version=__version__,
+        ),
+    )
+    timing["assemble"] = time.perf_counter() - t
+    timing["total"] = time.perf_counter() - t0
+    stats.update(contacts=lines.contacts, lines=lines.contacts * lines.directions,
+                 feasible_lines=int(len(lines.u)), candidates=int(free.size),
+                 collision_free=n_rows)
+    log.info("FS map %s: %d candidates, %d collision-free in %.3f s", shape, free.size,
+             n_rows, timing["total"])
+    return gmap.with_meta(timing=timing, extra={"stats": stats})
+
+
+_SCALARS = ("width", "fc_angle", "q_fc", "stability_distance", "q_st", "grade")
+
+
+def _assemble(free: np.ndarray, lines: ClosingLines, roll: np.ndarray, tcp: np.ndarray,
+              q) -> dict[str, np.ndarray]:
+    """Map columns (float32, one row per free pose in (line, roll, depth) order), filled
+    in one parallel pass without per-column temporaries."""
+    from graspsim.maps import _kernel
+
+    counts = free.reshape(len(free), -1).sum(axis=1, dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    n = int(offsets[-1])
+    f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
+    pair = f32(np.stack([np.stack([lines.p1, lines.p2], 1), np.stack([lines.n1, lines.n2], 1)], 1))
+    width_q = {"width": lines.width, **{k: getattr(q, k) for k in _SCALARS[1:]}}
+    scal = f32(np.column_stack([width_q[k] for k in _SCALARS]))
+    wrist = np.empty((n, 3), np.float32)
+    quat = np.empty((n, 4), np.float32)
+    gp = np.empty((n, 3), np.float32)
+    contacts = np.empty((n, 2, 3), np.float32)
+    normals = np.empty((n, 2, 3), np.float32)
+    rows_scal = np.empty((len(_SCALARS), n), np.float32)
+    _kernel.assemble_rows(free, lines.u, lines.e1, lines.e2, lines.gp, np.cos(roll), np.sin(roll),
+                          np.asarray(tcp, float), offsets, f32(lines.gp), pair, scal,
+                          wrist, quat, gp, contacts, normals, rows_scal)
+    cols = {"wrist_position": wrist, "wrist_quat": quat, "grasp_point": gp,
+            "contacts": contacts, "normals": normals}
+    cols.update({k: rows_scal[i] for i, k in enumerate(_SCALARS)})
+    return cols

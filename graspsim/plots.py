@@ -1,0 +1,80 @@
+"""Figures: graspability maps as 3-D scatters coloured by grade (paper figs. 5 and 7).
+
+matplotlib is used with the Agg backend (files only, no screen needed).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from graspsim.maps.graspmap import GraspabilityMap
+
+__all__ = ["plot_map", "plot_maps"]
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _draw(ax, gmap: GraspabilityMap, what: str, max_points: int, min_grade: float, title: str):
+    from graspsim.primitives import shape_from_dict
+
+    sel = np.flatnonzero(gmap.grade > min_grade)
+    if len(sel) > max_points:  # deterministic thinning, keeps the best grasps visible
+        sel = np.sort(np.random.default_rng(0).choice(sel, max_points, replace=False))
+    pts = (gmap.grasp_point if what == "grasp_point" else gmap.wrist_position)[sel]
+    g = gmap.grade[sel]
+    order = np.argsort(g)
+    sc = ax.scatter(*pts[order].T, c=g[order], cmap="viridis", vmin=0.0, vmax=1.0, s=2, depthshade=False)
+    try:
+        mesh = shape_from_dict(gmap.meta.object).mesh(sections=32)
+        ax.plot_trisurf(*mesh.vertices.T, triangles=mesh.faces, color=(0.7, 0.7, 0.7, 0.25),
+                        edgecolor="none")
+    except Exception:  # noqa: BLE001 - a mesh-referenced object: draw the grasps only
+        pass
+    allp = pts if len(pts) else np.zeros((1, 3))
+    c = 0.5 * (allp.max(0) + allp.min(0))
+    r = 0.5 * float(np.max(allp.max(0) - allp.min(0))) or 0.05
+    ax.set_xlim(c[0] - r, c[0] + r)
+    ax.set_ylim(c[1] - r, c[1] + r)
+    ax.set_zlim(c[2] - r, c[2] + r)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    ax.set_title(title, fontsize=9)
+    return sc
+
+
+def plot_map(gmap: GraspabilityMap, path: str | os.PathLike, *, what: str = "grasp_point",
+             min_grade: float = 0.0, max_points: int = 30000, title: str | None = None) -> None:
+    """Save a 3-D scatter of grasp points (or ``what="wrist"`` positions) coloured by
+    grade, over a translucent mesh of the object."""
+    plot_maps([gmap], path, what=what, min_grade=min_grade, max_points=max_points,
+              titles=[title] if title else None)
+
+
+def plot_maps(maps: list[GraspabilityMap], path: str | os.PathLike, *, what: str = "grasp_point",
+              min_grade: float = 0.0, max_points: int = 30000, titles: list[str] | None = None) -> None:
+    """Several maps side by side with one colour bar (e.g. FS vs adapted, paper fig. 5)."""
+    if what not in ("grasp_point", "wrist"):
+        from graspsim.errors import InvalidParameterError
+
+        raise InvalidParameterError(f"what must be 'grasp_point' or 'wrist', got {what!r}")
+    plt = _pyplot()
+    fig = plt.figure(figsize=(4.5 * len(maps) + 1, 4.5))
+    sc = None
+    for i, m in enumerate(maps):
+        ax = fig.add_subplot(1, len(maps), i + 1, projection="3d")
+        obj = m.meta.object
+        default = f"{obj.get('primitive', 'object')}: {len(m)} grasps, {int(m.accepted.sum())} > {m.threshold:g}"
+        sc = _draw(ax, m, what, max_points, min_grade, titles[i] if titles else default)
+    fig.colorbar(sc, ax=fig.axes, shrink=0.6, label="grade")
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

@@ -1,0 +1,53 @@
+import numpy as np
+import pytest
+
+from graspsim.errors import InvalidParameterError
+from graspsim.maps import GraspabilityMap, MapMeta
+from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.primitives import Box
+
+
+@pytest.fixture(scope="module")
+def box_map():
+    return generate_fs_map(Box(0.04, 0.05, 0.08), config=MapConfig(surface_step=0.01))
+
+
+def test_filter_top_k_and_select(box_map):
+    m = box_map
+    top = m.top_k(50)
+    assert len(top) == 50 and np.all(np.diff(top.grade) <= 0)
+    assert top.grade[0] == m.grade.max()
+    acc = m.filter(accepted=True)
+    assert np.all(acc.grade > 0.7) and len(acc) == int(m.accepted.sum())
+    assert len(m.filter(min_grade=2.0)) == 0
+
+
+def test_uniform_surface_sample_spreads_and_is_seeded(box_map):
+    a = box_map.sample_uniform_surface(30, np.random.default_rng(1))
+    b = box_map.sample_uniform_surface(30, np.random.default_rng(1))
+    np.testing.assert_array_equal(a.wrist_position, b.wrist_position)
+    cells = {tuple(np.floor(c / 0.01).astype(int)) for c in a.contacts[:, 0]}
+    assert len(cells) == 30
+
+
+def test_concat_and_shape_checks(box_map):
+    two = GraspabilityMap.concat([box_map.top_k(5), box_map.top_k(7)])
+    assert len(two) == 12
+    cols = box_map.top_k(3).columns()
+    cols["grade"] = cols["grade"][:2]
+    with pytest.raises(InvalidParameterError, match="grade"):
+        GraspabilityMap(**cols, meta=box_map.meta)
+
+
+def test_T_obj_wrist_matches_columns(box_map):
+    m = box_map.top_k(20)
+    T = m.T_obj_wrist
+    np.testing.assert_allclose(T[:, :3, 3], m.wrist_position, atol=1e-7)
+    np.testing.assert_allclose(np.linalg.det(T[:, :3, :3]), 1.0, atol=1e-5)
+    np.testing.assert_allclose(m.approach, T[:, :3, 2], atol=1e-7)
+
+
+def test_empty_map():
+    meta = MapMeta(object={"primitive": "box"}, gripper={}, quality={}, resolution={}, method="x")
+    e = GraspabilityMap.empty(meta)
+    assert len(e) == 0 and len(e.top_k(3)) == 0

@@ -1,0 +1,64 @@
+import json
+import math
+
+import pytest
+
+from graspsim.errors import MapDatabaseError, PrimitiveError
+from graspsim.maps.database import MapDatabase, classify_match, size_grid
+from graspsim.maps.generate import MapConfig
+from graspsim.primitives import Cylinder, Sphere
+
+FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
+
+
+def test_known_familiar_unknown(tmp_path):
+    db = MapDatabase(tmp_path / "db", config=FAST)
+    db.add(Cylinder(0.02, 0.10))
+    assert db.lookup("cylinder", {"radius": 0.025, "height": 0.105}).match == "known"
+    m = db.lookup("cylinder", {"radius": 0.035, "height": 0.10})
+    assert m.match == "familiar" and m.distance == pytest.approx(0.015)
+    assert m.entry["dims"] == {"radius": 0.02, "height": 0.10}
+    assert db.lookup("sphere", {"radius": 0.03}).match is None
+    with pytest.raises(PrimitiveError):
+        db.lookup("cylinder", {"radius": -1, "height": 0.1})
+
+
+def test_classify_match_uses_every_axis():
+    stored = [{"primitive": "box", "dims": {"x": 0.05, "y": 0.05, "z": 0.10}}]
+    assert classify_match("box", {"x": 0.055, "y": 0.045, "z": 0.109}, stored).match == "known"
+    assert classify_match("box", {"x": 0.055, "y": 0.045, "z": 0.111}, stored).match == "familiar"
+
+
+def test_get_builds_on_demand_and_build_resumes(tmp_path):
+    db = MapDatabase(tmp_path, config=FAST)
+    s = Sphere(0.03)
+    assert not db.contains(s)
+    m = db.get(s)
+    assert db.contains(s) and len(m) > 0
+    mtime = db.path(s).stat().st_mtime_ns
+    recs = db.build([s, Sphere(0.02)])
+    assert len(recs) == 2
+    assert db.path(s).stat().st_mtime_ns == mtime  # not rebuilt
+    with pytest.raises(MapDatabaseError):
+        MapDatabase(tmp_path, config=MapConfig()).get(s, build=False)  # other settings
+
+
+def test_damaged_index_is_reported(tmp_path):
+    db = MapDatabase(tmp_path, config=FAST)
+    db.index_path.write_text("{not json")
+    with pytest.raises(MapDatabaseError, match="damaged"):
+        db.entries()
+
+
+def test_size_grid():
+    g = size_grid(Cylinder(0.02, 0.2), [0.5, 2])
+    assert [s.dims for s in g] == [{"radius": 0.01, "height": 0.1}, {"radius": 0.04, "height": 0.4}]
+    with pytest.raises(MapDatabaseError):
+        size_grid(Cylinder(0.02, 0.2), [0])
+
+
+def test_index_is_json(tmp_path):
+    db = MapDatabase(tmp_path, config=FAST)
+    db.add(Sphere(0.025))
+    data = json.loads(db.index_path.read_text())
+    assert data["format"] == "graspsim-db-1" and data["maps"][0]["primitive"] == "sphere"

@@ -66,3 +66,20 @@ __all__ = [
     "HGPL_25_60_A",
     "QualityModel",
 ]
+
+# MuJoCo validation (graspsim.sim), imported on first use so that `import graspsim`
+# does not load mujoco.
+_SIM_NAMES = (
+    "TrialOutcome", "TrialResults", "SimSettings", "GripperPhysics", "LiftPlace", "Tug",
+    "ExecutionNoise", "SimObject", "Scene", "object_from_shape", "object_from_mesh",
+    "build_scene", "run_trials", "simulate_map", "render_trial",
+)
+__all__ += list(_SIM_NAMES)
+
+
+def __getattr__(name: str):
+    if name in _SIM_NAMES:
+        import graspsim.sim
+
+        return getattr(graspsim.sim, name)
+    raise AttributeError(f"module 'graspsim' has no attribute {name!r}")

@@ -38,6 +38,13 @@ def test_table_output_tug_sample_and_noise(tmp_path, capsys):
     assert read_sim_results(path) == {}
 
 
+def test_empty_selection_reports_no_rate(tmp_path, capsys):
+    path = _map(tmp_path)
+    assert main(["trial", str(path), "--top", "0", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["trials"] == 0 and summary["success_rate"] is None
+
+
 def test_bad_input_exits_with_a_clear_error(tmp_path, capsys):
     assert main(["trial", str(tmp_path / "missing.h5")]) == 2
     assert "does not exist" in capsys.readouterr().err

@@ -90,3 +90,12 @@ def test_physics_parameters_are_validated():
         GripperPhysics(pad_solimp=(0.9, 0.95))
     with pytest.raises(InvalidParameterError, match="grip_force"):
         build_gripper_spec(HGPL_25_60_A, grip_force=-1.0)
+
+
+def test_import_graspsim_does_not_load_mujoco_until_sim_names_are_used():
+    import subprocess
+    import sys
+
+    code = ("import sys, graspsim; assert 'mujoco' not in sys.modules; "
+            "graspsim.TrialOutcome; assert 'mujoco' in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import math
+import sys
 
 from graspsim.cli._common import add_json_flag, emit, format_table, progress
 
@@ -62,7 +63,7 @@ def run(args) -> int:
             mu = float(load_map(args.map).meta.quality.get("friction", 0.5))
         settings = SimSettings(friction=mu, grip_force=args.grip_force)
     protocol = make_protocol(args.protocol)
-    bar = progress(None, "trials", enabled=not args.json, unit="trial")
+    bar = progress(None, "trials", enabled=not args.json and sys.stderr.isatty(), unit="trial")
     try:
         done = [0]
 
@@ -104,6 +105,6 @@ def run(args) -> int:
     rate = "n/a" if math.isnan(res.success_rate) else f"{100 * res.success_rate:.1f} %"
     human = (format_table(rows, ["outcome", "trials", "%"]) + "\n\n"
              f"success rate (feasible poses): {rate}; {res.trials_per_second:.1f} trials/s "
-             f"on {res.threads} threads" + (f"; results in {out.group}" if out.group else ""))
+             f"on {res.threads} thread(s)" + (f"; results in {out.group}" if out.group else ""))
     emit(summary, args.json, human)
     return 0

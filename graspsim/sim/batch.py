@@ -172,8 +172,8 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     metrics = {k: np.full(n, np.nan) for k in protocol.metric_names}
     todo = np.flatnonzero(~collide)
     chunk = int(chunk or 32 * threads)
-    obj_q = state0[0, 1 + scene.qadr_obj:1 + scene.qadr_obj + 7]
     m = scene.model
+    obj_q = scene.model.qpos0[scene.qadr_obj:scene.qadr_obj + 7]  # the object at rest
     pool = rollout.Rollout(nthread=threads if threads > 1 else 0) if backend == "rollout" else None
     datas = [mujoco.MjData(m) for _ in range(threads)]
     done = int(collide.sum())

@@ -70,12 +70,16 @@ def _any_perp(a: np.ndarray) -> np.ndarray:
 
 
 def _masked_extremes(z: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Robust low/high (H,) of z (H, N) over mask; also whether enough points support it."""
-    zz = np.where(mask, z, np.nan)
-    ok = mask.sum(axis=1) >= 4
-    zz[~ok] = 0.0
-    lo, hi = np.nanquantile(zz, [_TRIM, 1.0 - _TRIM], axis=1)
-    return lo, hi, ok
+    """Robust low/high (H,) of z (H, N) over mask (the _TRIM and 1 - _TRIM quantiles,
+    nearest rank); also whether at least 4 points support them."""
+    cnt = mask.sum(axis=1)
+    srt = np.sort(np.where(mask, z, np.inf), axis=1)
+    last = np.maximum(cnt - 1, 0)
+    rows = np.arange(len(z))
+    lo = srt[rows, np.floor(_TRIM * last).astype(int)]
+    hi = srt[rows, np.ceil((1.0 - _TRIM) * last).astype(int)]
+    ok = cnt >= 4
+    return np.where(ok, lo, 0.0), np.where(ok, hi, 0.0), ok
 
 
 def _line_meet(p1, n1, p2, n2):

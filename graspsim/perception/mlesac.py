@@ -79,7 +79,7 @@ def fit_model(
     sigma: float,
     candidates: np.ndarray | None = None,
     refine: bool = True,
-    max_refine_points: int = 300,
+    max_refine_points: int = 150,
 ) -> ModelFit | None:
     """MLESAC fit of one model ``kind`` to points (N, 3) with unit normals (N, 3).
 
@@ -171,7 +171,7 @@ def _refine(kind, R0, t0, d0, points, inliers, sigma, max_points, max_nfev=12):
     x0 = np.concatenate([np.zeros(6), d0 / scale])
     try:
         sol = least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=2.0, max_nfev=max_nfev,
-                            ftol=1e-4, xtol=1e-4, method="trf")
+                            ftol=1e-3, xtol=1e-3, method="trf")
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.all(np.isfinite(sol.x)):

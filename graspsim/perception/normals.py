@@ -60,19 +60,18 @@ def estimate_local_surface(points: np.ndarray, *, k: int = 16) -> LocalSurface:
     d, idx = cKDTree(p).query(p, k=k + 1)
     nb = p[idx]  # (N, k+1, 3), the point itself first
     centred = nb - nb.mean(axis=1, keepdims=True)
-    cov = np.einsum("nki,nkj->nij", centred, centred) / (k + 1)
+    cov = np.matmul(centred.transpose(0, 2, 1), centred) / (k + 1)
     evals, evecs = np.linalg.eigh(cov)
     evals = np.maximum(evals, 0.0)
     normals = evecs[:, :, 0]
     flatness = evals[:, 0] / np.maximum(evals.sum(axis=1), 1e-300)
     # local quadric h = a u^2 + b uv + c v^2 + d u + e v + f in the PCA frame
-    rel = nb - p[:, None, :]
-    u = np.einsum("nki,ni->nk", rel, evecs[:, :, 2])
-    v = np.einsum("nki,ni->nk", rel, evecs[:, :, 1])
-    h = np.einsum("nki,ni->nk", rel, normals)
+    local = np.matmul(nb - p[:, None, :], evecs)  # (N, k+1, 3): h, v, u
+    h, v, u = local[..., 0], local[..., 1], local[..., 2]
     A = np.stack([u * u, u * v, v * v, u, v, np.ones_like(u)], axis=-1)
-    AtA = np.einsum("nki,nkj->nij", A, A) + 1e-12 * np.eye(6)
-    coef = np.linalg.solve(AtA, np.einsum("nki,nk->ni", A, h)[..., None])[..., 0]
+    At = A.transpose(0, 2, 1)
+    AtA = np.matmul(At, A) + 1e-12 * np.eye(6)
+    coef = np.linalg.solve(AtA, np.matmul(At, h[..., None]))[..., 0]
     mean_curv = coef[:, 0] + coef[:, 2]  # = -2 H for an outward normal on a convex patch
     sign = np.where(mean_curv > 0.0, -1.0, 1.0)
     normals = normals * sign[:, None]
@@ -80,7 +79,7 @@ def estimate_local_surface(points: np.ndarray, *, k: int = 16) -> LocalSurface:
     # noise: residual spread of the local quadric fits (curvature does not inflate it).
     # An upper quantile, because depth noise seen at varying incidence is uneven; the
     # identification tightens it with the residuals of the winning model.
-    res = h - np.einsum("nki,ni->nk", A, coef)
+    res = h - np.matmul(A, coef[..., None])[..., 0]
     sd = np.sqrt(np.sum(res**2, axis=1) / max(k + 1 - 6, 1))
     noise = float(max(np.percentile(sd, 75), NOISE_FLOOR))
     return LocalSurface(normals, np.abs(mean_curv), flatness, noise, spacing)

@@ -4,7 +4,7 @@ import math
 import pytest
 
 from graspsim.errors import MapDatabaseError, PrimitiveError
-from graspsim.maps.database import MapDatabase, classify_match, size_grid
+from graspsim.maps.database import MapDatabase, size_grid
 from graspsim.maps.generate import MapConfig
 from graspsim.primitives import Cylinder, Sphere
 
@@ -16,17 +16,11 @@ def test_known_familiar_unknown(tmp_path):
     db.add(Cylinder(0.02, 0.10))
     assert db.lookup("cylinder", {"radius": 0.025, "height": 0.105}).match == "known"
     m = db.lookup("cylinder", {"radius": 0.035, "height": 0.10})
-    assert m.match == "familiar" and m.distance == pytest.approx(0.015)
+    assert m.match == "familiar" and m.max_diff == pytest.approx(0.015)
     assert m.entry["dims"] == {"radius": 0.02, "height": 0.10}
     assert db.lookup("sphere", {"radius": 0.03}).match is None
     with pytest.raises(PrimitiveError):
         db.lookup("cylinder", {"radius": -1, "height": 0.1})
-
-
-def test_classify_match_uses_every_axis():
-    stored = [{"primitive": "box", "dims": {"x": 0.05, "y": 0.05, "z": 0.10}}]
-    assert classify_match("box", {"x": 0.055, "y": 0.045, "z": 0.109}, stored).match == "known"
-    assert classify_match("box", {"x": 0.055, "y": 0.045, "z": 0.111}, stored).match == "familiar"
 
 
 def test_get_builds_on_demand_and_build_resumes(tmp_path):

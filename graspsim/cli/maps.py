@@ -149,10 +149,11 @@ def _cmd_db(args) -> int:
     else:  # lookup
         shape = _shape_from_args(args)
         m = db.lookup(shape.kind, shape.dims)
-        emit({"primitive": shape.kind, "dims": shape.dims, "match": m.match,
-              "nearest": m.entry, "distance": m.distance}, args.json,
-             f"{shape}: {m.match or 'no map of this primitive'}"
-             + (f" (nearest stored: {m.entry['dims']}, {m.distance * 100:.2f} cm off)" if m.entry else ""))
+        match = m.match.value if m.match else None
+        emit({"primitive": shape.kind, "dims": shape.dims, "match": match,
+              "nearest": m.entry, "max_diff": m.max_diff}, args.json,
+             f"{shape}: {match or 'no map of this primitive'}"
+             + (f" (nearest stored: {m.entry['dims']}, {m.max_diff * 100:.2f} cm off)" if m.entry else ""))
     return 0
 
 

@@ -20,11 +20,8 @@ import json
 import logging
 import os
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
-
-import numpy as np
 
 from graspsim._atomic import atomic_write_text
 from graspsim.errors import MapDatabaseError, MapFileError
@@ -32,11 +29,11 @@ from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.io import load_map, save_map
+from graspsim.perception.match import MatchDecision, classify_match
 from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Primitive, Sphere, make_primitive
 from graspsim.quality import QualityModel
 
-__all__ = ["MapDatabase", "DatabaseMatch", "PAPER_SHAPES", "default_root", "size_grid",
-           "classify_match"]
+__all__ = ["MapDatabase", "PAPER_SHAPES", "default_root", "size_grid"]
 
 log = logging.getLogger(__name__)
 
@@ -69,30 +66,6 @@ def size_grid(shape: Primitive, scales: Iterable[float]) -> list[Primitive]:
 
 def _digest(obj) -> str:
     return hashlib.sha1(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:10]
-
-
-@dataclass(frozen=True)
-class DatabaseMatch:
-    """match: ``"known"``, ``"familiar"`` or None; entry: the index record of the
-    nearest stored map of that primitive (None if there is none); distance: its largest
-    per-dimension difference [m]."""
-
-    match: str | None
-    entry: dict | None
-    distance: float
-
-
-def classify_match(kind: str, dims: dict[str, float], stored: list[dict],
-                   tol: float = 0.01) -> DatabaseMatch:
-    """Known / familiar / None against index records ``{"primitive", "dims", ...}``."""
-    same = [e for e in stored if e["primitive"] == kind]
-    if not same:
-        return DatabaseMatch(None, None, float("inf"))
-    keys = sorted(dims)
-    target = np.array([dims[k] for k in keys])
-    dist = [float(np.max(np.abs(np.array([e["dims"][k] for k in keys]) - target))) for e in same]
-    i = int(np.argmin(dist))
-    return DatabaseMatch("known" if dist[i] <= tol + 1e-12 else "familiar", same[i], dist[i])
 
 
 class MapDatabase:
@@ -146,10 +119,12 @@ class MapDatabase:
         return self.root / shape.kind / f"{self.key(shape)}.h5"
 
     # ------------------------------------------------------------------ queries
-    def lookup(self, kind: str, dims: dict[str, float], tol: float | None = None) -> DatabaseMatch:
-        """Known / familiar decision for a primitive of ``kind`` with ``dims`` [m]."""
+    def lookup(self, kind: str, dims: dict[str, float], tol: float | None = None) -> MatchDecision:
+        """Known / familiar decision for a primitive of ``kind`` with ``dims`` [m]
+        (``match``: "known", "familiar" or None; ``entry``: the nearest stored record;
+        ``max_diff``: its largest per-dimension difference [m])."""
         kind = make_primitive(kind, **dims).kind  # validates and normalises the name
-        return classify_match(kind, dims, self.entries(), self.tol if tol is None else tol)
+        return classify_match(kind, dims, self.entries(), tol=self.tol if tol is None else tol)
 
     def contains(self, shape: Primitive) -> bool:
         return any(e["key"] == self.key(shape) for e in self.entries()) and self.path(shape).exists()

@@ -67,6 +67,39 @@ __all__ = [
     "QualityModel",
 ]
 
+# perception: point-cloud input and primitive identification (paper 2.2-2.3)
+from graspsim.perception import (  # noqa: E402
+    Identification,
+    IdentificationStatus,
+    IdentifyConfig,
+    LoadedCloud,
+    MatchDecision,
+    MatchKind,
+    OrientedBox,
+    PartResult,
+    Shape,
+    classify_match,
+    identify,
+    min_volume_box,
+    read_point_cloud,
+)
+
+__all__ += [
+    "identify",
+    "IdentifyConfig",
+    "Identification",
+    "IdentificationStatus",
+    "PartResult",
+    "Shape",
+    "read_point_cloud",
+    "LoadedCloud",
+    "min_volume_box",
+    "OrientedBox",
+    "classify_match",
+    "MatchKind",
+    "MatchDecision",
+]
+
 # MuJoCo validation (graspsim.sim), imported on first use so that `import graspsim`
 # does not load mujoco.
 _SIM_NAMES = (

@@ -76,7 +76,8 @@ def run(args: argparse.Namespace) -> int:
     summary = {
         "status": res.status.value,
         "parts": parts,
-        "unidentified": [{"points": p.n_points, "fit_rate": p.fit_rate, "pose": p.T_world_obj}
+        "unidentified": [{"points": p.n_points, "fit_rate": p.fit_rate, "pose": p.T_world_obj,
+                          "reason": p.reason}
                          for p in res.unidentified],
         "seconds": res.seconds,
         "points": cloud.n_read,

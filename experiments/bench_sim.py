@@ -60,9 +60,10 @@ def parse_args(argv=None) -> tuple[BenchConfig, Path]:
 
 
 def _poses(kind: str, n: int, rng: np.random.Generator, com: np.ndarray):
-    """Feasible side grasps: random yaw (and height on the tall cylinder)."""
+    """Feasible side grasps: random yaw and height (the 5 cm tall housing must clear the
+    table, so grasps on the low bread stay at or above its centre of mass)."""
     yaw = rng.uniform(-np.pi, np.pi, n) if kind == "primitive" else rng.uniform(-0.1, 0.1, n)
-    z = rng.uniform(-0.06, 0.06, n) if kind == "primitive" else rng.uniform(-0.008, 0.008, n)
+    z = rng.uniform(-0.06, 0.06, n) if kind == "primitive" else rng.uniform(0.0, 0.008, n)
     T = np.stack([grasp_pose(com + [0, 0, zi], [-np.cos(a), -np.sin(a), 0], [-np.sin(a), np.cos(a), 0],
                              depth=rng.uniform(0.01, 0.03)) for a, zi in zip(yaw, z)])
     w = np.full(n, 0.04) if kind == "primitive" else 0.05 / np.cos(yaw)

@@ -34,7 +34,7 @@ def test_lift_place_schedule(scenes):
     # retract backs off along -approach (+x here): 5 cm
     assert c[-1, 1] - T[0, 3] == pytest.approx(p.retract_distance)
     np.testing.assert_allclose(c[:, 4:], np.tile(c[0, 4:], (len(c), 1)))  # orientation kept
-    assert abs(sum(d for _, d in p.phases()) - 1.82) < 1e-9
+    assert abs(sum(d for _, d in p.phases()) - 2.02) < 1e-9
 
 
 def test_tug_pulls_one_weight_along_each_gripper_direction(scenes):

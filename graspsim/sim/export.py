@@ -99,7 +99,9 @@ No data sheet was at hand: dimensions and masses are estimates (see the spec's c
   the throttle is jaw damping {g.grip_force / g.closing_speed:.0f} N s/m, so free jaws
   move at {g.closing_speed:g} m/s and blocked jaws push with the full grip force.
 - Stability at up to 300 N per jaw: jaw armature {p.jaw_armature:g} kg (piston and rack),
-  pad contacts solref {p.pad_solref[0]:g} s / solimp {p.pad_solimp[0]:g} {p.pad_solimp[1]:g},
+  pad contacts solref {p.pad_solref[0]:g} s / solimp {p.pad_solimp[0]:g} {p.pad_solimp[1]:g}
+  {p.pad_solimp[2]:g} (stiff, with a 5 mm impedance ramp: a 1 mm ramp let pads on
+  multi-part CoACD meshes fall into a contact on/off limit cycle),
   exact constraint diagonal (`diagexact`), elliptic cone, impratio 10, implicitfast, 2 ms.
 - Pads: condim 4 (torsional friction), priority {p.pad_priority} (they set pad-object contact
   parameters). The planner's `arm` keep-out box is not simulated.

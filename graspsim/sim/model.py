@@ -68,9 +68,12 @@ class GripperPhysics:
     jaw_armature: reflected inertia of piston + rack on each jaw joint [kg]; with
         100 g jaws alone, 300 N against a 2 ms contact chatters.
     pad_solref: (time constant [s], damping ratio) of pad contacts and jaw end stops: as
-        stiff as a 2 ms step allows, so 300 N squeezes the pads < 1 mm into the object
-        (MuJoCo's default 20 ms would let them sink ~1 cm).
-    pad_solimp: MuJoCo solimp of pad contacts and jaw end stops.
+        stiff as a 2 ms step allows (MuJoCo's default 20 ms would let 300 N sink the
+        pads ~1 cm into the object).
+    pad_solimp: MuJoCo solimp of pad contacts and jaw end stops. The impedance ramps over
+        5 mm: with MuJoCo's 1 mm, pads on overlapping CoACD parts fell into a limit
+        cycle (contacts on/off every ~20 steps, the object reported as dropped);
+        300 N then sinks the pads 0.9 mm into a box.
     pad_priority: pads decide the contact parameters of pad-object pairs.
     weld_solref: stiffness of the arm (the mocap weld), (time constant [s], damping).
     jaw_frictionloss: dry friction of the jaw guides [N].
@@ -78,7 +81,7 @@ class GripperPhysics:
 
     jaw_armature: float = 0.25
     pad_solref: tuple[float, float] = (0.004, 1.0)
-    pad_solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.001, 0.5, 2.0)
+    pad_solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.005, 0.5, 2.0)
     pad_priority: int = 1
     weld_solref: tuple[float, float] = (0.01, 1.0)
     jaw_frictionloss: float = 1.0

@@ -92,10 +92,20 @@ class Protocol:
 class LiftPlace(Protocol):
     """The paper's lift-and-place test. Durations [s], distances [m], angles [rad].
 
+    Outcomes, first match wins: SIM_UNSTABLE (diverged); NO_CONTACT (fewer than two
+    pads touch the object after closing); DROPPED (fewer than two pads touch it at the
+    end of the hold); SLIPPED (held, but it rose less than lift_height - lift_tolerance
+    or moved more than hold_slip in the hand during the hold); PLACE_FAILED (after
+    release it is not standing where it was: height change, tilt, still moving, or
+    stuck to a pad); else SUCCESS. Motion while closing (re-orientation in the hand)
+    is recorded, not judged.
+
     lift_tolerance: the object must rise at least lift_height - lift_tolerance;
     hold_slip: largest object translation in the hand during the hold;
     place_height / place_tilt: largest height change and tilt of the object after release;
-    rest_speed: largest object speed at the end (it must be at rest);
+    rest_speed: largest object speed at the end of ``rest_time`` after the retract (it
+    must be at rest: a tall cylinder placed 10 deg off upright still rocks after 0.1 s,
+    and one that is toppling still looks upright);
     max_speed / max_spin / max_distance: beyond these (far beyond anything a 300 N
     squeeze can do: an object squirting out of the jaws flies at a few m/s) the
     simulation is SIM_UNSTABLE.
@@ -115,7 +125,7 @@ class LiftPlace(Protocol):
     open_time: float = 0.15
     retract_distance: float = 0.05
     retract_time: float = 0.20
-    rest_time: float = 0.10
+    rest_time: float = 0.30
     lift_tolerance: float = 0.02
     hold_slip: float = 0.005
     place_height: float = 0.01
@@ -204,7 +214,11 @@ _DIRECTIONS = ((1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, -1.0, 0
 class Tug(Protocol):
     """Table-free, gravity-free disturbance test. Durations [s], forces in multiples of
     the object's weight, directions (unit vectors, wrist frame). A pull ramps up over
-    ``ramp_time``, holds for ``pull_time`` and ramps down over ``ramp_time``."""
+    ``ramp_time``, holds for ``pull_time`` and ramps down over ``ramp_time``.
+
+    Outcomes: SIM_UNSTABLE; NO_CONTACT (fewer than two pads touch after closing);
+    DROPPED (fewer than two pads touch at the end, or it moved more than drop_distance
+    in the hand); SLIPPED (moved more than slip_tolerance); else SUCCESS."""
 
     name: ClassVar[str] = "tug"
     metric_names: ClassVar[tuple[str, ...]] = (

@@ -52,7 +52,7 @@ def parse_args(argv=None) -> tuple[BenchConfig, Path]:
     p.add_argument("--out", default="results/bench_sim", help="output folder")
     p.add_argument("--trials", type=int, default=64, help="lift_place trials per object")
     p.add_argument("--raw-steps", type=int, default=20000, help="mj_step calls for the raw rate")
-    p.add_argument("--repeats", type=int, default=2, help="best of this many timings")
+    p.add_argument("--repeats", type=int, default=3, help="best of this many timings")
     p.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="'all cores'")
     p.add_argument("--seed", type=int, default=0)
     a = p.parse_args(argv)
@@ -82,13 +82,11 @@ def _raw_rate(scene, T, w, cfg: BenchConfig) -> float:
     d = mujoco.MjData(m)
     mujoco.mj_setState(m, d, states[0, -1], mujoco.mjtState.mjSTATE_FULLPHYSICS)
     mujoco.mj_setState(m, d, control[0, hold_end], p.control_spec)
-    best = np.inf
-    for _ in range(cfg.repeats):
-        t = time.perf_counter()
-        mujoco.mj_step(m, d, nstep=cfg.raw_steps)
-        best = min(best, time.perf_counter() - t)
+    t = time.perf_counter()
+    mujoco.mj_step(m, d, nstep=cfg.raw_steps)
+    wall = time.perf_counter() - t
     assert d.qpos[scene.qadr_obj + 2] > 0.1, "the object must still be held"
-    return cfg.raw_steps * m.opt.timestep / best
+    return cfg.raw_steps * m.opt.timestep / wall
 
 
 def _rollout_rate(scene, T, w, cfg: BenchConfig) -> float:
@@ -98,21 +96,9 @@ def _rollout_rate(scene, T, w, cfg: BenchConfig) -> float:
     T_world = scene.T_world_obj @ T
     state0 = initial_states(scene, T_world, pregrasp_opening(scene, w))
     control = p.controls(scene, T_world)
-    best = np.inf
-    for _ in range(cfg.repeats):
-        t = time.perf_counter()
-        simulate(scene, p, state0, control)
-        best = min(best, time.perf_counter() - t)
-    return control.shape[0] * control.shape[1] * scene.model.opt.timestep / best
-
-
-def _harness(scene, T, w, threads: int, cfg: BenchConfig):
-    best = None
-    for _ in range(cfg.repeats):
-        r = run_trials(scene, T, w, LiftPlace(), threads=threads, seed=cfg.seed)
-        if best is None or r.wall_time < best.wall_time:
-            best = r
-    return best
+    t = time.perf_counter()
+    simulate(scene, p, state0, control)
+    return control.shape[0] * control.shape[1] * scene.model.opt.timestep / (time.perf_counter() - t)
 
 
 def run(cfg: BenchConfig) -> list[dict]:
@@ -123,11 +109,16 @@ def run(cfg: BenchConfig) -> list[dict]:
     for kind, obj in objects.items():
         scene = build_scene(obj)
         T, w = _poses(kind, cfg.trials, rng, obj.com)
-        raw = _raw_rate(scene, T, w, cfg)
-        one = _harness(scene, T, w, 1, cfg)
-        feasible = one.outcome != 1  # START_COLLISION poses are not simulated
-        bare = _rollout_rate(scene, T[feasible], w[feasible], cfg)
-        allc = _harness(scene, T, w, cfg.threads, cfg)
+        raw, bare, one, allc = [], [], None, None
+        for _ in range(cfg.repeats):  # interleaved, so load changes hit all timers alike
+            raw.append(_raw_rate(scene, T, w, cfg))
+            r = run_trials(scene, T, w, LiftPlace(), threads=1, seed=cfg.seed)
+            one = r if one is None or r.wall_time < one.wall_time else one
+            feasible = r.outcome != 1  # START_COLLISION poses are not simulated
+            bare.append(_rollout_rate(scene, T[feasible], w[feasible], cfg))
+            r = run_trials(scene, T, w, LiftPlace(), threads=cfg.threads, seed=cfg.seed)
+            allc = r if allc is None or r.wall_time < allc.wall_time else allc
+        raw, bare = max(raw), max(bare)
         rows.append({
             "object": kind, "geoms": len(obj.geoms), "trials": len(T),
             "successes": one.counts()["success"],

@@ -13,11 +13,11 @@ from graspsim.maps.generate import (
     _sample_levels,
     closing_directions,
     closing_lines,
-    collision_free,
     generate_fs_map,
     roll_angles,
     sweep_collisions,
 )
+from graspsim.maps.collide import collision_free
 from graspsim.primitives import Cylinder, Sphere
 from graspsim.quality import QualityModel
 from graspsim.transforms import make_transform, quat_to_matrix, random_rotation

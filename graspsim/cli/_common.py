@@ -62,5 +62,5 @@ def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it
     """A tqdm progress bar on stderr (disabled when not wanted or not a terminal)."""
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, desc=desc, unit=unit, disable=not enabled, file=sys.stderr,
-                leave=False)
+    on = enabled and sys.stderr.isatty()
+    return tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False)

@@ -36,7 +36,6 @@ __all__ = [
     "generate_fs_map",
     "closing_directions",
     "closing_lines",
-    "collision_free",
     "sweep_collisions",
     "roll_angles",
     "object_description",
@@ -167,12 +166,15 @@ def _patches(parents, children, parent_normals, grow):
     h = np.sum(d * n, axis=1)
     rt = np.linalg.norm(d - h[:, None] * n, axis=1)
     P = len(parents)
+    g = np.broadcast_to(np.asarray(grow, float), (len(children),))[order]
+    counts = np.bincount(parent, minlength=P)
     RT = np.zeros(P)
     HN = np.zeros(P)
-    g = np.broadcast_to(np.asarray(grow, float), (len(children),))[order]
-    np.maximum.at(RT, parent, rt + g)
-    np.maximum.at(HN, parent, np.abs(h) + g)
-    start = np.concatenate([[0], np.cumsum(np.bincount(parent, minlength=P))]).astype(np.int64)
+    has = counts > 0
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])[has]
+    RT[has] = np.maximum.reduceat(rt + g, first)
+    HN[has] = np.maximum.reduceat(np.abs(h) + g, first)
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     return order, RT, HN, start
 
 
@@ -320,32 +322,6 @@ def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapC
              "middle_samples": int(len(lv["M"])), "fine_samples": int(len(lv["F"])),
              "fine_cover": fmargin, "threads": int(used)}
     return free, stats
-
-
-def collision_free(shape, gripper: GripperSpec, T_obj_wrist: np.ndarray, opening: np.ndarray,
-                   config: MapConfig | None = None, threads: int | None = None) -> np.ndarray:
-    """(N,) bool: the gripper at wrist poses ``T_obj_wrist`` (N, 4, 4), jaws at pad gaps
-    ``opening`` (N,) [m], does not touch the object (same exact-or-conservative test
-    as map generation; poses within ``collision_tolerance`` of touching count as
-    colliding)."""
-    cfg = config or MapConfig()
-    T = np.asarray(T_obj_wrist, float).reshape(-1, 4, 4)
-    opening = np.broadcast_to(np.asarray(opening, float), (len(T),))
-    if np.any(opening < gripper.min_opening - 1e-12) or np.any(opening > gripper.max_opening + 1e-12):
-        raise InvalidParameterError(
-            f"openings must lie in [{gripper.min_opening}, {gripper.max_opening}] m")
-    if len(T) == 0:
-        return np.zeros(0, bool)
-    x, z = T[:, :3, 0], T[:, :3, 2]
-    d0 = gripper.contact_depth_margin
-    gp = T[:, :3, 3] + (gripper.fingertip_z - d0) * z
-    # one line per pose with roll 0 = the pose's own approach axis: e1 = z, e2 = x X z
-    lines = ClosingLines(p1=gp, p2=gp, n1=z, n2=z, u=x, width=opening - 2 * gripper.approach_clearance,
-                         gp=gp, e1=z, e2=np.cross(x, z), outside=np.ones(len(T), bool),
-                         contacts=len(T), directions=1)
-    free, _ = sweep_collisions(shape, lines, gripper, cfg, threads, rolls=np.zeros(1),
-                               depths=np.array([d0]))
-    return free[:, 0, 0].astype(bool)
 
 
 def generate_fs_map(

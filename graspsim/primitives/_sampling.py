@@ -78,36 +78,36 @@ def revolution_samples(
     ``profile(s)`` maps arc length s in [0, length] to (rho, z, n_rho, n_z): the
     distance from the axis, the height and the outward unit normal in the (rho, z)
     half-plane. The profile is swept over azimuth [0, sweep] (counter-clockwise
-    from +x).
+    from +x). Rings of cells along s; each ring has enough azimuth cells that no cell
+    side exceeds ``step``.
     """
     ns = cells(length, step)
     ds = length / ns
     s = (np.arange(ns) + 0.5) * ds
-    rho, z, nr, nz = (np.asarray(a, float) for a in profile(s))
-    pts, nrm, areas, tang, height = [], [], [], [], []
-    cover = 0.0
+    rho, z, nr, nz = (np.broadcast_to(np.asarray(a, float), s.shape) for a in profile(s))
     edges = np.asarray(profile(np.linspace(0.0, length, ns + 1))[0], float)
-    for j in range(ns):
-        # size the cells by their widest arc so no cell side exceeds the step
-        nt = max(3, math.ceil(sweep * max(rho[j], edges[j], edges[j + 1]) / step - 1e-9))
-        dt = sweep / nt
-        th = (np.arange(nt) + 0.5) * dt
-        c, si = np.cos(th), np.sin(th)
-        pts.append(np.column_stack([rho[j] * c, rho[j] * si, np.full(nt, z[j])]))
-        nrm.append(np.column_stack([nr[j] * c, nr[j] * si, np.full(nt, nz[j])]))
-        areas.append(np.full(nt, rho[j] * dt * ds))
-        # offsets of the cell's corners and edge midpoints from its sample (azimuth 0 by
-        # symmetry), split along the sample's normal and its tangent plane
-        sc = np.array([s[j] - ds / 2, s[j], s[j] + ds / 2])
-        rc, zc, _, _ = (np.asarray(a, float) for a in profile(sc))
-        cell_t, cell_h = 0.0, 0.0
-        for half in (-dt / 2, 0.0, dt / 2):
-            d = np.stack([rc * math.cos(half) - rho[j], rc * math.sin(half), zc - z[j]], axis=1)
-            h = d[:, 0] * nr[j] + d[:, 2] * nz[j]
-            cell_h = max(cell_h, float(np.abs(h).max()))
-            cell_t = max(cell_t, float(np.sqrt(np.maximum((d**2).sum(1) - h**2, 0.0)).max()))
-            cover = max(cover, float(np.sqrt((d**2).sum(1)).max()))
-        tang.append(np.full(nt, cell_t))
-        height.append(np.full(nt, cell_h))
-    return SurfaceSamples(np.concatenate(pts), np.concatenate(nrm), np.concatenate(areas), cover,
-                          tangent_radius=np.concatenate(tang), normal_height=np.concatenate(height))
+    widest = np.maximum(rho, np.maximum(edges[:-1], edges[1:]))
+    nt = np.maximum(3, np.ceil(sweep * widest / step - 1e-9).astype(np.int64))
+    dt = sweep / nt
+    ring = np.repeat(np.arange(ns), nt)
+    k = np.arange(len(ring)) - np.repeat(np.cumsum(nt) - nt, nt)
+    th = (k + 0.5) * dt[ring]
+    c, si = np.cos(th), np.sin(th)
+    pts = np.column_stack([rho[ring] * c, rho[ring] * si, z[ring]])
+    nrm = np.column_stack([nr[ring] * c, nr[ring] * si, nz[ring]])
+    areas = (rho * dt * ds)[ring]
+    # offsets of each ring cell's corners and edge midpoints from its sample (azimuth
+    # 0 by symmetry), split along the sample's normal and its tangent plane
+    sc = s[:, None] + np.array([-0.5, 0.0, 0.5]) * ds
+    rc, zc, _, _ = (np.broadcast_to(np.asarray(a, float), sc.shape) for a in profile(sc))
+    half = np.array([-0.5, 0.0, 0.5])[None, None, :] * dt[:, None, None]
+    dx = rc[:, :, None] * np.cos(half) - rho[:, None, None]
+    dy = rc[:, :, None] * np.sin(half)
+    dz = np.broadcast_to((zc - z[:, None])[:, :, None], dx.shape)
+    h = dx * nr[:, None, None] + dz * nz[:, None, None]
+    d2 = dx**2 + dy**2 + dz**2
+    cell_h = np.abs(h).reshape(ns, -1).max(axis=1)
+    cell_t = np.sqrt(np.maximum(d2 - h**2, 0.0)).reshape(ns, -1).max(axis=1)
+    cover = float(np.sqrt(d2).max())
+    return SurfaceSamples(pts, nrm, areas, cover, tangent_radius=cell_t[ring],
+                          normal_height=cell_h[ring])

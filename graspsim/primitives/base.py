@@ -186,6 +186,24 @@ class Primitive(ABC):
     def _ray_exit_geo(self, o: np.ndarray, d: np.ndarray) -> np.ndarray:
         return _march_exit(self._sdf_geo, o, d, self.size_scale)
 
+    @abstractmethod
+    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray: ...
+
+    @abstractmethod
+    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray: ...
+
+    def to_unit(self, points: np.ndarray) -> np.ndarray:
+        """Shape-normalised coordinates (N, 3) of object-frame points: the same for
+        corresponding points of every size variant of this primitive (surface to
+        surface, axis to axis). See :meth:`from_unit`."""
+        return self._to_unit_geo(np.asarray(points, float).reshape(-1, 3) + self.com_geo)
+
+    def from_unit(self, q: np.ndarray) -> np.ndarray:
+        """Object-frame points (N, 3) of shape-normalised coordinates (inverse of
+        :meth:`to_unit`). ``b.from_unit(a.to_unit(p))`` maps a point of ``a`` to the
+        corresponding point of the size variant ``b`` (the paper's scaling, eqs. 3-4)."""
+        return self._from_unit_geo(np.asarray(q, float).reshape(-1, 3)) - self.com_geo
+
     def sdf(self, points: np.ndarray) -> np.ndarray:
         """Exact signed distance (N,) [m] of object-frame points (N, 3); < 0 inside."""
         p = np.asarray(points, dtype=float)
@@ -236,7 +254,8 @@ class Primitive(ABC):
 
     @property
     def circumradius(self) -> float:
-        """Largest distance from the centre of mass to the surface [m]."""
+        """Largest distance from the centre of mass to the surface [m] (analytic in
+        every primitive; this mesh-based fallback is for subclasses that lack it)."""
         return _circumradius(self)
 
     def mesh(self, sections: int = 64):

@@ -34,6 +34,10 @@ class Box(Primitive):
     def volume(self) -> float:
         return self.x * self.y * self.z
 
+    @property
+    def circumradius(self) -> float:
+        return float(np.linalg.norm(self.half))
+
     def _inertia_geo_unit(self) -> np.ndarray:
         x2, y2, z2 = self.x**2, self.y**2, self.z**2
         return np.diag([y2 + z2, x2 + z2, x2 + y2]) / 12.0
@@ -49,6 +53,12 @@ class Box(Primitive):
             t = (np.sign(d) * self.half - o) / d
         t = np.where(np.abs(d) > 1e-15, t, np.inf)
         return np.min(t, axis=1)
+
+    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray:
+        return p / self.half
+
+    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray:
+        return q * self.half
 
     def _samples_geo(self, step: float) -> SurfaceSamples:
         h = self.half

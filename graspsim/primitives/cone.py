@@ -61,6 +61,11 @@ class Cone(Primitive):
         zc = h * (r0 * r0 + 2 * r0 * r1 + 3 * r1 * r1) / (4 * (r0 * r0 + r0 * r1 + r1 * r1))
         return np.array([0.0, 0.0, zc])
 
+    @property
+    def circumradius(self) -> float:
+        zc = float(self.com_geo[2])
+        return max(math.hypot(self.bottom_radius, zc), math.hypot(self.top_radius, self.height - zc))
+
     def _inertia_geo_unit(self) -> np.ndarray:
         rho = self._profile_poly()
         z = Polynomial([0.0, 1.0])
@@ -111,6 +116,22 @@ class Cone(Primitive):
         cap = np.where(np.abs(d[:, 2]) > 1e-15, cap, np.inf)
         side = np.where(np.isfinite(side) & (side > eps), side, np.inf)
         return np.minimum(side, cap)
+
+    def _radius_at(self, zeta: np.ndarray) -> np.ndarray:
+        """Side radius at normalised height zeta (clipped to the body), floored so the
+        apex of a full cone stays invertible."""
+        z = np.clip(zeta, 0.0, 1.0)
+        r = self.bottom_radius + (self.top_radius - self.bottom_radius) * z
+        return np.maximum(r, 1e-6 * max(self.bottom_radius, self.top_radius))
+
+    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray:
+        zeta = p[:, 2] / self.height
+        r = self._radius_at(zeta)
+        return np.column_stack([p[:, 0] / r, p[:, 1] / r, zeta])
+
+    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray:
+        r = self._radius_at(q[:, 2])
+        return np.column_stack([q[:, 0] * r, q[:, 1] * r, q[:, 2] * self.height])
 
     def _samples_geo(self, step: float) -> SurfaceSamples:
         r0, r1, h = self.bottom_radius, self.top_radius, self.height

@@ -31,6 +31,10 @@ class Cylinder(Primitive):
     def volume(self) -> float:
         return math.pi * self.radius**2 * self.height
 
+    @property
+    def circumradius(self) -> float:
+        return math.hypot(self.radius, 0.5 * self.height)
+
     def _inertia_geo_unit(self) -> np.ndarray:
         r2, h2 = self.radius**2, self.height**2
         ixx = (3.0 * r2 + h2) / 12.0
@@ -52,6 +56,12 @@ class Cylinder(Primitive):
         side = np.where(a > 1e-15, side, np.inf)
         cap = np.where(np.abs(d[:, 2]) > 1e-15, cap, np.inf)
         return np.minimum(side, cap)
+
+    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray:
+        return p / np.array([self.radius, self.radius, 0.5 * self.height])
+
+    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray:
+        return q * np.array([self.radius, self.radius, 0.5 * self.height])
 
     def _samples_geo(self, step: float) -> SurfaceSamples:
         r, h = self.radius, self.height

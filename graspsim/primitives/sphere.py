@@ -28,6 +28,10 @@ class Sphere(Primitive):
     def volume(self) -> float:
         return 4.0 / 3.0 * math.pi * self.radius**3
 
+    @property
+    def circumradius(self) -> float:
+        return float(self.radius)
+
     def _inertia_geo_unit(self) -> np.ndarray:
         return np.eye(3) * 0.4 * self.radius**2
 
@@ -38,6 +42,12 @@ class Sphere(Primitive):
         b = np.sum(o * d, axis=1)
         c = np.sum(o * o, axis=1) - self.radius**2
         return -b + np.sqrt(np.maximum(b * b - c, 0.0))
+
+    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray:
+        return p / self.radius
+
+    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray:
+        return q * self.radius
 
     def _samples_geo(self, step: float) -> SurfaceSamples:
         r = self.radius

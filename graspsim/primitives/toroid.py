@@ -50,6 +50,11 @@ class HalfToroid(Primitive):
         R, r = self.major_radius, self.minor_radius
         return np.array([0.0, 2.0 * (R * R + 0.25 * r * r) / (math.pi * R), 0.0])
 
+    @property
+    def circumradius(self) -> float:
+        # the far ends of the outer ring, (+-(R + r), 0, 0), seen from the COM on +y
+        return math.hypot(self.major_radius + self.minor_radius, float(self.com_geo[1]))
+
     def _inertia_geo_unit(self) -> np.ndarray:
         R2, r2 = self.major_radius**2, self.minor_radius**2
         ixx = 0.5 * R2 + 0.625 * r2
@@ -67,6 +72,17 @@ class HalfToroid(Primitive):
             dists.append(np.hypot(np.maximum(q - r, 0.0), y))
         lower = np.minimum(*dists)
         return np.where(y >= 0.0, upper, lower)
+
+    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray:
+        # (ring angle, radial and axial offsets from the tube centre in tube radii)
+        R, r = self.major_radius, self.minor_radius
+        rho = np.hypot(p[:, 0], p[:, 1])
+        return np.column_stack([np.arctan2(p[:, 1], p[:, 0]), (rho - R) / r, p[:, 2] / r])
+
+    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray:
+        R, r = self.major_radius, self.minor_radius
+        rho = R + r * q[:, 1]
+        return np.column_stack([rho * np.cos(q[:, 0]), rho * np.sin(q[:, 0]), r * q[:, 2]])
 
     def _samples_geo(self, step: float) -> SurfaceSamples:
         R, r = self.major_radius, self.minor_radius

@@ -1,0 +1,309 @@
+"""Map scaling for familiar objects (paper 2.4): Quality, Feasibility, Combined.
+
+A full-scale (FS) map of a primitive is adapted to a size variant of the same
+primitive by moving only the FS map's successful grasps (paper: unsuccessful grasps are
+assumed to stay unsuccessful), keeping each grasp's orientation:
+
+* **Quality** (eqs. 3-4): the grasp point keeps its place relative to the shape -- it
+  is mapped with the primitive's shape-normalised coordinates (per-axis factors
+  R_N/R_O, H_N/H_O for a cylinder) -- and the wrist follows at the same contact depth.
+* **Feasibility** (eqs. 5-6): the wrist is translated with the change in dimensions --
+  by the displacement of the surface point nearest to it (for a cylinder: the radius
+  change outwards, the end faces' shift along the axis) -- and the grasp point moves
+  with it.
+* **Combined**: Quality first; where the Quality pose collides, the finger length is
+  used: the wrist slides along the approach axis by the Feasibility displacement
+  while the grasp point stays where Quality put it (the contact moves along the pad);
+  if the contact would leave the pad, the Feasibility pose is tried.
+
+Every candidate is recentred on the new object's chord along its closing axis (new
+contacts, width), re-graded with the same quality model and re-checked for collision;
+only collision-free grasps within the opening range and above ``keep_min_grade`` are
+kept. :func:`scale_stream` yields the result best-first in growing batches.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import time
+from dataclasses import asdict, dataclass
+from enum import Enum
+from typing import Iterator
+
+import numpy as np
+
+from graspsim import __version__
+from graspsim.errors import InvalidParameterError
+from graspsim.gripper import GripperSpec
+from graspsim.maps.collide import grasps_collision_free
+from graspsim.maps.generate import MapConfig, object_description
+from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.primitives import Primitive, shape_from_dict
+from graspsim.quality import QualityModel
+from graspsim.transforms import quat_to_matrix
+
+__all__ = ["ScalingMethod", "ScalingConfig", "scale_map", "scale_stream", "scale_factors"]
+
+log = logging.getLogger(__name__)
+
+
+class ScalingMethod(str, Enum):
+    QUALITY = "quality"
+    FEASIBILITY = "feasibility"
+    COMBINED = "combined"
+
+
+@dataclass(frozen=True)
+class ScalingConfig:
+    """method: the scaling algorithm.
+    source_min_grade: FS grasps above this grade are scaled (None: the quality model's
+        threshold, as in the paper: only successful grasps are scaled).
+    keep_min_grade: scaled grasps above this grade are kept (None: the threshold, as in
+        the paper; 0 keeps every valid grasp).
+    max_ratio: largest allowed change of any dimension (new / old or old / new); the
+        paper limits scaling to a range because large changes break its assumption.
+    first_batch, growth: streaming batch sizes (grasps), growing geometrically; batches
+        of up to ``small_batch`` grasps are checked by branch and bound (no set-up), larger
+        ones by the compiled sweep (whose sample hierarchy for the target is built once).
+    """
+
+    method: ScalingMethod = ScalingMethod.COMBINED
+    source_min_grade: float | None = None
+    keep_min_grade: float | None = None
+    max_ratio: float = 3.0
+    first_batch: int = 1
+    growth: float = 4.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "method", ScalingMethod(self.method))
+        if not self.max_ratio >= 1.0:
+            raise InvalidParameterError(f"max_ratio must be >= 1, got {self.max_ratio!r}")
+        if self.first_batch < 1 or self.growth < 1:
+            raise InvalidParameterError("first_batch must be >= 1 and growth >= 1")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["method"] = self.method.value
+        return d
+
+
+def scale_factors(source: Primitive, target: Primitive) -> dict[str, float]:
+    """Per-dimension ratios target / source (0 dims of a full cone give ratio 1)."""
+    out = {}
+    for k, v in source.dims.items():
+        t = target.dims[k]
+        out[k] = 1.0 if v == 0 and t == 0 else (t / v if v > 0 else float("inf"))
+    return out
+
+
+def _feasibility_shift(source: Primitive, target: Primitive, points: np.ndarray) -> np.ndarray:
+    """Displacement (N, 3) of the source surface point nearest to each point, when the
+    surface is carried to the target by the shape correspondence."""
+    s = points - source.sdf(points)[:, None] * source.normals(points)
+    return target.from_unit(source.to_unit(s)) - s
+
+
+@dataclass(frozen=True)
+class _Chords:
+    """Grasps recentred on the target's chords: per grasp (or per line) the contacts,
+    normals, grasp point, width, quality and a validity mask."""
+
+    ok: np.ndarray
+    c1: np.ndarray
+    c2: np.ndarray
+    n1: np.ndarray
+    n2: np.ndarray
+    gp: np.ndarray
+    width: np.ndarray
+    q: object
+
+
+def _chords(target: Primitive, gripper: GripperSpec, quality: QualityModel, d_ref: float,
+            cfg: MapConfig, gp: np.ndarray, u: np.ndarray, keep_min: float) -> _Chords:
+    """Chord of the target through each point ``gp`` along ``u``: contacts, width,
+    re-graded quality; ``ok`` where the point is inside, the width fits the gripper and
+    the grade exceeds ``keep_min``."""
+    n = len(gp)
+    inside = target.sdf(gp) < 0.0
+    t1 = np.full(n, np.nan)
+    t2 = np.full(n, np.nan)
+    if np.any(inside):
+        t1[inside] = target.ray_exit(gp[inside], -u[inside])
+        t2[inside] = target.ray_exit(gp[inside], u[inside])
+    width = t1 + t2
+    ok = inside & np.isfinite(width) & (width >= max(cfg.min_width, gripper.min_opening)) \
+        & (width + 2 * gripper.approach_clearance <= gripper.max_opening + 1e-12)
+    t1, t2 = np.where(ok, t1, 0.0), np.where(ok, t2, 0.0)
+    c1, c2 = gp - t1[:, None] * u, gp + t2[:, None] * u
+    n1, n2 = target.normals(c1), target.normals(c2)
+    q = quality.evaluate(c1, c2, n1, n2, target.com, d_ref)
+    ok &= q.grade > keep_min
+    return _Chords(ok, c1, c2, n1, n2, 0.5 * (c1 + c2), width, q)
+
+
+def _columns(ch: _Chords, sel: np.ndarray, R: np.ndarray, depth: np.ndarray,
+             gripper: GripperSpec) -> dict[str, np.ndarray]:
+    """Map columns of grasps ``sel`` (indices into the chords) with rotations R and
+    contact depths ``depth`` (one per selected grasp)."""
+    gp = ch.gp[sel]
+    return {"wrist_position": gp - (gripper.fingertip_z - depth)[:, None] * R[:, :, 2],
+            "grasp_point": gp, "contacts": np.stack([ch.c1[sel], ch.c2[sel]], 1),
+            "normals": np.stack([ch.n1[sel], ch.n2[sel]], 1), "width": ch.width[sel],
+            "fc_angle": ch.q.fc_angle[sel], "q_fc": ch.q.q_fc[sel],
+            "stability_distance": ch.q.stability_distance[sel], "q_st": ch.q.q_st[sel],
+            "grade": ch.q.grade[sel]}
+
+
+@dataclass(frozen=True)
+class _Source:
+    """The FS grasps to scale, grouped by closing line, lines best-first."""
+
+    rows: np.ndarray  # FS row indices, grouped by line, lines best first
+    line_of: np.ndarray  # (n,) line index of each row in ``rows``
+    gp: np.ndarray  # (L, 3) grasp point of each line
+    u: np.ndarray  # (L, 3) closing axis of each line
+
+
+@functools.lru_cache(maxsize=2)
+def _source(fs_map: GraspabilityMap, min_grade: float) -> _Source:
+    """Line structure of an FS map's grasps above ``min_grade`` (cached per map object:
+    preparing a stored map for scaling is a-priori work)."""
+    sel = np.flatnonzero(fs_map.grade > min_grade)
+    c = np.ascontiguousarray(fs_map.contacts[sel]).reshape(len(sel), 6)
+    _, first, line = np.unique(c.view(np.dtype((np.void, 24))).ravel(), return_index=True,
+                               return_inverse=True)
+    line = line.ravel()
+    best = np.full(len(first), -np.inf, np.float32)
+    np.maximum.at(best, line, fs_map.grade[sel])
+    rank = np.empty(len(first), np.int64)
+    rank[np.lexsort((first, -best))] = np.arange(len(first))  # best first, ties by FS order
+    line = rank[line]
+    order = np.lexsort((np.arange(len(sel)), line))
+    rows, line = sel[order], line[order]
+    lead = rows[np.searchsorted(line, np.arange(len(first)))]
+    c = fs_map.contacts[lead].astype(float)
+    u = c[:, 1] - c[:, 0]
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    return _Source(rows, line, c.mean(axis=1), u)
+
+
+def _check(target, gripper, cfg, gp, R, depth, width, line=None) -> np.ndarray:
+    if len(gp) == 0:
+        return np.zeros(0, bool)
+    return grasps_collision_free(target, gripper, gp, R, depth, width, cfg, line=line)
+
+
+def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: QualityModel | None = None,
+                 scaling: ScalingConfig | None = None, config: MapConfig | None = None
+                 ) -> Iterator[GraspabilityMap]:
+    """Scale ``fs_map`` (a primitive's FS map) to ``target`` (the same primitive at
+    another size), yielding maps of kept grasps in batches, best FS lines first."""
+    sc = scaling or ScalingConfig()
+    source = shape_from_dict(fs_map.meta.object)
+    if not isinstance(source, Primitive) or source.kind != target.kind:
+        raise InvalidParameterError(
+            f"can only scale a map of a {target.kind} to another {target.kind}; the map is of "
+            f"{fs_map.meta.object.get('primitive')}")
+    ratios = scale_factors(source, target)
+    bad = {k: r for k, r in ratios.items() if not (1 / sc.max_ratio <= r <= sc.max_ratio)}
+    if bad:
+        raise InvalidParameterError(
+            f"scaling {source} to {target} changes {sorted(bad)} by more than the allowed "
+            f"factor {sc.max_ratio}; generate an FS map for this size instead")
+    gripper = GripperSpec.from_dict(fs_map.meta.gripper)
+    qd = {k: v for k, v in fs_map.meta.quality.items() if k != "d_ref"}
+    quality = quality or QualityModel.from_dict(qd)
+    cfg = config or MapConfig(**{k: v for k, v in fs_map.meta.resolution.items()
+                                 if k in MapConfig.__dataclass_fields__})
+    src_min = fs_map.threshold if sc.source_min_grade is None else sc.source_min_grade
+    keep_min = quality.threshold if sc.keep_min_grade is None else sc.keep_min_grade
+    d_ref = quality.reference_distance(target.circumradius)
+    src = _source(fs_map, float(src_min))
+    meta = MapMeta(object=object_description(target, None, cfg.density), gripper=fs_map.meta.gripper,
+                   quality={**quality.to_dict(), "d_ref": d_ref}, resolution=fs_map.meta.resolution,
+                   method=f"scaled/{sc.method.value}", version=__version__,
+                   extra={"source": fs_map.meta.object, "scaling": sc.to_dict(),
+                          "factors": ratios, "source_grasps": int(len(src.rows))})
+    lo = gripper.contact_depth_margin - 1e-6
+    hi = gripper.pad_length - gripper.contact_depth_margin + 1e-6
+    n_rows = len(src.rows)
+    start, size = 0, sc.first_batch
+    while start < n_rows:
+        stop = min(n_rows, start + size)
+        rows = np.arange(start, stop)
+        start, size = stop, int(size * sc.growth)
+        line = src.line_of[rows]
+        R = quat_to_matrix(fs_map.wrist_quat[src.rows[rows]])
+        wrist = fs_map.wrist_position[src.rows[rows]].astype(float)
+        depth = gripper.fingertip_z - np.einsum("ni,ni->n", src.gp[line] - wrist, R[:, :, 2])
+        pieces = []
+        rest = np.arange(len(rows))
+        if sc.method in (ScalingMethod.QUALITY, ScalingMethod.COMBINED):
+            lines = np.unique(line)
+            gp_q = target.from_unit(source.to_unit(src.gp[lines]))
+            ch = _chords(target, gripper, quality, d_ref, cfg, gp_q, src.u[lines], keep_min)
+            li = np.searchsorted(lines, line)  # chord of each row
+            cand = np.flatnonzero(ch.ok[li])
+            free = _check(target, gripper, cfg, ch.gp[li[cand]], R[cand], depth[cand],
+                          ch.width[li[cand]], line=li[cand])
+            kept = cand[free]
+            pieces.append((_columns(ch, li[kept], R[kept], depth[kept], gripper), kept))
+            rest = np.setdiff1d(rest, kept)
+        if sc.method is ScalingMethod.COMBINED and len(rest):
+            # slide the wrist along the approach axis by the feasibility shift: the
+            # contact moves along the pad, the grasp point stays where Quality put it
+            shift = _feasibility_shift(source, target, wrist[rest])
+            d2 = depth[rest] + np.einsum("ni,ni->n", shift, R[rest, :, 2])
+            on_pad = ch.ok[li[rest]] & (d2 >= lo) & (d2 <= hi)
+            cand = rest[on_pad]
+            free = _check(target, gripper, cfg, ch.gp[li[cand]], R[cand], d2[on_pad],
+                          ch.width[li[cand]], line=li[cand])
+            kept = cand[free]
+            pieces.append((_columns(ch, li[kept], R[kept], d2[on_pad][free], gripper), kept))
+            rest = rest[~on_pad]  # off the pad or no chord: try the feasibility pose
+        if sc.method in (ScalingMethod.FEASIBILITY, ScalingMethod.COMBINED) and len(rest):
+            shift = _feasibility_shift(source, target, wrist[rest])
+            gp_f = src.gp[line[rest]] + shift
+            chf = _chords(target, gripper, quality, d_ref, cfg, gp_f, R[rest, :, 0], keep_min)
+            cand = np.flatnonzero(chf.ok & (depth[rest] >= lo) & (depth[rest] <= hi))
+            free = _check(target, gripper, cfg, chf.gp[cand], R[rest][cand], depth[rest][cand],
+                          chf.width[cand])
+            kept = cand[free]
+            pieces.append((_columns(chf, kept, R[rest][kept], depth[rest][kept], gripper), rest[kept]))
+        batch = _assemble(pieces, fs_map, src.rows[rows], meta)
+        if len(batch):
+            yield batch
+
+
+def _assemble(pieces, fs_map: GraspabilityMap, fs_rows: np.ndarray, meta: MapMeta):
+    """One batch map from the per-method pieces (columns, batch-local row indices),
+    best grade first."""
+    pieces = [(c, k) for c, k in pieces if len(k)]
+    if not pieces:
+        return GraspabilityMap.empty(meta)
+    local = np.concatenate([k for _, k in pieces])
+    cols = {name: np.concatenate([c[name] for c, _ in pieces]) for name in pieces[0][0]}
+    src = fs_rows[local]
+    cols["wrist_quat"] = fs_map.wrist_quat[src]
+    cols["part"] = fs_map.part[src]
+    m = GraspabilityMap(**cols, meta=meta)
+    return m.select(np.argsort(-m.grade, kind="stable"))
+
+
+def scale_map(fs_map: GraspabilityMap, target: Primitive, *, quality: QualityModel | None = None,
+              scaling: ScalingConfig | None = None, config: MapConfig | None = None) -> GraspabilityMap:
+    """The whole scaled map (the concatenation of :func:`scale_stream`'s batches)."""
+    t0 = time.perf_counter()
+    batches = list(scale_stream(fs_map, target, quality=quality, scaling=scaling, config=config))
+    sc = scaling or ScalingConfig()
+    if batches:
+        out = GraspabilityMap.concat(batches)
+    else:
+        source = shape_from_dict(fs_map.meta.object)
+        log.warning("scaling %s to %s kept no grasp", source, target)
+        out = GraspabilityMap.empty(MapMeta(
+            object=object_description(target, None, MapConfig().density), gripper=fs_map.meta.gripper,
+            quality=fs_map.meta.quality, resolution=fs_map.meta.resolution,
+            method=f"scaled/{sc.method.value}", version=__version__))
+    return out.with_meta(timing={"total": time.perf_counter() - t0})

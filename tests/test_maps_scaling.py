@@ -1,0 +1,100 @@
+"""Map scaling (paper 2.4): invariants of the three algorithms."""
+
+import math
+
+import numpy as np
+import pytest
+
+from graspsim.errors import InvalidParameterError
+from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.maps.collide import boxes_clear_sdf
+from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.scaling import ScalingConfig, ScalingMethod, scale_map, scale_stream
+from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Sphere
+from graspsim.quality import QualityModel
+
+FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
+
+
+@pytest.fixture(scope="module")
+def cyl_fs():
+    return generate_fs_map(Cylinder(0.02, 0.12), config=FAST)
+
+
+@pytest.mark.parametrize("method", list(ScalingMethod))
+def test_factor_one_returns_the_accepted_fs_map(cyl_fs, method):
+    m = scale_map(cyl_fs, Cylinder(0.02, 0.12), scaling=ScalingConfig(method=method))
+    acc = cyl_fs.filter(accepted=True)
+    assert len(m) == len(acc)
+    # one wrist pose can hold several chords (different widths along the approach axis)
+    key = lambda g: np.lexsort(np.column_stack(  # noqa: E731
+        [np.round(g.wrist_position, 5), np.round(g.wrist_quat, 5), np.round(g.contacts.reshape(-1, 6), 5)]).T)
+    a, b = acc.select(key(acc)), m.select(key(m))
+    np.testing.assert_allclose(b.wrist_position, a.wrist_position, atol=2e-6)
+    np.testing.assert_allclose(b.contacts, a.contacts, atol=2e-6)
+    np.testing.assert_allclose(b.grade, a.grade, atol=1e-5)
+
+
+def test_up_then_down_returns_the_original_poses(cyl_fs):
+    big = Cylinder(0.026, 0.15)
+    up = scale_map(cyl_fs, big, scaling=ScalingConfig(method="quality", keep_min_grade=0.0))
+    fs_big = up.with_meta(object={**up.meta.object}, quality=cyl_fs.meta.quality)
+    down = scale_map(fs_big, Cylinder(0.02, 0.12),
+                     scaling=ScalingConfig(method="quality", source_min_grade=0.0, keep_min_grade=0.0))
+    orig = cyl_fs.filter(accepted=True)
+    okey = {tuple(np.round(np.r_[w, q], 4)) for w, q in zip(orig.wrist_position, orig.wrist_quat)}
+    dkey = {tuple(np.round(np.r_[w, q], 4)) for w, q in zip(down.wrist_position, down.wrist_quat)}
+    assert len(dkey) > 0.8 * len(okey)
+    assert dkey <= okey  # every pose that survives the round trip is an original one
+
+
+@pytest.mark.parametrize("target", [Cylinder(0.024, 0.15), Cylinder(0.016, 0.1)])
+@pytest.mark.parametrize("method", list(ScalingMethod))
+def test_scaled_grasps_are_valid_and_regraded(cyl_fs, target, method):
+    m = scale_map(cyl_fs, target, scaling=ScalingConfig(method=method))
+    assert len(m) > 0 and m.meta.method == f"scaled/{method.value}"
+    c = m.contacts.astype(float)
+    assert np.abs(target.sdf(c.reshape(-1, 3))).max() < 2e-6
+    assert np.all(m.width + 2 * G.approach_clearance <= G.max_opening + 1e-6)
+    q = QualityModel().evaluate(c[:, 0], c[:, 1], m.normals[:, 0], m.normals[:, 1], np.zeros(3),
+                                target.circumradius)
+    np.testing.assert_allclose(m.grade, q.grade, atol=1e-5)
+    assert np.all(m.grade > 0.7)
+    idx = np.random.default_rng(0).choice(len(m), min(60, len(m)), replace=False)
+    assert boxes_clear_sdf(target, G, m.T_obj_wrist[idx], m.width[idx] + 2 * G.approach_clearance).all()
+
+
+def test_combined_keeps_at_least_quality(cyl_fs):
+    t = Cylinder(0.024, 0.16)
+    q = scale_map(cyl_fs, t, scaling=ScalingConfig(method="quality"))
+    c = scale_map(cyl_fs, t, scaling=ScalingConfig(method="combined"))
+    assert len(c) >= len(q)
+
+
+@pytest.mark.parametrize("shape,target", [
+    (Box(0.04, 0.05, 0.06), Box(0.05, 0.04, 0.07)),
+    (Sphere(0.03), Sphere(0.04)),
+    (Cone(0.035, 0.015, 0.08), Cone(0.04, 0.02, 0.09)),
+    (HalfToroid(0.04, 0.01), HalfToroid(0.045, 0.012)),
+])
+def test_every_primitive_scales(shape, target):
+    fs = generate_fs_map(shape, config=FAST)
+    m = scale_map(fs, target)
+    assert len(m) > 0
+    assert np.abs(target.sdf(m.contacts.reshape(-1, 3).astype(float))).max() < 2e-6
+
+
+def test_stream_is_best_first_and_matches_the_whole(cyl_fs):
+    t = Cylinder(0.022, 0.13)
+    batches = list(scale_stream(cyl_fs, t))
+    assert len(batches) > 2 and len(batches[0]) <= 2
+    whole = scale_map(cyl_fs, t)
+    assert sum(len(b) for b in batches) == len(whole)
+    assert batches[0].grade.max() >= whole.grade.max() - 1e-6
+
+
+def test_limits_and_wrong_primitive(cyl_fs):
+    with pytest.raises(InvalidParameterError, match="factor"):
+        scale_map(cyl_fs, Cylinder(0.08, 0.12))
+    with pytest.raises(InvalidParameterError, match="cylinder"):
+        scale_map(cyl_fs, Sphere(0.02))

@@ -22,6 +22,7 @@ __all__ = ["main", "build_parser"]
 COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.maps",
     "graspsim.cli.identify",
+    "graspsim.cli.adapt",
     "graspsim.cli.trial",
 )
 

@@ -20,8 +20,11 @@ import json
 import logging
 import os
 import time
+from collections import OrderedDict
 from pathlib import Path
 from typing import Iterable
+
+import numpy as np
 
 from graspsim._atomic import atomic_write_text
 from graspsim.errors import MapDatabaseError, MapFileError
@@ -73,12 +76,14 @@ class MapDatabase:
 
     def __init__(self, root: str | os.PathLike | None = None, *,
                  gripper: GripperSpec = HGPL_25_60_A, quality: QualityModel | None = None,
-                 config: MapConfig | None = None, tol: float = 0.01):
+                 config: MapConfig | None = None, tol: float = 0.01, cache_size: int = 8):
         self.root = Path(root) if root is not None else default_root()
         self.gripper = gripper
         self.quality = quality or QualityModel()
         self.config = config or MapConfig()
         self.tol = float(tol)
+        self.cache_size = int(cache_size)
+        self._cache: OrderedDict = OrderedDict()
         try:
             self.root.mkdir(parents=True, exist_ok=True)
         except OSError as err:
@@ -141,8 +146,26 @@ class MapDatabase:
             raise MapDatabaseError(f"no map of {shape} in {self.root}")
         return self.add(shape, threads=threads)
 
-    def load_entry(self, entry: dict) -> GraspabilityMap:
-        return load_map(self.root / entry["file"])
+    def load_entry(self, entry: dict, *, accepted_only: bool = False) -> GraspabilityMap:
+        """A stored map; with ``accepted_only`` just its grasps above the threshold --
+        stored maps are sorted best first, so that is a prefix of the file (a partial
+        read) -- kept in a small in-memory cache for repeated run-time use."""
+        path = self.root / entry["file"]
+        if not accepted_only:
+            return load_map(path)
+        try:
+            key = (str(path), path.stat().st_mtime_ns)
+        except OSError as err:
+            raise MapDatabaseError(f"stored map {path} is missing: {err}") from err
+        if key not in self._cache:
+            gmap = load_map(path, rows=slice(0, int(entry["accepted"])))
+            if len(gmap) and not gmap.accepted.all():
+                raise MapDatabaseError(f"{path} is not sorted best first; rebuild the database")
+            self._cache[key] = gmap
+            while len(self._cache) > self.cache_size:
+                self._cache.popitem(last=False)
+        self._cache.move_to_end(key)
+        return self._cache[key]
 
     # ------------------------------------------------------------------ building
     def add(self, shape: Primitive, *, threads: int | None = None, progress=None) -> GraspabilityMap:
@@ -150,6 +173,7 @@ class MapDatabase:
         t0 = time.perf_counter()
         gmap = generate_fs_map(shape, self.gripper, self.quality, self.config, threads=threads,
                                progress=progress)
+        gmap = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # accepted grasps first
         p = self.path(shape)
         p.parent.mkdir(exist_ok=True)
         save_map(gmap, p)

@@ -11,7 +11,8 @@ Layout (datasets, not attributes; N grasps)::
     graspability/meta                 JSON: quality model, resolution, method, timing
     graspability/format               "graspsim-map-1"
     object/primitive (name), object/dims (JSON of named dims [m]), object/com (3,),
-    object/mass, object/description (JSON), object/file + object/scale for meshes
+    object/mass, object/description (JSON), object/file + object/scale for meshes,
+    object/T_cloud_obj (4, 4) for adapted maps (the object frame in the cloud's frame)
     gripper/type, gripper/configuration (JSON GripperSpec)
 """
 
@@ -82,6 +83,8 @@ def save_map(gmap: GraspabilityMap, path: str | os.PathLike) -> Path:
                 f["object/scale"] = float(obj.get("scale", 1.0))
                 if "file" in obj:
                     f["object/file"] = str(obj["file"])
+                if "T_cloud_obj" in m.extra:  # adapted maps: object frame in the cloud's frame
+                    f["object/T_cloud_obj"] = np.asarray(m.extra["T_cloud_obj"], float)
                 f["gripper/type"] = str(m.gripper.get("name", "unknown"))
                 f["gripper/configuration"] = json.dumps(m.gripper, sort_keys=True)
         except OSError as err:
@@ -101,9 +104,10 @@ def _open(path: Path, mode: str = "r"):
         ) from err
 
 
-def load_map(path: str | os.PathLike) -> GraspabilityMap:
-    """Read a map written by :func:`save_map`; a foreign or damaged file raises
-    :class:`MapFileError` naming what is missing."""
+def load_map(path: str | os.PathLike, rows: slice | None = None) -> GraspabilityMap:
+    """Read a map written by :func:`save_map` (only ``rows``, a slice, if given: a
+    partial read); a foreign or damaged file raises :class:`MapFileError` naming what
+    is missing."""
     path = Path(path)
     with _open(path) as f:
         needed = list(_PATHS.values()) + ["graspability/meta", "object/description",
@@ -115,7 +119,8 @@ def load_map(path: str | os.PathLike) -> GraspabilityMap:
             raise MapFileError(f"{path} is {kind}: missing {', '.join(missing[:4])}"
                                + (" ..." if len(missing) > 4 else ""))
         try:
-            cols = {col: f[dpath][()] for col, dpath in _PATHS.items()}
+            sl = slice(None) if rows is None else rows
+            cols = {col: f[dpath][sl] for col, dpath in _PATHS.items()}
             meta = json.loads(_text(f["graspability/meta"][()]))
             obj = json.loads(_text(f["object/description"][()]))
             grip = json.loads(_text(f["gripper/configuration"][()]))

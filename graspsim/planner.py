@@ -1,0 +1,266 @@
+"""The run-time planner (paper 2.2-2.5): point cloud -> adapted graspability map.
+
+    cloud -> hierarchical MVBB + MLESAC identification -> for every part: the FS map of
+    a known primitive as is, or the nearest FS map scaled to a familiar one -> one part:
+    that map; several parts: the combined map of the compound -> adapted map
+
+:func:`plan_stream` yields grasps as soon as they exist (best-first within each part),
+so a caller can act on the first grasps before the whole map is built; :func:`plan`
+returns the finished map. Every map records ``extra["T_cloud_obj"]`` (4x4): the
+object frame in the cloud's frame, so poses can be taken back to the sensor.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field, replace
+from enum import Enum
+from typing import Iterator
+
+import numpy as np
+
+from graspsim.errors import InvalidParameterError
+from graspsim.maps.combine import combine_part
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import object_description
+from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.maps.scaling import ScalingConfig, scale_stream
+from graspsim.perception import Identification, IdentifyConfig, identify
+from graspsim.primitives import Compound, Primitive
+from graspsim.transforms import invert_transform
+
+__all__ = ["PlanStatus", "PlannerConfig", "PartPlan", "PlanResult", "GraspBatch", "plan",
+           "plan_stream"]
+
+log = logging.getLogger(__name__)
+
+
+class PlanStatus(str, Enum):
+    COMPLETE = "complete"  # every cluster identified
+    PARTIAL = "partial"  # clustering failed; map of the identified clusters only
+    FAILED = "failed"  # nothing identified
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """identify: perception settings (paper case study: 10 repetitions, theta 0.5).
+    scaling: the map scaling settings (Combined by default).
+    tol: known / familiar tolerance on every dimension [m] (paper: 1 cm).
+    partial: when clustering fails, still build the map of the identified parts.
+    build_missing: when no stored map of the primitive lies within the scaling range,
+        build (and store) an FS map of it, as the paper suggests; else skip the part.
+    """
+
+    identify: IdentifyConfig = field(default_factory=IdentifyConfig)
+    scaling: ScalingConfig = field(default_factory=ScalingConfig)
+    tol: float = 0.01
+    partial: bool = True
+    build_missing: bool = True
+
+
+@dataclass(frozen=True)
+class PartPlan:
+    """primitive: as identified (box edges ascending); match: known / familiar / built;
+    source: the FS map's object; T_cloud_part (4, 4); T_obj_part (4, 4) in the map's
+    object frame."""
+
+    primitive: Primitive
+    match: str
+    source: dict
+    T_cloud_part: np.ndarray
+    T_obj_part: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {"primitive": self.primitive.kind, "dims": self.primitive.dims, "match": self.match,
+                "source": self.source, "T_cloud_part": self.T_cloud_part.tolist()}
+
+
+@dataclass(frozen=True)
+class GraspBatch:
+    """Grasps found so far: ``map`` (object frame), seconds since the cloud arrived."""
+
+    map: GraspabilityMap
+    seconds: float
+
+
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """status; map: adapted map (object frame; ``extra["T_cloud_obj"]``); parts;
+    identification; T_cloud_obj (4, 4); timing [s] per stage plus ``first`` and
+    ``tenth`` (time to the first and tenth grasp with grade > 0.95, None if never)."""
+
+    status: PlanStatus
+    map: GraspabilityMap
+    parts: tuple[PartPlan, ...]
+    identification: Identification
+    T_cloud_obj: np.ndarray
+    timing: dict
+
+    def summary(self) -> dict:
+        return {"status": self.status.value, "parts": [p.to_dict() for p in self.parts],
+                "grasps": len(self.map), "accepted": int(self.map.accepted.sum()),
+                "seconds": self.timing.get("total"), "time_to_first_0.95": self.timing.get("first"),
+                "time_to_tenth_0.95": self.timing.get("tenth"),
+                "T_cloud_obj": self.T_cloud_obj.tolist()}
+
+
+def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarray]:
+    """A box with its edges in ascending order (x <= y <= z, z the longest as DESIGN.md
+    says), re-expressing its frame by the matching proper axis permutation."""
+    if prim.kind != "box":
+        return prim, T
+    d = np.array([prim.x, prim.y, prim.z])
+    order = np.argsort(d, kind="stable")
+    if np.array_equal(order, [0, 1, 2]):
+        return prim, T
+    P = np.eye(3)[:, order]  # new axis k = old axis order[k]
+    if np.linalg.det(P) < 0:
+        P[:, 0] *= -1.0
+    T2 = T.copy()
+    T2[:3, :3] = T[:3, :3] @ P
+    return prim.with_dims(x=d[order[0]], y=d[order[1]], z=d[order[2]]), T2
+
+
+def _scale_source(prim: Primitive, entries: list[dict], max_ratio: float) -> dict | None:
+    """The stored map of the same primitive needing the smallest relative size change
+    (largest per-dimension ratio), if it is within ``max_ratio``."""
+    best, best_r = None, np.inf
+    for e in entries:
+        if e["primitive"] != prim.kind:
+            continue
+        r = 1.0
+        for k, v in prim.dims.items():
+            w = e["dims"][k]
+            if v == 0 or w == 0:
+                r = 1.0 if v == w else np.inf
+                if r == np.inf:
+                    break
+                continue
+            r = max(r, v / w, w / v)
+        if r < best_r:
+            best, best_r = e, r
+    return best if best_r <= max_ratio else None
+
+
+def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig) -> tuple[str, dict, Iterator]:
+    """(match, source object, iterator of map batches in the part's frame)."""
+    m = db.lookup(prim.kind, prim.dims, tol=cfg.tol)
+    if m.match is not None and m.match.value == "known":  # the stored map as is (paper 2.2)
+        fs = db.load_entry(m.entry, accepted_only=True)
+        return "known", fs.meta.object, iter([fs])
+    entry = _scale_source(prim, db.entries(), cfg.scaling.max_ratio) if m.match is not None else None
+    if entry is not None:
+        fs = db.load_entry(entry, accepted_only=True)
+        return "familiar", fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling)
+    if not cfg.build_missing:
+        return "missing", {}, iter(())
+    # no map of this primitive within the scaling range: add one to the database
+    fs = db.get(prim)
+    return "built", fs.meta.object, iter([fs.filter(accepted=True)])
+
+
+def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
+                config: PlannerConfig | None = None, source: str = "array"
+                ) -> Iterator[GraspBatch | PlanResult]:
+    """Yield :class:`GraspBatch` es as grasps are found, then the :class:`PlanResult`."""
+    cfg = config or PlannerConfig()
+    t0 = time.perf_counter()
+    ident = identify(np.asarray(points, float), rng=rng, config=cfg.identify)
+    timing = {"identify": time.perf_counter() - t0}
+    prims, T_cloud = [], []
+    for part in ident.parts:
+        p, T = _canonical_box(part.primitive(), part.T_world_obj)
+        prims.append(p)
+        T_cloud.append(T)
+    status = PlanStatus.COMPLETE if ident.status.value == "identified" else PlanStatus.PARTIAL
+    if not prims or (status is PlanStatus.PARTIAL and not cfg.partial):
+        status = PlanStatus.FAILED
+        prims, T_cloud = [], []
+    if not prims:
+        yield PlanResult(status, GraspabilityMap.empty(_empty_meta(db, ident)), (), ident, np.eye(4),
+                         {**timing, "total": time.perf_counter() - t0, "first": None, "tenth": None})
+        return
+    # the object frame: one part -> its frame; several -> the compound's centre of
+    # mass with the axes of its largest part
+    if len(prims) == 1:
+        T_cloud_obj = T_cloud[0]
+        compound = None
+    else:
+        vols = [p.volume for p in prims]
+        big = int(np.argmax(vols))
+        com = sum(v * T[:3, 3] for v, T in zip(vols, T_cloud)) / sum(vols)
+        T_ref = T_cloud[big].copy()
+        T_ref[:3, 3] = com
+        inv = invert_transform(T_ref)
+        compound = Compound.from_parts(prims, np.stack([inv @ T for T in T_cloud]))
+        # from_parts re-centred the parts on the exact union COM (overlaps removed)
+        shift = np.eye(4)
+        shift[:3, 3] = (inv @ T_cloud[0])[:3, 3] - compound.poses[0][:3, 3]
+        T_cloud_obj = T_ref @ shift
+    T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
+    obj_meta = _object_meta(prims[0] if compound is None else compound, db)
+    extra = {"T_cloud_obj": T_cloud_obj.tolist(), "source": source, "status": status.value,
+             "identification": {"status": ident.status.value, "n_points": ident.n_points,
+                                "n_splits": ident.n_splits}}
+    batches: list[GraspabilityMap] = []
+    parts: list[PartPlan] = []
+    first = tenth = None
+    n_hi = 0
+    t1 = time.perf_counter()
+    for i, prim in enumerate(prims):
+        match, src, stream = _part_stream(prim, db, cfg)
+        parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i]))
+        for part_map in stream:
+            if compound is not None:
+                part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
+                                        d_ref=obj_meta.quality["d_ref"], config=db.config, meta=obj_meta)
+            batch = replace(part_map, meta=replace(obj_meta, extra=extra), part=np.full(len(part_map), i, np.int16))
+            if not len(batch):
+                continue
+            now = time.perf_counter() - t0
+            hi = int((batch.grade > 0.95).sum())
+            if hi and first is None:
+                first = now
+            n_hi += hi
+            if n_hi >= 10 and tenth is None:
+                tenth = now
+            batches.append(batch)
+            yield GraspBatch(batch, now)
+    timing["maps"] = time.perf_counter() - t1
+    meta = replace(obj_meta, method="adapted/" + ("single" if compound is None else "combined"),
+                   extra={**extra, "parts": [p.to_dict() for p in parts]})
+    full = GraspabilityMap.concat(batches, meta=meta) if batches else GraspabilityMap.empty(meta)
+    full = full.select(np.argsort(-full.grade, kind="stable"))
+    timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth)
+    yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
+
+
+def plan(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
+         config: PlannerConfig | None = None, source: str = "array") -> PlanResult:
+    """The adapted map of an object cloud (N, 3) [m] (see :func:`plan_stream`)."""
+    result = None
+    for item in plan_stream(points, db=db, rng=rng, config=config, source=source):
+        result = item
+    if not isinstance(result, PlanResult):  # pragma: no cover - the stream always ends so
+        raise InvalidParameterError("planner produced no result")
+    return result
+
+
+def _object_meta(shape, db: MapDatabase) -> MapMeta:
+    from graspsim import __version__
+
+    q = db.quality
+    return MapMeta(object=object_description(shape, None, db.config.density), gripper=db.gripper.to_dict(),
+                   quality={**q.to_dict(), "d_ref": q.reference_distance(shape.circumradius)},
+                   resolution={**db.config.to_dict()}, method="adapted", version=__version__)
+
+
+def _empty_meta(db: MapDatabase, ident: Identification) -> MapMeta:
+    from graspsim import __version__
+
+    return MapMeta(object={"primitive": "unidentified"}, gripper=db.gripper.to_dict(),
+                   quality=db.quality.to_dict(), resolution=db.config.to_dict(), method="adapted",
+                   version=__version__, extra={"status": "failed", "T_cloud_obj": np.eye(4).tolist(),
+                                               "identification": ident.to_dict()})
+

@@ -1,0 +1,39 @@
+import json
+import math
+
+import h5py
+import numpy as np
+
+from graspsim.cli import main
+from graspsim.primitives import Cylinder, synthetic_cloud
+from graspsim.transforms import make_transform
+
+
+def test_adapt_writes_map_with_cloud_transform(tmp_path, capsys):
+    rng = np.random.default_rng(2)
+    T = make_transform(np.eye(3), [0.3, 0.0, 0.1])
+    c = synthetic_cloud(Cylinder(0.022, 0.15), rng, resolution=0.004, noise=0.0005, T_world_obj=T)
+    np.save(tmp_path / "cloud.npy", c.points)
+    db = tmp_path / "db"
+    db.mkdir()
+    # a coarse database so the first-use build stays quick
+    assert main(["db", "build", "--primitives", "cylinder", "--root", str(db), "--surface-step", "0.01",
+                 "--rotation-step-deg", "22", "--json"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "a.h5"
+    code = main(["adapt", str(tmp_path / "cloud.npy"), "-o", str(out), "--db", str(db),
+                 "--surface-step", "0.01", "--rotation-step-deg", "22", "--json"])
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and s["status"] == "complete" and s["grasps"] > 0
+    assert s["parts"][0]["primitive"] == "cylinder" and s["parts"][0]["match"] == "familiar"
+    assert s["time_to_first_0.95"] is None or s["time_to_first_0.95"] <= s["seconds"]
+    with h5py.File(out) as f:
+        Tco = f["object/T_cloud_obj"][()]
+    assert np.allclose(Tco[:3, 3], T[:3, 3], atol=0.002)
+    assert math.isclose(abs(Tco[:3, 2] @ T[:3, 2]), 1.0, abs_tol=1e-3)
+
+
+def test_adapt_bad_cloud_file(tmp_path, capsys):
+    (tmp_path / "bad.npy").write_bytes(b"nope")
+    code = main(["adapt", str(tmp_path / "bad.npy"), "-o", str(tmp_path / "x.h5")])
+    assert code == 2 and "error" in capsys.readouterr().err

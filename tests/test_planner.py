@@ -1,0 +1,98 @@
+"""The run-time planner: cloud -> identification -> known / familiar / combined map."""
+
+import math
+
+import numpy as np
+import pytest
+
+from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.maps.collide import boxes_clear_sdf
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import MapConfig
+from graspsim.planner import GraspBatch, PlanResult, PlanStatus, plan, plan_stream
+from graspsim.primitives import Box, Compound, Cylinder, Sphere, synthetic_cloud
+from graspsim.transforms import invert_transform, make_transform, random_rotation
+
+FAST = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory):
+    d = MapDatabase(tmp_path_factory.mktemp("db"), config=FAST)
+    d.build([Cylinder(0.02, 0.2), Cylinder(0.01, 0.12), Sphere(0.03), Box(0.12, 0.12, 0.02)])
+    return d
+
+
+def _cloud(shape, seed, **kw):
+    rng = np.random.default_rng(seed)
+    T = make_transform(random_rotation(rng), [0.4, -0.1, 0.25])
+    return synthetic_cloud(shape, rng, resolution=kw.pop("resolution", 0.004), noise=0.0005,
+                           T_world_obj=T, **kw)
+
+
+def _in_true_frame(result: PlanResult, cloud) -> np.ndarray:
+    """The plan's contacts expressed in the true object's frame."""
+    T = invert_transform(cloud.T_world_obj) @ result.T_cloud_obj
+    c = result.map.contacts.reshape(-1, 3).astype(float)
+    return c @ T[:3, :3].T + T[:3, 3]
+
+
+def test_familiar_cylinder_is_scaled_and_fits_the_real_object(db):
+    truth = Cylinder(0.025, 0.16)
+    cloud = _cloud(truth, 1)
+    r = plan(cloud.points, db=db, rng=np.random.default_rng(0))
+    assert r.status is PlanStatus.COMPLETE and [p.match for p in r.parts] == ["familiar"]
+    assert len(r.map) > 100 and np.all(r.map.grade > 0.7)
+    assert np.allclose(r.map.meta.extra["T_cloud_obj"], r.T_cloud_obj)
+    # grasp contacts lie on the true surface, within the perception error
+    assert np.median(np.abs(truth.sdf(_in_true_frame(r, cloud)))) < 0.001
+
+
+def test_known_cylinder_uses_the_stored_map(db):
+    cloud = _cloud(Cylinder(0.021, 0.195), 2)
+    r = plan(cloud.points, db=db, rng=np.random.default_rng(0))
+    assert [p.match for p in r.parts] == ["known"]
+    assert len(r.map) == db.lookup("cylinder", {"radius": 0.02, "height": 0.2}).entry["accepted"]
+
+
+def test_compound_is_combined_without_collisions(db):
+    bottle = Compound.from_parts([Cylinder(0.03, 0.08), Cylinder(0.01, 0.12)],
+                                 [make_transform(np.eye(3), [0, 0, 0.04]),
+                                  make_transform(np.eye(3), [0, 0, 0.14])])
+    cloud = _cloud(bottle, 3, resolution=0.003)
+    r = plan(cloud.points, db=db, rng=np.random.default_rng(0))
+    assert r.status is PlanStatus.COMPLETE and len(r.parts) == 2
+    assert set(np.unique(r.map.part)) == {0, 1}
+    assert r.map.meta.method == "adapted/combined"
+    T = invert_transform(cloud.T_world_obj) @ r.T_cloud_obj
+    idx = np.random.default_rng(0).choice(len(r.map), 80, replace=False)
+    poses = T @ r.map.T_obj_wrist[idx]
+    # collision-free against the true compound (up to the identification error)
+    assert boxes_clear_sdf(bottle, G, poses, r.map.width[idx] + 2 * G.approach_clearance,
+                           tolerance=0.002).mean() > 0.9
+
+
+def test_stream_yields_grasps_before_the_result(db):
+    cloud = _cloud(Cylinder(0.024, 0.17), 4)
+    items = list(plan_stream(cloud.points, db=db, rng=np.random.default_rng(0)))
+    assert isinstance(items[-1], PlanResult) and all(isinstance(i, GraspBatch) for i in items[:-1])
+    assert len(items) > 3
+    assert items[0].seconds <= items[-2].seconds
+    assert sum(len(i.map) for i in items[:-1]) == len(items[-1].map)
+
+
+def test_sparse_gappy_cloud_fails_cleanly(db):
+    rng = np.random.default_rng(6)  # six separate 1 cm patches of a 5 cm ball, 15 points each
+    centres = rng.normal(size=(6, 3))
+    d = centres[:, None, :] + 0.2 * rng.normal(size=(6, 15, 3))
+    pts = 0.05 * (d / np.linalg.norm(d, axis=2, keepdims=True)).reshape(-1, 3)
+    r = plan(pts, db=db, rng=np.random.default_rng(0))
+    assert r.status is PlanStatus.FAILED and len(r.map) == 0
+
+
+def test_same_seed_same_plan(db):
+    cloud = _cloud(Cylinder(0.023, 0.15), 6)
+    a = plan(cloud.points, db=db, rng=np.random.default_rng(9))
+    b = plan(cloud.points, db=db, rng=np.random.default_rng(9))
+    np.testing.assert_array_equal(a.map.wrist_position, b.map.wrist_position)
+    np.testing.assert_array_equal(a.T_cloud_obj, b.T_cloud_obj)

@@ -24,6 +24,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.identify",
     "graspsim.cli.adapt",
     "graspsim.cli.trial",
+    "graspsim.cli.campaign",
 )
 
 

@@ -9,13 +9,29 @@ from typing import Any, Iterable
 
 import numpy as np
 
-__all__ = ["emit", "add_json_flag", "format_table", "to_jsonable", "progress"]
+__all__ = ["emit", "add_json_flag", "add_executor_flags", "executor_from_args", "format_table",
+           "to_jsonable", "progress"]
 
 
 def add_json_flag(p) -> None:
     p.add_argument(
         "--json", action="store_true", help="print one JSON summary object as the last line"
     )
+
+
+def add_executor_flags(p) -> None:
+    g = p.add_argument_group("scale-out")
+    g.add_argument("--executor", choices=["local", "ray", "serial"], default="local",
+                   help="where tasks run: local processes (default), a Ray cluster, or serially")
+    g.add_argument("--workers", type=int, default=None, help="local worker processes (default: cores)")
+    g.add_argument("--address", default=None,
+                   help="Ray cluster address ('auto', 'ray://host:10001'); default: a local Ray instance")
+
+
+def executor_from_args(args):
+    from graspsim.executors import make_executor
+
+    return make_executor(args.executor, workers=args.workers, address=args.address)
 
 
 def to_jsonable(obj: Any) -> Any:

@@ -6,7 +6,7 @@ import math
 import time
 from pathlib import Path
 
-from graspsim.cli._common import add_json_flag, emit, format_table, progress
+from graspsim.cli._common import add_executor_flags, add_json_flag, emit, executor_from_args, format_table, progress
 
 __all__ = ["register"]
 
@@ -135,8 +135,9 @@ def _cmd_db(args) -> int:
                 raise MapDatabaseError(f"unknown primitive {k!r}; valid: {sorted(PAPER_SHAPES)}")
             shapes += size_grid(base, args.grid) if args.grid else [base]
         t0 = time.perf_counter()
-        with progress(len(shapes), "FS database", enabled=not args.json, unit="map") as bar:
-            records = db.build(shapes, threads=args.threads,
+        with progress(len(shapes), "FS database", enabled=not args.json, unit="map") as bar, \
+                executor_from_args(args) as ex:
+            records = db.build(shapes, threads=args.threads, executor=ex,
                                progress=lambda i, n, s: bar.update(1))
         rows = [(e["primitive"], e["dims"], e["grasps"], e["accepted"], e["seconds"]) for e in records]
         emit({"root": str(db.root), "maps": records, "seconds": time.perf_counter() - t0}, args.json,
@@ -196,6 +197,7 @@ def register(sub) -> None:
         add_json_flag(q)
         if name == "build":
             q.add_argument("--primitives", nargs="+", default=None, help="subset of the five")
+            add_executor_flags(q)
             q.add_argument("--grid", type=float, nargs="+", default=None,
                            help="size scale factors, e.g. 0.5 0.75 1 1.5 2")
         if name == "lookup":

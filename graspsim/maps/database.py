@@ -21,6 +21,7 @@ import logging
 import os
 import time
 from collections import OrderedDict
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
 
@@ -170,32 +171,78 @@ class MapDatabase:
     # ------------------------------------------------------------------ building
     def add(self, shape: Primitive, *, threads: int | None = None, progress=None) -> GraspabilityMap:
         """Generate and store the FS map of ``shape`` (replacing any stored one)."""
-        t0 = time.perf_counter()
-        gmap = generate_fs_map(shape, self.gripper, self.quality, self.config, threads=threads,
-                               progress=progress)
-        gmap = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # accepted grasps first
-        p = self.path(shape)
-        p.parent.mkdir(exist_ok=True)
-        save_map(gmap, p)
-        record = {"key": self.key(shape), "primitive": shape.kind, "dims": shape.dims,
-                  "gripper": self.gripper.name, "settings": self._settings,
-                  "file": str(p.relative_to(self.root)), "grasps": len(gmap),
-                  "accepted": int(gmap.accepted.sum()), "seconds": time.perf_counter() - t0,
-                  "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
-        records = [e for e in self._read_index() if e["key"] != record["key"]] + [record]
-        self._write_index(records)
-        log.info("database: stored %s (%d grasps)", shape, len(gmap))
+        gmap, record = _build_one(self, shape, threads=threads, progress=progress)
+        self._merge([record])
         return gmap
 
-    def build(self, shapes: Iterable[Primitive], *, threads: int | None = None,
-              progress=None) -> list[dict]:
+    def _merge(self, new: list[dict]) -> None:
+        keys = {r["key"] for r in new}
+        self._write_index([e for e in self._read_index() if e["key"] not in keys] + new)
+
+    def build(self, shapes: Iterable[Primitive], *, threads: int | None = None, progress=None,
+              executor=None) -> list[dict]:
         """Build every missing map (resumable: stored maps are skipped). ``progress`` is
-        called with (done, total, shape) after each shape."""
+        called with (done, total, shape) after each shape. With an ``executor``
+        (``graspsim.executors``: local processes or Ray) maps are built in parallel
+        workers (one thread each) and give exactly the maps a serial build gives."""
         shapes = list(shapes)
-        for i, s in enumerate(shapes):
-            if not self.contains(s):
+        missing = [s for s in shapes if not self.contains(s)]
+        done = len(shapes) - len(missing)
+        if progress:
+            for s in shapes:
+                if s not in missing:
+                    progress(done, len(shapes), s)
+        if executor is None or len(missing) <= 1:
+            for s in missing:
                 self.add(s, threads=threads)
-            if progress:
-                progress(i + 1, len(shapes), s)
+                done += 1
+                if progress:
+                    progress(done, len(shapes), s)
+        else:
+            jobs = [_BuildJob(str(self.root), s.to_dict(), self.gripper.to_dict(), self.quality.to_dict(),
+                              self.config.to_dict(), self.tol) for s in missing]
+            for i, record in executor.imap(_build_job, jobs):
+                self._merge([record])  # one writer of the index: this process
+                done += 1
+                if progress:
+                    progress(done, len(shapes), missing[i])
         keys = {self.key(s) for s in shapes}
         return [e for e in self.entries() if e["key"] in keys]
+
+
+@dataclass(frozen=True)
+class _BuildJob:
+    root: str
+    shape: dict
+    gripper: dict
+    quality: dict
+    config: dict
+    tol: float
+
+
+def _build_job(job: _BuildJob) -> dict:
+    """Worker side of a parallel build: generate and store one map, return its record."""
+    from graspsim.primitives import primitive_from_dict
+
+    db = MapDatabase(job.root, gripper=GripperSpec.from_dict(job.gripper),
+                     quality=QualityModel.from_dict(job.quality), config=MapConfig(**job.config),
+                     tol=job.tol)
+    return _build_one(db, primitive_from_dict(job.shape), threads=1)[1]
+
+
+def _build_one(db: MapDatabase, shape: Primitive, *, threads=None, progress=None):
+    """Generate, sort best first and store one FS map; returns it and its index record."""
+    t0 = time.perf_counter()
+    gmap = generate_fs_map(shape, db.gripper, db.quality, db.config, threads=threads,
+                           progress=progress)
+    gmap = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # accepted grasps first
+    p = db.path(shape)
+    p.parent.mkdir(exist_ok=True)
+    save_map(gmap, p)
+    record = {"key": db.key(shape), "primitive": shape.kind, "dims": shape.dims,
+              "gripper": db.gripper.name, "settings": db._settings,
+              "file": str(p.relative_to(db.root)), "grasps": len(gmap),
+              "accepted": int(gmap.accepted.sum()), "seconds": time.perf_counter() - t0,
+              "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    log.info("database: stored %s (%d grasps)", shape, len(gmap))
+    return gmap, record

@@ -1,0 +1,345 @@
+"""Experiment E02 (paper 3.3 / 4.2, table 2, figure 5): map scaling for familiar objects.
+
+The FS map of the paper's cylinder (r = 2 cm, h = 20 cm) is scaled to ten size
+variants -- five larger, five smaller; of the smaller ones two change only the height
+and three the radius or both, as the paper's discussion says -- by the three
+algorithms (grasp Quality, grasp Feasibility, Combined), and compared with an FS map
+generated for each variant:
+
+* SRN, VRN [%] (eqs. 7-8) over the accepted grasps (grade > 0.7) of both maps; the
+  scaled maps keep only grasps above 0.7, as the paper's do;
+* TR = 1 - t_scaled / t_FS [%] (wall time; also on process CPU time, which is less
+  sensitive to other load on a shared machine);
+* time to the first and to the tenth grasp with grade > 0.95 in the best-first stream.
+
+Timings are the median of ``--repeats`` runs; before every timed run the collision
+sample cache of the target is emptied (a new object at run time has none), while the FS
+map's line structure is prepared once beforehand (a-priori work on a stored map).
+Statistics: mean (SD) per algorithm x direction, a mixed ANOVA (algorithm within,
+direction between, variants as subjects) and Bonferroni-adjusted paired post-hoc tests
+of the algorithms. Writes results.json, table.md, figure5.png and config.json to
+``--out``.
+
+    python experiments/e02_cylinder_scaling.py --out results/e02
+    python experiments/e02_cylinder_scaling.py --quick --out results/e02-quick
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import logging
+import math
+import statistics
+import sys
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import (Clock, fmt, load_average, mean_sd, mixed_anova, paired_posthoc,  # noqa: E402
+                     write_config, write_json)
+
+from graspsim.gripper import HGPL_25_60_A  # noqa: E402
+from graspsim.maps import generate as _generate  # noqa: E402
+from graspsim.maps.generate import MapConfig, generate_fs_map  # noqa: E402
+from graspsim.maps.graspmap import GraspabilityMap  # noqa: E402
+from graspsim.maps.metrics import relative_rates  # noqa: E402
+from graspsim.maps.scaling import ScalingConfig, scale_stream  # noqa: E402
+from graspsim.plots import plot_maps  # noqa: E402
+from graspsim.primitives import Cylinder  # noqa: E402
+from graspsim.quality import QualityModel  # noqa: E402
+
+log = logging.getLogger("e02")
+
+BASE = {"radius": 0.02, "height": 0.20}
+METHODS = ("quality", "feasibility", "combined")
+LABELS = {"quality": "GQ", "feasibility": "GF", "combined": "C"}
+
+# (name, radius [m], height [m], direction, what changes). Larger: radius only, height
+# only, both. Smaller: two height-only (the paper's discussion), three radius or both.
+# Every ratio lies within 0.6-1.5 of the base, well inside the scaling limit of 3.
+VARIANTS: tuple[tuple[str, float, float, str, str], ...] = (
+    ("L1", 0.025, 0.20, "larger", "radius"),
+    ("L2", 0.020, 0.25, "larger", "height"),
+    ("L3", 0.025, 0.25, "larger", "both"),
+    ("L4", 0.030, 0.24, "larger", "both"),
+    ("L5", 0.030, 0.30, "larger", "both"),
+    ("S1", 0.020, 0.15, "smaller", "height"),
+    ("S2", 0.020, 0.12, "smaller", "height"),
+    ("S3", 0.015, 0.20, "smaller", "radius"),
+    ("S4", 0.015, 0.15, "smaller", "both"),
+    ("S5", 0.012, 0.12, "smaller", "both"),
+)
+QUICK_VARIANTS = ("L1", "L3", "S2", "S4")
+QUICK_MAP = MapConfig(surface_step=0.01, rotation_step=math.radians(22.0))
+
+
+@dataclass(frozen=True)
+class E02Config:
+    variants: tuple[tuple[str, float, float, str, str], ...]
+    map_config: MapConfig = field(default_factory=MapConfig)
+    max_ratio: float = 3.0
+    repeats: int = 3
+    hi_grade: float = 0.95
+    figure_variant: str = "L3"
+    quick: bool = False
+
+
+def parse_args(argv=None) -> tuple[E02Config, Path]:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", default="results/e02", help="output folder")
+    p.add_argument("--quick", action="store_true",
+                   help="smoke test: 1 cm / 22 deg maps, four variants, one repeat")
+    p.add_argument("--repeats", type=int, default=None, help="timed runs per map (median)")
+    p.add_argument("--variants", nargs="+", default=None, choices=[v[0] for v in VARIANTS])
+    p.add_argument("--figure-variant", default=None, help="variant shown in figure5.png")
+    p.add_argument("--max-ratio", type=float, default=3.0, help="scaling limit per dimension")
+    a = p.parse_args(argv)
+    names = a.variants or (QUICK_VARIANTS if a.quick else [v[0] for v in VARIANTS])
+    variants = tuple(v for v in VARIANTS if v[0] in names)
+    if not any(v[3] == "larger" for v in variants) or not any(v[3] == "smaller" for v in variants):
+        p.error("choose at least one larger and one smaller variant")
+    fig = a.figure_variant or ("L3" if "L3" in names else variants[0][0])
+    if fig not in names:
+        p.error(f"--figure-variant {fig} is not among the variants {names}")
+    repeats = a.repeats or (1 if a.quick else 3)
+    if repeats < 1:
+        p.error("--repeats must be >= 1")
+    cfg = E02Config(variants, QUICK_MAP if a.quick else MapConfig(), a.max_ratio, repeats,
+                    figure_variant=fig, quick=a.quick)
+    return cfg, Path(a.out)
+
+
+def _cold() -> None:
+    """Forget cached collision sample hierarchies (a new object has none at run time)."""
+    _generate._sample_levels.cache_clear()
+    gc.collect()
+
+
+def time_fs(shape, cfg: E02Config) -> tuple[GraspabilityMap, dict]:
+    runs = []
+    gmap = None
+    for _ in range(cfg.repeats):
+        gmap = None
+        _cold()
+        c = Clock()
+        gmap = generate_fs_map(shape, HGPL_25_60_A, QualityModel(), cfg.map_config)
+        runs.append(c.record())
+    return gmap, _median_runs(runs)
+
+
+def time_scaled(fs: GraspabilityMap, shape, method: str, cfg: E02Config) -> tuple[GraspabilityMap, dict]:
+    """Stream the scaled map best-first; times to the first and tenth grasp above
+    ``hi_grade`` and to the whole map (concatenated)."""
+    sc = ScalingConfig(method=method, max_ratio=cfg.max_ratio)
+    runs = []
+    gmap = None
+    for _ in range(cfg.repeats):
+        gmap = None
+        _cold()
+        c = Clock()
+        first = tenth = None
+        n_hi = 0
+        batches = []
+        for batch in scale_stream(fs, shape, scaling=sc):
+            n_hi += int(np.count_nonzero(batch.grade > cfg.hi_grade))
+            if first is None and n_hi >= 1:
+                first = c.wall
+            if tenth is None and n_hi >= 10:
+                tenth = c.wall
+            batches.append(batch)
+        gmap = GraspabilityMap.concat(batches) if batches else None
+        runs.append({**c.record(), "first_s": first, "tenth_s": tenth, "batches": len(batches)})
+    return gmap, _median_runs(runs)
+
+
+def _median_runs(runs: list[dict]) -> dict:
+    out = {"runs": runs, "load_avg": runs[0]["load_avg"]}
+    for k in ("wall_s", "cpu_s", "first_s", "tenth_s"):
+        vals = [r[k] for r in runs if r.get(k) is not None]
+        out[k] = statistics.median(vals) if len(vals) == len(runs) else None
+    return out
+
+
+def run_variant(fs_base: GraspabilityMap, v, cfg: E02Config):
+    name, r, h, direction, change = v
+    shape = Cylinder(r, h)
+    log.info("%s: cylinder r %.1f cm, h %.1f cm (%s, %s); load %s", name, 100 * r, 100 * h,
+             direction, change, load_average())
+    # scaled maps first, then the variant's FS map (timings do not depend on the order:
+    # every timed run starts cold)
+    scaled, scaled_t = {}, {}
+    for m in METHODS:
+        scaled[m], scaled_t[m] = time_scaled(fs_base, shape, m, cfg)
+    fs, fs_t = time_fs(shape, cfg)
+    row = {"variant": name, "radius": r, "height": h, "direction": direction, "change": change,
+           "ratio_radius": r / BASE["radius"], "ratio_height": h / BASE["height"],
+           "fs": {"grasps": len(fs), "accepted": int(fs.accepted.sum()),
+                  **{k: fs_t[k] for k in ("wall_s", "cpu_s", "load_avg", "runs")}},
+           "methods": {}}
+    for m in METHODS:
+        sm, t = scaled[m], scaled_t[m]
+        if sm is None or len(sm) == 0:
+            rates = {"SRN": 0.0, "VRN": 0.0}
+            n = 0
+        else:
+            rates = relative_rates(sm, fs, min_grade=fs.threshold)
+            n = len(sm)
+        row["methods"][m] = {
+            "grasps": n, "SRN": rates["SRN"], "VRN": rates["VRN"],
+            "TR": 100.0 * (1.0 - t["wall_s"] / fs_t["wall_s"]),
+            "TR_cpu": 100.0 * (1.0 - t["cpu_s"] / fs_t["cpu_s"]),
+            "first_ms": None if t["first_s"] is None else 1000 * t["first_s"],
+            "tenth_ms": None if t["tenth_s"] is None else 1000 * t["tenth_s"],
+            "wall_s": t["wall_s"], "cpu_s": t["cpu_s"], "load_avg": t["load_avg"], "runs": t["runs"]}
+        log.info("  %-11s %7d grasps  SRN %5.1f  VRN %5.1f  TR %5.1f %%  %.3f s (FS %.2f s)  "
+                 "first %s ms  tenth %s ms", m, n, rates["SRN"], rates["VRN"],
+                 row["methods"][m]["TR"], t["wall_s"], fs_t["wall_s"],
+                 _ms(row["methods"][m]["first_ms"]), _ms(row["methods"][m]["tenth_ms"]))
+    figure = (fs, scaled["combined"]) if name == cfg.figure_variant else None
+    return row, figure
+
+
+def _ms(x):
+    return "n/a" if x is None else f"{x:.1f}"
+
+
+METRICS = (("SRN", "SRN [%]", 0), ("VRN", "VRN [%]", 0), ("TR", "TR [%]", 0),
+           ("TR_cpu", "TR, CPU [%]", 0), ("first_ms", "first > 0.95 [ms]", 1),
+           ("tenth_ms", "tenth > 0.95 [ms]", 1), ("wall_s", "scaled map [s]", 3))
+
+
+def summarise(rows: list[dict]) -> dict:
+    cells = {}
+    for m in METHODS:
+        for d in ("larger", "smaller"):
+            rs = [r["methods"][m] for r in rows if r["direction"] == d]
+            cells[f"{m}/{d}"] = {"n": len(rs), **{
+                k: dict(zip(("mean", "sd"), mean_sd([x[k] for x in rs])), missing=sum(x[k] is None for x in rs))
+                for k, _, _ in METRICS}}
+    fs = {d: dict(zip(("mean", "sd"), mean_sd([r["fs"]["wall_s"] for r in rows if r["direction"] == d])))
+          for d in ("larger", "smaller")}
+    tests = {}
+    group = np.array([r["direction"] for r in rows])
+    for k, _, _ in METRICS[:-1]:
+        y = np.array([[np.nan if r["methods"][m][k] is None else r["methods"][m][k] for m in METHODS]
+                      for r in rows], float)
+        if not np.all(np.isfinite(y)):
+            tests[k] = {"skipped": "some variants have no value (no grasp above the grade) for "
+                                   "some algorithm: the repeated-measures test needs complete data"}
+            continue
+        if len(set(group)) < 2 or min(np.sum(group == g) for g in set(group)) < 2:
+            tests[k] = {"skipped": "needs at least two variants per direction"}
+            continue
+        tests[k] = {"anova": mixed_anova(y, group),
+                    "posthoc": paired_posthoc(y, [LABELS[m] for m in METHODS])}
+    return {"cells": cells, "fs_wall_s": fs, "tests": tests}
+
+
+def _p(p: float) -> str:
+    return "n/a" if p is None or not math.isfinite(p) else ("< .0001" if p < 1e-4 else f"{p:.4f}")
+
+
+def write_table(rows: list[dict], summary: dict, cfg: E02Config) -> str:
+    L = ["## Table 2: scaled map quality, time reduction and initial grasps (mean (SD))", "",
+         "SRN / VRN over the accepted grasps (grade > 0.7) of both maps; the scaled maps keep "
+         "only grasps above 0.7, as the paper's do. TR = 1 - t_scaled / t_FS on wall time "
+         "(TR, CPU: on process CPU time). Times to the first / tenth grasp with grade > 0.95 "
+         "in the best-first stream; n/a counts variants where no (or fewer than ten) such "
+         f"grasps exist. Median of {cfg.repeats} timed run(s) each.", "",
+         "| algorithm | direction | " + " | ".join(lbl for _, lbl, _ in METRICS) + " |",
+         "|---|---|" + "---|" * len(METRICS)]
+    for m in METHODS:
+        for d in ("larger", "smaller"):
+            c = summary["cells"][f"{m}/{d}"]
+            vals = []
+            for k, _, dig in METRICS:
+                s = fmt(c[k]["mean"], c[k]["sd"], dig)
+                if c[k]["missing"]:
+                    s += f" [{c[k]['missing']}/{c['n']} n/a]"
+                vals.append(s)
+            L.append(f"| {LABELS[m]} | {d} | " + " | ".join(vals) + " |")
+    f = summary["fs_wall_s"]
+    L += ["", f"FS map of a variant: {fmt(f['larger']['mean'], f['larger']['sd'], 2)} s (larger), "
+          f"{fmt(f['smaller']['mean'], f['smaller']['sd'], 2)} s (smaller).", "",
+          "## Mixed ANOVA (algorithm within, direction between, variants as subjects)", "",
+          "| metric | effect | F (df) | p | p (Greenhouse-Geisser) |", "|---|---|---|---|---|"]
+    for k, lbl, _ in METRICS[:-1]:
+        t = summary["tests"][k]
+        if "skipped" in t:
+            L.append(f"| {lbl} | - | skipped: {t['skipped']} | | |")
+            continue
+        for eff, name in (("within", "algorithm"), ("between", "direction"), ("interaction", "algorithm x direction")):
+            e = t["anova"][eff]
+            gg = _p(e["p_gg"]) + f" (eps {e['gg_epsilon']:.2f})" if "p_gg" in e else ""
+            L.append(f"| {lbl} | {name} | {e['F']:.2f} ({e['df']:g}, {e['df_error']:g}) | {_p(e['p'])} | {gg} |")
+    L += ["", "## Post-hoc: paired t-tests of the algorithms, Bonferroni-adjusted", "",
+          "| metric | pair | mean difference | t (df) | p (Bonferroni) |", "|---|---|---|---|---|"]
+    for k, lbl, _ in METRICS[:-1]:
+        t = summary["tests"][k]
+        if "skipped" in t:
+            continue
+        for ph in t["posthoc"]:
+            L.append(f"| {lbl} | {ph['a']} - {ph['b']} | {ph['mean_diff']:.2f} | "
+                     f"{ph['t']:.2f} ({ph['df']}) | {_p(ph['p_bonferroni'])} |")
+    L += ["", "## Per variant", "",
+          "| variant | r [cm] | h [cm] | changes | FS grasps (> 0.7) | FS [s] | "
+          + " | ".join(f"{LABELS[m]} SRN / VRN / TR / first / tenth / s" for m in METHODS) + " |",
+          "|---|---|---|---|---|---|" + "---|" * len(METHODS)]
+    for r in rows:
+        cells = []
+        for m in METHODS:
+            x = r["methods"][m]
+            cells.append(f"{x['SRN']:.0f} / {x['VRN']:.0f} / {x['TR']:.0f} / {_ms(x['first_ms'])} / "
+                         f"{_ms(x['tenth_ms'])} / {x['wall_s']:.3f}")
+        L.append(f"| {r['variant']} ({r['direction']}) | {100 * r['radius']:.1f} | {100 * r['height']:.1f} | "
+                 f"{r['change']} | {r['fs']['grasps']} ({r['fs']['accepted']}) | {r['fs']['wall_s']:.2f} | "
+                 + " | ".join(cells) + " |")
+    return "\n".join(L) + "\n"
+
+
+def main(argv=None) -> int:
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    cfg, out = parse_args(argv)
+    out.mkdir(parents=True, exist_ok=True)
+    write_config(out / "config.json", cfg)
+    total = Clock()
+    base = Cylinder(BASE["radius"], BASE["height"])
+    c = Clock()
+    fs_base = generate_fs_map(base, HGPL_25_60_A, QualityModel(), cfg.map_config)
+    base_t = c.record()
+    # a-priori preparation of the stored map (its line structure) and compiled kernels
+    for _ in scale_stream(fs_base, Cylinder(0.021, 0.21), scaling=ScalingConfig(max_ratio=cfg.max_ratio)):
+        break
+    log.info("E02: base FS map %d grasps (%d > 0.7) in %.2f s; %d variants x %d algorithms, %d repeat(s)",
+             len(fs_base), int(fs_base.accepted.sum()), base_t["wall_s"], len(cfg.variants), len(METHODS),
+             cfg.repeats)
+    rows = []
+    for v in cfg.variants:
+        row, figure = run_variant(fs_base, v, cfg)
+        rows.append(row)
+        if figure is not None:
+            fs_v, comb = figure
+            plot_maps([fs_v, comb], out / "figure5.png", what="wrist", titles=[
+                f"FS map, cylinder r {100 * v[1]:.1f} cm h {100 * v[2]:.1f} cm:\n"
+                f"{len(fs_v)} wrist poses, {int(fs_v.accepted.sum())} > 0.7",
+                f"Combined-scaled from r 2 h 20 cm:\n{len(comb)} wrist poses (all > 0.7)"])
+            del figure, fs_v, comb
+        gc.collect()
+    summary = summarise(rows)
+    write_json(out / "results.json", {
+        "config": asdict(cfg), "base": {**BASE, "grasps": len(fs_base), "accepted": int(fs_base.accepted.sum()),
+                                        **base_t},
+        "note": "SRN/VRN over grasps with grade > 0.7 in both maps; scaled maps keep only grasps > 0.7",
+        "summary": summary, "variants": rows, "wall_s": total.wall, "cpu_s": total.cpu,
+        "load_avg_end": load_average()})
+    table = write_table(rows, summary, cfg)
+    (out / "table.md").write_text("# E02 cylinder map scaling (paper table 2)\n\n" + table)
+    log.info("%s\nwall %.0f s, CPU %.0f s; results in %s", table, total.wall, total.cpu, out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

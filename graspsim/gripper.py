@@ -224,6 +224,20 @@ class GripperSpec:
         c[:, 0] += b.x_sign * 0.5 * opening
         return c, b.half_extents
 
+    def lowest_point(self, T_world_wrist: np.ndarray, opening: np.ndarray) -> np.ndarray:
+        """(N,) lowest z [m] of any gripper box (arm keep-out included) at wrist poses
+        (N, 4, 4) with pad gaps (N,): a pose with a table at z = 0 is reachable only if
+        this is above 0."""
+        T = np.asarray(T_world_wrist, float).reshape(-1, 4, 4)
+        opening = np.broadcast_to(np.asarray(opening, float), (len(T),))
+        b = self.collision_boxes()
+        signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T
+        corners = b.centers[:, None, :] + b.half_extents[:, None, :] * signs[None]  # (B, 8, 3)
+        x = corners[None, :, :, 0] + (b.x_sign[None, :, None] * 0.5 * opening[:, None, None])
+        z = (T[:, 2, 0, None, None] * x + T[:, 2, 1, None, None] * corners[None, :, :, 1]
+             + T[:, 2, 2, None, None] * corners[None, :, :, 2] + T[:, 2, 3, None, None])
+        return z.reshape(len(T), -1).min(axis=1)
+
     # ------------------------------------------------------------------ storage
     def to_dict(self) -> dict:
         d = asdict(self)

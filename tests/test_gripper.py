@@ -65,3 +65,13 @@ def test_inconsistent_specs_raise(kwargs):
 def test_unknown_parameter_names_are_reported():
     with pytest.raises(GripperError, match="valid"):
         GripperSpec.from_dict({"nope": 1})
+
+
+def test_lowest_point_of_a_top_down_gripper():
+    g = HGPL_25_60_A
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # approach straight down
+    T[2, 3] = 0.3
+    assert g.lowest_point(T[None], [0.05])[0] == pytest.approx(0.3 - g.fingertip_z)
+    T2 = np.eye(4)  # approach straight up from below: the arm hangs under the wrist
+    assert g.lowest_point(T2[None], [0.05])[0] == pytest.approx(-g.arm_length)

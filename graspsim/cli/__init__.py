@@ -20,6 +20,7 @@ __all__ = ["main", "build_parser"]
 # Each module defines ``register(subparsers)``; its parsers set ``func`` returning a
 # summary dict.
 COMMAND_MODULES: tuple[str, ...] = (
+    "graspsim.cli.demo",
     "graspsim.cli.maps",
     "graspsim.cli.identify",
     "graspsim.cli.adapt",

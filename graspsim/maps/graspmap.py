@@ -149,12 +149,17 @@ class GraspabilityMap:
     def sample_uniform_surface(
         self, n: int, rng: np.random.Generator, *, cell: float | None = None
     ) -> "GraspabilityMap":
-        """``n`` grasps spread uniformly over the object: grasp points are binned into
-        surface cells of size ``cell`` (default: the map's surface step), cells drawn
-        without replacement, then one grasp per cell (as the paper drew its 15 test
-        grasps "uniformly distributed about the object")."""
+        """``n`` grasps spread uniformly over the object (see :meth:`uniform_surface_rows`)."""
+        return self.select(self.uniform_surface_rows(n, rng, cell=cell))
+
+    def uniform_surface_rows(self, n: int, rng: np.random.Generator, *,
+                             cell: float | None = None) -> np.ndarray:
+        """Row indices of ``n`` grasps spread uniformly over the object: grasp contacts
+        are binned into surface cells of size ``cell`` (default: the map's surface
+        step), cells drawn without replacement, then one grasp per cell (as the paper
+        drew its 15 test grasps "uniformly distributed about the object")."""
         if n <= 0 or len(self) == 0:
-            return self.select(np.zeros(0, int))
+            return np.zeros(0, int)
         cell = float(cell or self.meta.resolution.get("surface_step", 0.005))
         key = np.floor(self.contacts[:, 0] / cell).astype(np.int64)
         _, inverse = np.unique(key, axis=0, return_inverse=True)
@@ -168,7 +173,7 @@ class GraspabilityMap:
         if len(picks) < n:  # fewer cells than asked: fill with other random grasps
             rest = np.setdiff1d(np.arange(len(self)), picks)
             picks = np.concatenate([picks, rng.choice(rest, min(n - len(picks), len(rest)), replace=False)])
-        return self.select(picks)
+        return picks
 
     @staticmethod
     def concat(maps: list["GraspabilityMap"], meta: MapMeta | None = None) -> "GraspabilityMap":

@@ -116,3 +116,9 @@ def __getattr__(name: str):
 
         return getattr(graspsim.sim, name)
     raise AttributeError(f"module 'graspsim' has no attribute {name!r}")
+
+# Gymnasium environments (graspsim.envs), registered by entry-point strings: no mujoco
+# import here.
+from graspsim.envs import register_envs as _register_envs  # noqa: E402
+
+_register_envs()

@@ -1,0 +1,181 @@
+"""Baseline policies for ``GraspSelect-v0`` and a small learned one (numpy only).
+
+Policies map an observation (and a generator, where they draw) to an action:
+
+* :func:`random_policy`: a valid candidate uniformly at random;
+* :func:`highest_grade_policy`: the valid candidate with the highest grade (the paper's
+  choice);
+* :func:`oracle_choice`: given every candidate's simulated reward
+  (``env.evaluate_candidates()``), one that succeeds, if any (an upper bound);
+* :class:`LogisticPolicy`: L2-regularised logistic regression of a candidate's success
+  on :func:`grasp_features`, trained on logged candidates; it picks the valid candidate
+  with the highest predicted success probability.
+
+:func:`grasp_features` adds to the map's own columns what the observation shows about
+the scene: the grasp's pose relative to the table (approach and closing directions,
+height, gripper clearance above the table) and relative to the *observed cloud* -- how
+close the gripper's boxes come to the sensor points and how many points lie between the
+pads. The grade knows only the identified primitive; the cloud also shows what
+identification missed (a mug's handle) and how much room the fingers have, which is
+what the robot's execution error eats into.
+
+Pure numpy: no mujoco here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from graspsim.envs.candidates import CANDIDATE_FEATURES, pregrasp_openings, table_clearance
+from graspsim.errors import InvalidParameterError
+from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.transforms import make_transform, quat_to_matrix
+
+__all__ = ["random_policy", "highest_grade_policy", "oracle_choice", "grasp_features",
+           "FEATURE_NAMES", "LogisticPolicy", "wilson_interval"]
+
+_COL = {name: i for i, name in enumerate(CANDIDATE_FEATURES)}
+
+FEATURE_NAMES = ("grade", "q_fc", "q_st", "fc_angle", "stability_distance", "width",
+                 "approach_z", "closing_z", "tcp_height", "tcp_height_rel", "table_clearance",
+                 "cloud_clearance", "points_in_gripper", "points_between_pads")
+
+
+def _valid(obs: dict) -> np.ndarray:
+    return np.flatnonzero(np.asarray(obs["action_mask"]) > 0)
+
+
+def random_policy(obs: dict, rng: np.random.Generator) -> int:
+    """A valid candidate uniformly at random (candidate 0 if none is valid)."""
+    v = _valid(obs)
+    return int(rng.choice(v)) if len(v) else 0
+
+
+def highest_grade_policy(obs: dict) -> int:
+    """The valid candidate with the highest grade (the first such on ties)."""
+    v = _valid(obs)
+    if not len(v):
+        return 0
+    g = np.asarray(obs["candidates"])[v, _COL["grade"]]
+    return int(v[np.argmax(g)])
+
+
+def oracle_choice(obs: dict, rewards: np.ndarray) -> int:
+    """The valid candidate with the highest simulated reward (K,), ties broken by grade."""
+    v = _valid(obs)
+    if not len(v):
+        return 0
+    g = np.asarray(obs["candidates"])[v, _COL["grade"]]
+    order = np.lexsort((-g, -np.asarray(rewards)[v]))
+    return int(v[order[0]])
+
+
+def _box_sdf(p: np.ndarray, centers: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Signed distance (..., B) of points p (..., 3) to boxes (..., B, 3) (same frame)."""
+    q = np.abs(p[..., None, :] - centers) - half
+    out = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
+    return out + np.minimum(q.max(axis=-1), 0.0)
+
+
+def grasp_features(obs: dict, gripper: GripperSpec = HGPL_25_60_A) -> np.ndarray:
+    """(K, len(FEATURE_NAMES)) float64 features of every candidate of an observation
+    (invalid slots included; mask them yourself). Lengths [m]."""
+    cand = np.asarray(obs["candidates"], float)
+    cloud = np.asarray(obs["cloud"], float)
+    op = np.asarray(obs["object_pose"], float)
+    K = len(cand)
+    T_world_obj = make_transform(quat_to_matrix(op[3:7]), op[:3])
+    q = cand[:, 3:7].copy()
+    q[np.linalg.norm(q, axis=1) < 1e-6] = (1.0, 0.0, 0.0, 0.0)  # empty slots
+    T = T_world_obj @ make_transform(quat_to_matrix(q), cand[:, 0:3])  # (K, 4, 4) world
+    width = cand[:, _COL["width"]]
+    opening = pregrasp_openings(gripper, width)
+    tcp_z = float(gripper.tcp_offset(0.5 * gripper.pad_length))
+    tcp = T[:, :3, 3] + tcp_z * T[:, :3, 2]
+    top = max(float(cloud[:, 2].max()), 1e-3)
+    # the cloud in every wrist frame, against the gripper's boxes at the pre-grasp opening
+    b = gripper.collision_boxes()
+    centers = np.broadcast_to(b.centers, (K, *b.centers.shape)).copy()
+    centers[:, :, 0] += b.x_sign[None] * 0.5 * opening[:, None]
+    p_w = np.einsum("kji,knj->kni", T[:, :3, :3], cloud[None] - T[:, None, :3, 3])  # (K, N, 3)
+    sdf = _box_sdf(p_w, centers[:, None], np.broadcast_to(b.half_extents, centers.shape)[:, None])
+    d = sdf.min(axis=-1)  # (K, N)
+    # the closing region: between the pads, along the pad
+    pad_lo = gripper.fingertip_z - gripper.pad_length
+    between = ((np.abs(p_w[..., 0]) < 0.5 * opening[:, None]) & (np.abs(p_w[..., 1]) < 0.5 * gripper.finger_size[1])
+               & (p_w[..., 2] > pad_lo) & (p_w[..., 2] < gripper.fingertip_z))
+    f = np.column_stack([
+        cand[:, _COL["grade"]], cand[:, _COL["q_fc"]], cand[:, _COL["q_st"]], cand[:, _COL["fc_angle"]],
+        cand[:, _COL["stability_distance"]], width,
+        T[:, 2, 2], np.abs(T[:, 2, 0]), tcp[:, 2], tcp[:, 2] / top,
+        table_clearance(gripper, T, opening),
+        np.clip(d.min(axis=1), -0.02, 0.03), (d < 0).mean(axis=1), between.mean(axis=1),
+    ])
+    return f
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson score interval (default 95 %) of a binomial proportion."""
+    if n <= 0:
+        return (float("nan"), float("nan"))
+    p = successes / n
+    den = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / den
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return (float(centre - half), float(centre + half))
+
+
+@dataclass
+class LogisticPolicy:
+    """Logistic regression P(success | features) with an L2 penalty ``l2`` on the
+    standardised weights, fitted by Newton's method (IRLS)."""
+
+    l2: float = 1.0
+    mean: np.ndarray | None = None
+    scale: np.ndarray | None = None
+    weights: np.ndarray | None = None  # (F + 1,), intercept last
+    history: list = field(default_factory=list)
+
+    def fit(self, X: np.ndarray, y: np.ndarray, *, iterations: int = 50, tol: float = 1e-8) -> "LogisticPolicy":
+        """Fit on features X (M, F) and 0/1 labels y (M,)."""
+        X, y = np.asarray(X, float), np.asarray(y, float).reshape(-1)
+        if X.ndim != 2 or len(X) != len(y) or len(X) == 0:
+            raise InvalidParameterError(f"need X (M, F) and y (M,) with M > 0; got {X.shape}, {y.shape}")
+        self.mean = X.mean(axis=0)
+        self.scale = np.where(X.std(axis=0) > 1e-12, X.std(axis=0), 1.0)
+        Z = np.column_stack([(X - self.mean) / self.scale, np.ones(len(X))])
+        w = np.zeros(Z.shape[1])
+        reg = self.l2 * np.ones(Z.shape[1])
+        reg[-1] = 0.0  # no penalty on the intercept
+        for _ in range(iterations):
+            p = 1.0 / (1.0 + np.exp(-np.clip(Z @ w, -30, 30)))
+            g = Z.T @ (p - y) + reg * w
+            H = (Z * (p * (1 - p))[:, None]).T @ Z + np.diag(reg) + 1e-9 * np.eye(len(w))
+            step = np.linalg.solve(H, g)
+            w -= step
+            self.history.append(float(np.abs(step).max()))
+            if np.abs(step).max() < tol:
+                break
+        self.weights = w
+        return self
+
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        if self.weights is None:
+            raise InvalidParameterError("the policy is not fitted: call fit() first")
+        Z = (np.asarray(X, float) - self.mean) / self.scale
+        return 1.0 / (1.0 + np.exp(-np.clip(Z @ self.weights[:-1] + self.weights[-1], -30, 30)))
+
+    def __call__(self, obs: dict, gripper: GripperSpec = HGPL_25_60_A) -> int:
+        v = _valid(obs)
+        if not len(v):
+            return 0
+        p = self.predict_proba(grasp_features(obs, gripper)[v])
+        return int(v[np.argmax(p)])
+
+    def to_dict(self) -> dict:
+        return {"l2": self.l2, "features": list(FEATURE_NAMES),
+                "mean": None if self.mean is None else self.mean.tolist(),
+                "scale": None if self.scale is None else self.scale.tolist(),
+                "weights": None if self.weights is None else self.weights.tolist()}

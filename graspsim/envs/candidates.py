@@ -1,0 +1,111 @@
+"""Candidate grasps for the selection environment: a pooled map database, the table
+check, and the fixed-size candidate feature table.
+
+* :class:`PooledDatabase` is a :class:`MapDatabase` whose run-time reads
+  (``load_entry(..., accepted_only=True)``, what the planner uses) return a fixed,
+  surface-uniform subset of ``pool_size`` accepted grasps of each stored map instead of
+  all of them (10^4 - 10^5). Scaling a pool of 10^3 grasps takes tens of milliseconds
+  instead of half a second, so an episode costs little more than its trial; the adapted
+  map is a uniform subsample of the full one. The pool is drawn once per map with a
+  generator seeded by the map's key, so it is the same in every process.
+* :func:`table_clearance` is the lowest point of the gripper's collision boxes (the arm
+  keep-out included) above the table plane z = 0, for wrist poses in the world frame.
+* :func:`candidate_features` lays K grasps out as the observation's rows.
+
+Pure numpy: no mujoco here.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+
+import numpy as np
+
+from graspsim.gripper import GripperSpec
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.graspmap import GraspabilityMap
+
+__all__ = ["PooledDatabase", "table_clearance", "pregrasp_openings", "candidate_features",
+           "CANDIDATE_FEATURES"]
+
+log = logging.getLogger(__name__)
+
+#: Columns of the ``candidates`` observation (one row per candidate): wrist position
+#: [m] and quaternion (w, x, y, z) in the estimated object frame, grade and its
+#: components q_fc, q_st, force-closure angle [rad], stability distance [m], contact
+#: width [m] (the jaws open to width + 2 x the approach clearance).
+CANDIDATE_FEATURES = ("x", "y", "z", "qw", "qx", "qy", "qz", "grade", "q_fc", "q_st",
+                      "fc_angle", "stability_distance", "width")
+_LOW = np.array([-1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0], np.float32)
+_HIGH = np.array([1, 1, 1, 1, 1, 1, 1, 1, 1, 1, np.pi, 1, 1], np.float32)
+
+
+class PooledDatabase(MapDatabase):
+    """A map database whose planner reads return ``pool_size`` surface-uniform accepted
+    grasps per stored map (see the module docstring). Other reads are unchanged."""
+
+    def __init__(self, *args, pool_size: int = 1000, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.pool_size = int(pool_size)
+        self._pools: dict[str, GraspabilityMap] = {}
+
+    def load_entry(self, entry: dict, *, accepted_only: bool = False) -> GraspabilityMap:
+        if not accepted_only:
+            return super().load_entry(entry)
+        key = entry["key"]
+        pool = self._pools.get(key)
+        if pool is None:
+            full = super().load_entry(entry, accepted_only=True)
+            if len(full) > self.pool_size:
+                seed = int.from_bytes(hashlib.sha1(key.encode()).digest()[:8], "little")
+                sub = full.sample_uniform_surface(self.pool_size, np.random.default_rng(seed))
+                pool = sub.select(np.argsort(-sub.grade, kind="stable"))  # best first, as stored
+            else:
+                pool = full
+            self._pools[key] = pool
+            log.debug("pooled %d of %d grasps of %s", len(pool), len(full), key)
+        return pool
+
+
+def pregrasp_openings(gripper: GripperSpec, widths: np.ndarray) -> np.ndarray:
+    """Jaw opening (N,) [m] at the pose: width + 2 x approach clearance, in range (as
+    the simulator opens them)."""
+    return np.clip(np.asarray(widths, float) + 2.0 * gripper.approach_clearance,
+                   gripper.min_opening, gripper.max_opening)
+
+
+def table_clearance(gripper: GripperSpec, T_world_wrist: np.ndarray, openings: np.ndarray) -> np.ndarray:
+    """Height (N,) [m] of the lowest corner of the gripper's boxes (arm keep-out,
+    housing, jaws, fingers at ``openings`` (N,)) above the table plane z = 0 (negative:
+    below it). T_world_wrist: (N, 4, 4) world frame, z up, table top at z = 0."""
+    T = np.asarray(T_world_wrist, float).reshape(-1, 4, 4)
+    b = gripper.collision_boxes()
+    signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T  # (8, 3)
+    centers = np.broadcast_to(b.centers, (len(T), *b.centers.shape)).copy()  # (N, B, 3)
+    centers[:, :, 0] += b.x_sign[None] * 0.5 * np.asarray(openings, float).reshape(-1, 1)
+    corners = centers[:, :, None, :] + signs[None, None] * b.half_extents[None, :, None, :]  # (N,B,8,3)
+    z = np.einsum("nj,nbcj->nbc", T[:, 2, :3], corners) + T[:, 2, 3][:, None, None]
+    return z.reshape(len(T), -1).min(axis=1)
+
+
+def candidate_features(gmap: GraspabilityMap, rows: np.ndarray, k: int) -> np.ndarray:
+    """(k, F) float32 rows of :data:`CANDIDATE_FEATURES` for map ``rows`` (at most k);
+    missing rows are zeros (masked out by the caller)."""
+    out = np.zeros((k, len(CANDIDATE_FEATURES)), np.float32)
+    rows = np.asarray(rows, int)[:k]
+    n = len(rows)
+    out[:n, 0:3] = gmap.wrist_position[rows]
+    out[:n, 3:7] = gmap.wrist_quat[rows]
+    out[:n, 7] = gmap.grade[rows]
+    out[:n, 8] = gmap.q_fc[rows]
+    out[:n, 9] = gmap.q_st[rows]
+    out[:n, 10] = gmap.fc_angle[rows]
+    out[:n, 11] = gmap.stability_distance[rows]
+    out[:n, 12] = gmap.width[rows]
+    return np.clip(out, _LOW, _HIGH)
+
+
+def feature_bounds() -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) (F,) bounds of the candidate features."""
+    return _LOW.copy(), _HIGH.copy()

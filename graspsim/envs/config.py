@@ -1,0 +1,145 @@
+"""Settings of the grasp environments: one frozen, validated dataclass.
+
+``gymnasium.make("graspsim/GraspSelect-v0", **kwargs)`` passes its keyword arguments
+here; an unknown name or a bad value raises :class:`InvalidParameterError` saying what
+is valid. No mujoco here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+from enum import Enum
+
+from graspsim.envs.objects import resolve_object_set
+from graspsim.errors import InvalidParameterError
+from graspsim.maps.generate import MapConfig
+
+__all__ = ["EnvConfig", "RewardMode", "View", "make_config"]
+
+
+class RewardMode(str, Enum):
+    BINARY = "binary"  # 1 for SUCCESS, else 0
+    SHAPED = "shaped"  # 1 for SUCCESS, else partial credit from lift and slip (<= 0.5)
+
+
+class View(str, Enum):
+    FULL = "full"  # all around (merged views), minus what the table hides
+    SINGLE = "single"  # one camera above the table at a random azimuth
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Environment settings. Lengths [m], angles [rad].
+
+    objects: object set name(s) (see :mod:`graspsim.envs.objects`): ``"primitives"``,
+        ``"compounds"``, ``"all"``, a kind (``"cylinder"``, ``"bottle"``, ...) or a tuple.
+    n_candidates: K, the number of candidate grasps offered (GraspSelect).
+    cloud_size: N, points in the observed cloud (sampled from the sensor cloud, with
+        repeats when it has fewer; the planner sees the whole sensor cloud).
+    cloud_resolution, cloud_noise, cloud_outliers: the synthetic sensor (point spacing,
+        Gaussian sigma, outlier fraction); view: ``"full"`` or ``"single"``;
+        camera_distance: single-view camera distance from the object.
+    table_cut: the table is segmented out by dropping points below this height.
+    position_noise, rotation_noise: execution error of the robot per trial, Gaussian at
+        the TCP (0 and 0: exact execution).
+    protocol: ``"lift_place"`` (default) or ``"tug"``, or a Protocol instance.
+    reward: ``"binary"`` or ``"shaped"``.
+    lying: probability that a cylinder lies on its side.
+    placement: the object's centre of mass lands uniformly in [-placement, placement]^2
+        on the table, at a uniform random yaw.
+    table_margin: a candidate is valid only when its gripper (at the pre-grasp opening)
+        stays this far above the table in the estimated object pose.
+    pool_size: grasps used per stored FS map (see ``PooledDatabase``).
+    db_root: map database folder (None: ``$GRASPSIM_DB`` or ``~/.cache/graspsim/db``);
+        map_config: its generation settings (None: the paper's); the five reference maps
+        are built there on first use.
+    identify_repetitions: MLESAC repetitions of the identification (paper: 10).
+    max_redraws: objects drawn per reset before giving up when none offers a valid
+        candidate (GraspSelect).
+    threads: native threads for :meth:`GraspSelectEnv.evaluate_candidates`.
+    """
+
+    objects: str | tuple[str, ...] = "primitives"
+    n_candidates: int = 16
+    cloud_size: int = 512
+    cloud_resolution: float = 0.005
+    cloud_noise: float = 0.001
+    cloud_outliers: float = 0.0
+    view: View = View.FULL
+    camera_distance: float = 0.6
+    table_cut: float = 0.003
+    position_noise: float = 0.003
+    rotation_noise: float = math.radians(2.0)
+    protocol: object = "lift_place"
+    reward: RewardMode = RewardMode.BINARY
+    lying: float = 0.5
+    placement: float = 0.1
+    table_margin: float = 0.002
+    pool_size: int = 300
+    db_root: str | None = None
+    map_config: MapConfig | None = None
+    identify_repetitions: int = 10
+    max_redraws: int = 20
+    threads: int = 1
+
+    def __post_init__(self) -> None:
+        objects = self.objects if isinstance(self.objects, str) else tuple(self.objects)
+        object.__setattr__(self, "objects", objects)
+        resolve_object_set(objects)  # raises on unknown names
+        for name in ("n_candidates", "cloud_size", "pool_size", "identify_repetitions",
+                     "max_redraws", "threads"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise InvalidParameterError(f"{name} must be an integer >= 1, got {v!r}")
+        for name in ("cloud_resolution", "camera_distance"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise InvalidParameterError(f"{name} must be > 0, got {v!r}")
+        for name in ("cloud_noise", "table_cut", "position_noise", "rotation_noise", "placement",
+                     "table_margin"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise InvalidParameterError(f"{name} must be >= 0, got {v!r}")
+        for name in ("cloud_outliers", "lying"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0 <= v <= 1 and not (name == "cloud_outliers" and v == 1)):
+                raise InvalidParameterError(f"{name} must be a fraction in [0, 1), got {v!r}")
+        try:
+            object.__setattr__(self, "view", View(self.view))
+        except ValueError:
+            raise InvalidParameterError(
+                f"view must be one of {[v.value for v in View]}, got {self.view!r}") from None
+        try:
+            object.__setattr__(self, "reward", RewardMode(self.reward))
+        except ValueError:
+            raise InvalidParameterError(
+                f"reward must be one of {[r.value for r in RewardMode]}, got {self.reward!r}") from None
+        if self.map_config is not None and not isinstance(self.map_config, MapConfig):
+            raise InvalidParameterError(f"map_config must be a MapConfig or None, got {self.map_config!r}")
+        if self.db_root is not None:
+            object.__setattr__(self, "db_root", str(self.db_root))
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["view"], d["reward"] = self.view.value, self.reward.value
+        p = self.protocol
+        d["protocol"] = p if isinstance(p, str) else p.to_dict()
+        d["map_config"] = None if self.map_config is None else self.map_config.to_dict()
+        return d
+
+
+def make_config(config: EnvConfig | None = None, **kwargs) -> EnvConfig:
+    """``config`` (or the defaults) with ``kwargs`` overriding fields; unknown names
+    raise :class:`InvalidParameterError` listing the valid ones."""
+    valid = {f.name for f in fields(EnvConfig)}
+    unknown = sorted(set(kwargs) - valid)
+    if unknown:
+        raise InvalidParameterError(f"unknown environment option(s) {unknown}; valid: {sorted(valid)}")
+    if config is None:
+        return EnvConfig(**kwargs)
+    if not isinstance(config, EnvConfig):
+        raise InvalidParameterError(f"config must be an EnvConfig, got {type(config).__name__}")
+    d = {f.name: getattr(config, f.name) for f in fields(EnvConfig)}
+    d.update(kwargs)
+    return EnvConfig(**d)

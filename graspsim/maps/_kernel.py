@@ -41,6 +41,7 @@ __all__ = ["sweep_lines"]
 
 # A large finite sentinel: fastmath lets LLVM assume there are no infinities.
 _BIG = np.float32(1e9)
+_ZERO = np.float32(0.0)
 
 
 @njit(cache=True, fastmath=True, inline="always")
@@ -95,6 +96,27 @@ def _gather(Q, NQ, RT, HN, gp, u, e1, e2, ho, fp, fmargin, reach2,
     return n
 
 
+@njit(cache=True, fastmath=True, inline="always")
+def _patch_value(a, b, na, nb, ns, rt, hn, f, jj, h, c, s, hyF, hyJ, hyH, fmargin):
+    """Value t - m_t + off of a sample's surface patch at roll (c, s): the patch reaches
+    m_y, m_t from the sample along the wrist's y and z axes (tangential radius rt,
+    normal height hn, plus ``fmargin``); a point belongs to every part whose x and y
+    ranges both contain it (x-membership is encoded in the offsets f, jj, h: _BIG when
+    outside). sqrt(1 - ny^2) = |(nt, ns)| <= nt + ns, so no square roots."""
+    y = abs(a * s - b * c)
+    t = a * c + b * s
+    ny = abs(na * s - nb * c)
+    nt = abs(na * c + nb * s)
+    my = rt * (nt + ns) + hn * ny + fmargin
+    mt = rt * (ny + ns) + hn * nt + fmargin
+    o = h if y <= hyH + my else _BIG
+    o2 = jj if y <= hyJ + my else _BIG
+    o = o2 if o2 < o else o
+    o2 = f if y <= hyF + my else _BIG
+    o = o2 if o2 < o else o
+    return t - mt + o
+
+
 @njit(cache=True, fastmath=True)
 def _roll_minima(n, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH, cr, sr,
                  hyF, hyJ, hyH, fmargin, vin, vex):
@@ -118,48 +140,12 @@ def _roll_minima(n, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH, cr,
         ej = xJ[k]
         eh = xH[k]
         for r in range(R):
-            c = cr[r]
-            s = sr[r]
-            y = abs(a * s - b * c)
-            t = a * c + b * s
-            ny = abs(na * s - nb * c)
-            nt = abs(na * c + nb * s)
-            # sqrt(1 - ny^2) = |(nt, ns)| <= nt + ns: no square roots in the hot loop
-            my = rt * (nt + ns) + hn * ny + fmargin
-            mt = rt * (ny + ns) + hn * nt + fmargin
-            # a point belongs to every part whose x and y ranges both contain it;
-            # x-membership is encoded in the offsets (_BIG when outside)
-            o = h if y <= hyH + my else _BIG
-            o2 = j if y <= hyJ + my else _BIG
-            o = o2 if o2 < o else o
-            o2 = f if y <= hyF + my else _BIG
-            o = o2 if o2 < o else o
-            v = t - mt + o
+            # conservative: the sample's patch grown by its anisotropic extent
+            v = _patch_value(a, b, na, nb, ns, rt, hn, f, j, h, cr[r], sr[r], hyF, hyJ, hyH, fmargin)
             vin[r] = v if v < vin[r] else vin[r]
-            o = eh if y <= hyH else _BIG
-            o2 = ej if y <= hyJ else _BIG
-            o = o2 if o2 < o else o
-            o2 = ef if y <= hyF else _BIG
-            o = o2 if o2 < o else o
-            v = t + o
+            # exact: the sample itself (a surface point) with the exact footprints
+            v = _patch_value(a, b, na, nb, ns, _ZERO, _ZERO, ef, ej, eh, cr[r], sr[r], hyF, hyJ, hyH, _ZERO)
             vex[r] = v if v < vex[r] else vex[r]
-
-
-@njit(cache=True, fastmath=True, inline="always")
-def _patch_value(a, b, na, nb, ns, rt, hn, f, jj, h, c, s, hyF, hyJ, hyH, fmargin):
-    """Conservative value t - m_t + off of a sample's surface patch at roll (c, s)."""
-    y = abs(a * s - b * c)
-    t = a * c + b * s
-    ny = abs(na * s - nb * c)
-    nt = abs(na * c + nb * s)
-    my = rt * (nt + ns) + hn * ny + fmargin
-    mt = rt * (ny + ns) + hn * nt + fmargin
-    o = h if y <= hyH + my else _BIG
-    o2 = jj if y <= hyJ + my else _BIG
-    o = o2 if o2 < o else o
-    o2 = f if y <= hyF + my else _BIG
-    o = o2 if o2 < o else o
-    return t - mt + o
 
 
 @njit(cache=True, fastmath=True)

@@ -34,8 +34,19 @@ def build_parser() -> argparse.ArgumentParser:
         prog="graspsim",
         description=(
             "Graspability maps from shape primitives for two-jaw grippers "
-            "(Eizicovits & Berman 2018), validated in MuJoCo."
+            "(Eizicovits & Berman 2018), validated in MuJoCo. Lengths in metres; every "
+            "subcommand takes --json (one JSON summary object as the last output line)."
         ),
+        epilog=(
+            "examples:\n"
+            "  graspsim demo                                   # the whole pipeline\n"
+            "  graspsim map cylinder --radius 0.02 --height 0.2 -o cyl.h5 --plot cyl.png\n"
+            "  graspsim adapt cloud.pcd -o adapted.h5          # cloud -> adapted map\n"
+            "  graspsim trial adapted.h5 --sample 15 --min-grade 0.7\n"
+            "  graspsim campaign run maps/*.h5 --out camp --top 100 --executor ray\n"
+            "run 'graspsim COMMAND --help' for a command's options."
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"graspsim {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")

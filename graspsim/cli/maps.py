@@ -21,7 +21,8 @@ _DIM_HELP = {
 def _add_dims(p) -> None:
     g = p.add_argument_group("dimensions (metres; the ones the primitive takes)")
     for name, text in _DIM_HELP.items():
-        g.add_argument(f"--{name.replace('_', '-')}", dest=f"dim_{name}", type=float, help=text)
+        g.add_argument(f"--{name.replace('_', '-')}", dest=f"dim_{name}", type=float, metavar="M",
+                       help=text)
 
 
 def _shape_from_args(args):

@@ -333,12 +333,16 @@ def generate_fs_map(
     mass: float | None = None,
     threads: int | None = None,
     progress=None,
+    grade=None,
 ) -> GraspabilityMap:
     """Full-scale graspability map of ``shape`` (a Primitive or Compound).
 
     Returns every collision-free pose with its grade (``map.accepted`` marks grade >
     threshold). ``threads`` limits numba's threads (default: all cores);
     ``progress`` is an optional callable ``progress(done_fraction)``.
+    ``grade``: a grade model of :mod:`graspsim.grades` (e.g. ``get_grade("pad_contact")``)
+    that re-grades the finished map (``meta.quality["name"]`` records it); None keeps the
+    quality model's grade, the paper's.
     Raises :class:`NoFeasibleGraspError` if no chord of the object fits the gripper.
     """
     quality = quality or QualityModel()
@@ -382,6 +386,11 @@ def generate_fs_map(
                  collision_free=n_rows)
     log.info("FS map %s: %d candidates, %d collision-free in %.3f s", shape, free.size,
              n_rows, timing["total"])
+    if grade is not None:
+        t = time.perf_counter()
+        gmap = grade.apply(gmap)
+        timing["grade"] = time.perf_counter() - t
+        timing["total"] = time.perf_counter() - t0
     return gmap.with_meta(timing=timing, extra={"stats": stats})
 
 

@@ -1,0 +1,43 @@
+"""Grade-vs-success calibration: trial campaigns, statistics, reports, figures.
+
+Pure statistics live in :mod:`graspsim.calibration.stats`; campaigns (which need
+mujoco) in :mod:`graspsim.calibration.campaign`, imported on first use.
+"""
+
+from __future__ import annotations
+
+from graspsim.calibration.report import CalibrationReport, ScoreReport, calibrate, score_report
+from graspsim.calibration.sampling import pregrasp_openings, stratified_rows, table_clearance
+from graspsim.calibration.stats import (
+    Reliability,
+    bootstrap,
+    fit_logistic,
+    logistic_predict,
+    precision_recall,
+    reliability,
+    roc_auc,
+    roc_curve,
+    threshold_for_precision,
+    wilson_interval,
+    youden_threshold,
+)
+from graspsim.calibration.table import TrialTable
+
+_CAMPAIGN = ("CalibrationCase", "SimCondition", "CaseSample", "draw_samples", "simulate_samples",
+             "case_seed")
+
+__all__ = [
+    "CalibrationReport", "ScoreReport", "calibrate", "score_report",
+    "table_clearance", "pregrasp_openings", "stratified_rows",
+    "Reliability", "bootstrap", "fit_logistic", "logistic_predict", "precision_recall",
+    "reliability", "roc_auc", "roc_curve", "threshold_for_precision", "wilson_interval",
+    "youden_threshold", "TrialTable", *_CAMPAIGN,
+]
+
+
+def __getattr__(name: str):
+    if name in _CAMPAIGN:  # keeps mujoco out of plain imports
+        from graspsim.calibration import trials
+
+        return getattr(trials, name)
+    raise AttributeError(f"module 'graspsim.calibration' has no attribute {name!r}")

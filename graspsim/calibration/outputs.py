@@ -1,0 +1,97 @@
+"""Writing study outputs: JSON with the config and library versions, markdown, cases."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import platform
+import subprocess
+import sys
+import time
+from dataclasses import asdict, is_dataclass
+from pathlib import Path
+
+import numpy as np
+
+from graspsim._atomic import atomic_write_text
+from graspsim.errors import GraspsimError
+
+__all__ = ["library_versions", "to_jsonable", "write_json", "write_text", "fs_cases"]
+
+log = logging.getLogger(__name__)
+
+
+def library_versions() -> dict:
+    """Versions of the libraries results depend on, the git commit and the host."""
+    import importlib.metadata as md
+
+    out = {"python": sys.version.split()[0], "platform": platform.platform()}
+    for pkg in ("graspsim", "numpy", "scipy", "mujoco", "numba", "trimesh", "h5py", "matplotlib"):
+        try:
+            out[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            out[pkg] = None
+    try:
+        root = Path(__file__).resolve().parents[2]
+        out["git_commit"] = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
+                                           text=True, timeout=5).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        out["git_commit"] = None
+    out["date"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    return out
+
+
+def to_jsonable(o):
+    if is_dataclass(o) and not isinstance(o, type):
+        return to_jsonable(o.to_dict() if hasattr(o, "to_dict") else asdict(o))
+    if isinstance(o, dict):
+        return {str(k): to_jsonable(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [to_jsonable(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return to_jsonable(o.tolist())
+    if isinstance(o, np.generic):
+        return to_jsonable(o.item())
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    if isinstance(o, Path):
+        return str(o)
+    return o
+
+
+def write_json(path: str | os.PathLike, obj) -> Path:
+    atomic_write_text(path, json.dumps(to_jsonable(obj), indent=1) + "\n", GraspsimError)
+    return Path(path)
+
+
+def write_text(path: str | os.PathLike, text: str) -> Path:
+    atomic_write_text(path, text.rstrip("\n") + "\n", GraspsimError)
+    return Path(path)
+
+
+def fs_cases(shapes: dict, *, config=None, quality=None, gripper=None, kind: str = "fs",
+             threads: int | None = None) -> list:
+    """One :class:`CalibrationCase` per named shape with its FS map (a compound gets
+    the combined map of its parts' FS maps, as the planner builds it)."""
+    from graspsim.calibration.trials import CalibrationCase
+    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.maps.combine import combine_maps
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.primitives import Compound
+
+    gripper = gripper or HGPL_25_60_A
+    cases = []
+    for name, shape in shapes.items():
+        t = time.perf_counter()
+        if isinstance(shape, Compound):
+            parts = [generate_fs_map(p, gripper, quality, config, threads=threads) for p in shape.parts]
+            gmap = combine_maps(parts, shape, quality=quality, config=config)
+            k = "combined"
+        else:
+            gmap = generate_fs_map(shape, gripper, quality, config, threads=threads)
+            k = kind
+        log.info("map of %s: %d grasps in %.1f s", name, len(gmap), time.perf_counter() - t)
+        cases.append(CalibrationCase(f"{name}/{k}", gmap, group=name, kind=k))
+    return cases

@@ -1,0 +1,163 @@
+"""What a grade says about success: the calibration report of one or more scores.
+
+For every score (the paper's grade, a calibrated grade, single components) on the
+feasible trials of a :class:`TrialTable`: ROC AUC (of the sample, and of the map
+population via the sampling weights) with a bootstrap interval, per-object AUCs, the
+binned reliability curve with Wilson intervals and a fitted logistic P(success | score),
+the threshold reaching a target precision and the Youden-optimal threshold (bootstrap
+intervals), and precision / recall at a reference threshold (the paper's 0.7). The
+bootstrap resamples trials within each case. Precision, recall and thresholds are
+population estimates (weighted); the reliability curve is conditional on the score and
+needs no weights.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from graspsim.calibration import stats
+from graspsim.calibration.table import TrialTable
+from graspsim.errors import InvalidParameterError
+
+__all__ = ["ScoreReport", "CalibrationReport", "score_report", "calibrate"]
+
+
+@dataclass(frozen=True)
+class ScoreReport:
+    """Calibration of one score; thresholds accept score > t. ``*_ci``: (lo, hi)."""
+
+    name: str
+    auc: float
+    auc_ci: tuple[float, float]
+    auc_population: float
+    auc_by_group: dict
+    reliability: stats.Reliability
+    logistic: tuple[float, float]
+    target_precision: float
+    threshold: float
+    threshold_ci: tuple[float, float]
+    youden: float
+    youden_ci: tuple[float, float]
+    at: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "reliability"}
+        d["reliability"] = self.reliability.to_dict()
+        return _clean(d)
+
+
+def _clean(o):
+    if isinstance(o, dict):
+        return {str(k): _clean(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_clean(v) for v in o]
+    if isinstance(o, (np.floating, float)):
+        return None if not math.isfinite(float(o)) else float(o)
+    if isinstance(o, np.integer):
+        return int(o)
+    if isinstance(o, np.ndarray):
+        return _clean(o.tolist())
+    return o
+
+
+def _operating_point(s, y, w, t) -> dict:
+    p, r, a = stats.precision_recall(s, y, t, w)
+    acc = s > t
+    k, n = int(np.sum(acc & y)), int(np.sum(acc))
+    lo, hi = stats.wilson_interval(k, n)
+    return {"threshold": t, "precision": p, "recall": r, "accepted_fraction": a,
+            "kept_successes": float(np.sum(w * (acc & y))), "trials_accepted": n,
+            "successes_accepted": k, "sample_precision_ci": (float(lo), float(hi))}
+
+
+def score_report(name: str, scores, success, weights=None, groups=None, strata=None, *,
+                 target: float = 0.97, reference: dict | None = None, n_boot: int = 500,
+                 rng: np.random.Generator | None = None, edges=np.linspace(0, 1, 11),
+                 min_count: int = 20) -> ScoreReport:
+    """Report of one score over trials: scores, success (N,); weights (N,) population
+    weights; groups (N,) objects for per-object AUCs; strata (N,) bootstrap strata;
+    reference: {label: threshold} operating points to report (e.g. {"paper_0.7": 0.7})."""
+    s = np.asarray(scores, float)
+    y = np.asarray(success, bool)
+    w = np.ones(len(s)) if weights is None else np.asarray(weights, float)
+    if len(s) == 0:
+        raise InvalidParameterError(f"no trials to calibrate {name!r} on")
+    rng = rng or np.random.default_rng(0)
+    groups = np.zeros(len(s), int) if groups is None else np.asarray(groups)
+    by_group = {str(g): stats.roc_auc(s[groups == g], y[groups == g]) for g in np.unique(groups)}
+    t_target = stats.threshold_for_precision(s, y, target, w, min_count=min_count)
+    t_youden = stats.youden_threshold(s, y, w)
+
+    def boot(idx):
+        return [stats.roc_auc(s[idx], y[idx]),
+                stats.threshold_for_precision(s[idx], y[idx], target, w[idx], min_count=min_count),
+                stats.youden_threshold(s[idx], y[idx], w[idx])]
+
+    lo, hi = stats.bootstrap(boot, len(s), rng=rng, n_boot=n_boot, strata=strata)
+    b = stats.fit_logistic(s, y.astype(float))
+    at = {label: _operating_point(s, y, w, t) for label, t in (reference or {}).items()}
+    at["target"] = _operating_point(s, y, w, t_target)
+    at["youden"] = _operating_point(s, y, w, t_youden)
+    return ScoreReport(
+        name=name, auc=stats.roc_auc(s, y), auc_ci=(float(lo[0]), float(hi[0])),
+        auc_population=stats.roc_auc(s, y, w), auc_by_group=by_group,
+        reliability=stats.reliability(s, y, edges), logistic=(float(b[0]), float(b[1])),
+        target_precision=target, threshold=t_target, threshold_ci=(float(lo[1]), float(hi[1])),
+        youden=t_youden, youden_ci=(float(lo[2]), float(hi[2])), at=at)
+
+
+@dataclass(frozen=True)
+class CalibrationReport:
+    """Scores' reports over the feasible trials of a table, plus the trial summary
+    (counts per outcome, START_COLLISION apart) and single-feature AUCs."""
+
+    scores: dict
+    summary: dict
+    components: dict
+
+    def to_dict(self) -> dict:
+        return _clean({"summary": self.summary, "components": self.components,
+                       "scores": {k: v.to_dict() for k, v in self.scores.items()}})
+
+    def markdown(self) -> str:
+        from graspsim.calibration.markdown import report_markdown
+
+        return report_markdown(self)
+
+
+def calibrate(table: TrialTable, scores: dict | None = None, *, target: float = 0.97,
+              reference: dict | None = None, n_boot: int = 500, seed: int = 0,
+              components: tuple[str, ...] = ()) -> CalibrationReport:
+    """Calibrate ``scores`` ({report name: column}, default {"paper": "grade"}) on the
+    feasible trials of ``table``. ``reference``: {label: threshold} operating points
+    reported for every score (default: the paper's 0.7). ``components``: columns whose
+    single-feature AUC (higher = better; a leading "-" negates) is reported."""
+    from graspsim.sim.outcomes import TrialOutcome
+
+    scores = scores or {"paper": "grade"}
+    reference = {"at_0.7": 0.7} if reference is None else reference
+    feas = table.feasible
+    t = table.select(feas)
+    counts = {o.label: int(np.sum(table["outcome"] == o)) for o in TrialOutcome}
+    y = t["success"].astype(bool)
+    summary = {"trials": len(table), "feasible": int(feas.sum()), "counts": counts,
+               "success_rate": float(y.mean()) if len(y) else float("nan"),
+               "success_rate_population": float(np.sum(t["weight"] * y) / np.sum(t["weight"]))
+               if len(y) else float("nan"),
+               "cases": int(len(np.unique(table["case"]))), "groups": int(len(np.unique(table["group"])))}
+    lo, hi = stats.wilson_interval(int(y.sum()), len(y))
+    summary["success_ci"] = (float(lo), float(hi))
+    rng = np.random.default_rng(seed)
+    out = {name: score_report(name, t[col], y, t["weight"], t["group"], t["case"], target=target,
+                              reference=reference, n_boot=n_boot, rng=rng)
+           for name, col in scores.items()}
+    comp = {}
+    for c in components:
+        col = c.lstrip("-")
+        if col in t:
+            v = -t[col] if c.startswith("-") else t[col]
+            comp[c] = {"auc": stats.roc_auc(v, y), "auc_population": stats.roc_auc(v, y, t["weight"])}
+    return CalibrationReport(out, summary, comp)

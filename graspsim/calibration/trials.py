@@ -1,0 +1,240 @@
+"""Trial campaigns: grasps drawn from maps, simulated under chosen conditions.
+
+Build once, run many: :func:`draw_samples` picks the grasps of each case (stratified
+over the grade among the poses that clear the table), :func:`simulate_samples` runs
+them under a :class:`SimCondition` and returns a :class:`TrialTable`. Running the same
+samples under several conditions (friction, grip force, mass, execution noise) gives
+paired comparisons: the grasps and the noise draws are the same, only the physics moves.
+Every case's trials are seeded from (seed, case name), whatever the order of cases.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import zlib
+from dataclasses import asdict, dataclass, replace
+from typing import Callable, Sequence
+
+import numpy as np
+
+from graspsim.calibration.sampling import stratified_rows, table_clearance
+from graspsim.calibration.table import TrialTable
+from graspsim.errors import InvalidParameterError
+from graspsim.grades.features import FEATURES, map_features
+from graspsim.gripper import GripperSpec
+from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.transforms import angle_between
+
+__all__ = ["CalibrationCase", "SimCondition", "CaseSample", "draw_samples", "simulate_samples",
+           "case_seed", "table_features"]
+
+log = logging.getLogger(__name__)
+
+DEFAULT_CONE = math.radians(22.0)  # MapConfig().closing_cone
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationCase:
+    """A map and the object its grasps are tried on.
+
+    name: unique label (e.g. ``"cylinder@1.0/fs"``); group: the object (the unit held
+    out in cross-validation; default ``name``); kind: map kind (fs / scaled / adapted);
+    sim_object: the simulated object (a :class:`graspsim.sim.SimObject`, e.g. the true
+    mesh of an object whose map was planned from primitives); None: the map's object.
+    """
+
+    name: str
+    gmap: GraspabilityMap
+    group: str = ""
+    kind: str = "fs"
+    sim_object: object | None = None
+
+    @property
+    def object_group(self) -> str:
+        return self.group or self.name
+
+
+@dataclass(frozen=True)
+class SimCondition:
+    """Physics of a campaign: pad friction mu, grip force per jaw [N] (None: the
+    gripper spec's), object mass scale (x the map's mass), execution noise sigmas
+    (position [m], rotation [rad]; 0 = none)."""
+
+    name: str = "default"
+    friction: float = 0.5
+    grip_force: float | None = None
+    mass_scale: float = 1.0
+    noise_position: float = 0.0
+    noise_rotation: float = 0.0
+
+    def __post_init__(self) -> None:
+        for k in ("friction", "mass_scale"):
+            v = getattr(self, k)
+            if not (math.isfinite(v) and v > 0):
+                raise InvalidParameterError(f"SimCondition.{k} must be > 0, got {v!r}")
+        for k in ("noise_position", "noise_rotation"):
+            v = getattr(self, k)
+            if not (math.isfinite(v) and v >= 0):
+                raise InvalidParameterError(f"SimCondition.{k} must be >= 0, got {v!r}")
+        if self.grip_force is not None and not (math.isfinite(self.grip_force) and self.grip_force > 0):
+            raise InvalidParameterError(f"grip_force must be > 0 N or None, got {self.grip_force!r}")
+
+    @property
+    def noisy(self) -> bool:
+        return self.noise_position > 0 or self.noise_rotation > 0
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True, eq=False)
+class CaseSample:
+    """Rows of a case's map to simulate and their inverse inclusion probabilities;
+    eligible: rows of the map that clear the table; total: rows of the map."""
+
+    case: CalibrationCase
+    rows: np.ndarray
+    weights: np.ndarray
+    eligible: int
+    total: int
+
+
+def case_seed(seed: int, name: str) -> int:
+    """A case's own seed, independent of the order of cases."""
+    return int(np.random.SeedSequence([int(seed), zlib.crc32(name.encode())]).generate_state(1)[0])
+
+
+def _sim_object(case: CalibrationCase):
+    from graspsim.sim.mapsim import map_object
+
+    return case.sim_object if case.sim_object is not None else map_object(case.gmap)
+
+
+def draw_samples(cases: Sequence[CalibrationCase], per_bin: int, *, seed: int = 0,
+                 edges=np.linspace(0.0, 1.0, 11), score: str = "grade",
+                 min_clearance: float = 0.0) -> list[CaseSample]:
+    """Up to ``per_bin`` grasps per grade bin of each case, among the poses whose
+    gripper stays ``min_clearance`` [m] above the table with the object at rest."""
+    from graspsim.sim.scene import resting_pose
+
+    names = [c.name for c in cases]
+    if len(set(names)) != len(names):
+        raise InvalidParameterError(f"case names must be unique, got {names}")
+    out = []
+    for case in cases:
+        gmap = case.gmap
+        gripper = GripperSpec.from_dict(gmap.meta.gripper)
+        clear = _clears_table(gmap, resting_pose(_sim_object(case)), gripper, min_clearance)
+        rng = np.random.default_rng(case_seed(seed, case.name))
+        rows, w = stratified_rows(getattr(gmap, score), clear, per_bin, rng, edges)
+        out.append(CaseSample(case, rows, w, int(clear.sum()), len(gmap)))
+        log.info("%s: %d of %d rows clear the table; %d drawn", case.name, int(clear.sum()),
+                 len(gmap), len(rows))
+    return out
+
+
+def _clears_table(gmap: GraspabilityMap, T_world_obj: np.ndarray, gripper: GripperSpec,
+                  min_clearance: float, chunk: int = 100_000) -> np.ndarray:
+    """(N,) bool: the map's poses keep the gripper ``min_clearance`` above the table
+    (in chunks: a million poses would otherwise take gigabytes)."""
+    from graspsim.transforms import make_transform, quat_to_matrix
+
+    out = np.zeros(len(gmap), bool)
+    for a in range(0, len(gmap), chunk):
+        sl = slice(a, a + chunk)
+        T = T_world_obj @ make_transform(quat_to_matrix(gmap.wrist_quat[sl].astype(float)),
+                                         gmap.wrist_position[sl].astype(float))
+        out[sl] = table_clearance(T, gmap.width[sl], gripper) >= min_clearance
+    return out
+
+
+def _map_columns(gmap: GraspabilityMap, rows: np.ndarray) -> dict[str, np.ndarray]:
+    c = gmap.contacts[rows].astype(float)
+    n = gmap.normals[rows].astype(float)
+    a1 = angle_between(-n[:, 0], c[:, 1] - c[:, 0])
+    cols = {k: getattr(gmap, k)[rows].astype(float)
+            for k in ("grade", "fc_angle", "q_fc", "stability_distance", "q_st", "width")}
+    cols["in_default_cone"] = a1 <= DEFAULT_CONE + 1e-4
+    # the grasp geometry, so features can be recomputed from the table alone
+    cols.update(contacts=c, normals=n, wrist_position=gmap.wrist_position[rows].astype(float),
+                wrist_quat=gmap.wrist_quat[rows].astype(float))
+    return cols
+
+
+def simulate_samples(samples: Sequence[CaseSample], condition: SimCondition = SimCondition(), *,
+                     protocol=None, seed: int = 0, threads: int | None = None,
+                     features: tuple[str, ...] = FEATURES, grade_models: Sequence = (),
+                     on_case: Callable[[str, int], None] | None = None) -> TrialTable:
+    """Simulate every sample under ``condition`` (default protocol: lift_place).
+
+    grade_models: extra grades (objects with ``name`` and ``grade_rows(gmap, rows)``)
+    stored as ``grade_<name>`` columns. on_case(name, n): called after each case.
+    """
+    import mujoco
+
+    from graspsim.sim import ExecutionNoise, LiftPlace, SimSettings, build_scene, run_trials
+
+    protocol = protocol or LiftPlace()
+    settings = SimSettings(friction=condition.friction, grip_force=condition.grip_force)
+    noise = (ExecutionNoise(condition.noise_position, condition.noise_rotation)
+             if condition.noisy else None)
+    tables = []
+    for smp in samples:
+        case, rows = smp.case, smp.rows
+        if len(rows) == 0:
+            continue
+        obj = _sim_object(case)
+        if condition.mass_scale != 1.0:
+            obj = replace(obj, mass=obj.mass * condition.mass_scale,
+                          inertia=obj.inertia * condition.mass_scale)
+        gripper = GripperSpec.from_dict(case.gmap.meta.gripper)
+        scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity)
+        res = run_trials(scene, case.gmap.T_obj_wrist[rows], case.gmap.width[rows], protocol,
+                         threads=threads, seed=case_seed(seed, case.name), noise=noise)
+        n = len(rows)
+        cols = {"case": np.full(n, case.name), "group": np.full(n, case.object_group),
+                "kind": np.full(n, case.kind), "condition": np.full(n, condition.name),
+                "row": rows.astype(np.int64), "weight": smp.weights.astype(float),
+                "outcome": res.outcome.astype(np.int8), "success": res.outcome == 0,
+                **_map_columns(case.gmap, rows)}
+        if features:
+            cols.update({f"f_{k}": v for k, v in map_features(case.gmap, features, rows).items()})
+        for model in grade_models:
+            cols[f"grade_{model.name}"] = np.asarray(model.grade_rows(case.gmap, rows), float)
+        cols.update({f"m_{k}": np.asarray(v, float) for k, v in res.metrics.items()})
+        tables.append(TrialTable(cols))
+        log.info("%s [%s]: %s", case.name, condition.name, res.counts())
+        if on_case is not None:
+            on_case(case.name, n)
+    meta = {"condition": condition.to_dict(), "protocol": protocol.to_dict(), "seed": int(seed),
+            "mujoco_version": mujoco.__version__, "features": list(features),
+            "cases": [{"name": s.case.name, "group": s.case.object_group, "kind": s.case.kind,
+                       "object": s.case.gmap.meta.object, "gripper": s.case.gmap.meta.gripper,
+                       "quality": s.case.gmap.meta.quality, "drawn": int(len(s.rows)),
+                       "eligible": s.eligible, "total": s.total} for s in samples]}
+    return TrialTable.concat(tables, meta=meta)
+
+
+def table_features(table: TrialTable, names: tuple[str, ...] = FEATURES,
+                   config=None) -> dict[str, np.ndarray]:
+    """Grade features {name: (N,)} of a table's trials, recomputed from its stored grasp
+    geometry and the cases' object, gripper and quality records (no maps needed)."""
+    from graspsim.grades.features import FeatureConfig, grasp_features, object_context
+    from graspsim.transforms import quat_to_matrix
+
+    config = config or FeatureConfig()
+    out = {k: np.full(len(table), np.nan) for k in names}
+    cases = {c["name"]: c for c in table.meta.get("cases", [])}
+    for name in np.unique(table["case"]):
+        if name not in cases:
+            raise InvalidParameterError(f"the table's meta has no record of case {name!r}")
+        rec = cases[name]
+        sel = np.flatnonzero(table["case"] == name)
+        ctx = object_context(rec["object"], rec["quality"].get("d_ref"), config)
+        f = grasp_features(ctx, GripperSpec.from_dict(rec["gripper"]), table["contacts"][sel],
+                           table["normals"][sel], quat_to_matrix(table["wrist_quat"][sel]),
+                           table["wrist_position"][sel], names, config)
+        for k, v in f.items():
+            out[k][sel] = v
+    return out

@@ -1,0 +1,28 @@
+"""Grade models for graspability maps: the paper's grade (default) and a calibrated
+flat-pad contact grade, with the cheap per-grasp features they use."""
+
+from __future__ import annotations
+
+from graspsim.grades.features import (
+    FEATURES,
+    FeatureConfig,
+    ObjectContext,
+    grasp_features,
+    map_features,
+    object_context,
+    resting_frame,
+)
+from graspsim.grades.models import (
+    GRADE_NAMES,
+    LogisticGrade,
+    PaperGrade,
+    default_model_path,
+    get_grade,
+    regrade,
+)
+
+__all__ = [
+    "FEATURES", "FeatureConfig", "ObjectContext", "grasp_features", "map_features",
+    "object_context", "resting_frame",
+    "GRADE_NAMES", "PaperGrade", "LogisticGrade", "get_grade", "regrade", "default_model_path",
+]

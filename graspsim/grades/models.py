@@ -1,0 +1,188 @@
+"""Grade models: the paper's grade and a calibrated flat-pad contact grade, selectable.
+
+* :class:`PaperGrade` -- the paper's grade (``QualityModel``: force closure + stability,
+  accepted > 0.7). It is the default everywhere, for reproducing the paper.
+* :class:`LogisticGrade` -- P(success) of a logistic model on the features of
+  :mod:`graspsim.grades.features`, fitted to simulated lift-and-place trials and shipped
+  as JSON with its provenance (``graspsim/data/grade_model.json``, name
+  ``"pad_contact"``); its threshold is the one that reached the target precision on
+  objects held out from the fit.
+
+:func:`regrade` gives a map the grade of a model; the map records it in
+``meta.quality``: ``name``, ``threshold``, ``d_ref``, the model (``grade_model``) and
+the quality it replaced (``base_quality``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from scipy.special import expit
+
+from graspsim.errors import InvalidParameterError
+from graspsim.grades.features import FEATURES, FeatureConfig, map_features
+from graspsim.quality import QualityModel
+
+__all__ = ["PaperGrade", "LogisticGrade", "get_grade", "regrade", "GRADE_NAMES",
+           "default_model_path"]
+
+GRADE_NAMES = ("paper", "pad_contact")
+
+
+def default_model_path() -> Path:
+    """The shipped calibrated model (``graspsim/data/grade_model.json``)."""
+    return Path(str(resources.files("graspsim") / "data" / "grade_model.json"))
+
+
+def _rows(gmap, rows):
+    return np.arange(len(gmap)) if rows is None else np.asarray(rows)
+
+
+@dataclass(frozen=True)
+class PaperGrade:
+    """The paper's grade, w q_fc + (1 - w) q_st, of the map's contacts (DESIGN.md §5)."""
+
+    quality: QualityModel = QualityModel()
+
+    @property
+    def name(self) -> str:
+        return self.quality.name
+
+    @property
+    def threshold(self) -> float:
+        return self.quality.threshold
+
+    def grade_rows(self, gmap, rows=None) -> np.ndarray:
+        """Grades (n,) of the map's rows (all, or indices/mask ``rows``)."""
+        r = _rows(gmap, rows)
+        c, n = gmap.contacts[r].astype(float), gmap.normals[r].astype(float)
+        com = np.asarray(gmap.meta.object.get("com", np.zeros(3)), float)
+        d_ref = gmap.meta.quality.get("d_ref")
+        if d_ref is None:
+            from graspsim.primitives import shape_from_dict
+
+            d_ref = self.quality.reference_distance(shape_from_dict(gmap.meta.object).circumradius)
+        return self.quality.evaluate(c[:, 0], c[:, 1], n[:, 0], n[:, 1], com, float(d_ref)).grade
+
+    def apply(self, gmap):
+        return regrade(gmap, self)
+
+    def to_dict(self) -> dict:
+        return {"kind": "paper", **self.quality.to_dict()}
+
+
+@dataclass(frozen=True)
+class LogisticGrade:
+    """grade = expit(intercept + sum_k coef_k (x_k - mean_k) / scale_k) over the named
+    features; an estimate of P(success) under the protocol it was fitted to.
+    threshold: accepted above it. provenance: how it was fitted (script, seed, data,
+    MuJoCo version, cross-validated scores)."""
+
+    name: str
+    features: tuple[str, ...]
+    mean: tuple[float, ...]
+    scale: tuple[float, ...]
+    coef: tuple[float, ...]
+    intercept: float
+    threshold: float = 0.5
+    feature_config: FeatureConfig = FeatureConfig()
+    provenance: dict = field(default_factory=dict, compare=False, hash=False)
+
+    def __post_init__(self) -> None:
+        for k in ("features", "mean", "scale", "coef"):
+            object.__setattr__(self, k, tuple(getattr(self, k)))
+        k = len(self.features)
+        if not (len(self.mean) == len(self.scale) == len(self.coef) == k) or k == 0:
+            raise InvalidParameterError(
+                f"a logistic grade needs one mean, scale and coef per feature; got {k} features, "
+                f"{len(self.mean)} means, {len(self.scale)} scales, {len(self.coef)} coefs")
+        unknown = sorted(set(self.features) - set(FEATURES))
+        if unknown:
+            raise InvalidParameterError(f"unknown grade features {unknown}; valid: {list(FEATURES)}")
+        if not all(s > 0 for s in self.scale):
+            raise InvalidParameterError(f"feature scales must be > 0, got {self.scale}")
+        if not 0.0 <= self.threshold <= 1.0:
+            raise InvalidParameterError(f"threshold must be in [0, 1], got {self.threshold!r}")
+
+    def score(self, feats: dict) -> np.ndarray:
+        """Grades (n,) from a feature dict {name: (n,)} (extra keys ignored)."""
+        z = np.full(len(feats[self.features[0]]), float(self.intercept))
+        for k, m, s, c in zip(self.features, self.mean, self.scale, self.coef):
+            z += c * (np.asarray(feats[k], float) - m) / s
+        return expit(z)
+
+    def grade_rows(self, gmap, rows=None) -> np.ndarray:
+        return self.score(map_features(gmap, self.features, rows, self.feature_config))
+
+    def apply(self, gmap):
+        return regrade(gmap, self)
+
+    def to_dict(self) -> dict:
+        return {"kind": "logistic", "name": self.name, "features": list(self.features),
+                "mean": list(self.mean), "scale": list(self.scale), "coef": list(self.coef),
+                "intercept": float(self.intercept), "threshold": float(self.threshold),
+                "feature_config": self.feature_config.to_dict(), "provenance": self.provenance}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "LogisticGrade":
+        try:
+            if d.get("kind", "logistic") != "logistic":
+                raise InvalidParameterError(f"not a logistic grade model: kind {d.get('kind')!r}")
+            return cls(name=d["name"], features=d["features"], mean=d["mean"], scale=d["scale"],
+                       coef=d["coef"], intercept=float(d["intercept"]),
+                       threshold=float(d.get("threshold", 0.5)),
+                       feature_config=FeatureConfig(**d.get("feature_config", {})),
+                       provenance=d.get("provenance", {}))
+        except (KeyError, TypeError) as err:
+            raise InvalidParameterError(f"bad logistic grade model: {err}") from err
+
+    def save(self, path: str | os.PathLike) -> Path:
+        from graspsim._atomic import atomic_write_text
+
+        atomic_write_text(path, json.dumps(self.to_dict(), indent=1, sort_keys=False) + "\n",
+                          InvalidParameterError)
+        return Path(path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "LogisticGrade":
+        try:
+            d = json.loads(Path(path).read_text())
+        except (OSError, json.JSONDecodeError) as err:
+            raise InvalidParameterError(f"cannot read grade model {path}: {err}") from err
+        return cls.from_dict(d)
+
+
+def get_grade(spec: str | os.PathLike | None = "paper", quality: QualityModel | None = None):
+    """A grade model: ``"paper"`` (the default; ``quality`` overrides its parameters),
+    ``"pad_contact"`` (the shipped calibrated model) or a path to a model JSON."""
+    if spec is None or spec == "paper":
+        return PaperGrade(quality or QualityModel())
+    if spec == "pad_contact":
+        return LogisticGrade.load(default_model_path())
+    p = Path(spec)
+    if p.suffix == ".json" and p.exists():
+        return LogisticGrade.load(p)
+    raise InvalidParameterError(f"unknown grade {str(spec)!r}; valid: {list(GRADE_NAMES)} or a model .json")
+
+
+def regrade(gmap, model, rows=None):
+    """The map (or its ``rows``) with ``grade`` computed by ``model``; the other
+    quality columns (fc_angle, q_fc, q_st, ...) stay the paper's. ``meta.quality``
+    records the model (see the module docstring)."""
+    sub = gmap if rows is None else gmap.select(rows)
+    grade = np.asarray(model.grade_rows(sub), np.float32)
+    old = dict(gmap.meta.quality)
+    base = old.get("base_quality", {k: v for k, v in old.items() if k != "d_ref"})
+    if isinstance(model, PaperGrade):
+        quality = {**model.quality.to_dict(), "d_ref": old.get("d_ref")}
+    else:
+        spec = model.to_dict()
+        spec.pop("provenance", None)  # the model file keeps it; the map keeps the parameters
+        quality = {"name": model.name, "threshold": float(model.threshold), "d_ref": old.get("d_ref"),
+                   "grade_model": spec, "base_quality": base}
+    return replace(sub, grade=grade).with_meta(quality=quality)

@@ -1,0 +1,136 @@
+"""Calibration statistics, sampling, trial tables and reports (no simulation here)."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import mannwhitneyu
+
+from graspsim.calibration import (
+    TrialTable,
+    calibrate,
+    fit_logistic,
+    precision_recall,
+    reliability,
+    roc_auc,
+    stratified_rows,
+    table_clearance,
+    threshold_for_precision,
+    wilson_interval,
+    youden_threshold,
+)
+from graspsim.calibration.stats import bootstrap
+from graspsim.errors import InvalidParameterError
+from graspsim.gripper import HGPL_25_60_A as G
+
+
+def _synthetic(rng, n=4000):
+    s = rng.random(n)
+    y = rng.random(n) < 0.4 + 0.6 * s  # P(success | s) rises linearly
+    return s, y
+
+
+def test_wilson_interval_known_values():
+    lo, hi = wilson_interval(15, 15)  # the paper's 15 / 15
+    assert float(lo) == pytest.approx(0.7961, abs=1e-4) and float(hi) == 1.0
+    lo, hi = wilson_interval([0, 50], [0, 100])
+    assert np.isnan(lo[0]) and lo[1] == pytest.approx(0.4038, abs=1e-4)
+
+
+def test_auc_matches_mann_whitney_and_weights_replicate(rng):
+    s, y = _synthetic(rng, 500)
+    s = np.round(s, 2)  # ties count one half
+    u = mannwhitneyu(s[y], s[~y]).statistic
+    assert roc_auc(s, y) == pytest.approx(u / (y.sum() * (~y).sum()), rel=1e-12)
+    w = rng.integers(1, 4, len(s))
+    assert roc_auc(s, y, w) == pytest.approx(roc_auc(np.repeat(s, w), np.repeat(y, w)), rel=1e-12)
+    assert math.isnan(roc_auc(s, np.ones(len(s), bool)))
+
+
+def test_logistic_fit_recovers_coefficients(rng):
+    x = rng.normal(size=(20000, 2))
+    p = 1 / (1 + np.exp(-(0.5 + 1.5 * x[:, 0] - 2.0 * x[:, 1])))
+    b = fit_logistic(x, rng.random(len(p)) < p)
+    np.testing.assert_allclose(b, [0.5, 1.5, -2.0], atol=0.1)
+    # ridge shrinks slopes, not the intercept
+    assert np.all(np.abs(fit_logistic(x, rng.random(len(p)) < p, l2=1.0)[1:]) < 1.0)
+
+
+def test_thresholds(rng):
+    s, y = _synthetic(rng, 20000)
+    # precision of s > t is 0.4 + 0.6 (1 + t) / 2 = 0.97 at t = 0.9
+    t = threshold_for_precision(s, y, 0.97)
+    assert 0.88 < t < 0.97
+    p, r, a = precision_recall(s, y, t)
+    assert p >= 0.97 and a == pytest.approx(1 - t, abs=0.02)
+    top_fails = np.arange(100) < 99  # the best-scored trial fails: 100 % is never reached
+    assert math.isnan(threshold_for_precision(np.arange(100.0), top_fails, 1.0))
+    assert threshold_for_precision(s, np.ones(len(s), bool), 0.97) == -math.inf
+    sep = np.r_[np.zeros(50), np.ones(50)]
+    assert youden_threshold(np.r_[rng.random(50) * 0.4, 0.6 + rng.random(50) * 0.4], sep > 0) < 0.6
+
+
+def test_reliability_and_bootstrap(rng):
+    s, y = _synthetic(rng)
+    rel = reliability(s, y)
+    assert rel.n.sum() == len(s)
+    assert np.all(rel.lo <= rel.rate) and np.all(rel.rate <= rel.hi)
+    np.testing.assert_allclose(rel.rate, 0.4 + 0.6 * rel.mean_score, atol=0.08)
+    lo, hi = bootstrap(lambda i: roc_auc(s[i], y[i]), len(s), rng=rng, n_boot=100)
+    assert lo < roc_auc(s, y) < hi
+
+
+def test_stratified_rows_weights_estimate_the_population(rng):
+    score = rng.random(10000) ** 2
+    eligible = rng.random(10000) < 0.7
+    rows, w = stratified_rows(score, eligible, 30, rng)
+    assert np.all(eligible[rows]) and len(np.unique(rows)) == len(rows)
+    assert w.sum() == pytest.approx(eligible.sum())
+    # a population mean estimated from the stratified sample
+    assert np.sum(w * score[rows]) / w.sum() == pytest.approx(score[eligible].mean(), abs=0.02)
+    with pytest.raises(InvalidParameterError):
+        stratified_rows(score, eligible, 0, rng)
+
+
+def test_table_clearance_top_down_and_from_below():
+    down = np.eye(4)
+    down[:3, :3] = np.diag([1.0, -1.0, -1.0])  # approach -z, wrist above
+    down[2, 3] = G.fingertip_z + 0.01  # fingertips 1 cm above the table
+    up = np.eye(4)
+    up[2, 3] = 0.05  # approach +z: the arm and housing are under the table
+    z = table_clearance(np.stack([down, up]), np.array([0.03, 0.03]), G)
+    assert z[0] == pytest.approx(0.01, abs=1e-9) and z[1] == pytest.approx(0.05 - G.arm_length)
+
+
+def _table(rng, n=600):
+    s, y = _synthetic(rng, n)
+    out = np.where(y, 0, 3).astype(np.int8)
+    out[:20] = 1  # START_COLLISION: reported apart
+    return TrialTable({"case": np.repeat(["a/fs", "b/fs"], n // 2), "group": np.repeat(["a", "b"], n // 2),
+                       "outcome": out, "success": out == 0, "grade": s, "weight": np.ones(n),
+                       "q_fc": s ** 2}, {"note": "synthetic"})
+
+
+def test_trial_table_round_trip(tmp_path, rng):
+    t = _table(rng)
+    t.save(tmp_path / "t.npz")
+    back = TrialTable.load(tmp_path / "t.npz")
+    assert back.meta == {"note": "synthetic"} and sorted(back.columns) == sorted(t.columns)
+    np.testing.assert_array_equal(back["grade"], t["grade"])
+    both = TrialTable.concat([t, t.select(np.arange(10)).with_columns(extra=np.ones(10))])
+    assert len(both) == len(t) + 10 and np.isnan(both["extra"][0])
+    with pytest.raises(InvalidParameterError, match="no column"):
+        t["nope"]
+
+
+def test_calibrate_report(rng):
+    rep = calibrate(_table(rng), {"paper": "grade", "fc": "q_fc"}, n_boot=50, components=("q_fc", "-grade"))
+    assert rep.summary["feasible"] == len(_table(rng)) - 20
+    assert rep.summary["counts"]["start_collision"] == 20
+    r = rep.scores["paper"]
+    assert 0.6 < r.auc < 0.8 and r.auc_ci[0] <= r.auc <= r.auc_ci[1]
+    assert set(r.at) == {"at_0.7", "target", "youden"}
+    assert rep.components["-grade"]["auc"] == pytest.approx(1 - r.auc)
+    d = rep.to_dict()
+    assert d["scores"]["fc"]["name"] == "fc"
+    assert "| paper |" in rep.markdown()

@@ -308,3 +308,27 @@ def test_logistic_policy_learns_a_separable_rule_and_wilson_bounds():
     assert wilson_interval(0, 20)[0] == pytest.approx(0.0, abs=1e-12)
     with pytest.raises(InvalidParameterError):
         LogisticPolicy().predict_proba(X)
+
+
+@pytest.mark.slow
+def test_e06_quick_writes_results(tmp_path):
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    exp = Path(__file__).resolve().parents[1] / "experiments"
+    sys.path.insert(0, str(exp))
+    spec = importlib.util.spec_from_file_location("e06_env_baselines", exp / "e06_env_baselines.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["e06_env_baselines"] = mod  # dataclasses look their module up
+    spec.loader.exec_module(mod)
+    out = tmp_path / "e06"
+    assert mod.main(["--quick", "--train", "6", "--test", "6", "--workers", "1", "--out", str(out)]) == 0
+    for f in ("results.json", "table.md", "figure.png", "config.json", "episodes.npz"):
+        assert (out / f).stat().st_size > 0, f
+    r = json.loads((out / "results.json").read_text())
+    overall = r["results"]["overall"]
+    assert set(overall) == {"random", "highest_grade", "learned", "learned_map_only", "oracle"}
+    assert all(v["n"] == 6 and v["ci95"][0] <= v["rate"] <= v["ci95"][1] for v in overall.values())
+    assert overall["oracle"]["rate"] >= max(v["rate"] for v in overall.values())
+    assert r["cost"]["step_agrees_with_evaluate"] == 12

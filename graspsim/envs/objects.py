@@ -87,8 +87,10 @@ def _half_toroid(rng, lying):
 
 
 def _bottle(rng, lying):
-    rb, hb = _u(rng, 0.025, 0.04), _u(rng, 0.07, 0.12)
-    rn, hn = _u(rng, 0.009, 0.015), _u(rng, 0.04, 0.08)
+    # a slim bottle with a long neck: identification splits stouter ones rarely (the
+    # split's volume ratio stays above theta = 0.5), and then fails on the whole
+    rb, hb = _u(rng, 0.025, 0.032), _u(rng, 0.068, 0.085)
+    rn, hn = _u(rng, 0.008, 0.011), _u(rng, 0.10, 0.13)
     parts = [Cylinder(rb, hb), Cylinder(rn, hn)]
     poses = [make_transform(np.eye(3), [0, 0, 0.5 * hb]), make_transform(np.eye(3), [0, 0, hb + 0.5 * hn])]
     return Compound.from_parts(parts, poses), "upright"

@@ -1,0 +1,362 @@
+"""Experiment E06: grasp-selection baselines on ``graspsim/GraspSelect-v0``.
+
+Every episode of the environment offers K planned grasps; the execution error of each
+is drawn at reset, so a candidate's outcome is fixed for the episode and
+``env.evaluate_candidates()`` gives every candidate's outcome (full information, the
+same outcomes ``step`` gives -- checked on every episode by stepping the highest-grade
+candidate). On the test episodes all policies are scored on the same episodes:
+
+* random: a valid candidate uniformly at random (and its expected success);
+* highest grade: the paper's choice;
+* oracle: succeeds when any candidate does (an upper bound);
+* learned: logistic regression of success on the candidates' features (map columns,
+  pose relative to the table, clearance to the observed cloud), trained on the logged
+  candidates of separate training episodes; and an ablation trained on the map columns
+  only (grade and components, width).
+
+Success rates with 95 % Wilson intervals, the paired comparison learned vs highest grade
+(exact McNemar test), rates per object kind, the outcomes of the chosen grasps, and the
+cost of an episode (reset, one trial). Episodes are seeded by their split and index
+from one SeedSequence, so results do not depend on ``--workers``. Writes
+results.json, table.md, figure.png, config.json and episodes.npz to ``--out``.
+
+    python experiments/e06_env_baselines.py --out results/e06
+    python experiments/e06_env_baselines.py --quick --out results/e06-quick
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per worker process
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import logging  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from concurrent.futures import ProcessPoolExecutor  # noqa: E402
+from dataclasses import asdict, dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import Clock, load_average, write_config, write_json  # noqa: E402
+
+import graspsim  # noqa: E402,F401  (registers the environments)
+from graspsim.envs.candidates import CANDIDATE_FEATURES  # noqa: E402
+from graspsim.envs.baselines import (FEATURE_NAMES, LogisticPolicy, grasp_features,  # noqa: E402
+                                     highest_grade_policy, wilson_interval)
+from graspsim.maps.generate import MapConfig  # noqa: E402
+
+log = logging.getLogger("e06")
+POLICIES = ("random", "highest_grade", "learned", "learned_map_only", "oracle")
+MAP_ONLY = tuple(FEATURE_NAMES.index(n) for n in ("grade", "q_fc", "q_st", "fc_angle",
+                                                  "stability_distance", "width"))
+OUTCOMES = ("success", "start_collision", "no_contact", "slipped", "dropped", "place_failed",
+            "sim_unstable")
+
+
+@dataclass(frozen=True)
+class E06Config:
+    train: int
+    test: int
+    objects: str
+    k: int
+    cloud_size: int
+    view: str
+    position_noise: float
+    rotation_noise_deg: float
+    l2: float
+    seed: int
+    workers: int
+    db: str | None
+    coarse_db: bool
+    quick: bool
+
+    def env_kwargs(self) -> dict:
+        kw = dict(objects=self.objects, n_candidates=self.k, cloud_size=self.cloud_size, view=self.view,
+                  position_noise=self.position_noise, rotation_noise=math.radians(self.rotation_noise_deg),
+                  db_root=self.db)
+        if self.coarse_db:
+            kw["map_config"] = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
+        return kw
+
+
+def parse_args(argv=None) -> tuple[E06Config, Path]:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", default="results/e06", help="output folder")
+    p.add_argument("--quick", action="store_true", help="small CI run on a coarse database in --out")
+    p.add_argument("--train", type=int, default=None, help="training episodes (default 400)")
+    p.add_argument("--test", type=int, default=None, help="test episodes (default 500)")
+    p.add_argument("--objects", default=None, help="object set (default all)")
+    p.add_argument("--k", type=int, default=None, help="candidates per episode (default 16)")
+    p.add_argument("--cloud-size", type=int, default=512)
+    p.add_argument("--view", default="full", choices=("full", "single"))
+    p.add_argument("--position-noise", type=float, default=0.003, help="execution error sigma [m]")
+    p.add_argument("--rotation-noise-deg", type=float, default=2.0, help="execution error sigma [deg]")
+    p.add_argument("--l2", type=float, default=1.0, help="logistic regression L2 penalty")
+    p.add_argument("--seed", type=int, default=20180606)
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--db", default=None, help="map database folder (default: the library's)")
+    a = p.parse_args(argv)
+    out = Path(a.out)
+    q = a.quick
+    cfg = E06Config(train=a.train or (16 if q else 400), test=a.test or (16 if q else 500),
+                    objects=a.objects or ("primitives" if q else "all"), k=a.k or (6 if q else 16),
+                    cloud_size=128 if q else a.cloud_size, view=a.view, position_noise=a.position_noise,
+                    rotation_noise_deg=a.rotation_noise_deg, l2=a.l2, seed=a.seed, workers=max(1, a.workers),
+                    db=str(out / "db") if q and a.db is None else a.db, coarse_db=q, quick=q)
+    if cfg.train < 2 or cfg.test < 1:
+        p.error("need --train >= 2 and --test >= 1")
+    return cfg, out
+
+
+# ---------------------------------------------------------------------- episodes
+_ENV = None
+
+
+def _env(cfg: E06Config):
+    global _ENV
+    if _ENV is None:
+        import gymnasium as gym
+
+        _ENV = gym.make("graspsim/GraspSelect-v0", **cfg.env_kwargs()).unwrapped
+    return _ENV
+
+
+def _seed(cfg: E06Config, split: int, i: int) -> int:
+    return int(np.random.SeedSequence(entropy=cfg.seed, spawn_key=(split, i)).generate_state(1)[0])
+
+
+def run_episode(cfg: E06Config, split: int, i: int) -> dict:
+    """One logged episode: every candidate simulated, then the highest-grade one stepped."""
+    env = _env(cfg)
+    c = Clock()
+    obs, info = env.reset(seed=_seed(cfg, split, i))
+    reset = c.record()
+    feats = grasp_features(obs, env.gripper)
+    c = Clock()
+    ev = env.evaluate_candidates(threads=1)
+    evaluate = c.record()
+    a = highest_grade_policy(obs)
+    c = Clock()
+    _, _, _, _, step_info = env.step(a)
+    step = c.record()
+    return {"split": split, "index": i, "kind": info["object"]["kind"], "pose": info["object"]["pose"],
+            "parts": info["parts"], "redraws": info["redraws"], "n_clear": info["n_clear"],
+            "features": feats.astype(np.float32), "candidates": obs["candidates"],
+            "mask": obs["action_mask"], "outcome": ev["outcome"], "cloud": obs["cloud"],
+            "object_pose": obs["object_pose"],
+            "reset_s": reset["wall_s"], "reset_cpu_s": reset["cpu_s"], "plan_s": env.timing.get("plan"),
+            "evaluate_s": evaluate["wall_s"], "trials": int(obs["action_mask"].sum()),
+            "step_s": step["wall_s"], "step_cpu_s": step["cpu_s"],
+            "step_agrees": step_info["outcome_code"] == int(ev["outcome"][a])}
+
+
+def _chunk(args) -> list[dict]:
+    cfg, split, idx = args
+    return [run_episode(cfg, split, i) for i in idx]
+
+
+def collect(cfg: E06Config, split: int, n: int) -> list[dict]:
+    chunks = [(cfg, split, list(range(a, min(n, a + 8)))) for a in range(0, n, 8)]
+    out: list[dict] = []
+    if cfg.workers == 1:
+        for ch in chunks:
+            out += _chunk(ch)
+    else:
+        with ProcessPoolExecutor(cfg.workers) as ex:
+            for part in ex.map(_chunk, chunks):
+                out += part
+                if len(out) % 100 < len(part) or len(out) == n:
+                    log.info("split %d: %d / %d episodes", split, len(out), n)
+    return out
+
+
+# ---------------------------------------------------------------------- evaluation
+def _stack(eps: list[dict], key: str) -> np.ndarray:
+    return np.stack([e[key] for e in eps])
+
+
+def choices(eps: list[dict], learned: LogisticPolicy, map_only: LogisticPolicy,
+            rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Chosen candidate (E,) per policy; the oracle's is a successful one if any."""
+    X, M, O = _stack(eps, "features").astype(float), _stack(eps, "mask").astype(bool), _stack(eps, "outcome")
+    grade = _stack(eps, "candidates")[:, :, CANDIDATE_FEATURES.index("grade")]
+    E, K, F = X.shape
+
+    def argmax_valid(score):
+        return np.argmax(np.where(M, score, -np.inf), axis=1)
+
+    p_full = learned.predict_proba(X.reshape(-1, F)).reshape(E, K)
+    p_map = map_only.predict_proba(X.reshape(-1, F)[:, MAP_ONLY]).reshape(E, K)
+    rand = np.array([rng.choice(np.flatnonzero(m)) for m in M])
+    return {"random": rand, "highest_grade": argmax_valid(grade), "learned": argmax_valid(p_full),
+            "learned_map_only": argmax_valid(p_map),
+            "oracle": argmax_valid(np.where(O == 0, 2.0, 0.0) + grade)}
+
+
+def rate(ok: np.ndarray) -> dict:
+    n, s = len(ok), int(np.sum(ok))
+    lo, hi = wilson_interval(s, n)
+    return {"n": n, "successes": s, "rate": s / n if n else math.nan, "ci95": [lo, hi]}
+
+
+def mcnemar(a: np.ndarray, b: np.ndarray) -> dict:
+    """Exact McNemar test of paired successes a, b (E,) bool."""
+    from scipy.stats import binomtest
+
+    only_a, only_b = int(np.sum(a & ~b)), int(np.sum(~a & b))
+    p = binomtest(only_a, only_a + only_b, 0.5).pvalue if only_a + only_b else 1.0
+    return {"only_first": only_a, "only_second": only_b, "p_exact": float(p)}
+
+
+def evaluate(eps: list[dict], pick: dict[str, np.ndarray]) -> dict:
+    O, M = _stack(eps, "outcome"), _stack(eps, "mask").astype(bool)
+    rows = np.arange(len(eps))
+    kinds = np.array([e["kind"] for e in eps])
+    ok = {p: O[rows, pick[p]] == 0 for p in POLICIES}
+    res = {"overall": {p: rate(ok[p]) for p in POLICIES},
+           "random_expected": float(np.mean([np.mean(O[i][M[i]] == 0) for i in rows])),
+           "by_kind": {k: {"episodes": int(np.sum(kinds == k)),
+                           **{p: rate(ok[p][kinds == k])["rate"] for p in POLICIES},
+                           "learned_vs_highest_grade": mcnemar(ok["learned"][kinds == k],
+                                                               ok["highest_grade"][kinds == k])}
+                       for k in sorted(set(kinds))},
+           "chosen_outcomes": {p: {o: int(np.sum(O[rows, pick[p]] == j)) for j, o in enumerate(OUTCOMES)}
+                               for p in POLICIES},
+           "learned_vs_highest_grade": mcnemar(ok["learned"], ok["highest_grade"]),
+           "map_only_vs_highest_grade": mcnemar(ok["learned_map_only"], ok["highest_grade"])}
+    return res
+
+
+def costs(eps: list[dict]) -> dict:
+    def ms(key):
+        v = np.array([e[key] for e in eps if e[key] is not None], float)
+        return {"mean_ms": 1e3 * float(v.mean()), "median_ms": 1e3 * float(np.median(v))}
+
+    trials = np.array([e["trials"] for e in eps])
+    return {"reset": ms("reset_s"), "reset_cpu": ms("reset_cpu_s"), "plan": ms("plan_s"),
+            "step": ms("step_s"), "step_cpu": ms("step_cpu_s"),
+            "trial_in_batch_ms": 1e3 * float(sum(e["evaluate_s"] for e in eps) / max(1, trials.sum())),
+            "redraws_mean": float(np.mean([e["redraws"] for e in eps])),
+            "valid_candidates_mean": float(trials.mean()),
+            "step_agrees_with_evaluate": int(sum(e["step_agrees"] for e in eps)), "episodes": len(eps)}
+
+
+# ---------------------------------------------------------------------- outputs
+def write_table(cfg: E06Config, res: dict, cost: dict) -> str:
+    names = {"random": "random", "highest_grade": "highest grade", "learned": "learned (all features)",
+             "learned_map_only": "learned (map columns only)", "oracle": "oracle"}
+    lines = [f"{res['test_episodes']} test episodes, objects `{cfg.objects}`, K = {cfg.k}, "
+             f"execution error {1000 * cfg.position_noise:.0f} mm / {cfg.rotation_noise_deg:.0f} deg; "
+             f"learned policies trained on {res['train_candidates']} logged candidates of "
+             f"{cfg.train} other episodes.", "",
+             "| policy | success | 95 % Wilson interval |", "|---|---|---|"]
+    for p in POLICIES:
+        r = res["overall"][p]
+        lines.append(f"| {names[p]} | {100 * r['rate']:.1f} % ({r['successes']}/{r['n']}) | "
+                     f"{100 * r['ci95'][0]:.1f} - {100 * r['ci95'][1]:.1f} % |")
+    lines.append(f"| random (expected over the valid candidates) | {100 * res['random_expected']:.1f} % | |")
+    m = res["learned_vs_highest_grade"]
+    lines += ["", f"Learned vs highest grade, paired: learned alone succeeds in {m['only_first']} episodes, "
+              f"highest grade alone in {m['only_second']} (exact McNemar p = {m['p_exact']:.2g}).", "",
+              "### success by object kind", "",
+              "| kind | episodes | " + " | ".join(names[p] for p in POLICIES)
+              + " | learned alone / highest grade alone (McNemar p) |",
+              "|---|---|" + "---|" * (len(POLICIES) + 1)]
+    for k, r in res["by_kind"].items():
+        m = r["learned_vs_highest_grade"]
+        lines.append(f"| {k} | {r['episodes']} | " + " | ".join(f"{100 * r[p]:.0f} %" for p in POLICIES)
+                     + f" | {m['only_first']} / {m['only_second']} ({m['p_exact']:.2g}) |")
+    lines += ["", "### outcomes of the chosen grasps", "", "| policy | " + " | ".join(OUTCOMES) + " |",
+              "|---|" + "---|" * len(OUTCOMES)]
+    for p in POLICIES:
+        lines.append(f"| {names[p]} | " + " | ".join(str(res["chosen_outcomes"][p][o]) for o in OUTCOMES) + " |")
+    lines += ["", "### cost of an episode (mean wall time, shared 2-core machine)", "",
+              f"reset {cost['reset']['mean_ms']:.0f} ms (planner {cost['plan']['mean_ms']:.0f} ms, "
+              f"CPU {cost['reset_cpu']['mean_ms']:.0f} ms, median {cost['reset']['median_ms']:.0f} ms); "
+              f"step (one trial) {cost['step']['mean_ms']:.0f} ms (CPU {cost['step_cpu']['mean_ms']:.0f} ms); "
+              f"a trial in a batch "
+              f"{cost['trial_in_batch_ms']:.0f} ms; {cost['redraws_mean']:.2f} redraws per reset; "
+              f"step outcome = evaluate_candidates outcome in {cost['step_agrees_with_evaluate']}"
+              f"/{cost['episodes']} episodes."]
+    return "\n".join(lines) + "\n"
+
+
+def plot(res: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.2), gridspec_kw={"width_ratios": [1, 2]})
+    r = [res["overall"][p] for p in POLICIES]
+    y = np.array([x["rate"] for x in r])
+    err = np.array([[x["rate"] - x["ci95"][0], x["ci95"][1] - x["rate"]] for x in r]).T
+    ax.bar(range(len(POLICIES)), 100 * y, yerr=100 * err, capsize=4, color="C0")
+    ax.set_xticks(range(len(POLICIES)), [p.replace("_", "\n") for p in POLICIES], fontsize=8)
+    ax.set_ylabel("success [%] (95 % Wilson)")
+    ax.set_ylim(0, 105)
+    ax.set_title(f"{res['test_episodes']} test episodes")
+    kinds = list(res["by_kind"])
+    w = 0.8 / len(POLICIES)
+    for j, p in enumerate(POLICIES):
+        bx.bar(np.arange(len(kinds)) + (j - len(POLICIES) / 2 + 0.5) * w,
+               [100 * res["by_kind"][k][p] for k in kinds], w, label=p.replace("_", " "))
+    bx.set_xticks(range(len(kinds)), [f"{k}\n({res['by_kind'][k]['episodes']})" for k in kinds], fontsize=8)
+    bx.set_ylim(0, 122)
+    bx.legend(fontsize=7, ncol=len(POLICIES), loc="upper center")
+    bx.set_title("by object kind (episodes)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    logging.getLogger("graspsim").setLevel(logging.WARNING)  # no per-trial lines
+    cfg, out = parse_args(argv)
+    out.mkdir(parents=True, exist_ok=True)
+    write_config(out / "config.json", cfg)
+    total = Clock()
+    _env(cfg)  # builds the reference maps once, before any worker starts
+    log.info("E06: %d training + %d test episodes, objects %s, K = %d, %d worker(s)",
+             cfg.train, cfg.test, cfg.objects, cfg.k, cfg.workers)
+    t0 = time.perf_counter()
+    train = collect(cfg, 0, cfg.train)
+    test = collect(cfg, 1, cfg.test)
+    log.info("episodes logged in %.0f s", time.perf_counter() - t0)
+    X, M, O = (_stack(train, k) for k in ("features", "mask", "outcome"))
+    M = M.astype(bool)
+    Xv, yv = X[M].astype(float), (O[M] == 0).astype(float)
+    learned = LogisticPolicy(l2=cfg.l2).fit(Xv, yv)
+    map_only = LogisticPolicy(l2=cfg.l2).fit(Xv[:, MAP_ONLY], yv)
+    pick = choices(test, learned, map_only, np.random.default_rng(cfg.seed))
+    res = evaluate(test, pick)
+    res.update(test_episodes=len(test), train_episodes=len(train), train_candidates=int(len(yv)),
+               train_success_rate=float(yv.mean()))
+    cost = costs(train + test)
+    write_json(out / "results.json", {
+        "config": asdict(cfg), "env": {k: (v.to_dict() if hasattr(v, "to_dict") else v)
+                                       for k, v in cfg.env_kwargs().items()},
+        "results": res, "cost": cost,
+        "learned": {"all_features": learned.to_dict(),
+                    "map_only": {**map_only.to_dict(), "features": [FEATURE_NAMES[i] for i in MAP_ONLY]}},
+        "wall_s": total.wall, "cpu_s": total.cpu, "load_avg_end": load_average()})
+    np.savez_compressed(out / "episodes.npz", **{
+        f"{name}_{k}": _stack(eps, k) for name, eps in (("train", train), ("test", test))
+        for k in ("features", "candidates", "mask", "outcome", "cloud", "object_pose")},
+        test_kind=np.array([e["kind"] for e in test]), feature_names=np.array(FEATURE_NAMES))
+    table = write_table(cfg, res, cost)
+    (out / "table.md").write_text("# E06 grasp-selection baselines (GraspSelect-v0)\n\n" + table)
+    plot(res, out / "figure.png")
+    log.info("%s\nwall %.0f s; results in %s", table, total.wall, out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

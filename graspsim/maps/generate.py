@@ -152,13 +152,15 @@ def _footprints(g: GripperSpec) -> tuple[np.ndarray, np.ndarray]:
     return fp, fp[:, 3]
 
 
-def _patches(parents, children, parent_normals, grow):
+def _patches(parents, children, parent_normals, grow, parent=None):
     """Assign ``children`` (K, 3) to their nearest parent and measure each parent's
     patch: the largest tangential and normal (along the parent's normal) offsets of
     its children, each grown by the child's own reach ``grow`` (K,) (0 for samples
     that stand only for themselves). Returns the children's order by parent, RT, HN
-    (P,) and CSR offsets (P + 1,)."""
-    _, parent = cKDTree(parents).query(children)
+    (P,) and CSR offsets (P + 1,). ``parent`` (K,): each child's parent if known (the
+    cell holding it), else the nearest parent."""
+    if parent is None:
+        _, parent = cKDTree(parents).query(children)
     order = np.argsort(parent, kind="stable")
     parent = parent[order]
     d = children[order] - parents[parent]
@@ -196,11 +198,13 @@ def _sample_levels(shape, cfg: MapConfig) -> dict[str, np.ndarray | float]:
         fine = shape.surface_samples(fstep)
     # middle level: geometric mean spacing, so both refinement steps have ~equal fan-out
     mid = shape.surface_samples(math.sqrt(fstep * min(cfg.collision_step, shape.size_scale)))
-    f_order, RTM, HNM, fstart = _patches(mid.points, fine.points, mid.normals, 0.0)
+    # parents: the cell that holds each child (nested grids), or the nearest sample
+    f_order, RTM, HNM, fstart = _patches(mid.points, fine.points, mid.normals, 0.0,
+                                         mid.locate(fine))
     # a middle patch reaches at most hypot(RT, HN) from its sample in any direction
     # (Cauchy-Schwarz), which grows the coarse patches that contain it
     m_order, RT, HN, mstart = _patches(coarse.points, mid.points, coarse.normals,
-                                       np.hypot(RTM, HNM))
+                                       np.hypot(RTM, HNM), coarse.locate(mid))
     # reorder the middle level (and its patch data / fine offsets) by coarse parent
     Mp, NMp = mid.points[m_order], mid.normals[m_order]
     RTMp, HNMp = RTM[m_order], HNM[m_order]

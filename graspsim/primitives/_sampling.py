@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from graspsim.primitives.base import SurfaceSamples, cells, grid_cover_radius
+from graspsim.primitives.base import PatchGrid, SurfaceSamples, cells, grid_cover_radius
 
 __all__ = ["rect_samples", "disk_samples", "revolution_samples"]
 
@@ -34,6 +34,9 @@ def rect_samples(
         normals=np.broadcast_to(n, pts.shape).copy(),
         areas=np.full(len(pts), du * dv),
         cover_radius=grid_cover_radius(du, dv),
+        patch=np.zeros(len(pts), np.int64),
+        uv=np.column_stack([A.ravel(), B.ravel()]),
+        grids=(PatchGrid("rect", 0, nu=nu, nv=nv, lu=lu, lv=lv),),
     )
 
 
@@ -43,7 +46,7 @@ def disk_samples(
     """Flat disk in the plane spanned by unit ``u``, ``v``; normal u x v; polar rings."""
     nr = cells(radius, step)
     dr = radius / nr
-    pts, areas, tang, cover = [], [], [], 0.0
+    pts, areas, tang, uv, counts, cover = [], [], [], [], [], 0.0
     u, v = np.asarray(u, float), np.asarray(v, float)
     for k in range(nr):
         rho = (k + 0.5) * dr
@@ -53,6 +56,8 @@ def disk_samples(
         th = (np.arange(nt) + 0.5) * dt
         pts.append(center + rho * (np.cos(th)[:, None] * u + np.sin(th)[:, None] * v))
         areas.append(np.full(nt, 2.0 * math.pi * rho * dr / nt))
+        uv.append(np.column_stack([np.full(nt, rho), th]))
+        counts.append(nt)
         ring = 0.0
         for rc in (rho - dr / 2, rho + dr / 2):
             for half in (dt / 2, 0.0):
@@ -64,7 +69,9 @@ def disk_samples(
     pts = np.concatenate(pts)
     n = np.cross(u, v)
     return SurfaceSamples(pts, np.broadcast_to(n, pts.shape).copy(), np.concatenate(areas), cover,
-                          tangent_radius=np.concatenate(tang), normal_height=np.zeros(len(pts)))
+                          tangent_radius=np.concatenate(tang), normal_height=np.zeros(len(pts)),
+                          patch=np.zeros(len(pts), np.int64), uv=np.concatenate(uv),
+                          grids=(PatchGrid("rings", 0, width=dr, counts=tuple(counts)),))
 
 
 def revolution_samples(
@@ -110,4 +117,7 @@ def revolution_samples(
     cell_t = np.sqrt(np.maximum(d2 - h**2, 0.0)).reshape(ns, -1).max(axis=1)
     cover = float(np.sqrt(d2).max())
     return SurfaceSamples(pts, nrm, areas, cover, tangent_radius=cell_t[ring],
-                          normal_height=cell_h[ring])
+                          normal_height=cell_h[ring], patch=np.zeros(len(pts), np.int64),
+                          uv=np.column_stack([s[ring], th]),
+                          grids=(PatchGrid("rings", 0, width=ds, counts=tuple(int(c) for c in nt),
+                                           sweep=sweep),))

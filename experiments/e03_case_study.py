@@ -14,9 +14,9 @@ the viewing ray and a few outliers:
   large gaps (paper: clustering fails).
 
 Every object runs through the run-time planner (MLESAC with 10 repetitions, theta_th =
-0.5 as in the paper) against the five-primitive FS database. When a plausible compound
-is not split at theta_th = 0.5 (the split's theta* of eq. (1), logged by the splitter,
-is above it), the run is repeated at the smallest theta_th on a 0.01 grid above that
+0.5 as in the paper) against the five-primitive FS database. When identification
+rejects a split (the theta* of eq. (1), logged by the splitter, is not below theta_th),
+the run is repeated at the smallest theta_th on a 0.01 grid above the first rejected
 theta* and reported next to it -- the objects are not tuned until they pass.
 
 Timing is cloud -> adapted map (identification, retrieval, scaling, combination), with
@@ -139,15 +139,24 @@ def parse_args(argv=None) -> tuple[E03Config, Path]:
 
 
 # ---------------------------------------------------------------------------- clouds
-def make_cloud(name: str, seed: int, spec: CloudSpec) -> np.ndarray:
-    """(N, 3) single-view cloud of object ``name`` in a world frame (the object stands
-    at (0.6, 0, 0) on the table, the camera looks at it from ``camera_distance``)."""
-    shape = OBJECTS[name][0]
-    rng = np.random.default_rng([seed, list(OBJECTS).index(name)])
+T_WORLD_OBJ = make_transform(I3, [0.6, 0.0, 0.1])  # the true object's pose in the cloud's frame
+
+
+def camera_position(name: str, seed: int, spec: CloudSpec) -> np.ndarray:
+    """Camera position (3,) in the object frame [m]; seed 0 looks from azimuth 20 deg."""
+    rng = np.random.default_rng([seed, list(OBJECTS).index(name), 1])
     az = math.radians(20.0) if seed == 0 else rng.uniform(0, 2 * math.pi)
     el = math.radians(spec.camera_elevation_deg)
-    cam = spec.camera_distance * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-    T = make_transform(I3, [0.6, 0.0, 0.1])
+    return spec.camera_distance * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+
+
+def make_cloud(name: str, seed: int, spec: CloudSpec) -> np.ndarray:
+    """(N, 3) single-view cloud of object ``name`` in the cloud's (world) frame, where
+    the object stands at ``T_WORLD_OBJ`` and the camera is at :func:`camera_position`."""
+    shape = OBJECTS[name][0]
+    rng = np.random.default_rng([seed, list(OBJECTS).index(name)])
+    cam = camera_position(name, seed, spec)
+    T = T_WORLD_OBJ
     c = synthetic_cloud(shape, rng, resolution=spec.resolution, noise=spec.noise, outliers=spec.outliers,
                         camera=cam, T_world_obj=T)
     pts = c.points
@@ -268,7 +277,7 @@ def run_object(name: str, base: MapDatabase, tmp: Path, cfg: E03Config) -> tuple
         pts = make_cloud(name, seed, cfg.cloud)
         row, res = run_plan(pts, base, tmp, seed, cfg.theta, cfg)
         row["seed"] = seed
-        entry = {"seed": seed, "main": row}
+        entry = {"seed": seed, "camera_obj": camera_position(name, seed, cfg.cloud).tolist(), "main": row}
         if seed == 0 and res is not None:
             maps["main"] = (cfg.theta, res)
         th = smallest_splitting_theta(row["splits"], cfg.theta)
@@ -290,6 +299,7 @@ def run_object(name: str, base: MapDatabase, tmp: Path, cfg: E03Config) -> tuple
     main = [r["main"] for r in runs]
     summary = {
         "object": name, "paper": paper, "analog": analog, "truth": shape.to_dict(),
+        "T_cloud_truth": T_WORLD_OBJ.tolist(),  # the true object's frame in the cloud's frame
         "runs": runs,
         "seeds": cfg.seeds,
         "complete": sum(r["status"] == "complete" for r in main),

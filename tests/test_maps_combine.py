@@ -46,3 +46,12 @@ def test_one_map_per_part():
     c = Compound.from_parts([Cylinder(0.02, 0.1)], [np.eye(4)])
     with pytest.raises(InvalidParameterError):
         combine_maps([], c)
+
+
+def test_empty_part_batch(ball_tab):
+    from graspsim.maps.combine import combine_part
+    from graspsim.quality import QualityModel
+
+    c, maps, _ = ball_tab
+    out = combine_part(maps[0].select(np.zeros(0, int)), 0, c, gripper=G, quality=QualityModel(), d_ref=0.05)
+    assert len(out) == 0

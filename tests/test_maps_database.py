@@ -56,3 +56,23 @@ def test_index_is_json(tmp_path):
     db.add(Sphere(0.025))
     data = json.loads(db.index_path.read_text())
     assert data["format"] == "graspsim-db-1" and data["maps"][0]["primitive"] == "sphere"
+
+
+def test_concurrent_builders_lose_no_index_record(tmp_path):
+    from graspsim.executors import ProcessExecutor
+
+    shapes = [Sphere(0.02), Sphere(0.025), Sphere(0.03), Cylinder(0.015, 0.06)]
+    db = MapDatabase(tmp_path, config=FAST)
+    with ProcessExecutor(2) as ex:  # two processes each build on demand and write the index
+        ex.map(db.get, shapes)
+    assert {e["key"] for e in db.entries()} == {db.key(s) for s in shapes}
+
+
+def test_uncached_database_reads_every_time(tmp_path):
+    db = MapDatabase(tmp_path, config=FAST, cache_size=0)
+    s = Sphere(0.03)
+    db.add(s)
+    e = db.entries()[0]
+    a = db.load_entry(e, accepted_only=True)
+    b = db.load_entry(e, accepted_only=True)
+    assert a is not b and len(a) == len(b) == e["accepted"]

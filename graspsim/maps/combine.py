@@ -31,6 +31,8 @@ log = logging.getLogger(__name__)
 
 
 def _line_ids(contacts: np.ndarray) -> np.ndarray:
+    if len(contacts) == 0:
+        return np.zeros(0, np.int64)
     c = np.ascontiguousarray(contacts).reshape(len(contacts), -1)
     return np.unique(c.view(np.dtype((np.void, c.dtype.itemsize * c.shape[1]))).ravel(),
                      return_inverse=True)[1].ravel()

@@ -15,6 +15,7 @@ The default root is ``$GRASPSIM_DB`` or ``~/.cache/graspsim/db``.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import logging
@@ -66,6 +67,22 @@ def size_grid(shape: Primitive, scales: Iterable[float]) -> list[Primitive]:
             raise MapDatabaseError(f"size scale factors must be > 0, got {s!r}")
         out.append(shape.with_dims(**{k: v * s for k, v in shape.dims.items()}))
     return out
+
+
+@contextlib.contextmanager
+def _locked(path: Path):
+    """An exclusive advisory lock on ``path`` (POSIX flock; a no-op where unavailable)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
+    with open(path, "a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
 
 
 def _digest(obj) -> str:
@@ -158,15 +175,18 @@ class MapDatabase:
             key = (str(path), path.stat().st_mtime_ns)
         except OSError as err:
             raise MapDatabaseError(f"stored map {path} is missing: {err}") from err
-        if key not in self._cache:
+        gmap = self._cache.get(key)
+        if gmap is None:
             gmap = load_map(path, rows=slice(0, int(entry["accepted"])))
             if len(gmap) and not gmap.accepted.all():
                 raise MapDatabaseError(f"{path} is not sorted best first; rebuild the database")
-            self._cache[key] = gmap
-            while len(self._cache) > self.cache_size:
-                self._cache.popitem(last=False)
-        self._cache.move_to_end(key)
-        return self._cache[key]
+            if self.cache_size > 0:
+                self._cache[key] = gmap
+                while len(self._cache) > self.cache_size:
+                    self._cache.popitem(last=False)
+        else:
+            self._cache.move_to_end(key)
+        return gmap
 
     # ------------------------------------------------------------------ building
     def add(self, shape: Primitive, *, threads: int | None = None, progress=None) -> GraspabilityMap:
@@ -176,8 +196,11 @@ class MapDatabase:
         return gmap
 
     def _merge(self, new: list[dict]) -> None:
+        """Add records to the index. The read-modify-write holds an exclusive lock, so
+        processes building into one database at the same time lose no record."""
         keys = {r["key"] for r in new}
-        self._write_index([e for e in self._read_index() if e["key"] not in keys] + new)
+        with _locked(self.root / ".index.lock"):
+            self._write_index([e for e in self._read_index() if e["key"] not in keys] + new)
 
     def build(self, shapes: Iterable[Primitive], *, threads: int | None = None, progress=None,
               executor=None) -> list[dict]:

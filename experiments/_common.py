@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-__all__ = ["Clock", "stopwatch", "load_average", "write_json", "write_config", "mean_sd",
+__all__ = ["Clock", "stopwatch", "load_average", "provenance", "write_json", "write_config", "mean_sd",
            "mixed_anova", "paired_posthoc", "fmt"]
 
 
@@ -28,6 +28,21 @@ def load_average() -> list[float]:
         return [round(x, 2) for x in os.getloadavg()]
     except OSError:  # pragma: no cover - not on every platform
         return []
+
+
+def provenance() -> dict:
+    """Code state the results came from: git commit (``-dirty`` if the working tree has
+    uncommitted changes: the tree is shared, so say so), graspsim version, CPU count."""
+    import subprocess
+
+    import graspsim
+
+    try:
+        commit = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True, text=True,
+                                cwd=Path(__file__).resolve().parent, timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    return {"commit": commit, "graspsim": graspsim.__version__, "cpus": os.cpu_count()}
 
 
 class Clock:

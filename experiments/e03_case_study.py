@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, load_average, write_config, write_json  # noqa: E402
+from _common import Clock, load_average, provenance, write_config, write_json  # noqa: E402
 
 from graspsim.maps import generate as _generate  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
@@ -427,7 +427,7 @@ def main(argv=None) -> int:
         plot_maps([m for _, _, m in figure_maps], out / "figure7.png", what="wrist", titles=[
             f"{n} (theta_th {th:.2f}):\n{len(m)} grasps" for n, th, m in figure_maps])
     plot_clouds(clouds, out / "clouds.png")
-    write_json(out / "results.json", {"config": asdict(cfg), "database": db_info, "objects": objects,
+    write_json(out / "results.json", {"config": asdict(cfg), "provenance": provenance(), "database": db_info, "objects": objects,
                                       "wall_s": total.wall, "cpu_s": total.cpu, "load_avg_end": load_average()})
     table = write_table(objects, cfg, db_info)
     (out / "table.md").write_text("# E03 case study (paper table 3)\n\n" + table)

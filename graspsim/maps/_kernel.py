@@ -221,7 +221,8 @@ def _refine(n, idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, nu, cu, su, dhi
 
 @njit(cache=True, parallel=True, fastmath=True)
 def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart, F, NF, RTF,
-                HNF, fstart, fp, reach2, cos_r, sin_r, depths, fmargin, refine, free, n_refined):
+                HNF, fstart, fp, reach2, cos_r, sin_r, depths, fmargin, refine, need, free,
+                n_refined):
     """Collision sweep over lines x rolls x depths.
 
     gp, u, e1, e2: (L, 3) float32 line frames; half_open: (L,) pre-grasp opening / 2.
@@ -233,6 +234,8 @@ def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart
     squared minimum distance from the closing axis at which jaws / housing can be hit.
     cos_r, sin_r: (R,) roll angles; depths: (D,) increasing contact depths [m].
     refine: resolve uncertain poses with the fine level (else they count as colliding).
+    need: (L, R, D) uint8, the poses whose answer is wanted (the others may be left 0
+    when finding them would need the fine level), or (1, 1, 1) for all.
     Writes free (L, R, D) = 1 for collision-free poses and n_refined (L,), the number
     of rolls that needed the fine level.
     """
@@ -242,6 +245,7 @@ def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart
     Mc = Q.shape[0]
     nchunk = min(L, 512)
     hyF, hyJ, hyH = fp[0, 2], fp[1, 2], fp[2, 2]
+    all_needed = need.shape[0] == 1 and L != 1
     for ch in prange(nchunk):
         idx = np.empty(Mc, np.int32)
         buf = np.empty((13, Mc), np.float32)
@@ -268,7 +272,7 @@ def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart
                     d = depths[k]
                     if d < vin[r]:
                         free[li, r, k] = 1
-                    elif d < vex[r]:
+                    elif d < vex[r] and (all_needed or need[li, r, k]):
                         d_hi = d
                 if d_hi > -_BIG:
                     ur[nu] = r

@@ -157,6 +157,8 @@ def grasps_collision_free(shape, gripper: GripperSpec, gp: np.ndarray, R: np.nda
     cl = ClosingLines(p1=lines[:, :3], p2=lines[:, :3], n1=e1, n2=e1, u=lines[:, 3:6],
                       width=lines[:, 6], gp=lines[:, :3], e1=e1, e2=e2,
                       outside=np.ones(L, bool), contacts=L, directions=1)
-    free, _ = sweep_collisions(shape, cl, gripper, cfg, rolls=rolls, depths=depths)
-    # sweep_collisions sorts the depths; np.unique already returned them sorted
-    return free[row_line, roll_idx.ravel(), depth_idx.ravel()].astype(bool)
+    ri, di = roll_idx.ravel(), depth_idx.ravel()
+    need = np.zeros((L, len(rolls), len(depths)), np.uint8)
+    need[row_line, ri, di] = 1  # refine only the poses asked about
+    free, _ = sweep_collisions(shape, cl, gripper, cfg, rolls=rolls, depths=depths, need=need)
+    return free[row_line, ri, di].astype(bool)

@@ -279,9 +279,12 @@ def roll_angles(cfg: MapConfig) -> np.ndarray:
 
 def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapConfig,
                      threads: int | None = None, progress=None, *, rolls: np.ndarray | None = None,
-                     depths: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+                     depths: np.ndarray | None = None, need: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, dict]:
     """Collision-free flags (L, R, D) uint8 of every line x roll x depth, and stats.
-    Rolls [rad] and contact depths [m] default to the config's sampling."""
+    Rolls [rad] and contact depths [m] default to the config's sampling (depths must be
+    increasing). ``need`` (L, R, D) bool: only these poses' answers are wanted (others
+    may come back 0 = colliding); None: all."""
     import numba
 
     from graspsim.maps import _kernel
@@ -289,8 +292,10 @@ def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapC
     lv = _sample_levels(shape, cfg)
     fmargin = lv["fine_cover"]
     fp, offs = _footprints(gripper)
-    depths = np.sort(np.asarray(gripper.contact_depths(cfg.depth_step) if depths is None else depths,
-                                np.float32))
+    depths = np.asarray(gripper.contact_depths(cfg.depth_step) if depths is None else depths,
+                        np.float32)
+    if np.any(np.diff(depths) <= 0):
+        raise InvalidParameterError("contact depths must be strictly increasing")
     reach = float(np.max(lv["RT"] + lv["HN"])) + fmargin
     reach2 = np.maximum(0.0, offs - depths[-1] - reach) ** 2
     roll = roll_angles(cfg) if rolls is None else np.asarray(rolls, float)
@@ -303,6 +308,7 @@ def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapC
               f32(lv["NF"]), f32(lv["RTF"]), f32(lv["HNF"]), lv["fstart"], fp, f32(reach2),
               f32(np.cos(roll)), f32(np.sin(roll)), depths, np.float32(fmargin),
               bool(cfg.collision_refine))
+    need_all = np.ones((1, 1, 1), np.uint8)
     old = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
@@ -312,10 +318,11 @@ def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapC
             if len(sl) == 0:
                 continue
             a, b = sl[0], sl[-1] + 1
+            nd = need_all if need is None else np.ascontiguousarray(need[a:b], np.uint8)
             _kernel.sweep_lines(f32(lines.gp[a:b]), f32(lines.u[a:b]), f32(lines.e1[a:b]),
                                 f32(lines.e2[a:b]),
                                 f32(0.5 * lines.width[a:b] + gripper.approach_clearance),
-                                *static, free[a:b], n_ref[a:b])
+                                *static, nd, free[a:b], n_ref[a:b])
             if progress:
                 progress((bi + 1) / n_batches)
         used = numba.get_num_threads()

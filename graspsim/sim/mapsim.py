@@ -68,14 +68,7 @@ def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int 
     if sample is not None:
         if sample < 0:
             raise InvalidParameterError(f"sample must be >= 0, got {sample}")
-        sub = gmap.select(rows).sample_uniform_surface(sample, rng or np.random.default_rng(0))
-        # recover the rows the sampler picked (it returns a map, not indices)
-        key = lambda m, i: (m.wrist_position[i].tobytes(), m.wrist_quat[i].tobytes(),  # noqa: E731
-                            m.contacts[i].tobytes())
-        where: dict = {}
-        for r in rows:
-            where.setdefault(key(gmap, r), []).append(r)
-        return np.array([where[key(sub, i)].pop(0) for i in range(len(sub))], dtype=int)
+        return rows[gmap.select(rows).uniform_surface_rows(sample, rng or np.random.default_rng(0))]
     return rows
 
 

@@ -122,3 +122,9 @@ def __getattr__(name: str):
 from graspsim.envs import register_envs as _register_envs  # noqa: E402
 
 _register_envs()
+
+# grade models and grade-vs-success calibration (no mujoco import at this point)
+from graspsim.calibration import TrialTable, calibrate  # noqa: E402
+from graspsim.grades import LogisticGrade, PaperGrade, get_grade, regrade  # noqa: E402
+
+__all__ += ["get_grade", "regrade", "PaperGrade", "LogisticGrade", "calibrate", "TrialTable"]

@@ -134,3 +134,44 @@ def test_calibrate_report(rng):
     d = rep.to_dict()
     assert d["scores"]["fc"]["name"] == "fc"
     assert "| paper |" in rep.markdown()
+
+
+@pytest.fixture(scope="module")
+def box_case():
+    from graspsim.calibration import CalibrationCase
+    from graspsim.calibration.regression import REGRESSION_MAPS
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.primitives import Box
+
+    return CalibrationCase("box/fs", generate_fs_map(Box(0.05, 0.05, 0.07), config=REGRESSION_MAPS, threads=2),
+                           group="box")
+
+
+def test_campaign_draws_clear_poses_and_is_deterministic(box_case):
+    from graspsim.calibration import SimCondition, draw_samples, simulate_samples
+    from graspsim.calibration.trials import table_features
+
+    (smp,) = draw_samples([box_case], 2, seed=5)
+    assert 0 < len(smp.rows) <= 20 and smp.weights.sum() == pytest.approx(smp.eligible)
+    t1 = simulate_samples([smp], SimCondition(), seed=5, threads=2)
+    t2 = simulate_samples([smp], SimCondition(), seed=5, threads=1)
+    np.testing.assert_array_equal(t1["outcome"], t2["outcome"])
+    assert np.all(t1.feasible)  # drawn among poses that clear the table
+    assert t1.meta["mujoco_version"] and t1.meta["cases"][0]["eligible"] == smp.eligible
+    np.testing.assert_allclose(table_features(t1)["pad_residual_angle"], t1["f_pad_residual_angle"])
+
+
+def test_cli_calibrate_json(tmp_path, box_case, capsys):
+    import json
+
+    from graspsim.cli import main
+    from graspsim.maps import save_map
+
+    save_map(box_case.gmap, tmp_path / "box.h5")
+    rc = main(["calibrate", str(tmp_path / "box.h5"), "--per-bin", "2", "--boot", "20", "--threads", "2",
+               "-o", str(tmp_path / "cal"), "--json"])
+    assert rc == 0
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert set(s["grades"]) == {"paper", "pad_contact"} and s["trials"] > 0
+    assert (tmp_path / "cal" / "report.md").exists() and (tmp_path / "cal" / "reliability.png").exists()
+    assert main(["calibrate", str(tmp_path / "box.h5"), "--per-bin", "0"]) == 2

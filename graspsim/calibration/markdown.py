@@ -46,10 +46,13 @@ def report_markdown(rep) -> str:
     rows = []
     for name, r in rep.scores.items():
         for label, op in r.at.items():
-            rows.append([name, label, op["threshold"], op["precision"], op["recall"],
-                         op["accepted_fraction"], op["trials_accepted"]])
-    lines += ["Operating points (population estimates; accept score > t):", "",
-              md_table(["score", "point", "t", "precision", "recall", "accepted", "trials"], rows), ""]
+            rows.append([name, label, op["threshold"], op["precision"], op.get("precision_ci"),
+                         op["recall"], op.get("recall_ci"), op["accepted_fraction"],
+                         f"{op['successes_accepted']}/{op['trials_accepted']}"])
+    lines += ["Operating points (population estimates, bootstrap 95 % intervals; accept score > t; "
+              "last column: successes / trials accepted in the sample):", "",
+              md_table(["score", "point", "t", "precision", "CI", "recall", "CI", "accepted",
+                        "sample"], rows), ""]
     if rep.components:
         lines += ["Single-feature AUCs (sample / population):", "",
                   md_table(["feature", "AUC", "AUC (population)"],

@@ -32,7 +32,8 @@ def plot_reliability(reports: dict, path: str | os.PathLike, title: str = "") ->
         ok = rel.n > 0
         c = f"C{i}"
         ax.errorbar(rel.mean_score[ok], rel.rate[ok],
-                    yerr=[rel.rate[ok] - rel.lo[ok], rel.hi[ok] - rel.rate[ok]], fmt="o", color=c,
+                    yerr=np.maximum(0.0, [rel.rate[ok] - rel.lo[ok], rel.hi[ok] - rel.rate[ok]]),
+                    fmt="o", color=c,
                     capsize=3, label=f"{label} (binned, 95 % Wilson)")
         ax.plot(x, stats.logistic_predict(np.array(r.logistic), x), color=c, lw=1.2,
                 label=f"{label} logistic fit")
@@ -72,7 +73,8 @@ def plot_threshold_sweep(x: Sequence[float], series: dict, path: str | os.PathLi
     fig, ax = plt.subplots(figsize=(6, 4))
     for i, (label, (v, lo, hi)) in enumerate(series.items()):
         v, lo, hi = (np.asarray(a, float) for a in (v, lo, hi))
-        ax.errorbar(np.asarray(x, float) + 0.004 * i, v, yerr=[v - lo, hi - v], fmt="o-", capsize=3,
+        err = np.nan_to_num(np.maximum(0.0, [v - lo, hi - v]))
+        ax.errorbar(np.asarray(x, float) + 0.004 * i, v, yerr=err, fmt="o-", capsize=3,
                     label=label)
     ax.axhline(0.7, color="k", ls="--", lw=0.8, label="paper threshold 0.7")
     ax.set(xlabel=xlabel, ylabel="threshold", ylim=(0, 1), title=title)

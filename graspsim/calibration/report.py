@@ -79,7 +79,8 @@ def score_report(name: str, scores, success, weights=None, groups=None, strata=N
                  min_count: int = 20) -> ScoreReport:
     """Report of one score over trials: scores, success (N,); weights (N,) population
     weights; groups (N,) objects for per-object AUCs; strata (N,) bootstrap strata;
-    reference: {label: threshold} operating points to report (e.g. {"paper_0.7": 0.7})."""
+    reference: {label: threshold} operating points to report (e.g. {"paper_0.7": 0.7}), with
+    bootstrap intervals of their precision and recall."""
     s = np.asarray(scores, float)
     y = np.asarray(success, bool)
     w = np.ones(len(s)) if weights is None else np.asarray(weights, float)
@@ -91,14 +92,23 @@ def score_report(name: str, scores, success, weights=None, groups=None, strata=N
     t_target = stats.threshold_for_precision(s, y, target, w, min_count=min_count)
     t_youden = stats.youden_threshold(s, y, w)
 
+    refs = dict(reference or {})
+
     def boot(idx):
-        return [stats.roc_auc(s[idx], y[idx]),
-                stats.threshold_for_precision(s[idx], y[idx], target, w[idx], min_count=min_count),
-                stats.youden_threshold(s[idx], y[idx], w[idx])]
+        out = [stats.roc_auc(s[idx], y[idx]),
+               stats.threshold_for_precision(s[idx], y[idx], target, w[idx], min_count=min_count),
+               stats.youden_threshold(s[idx], y[idx], w[idx])]
+        for t in refs.values():
+            out += stats.precision_recall(s[idx], y[idx], t, w[idx])[:2]
+        return out
 
     lo, hi = stats.bootstrap(boot, len(s), rng=rng, n_boot=n_boot, strata=strata)
     b = stats.fit_logistic(s, y.astype(float))
-    at = {label: _operating_point(s, y, w, t) for label, t in (reference or {}).items()}
+    at = {}
+    for j, (label, t) in enumerate(refs.items()):
+        at[label] = {**_operating_point(s, y, w, t),
+                     "precision_ci": (float(lo[3 + 2 * j]), float(hi[3 + 2 * j])),
+                     "recall_ci": (float(lo[4 + 2 * j]), float(hi[4 + 2 * j]))}
     at["target"] = _operating_point(s, y, w, t_target)
     at["youden"] = _operating_point(s, y, w, t_youden)
     return ScoreReport(
@@ -132,8 +142,8 @@ def calibrate(table: TrialTable, scores: dict | None = None, *, target: float = 
               reference: dict | None = None, n_boot: int = 500, seed: int = 0,
               components: tuple[str, ...] = ()) -> CalibrationReport:
     """Calibrate ``scores`` ({report name: column}, default {"paper": "grade"}) on the
-    feasible trials of ``table``. ``reference``: {label: threshold} operating points
-    reported for every score (default: the paper's 0.7). ``components``: columns whose
+    feasible trials of ``table``. ``reference``: {label: threshold or {score name:
+    threshold}} operating points to report (default: the paper's 0.7 for every score). ``components``: columns whose
     single-feature AUC (higher = better; a leading "-" negates) is reported."""
     from graspsim.sim.outcomes import TrialOutcome
 
@@ -151,8 +161,12 @@ def calibrate(table: TrialTable, scores: dict | None = None, *, target: float = 
     lo, hi = stats.wilson_interval(int(y.sum()), len(y))
     summary["success_ci"] = (float(lo), float(hi))
     rng = np.random.default_rng(seed)
+    def ref_for(name):  # a reference value is a threshold or {score name: threshold}
+        return {k: (v[name] if isinstance(v, dict) else v) for k, v in reference.items()
+                if not isinstance(v, dict) or name in v}
+
     out = {name: score_report(name, t[col], y, t["weight"], t["group"], t["case"], target=target,
-                              reference=reference, n_boot=n_boot, rng=rng)
+                              reference=ref_for(name), n_boot=n_boot, rng=rng)
            for name, col in scores.items()}
     comp = {}
     for c in components:

@@ -10,6 +10,7 @@ recall describe the sample, weighted ones the map the sample was drawn from.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Callable
 
@@ -164,10 +165,10 @@ def precision_recall(scores, labels, threshold: float, weights=None) -> tuple[fl
 
 def threshold_for_precision(scores, labels, target: float = 0.97, weights=None, *,
                             min_count: int = 20) -> float:
-    """Smallest threshold t such that accepting score > t' has precision >= target for
-    every t' >= t at which at least ``min_count`` trials are accepted (a threshold
-    above which precision never dips below the target). NaN if even the best
-    ``min_count`` trials miss the target."""
+    """Smallest threshold t at which accepting score > t reaches precision >= target
+    with at least ``min_count`` trials accepted; -inf if accepting everything does,
+    NaN if no such threshold exists. (Precision need not rise monotonically above t:
+    the report gives the precision at the chosen t and its bootstrap interval.)"""
     if not 0.0 < target <= 1.0:
         raise InvalidParameterError(f"target precision must be in (0, 1], got {target!r}")
     s, y, w = _check(scores, labels, weights)
@@ -178,12 +179,8 @@ def threshold_for_precision(scores, labels, target: float = 0.97, weights=None, 
     tp_gt, fp_gt, n_gt = np.r_[0.0, tp], np.r_[0.0, fp], np.r_[0, n_ge]
     with np.errstate(invalid="ignore", divide="ignore"):
         prec = tp_gt / (tp_gt + fp_gt)
-    ok = (n_gt < min_count) | (prec >= target - 1e-12)
-    bad = np.flatnonzero(~ok)
-    last = bad[0] - 1 if len(bad) else len(cand) - 1
-    if last < 0 or n_gt[last] < min_count:
-        return float("nan")
-    return float(cand[last])
+    ok = np.flatnonzero((n_gt >= min_count) & (prec >= target - 1e-12))
+    return float(cand[ok[-1]]) if len(ok) else float("nan")
 
 
 def youden_threshold(scores, labels, weights=None) -> float:
@@ -210,7 +207,9 @@ def bootstrap(stat: Callable[[np.ndarray], float | np.ndarray], n_items: int, *,
         reps.append(np.asarray(stat(idx), float))
     reps = np.array(reps)
     a = 0.5 * (1 - confidence)
-    with np.errstate(invalid="ignore"):
-        lo = np.nanquantile(np.where(np.isfinite(reps), reps, np.nan), a, axis=0)
-        hi = np.nanquantile(np.where(np.isfinite(reps), reps, np.nan), 1 - a, axis=0)
+    reps = np.where(np.isfinite(reps), reps, np.nan)
+    with warnings.catch_warnings():  # a statistic undefined in every replicate: NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        lo = np.nanquantile(reps, a, axis=0)
+        hi = np.nanquantile(reps, 1 - a, axis=0)
     return lo, hi

@@ -41,7 +41,9 @@ class CalibrationCase:
     name: unique label (e.g. ``"cylinder@1.0/fs"``); group: the object (the unit held
     out in cross-validation; default ``name``); kind: map kind (fs / scaled / adapted);
     sim_object: the simulated object (a :class:`graspsim.sim.SimObject`, e.g. the true
-    mesh of an object whose map was planned from primitives); None: the map's object.
+    shape of an object whose map was planned from primitives, standing +z up); None: the
+    map's object. T_sim_map: (4, 4) pose of the map's object frame in the simulated
+    object's frame (e.g. ``inv(T_cloud_true) @ T_cloud_obj``); None: identity.
     """
 
     name: str
@@ -49,6 +51,13 @@ class CalibrationCase:
     group: str = ""
     kind: str = "fs"
     sim_object: object | None = None
+    T_sim_map: np.ndarray | None = None
+
+    @property
+    def T_obj_wrist(self) -> np.ndarray:
+        """(N, 4, 4) the map's wrist poses in the simulated object's frame."""
+        T = self.gmap.T_obj_wrist
+        return T if self.T_sim_map is None else np.asarray(self.T_sim_map, float) @ T
 
     @property
     def object_group(self) -> str:
@@ -125,7 +134,8 @@ def draw_samples(cases: Sequence[CalibrationCase], per_bin: int, *, seed: int = 
     for case in cases:
         gmap = case.gmap
         gripper = GripperSpec.from_dict(gmap.meta.gripper)
-        clear = _clears_table(gmap, resting_pose(_sim_object(case)), gripper, min_clearance)
+        clear = _clears_table(gmap, resting_pose(_sim_object(case)), gripper, min_clearance,
+                              T_sim_map=case.T_sim_map)
         rng = np.random.default_rng(case_seed(seed, case.name))
         rows, w = stratified_rows(getattr(gmap, score), clear, per_bin, rng, edges)
         out.append(CaseSample(case, rows, w, int(clear.sum()), len(gmap)))
@@ -135,12 +145,14 @@ def draw_samples(cases: Sequence[CalibrationCase], per_bin: int, *, seed: int = 
 
 
 def _clears_table(gmap: GraspabilityMap, T_world_obj: np.ndarray, gripper: GripperSpec,
-                  min_clearance: float, chunk: int = 100_000) -> np.ndarray:
+                  min_clearance: float, chunk: int = 100_000, T_sim_map=None) -> np.ndarray:
     """(N,) bool: the map's poses keep the gripper ``min_clearance`` above the table
     (in chunks: a million poses would otherwise take gigabytes)."""
     from graspsim.transforms import make_transform, quat_to_matrix
 
     out = np.zeros(len(gmap), bool)
+    if T_sim_map is not None:
+        T_world_obj = T_world_obj @ np.asarray(T_sim_map, float)
     for a in range(0, len(gmap), chunk):
         sl = slice(a, a + chunk)
         T = T_world_obj @ make_transform(quat_to_matrix(gmap.wrist_quat[sl].astype(float)),
@@ -190,7 +202,7 @@ def simulate_samples(samples: Sequence[CaseSample], condition: SimCondition = Si
                           inertia=obj.inertia * condition.mass_scale)
         gripper = GripperSpec.from_dict(case.gmap.meta.gripper)
         scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity)
-        res = run_trials(scene, case.gmap.T_obj_wrist[rows], case.gmap.width[rows], protocol,
+        res = run_trials(scene, case.T_obj_wrist[rows], case.gmap.width[rows], protocol,
                          threads=threads, seed=case_seed(seed, case.name), noise=noise)
         n = len(rows)
         cols = {"case": np.full(n, case.name), "group": np.full(n, case.object_group),

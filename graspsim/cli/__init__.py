@@ -26,6 +26,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.adapt",
     "graspsim.cli.trial",
     "graspsim.cli.campaign",
+    "graspsim.cli.calibrate",
 )
 
 

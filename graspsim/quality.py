@@ -141,6 +141,14 @@ class QualityModel:
         return asdict(self)
 
     @classmethod
+    def from_meta(cls, quality: dict) -> "QualityModel":
+        """The paper-grade model behind a map's ``meta.quality`` record (which also holds
+        the reference distance used, and, for re-graded maps, the grade's own fields)."""
+        base = quality.get("base_quality", quality)
+        fields = cls.__dataclass_fields__
+        return cls(**{k: v for k, v in base.items() if k in fields})
+
+    @classmethod
     def from_dict(cls, d: dict) -> "QualityModel":
         try:
             return cls(**d)

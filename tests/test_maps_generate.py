@@ -171,3 +171,16 @@ def test_sweep_never_misses_a_collision_on_map_candidates():
     ours = free[li, ri, di] == 0
     assert not np.any(ref & ~ours)
     assert np.mean(ours == ref) > 0.97
+
+
+def test_compound_objects_get_maps():
+    from graspsim.primitives import Box, Compound
+    from graspsim.transforms import make_transform
+
+    c = Compound.from_parts([Sphere(0.03), Box(0.015, 0.04, 0.05)],
+                            [np.eye(4), make_transform(np.eye(3), [0.035, 0, 0])])
+    m = generate_fs_map(c, config=FAST)
+    assert len(m) > 0 and m.meta.object["primitive"] == "compound"
+    assert np.abs(c.sdf(m.contacts.reshape(-1, 3).astype(float))).max() < 1e-6
+    idx = np.random.default_rng(2).choice(len(m), 100, replace=False)
+    assert not FclChecker(c, G).collides_many(m.T_obj_wrist[idx], m.width[idx] + 2 * G.approach_clearance).any()

@@ -71,3 +71,11 @@ def test_stability_modes():
 def test_bad_parameters(kw):
     with pytest.raises(InvalidParameterError):
         QualityModel(**kw)
+
+
+def test_model_from_map_metadata():
+    m = QualityModel(friction=0.6)
+    meta = {**m.to_dict(), "d_ref": 0.1}
+    assert QualityModel.from_meta(meta) == m
+    regraded = {"name": "pad_contact", "threshold": 0.88, "grade_model": {}, "base_quality": m.to_dict()}
+    assert QualityModel.from_meta(regraded) == m

@@ -84,3 +84,15 @@ def test_bad_settings_name_the_problem(kw):
 def test_non_positive_mass_is_a_simulation_error(kw):
     with pytest.raises(SimulationError):
         object_from_shape(Box(0.05, 0.05, 0.05), **kw)
+
+
+def test_resting_pose_keeps_a_given_up_direction():
+    import numpy as np
+
+    from graspsim.primitives import Cylinder
+    from graspsim.sim import object_from_shape, resting_pose
+
+    obj = object_from_shape(Cylinder(0.03, 0.1))
+    T = resting_pose(obj, up=np.array([0.0, 0.0, -1.0]))  # the frame is upside down
+    assert np.allclose(T[:3, 2], [0, 0, -1], atol=1e-9)
+    assert abs(T[2, 3] - 0.05) < 1e-6

@@ -103,8 +103,7 @@ def combine_maps(part_maps: list[GraspabilityMap], compound: Compound, *,
         raise InvalidParameterError("combine_maps needs at least one part")
     t0 = time.perf_counter()
     gripper = GripperSpec.from_dict(part_maps[0].meta.gripper)
-    qd = {k: v for k, v in part_maps[0].meta.quality.items() if k != "d_ref"}
-    quality = quality or QualityModel.from_dict(qd)
+    quality = quality or QualityModel.from_meta(part_maps[0].meta.quality)
     cfg = config or MapConfig(**{k: v for k, v in part_maps[0].meta.resolution.items()
                                  if k in MapConfig.__dataclass_fields__})
     d_ref = quality.reference_distance(compound.circumradius)

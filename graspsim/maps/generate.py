@@ -13,7 +13,8 @@ poses are kept with their grade, low grades included.
 
 from __future__ import annotations
 
-import functools
+import collections
+import json
 import logging
 import math
 import os
@@ -180,8 +181,24 @@ def _patches(parents, children, parent_normals, grow, parent=None):
     return order, RT, HN, start
 
 
-@functools.lru_cache(maxsize=8)
+_LEVELS: "collections.OrderedDict[tuple, dict]" = collections.OrderedDict()
+
+
 def _sample_levels(shape, cfg: MapConfig) -> dict[str, np.ndarray | float]:
+    """Cached :func:`_build_levels` (a few objects: scaling and combining revisit them);
+    keyed by the object's description, so compounds (not hashable) are cached too."""
+    key = (json.dumps(shape.to_dict(), sort_keys=True), cfg)
+    if key in _LEVELS:
+        _LEVELS.move_to_end(key)
+        return _LEVELS[key]
+    lv = _build_levels(shape, cfg)
+    _LEVELS[key] = lv
+    while len(_LEVELS) > 8:
+        _LEVELS.popitem(last=False)
+    return lv
+
+
+def _build_levels(shape, cfg: MapConfig) -> dict[str, np.ndarray | float]:
     """The three-level collision sample hierarchy (coarse -> middle -> fine).
 
     Every surface point lies within ``fine_cover`` of a fine sample; each fine sample

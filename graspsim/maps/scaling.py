@@ -212,8 +212,7 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
             f"scaling {source} to {target} changes {sorted(bad)} by more than the allowed "
             f"factor {sc.max_ratio}; generate an FS map for this size instead")
     gripper = GripperSpec.from_dict(fs_map.meta.gripper)
-    qd = {k: v for k, v in fs_map.meta.quality.items() if k != "d_ref"}
-    quality = quality or QualityModel.from_dict(qd)
+    quality = quality or QualityModel.from_meta(fs_map.meta.quality)
     cfg = config or MapConfig(**{k: v for k, v in fs_map.meta.resolution.items()
                                  if k in MapConfig.__dataclass_fields__})
     src_min = fs_map.threshold if sc.source_min_grade is None else sc.source_min_grade

@@ -166,7 +166,12 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng)
     obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,
                      map_dir=path.parent, cache_dir=cache_dir)
-    scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity)
+    # a mesh (the real object) stands as it does in its own file / the cloud's frame:
+    # the planner's object frame may be flipped (a cylinder's axis sign is arbitrary)
+    up = None
+    if mesh is not None and gmap.meta.extra.get("T_cloud_obj") is not None:
+        up = np.asarray(gmap.meta.extra["T_cloud_obj"], float).reshape(4, 4)[:3, :3].T @ [0.0, 0.0, 1.0]
+    scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity, up=up)
     results = run_trials(scene, gmap.T_obj_wrist[index], gmap.width[index], protocol,
                          threads=threads, seed=seed, noise=noise, on_progress=on_progress)
     results = replace(results, extra={"map_file": str(path),

@@ -185,20 +185,40 @@ def _stable_rotation(v: np.ndarray, com: np.ndarray) -> np.ndarray:
     return R.as_matrix()
 
 
-def resting_pose(obj: SimObject, *, support_tol: float = 0.002) -> np.ndarray:
+def _align_to_z(up: np.ndarray) -> np.ndarray:
+    """A rotation taking the unit vector ``up`` to +z (the shortest one)."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    c = float(up[2])
+    if c > 1 - 1e-12:
+        return np.eye(3)
+    if c < -1 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    from scipy.spatial.transform import Rotation
+
+    axis = np.cross(up, [0.0, 0.0, 1.0])
+    axis /= np.linalg.norm(axis)
+    return Rotation.from_rotvec(axis * math.acos(c)).as_matrix()
+
+
+def resting_pose(obj: SimObject, *, support_tol: float = 0.002,
+                 up: np.ndarray | None = None) -> np.ndarray:
     """T_world_obj (4, 4): the object on the table (z = 0), centre of mass over the origin.
 
-    The object frame's +z up is kept when the centre of mass lies over the support
-    polygon (points within ``support_tol`` of the lowest); otherwise the object rests on
-    the hull face nearest its centre of mass that it can stand on.
+    ``up`` (3,), object frame: the direction that should point up (default +z: the
+    object frame of DESIGN.md stands upright). It is kept when the centre of mass lies
+    over the support polygon (points within ``support_tol`` of the lowest); otherwise
+    the object rests on the hull face nearest its centre of mass that it can stand on.
     """
-    v = np.asarray(obj.surface.vertices, float)
+    v0 = np.asarray(obj.surface.vertices, float)
     T = np.eye(4)
+    T[:3, :3] = _align_to_z(np.array([0.0, 0.0, 1.0]) if up is None else up)
+    v = v0 @ T[:3, :3].T
+    com = T[:3, :3] @ obj.com
     low = v[v[:, 2] < v[:, 2].min() + support_tol][:, :2]
-    if not _inside(low, obj.com[:2]):
-        T[:3, :3] = _stable_rotation(v, obj.com)
+    if not _inside(low, com[:2]):
+        T[:3, :3] = _stable_rotation(v0, obj.com)
         log.info("object is not stable upright; resting it on another face")
-    vw = v @ T[:3, :3].T
+    vw = v0 @ T[:3, :3].T
     cw = T[:3, :3] @ obj.com
     T[:3, 3] = np.array([-cw[0], -cw[1], -vw[:, 2].min()])
     return T
@@ -233,12 +253,13 @@ def _add_object(spec: mujoco.MjSpec, obj: SimObject, T_world_obj: np.ndarray,
 
 def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
                 settings: SimSettings = SimSettings(), *, table: bool = True,
-                gravity: bool = True) -> Scene:
-    """Compile the trial scene for ``obj`` (build once, run many trials)."""
+                gravity: bool = True, up: np.ndarray | None = None) -> Scene:
+    """Compile the trial scene for ``obj`` (build once, run many trials); ``up``: the
+    object-frame direction to stand upright (see :func:`resting_pose`)."""
     s = settings
     fric = (s.friction, s.torsional_friction, s.rolling_friction)
     force = float(gripper.grip_force if s.grip_force is None else s.grip_force)
-    T_world_obj = resting_pose(obj) if table else np.eye(4)
+    T_world_obj = resting_pose(obj, up=up) if table else np.eye(4)
     top = float((obj.surface.vertices @ T_world_obj[:3, :3].T)[:, 2].max() + T_world_obj[2, 3])
     home = (0.0, 0.0, top + gripper.fingertip_z + 0.1)  # qpos0: hanging clear above the object
     spec = build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,

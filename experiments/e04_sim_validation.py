@@ -33,7 +33,6 @@ from graspsim.calibration import (  # noqa: E402
     CalibrationCase, SimCondition, TrialTable, simulate_samples, wilson_interval)
 from graspsim.calibration.markdown import fmt, md_table  # noqa: E402
 from graspsim.calibration.outputs import library_versions, write_json, write_text  # noqa: E402
-from graspsim.calibration.sampling import table_clearance  # noqa: E402
 from graspsim.calibration.trials import CaseSample  # noqa: E402
 from graspsim.grades import get_grade  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid  # noqa: E402
@@ -158,7 +157,8 @@ def clears_table(case: CalibrationCase, rows: np.ndarray) -> np.ndarray:
     from graspsim.gripper import GripperSpec
 
     T = resting_pose(obj) @ case.T_obj_wrist[rows]
-    return table_clearance(T, case.gmap.width[rows], GripperSpec.from_dict(case.gmap.meta.gripper)) >= 0.0
+    g = GripperSpec.from_dict(case.gmap.meta.gripper)
+    return g.lowest_point(T, g.pregrasp_opening(case.gmap.width[rows])) >= 0.0
 
 
 # ------------------------------------------------------------------------- report

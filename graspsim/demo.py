@@ -136,7 +136,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
                         SimSettings(friction=db.quality.friction))
     # grasps the arm can reach over the table, drawn uniformly over the object
     T_sim = T_true_obj @ gmap.T_obj_wrist
-    opening = gmap.width + 2 * db.gripper.approach_clearance
+    opening = db.gripper.pregrasp_opening(gmap.width)
     reachable = db.gripper.lowest_point(scene.T_world_obj @ T_sim, opening) > 0.002
     candidates = np.flatnonzero(gmap.accepted & reachable)
     rows = candidates[gmap.select(candidates).uniform_surface_rows(cfg.trials, rng)]

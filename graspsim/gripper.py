@@ -224,6 +224,12 @@ class GripperSpec:
         c[:, 0] += b.x_sign * 0.5 * opening
         return c, b.half_extents
 
+    def pregrasp_opening(self, width: np.ndarray) -> np.ndarray:
+        """Pad gap (N,) [m] at the pose: the contact width + 2 x approach clearance,
+        clipped to the opening range (as the simulator opens the jaws)."""
+        return np.clip(np.asarray(width, float) + 2.0 * self.approach_clearance,
+                       self.min_opening, self.max_opening)
+
     def lowest_point(self, T_world_wrist: np.ndarray, opening: np.ndarray) -> np.ndarray:
         """(N,) lowest z [m] of any gripper box (arm keep-out included) at wrist poses
         (N, 4, 4) with pad gaps (N,): a pose with a table at z = 0 is reachable only if

@@ -1,18 +1,27 @@
-"""Small statistics helpers shared by experiments and reports."""
+"""Small statistics helpers shared by the library, its experiments and reports."""
 
 from __future__ import annotations
 
-import math
+import numpy as np
+from scipy.stats import norm
 
 __all__ = ["wilson_interval"]
 
 
-def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """Wilson score interval (default 95 %) of a binomial proportion; (nan, nan) if n = 0."""
-    if n <= 0:
-        return (math.nan, math.nan)
-    p = successes / n
-    den = 1.0 + z * z / n
-    centre = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return (max(0.0, centre - half), min(1.0, centre + half))
+def wilson_interval(k, n, confidence: float = 0.95):
+    """Wilson score interval (lo, hi) of a proportion k / n; NaN where n = 0.
+
+    Scalars give a pair of floats; arrays broadcast and give a pair of arrays.
+    """
+    scalar = np.ndim(k) == 0 and np.ndim(n) == 0
+    k = np.asarray(k, float)
+    n = np.asarray(n, float)
+    z = norm.ppf(0.5 + 0.5 * confidence)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        p = k / n
+        den = 1 + z * z / n
+        mid = (p + z * z / (2 * n)) / den
+        half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    lo = np.where(n > 0, np.clip(mid - half, 0, 1), np.nan)
+    hi = np.where(n > 0, np.clip(mid + half, 0, 1), np.nan)
+    return (float(lo), float(hi)) if scalar else (lo, hi)

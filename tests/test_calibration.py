@@ -14,7 +14,6 @@ from graspsim.calibration import (
     reliability,
     roc_auc,
     stratified_rows,
-    table_clearance,
     threshold_for_precision,
     wilson_interval,
     youden_threshold,
@@ -98,7 +97,7 @@ def test_table_clearance_top_down_and_from_below():
     down[2, 3] = G.fingertip_z + 0.01  # fingertips 1 cm above the table
     up = np.eye(4)
     up[2, 3] = 0.05  # approach +z: the arm and housing are under the table
-    z = table_clearance(np.stack([down, up]), np.array([0.03, 0.03]), G)
+    z = G.lowest_point(np.stack([down, up]), G.pregrasp_opening(np.array([0.03, 0.03])))
     assert z[0] == pytest.approx(0.01, abs=1e-9) and z[1] == pytest.approx(0.05 - G.arm_length)
 
 

@@ -20,7 +20,7 @@ from graspsim.envs import GRASP_POSE_ID, GRASP_SELECT_ID
 from graspsim.envs.baselines import (FEATURE_NAMES, LogisticPolicy, grasp_features,
                                      highest_grade_policy, oracle_choice, random_policy,
                                      wilson_interval)
-from graspsim.envs.candidates import CANDIDATE_FEATURES, pregrasp_openings, table_clearance
+from graspsim.envs.candidates import CANDIDATE_FEATURES
 from graspsim.envs.config import RewardMode
 from graspsim.envs.objects import COMPOUND_KINDS, PRIMITIVE_KINDS, draw_object, resolve_object_set
 from graspsim.envs.rewards import trial_reward
@@ -112,7 +112,7 @@ def test_mask_never_allows_an_invalid_candidate(kw):
         T_world_obj = make_transform(quat_to_matrix(op[3:]), op[:3])
         T = T_world_obj @ make_transform(quat_to_matrix(cand[mask, 3:7].astype(float)), cand[mask, :3])
         width = cand[mask, CANDIDATE_FEATURES.index("width")]
-        assert np.all(table_clearance(G, T, pregrasp_openings(G, width)) > env.config.table_margin - 1e-4)
+        assert np.all(G.lowest_point(T, G.pregrasp_opening(width)) > env.config.table_margin - 1e-4)
         padded += int((~mask).sum())
     assert padded > 0  # the padding was exercised
     # choosing a masked slot is no trial, reward 0
@@ -265,7 +265,7 @@ def test_object_sets_and_draws_stay_in_the_scaling_range():
 def test_table_clearance_of_a_top_down_grasp():
     R = np.diag([1.0, -1.0, -1.0])  # approach straight down
     T = make_transform(R, [0.0, 0.0, 0.3])[None]
-    h = table_clearance(G, T, np.array([0.05]))
+    h = G.lowest_point(T, np.array([0.05]))
     assert h[0] == pytest.approx(0.3 - G.fingertip_z)
 
 

@@ -7,7 +7,7 @@ mujoco) in :mod:`graspsim.calibration.campaign`, imported on first use.
 from __future__ import annotations
 
 from graspsim.calibration.report import CalibrationReport, ScoreReport, calibrate, score_report
-from graspsim.calibration.sampling import pregrasp_openings, stratified_rows, table_clearance
+from graspsim.calibration.sampling import stratified_rows
 from graspsim.calibration.stats import (
     Reliability,
     bootstrap,
@@ -28,7 +28,7 @@ _CAMPAIGN = ("CalibrationCase", "SimCondition", "CaseSample", "draw_samples", "s
 
 __all__ = [
     "CalibrationReport", "ScoreReport", "calibrate", "score_report",
-    "table_clearance", "pregrasp_openings", "stratified_rows",
+    "stratified_rows",
     "Reliability", "bootstrap", "fit_logistic", "logistic_predict", "precision_recall",
     "reliability", "roc_auc", "roc_curve", "threshold_for_precision", "wilson_interval",
     "youden_threshold", "TrialTable", *_CAMPAIGN,

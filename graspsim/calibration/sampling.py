@@ -11,35 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
 
-__all__ = ["table_clearance", "pregrasp_openings", "stratified_rows"]
+__all__ = ["stratified_rows"]
 
-_CORNERS = np.array(np.meshgrid([-1.0, 1.0], [-1.0, 1.0], [-1.0, 1.0], indexing="ij")).reshape(3, -1).T
-
-
-def pregrasp_openings(gripper: GripperSpec, widths: np.ndarray) -> np.ndarray:
-    """Pad gap (N,) [m] at the pose: contact width + 2 x approach clearance, in range
-    (as the simulator opens the jaws)."""
-    return np.clip(np.asarray(widths, float) + 2.0 * gripper.approach_clearance,
-                   gripper.min_opening, gripper.max_opening)
-
-
-def table_clearance(T_world_wrist: np.ndarray, widths: np.ndarray, gripper: GripperSpec) -> np.ndarray:
-    """Lowest height (N,) [m] above the table plane z = 0 of any corner of the
-    gripper's collision boxes (arm, housing, jaws, fingers opened to the pre-grasp gap)
-    for wrist poses T_world_wrist (N, 4, 4); negative where the gripper is in the table."""
-    T = np.asarray(T_world_wrist, float)
-    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) != len(widths):
-        raise InvalidParameterError(f"T_world_wrist must be (N, 4, 4) with N widths; got {T.shape}")
-    b = gripper.collision_boxes()
-    half_open = 0.5 * pregrasp_openings(gripper, widths)
-    corners = b.centers[:, None, :] + b.half_extents[:, None, :] * _CORNERS[None]  # (B, 8, 3)
-    # z of corner c of box k: row z of R . (corner + x_sign * half_open * e_x) + t_z
-    rz = T[:, 2, :3]
-    z = np.einsum("nj,kcj->nkc", rz, corners) + T[:, 2, 3][:, None, None]
-    z += (rz[:, 0][:, None] * half_open[:, None])[:, :, None] * b.x_sign[None, :, None]
-    return z.reshape(len(T), -1).min(axis=1)
 
 
 def stratified_rows(score: np.ndarray, eligible: np.ndarray, per_bin: int,

@@ -18,7 +18,9 @@ import numpy as np
 from scipy.special import expit
 from scipy.stats import norm
 
+
 from graspsim.errors import InvalidParameterError
+from graspsim.stats import wilson_interval
 
 __all__ = ["wilson_interval", "roc_curve", "roc_auc", "fit_logistic", "logistic_predict",
            "reliability", "Reliability", "precision_recall", "threshold_for_precision",
@@ -35,21 +37,6 @@ def _check(scores, labels, weights=None):
     if np.any(~np.isfinite(s)) or np.any(~np.isfinite(w)) or np.any(w < 0):
         raise InvalidParameterError("scores must be finite and weights finite and >= 0")
     return s, y, w
-
-
-def wilson_interval(k, n, confidence: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
-    """Wilson score interval (lo, hi) of a proportion k / n (arrays broadcast);
-    NaN where n = 0."""
-    k = np.asarray(k, float)
-    n = np.asarray(n, float)
-    z = norm.ppf(0.5 + 0.5 * confidence)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        p = k / n
-        den = 1 + z * z / n
-        mid = (p + z * z / (2 * n)) / den
-        half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    lo, hi = np.clip(mid - half, 0, 1), np.clip(mid + half, 0, 1)
-    return np.where(n > 0, lo, np.nan), np.where(n > 0, hi, np.nan)
 
 
 def _cumulative(s, y, w):

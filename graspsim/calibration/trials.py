@@ -18,7 +18,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from graspsim.calibration.sampling import stratified_rows, table_clearance
+from graspsim.calibration.sampling import stratified_rows
 from graspsim.calibration.table import TrialTable
 from graspsim.errors import InvalidParameterError
 from graspsim.grades.features import FEATURES, map_features
@@ -157,7 +157,7 @@ def _clears_table(gmap: GraspabilityMap, T_world_obj: np.ndarray, gripper: Gripp
         sl = slice(a, a + chunk)
         T = T_world_obj @ make_transform(quat_to_matrix(gmap.wrist_quat[sl].astype(float)),
                                          gmap.wrist_position[sl].astype(float))
-        out[sl] = table_clearance(T, gmap.width[sl], gripper) >= min_clearance
+        out[sl] = gripper.lowest_point(T, gripper.pregrasp_opening(gmap.width[sl])) >= min_clearance
     return out
 
 
@@ -174,51 +174,77 @@ def _map_columns(gmap: GraspabilityMap, rows: np.ndarray) -> dict[str, np.ndarra
     return cols
 
 
+@dataclass(frozen=True, eq=False)
+class _CaseJob:
+    """One case of :func:`simulate_samples`, as an executor task."""
+
+    sample: CaseSample
+    condition: SimCondition
+    protocol: object
+    seed: int
+    threads: int | None
+    features: tuple[str, ...]
+    grade_models: tuple
+
+
+def _simulate_case(job: _CaseJob) -> TrialTable:
+    """Simulate one case's samples (runs in this process or an executor's worker)."""
+    from graspsim.sim import ExecutionNoise, SimSettings, build_scene, run_trials
+
+    smp, condition, protocol = job.sample, job.condition, job.protocol
+    settings = SimSettings(friction=condition.friction, grip_force=condition.grip_force)
+    noise = (ExecutionNoise(condition.noise_position, condition.noise_rotation)
+             if condition.noisy else None)
+    case, rows = smp.case, smp.rows
+    obj = _sim_object(case)
+    if condition.mass_scale != 1.0:
+        obj = replace(obj, mass=obj.mass * condition.mass_scale,
+                      inertia=obj.inertia * condition.mass_scale)
+    gripper = GripperSpec.from_dict(case.gmap.meta.gripper)
+    scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity)
+    res = run_trials(scene, case.T_obj_wrist[rows], case.gmap.width[rows], protocol,
+                     threads=job.threads, seed=case_seed(job.seed, case.name), noise=noise)
+    n = len(rows)
+    cols = {"case": np.full(n, case.name), "group": np.full(n, case.object_group),
+            "kind": np.full(n, case.kind), "condition": np.full(n, condition.name),
+            "row": rows.astype(np.int64), "weight": smp.weights.astype(float),
+            "outcome": res.outcome.astype(np.int8), "success": res.outcome == 0,
+            **_map_columns(case.gmap, rows)}
+    if job.features:
+        cols.update({f"f_{k}": v for k, v in map_features(case.gmap, job.features, rows).items()})
+    for model in job.grade_models:
+        cols[f"grade_{model.name}"] = np.asarray(model.grade_rows(case.gmap, rows), float)
+    cols.update({f"m_{k}": np.asarray(v, float) for k, v in res.metrics.items()})
+    log.info("%s [%s]: %s", case.name, condition.name, res.counts())
+    return TrialTable(cols)
+
+
 def simulate_samples(samples: Sequence[CaseSample], condition: SimCondition = SimCondition(), *,
                      protocol=None, seed: int = 0, threads: int | None = None,
                      features: tuple[str, ...] = FEATURES, grade_models: Sequence = (),
-                     on_case: Callable[[str, int], None] | None = None) -> TrialTable:
+                     on_case: Callable[[str, int], None] | None = None,
+                     executor=None) -> TrialTable:
     """Simulate every sample under ``condition`` (default protocol: lift_place).
 
     grade_models: extra grades (objects with ``name`` and ``grade_rows(gmap, rows)``)
     stored as ``grade_<name>`` columns. on_case(name, n): called after each case.
+    executor: a ``graspsim.executors`` executor to run the cases in parallel (local
+    processes or Ray); every case is seeded by its name, so results are the same.
     """
     import mujoco
 
-    from graspsim.sim import ExecutionNoise, LiftPlace, SimSettings, build_scene, run_trials
+    from graspsim.executors import SerialExecutor
+    from graspsim.sim import LiftPlace
 
     protocol = protocol or LiftPlace()
-    settings = SimSettings(friction=condition.friction, grip_force=condition.grip_force)
-    noise = (ExecutionNoise(condition.noise_position, condition.noise_rotation)
-             if condition.noisy else None)
-    tables = []
-    for smp in samples:
-        case, rows = smp.case, smp.rows
-        if len(rows) == 0:
-            continue
-        obj = _sim_object(case)
-        if condition.mass_scale != 1.0:
-            obj = replace(obj, mass=obj.mass * condition.mass_scale,
-                          inertia=obj.inertia * condition.mass_scale)
-        gripper = GripperSpec.from_dict(case.gmap.meta.gripper)
-        scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity)
-        res = run_trials(scene, case.T_obj_wrist[rows], case.gmap.width[rows], protocol,
-                         threads=threads, seed=case_seed(seed, case.name), noise=noise)
-        n = len(rows)
-        cols = {"case": np.full(n, case.name), "group": np.full(n, case.object_group),
-                "kind": np.full(n, case.kind), "condition": np.full(n, condition.name),
-                "row": rows.astype(np.int64), "weight": smp.weights.astype(float),
-                "outcome": res.outcome.astype(np.int8), "success": res.outcome == 0,
-                **_map_columns(case.gmap, rows)}
-        if features:
-            cols.update({f"f_{k}": v for k, v in map_features(case.gmap, features, rows).items()})
-        for model in grade_models:
-            cols[f"grade_{model.name}"] = np.asarray(model.grade_rows(case.gmap, rows), float)
-        cols.update({f"m_{k}": np.asarray(v, float) for k, v in res.metrics.items()})
-        tables.append(TrialTable(cols))
-        log.info("%s [%s]: %s", case.name, condition.name, res.counts())
+    todo = [smp for smp in samples if len(smp.rows)]
+    jobs = [_CaseJob(smp, condition, protocol, seed, threads, tuple(features), tuple(grade_models))
+            for smp in todo]
+    tables: list = [None] * len(jobs)
+    for i, table in (executor or SerialExecutor()).imap(_simulate_case, jobs):
+        tables[i] = table
         if on_case is not None:
-            on_case(case.name, n)
+            on_case(todo[i].case.name, len(todo[i].rows))
     meta = {"condition": condition.to_dict(), "protocol": protocol.to_dict(), "seed": int(seed),
             "mujoco_version": mujoco.__version__, "features": list(features),
             "cases": [{"name": s.case.name, "group": s.case.object_group, "kind": s.case.kind,

@@ -16,7 +16,7 @@ import math
 import sys
 from pathlib import Path
 
-from graspsim.cli._common import add_json_flag, emit, format_table, progress
+from graspsim.cli._common import add_executor_flags, add_json_flag, emit, executor_from_args, format_table, progress
 
 __all__ = ["register", "run"]
 
@@ -42,6 +42,7 @@ def register(subparsers) -> None:
     p.add_argument("--threads", type=int, metavar="T", help="native threads (default: all cores)")
     p.add_argument("--boot", type=int, default=500, metavar="B", help="bootstrap replicates (default 500)")
     p.add_argument("-o", "--out", metavar="DIR", help="write trials.npz, report.json/.md and PNGs here")
+    add_executor_flags(p)
     add_json_flag(p)
     p.set_defaults(func=run)
 
@@ -72,8 +73,10 @@ def run(args) -> int:
     samples = draw_samples(cases, args.per_bin, seed=args.seed)
     bar = progress(sum(len(s.rows) for s in samples), "trials", enabled=not args.json, unit="trial")
     try:
-        table = simulate_samples(samples, cond, seed=args.seed, threads=args.threads, features=(),
-                                 grade_models=models, on_case=lambda _, n: bar.update(n))
+        with executor_from_args(args) as ex:
+            table = simulate_samples(samples, cond, seed=args.seed, threads=args.threads, features=(),
+                                     grade_models=models, on_case=lambda _, n: bar.update(n),
+                                     executor=ex)
     finally:
         bar.close()
     scores = {cases[0].gmap.meta.quality.get("name", "map grade"): "grade",

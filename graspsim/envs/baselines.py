@@ -28,8 +28,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from graspsim.envs.candidates import CANDIDATE_FEATURES, pregrasp_openings, table_clearance
+
+from graspsim.envs.candidates import CANDIDATE_FEATURES
 from graspsim.errors import InvalidParameterError
+from graspsim.stats import wilson_interval
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.transforms import make_transform, quat_to_matrix
 
@@ -91,7 +93,7 @@ def grasp_features(obs: dict, gripper: GripperSpec = HGPL_25_60_A) -> np.ndarray
     q[np.linalg.norm(q, axis=1) < 1e-6] = (1.0, 0.0, 0.0, 0.0)  # empty slots
     T = T_world_obj @ make_transform(quat_to_matrix(q), cand[:, 0:3])  # (K, 4, 4) world
     width = cand[:, _COL["width"]]
-    opening = pregrasp_openings(gripper, width)
+    opening = gripper.pregrasp_opening(width)
     tcp_z = float(gripper.tcp_offset(0.5 * gripper.pad_length))
     tcp = T[:, :3, 3] + tcp_z * T[:, :3, 2]
     top = max(float(cloud[:, 2].max()), 1e-3)
@@ -110,21 +112,10 @@ def grasp_features(obs: dict, gripper: GripperSpec = HGPL_25_60_A) -> np.ndarray
         cand[:, _COL["grade"]], cand[:, _COL["q_fc"]], cand[:, _COL["q_st"]], cand[:, _COL["fc_angle"]],
         cand[:, _COL["stability_distance"]], width,
         T[:, 2, 2], np.abs(T[:, 2, 0]), tcp[:, 2], tcp[:, 2] / top,
-        table_clearance(gripper, T, opening),
+        gripper.lowest_point(T, opening),
         np.clip(d.min(axis=1), -0.02, 0.03), (d < 0).mean(axis=1), between.mean(axis=1),
     ])
     return f
-
-
-def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
-    """Wilson score interval (default 95 %) of a binomial proportion."""
-    if n <= 0:
-        return (float("nan"), float("nan"))
-    p = successes / n
-    den = 1.0 + z * z / n
-    centre = (p + z * z / (2 * n)) / den
-    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return (float(centre - half), float(centre + half))
 
 
 @dataclass

@@ -1,5 +1,5 @@
-"""Candidate grasps for the selection environment: a pooled map database, the table
-check, and the fixed-size candidate feature table.
+"""Candidate grasps for the selection environment: a pooled map database and the
+fixed-size candidate feature table.
 
 * :class:`PooledDatabase` is a :class:`MapDatabase` whose run-time reads
   (``load_entry(..., accepted_only=True)``, what the planner uses) return a fixed,
@@ -8,8 +8,8 @@ check, and the fixed-size candidate feature table.
   instead of half a second, so an episode costs little more than its trial; the adapted
   map is a uniform subsample of the full one. The pool is drawn once per map with a
   generator seeded by the map's key, so it is the same in every process.
-* :func:`table_clearance` is the lowest point of the gripper's collision boxes (the arm
-  keep-out included) above the table plane z = 0, for wrist poses in the world frame.
+* Whether a candidate clears the table is :meth:`GripperSpec.lowest_point` (the arm
+  keep-out included) at the pre-grasp opening.
 * :func:`candidate_features` lays K grasps out as the observation's rows.
 
 Pure numpy: no mujoco here.
@@ -26,7 +26,7 @@ from graspsim.gripper import GripperSpec
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.graspmap import GraspabilityMap
 
-__all__ = ["PooledDatabase", "table_clearance", "pregrasp_openings", "candidate_features",
+__all__ = ["PooledDatabase", "candidate_features",
            "CANDIDATE_FEATURES"]
 
 log = logging.getLogger(__name__)
@@ -66,27 +66,6 @@ class PooledDatabase(MapDatabase):
             self._pools[key] = pool
             log.debug("pooled %d of %d grasps of %s", len(pool), len(full), key)
         return pool
-
-
-def pregrasp_openings(gripper: GripperSpec, widths: np.ndarray) -> np.ndarray:
-    """Jaw opening (N,) [m] at the pose: width + 2 x approach clearance, in range (as
-    the simulator opens them)."""
-    return np.clip(np.asarray(widths, float) + 2.0 * gripper.approach_clearance,
-                   gripper.min_opening, gripper.max_opening)
-
-
-def table_clearance(gripper: GripperSpec, T_world_wrist: np.ndarray, openings: np.ndarray) -> np.ndarray:
-    """Height (N,) [m] of the lowest corner of the gripper's boxes (arm keep-out,
-    housing, jaws, fingers at ``openings`` (N,)) above the table plane z = 0 (negative:
-    below it). T_world_wrist: (N, 4, 4) world frame, z up, table top at z = 0."""
-    T = np.asarray(T_world_wrist, float).reshape(-1, 4, 4)
-    b = gripper.collision_boxes()
-    signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T  # (8, 3)
-    centers = np.broadcast_to(b.centers, (len(T), *b.centers.shape)).copy()  # (N, B, 3)
-    centers[:, :, 0] += b.x_sign[None] * 0.5 * np.asarray(openings, float).reshape(-1, 1)
-    corners = centers[:, :, None, :] + signs[None, None] * b.half_extents[None, :, None, :]  # (N,B,8,3)
-    z = np.einsum("nj,nbcj->nbc", T[:, 2, :3], corners) + T[:, 2, 3][:, None, None]
-    return z.reshape(len(T), -1).min(axis=1)
 
 
 def candidate_features(gmap: GraspabilityMap, rows: np.ndarray, k: int) -> np.ndarray:

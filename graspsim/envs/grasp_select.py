@@ -47,8 +47,7 @@ import time
 import numpy as np
 from gymnasium import spaces
 
-from graspsim.envs.candidates import (CANDIDATE_FEATURES, candidate_features, feature_bounds,
-                                      pregrasp_openings, table_clearance)
+from graspsim.envs.candidates import CANDIDATE_FEATURES, candidate_features, feature_bounds
 from graspsim.envs.config import EnvConfig
 from graspsim.envs.table import WORLD_BOUND, TableTask, pose_vector
 from graspsim.errors import GraspsimError, InvalidParameterError, NoFeasibleGraspError
@@ -115,8 +114,8 @@ class GraspSelectEnv(TableTask):
             T_world_wrist = result.T_cloud_obj @ gmap.T_obj_wrist  # the cloud frame is the world
             clear = np.zeros(len(gmap), bool)
             if len(gmap):
-                clear = table_clearance(self.gripper, T_world_wrist,
-                                        pregrasp_openings(self.gripper, gmap.width)) > c.table_margin
+                clear = self.gripper.lowest_point(
+                    T_world_wrist, self.gripper.pregrasp_opening(gmap.width)) > c.table_margin
             if clear.any():
                 break
             log.debug("redraw %d (%s): %s plan, %d grasps, none clear of the table", draw + 1,

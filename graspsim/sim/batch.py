@@ -36,8 +36,7 @@ _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 def pregrasp_opening(scene: Scene, widths: np.ndarray) -> np.ndarray:
     """Pad gap (N,) [m] at the pose: contact width + 2 x approach clearance, in range."""
-    g = scene.gripper
-    return np.clip(np.asarray(widths, float) + 2.0 * g.approach_clearance, g.min_opening, g.max_opening)
+    return scene.gripper.pregrasp_opening(widths)
 
 
 def initial_states(scene: Scene, T_world_wrist: np.ndarray, openings: np.ndarray) -> np.ndarray:

@@ -114,7 +114,7 @@ def parse_args(argv=None) -> tuple[E02Config, Path]:
 
 def _cold() -> None:
     """Forget cached collision sample hierarchies (a new object has none at run time)."""
-    _generate._sample_levels.cache_clear()
+    _generate.clear_caches()
     gc.collect()
 
 

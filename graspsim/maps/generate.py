@@ -40,6 +40,7 @@ __all__ = [
     "sweep_collisions",
     "roll_angles",
     "object_description",
+    "clear_caches",
 ]
 
 log = logging.getLogger(__name__)
@@ -182,6 +183,11 @@ def _patches(parents, children, parent_normals, grow, parent=None):
 
 
 _LEVELS: "collections.OrderedDict[tuple, dict]" = collections.OrderedDict()
+
+
+def clear_caches() -> None:
+    """Forget cached collision sample hierarchies (to time or free a cold start)."""
+    _LEVELS.clear()
 
 
 def _sample_levels(shape, cfg: MapConfig) -> dict[str, np.ndarray | float]:

@@ -214,7 +214,7 @@ def _db_view(base: MapDatabase, tmp: Path) -> MapDatabase:
 
 def run_plan(points: np.ndarray, base: MapDatabase, tmp: Path, seed: int, theta: float, cfg: E03Config):
     db = _db_view(base, tmp)
-    _generate._sample_levels.cache_clear()
+    _generate.clear_caches()
     gc.collect()
     handler = _ThetaLog()
     ident_log = logging.getLogger("graspsim.perception.identify")

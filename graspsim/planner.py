@@ -143,12 +143,22 @@ def _scale_source(prim: Primitive, entries: list[dict], max_ratio: float) -> dic
     return best if best_r <= max_ratio else None
 
 
+def _batches(gmap: GraspabilityMap, first: int, growth: float) -> Iterator[GraspabilityMap]:
+    """A best-first map in growing slices (for streaming a stored map)."""
+    start, size = 0, max(1, first)
+    while start < len(gmap):
+        stop = min(len(gmap), start + size)
+        yield gmap.select(np.arange(start, stop))
+        start, size = stop, int(size * max(growth, 1.0))
+
+
 def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig) -> tuple[str, dict, Iterator]:
     """(match, source object, iterator of map batches in the part's frame)."""
     m = db.lookup(prim.kind, prim.dims, tol=cfg.tol)
+    stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth)  # noqa: E731
     if m.match is not None and m.match.value == "known":  # the stored map as is (paper 2.2)
         fs = db.load_entry(m.entry, accepted_only=True)
-        return "known", fs.meta.object, iter([fs])
+        return "known", fs.meta.object, stream(fs)
     entry = _scale_source(prim, db.entries(), cfg.scaling.max_ratio) if m.match is not None else None
     if entry is not None:
         fs = db.load_entry(entry, accepted_only=True)
@@ -156,8 +166,9 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig) -> tuple[
     if not cfg.build_missing:
         return "missing", {}, iter(())
     # no map of this primitive within the scaling range: add one to the database
-    fs = db.get(prim)
-    return "built", fs.meta.object, iter([fs.filter(accepted=True)])
+    db.get(prim)
+    fs = db.load_entry(db.lookup(prim.kind, prim.dims, tol=0.0).entry, accepted_only=True)
+    return "built", fs.meta.object, stream(fs)
 
 
 def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,

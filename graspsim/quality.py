@@ -130,9 +130,15 @@ class QualityModel:
         alpha = force_closure_angle(p1, p2, n1, n2)
         q_fc = np.clip(1.0 - alpha / self.friction_angle, 0.0, 1.0)
         dist = stability_distance(p1, p2, com, self.stability_mode)
-        q_st = np.clip(1.0 - dist / d_ref, 0.0, 1.0)
-        grade = self.fc_weight * q_fc + (1.0 - self.fc_weight) * q_st
+        q_st, grade = self.combine(q_fc, dist, d_ref)
         return GraspQuality(alpha, q_fc, dist, q_st, grade)
+
+    def combine(self, q_fc: np.ndarray, dist: np.ndarray, d_ref: float) -> tuple[np.ndarray, np.ndarray]:
+        """Stability score and grade (N,) from q_fc and the stability distance [m] --
+        how a grasp is re-graded when only its centre of mass moves (force closure is
+        a property of the contacts, unchanged)."""
+        q_st = np.clip(1.0 - np.asarray(dist, float) / d_ref, 0.0, 1.0)
+        return q_st, self.fc_weight * np.asarray(q_fc, float) + (1.0 - self.fc_weight) * q_st
 
     def accepted(self, grade: np.ndarray) -> np.ndarray:
         return np.asarray(grade) > self.threshold

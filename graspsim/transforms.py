@@ -21,6 +21,7 @@ __all__ = [
     "random_rotation",
     "angle_between",
     "normalize",
+    "quat_multiply",
 ]
 
 
@@ -47,6 +48,20 @@ def matrix_to_quat(R: np.ndarray) -> np.ndarray:
     wxyz = xyzw[:, [3, 0, 1, 2]]
     wxyz *= np.where(wxyz[:, :1] < 0.0, -1.0, 1.0)
     return wxyz.reshape(R.shape[:-2] + (4,))
+
+
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a * b of quaternions (..., 4) w, x, y, z (the rotation b, then
+    a); the result has w >= 0."""
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    q = np.stack([aw * bw - ax * bx - ay * by - az * bz,
+                  aw * bx + ax * bw + ay * bz - az * by,
+                  aw * by - ax * bz + ay * bw + az * bx,
+                  aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+    return q * np.where(q[..., :1] < 0.0, -1.0, 1.0)
 
 
 def make_transform(R: np.ndarray, p: np.ndarray) -> np.ndarray:

@@ -53,3 +53,12 @@ def test_angle_between_extremes():
     a = np.array([[1.0, 0, 0], [1.0, 0, 0], [1.0, 0, 0]])
     b = np.array([[1.0, 0, 0], [-1.0, 0, 0], [0, 3.0, 0]])
     np.testing.assert_allclose(angle_between(a, b), [0, np.pi, np.pi / 2], atol=1e-12)
+
+
+def test_quaternion_product_composes_rotations(rng):
+    from graspsim.transforms import quat_multiply
+
+    Ra, Rb = random_rotation(rng, 6), random_rotation(rng, 6)
+    q = quat_multiply(matrix_to_quat(Ra), matrix_to_quat(Rb))
+    np.testing.assert_allclose(quat_to_matrix(q), Ra @ Rb, atol=1e-12)
+    assert np.all(q[:, 0] >= 0)

@@ -122,10 +122,9 @@ def grasps_collision_free(shape, gripper: GripperSpec, gp: np.ndarray, R: np.nda
     ``line`` (N,) ids to say which do, else exact equality decides) are checked together
     by the compiled sweep when their rolls and depths fall on a common grid (as scaled
     or combined maps' grasps do); a few grasps go to the branch-and-bound check, and
-    anything else pose by pose.
+    anything else pose by pose. Grouped grasps are checked at their roll rounded to
+    1e-5 rad (micrometres at the fingertips).
     """
-    from graspsim.maps.generate import _tangents
-
     cfg = config or MapConfig()
     gp, R = np.asarray(gp, float), np.asarray(R, float)
     n = len(gp)
@@ -146,12 +145,16 @@ def grasps_collision_free(shape, gripper: GripperSpec, gp: np.ndarray, R: np.nda
     _, first, row_line = np.unique(np.asarray(line).ravel(), return_index=True, return_inverse=True)
     row_line = row_line.ravel()
     lines = np.column_stack([gp[first], u[first], width[first]])
-    e1, e2 = _tangents(lines[:, 3:6])
+    # each line's roll 0 is its first grasp's approach axis: grasps that came from one
+    # map line keep their rolls on the map's roll grid, whatever frame they are in now
+    e1 = z[first]
+    e2 = np.cross(lines[:, 3:6], e1)
     roll = np.mod(np.arctan2(np.einsum("ni,ni->n", z, e2[row_line]),
                              np.einsum("ni,ni->n", z, e1[row_line])), 2 * np.pi)
-    rolls, roll_idx = np.unique(np.round(roll, 7), return_inverse=True)
+    roll = np.where(roll > 2 * np.pi - 5e-6, 0.0, roll)
+    rolls, roll_idx = np.unique(np.round(roll, 5), return_inverse=True)
     depths, depth_idx = np.unique(np.round(depth, 7), return_inverse=True)
-    if len(lines) * 4 > n or len(rolls) > 64 or len(depths) > 32:
+    if len(rolls) > 64 or len(depths) > 32:
         return collision_free(shape, gripper, T, opening, cfg)
     L = len(lines)
     cl = ClosingLines(p1=lines[:, :3], p2=lines[:, :3], n1=e1, n2=e1, u=lines[:, 3:6],

@@ -22,8 +22,8 @@ from graspsim.maps.collide import grasps_collision_free
 from graspsim.maps.generate import MapConfig, object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
 from graspsim.primitives import Compound
-from graspsim.quality import QualityModel
-from graspsim.transforms import invert_transform, matrix_to_quat, quat_to_matrix
+from graspsim.quality import QualityModel, stability_distance
+from graspsim.transforms import invert_transform, matrix_to_quat, quat_multiply, quat_to_matrix
 
 __all__ = ["combine_maps", "combine_part"]
 
@@ -46,7 +46,6 @@ def combine_part(part_map: GraspabilityMap, index: int, compound: Compound, *,
     T = compound.poses[index]
     R, t = T[:3, :3], T[:3, 3]
     c = part_map.contacts.astype(float) @ R.T + t
-    n = part_map.normals.astype(float) @ R.T
     # contacts buried in another part are not on the compound's surface
     others = [j for j in range(len(compound.parts)) if j != index]
     flat = c.reshape(-1, 3)
@@ -55,35 +54,40 @@ def combine_part(part_map: GraspabilityMap, index: int, compound: Compound, *,
         local = (flat - compound.poses[j][:3, 3]) @ compound.poses[j][:3, :3]
         on_surface &= np.all(compound.parts[j].sdf(local).reshape(-1, 2) > -1e-7, axis=1)
     keep = np.flatnonzero(on_surface)
-    c, n = c[keep], n[keep]
-    Rw = R @ quat_to_matrix(part_map.wrist_quat[keep])
-    gp = part_map.grasp_point[keep].astype(float) @ R.T + t
-    depth = gripper.fingertip_z - np.einsum("ni,ni->n", gp - (part_map.wrist_position[keep] @ R.T + t),
-                                            Rw[:, :, 2])
+    c = c[keep]
+    # contact depth and width do not depend on the frame: take them in the part's
+    gp_part = part_map.grasp_point[keep].astype(float)
+    R_part = quat_to_matrix(part_map.wrist_quat[keep])
+    depth = gripper.fingertip_z - np.einsum(
+        "ni,ni->n", gp_part - part_map.wrist_position[keep], R_part[:, :, 2])
     width = part_map.width[keep].astype(float)
-    q = quality.evaluate(c[:, 0], c[:, 1], n[:, 0], n[:, 1], compound.com, d_ref)
     # collisions with the adjacent parts, each in its own frame (one cached sample
     # hierarchy per primitive), grouped by closing line
     free = np.ones(len(keep), bool)
     lines = _line_ids(part_map.contacts[keep])
     for j in others:
-        Tj = invert_transform(compound.poses[j])
+        T_j_part = invert_transform(compound.poses[j]) @ T
         idx = np.flatnonzero(free)
         if len(idx) == 0:
             break
-        gp_j = gp[idx] @ Tj[:3, :3].T + Tj[:3, 3]
-        R_j = np.einsum("ij,njk->nik", Tj[:3, :3], Rw[idx])
+        gp_j = gp_part[idx] @ T_j_part[:3, :3].T + T_j_part[:3, 3]
+        R_j = np.einsum("ij,njk->nik", T_j_part[:3, :3], R_part[idx])
         ok = grasps_collision_free(compound.parts[j], gripper, gp_j, R_j, depth[idx], width[idx],
                                    cfg, line=lines[idx])
         free[idx[~ok]] = False
     sel = np.flatnonzero(free)
     rows = keep[sel]
+    # force closure is the contacts' own; stability moves with the compound's COM
+    c = c[sel]
+    dist = stability_distance(c[:, 0], c[:, 1], compound.com, quality.stability_mode)
+    q_st, grade = quality.combine(part_map.q_fc[rows], dist, d_ref)
     return GraspabilityMap(
-        wrist_position=gp[sel] - (gripper.fingertip_z - depth[sel])[:, None] * Rw[sel, :, 2],
-        wrist_quat=matrix_to_quat(Rw[sel]) if len(sel) else np.zeros((0, 4)),
-        grasp_point=gp[sel], contacts=c[sel], normals=n[sel], width=width[sel],
-        fc_angle=q.fc_angle[sel], q_fc=q.q_fc[sel], stability_distance=q.stability_distance[sel],
-        q_st=q.q_st[sel], grade=q.grade[sel], part=np.full(len(rows), index, np.int16),
+        wrist_position=part_map.wrist_position[rows].astype(float) @ R.T + t,
+        wrist_quat=quat_multiply(matrix_to_quat(R), part_map.wrist_quat[rows]),
+        grasp_point=gp_part[sel] @ R.T + t, contacts=c,
+        normals=part_map.normals[rows].astype(float) @ R.T, width=width[sel],
+        fc_angle=part_map.fc_angle[rows], q_fc=part_map.q_fc[rows], stability_distance=dist,
+        q_st=q_st, grade=grade, part=np.full(len(rows), index, np.int16),
         meta=meta or part_map.meta)
 
 

@@ -7,7 +7,7 @@ The rules, in order (a *candidate* is a model whose fit rate is at least
 2. the sphere is a candidate (feature 1)                        -> sphere
 3. rotationally symmetric (feature 3 <= ``symmetry_tol`` noise):
    tapered halves (feature 4) and the cone is a candidate       -> cone;
-   equal halves and the cylinder is a candidate (feature 2)     -> cylinder
+   equal halves and the cylinder or the cone is a candidate     -> cylinder
 4. the box is a candidate                                       -> box
 5. the half-toroid is a candidate                               -> half-toroid
 6. a rotational model is still a candidate (the symmetry features were spoiled,
@@ -16,6 +16,8 @@ The rules, in order (a *candidate* is a model whose fit rate is at least
 
 Ties between equally good fits go to the simpler model by construction: a cone with
 equal radii *is* a cylinder, so the half-symmetry feature, not the fit rate, decides.
+A cylinder decided from a cone candidate alone takes its fit from the cone's axis
+(see :func:`graspsim.perception.identify.identify_cluster`).
 """
 
 from __future__ import annotations
@@ -59,13 +61,15 @@ def classify(features: ShapeFeatures, noise: float, *, min_fit_rate: float = 0.8
     if not math.isnan(sym) and sym <= symmetry_tol * noise:
         if tapered and "cone" in cand:
             return Shape.CONE
-        if not tapered and "cylinder" in cand:
+        if not tapered and cand & {"cylinder", "cone"}:
             return Shape.CYLINDER
     if "box" in cand:
         return Shape.BOX
     if "half_toroid" in cand:
         return Shape.HALF_TOROID
     if "cylinder" in cand and not tapered:
+        return Shape.CYLINDER
+    if "cone" in cand and not tapered and not math.isnan(half):
         return Shape.CYLINDER
     if "cone" in cand:
         return Shape.CONE

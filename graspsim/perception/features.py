@@ -6,8 +6,10 @@
   slice by slice along the axis (median over slices of the robust standard deviation
   of the radii, in metres) -- about the noise level for cylinders, cones and spheres,
   much larger for boxes and half-toroids;
-* half-cylindrical symmetry: difference of the mean radius of the lower and the upper
-  half along the main axis [m] -- about zero for cylinders, large for cones.
+* half-cylindrical symmetry: difference of the median radius of the lower and the
+  upper half along the main axis [m] -- about zero for cylinders, large for cones
+  (medians: a minority of points off the surface, a duck's head on its body, does
+  not make a taper).
 
 The main axis is the axis of the better of the cylinder and cone fits. Points within 10 % of the axial
 extent of either end are left out of the symmetry features (they are cap points).
@@ -68,7 +70,7 @@ def shape_features(points: np.ndarray, fits: dict[str, ModelFit | None], *,
             mid = 0.5 * (zb.min() + zb.max())
             low, up = rb[zb < mid], rb[zb >= mid]
             if len(low) and len(up):
-                half = float(abs(low.mean() - up.mean()))
+                half = float(abs(np.median(low) - np.median(up)))
             mean_r = float(rb.mean())
     return ShapeFeatures(rates.get("sphere", 0.0), rates.get("cylinder", 0.0), sym, half,
                          mean_r, rates)

@@ -8,7 +8,13 @@ sides. When no split is allowed and clusters remain unidentified, identification
 *failed* and the result still lists the identified parts (for a partial map).
 
 Preprocessing, once per cloud: statistical outlier removal, PCA normals with outward
-orientation, sensor-noise estimate. Every random draw comes from the caller's
+orientation and the sensor-noise estimate, over neighbourhoods wider than the noise.
+
+Per cluster, beyond the paper's MLESAC fits: a cylinder is also refined as a cone (a
+weak taper is ill-posed for four-point cone samples) and an untapered cone yields a
+cylinder; cylinder and cone ends nobody saw are cut back to their points; a model
+larger than its cluster is no hypothesis, and a candidate that reaches beyond its
+points while little of its surface has points near it is rejected (see support). Every random draw comes from the caller's
 generator, clusters are visited breadth first, so the same seed gives the same result.
 """
 
@@ -29,11 +35,12 @@ from graspsim.errors import InvalidParameterError
 from graspsim.perception.classify import Shape, classify
 from graspsim.perception.features import ShapeFeatures, shape_features
 from graspsim.perception.io import check_cloud
-from graspsim.perception.mlesac import ModelFit, fit_model, rescore, residual_sigma
+from graspsim.perception.mlesac import ModelFit, fit_from, fit_model, rescore, residual_sigma
 from graspsim.perception.mvbb import OrientedBox, min_volume_box
 from graspsim.perception.normals import estimate_local_surface, remove_outliers
 from graspsim.perception.shapes import KINDS, fit_to_object
 from graspsim.perception.split import best_split, theta_star
+from graspsim.perception.support import extent_ratio, surface_coverage
 
 __all__ = ["IdentificationStatus", "IdentifyConfig", "PartResult", "Identification",
            "identify", "identify_cluster"]
@@ -55,8 +62,13 @@ class IdentifyConfig:
     cap on clusters; link_factor, min_connected: a cluster is one continuous surface
     when its largest connected component, linking points closer than link_factor times
     the median point spacing, holds min_connected of its points; max_noise_ratio: the
-    noise may be at most this fraction of the cluster's bounding-box diagonal; the
-    rest are the classifier's thresholds (see classify)."""
+    noise may be at most this fraction of the cluster's bounding-box diagonal;
+    max_extent_ratio: a model may extend along each of its axes at most this many
+    times as far as its cluster (one view sees at least half of a convex body: 2);
+    min_coverage, max_uncovered_extent: a candidate model whose surface has cluster
+    points near less than min_coverage of it (one view covers up to ~1/2, see
+    support) may extend along its axes at most max_uncovered_extent times as far as its
+    cluster; the rest are the classifier's thresholds (see classify)."""
 
     repetitions: int = 10
     theta: float = 0.5
@@ -69,6 +81,9 @@ class IdentifyConfig:
     link_factor: float = 4.0
     min_connected: float = 0.5
     max_noise_ratio: float = 0.03
+    max_extent_ratio: float = 2.5
+    min_coverage: float = 0.3
+    max_uncovered_extent: float = 1.25
     min_fit_rate: float = 0.85
     fit_margin: float = 0.03
     symmetry_tol: float = 2.5
@@ -85,6 +100,9 @@ class IdentifyConfig:
             ("link_factor", self.link_factor > 0, "> 0"),
             ("min_connected", 0.0 < self.min_connected <= 1.0, "in (0, 1]"),
             ("max_noise_ratio", self.max_noise_ratio > 0, "> 0"),
+            ("max_extent_ratio", self.max_extent_ratio >= 1.0, ">= 1"),
+            ("min_coverage", 0.0 <= self.min_coverage < 1.0, "in [0, 1)"),
+            ("max_uncovered_extent", self.max_uncovered_extent >= 1.0, ">= 1"),
             ("min_fit_rate", 0.0 < self.min_fit_rate <= 1.0, "in (0, 1]"),
             ("fit_margin", 0.0 <= self.fit_margin < 1.0, "in [0, 1)"),
             ("symmetry_tol", self.symmetry_tol > 0, "> 0"),
@@ -102,7 +120,9 @@ class PartResult:
     unidentified); fit_rate, rms [m]: of the chosen model (best model if unidentified);
     indices: (n,) indices of the cluster's points in the input cloud; noise: the sigma
     [m] the final fit rates were scored with; reason: why a cluster is unidentified
-    ("" when identified)."""
+    ("" when identified); coverage: surface coverage of each model that fitted enough
+    points to be a candidate but reaches beyond its cluster (see
+    :mod:`~graspsim.perception.support`)."""
 
     shape: Shape
     dims: dict[str, float]
@@ -114,6 +134,7 @@ class PartResult:
     noise: float
     fits: dict[str, ModelFit | None] = field(repr=False)
     reason: str = ""
+    coverage: dict[str, float] = field(default_factory=dict, repr=False)
 
     @property
     def n_points(self) -> int:
@@ -132,7 +153,7 @@ class PartResult:
                 "pose": self.T_world_obj.tolist(), "fit_rate": self.fit_rate,
                 "rms": self.rms, "points": self.n_points, "noise": self.noise,
                 "reason": self.reason,
-                "fit_rates": dict(self.features.fit_rates)}
+                "fit_rates": dict(self.features.fit_rates), "coverage": dict(self.coverage)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,16 +179,17 @@ class Identification:
                 "n_splits": self.n_splits, "seconds": self.seconds}
 
 
-def _continuity(points: np.ndarray, link_factor: float) -> float:
+def _continuity(points: np.ndarray, link_factor: float) -> tuple[float, float, cKDTree]:
     """Fraction of the points in the largest component of the graph linking points
-    closer than ``link_factor`` times the median nearest-neighbour distance."""
+    closer than ``link_factor`` times the median nearest-neighbour distance; that
+    distance [m]; the points' KD-tree."""
     tree = cKDTree(points)
     spacing = float(np.median(tree.query(points, k=2)[0][:, 1]))
     pairs = tree.query_pairs(link_factor * max(spacing, 1e-9), output_type="ndarray")
     n = len(points)
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     _, labels = connected_components(graph, directed=False)
-    return float(np.bincount(labels).max() / n)
+    return float(np.bincount(labels).max() / n), spacing, tree
 
 
 def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.ndarray,
@@ -183,37 +205,84 @@ def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.nd
     reason = ""
     if noise > config.max_noise_ratio * size:
         reason = f"noise {noise * 1000:.2f} mm is too large for a {size * 100:.1f} cm cluster"
-    elif (frac := _continuity(points, config.link_factor)) < config.min_connected:
-        reason = f"not one continuous surface: largest connected part {100 * frac:.0f} %"
+    else:
+        frac, spacing, tree = _continuity(points, config.link_factor)
+        if frac < config.min_connected:
+            reason = f"not one continuous surface: largest connected part {100 * frac:.0f} %"
     if reason:
         feats = ShapeFeatures(0.0, 0.0, float("nan"), float("nan"), float("nan"), {})
         return PartResult(Shape.UNIDENTIFIED, {}, np.eye(4), 0.0, float("inf"), indices, feats,
                           noise, {}, reason)
     fits = {k: fit_model(k, points, normals, rng, repetitions=config.repetitions,
-                         sigma=noise, candidates=sample_pool, refine=config.refine)
+                         sigma=noise, candidates=sample_pool, refine=config.refine,
+                         max_extent_ratio=config.max_extent_ratio)
             for k in KINDS}
+    cone, cyl = fits.get("cone"), fits.get("cylinder")
+    if cyl is not None and cyl.fit_rate >= config.min_fit_rate - 0.15:
+        # a cylinder is a cone with equal radii: a weak taper (a pencil cup) is found by
+        # refining a cylinder that nearly fits as a cone, where four-point cone samples
+        # are ill-posed
+        seeded = fit_from("cone", points, cyl.R, cyl.t, [cyl.dims[0], cyl.dims[0], cyl.dims[1]], sigma=noise,
+                          refine=config.refine, max_extent_ratio=config.max_extent_ratio)
+        if cone is None or seeded.loglik > cone.loglik:
+            fits["cone"] = seeded
     # second pass on the noise: the spread of the most likely model's residuals is a
-    # sharper sigma than the local estimate; all fits are rescored with it
+    # sharper sigma than the local estimate; all fits are rescored with it. Only
+    # downwards: the local estimate is an upper quantile of the local residuals, so a
+    # model whose residuals spread wider shows its misfit (a cylinder through a
+    # frustum), and a sigma inflated by it would hide the misfit from the features
     ok = [f for f in fits.values() if f is not None]
     if ok:
         top = max(ok, key=lambda f: f.loglik)
         s1 = residual_sigma(top, points)
         if np.isfinite(s1):
-            noise = float(np.clip(s1, 0.5 * noise, 1.5 * noise))
+            noise = float(np.clip(s1, 0.5 * noise, noise))
             fits = {k: (rescore(f, points, noise) if f is not None else None) for k, f in fits.items()}
-    feats = shape_features(points, fits)
+    # models good enough to be candidates must also be supported: their surface must
+    # be covered by the cluster about as much as one view covers a body
+    radius = 3.0 * noise + 2.0 * spacing
+    coverage: dict[str, float] = {}
+
+    def supported(f: ModelFit | None) -> ModelFit | None:
+        if f is None or f.fit_rate < config.min_fit_rate:
+            return f
+        if extent_ratio(f.kind, f.R[None], f.t[None], f.dims[None], points, noise)[0] <= config.max_uncovered_extent:
+            return f  # within its points' extent: whatever is empty was hidden from view
+        coverage[f.kind] = surface_coverage(f.kind, f.R, f.t, f.dims, tree, radius=radius)
+        return f if coverage[f.kind] >= config.min_coverage else None
+
+    usable = {k: supported(f) for k, f in fits.items()}
+    feats = shape_features(points, usable)
     shape = classify(feats, noise, min_fit_rate=config.min_fit_rate,
                      fit_margin=config.fit_margin, symmetry_tol=config.symmetry_tol,
                      taper_tol=config.taper_tol)
+    cone, cyl = usable.get("cone"), usable.get("cylinder")
+    if shape is Shape.CYLINDER and cone is not None and (cyl is None or cone.fit_rate > cyl.fit_rate):
+        # an untapered cone is a cylinder: fit the cylinder from the cone's axis
+        seeded = supported(fit_from("cylinder", points, cone.R, cone.t,
+                                    [0.5 * (cone.dims[0] + cone.dims[1]), cone.dims[2]], sigma=noise,
+                                    refine=config.refine, max_extent_ratio=config.max_extent_ratio))
+        if seeded is not None and seeded.fit_rate >= config.min_fit_rate and (
+                cyl is None or seeded.loglik > cyl.loglik):
+            fits["cylinder"] = usable["cylinder"] = seeded
+            feats = shape_features(points, usable)
+        elif cyl is None:
+            shape = Shape.CONE  # no cylinder can be made of it: keep what fits
     if shape is Shape.UNIDENTIFIED:
-        best = max(ok, key=lambda f: f.fit_rate, default=None)
-        reason = (f"no model fits: best {best.kind} explains {100 * best.fit_rate:.0f} % of the points"
-                  if best else "no model could be hypothesised")
+        best = max((f for f in fits.values() if f is not None), key=lambda f: f.fit_rate, default=None)
+        if best is None:
+            reason = "no model could be hypothesised"
+        elif best.fit_rate >= config.min_fit_rate and coverage.get(best.kind, 1.0) < config.min_coverage:
+            reason = (f"no model fits: best {best.kind} explains {100 * best.fit_rate:.0f} % of the points "
+                      f"but reaches beyond them and only {100 * coverage[best.kind]:.0f} % of its surface "
+                      "has points")
+        else:
+            reason = f"no model fits: best {best.kind} explains {100 * best.fit_rate:.0f} % of the points"
         return PartResult(shape, {}, np.eye(4), best.fit_rate if best else 0.0,
-                          best.rms if best else float("inf"), indices, feats, noise, fits, reason)
+                          best.rms if best else float("inf"), indices, feats, noise, fits, reason, coverage)
     fit = fits[shape.value]
     prim, T = fit_to_object(shape.value, fit.R, fit.t, fit.dims)
-    return PartResult(shape, prim.dims, T, fit.fit_rate, fit.rms, indices, feats, noise, fits)
+    return PartResult(shape, prim.dims, T, fit.fit_rate, fit.rms, indices, feats, noise, fits, "", coverage)
 
 
 def _unidentified(part: PartResult, box: OrientedBox) -> PartResult:

@@ -21,8 +21,9 @@ from scipy.optimize import least_squares
 from graspsim.errors import InvalidParameterError
 from graspsim.perception.hypotheses import SAMPLE_SIZE, hypothesise, plausible
 from graspsim.perception.shapes import KINDS, model_sdf
+from graspsim.perception.support import extent_ratio
 
-__all__ = ["ModelFit", "mixture_loglik", "fit_model", "rescore", "residual_sigma"]
+__all__ = ["ModelFit", "mixture_loglik", "fit_model", "fit_from", "rescore", "residual_sigma"]
 
 _LOG_SQRT_2PI = 0.5 * np.log(2.0 * np.pi)
 
@@ -80,12 +81,16 @@ def fit_model(
     candidates: np.ndarray | None = None,
     refine: bool = True,
     max_refine_points: int = 150,
+    max_extent_ratio: float | None = None,
 ) -> ModelFit | None:
     """MLESAC fit of one model ``kind`` to points (N, 3) with unit normals (N, 3).
 
     repetitions: minimal samples drawn (one hypothesis each); sigma: inlier noise [m];
     candidates: indices of the points samples are drawn from (default all; e.g. the
     points with the most reliable normals). Scoring always uses all points.
+    max_extent_ratio: if given, hypotheses that extend along an axis more than this
+    many times as far as the cluster (see :func:`~graspsim.perception.support.extent_ratio`)
+    are not valid.
     Returns None when no sample gave a valid hypothesis.
     """
     if kind not in KINDS:
@@ -101,28 +106,83 @@ def fit_model(
     R, t, dims, valid = hypothesise(kind, points, normals, idx, sigma)
     valid &= np.all(np.isfinite(dims), axis=1) & np.all(dims >= 0, axis=1)
     valid &= np.all(np.isfinite(t), axis=1) & np.all(np.isfinite(R), axis=(1, 2))
+    if max_extent_ratio is not None and np.any(valid):
+        valid[valid] = extent_ratio(kind, R[valid], t[valid], dims[valid], points, sigma) <= max_extent_ratio
     if not np.any(valid):
         return None
     R, t, dims = R[valid], t[valid], dims[valid]
     ll, gamma, post = mixture_loglik(np.nan_to_num(model_sdf(kind, R, t, dims, points), nan=nu),
                                      sigma, nu)
     b = int(np.argmax(ll))
-    best = (R[b], t[b], dims[b], ll[b], gamma[b], post[b])
+    return _finish(kind, points, (R[b], t[b], dims[b], ll[b], gamma[b], post[b]), sigma, nu, refine,
+                   max_refine_points, repetitions, int(valid.sum()), max_extent_ratio)
+
+
+def fit_from(kind: str, points: np.ndarray, R: np.ndarray, t: np.ndarray, dims: np.ndarray, *,
+             sigma: float, refine: bool = True, max_refine_points: int = 150,
+             max_extent_ratio: float | None = None) -> ModelFit:
+    """Score (and refine) one given hypothesis ``(R (3, 3), t (3,), dims (k,))`` of model
+    ``kind`` on points (N, 3), e.g. a cylinder seeded from a cone's axis and radii."""
+    if kind not in KINDS:
+        raise InvalidParameterError(f"unknown model kind {kind!r}; valid: {KINDS}")
+    nu = float(np.linalg.norm(np.ptp(points, axis=0))) + 10.0 * sigma
+    R, t, dims = np.asarray(R, float), np.asarray(t, float), np.asarray(dims, float)
+    ll, gamma, post = mixture_loglik(model_sdf(kind, R[None], t[None], dims[None], points), sigma, nu)
+    return _finish(kind, points, (R, t, dims, ll[0], gamma[0], post[0]), sigma, nu, refine,
+                   max_refine_points, 1, 1, max_extent_ratio)
+
+
+def _finish(kind, points, best, sigma, nu, refine, max_refine_points, n_hyp, n_valid,
+            max_extent_ratio=None) -> ModelFit:
+    """Refine the best hypothesis (kept if more likely) and summarise it."""
     refined = False
     if refine:
         cand = _refine(kind, best[0], best[1], best[2], points, best[5] > 0.5, sigma,
                        max_refine_points)
-        if cand is not None and plausible(kind, cand[2], nu - 10.0 * sigma)[0]:
+        if cand is not None:  # the refinement may have moved an unseen end anywhere
+            trim = _trim_to_support(kind, cand[0][0], cand[1][0], cand[2][0], points[best[5] > 0.5], sigma)
+            if trim is not None:
+                cand = (cand[0], trim[0][None], trim[1][None])
+        if cand is not None and plausible(kind, cand[2], nu - 10.0 * sigma)[0] and (
+                max_extent_ratio is None
+                or extent_ratio(kind, *cand, points, sigma)[0] <= max_extent_ratio):
             r_ll, r_gamma, r_post = mixture_loglik(model_sdf(kind, *cand, points), sigma, nu)
             if r_ll[0] > best[3]:
                 best = (cand[0][0], cand[1][0], cand[2][0], r_ll[0], r_gamma[0], r_post[0])
                 refined = True
     Rb, tb, db, llb, gb, pb = best
+    trimmed = _trim_to_support(kind, Rb, tb, db, points[pb > 0.5], sigma)
+    if trimmed is not None:
+        ll, gamma, post = mixture_loglik(model_sdf(kind, Rb[None], trimmed[0][None], trimmed[1][None], points),
+                                         sigma, nu)
+        tb, db, llb, gb, pb = trimmed[0], trimmed[1], ll[0], gamma[0], post[0]
     inl = pb > 0.5
     res = model_sdf(kind, Rb[None], tb[None], db[None], points)[0]
     rms = float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else float("inf")
     return ModelFit(kind, Rb, tb, db, float(llb), float(gb), float(inl.mean()), rms, inl,
-                    repetitions, int(valid.sum()), refined)
+                    n_hyp, n_valid, refined)
+
+
+def _trim_to_support(kind, R, t, dims, inliers, sigma):
+    """A cylinder or cone cut back to the axial extent of its inliers (0.5-99.5 %
+    quantiles) where it reaches more than 2 sigma beyond it, as (t, dims); else None.
+    Nothing in the likelihood holds the end of a side nobody saw (the bottom of an
+    object on a table): hypotheses and refinement may leave it anywhere beyond."""
+    if kind not in ("cylinder", "cone") or len(inliers) < 10:
+        return None
+    a = R[:, 2]
+    z = (inliers - t) @ a
+    lo, hi = np.quantile(z, [0.005, 0.995])
+    h = dims[-1]
+    lo, hi = max(lo, -0.5 * h), min(hi, 0.5 * h)
+    if lo - (-0.5 * h) <= 2.0 * sigma and 0.5 * h - hi <= 2.0 * sigma or hi - lo <= 0:
+        return None
+    t2 = t + 0.5 * (lo + hi) * a
+    if kind == "cylinder":
+        return t2, np.array([dims[0], hi - lo])
+    r0, r1 = dims[0], dims[1]
+    rad = lambda zz: r0 + (r1 - r0) * (zz + 0.5 * h) / h  # noqa: E731
+    return t2, np.array([max(rad(lo), 0.0), max(rad(hi), 0.0), hi - lo])
 
 
 def residual_sigma(fit: ModelFit, points: np.ndarray) -> float:

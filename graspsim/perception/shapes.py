@@ -19,7 +19,7 @@ import numpy as np
 from graspsim.primitives import make_primitive
 from graspsim.transforms import make_transform
 
-__all__ = ["KINDS", "DIM_NAMES", "to_local", "sdf_local", "model_sdf", "fit_to_object"]
+__all__ = ["KINDS", "DIM_NAMES", "to_local", "sdf_local", "model_sdf", "model_extents", "fit_to_object"]
 
 #: Model kinds in the order of their simplicity (ties go to the earlier one).
 KINDS: tuple[str, ...] = ("sphere", "cylinder", "box", "cone", "half_toroid")
@@ -77,6 +77,23 @@ def sdf_local(kind: str, q: np.ndarray, dims: np.ndarray) -> np.ndarray:
             np.hypot(np.maximum(np.hypot(x + R, z) - r, 0.0), y),
         )
         return np.where(y >= 0.0, upper, caps)
+    raise ValueError(f"unknown model kind {kind!r}; valid: {KINDS}")
+
+
+def model_extents(kind: str, dims: np.ndarray) -> np.ndarray:
+    """Extents (H, 3) [m] of models dims (H, k) along the x, y, z axes of their fit frames."""
+    d = np.atleast_2d(np.asarray(dims, float))
+    if kind == "sphere":
+        return np.repeat(2.0 * d[:, :1], 3, axis=1)
+    if kind == "box":
+        return d.copy()
+    if kind == "cylinder":
+        return np.column_stack([2.0 * d[:, 0], 2.0 * d[:, 0], d[:, 1]])
+    if kind == "cone":
+        r = np.maximum(d[:, 0], d[:, 1])
+        return np.column_stack([2.0 * r, 2.0 * r, d[:, 2]])
+    if kind == "half_toroid":  # the kept half is y >= 0
+        return np.column_stack([2.0 * (d[:, 0] + d[:, 1]), d[:, 0] + d[:, 1], 2.0 * d[:, 1]])
     raise ValueError(f"unknown model kind {kind!r}; valid: {KINDS}")
 
 

@@ -106,3 +106,20 @@ def test_split_separates_the_parts(rng, make):
 def test_no_split_when_clusters_would_be_too_small(rng):
     cloud, _ = _posed_cloud(Sphere(0.02), rng)
     assert best_split(cloud.points, min_volume_box(cloud.points), min_points=len(cloud.points)) is None
+
+
+def test_dense_noise_free_convex_clouds_stay_fast(rng):
+    """Every point of a clean sphere is a hull vertex: the frame is searched on a
+    thinned hull (this took minutes before), the box still bounds every point and
+    is within 3 % of the box found on the full hull."""
+    import time
+
+    cloud = synthetic_cloud(Sphere(0.03), rng, resolution=0.0015)
+    t0 = time.process_time()
+    box = min_volume_box(cloud.points)
+    assert time.process_time() - t0 < 5.0
+    assert np.all(np.abs(box.local(cloud.points)) <= box.extents / 2 + 1e-9)
+    small = cloud.points[::6]
+    assert len(ConvexHull(small).vertices) > 400
+    full = min_volume_box(small, max_hull_points=10**9)
+    assert min_volume_box(small).volume <= full.volume * 1.03

@@ -74,18 +74,23 @@ def pca_box(points: np.ndarray) -> OrientedBox:
     return _box_from_frame(p, vecs)
 
 
-def min_volume_box(points: np.ndarray, *, chunk: int = 4096) -> OrientedBox:
+def min_volume_box(points: np.ndarray, *, chunk: int = 4096, max_hull_points: int = 400) -> OrientedBox:
     """Near-minimum-volume oriented box of points (N, 3) [m] (see module docstring).
 
+    max_hull_points: the frame is searched on the hull of at most about this many hull
+    vertices (one per voxel), so dense noise-free convex clouds, whose points are all
+    hull vertices, stay fast; the extents always come from all points.
     Flat or collinear point sets fall back to their PCA box (volume ~0)."""
     p = np.asarray(points, float)
     if len(p) < 4:
         raise PointCloudError(f"a bounding box needs at least 4 points, got {len(p)}")
     try:
         hull = ConvexHull(p)
+        if len(hull.vertices) > max_hull_points:
+            hull = ConvexHull(_thin_vertices(p[hull.vertices], max_hull_points))
     except QhullError:
         return pca_box(p)
-    V = p[hull.vertices]
+    V = hull.points[hull.vertices]
     N = hull.equations[:, :3]
     # edges with their two faces (each edge seen from the face with the smaller index)
     simp, nbr = hull.simplices, hull.neighbors
@@ -96,7 +101,7 @@ def min_volume_box(points: np.ndarray, *, chunk: int = 4096) -> OrientedBox:
     f_idx, g_idx, j = f_idx[keep], g_idx[keep], j[keep]
     a = simp[f_idx, (j + 1) % 3]
     b = simp[f_idx, (j + 2) % 3]
-    edges = normalize(p[b] - p[a])
+    edges = normalize(hull.points[b] - hull.points[a])
     # candidate first axes: distinct face normals
     _, first = np.unique(np.round(N, 2), axis=0, return_index=True)
     dirs = N[np.sort(first)]
@@ -120,3 +125,13 @@ def min_volume_box(points: np.ndarray, *, chunk: int = 4096) -> OrientedBox:
     if best_R is None:
         return pca_box(p)
     return _box_from_frame(p, best_R)
+
+
+def _thin_vertices(V: np.ndarray, target: int) -> np.ndarray:
+    """About ``target`` of the points V (M, 3), one per voxel, the voxel grown until so."""
+    cell = float(np.max(np.ptp(V, axis=0))) / np.sqrt(target / 6.0)
+    while True:
+        _, first = np.unique(np.floor(V / cell).astype(np.int64), axis=0, return_index=True)
+        if len(first) <= target:
+            return V[np.sort(first)]
+        cell *= 1.25

@@ -1,15 +1,16 @@
 """Experiment E03 (paper 3.4 / 4.3, table 3, figures 6-7): case study, cloud -> adapted map.
 
-Synthetic analogs of the paper's five RGB-D objects, seen by one depth camera (single
-view: the far side and the bottom are missing) at 1 mm resolution with depth noise along
-the viewing ray and a few outliers:
+The library's synthetic analogs of the paper's five RGB-D objects (``graspsim.analogs``),
+seen by one depth camera (single view: the far side and the bottom are missing) at 1 mm
+resolution with depth noise along the viewing ray and a few outliers:
 
 * pencil cup: a cone frustum wider at the top (paper: familiar cone);
-* glue bottle: a body cylinder with a narrow neck/cap cylinder (paper: unknown, two
-  cylinders, combined map);
+* glue bottle: the demo's bottle, a body with a long applicator (paper: unknown, two
+  cylinders, combined map), and a capped bottle with Elmer's proportions, whose short
+  cap eq. (1) does not split off at theta_th = 0.5 (reported, not tuned);
 * duck toy: a round body cylinder with a head bulging over its top (paper: familiar
   cylinder);
-* ball with a tab: a tennis-ball sphere with a thin box tab (paper: sphere + box);
+* ball with a tab: a ball with a thin box tab against its side (paper: sphere + box);
 * bottle brush: a thin handle and a bristle head whose returns are sparse clumps with
   large gaps (paper: clustering fails).
 
@@ -50,6 +51,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import Clock, load_average, provenance, write_config, write_json  # noqa: E402
 
+from graspsim import analogs  # noqa: E402
 from graspsim.maps import generate as _generate  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
@@ -57,33 +59,23 @@ from graspsim.maps.io import save_map  # noqa: E402
 from graspsim.perception import IdentifyConfig  # noqa: E402
 from graspsim.planner import PlannerConfig, plan  # noqa: E402
 from graspsim.plots import plot_maps  # noqa: E402
-from graspsim.primitives import Box, Compound, Cone, Cylinder, Sphere, synthetic_cloud  # noqa: E402
+from graspsim.primitives import Cylinder, synthetic_cloud  # noqa: E402
 from graspsim.transforms import make_transform  # noqa: E402
 
 log = logging.getLogger("e03")
-I3 = np.eye(3)
 
-
-def _at(z=0.0, x=0.0):
-    return make_transform(I3, [x, 0.0, z])
-
-
-# name -> (shape, paper's outcome, what the analog is). Sizes [m]; compounds stand on z = 0.
+# name -> (shape, paper's outcome, what the analog is); the shapes are graspsim.analogs'.
 OBJECTS = {
-    "pencil_cup": (Cone(0.035, 0.042, 0.11), "familiar cone",
-                   "frustum r 3.5 cm (bottom) / 4.2 cm (top), h 11 cm (solid)"),
-    "glue_bottle": (Compound.from_parts([Cylinder(0.025, 0.10), Cylinder(0.011, 0.035)],
-                                        [_at(0.05), _at(0.1175)]),
-                    "unknown: two cylinders, combined",
-                    "body cylinder r 2.5 h 10 cm + neck/cap cylinder r 1.1 h 3.5 cm"),
-    "duck_toy": (Compound.from_parts([Cylinder(0.03, 0.10), Sphere(0.018)], [_at(0.05), _at(0.106, 0.012)]),
-                 "familiar cylinder",
+    "pencil_cup": (analogs.pencil_cup(), "familiar cone", "frustum r 3.6 cm (bottom) / 4.4 cm (top), h 11 cm (solid)"),
+    "glue_bottle": (analogs.glue_bottle(), "unknown: two cylinders, combined",
+                    "the demo's bottle: body r 2.6 h 6.5 cm + long applicator r 0.9 h 12 cm"),
+    "glue_bottle_capped": (analogs.glue_bottle_capped(), "unknown: two cylinders, combined",
+                           "Elmer's proportions: body r 2.5 h 10 cm + cap r 1.1 h 3.5 cm (not split at 0.5)"),
+    "duck_toy": (analogs.duck_toy(), "familiar cylinder",
                  "body cylinder r 3 h 10 cm + head sphere r 1.8 cm bulging 2.4 cm over the top, off-axis"),
-    "ball_tab": (Compound.from_parts([Sphere(0.032), Box(0.035, 0.03, 0.006)], [_at(0.0), _at(0.0, 0.042)]),
-                 "unknown: sphere + box",
-                 "ball r 3.2 cm + thin tab 3.5 x 3 x 0.6 cm sticking out 2.75 cm"),
-    "bottle_brush": (Compound.from_parts([Cylinder(0.004, 0.16), Cylinder(0.018, 0.09)], [_at(0.08), _at(0.205)]),
-                     "clustering fails",
+    "ball_with_tab": (analogs.ball_with_tab(), "unknown: sphere + box",
+                      "ball r 3.2 cm + tab 1.2 x 6 x 7 cm against its side"),
+    "bottle_brush": (analogs.bottle_brush(), "clustering fails",
                      "handle r 0.4 h 16 cm + bristle head r 1.8 h 9 cm; returns: 25 % of the handle's "
                      "points and sparse clumps (30 % of the points within 5 mm of 15 spots) on the head"),
 }
@@ -139,12 +131,17 @@ def parse_args(argv=None) -> tuple[E03Config, Path]:
 
 
 # ---------------------------------------------------------------------------- clouds
-T_WORLD_OBJ = make_transform(I3, [0.6, 0.0, 0.1])  # the true object's pose in the cloud's frame
+#: Seed-stream number of each object: fixed (the first E03 run's order, new objects
+#: appended), so an object's clouds and camera azimuths do not change when the list does.
+STREAM = {"pencil_cup": 0, "glue_bottle_capped": 1, "duck_toy": 2, "ball_with_tab": 3, "bottle_brush": 4,
+          "glue_bottle": 5}
+
+T_WORLD_OBJ = make_transform(np.eye(3), [0.6, 0.0, 0.1])  # the true object's pose in the cloud's frame
 
 
 def camera_position(name: str, seed: int, spec: CloudSpec) -> np.ndarray:
     """Camera position (3,) in the object frame [m]; seed 0 looks from azimuth 20 deg."""
-    rng = np.random.default_rng([seed, list(OBJECTS).index(name), 1])
+    rng = np.random.default_rng([seed, STREAM[name], 1])
     az = math.radians(20.0) if seed == 0 else rng.uniform(0, 2 * math.pi)
     el = math.radians(spec.camera_elevation_deg)
     return spec.camera_distance * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
@@ -153,30 +150,12 @@ def camera_position(name: str, seed: int, spec: CloudSpec) -> np.ndarray:
 def make_cloud(name: str, seed: int, spec: CloudSpec) -> np.ndarray:
     """(N, 3) single-view cloud of object ``name`` in the cloud's (world) frame, where
     the object stands at ``T_WORLD_OBJ`` and the camera is at :func:`camera_position`."""
-    shape = OBJECTS[name][0]
-    rng = np.random.default_rng([seed, list(OBJECTS).index(name)])
+    rng = np.random.default_rng([seed, STREAM[name]])
     cam = camera_position(name, seed, spec)
-    T = T_WORLD_OBJ
-    c = synthetic_cloud(shape, rng, resolution=spec.resolution, noise=spec.noise, outliers=spec.outliers,
-                        camera=cam, T_world_obj=T)
-    pts = c.points
+    kw = dict(resolution=spec.resolution, noise=spec.noise, outliers=spec.outliers, camera=cam)
     if name == "bottle_brush":
-        pts = _sparse_gappy(shape, pts, c.is_outlier, T, rng)
-    return pts
-
-
-def _sparse_gappy(shape: Compound, pts, is_outlier, T, rng) -> np.ndarray:
-    """What a depth camera returns from a bristle brush: a quarter of the thin handle's
-    points, and on the bristle head only sparse clumps around a few spots."""
-    local = pts - T[:3, 3]
-    head = np.abs(shape.part_sdfs(local)[1]) < 0.004
-    handle = ~head & ~is_outlier
-    keep = handle & (rng.random(len(pts)) < 0.25)
-    hp = np.flatnonzero(head)
-    spots = local[rng.choice(hp, size=min(15, len(hp)), replace=False)]
-    near = np.min(np.linalg.norm(local[hp, None, :] - spots[None], axis=2), axis=1) < 0.005
-    keep[hp[near & (rng.random(len(hp)) < 0.30)]] = True
-    return pts[keep | is_outlier]
+        return analogs.bottle_brush_cloud(rng, T_WORLD_OBJ, **kw)
+    return synthetic_cloud(OBJECTS[name][0], rng, T_world_obj=T_WORLD_OBJ, **kw).points
 
 
 # ---------------------------------------------------------------------------- runs

@@ -61,7 +61,7 @@ def test_e03_quick_writes_table_json_figures_maps(tmp_path):
     for f in ("results.json", "table.md", "figure7.png", "clouds.png", "config.json"):
         assert (out / f).stat().st_size > 0, f
     r = json.loads((out / "results.json").read_text())
-    assert [o["object"] for o in r["objects"]] == ["pencil_cup", "glue_bottle", "duck_toy", "ball_tab",
-                                                   "bottle_brush"]
+    assert [o["object"] for o in r["objects"]] == ["pencil_cup", "glue_bottle", "glue_bottle_capped", "duck_toy",
+                                                   "ball_with_tab", "bottle_brush"]
     assert all(run["main"]["wall_s"] > 0 for o in r["objects"] for run in o["runs"])
     assert list((out / "maps").glob("*.h5"))

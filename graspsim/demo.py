@@ -177,7 +177,7 @@ def _render(scene, T, width, folder: Path, n: int, step) -> list[str]:
 
 
 def _finish(summary: dict, out: Path, t0: float) -> dict:
-    from graspsim.cli._common import to_jsonable
+    from graspsim._jsonable import to_jsonable
 
     summary["seconds"] = time.perf_counter() - t0
     (out / "summary.json").write_text(json.dumps(to_jsonable(summary), indent=1))

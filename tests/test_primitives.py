@@ -6,7 +6,6 @@ import trimesh
 
 from graspsim.errors import PrimitiveError
 from graspsim.primitives import (
-    Box,
     Compound,
     Cone,
     Cylinder,

@@ -9,7 +9,6 @@ that drops a rate (or an AUC) out of its band fails here.
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from graspsim.calibration.regression import (

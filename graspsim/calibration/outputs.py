@@ -4,18 +4,16 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import os
 import platform
 import subprocess
 import sys
 import time
-from dataclasses import asdict, is_dataclass
 from pathlib import Path
 
-import numpy as np
 
 from graspsim._atomic import atomic_write_text
+from graspsim._jsonable import to_jsonable
 from graspsim.errors import GraspsimError
 
 __all__ = ["library_versions", "to_jsonable", "write_json", "write_text", "fs_cases"]
@@ -41,24 +39,6 @@ def library_versions() -> dict:
         out["git_commit"] = None
     out["date"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     return out
-
-
-def to_jsonable(o):
-    if is_dataclass(o) and not isinstance(o, type):
-        return to_jsonable(o.to_dict() if hasattr(o, "to_dict") else asdict(o))
-    if isinstance(o, dict):
-        return {str(k): to_jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [to_jsonable(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return to_jsonable(o.tolist())
-    if isinstance(o, np.generic):
-        return to_jsonable(o.item())
-    if isinstance(o, float) and not math.isfinite(o):
-        return None
-    if isinstance(o, Path):
-        return str(o)
-    return o
 
 
 def write_json(path: str | os.PathLike, obj) -> Path:

@@ -16,7 +16,6 @@ from typing import Callable
 
 import numpy as np
 from scipy.special import expit
-from scipy.stats import norm
 
 
 from graspsim.errors import InvalidParameterError

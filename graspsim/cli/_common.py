@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import json
-import math
 import sys
 from typing import Any, Iterable
 
-import numpy as np
+from graspsim._jsonable import to_jsonable
 
 __all__ = ["emit", "add_json_flag", "add_executor_flags", "executor_from_args", "format_table",
            "to_jsonable", "progress"]
@@ -32,21 +31,6 @@ def executor_from_args(args):
     from graspsim.executors import make_executor
 
     return make_executor(args.executor, workers=args.workers, address=args.address)
-
-
-def to_jsonable(obj: Any) -> Any:
-    """Numpy scalars/arrays and non-finite floats to plain JSON values."""
-    if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, np.generic):
-        return to_jsonable(obj.item())
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 def emit(summary: dict, as_json: bool, human: str | None = None) -> None:

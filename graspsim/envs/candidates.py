@@ -22,7 +22,6 @@ import logging
 
 import numpy as np
 
-from graspsim.gripper import GripperSpec
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.graspmap import GraspabilityMap
 

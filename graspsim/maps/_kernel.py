@@ -148,6 +148,27 @@ def _roll_minima(n, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH, cr,
             vex[r] = v if v < vex[r] else vex[r]
 
 
+@njit(cache=True, fastmath=True, inline="always")
+def _line_coords(P, N, i, gp, u, e1, e2, rt, hn, ho, fp, margin):
+    """Line-frame coordinates of sample ``i`` of (P, N): a, b, its normal's (e1, e2)
+    components and |n.u|, and the x-footprint offsets of its patch (tangential radius
+    rt, normal height hn, grown by ``margin``) for finger, jaw, housing."""
+    dx = P[i, 0] - gp[0]
+    dy = P[i, 1] - gp[1]
+    dz = P[i, 2] - gp[2]
+    sa = abs(dx * u[0] + dy * u[1] + dz * u[2])
+    a = dx * e1[0] + dy * e1[1] + dz * e1[2]
+    b = dx * e2[0] + dy * e2[1] + dz * e2[2]
+    na = N[i, 0] * e1[0] + N[i, 1] * e1[1] + N[i, 2] * e1[2]
+    nb = N[i, 0] * e2[0] + N[i, 1] * e2[1] + N[i, 2] * e2[2]
+    ns = abs(N[i, 0] * u[0] + N[i, 1] * u[1] + N[i, 2] * u[2])
+    mx = rt * min(abs(na) + abs(nb), np.float32(1.0)) + hn * ns + margin
+    f = _xoff(sa, ho + fp[0, 0] - mx, ho + fp[0, 1] + mx, fp[0, 3])
+    j = _xoff(sa, ho + fp[1, 0] - mx, ho + fp[1, 1] + mx, fp[1, 3])
+    h = _xoff(sa, np.float32(-1.0), fp[2, 1] + mx, fp[2, 3])
+    return a, b, na, nb, ns, f, j, h
+
+
 @njit(cache=True, fastmath=True)
 def _refine(n, idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, nu, cu, su, dhi, best,
             M, NM, RTM, HNM, mstart, F, NF, RTF, HNF, fstart, gp, u, e1, e2, ho, fp, fmargin, hit):
@@ -169,21 +190,10 @@ def _refine(n, idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, nu, cu, su, dhi
             continue
         i = idx[k]
         for m in range(mstart[i], mstart[i + 1]):
-            dx = M[m, 0] - gp[0]
-            dy = M[m, 1] - gp[1]
-            dz = M[m, 2] - gp[2]
-            sa = abs(dx * u[0] + dy * u[1] + dz * u[2])
-            ma = dx * e1[0] + dy * e1[1] + dz * e1[2]
-            mb = dx * e2[0] + dy * e2[1] + dz * e2[2]
-            mna = NM[m, 0] * e1[0] + NM[m, 1] * e1[1] + NM[m, 2] * e1[2]
-            mnb = NM[m, 0] * e2[0] + NM[m, 1] * e2[1] + NM[m, 2] * e2[2]
-            mns = abs(NM[m, 0] * u[0] + NM[m, 1] * u[1] + NM[m, 2] * u[2])
             rt = RTM[m]
             hn = HNM[m]
-            mx = rt * min(abs(mna) + abs(mnb), np.float32(1.0)) + hn * mns + fmargin
-            mf = _xoff(sa, ho + fp[0, 0] - mx, ho + fp[0, 1] + mx, fp[0, 3])
-            mj = _xoff(sa, ho + fp[1, 0] - mx, ho + fp[1, 1] + mx, fp[1, 3])
-            mh = _xoff(sa, np.float32(-1.0), fp[2, 1] + mx, fp[2, 3])
+            ma, mb, mna, mnb, mns, mf, mj, mh = _line_coords(M, NM, m, gp, u, e1, e2, rt, hn, ho,
+                                                             fp, fmargin)
             if mh >= _BIG:
                 continue
             cnt = 0
@@ -194,22 +204,11 @@ def _refine(n, idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, nu, cu, su, dhi
             if cnt == 0:
                 continue
             for q in range(fstart[m], fstart[m + 1]):
-                dx = F[q, 0] - gp[0]
-                dy = F[q, 1] - gp[1]
-                dz = F[q, 2] - gp[2]
-                sa = abs(dx * u[0] + dy * u[1] + dz * u[2])
-                fa = dx * e1[0] + dy * e1[1] + dz * e1[2]
-                fb = dx * e2[0] + dy * e2[1] + dz * e2[2]
-                fna = NF[q, 0] * e1[0] + NF[q, 1] * e1[1] + NF[q, 2] * e1[2]
-                fnb = NF[q, 0] * e2[0] + NF[q, 1] * e2[1] + NF[q, 2] * e2[2]
-                fns = abs(NF[q, 0] * u[0] + NF[q, 1] * u[1] + NF[q, 2] * u[2])
                 rtf = RTF[q]
                 hnf = HNF[q]
                 # the fine sample's own cell: exact up to its extent in each direction
-                mx = rtf * min(abs(fna) + abs(fnb), np.float32(1.0)) + hnf * fns
-                qf = _xoff(sa, ho + fp[0, 0] - mx, ho + fp[0, 1] + mx, fp[0, 3])
-                qj = _xoff(sa, ho + fp[1, 0] - mx, ho + fp[1, 1] + mx, fp[1, 3])
-                qh = _xoff(sa, np.float32(-1.0), fp[2, 1] + mx, fp[2, 3])
+                fa, fb, fna, fnb, fns, qf, qj, qh = _line_coords(F, NF, q, gp, u, e1, e2, rtf, hnf,
+                                                                 ho, fp, _ZERO)
                 if qh >= _BIG:
                     continue
                 for j in range(nu):

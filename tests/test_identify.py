@@ -141,6 +141,10 @@ def test_bad_input_raises_point_cloud_errors():
         IdentifyConfig(theta=1.5)
     with pytest.raises(InvalidParameterError, match="repetitions"):
         IdentifyConfig(repetitions=0)
+    with pytest.raises(InvalidParameterError, match="max_extent_ratio must be >= 1"):
+        IdentifyConfig(max_extent_ratio=0.5)
+    with pytest.raises(InvalidParameterError, match="min_coverage"):
+        IdentifyConfig(min_coverage=1.0)
 
 
 def _features(**rates):

@@ -63,12 +63,13 @@ class IdentifyConfig:
     when its largest connected component, linking points closer than link_factor times
     the median point spacing, holds min_connected of its points; max_noise_ratio: the
     noise may be at most this fraction of the cluster's bounding-box diagonal;
-    max_extent_ratio: a model may extend along each of its axes at most this many
-    times as far as its cluster (one view sees at least half of a convex body: 2);
-    min_coverage, max_uncovered_extent: a candidate model whose surface has cluster
-    points near less than min_coverage of it (one view covers up to ~1/2, see
+    min_fit_rate, fit_margin, symmetry_tol, taper_tol: the classifier's thresholds (see
+    classify); max_extent_ratio: a model may extend along each of its axes at most
+    this many times as far as its cluster (one view sees at least half of a convex
+    body: 2); min_coverage, max_uncovered_extent: a candidate model whose surface has
+    cluster points near less than min_coverage of it (one view covers up to ~1/2, see
     support) may extend along its axes at most max_uncovered_extent times as far as its
-    cluster; the rest are the classifier's thresholds (see classify)."""
+    cluster."""
 
     repetitions: int = 10
     theta: float = 0.5
@@ -81,13 +82,13 @@ class IdentifyConfig:
     link_factor: float = 4.0
     min_connected: float = 0.5
     max_noise_ratio: float = 0.03
-    max_extent_ratio: float = 2.5
-    min_coverage: float = 0.3
-    max_uncovered_extent: float = 1.25
     min_fit_rate: float = 0.85
     fit_margin: float = 0.03
     symmetry_tol: float = 2.5
     taper_tol: float = 3.0
+    max_extent_ratio: float = 2.5  # (new fields last: positional construction still works)
+    min_coverage: float = 0.3
+    max_uncovered_extent: float = 1.25
 
     def __post_init__(self) -> None:
         checks = [

@@ -10,7 +10,6 @@ from graspsim.errors import NoFeasibleGraspError
 from graspsim.gripper import HGPL_25_60_A as G
 from graspsim.maps.generate import (
     MapConfig,
-    _sample_levels,
     closing_directions,
     closing_lines,
     generate_fs_map,
@@ -18,6 +17,7 @@ from graspsim.maps.generate import (
     sweep_collisions,
 )
 from graspsim.maps.collide import collision_free
+from graspsim.maps.hierarchy import sample_levels
 from graspsim.primitives import Cylinder, Sphere
 from graspsim.quality import QualityModel
 from graspsim.transforms import make_transform, quat_to_matrix, random_rotation
@@ -107,7 +107,7 @@ def test_object_too_wide_for_the_gripper():
 
 
 def test_sample_hierarchy_bounds_every_fine_sample():
-    lv = _sample_levels(Cylinder(0.02, 0.1), MapConfig())
+    lv = sample_levels(Cylinder(0.02, 0.1), MapConfig())
     F, M, Q = lv["F"], lv["M"], lv["Q"]
     mid = np.repeat(np.arange(len(M)), np.diff(lv["fstart"]))
     coarse = np.repeat(np.arange(len(Q)), np.diff(lv["mstart"]))[mid]

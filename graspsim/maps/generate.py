@@ -13,20 +13,18 @@ poses are kept with their grade, low grades included.
 
 from __future__ import annotations
 
-import collections
-import json
 import logging
 import math
 import time
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from graspsim import __version__
 from graspsim.errors import GripperError, InvalidParameterError, NoFeasibleGraspError
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.maps.hierarchy import clear_caches, sample_levels
 from graspsim.quality import QualityModel
 from graspsim.transforms import normalize
 
@@ -153,95 +151,6 @@ def _footprints(g: GripperSpec) -> tuple[np.ndarray, np.ndarray]:
     return fp, fp[:, 3]
 
 
-def _patches(parents, children, parent_normals, grow, parent=None):
-    """Assign ``children`` (K, 3) to their nearest parent and measure each parent's
-    patch: the largest tangential and normal (along the parent's normal) offsets of
-    its children, each grown by the child's own reach ``grow`` (K,) (0 for samples
-    that stand only for themselves). Returns the children's order by parent, RT, HN
-    (P,) and CSR offsets (P + 1,). ``parent`` (K,): each child's parent if known (the
-    cell holding it), else the nearest parent."""
-    if parent is None:
-        _, parent = cKDTree(parents).query(children)
-    order = np.argsort(parent, kind="stable")
-    parent = parent[order]
-    d = children[order] - parents[parent]
-    n = parent_normals[parent]
-    h = np.sum(d * n, axis=1)
-    rt = np.linalg.norm(d - h[:, None] * n, axis=1)
-    P = len(parents)
-    g = np.broadcast_to(np.asarray(grow, float), (len(children),))[order]
-    counts = np.bincount(parent, minlength=P)
-    RT = np.zeros(P)
-    HN = np.zeros(P)
-    has = counts > 0
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])[has]
-    RT[has] = np.maximum.reduceat(rt + g, first)
-    HN[has] = np.maximum.reduceat(np.abs(h) + g, first)
-    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    return order, RT, HN, start
-
-
-_LEVELS: "collections.OrderedDict[tuple, dict]" = collections.OrderedDict()
-
-
-def clear_caches() -> None:
-    """Forget cached collision sample hierarchies (to time or free a cold start)."""
-    _LEVELS.clear()
-
-
-def _sample_levels(shape, cfg: MapConfig) -> dict[str, np.ndarray | float]:
-    """Cached :func:`_build_levels` (a few objects: scaling and combining revisit them);
-    keyed by the object's description, so compounds (not hashable) are cached too."""
-    key = (json.dumps(shape.to_dict(), sort_keys=True), cfg)
-    if key in _LEVELS:
-        _LEVELS.move_to_end(key)
-        return _LEVELS[key]
-    lv = _build_levels(shape, cfg)
-    _LEVELS[key] = lv
-    while len(_LEVELS) > 8:
-        _LEVELS.popitem(last=False)
-    return lv
-
-
-def _build_levels(shape, cfg: MapConfig) -> dict[str, np.ndarray | float]:
-    """The three-level collision sample hierarchy (coarse -> middle -> fine).
-
-    Every surface point lies within ``fine_cover`` of a fine sample; each fine sample
-    belongs to its nearest middle sample and each middle one to its nearest coarse
-    one. A sample's patch (RT: tangential radius, HN: height along its normal) bounds
-    where the surface points it stands for can be. Children arrays are ordered by
-    parent with CSR offsets.
-    """
-    coarse = shape.surface_samples(min(cfg.collision_step, shape.size_scale))
-    fstep = cfg.collision_tolerance * 1.3  # cell-centre grids cover ~ step / sqrt(2)
-    fine = shape.surface_samples(fstep)
-    while fine.cover_radius > cfg.collision_tolerance:
-        fstep *= 0.9
-        fine = shape.surface_samples(fstep)
-    # middle level: geometric mean spacing, so both refinement steps have ~equal fan-out
-    mid = shape.surface_samples(math.sqrt(fstep * min(cfg.collision_step, shape.size_scale)))
-    # parents: the cell that holds each child (nested grids), or the nearest sample
-    f_order, RTM, HNM, fstart = _patches(mid.points, fine.points, mid.normals, 0.0,
-                                         mid.locate(fine))
-    # a middle patch reaches at most hypot(RT, HN) from its sample in any direction
-    # (Cauchy-Schwarz), which grows the coarse patches that contain it
-    m_order, RT, HN, mstart = _patches(coarse.points, mid.points, coarse.normals,
-                                       np.hypot(RTM, HNM), coarse.locate(mid))
-    # reorder the middle level (and its patch data / fine offsets) by coarse parent
-    Mp, NMp = mid.points[m_order], mid.normals[m_order]
-    RTMp, HNMp = RTM[m_order], HNM[m_order]
-    counts = np.diff(fstart)[m_order]
-    fstart_new = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    # fine samples, grouped by middle parent in the middle level's new order
-    within = np.arange(fstart_new[-1]) - np.repeat(fstart_new[:-1], counts)
-    fsel = f_order[np.repeat(fstart[:-1][m_order], counts) + within]
-    return {"Q": coarse.points, "NQ": coarse.normals, "RT": RT, "HN": HN,
-            "M": Mp, "NM": NMp, "RTM": RTMp, "HNM": HNMp, "mstart": mstart,
-            "F": fine.points[fsel], "NF": fine.normals[fsel], "RTF": fine.tangent_radius[fsel],
-            "HNF": fine.normal_height[fsel], "fstart": fstart_new,
-            "fine_cover": float(fine.cover_radius)}
-
-
 @dataclass(frozen=True)
 class ClosingLines:
     """Feasible closing lines of a scan: contacts p1, p2 (L, 3), outward normals
@@ -311,7 +220,7 @@ def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapC
 
     from graspsim.maps import _kernel
 
-    lv = _sample_levels(shape, cfg)
+    lv = sample_levels(shape, cfg)
     fmargin = lv["fine_cover"]
     fp, offs = _footprints(gripper)
     depths = np.asarray(gripper.contact_depths(cfg.depth_step) if depths is None else depths,

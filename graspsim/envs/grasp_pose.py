@@ -33,7 +33,7 @@ from gymnasium import spaces
 
 from graspsim.envs.config import EnvConfig
 from graspsim.envs.table import WORLD_BOUND, TableTask
-from graspsim.errors import GraspsimError, InvalidParameterError
+from graspsim.errors import GraspsimError
 from graspsim.transforms import make_transform
 
 __all__ = ["GraspPoseEnv", "REGION_MARGIN"]
@@ -63,10 +63,7 @@ class GraspPoseEnv(TableTask):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        opts = dict(options or {})
-        shape = opts.pop("object", None)
-        if opts:
-            raise InvalidParameterError(f"unknown reset option(s) {sorted(opts)}; valid: ['object']")
+        shape = self._object_option(options)
         t0 = time.perf_counter()
         rng = np.random.default_rng(int(self.np_random.integers(0, 2**63)))
         ep_rng, noise_rng = rng.spawn(2)

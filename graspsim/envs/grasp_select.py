@@ -89,10 +89,7 @@ class GraspSelectEnv(TableTask):
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        opts = dict(options or {})
-        shape = opts.pop("object", None)
-        if opts:
-            raise InvalidParameterError(f"unknown reset option(s) {sorted(opts)}; valid: ['object']")
+        shape = self._object_option(options)
         c = self.config
         t0 = time.perf_counter()
         for draw in range(c.max_redraws):

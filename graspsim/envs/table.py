@@ -117,6 +117,16 @@ class TableTask(gym.Env):
         self.timing: dict[str, float] = {}
 
     # ------------------------------------------------------------------ episodes
+    @staticmethod
+    def _object_option(options: dict | None):
+        """The ``object`` reset option (a shape to use instead of a random draw), the
+        only one the environments take."""
+        opts = dict(options or {})
+        shape = opts.pop("object", None)
+        if opts:
+            raise InvalidParameterError(f"unknown reset option(s) {sorted(opts)}; valid: ['object']")
+        return shape
+
     def _draw_episode(self, rng: np.random.Generator, shape=None) -> TableEpisode:
         """An object (``shape`` or a random member of the set) placed on the table and
         its sensor cloud, from the generator ``rng``."""

@@ -154,9 +154,10 @@ def grasps_collision_free(shape, gripper: GripperSpec, gp: np.ndarray, R: np.nda
     roll = np.where(roll > 2 * np.pi - 5e-6, 0.0, roll)
     rolls, roll_idx = np.unique(np.round(roll, 5), return_inverse=True)
     depths, depth_idx = np.unique(np.round(depth, 7), return_inverse=True)
-    if len(rolls) > 64 or len(depths) > 32:
-        return collision_free(shape, gripper, T, opening, cfg)
     L = len(lines)
+    if len(rolls) > 64 or L * len(rolls) * len(depths) > 1 << 24:
+        # off any common grid (or the pose grid would not fit in memory): pose by pose
+        return collision_free(shape, gripper, T, opening, cfg)
     cl = ClosingLines(p1=lines[:, :3], p2=lines[:, :3], n1=e1, n2=e1, u=lines[:, 3:6],
                       width=lines[:, 6], gp=lines[:, :3], e1=e1, e2=e2,
                       outside=np.ones(L, bool), contacts=L, directions=1)

@@ -239,16 +239,23 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
         pieces = []
         rest = np.arange(len(rows))
         if sc.method in (ScalingMethod.QUALITY, ScalingMethod.COMBINED):
-            lines = np.unique(line)
+            # rows come grouped by line in increasing line order: the batch's lines and
+            # each row's chord without a sort
+            starts = np.empty(len(line), bool)
+            starts[0] = True
+            np.not_equal(line[1:], line[:-1], out=starts[1:])
+            lines = line[starts]
+            li = np.cumsum(starts) - 1  # chord of each row
             gp_q = target.from_unit(source.to_unit(src.gp[lines]))
             ch = _chords(target, gripper, quality, d_ref, cfg, gp_q, src.u[lines], keep_min)
-            li = np.searchsorted(lines, line)  # chord of each row
             cand = np.flatnonzero(ch.ok[li])
             free = _check(target, gripper, cfg, ch.gp[li[cand]], R[cand], depth[cand],
                           ch.width[li[cand]], line=li[cand])
             kept = cand[free]
             pieces.append((_columns(ch, li[kept], R[kept], depth[kept], gripper), kept))
-            rest = np.setdiff1d(rest, kept)
+            left = np.ones(len(rows), bool)
+            left[kept] = False
+            rest = np.flatnonzero(left)
         if sc.method is ScalingMethod.COMBINED and len(rest):
             # slide the wrist along the approach axis by the feasibility shift: the
             # contact moves along the pad, the grasp point stays where Quality put it

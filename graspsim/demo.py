@@ -91,6 +91,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
     """Run the demo; ``step(message)`` reports progress. Returns the summary dict (also
     written to ``out/summary.json``)."""
     from graspsim.maps.io import save_map
+    from graspsim.maps.table import clears_table
     from graspsim.planner import plan
     from graspsim.plots import plot_map
     from graspsim.sim import (ExecutionNoise, LiftPlace, SimSettings, TrialOutcome, build_scene,
@@ -136,8 +137,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
                         SimSettings(friction=db.quality.friction))
     # grasps the arm can reach over the table, drawn uniformly over the object
     T_sim = T_true_obj @ gmap.T_obj_wrist
-    opening = db.gripper.pregrasp_opening(gmap.width)
-    reachable = db.gripper.lowest_point(scene.T_world_obj @ T_sim, opening) > 0.002
+    reachable = clears_table(gmap, scene.T_world_obj @ T_true_obj, db.gripper, 0.002)
     candidates = np.flatnonzero(gmap.accepted & reachable)
     rows = candidates[gmap.select(candidates).uniform_surface_rows(cfg.trials, rng)]
     step(f"simulating {len(rows)} lift-and-place trials in MuJoCo "

@@ -26,11 +26,12 @@ from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
 from graspsim.maps.scaling import ScalingConfig, scale_stream
+from graspsim.maps.table import TablePlane, clears_table, table_frame
 from graspsim.perception import Identification, IdentifyConfig, identify
 from graspsim.primitives import Compound, Primitive
 from graspsim.transforms import invert_transform
 
-__all__ = ["PlanStatus", "PlannerConfig", "PartPlan", "PlanResult", "GraspBatch", "plan",
+__all__ = ["PlanStatus", "PlannerConfig", "PartPlan", "PlanResult", "GraspBatch", "TablePlane", "plan",
            "plan_stream"]
 
 log = logging.getLogger(__name__)
@@ -50,6 +51,9 @@ class PlannerConfig:
     partial: when clustering fails, still build the map of the identified parts.
     build_missing: when no stored map of the primitive lies within the scaling range,
         build (and store) an FS map of it, as the paper suggests; else skip the part.
+    table: the plane the object stands on (cloud frame); poses that would take the
+        gripper below it are dropped from every batch. None (default, as the paper):
+        the map ignores the table.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -57,6 +61,7 @@ class PlannerConfig:
     tol: float = 0.01
     partial: bool = True
     build_missing: bool = True
+    table: TablePlane | None = None
 
 
 @dataclass(frozen=True)
@@ -102,7 +107,7 @@ class PlanResult:
                 "grasps": len(self.map), "accepted": int(self.map.accepted.sum()),
                 "seconds": self.timing.get("total"), "time_to_first_0.95": self.timing.get("first"),
                 "time_to_tenth_0.95": self.timing.get("tenth"),
-                "T_cloud_obj": self.T_cloud_obj.tolist()}
+                "T_cloud_obj": self.T_cloud_obj.tolist(), "table": self.map.meta.extra.get("table")}
 
 
 def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarray]:
@@ -214,6 +219,12 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
     extra = {"T_cloud_obj": T_cloud_obj.tolist(), "source": source, "status": status.value,
              "identification": {"status": ident.status.value, "n_points": ident.n_points,
                                 "n_splits": ident.n_splits}}
+    T_table_obj = None
+    if cfg.table is not None:
+        height = _table_height(cfg.table, points, prims[0] if compound is None else compound, T_cloud_obj)
+        T_table_obj = table_frame(cfg.table.normal, height) @ T_cloud_obj
+        extra["table"] = {**cfg.table.to_dict(), "height": height}
+    n_below = 0
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
     first = tenth = None
@@ -226,6 +237,10 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
             if compound is not None:
                 part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
                                         d_ref=obj_meta.quality["d_ref"], config=db.config, meta=obj_meta)
+            if T_table_obj is not None:
+                clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)
+                n_below += int(len(clear) - clear.sum())
+                part_map = part_map.select(clear)
             batch = replace(part_map, meta=replace(obj_meta, extra=extra), part=np.full(len(part_map), i, np.int16))
             if not len(batch):
                 continue
@@ -239,6 +254,8 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
             batches.append(batch)
             yield GraspBatch(batch, now)
     timing["maps"] = time.perf_counter() - t1
+    if T_table_obj is not None:
+        extra["table"]["dropped"] = n_below
     meta = replace(obj_meta, method="adapted/" + ("single" if compound is None else "combined"),
                    extra={**extra, "parts": [p.to_dict() for p in parts]})
     full = GraspabilityMap.concat(batches, meta=meta) if batches else GraspabilityMap.empty(meta)
@@ -256,6 +273,21 @@ def plan(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
     if not isinstance(result, PlanResult):  # pragma: no cover - the stream always ends so
         raise InvalidParameterError("planner produced no result")
     return result
+
+
+def _table_height(table: TablePlane, points: np.ndarray, shape, T_cloud_obj: np.ndarray) -> float:
+    """The table's offset along its normal: given, or the object's lowest point (the
+    identified shape's -- a camera rarely sees the base -- or the cloud's 0.5 % quantile
+    where that is lower: unidentified parts)."""
+    if table.height is not None:
+        return table.height
+    n = np.asarray(table.normal)
+    v = np.asarray(shape.mesh().vertices, float)
+    low_shape = float(np.min((v @ T_cloud_obj[:3, :3].T + T_cloud_obj[:3, 3]) @ n))
+    pts = np.asarray(points, float)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    low_cloud = float(np.quantile(pts @ n, 0.005)) if len(pts) else np.inf
+    return min(low_shape, low_cloud)
 
 
 def _object_meta(shape, db: MapDatabase) -> MapMeta:

@@ -31,6 +31,17 @@ def test_adapt_writes_map_with_cloud_transform(tmp_path, capsys):
         Tco = f["object/T_cloud_obj"][()]
     assert np.allclose(Tco[:3, 3], T[:3, 3], atol=0.002)
     assert math.isclose(abs(Tco[:3, 2] @ T[:3, 2]), 1.0, abs_tol=1e-3)
+    # the same cloud standing on a table at its lowest point: poses below it are dropped
+    out2 = tmp_path / "t.h5"
+    code = main(["adapt", str(tmp_path / "cloud.npy"), "-o", str(out2), "--db", str(db),
+                 "--surface-step", "0.01", "--rotation-step-deg", "22", "--table", "auto", "--json"])
+    t = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and t["table"]["dropped"] > 0 and t["grasps"] + t["table"]["dropped"] == s["grasps"]
+    assert abs(t["table"]["height"] - (0.1 - 0.075)) < 0.002
+    with h5py.File(out2) as f:
+        assert json.loads(f["graspability/meta"][()])["extra"]["table"]["height"] == t["table"]["height"]
+    code = main(["adapt", str(tmp_path / "cloud.npy"), "-o", str(out2), "--db", str(db), "--table", "low"])
+    assert code == 2 and "--table takes 'auto' or a height" in capsys.readouterr().err
 
 
 def test_adapt_bad_cloud_file(tmp_path, capsys):

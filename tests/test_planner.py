@@ -96,3 +96,28 @@ def test_same_seed_same_plan(db):
     b = plan(cloud.points, db=db, rng=np.random.default_rng(9))
     np.testing.assert_array_equal(a.map.wrist_position, b.map.wrist_position)
     np.testing.assert_array_equal(a.T_cloud_obj, b.T_cloud_obj)
+
+
+def test_table_plane_drops_exactly_the_poses_below_the_table(db):
+    """An object standing on a table (z = 0), seen from one side: with the table given,
+    no kept pose takes the gripper below it; the dropped poses are the difference to the
+    table-free plan, and the estimated table height is where the table is."""
+    from graspsim.planner import PlannerConfig, TablePlane
+
+    truth = Cylinder(0.024, 0.16)
+    T = make_transform(np.eye(3), [0.45, 0.05, 0.08])
+    cloud = synthetic_cloud(truth, np.random.default_rng(5), resolution=0.003, noise=0.0005,
+                            camera=np.array([0.6, 0.0, 0.45]), T_world_obj=T)
+    free = plan(cloud.points, db=db, rng=np.random.default_rng(0))
+    r = plan(cloud.points, db=db, rng=np.random.default_rng(0), config=PlannerConfig(table=TablePlane()))
+    t = r.map.meta.extra["table"]
+    assert abs(t["height"]) < 0.003 and r.summary()["table"]["dropped"] == t["dropped"]
+    assert len(r.map) + t["dropped"] == len(free.map) and 0 < t["dropped"] < len(free.map)
+    low = G.lowest_point(r.T_cloud_obj @ r.map.T_obj_wrist, G.pregrasp_opening(r.map.width))
+    assert low.min() >= 0.002 - 0.003  # the clearance, up to the height estimate's error
+    low_free = G.lowest_point(free.T_cloud_obj @ free.map.T_obj_wrist, G.pregrasp_opening(free.map.width))
+    assert np.sum(low_free < -0.003) <= t["dropped"]
+    # a given height is used as is
+    r2 = plan(cloud.points, db=db, rng=np.random.default_rng(0),
+              config=PlannerConfig(table=TablePlane(height=-0.05)))
+    assert r2.map.meta.extra["table"]["height"] == -0.05 and len(r2.map) > len(r.map)

@@ -145,20 +145,15 @@ def draw_samples(cases: Sequence[CalibrationCase], per_bin: int, *, seed: int = 
 
 
 def _clears_table(gmap: GraspabilityMap, T_world_obj: np.ndarray, gripper: GripperSpec,
-                  min_clearance: float, chunk: int = 100_000, T_sim_map=None) -> np.ndarray:
-    """(N,) bool: the map's poses keep the gripper ``min_clearance`` above the table
-    (in chunks: a million poses would otherwise take gigabytes)."""
-    from graspsim.transforms import make_transform, quat_to_matrix
+                  min_clearance: float, T_sim_map=None) -> np.ndarray:
+    """(N,) bool: the map's poses keep the gripper ``min_clearance`` above the
+    simulator's table (z = 0 in the world), the map's frame at T_world_obj @ T_sim_map."""
+    from graspsim.maps.table import clears_table
 
-    out = np.zeros(len(gmap), bool)
+    T = np.asarray(T_world_obj, float)
     if T_sim_map is not None:
-        T_world_obj = T_world_obj @ np.asarray(T_sim_map, float)
-    for a in range(0, len(gmap), chunk):
-        sl = slice(a, a + chunk)
-        T = T_world_obj @ make_transform(quat_to_matrix(gmap.wrist_quat[sl].astype(float)),
-                                         gmap.wrist_position[sl].astype(float))
-        out[sl] = gripper.lowest_point(T, gripper.pregrasp_opening(gmap.width[sl])) >= min_clearance
-    return out
+        T = T @ np.asarray(T_sim_map, float)
+    return clears_table(gmap, T, gripper, min_clearance)
 
 
 def _map_columns(gmap: GraspabilityMap, rows: np.ndarray) -> dict[str, np.ndarray]:

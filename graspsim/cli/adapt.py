@@ -24,8 +24,15 @@ def _cmd_adapt(args) -> int:
     if not out.parent.is_dir():
         raise MapFileError(f"cannot write {out}: folder {out.parent} does not exist")
     cloud = read_point_cloud(args.cloud)
+    table = None
+    if args.table is not None:
+        from graspsim.maps.table import TablePlane
+
+        table = TablePlane(normal=tuple(args.table_normal), clearance=args.table_clearance,
+                           height=None if args.table == "auto" else _height(args.table))
     cfg = PlannerConfig(identify=IdentifyConfig(repetitions=args.repetitions, theta=args.theta),
-                        scaling=ScalingConfig(method=args.scaling), partial=not args.no_partial)
+                        scaling=ScalingConfig(method=args.scaling), partial=not args.no_partial,
+                        table=table)
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, quality=quality, config=map_cfg)
     result = plan(cloud.points, db=db, rng=np.random.default_rng(args.seed), config=cfg,
@@ -39,9 +46,20 @@ def _cmd_adapt(args) -> int:
     human = (format_table(rows, ["part", "dims [m]", "match"]) +
              f"\n{s['status']}: {s['grasps']} grasps, {s['accepted']} > 0.7 in {s['seconds']:.3f} s"
              + (f"; first grasp > 0.95 after {first * 1e3:.1f} ms" if first is not None else "")
+             + (f"; {s['table']['dropped']} grasps below the table (height "
+                f"{s['table']['height']:.4f} m) dropped" if s.get("table") and "dropped" in s["table"] else "")
              + f" -> {out}")
     emit(s, args.json, human)
     return 0 if result.status.value != "failed" else 1
+
+
+def _height(text: str) -> float:
+    from graspsim.errors import InvalidParameterError
+
+    try:
+        return float(text)
+    except ValueError:
+        raise InvalidParameterError(f"--table takes 'auto' or a height in metres, got {text!r}") from None
 
 
 def register(sub) -> None:
@@ -62,6 +80,15 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
     p.add_argument("--no-partial", action="store_true",
                    help="no map at all when clustering fails (default: map of identified parts)")
+    p.add_argument("--table", default=None, metavar="auto|HEIGHT",
+                   help="drop grasps that would take the gripper below the table the object "
+                   "stands on: 'auto' puts the table at the object's lowest point along "
+                   "--table-normal, a number is its height along the normal [m] in the cloud's "
+                   "frame (default: no table, as the paper's maps)")
+    p.add_argument("--table-normal", type=float, nargs=3, default=(0.0, 0.0, 1.0),
+                   metavar=("NX", "NY", "NZ"), help="the table's upward normal in the cloud's frame (0 0 1)")
+    p.add_argument("--table-clearance", type=float, default=0.002,
+                   help="gripper clearance above the table [m] (0.002)")
     _add_generation(p)
     add_json_flag(p)
     p.set_defaults(func=_cmd_adapt)

@@ -1,5 +1,5 @@
-"""Experiment scripts E02 (table 2) and E03 (table 3): quick modes end to end, and the
-statistics helper they rely on."""
+"""Experiment scripts E02 (table 2), E03 (table 3) and E07 (table filter): quick modes end to end,
+and the statistics helper they rely on."""
 
 import importlib.util
 import json
@@ -65,3 +65,12 @@ def test_e03_quick_writes_table_json_figures_maps(tmp_path):
                                                    "ball_with_tab", "bottle_brush"]
     assert all(run["main"]["wall_s"] > 0 for o in r["objects"] for run in o["runs"])
     assert list((out / "maps").glob("*.h5"))
+
+
+def test_e07_quick_table_filter_removes_start_collisions(tmp_path):
+    out = tmp_path / "e07"
+    assert _load("e07_table_filter").main(["--quick", "--out", str(out)]) == 0
+    r = json.loads((out / "results.json").read_text())
+    assert (out / "table.md").stat().st_size > 0
+    assert r["pooled"]["table"]["trials"] > 0 and r["pooled"]["table"]["start_collision"] == 0
+    assert r["pooled"]["no table"]["start_collision"] > 0

@@ -100,3 +100,21 @@ def test_unreadable_mesh_is_a_clear_error(tmp_path):
     (tmp_path / "junk.obj").write_bytes(b"\x00\x01 not a mesh")
     with pytest.raises(GraspsimError):
         simulate_map(path, mesh=tmp_path / "junk.obj", write=False)
+
+
+def test_a_planned_table_sets_which_way_up_the_object_stands(tmp_path):
+    """An adapted map whose object frame is upside down in the cloud (a cylinder's axis
+    sign is arbitrary) and that was planned for a table under the cloud's +z: the
+    simulator stands the object as in the cloud, so a top grasp stays a top grasp."""
+    cyl = Cylinder(0.02, 0.10)
+    flip = make_transform(np.diag([1.0, -1.0, -1.0]), [0.5, 0.0, 0.05])  # object z = cloud -z
+    # seen in the cloud from above: approach along cloud -z = object +z, near the object's -z end
+    T = grasp_pose([0, 0, -0.035], [0, 0, 1], [1, 0, 0])[None]
+    table = {"normal": [0.0, 0.0, 1.0], "height": 0.0, "clearance": 0.002, "dropped": 0}
+    with_table = hand_made_map(cyl, T, [0.04], extra={"T_cloud_obj": flip.tolist(), "table": table})
+    out = simulate_map(save_map(with_table, tmp_path / "t.h5"), threads=1, write=False)
+    assert out.results.outcomes == [TrialOutcome.SUCCESS]
+    # without the table the object rests on its own +z: the same pose comes from below
+    bare = hand_made_map(cyl, T, [0.04], extra={"T_cloud_obj": flip.tolist()})
+    out = simulate_map(save_map(bare, tmp_path / "b.h5"), threads=1, write=False)
+    assert out.results.outcomes == [TrialOutcome.START_COLLISION]

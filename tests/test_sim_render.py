@@ -39,3 +39,22 @@ def test_render_writes_key_moments_and_a_gif(gl, tmp_path):
     assert opened.shape == (120, 160, 3) and opened.std() > 5
     assert np.abs(opened.astype(int) - lifted.astype(int)).mean() > 1  # the object moved
     assert Image.open(tmp_path / "trial.gif").n_frames > 5
+
+
+def test_trial_cli_renders_the_first_trials_that_start_clear(gl, tmp_path, capsys):
+    import json
+
+    from graspsim.cli import main
+    from graspsim.maps import save_map
+    from graspsim.primitives import Cylinder
+    from graspsim.sim.testing import hand_made_map
+
+    # the two best poses come from under the table (START_COLLISION); the third is fine
+    T = np.stack([grasp_pose([0, 0, -0.04], [0, 0, 1], [1, 0, 0]), grasp_pose([0, 0, -0.045], [0, 0, 1], [0, 1, 0]),
+                  grasp_pose([0, 0, 0], [-1, 0, 0], [0, 1, 0])])
+    path = save_map(hand_made_map(Cylinder(0.02, 0.10), T, [0.04] * 3, grades=[0.9, 0.85, 0.8]), tmp_path / "c.h5")
+    assert main(["trial", str(path), "--top", "3", "--render", str(tmp_path / "r"), "--render-count", "1",
+                 "--threads", "1", "--no-write", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert s["counts"]["start_collision"] == 2
+    assert s["renders"] and all("grasp000002" in p for p in s["renders"])

@@ -40,7 +40,7 @@ def register(subparsers) -> None:
     p.add_argument("--friction", type=float,
                    help="pad-object friction (default: the map's quality model mu)")
     p.add_argument("--grip-force", type=float, metavar="N", help="grip force per jaw [N]")
-    p.add_argument("--render", metavar="DIR", help="write PNGs (and a GIF) of the first trials")
+    p.add_argument("--render", metavar="DIR", help="write PNGs (and a GIF) of the first trials that start clear")
     p.add_argument("--render-count", type=int, default=3, metavar="K",
                    help="how many trials --render pictures (default 3)")
     p.add_argument("--no-write", action="store_true", help="do not store results in the map")
@@ -85,10 +85,14 @@ def run(args) -> int:
         from graspsim.sim.render import render_trial
 
         gmap = load_map(args.map)
-        for j in range(min(args.render_count, len(out.index))):
+        shown = 0
+        for j in range(len(out.index)):  # the first --render-count trials that started
+            if shown == args.render_count:
+                break
             i = int(out.index[j])
             if res.outcome[j] == TrialOutcome.START_COLLISION:
                 continue
+            shown += 1
             paths = render_trial(out.scene, None, float(gmap.width[i]), args.render, protocol,
                                  name=f"grasp{i:06d}", gif=True, T_world_wrist=res.T_world_wrist[j])
             renders += [str(p) for p in paths]

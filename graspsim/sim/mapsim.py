@@ -144,6 +144,25 @@ def write_results(path: str | os.PathLike, n_rows: int, index: np.ndarray,
     return group
 
 
+def _cloud_up(gmap: GraspabilityMap, has_mesh: bool) -> np.ndarray | None:
+    """The object-frame direction to stand upright, for maps planned from a cloud: the
+    normal of the table the planner was told about (its map then holds only poses
+    above that table), else for a mesh (the real object) the cloud's +z -- the planner's
+    object frame may be flipped (a cylinder's axis sign is arbitrary). None: the
+    object's own stable resting pose."""
+    T = gmap.meta.extra.get("T_cloud_obj")
+    if T is None:
+        return None
+    table = gmap.meta.extra.get("table")
+    if table:
+        n = np.asarray(table["normal"], float)
+    elif has_mesh:
+        n = np.array([0.0, 0.0, 1.0])
+    else:
+        return None
+    return np.asarray(T, float).reshape(4, 4)[:3, :3].T @ n
+
+
 def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                  top: int | None = None, sample: int | None = None, min_grade: float | None = None,
                  threads: int | None = None, seed: int = 0, noise: ExecutionNoise | None = None,
@@ -166,11 +185,7 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng)
     obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,
                      map_dir=path.parent, cache_dir=cache_dir)
-    # a mesh (the real object) stands as it does in its own file / the cloud's frame:
-    # the planner's object frame may be flipped (a cylinder's axis sign is arbitrary)
-    up = None
-    if mesh is not None and gmap.meta.extra.get("T_cloud_obj") is not None:
-        up = np.asarray(gmap.meta.extra["T_cloud_obj"], float).reshape(4, 4)[:3, :3].T @ [0.0, 0.0, 1.0]
+    up = _cloud_up(gmap, mesh is not None)
     scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity, up=up)
     results = run_trials(scene, gmap.T_obj_wrist[index], gmap.width[index], protocol,
                          threads=threads, seed=seed, noise=noise, on_progress=on_progress)

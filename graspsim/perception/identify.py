@@ -193,6 +193,23 @@ def _continuity(points: np.ndarray, link_factor: float) -> tuple[float, float, c
     return float(np.bincount(labels).max() / n), spacing, tree
 
 
+def _off_flat(pool: np.ndarray, normals: np.ndarray, *, share: float = 0.25,
+              max_angle_deg: float = 10.0) -> np.ndarray:
+    """The sample pool without its largest flat face (``share`` or more of the pool's
+    normals within ``max_angle_deg`` of one direction), when enough points remain: a
+    frustum seen with its base disc gives cone hypotheses only from side points, and
+    four-point samples that mix in disc points are wasted."""
+    if len(pool) < 16:
+        return pool
+    nv = normals[pool]
+    close = np.abs(nv @ nv.T) > np.cos(np.radians(max_angle_deg))
+    counts = close.sum(axis=1)
+    k = int(np.argmax(counts))
+    if counts[k] < share * len(pool) or len(pool) - counts[k] < 8:
+        return pool
+    return pool[~close[k]]
+
+
 def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.ndarray,
                      noise: float, rng: np.random.Generator, config: IdentifyConfig,
                      indices: np.ndarray | None = None) -> PartResult:
@@ -214,8 +231,10 @@ def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.nd
         feats = ShapeFeatures(0.0, 0.0, float("nan"), float("nan"), float("nan"), {})
         return PartResult(Shape.UNIDENTIFIED, {}, np.eye(4), 0.0, float("inf"), indices, feats,
                           noise, {}, reason)
+    pools = {k: sample_pool for k in KINDS}
+    pools["cone"] = _off_flat(sample_pool, normals)
     fits = {k: fit_model(k, points, normals, rng, repetitions=config.repetitions,
-                         sigma=noise, candidates=sample_pool, refine=config.refine,
+                         sigma=noise, candidates=pools[k], refine=config.refine,
                          max_extent_ratio=config.max_extent_ratio)
             for k in KINDS}
     cone, cyl = fits.get("cone"), fits.get("cylinder")

@@ -202,12 +202,13 @@ def _off_flat(pool: np.ndarray, normals: np.ndarray, *, share: float = 0.25,
     if len(pool) < 16:
         return pool
     nv = normals[pool]
-    close = np.abs(nv @ nv.T) > np.cos(np.radians(max_angle_deg))
-    counts = close.sum(axis=1)
-    k = int(np.argmax(counts))
-    if counts[k] < share * len(pool) or len(pool) - counts[k] < 8:
+    cos = np.cos(np.radians(max_angle_deg))
+    probe = nv[np.linspace(0, len(pool) - 1, min(len(pool), 256)).astype(int)]  # candidate directions
+    counts = (np.abs(probe @ probe.T) > cos).sum(axis=1)
+    flat = np.abs(nv @ probe[int(np.argmax(counts))]) > cos
+    if flat.sum() < share * len(pool) or len(pool) - flat.sum() < 8:
         return pool
-    return pool[~close[k]]
+    return pool[~flat]
 
 
 def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.ndarray,

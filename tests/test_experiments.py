@@ -1,4 +1,4 @@
-"""Experiment scripts E02 (table 2), E03 (table 3) and E07 (table filter): quick modes end to end,
+"""Experiment scripts E02, E03, E07 and E08: quick modes end to end,
 and the statistics helper they rely on."""
 
 import importlib.util
@@ -74,3 +74,13 @@ def test_e07_quick_table_filter_removes_start_collisions(tmp_path):
     assert (out / "table.md").stat().st_size > 0
     assert r["pooled"]["table"]["trials"] > 0 and r["pooled"]["table"]["start_collision"] == 0
     assert r["pooled"]["no table"]["start_collision"] > 0
+
+
+def test_e08_quick_pose_baselines(tmp_path):
+    out = tmp_path / "e08"
+    assert _load("e08_pose_baselines").main(["--quick", "--out", str(out)]) == 0
+    r = json.loads((out / "results.json").read_text())
+    s = r["summary"]
+    assert set(s) == {"random", "top_down", "planner"} and (out / "table.md").stat().st_size > 0
+    assert all(v["episodes"] == len(r["episodes"]) > 0 for v in s.values())
+    assert s["top_down"]["rate"] > s["random"]["rate"]

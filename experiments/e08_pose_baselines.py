@@ -73,7 +73,7 @@ def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
     centre = c + (0.5 * (s.max() + s.min()) - c @ x[:2]) * x[:2]
     R = np.column_stack([x, np.cross(z, x), z])
     tcp = np.array([centre[0], centre[1], tcp_z])
-    return make_transform(R, tcp - env._tcp * z), width
+    return make_transform(R, tcp - g.tcp_offset(half_pad) * z), width  # the env's TCP: mid-pad
 
 
 def planner_pose(env, cloud: np.ndarray, db: MapDatabase, seed: int) -> tuple[np.ndarray, float] | None:

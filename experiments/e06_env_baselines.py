@@ -67,6 +67,7 @@ class E06Config:
     k: int
     cloud_size: int
     view: str
+    perception: str
     position_noise: float
     rotation_noise_deg: float
     l2: float
@@ -78,7 +79,8 @@ class E06Config:
 
     def env_kwargs(self) -> dict:
         kw = dict(objects=self.objects, n_candidates=self.k, cloud_size=self.cloud_size, view=self.view,
-                  position_noise=self.position_noise, rotation_noise=math.radians(self.rotation_noise_deg),
+                  perception=self.perception, position_noise=self.position_noise,
+                  rotation_noise=math.radians(self.rotation_noise_deg),
                   db_root=self.db)
         if self.coarse_db:
             kw["map_config"] = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
@@ -95,6 +97,8 @@ def parse_args(argv=None) -> tuple[E06Config, Path]:
     p.add_argument("--k", type=int, default=None, help="candidates per episode (default 16)")
     p.add_argument("--cloud-size", type=int, default=512)
     p.add_argument("--view", default="full", choices=("full", "single"))
+    p.add_argument("--perception", default="cloud", choices=("cloud", "model"),
+                   help="identify the object in its cloud (the paper), or give the planner the true model")
     p.add_argument("--position-noise", type=float, default=0.003, help="execution error sigma [m]")
     p.add_argument("--rotation-noise-deg", type=float, default=2.0, help="execution error sigma [deg]")
     p.add_argument("--l2", type=float, default=1.0, help="logistic regression L2 penalty")
@@ -106,7 +110,8 @@ def parse_args(argv=None) -> tuple[E06Config, Path]:
     q = a.quick
     cfg = E06Config(train=a.train or (16 if q else 400), test=a.test or (16 if q else 500),
                     objects=a.objects or ("primitives" if q else "all"), k=a.k or (6 if q else 16),
-                    cloud_size=128 if q else a.cloud_size, view=a.view, position_noise=a.position_noise,
+                    cloud_size=128 if q else a.cloud_size, view=a.view, perception=a.perception,
+                    position_noise=a.position_noise,
                     rotation_noise_deg=a.rotation_noise_deg, l2=a.l2, seed=a.seed, workers=max(1, a.workers),
                     db=str(out / "db") if q and a.db is None else a.db, coarse_db=q, quick=q)
     if cfg.train < 2 or cfg.test < 1:

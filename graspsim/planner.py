@@ -32,7 +32,7 @@ from graspsim.primitives import Compound, Primitive
 from graspsim.transforms import invert_transform
 
 __all__ = ["PlanStatus", "PlannerConfig", "PartPlan", "PlanResult", "GraspBatch", "TablePlane", "plan",
-           "plan_stream"]
+           "plan_stream", "plan_shape", "plan_shape_stream"]
 
 log = logging.getLogger(__name__)
 
@@ -92,13 +92,13 @@ class GraspBatch:
 @dataclass(frozen=True, eq=False)
 class PlanResult:
     """status; map: adapted map (object frame; ``extra["T_cloud_obj"]``); parts;
-    identification; T_cloud_obj (4, 4); timing [s] per stage plus ``first`` and
+    identification (None for :func:`plan_shape`); T_cloud_obj (4, 4); timing [s] per stage plus ``first`` and
     ``tenth`` (time to the first and tenth grasp with grade > 0.95, None if never)."""
 
     status: PlanStatus
     map: GraspabilityMap
     parts: tuple[PartPlan, ...]
-    identification: Identification
+    identification: Identification | None
     T_cloud_obj: np.ndarray
     timing: dict
 
@@ -182,7 +182,8 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
     """Yield :class:`GraspBatch` es as grasps are found, then the :class:`PlanResult`."""
     cfg = config or PlannerConfig()
     t0 = time.perf_counter()
-    ident = identify(np.asarray(points, float), rng=rng, config=cfg.identify)
+    points = np.asarray(points, float)
+    ident = identify(points, rng=rng, config=cfg.identify)
     timing = {"identify": time.perf_counter() - t0}
     prims, T_cloud = [], []
     for part in ident.parts:
@@ -197,6 +198,40 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
         yield PlanResult(status, GraspabilityMap.empty(_empty_meta(db, ident)), (), ident, np.eye(4),
                          {**timing, "total": time.perf_counter() - t0, "first": None, "tenth": None})
         return
+    info = {"status": ident.status.value, "n_points": ident.n_points, "n_splits": ident.n_splits}
+    yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing)
+
+
+def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,
+                      config: PlannerConfig | None = None, source: str = "model"
+                      ) -> Iterator[GraspBatch | PlanResult]:
+    """:func:`plan_stream` for an object whose primitives are known -- a
+    :class:`~graspsim.primitives.Primitive` or :class:`~graspsim.primitives.Compound` at
+    pose ``T_world_obj`` (4, 4; identity if None) in the frame the map's
+    ``T_cloud_obj`` will refer to -- instead of identified from a cloud: retrieval,
+    scaling and combination as for identified parts (``config.identify`` is unused).
+    The result's ``identification`` is None."""
+    cfg = config or PlannerConfig()
+    t0 = time.perf_counter()
+    T = np.eye(4) if T_world_obj is None else np.asarray(T_world_obj, float)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise InvalidParameterError(f"T_world_obj must be a finite 4x4 transform, got shape {T.shape}")
+    if isinstance(shape, Compound):
+        pairs = [(p, T @ pose) for p, pose in zip(shape.parts, shape.poses)]
+    elif isinstance(shape, Primitive):
+        pairs = [(shape, T)]
+    else:
+        raise InvalidParameterError(f"plan_shape needs a Primitive or a Compound, got {type(shape).__name__}")
+    prims, T_cloud = zip(*(_canonical_box(p, Tp) for p, Tp in pairs))
+    yield from _plan_parts(list(prims), list(T_cloud), PlanStatus.COMPLETE, None, None, np.zeros((0, 3)),
+                           db, cfg, source, t0, {"identify": 0.0})
+
+
+def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
+                ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
+                source: str, t0: float, timing: dict) -> Iterator[GraspBatch | PlanResult]:
+    """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
+    part frames in the cloud's frame)."""
     # the object frame: one part -> its frame; several -> the compound's centre of
     # mass with the axes of its largest part
     if len(prims) == 1:
@@ -217,8 +252,7 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
     extra = {"T_cloud_obj": T_cloud_obj.tolist(), "source": source, "status": status.value,
-             "identification": {"status": ident.status.value, "n_points": ident.n_points,
-                                "n_splits": ident.n_splits}}
+             "identification": ident_info}
     T_table_obj = None
     if cfg.table is not None:
         height = _table_height(cfg.table, points, prims[0] if compound is None else compound, T_cloud_obj)
@@ -267,8 +301,18 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
 def plan(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
          config: PlannerConfig | None = None, source: str = "array") -> PlanResult:
     """The adapted map of an object cloud (N, 3) [m] (see :func:`plan_stream`)."""
+    return _last(plan_stream(points, db=db, rng=rng, config=config, source=source))
+
+
+def plan_shape(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,
+               config: PlannerConfig | None = None, source: str = "model") -> PlanResult:
+    """The adapted map of a known primitive or compound (see :func:`plan_shape_stream`)."""
+    return _last(plan_shape_stream(shape, T_world_obj, db=db, config=config, source=source))
+
+
+def _last(stream) -> PlanResult:
     result = None
-    for item in plan_stream(points, db=db, rng=rng, config=config, source=source):
+    for item in stream:
         result = item
     if not isinstance(result, PlanResult):  # pragma: no cover - the stream always ends so
         raise InvalidParameterError("planner produced no result")

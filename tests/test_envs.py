@@ -121,6 +121,24 @@ def test_mask_never_allows_an_invalid_candidate(kw):
     assert (r, term, trunc, info["outcome"]) == (0.0, True, False, "invalid_action")
 
 
+def test_model_perception_plans_the_true_object(kw):
+    """perception="model": the planner gets the true primitives and pose, so the
+    estimated object frame is the true one and candidates are exact for the object."""
+    env = _make(GRASP_SELECT_ID, kw, perception="model", objects="all")
+    for seed in range(3):
+        obs, info = env.reset(seed=seed)
+        assert obs["action_mask"].any() and env.plan_result.identification is None
+        assert env.plan_result.map.meta.extra["source"] == "graspsim.envs"
+        T_est = env.plan_result.T_cloud_obj
+        parts = [p.primitive.kind for p in env.plan_result.parts]
+        shape = env.episode.drawn.shape
+        assert len(parts) == len(getattr(shape, "parts", [shape]))
+        if len(parts) == 1:  # the estimated frame is the true one (a box's axes may be reordered)
+            np.testing.assert_allclose(T_est[:3, 3], env.episode.T_world_obj[:3, 3], atol=1e-9)
+        ev = env.evaluate_candidates()
+        assert np.all(ev["outcome"][obs["action_mask"].astype(bool)] >= 0)
+
+
 def test_step_gives_the_outcomes_evaluate_candidates_predicts(kw):
     env = _make(GRASP_SELECT_ID, kw)
     obs, _ = env.reset(seed=11)
@@ -153,7 +171,7 @@ def test_bad_options_raise_clear_errors(kw):
                        (dict(objects=()), "empty"), (dict(cloud_size=0), "cloud_size"),
                        (dict(view="top"), "view"), (dict(reward="dense"), "reward"),
                        (dict(protocol="shake"), "unknown protocol"), (dict(K=4), "unknown environment option"),
-                       (dict(position_noise=-1.0), "position_noise")]:
+                       (dict(position_noise=-1.0), "position_noise"), (dict(perception="oracle"), "perception")]:
         with pytest.raises(InvalidParameterError, match=match):
             gym.make(GRASP_SELECT_ID, **{**kw, **bad})
     from graspsim.envs.grasp_pose import GraspPoseEnv

@@ -121,3 +121,30 @@ def test_table_plane_drops_exactly_the_poses_below_the_table(db):
     r2 = plan(cloud.points, db=db, rng=np.random.default_rng(0),
               config=PlannerConfig(table=TablePlane(height=-0.05)))
     assert r2.map.meta.extra["table"]["height"] == -0.05 and len(r2.map) > len(r.map)
+
+
+def test_known_shapes_are_planned_without_a_cloud(db):
+    """plan_shape: the same retrieval / scaling / combination for a given primitive or
+    compound; a known cylinder gives the stored map, a compound a combined map whose
+    poses are collision-free against it exactly."""
+    from graspsim.errors import GraspsimError
+    from graspsim.planner import plan_shape, plan_shape_stream
+
+    T = make_transform(random_rotation(np.random.default_rng(3)), [0.3, 0.1, 0.2])
+    r = plan_shape(Cylinder(0.02, 0.2), T, db=db)
+    assert r.identification is None and [p.match for p in r.parts] == ["known"]
+    assert len(r.map) == db.lookup("cylinder", {"radius": 0.02, "height": 0.2}).entry["accepted"]
+    np.testing.assert_allclose(r.T_cloud_obj, T)
+    bottle = Compound.from_parts([Cylinder(0.03, 0.08), Cylinder(0.01, 0.12)],
+                                 [make_transform(np.eye(3), [0, 0, 0.04]),
+                                  make_transform(np.eye(3), [0, 0, 0.14])])
+    items = list(plan_shape_stream(bottle, T, db=db))
+    res = items[-1]
+    assert isinstance(res, PlanResult) and res.status is PlanStatus.COMPLETE and len(res.parts) == 2
+    assert len(items) > 2 and set(np.unique(res.map.part)) == {0, 1}
+    poses = invert_transform(T) @ res.T_cloud_obj @ res.map.T_obj_wrist
+    assert boxes_clear_sdf(bottle, G, poses, res.map.width + 2 * G.approach_clearance).all()
+    with pytest.raises(GraspsimError):
+        plan_shape("cylinder", db=db)
+    with pytest.raises(GraspsimError):
+        plan_shape(Sphere(0.03), np.full((4, 4), np.nan), db=db)

@@ -15,12 +15,17 @@ from graspsim.envs.objects import resolve_object_set
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.generate import MapConfig
 
-__all__ = ["EnvConfig", "RewardMode", "View", "make_config"]
+__all__ = ["EnvConfig", "Perception", "RewardMode", "View", "make_config"]
 
 
 class RewardMode(str, Enum):
     BINARY = "binary"  # 1 for SUCCESS, else 0
     SHAPED = "shaped"  # 1 for SUCCESS, else partial credit from lift and slip (<= 0.5)
+
+
+class Perception(str, Enum):
+    CLOUD = "cloud"  # the paper's run-time stage: identify the object's primitives in the cloud
+    MODEL = "model"  # the true primitives and pose are given (no identification error)
 
 
 class View(str, Enum):
@@ -55,6 +60,10 @@ class EnvConfig:
         map_config: its generation settings (None: the paper's); the five reference maps
         are built there on first use.
     identify_repetitions: MLESAC repetitions of the identification (paper: 10).
+    perception: ``"cloud"`` (default): the planner identifies the object in the sensor
+        cloud, as the paper's run-time stage; ``"model"``: it is given the true
+        primitives and pose (:func:`graspsim.planner.plan_shape`) -- no identification
+        error, and a reset costs little more than the map's retrieval (GraspSelect).
     max_redraws: objects drawn per reset before giving up when none offers a valid
         candidate (GraspSelect).
     threads: native threads for :meth:`GraspSelectEnv.evaluate_candidates`.
@@ -80,6 +89,7 @@ class EnvConfig:
     db_root: str | None = None
     map_config: MapConfig | None = None
     identify_repetitions: int = 10
+    perception: Perception = Perception.CLOUD
     max_redraws: int = 20
     threads: int = 1
 
@@ -110,6 +120,11 @@ class EnvConfig:
         except ValueError:
             raise InvalidParameterError(
                 f"view must be one of {[v.value for v in View]}, got {self.view!r}") from None
+        try:
+            object.__setattr__(self, "perception", Perception(self.perception))
+        except ValueError:
+            raise InvalidParameterError(
+                f"perception must be one of {[p.value for p in Perception]}, got {self.perception!r}") from None
         try:
             object.__setattr__(self, "reward", RewardMode(self.reward))
         except ValueError:

@@ -4,7 +4,9 @@ Each episode is one step. ``reset`` puts a random object on the table (see
 :mod:`graspsim.envs.table`), takes its sensor cloud, runs the planner on it (paper
 2.2-2.5: identification, known/familiar lookup, scaling, combination) and offers K
 grasps of the adapted map, drawn at random among those whose gripper stays clear of the
-table in the estimated object pose (the planner itself does not know the table).
+table in the estimated object pose (the planner itself does not know the table). With
+``perception="model"`` the planner is given the true primitives and pose instead of the
+cloud (no identification error; a much cheaper reset).
 ``step(k)`` executes candidate k as one trial of the protocol (``lift_place``: grasp,
 lift 12 cm, hold, place back) with the robot's execution error, and ends the episode.
 
@@ -48,12 +50,12 @@ import numpy as np
 from gymnasium import spaces
 
 from graspsim.envs.candidates import CANDIDATE_FEATURES, candidate_features, feature_bounds
-from graspsim.envs.config import EnvConfig
+from graspsim.envs.config import EnvConfig, Perception
 from graspsim.envs.table import WORLD_BOUND, TableTask, pose_vector
 from graspsim.errors import GraspsimError, InvalidParameterError, NoFeasibleGraspError
 from graspsim.maps.scaling import ScalingConfig
 from graspsim.perception import IdentifyConfig
-from graspsim.planner import PlannerConfig, PlanResult, plan
+from graspsim.planner import PlannerConfig, PlanResult, plan, plan_shape
 
 __all__ = ["GraspSelectEnv"]
 
@@ -98,8 +100,12 @@ class GraspSelectEnv(TableTask):
             episode = self._draw_episode(ep_rng, shape)
             t1 = time.perf_counter()
             try:
-                result = plan(episode.points, db=self.db, rng=plan_rng, config=self.planner_config,
-                              source="graspsim.envs")
+                if c.perception is Perception.MODEL:
+                    result = plan_shape(episode.drawn.shape, episode.T_world_obj, db=self.db,
+                                        config=self.planner_config, source="graspsim.envs")
+                else:
+                    result = plan(episode.points, db=self.db, rng=plan_rng, config=self.planner_config,
+                                  source="graspsim.envs")
             except ValueError as err:
                 # graspsim.maps.combine.combine_part fails on a scaled batch none of whose
                 # contacts lies on the compound's surface (np.reshape of an empty array);

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
 from graspsim.maps.io import load_map, read_sim_results, save_map, write_sim_results
 
@@ -9,6 +10,8 @@ __all__ = [
     "COLUMNS",
     "GraspabilityMap",
     "MapMeta",
+    "MapConfig",
+    "generate_fs_map",
     "load_map",
     "save_map",
     "write_sim_results",

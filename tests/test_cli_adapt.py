@@ -40,6 +40,11 @@ def test_adapt_writes_map_with_cloud_transform(tmp_path, capsys):
     assert abs(t["table"]["height"] - (0.1 - 0.075)) < 0.002
     with h5py.File(out2) as f:
         assert json.loads(f["graspability/meta"][()])["extra"]["table"]["height"] == t["table"]["height"]
+    assert main(["info", str(out2)]) == 0
+    assert "poses dropped" in capsys.readouterr().out
+    assert main(["info", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert info["table"] is None and info["source"].endswith("cloud.npy")
     code = main(["adapt", str(tmp_path / "cloud.npy"), "-o", str(out2), "--db", str(db), "--table", "low"])
     assert code == 2 and "--table takes 'auto' or a height" in capsys.readouterr().err
 

@@ -110,11 +110,22 @@ def _cmd_info(args) -> int:
     gmap = load_map(args.file)
     s = gmap.summary()
     rates = map_rates(gmap)
+    sim = read_sim_results(args.file)
     s.update(file=args.file, SR=rates.sr, VR=rates.vr, quality=gmap.meta.quality,
              resolution=gmap.meta.resolution, timing=gmap.meta.timing, gripper=gmap.meta.gripper["name"],
-             simulated=sorted(k for k in read_sim_results(args.file) if k != "info"))
+             simulated=sorted(k for k in sim if k != "info"))
     rows = [(k, s[k]) for k in ("method", "grasps", "accepted", "threshold", "grade_mean",
                                 "grade_max", "parts", "SR", "VR", "gripper")]
+    extra = gmap.meta.extra
+    if "T_cloud_obj" in extra:  # an adapted map: where it came from and what it assumed
+        s.update(source=extra.get("source"), T_cloud_obj=extra["T_cloud_obj"], table=extra.get("table"))
+        rows += [("source", extra.get("source")), ("status", extra.get("status"))]
+        t = extra.get("table")
+        rows.append(("table", "none (the map ignores it)" if not t else
+                     f"normal {t['normal']}, height {t['height']:.4f} m, {t.get('dropped', 0)} poses dropped"))
+    if "simulated" in sim:
+        rows.append(("simulated", f"{int(sim['simulated'].sum())} of {len(gmap)} grasps "
+                                  "(grasps/qualities/mujoco)"))
     human = f"{args.file}: {gmap.meta.object}\n" + format_table(rows, ["field", "value"])
     emit(s, args.json, human)
     return 0

@@ -92,8 +92,9 @@ class GraspBatch:
 @dataclass(frozen=True, eq=False)
 class PlanResult:
     """status; map: adapted map (object frame; ``extra["T_cloud_obj"]``); parts;
-    identification (None for :func:`plan_shape`); T_cloud_obj (4, 4); timing [s] per stage plus ``first`` and
-    ``tenth`` (time to the first and tenth grasp with grade > 0.95, None if never)."""
+    identification (None for :func:`plan_shape`); T_cloud_obj (4, 4); timing [s] per
+    stage plus ``first`` and ``tenth`` (time to the first and tenth grasp with grade
+    > 0.95, None if never)."""
 
     status: PlanStatus
     map: GraspabilityMap
@@ -288,10 +289,11 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             batches.append(batch)
             yield GraspBatch(batch, now)
     timing["maps"] = time.perf_counter() - t1
-    if T_table_obj is not None:
-        extra["table"]["dropped"] = n_below
+    final = {**extra, "parts": [p.to_dict() for p in parts]}
+    if T_table_obj is not None:  # a new dict: the batches already yielded keep theirs
+        final["table"] = {**extra["table"], "dropped": n_below}
     meta = replace(obj_meta, method="adapted/" + ("single" if compound is None else "combined"),
-                   extra={**extra, "parts": [p.to_dict() for p in parts]})
+                   extra=final)
     full = GraspabilityMap.concat(batches, meta=meta) if batches else GraspabilityMap.empty(meta)
     full = full.select(np.argsort(-full.grade, kind="stable"))
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth)

@@ -16,7 +16,8 @@ FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
 
 
 @pytest.mark.parametrize("kw", [{"normal": (0, 0, 0)}, {"normal": (0, np.nan, 1)}, {"normal": (1, 2)},
-                                {"height": math.inf}, {"clearance": -0.001}, {"clearance": math.nan}])
+                                {"height": math.inf}, {"clearance": -0.001}, {"clearance": math.nan},
+                                {"normal": "up"}, {"height": "low"}, {"clearance": None}])
 def test_bad_planes_are_refused(kw):
     with pytest.raises(GraspsimError):
         TablePlane(**kw)

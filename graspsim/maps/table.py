@@ -39,20 +39,33 @@ class TablePlane:
     clearance: float = 0.002
 
     def __post_init__(self) -> None:
-        n = np.asarray(self.normal, float).ravel()
+        try:
+            n = np.asarray(self.normal, float).ravel()
+        except (TypeError, ValueError):
+            n = np.full(1, np.nan)
         if n.shape != (3,) or not np.all(np.isfinite(n)) or not np.linalg.norm(n) > 1e-9:
             raise InvalidParameterError(
                 f"table normal must be three finite numbers, not all zero; got {self.normal!r}")
         object.__setattr__(self, "normal", tuple(float(v) for v in n / np.linalg.norm(n)))
         if self.height is not None:
-            if not math.isfinite(self.height):
+            h = _number(self.height)
+            if not math.isfinite(h):
                 raise InvalidParameterError(f"table height must be finite [m] or None (auto), got {self.height!r}")
-            object.__setattr__(self, "height", float(self.height))
-        if not (math.isfinite(self.clearance) and self.clearance >= 0):
+            object.__setattr__(self, "height", h)
+        c = _number(self.clearance)
+        if not (math.isfinite(c) and c >= 0):
             raise InvalidParameterError(f"table clearance must be >= 0 m, got {self.clearance!r}")
+        object.__setattr__(self, "clearance", c)
 
     def to_dict(self) -> dict:
         return {"normal": list(self.normal), "height": self.height, "clearance": self.clearance}
+
+
+def _number(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
 
 
 def table_frame(normal, height: float) -> np.ndarray:

@@ -114,8 +114,31 @@ def fit_model(
     ll, gamma, post = mixture_loglik(np.nan_to_num(model_sdf(kind, R, t, dims, points), nan=nu),
                                      sigma, nu)
     b = int(np.argmax(ll))
-    return _finish(kind, points, (R[b], t[b], dims[b], ll[b], gamma[b], post[b]), sigma, nu, refine,
-                   max_refine_points, repetitions, int(valid.sum()), max_extent_ratio)
+    best = (R[b], t[b], dims[b], ll[b], gamma[b], post[b])
+    if kind == "half_toroid":
+        best = _best_spin(points, best, sigma, nu)
+    return _finish(kind, points, best, sigma, nu, refine, max_refine_points, repetitions,
+                   int(valid.sum()), max_extent_ratio)
+
+
+def _best_spin(points, best, sigma, nu, steps: int = 36, max_points: int = 256):
+    """A half-toroid's ring and tube are well fixed by a hypothesis, but where the half
+    starts about its axis is not (it is aimed at the mean direction of the points near
+    the ring, which one view biases): the most likely of ``steps`` turns about the axis,
+    scored on a stride subsample of ``max_points`` (the refinement that follows polishes
+    the angle), kept if it beats the hypothesis on all points."""
+    R0, t0, d0 = best[:3]
+    a = 2 * np.pi * np.arange(steps) / steps
+    c, s = np.cos(a), np.sin(a)
+    Rz = np.zeros((steps, 3, 3))
+    Rz[:, 0, 0], Rz[:, 0, 1], Rz[:, 1, 0], Rz[:, 1, 1], Rz[:, 2, 2] = c, -s, s, c, 1.0
+    Rs = np.einsum("ij,hjk->hik", R0, Rz)
+    sub = points[np.linspace(0, len(points) - 1, min(len(points), max_points)).astype(int)]
+    ll = mixture_loglik(model_sdf("half_toroid", Rs, np.repeat(t0[None], steps, 0),
+                                  np.repeat(d0[None], steps, 0), sub), sigma, nu)[0]
+    R1 = Rs[int(np.argmax(ll))]
+    ll1, gamma1, post1 = mixture_loglik(model_sdf("half_toroid", R1[None], t0[None], d0[None], points), sigma, nu)
+    return (R1, t0, d0, ll1[0], gamma1[0], post1[0]) if ll1[0] > best[3] else best
 
 
 def fit_from(kind: str, points: np.ndarray, R: np.ndarray, t: np.ndarray, dims: np.ndarray, *,

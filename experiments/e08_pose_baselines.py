@@ -40,7 +40,7 @@ from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
 from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402
 from graspsim.stats import wilson_interval  # noqa: E402
-from graspsim.transforms import make_transform  # noqa: E402
+from graspsim.transforms import frame_from_axes, make_transform  # noqa: E402
 
 log = logging.getLogger("e08")
 POLICIES = ("random", "top_down", "planner")
@@ -71,7 +71,7 @@ def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
     s = (band if len(band) else p)[:, :2] @ x[:2]
     width = float(np.clip(np.ptp(s), g.min_opening, g.max_opening - 2 * g.approach_clearance))
     centre = c + (0.5 * (s.max() + s.min()) - c @ x[:2]) * x[:2]
-    R = np.column_stack([x, np.cross(z, x), z])
+    R = frame_from_axes(x, z)
     tcp = np.array([centre[0], centre[1], tcp_z])
     return make_transform(R, tcp - g.tcp_offset(half_pad) * z), width  # the env's TCP: mid-pad
 

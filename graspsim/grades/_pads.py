@@ -19,6 +19,22 @@ from numba import njit, prange
 __all__ = ["pad_patches"]
 
 
+@njit(cache=True, inline="always")
+def _in_footprint(R, p, P, i, m, half_width, tip_z, z_lo):  # pragma: no cover
+    """Sample m in grasp i's wrist frame: (inside a finger's footprint, x, y, z); the
+    cheap tests first (y, then z), x only for samples inside."""
+    dx = P[m, 0] - p[i, 0]
+    dy = P[m, 1] - p[i, 1]
+    dz = P[m, 2] - p[i, 2]
+    y = R[i, 0, 1] * dx + R[i, 1, 1] * dy + R[i, 2, 1] * dz
+    if y > half_width or y < -half_width:
+        return False, 0.0, y, 0.0
+    z = R[i, 0, 2] * dx + R[i, 1, 2] * dy + R[i, 2, 2] * dz
+    if z > tip_z or z < z_lo:
+        return False, 0.0, y, z
+    return True, R[i, 0, 0] * dx + R[i, 1, 0] * dy + R[i, 2, 0] * dz, y, z
+
+
 @njit(parallel=True, cache=True)
 def pad_patches(P, N, A, R, p, half_width, tip_z, face_length, tol, out):  # pragma: no cover
     """P, N (M, 3) samples and outward normals, A (M,) areas, object frame.
@@ -32,16 +48,9 @@ def pad_patches(P, N, A, R, p, half_width, tip_z, face_length, tol, out):  # pra
         xmin = 1e300
         xmax = -1e300
         for m in range(M):
-            dx = P[m, 0] - p[i, 0]
-            dy = P[m, 1] - p[i, 1]
-            dz = P[m, 2] - p[i, 2]
-            y = R[i, 0, 1] * dx + R[i, 1, 1] * dy + R[i, 2, 1] * dz
-            if y > half_width or y < -half_width:
+            inside, x, y, z = _in_footprint(R, p, P, i, m, half_width, tip_z, z_lo)
+            if not inside:
                 continue
-            z = R[i, 0, 2] * dx + R[i, 1, 2] * dy + R[i, 2, 2] * dz
-            if z > tip_z or z < z_lo:
-                continue
-            x = R[i, 0, 0] * dx + R[i, 1, 0] * dy + R[i, 2, 0] * dz
             if x < xmin:
                 xmin = x
             if x > xmax:
@@ -54,16 +63,9 @@ def pad_patches(P, N, A, R, p, half_width, tip_z, face_length, tol, out):  # pra
         if xmax < xmin:
             continue
         for m in range(M):
-            dx = P[m, 0] - p[i, 0]
-            dy = P[m, 1] - p[i, 1]
-            dz = P[m, 2] - p[i, 2]
-            y = R[i, 0, 1] * dx + R[i, 1, 1] * dy + R[i, 2, 1] * dz
-            if y > half_width or y < -half_width:
+            inside, x, y, z = _in_footprint(R, p, P, i, m, half_width, tip_z, z_lo)
+            if not inside:
                 continue
-            z = R[i, 0, 2] * dx + R[i, 1, 2] * dy + R[i, 2, 2] * dz
-            if z > tip_z or z < z_lo:
-                continue
-            x = R[i, 0, 0] * dx + R[i, 1, 0] * dy + R[i, 2, 0] * dz
             k = -1
             if x <= xmin + tol:
                 k = 0

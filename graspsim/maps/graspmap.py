@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
-from graspsim.transforms import make_transform, quat_to_matrix
+from graspsim.transforms import quat_to_matrix
 
 __all__ = ["GraspabilityMap", "MapMeta", "COLUMNS"]
 
@@ -115,7 +115,16 @@ class GraspabilityMap:
     @property
     def T_obj_wrist(self) -> np.ndarray:
         """(N, 4, 4) wrist poses in the object frame (float64)."""
-        return make_transform(quat_to_matrix(self.wrist_quat), self.wrist_position.astype(float))
+        return self.wrist_transforms()
+
+    def wrist_transforms(self, dtype=np.float64) -> np.ndarray:
+        """(N, 4, 4) wrist poses in the object frame, built in ``dtype`` (float32 for
+        files: no float64 (N, 4, 4) detour)."""
+        T = np.zeros((len(self), 4, 4), dtype)
+        T[:, :3, :3] = quat_to_matrix(self.wrist_quat)
+        T[:, :3, 3] = self.wrist_position
+        T[:, 3, 3] = 1.0
+        return T
 
     @property
     def approach(self) -> np.ndarray:

@@ -27,7 +27,6 @@ import numpy as np
 
 from graspsim.errors import MapFileError
 from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
-from graspsim.transforms import quat_to_matrix
 from graspsim._atomic import atomic_path
 
 __all__ = ["save_map", "load_map", "write_sim_results", "read_sim_results", "FORMAT"]
@@ -71,7 +70,7 @@ def save_map(gmap: GraspabilityMap, path: str | os.PathLike, *, compression: str
     with atomic_path(path) as tmp:
         try:
             with h5py.File(tmp, "w") as f:
-                f.create_dataset("grasps/transforms", data=_transforms32(gmap), **opts)
+                f.create_dataset("grasps/transforms", data=gmap.wrist_transforms(np.float32), **opts)
                 for col, dpath in _PATHS.items():
                     f.create_dataset(dpath, data=getattr(gmap, col), **opts)
                 f.create_dataset("graspability/accepted", data=gmap.accepted, **opts)
@@ -97,15 +96,6 @@ def save_map(gmap: GraspabilityMap, path: str | os.PathLike, *, compression: str
         except OSError as err:
             raise MapFileError(f"cannot write map {path}: {err}") from err
     return path
-
-
-def _transforms32(gmap: GraspabilityMap) -> np.ndarray:
-    """(N, 4, 4) float32 wrist poses, built in place (no float64 (N, 4, 4) detour)."""
-    T = np.zeros((len(gmap), 4, 4), np.float32)
-    T[:, :3, :3] = quat_to_matrix(gmap.wrist_quat)
-    T[:, :3, 3] = gmap.wrist_position
-    T[:, 3, 3] = 1.0
-    return T
 
 
 def _open(path: Path, mode: str = "r"):

@@ -17,7 +17,7 @@ import numpy as np
 from graspsim.errors import InvalidParameterError
 from graspsim.gripper import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
-from graspsim.transforms import make_transform, quat_to_matrix
+from graspsim.transforms import frame_from_axes, make_transform, quat_to_matrix
 
 __all__ = ["TablePlane", "clears_table", "table_frame"]
 
@@ -71,12 +71,9 @@ def _number(v) -> float:
 def table_frame(normal, height: float) -> np.ndarray:
     """T_table_cloud (4, 4): a frame whose z axis is ``normal`` and whose origin lies on
     the plane normal . p = height, so a point's z in it is its height above the table."""
-    z = np.asarray(normal, float) / np.linalg.norm(normal)
-    a = np.eye(3)[int(np.argmin(np.abs(z)))]
-    x = np.cross(a, z)
-    x /= np.linalg.norm(x)
-    R = np.stack([x, np.cross(z, x), z])  # rows: the table axes in the cloud frame
-    return make_transform(R, -height * np.eye(3)[2])
+    z = np.asarray(normal, float)
+    R = frame_from_axes(np.eye(3)[int(np.argmin(np.abs(z)))], z)  # any x across the normal
+    return make_transform(R.T, -height * np.eye(3)[2])
 
 
 def clears_table(gmap: GraspabilityMap, T_table_obj: np.ndarray, gripper: GripperSpec,

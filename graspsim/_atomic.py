@@ -1,43 +1,186 @@
-"""Atomic file writes: write a temporary file beside the target, fsync, rename.
+"""Atomic file writes: write temporary files beside the targets, fsync, rename.
 
-A crash or a full disk leaves the old file (or none) in place, never half a file.
+A crash or a full disk leaves the old file (or none) in place, never half a file. Several
+outputs of one command (a map and its plot) are committed together: every temporary is
+written first, and only then are they renamed onto their targets.
+
+A temporary is named ``.<target name>.<writer pid>.<random>.tmp<target suffix>`` (the
+suffix keeps format-by-extension writers such as matplotlib working). A process killed
+with SIGKILL cannot clean up its temporary; the next write to the same target removes
+such leftovers when their writer is no longer running or they have not been touched for
+:data:`STALE_SECONDS`.
+
+:func:`check_output` and :func:`check_folder` say before any work starts whether an
+output can be written (the one check every command uses).
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
 import tempfile
+import time
 from pathlib import Path
 from typing import Iterator
 
-from graspsim.errors import MapFileError
+from graspsim.errors import MapFileError, OutputPathError
 
-__all__ = ["atomic_path", "atomic_write_text"]
+__all__ = ["atomic_path", "atomic_paths", "atomic_write_text", "check_output", "check_folder",
+           "STALE_SECONDS"]
+
+STALE_SECONDS = 3600.0  # a temporary untouched this long is a leftover, whoever wrote it
+
+
+def _folder(path: Path) -> Path:
+    return path.parent if str(path.parent) else Path(".")
+
+
+def check_output(path: str | os.PathLike, what: str = "output", error=OutputPathError) -> Path:
+    """Raise ``error`` unless ``path`` can be written as a file: it is not a directory
+    (or other non-file), its folder exists, and a file can be created there (tried, not
+    guessed from permission bits). Returns ``path`` as a Path."""
+    path = Path(path)
+    folder = _folder(path)
+    if path.is_dir():
+        raise error(f"cannot write {what} {path}: it is a directory (give a file name)")
+    if path.exists() and not path.is_file():
+        raise error(f"cannot write {what} {path}: it exists and is not a regular file")
+    if not folder.is_dir():
+        raise error(f"cannot write {what} {path}: folder {folder} does not exist")
+    try:
+        tmp = _new_temp(path)
+    except OSError as err:
+        raise error(f"cannot write {what} {path}: {err.strerror or err}") from err
+    tmp.unlink()
+    return path
+
+
+def check_folder(path: str | os.PathLike, what: str = "output folder", error=OutputPathError) -> Path:
+    """Raise ``error`` unless ``path`` is (or can be created as) a folder files can be
+    written into. Nothing is created. Returns ``path`` as a Path."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise error(f"cannot write {what} {path}: it exists and is not a folder")
+    existing = path
+    while not existing.exists():  # the nearest existing ancestor must take new entries
+        existing = existing.parent
+    if not existing.is_dir():
+        raise error(f"cannot write {what} {path}: {existing} is not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".graspsim-probe.", dir=existing)
+    except OSError as err:
+        raise error(f"cannot write {what} {path}: {err.strerror or err}") from err
+    os.close(fd)
+    os.unlink(probe)
+    return path
+
+
+def _temp_pattern(path: Path) -> re.Pattern:
+    """Temporaries of ``path``: ours (``.NAME.PID.RANDOM.tmpSUFFIX``) and those of earlier
+    versions (``.NAME.RANDOM.tmp``)."""
+    return re.compile(rf"^\.{re.escape(path.name)}\.(?:(\d+)\.)?[a-z0-9_]+\.tmp"
+                      rf"(?:{re.escape(path.suffix)})?$")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # exists, but another user's
+        return True
+    return True
+
+
+def remove_stale_temps(path: str | os.PathLike, max_age: float = STALE_SECONDS) -> list[Path]:
+    """Remove leftover temporaries of ``path`` (see the module docstring); returns them."""
+    path = Path(path)
+    pat = _temp_pattern(path)
+    removed = []
+    now = time.time()
+    try:
+        entries = list(os.scandir(_folder(path)))
+    except OSError:
+        return removed
+    for e in entries:
+        m = pat.match(e.name)
+        if m is None:
+            continue
+        pid = int(m.group(1)) if m.group(1) else None
+        try:
+            old = now - e.stat(follow_symlinks=False).st_mtime > max_age
+        except OSError:
+            continue
+        dead = pid is not None and pid != os.getpid() and not _alive(pid)
+        if dead or old:
+            with contextlib.suppress(OSError):
+                os.unlink(e.path)
+                removed.append(Path(e.path))
+    return removed
+
+
+def _new_temp(path: Path) -> Path:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp" + path.suffix,
+                               dir=_folder(path))
+    os.close(fd)
+    return Path(tmp)
+
+
+def _file_mode(path: Path) -> int:
+    """The mode the target gets: the existing file's, else 0o666 less the umask (as
+    ``open`` would give; mkstemp's own 0o600 would hide maps from other users)."""
+    try:
+        return path.stat().st_mode & 0o7777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
+
+
+@contextlib.contextmanager
+def atomic_paths(paths, error=MapFileError) -> Iterator[list[Path]]:
+    """Yield temporary paths, one per target of ``paths``, in the targets' folders; when
+    the block succeeds they are all renamed onto their targets, otherwise all removed.
+
+    The folders must exist: a missing folder is an error, not silently created.
+    """
+    paths = [Path(p) for p in paths]
+    for p in paths:
+        if not _folder(p).is_dir():
+            raise error(f"cannot write {p}: folder {_folder(p)} does not exist")
+        if p.is_dir():
+            raise error(f"cannot write {p}: it is a directory")
+    tmps: list[Path] = []
+    try:
+        for p in paths:
+            remove_stale_temps(p)
+            try:
+                tmps.append(_new_temp(p))
+            except OSError as err:
+                raise error(f"cannot write {p}: {err.strerror or err}") from err
+        yield list(tmps)
+        try:
+            for p, t in zip(paths, tmps):
+                with open(t, "rb+") as f:
+                    os.fsync(f.fileno())
+                os.chmod(t, _file_mode(p))
+            for p, t in zip(paths, tmps):
+                os.replace(t, p)
+        except OSError as err:
+            raise error(f"cannot write {p}: {err.strerror or err}") from err
+    except BaseException:
+        for t in tmps:
+            with contextlib.suppress(FileNotFoundError):
+                t.unlink()
+        raise
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, error=MapFileError) -> Iterator[Path]:
-    """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
-
-    The folder must exist: a missing folder is an error, not silently created.
-    """
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise error(f"cannot write {path}: folder {folder} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    os.close(fd)
-    tmp = Path(tmp)
-    try:
+    """Yield a temporary path in the target's folder; rename it onto ``path`` on success."""
+    with atomic_paths([path], error) as (tmp,):
         yield tmp
-        with open(tmp, "rb+") as f:
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
 
 
 def atomic_write_text(path: str | os.PathLike, text: str, error=MapFileError) -> None:

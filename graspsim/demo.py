@@ -100,8 +100,10 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
 
     if cfg.quick:
         cfg = replace(cfg, trials=min(cfg.trials, 6), renders=min(cfg.renders, 1))
+    from graspsim._atomic import check_folder
+
     t0 = time.perf_counter()
-    out = Path(cfg.out)
+    out = check_folder(cfg.out, "demo output folder")  # before the work, not after it
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(cfg.seed)
     db = _database(cfg, step)
@@ -112,8 +114,8 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
     result = plan(points, db=db, rng=np.random.default_rng(cfg.seed), source=source)
     t_plan = time.perf_counter() - t1
     gmap = result.map
-    save_map(gmap, out / "adapted_map.h5")
-    if len(gmap):
+    if len(gmap):  # a failed run writes no map file (summary.json says why)
+        save_map(gmap, out / "adapted_map.h5")
         plot_map(gmap, out / "adapted_map.png", min_grade=0.7,
                  title=f"adapted map: {len(gmap)} grasps ({result.status.value})")
     summary = {"config": asdict(cfg), "source": source, "status": result.status.value,
@@ -135,13 +137,16 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
         sim_shape = shape_from_dict(gmap.meta.object)
     scene = build_scene(object_from_shape(sim_shape), db.gripper,
                         SimSettings(friction=db.quality.friction))
-    # grasps the arm can reach over the table, drawn uniformly over the object
+    # grasps whose gripper stays clear of the table (2 mm) with the object standing on it,
+    # drawn uniformly over the object
     T_sim = T_true_obj @ gmap.T_obj_wrist
-    reachable = clears_table(gmap, scene.T_world_obj @ T_true_obj, db.gripper, 0.002)
-    candidates = np.flatnonzero(gmap.accepted & reachable)
+    clear = clears_table(gmap, scene.T_world_obj @ T_true_obj, db.gripper, 0.002)
+    candidates = np.flatnonzero(gmap.accepted & clear)
+    summary["clear_of_table"] = len(candidates)
     rows = candidates[gmap.select(candidates).uniform_surface_rows(cfg.trials, rng)]
-    step(f"simulating {len(rows)} lift-and-place trials in MuJoCo "
-         f"({len(candidates)} reachable grasps > 0.7)")
+    step(f"simulating {len(rows)} lift-and-place trials in MuJoCo, drawn from the "
+         f"{len(candidates)} grasps > 0.7 whose gripper stays clear of the table "
+         f"(of {summary['accepted']} > 0.7)")
     noise = ExecutionNoise() if cfg.noise else None
     res = run_trials(scene, T_sim[rows], gmap.width[rows], LiftPlace(), threads=cfg.threads,
                      seed=cfg.seed, noise=noise)
@@ -179,6 +184,9 @@ def _render(scene, T, width, folder: Path, n: int, step) -> list[str]:
 def _finish(summary: dict, out: Path, t0: float) -> dict:
     from graspsim._jsonable import to_jsonable
 
+    from graspsim._atomic import atomic_write_text
+    from graspsim.errors import OutputPathError
+
     summary["seconds"] = time.perf_counter() - t0
-    (out / "summary.json").write_text(json.dumps(to_jsonable(summary), indent=1))
+    atomic_write_text(out / "summary.json", json.dumps(to_jsonable(summary), indent=1), OutputPathError)
     return summary

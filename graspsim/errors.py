@@ -14,6 +14,7 @@ __all__ = [
     "GripperError",
     "NoFeasibleGraspError",
     "MapFileError",
+    "OutputPathError",
     "MapDatabaseError",
     "PointCloudError",
     "IdentificationError",
@@ -45,6 +46,11 @@ class NoFeasibleGraspError(GraspsimError):
 
 class MapFileError(GraspsimError, OSError):
     """A map file is missing, truncated, foreign or cannot be written."""
+
+
+class OutputPathError(GraspsimError, OSError):
+    """An output file or folder cannot be written (a directory given as a file, a missing
+    folder, no permission); raised before any work is done."""
 
 
 class MapDatabaseError(GraspsimError):

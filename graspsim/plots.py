@@ -11,7 +11,26 @@ import numpy as np
 
 from graspsim.maps.graspmap import GraspabilityMap
 
-__all__ = ["plot_map", "plot_maps"]
+__all__ = ["plot_map", "plot_maps", "map_figure", "image_format"]
+
+_FORMATS = ("png", "pdf", "svg", "jpg", "jpeg", "tif", "tiff", "webp", "eps", "ps")
+
+
+def image_format(path: str | os.PathLike) -> str:
+    """The image format named by ``path``'s extension (``png`` when it has none); an
+    extension matplotlib cannot write raises :class:`InvalidParameterError` (say it before
+    the work, not after)."""
+    from pathlib import Path
+
+    ext = Path(path).suffix.lower().lstrip(".")
+    if not ext:
+        return "png"
+    if ext not in _FORMATS:
+        from graspsim.errors import InvalidParameterError
+
+        raise InvalidParameterError(f"cannot write an image to {path}: unknown extension .{ext} "
+                                    f"(valid: {', '.join('.' + f for f in _FORMATS)})")
+    return ext
 
 
 def _pyplot():
@@ -45,24 +64,45 @@ def _draw(ax, gmap: GraspabilityMap, what: str, max_points: int, min_grade: floa
     ax.set_xlim(c[0] - r, c[0] + r)
     ax.set_ylim(c[1] - r, c[1] + r)
     ax.set_zlim(c[2] - r, c[2] + r)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
+    ax.set_xlabel("x [m]", labelpad=8)
+    ax.set_ylabel("y [m]", labelpad=8)
+    ax.set_zlabel("z [m]", labelpad=8)
+    ax.set_box_aspect(None, zoom=0.82)  # room inside the axes for the z label
     ax.set_title(title, fontsize=9)
     return sc
 
 
 def plot_map(gmap: GraspabilityMap, path: str | os.PathLike, *, what: str = "grasp_point",
-             min_grade: float = 0.0, max_points: int = 30000, title: str | None = None) -> None:
+             min_grade: float = 0.0, max_points: int = 30000, title: str | None = None,
+             format: str | None = None) -> None:
     """Save a 3-D scatter of grasp points (or ``what="wrist"`` positions) coloured by
     grade, over a translucent mesh of the object."""
     plot_maps([gmap], path, what=what, min_grade=min_grade, max_points=max_points,
-              titles=[title] if title else None)
+              titles=[title] if title else None, format=format)
 
 
 def plot_maps(maps: list[GraspabilityMap], path: str | os.PathLike, *, what: str = "grasp_point",
-              min_grade: float = 0.0, max_points: int = 30000, titles: list[str] | None = None) -> None:
-    """Several maps side by side with one colour bar (e.g. FS vs adapted, paper fig. 5)."""
+              min_grade: float = 0.0, max_points: int = 30000, titles: list[str] | None = None,
+              format: str | None = None) -> None:
+    """Several maps side by side with one colour bar (e.g. FS vs adapted, paper fig. 5).
+
+    The file is written atomically; ``format`` defaults to :func:`image_format` of
+    ``path`` (give it when ``path`` is a temporary name)."""
+    from graspsim._atomic import atomic_path
+    from graspsim.errors import OutputPathError
+
+    format = format or image_format(path)
+    fig = map_figure(maps, what=what, min_grade=min_grade, max_points=max_points, titles=titles)
+    try:
+        with atomic_path(path, OutputPathError) as tmp:
+            fig.savefig(tmp, dpi=130, format=format)
+    finally:
+        _pyplot().close(fig)
+
+
+def map_figure(maps: list[GraspabilityMap], *, what: str = "grasp_point", min_grade: float = 0.0,
+               max_points: int = 30000, titles: list[str] | None = None):
+    """The matplotlib figure :func:`plot_maps` saves (the caller closes it)."""
     if what not in ("grasp_point", "wrist"):
         from graspsim.errors import InvalidParameterError
 
@@ -75,6 +115,5 @@ def plot_maps(maps: list[GraspabilityMap], path: str | os.PathLike, *, what: str
         obj = m.meta.object
         default = f"{obj.get('primitive', 'object')}: {len(m)} grasps, {int(m.accepted.sum())} > {m.threshold:g}"
         sc = _draw(ax, m, what, max_points, min_grade, titles[i] if titles else default)
-    fig.colorbar(sc, ax=fig.axes, shrink=0.6, label="grade")
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    fig.colorbar(sc, ax=fig.axes, shrink=0.6, pad=0.06, label="grade")
+    return fig

@@ -28,13 +28,16 @@ def _json(capsys) -> dict:
     return json.loads(capsys.readouterr().out.strip().splitlines()[-1])
 
 
-def test_json_summary(cylinder_file, capsys):
+def test_json_summary(cylinder_file, capsys, tmp_path, monkeypatch):
+    nodb = tmp_path / "nodb"
+    monkeypatch.setenv("GRASPSIM_DB", str(nodb))  # no default database: no match, none built
     assert main(["identify", str(cylinder_file), "--json", "--seed", "3", "--repetitions", "10"]) == 0
     out = _json(capsys)
     assert out["status"] == "identified" and out["dropped_nonfinite"] == 5
     (part,) = out["parts"]
     assert set(part) == {"primitive", "dims", "pose", "match", "fit_rate", "points"}
     assert part["primitive"] == "cylinder" and part["match"] is None
+    assert out["database"] is None and not nodb.exists()
     assert part["dims"]["radius"] == pytest.approx(0.02, abs=0.002)
     assert np.asarray(part["pose"]).shape == (4, 4) and out["seconds"] > 0
     # same seed, same answer
@@ -66,3 +69,23 @@ def test_db_option(cylinder_file, tmp_path, capsys):
         assert rc == 2 and "graspsim.maps.database" in capsys.readouterr().err
     else:
         assert rc == 0 and _json(capsys)["parts"][0]["match"] is None
+
+
+def test_match_column_uses_the_default_database_like_adapt(cylinder_file, tmp_path, monkeypatch,
+                                                           capsys):
+    """identify asks the default database (the one adapt uses) without --db when it exists."""
+    from graspsim.maps.database import MapDatabase
+
+    root = tmp_path / "db"
+    db = MapDatabase(root)  # default settings, as adapt's
+    (root / "index.json").write_text(json.dumps({"format": "graspsim-db-1", "maps": [
+        {"primitive": "cylinder", "dims": {"radius": 0.02, "height": 0.12},
+         "settings": db.settings_digest, "key": "k", "file": "cylinder/k.h5"}]}))
+    monkeypatch.setenv("GRASPSIM_DB", str(root))
+    assert main(["identify", str(cylinder_file), "--seed", "3"]) == 0
+    rows = [r.split() for r in capsys.readouterr().out.splitlines() if "cylinder" in r.split()[1:2]]
+    assert rows and rows[0][-1] == "known"
+    assert main(["identify", str(cylinder_file), "--seed", "3", "--json"]) == 0
+    out = _json(capsys)
+    assert out["parts"][0]["match"] == "known" and out["database"] == str(root)
+    assert sorted(p.name for p in root.iterdir()) == ["index.json"]  # nothing built

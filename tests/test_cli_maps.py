@@ -43,7 +43,7 @@ def test_db_build_and_lookup(tmp_path, capsys):
     assert _last_json(capsys)["match"] == "known"
     assert main(["db", "lookup", "sphere", "--radius", "0.06", *args]) == 0
     assert _last_json(capsys)["match"] == "familiar"
-    assert main(["db", "list", *args]) == 0
+    assert main(["db", "list", "--root", root, "--json"]) == 0
     assert len(_last_json(capsys)["maps"]) == 1
 
 

@@ -38,11 +38,11 @@ def test_table_output_tug_sample_and_noise(tmp_path, capsys):
     assert read_sim_results(path) == {}
 
 
-def test_empty_selection_reports_no_rate(tmp_path, capsys):
+def test_empty_selection_is_an_error(tmp_path, capsys):
     path = _map(tmp_path)
-    assert main(["trial", str(path), "--top", "0", "--json"]) == 0
-    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert summary["trials"] == 0 and summary["success_rate"] is None
+    assert main(["trial", str(path), "--top", "0", "--json"]) == 2
+    assert "nothing to simulate" in capsys.readouterr().err
+    assert read_sim_results(path) == {}
 
 
 def test_bad_input_exits_with_a_clear_error(tmp_path, capsys):

@@ -11,18 +11,18 @@ __all__ = ["register"]
 
 
 def _cmd_adapt(args) -> int:
+    import sys
+
     import numpy as np
 
-    from graspsim.errors import MapFileError
+    from graspsim._atomic import check_output
     from graspsim.maps.database import MapDatabase
     from graspsim.maps.io import save_map
     from graspsim.maps.scaling import ScalingConfig
     from graspsim.perception import IdentifyConfig, read_point_cloud
     from graspsim.planner import PlannerConfig, plan
 
-    out = Path(args.output)
-    if not out.parent.is_dir():
-        raise MapFileError(f"cannot write {out}: folder {out.parent} does not exist")
+    out = check_output(args.output, "map")  # before the work, not after it
     cloud = read_point_cloud(args.cloud)
     table = None
     if args.table is not None:
@@ -37,10 +37,14 @@ def _cmd_adapt(args) -> int:
     db = MapDatabase(args.db, quality=quality, config=map_cfg)
     result = plan(cloud.points, db=db, rng=np.random.default_rng(args.seed), config=cfg,
                   source=str(Path(args.cloud).resolve()))
-    save_map(result.map, out)
+    # only a map with grasps is written: a failed run leaves an existing file as it was
+    why = ("nothing was identified" if result.status.value == "failed"
+           else "the identified parts have no collision-free grasp" if not len(result.map) else None)
+    if why is None:
+        save_map(result.map, out)
     s = result.summary()
-    s.update(file=str(out), cloud=args.cloud, points=len(cloud.points), dropped=cloud.n_dropped,
-             timing=result.timing)
+    s.update(file=str(out) if why is None else None, cloud=args.cloud, points=len(cloud.points),
+             dropped=cloud.n_dropped, timing=result.timing)
     rows = [(p["primitive"], {k: round(v, 4) for k, v in p["dims"].items()}, p["match"]) for p in s["parts"]]
     first = s["time_to_first_0.95"]
     human = (format_table(rows, ["part", "dims [m]", "match"]) +
@@ -48,9 +52,13 @@ def _cmd_adapt(args) -> int:
              + (f"; first grasp > 0.95 after {first * 1e3:.1f} ms" if first is not None else "")
              + (f"; {s['table']['dropped']} grasps below the table (height "
                 f"{s['table']['height']:.4f} m) dropped" if s.get("table") and "dropped" in s["table"] else "")
-             + f" -> {out}")
+             + (f" -> {out}" if why is None else ""))
     emit(s, args.json, human)
-    return 0 if result.status.value != "failed" else 1
+    if why is not None:
+        kept = f"{out} left as it was" if out.exists() else f"{out} not written"
+        print(f"graspsim: adapt: no map written: {why} ({kept})", file=sys.stderr)
+        return 1
+    return 0
 
 
 def _height(text: str) -> float:
@@ -68,7 +76,8 @@ def register(sub) -> None:
         description="Identify the cloud's shape primitives, take their FS maps from the "
         "database (built on first use), scale familiar ones, combine several parts, and "
         "write the adapted map (object frame; object/T_cloud_obj maps it to the cloud's "
-        "frame). Exit status 1 when identification fails completely.")
+        "frame). Exit status 1, and no map written (an existing file is left as it was), "
+        "when nothing is identified or no grasp is found.")
     p.add_argument("cloud", help="point cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m]")
     p.add_argument("-o", "--output", required=True, help="map file to write (.h5)")
     p.add_argument("--scaling", choices=["combined", "quality", "feasibility"], default="combined",
@@ -79,7 +88,7 @@ def register(sub) -> None:
     p.add_argument("--theta", type=float, default=0.5, help="split threshold theta_th (0.5)")
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
     p.add_argument("--no-partial", action="store_true",
-                   help="no map at all when clustering fails (default: map of identified parts)")
+                   help="no map at all when clustering fails (default: map of the identified parts)")
     p.add_argument("--table", default=None, metavar="auto|HEIGHT",
                    help="drop grasps that would take the gripper below the table the object "
                    "stands on: 'auto' puts the table at the object's lowest point along "

@@ -58,6 +58,10 @@ def run(args) -> int:
         raise InvalidParameterError(f"--per-bin must be >= 1, got {args.per_bin}")
     if args.threads is not None and args.threads < 1:
         raise InvalidParameterError(f"--threads must be >= 1, got {args.threads}")
+    if args.out:
+        from graspsim._atomic import check_folder
+
+        check_folder(args.out, "output folder")  # before the work, not after it
     models = [get_grade(g) for g in (args.grade or ["pad_contact"])]
     names = [Path(m).stem for m in args.maps]
     if len(set(names)) != len(names):
@@ -71,6 +75,8 @@ def run(args) -> int:
                         noise_position=0.003 if args.noise else 0.0,
                         noise_rotation=math.radians(2.0) if args.noise else 0.0)
     samples = draw_samples(cases, args.per_bin, seed=args.seed)
+    if not sum(len(s.rows) for s in samples):
+        raise InvalidParameterError("nothing to calibrate: the maps hold no grasp that clears the table")
     bar = progress(sum(len(s.rows) for s in samples), "trials", enabled=not args.json, unit="trial")
     try:
         with executor_from_args(args) as ex:
@@ -108,15 +114,19 @@ def run(args) -> int:
 
 
 def _write(out: Path, table, rep, scores: dict) -> list[str]:
+    """All five files, or none: each is written to a temporary and renamed at the end."""
+    from graspsim._atomic import atomic_paths
     from graspsim.calibration.outputs import library_versions, write_json, write_text
     from graspsim.calibration.plots import plot_reliability, plot_roc
+    from graspsim.errors import OutputPathError
 
     out.mkdir(parents=True, exist_ok=True)
     f = table.select(table.feasible)
-    paths = [table.save(out / "trials.npz"),
-             write_json(out / "report.json", {**rep.to_dict(), "versions": library_versions(),
-                                              "argv": sys.argv}),
-             write_text(out / "report.md", rep.markdown())]
-    plot_reliability(rep.scores, out / "reliability.png")
-    plot_roc({k: (f[c], f["success"], None) for k, c in scores.items()}, out / "roc.png")
-    return [str(p) for p in paths] + [str(out / "reliability.png"), str(out / "roc.png")]
+    names = ["trials.npz", "report.json", "report.md", "reliability.png", "roc.png"]
+    with atomic_paths([out / n for n in names], OutputPathError) as tmp:
+        table.save(tmp[0])
+        write_json(tmp[1], {**rep.to_dict(), "versions": library_versions(), "argv": sys.argv})
+        write_text(tmp[2], rep.markdown())
+        plot_reliability(rep.scores, tmp[3])
+        plot_roc({k: (f[c], f["success"], None) for k, c in scores.items()}, tmp[4])
+    return [str(out / n) for n in names]

@@ -10,8 +10,17 @@ __all__ = ["register"]
 
 
 def _cmd_run(args) -> int:
-    from graspsim.campaign import campaign_tasks, run_campaign
+    import sys
 
+    from graspsim._atomic import check_folder
+    from graspsim.campaign import campaign_tasks, run_campaign
+    from graspsim.errors import InvalidParameterError
+
+    for flag in ("top", "sample", "seeds"):
+        n = getattr(args, flag)
+        if n is not None and n < 1:
+            raise InvalidParameterError(f"nothing to simulate: --{flag} {n} (give N >= 1)")
+    check_folder(args.out, "campaign folder")  # before the work, not after it
     noise = (args.noise_pos, math.radians(args.noise_rot_deg)) if args.noise else None
     tasks = campaign_tasks(args.maps, protocol=args.protocol, top=args.top, sample=args.sample,
                            min_grade=args.min_grade, noise=noise, seeds=range(args.seeds),
@@ -26,6 +35,10 @@ def _cmd_run(args) -> int:
     emit(s, args.json, format_table(rows, ["outcome", "trials"]) +
          f"\nsuccess {res.success_rate:.3f} (95 % {lo:.3f}-{hi:.3f}) over feasible trials; "
          f"{res.ran} tasks run, {res.skipped} already done -> {args.out}")
+    if not sum(res.counts.values()) and res.records:
+        print(f"graspsim: campaign: no trials: no map had a grasp matching the selection "
+              f"({len(res.records)} tasks)", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -40,7 +53,9 @@ def _cmd_status(args) -> int:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("campaign", help="resumable trial campaigns over many maps (local or Ray)")
+    p = sub.add_parser("campaign", help="resumable trial campaigns over many maps (local or Ray)",
+                       description="Simulate grasps of many map files as a resumable campaign: "
+                       "'run' starts or resumes one in a folder, 'status' says how far it is.")
     cs = p.add_subparsers(dest="campaign_command", metavar="ACTION")
     cs.required = True
     q = cs.add_parser("run", help="simulate grasps of many maps; rerun to resume",
@@ -62,7 +77,8 @@ def register(sub) -> None:
     add_executor_flags(q)
     add_json_flag(q)
     q.set_defaults(func=_cmd_run)
-    q = cs.add_parser("status", help="how far a campaign folder is")
+    q = cs.add_parser("status", help="how far a campaign folder is",
+                      description="Count the finished and missing tasks of a campaign folder.")
     q.add_argument("out", help="campaign folder")
     add_json_flag(q)
     q.set_defaults(func=_cmd_status)

@@ -23,8 +23,10 @@ def _cmd_demo(args) -> int:
     s = run_demo(cfg, step=step)
     lines = [f"object: {s['source']} -> {s['status']}: "
              + ", ".join(f"{p['primitive']} ({p['match']})" for p in s["parts"]),
-             f"adapted map: {s['grasps']} grasps, {s['accepted']} with grade > 0.7, "
-             f"built in {s['plan_seconds']:.2f} s from the cloud"]
+             f"adapted map: {s['grasps']} grasps, {s['accepted']} with grade > 0.7"
+             + (f" ({s['clear_of_table']} of them with the gripper clear of the table)"
+                if "clear_of_table" in s else "")
+             + f", built in {s['plan_seconds']:.2f} s from the cloud"]
     if s["trials"]:
         rows = [(i, t["part"], f"{t['grade']:.3f}", t["outcome"], f"{100 * t['lift_height']:.1f}",
                  f"{1000 * t['hold_slip']:.1f}") for i, t in enumerate(s["trials"])]

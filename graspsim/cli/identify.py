@@ -6,8 +6,9 @@ The JSON summary (``--json``, last stdout line)::
      "match", "fit_rate", "points"}], "unidentified": [...], "seconds", ...}
 
 ``pose`` is ``T_world_obj`` (4x4, object frame of DESIGN.md §3), ``dims`` in metres,
-``match`` is "known" / "familiar" / null from the FS map database given with ``--db``
-(null without one).
+``match`` is "known" / "familiar" / null from the FS map database given with ``--db``,
+else the default one (``$GRASPSIM_DB`` or ``~/.cache/graspsim/db``, the database
+``adapt`` uses) when it exists -- identify never builds one; ``database`` says which.
 """
 
 from __future__ import annotations
@@ -23,12 +24,18 @@ from graspsim.perception.io import read_point_cloud
 
 __all__ = ["register", "run"]
 
+_DESCRIPTION = (
+    "Identify the shape primitives (box, cylinder, sphere, cone, half-toroid) of an object "
+    "point cloud by MLESAC fitting and splitting (paper section 4). Prints each part's "
+    "primitive, dimensions, fit rate and whether the map database knows it (known: a map of "
+    "that size is stored; familiar: same primitive, another size). Coordinates in metres.")
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "identify",
         help="identify shape primitives in a point cloud (.pcd, .ply, .npy, .xyz)",
-        description=__doc__.split("\n\n")[0],
+        description=_DESCRIPTION,
     )
     p.add_argument("cloud", help="point cloud file, coordinates in metres")
     p.add_argument("--repetitions", type=int, default=10,
@@ -39,34 +46,40 @@ def register(subparsers) -> None:
                    help="sensor noise sigma in metres (default: estimated)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--db", metavar="DIR", default=None,
-                   help="FS map database folder for the known/familiar decision")
+                   help="FS map database folder for the known/familiar decision (default: "
+                   "$GRASPSIM_DB or ~/.cache/graspsim/db when it exists; never built here)")
     add_json_flag(p)
     p.set_defaults(func=run)
 
 
 def _lookup(db_dir: str | None):
-    if db_dir is None:
-        return lambda kind, dims: None
+    """(kind, dims) -> "known" / "familiar" / None, and the database folder used (None:
+    no database). Without ``db_dir`` the default database is used only if it exists."""
     try:
-        from graspsim.maps.database import MapDatabase
+        from graspsim.maps.database import MapDatabase, default_root
     except ImportError as err:
         raise DependencyNotInstalled(
             "--db needs graspsim.maps.database (the FS map database), which this "
             "installation does not have"
         ) from err
+    if db_dir is None:
+        root = default_root()
+        if not (root / "index.json").is_file():  # nothing to ask; do not create it
+            return (lambda kind, dims: None), None
+        db_dir = root
     db = MapDatabase(db_dir)
 
     def lookup(kind: str, dims: dict) -> str | None:
         m = db.lookup(kind, dims).match
         return None if m is None else str(getattr(m, "value", m))
 
-    return lookup
+    return lookup, str(db.root)
 
 
 def run(args: argparse.Namespace) -> int:
     cloud = read_point_cloud(args.cloud)
     config = IdentifyConfig(repetitions=args.repetitions, theta=args.theta, noise=args.noise)
-    lookup = _lookup(args.db)
+    lookup, db_root = _lookup(args.db)
     res = identify(cloud.points, rng=np.random.default_rng(args.seed), config=config)
     parts = []
     for p in res.parts:
@@ -87,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
         "repetitions": args.repetitions,
         "theta": args.theta,
         "seed": args.seed,
+        "database": db_root,
     }
     rows = [[i, p["primitive"], ", ".join(f"{k}={v * 100:.2f} cm" for k, v in p["dims"].items()),
              f"{p['fit_rate']:.3f}", p["points"], p["match"] or "-"] for i, p in enumerate(parts)]
@@ -95,6 +109,8 @@ def run(args: argparse.Namespace) -> int:
     human = (f"{args.cloud}: {res.status.value} in {res.seconds * 1000:.0f} ms "
              f"({cloud.n_read} points, {cloud.n_dropped} NaN/inf dropped, "
              f"{res.n_removed} outliers removed, noise {res.noise * 1000:.2f} mm)\n"
-             + format_table(rows, ["part", "primitive", "dims", "fit rate", "points", "match"]))
+             + format_table(rows, ["part", "primitive", "dims", "fit rate", "points", "match"])
+             + ("" if db_root else "\n(match: no map database yet -- `graspsim db build` or the "
+                                   "first `graspsim adapt` makes one)"))
     emit(summary, args.json, human)
     return 0

@@ -56,6 +56,8 @@ def _config(args):
 
 
 def _cmd_map(args) -> int:
+    from graspsim._atomic import atomic_paths, check_output
+    from graspsim.errors import MapFileError
     from graspsim.gripper import HGPL_25_60_A
     from graspsim.maps.generate import generate_fs_map
     from graspsim.maps.io import save_map
@@ -63,11 +65,12 @@ def _cmd_map(args) -> int:
 
     shape = _shape_from_args(args)
     cfg, quality = _config(args)
-    out = Path(args.output)
-    if not out.parent.is_dir():
-        from graspsim.errors import MapFileError
+    out = check_output(args.output, "map")  # before the work, not after it
+    plot = fmt = None
+    if args.plot:
+        from graspsim.plots import image_format
 
-        raise MapFileError(f"cannot write {out}: folder {out.parent} does not exist")
+        plot, fmt = check_output(args.plot, "plot"), image_format(args.plot)
     t0 = time.perf_counter()
     with progress(100, f"map {shape.kind}", enabled=not args.json, unit="%") as bar:
         def report(frac: float) -> None:
@@ -77,30 +80,83 @@ def _cmd_map(args) -> int:
         gmap = generate_fs_map(shape, HGPL_25_60_A, quality, cfg, mass=args.mass,
                                threads=args.threads, progress=report)
     seconds = time.perf_counter() - t0
-    save_map(gmap, out)
     rates = map_rates(gmap)
-    if args.plot:
-        from graspsim.plots import plot_map
+    with atomic_paths([out] + ([plot] if plot else []), MapFileError) as tmps:  # both or neither
+        save_map(gmap, tmps[0])
+        if plot:
+            from graspsim.plots import plot_map
 
-        plot_map(gmap, args.plot)
+            plot_map(gmap, tmps[1], format=fmt)
     summary = {"file": str(out), "object": gmap.meta.object, "grasps": len(gmap),
                "accepted": int(gmap.accepted.sum()), "SR": rates.sr, "VR": rates.vr,
-               "seconds": seconds, "timing": gmap.meta.timing}
+               "seconds": seconds, "timing": gmap.meta.timing, "plot": args.plot}
     human = (f"{shape}: {len(gmap)} collision-free grasps, {summary['accepted']} with grade > "
-             f"{gmap.threshold:g}; SR {rates.sr:.3f}, VR {rates.vr:.3f}; {seconds:.2f} s -> {out}")
+             f"{gmap.threshold:g}; SR {rates.sr:.3f}, VR {rates.vr:.3f}; {seconds:.2f} s -> {out}"
+             + (f" (plot: {plot})" if plot else ""))
     emit(summary, args.json, human)
     return 0
 
 
 def _cmd_show(args) -> int:
+    from graspsim._atomic import check_output
+    from graspsim.errors import InvalidParameterError
     from graspsim.maps.io import load_map
-    from graspsim.plots import plot_map
+    from graspsim.plots import image_format, plot_map
 
+    check_output(args.output, "image")
+    fmt = image_format(args.output)
     gmap = load_map(args.file)
-    plot_map(gmap, args.output, what=args.what, min_grade=args.min_grade)
-    emit({"file": args.file, "image": args.output, "grasps": len(gmap),
-          "plotted_min_grade": args.min_grade}, args.json, f"wrote {args.output}")
+    shown = int((gmap.grade > args.min_grade).sum())
+    if not shown:
+        raise InvalidParameterError(f"nothing to plot: none of the map's {len(gmap)} grasps has "
+                                    f"grade > {args.min_grade:g} (max {_max_grade(gmap)})")
+    plot_map(gmap, args.output, what=args.what, min_grade=args.min_grade, format=fmt)
+    emit({"file": args.file, "image": args.output, "grasps": len(gmap), "plotted": shown,
+          "plotted_min_grade": args.min_grade}, args.json,
+         f"wrote {args.output} ({shown} of {len(gmap)} grasps with grade > {args.min_grade:g})")
     return 0
+
+
+def _max_grade(gmap) -> str:
+    return f"{float(gmap.grade.max()):.3f}" if len(gmap) else "no grasps"
+
+
+def _describe_object(obj: dict) -> str:
+    """One readable line for a map's object description (primitive, compound or mesh)."""
+    mass = obj.get("mass")
+    tail = f", mass {1000 * mass:.4g} g" if isinstance(mass, (int, float)) and math.isfinite(mass) else ""
+    if obj.get("file"):
+        return f"mesh {obj['file']} (scale {obj.get('scale', 1.0):g}){tail}"
+    try:
+        from graspsim.primitives import shape_from_dict
+
+        return f"{shape_from_dict(obj)}{tail}"
+    except Exception:  # noqa: BLE001 - e.g. an unidentified object: show what is recorded
+        return ", ".join(f"{k} {v}" for k, v in obj.items() if k not in ("com", "mass")) + tail
+
+
+def _settings_rows(meta) -> list[tuple[str, str]]:
+    """The settings a map was made with, in words (quality model, resolution, gripper)."""
+    q, r = meta.quality, meta.resolution
+    grade = (f"{q.get('name', '?')}: friction mu {q.get('friction', '?')}, force-closure weight "
+             f"{q.get('fc_weight', '?')}, stability at the {q.get('stability_mode', '?')}"
+             + (f" (d_ref {100 * q['d_ref']:.2f} cm)" if isinstance(q.get("d_ref"), (int, float)) else ""))
+    parts = []
+    for key, label, unit, scale in (("surface_step", "surface step", "mm", 1000),
+                                    ("rotation_step", "rotation step", "deg", 180 / math.pi),
+                                    ("depth_step", "depth step", "mm", 1000),
+                                    ("closing_cone", "closing cone", "deg", 180 / math.pi),
+                                    ("collision_tolerance", "collision tolerance", "mm", 1000)):
+        if isinstance(r.get(key), (int, float)):
+            parts.append(f"{label} {r[key] * scale:.3g} {unit}")
+    g = meta.gripper
+    grip = g.get("name", "unknown") + (f" (stroke {1000 * g['stroke_per_jaw']:.3g} mm per jaw)"
+                                       if isinstance(g.get("stroke_per_jaw"), (int, float)) else "")
+    rows = [("grade", grade), ("resolution", ", ".join(parts) or "-"), ("gripper", grip)]
+    if meta.timing.get("total") is not None:
+        rows.append(("generated", f"{meta.timing['total']:.2f} s" + (f" by graspsim {meta.version}"
+                                                                        if meta.version else "")))
+    return rows
 
 
 def _cmd_info(args) -> int:
@@ -114,8 +170,12 @@ def _cmd_info(args) -> int:
     s.update(file=args.file, SR=rates.sr, VR=rates.vr, quality=gmap.meta.quality,
              resolution=gmap.meta.resolution, timing=gmap.meta.timing, gripper=gmap.meta.gripper["name"],
              simulated=sorted(k for k in sim if k != "info"))
-    rows = [(k, s[k]) for k in ("method", "grasps", "accepted", "threshold", "grade_mean",
-                                "grade_max", "parts", "SR", "VR", "gripper")]
+    rows = [("object", _describe_object(gmap.meta.object)), ("method", s["method"]),
+            ("grasps", s["grasps"]), ("accepted", f"{s['accepted']} (grade > {s['threshold']:g})"),
+            ("grade mean / max", "-" if s["grade_mean"] is None else
+             f"{s['grade_mean']:.3f} / {s['grade_max']:.3f}"),
+            ("parts", s["parts"]), ("SR / VR", f"{rates.sr:.3f} / {rates.vr:.3f}")]
+    rows += _settings_rows(gmap.meta)
     extra = gmap.meta.extra
     if "T_cloud_obj" in extra:  # an adapted map: where it came from and what it assumed
         s.update(source=extra.get("source"), T_cloud_obj=extra["T_cloud_obj"], table=extra.get("table"))
@@ -126,17 +186,34 @@ def _cmd_info(args) -> int:
     if "simulated" in sim:
         rows.append(("simulated", f"{int(sim['simulated'].sum())} of {len(gmap)} grasps "
                                   "(grasps/qualities/mujoco)"))
-    human = f"{args.file}: {gmap.meta.object}\n" + format_table(rows, ["field", "value"])
+    human = f"{args.file}\n" + format_table(rows, ["field", "value"])
     emit(s, args.json, human)
     return 0
+
+
+def _dims_text(dims: dict) -> str:
+    return ", ".join(f"{k} {100 * v:.3g} cm" for k, v in dims.items())
 
 
 def _cmd_db(args) -> int:
     from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid
 
+    if args.db_command == "list":  # every stored map, whatever its settings
+        db = MapDatabase(args.root)
+        ents = db.entries(all_settings=True)
+        rows = [(e["primitive"], _dims_text(e["dims"]), e["grasps"], e.get("settings", "?")
+                 + (" (default)" if e.get("settings") == db.settings_digest else ""), e["file"])
+                for e in ents]
+        emit({"root": str(db.root), "maps": ents, "default_settings": db.settings_digest}, args.json,
+             format_table(rows, ["primitive", "dims", "grasps", "settings", "file"])
+             + f"\n{len(ents)} maps in {db.root}")
+        return 0
     cfg, quality = _config(args)
     db = MapDatabase(args.root, quality=quality, config=cfg)
     if args.db_command == "build":
+        from graspsim._atomic import check_folder
+
+        check_folder(db.root, "database folder")
         kinds = args.primitives or list(PAPER_SHAPES)
         shapes = []
         for k in kinds:
@@ -151,14 +228,10 @@ def _cmd_db(args) -> int:
                 executor_from_args(args) as ex:
             records = db.build(shapes, threads=args.threads, executor=ex,
                                progress=lambda i, n, s: bar.update(1))
-        rows = [(e["primitive"], e["dims"], e["grasps"], e["accepted"], e["seconds"]) for e in records]
+        rows = [(e["primitive"], _dims_text(e["dims"]), e["grasps"], e["accepted"], e["seconds"])
+                for e in records]
         emit({"root": str(db.root), "maps": records, "seconds": time.perf_counter() - t0}, args.json,
-             format_table(rows, ["primitive", "dims [m]", "grasps", "accepted", "build s"]))
-    elif args.db_command == "list":
-        ents = db.entries()
-        emit({"root": str(db.root), "maps": ents}, args.json,
-             format_table([(e["primitive"], e["dims"], e["grasps"], e["file"]) for e in ents],
-                          ["primitive", "dims [m]", "grasps", "file"]))
+             format_table(rows, ["primitive", "dims", "grasps", "accepted", "build s"]))
     else:  # lookup
         shape = _shape_from_args(args)
         m = db.lookup(shape.kind, shape.dims)
@@ -166,7 +239,8 @@ def _cmd_db(args) -> int:
         emit({"primitive": shape.kind, "dims": shape.dims, "match": match,
               "nearest": m.entry, "max_diff": m.max_diff}, args.json,
              f"{shape}: {match or 'no map of this primitive'}"
-             + (f" (nearest stored: {m.entry['dims']}, {m.max_diff * 100:.2f} cm off)" if m.entry else ""))
+             + (f" (nearest stored: {_dims_text(m.entry['dims'])}, {m.max_diff * 100:.2f} cm off)"
+                if m.entry else ""))
     return 0
 
 
@@ -183,7 +257,10 @@ def register(sub) -> None:
     add_json_flag(p)
     p.set_defaults(func=_cmd_map)
 
-    p = sub.add_parser("show", help="plot a map file as a 3-D scatter coloured by grade")
+    p = sub.add_parser("show", help="plot a map file as a 3-D scatter coloured by grade",
+                       description="Draw a map's grasp points (or wrist positions) as a 3-D "
+                       "scatter coloured by grade over a translucent mesh of the object, and save "
+                       "the image (PNG, PDF, SVG ... by the file's extension).")
     p.add_argument("file", help="map file (.h5)")
     p.add_argument("-o", "--output", required=True, help="image to write (.png)")
     p.add_argument("--what", choices=["grasp_point", "wrist"], default="grasp_point",
@@ -192,20 +269,38 @@ def register(sub) -> None:
     add_json_flag(p)
     p.set_defaults(func=_cmd_show)
 
-    p = sub.add_parser("info", help="summarise a map file")
+    p = sub.add_parser("info", help="summarise a map file",
+                       description="Check a map file and print what it holds: the object, "
+                       "grasp counts, grades, SR / VR, the settings it was made with (grade, "
+                       "resolution, gripper), an adapted map's source and table, and which "
+                       "grasps were simulated.")
     p.add_argument("file", help="map file (.h5)")
     add_json_flag(p)
     p.set_defaults(func=_cmd_info)
 
-    p = sub.add_parser("db", help="the full-scale map database (build, list, lookup)")
+    p = sub.add_parser("db", help="the full-scale map database (build, list, lookup)",
+                       description="The FS map database that adapt takes its maps from "
+                       "($GRASPSIM_DB or ~/.cache/graspsim/db): build it, list it, or ask it "
+                       "whether a primitive is known or familiar.")
     dbs = p.add_subparsers(dest="db_command", metavar="ACTION")
     dbs.required = True
-    for name, text in (("build", "build the paper's five primitives (and a size grid)"),
-                       ("list", "list stored maps"), ("lookup", "known / familiar decision")):
-        q = dbs.add_parser(name, help=text)
+    for name, text, desc in (
+            ("build", "build the paper's five primitives (and a size grid)",
+             "Generate and store FS maps of the paper's five reference primitives (or "
+             "--primitives), optionally at several sizes (--grid); maps already stored with the "
+             "same settings are kept."),
+            ("list", "list stored maps",
+             "List every map stored in the database folder with its settings digest; "
+             "'(default)' marks the maps of the default generation settings."),
+            ("lookup", "known / familiar decision",
+             "Say whether a primitive of the given dimensions is known (a stored map of the same "
+             "size), familiar (same primitive, another size: its map is scaled) or absent, for "
+             "the maps of the given generation settings.")):
+        q = dbs.add_parser(name, help=text, description=desc)
         q.add_argument("--root", default=None, help="database folder (default $GRASPSIM_DB or "
                        "~/.cache/graspsim/db)")
-        _add_generation(q)
+        if name != "list":
+            _add_generation(q)
         add_json_flag(q)
         if name == "build":
             q.add_argument("--primitives", nargs="+", default=None, help="subset of the five")

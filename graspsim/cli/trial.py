@@ -1,7 +1,11 @@
 """``graspsim trial``: simulate a map's grasps in MuJoCo and store the outcomes in the map.
 
     graspsim trial MAP.h5 [--protocol lift_place|tug] [--top N | --sample N --min-grade G]
-                   [--threads T] [--render DIR] [--mesh FILE] [--seed S] [--noise] [--json]
+                   [--threads T] [--render DIR] [--mesh FILE] [--seed S] [--noise] [--all] [--json]
+
+A selection that holds no grasp is an error (nonzero exit), not an empty table. Before
+simulating, the command says how many trials will run and about how long they take;
+more than :data:`MAX_TRIALS` need ``--all`` (an FS map holds up to ~1.7 M grasps: hours).
 """
 
 from __future__ import annotations
@@ -11,7 +15,13 @@ import sys
 
 from graspsim.cli._common import add_json_flag, emit, format_table, progress
 
-__all__ = ["register", "run"]
+__all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD"]
+
+MAX_TRIALS = 10_000  # more than this many trials need --all
+# Throughput of two-second lift_place trials that start clear, per thread, measured with
+# `python experiments/bench_sim.py` on an idle machine (README: about 80 per second per core).
+# Start collisions cost ~nothing; a busy machine is slower (62 trials/s on 2 threads at load 7).
+TRIALS_PER_SECOND_PER_THREAD = 80.0
 
 
 def register(subparsers) -> None:
@@ -44,6 +54,9 @@ def register(subparsers) -> None:
     p.add_argument("--render-count", type=int, default=3, metavar="K",
                    help="how many trials --render pictures (default 3)")
     p.add_argument("--no-write", action="store_true", help="do not store results in the map")
+    p.add_argument("--all", action="store_true",
+                   help=f"run the selection however large (without it, more than {MAX_TRIALS:,} "
+                        "trials are refused with an estimate of their duration)")
     add_json_flag(p)
     p.set_defaults(func=run)
 
@@ -56,6 +69,15 @@ def run(args) -> int:
 
     if args.threads is not None and args.threads < 1:
         raise InvalidParameterError(f"--threads must be >= 1, got {args.threads}")
+    for flag in ("top", "sample"):
+        n = getattr(args, flag)
+        if n is not None and n < 1:
+            raise InvalidParameterError(f"nothing to simulate: --{flag} {n} selects no grasp "
+                                        "(give N >= 1)")
+    if args.render:
+        from graspsim._atomic import check_folder
+
+        check_folder(args.render, "render folder")  # before the work, not after it
     settings = None
     if args.friction is not None or args.grip_force is not None:
         mu = args.friction
@@ -76,7 +98,7 @@ def run(args) -> int:
             min_grade=args.min_grade, threads=args.threads, seed=args.seed,
             noise=ExecutionNoise() if args.noise else None, mesh=args.mesh,
             mesh_scale=args.mesh_scale, mass=args.mass, settings=settings,
-            write=not args.no_write, on_progress=tick)
+            write=not args.no_write, on_progress=tick, on_selected=_selection_check(args, bar))
     finally:
         bar.close()
     res = out.results
@@ -112,3 +134,51 @@ def run(args) -> int:
              f"on {res.threads} thread(s)" + (f"; results in {out.group}" if out.group else ""))
     emit(summary, args.json, human)
     return 0
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 1:
+        return "1 s"
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+def _selection_check(args, bar):
+    """The ``on_selected`` hook: refuse an empty selection, or a huge one without
+    ``--all``; otherwise say how many trials will run and about how long they take (from
+    the benchmark's rate; the progress bar then shows the time left at the measured one)."""
+    import os
+
+    from graspsim.errors import InvalidParameterError
+
+    threads = args.threads or os.cpu_count() or 1
+
+    def check(gmap, index) -> None:
+        n = len(index)
+        among = (f"grasps with grade > {args.min_grade:g}" if args.min_grade is not None
+                 else "grasps")
+        if n == 0:
+            best = f"; its best grade is {float(gmap.grade.max()):.3f}" if len(gmap) else ""
+            raise InvalidParameterError(f"nothing to simulate: the map ({len(gmap)} grasps) holds "
+                                        f"no {among}{best}")
+        eta = _duration(n / (TRIALS_PER_SECOND_PER_THREAD * threads))
+        if n > MAX_TRIALS and not args.all:
+            asked = (f"--top {args.top}" if args.top else f"--sample {args.sample}" if args.sample
+                     else "no --top/--sample (all grasps)")
+            raise InvalidParameterError(
+                f"{asked} selects {n:,} trials, about {eta} on {threads} thread(s) at "
+                f"~{TRIALS_PER_SECOND_PER_THREAD:g} trials/s each (longer on a busy machine); pass "
+                f"--all to run them, or select at most {MAX_TRIALS:,} with --top/--sample")
+        if not args.json:
+            short = (f" (the map holds only {n} {among})" if (args.sample or args.top or 0) > n
+                     else "")
+            print(f"[graspsim] simulating {n:,} trials{short}: about {eta} on {threads} "
+                  f"thread(s) at ~{TRIALS_PER_SECOND_PER_THREAD:g} trials/s each", file=sys.stderr,
+                  flush=True)
+        bar.total = n  # the bar's time left comes from the measured rate
+        bar.refresh()
+
+    return check

@@ -130,9 +130,15 @@ class MapDatabase:
                                                       indent=1, sort_keys=True),
                           error=MapDatabaseError)
 
-    def entries(self) -> list[dict]:
-        """Index records of the maps built with this database's settings."""
-        return [e for e in self._read_index() if e.get("settings") == self._settings]
+    def entries(self, *, all_settings: bool = False) -> list[dict]:
+        """Index records of the maps built with this database's settings (``all_settings``:
+        of every map in the folder; their ``"settings"`` digest tells them apart)."""
+        return [e for e in self._read_index() if all_settings or e.get("settings") == self._settings]
+
+    @property
+    def settings_digest(self) -> str:
+        """The digest of gripper, quality model and map settings that keys this database's maps."""
+        return self._settings
 
     def key(self, shape: Primitive) -> str:
         dims = "_".join(f"{k}{v * 1000:.1f}" for k, v in shape.dims.items())

@@ -10,10 +10,16 @@ Layout (datasets, not attributes; N grasps)::
                  contacts (N,2,3), normals (N,2,3), width (N,), part (N,), accepted (N,)
     graspability/meta                 JSON: quality model, resolution, method, timing
     graspability/format               "graspsim-map-1"
+    graspability/schema_version       1 (int; files without it are read as version 1)
     object/primitive (name), object/dims (JSON of named dims [m]), object/com (3,),
     object/mass, object/description (JSON), object/file + object/scale for meshes,
     object/T_cloud_obj (4, 4) for adapted maps (the object frame in the cloud's frame)
     gripper/type, gripper/configuration (JSON GripperSpec)
+
+Loading validates the file (:func:`load_map`): every dataset present, one row count,
+the trailing shapes, finite geometry and grades, unit quaternions, transforms that match
+the wrist positions, and a schema version this code reads. A file that fails raises
+:class:`MapFileError` naming the first problem.
 """
 
 from __future__ import annotations
@@ -29,9 +35,12 @@ from graspsim.errors import MapFileError
 from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
 from graspsim._atomic import atomic_path
 
-__all__ = ["save_map", "load_map", "write_sim_results", "read_sim_results", "FORMAT"]
+__all__ = ["save_map", "load_map", "write_sim_results", "read_sim_results", "FORMAT",
+           "SCHEMA_VERSION"]
 
 FORMAT = "graspsim-map-1"
+SCHEMA_VERSION = 1  # written into every file; files without one are version 1
+_BLOCK = 1 << 16  # rows per block when checking grasps/transforms (bounded memory)
 
 # map column -> dataset path
 _PATHS = {
@@ -75,6 +84,7 @@ def save_map(gmap: GraspabilityMap, path: str | os.PathLike, *, compression: str
                     f.create_dataset(dpath, data=getattr(gmap, col), **opts)
                 f.create_dataset("graspability/accepted", data=gmap.accepted, **opts)
                 f["graspability/format"] = FORMAT
+                f["graspability/schema_version"] = SCHEMA_VERSION
                 f["graspability/meta"] = json.dumps(
                     {"quality": m.quality, "resolution": m.resolution, "method": m.method,
                      "timing": m.timing, "version": m.version, "extra": m.extra},
@@ -110,34 +120,31 @@ def _open(path: Path, mode: str = "r"):
         ) from err
 
 
+_REQUIRED = ("grasps/transforms", *_PATHS.values(), "graspability/meta", "object/description",
+             "gripper/configuration")
+
+
 def load_map(path: str | os.PathLike, rows: slice | None = None) -> GraspabilityMap:
-    """Read a map written by :func:`save_map` (only ``rows``, a slice, if given: a
-    partial read); a foreign or damaged file raises :class:`MapFileError` naming what
-    is missing."""
+    """Read and validate a map written by :func:`save_map` (only ``rows``, a slice, if
+    given: a partial read, validated for those rows); a foreign, damaged or corrupted
+    file raises :class:`MapFileError` naming the problem."""
     path = Path(path)
     with _open(path) as f:
-        needed = list(_PATHS.values()) + ["graspability/meta", "object/description",
-                                          "gripper/configuration"]
-        missing = [p for p in needed if p not in f]
-        if missing:
-            kind = "an ACRONYM-style grasp file without graspsim's map data" if "grasps/transforms" in f \
-                else "not a graspsim map"
-            raise MapFileError(f"{path} is {kind}: missing {', '.join(missing[:4])}"
-                               + (" ..." if len(missing) > 4 else ""))
+        n = _check_layout(f, path)
+        sl = slice(None) if rows is None else rows
         try:
-            sl = slice(None) if rows is None else rows
             cols = {col: f[dpath][sl] for col, dpath in _PATHS.items()}
-            meta = json.loads(_text(f["graspability/meta"][()]))
-            obj = json.loads(_text(f["object/description"][()]))
-            grip = json.loads(_text(f["gripper/configuration"][()]))
+            meta, obj, grip = (_json_dict(f, k, path) for k in
+                               ("graspability/meta", "object/description", "gripper/configuration"))
+            _check_columns(cols, path)
+            _check_transforms(f["grasps/transforms"], range(n)[sl], cols["wrist_position"], path)
+        except MapFileError:
+            raise
         except (OSError, KeyError, ValueError) as err:
             raise MapFileError(f"{path} is damaged: {err}") from err
-    n = {len(v) for v in cols.values()}
-    if len(n) != 1:
-        raise MapFileError(f"{path} is damaged: columns have different lengths {sorted(n)}")
-    for col, (shape, dtype) in COLUMNS.items():
-        if cols[col].shape[1:] != shape:
-            raise MapFileError(f"{path}: column {col} has shape {cols[col].shape}, expected (N, *{shape})")
+    for k, kind in (("quality", dict), ("resolution", dict), ("method", str)):
+        if not isinstance(meta.get(k), kind):
+            raise MapFileError(f"{path} is damaged: graspability/meta has no {kind.__name__} {k!r}")
     return GraspabilityMap(
         **cols,
         meta=MapMeta(object=obj, gripper=grip, quality=meta["quality"],
@@ -145,6 +152,76 @@ def load_map(path: str | os.PathLike, rows: slice | None = None) -> Graspability
                      timing=meta.get("timing", {}), version=meta.get("version", ""),
                      extra=meta.get("extra", {})),
     )
+
+
+def _check_layout(f, path: Path) -> int:
+    """Datasets present, schema version readable, one row count; returns it."""
+    missing = [p for p in _REQUIRED if p not in f]
+    if missing:
+        if "graspability/meta" in f:
+            kind = "a damaged graspsim map"
+        elif "grasps/transforms" in f:
+            kind = "an ACRONYM-style grasp file without graspsim's map data"
+        else:
+            kind = "not a graspsim map"
+        raise MapFileError(f"{path} is {kind}: missing {', '.join(missing[:4])}"
+                           + (" ..." if len(missing) > 4 else ""))
+    version = 1
+    if "graspability/schema_version" in f:
+        v = f["graspability/schema_version"][()]
+        if not (np.ndim(v) == 0 and np.issubdtype(np.asarray(v).dtype, np.integer) and v >= 1):
+            raise MapFileError(f"{path} is damaged: schema_version {v!r} is not a positive integer")
+        version = int(v)
+    if version > SCHEMA_VERSION:
+        raise MapFileError(f"{path} has map schema version {version}; this graspsim reads "
+                           f"versions up to {SCHEMA_VERSION} (upgrade graspsim)")
+    lengths = {p: f[p].shape[0] if f[p].ndim else None for p in ("grasps/transforms", *_PATHS.values())}
+    if len(set(lengths.values())) != 1:
+        raise MapFileError(f"{path} is damaged: datasets have different row counts "
+                           + ", ".join(f"{k} {v}" for k, v in list(lengths.items())[:3]) + " ...")
+    if f["grasps/transforms"].shape[1:] != (4, 4):
+        raise MapFileError(f"{path} is damaged: grasps/transforms has shape "
+                           f"{f['grasps/transforms'].shape}, expected (N, 4, 4)")
+    return int(lengths["grasps/transforms"])
+
+
+def _json_dict(f, key: str, path: Path) -> dict:
+    v = json.loads(_text(f[key][()]))
+    if not isinstance(v, dict):
+        raise MapFileError(f"{path} is damaged: {key} is not a JSON object")
+    return v
+
+
+def _check_transforms(dset, rows: range, wrist_position: np.ndarray, path: Path) -> None:
+    """grasps/transforms (the ACRONYM view) finite, rigid-looking, and at the wrist
+    positions; read in blocks so a million-grasp map needs no (N, 4, 4) copy."""
+    bottom = np.array([0.0, 0.0, 0.0, 1.0], np.float32)
+    step = rows.step
+    for i in range(0, len(rows), _BLOCK):
+        r = rows[i:i + _BLOCK]
+        T = dset[r.start:r.stop:step] if len(r) else np.zeros((0, 4, 4), np.float32)
+        if not np.isfinite(T).all():
+            bad = i + int(np.flatnonzero(~np.isfinite(T).all(axis=(1, 2)))[0])
+            raise MapFileError(f"{path} is corrupted: grasps/transforms has non-finite values "
+                               f"(first at row {rows[bad]})")
+        if not (np.all(T[:, 3] == bottom) and np.allclose(T[:, :3, 3], wrist_position[i:i + _BLOCK],
+                                                          atol=1e-5)):
+            raise MapFileError(f"{path} is corrupted: grasps/transforms disagree with "
+                               "graspability/wrist_position (or are not rigid transforms)")
+
+
+def _check_columns(cols: dict[str, np.ndarray], path: Path) -> None:
+    for col, (shape, _) in COLUMNS.items():
+        a = cols[col]
+        if a.shape[1:] != shape:
+            raise MapFileError(f"{path}: column {col} has shape {a.shape}, expected (N, *{shape})")
+        if a.dtype.kind == "f" and not np.isfinite(a).all():
+            row = int(np.flatnonzero(~np.isfinite(a.reshape(len(a), -1)).all(axis=1))[0])
+            raise MapFileError(f"{path} is corrupted: {_PATHS[col]} has non-finite values "
+                               f"(first at row {row})")
+    q = cols["wrist_quat"]
+    if len(q) and np.abs(np.einsum("ij,ij->i", q, q) - 1.0).max() > 1e-3:
+        raise MapFileError(f"{path} is corrupted: graspability/wrist_quat holds non-unit quaternions")
 
 
 def _text(v) -> str:
@@ -155,23 +232,56 @@ def write_sim_results(path: str | os.PathLike, results: dict[str, np.ndarray],
                       group: str = "grasps/qualities/mujoco", attrs_json: dict | None = None) -> None:
     """Store per-grasp simulation results (arrays of length N) in a map file, atomically
     (the file is copied, extended and renamed back). ``attrs_json`` (protocol, params,
-    MuJoCo version) is stored as the JSON dataset ``<group>/info``."""
+    MuJoCo version) is stored as the JSON dataset ``<group>/info``.
+
+    Results are never lost: when the map cannot take them (it vanished, was damaged or
+    replaced by another map during the simulation, the disk is full) they are saved to
+    a ``.npz`` beside it (or in the temp folder) and the :class:`MapFileError` names it.
+    """
     path = Path(path)
-    with _open(path) as f:
-        n = len(f["grasps/transforms"])
-    for k, v in results.items():
-        if len(v) != n:
-            raise MapFileError(f"result {k!r} has {len(v)} rows, the map has {n} grasps")
-    with atomic_path(path) as tmp:
-        shutil.copyfile(path, tmp)
-        with _open(tmp, "r+") as f:
-            if group in f:
-                del f[group]
-            g = f.create_group(group)
-            for k, v in results.items():
-                g.create_dataset(k, data=np.asarray(v))
-            if attrs_json is not None:
-                g["info"] = json.dumps(attrs_json, sort_keys=True)
+    try:
+        with _open(path) as f:
+            if _PATHS["grade"] not in f:
+                raise MapFileError(f"{path} is no longer a graspsim map (no {_PATHS['grade']})")
+            n = len(f[_PATHS["grade"]])
+        for k, v in results.items():
+            if len(v) != n:
+                raise MapFileError(f"result {k!r} has {len(v)} rows, the map has {n} grasps")
+        with atomic_path(path) as tmp:
+            shutil.copyfile(path, tmp)
+            with _open(tmp, "r+") as f:
+                if group in f:
+                    del f[group]
+                g = f.create_group(group)
+                for k, v in results.items():
+                    g.create_dataset(k, data=np.asarray(v))
+                if attrs_json is not None:
+                    g["info"] = json.dumps(attrs_json, sort_keys=True)
+    except (OSError, KeyError, ValueError) as err:
+        saved = _save_results_aside(path, results, group, attrs_json)
+        raise MapFileError(f"cannot store the results in {path}: {err}; they were saved to "
+                           f"{saved} instead (numpy .npz, group {group!r})") from err
+
+
+def _save_results_aside(path: Path, results: dict, group: str, attrs_json: dict | None) -> Path:
+    """Write results that the map could not take to ``<map stem>.<group leaf>-<time>.npz``
+    beside it, else in the temp folder; returns where."""
+    import tempfile
+    import time
+
+    name = f"{path.stem}.{group.rsplit('/', 1)[-1]}-{time.strftime('%Y%m%d-%H%M%S')}.npz"
+    extra = {"__group__": np.array(group), "__map__": np.array(str(path)),
+             "__info__": np.array(json.dumps(attrs_json, sort_keys=True, default=str))}
+    errors = []
+    for folder in (path.parent, Path(tempfile.gettempdir())):
+        target = folder / name
+        try:
+            with atomic_path(target) as tmp, open(tmp, "wb") as fh:
+                np.savez(fh, **{k: np.asarray(v) for k, v in results.items()}, **extra)
+            return target
+        except OSError as err:
+            errors.append(f"{target}: {err}")
+    raise MapFileError(f"cannot store the results of {path} anywhere ({'; '.join(errors)})")
 
 
 def read_sim_results(path: str | os.PathLike, group: str = "grasps/qualities/mujoco") -> dict:

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from graspsim.errors import GraspsimError, InvalidParameterError, SimulationError
+from graspsim.errors import GraspsimError, InvalidParameterError, MapFileError, SimulationError
 from graspsim.gripper import GripperSpec
 from graspsim.maps import GraspabilityMap, load_map, read_sim_results, write_sim_results
 from graspsim.primitives import shape_from_dict
@@ -130,7 +130,11 @@ def write_results(path: str | os.PathLike, n_rows: int, index: np.ndarray,
     for k, v in results.arrays().items():
         fill = np.nan if np.issubdtype(v.dtype, np.floating) else -1
         arrays[k] = np.full(n_rows, fill, dtype=v.dtype)
-    old = read_sim_results(path, group)
+    try:
+        old = read_sim_results(path, group)
+    except MapFileError as err:  # the file went bad during the run: write_sim_results saves aside
+        log.warning("cannot read earlier results of %s: %s", path, err)
+        old = {}
     same = all(old.get("info", {}).get(k) == info[k] for k in ("protocol", "scene", "noise"))
     if old and same and "simulated" in old:
         keep = np.asarray(old["simulated"], bool)
@@ -168,12 +172,15 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                  threads: int | None = None, seed: int = 0, noise: ExecutionNoise | None = None,
                  mesh: str | os.PathLike | None = None, mesh_scale: float = 1.0,
                  mass: float | None = None, settings: SimSettings | None = None,
-                 write: bool = True, cache_dir=None, on_progress=None) -> MapTrials:
+                 write: bool = True, cache_dir=None, on_progress=None,
+                 on_selected=None) -> MapTrials:
     """Simulate grasps of the map file ``path`` and (``write``) store the results in it.
 
     settings: defaults to :class:`SimSettings` with the pad friction of the map's quality
     model (the planner's mu). Selection: see :func:`select_grasps` (``seed`` also draws
-    the uniform sample).
+    the uniform sample). ``on_selected(gmap, index)`` is called once the rows are chosen
+    and before anything is simulated (it may raise to stop, e.g. on an empty or huge
+    selection).
     """
     path = Path(path)
     gmap = load_map(path)
@@ -183,6 +190,8 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
         settings = SimSettings(friction=float(mu)) if mu else SimSettings()
     rng = np.random.default_rng(seed)
     index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng)
+    if on_selected is not None:
+        on_selected(gmap, index)
     obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,
                      map_dir=path.parent, cache_dir=cache_dir)
     up = _cloud_up(gmap, mesh is not None)

@@ -1,0 +1,312 @@
+"""Bad input never crashes, never loses data (issue 13 items 3-5): outputs are all or
+nothing and checked before the work, map files are validated on load, no-ops say so.
+
+Every CLI case asserts a nonzero exit, one line on stderr and no traceback."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import warnings
+
+import h5py
+import numpy as np
+import pytest
+
+from graspsim.cli import main
+from graspsim.errors import MapFileError
+from graspsim.maps import load_map, read_sim_results, save_map
+from graspsim.maps.io import SCHEMA_VERSION
+from graspsim.primitives import Cylinder
+from graspsim.sim.testing import grasp_pose, hand_made_map
+
+
+def _small_map(n: int = 4):
+    ang = np.linspace(0.0, np.pi / 2, n)
+    T = np.stack([grasp_pose([0, 0, 0], [-np.cos(a), -np.sin(a), 0], [-np.sin(a), np.cos(a), 0])
+                  for a in ang])
+    return hand_made_map(Cylinder(0.02, 0.20), T, np.full(n, 0.04), grades=np.linspace(0.5, 0.9, n))
+
+
+@pytest.fixture
+def map_file(tmp_path):
+    return save_map(_small_map(), tmp_path / "cyl.h5")
+
+
+def _fails(capsys, argv, code=2) -> str:
+    """Run the CLI; assert exit ``code``, exactly one stderr line, no traceback. Returns it."""
+    rc = main([str(a) for a in argv])
+    err = capsys.readouterr().err
+    assert rc == code, err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("graspsim"), err
+    return lines[0]
+
+
+def _no_temps(folder) -> bool:
+    return not [p for p in folder.iterdir() if p.name.startswith(".") and ".tmp" in p.name]
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Generation and simulation raise if reached: a check must fail before the work."""
+    def boom(*a, **k):
+        raise AssertionError("the work started before the check")
+
+    monkeypatch.setattr("graspsim.maps.generate.generate_fs_map", boom)
+    monkeypatch.setattr("graspsim.sim.mapsim.run_trials", boom)
+
+
+# ------------------------------------------------------------------ A: all-or-nothing outputs
+def _blob(tmp_path):
+    path = tmp_path / "blob.npy"
+    np.save(path, np.random.default_rng(0).normal(size=(500, 3)) * 0.03)  # identifies as nothing
+    return path
+
+
+def test_adapt_failure_leaves_an_existing_output_untouched(tmp_path, map_file, capsys):
+    before = map_file.read_bytes()
+    line = _fails(capsys, ["adapt", _blob(tmp_path), "-o", map_file, "--db", tmp_path / "db"], code=1)
+    assert "no map written" in line and "left as it was" in line
+    assert map_file.read_bytes() == before and _no_temps(tmp_path)
+    assert len(load_map(map_file)) == 4
+
+
+def test_adapt_no_partial_writes_no_file_at_all(tmp_path, capsys):
+    out = tmp_path / "new.h5"
+    _fails(capsys, ["adapt", _blob(tmp_path), "-o", out, "--no-partial", "--db", tmp_path / "db",
+                    "--json"], code=1)
+    assert not out.exists() and _no_temps(tmp_path)
+
+
+def test_map_output_that_is_a_directory_fails_before_the_work(tmp_path, capsys, no_work):
+    (tmp_path / "outdir").mkdir()
+    line = _fails(capsys, ["map", "box", "--x", "0.05", "--y", "0.05", "--z", "0.05",
+                           "-o", tmp_path / "outdir"])
+    assert "is a directory" in line
+
+
+def test_adapt_output_in_a_missing_folder_fails_before_the_work(tmp_path, capsys, monkeypatch):
+    def boom(*a, **k):
+        raise AssertionError("read the cloud before checking -o")
+
+    monkeypatch.setattr("graspsim.perception.read_point_cloud", boom)
+    line = _fails(capsys, ["adapt", _blob(tmp_path), "-o", tmp_path / "nodir" / "m.h5"])
+    assert "does not exist" in line
+
+
+def test_map_missing_plot_folder_fails_before_the_work_and_keeps_the_map(tmp_path, map_file,
+                                                                          capsys, no_work):
+    before = map_file.read_bytes()
+    line = _fails(capsys, ["map", "cylinder", "--radius", "0.02", "--height", "0.2", "-o", map_file,
+                           "--plot", tmp_path / "nodir" / "x.png"])
+    assert "nodir" in line and "does not exist" in line
+    assert map_file.read_bytes() == before
+
+
+def test_map_and_plot_are_written_together_or_not_at_all(tmp_path, map_file, capsys, monkeypatch):
+    from graspsim.errors import GraspsimError
+
+    monkeypatch.setattr("graspsim.maps.generate.generate_fs_map", lambda *a, **k: _small_map(6))
+
+    def broken_plot(*a, **k):
+        raise GraspsimError("the plot failed")
+
+    monkeypatch.setattr("graspsim.plots.plot_map", broken_plot)
+    before = map_file.read_bytes()
+    png = tmp_path / "x.png"
+    _fails(capsys, ["map", "cylinder", "--radius", "0.02", "--height", "0.2", "-o", map_file,
+                    "--plot", png])
+    assert map_file.read_bytes() == before and not png.exists() and _no_temps(tmp_path)
+    monkeypatch.undo()
+    monkeypatch.setattr("graspsim.maps.generate.generate_fs_map", lambda *a, **k: _small_map(6))
+    assert main(["map", "cylinder", "--radius", "0.02", "--height", "0.2", "-o", str(map_file),
+                 "--plot", str(png)]) == 0
+    assert len(load_map(map_file)) == 6 and png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_show_to_a_missing_folder_or_unknown_format_fails_before_loading(tmp_path, capsys,
+                                                                         monkeypatch):
+    def boom(*a, **k):
+        raise AssertionError("loaded the map before checking -o")
+
+    monkeypatch.setattr("graspsim.maps.io.load_map", boom)
+    assert "does not exist" in _fails(capsys, ["show", tmp_path / "any.h5", "-o",
+                                               tmp_path / "nodir" / "x.png"])
+    assert "unknown extension .h5" in _fails(capsys, ["show", tmp_path / "any.h5", "-o",
+                                                      tmp_path / "x.h5"])
+
+
+def test_trial_render_folder_that_is_a_file_fails_before_simulating(tmp_path, map_file, capsys,
+                                                                     no_work):
+    (tmp_path / "renders").write_text("a file")
+    line = _fails(capsys, ["trial", map_file, "--top", "1", "--render", tmp_path / "renders"])
+    assert "not a folder" in line and read_sim_results(map_file) == {}
+
+
+def test_campaign_and_calibrate_outputs_are_checked_before_the_work(tmp_path, map_file, capsys,
+                                                                     no_work):
+    (tmp_path / "taken").write_text("a file")
+    assert "not a folder" in _fails(capsys, ["campaign", "run", map_file, "--out",
+                                             tmp_path / "taken", "--top", "1"])
+    assert "not a folder" in _fails(capsys, ["calibrate", map_file, "-o", tmp_path / "taken"])
+
+
+def test_demo_output_that_is_a_file_fails_before_the_work(tmp_path, capsys, monkeypatch):
+    def boom(*a, **k):
+        raise AssertionError("built the database before checking --out")
+
+    monkeypatch.setattr("graspsim.demo._database", boom)
+    (tmp_path / "demo").write_text("a file")
+    assert "not a folder" in _fails(capsys, ["demo", "--out", tmp_path / "demo"])
+
+
+# ------------------------------------------------------------------ B: maps validated on load
+def _damaged(map_file, edit):
+    with h5py.File(map_file, "r+") as f:
+        edit(f)
+    return map_file
+
+
+def _set(dataset, index, value):
+    def edit(f):
+        a = f[dataset][()]
+        a[index] = value
+        del f[dataset]
+        f[dataset] = a
+    return edit
+
+
+CORRUPTIONS = {
+    "no_transforms": (lambda f: f.__delitem__("grasps/transforms"), "missing grasps/transforms"),
+    "nan_transform": (_set("grasps/transforms", (1, 0, 0), np.nan),
+                      "grasps/transforms has non-finite values"),
+    "nan_wrist_position": (_set("graspability/wrist_position", (2, 1), np.nan),
+                           "wrist_position has non-finite values"),
+    "nan_grade": (_set("grasps/qualities/analytic/grade", 0, np.nan), "grade has non-finite"),
+    "inf_width": (_set("graspability/width", 3, np.inf), "width has non-finite"),
+    "moved_transform": (_set("grasps/transforms", (0, 0, 3), 0.5), "disagree with"),
+    "zero_quaternion": (_set("graspability/wrist_quat", 1, 0.0), "non-unit quaternions"),
+    "short_column": (lambda f: (f.__delitem__("graspability/width"),
+                                f.__setitem__("graspability/width", np.ones(3, np.float32))),
+                     "different row counts"),
+    "meta_not_object": (lambda f: (f.__delitem__("graspability/meta"),
+                                   f.__setitem__("graspability/meta", "[1, 2]")), "not a JSON object"),
+    "meta_without_quality": (lambda f: (f.__delitem__("graspability/meta"),
+                                        f.__setitem__("graspability/meta", json.dumps(
+                                            {"resolution": {}, "method": "x"}))), "quality"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CORRUPTIONS))
+def test_corrupted_map_is_refused_on_load(map_file, case):
+    edit, message = CORRUPTIONS[case]
+    _damaged(map_file, edit)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no numpy RuntimeWarning on the way
+        with pytest.raises(MapFileError, match=message):
+            load_map(map_file)
+
+
+@pytest.mark.parametrize("command", ["info", "show", "trial"])
+@pytest.mark.parametrize("case", ["no_transforms", "nan_transform", "nan_wrist_position"])
+def test_info_show_trial_refuse_a_corrupted_map(tmp_path, map_file, capsys, no_work, command, case):
+    edit, message = CORRUPTIONS[case]
+    _damaged(map_file, edit)
+    before = map_file.read_bytes()
+    extra = {"info": [], "show": ["-o", tmp_path / "x.png"], "trial": ["--top", "2"]}[command]
+    line = _fails(capsys, [command, map_file, *extra])
+    assert message in line and str(map_file) in line
+    assert map_file.read_bytes() == before and not (tmp_path / "x.png").exists()
+
+
+def test_schema_version_round_trip(map_file):
+    with h5py.File(map_file, "r") as f:
+        assert f["graspability/schema_version"][()] == SCHEMA_VERSION == 1
+    assert len(load_map(map_file)) == 4
+    _damaged(map_file, lambda f: f.__delitem__("graspability/schema_version"))
+    assert len(load_map(map_file)) == 4  # earlier files without a version: read as version 1
+    _damaged(map_file, lambda f: f.__setitem__("graspability/schema_version", 99))
+    with pytest.raises(MapFileError, match="schema version 99.*up to 1"):
+        load_map(map_file)
+    _damaged(map_file, lambda f: (f.__delitem__("graspability/schema_version"),
+                                  f.__setitem__("graspability/schema_version", -3)))
+    with pytest.raises(MapFileError, match="not a positive integer"):
+        load_map(map_file)
+
+
+def test_partial_reads_are_validated_too(map_file):
+    _damaged(map_file, _set("grasps/transforms", (3, 1, 1), np.nan))
+    assert len(load_map(map_file, rows=slice(0, 3))) == 3  # the damaged row is not read
+    with pytest.raises(MapFileError, match=r"first at row 3"):
+        load_map(map_file, rows=slice(1, 4))
+
+
+def test_results_are_saved_aside_when_the_map_goes_bad_during_a_simulation(tmp_path, map_file):
+    from graspsim.sim import simulate_map
+
+    def clobber(gmap, index):  # the file is replaced by junk while the trials run
+        map_file.write_text("not a map any more")
+
+    with pytest.raises(MapFileError, match=r"saved to .*\.npz") as info:
+        simulate_map(map_file, top=2, threads=1, on_selected=clobber)
+    saved = str(info.value).split("saved to ")[1].split(" instead")[0]
+    with np.load(saved) as z:
+        assert z["simulated"].tolist() == [False, False, True, True]  # the two best rows
+        assert (z["outcome"][2:] >= 0).all() and str(z["__group__"]) == "grasps/qualities/mujoco"
+        assert json.loads(str(z["__info__"]))["protocol"]["name"] == "lift_place"
+
+
+def test_write_sim_results_saves_aside_a_map_that_lost_its_rows(tmp_path, map_file):
+    from graspsim.maps import write_sim_results
+
+    shutil.copyfile(save_map(_small_map(3), tmp_path / "other.h5"), map_file)  # replaced meanwhile
+    with pytest.raises(MapFileError, match="has 4 rows, the map has 3.*saved to"):
+        write_sim_results(map_file, {"outcome": np.arange(4)})
+    (saved,) = tmp_path.glob("cyl.mujoco-*.npz")
+    with np.load(saved) as z:
+        assert z["outcome"].tolist() == [0, 1, 2, 3]
+
+
+# ------------------------------------------------------------------ C: honest no-ops
+@pytest.mark.parametrize("selection", [["--min-grade", "2"], ["--sample", "0"], ["--top", "0"],
+                                       ["--top", "3", "--min-grade", "0.95"]])
+def test_trial_that_selects_nothing_exits_nonzero(map_file, capsys, no_work, selection):
+    line = _fails(capsys, ["trial", map_file, *selection])
+    assert "nothing to simulate" in line
+    assert read_sim_results(map_file) == {}
+
+
+def test_trial_huge_sample_requires_all(tmp_path, capsys, no_work):
+    from graspsim.cli import trial
+
+    n = trial.MAX_TRIALS + 1
+    T = np.repeat(_small_map(1).T_obj_wrist, n, axis=0)
+    big = save_map(hand_made_map(Cylinder(0.02, 0.2), T, np.full(n, 0.04)), tmp_path / "big.h5")
+    line = _fails(capsys, ["trial", big, "--sample", "10000000", "--threads", "2"])
+    assert f"selects {n:,} trials" in line and "--all" in line and "10,000" in line
+    assert "about 63 s on 2 thread(s)" in line  # 10,001 / (80 trials/s x 2 threads)
+    assert "--all" in _fails(capsys, ["trial", big, "--threads", "2"])  # no selection: all grasps
+
+
+def test_trial_with_all_runs_past_the_cap_and_says_how_many(map_file, capsys, monkeypatch):
+    from graspsim.cli import trial
+
+    monkeypatch.setattr(trial, "MAX_TRIALS", 2)
+    assert "--all" in _fails(capsys, ["trial", map_file, "--sample", "3", "--threads", "1"])
+    assert main(["trial", str(map_file), "--sample", "3", "--all", "--threads", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "simulating 3 trials" in err and "about 1 s on 1 thread(s)" in err
+    assert read_sim_results(map_file)["simulated"].sum() == 3
+
+
+def test_show_and_campaign_with_empty_selections_exit_nonzero(tmp_path, map_file, capsys):
+    assert "nothing to plot" in _fails(capsys, ["show", map_file, "-o", tmp_path / "x.png",
+                                                "--min-grade", "2"])
+    assert not (tmp_path / "x.png").exists()
+    assert "nothing to simulate" in _fails(capsys, ["campaign", "run", map_file, "--out",
+                                                    tmp_path / "camp", "--sample", "0"])
+    line = _fails(capsys, ["campaign", "run", map_file, "--out", tmp_path / "camp2", "--top", "2",
+                           "--min-grade", "2", "--executor", "serial"], code=1)
+    assert "no trials" in line

@@ -120,6 +120,12 @@ def remove_stale_temps(path: str | os.PathLike, max_age: float = STALE_SECONDS) 
     return removed
 
 
+def _own_temp(path: Path) -> bool:
+    """``path`` is a temporary this process made (``.NAME.<our pid>.RANDOM.tmp...``)."""
+    m = re.match(r"^\..+\.(\d+)\.[a-z0-9_]+\.tmp[^/]*$", path.name)
+    return m is not None and int(m.group(1)) == os.getpid() and path.is_file()
+
+
 def _new_temp(path: Path) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp" + path.suffix,
                                dir=_folder(path))
@@ -151,28 +157,36 @@ def atomic_paths(paths, error=MapFileError) -> Iterator[list[Path]]:
             raise error(f"cannot write {p}: folder {_folder(p)} does not exist")
         if p.is_dir():
             raise error(f"cannot write {p}: it is a directory")
+    # a target that is already one of this process's temporaries (a writer called inside
+    # an enclosing atomic block) is written directly: the enclosing block commits it
+    direct = [_own_temp(p) for p in paths]
     tmps: list[Path] = []
     try:
-        for p in paths:
+        for p, d in zip(paths, direct):
+            if d:
+                tmps.append(p)
+                continue
             remove_stale_temps(p)
             try:
                 tmps.append(_new_temp(p))
             except OSError as err:
                 raise error(f"cannot write {p}: {err.strerror or err}") from err
         yield list(tmps)
+        todo = [(p, t) for p, t, d in zip(paths, tmps, direct) if not d]
         try:
-            for p, t in zip(paths, tmps):
+            for p, t in todo:
                 with open(t, "rb+") as f:
                     os.fsync(f.fileno())
                 os.chmod(t, _file_mode(p))
-            for p, t in zip(paths, tmps):
+            for p, t in todo:
                 os.replace(t, p)
         except OSError as err:
             raise error(f"cannot write {p}: {err.strerror or err}") from err
     except BaseException:
-        for t in tmps:
-            with contextlib.suppress(FileNotFoundError):
-                t.unlink()
+        for t, d in zip(tmps, direct):
+            if not d:
+                with contextlib.suppress(FileNotFoundError):
+                    t.unlink()
         raise
 
 

@@ -88,6 +88,18 @@ def test_several_outputs_are_committed_together_or_not_at_all(tmp_path):
     assert a.read_text() == "new map" and b.read_text() == "new plot"
 
 
+def test_writers_inside_an_atomic_block_write_its_temporary_directly(tmp_path):
+    """save_map / plot_map called on a command's temporary make no second, nested one
+    (which no later write of the target would recognise as its leftover)."""
+    target = tmp_path / "m.h5"
+    with atomic_paths([target]) as (tmp,):
+        with atomic_path(tmp) as inner:
+            assert inner == tmp
+            inner.write_text("map")
+            assert _temps(tmp_path) == [tmp.name]
+    assert target.read_text() == "map" and _temps(tmp_path) == []
+
+
 def test_written_files_get_normal_permissions(tmp_path):
     old = os.umask(0o022)
     try:

@@ -154,6 +154,8 @@ def _cmd_db(args) -> int:
         rows = [(e["primitive"], e["dims"], e["grasps"], e["accepted"], e["seconds"]) for e in records]
         emit({"root": str(db.root), "maps": records, "seconds": time.perf_counter() - t0}, args.json,
              format_table(rows, ["primitive", "dims [m]", "grasps", "accepted", "build s"]))
+    elif args.db_command == "check":
+        return _db_check(db, args)
     elif args.db_command == "list":
         ents = db.entries()
         emit({"root": str(db.root), "maps": ents}, args.json,
@@ -168,6 +170,18 @@ def _cmd_db(args) -> int:
              f"{shape}: {match or 'no map of this primitive'}"
              + (f" (nearest stored: {m.entry['dims']}, {m.max_diff * 100:.2f} cm off)" if m.entry else ""))
     return 0
+
+
+def _db_check(db, args) -> int:
+    from graspsim.maps.dbcheck import check_database
+
+    rep = check_database(db, repair=args.repair)
+    state = ("all repaired" if rep.repaired else "NOT repaired (run with --repair)") if rep.problems else "no problems"
+    human = (format_table(rep.problems, ["file", "problem"]) + "\n" if rep.problems else "") + (
+        f"{db.root}: {rep.maps} maps listed, {rep.valid} valid; {len(rep.problems)} problems, {state}"
+        + (f"; removed {len(rep.removed)} files, indexed {len(rep.reindexed)}" if rep.repaired else ""))
+    emit(rep.to_dict(), args.json, human)
+    return 0 if rep.ok else 1
 
 
 def register(sub) -> None:
@@ -197,11 +211,12 @@ def register(sub) -> None:
     add_json_flag(p)
     p.set_defaults(func=_cmd_info)
 
-    p = sub.add_parser("db", help="the full-scale map database (build, list, lookup)")
+    p = sub.add_parser("db", help="the full-scale map database (build, list, lookup, check)")
     dbs = p.add_subparsers(dest="db_command", metavar="ACTION")
     dbs.required = True
     for name, text in (("build", "build the paper's five primitives (and a size grid)"),
-                       ("list", "list stored maps"), ("lookup", "known / familiar decision")):
+                       ("list", "list stored maps"), ("lookup", "known / familiar decision"),
+                       ("check", "verify every stored map (exit 1 on problems; --repair fixes them)")):
         q = dbs.add_parser(name, help=text)
         q.add_argument("--root", default=None, help="database folder (default $GRASPSIM_DB or "
                        "~/.cache/graspsim/db)")
@@ -215,4 +230,8 @@ def register(sub) -> None:
         if name == "lookup":
             q.add_argument("primitive")
             _add_dims(q)
+        if name == "check":
+            q.add_argument("--repair", action="store_true",
+                           help="remove invalid maps and records, index valid unlisted maps, delete "
+                           "stale temporary files")
         q.set_defaults(func=_cmd_db)

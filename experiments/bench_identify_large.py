@@ -22,17 +22,15 @@ import json
 import os
 import shlex
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import load_average, provenance, write_json  # noqa: E402
+from _common import load_average, provenance, run_cli_fresh, write_summary  # noqa: E402
 
 STEM = "bench_identify_large"
 SHAPES = {"cylinder": {"radius": 0.03, "height": 0.12}, "sphere": {"radius": 0.04}}
@@ -63,22 +61,12 @@ def make_cloud(kind: str, n: int, seed: int) -> np.ndarray:
 
 
 def run_cli(path: Path) -> dict:
-    """One fresh ``graspsim identify`` process: wall [s], peak RSS [bytes], its JSON."""
-    code = "import sys; from graspsim.cli import main; sys.exit(main())"
-    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        t0 = time.perf_counter()
-        p = subprocess.Popen([sys.executable, "-c", code, "identify", str(path), "--json"],
-                             stdout=out, stderr=err, text=True)
-        _, status, usage = os.wait4(p.pid, 0)  # this child's own peak memory
-        wall = time.perf_counter() - t0
-        p.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        text, errors = out.read(), err.read()
-    if p.returncode != 0 or not text.strip():
-        raise RuntimeError(f"identify failed ({p.returncode}): {errors[-500:]}")
-    return {"wall_s": wall, "peak_rss_bytes": int(usage.ru_maxrss) * 1024,
-            "result": json.loads(text.strip().splitlines()[-1])}
+    """One fresh ``graspsim identify --json`` process: wall [s], peak RSS [bytes], its JSON."""
+    r = run_cli_fresh(["identify", str(path), "--json"])
+    if r["exit"] != 0 or not r["stdout"].strip():
+        raise RuntimeError(f"identify failed ({r['exit']}): {r['stderr'][-500:]}")
+    return {"wall_s": r["wall_s"], "peak_rss_bytes": r["peak_rss_bytes"],
+            "result": json.loads(r["stdout"].strip().splitlines()[-1])}
 
 
 def bench(cfg: BenchConfig) -> dict:
@@ -155,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
 
     big = [r for r in res["rows"] if r["points"] == max(cfg.sizes)]
     summary = {
-        "command": "python experiments/bench_identify_large.py " + shlex.join(argv_used),
+        "command": " ".join(["python experiments/bench_identify_large.py", *map(shlex.quote, argv_used)]),
         "config": {"sizes": list(cfg.sizes), "repeat": cfg.repeat, "seed": cfg.seed},
         "headline": {
             "points": max(cfg.sizes),
@@ -170,15 +158,7 @@ def main(argv: list[str] | None = None) -> int:
                      "python": sys.version.split()[0]},
         "provenance": provenance(),
     }
-    out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(out / "summary.json", summary)
-    (out / "README.md").write_text(readme_section(summary) + "\n")
-    if a.publish:
-        dest = Path(__file__).resolve().parent / "reported" / f"{STEM}.json"
-        dest.parent.mkdir(exist_ok=True)
-        write_json(dest, summary)
-    print(readme_section(summary))
+    print(write_summary(summary, cfg.out, STEM, readme_section, publish=a.publish))
     return 0
 
 

@@ -31,19 +31,23 @@ from graspsim.maps.validate import map_problems
 from graspsim.perception import identify
 from graspsim.perception.split import theta_star
 from graspsim.planner import plan
-from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Sphere, make_primitive, synthetic_cloud
+from graspsim.primitives import (PRIMITIVES, Box, Cone, Cylinder, HalfToroid, Sphere, make_primitive,
+                                 synthetic_cloud)
 from graspsim.transforms import make_transform, random_rotation
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
 FAST_FLAGS = ["--surface-step", "0.01", "--rotation-step-deg", "22"]
 
-TEN_METRES = {
-    "sphere": ["--radius", "10"],
-    "cylinder": ["--radius", "10", "--height", "10"],
-    "box": ["--x", "10", "--y", "10", "--z", "10"],
-    "cone": ["--bottom-radius", "10", "--top-radius", "10", "--height", "10"],
-    "half_toroid": ["--major-radius", "10", "--minor-radius", "5"],
-}
+
+
+def _ten_metres(kind: str) -> dict[str, float]:
+    """Every dimension 10 m (a half-toroid's tube 5 m: it must be thinner than the ring)."""
+    dims = {n: 10.0 for n in PRIMITIVES[kind].dim_names}
+    return {**dims, "minor_radius": 5.0} if kind == "half_toroid" else dims
+
+
+def _flags(dims: dict[str, float]) -> list[str]:
+    return [x for k, v in dims.items() for x in (f"--{k.replace('_', '-')}", str(v))]
 
 
 def _fails_cleanly(capsys, argv, *needles, code=2) -> str:
@@ -69,14 +73,13 @@ def _traced_peak(fn) -> int:
 
 
 # ------------------------------------------------------------------ maps: early refusal
-@pytest.mark.parametrize("kind", sorted(TEN_METRES))
+@pytest.mark.parametrize("kind", sorted(PRIMITIVES))
 def test_map_of_each_primitive_at_10_m_is_refused_before_allocating(kind, tmp_path, capsys):
     out = tmp_path / "big.h5"
-    _fails_cleanly(capsys, ["map", kind, *TEN_METRES[kind], "-o", str(out)],
+    _fails_cleanly(capsys, ["map", kind, *_flags(_ten_metres(kind)), "-o", str(out)],
                    "nothing of", "maximum opening")
     assert not out.exists() and not list(tmp_path.iterdir())
-    dims = {a[2:].replace("-", "_"): float(b) for a, b in zip(TEN_METRES[kind][::2], TEN_METRES[kind][1::2])}
-    shape = make_primitive(kind, **dims)
+    shape = make_primitive(kind, **_ten_metres(kind))
     with pytest.raises(NoFeasibleGraspError):
         generate_fs_map(shape)
     # the refusal allocates nothing the size of the object (a 10 m sphere: ~6e7 contacts)

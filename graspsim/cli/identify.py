@@ -65,8 +65,8 @@ def _lookup(db_dir: str | None):
 
 
 def run(args: argparse.Namespace) -> int:
-    cloud = read_point_cloud(args.cloud, units=args.units)
     config = IdentifyConfig(repetitions=args.repetitions, theta=args.theta, noise=args.noise)
+    cloud = read_point_cloud(args.cloud, units=args.units)
     lookup = _lookup(args.db)
     res = identify(cloud.points, rng=np.random.default_rng(args.seed), config=config)
     parts = []

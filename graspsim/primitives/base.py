@@ -182,7 +182,9 @@ class Primitive(ABC):
 
     def _check_floor(self, name: str) -> None:
         value = getattr(self, name)
-        if not value >= MIN_DIM:
+        if not value > 0.0:
+            raise PrimitiveError(f"{self.kind} {name} must be > 0 m, got {value!r}")
+        if value < MIN_DIM:
             raise PrimitiveError(
                 f"{self.kind} {name} must be >= {MIN_DIM:g} m (thinner is degenerate: a "
                 f"plane or a line, not a solid), got {value!r}")

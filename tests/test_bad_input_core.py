@@ -26,7 +26,7 @@ from graspsim.maps.database import MapDatabase
 from graspsim.maps.dbcheck import check_database
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
-from graspsim.maps.preflight import estimate_map_memory, memory_budget, parse_size
+from graspsim.maps.preflight import check_memory, estimate_map_memory, memory_budget, parse_size
 from graspsim.maps.validate import map_problems
 from graspsim.perception import identify
 from graspsim.perception.split import theta_star
@@ -73,31 +73,65 @@ def _traced_peak(fn) -> int:
 
 
 # ------------------------------------------------------------------ maps: early refusal
-@pytest.mark.parametrize("kind", sorted(PRIMITIVES))
-def test_map_of_each_primitive_at_10_m_is_refused_before_allocating(kind, tmp_path, capsys):
-    out = tmp_path / "big.h5"
-    _fails_cleanly(capsys, ["map", kind, *_flags(_ten_metres(kind)), "-o", str(out)],
-                   "nothing of", "maximum opening")
-    assert not out.exists() and not list(tmp_path.iterdir())
-    shape = make_primitive(kind, **_ten_metres(kind))
-    with pytest.raises(NoFeasibleGraspError):
-        generate_fs_map(shape)
-    # the refusal allocates nothing the size of the object (a 10 m sphere: ~6e7 contacts)
-    assert _traced_peak(lambda: pytest.raises(NoFeasibleGraspError, generate_fs_map, shape)) < 5e6
+# Requests that would fill the machine run in a child process whose address space is
+# capped at 2 GiB: a regression there ends in a MemoryError, not in the OOM killer.
+_CAPPED = """
+import contextlib, io, json, resource, sys, tracemalloc
+resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
+from graspsim.cli import main
+out = []
+for argv in json.loads(sys.argv[1]):
+    err = io.StringIO()
+    tracemalloc.start()
+    try:
+        with contextlib.redirect_stderr(err):
+            code = main(argv)
+    except BaseException as exc:  # a regression: record it, keep going
+        code = f"{type(exc).__name__}: {exc}"[:300]
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    out.append({"code": code, "stderr": err.getvalue(), "traced_peak": peak})
+print(json.dumps(out))
+"""
 
 
-def test_graspable_plate_over_the_memory_budget_is_refused_with_the_estimate(monkeypatch, tmp_path, capsys):
-    plate = Box(10.0, 10.0, 0.05)  # graspable across its 5 cm edge, but ~1e7 contacts
+def _run_capped(argvs: list[list[str]], budget: str) -> list[dict]:
+    import subprocess
+    import sys
+
+    env = {**os.environ, "GRASPSIM_MEMORY_BUDGET": budget, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    p = subprocess.run([sys.executable, "-c", _CAPPED, json.dumps(argvs)], capture_output=True, text=True,
+                       env=env, timeout=120)
+    assert p.returncode == 0, p.stderr[-2000:]
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def test_map_of_each_primitive_at_10_m_is_refused_before_allocating(tmp_path):
+    kinds = sorted(PRIMITIVES)
+    outs = [tmp_path / f"{k}.h5" for k in kinds]
+    plate = tmp_path / "plate.h5"  # 10 m x 10 m x 5 cm: graspable at its edge, ~1e7 contacts
+    argvs = [["map", k, *_flags(_ten_metres(k)), "-o", str(o)] for k, o in zip(kinds, outs)]
+    argvs.append(["map", "box", "--x", "10", "--y", "10", "--z", "0.05", "-o", str(plate)])
+    results = _run_capped(argvs, budget="1GiB")
+    for argv, r in zip(argvs, results):
+        lines = r["stderr"].strip().splitlines()
+        assert r["code"] == 2 and len(lines) == 1 and lines[0].startswith("graspsim: error: "), (argv, r)
+        assert r["traced_peak"] < 5e6, (argv, r)  # nothing the size of the object was allocated
+    for r in results[:-1]:
+        assert "nothing of" in r["stderr"] and "maximum opening" in r["stderr"]
+    assert "would need about" in results[-1]["stderr"] and "budget of 1 GiB" in results[-1]["stderr"]
+    assert "GRASPSIM_MEMORY_BUDGET" in results[-1]["stderr"]
+    assert not any(o.exists() for o in [*outs, plate]) and not list(tmp_path.iterdir())
+
+
+def test_nothing_graspable_and_over_budget_errors_from_the_api(monkeypatch):
+    with pytest.raises(NoFeasibleGraspError, match="thinnest cross-section, 20 m"):
+        generate_fs_map(Sphere(10.0), memory_budget="1GiB")
+    plate = Box(10.0, 10.0, 0.05)  # (generating it is tested in a capped child process above)
     with pytest.raises(BudgetExceededError, match=r"would need about [0-9.]+ [GM]iB .* budget of 1 GiB"):
-        generate_fs_map(plate, memory_budget="1GiB")
-    peak = _traced_peak(lambda: pytest.raises(BudgetExceededError, generate_fs_map, plate, memory_budget="1GiB"))
-    assert peak < 5e6
-    # the budget comes from the environment too (the CLI's way)
+        check_memory(plate, estimate_map_memory(plate, HGPL_25_60_A, MapConfig()), 1 << 30)
     monkeypatch.setenv("GRASPSIM_MEMORY_BUDGET", "2GiB")
-    out = tmp_path / "plate.h5"
-    _fails_cleanly(capsys, ["map", "box", "--x", "10", "--y", "10", "--z", "0.05", "-o", str(out)],
-                   "budget of 2 GiB", "GRASPSIM_MEMORY_BUDGET")
-    assert not out.exists()
+    assert memory_budget() == 2 << 30 and memory_budget("3GiB") == 3 << 30
     monkeypatch.setenv("GRASPSIM_MEMORY_BUDGET", "lots")
     with pytest.raises(InvalidParameterError, match="GRASPSIM_MEMORY_BUDGET"):
         memory_budget()

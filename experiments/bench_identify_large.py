@@ -114,8 +114,9 @@ def readme_section(summary: dict) -> str:
         dims = ", ".join(f"{k} {v * 1000:.1f} mm" for k, v in (r["dims"] or {}).items())
         lines.append(f"| {r['shape']} | {r['points']:,} | {used} | {r['identify_s_median']:.2f} | "
                      f"{r['wall_s_median']:.2f} | {r['peak_rss_mib_max']:.0f} | {r['primitive']} {dims} |")
-    agree = "; ".join(f"{k}: {'same primitive, dims within ' + format(v['max_dim_diff_m'] * 1000, '.1f') + ' mm' if v['same_primitive'] else 'DIFFERENT primitive'}"
-                      for k, v in summary["agreement"].items())
+    agree = "; ".join(
+        f"{k}: " + (f"same primitive, dims within {v['max_dim_diff_m'] * 1000:.1f} mm" if v["same_primitive"]
+                    else "DIFFERENT primitive") for k, v in summary["agreement"].items())
     m = summary["machine"]
     return ("\n".join(lines) + "\n\n"
             f"Median of {summary['config']['repeat']} fresh `graspsim identify --json` processes per row "

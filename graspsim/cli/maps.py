@@ -134,6 +134,8 @@ def _cmd_info(args) -> int:
 def _cmd_db(args) -> int:
     from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid
 
+    if args.db_command == "check":  # every stored map, whatever its settings
+        return _db_check(MapDatabase(args.root), args)
     cfg, quality = _config(args)
     db = MapDatabase(args.root, quality=quality, config=cfg)
     if args.db_command == "build":
@@ -154,8 +156,6 @@ def _cmd_db(args) -> int:
         rows = [(e["primitive"], e["dims"], e["grasps"], e["accepted"], e["seconds"]) for e in records]
         emit({"root": str(db.root), "maps": records, "seconds": time.perf_counter() - t0}, args.json,
              format_table(rows, ["primitive", "dims [m]", "grasps", "accepted", "build s"]))
-    elif args.db_command == "check":
-        return _db_check(db, args)
     elif args.db_command == "list":
         ents = db.entries()
         emit({"root": str(db.root), "maps": ents}, args.json,
@@ -220,7 +220,8 @@ def register(sub) -> None:
         q = dbs.add_parser(name, help=text)
         q.add_argument("--root", default=None, help="database folder (default $GRASPSIM_DB or "
                        "~/.cache/graspsim/db)")
-        _add_generation(q)
+        if name != "check":
+            _add_generation(q)
         add_json_flag(q)
         if name == "build":
             q.add_argument("--primitives", nargs="+", default=None, help="subset of the five")

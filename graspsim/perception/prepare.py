@@ -58,9 +58,12 @@ def check_extent(points: np.ndarray, *, max_extent: float = MAX_EXTENT) -> None:
         return
     names = {"mm": "millimetres", "cm": "centimetres"}
     units = [u for u in ("mm", "cm") if width * UNITS[u] <= max_extent]
-    hint = (f"is it in {' or '.join(f'{names[u]} ({width:.4g} {u})' for u in units)}? convert with "
-            f"--units {'|'.join(units)} (Python: read_point_cloud(..., units=...) or to_metres)") if units else \
-        "is it several objects, or in another unit? segment or convert it first"
+    if units:
+        hint = (f"is it in {' or '.join(f'{names[u]} ({width:.4g} {u})' for u in units)}? convert with "
+                f"--units {'|'.join(units)} (Python: read_point_cloud(..., units=...) or "
+                "graspsim.perception.to_metres)")
+    else:
+        hint = "is it several objects, or in another unit? segment or convert it first"
     raise PointCloudError(
         f"the cloud is {width:.4g} units across, implausible in metres (one graspable object is at most "
         f"{max_extent:g} m); {hint}")

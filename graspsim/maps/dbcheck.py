@@ -134,7 +134,7 @@ def check_database(db: MapDatabase, *, repair: bool = False, stale_after: float 
     reindexed: list[str] = []
     for path in sorted(root.glob("*/*.h5")):
         rel = str(path.relative_to(root))
-        if rel in keep or path in doomed or now - path.stat().st_mtime < stale_after:
+        if rel in keep or path in doomed or _age(path, now) < stale_after:
             continue
         gmap, why = _read(path)
         problems.append((rel, "not listed in the index" + (f" and invalid: {why}" if why else "")))
@@ -143,7 +143,7 @@ def check_database(db: MapDatabase, *, repair: bool = False, stale_after: float 
         else:
             keep[rel] = index_record(root, path, gmap, gmap.meta.timing.get("total"), path.stat().st_mtime)
             reindexed.append(rel)
-    stale = [p for p in (*root.glob(".*.tmp"), *root.glob("*/.*.tmp")) if now - p.stat().st_mtime >= stale_after]
+    stale = [p for p in (*root.glob(".*.tmp"), *root.glob("*/.*.tmp")) if _age(p, now) >= stale_after]
     problems += [(str(p.relative_to(root)), "stale temporary file of an interrupted write") for p in stale]
     if not repair or not problems:
         return DatabaseReport(str(db.root), len(records), valid, tuple(problems))
@@ -162,6 +162,14 @@ def check_database(db: MapDatabase, *, repair: bool = False, stale_after: float 
     log.info("database %s repaired: %d files removed, %d reindexed", root, len(removed), len(reindexed))
     return DatabaseReport(str(db.root), len(records), valid, tuple(problems + failed), tuple(removed),
                           tuple(reindexed), repaired=not failed)
+
+
+def _age(path: Path, now: float) -> float:
+    """Seconds since ``path`` was written; -inf if it vanished meanwhile (someone else's)."""
+    try:
+        return now - path.stat().st_mtime
+    except FileNotFoundError:
+        return -float("inf")
 
 
 def _identity(record) -> str:

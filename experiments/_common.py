@@ -19,7 +19,7 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["Clock", "stopwatch", "load_average", "provenance", "write_json", "write_config", "mean_sd",
-           "mixed_anova", "paired_posthoc", "fmt"]
+           "mixed_anova", "paired_posthoc", "fmt", "run_cli_fresh", "write_summary"]
 
 
 def load_average() -> list[float]:
@@ -43,6 +43,40 @@ def provenance() -> dict:
     except (OSError, subprocess.SubprocessError):
         commit = None
     return {"commit": commit, "graspsim": graspsim.__version__, "cpus": os.cpu_count()}
+
+
+_FRESH_CLI = """
+import os, sys
+from graspsim.cli import main
+try:
+    code = main()
+finally:  # this process's own peak (VmHWM is reset at exec, unlike wait4's ru_maxrss)
+    with open("/proc/self/status") as f, open(os.environ["GRASPSIM_BENCH_HWM"], "w") as out:
+        out.write(next((line.split()[1] for line in f if line.startswith("VmHWM:")), ""))
+sys.exit(code)
+"""
+
+
+def run_cli_fresh(args: list[str], env: dict | None = None) -> dict:
+    """``graspsim ARGS`` in a fresh Python process, as a user runs it: exit status,
+    wall time [s] (start-up and imports included), that process's own peak resident
+    memory [bytes] (``VmHWM``; Linux), stdout and stderr."""
+    import subprocess
+    import sys
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        hwm = os.path.join(d, "hwm")
+        env = {**(os.environ if env is None else env), "GRASPSIM_BENCH_HWM": hwm}
+        t0 = time.perf_counter()
+        p = subprocess.run([sys.executable, "-c", _FRESH_CLI, *args], capture_output=True, text=True, env=env)
+        wall = time.perf_counter() - t0
+        try:
+            with open(hwm) as f:
+                peak = int(f.read()) * 1024
+        except (OSError, ValueError):
+            peak = None
+    return {"exit": p.returncode, "wall_s": wall, "peak_rss_bytes": peak, "stdout": p.stdout, "stderr": p.stderr}
 
 
 class Clock:
@@ -105,6 +139,21 @@ def _clean(o):
 def write_json(path: Path, data) -> None:
     text = json.dumps(_clean(json.loads(json.dumps(data, default=_jsonable))), indent=1)
     Path(path).write_text(text + "\n")
+
+
+def write_summary(summary: dict, out: str | Path, stem: str, readme_section, *, publish: bool = False) -> str:
+    """Write ``summary.json`` and ``README.md`` (``readme_section(summary)``) to ``out``;
+    with ``publish`` also ``experiments/reported/<stem>.json``. Returns the markdown."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / "summary.json", summary)
+    text = readme_section(summary)
+    (out / "README.md").write_text(text + "\n")
+    if publish:
+        dest = Path(__file__).resolve().parent / "reported" / f"{stem}.json"
+        dest.parent.mkdir(exist_ok=True)
+        write_json(dest, summary)
+    return text
 
 
 def write_config(path: Path, cfg) -> None:

@@ -16,6 +16,8 @@ __all__ = [
     "MapFileError",
     "OutputPathError",
     "MapDatabaseError",
+    "InvalidMapError",
+    "BudgetExceededError",
     "PointCloudError",
     "IdentificationError",
     "MeshError",
@@ -55,6 +57,16 @@ class OutputPathError(GraspsimError, OSError):
 
 class MapDatabaseError(GraspsimError):
     """The FS map database cannot answer or store a request."""
+
+
+class InvalidMapError(GraspsimError, ValueError):
+    """A graspability map breaks its invariants (no grasps, non-finite columns, a
+    degenerate object); see :func:`graspsim.maps.validate.validate_map`."""
+
+
+class BudgetExceededError(GraspsimError, MemoryError):
+    """A request would need more memory than the configured budget; the message gives
+    the estimate, the budget and how to change it."""
 
 
 class PointCloudError(GraspsimError, ValueError):

@@ -199,7 +199,8 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
         yield PlanResult(status, GraspabilityMap.empty(_empty_meta(db, ident)), (), ident, np.eye(4),
                          {**timing, "total": time.perf_counter() - t0, "first": None, "tenth": None})
         return
-    info = {"status": ident.status.value, "n_points": ident.n_points, "n_splits": ident.n_splits}
+    info = {"status": ident.status.value, "n_points": ident.n_points, "n_splits": ident.n_splits,
+            "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict()}
     yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing)
 
 

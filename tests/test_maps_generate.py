@@ -102,8 +102,11 @@ def test_same_input_same_map_whatever_the_thread_count():
 
 
 def test_object_too_wide_for_the_gripper():
-    with pytest.raises(NoFeasibleGraspError, match="clearance"):
+    with pytest.raises(NoFeasibleGraspError, match="maximum opening"):  # before any work
         generate_fs_map(Sphere(0.08), config=FAST)
+    # fits the 12 cm opening, but no chord leaves the 2 x 5 mm approach clearance
+    with pytest.raises(NoFeasibleGraspError, match="clearance"):
+        generate_fs_map(Sphere(0.0598), config=FAST)
 
 
 def test_sample_hierarchy_bounds_every_fine_sample():

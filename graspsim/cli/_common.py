@@ -8,7 +8,7 @@ from typing import Any, Iterable
 
 from graspsim._jsonable import to_jsonable
 
-__all__ = ["emit", "add_json_flag", "add_executor_flags", "executor_from_args", "format_table",
+__all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "executor_from_args", "format_table",
            "to_jsonable", "progress"]
 
 
@@ -16,6 +16,12 @@ def add_json_flag(p) -> None:
     p.add_argument(
         "--json", action="store_true", help="print one JSON summary object as the last line"
     )
+
+
+def add_units_flag(p) -> None:
+    p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
+                   help="unit of the cloud's coordinates, converted to metres (default m; a cloud "
+                   "wider than 2 m is refused as probably mm or cm)")
 
 
 def add_executor_flags(p) -> None:

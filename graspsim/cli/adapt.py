@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from graspsim.cli._common import add_json_flag, emit, format_table
+from graspsim.cli._common import add_json_flag, add_units_flag, emit, format_table
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -23,7 +23,7 @@ def _cmd_adapt(args) -> int:
     from graspsim.planner import PlannerConfig, plan
 
     out = check_output(args.output, "map")  # before the work, not after it
-    cloud = read_point_cloud(args.cloud)
+    cloud = read_point_cloud(args.cloud, units=args.units)
     table = None
     if args.table is not None:
         from graspsim.maps.table import TablePlane
@@ -44,7 +44,7 @@ def _cmd_adapt(args) -> int:
         save_map(result.map, out)
     s = result.summary()
     s.update(file=str(out) if why is None else None, cloud=args.cloud, points=len(cloud.points),
-             dropped=cloud.n_dropped, timing=result.timing)
+             units=cloud.units, dropped=cloud.n_dropped, timing=result.timing)
     rows = [(p["primitive"], {k: round(v, 4) for k, v in p["dims"].items()}, p["match"]) for p in s["parts"]]
     first = s["time_to_first_0.95"]
     human = (format_table(rows, ["part", "dims [m]", "match"]) +
@@ -78,7 +78,8 @@ def register(sub) -> None:
         "write the adapted map (object frame; object/T_cloud_obj maps it to the cloud's "
         "frame). Exit status 1, and no map written (an existing file is left as it was), "
         "when nothing is identified or no grasp is found.")
-    p.add_argument("cloud", help="point cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m]")
+    p.add_argument("cloud", help="point cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m; see --units]")
+    add_units_flag(p)
     p.add_argument("-o", "--output", required=True, help="map file to write (.h5)")
     p.add_argument("--scaling", choices=["combined", "quality", "feasibility"], default="combined",
                    help="map scaling for familiar objects (combined)")

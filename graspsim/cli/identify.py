@@ -17,7 +17,7 @@ import argparse
 
 import numpy as np
 
-from graspsim.cli._common import add_json_flag, emit, format_table
+from graspsim.cli._common import add_json_flag, add_units_flag, emit, format_table
 from graspsim.errors import DependencyNotInstalled
 from graspsim.perception.identify import IdentifyConfig, identify
 from graspsim.perception.io import read_point_cloud
@@ -37,7 +37,8 @@ def register(subparsers) -> None:
         help="identify shape primitives in a point cloud (.pcd, .ply, .npy, .xyz)",
         description=_DESCRIPTION,
     )
-    p.add_argument("cloud", help="point cloud file, coordinates in metres")
+    p.add_argument("cloud", help="point cloud file, coordinates in metres (see --units)")
+    add_units_flag(p)
     p.add_argument("--repetitions", type=int, default=10,
                    help="MLESAC samples per model (default 10)")
     p.add_argument("--theta", type=float, default=0.5,
@@ -77,8 +78,8 @@ def _lookup(db_dir: str | None):
 
 
 def run(args: argparse.Namespace) -> int:
-    cloud = read_point_cloud(args.cloud)
     config = IdentifyConfig(repetitions=args.repetitions, theta=args.theta, noise=args.noise)
+    cloud = read_point_cloud(args.cloud, units=args.units)
     lookup, db_root = _lookup(args.db)
     res = identify(cloud.points, rng=np.random.default_rng(args.seed), config=config)
     parts = []
@@ -94,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
                          for p in res.unidentified],
         "seconds": res.seconds,
         "points": cloud.n_read,
+        "units": cloud.units,
+        "downsampling": None if res.downsampling is None else res.downsampling.to_dict(),
         "dropped_nonfinite": cloud.n_dropped,
         "outliers_removed": res.n_removed,
         "noise": res.noise,
@@ -106,8 +109,10 @@ def run(args: argparse.Namespace) -> int:
              f"{p['fit_rate']:.3f}", p["points"], p["match"] or "-"] for i, p in enumerate(parts)]
     rows += [[f"u{i}", "unidentified", "", f"{p.fit_rate:.3f}", p.n_points, "-"]
              for i, p in enumerate(res.unidentified)]
+    d = res.downsampling
     human = (f"{args.cloud}: {res.status.value} in {res.seconds * 1000:.0f} ms "
              f"({cloud.n_read} points, {cloud.n_dropped} NaN/inf dropped, "
+             + (f"{d.used_points} used ({d.voxel * 1000:.2g} mm voxels), " if d else "") +
              f"{res.n_removed} outliers removed, noise {res.noise * 1000:.2f} mm)\n"
              + format_table(rows, ["part", "primitive", "dims", "fit rate", "points", "match"])
              + ("" if db_root else "\n(match: no map database yet -- `graspsim db build` or the "

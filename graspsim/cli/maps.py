@@ -208,6 +208,8 @@ def _cmd_db(args) -> int:
              format_table(rows, ["primitive", "dims", "grasps", "settings", "file"])
              + f"\n{len(ents)} maps in {db.root}")
         return 0
+    if args.db_command == "check":  # every stored map, whatever its settings
+        return _db_check(MapDatabase(args.root), args)
     cfg, quality = _config(args)
     db = MapDatabase(args.root, quality=quality, config=cfg)
     if args.db_command == "build":
@@ -244,6 +246,18 @@ def _cmd_db(args) -> int:
     return 0
 
 
+def _db_check(db, args) -> int:
+    from graspsim.maps.dbcheck import check_database
+
+    rep = check_database(db, repair=args.repair)
+    state = ("all repaired" if rep.repaired else "NOT repaired (run with --repair)") if rep.problems else "no problems"
+    human = (format_table(rep.problems, ["file", "problem"]) + "\n" if rep.problems else "") + (
+        f"{db.root}: {rep.maps} maps listed, {rep.valid} valid; {len(rep.problems)} problems, {state}"
+        + (f"; removed {len(rep.removed)} files, indexed {len(rep.reindexed)}" if rep.repaired else ""))
+    emit(rep.to_dict(), args.json, human)
+    return 0 if rep.ok else 1
+
+
 def register(sub) -> None:
     p = sub.add_parser("map", help="generate a full-scale graspability map of a primitive",
                        description="Surface-to-voxel FS map of a shape primitive for the "
@@ -278,10 +292,10 @@ def register(sub) -> None:
     add_json_flag(p)
     p.set_defaults(func=_cmd_info)
 
-    p = sub.add_parser("db", help="the full-scale map database (build, list, lookup)",
+    p = sub.add_parser("db", help="the full-scale map database (build, list, lookup, check)",
                        description="The FS map database that adapt takes its maps from "
                        "($GRASPSIM_DB or ~/.cache/graspsim/db): build it, list it, or ask it "
-                       "whether a primitive is known or familiar.")
+                       "whether a primitive is known or familiar, or check it.")
     dbs = p.add_subparsers(dest="db_command", metavar="ACTION")
     dbs.required = True
     for name, text, desc in (
@@ -295,11 +309,16 @@ def register(sub) -> None:
             ("lookup", "known / familiar decision",
              "Say whether a primitive of the given dimensions is known (a stored map of the same "
              "size), familiar (same primitive, another size: its map is scaled) or absent, for "
-             "the maps of the given generation settings.")):
+             "the maps of the given generation settings."),
+            ("check", "verify every stored map (exit 1 on problems; --repair fixes them)",
+             "Verify every map the index lists (file present, readable, valid, record "
+             "consistent), maps the index misses and stale temporary files; --repair removes "
+             "invalid files and records and indexes valid unlisted maps. Exit status 1 on "
+             "problems left unrepaired.")):
         q = dbs.add_parser(name, help=text, description=desc)
         q.add_argument("--root", default=None, help="database folder (default $GRASPSIM_DB or "
                        "~/.cache/graspsim/db)")
-        if name != "list":
+        if name not in ("list", "check"):
             _add_generation(q)
         add_json_flag(q)
         if name == "build":
@@ -310,4 +329,8 @@ def register(sub) -> None:
         if name == "lookup":
             q.add_argument("primitive")
             _add_dims(q)
+        if name == "check":
+            q.add_argument("--repair", action="store_true",
+                           help="remove invalid maps and records, index valid unlisted maps, delete "
+                           "stale temporary files")
         q.set_defaults(func=_cmd_db)

@@ -5,6 +5,8 @@ from __future__ import annotations
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
 from graspsim.maps.io import load_map, read_sim_results, save_map, write_sim_results
+from graspsim.maps.preflight import estimate_map_memory, memory_budget
+from graspsim.maps.validate import map_problems, validate_map
 
 __all__ = [
     "COLUMNS",
@@ -16,4 +18,8 @@ __all__ = [
     "save_map",
     "write_sim_results",
     "read_sim_results",
+    "estimate_map_memory",
+    "memory_budget",
+    "map_problems",
+    "validate_map",
 ]

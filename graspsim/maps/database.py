@@ -29,16 +29,17 @@ from typing import Iterable
 import numpy as np
 
 from graspsim._atomic import atomic_write_text
-from graspsim.errors import MapDatabaseError, MapFileError
+from graspsim.errors import GraspsimError, MapDatabaseError, MapFileError
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.io import load_map, save_map
+from graspsim.maps.validate import validate_map
 from graspsim.perception.match import MatchDecision, classify_match
 from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Primitive, Sphere, make_primitive
 from graspsim.quality import QualityModel
 
-__all__ = ["MapDatabase", "PAPER_SHAPES", "default_root", "size_grid"]
+__all__ = ["MapDatabase", "PAPER_SHAPES", "default_root", "size_grid", "index_record"]
 
 log = logging.getLogger(__name__)
 
@@ -83,6 +84,16 @@ def _locked(path: Path):
             yield
         finally:
             fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def _valid_record(entry: dict) -> bool:
+    try:
+        make_primitive(entry["primitive"], **entry["dims"])
+    except (GraspsimError, KeyError, TypeError) as err:
+        log.warning("database record %s skipped (%s); `graspsim db check --repair` removes it",
+                    entry.get("key"), err)
+        return False
+    return True
 
 
 def _digest(obj) -> str:
@@ -132,8 +143,10 @@ class MapDatabase:
 
     def entries(self, *, all_settings: bool = False) -> list[dict]:
         """Index records of the maps built with this database's settings (``all_settings``:
-        of every map in the folder; their ``"settings"`` digest tells them apart)."""
-        return [e for e in self._read_index() if all_settings or e.get("settings") == self._settings]
+        of every map in the folder; their ``"settings"`` digest tells them apart). Records of
+        impossible shapes (e.g. a zero radius) are skipped: never a lookup source."""
+        return [e for e in self._read_index()
+                if (all_settings or e.get("settings") == self._settings) and _valid_record(e)]
 
     @property
     def settings_digest(self) -> str:
@@ -202,11 +215,26 @@ class MapDatabase:
         return gmap
 
     def _merge(self, new: list[dict]) -> None:
-        """Add records to the index. The read-modify-write holds an exclusive lock, so
-        processes building into one database at the same time lose no record."""
+        """Add records to the index (replacing those with the same keys)."""
         keys = {r["key"] for r in new}
+        self.edit_index(lambda records: [e for e in records if e.get("key") not in keys] + new)
+
+    def records(self) -> list[dict]:
+        """Every index record, whatever its settings (raises if the index is damaged)."""
+        return self._read_index()
+
+    def edit_index(self, edit, *, damaged_ok: bool = False) -> None:
+        """Replace the index records by ``edit(records)``. The read-modify-write holds
+        an exclusive lock, so processes writing one database at the same time lose no
+        record; ``damaged_ok``: a damaged index reads as empty (to rebuild it)."""
         with _locked(self.root / ".index.lock"):
-            self._write_index([e for e in self._read_index() if e["key"] not in keys] + new)
+            try:
+                records = self._read_index()
+            except MapDatabaseError:
+                if not damaged_ok:
+                    raise
+                records = []
+            self._write_index(edit(records))
 
     def build(self, shapes: Iterable[Primitive], *, threads: int | None = None, progress=None,
               executor=None) -> list[dict]:
@@ -259,19 +287,27 @@ def _build_job(job: _BuildJob) -> dict:
     return _build_one(db, primitive_from_dict(job.shape), threads=1)[1]
 
 
+def index_record(root: Path, path: Path, gmap: GraspabilityMap, seconds: float | None,
+                 created: float | None = None) -> dict:
+    """The index record of the map ``gmap`` stored at ``path`` (ROOT/<primitive>/<key>.h5,
+    the key ending in the settings digest); ``created``: a timestamp (default now)."""
+    key = path.stem
+    return {"key": key, "primitive": gmap.meta.object["primitive"], "dims": dict(gmap.meta.object["dims"]),
+            "gripper": gmap.meta.gripper.get("name"), "settings": key.rsplit("_", 1)[-1],
+            "file": str(path.relative_to(root)), "grasps": len(gmap), "accepted": int(gmap.accepted.sum()),
+            "seconds": seconds, "created": time.strftime("%Y-%m-%dT%H:%M:%S", time.localtime(created))}
+
+
 def _build_one(db: MapDatabase, shape: Primitive, *, threads=None, progress=None):
     """Generate, sort best first and store one FS map; returns it and its index record."""
     t0 = time.perf_counter()
     gmap = generate_fs_map(shape, db.gripper, db.quality, db.config, threads=threads,
                            progress=progress)
     gmap = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # accepted grasps first
+    validate_map(gmap, error=MapDatabaseError, what=f"the FS map of {shape} (not stored)")
     p = db.path(shape)
     p.parent.mkdir(exist_ok=True)
     save_map(gmap, p)
-    record = {"key": db.key(shape), "primitive": shape.kind, "dims": shape.dims,
-              "gripper": db.gripper.name, "settings": db._settings,
-              "file": str(p.relative_to(db.root)), "grasps": len(gmap),
-              "accepted": int(gmap.accepted.sum()), "seconds": time.perf_counter() - t0,
-              "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    record = index_record(db.root, p, gmap, time.perf_counter() - t0)
     log.info("database: stored %s (%d grasps)", shape, len(gmap))
     return gmap, record

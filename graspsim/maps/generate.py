@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -25,6 +25,8 @@ from graspsim.errors import GripperError, InvalidParameterError, NoFeasibleGrasp
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
 from graspsim.maps.hierarchy import clear_caches, sample_levels
+from graspsim.maps.preflight import check_graspable, check_memory, estimate_map_memory
+from graspsim.maps.preflight import memory_budget as preflight_budget
 from graspsim.quality import QualityModel
 from graspsim.transforms import normalize
 
@@ -33,6 +35,7 @@ __all__ = [
     "ClosingLines",
     "generate_fs_map",
     "closing_directions",
+    "closing_direction_count",
     "closing_lines",
     "sweep_collisions",
     "roll_angles",
@@ -98,12 +101,9 @@ def closing_directions(normals: np.ndarray, cone: float, step: float) -> tuple[n
     is the inward normal itself, ring k is k * step away with ~2 pi sin(k step) / step
     azimuths -- and their angles to the inward normal (K,) [rad].
     """
-    rings = int(math.floor(cone / step + 1e-9))
     polar, azim = [0.0], [0.0]
-    for k in range(1, rings + 1):
-        th = k * step
-        n = max(1, round(2 * math.pi * math.sin(th) / step))
-        polar += [th] * n
+    for k, n in enumerate(_ring_sizes(cone, step)[1:], start=1):
+        polar += [k * step] * n
         azim += list(2 * math.pi * np.arange(n) / n)
     polar, azim = np.array(polar), np.array(azim)
     t1, t2 = _tangents(normals)
@@ -112,6 +112,17 @@ def closing_directions(normals: np.ndarray, cone: float, step: float) -> tuple[n
          + (np.sin(polar) * np.cos(azim))[None, :, None] * t1[:, None, :]
          + (np.sin(polar) * np.sin(azim))[None, :, None] * t2[:, None, :])
     return normalize(u), polar
+
+
+def _ring_sizes(cone: float, step: float) -> list[int]:
+    """Directions on each ring of :func:`closing_directions` (ring 0: the normal)."""
+    rings = int(math.floor(cone / step + 1e-9))
+    return [1] + [max(1, round(2 * math.pi * math.sin(k * step) / step)) for k in range(1, rings + 1)]
+
+
+def closing_direction_count(cone: float, step: float) -> int:
+    """Closing directions per first contact (K of :func:`closing_directions`)."""
+    return sum(_ring_sizes(cone, step))
 
 
 def _tangents(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -276,6 +287,7 @@ def generate_fs_map(
     threads: int | None = None,
     progress=None,
     grade=None,
+    memory_budget: int | str | None = None,
 ) -> GraspabilityMap:
     """Full-scale graspability map of ``shape`` (a Primitive or Compound).
 
@@ -285,12 +297,20 @@ def generate_fs_map(
     ``grade``: a grade model of :mod:`graspsim.grades` (e.g. ``get_grade("pad_contact")``)
     that re-grades the finished map (``meta.quality["name"]`` records it); None keeps the
     quality model's grade, the paper's.
-    Raises :class:`NoFeasibleGraspError` if no chord of the object fits the gripper.
+    ``memory_budget``: bytes or a size string ("4GiB", "50%"); None: ``$GRASPSIM_MEMORY_BUDGET``
+    or half the machine's memory (see :mod:`graspsim.maps.preflight`).
+    Raises :class:`NoFeasibleGraspError` if no part of the object fits the gripper, and
+    :class:`BudgetExceededError` -- before allocating it -- if the map would need more
+    memory than the budget.
     """
     quality = quality or QualityModel()
     cfg = config or MapConfig()
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
+    check_graspable(shape, gripper)
+    budget = preflight_budget(memory_budget)
+    estimate = estimate_map_memory(shape, gripper, cfg)
+    check_memory(shape, estimate, budget)
     lines = closing_lines(shape, gripper, cfg)
     timing["lines"] = time.perf_counter() - t0
 
@@ -304,6 +324,8 @@ def generate_fs_map(
     timing["collision"] = time.perf_counter() - t
 
     t = time.perf_counter()
+    check_memory(shape, replace(estimate, contacts=len(lines.u), directions=1), budget,
+                 grasps=int(free.sum(dtype=np.int64)))
     roll = roll_angles(cfg)
     depths = gripper.contact_depths(cfg.depth_step)
     cols = _assemble(free, lines, roll, gripper.fingertip_z - depths, q)

@@ -19,6 +19,7 @@ from graspsim.perception.match import MatchDecision, MatchKind, classify_match
 from graspsim.perception.mlesac import ModelFit, fit_model, mixture_loglik
 from graspsim.perception.mvbb import OrientedBox, min_volume_box, pca_box
 from graspsim.perception.normals import LocalSurface, estimate_local_surface, remove_outliers
+from graspsim.perception.prepare import Downsampling, check_solid, to_metres, voxel_downsample
 from graspsim.perception.split import Split, best_split, theta_star
 
 __all__ = [
@@ -30,5 +31,6 @@ __all__ = [
     "ModelFit", "fit_model", "mixture_loglik",
     "OrientedBox", "min_volume_box", "pca_box",
     "LocalSurface", "estimate_local_surface", "remove_outliers",
+    "Downsampling", "check_solid", "to_metres", "voxel_downsample",
     "Split", "best_split", "theta_star",
 ]

@@ -22,7 +22,7 @@ from graspsim.perception.identify import IdentificationStatus, IdentifyConfig, i
 from graspsim.primitives import make_primitive, synthetic_cloud
 from graspsim.transforms import make_transform, normalize, random_rotation
 
-__all__ = ["SIZE_VARIANTS", "CloudSpec", "TrialResult", "run_trial", "dims_error"]
+__all__ = ["SIZE_VARIANTS", "CloudSpec", "TrialResult", "run_trial", "trial_cloud", "dims_error"]
 
 #: Seven size variants per primitive [m]; the first is the paper's reference shape.
 SIZE_VARIANTS: dict[str, tuple[dict[str, float], ...]] = {
@@ -76,18 +76,24 @@ def dims_error(kind: str, true: dict[str, float], found: dict[str, float]) -> fl
     return float(max(abs(true[k] - found[k]) for k in true))
 
 
-def run_trial(kind: str, variant: int, repetitions: int, trial: int, seed: np.random.SeedSequence,
-              spec: CloudSpec = CloudSpec(), config: IdentifyConfig | None = None) -> TrialResult:
-    """One identification trial; ``seed`` fixes both the cloud and the identification."""
+def trial_cloud(kind: str, variant: int, seed: np.random.SeedSequence, spec: CloudSpec = CloudSpec()):
+    """The trial's synthetic cloud and the generator its identification draws from."""
     cloud_rng, id_rng = (np.random.default_rng(s) for s in seed.spawn(2))
-    dims = SIZE_VARIANTS[kind][variant]
-    shape = make_primitive(kind, **dims)
+    shape = make_primitive(kind, **SIZE_VARIANTS[kind][variant])
     T = make_transform(random_rotation(cloud_rng), cloud_rng.uniform(-0.3, 0.3, 3))
     camera = None
     if spec.partial:
         camera = normalize(cloud_rng.normal(size=3)) * spec.camera_distance
     cloud = synthetic_cloud(shape, cloud_rng, resolution=spec.resolution, noise=spec.noise,
                             outliers=spec.outliers, camera=camera, T_world_obj=T)
+    return cloud, id_rng
+
+
+def run_trial(kind: str, variant: int, repetitions: int, trial: int, seed: np.random.SeedSequence,
+              spec: CloudSpec = CloudSpec(), config: IdentifyConfig | None = None) -> TrialResult:
+    """One identification trial; ``seed`` fixes both the cloud and the identification."""
+    cloud, id_rng = trial_cloud(kind, variant, seed, spec)
+    dims = SIZE_VARIANTS[kind][variant]
     cfg = IdentifyConfig(repetitions=repetitions) if config is None else config
     t0, c0 = time.perf_counter(), time.process_time()
     res = identify(cloud.points, rng=id_rng, config=cfg)

@@ -31,13 +31,14 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from graspsim.errors import InvalidParameterError
+from graspsim.errors import InvalidParameterError, PrimitiveError
 from graspsim.perception.classify import Shape, classify
 from graspsim.perception.features import ShapeFeatures, shape_features
 from graspsim.perception.io import check_cloud
 from graspsim.perception.mlesac import ModelFit, fit_from, fit_model, rescore, residual_sigma
 from graspsim.perception.mvbb import OrientedBox, min_volume_box
 from graspsim.perception.normals import estimate_local_surface, remove_outliers
+from graspsim.perception.prepare import Downsampling, check_solid, voxel_downsample
 from graspsim.perception.shapes import KINDS, fit_to_object
 from graspsim.perception.split import best_split, theta_star
 from graspsim.perception.support import extent_ratio, surface_coverage
@@ -69,7 +70,8 @@ class IdentifyConfig:
     body: 2); min_coverage, max_uncovered_extent: a candidate model whose surface has
     cluster points near less than min_coverage of it (one view covers up to ~1/2, see
     support) may extend along its axes at most max_uncovered_extent times as far as its
-    cluster."""
+    cluster; max_points: a denser cloud is voxel-downsampled to at most this many points
+    before anything else (:func:`~graspsim.perception.prepare.voxel_downsample`)."""
 
     repetitions: int = 10
     theta: float = 0.5
@@ -89,6 +91,7 @@ class IdentifyConfig:
     max_extent_ratio: float = 2.5  # (new fields last: positional construction still works)
     min_coverage: float = 0.3
     max_uncovered_extent: float = 1.25
+    max_points: int = 20000
 
     def __post_init__(self) -> None:
         checks = [
@@ -108,6 +111,8 @@ class IdentifyConfig:
             ("fit_margin", 0.0 <= self.fit_margin < 1.0, "in [0, 1)"),
             ("symmetry_tol", self.symmetry_tol > 0, "> 0"),
             ("taper_tol", self.taper_tol > 0, "> 0"),
+            ("max_points", self.max_points >= 1000 and int(self.max_points) == self.max_points,
+             ">= 1000, an integer"),
         ]
         for name, ok, valid in checks:
             if not ok:
@@ -160,9 +165,11 @@ class PartResult:
 @dataclass(frozen=True, eq=False)
 class Identification:
     """status; parts: identified clusters; unidentified: clusters left over when the
-    split threshold was reached; n_removed: outliers dropped; noise: the cloud's
-    initial sigma estimate [m] (each part rescores with a sharper one, ``part.noise``);
-    n_splits: splits made; seconds: wall time (the only non-deterministic field)."""
+    split threshold was reached; n_points: points given; n_removed: outliers dropped
+    (of the points used); noise: the cloud's initial sigma estimate [m] (each part
+    rescores with a sharper one, ``part.noise``); n_splits: splits made; seconds: wall
+    time (the only non-deterministic field); downsampling: how a dense cloud was thinned
+    (None: all points used; part indices still refer to every input point)."""
 
     status: IdentificationStatus
     parts: tuple[PartResult, ...]
@@ -172,12 +179,14 @@ class Identification:
     noise: float
     n_splits: int
     seconds: float
+    downsampling: Downsampling | None = None
 
     def to_dict(self) -> dict:
         return {"status": self.status.value, "parts": [p.to_dict() for p in self.parts],
                 "unidentified": [p.to_dict() for p in self.unidentified],
                 "n_points": self.n_points, "n_removed": self.n_removed, "noise": self.noise,
-                "n_splits": self.n_splits, "seconds": self.seconds}
+                "n_splits": self.n_splits, "seconds": self.seconds,
+                "downsampling": None if self.downsampling is None else self.downsampling.to_dict()}
 
 
 def _continuity(points: np.ndarray, link_factor: float) -> tuple[float, float, cKDTree]:
@@ -302,7 +311,11 @@ def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.nd
         return PartResult(shape, {}, np.eye(4), best.fit_rate if best else 0.0,
                           best.rms if best else float("inf"), indices, feats, noise, fits, reason, coverage)
     fit = fits[shape.value]
-    prim, T = fit_to_object(shape.value, fit.R, fit.t, fit.dims)
+    try:
+        prim, T = fit_to_object(shape.value, fit.R, fit.t, fit.dims)
+    except PrimitiveError as err:  # a flat or thin cluster: below the primitive floor
+        return PartResult(Shape.UNIDENTIFIED, {}, np.eye(4), fit.fit_rate, fit.rms, indices, feats, noise,
+                          fits, f"degenerate {shape.value} fit: {err}", coverage)
     return PartResult(shape, prim.dims, T, fit.fit_rate, fit.rms, indices, feats, noise, fits, "", coverage)
 
 
@@ -316,11 +329,16 @@ def identify(points: np.ndarray, *, rng: np.random.Generator,
     t0 = time.perf_counter()
     cfg = config or IdentifyConfig()
     pts_all = check_cloud(points, min_points=cfg.min_cluster_points)
+    down = voxel = None
+    if len(pts_all) > cfg.max_points:
+        used, voxel, down = voxel_downsample(pts_all, cfg.max_points)
+        pts_all = pts_all[used]
     keep = remove_outliers(pts_all) if cfg.remove_outliers else np.ones(len(pts_all), bool)
     if keep.sum() < cfg.min_cluster_points:
         keep[:] = True
     kept = np.flatnonzero(keep)
     pts = pts_all[kept]
+    check_solid(pts)
     surf = estimate_local_surface(pts)
     noise = float(cfg.noise) if cfg.noise is not None else surf.noise
     reliable = surf.flatness <= np.quantile(surf.flatness, cfg.sample_quantile)
@@ -356,6 +374,16 @@ def identify(points: np.ndarray, *, rng: np.random.Generator,
                 continue
         failed.append((_unidentified(part, box), box))
     status = IdentificationStatus.FAILED if failed else IdentificationStatus.IDENTIFIED
-    return Identification(status, tuple(p for p, _ in done), tuple(p for p, _ in failed),
-                          len(pts_all), int(len(pts_all) - len(kept)), noise, n_splits,
-                          time.perf_counter() - t0)
+    parts, left = (tuple(_expand(p, voxel) for p, _ in group) for group in (done, failed))
+    return Identification(status, parts, left, len(pts_all) if down is None else down.input_points,
+                          int(len(pts_all) - len(kept)), noise, n_splits, time.perf_counter() - t0, down)
+
+
+def _expand(part: PartResult, voxel: np.ndarray | None) -> PartResult:
+    """The part with the indices of every input point in its voxels (``voxel``: (N,)
+    voxel of each input point; None: the cloud was not downsampled)."""
+    if voxel is None:
+        return part
+    member = np.zeros(int(voxel.max()) + 1, bool)
+    member[part.indices] = True
+    return replace(part, indices=np.flatnonzero(member[voxel]))

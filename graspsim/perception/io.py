@@ -1,6 +1,7 @@
 """Reading point clouds from disk: PCL ``.pcd``, ``.ply``, ``.npy`` and ``.xyz``/``.txt``.
 
-Only the x, y, z coordinates are kept (metres are assumed: no unit guessing). Points
+Only the x, y, z coordinates are kept, in metres (``units`` converts millimetres or
+centimetres; a cloud too wide for metres is refused, naming the likely unit). Points
 with a NaN or infinite coordinate (organised RGB-D clouds mark missing depth that way)
 are dropped and counted. :func:`check_cloud` rejects clouds no model can be fitted to.
 
@@ -20,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from graspsim.errors import PointCloudError
+from graspsim.perception.prepare import check_extent, to_metres
 
 __all__ = ["LoadedCloud", "read_point_cloud", "check_cloud", "lzf_decompress", "MIN_POINTS"]
 
@@ -39,18 +41,22 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
 @dataclass(frozen=True)
 class LoadedCloud:
     """points: (N, 3) float64, finite, file frame [m]; n_dropped: points removed for a
-    NaN/inf coordinate; n_read: points in the file; fmt: e.g. ``pcd/binary``."""
+    NaN/inf coordinate; n_read: points in the file; fmt: e.g. ``pcd/binary``; units:
+    of the file's coordinates (converted to metres)."""
 
     points: np.ndarray
     n_dropped: int
     n_read: int
     path: str
     fmt: str
+    units: str = "m"
 
 
-def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS) -> LoadedCloud:
-    """Read a cloud file, drop non-finite points and validate with :func:`check_cloud`."""
+def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: str = "m") -> LoadedCloud:
+    """Read a cloud file whose coordinates are in ``units`` ("m", "cm", "mm"), drop
+    non-finite points, convert to metres and validate with :func:`check_cloud`."""
     path = Path(path)
+    to_metres(np.zeros((0, 3)), units)  # an unknown unit fails before reading
     if not path.is_file():
         raise PointCloudError(f"point cloud file {str(path)!r} does not exist or is not a file")
     suffix = path.suffix.lower()
@@ -71,18 +77,19 @@ def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS) -> Loade
     n_drop = int(len(xyz) - finite.sum())
     if n_drop:
         log.info("%s: dropped %d of %d points with NaN/inf coordinates", path.name, n_drop, len(xyz))
-    pts = np.ascontiguousarray(xyz[finite])
+    pts = np.ascontiguousarray(to_metres(xyz[finite], units))
     try:
         check_cloud(pts, min_points=min_points)
     except PointCloudError as err:
         extra = f" ({n_drop} of {len(xyz)} points were NaN/inf)" if n_drop else ""
         raise PointCloudError(f"{path.name}: {err}{extra}") from None
-    return LoadedCloud(pts, n_drop, len(xyz), str(path), fmt)
+    return LoadedCloud(pts, n_drop, len(xyz), str(path), fmt, str(units).lower())
 
 
 def check_cloud(points: np.ndarray, *, min_points: int = MIN_POINTS) -> np.ndarray:
     """Validate a cloud: (N, 3), finite, at least ``min_points`` points, not all identical
-    (spread above 1 µm). Returns it as a float64 array; raises :class:`PointCloudError`."""
+    (spread above 1 µm), plausible in metres (:func:`~graspsim.perception.prepare.check_extent`).
+    Returns it as a float64 array; raises :class:`PointCloudError`."""
     try:
         p = np.asarray(points, dtype=np.float64)
     except (TypeError, ValueError) as err:
@@ -97,6 +104,7 @@ def check_cloud(points: np.ndarray, *, min_points: int = MIN_POINTS) -> np.ndarr
         raise PointCloudError(f"the cloud has {len(p)} points; at least {min_points} are needed")
     if float(np.max(np.ptp(p, axis=0))) < 1e-6:
         raise PointCloudError(f"all {len(p)} points are identical (spread < 1 µm)")
+    check_extent(p)
     return p
 
 

@@ -42,8 +42,12 @@ class Split:
 
 
 def theta_star(v_parent: float, v_children: tuple[float, float], v_others: float) -> float:
-    """Eq. (1): total box volume after the split over total volume before it."""
-    return (v_children[0] + v_children[1] + v_others) / (v_parent + v_others)
+    """Eq. (1): total box volume after the split over total volume before it; 1 (no
+    gain: no split) when there is no volume to gain (flat boxes)."""
+    before = v_parent + v_others
+    if not before > 0.0:
+        return 1.0
+    return (v_children[0] + v_children[1] + v_others) / before
 
 
 def _chain_areas(u: np.ndarray, b: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:

@@ -22,7 +22,12 @@ import numpy as np
 
 from graspsim.errors import PrimitiveError
 
-__all__ = ["Primitive", "SurfaceSamples", "PatchGrid", "grid_cover_radius", "orient_outward"]
+__all__ = ["Primitive", "SurfaceSamples", "PatchGrid", "grid_cover_radius", "orient_outward", "MIN_DIM"]
+
+#: Smallest dimension of a primitive [m]. Anything thinner is degenerate: a plane or a
+#: line seen as a solid (identification of a flat or collinear cluster), far below
+#: what a sensor resolves or the gripper can hold.
+MIN_DIM = 1e-3
 
 
 @dataclass(frozen=True)
@@ -173,10 +178,16 @@ class Primitive(ABC):
 
     def _validate(self) -> None:
         for name in self.dim_names:
-            if getattr(self, name) <= 0.0:
-                raise PrimitiveError(
-                    f"{self.kind} {name} must be > 0 m, got {getattr(self, name)!r}"
-                )
+            self._check_floor(name)
+
+    def _check_floor(self, name: str) -> None:
+        value = getattr(self, name)
+        if not value > 0.0:
+            raise PrimitiveError(f"{self.kind} {name} must be > 0 m, got {value!r}")
+        if value < MIN_DIM:
+            raise PrimitiveError(
+                f"{self.kind} {name} must be >= {MIN_DIM:g} m (thinner is degenerate: a "
+                f"plane or a line, not a solid), got {value!r}")
 
     @property
     def dims(self) -> dict[str, float]:
@@ -316,6 +327,12 @@ class Primitive(ABC):
         """Largest extent of the bounding box [m]."""
         b = self._aabb_geo()
         return float(np.max(b[1] - b[0]))
+
+    @property
+    @abstractmethod
+    def min_cross_section(self) -> float:
+        """Thinnest local width of the solid [m]: no pair of parallel jaws closer than
+        this can hold any part of it (a sphere's diameter, a box's shortest edge)."""
 
     @property
     def circumradius(self) -> float:

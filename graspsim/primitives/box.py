@@ -38,6 +38,10 @@ class Box(Primitive):
     def circumradius(self) -> float:
         return float(np.linalg.norm(self.half))
 
+    @property
+    def min_cross_section(self) -> float:
+        return float(min(self.x, self.y, self.z))
+
     def _inertia_geo_unit(self) -> np.ndarray:
         x2, y2, z2 = self.x**2, self.y**2, self.z**2
         return np.diag([y2 + z2, x2 + z2, x2 + y2]) / 12.0

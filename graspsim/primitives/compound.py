@@ -100,6 +100,11 @@ class Compound:
         return float(np.max(b[1] - b[0]))
 
     @property
+    def min_cross_section(self) -> float:
+        """Thinnest local width of any part [m] (a lower bound for the union's)."""
+        return min(p.min_cross_section for p in self.parts)
+
+    @property
     def volume(self) -> float:
         return _mass_properties(self.parts, self.poses)[1]
 

@@ -13,7 +13,7 @@ from numpy.polynomial import Polynomial
 
 from graspsim.errors import PrimitiveError
 from graspsim.primitives._sampling import disk_samples, revolution_samples
-from graspsim.primitives.base import Primitive, SurfaceSamples
+from graspsim.primitives.base import MIN_DIM, Primitive, SurfaceSamples
 
 __all__ = ["Cone"]
 
@@ -33,14 +33,20 @@ class Cone(Primitive):
     dim_names: ClassVar[tuple[str, ...]] = ("bottom_radius", "top_radius", "height")
 
     def _validate(self) -> None:
-        if self.height <= 0.0:
-            raise PrimitiveError(f"cone height must be > 0 m, got {self.height!r}")
+        self._check_floor("height")
         if self.bottom_radius < 0.0 or self.top_radius < 0.0:
             raise PrimitiveError(
                 f"cone radii must be >= 0 m, got bottom={self.bottom_radius!r}, top={self.top_radius!r}"
             )
-        if max(self.bottom_radius, self.top_radius) <= 0.0:
-            raise PrimitiveError("cone needs at least one radius > 0 m; both are 0")
+        if max(self.bottom_radius, self.top_radius) < MIN_DIM:
+            raise PrimitiveError(
+                f"cone needs a radius >= {MIN_DIM:g} m (thinner is a line, not a solid); got "
+                f"bottom={self.bottom_radius!r}, top={self.top_radius!r}")
+
+    @property
+    def min_cross_section(self) -> float:
+        # the narrow end (0 for a full cone's apex) or across the height
+        return min(2.0 * min(self.bottom_radius, self.top_radius), self.height)
 
     # ------------------------------------------------------------------ helpers
     @property

@@ -35,6 +35,10 @@ class Cylinder(Primitive):
     def circumradius(self) -> float:
         return math.hypot(self.radius, 0.5 * self.height)
 
+    @property
+    def min_cross_section(self) -> float:
+        return min(2.0 * self.radius, self.height)
+
     def _inertia_geo_unit(self) -> np.ndarray:
         r2, h2 = self.radius**2, self.height**2
         ixx = (3.0 * r2 + h2) / 12.0

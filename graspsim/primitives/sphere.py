@@ -32,6 +32,10 @@ class Sphere(Primitive):
     def circumradius(self) -> float:
         return float(self.radius)
 
+    @property
+    def min_cross_section(self) -> float:
+        return 2.0 * self.radius
+
     def _inertia_geo_unit(self) -> np.ndarray:
         return np.eye(3) * 0.4 * self.radius**2
 

@@ -51,6 +51,10 @@ class HalfToroid(Primitive):
         return np.array([0.0, 2.0 * (R * R + 0.25 * r * r) / (math.pi * R), 0.0])
 
     @property
+    def min_cross_section(self) -> float:
+        return 2.0 * self.minor_radius  # across the tube
+
+    @property
     def circumradius(self) -> float:
         # the far ends of the outer ring, (+-(R + r), 0, 0), seen from the COM on +y
         return math.hypot(self.major_radius + self.minor_radius, float(self.com_geo[1]))

@@ -1,0 +1,133 @@
+"""A cloud made ready for identification: units, plausibility, degeneracy, density.
+
+* :func:`to_metres` converts a cloud given in millimetres or centimetres;
+* :func:`check_extent` refuses a cloud too large to be one graspable object in
+  metres -- almost always a cloud in millimetres or centimetres -- and names the
+  likely unit (used by :func:`~graspsim.perception.io.check_cloud`, so by the file
+  reader, :func:`~graspsim.perception.identify.identify`, the planner and the CLI);
+* :func:`check_solid` refuses a collinear or planar cloud: no solid primitive has a
+  shape to fit there (it would come out as a zero-radius cylinder or a flat box);
+* :func:`voxel_downsample` thins a dense cloud to the resolution identification
+  needs: one input point per voxel, the voxel chosen from the cloud's extent so that
+  at most ``max_points`` remain.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from graspsim.errors import IdentificationError, InvalidParameterError, PointCloudError
+from graspsim.primitives.base import MIN_DIM
+
+__all__ = ["UNITS", "MAX_EXTENT", "Downsampling", "to_metres", "check_extent", "check_solid",
+           "voxel_downsample"]
+
+#: Length of one coordinate unit in metres.
+UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+
+#: Largest extent of a cloud taken as one object in metres [m]: the default gripper
+#: spans 12 cm; nothing this wide is one graspable object.
+MAX_EXTENT = 2.0
+
+
+def to_metres(points: np.ndarray, units: str = "m") -> np.ndarray:
+    """``points`` (N, 3) in ``units`` ("m", "cm" or "mm") as metres (float64)."""
+    scale = UNITS.get(str(units).lower())
+    if scale is None:
+        raise InvalidParameterError(f"unknown length unit {units!r}; valid: {sorted(UNITS)}")
+    p = np.asarray(points, dtype=np.float64)
+    return p * scale if scale != 1.0 else p
+
+
+def _robust_ranges(points: np.ndarray, axes: np.ndarray | None = None) -> np.ndarray:
+    """(3,) extent of the points along each axis (rows of ``axes``; default x, y, z),
+    between the 0.5 % and 99.5 % quantiles (a few stray points do not count)."""
+    q = points if axes is None else points @ axes.T
+    lo, hi = np.quantile(q, [0.005, 0.995], axis=0)
+    return hi - lo
+
+
+def check_extent(points: np.ndarray, *, max_extent: float = MAX_EXTENT) -> None:
+    """Raise :class:`PointCloudError` when the cloud (N, 3) is wider than
+    ``max_extent`` metres: coordinates in millimetres or centimetres read as metres."""
+    width = float(np.max(_robust_ranges(points)))
+    if width <= max_extent:
+        return
+    names = {"mm": "millimetres", "cm": "centimetres"}
+    units = [u for u in ("mm", "cm") if width * UNITS[u] <= max_extent]
+    if units:
+        hint = (f"is it in {' or '.join(f'{names[u]} ({width:.4g} {u})' for u in units)}? convert with "
+                f"--units {'|'.join(units)} (Python: read_point_cloud(..., units=...) or "
+                "graspsim.perception.to_metres)")
+    else:
+        hint = "is it several objects, or in another unit? segment or convert it first"
+    raise PointCloudError(
+        f"the cloud is {width:.4g} units across, implausible in metres (one graspable object is at most "
+        f"{max_extent:g} m); {hint}")
+
+
+def check_solid(points: np.ndarray, *, floor: float = MIN_DIM) -> None:
+    """Raise :class:`IdentificationError` when the cloud (N, 3) [m] is thinner than
+    ``floor`` across its principal axes: collinear (two thin directions) or planar
+    (one). No solid primitive of at least ``floor`` in every dimension fits it."""
+    c = points - points.mean(axis=0)
+    _, vecs = np.linalg.eigh(c.T @ c)
+    ext = _robust_ranges(c, vecs[:, ::-1].T)  # largest principal direction first
+    mm = lambda x: f"{x * 1000:.3g} mm" if x >= 1e-5 else "0 mm"  # noqa: E731
+    if ext[1] < floor:
+        raise IdentificationError(
+            f"the cloud is collinear: its points lie within {mm(ext[1])} of a line {mm(ext[0])} long; no "
+            f"solid primitive (every dimension >= {mm(floor)}) can be identified from it")
+    if ext[2] < floor:
+        raise IdentificationError(
+            f"the cloud is planar: its points lie within {mm(ext[2])} of a plane ({mm(ext[0])} x "
+            f"{mm(ext[1])}); no solid primitive (every dimension >= {mm(floor)}) can be identified "
+            "from it (one flat face seen head-on has no depth)")
+
+
+@dataclass(frozen=True)
+class Downsampling:
+    """input_points: points given; used_points: points identification ran on; voxel:
+    the voxel edge [m] (one input point kept per occupied voxel)."""
+
+    input_points: int
+    used_points: int
+    voxel: float
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _voxel_keys(points: np.ndarray, lo: np.ndarray, voxel: float) -> np.ndarray:
+    q = np.floor((points - lo) / voxel).astype(np.int64)
+    n = q.max(axis=0) + 1
+    return (q[:, 0] * n[1] + q[:, 1]) * n[2] + q[:, 2]
+
+
+def voxel_downsample(points: np.ndarray, max_points: int) -> tuple[np.ndarray, np.ndarray, Downsampling]:
+    """Thin ``points`` (N, 3) [m] to at most ``max_points``: one point per voxel (the
+    first in input order), the voxel edge chosen from the cloud's extent and refined on
+    the occupied-voxel count (a surface's count falls as the voxel edge squared).
+
+    Returns (kept (M,) indices into ``points`` in voxel order, voxel (N,) index into
+    ``kept`` of each input point's voxel, the :class:`Downsampling` record)."""
+    if max_points < 1:
+        raise InvalidParameterError(f"max_points must be >= 1, got {max_points!r}")
+    lo = points.min(axis=0)
+    a, b, c = np.maximum(np.ptp(points, axis=0), 1e-9)
+    voxel = max(math.sqrt(2.0 * (a * b + b * c + c * a) / max_points), float(max(a, b, c)) / 1e6)
+    count = lambda v: len(np.unique(_voxel_keys(points, lo, v)))  # noqa: E731
+    n = count(voxel)
+    for _ in range(4):  # towards 80 % of the cap (a surface: n ~ voxel^-2)
+        if 0.6 * max_points <= n <= max_points:
+            break
+        voxel *= math.sqrt(n / (0.8 * max_points))
+        n = count(voxel)
+    while n > max_points:
+        voxel *= 1.1
+        n = count(voxel)
+    _, kept, inverse = np.unique(_voxel_keys(points, lo, voxel), return_index=True, return_inverse=True)
+    return kept, inverse.ravel(), Downsampling(len(points), len(kept), float(voxel))

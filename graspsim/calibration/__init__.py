@@ -23,8 +23,8 @@ from graspsim.calibration.stats import (
 )
 from graspsim.calibration.table import TrialTable
 
-_CAMPAIGN = ("CalibrationCase", "SimCondition", "CaseSample", "draw_samples", "simulate_samples",
-             "case_seed")
+_CAMPAIGN = ("CalibrationCase", "SimCondition", "FRICTION_LIMITED", "CONDITIONS", "CaseSample",
+             "draw_samples", "simulate_samples", "case_seed")
 
 __all__ = [
     "CalibrationReport", "ScoreReport", "calibrate", "score_report",

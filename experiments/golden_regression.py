@@ -40,12 +40,8 @@ MASS_GRID = (0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7)
 
 
 def _sizes(cases, hi: int, lo: int) -> dict:
-    """Grasps requested per case and set: the size, or the whole pool where smaller."""
-    out = {}
-    for c in cases:
-        p = pools(c)
-        out[c.name] = {"hi": min(hi, len(p["hi"])), "lo": min(lo, len(p["lo"]))}
-    return out
+    """Grasps requested per case and set."""
+    return {c.name: {"hi": hi, "lo": lo} for c in cases}
 
 
 def _dirty() -> bool | None:
@@ -53,7 +49,8 @@ def _dirty() -> bool | None:
     import subprocess
 
     try:
-        r = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+        r = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", "graspsim", "experiments"],
+                           capture_output=True,
                            text=True, timeout=10, cwd=Path(__file__).resolve().parent)
     except (OSError, subprocess.SubprocessError):
         return None

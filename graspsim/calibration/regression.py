@@ -26,9 +26,11 @@ and a band there cannot see a grade or a physics change. The masses come from
 ``python experiments/golden_regression.py --scan-masses``.
 
 **Counting.** Successes out of the grasps *requested*: START_COLLISION and every other
-outcome are failures, and grasps a set could not provide (its grade range holds fewer
-table-clear poses than requested) count as failures too -- a regression that makes
-poses infeasible or empties a grade range cannot shrink its own floor.
+outcome are failures, and a set whose grade range holds no table-clear pose counts all
+its grasps failed -- a regression that makes poses infeasible or empties a grade range
+cannot shrink its own floor. Grasps are drawn independently and alike (a surface cell
+uniformly, then a grasp in it, with replacement: :func:`surface_draws`), so the golden
+run's 300 and the test's 30 sample one population.
 
 **Rule.** The golden run draws many grasps (K successes of N) with another seed. Were
 nothing changed, a test's count k of n follows the posterior predictive of the golden
@@ -62,7 +64,7 @@ from graspsim.primitives import Box, Cylinder
 from graspsim.quality import QualityModel
 
 __all__ = ["REGRESSION_MAPS", "REGRESSION_SCALED", "RegressionSpec", "SPECS", "RegressionSizes",
-           "FAMILY_ALPHA", "CATCHES", "regression_cases", "regression_condition", "pools", "regression_trials",
+           "FAMILY_ALPHA", "CATCHES", "regression_cases", "regression_condition", "pools", "surface_draws", "regression_trials",
            "regression_rates", "rate_floor", "rate_ceiling", "regression_bands", "check_bands",
            "band_problems", "adapted_glue_case"]
 
@@ -176,16 +178,34 @@ def pools(case) -> dict:
             "lo": np.flatnonzero(clear & (g.grade < spec.lo_max))}
 
 
+def surface_draws(gmap, pool: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` rows of ``pool`` drawn independently and alike: a surface cell (the map's
+    surface step) uniformly among the cells holding a first contact of the pool, then a
+    grasp uniformly within it -- with replacement, so every draw has the same
+    distribution whatever ``n`` (a golden run of 300 and a test of 30 sample one
+    population, as the bands' rule assumes). Empty if the pool is."""
+    pool = np.asarray(pool)
+    if n <= 0 or len(pool) == 0:
+        return pool[:0]
+    cell = float(gmap.meta.resolution.get("surface_step", 0.005))
+    key = np.floor(gmap.contacts[pool, 0].astype(float) / cell).astype(np.int64)
+    _, inverse = np.unique(key, axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    order = np.argsort(inverse, kind="stable")
+    starts = np.searchsorted(inverse[order], np.arange(inverse.max() + 2))
+    cells = rng.integers(0, inverse.max() + 1, size=n)
+    within = (rng.random(n) * (starts[cells + 1] - starts[cells])).astype(np.int64)
+    return pool[order[starts[cells] + within]]
+
+
 def regression_trials(cases, sizes, *, seed: int = 0, threads: int | None = None,
                       mass: float | None = None) -> TrialTable:
     """Trials of every case's hi / lo sets (column ``set``) under the case's
     friction-limited condition. sizes: grasps requested per set, a
-    :class:`RegressionSizes` or {case name: {set: n}}; each set is drawn uniformly over
-    the object's surface from its pool (all of the pool where it holds fewer).
+    :class:`RegressionSizes` or {case name: {set: n}}, drawn by :func:`surface_draws`.
     ``meta["requested"]``: {case: {set: n}}. mass: every object at this mass [kg]
     instead of its spec's (to scan masses)."""
     from graspsim.calibration.trials import CaseSample, case_seed, simulate_samples
-    from graspsim.sim import select_grasps
 
     tables, requested, conditions = [], {}, {}
     for case in cases:
@@ -195,8 +215,7 @@ def regression_trials(cases, sizes, *, seed: int = 0, threads: int | None = None
         for name, pool in pools(case).items():
             n = int(sizes[case.name][name] if isinstance(sizes, dict) else getattr(sizes, name))
             requested.setdefault(case.name, {})[name] = n
-            g = case.gmap
-            rows = pool[select_grasps(g.select(pool), sample=n, rng=rng)] if len(pool) and n else pool[:0]
+            rows = surface_draws(case.gmap, pool, n, rng)
             if len(rows) == 0:
                 continue
             t = simulate_samples([CaseSample(case, rows, np.ones(len(rows)), len(pool), len(g))],

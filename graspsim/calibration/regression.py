@@ -218,7 +218,7 @@ def regression_trials(cases, sizes, *, seed: int = 0, threads: int | None = None
             rows = surface_draws(case.gmap, pool, n, rng)
             if len(rows) == 0:
                 continue
-            t = simulate_samples([CaseSample(case, rows, np.ones(len(rows)), len(pool), len(g))],
+            t = simulate_samples([CaseSample(case, rows, np.ones(len(rows)), len(pool), len(case.gmap))],
                                  cond, seed=seed, threads=threads, features=())
             tables.append(t.with_columns(set=np.full(len(t), name)))
     table = TrialTable.concat(tables) if tables else TrialTable({})

@@ -13,7 +13,8 @@ with its provenance (command, seeds, sizes, git commit, library versions).
 ``--scan-masses`` is how the cases' masses (``regression.SPECS``) were chosen: the
 heaviest of the grid at which a case's hi set still mostly holds and its lo set mostly
 fails. ``--mutations`` runs every mutation of ``graspsim.calibration.mutations`` on every
-case (the suite runs a subset) and writes results/golden_regression/mutations.json.
+case against the committed bands (the suite runs a subset) and writes
+tests/data/regression_mutations.json: which bands each break trips.
 """
 
 from __future__ import annotations
@@ -131,13 +132,14 @@ def mutations(a) -> dict:
         checks = check_bands(rates, gold["bands"])
         tripped = [f"{c['case']}/{c['set']} {c['kind']}: {c['k']}/{c['n']} vs {c['bound']}"
                    for c in checks if not c["ok"]]
-        out[name] = {"description": mut.description, "suite_cases": list(mut.cases), "tripped": tripped,
+        out[name] = {"description": mut.description, "suite_checks": list(mut.trips), "tripped": tripped,
                      "checks": checks, "seconds": time.perf_counter() - t0}
         print(f"{name}: {len(tripped)} of {len(checks)} checks tripped")
         for t in tripped:
             print("   ", t)
     return {"command": "python " + " ".join(shlex.quote(x) for x in sys.argv), "golden": a.out,
-            "mutations": out, "versions": library_versions()}
+            "golden_commit": gold["provenance"]["versions"]["git_commit"], "git_dirty": _dirty(),
+            "catches": CATCHES, "mutations": out, "versions": library_versions()}
 
 
 def main() -> None:
@@ -150,6 +152,7 @@ def main() -> None:
     p.add_argument("--test-lo", type=int, default=30)
     p.add_argument("--test-seed", type=int, default=7)
     p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--mutations-out", default="tests/data/regression_mutations.json")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--scan-masses", action="store_true", help="success vs mass (how SPECS was chosen)")
     mode.add_argument("--mutations", action="store_true", help="every mutation on every case")
@@ -160,7 +163,7 @@ def main() -> None:
     if a.scan_masses:
         write_json(OUT / "mass_scan.json", scan_masses(a))
     elif a.mutations:
-        write_json(OUT / "mutations.json", mutations(a))
+        write_json(a.mutations_out, mutations(a))
     else:
         out = golden(a)
         write_json(a.out, out)

@@ -1,10 +1,12 @@
 """Deliberate breaks that the success-rate regression must catch (its own self-test).
 
 Each :class:`Mutation` patches the library where such a bug would live, for the
-duration of a ``with mutated(name):`` block, and names the regression cases that show
-it (a subset, to keep the suite short; ``experiments/golden_regression.py --mutations``
-runs every case). Grade mutations change the maps, so the cases must be rebuilt inside
-the block; the others change only the simulation.
+duration of a ``with mutated(name):`` block, and names the bands it trips by a wide
+margin (``trips``: the suite runs just those sets, to stay short);
+``experiments/golden_regression.py --mutations`` runs every mutation on every case and
+records which bands trip in tests/data/regression_mutations.json. Grade mutations change
+the maps, so the cases must be rebuilt inside the block; the others change only the
+simulation.
 
 * ``wrist_frame_-5mm`` / ``wrist_frame_+5mm``: the simulated gripper sits 5 mm off the
   planner's wrist frame along the approach (every part of the MuJoCo gripper shifted
@@ -38,13 +40,14 @@ _G = 9.81
 @dataclass(frozen=True)
 class Mutation:
     """A break: ``patches`` ((module, attribute, wrapper of the original), ...);
-    ``regrade``: it changes map grades (rebuild the cases inside the block); ``cases``:
-    the regression cases (groups) the suite runs to show it."""
+    ``trips``: bands ("<case group>/<set>") it trips by a wide margin in the full run
+    (the suite checks those); ``regrade``: it changes map grades (rebuild the cases
+    inside the block)."""
 
     name: str
     description: str
     patches: tuple[tuple[str, str, Callable], ...]
-    cases: tuple[str, ...]
+    trips: tuple[str, ...]
     regrade: bool = False
 
 
@@ -93,25 +96,25 @@ def _force_closure_only(orig):
 _SCENE = ("graspsim.sim", "build_scene")
 MUTATIONS: dict[str, Mutation] = {m.name: m for m in (
     Mutation("wrist_frame_-5mm", "gripper 5 mm back along the approach (contacts nearer the tips)",
-             (("graspsim.sim.scene", "build_gripper_spec", _shift_gripper(-0.005)),), ("cylinder", "box")),
+             (("graspsim.sim.scene", "build_gripper_spec", _shift_gripper(-0.005)),), ("half_toroid/hi",)),
     Mutation("wrist_frame_+5mm", "gripper 5 mm forward along the approach (contacts nearer the palm)",
-             (("graspsim.sim.scene", "build_gripper_spec", _shift_gripper(0.005)),), ("cylinder", "box")),
+             (("graspsim.sim.scene", "build_gripper_spec", _shift_gripper(0.005)),), ("half_toroid/hi",)),
     Mutation("normals_flipped", "the grade's force-closure angle with inward contact normals",
-             (("graspsim.quality", "force_closure_angle", _flip_normals),), ("cylinder", "box"), regrade=True),
+             (("graspsim.quality", "force_closure_angle", _flip_normals),), ("cylinder/hi", "box/lo"), regrade=True),
     Mutation("stability_dropped", "the grade is force closure alone (no stability term)",
-             (("graspsim.quality", "QualityModel.combine", _force_closure_only),), ("cylinder", "box"),
+             (("graspsim.quality", "QualityModel.combine", _force_closure_only),), ("cone/hi", "sphere/lo"),
              regrade=True),
     Mutation("grip_below_weight", "grip force per jaw 0.6 m g / (2 mu): friction cannot hold the weight",
              (_SCENE + (_scene_settings(lambda s, obj, g: replace(
-                 s, grip_force=0.6 * obj.mass * _G / (2.0 * s.friction))),),), ("cylinder", "box")),
+                 s, grip_force=0.6 * obj.mass * _G / (2.0 * s.friction))),),), ("cylinder/hi",)),
     Mutation("grip_force_div10", "grip force per jaw cut 10 x",
              (_SCENE + (_scene_settings(lambda s, obj, g: replace(s, grip_force=_force(s, g) / 10.0)),),),
-             ("cylinder", "box")),
+             ("cylinder/hi",)),
     Mutation("pad_friction_0.075", "pad friction 0.075 instead of 0.5",
-             (_SCENE + (_scene_settings(lambda s, obj, g: replace(s, friction=0.075)),),), ("cylinder", "box")),
+             (_SCENE + (_scene_settings(lambda s, obj, g: replace(s, friction=0.075)),),), ("cylinder/hi",)),
     Mutation("mass_not_applied", "the condition's object mass is not applied (light map masses)",
              (("graspsim.calibration.trials", "conditioned_object", lambda orig: lambda obj, cond: obj),),
-             ("cylinder", "box")),
+             ("box/lo",)),
 )}
 
 

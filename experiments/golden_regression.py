@@ -45,19 +45,6 @@ def _sizes(cases, hi: int, lo: int) -> dict:
     return {c.name: {"hi": hi, "lo": lo} for c in cases}
 
 
-def _dirty() -> bool | None:
-    """Whether the working tree differs from the recorded commit (None: no git)."""
-    import subprocess
-
-    try:
-        r = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", "graspsim", "experiments"],
-                           capture_output=True,
-                           text=True, timeout=10, cwd=Path(__file__).resolve().parent)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return bool(r.stdout.strip()) if r.returncode == 0 else None
-
-
 def golden(a) -> dict:
     t0 = time.perf_counter()
     load0 = os.getloadavg()
@@ -86,7 +73,6 @@ def golden(a) -> dict:
             "condition": FRICTION_LIMITED.to_dict(), "conditions": ref.meta["conditions"],
             "specs": {k: asdict(v) for k, v in SPECS.items()}, "protocol": ref.meta.get("protocol"),
             "mujoco_version": ref.meta.get("mujoco_version"), "versions": library_versions(),
-            "git_dirty": _dirty(),
             "rule": "floor / ceiling: alpha / 1 - alpha quantiles of BetaBinomial(n, K + 1/2, N - K + 1/2), "
                     f"alpha = {FAMILY_ALPHA:g} / number of checks; counts out of grasps requested",
             "seconds": time.perf_counter() - t0, "load_avg": [list(load0), list(os.getloadavg())],
@@ -138,7 +124,7 @@ def mutations(a) -> dict:
         for t in tripped:
             print("   ", t)
     return {"command": "python " + " ".join(shlex.quote(x) for x in sys.argv), "golden": a.out,
-            "golden_commit": gold["provenance"]["versions"]["git_commit"], "git_dirty": _dirty(),
+            "golden_commit": gold["provenance"]["versions"]["git_commit"],
             "catches": CATCHES, "mutations": out, "versions": library_versions()}
 
 

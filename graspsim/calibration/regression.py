@@ -58,6 +58,7 @@ from scipy.stats import betabinom
 
 from graspsim.calibration.conditions import SimCondition, condition
 from graspsim.calibration.table import TrialTable
+from graspsim.errors import InvalidParameterError
 from graspsim.maps.generate import MapConfig
 from graspsim.maps.scaling import ScalingConfig
 from graspsim.primitives import Box, Cylinder
@@ -138,8 +139,6 @@ def regression_cases(groups=None, *, threads: int | None = None, db_root=None) -
     groups = list(SPECS) if groups is None else list(groups)
     unknown = sorted(set(groups) - set(SPECS))
     if unknown:
-        from graspsim.errors import InvalidParameterError
-
         raise InvalidParameterError(f"unknown regression cases {unknown}; valid: {list(SPECS)}")
     need = {k for k in groups if k in PAPER_SHAPES} | {REGRESSION_SCALED[k][0] for k in groups
                                                         if k in REGRESSION_SCALED}

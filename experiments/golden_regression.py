@@ -11,8 +11,11 @@ with its provenance (command, seeds, sizes, git commit, library versions).
     python experiments/golden_regression.py --mutations      # which bands each deliberate break trips
 
 ``--scan-masses`` is how the cases' masses (``regression.SPECS``) were chosen: the
-heaviest of the grid at which a case's hi set still mostly holds and its lo set mostly
-fails. ``--mutations`` runs every mutation of ``graspsim.calibration.mutations`` on every
+issue's 0.5 kg where the hi set holds (>= 90 %) and the lo set mostly fails; lighter where
+0.5 kg holds nothing (half-toroid 0.2 kg; the cone 0.25 kg: its paper grade separates at
+no mass -- hi and lo hold alike at every mass -- so the mass that puts both near one half,
+where a floor and a ceiling can both trip); heavier for the glue bottle (0.6 kg: at 0.5 kg
+two in three of its lo set hold, too many for a ceiling that 30 grasps can trip). ``--mutations`` runs every mutation of ``graspsim.calibration.mutations`` on every
 case against the committed bands (the suite runs a subset) and writes
 tests/data/regression_mutations.json: which bands each break trips.
 """

@@ -20,8 +20,10 @@ the object's surface from two grade ranges (:class:`RegressionSpec`):
 jaw, each object at the case's mass -- 0.5 kg, except the cone (0.25 kg) and the
 half-toroid (0.2 kg), of which no grasp holds 0.5 kg at 8 N (the cone's sides slope 11
 deg, so the squeeze pushes it down; the half-toroid is gripped >= 1.5 cm from its centre
-of mass), and the glue bottle (0.6 kg: at 0.5 kg three in four of its low grades still
-hold; at 0.7 kg nothing does). At the default 250 N per jaw these light objects are held whatever the grade,
+of mass), and the glue bottle (0.6 kg: at 0.5 kg two in three of its low grades still
+hold; at 0.7 kg nothing does). The cone's paper grade separates its outcomes at no mass
+(its hi and lo sets hold alike); 0.25 kg puts both near one half, where its floor and
+ceiling can both trip. At the default 250 N per jaw these light objects are held whatever the grade,
 and a band there cannot see a grade or a physics change. The masses come from
 ``python experiments/golden_regression.py --scan-masses``.
 

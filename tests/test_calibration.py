@@ -218,3 +218,29 @@ def test_cli_calibrate_json(tmp_path, box_case, capsys):
     assert set(s["grades"]) == {"paper", "pad_contact"} and s["trials"] > 0
     assert (tmp_path / "cal" / "report.md").exists() and (tmp_path / "cal" / "reliability.png").exists()
     assert main(["calibrate", str(tmp_path / "box.h5"), "--per-bin", "0"]) == 2
+
+
+def test_e05_readme_section_from_the_reported_summary():
+    """The committed E05 summary renders its README block: the command, both conditions
+    with and without the closing directions beyond 22 deg, base rates beside precisions."""
+    import importlib.util
+    import json
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(root / "experiments"))
+    spec = importlib.util.spec_from_file_location("e05_tc", root / "experiments" / "e05_threshold_calibration.py")
+    e05 = importlib.util.module_from_spec(spec)
+    sys.modules["e05_tc"] = e05  # dataclasses look their module up while the class is built
+    spec.loader.exec_module(e05)
+    summary = json.loads((root / "experiments" / "reported" / "e05_threshold_calibration.json").read_text())
+    md = e05.readme_section(summary)
+    assert summary["command"].startswith("python experiments/e05_threshold_calibration.py") and summary["command"] in md
+    assert summary["versions"]["git_commit"] and summary["versions"]["git_dirty"] is False
+    for cond in ("default", "friction_limited"):
+        h = summary["headline"][cond]["all_closing_directions"]
+        assert f"| {cond} | all | {h['feasible']} ({h['start_collision']}) | {100 * h['base_rate']:.1f} %" in md
+        assert f"| {cond} | ≤ 22° |" in md
+    assert "44°" in md and "22°" in md and "per attempt" in md
+

@@ -1,6 +1,7 @@
 """Calibration statistics, sampling, trial tables and reports (no simulation here)."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -135,6 +136,49 @@ def test_calibrate_report(rng):
     assert "| paper |" in rep.markdown()
 
 
+def test_base_rate_counts_start_collision_as_a_failed_attempt(rng):
+    """The base rate (success of every drawn grasp) per feasible trial and per attempt,
+    and the precision at 0.7 per attempt: START_COLLISION is a failure there."""
+    t = _table(rng)
+    t = t.with_columns(weight=np.where(np.arange(len(t)) % 2, 1.0, 3.0))
+    w, y, feas = t["weight"], t["outcome"] == 0, t["outcome"] != 1
+    rep = calibrate(t, {"paper": "grade"}, n_boot=20)
+    s = rep.summary
+    assert s["start_collision"] == 20 and s["base_attempts"] == len(t) and s["base_feasible"] == len(t) - 20
+    assert s["base_rate"] == pytest.approx(np.sum(w * y) / np.sum(w[feas]))
+    assert s["base_rate_attempts"] == pytest.approx(np.sum(w * y) / np.sum(w))
+    assert s["base_rate"] == pytest.approx(s["success_rate_population"])
+    op = rep.scores["paper"].at["at_0.7"]
+    acc = t["grade"] > 0.7
+    assert op["precision_attempts"] == pytest.approx(np.sum(w * (acc & y)) / np.sum(w * acc))
+    assert op["trials_accepted_attempts"] == acc.sum() >= op["trials_accepted"]
+    assert op["precision_attempts"] < op["precision"]  # some START_COLLISION among the accepted
+    assert "base rate" in rep.markdown() and "precision (attempts)" in rep.markdown()
+
+
+def test_conditions_presets_and_masses():
+    from graspsim.calibration.conditions import CONDITIONS, SimCondition, condition, conditioned_object
+    from graspsim.primitives import Box
+    from graspsim.sim import object_from_shape
+
+    fl = condition("friction_limited")
+    assert (fl.grip_force, fl.mass, fl.friction) == (8.0, 0.5, 0.5) and set(CONDITIONS) == {"default",
+                                                                                         "friction_limited"}
+    assert condition("friction_limited", mass=0.25).mass == 0.25 and CONDITIONS["friction_limited"].mass == 0.5
+    with pytest.raises(InvalidParameterError, match="friction_limited"):
+        condition("heavy")
+    for bad in ({"mass": 0.0}, {"mass": math.nan}, {"mass": "1"}, {"grip_force": -1.0}, {"mass_scale": 0},
+                {"noise_position": -0.1}):
+        with pytest.raises(InvalidParameterError):
+            SimCondition(**bad)
+    obj = object_from_shape(Box(0.05, 0.05, 0.05), mass=0.1)
+    assert conditioned_object(obj, SimCondition()) is obj
+    heavy = conditioned_object(obj, replace(fl, mass_scale=2.0))
+    assert heavy.mass == pytest.approx(1.0)  # 0.5 kg, then x 2
+    np.testing.assert_allclose(heavy.inertia, obj.inertia * 10.0)
+    assert conditioned_object(obj, SimCondition(mass_scale=3.0)).mass == pytest.approx(0.3)
+
+
 @pytest.fixture(scope="module")
 def box_case():
     from graspsim.calibration import CalibrationCase
@@ -174,3 +218,29 @@ def test_cli_calibrate_json(tmp_path, box_case, capsys):
     assert set(s["grades"]) == {"paper", "pad_contact"} and s["trials"] > 0
     assert (tmp_path / "cal" / "report.md").exists() and (tmp_path / "cal" / "reliability.png").exists()
     assert main(["calibrate", str(tmp_path / "box.h5"), "--per-bin", "0"]) == 2
+
+
+def test_e05_readme_section_from_the_reported_summary():
+    """The committed E05 summary renders its README block: the command, both conditions
+    with and without the closing directions beyond 22 deg, base rates beside precisions."""
+    import importlib.util
+    import json
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(root / "experiments"))
+    spec = importlib.util.spec_from_file_location("e05_tc", root / "experiments" / "e05_threshold_calibration.py")
+    e05 = importlib.util.module_from_spec(spec)
+    sys.modules["e05_tc"] = e05  # dataclasses look their module up while the class is built
+    spec.loader.exec_module(e05)
+    summary = json.loads((root / "experiments" / "reported" / "e05_threshold_calibration.json").read_text())
+    md = e05.readme_section(summary)
+    assert summary["command"].startswith("python experiments/e05_threshold_calibration.py") and summary["command"] in md
+    assert summary["versions"]["git_commit"] and summary["versions"]["git_dirty"] is False
+    for cond in ("default", "friction_limited"):
+        h = summary["headline"][cond]["all_closing_directions"]
+        assert f"| {cond} | all | {h['feasible']} ({h['start_collision']}) | {100 * h['base_rate']:.1f} %" in md
+        assert f"| {cond} | ≤ 22° |" in md
+    assert "44°" in md and "22°" in md and "per attempt" in md
+

@@ -1,6 +1,7 @@
 """The table filter: which map poses keep the gripper above the support plane."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -9,8 +10,9 @@ from graspsim.errors import GraspsimError
 from graspsim.gripper import HGPL_25_60_A as G
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.table import TablePlane, clears_table, table_frame
-from graspsim.primitives import Cylinder
-from graspsim.transforms import make_transform
+from graspsim.collision import FclChecker
+from graspsim.primitives import Box, Cylinder
+from graspsim.transforms import make_transform, matrix_to_quat
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
 
@@ -48,13 +50,55 @@ def test_standing_cylinder_keeps_top_and_side_grasps_and_loses_those_from_below(
     # in the table frame decide
     T_table_obj = make_transform(_yaw(rng.uniform(0, 2 * math.pi)), [0.2, -0.1, 0.06])
     clear = clears_table(m, T_table_obj, G, 0.002)
-    low = G.lowest_point(T_table_obj @ m.T_obj_wrist, G.pregrasp_opening(m.width))
-    assert np.array_equal(clear, low >= 0.002)
     approach_z = (T_table_obj[:3, :3] @ m.approach.T).T[:, 2]
     assert np.all(clear[approach_z < -0.99])  # straight down from above: always clear
     assert not np.any(clear[approach_z > 0.5])  # from below the table: never
     assert 0 < clear.mean() < 1
     assert np.array_equal(clears_table(m, T_table_obj, G, 0.002, chunk=997), clear)
+
+
+def test_clearance_agrees_with_fcl_distances_to_a_table_slab():
+    """Independent geometry: FCL's distance from the gripper's boxes (arm keep-out
+    included, jaws at the pre-grasp opening) to a 10 m x 10 m x 1 m slab whose top is the
+    table decides the same poses as ``clears_table``."""
+    m = generate_fs_map(Cylinder(0.02, 0.12), config=FAST)
+    rng = np.random.default_rng(2)
+    T_table_obj = make_transform(_yaw(rng.uniform(0, 2 * math.pi)), [0.1, 0.3, 0.06])
+    rows = rng.choice(len(m), 400, replace=False)
+    sub = m.select(rows)
+    slab = FclChecker(Box(10.0, 10.0, 1.0), G)
+    T_slab_table = make_transform(np.eye(3), [0.0, 0.0, 0.5])  # the slab's top face is z = 0
+    T = T_slab_table @ T_table_obj @ sub.T_obj_wrist
+    dist = np.array([slab.distance(t, o) for t, o in zip(T, G.pregrasp_opening(sub.width))])
+    for c in (0.0, 0.002, 0.02):
+        decided = np.abs(dist - c) > 1e-6
+        got = clears_table(sub, T_table_obj, G, c)
+        assert np.array_equal(got[decided], dist[decided] >= c), c
+        assert 0.05 < got.mean() < 0.95
+    assert decided.mean() > 0.95
+
+
+@pytest.mark.parametrize("c", [0.0, 0.002])
+def test_hand_computed_poses(c):
+    """Wrist straight above the table pointing down: the fingertips, fingertip_z =
+    60 (housing) + 15 (jaw) + 80 (finger) = 155 mm below the wrist, are the lowest point.
+    Approach horizontal, fingers closing horizontally: the housing, jaws, fingers and
+    the arm keep-out are all 50 mm wide, so their lower faces are 25 mm below the wrist."""
+    assert G.fingertip_z == pytest.approx(0.155)
+    down = make_transform(np.diag([1.0, -1.0, -1.0]), [0.0, 0.0, 0.0])
+    side = make_transform(np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), [0.0, 0.0, 0.0])
+    for R0, low in ((down, 0.155), (side, 0.025)):
+        for dz, want in ((-1e-4, False), (1e-4, True)):
+            gmap = _one_pose_map(R0[:3, :3], width=0.03)
+            T_table_obj = make_transform(np.eye(3), [0.3, -0.2, low + c + dz])
+            assert clears_table(gmap, T_table_obj, G, c)[0] == want, (low, dz)
+
+
+def _one_pose_map(R, width):
+    m = generate_fs_map(Cylinder(0.02, 0.05), config=FAST).select([0])
+    return replace(m, wrist_quat=matrix_to_quat(R)[None].astype(m.wrist_quat.dtype),
+                   wrist_position=np.zeros((1, 3), m.wrist_position.dtype),
+                   width=np.array([width], m.width.dtype))
 
 
 def _yaw(a):

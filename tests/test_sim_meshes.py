@@ -59,6 +59,27 @@ def test_mesh_objects_take_mass_from_density_or_given(mesh_cache):
     np.testing.assert_allclose(obj.com, mesh.center_mass, atol=1e-12)
     heavy = object_from_mesh(BREAD, mass=1.0, cache_dir=mesh_cache)
     np.testing.assert_allclose(heavy.inertia, obj.inertia / obj.mass, rtol=1e-9)
-    shifted = object_from_mesh(BREAD, T_obj_mesh=np.diag([1.0, 1, 1, 1]) + np.eye(4, k=3) * 0,
-                               cache_dir=mesh_cache)
-    assert shifted.description["file"].endswith("bread.stl")
+    assert heavy.mass == pytest.approx(1.0)
+
+
+@pytest.mark.slow
+def test_mesh_objects_are_placed_by_T_obj_mesh(mesh_cache):
+    """A mesh posed by T_obj_mesh (a quarter turn about z and a 5 cm shift) is the same
+    solid moved: mass kept, centre of mass and inertia moved and turned with it, its
+    collision parts and surface where the moved mesh is."""
+    obj = object_from_mesh(BREAD, density=500.0, cache_dir=mesh_cache)
+    R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    t = np.array([0.03, -0.02, 0.05])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    moved = object_from_mesh(BREAD, density=500.0, T_obj_mesh=T, cache_dir=mesh_cache)
+    assert moved.mass == pytest.approx(obj.mass, rel=1e-9)
+    np.testing.assert_allclose(moved.com, R @ obj.com + t, atol=1e-9)
+    np.testing.assert_allclose(moved.inertia, R @ obj.inertia @ R.T, atol=1e-12 * obj.inertia.max() + 1e-15)
+    np.testing.assert_allclose(np.sort(moved.surface.vertices, axis=0),
+                               np.sort(obj.surface.vertices @ R.T + t, axis=0), atol=1e-9)
+    # CoACD may cut the turned mesh differently, but every part lies on the moved solid
+    lo, hi = moved.surface.bounds
+    parts = np.concatenate([g.vertices for g in moved.geoms])
+    assert np.all(parts >= lo - 1e-3) and np.all(parts <= hi + 1e-3)
+    assert moved.description["file"].endswith("bread.stl")

@@ -1,7 +1,9 @@
 """Grade-vs-success calibration: trial campaigns, statistics, reports, figures.
 
 Pure statistics live in :mod:`graspsim.calibration.stats`; campaigns (which need
-mujoco) in :mod:`graspsim.calibration.campaign`, imported on first use.
+mujoco) in :mod:`graspsim.calibration.trials`, imported on first use; simulation
+conditions and their presets in :mod:`graspsim.calibration.conditions`; the success-rate
+regression in :mod:`graspsim.calibration.regression`.
 """
 
 from __future__ import annotations
@@ -23,8 +25,8 @@ from graspsim.calibration.stats import (
 )
 from graspsim.calibration.table import TrialTable
 
-_CAMPAIGN = ("CalibrationCase", "SimCondition", "CaseSample", "draw_samples", "simulate_samples",
-             "case_seed")
+_CAMPAIGN = ("CalibrationCase", "SimCondition", "FRICTION_LIMITED", "CONDITIONS", "CaseSample",
+             "draw_samples", "simulate_samples", "case_seed")
 
 __all__ = [
     "CalibrationReport", "ScoreReport", "calibrate", "score_report",

@@ -34,7 +34,9 @@ def report_markdown(rep) -> str:
              f"{s['counts'].get('start_collision', 0)} START_COLLISION reported apart), "
              f"{s['cases']} cases, {s['groups']} objects. Success of feasible trials: "
              f"{fmt(s['success_rate'])} {fmt(s['success_ci'])} (sample), "
-             f"{fmt(s['success_rate_population'])} (map population).", "",
+             f"{fmt(s['success_rate_population'])} (map population). Base rate, the success of all "
+             f"table-clear grasps of the maps (population estimate): {fmt(s['base_rate'])} per feasible "
+             f"trial, {fmt(s['base_rate_attempts'])} per attempt (START_COLLISION counted as failed).", "",
              "Outcomes: " + ", ".join(f"{k} {v}" for k, v in s["counts"].items()), ""]
     rows = []
     for name, r in rep.scores.items():
@@ -47,12 +49,13 @@ def report_markdown(rep) -> str:
     for name, r in rep.scores.items():
         for label, op in r.at.items():
             rows.append([name, label, op["threshold"], op["precision"], op.get("precision_ci"),
-                         op["recall"], op.get("recall_ci"), op["accepted_fraction"],
-                         f"{op['successes_accepted']}/{op['trials_accepted']}"])
+                         op.get("precision_attempts"), s["base_rate"], op["recall"], op.get("recall_ci"),
+                         op["accepted_fraction"], f"{op['successes_accepted']}/{op['trials_accepted']}"])
     lines += ["Operating points (population estimates, bootstrap 95 % intervals; accept score > t; "
-              "last column: successes / trials accepted in the sample):", "",
-              md_table(["score", "point", "t", "precision", "CI", "recall", "CI", "accepted",
-                        "sample"], rows), ""]
+              "precision per feasible trial and per attempt, beside the base rate; last column: "
+              "successes / feasible trials accepted in the sample):", "",
+              md_table(["score", "point", "t", "precision", "CI", "precision (attempts)", "base rate",
+                        "recall", "CI", "accepted", "sample"], rows), ""]
     if rep.components:
         lines += ["Single-feature AUCs (sample / population):", "",
                   md_table(["feature", "AUC", "AUC (population)"],

@@ -22,7 +22,8 @@ log = logging.getLogger(__name__)
 
 
 def library_versions() -> dict:
-    """Versions of the libraries results depend on, the git commit and the host."""
+    """Versions of the libraries results depend on, the git commit (and whether the
+    code under graspsim/ and experiments/ differs from it) and the host."""
     import importlib.metadata as md
 
     out = {"python": sys.version.split()[0], "platform": platform.platform()}
@@ -31,12 +32,16 @@ def library_versions() -> dict:
             out[pkg] = md.version(pkg)
         except md.PackageNotFoundError:
             out[pkg] = None
+    root = Path(__file__).resolve().parents[2]
     try:
-        root = Path(__file__).resolve().parents[2]
         out["git_commit"] = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
                                            text=True, timeout=5).stdout.strip() or None
+        # uncommitted changes to the code that produced the results (None: no git)
+        st = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", "graspsim",
+                             "experiments"], cwd=root, capture_output=True, text=True, timeout=10)
+        out["git_dirty"] = bool(st.stdout.strip()) if st.returncode == 0 and out["git_commit"] else None
     except (OSError, subprocess.SubprocessError):
-        out["git_commit"] = None
+        out["git_commit"] = out["git_dirty"] = None
     out["date"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     return out
 

@@ -22,7 +22,7 @@ from graspsim.calibration import stats
 from graspsim.calibration.table import TrialTable
 from graspsim.errors import InvalidParameterError
 
-__all__ = ["ScoreReport", "CalibrationReport", "score_report", "calibrate"]
+__all__ = ["ScoreReport", "CalibrationReport", "score_report", "calibrate", "base_rates", "attempt_precision"]
 
 
 @dataclass(frozen=True)
@@ -160,6 +160,7 @@ def calibrate(table: TrialTable, scores: dict | None = None, *, target: float = 
                "cases": int(len(np.unique(table["case"]))), "groups": int(len(np.unique(table["group"])))}
     lo, hi = stats.wilson_interval(int(y.sum()), len(y))
     summary["success_ci"] = (float(lo), float(hi))
+    summary.update(base_rates(table))
     rng = np.random.default_rng(seed)
     def ref_for(name):  # a reference value is a threshold or {score name: threshold}
         return {k: (v[name] if isinstance(v, dict) else v) for k, v in reference.items()
@@ -168,6 +169,9 @@ def calibrate(table: TrialTable, scores: dict | None = None, *, target: float = 
     out = {name: score_report(name, t[col], y, t["weight"], t["group"], t["case"], target=target,
                               reference=ref_for(name), n_boot=n_boot, rng=rng)
            for name, col in scores.items()}
+    for name, col in scores.items():  # the same operating points, START_COLLISION a failure
+        for op in out[name].at.values():
+            op.update(attempt_precision(table, col, op["threshold"]))
     comp = {}
     for c in components:
         col = c.lstrip("-")
@@ -175,3 +179,35 @@ def calibrate(table: TrialTable, scores: dict | None = None, *, target: float = 
             v = -t[col] if c.startswith("-") else t[col]
             comp[c] = {"auc": stats.roc_auc(v, y), "auc_population": stats.roc_auc(v, y, t["weight"])}
     return CalibrationReport(out, summary, comp)
+
+
+def _success_all(table: TrialTable) -> np.ndarray:
+    """(N,) bool: SUCCESS, every other outcome (START_COLLISION included) a failure."""
+    from graspsim.sim.outcomes import TrialOutcome
+
+    return np.asarray(table["outcome"]) == TrialOutcome.SUCCESS
+
+
+def base_rates(table: TrialTable) -> dict:
+    """The base rate: success of all the table's drawn grasps under its condition, as a
+    population estimate (sampling weights) -- per feasible trial (``base_rate``) and per
+    attempt, START_COLLISION counted as a failure (``base_rate_attempts``: a pose that
+    execution noise pushes into collision is a failed grasp) -- with the sample counts."""
+    w = np.asarray(table["weight"], float)
+    y = _success_all(table)
+    feas = np.asarray(table.feasible)
+    k, n_f, n = int(y.sum()), int(feas.sum()), len(y)
+    return {"base_rate": float(np.sum(w * y) / np.sum(w[feas])) if n_f else float("nan"),
+            "base_rate_attempts": float(np.sum(w * y) / np.sum(w)) if n else float("nan"),
+            "base_successes": k, "base_feasible": n_f, "base_attempts": n,
+            "start_collision": n - n_f}
+
+
+def attempt_precision(table: TrialTable, col: str, threshold: float) -> dict:
+    """Precision of ``col > threshold`` over every attempt (START_COLLISION a failure):
+    population estimate and the sample's successes / trials accepted."""
+    w = np.asarray(table["weight"], float)
+    acc = np.asarray(table[col], float) > threshold
+    y = _success_all(table)
+    return {"precision_attempts": float(np.sum(w * (acc & y)) / np.sum(w * acc)) if acc.any() else float("nan"),
+            "successes_accepted_attempts": int(np.sum(acc & y)), "trials_accepted_attempts": int(acc.sum())}

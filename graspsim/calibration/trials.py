@@ -13,11 +13,12 @@ from __future__ import annotations
 import logging
 import math
 import zlib
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
 
+from graspsim.calibration.conditions import CONDITIONS, FRICTION_LIMITED, SimCondition, conditioned_object
 from graspsim.calibration.sampling import stratified_rows
 from graspsim.calibration.table import TrialTable
 from graspsim.errors import InvalidParameterError
@@ -26,8 +27,8 @@ from graspsim.gripper import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.transforms import angle_between
 
-__all__ = ["CalibrationCase", "SimCondition", "CaseSample", "draw_samples", "simulate_samples",
-           "case_seed", "table_features"]
+__all__ = ["CalibrationCase", "SimCondition", "FRICTION_LIMITED", "CONDITIONS", "CaseSample", "draw_samples",
+           "simulate_samples", "case_seed", "table_features"]
 
 log = logging.getLogger(__name__)
 
@@ -62,39 +63,6 @@ class CalibrationCase:
     @property
     def object_group(self) -> str:
         return self.group or self.name
-
-
-@dataclass(frozen=True)
-class SimCondition:
-    """Physics of a campaign: pad friction mu, grip force per jaw [N] (None: the
-    gripper spec's), object mass scale (x the map's mass), execution noise sigmas
-    (position [m], rotation [rad]; 0 = none)."""
-
-    name: str = "default"
-    friction: float = 0.5
-    grip_force: float | None = None
-    mass_scale: float = 1.0
-    noise_position: float = 0.0
-    noise_rotation: float = 0.0
-
-    def __post_init__(self) -> None:
-        for k in ("friction", "mass_scale"):
-            v = getattr(self, k)
-            if not (math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"SimCondition.{k} must be > 0, got {v!r}")
-        for k in ("noise_position", "noise_rotation"):
-            v = getattr(self, k)
-            if not (math.isfinite(v) and v >= 0):
-                raise InvalidParameterError(f"SimCondition.{k} must be >= 0, got {v!r}")
-        if self.grip_force is not None and not (math.isfinite(self.grip_force) and self.grip_force > 0):
-            raise InvalidParameterError(f"grip_force must be > 0 N or None, got {self.grip_force!r}")
-
-    @property
-    def noisy(self) -> bool:
-        return self.noise_position > 0 or self.noise_rotation > 0
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,10 +159,7 @@ def _simulate_case(job: _CaseJob) -> TrialTable:
     noise = (ExecutionNoise(condition.noise_position, condition.noise_rotation)
              if condition.noisy else None)
     case, rows = smp.case, smp.rows
-    obj = _sim_object(case)
-    if condition.mass_scale != 1.0:
-        obj = replace(obj, mass=obj.mass * condition.mass_scale,
-                      inertia=obj.inertia * condition.mass_scale)
+    obj = conditioned_object(_sim_object(case), condition)
     gripper = GripperSpec.from_dict(case.gmap.meta.gripper)
     scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity)
     res = run_trials(scene, case.T_obj_wrist[rows], case.gmap.width[rows], protocol,

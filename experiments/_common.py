@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import shlex
+import sys
 import time
 from contextlib import contextmanager
 from dataclasses import asdict, is_dataclass
@@ -19,7 +21,7 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["Clock", "stopwatch", "load_average", "provenance", "write_json", "write_config", "mean_sd",
-           "mixed_anova", "paired_posthoc", "fmt"]
+           "mixed_anova", "paired_posthoc", "fmt", "RunRecord", "default_out", "pct", "rate_ci"]
 
 
 def load_average() -> list[float]:
@@ -109,6 +111,58 @@ def write_json(path: Path, data) -> None:
 
 def write_config(path: Path, cfg) -> None:
     write_json(path, asdict(cfg) if is_dataclass(cfg) else cfg)
+
+
+def default_out(script: str) -> str:
+    """``results/<stem>``: where a script writes by default (``report.py --collect``
+    looks there)."""
+    return f"results/{Path(script).stem}"
+
+
+class RunRecord:
+    """The record every experiment's ``summary.json`` carries: the exact command line,
+    machine facts (cores, load average before and after, wall and CPU time), library
+    versions and the git commit. Start it before the work::
+
+        run = RunRecord(__file__, argv)
+        ...
+        write_json(out / "summary.json", run.summary({"headline": ...}))
+    """
+
+    def __init__(self, script: str, argv=None) -> None:
+        self.stem = Path(script).stem
+        args = list(sys.argv[1:] if argv is None else argv)
+        self.command = " ".join(["python", f"experiments/{self.stem}.py", *map(shlex.quote, args)])
+        self.clock = Clock()
+
+    def summary(self, data: dict) -> dict:
+        from graspsim.calibration.outputs import library_versions
+
+        versions = library_versions()
+        return {"experiment": self.stem, "command": self.command, **data,
+                "machine": {"cpus": os.cpu_count(), "load_avg_start": self.clock.load,
+                            "load_avg_end": load_average(), "wall_s": self.clock.wall,
+                            "cpu_s": self.clock.cpu, "platform": versions.pop("platform", None),
+                            "date": versions.pop("date", None)},
+                "versions": versions, "provenance": provenance()}
+
+
+def pct(x: float | None, digits: int = 1) -> str:
+    """``x`` (a fraction) as a percentage without the sign; "n/a" for None / NaN."""
+    if x is None or not math.isfinite(x):
+        return "n/a"
+    return f"{100 * x:.{digits}f}"
+
+
+def rate_ci(k: int, n: int, ci=None, digits: int = 1) -> str:
+    """``"96.1 % (1074/1118) [94.8, 97.1]"``: a success rate with its numerator and
+    denominator and, when given, its 95 % interval (fractions)."""
+    if not n:
+        return f"n/a (0/{n})"
+    s = f"{pct(k / n, digits)} % ({k}/{n})"
+    if ci is not None:
+        s += f" [{pct(ci[0], digits)}, {pct(ci[1], digits)}]"
+    return s
 
 
 def mean_sd(x) -> tuple[float, float]:

@@ -21,7 +21,8 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["Clock", "stopwatch", "load_average", "provenance", "write_json", "write_config", "mean_sd",
-           "mixed_anova", "paired_posthoc", "fmt", "RunRecord", "default_out", "pct", "rate_ci"]
+           "mixed_anova", "paired_posthoc", "fmt", "RunRecord", "default_out", "pct", "rate_ci",
+           "DEFAULT_NOISE", "noise_sigmas"]
 
 
 def load_average() -> list[float]:
@@ -145,6 +146,25 @@ class RunRecord:
                             "cpu_s": self.clock.cpu, "platform": versions.pop("platform", None),
                             "date": versions.pop("date", None)},
                 "versions": versions, "provenance": provenance()}
+
+
+#: the execution error of the environments and E04 (sigma: position [m], rotation [deg])
+DEFAULT_NOISE = (0.003, 2.0)
+
+
+def noise_sigmas(label: str) -> tuple[float, float]:
+    """(position [m], rotation [deg]) of a ``--noise`` label: default, none or MM:DEG."""
+    if label == "default":
+        return DEFAULT_NOISE
+    if label == "none":
+        return 0.0, 0.0
+    try:
+        mm, deg = (float(x) for x in label.split(":"))
+    except ValueError:
+        raise ValueError(f"a noise condition is default, none or MM:DEG (e.g. 3:2), got {label!r}") from None
+    if not (mm >= 0 and deg >= 0 and math.isfinite(mm + deg)):
+        raise ValueError(f"--noise sigmas must be finite and >= 0, got {label!r}")
+    return mm / 1000.0, deg
 
 
 def pct(x: float | None, digits: int = 1) -> str:

@@ -40,7 +40,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import RunRecord, default_out, rate_ci, write_config, write_json  # noqa: E402
+from _common import RunRecord, default_out, noise_sigmas, rate_ci, write_config, write_json  # noqa: E402
 
 import graspsim  # noqa: E402, F401  (registers the environments)
 from graspsim.maps.collide import boxes_clear_sdf  # noqa: E402
@@ -51,7 +51,6 @@ from graspsim.stats import wilson_interval  # noqa: E402
 from graspsim.transforms import frame_from_axes, invert_transform, make_transform  # noqa: E402
 
 log = logging.getLogger("e08")
-DEFAULT_NOISE = (0.003, 2.0)  # the environment's default execution error [m], [deg]
 
 
 @dataclass(frozen=True)
@@ -72,21 +71,6 @@ class Config:
 
 def _clear_name(mm: float) -> str:
     return f"planner_clear_{mm:g}mm"
-
-
-def noise_sigmas(label: str) -> tuple[float, float]:
-    """(position [m], rotation [deg]) of a ``--noise`` label: default, none or MM:DEG."""
-    if label == "default":
-        return DEFAULT_NOISE
-    if label == "none":
-        return 0.0, 0.0
-    try:
-        mm, deg = (float(x) for x in label.split(":"))
-    except ValueError:
-        raise ValueError(f"--noise takes default, none or MM:DEG (e.g. 3:2), got {label!r}") from None
-    if not (mm >= 0 and deg >= 0 and math.isfinite(mm + deg)):
-        raise ValueError(f"--noise sigmas must be finite and >= 0, got {label!r}")
-    return mm / 1000.0, deg
 
 
 def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:

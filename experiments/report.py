@@ -27,6 +27,7 @@ listed as pending, not checked.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import importlib.util
 import json
 import re
@@ -42,7 +43,7 @@ TODO = re.compile(r"<!-- TODO report:(?P<key>[\w.-]+) -->.*?<!-- /TODO -->", re.
 RESULT_SECTIONS = ("The method and what we measured", "Gymnasium environments")
 #: a measured-looking number: a percentage, a duration, a ratio "x", "k/n", "k of n"
 NUMBER = re.compile(r"(?<![\w.])\d+(?:[.,]\d+)*\s*(?:%|ms\b|s\b|min\b|minutes\b|×)"
-                    r"|(?<![\w.])\d+\s*/\s*\d+(?![\w.])|(?<![\w.])\d+ of \d+(?![\w.])")
+                    r"|(?<![\w.])\d+\s*/\s*\d+(?!\w|\.\d)|(?<![\w.])\d+ of \d+(?!\w|\.\d)")
 #: settings of the method (not results) that look like results to NUMBER
 SETTINGS = ("2 ms steps", "the 3× scaling limit", "explains 85 % of the points")
 
@@ -75,7 +76,7 @@ def _module(stem: str, root: Path):
     exp = str(path.parent)
     if exp not in sys.path:
         sys.path.insert(0, exp)  # the scripts import _common
-    name = f"_report_{stem}"
+    name = f"_report_{stem}_{hashlib.sha1(str(path).encode()).hexdigest()[:8]}"
     if name not in sys.modules:
         spec = importlib.util.spec_from_file_location(name, path)
         mod = importlib.util.module_from_spec(spec)

@@ -57,19 +57,20 @@ def _fake_repo(tmp_path, body: str):
 def test_report_regenerates_blocks_and_flags_stale_ones(tmp_path):
     report = _report()
     readme = _fake_repo(tmp_path, "Prose.\n\n<!-- report:exp_x -->\nold 2/4\n<!-- /report:exp_x -->\n")
-    new, stale = report.render(readme.read_text(), tmp_path)
-    assert stale == ["exp_x"] and "`python experiments/exp_x.py`: 3/4 succeed\n<!-- /report:exp_x -->" in new
+    new, stale, errors = report.render(readme.read_text(), tmp_path)
+    assert stale == ["exp_x"] and errors == [] and "`python experiments/exp_x.py`: 3/4 succeed\n<!-- /report:exp_x -->" in new
     assert any("stale block report:exp_x" in p for p in report.check(readme, tmp_path))
     readme.write_text(new)
     assert report.check(readme, tmp_path) == []
-    assert report.render(new, tmp_path) == (new, [])
+    assert report.render(new, tmp_path) == (new, [], [])
     # a variant block reads its own JSON with the same script's readme_section
     (tmp_path / "experiments" / "reported" / "exp_x.b.json").write_text(
         json.dumps({"command": "python experiments/exp_x.py --b", "k": 1, "n": 2}))
-    text, stale = report.render(new + "<!-- report:exp_x.b -->\n<!-- /report:exp_x.b -->\n", tmp_path)
+    text, stale, _ = report.render(new + "<!-- report:exp_x.b -->\n<!-- /report:exp_x.b -->\n", tmp_path)
     assert stale == ["exp_x.b"] and "--b`: 1/2 succeed" in text
-    with pytest.raises(report.ReportError, match="no summary"):
-        report.render("<!-- report:exp_y -->\n<!-- /report:exp_y -->\n", tmp_path)
+    missing = "<!-- report:exp_y -->\nkept\n<!-- /report:exp_y -->\n"
+    assert report.render(missing, tmp_path)[0] == missing
+    assert "no summary experiments/reported/exp_y.json" in report.render(missing, tmp_path)[2][0]
 
 
 def test_report_flags_numbers_outside_blocks(tmp_path):

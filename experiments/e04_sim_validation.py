@@ -369,9 +369,12 @@ def readme_section(s: dict) -> str:
     nz = s["noise"]
     noise = f"{1000 * nz['position_m']:g} mm / {nz['rotation_deg']:g}°"
     c = s["cases"]
+    lost = [k for k, v in s["planner"].items() if not v["grasps"]]
+    failed = f" ({', '.join(lost)}: not identified, no map)" if lost else ""
     L = [f"`{s['command']}` ({c['all']} maps: the primitives {', '.join(c['primitives'])} at "
          f"{', '.join(f'{x:g}' for x in c['sizes'])}× the paper's size, FS and Combined-scaled maps, and the "
-         f"analogs {', '.join(c['analogs'])} planned from their clouds; {s['config']['per_case']} grasps drawn per "
+         f"analogs {', '.join(c['analogs'])} planned from their complete clouds{failed}; "
+         f"{s['config']['per_case']} grasps drawn per "
          f"map and selection, uniformly over the surface, each simulated without and with execution noise "
          f"of {noise}):", ""]
     head = ["grasps drawn from", "drawn", "start in collision (no noise)", "success of feasible, no noise",
@@ -389,6 +392,16 @@ def readme_section(s: dict) -> str:
                      rate_ci(z["of_drawn"]["success"], z["of_drawn"]["of"], z["of_drawn"]["ci"])])
     L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     L += ["| " + " | ".join(str(x) for x in r) + " |" for r in rows]
+    L += ["", "Without noise, per primitive (FS maps, all sizes): grasps > 0.7 against the base rate:", "",
+          "| FS maps of | grade > 0.7 | grade <= 0.7 | any grade |", "|---|---|---|---|"]
+    for prim in c["primitives"]:
+        cells = []
+        for key in ("paper", "paper_low", "all"):
+            rs = [r for r in s["per_case"] if r["selected_by"] == key and r["kind"] == "fs"
+                  and r["group"].split("@")[0] == prim]
+            k, n = sum(r["exact"]["success"] for r in rs), sum(r["exact"]["of"] for r in rs)
+            cells.append(rate_ci(k, n, digits=0))
+        L.append(f"| {prim} | " + " | ".join(cells) + " |")
     p = by.get("paper")
     if p:
         z = p["noise"]

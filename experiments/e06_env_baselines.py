@@ -431,9 +431,11 @@ def readme_section(s: dict) -> str:
         L.append(f"| {k} | {b['episodes']} | " + " | ".join(f"{pct(b[p], 0)} %" for p in
                                                               ("random", "highest_grade", "learned", "oracle"))
                  + f" | {mk['only_first']} / {mk['only_second']} | {sc} |")
-    L += ["", f"Cost (mean wall time on this {s['machine']['cpus']}-core machine, load "
-          f"{s['machine']['load_avg_start'][0]:g} at the start): a reset {c['reset']['mean_ms']:.0f} ms (the planner "
-          f"{c['plan']['mean_ms']:.0f} ms), a trial {c['trial_in_batch_ms']:.0f} ms."]
+    m = s["machine"]
+    L += ["", f"Cost, mean CPU time: a reset (drawing the object, its cloud, planning) {c['reset_cpu']['mean_ms']:.0f} ms, "
+          f"a step (one trial) {c['step_cpu']['mean_ms']:.0f} ms (wall {c['reset']['mean_ms']:.0f} and "
+          f"{c['step']['mean_ms']:.0f} ms on this {m['cpus']}-core machine shared at a load average of "
+          f"{m['load_avg_start'][0]:g}–{m['load_avg_end'][0]:g})."]
     return "\n".join(L) + "\n"
 
 

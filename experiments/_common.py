@@ -123,7 +123,8 @@ def default_out(script: str) -> str:
 class RunRecord:
     """The record every experiment's ``summary.json`` carries: the exact command line,
     machine facts (cores, load average before and after, wall and CPU time), library
-    versions and the git commit. Start it before the work::
+    versions and the git commit (``-dirty``: uncommitted changes) when it started.
+    Start it before the work::
 
         run = RunRecord(__file__, argv)
         ...
@@ -131,21 +132,23 @@ class RunRecord:
     """
 
     def __init__(self, script: str, argv=None) -> None:
+        from graspsim.calibration.outputs import library_versions
+
         self.stem = Path(script).stem
         args = list(sys.argv[1:] if argv is None else argv)
         self.command = " ".join(["python", f"experiments/{self.stem}.py", *map(shlex.quote, args)])
+        # the code state at the start: the tree may change while a long run goes on
+        self.provenance, self.versions = provenance(), library_versions()
         self.clock = Clock()
 
     def summary(self, data: dict) -> dict:
-        from graspsim.calibration.outputs import library_versions
-
-        versions = library_versions()
+        versions = dict(self.versions)
         return {"experiment": self.stem, "command": self.command, **data,
                 "machine": {"cpus": os.cpu_count(), "load_avg_start": self.clock.load,
                             "load_avg_end": load_average(), "wall_s": self.clock.wall,
                             "cpu_s": self.clock.cpu, "platform": versions.pop("platform", None),
                             "date": versions.pop("date", None)},
-                "versions": versions, "provenance": provenance()}
+                "versions": versions, "provenance": self.provenance}
 
 
 #: the execution error of the environments and E04 (sigma: position [m], rotation [deg])

@@ -119,6 +119,7 @@ def test_e01_quick_summary_counts(tmp_path):
     assert s["command"] in text and "| 10 |" in text and "/2)" in text
 
 
+@pytest.mark.slow
 def test_e04_quick_pairs_noise_with_exact(tmp_path):
     out = tmp_path / "e04"
     mod = _load("e04_sim_validation")

@@ -11,8 +11,10 @@ object, pose, cloud and execution error):
   table known (z = 0), proposing its highest-grade grasp (the top-down pose when the
   planner finds none);
 * planner, clearance C mm (``--clearance``): the highest-grade grasp whose gripper,
-  opened to its pre-grasp width, stays C mm clear of the identified primitives (the
-  top-down pose when none of the ``--clearance-rows`` best does).
+  with the jaws opened C mm wider on each side than the pre-grasp opening (and executed
+  so), stays C mm clear of the identified primitives -- room for the fingers to miss
+  (the top-down pose when none of the ``--clearance-rows`` best does, or the opening
+  would exceed the gripper's).
 
 Each proposal is executed under every ``--noise`` condition: ``default`` (the
 environment's execution error, 3 mm / 2 deg), ``none``, or ``MM:DEG`` sigmas; the
@@ -106,14 +108,16 @@ class _Inflated:
 
 def clear_row(res, gripper, clearance: float, max_rows: int, chunk: int = 250) -> int | None:
     """Row of the plan's map (sorted best first) of the highest-grade grasp whose gripper,
-    opened to its pre-grasp width, stays ``clearance`` [m] clear of every identified
-    part; None if none of the ``max_rows`` best does."""
+    its jaws opened ``clearance`` [m] wider on each side than the pre-grasp opening, stays
+    ``clearance`` clear of every identified part; None if none of the ``max_rows`` best
+    does."""
     m = res.map
     for start in range(0, min(len(m), max_rows), chunk):
         idx = np.arange(start, min(start + chunk, len(m), max_rows))
         T = m.T_obj_wrist[idx]
-        opening = gripper.pregrasp_opening(m.width[idx])
-        ok = np.ones(len(idx), bool)
+        opening = m.width[idx] + 2.0 * (gripper.approach_clearance + clearance)
+        ok = opening <= gripper.max_opening
+        opening = np.minimum(opening, gripper.max_opening)
         for part in res.parts:
             T_part = invert_transform(part.T_obj_part) @ T
             ok &= boxes_clear_sdf(_Inflated(part.primitive, clearance), gripper, T_part, opening)
@@ -134,7 +138,9 @@ def planner_poses(env, cloud: np.ndarray, db: MapDatabase, seed: int, cfg: Confi
         t1 = time.perf_counter()
         i = (0 if len(res.map) else None) if c == 0 else (
             clear_row(res, env.gripper, c / 1000.0, cfg.clearance_rows) if len(res.map) else None)
-        pose = None if i is None else (res.T_cloud_obj @ res.map.T_obj_wrist[i], float(res.map.width[i]))
+        # the action's width: the jaws open to width + 2 x approach clearance, so + 2c more
+        pose = None if i is None else (res.T_cloud_obj @ res.map.T_obj_wrist[i],
+                                       float(res.map.width[i]) + 2.0 * c / 1000.0)
         out["planner" if c == 0 else _clear_name(c)] = (pose, t_plan + time.perf_counter() - t1)
     return out
 
@@ -281,7 +287,8 @@ NAMES = {"random": "random action", "top_down": "top-down heuristic",
 
 
 def _name(p: str) -> str:
-    return NAMES.get(p) or f"planner, highest grade {p.rsplit('_', 1)[1].replace('mm', ' mm')} clear of the shape"
+    return NAMES.get(p) or (f"planner, highest grade with {p.rsplit('_', 1)[1].replace('mm', ' mm')} of "
+                            f"clearance from the shape")
 
 
 def readme_section(s: dict) -> str:
@@ -299,12 +306,13 @@ def readme_section(s: dict) -> str:
          f"found a grasp in {r['planner_found']} episodes (in the others it falls back to the top-down pose).", ""]
     head = ["policy"] + [f"success, {err(x)}" for x in labels] + \
         [f"on the planner's {r['planner_found']} episodes, {err(x)}" for x in labels] + \
-        [f"START_COLLISION, {err(x)}" for x in labels]
+        [f"START_COLLISION, {err(x)}" for x in labels] + ["falls back to top-down"]
     L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for name, p in r["policies"].items():
         cells = [rate_ci(p[x]["all"]["success"], p[x]["all"]["episodes"], p[x]["all"]["interval_95"]) for x in labels]
         cells += [rate_ci(p[x]["planner_found"]["success"], p[x]["planner_found"]["episodes"]) for x in labels]
         cells += [str(p[x]["all"]["outcomes"].get("start_collision", 0)) for x in labels]
+        cells.append("–" if name in ("random", "top_down") else str(p["fallbacks"]))
         L.append(f"| {_name(name)} | " + " | ".join(cells) + " |")
     if cfg["clearance_mm"]:
         n = r["planner_found_all_clearances"]

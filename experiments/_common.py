@@ -22,7 +22,8 @@ from scipy import stats
 
 __all__ = ["Clock", "stopwatch", "load_average", "provenance", "write_json", "write_config", "mean_sd",
            "mixed_anova", "paired_posthoc", "fmt", "RunRecord", "default_out", "pct", "rate_ci",
-           "DEFAULT_NOISE", "noise_sigmas"]
+           "DEFAULT_NOISE", "noise_sigmas", "database_record",
+           "database_note"]
 
 
 def load_average() -> list[float]:
@@ -168,6 +169,24 @@ def noise_sigmas(label: str) -> tuple[float, float]:
     if not (mm >= 0 and deg >= 0 and math.isfinite(mm + deg)):
         raise ValueError(f"--noise sigmas must be finite and >= 0, got {label!r}")
     return mm / 1000.0, deg
+
+
+def database_record(db) -> dict:
+    """The FS maps a ``MapDatabase`` holds (keys), with its folder: maps the planner
+    builds for parts out of every stored map's range are added during a run, and a
+    rerun on a database that has grown can plan some objects differently."""
+    return {"root": str(db.root), "maps": sorted(e["key"] for e in db.entries())}
+
+
+def database_note(summary: dict) -> str:
+    """A README sentence on the database a run planned against ("" if not recorded)."""
+    d = summary.get("database")
+    if not d:
+        return ""
+    a, b = len(d["start"]["maps"]), len(d["end"]["maps"])
+    grew = f", {b} at the end: parts out of every stored map's range are built and stored during the run" \
+        if b != a else ", none added during the run"
+    return f" The FS map database held {a} maps at the start{grew}."
 
 
 def pct(x: float | None, digits: int = 1) -> str:

@@ -48,7 +48,8 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, RunRecord, default_out, load_average, pct, rate_ci, write_config, write_json  # noqa: E402
+from _common import (Clock, RunRecord, database_note, database_record, default_out,  # noqa: E402
+                     load_average, pct, rate_ci, write_config, write_json)
 
 import graspsim  # noqa: E402,F401  (registers the environments)
 from graspsim.envs.candidates import CANDIDATE_FEATURES  # noqa: E402
@@ -352,7 +353,7 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     write_config(out / "config.json", cfg)
     total = Clock()
-    _env(cfg)  # builds the reference maps once, before any worker starts
+    db_start = database_record(_env(cfg).db)  # builds the reference maps once, before any worker starts
     log.info("E06: %d training + %d test episodes, objects %s, K = %d, %d worker(s)",
              cfg.train, cfg.test, cfg.objects, cfg.k, cfg.workers)
     t0 = time.perf_counter()
@@ -380,7 +381,9 @@ def main(argv=None) -> int:
         f"{name}_{k}": _stack(eps, k) for name, eps in (("train", train), ("test", test))
         for k in ("features", "candidates", "mask", "outcome", "cloud", "object_pose")},
         test_kind=np.array([e["kind"] for e in test]), feature_names=np.array(FEATURE_NAMES))
-    write_json(out / "summary.json", run.summary({"config": asdict(cfg), "results": res, "cost": cost}))
+    write_json(out / "summary.json", run.summary({"config": asdict(cfg), "results": res, "cost": cost,
+                                                  "database": {"start": db_start,
+                                                               "end": database_record(_env(cfg).db)}}))
     table = write_table(cfg, res, cost)
     (out / "table.md").write_text("# E06 grasp-selection baselines (GraspSelect-v0)\n\n" + table)
     plot(res, out / "figure.png")
@@ -403,7 +406,7 @@ def readme_section(s: dict) -> str:
            else "given to the planner as its true primitives and pose (`plan_shape`)")
     L = [f"`{s['command']}`: {r['test_episodes']} test episodes (objects `{cfg['objects']}`, K = {cfg['k']} "
          f"candidates, the object {see}, {err}); the learned policies are trained on {r['train_candidates']} "
-         f"logged candidates of {r['train_episodes']} other episodes.", ""]
+         f"logged candidates of {r['train_episodes']} other episodes." + database_note(s), ""]
     sc_err = "START_COLLISION of the chosen grasp" + (" (with / without the error)" if noisy else "")
     head = ["policy", f"success, {err}"] + (["the same choice without the error"] if noisy else []) + [sc_err]
     L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]

@@ -31,7 +31,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import Clock, RunRecord, default_out, noise_sigmas, pct, rate_ci, write_config, write_json  # noqa: E402
+from _common import (Clock, RunRecord, database_note, database_record, default_out,  # noqa: E402
+                     noise_sigmas, pct, rate_ci, write_config, write_json)
 
 from graspsim.analogs import ANALOGS  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
@@ -186,6 +187,7 @@ def main(argv=None) -> int:
     total = Clock()
     db = MapDatabase(cfg.db or None, config=map_cfg)
     db.build(PAPER_SHAPES.values(), threads=cfg.threads)
+    db_start = database_record(db)
     rows = [run_object(name, db, cfg) for name in cfg.objects]
     pooled = {}
     for label, _, _ in CONDITIONS:
@@ -198,7 +200,7 @@ def main(argv=None) -> int:
                          "grade_le_07": sum(e["grade_le_07"] for e in es)}
     (out / "table.md").write_text(write_table(rows, pooled))
     record = run.summary({"config": cfg, "noise_sigmas": noise_sigmas(cfg.execution_error), "objects": rows,
-                          "pooled": pooled})
+                          "pooled": pooled, "database": {"start": db_start, "end": database_record(db)}})
     write_json(out / "summary.json", record)
     write_json(out / "results.json", record)
     print(write_table(rows, pooled))
@@ -229,7 +231,8 @@ def readme_section(s: dict) -> str:
     L += ["", f"Without the table, {pct(min(share), 0)}–{pct(max(share), 0)} % of an object's drawn poses start in "
           f"collision (pooled {pct(a['start_collision_rate'], 0)} %)."
           + (f" The estimated table height is within {1000 * max(heights):.1f} mm of the true one." if heights else "")
-          + (f" Not identified from these views, so without grasps: {', '.join(lost)}." if lost else "")]
+          + (f" Not identified from these views, so without grasps: {', '.join(lost)}." if lost else "")
+          + database_note(s)]
     return "\n".join(L) + "\n"
 
 

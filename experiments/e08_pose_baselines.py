@@ -42,7 +42,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import RunRecord, default_out, noise_sigmas, rate_ci, write_config, write_json  # noqa: E402
+from _common import (RunRecord, database_note, database_record, default_out, noise_sigmas,  # noqa: E402
+                     rate_ci, write_config, write_json)
 
 import graspsim  # noqa: E402, F401  (registers the environments)
 from graspsim.maps.collide import boxes_clear_sdf  # noqa: E402
@@ -151,6 +152,7 @@ def run(cfg: Config) -> dict:
     map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.quick else MapConfig()
     db = MapDatabase(cfg.db or None, config=map_cfg)
     db.build(PAPER_SHAPES.values())
+    db_start = database_record(db)
     envs = {}
     for label in cfg.noise:
         pos, deg = noise_sigmas(label)
@@ -183,7 +185,7 @@ def run(cfg: Config) -> dict:
         rows.append(row)
         if (k + 1) % 25 == 0:
             log.info("%d / %d episodes", k + 1, cfg.episodes)
-    return {"rows": rows}
+    return {"rows": rows, "database": {"start": db_start, "end": database_record(db)}}
 
 
 def _rates(rows: list[dict], name: str, label: str) -> dict:
@@ -274,7 +276,7 @@ def main(argv=None) -> int:
     table = write_table(summary, cfg)
     (out / "table.md").write_text(table)
     record = run_record.summary({"config": cfg, "noise_sigmas": {k: noise_sigmas(k) for k in cfg.noise},
-                                 "summary": summary})
+                                 "summary": summary, "database": res["database"]})
     write_json(out / "summary.json", record)
     write_json(out / "results.json", {**record, "episodes": res["rows"]})
     print(table)
@@ -303,7 +305,8 @@ def readme_section(s: dict) -> str:
     L = [f"`{s['command']}`: {r['episodes']} episodes (objects `{cfg['objects']}`), the same for every policy "
          f"and execution error; the planner works on the observed "
          f"{'/'.join(map(str, r['cloud_points']))}-point cloud with the table known and "
-         f"found a grasp in {r['planner_found']} episodes (in the others it falls back to the top-down pose).", ""]
+         f"found a grasp in {r['planner_found']} episodes (in the others it falls back to the top-down pose)."
+         + database_note(s), ""]
     head = ["policy"] + [f"success, {err(x)}" for x in labels] + \
         [f"on the planner's {r['planner_found']} episodes, {err(x)}" for x in labels] + \
         [f"START_COLLISION, {err(x)}" for x in labels] + ["falls back to top-down"]

@@ -144,7 +144,8 @@ def table(rows: list[dict]) -> str:
     out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         out.append(f"| {r['object']} ({r['geoms']} geoms) | {r['trials']} ({r['feasible']}) | "
-                   f"{r['harness_sim_s_per_s']:.1f} | {r['rollout_sim_s_per_s']:.1f} | {r['mj_step_sim_s_per_s']:.1f} | "
+                   f"{r['harness_sim_s_per_s']:.1f} | {r['rollout_sim_s_per_s']:.1f} | "
+                   f"{r['mj_step_sim_s_per_s']:.1f} | "
                    f"{r['harness_over_rollout']:.2f} | {r['harness_over_mj_step']:.2f} | "
                    f"{r['trials_per_s_1_thread']:.1f} | {r['trials_per_s_all_cores']:.1f} ({r['threads']} threads) |")
     return "\n".join(out)

@@ -390,7 +390,8 @@ def readme_section(s: dict) -> str:
             L.append(f"Algorithm effect on {k}: not tested ({t['skipped']}).")
             continue
         e = t["anova"]["within"]
-        sig = [f"{ph['a']}–{ph['b']} p = {_p(ph['p_bonferroni'])}" for ph in t["posthoc"] if ph["p_bonferroni"] < 0.05]
+        sig = [f"{ph['a']}–{ph['b']} p = {_p(ph['p_bonferroni'])}" for ph in t["posthoc"]
+               if ph["p_bonferroni"] < 0.05]
         L.append(f"Algorithm effect on {k} (mixed ANOVA, variants as subjects): F({e['df']:g},{e['df_error']:g}) = "
                  f"{e['F']:.2f}, p = {_p(e['p'])}; Bonferroni post-hoc pairs below .05: "
                  f"{', '.join(sig) or 'none'} (GQ Quality, GF Feasibility, C Combined).")

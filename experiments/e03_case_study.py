@@ -431,7 +431,8 @@ def readme_section(s: dict) -> str:
         r = o["seed0"]["main"]
         out = "; ".join(f"{k} {n}/{o['seeds']}" for k, n in o["outcomes"].items())
         re = "; ".join(f"{k} {n}/{o['seeds']}" for k, n in o.get("rerun_outcomes", {}).items()) or "–"
-        split = (f"{r['identify_s']:.2f} / {r['maps_s']:.2f} s" if None not in (r.get("identify_s"), r.get("maps_s")) else "–")
+        timed = None not in (r.get("identify_s"), r.get("maps_s"))
+        split = f"{r['identify_s']:.2f} / {r['maps_s']:.2f} s" if timed else "–"
         L.append(f"| {o['object']} | {o['paper']} | {out} | {o['median_wall_s']:.2f} ({o['max_wall_s']:.2f}) s | "
                  f"{split} | {re} |")
     m = s["machine"]

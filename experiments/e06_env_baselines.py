@@ -435,7 +435,8 @@ def readme_section(s: dict) -> str:
                                                               ("random", "highest_grade", "learned", "oracle"))
                  + f" | {mk['only_first']} / {mk['only_second']} | {sc} |")
     m = s["machine"]
-    L += ["", f"Cost, mean CPU time: a reset (drawing the object, its cloud, planning) {c['reset_cpu']['mean_ms']:.0f} ms, "
+    L += ["", f"Cost, mean CPU time: a reset (drawing the object, its cloud, planning) "
+          f"{c['reset_cpu']['mean_ms']:.0f} ms, "
           f"a step (one trial) {c['step_cpu']['mean_ms']:.0f} ms (wall {c['reset']['mean_ms']:.0f} and "
           f"{c['step']['mean_ms']:.0f} ms on this {m['cpus']}-core machine shared at a load average of "
           f"{m['load_avg_start'][0]:g}–{m['load_avg_end'][0]:g})."]

@@ -134,7 +134,8 @@ def _pct(x):
 def write_table(rows: list[dict], pooled: dict) -> str:
     L = ["# E07: adapted maps with and without the table", "",
          "Single-view clouds (2 mm, 0.8 mm noise) of objects standing on a table; grasps with grade "
-         "> 0.7 (or any grade: the base rate) drawn uniformly over each adapted map; lift-and-place in MuJoCo against the true "
+         "> 0.7 (or any grade: the base rate) drawn uniformly over each adapted map; lift-and-place in MuJoCo "
+         "against the true "
          "shape. START_COLLISION: the pose already penetrates the table or the object.", "",
          "| object | condition | identified | grasps drawn from | table height [mm] | START_COLLISION | "
          "success of feasible | 95 % Wilson |", "|---|---|---|---|---|---|---|---|"]

@@ -58,7 +58,8 @@ def test_report_regenerates_blocks_and_flags_stale_ones(tmp_path):
     report = _report()
     readme = _fake_repo(tmp_path, "Prose.\n\n<!-- report:exp_x -->\nold 2/4\n<!-- /report:exp_x -->\n")
     new, stale, errors = report.render(readme.read_text(), tmp_path)
-    assert stale == ["exp_x"] and errors == [] and "`python experiments/exp_x.py`: 3/4 succeed\n<!-- /report:exp_x -->" in new
+    assert stale == ["exp_x"] and errors == []
+    assert "`python experiments/exp_x.py`: 3/4 succeed\n<!-- /report:exp_x -->" in new
     assert any("stale block report:exp_x" in p for p in report.check(readme, tmp_path))
     readme.write_text(new)
     assert report.check(readme, tmp_path) == []

@@ -366,6 +366,12 @@ def _cell(c: dict, k: str, digits: int, unit: str) -> str:
     return s + (f" ({c[k]['missing']} of {c['n']} none)" if c[k]["missing"] else "") + unit
 
 
+def _p_rel(p: float) -> str:
+    """"< .0001" or "= 0.0123"."""
+    t = _p(p)
+    return t if t.startswith("<") else f"= {t}"
+
+
 def readme_section(s: dict) -> str:
     """The README's E02 table and paragraph (see ``experiments/report.py``)."""
     cells, tests, rows = s["summary"]["cells"], s["summary"]["tests"], s["variants"]
@@ -390,10 +396,10 @@ def readme_section(s: dict) -> str:
             L.append(f"Algorithm effect on {k}: not tested ({t['skipped']}).")
             continue
         e = t["anova"]["within"]
-        sig = [f"{ph['a']}–{ph['b']} p = {_p(ph['p_bonferroni'])}" for ph in t["posthoc"]
+        sig = [f"{ph['a']}–{ph['b']} p {_p_rel(ph['p_bonferroni'])}" for ph in t["posthoc"]
                if ph["p_bonferroni"] < 0.05]
         L.append(f"Algorithm effect on {k} (mixed ANOVA, variants as subjects): F({e['df']:g},{e['df_error']:g}) = "
-                 f"{e['F']:.2f}, p = {_p(e['p'])}; Bonferroni post-hoc pairs below .05: "
+                 f"{e['F']:.2f}, p {_p_rel(e['p'])}; Bonferroni post-hoc pairs below .05: "
                  f"{', '.join(sig) or 'none'} (GQ Quality, GF Feasibility, C Combined).")
     L.append("")
     for d in ("smaller", "larger"):

@@ -430,7 +430,8 @@ def readme_section(s: dict) -> str:
     for o in s["objects"]:
         r = o["seed0"]["main"]
         out = "; ".join(f"{k} {n}/{o['seeds']}" for k, n in o["outcomes"].items())
-        re = "; ".join(f"{k} {n}/{o['seeds']}" for k, n in o.get("rerun_outcomes", {}).items()) or "–"
+        re = "; ".join(f"{k.replace('theta ', 'θ_th ')} {n}/{o['seeds']}"
+                       for k, n in o.get("rerun_outcomes", {}).items()) or "–"
         timed = None not in (r.get("identify_s"), r.get("maps_s"))
         split = f"{r['identify_s']:.2f} / {r['maps_s']:.2f} s" if timed else "–"
         L.append(f"| {o['object']} | {o['paper']} | {out} | {o['median_wall_s']:.2f} ({o['max_wall_s']:.2f}) s | "

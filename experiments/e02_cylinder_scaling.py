@@ -366,6 +366,10 @@ def _cell(c: dict, k: str, digits: int, unit: str) -> str:
     return s + (f" ({c[k]['missing']} of {c['n']} none)" if c[k]["missing"] else "") + unit
 
 
+#: paper 4.2 on table 2's time reduction
+PAPER_TR = "The paper's scaled maps saved 96–97 % of its FS maps' time."
+
+
 def _p_rel(p: float) -> str:
     """"< .0001" or "= 0.0123"."""
     t = _p(p)
@@ -412,7 +416,7 @@ def readme_section(s: dict) -> str:
                  f"{min(tr):.0f}–{max(tr):.0f} %.")
     m = s["machine"]
     L.append(f"(Wall times on {m['cpus']} cores, load average {m['load_avg_start'][0]:g} at the start, "
-             f"{m['load_avg_end'][0]:g} at the end.)")
+             f"{m['load_avg_end'][0]:g} at the end. {PAPER_TR})")
     return "\n".join(L) + "\n"
 
 

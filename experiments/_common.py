@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import shlex
+import sys
 import time
 from contextlib import contextmanager
 from dataclasses import asdict, is_dataclass
@@ -19,7 +21,9 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["Clock", "stopwatch", "load_average", "provenance", "write_json", "write_config", "mean_sd",
-           "mixed_anova", "paired_posthoc", "fmt", "run_cli_fresh", "write_summary"]
+           "mixed_anova", "paired_posthoc", "fmt", "RunRecord", "default_out", "pct", "rate_ci",
+           "DEFAULT_NOISE", "noise_sigmas", "database_record",
+           "database_note", "run_cli_fresh", "write_summary"]
 
 
 def load_average() -> list[float]:
@@ -158,6 +162,98 @@ def write_summary(summary: dict, out: str | Path, stem: str, readme_section, *, 
 
 def write_config(path: Path, cfg) -> None:
     write_json(path, asdict(cfg) if is_dataclass(cfg) else cfg)
+
+
+def default_out(script: str) -> str:
+    """``results/<stem>``: where a script writes by default (``report.py --collect``
+    looks there)."""
+    return f"results/{Path(script).stem}"
+
+
+class RunRecord:
+    """The record every experiment's ``summary.json`` carries: the exact command line,
+    machine facts (cores, load average before and after, wall and CPU time), library
+    versions and the git commit (``-dirty``: uncommitted changes) when it started.
+    Start it before the work::
+
+        run = RunRecord(__file__, argv)
+        ...
+        write_json(out / "summary.json", run.summary({"headline": ...}))
+    """
+
+    def __init__(self, script: str, argv=None) -> None:
+        from graspsim.calibration.outputs import library_versions
+
+        self.stem = Path(script).stem
+        args = list(sys.argv[1:] if argv is None else argv)
+        self.command = " ".join(["python", f"experiments/{self.stem}.py", *map(shlex.quote, args)])
+        # the code state at the start: the tree may change while a long run goes on
+        self.provenance, self.versions = provenance(), library_versions()
+        self.clock = Clock()
+
+    def summary(self, data: dict) -> dict:
+        versions = dict(self.versions)
+        return {"experiment": self.stem, "command": self.command, **data,
+                "machine": {"cpus": os.cpu_count(), "load_avg_start": self.clock.load,
+                            "load_avg_end": load_average(), "wall_s": self.clock.wall,
+                            "cpu_s": self.clock.cpu, "platform": versions.pop("platform", None),
+                            "date": versions.pop("date", None)},
+                "versions": versions, "provenance": self.provenance}
+
+
+#: the execution error of the environments and E04 (sigma: position [m], rotation [deg])
+DEFAULT_NOISE = (0.003, 2.0)
+
+
+def noise_sigmas(label: str) -> tuple[float, float]:
+    """(position [m], rotation [deg]) of a ``--noise`` label: default, none or MM:DEG."""
+    if label == "default":
+        return DEFAULT_NOISE
+    if label == "none":
+        return 0.0, 0.0
+    try:
+        mm, deg = (float(x) for x in label.split(":"))
+    except ValueError:
+        raise ValueError(f"a noise condition is default, none or MM:DEG (e.g. 3:2), got {label!r}") from None
+    if not (mm >= 0 and deg >= 0 and math.isfinite(mm + deg)):
+        raise ValueError(f"--noise sigmas must be finite and >= 0, got {label!r}")
+    return mm / 1000.0, deg
+
+
+def database_record(db) -> dict:
+    """The FS maps a ``MapDatabase`` holds (keys), with its folder: maps the planner
+    builds for parts out of every stored map's range are added during a run, and a
+    rerun on a database that has grown can plan some objects differently."""
+    return {"root": str(db.root), "maps": sorted(e["key"] for e in db.entries())}
+
+
+def database_note(summary: dict) -> str:
+    """A README sentence on the database a run planned against ("" if not recorded)."""
+    d = summary.get("database")
+    if not d:
+        return ""
+    a, b = len(d["start"]["maps"]), len(d["end"]["maps"])
+    grew = f", {b} at the end: parts out of every stored map's range are built and stored during the run" \
+        if b != a else ", none added during the run"
+    return f" The FS map database held {a} maps at the start{grew}."
+
+
+def pct(x: float | None, digits: int = 1) -> str:
+    """``x`` (a fraction) as a percentage without the sign; "n/a" for None / NaN."""
+    if x is None or not math.isfinite(x):
+        return "n/a"
+    return f"{100 * x:.{digits}f}"
+
+
+def rate_ci(k: int, n: int, ci=None, digits: int = 1) -> str:
+    """``"96.1 % (1074/1118) [94.8, 97.1]"``: a success rate with its numerator and
+    denominator and, when given, its 95 % interval (fractions)."""
+    if not n:
+        return f"n/a (0/{n})"
+    s = f"{pct(k / n, digits)} % ({k}/{n})"
+    if ci is not None:
+        s += f" [{pct(ci[0], digits)}, {pct(ci[1], digits)}]"
+    return s
 
 
 def mean_sd(x) -> tuple[float, float]:

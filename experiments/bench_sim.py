@@ -1,27 +1,31 @@
-"""Benchmark: raw MuJoCo stepping of the held-object scene vs the trial harness.
+"""Benchmark: the trial harness against raw MuJoCo stepping of the same trials.
 
 For a primitive (the paper's cylinder, r 2 cm, h 20 cm) and a CoACD mesh object (the
-robosuite bread, 4 convex parts): simulated seconds per wall second of
+robosuite bread, 4 convex parts), one batch of ``lift_place`` trials (the same poses,
+initial states and open-loop controls throughout) is timed three ways on one thread:
 
-* raw ``mj_step`` (native loop, one thread) of the scene with the object held in the air,
-* the harness (``run_trials``: start-collision check, controls, ``mujoco.rollout``,
-  judging) for a batch of ``lift_place`` trials on one thread,
+* the harness: ``run_trials`` (start-collision check, controls, ``mujoco.rollout``,
+  judging the recorded states);
+* bare ``mujoco.rollout`` of the harness's feasible trials (the same initial states
+  and controls; what the harness adds on top of it is its overhead);
+* raw ``mj_step`` of the same feasible trials: a loop setting each step's control and
+  stepping (no recording, no judging).
 
-their ratio (goal >= 0.9), the bare ``mujoco.rollout`` rate of the same trials (so the
-harness's own overhead shows apart from the physics of the trial's phases, e.g. the
-object resting on the table), and trials/s on all cores. Timings are the best of
-``--repeats`` runs (the machine may be shared). Writes bench_sim.json, table.md and
-config.json into ``--out``.
+Rates are simulated seconds per wall second, the medians of ``--repeats`` interleaved
+runs (the machine is shared: load changes hit all three alike), with the ratios
+harness / rollout and harness / raw mj_step of those medians, and trials/s on all
+cores (median). Writes summary.json, table.md and config.json into ``--out``.
 
-    python experiments/bench_sim.py --out results/bench_sim
+    python experiments/bench_sim.py
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import os
+import statistics
+import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -29,19 +33,22 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from graspsim.primitives import Cylinder
-from graspsim.sim import LiftPlace, build_scene, object_from_mesh, object_from_shape, run_trials
-from graspsim.sim.batch import initial_states, pregrasp_opening, simulate
-from graspsim.sim.testing import grasp_pose
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RunRecord, default_out, write_json  # noqa: E402
+
+from graspsim.primitives import Cylinder  # noqa: E402
+from graspsim.sim import LiftPlace, build_scene, object_from_mesh, object_from_shape, run_trials  # noqa: E402
+from graspsim.sim.batch import initial_states, pregrasp_opening, simulate  # noqa: E402
+from graspsim.sim.testing import grasp_pose  # noqa: E402
 
 log = logging.getLogger("bench_sim")
 BREAD = Path(__file__).resolve().parents[1] / "assets/objects/robosuite/bread.stl"
+_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 @dataclass(frozen=True)
 class BenchConfig:
     trials: int
-    raw_steps: int
     repeats: int
     threads: int
     seed: int
@@ -49,14 +56,15 @@ class BenchConfig:
 
 def parse_args(argv=None) -> tuple[BenchConfig, Path]:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default="results/bench_sim", help="output folder")
+    p.add_argument("--out", default=default_out(__file__), help="output folder")
     p.add_argument("--trials", type=int, default=64, help="lift_place trials per object")
-    p.add_argument("--raw-steps", type=int, default=20000, help="mj_step calls for the raw rate")
-    p.add_argument("--repeats", type=int, default=3, help="best of this many timings")
+    p.add_argument("--repeats", type=int, default=5, help="timed runs (medians)")
     p.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="'all cores'")
     p.add_argument("--seed", type=int, default=0)
     a = p.parse_args(argv)
-    return BenchConfig(a.trials, a.raw_steps, max(1, a.repeats), max(1, a.threads), a.seed), Path(a.out)
+    if a.trials < 1 or a.repeats < 1 or a.threads < 1:
+        p.error("--trials, --repeats and --threads must be >= 1")
+    return BenchConfig(a.trials, a.repeats, a.threads, a.seed), Path(a.out)
 
 
 def _poses(kind: str, n: int, rng: np.random.Generator, com: np.ndarray):
@@ -70,35 +78,32 @@ def _poses(kind: str, n: int, rng: np.random.Generator, com: np.ndarray):
     return T, w
 
 
-def _raw_rate(scene, T, w, cfg: BenchConfig) -> float:
-    """Simulated s per wall s of mj_step with the object held at the top of the lift."""
-    p = LiftPlace()
-    m = scene.model
-    T_world = scene.T_world_obj @ T[:1]
-    control = p.controls(scene, T_world)
-    hold_end = p.steps(m.opt.timestep)["hold"][1]
-    states, _ = simulate(scene, p, initial_states(scene, T_world, pregrasp_opening(scene, w[:1])),
-                         control[:, : hold_end + 1], backend="python")
-    d = mujoco.MjData(m)
-    mujoco.mj_setState(m, d, states[0, -1], mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    mujoco.mj_setState(m, d, control[0, hold_end], p.control_spec)
-    t = time.perf_counter()
-    mujoco.mj_step(m, d, nstep=cfg.raw_steps)
-    wall = time.perf_counter() - t
-    assert d.qpos[scene.qadr_obj + 2] > 0.1, "the object must still be held"
-    return cfg.raw_steps * m.opt.timestep / wall
-
-
-def _rollout_rate(scene, T, w, cfg: BenchConfig) -> float:
-    """Simulated s per wall s of the bare ``mujoco.rollout`` call for the same trials
-    (one thread): what the harness adds on top of it is its overhead."""
+def _workload(scene, T, w):
+    """(initial states, controls) of the trials, as the harness builds them."""
     p = LiftPlace()
     T_world = scene.T_world_obj @ T
-    state0 = initial_states(scene, T_world, pregrasp_opening(scene, w))
-    control = p.controls(scene, T_world)
+    return initial_states(scene, T_world, pregrasp_opening(scene, w)), p.controls(scene, T_world)
+
+
+def _rollout_rate(scene, state0, control) -> float:
+    """Simulated s per wall s of one bare ``mujoco.rollout`` call (one thread)."""
     t = time.perf_counter()
-    simulate(scene, p, state0, control)
+    simulate(scene, LiftPlace(), state0, control)
     return control.shape[0] * control.shape[1] * scene.model.opt.timestep / (time.perf_counter() - t)
+
+
+def _step_rate(scene, state0, control) -> float:
+    """Simulated s per wall s of raw ``mj_step``: each trial from its initial state,
+    each step's control set, no recording."""
+    m, d, spec = scene.model, mujoco.MjData(scene.model), LiftPlace().control_spec
+    t = time.perf_counter()
+    for i in range(len(state0)):
+        mujoco.mj_setState(m, d, state0[i], _FULL)
+        d.qacc_warmstart[:] = 0.0
+        for c in control[i]:
+            mujoco.mj_setState(m, d, c, spec)
+            mujoco.mj_step(m, d)
+    return control.shape[0] * control.shape[1] * m.opt.timestep / (time.perf_counter() - t)
 
 
 def run(cfg: BenchConfig) -> list[dict]:
@@ -109,57 +114,67 @@ def run(cfg: BenchConfig) -> list[dict]:
     for kind, obj in objects.items():
         scene = build_scene(obj)
         T, w = _poses(kind, cfg.trials, rng, obj.com)
-        raw, bare, one, allc = [], [], None, None
+        harness, bare, raw, allc = [], [], [], []
+        r = None
         for _ in range(cfg.repeats):  # interleaved, so load changes hit all timers alike
-            raw.append(_raw_rate(scene, T, w, cfg))
             r = run_trials(scene, T, w, LiftPlace(), threads=1, seed=cfg.seed)
-            one = r if one is None or r.wall_time < one.wall_time else one
+            harness.append(r.simulated_seconds / r.wall_time)
             feasible = r.outcome != 1  # START_COLLISION poses are not simulated
-            bare.append(_rollout_rate(scene, T[feasible], w[feasible], cfg))
-            r = run_trials(scene, T, w, LiftPlace(), threads=cfg.threads, seed=cfg.seed)
-            allc = r if allc is None or r.wall_time < allc.wall_time else allc
-        raw, bare = max(raw), max(bare)
+            state0, control = _workload(scene, T[feasible], w[feasible])
+            bare.append(_rollout_rate(scene, state0, control))
+            raw.append(_step_rate(scene, state0, control))
+            allc.append(run_trials(scene, T, w, LiftPlace(), threads=cfg.threads, seed=cfg.seed).trials_per_second)
+        h, b, s = (statistics.median(x) for x in (harness, bare, raw))
         rows.append({
-            "object": kind, "geoms": len(obj.geoms), "trials": len(T),
-            "successes": one.counts()["success"],
-            "raw_sim_s_per_s": raw, "harness_sim_s_per_s": one.simulated_seconds / one.wall_time,
-            "ratio": one.simulated_seconds / one.wall_time / raw,
-            "rollout_sim_s_per_s": bare,
-            "harness_overhead": 1.0 - one.simulated_seconds / one.wall_time / bare,
-            "trials_per_s_1_thread": one.trials_per_second,
-            "trials_per_s_all_cores": allc.trials_per_second, "threads": cfg.threads,
-            "trial_sim_s": one.simulated_seconds / max(1, one.feasible),
+            "object": kind, "geoms": len(obj.geoms), "trials": len(T), "feasible": int(r.feasible),
+            "successes": r.counts()["success"], "trial_sim_s": r.simulated_seconds / max(1, r.feasible),
+            "repeats": cfg.repeats, "harness_sim_s_per_s": h, "rollout_sim_s_per_s": b, "mj_step_sim_s_per_s": s,
+            "harness_over_rollout": h / b, "harness_over_mj_step": h / s,
+            "runs": {"harness": harness, "rollout": bare, "mj_step": raw, "trials_per_s_all_cores": allc},
+            "trials_per_s_1_thread": h / (r.simulated_seconds / max(1, r.feasible)),
+            "trials_per_s_all_cores": statistics.median(allc), "threads": cfg.threads,
         })
-        log.info("%s: %s", kind, rows[-1])
+        log.info("%s: %s", kind, {k: v for k, v in rows[-1].items() if k != "runs"})
     return rows
 
 
 def table(rows: list[dict]) -> str:
-    head = ("object", "raw sim s/s", "harness sim s/s", "ratio", "bare rollout sim s/s",
-            "harness overhead", "trials/s 1 thread",
-            "trials/s all cores", "successes")
+    head = ("object", "trials (feasible)", "harness sim s/s", "bare rollout sim s/s", "raw mj_step sim s/s",
+            "harness / rollout", "harness / mj_step", "trials/s 1 thread", "trials/s all cores")
     out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
-        out.append(f"| {r['object']} ({r['geoms']} geoms) | {r['raw_sim_s_per_s']:.1f} | "
-                   f"{r['harness_sim_s_per_s']:.1f} | {r['ratio']:.2f} | {r['rollout_sim_s_per_s']:.1f} | "
-                   f"{100 * r['harness_overhead']:.1f} % | {r['trials_per_s_1_thread']:.1f} | "
-                   f"{r['trials_per_s_all_cores']:.1f} ({r['threads']} threads) | "
-                   f"{r['successes']}/{r['trials']} |")
+        out.append(f"| {r['object']} ({r['geoms']} geoms) | {r['trials']} ({r['feasible']}) | "
+                   f"{r['harness_sim_s_per_s']:.1f} | {r['rollout_sim_s_per_s']:.1f} | "
+                   f"{r['mj_step_sim_s_per_s']:.1f} | "
+                   f"{r['harness_over_rollout']:.2f} | {r['harness_over_mj_step']:.2f} | "
+                   f"{r['trials_per_s_1_thread']:.1f} | {r['trials_per_s_all_cores']:.1f} ({r['threads']} threads) |")
     return "\n".join(out)
 
 
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger("graspsim.sim.batch").setLevel(logging.WARNING)
+    run_record = RunRecord(__file__, argv)
     cfg, out = parse_args(argv)
     rows = run(cfg)
     out.mkdir(parents=True, exist_ok=True)
-    meta = {"mujoco_version": mujoco.__version__, "cpu_count": os.cpu_count()}
-    (out / "bench_sim.json").write_text(json.dumps({"rows": rows, **meta}, indent=2))
-    (out / "config.json").write_text(json.dumps(asdict(cfg), indent=2))
+    write_json(out / "summary.json", run_record.summary({"config": asdict(cfg), "rows": rows}))
+    write_json(out / "config.json", asdict(cfg))
     text = table(rows)
     (out / "table.md").write_text(text + "\n")
     print(text)  # noqa: T201 (a script's report)
     return 0
+
+
+def readme_section(s: dict) -> str:
+    """The README's simulation-speed sentence and table (see ``experiments/report.py``)."""
+    m, rows = s["machine"], s["rows"]
+    trial = rows[0]["trial_sim_s"]
+    L = [f"`{s['command']}` (one batch of lift-and-place trials, {trial:.1f} s simulated each, timed through the "
+         f"harness and as bare `mujoco.rollout` and raw `mj_step` of the same trials on one thread; medians of "
+         f"{rows[0]['repeats']} interleaved runs on {m['cpus']} cores, load average {m['load_avg_start'][0]:g} at the "
+         f"start):", "", table(rows)]
+    return "\n".join(L) + "\n"
 
 
 if __name__ == "__main__":

@@ -17,10 +17,10 @@ sample cache of the target is emptied (a new object at run time has none), while
 map's line structure is prepared once beforehand (a-priori work on a stored map).
 Statistics: mean (SD) per algorithm x direction, a mixed ANOVA (algorithm within,
 direction between, variants as subjects) and Bonferroni-adjusted paired post-hoc tests
-of the algorithms. Writes results.json, table.md, figure5.png and config.json to
-``--out``.
+of the algorithms. Writes summary.json, results.json, table.md, figure5.png and
+config.json to ``--out``.
 
-    python experiments/e02_cylinder_scaling.py --out results/e02
+    python experiments/e02_cylinder_scaling.py
     python experiments/e02_cylinder_scaling.py --quick --out results/e02-quick
 """
 
@@ -38,8 +38,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import (Clock, fmt, load_average, mean_sd, mixed_anova, paired_posthoc,  # noqa: E402
-                     provenance, write_config, write_json)
+from _common import (Clock, RunRecord, default_out, fmt, load_average, mean_sd, mixed_anova,  # noqa: E402
+                     paired_posthoc, provenance, write_config, write_json)
 
 from graspsim.gripper import HGPL_25_60_A  # noqa: E402
 from graspsim.maps import generate as _generate  # noqa: E402
@@ -89,7 +89,7 @@ class E02Config:
 
 def parse_args(argv=None) -> tuple[E02Config, Path]:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default="results/e02", help="output folder")
+    p.add_argument("--out", default=default_out(__file__), help="output folder")
     p.add_argument("--quick", action="store_true",
                    help="smoke test: 1 cm / 22 deg maps, four variants, one repeat")
     p.add_argument("--repeats", type=int, default=None, help="timed runs per map (median)")
@@ -311,6 +311,7 @@ def write_table(rows: list[dict], summary: dict, cfg: E02Config) -> str:
 
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    run = RunRecord(__file__, argv)
     cfg, out = parse_args(argv)
     out.mkdir(parents=True, exist_ok=True)
     write_config(out / "config.json", cfg)
@@ -344,10 +345,79 @@ def main(argv=None) -> int:
         "note": "SRN/VRN over grasps with grade > 0.7 in both maps; scaled maps keep only grasps > 0.7",
         "summary": summary, "variants": rows, "wall_s": total.wall, "cpu_s": total.cpu,
         "load_avg_end": load_average()})
+    brief = [{k: v for k, v in r.items() if k not in ("fs", "methods")}
+             | {"fs": {k: r["fs"][k] for k in ("grasps", "accepted", "wall_s", "cpu_s")},
+                "methods": {m: {k: v for k, v in x.items() if k != "runs"} for m, x in r["methods"].items()}}
+             for r in rows]
+    write_json(out / "summary.json", run.summary({
+        "config": asdict(cfg), "base": {**BASE, "grasps": len(fs_base), "accepted": int(fs_base.accepted.sum())},
+        "summary": summary, "variants": brief}))
     table = write_table(rows, summary, cfg)
     (out / "table.md").write_text("# E02 cylinder map scaling (paper table 2)\n\n" + table)
     log.info("%s\nwall %.0f s, CPU %.0f s; results in %s", table, total.wall, total.cpu, out)
     return 0
+
+
+def _cell(c: dict, k: str, digits: int, unit: str) -> str:
+    m = c[k]["mean"]
+    if m is None or not math.isfinite(m):
+        return "none"
+    s = f"{m:.{digits}f}"
+    return s + (f" ({c[k]['missing']} of {c['n']} none)" if c[k]["missing"] else "") + unit
+
+
+#: paper 4.2 on table 2's time reduction
+PAPER_TR = "The paper's scaled maps saved 96–97 % of its FS maps' time."
+
+
+def _p_rel(p: float) -> str:
+    """"< .0001" or "= 0.0123"."""
+    t = _p(p)
+    return t if t.startswith("<") else f"= {t}"
+
+
+def readme_section(s: dict) -> str:
+    """The README's E02 table and paragraph (see ``experiments/report.py``)."""
+    cells, tests, rows = s["summary"]["cells"], s["summary"]["tests"], s["variants"]
+    cfg = s["config"]
+    step = 1000 * cfg["map_config"]["surface_step"]
+    n = {d: sum(r["direction"] == d for r in rows) for d in ("larger", "smaller")}
+    L = [f"`{s['command']}` ({n['larger']} larger and {n['smaller']} smaller variants of the r 2 cm, h 20 cm "
+         f"cylinder; SRN / VRN over grasps > 0.7, at {step:g} mm bins and at {2 * step:g} mm bins, which are less "
+         f"sensitive to contact spacing; means over the variants, larger / smaller; times are medians of "
+         f"{cfg['repeats']} cold runs):", "",
+         f"| algorithm | SRN | VRN | SRN, {2 * step:g} mm | VRN, {2 * step:g} mm | first > 0.95 | tenth > 0.95 |",
+         "|---|---|---|---|---|---|---|"]
+    for m in METHODS:
+        c = [cells[f"{m}/{d}"] for d in ("larger", "smaller")]
+        row = [" / ".join(_cell(x, k, 0, "") for x in c) + " %" for k in ("SRN", "VRN", "SRN_2x", "VRN_2x")]
+        row += [" / ".join(_cell(x, k, 1, "") for x in c) + " ms" for k in ("first_ms", "tenth_ms")]
+        L.append(f"| {m.capitalize()} | " + " | ".join(row) + " |")
+    L.append("")
+    for k in ("VRN", "SRN"):
+        t = tests[k]
+        if "skipped" in t:
+            L.append(f"Algorithm effect on {k}: not tested ({t['skipped']}).")
+            continue
+        e = t["anova"]["within"]
+        sig = [f"{ph['a']}–{ph['b']} p {_p_rel(ph['p_bonferroni'])}" for ph in t["posthoc"]
+               if ph["p_bonferroni"] < 0.05]
+        L.append(f"Algorithm effect on {k} (mixed ANOVA, variants as subjects): F({e['df']:g},{e['df_error']:g}) = "
+                 f"{e['F']:.2f}, p {_p_rel(e['p'])}; Bonferroni post-hoc pairs below .05: "
+                 f"{', '.join(sig) or 'none'} (GQ Quality, GF Feasibility, C Combined).")
+    L.append("")
+    for d in ("smaller", "larger"):
+        rs = [r for r in rows if r["direction"] == d]
+        comb = [r["methods"]["combined"]["wall_s"] for r in rs]
+        fs = [r["fs"]["wall_s"] for r in rs]
+        tr = [r["methods"]["combined"]["TR"] for r in rs]
+        L.append(f"{d.capitalize()} variants: a Combined-scaled map takes {min(comb):.2f}–{max(comb):.2f} s of wall "
+                 f"time, an FS map of the same variant {min(fs):.2f}–{max(fs):.2f} s: scaling saves "
+                 f"{min(tr):.0f}–{max(tr):.0f} %.")
+    m = s["machine"]
+    L.append(f"(Wall times on {m['cpus']} cores, load average {m['load_avg_start'][0]:g} at the start, "
+             f"{m['load_avg_end'][0]:g} at the end. {PAPER_TR})")
+    return "\n".join(L) + "\n"
 
 
 if __name__ == "__main__":

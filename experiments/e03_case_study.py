@@ -28,7 +28,7 @@ of the scaling range does not leak into later runs. ``--seeds`` repeats each obj
 other clouds and camera azimuths (identification robustness); seed 0 gives the table's
 main row, the figures and the saved maps (maps/<object>.h5, for simulated validation).
 
-    python experiments/e03_case_study.py --out results/e03
+    python experiments/e03_case_study.py
     python experiments/e03_case_study.py --quick --out results/e03-quick
 """
 
@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, load_average, provenance, write_config, write_json  # noqa: E402
+from _common import Clock, RunRecord, default_out, load_average, provenance, write_config, write_json  # noqa: E402
 
 from graspsim import analogs  # noqa: E402
 from graspsim.maps import generate as _generate  # noqa: E402
@@ -107,7 +107,7 @@ class E03Config:
 
 def parse_args(argv=None) -> tuple[E03Config, Path]:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default="results/e03", help="output folder")
+    p.add_argument("--out", default=default_out(__file__), help="output folder")
     p.add_argument("--quick", action="store_true",
                    help="smoke test: 1 cm / 22 deg FS database in OUT/fsdb, one seed")
     p.add_argument("--objects", nargs="+", default=list(OBJECTS), choices=list(OBJECTS))
@@ -372,6 +372,7 @@ def plot_clouds(clouds: dict[str, np.ndarray], path: Path) -> None:
 
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    run = RunRecord(__file__, argv)
     cfg, out = parse_args(argv)
     out.mkdir(parents=True, exist_ok=True)
     (out / "maps").mkdir(exist_ok=True)
@@ -408,10 +409,38 @@ def main(argv=None) -> int:
     plot_clouds(clouds, out / "clouds.png")
     write_json(out / "results.json", {"config": asdict(cfg), "provenance": provenance(), "database": db_info, "objects": objects,
                                       "wall_s": total.wall, "cpu_s": total.cpu, "load_avg_end": load_average()})
+    write_json(out / "summary.json", run.summary({
+        "config": asdict(cfg), "database": db_info,
+        "objects": [{k: v for k, v in o.items() if k != "runs"} | {"seed0": o["runs"][0]} for o in objects]}))
     table = write_table(objects, cfg, db_info)
     (out / "table.md").write_text("# E03 case study (paper table 3)\n\n" + table)
     log.info("%s\nwall %.0f s, CPU %.0f s; results in %s", table, total.wall, total.cpu, out)
     return 0
+
+
+def readme_section(s: dict) -> str:
+    """The README's E03 table (see ``experiments/report.py``)."""
+    cfg, c = s["config"], s["config"]["cloud"]
+    L = [f"`{s['command']}` (paper table 3: single-view clouds at {1000 * c['resolution']:g} mm with "
+         f"{1000 * c['noise']:g} mm depth noise; MLESAC {cfg['repetitions']} repetitions, θ_th = {cfg['theta']:g}; "
+         f"cloud → adapted map with the FS maps in memory; {cfg['seeds']} clouds per object from other camera "
+         f"azimuths):", "",
+         "| object | paper | outcomes (of clouds) | median (max) time | first cloud: identify / maps | "
+         "at the smallest θ_th that splits |", "|---|---|---|---|---|---|"]
+    for o in s["objects"]:
+        r = o["seed0"]["main"]
+        out = "; ".join(f"{k} {n}/{o['seeds']}" for k, n in o["outcomes"].items())
+        re = "; ".join(f"{k.replace('theta ', 'θ_th ')} {n}/{o['seeds']}"
+                       for k, n in o.get("rerun_outcomes", {}).items()) or "–"
+        timed = None not in (r.get("identify_s"), r.get("maps_s"))
+        split = f"{r['identify_s']:.2f} / {r['maps_s']:.2f} s" if timed else "–"
+        L.append(f"| {o['object']} | {o['paper']} | {out} | {o['median_wall_s']:.2f} ({o['max_wall_s']:.2f}) s | "
+                 f"{split} | {re} |")
+    m = s["machine"]
+    L += ["", f"(Wall times on {m['cpus']} cores, load average {m['load_avg_start'][0]:g} at the start, "
+          f"{m['load_avg_end'][0]:g} at the end. \"built\": a part outside every stored map's scaling range gets "
+          f"its FS map built and stored on the spot, inside the timed run.)"]
+    return "\n".join(L) + "\n"
 
 
 if __name__ == "__main__":

@@ -3,18 +3,26 @@
 A. The paper's test: 15 grasps with grade > 0.7 drawn uniformly about the adapted map
    of the glue-bottle analog (``graspsim.analogs``: cloud -> identification -> combined
    map of two cylinders), lift-and-place, simulated against the analog's true geometry
-   standing as it stood in the cloud -- not against the identified primitives. Drawn among the poses that clear the table (a robot would not be sent
-   into it); the same draw over all poses reports START_COLLISION apart.
+   standing as it stood in the cloud -- not against the identified primitives. Drawn
+   among the poses that clear the table (a robot would not be sent into it), repeated
+   over independent draws; the same draw over all poses reports START_COLLISION apart.
 B. The same at scale: the five paper primitives at three sizes with FS maps and, for
    the other sizes, maps scaled (Combined) from the paper-size FS map, plus the other
-   case-study analogs through the planner; grasps drawn uniformly over the surface
-   among those above the grade threshold (the paper's 0.7, and the calibrated
-   ``pad_contact`` grade above its own threshold), without and with execution noise
-   (sigma 3 mm / 2 deg). Success of feasible trials with 95 % Wilson intervals per
-   object and map kind, failures by outcome, START_COLLISION apart.
+   case-study analogs through the planner. From each map, ``--per-case`` grasps are
+   drawn uniformly over the surface among those a selection keeps: the paper's grade
+   > 0.7; and, for the base rate, the same map's grasps <= 0.7 and all its grasps (any
+   grade; scaled and adapted maps hold only grasps > 0.7, so these come from the FS
+   maps); and the calibrated ``pad_contact`` grade above its own threshold.
 
-    python experiments/e04_sim_validation.py --out results/e04
-    python experiments/e04_sim_validation.py --quick --out results/e04_quick
+Every drawn grasp is simulated twice, exactly and with execution noise (sigma 3 mm /
+2 deg). A drawn pose that starts in collision with the table or the object
+(START_COLLISION, mostly grasps from below) is not a trial of the grasp; without noise
+the feasible poses are the denominator. With noise the same poses are counted: a pose
+that noise pushes into collision is a FAILED attempt, and rates are given of the poses
+feasible without noise and of all drawn poses (95 % Wilson intervals throughout).
+
+    python experiments/e04_sim_validation.py
+    python experiments/e04_sim_validation.py --quick --out results/e04-quick
 """
 
 from __future__ import annotations
@@ -22,21 +30,25 @@ from __future__ import annotations
 import argparse
 import logging
 import math
-import time
+import sys
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _common import RunRecord, default_out, rate_ci  # noqa: E402
+
 from graspsim.analogs import ANALOGS  # noqa: E402
 from graspsim.calibration import (  # noqa: E402
     CalibrationCase, SimCondition, TrialTable, simulate_samples, wilson_interval)
-from graspsim.calibration.markdown import fmt, md_table  # noqa: E402
-from graspsim.calibration.outputs import library_versions, write_json, write_text  # noqa: E402
+from graspsim.calibration.markdown import md_table  # noqa: E402
+from graspsim.calibration.outputs import write_json, write_text  # noqa: E402
 from graspsim.calibration.trials import CaseSample  # noqa: E402
 from graspsim.grades import get_grade  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid  # noqa: E402
-from graspsim.maps.generate import generate_fs_map  # noqa: E402
+from graspsim.maps.generate import MapConfig, generate_fs_map  # noqa: E402
 from graspsim.maps.scaling import scale_map  # noqa: E402
 from graspsim.planner import plan  # noqa: E402
 from graspsim.primitives import synthetic_cloud  # noqa: E402
@@ -48,9 +60,17 @@ from graspsim.transforms import invert_transform, make_transform  # noqa: E402
 log = logging.getLogger("e04")
 
 
+#: what a selection keeps of a map: the paper's grade above 0.7, at or below it, any
+#: grade (the base rate), the calibrated pad-contact grade above its threshold
+SELECTIONS = ("paper", "paper_low", "all", "pad_contact")
+LABELS = {"paper": "paper grade > 0.7", "paper_low": "paper grade <= 0.7", "all": "any grade (base rate)",
+          "pad_contact": "pad-contact grade > its threshold"}
+QUICK_MAP = MapConfig(surface_step=0.01, rotation_step=math.radians(22.0))
+
+
 @dataclass(frozen=True)
 class Config:
-    out: str = "results/e04"
+    out: str = default_out(__file__)
     seed: int = 0
     per_case: int = 150
     paper_test: int = 15
@@ -58,26 +78,34 @@ class Config:
     sizes: tuple = (0.8, 1.0, 1.25)
     primitives: tuple = tuple(PAPER_SHAPES)
     analogs: tuple = tuple(ANALOGS)
-    grades: tuple = ("paper", "pad_contact")
+    selections: tuple = SELECTIONS
     noise: tuple = (0.003, math.radians(2.0))
     candidates: int = 40000
     threads: int = 2
     db: str = ""
+    quick: bool = False
+
+    @property
+    def map_config(self) -> MapConfig:
+        return QUICK_MAP if self.quick else MapConfig()
 
 
-def parse() -> Config:
+def parse(argv=None) -> Config:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default=Config.out)
     p.add_argument("--seed", type=int, default=Config.seed)
-    p.add_argument("--per-case", type=int, default=Config.per_case)
+    p.add_argument("--per-case", type=int, default=Config.per_case, help="grasps drawn per map and selection")
     p.add_argument("--threads", type=int, default=Config.threads)
     p.add_argument("--db", default="", help="FS database folder (default OUT/fsdb)")
-    p.add_argument("--quick", action="store_true", help="two primitives, one analog, few grasps")
-    a = p.parse_args()
+    p.add_argument("--quick", action="store_true",
+                   help="two primitives, one analog, few grasps, coarse maps (1 cm / 22 deg)")
+    a = p.parse_args(argv)
+    if a.per_case < 1:
+        p.error(f"--per-case must be >= 1, got {a.per_case}")
     cfg = Config(out=a.out, seed=a.seed, per_case=a.per_case, threads=a.threads, db=a.db or f"{a.out}/fsdb")
     if a.quick:
-        cfg = replace(cfg, per_case=10, paper_test_repeats=2, sizes=(1.0, 1.25), primitives=("box", "cylinder"),
-                      analogs=("glue_bottle",), candidates=5000)
+        cfg = replace(cfg, per_case=min(a.per_case, 10), paper_test_repeats=2, sizes=(1.0, 1.25),
+                      primitives=("box", "cylinder"), analogs=("glue_bottle",), candidates=5000, quick=True)
     return cfg
 
 
@@ -86,9 +114,9 @@ def primitive_cases(cfg: Config) -> list[CalibrationCase]:
     cases = []
     for name in cfg.primitives:
         base = PAPER_SHAPES[name]
-        fs_ref = generate_fs_map(base, threads=cfg.threads)
+        fs_ref = generate_fs_map(base, config=cfg.map_config, threads=cfg.threads)
         for s, shape in zip(cfg.sizes, size_grid(base, cfg.sizes)):
-            fs = fs_ref if s == 1.0 else generate_fs_map(shape, threads=cfg.threads)
+            fs = fs_ref if s == 1.0 else generate_fs_map(shape, config=cfg.map_config, threads=cfg.threads)
             cases.append(CalibrationCase(f"{name}@{s:g}/fs", fs, group=f"{name}@{s:g}", kind="fs"))
             if s != 1.0:
                 cases.append(CalibrationCase(f"{name}@{s:g}/scaled", scale_map(fs_ref, shape),
@@ -112,7 +140,7 @@ def analog_cloud(name: str, seed: int):
 def analog_cases(cfg: Config) -> tuple[list[CalibrationCase], dict]:
     """Adapted maps of the case-study analogs (``graspsim.analogs``) from their clouds,
     simulated against the true shapes standing as in the cloud."""
-    db = MapDatabase(cfg.db)
+    db = MapDatabase(cfg.db, config=cfg.map_config)
     db.build(PAPER_SHAPES.values(), threads=cfg.threads)
     cases, info = [], {}
     for name in cfg.analogs:
@@ -130,13 +158,17 @@ def analog_cases(cfg: Config) -> tuple[list[CalibrationCase], dict]:
 
 
 # ---------------------------------------------------------------------- selection
-def above_threshold(case: CalibrationCase, grade, rng, n_candidates: int) -> np.ndarray:
-    """Rows of the case's map above the grade's threshold. The paper's grade is stored
-    in the map; a calibrated grade is computed on a random subset of ``n_candidates``
-    rows (regrading a million-row map takes a while)."""
+def selected_rows(case: CalibrationCase, selection: str, grade, rng, n_candidates: int) -> np.ndarray:
+    """Rows of the case's map a selection keeps. The paper's grade is stored in the
+    map; the calibrated grade is computed on a random subset of ``n_candidates`` rows
+    (regrading a million-row map takes a while)."""
     g = case.gmap
-    if grade.name == "paper":
+    if selection == "paper":
         return np.flatnonzero(g.grade > 0.7)
+    if selection == "paper_low":
+        return np.flatnonzero(g.grade <= 0.7)
+    if selection == "all":
+        return np.arange(len(g))
     rows = np.sort(rng.choice(len(g), min(len(g), n_candidates), replace=False))
     return rows[grade.grade_rows(g, rows) > grade.threshold]
 
@@ -161,6 +193,17 @@ def clears_table(case: CalibrationCase, rows: np.ndarray) -> np.ndarray:
     return g.lowest_point(T, g.pregrasp_opening(case.gmap.width[rows])) >= 0.0
 
 
+# -------------------------------------------------------------------- simulation
+def paired(samples: list[CaseSample], conditions: list[SimCondition], cfg: Config) -> TrialTable:
+    """Every sample simulated without (``outcome``) and with execution noise
+    (``outcome_noise``), row by row the same grasps."""
+    exact, noisy = (simulate_samples(samples, c, seed=cfg.seed, threads=cfg.threads, features=())
+                    for c in conditions)
+    if not (np.array_equal(exact["case"], noisy["case"]) and np.array_equal(exact["row"], noisy["row"])):
+        raise RuntimeError("the two conditions simulated different grasps")  # pragma: no cover
+    return exact.with_columns(outcome_noise=noisy["outcome"])
+
+
 # ------------------------------------------------------------------------- report
 def rate_rows(table: TrialTable, keys: tuple[str, ...]) -> list[dict]:
     out = []
@@ -173,118 +216,212 @@ def rate_rows(table: TrialTable, keys: tuple[str, ...]) -> list[dict]:
     return out
 
 
-def rates(t: TrialTable) -> dict:
-    oc = t["outcome"] if len(t) else np.zeros(0, int)
-    feas = oc != TrialOutcome.START_COLLISION
-    k, n = int(np.sum(oc == TrialOutcome.SUCCESS)), int(feas.sum())
+def _rate(k: int, n: int) -> dict:
     lo, hi = wilson_interval(k, n)
-    return {"drawn": int(len(oc)), "start_collision": int((~feas).sum()), "feasible": n, "success": k,
-            "rate": k / n if n else float("nan"), "ci": (float(lo), float(hi)),
-            "failures": {o.label: int(np.sum(oc == o)) for o in TrialOutcome
-                         if o not in (TrialOutcome.SUCCESS, TrialOutcome.START_COLLISION)}}
+    return {"success": int(k), "of": int(n), "rate": k / n if n else None, "ci": [float(lo), float(hi)]}
+
+
+def _failures(oc: np.ndarray) -> dict:
+    return {o.label: int(np.sum(oc == o)) for o in TrialOutcome if o is not TrialOutcome.SUCCESS}
+
+
+def rates(t: TrialTable) -> dict:
+    """Rates of paired trials (``outcome`` exact, ``outcome_noise`` with noise)."""
+    sc, ok = TrialOutcome.START_COLLISION, TrialOutcome.SUCCESS
+    oc0 = t["outcome"] if len(t) else np.zeros(0, np.int8)
+    oc1 = t["outcome_noise"] if len(t) else np.zeros(0, np.int8)
+    feas = oc0 != sc
+    n, f = len(oc0), int(feas.sum())
+    return {"drawn": n, "start_collision": n - f, "feasible": f,
+            "exact": {**_rate(int(np.sum(oc0 == ok)), f), "failures": _failures(oc0[feas])},
+            "noise": {"of_feasible": _rate(int(np.sum((oc1 == ok) & feas)), f),
+                      "of_drawn": _rate(int(np.sum(oc1 == ok)), n),
+                      "pushed_into_collision": int(np.sum((oc1 == sc) & feas)),
+                      "failures_of_feasible": _failures(oc1[feas]),
+                      # the old (flattering) denominator, for comparison: feasible under noise
+                      "of_feasible_with_noise": _rate(int(np.sum(oc1 == ok)), int(np.sum(oc1 != sc)))}}
 
 
 def _fail_str(f: dict) -> str:
     return ", ".join(f"{k} {v}" for k, v in f.items() if v) or "–"
 
 
-def main() -> None:
+def paper_test(glue: CalibrationCase, conditions: list[SimCondition], cfg: Config) -> dict:
+    """Part A: independent draws of ``paper_test`` grasps > 0.7 clear of the table; the
+    same number of draws over all the map's grasps clear of the table (the base rate)."""
+    rng = np.random.default_rng([cfg.seed, 15])
+    hi = np.flatnonzero(glue.gmap.grade > 0.7)
+    clear = hi[clears_table(glue, hi)]
+    draws = [uniform_rows(glue, clear, cfg.paper_test, rng) for _ in range(cfg.paper_test_repeats)]
+    raw = uniform_rows(glue, hi, cfg.paper_test, rng)
+    rows = np.concatenate(draws)
+    t = paired([CaseSample(glue, rows, np.ones(len(rows)), len(clear), len(glue.gmap))], conditions, cfg)
+    per_draw = np.split(np.arange(len(t)), np.cumsum([len(d) for d in draws])[:-1])
+    t_raw = paired([CaseSample(glue, raw, np.ones(len(raw)), len(hi), len(glue.gmap))], conditions,
+                   replace(cfg, seed=cfg.seed + 1))
+    every = np.arange(len(glue.gmap))
+    clear_all = every[clears_table(glue, every)]
+    base = np.concatenate([uniform_rows(glue, clear_all, cfg.paper_test, rng) for _ in draws])
+    t_base = paired([CaseSample(glue, base, np.ones(len(base)), len(clear_all), len(glue.gmap))], conditions,
+                    replace(cfg, seed=cfg.seed + 2))
+    return {"first_draw": rates(t.select(per_draw[0])), "draws": len(draws), "per_draw": cfg.paper_test,
+            "successes_per_draw": [int(np.sum(t["outcome"][i] == 0)) for i in per_draw],
+            "all_draws": rates(t), "uniform_over_all_poses": rates(t_raw), "any_grade_draws": rates(t_base),
+            "map_grasps": int(len(glue.gmap)), "accepted_grasps": int(len(hi)),
+            "accepted_clear_of_table": int(len(clear)), "clear_of_table": int(len(clear_all))}
+
+
+def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger("graspsim.sim.batch").setLevel(logging.WARNING)
-    cfg = parse()
+    run = RunRecord(__file__, argv)
+    cfg = parse(argv)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    grades = {g: get_grade(g) for g in cfg.grades}
+    grade = get_grade("pad_contact")
     prim = primitive_cases(cfg)
     analogs, plan_info = analog_cases(cfg)
     conditions = [SimCondition("exact"),
                   SimCondition("noise", noise_position=cfg.noise[0], noise_rotation=cfg.noise[1])]
-
-    # A. the paper's test, repeated with independent draws of 15
     glue = next((c for c in analogs if c.group == "glue_bottle"), None)
-    paper_test = None
-    if glue is not None:
-        rng = np.random.default_rng([cfg.seed, 15])
-        hi = np.flatnonzero(glue.gmap.grade > 0.7)
-        clear = hi[clears_table(glue, hi)]
-        draws = [uniform_rows(glue, clear, cfg.paper_test, rng) for _ in range(cfg.paper_test_repeats)]
-        raw = uniform_rows(glue, hi, cfg.paper_test, rng)
-        paper_test = {}
-        for cond in conditions:
-            t = simulate_samples([CaseSample(glue, np.concatenate(draws), np.ones(sum(map(len, draws))),
-                                             len(clear), len(glue.gmap))], cond, seed=cfg.seed,
-                                 threads=cfg.threads, features=())
-            per_draw = np.split(t["outcome"], np.cumsum([len(d) for d in draws])[:-1])
-            t_raw = simulate_samples([CaseSample(glue, raw, np.ones(len(raw)), len(hi), len(glue.gmap))], cond,
-                                     seed=cfg.seed + 1, threads=cfg.threads, features=())
-            paper_test[cond.name] = {
-                "first_draw": rates(TrialTable({"outcome": per_draw[0]})),
-                "successes_per_draw": [int(np.sum(o == 0)) for o in per_draw],
-                "all_draws": rates(t), "uniform_over_all_poses": rates(t_raw),
-                "accepted_grasps": int(len(hi)), "accepted_clear_of_table": int(len(clear))}
+    part_a = None if glue is None else paper_test(glue, conditions, cfg)
 
-    # B. at scale
     tables = []
-    for gname, grade in grades.items():
+    for sel in cfg.selections:
         samples = []
         for case in prim + analogs:
-            rng = np.random.default_rng([cfg.seed, len(case.name), sum(map(ord, case.name + gname))])
-            rows = uniform_rows(case, above_threshold(case, grade, rng, cfg.candidates), cfg.per_case, rng)
-            samples.append(CaseSample(case, rows, np.ones(len(rows)), len(rows), len(case.gmap)))
-        for cond in conditions:
-            t = simulate_samples(samples, cond, seed=cfg.seed, threads=cfg.threads, features=())
-            tables.append(t.with_columns(selected_by=np.full(len(t), gname)))
+            rng = np.random.default_rng([cfg.seed, len(case.name), sum(map(ord, case.name + sel))])
+            eligible = selected_rows(case, sel, grade, rng, cfg.candidates)
+            if sel in ("paper_low", "all") and not np.any(case.gmap.grade[eligible] <= 0.7):
+                continue  # a map of grasps > 0.7 only: "all" would repeat "paper"
+            rows = uniform_rows(case, eligible, cfg.per_case, rng)
+            samples.append(CaseSample(case, rows, np.ones(len(rows)), len(eligible), len(case.gmap)))
+        t = paired(samples, conditions, cfg)
+        tables.append(t.with_columns(selected_by=np.full(len(t), sel)))
     table = TrialTable.concat(tables, meta={"config": asdict(cfg)})
     table.save(out / "trials.npz")
 
     is_prim = np.array([c.split("@")[0] in PAPER_SHAPES for c in table["group"]])
     table = table.with_columns(family=np.where(is_prim, "primitives", "analogs"))
-    per_case = rate_rows(table, ("selected_by", "condition", "group", "kind"))
-    per_kind = rate_rows(table, ("selected_by", "condition", "family", "kind"))
-    pooled = rate_rows(table, ("selected_by", "condition"))
-    pooled_prims = rate_rows(table.select(is_prim), ("selected_by", "condition"))
-    summary = {"config": asdict(cfg), "versions": library_versions(), "seconds": time.perf_counter() - t0,
-               "grade_thresholds": {g: m.threshold for g, m in grades.items()},
-               "planner": plan_info, "paper_test": paper_test, "pooled": pooled,
-               "pooled_primitives": pooled_prims, "per_kind": per_kind, "per_case": per_case}
+    fs = table.select(table["kind"] == "fs")
+    summary = run.summary({
+        "config": asdict(cfg), "noise": {"position_m": cfg.noise[0], "rotation_deg": math.degrees(cfg.noise[1])},
+        "grade_thresholds": {"paper": 0.7, "pad_contact": grade.threshold},
+        "cases": {"fs": int(len(set(fs["case"]))), "all": len(prim) + len(analogs),
+                  "primitives": list(cfg.primitives), "sizes": list(cfg.sizes), "analogs": list(cfg.analogs)},
+        "planner": plan_info, "paper_test": part_a,
+        "pooled": rate_rows(table, ("selected_by",)),
+        "pooled_fs": rate_rows(fs, ("selected_by",)),
+        "per_kind": rate_rows(table, ("selected_by", "family", "kind")),
+        "per_case": rate_rows(table, ("selected_by", "group", "kind"))})
     write_json(out / "summary.json", summary)
-    write_json(out / "config.json", asdict(cfg))
-    md = markdown(cfg, summary)
+    md = markdown(summary)
     write_text(out / "summary.md", md)
     print(md)
+    return 0
 
 
-def markdown(cfg: Config, s: dict) -> str:
-    L = ["# E04: simulated validation (lift-and-place, MuJoCo)", ""]
-    if s["paper_test"]:
-        L += ["## A. The paper's test: 15 grasps of the glue-bottle analog's adapted map", ""]
-        rows = []
-        for cond, d in s["paper_test"].items():
-            f, a, r = d["first_draw"], d["all_draws"], d["uniform_over_all_poses"]
-            rows.append([cond, f"{f['success']}/{f['feasible']}", fmt(f["ci"]),
-                         f"{a['success']}/{a['feasible']} ({len(d['successes_per_draw'])} draws)",
-                         fmt(a["rate"]), fmt(a["ci"]), _fail_str(a["failures"]),
-                         f"{r['start_collision']}/{r['drawn']}"])
-        L += [md_table(["condition", "first 15", "Wilson", "all draws", "rate", "Wilson", "failures",
-                        "START_COLLISION in a draw over all poses"], rows), ""]
-        L += [f"Planner: {s['planner'].get('glue_bottle', {}).get('parts')}", ""]
-    L += ["## B. At scale: grasps above the threshold, uniform over the surface", "",
-          f"Thresholds: {s['grade_thresholds']} (paper grade 0.7).", ""]
-    rows = [[r["selected_by"], r["condition"], r["feasible"], r["start_collision"], fmt(r["rate"]), fmt(r["ci"]),
-             _fail_str(r["failures"])] for r in s["pooled"]]
-    L += ["Pooled (primitives and analogs):", "", md_table(
-        ["grade", "condition", "feasible", "START_COLLISION", "success", "95 % Wilson", "failures"], rows), ""]
-    rows = [[r["selected_by"], r["condition"], r["family"], r["kind"], r["feasible"], r["start_collision"],
-             fmt(r["rate"]), fmt(r["ci"]), _fail_str(r["failures"])] for r in s["per_kind"]]
-    L += ["Per map kind:", "", md_table(["grade", "condition", "objects", "map", "feasible", "START_COLLISION",
-                                          "success", "95 % Wilson", "failures"], rows), ""]
-    rows = [[r["selected_by"], r["condition"], r["group"], r["kind"], r["feasible"], r["start_collision"],
-             fmt(r["rate"]), fmt(r["ci"]), _fail_str(r["failures"])] for r in s["per_case"]]
-    L += ["Per object and map:", "", md_table(["grade", "condition", "object", "map", "feasible",
-                                               "START_COLLISION", "success", "95 % Wilson", "failures"], rows)]
+def _row(label: str, r: dict) -> list:
+    e, z = r["exact"], r["noise"]
+    return [label, r["drawn"], r["start_collision"], rate_ci(e["success"], e["of"], e["ci"]),
+            rate_ci(z["of_feasible"]["success"], z["of_feasible"]["of"], z["of_feasible"]["ci"]),
+            z["pushed_into_collision"], rate_ci(z["of_drawn"]["success"], z["of_drawn"]["of"])]
+
+
+HEAD = ["grasps", "drawn", "START_COLLISION (no noise)", "success of feasible, no noise",
+        "with noise, of feasible without it", "of which noise pushed into collision", "with noise, of drawn"]
+
+
+def markdown(s: dict) -> str:
+    L = ["# E04: simulated validation (lift-and-place, MuJoCo)", "", f"`{s['command']}`", ""]
+    a = s["paper_test"]
+    if a:
+        L += ["## A. The paper's test: grasps > 0.7 of the glue-bottle analog's adapted map", "",
+              md_table(HEAD, [_row("first draw of 15 (clear of the table)", a["first_draw"]),
+                              _row(f"{a['draws']} draws of {a['per_draw']} (clear of the table)", a["all_draws"]),
+                              _row("one draw over all poses", a["uniform_over_all_poses"]),
+                              _row(f"{a['draws']} draws of {a['per_draw']}, any grade (clear of the table)",
+                                   a["any_grade_draws"])]), "",
+              f"Successes per draw (no noise): {a['successes_per_draw']}; the map holds {a['map_grasps']} grasps, "
+              f"{a['accepted_grasps']} > 0.7, {a['accepted_clear_of_table']} of them clear of the table.", ""]
+    L += ["## B. At scale: grasps drawn uniformly over the surface", "",
+          f"Thresholds: {s['grade_thresholds']}.", "", "All maps:", "",
+          md_table(HEAD, [_row(LABELS[r["selected_by"]], r) for r in s["pooled"]]), "",
+          "FS maps only (the base rate: like with like):", "",
+          md_table(HEAD, [_row(LABELS[r["selected_by"]], r) for r in s["pooled_fs"]]), ""]
+    for key, title, cols in (("per_kind", "Per map kind", ("family", "kind")),
+                             ("per_case", "Per object and map", ("group", "kind"))):
+        rows = [[*(r[c] for c in (("selected_by",) + cols))] + _row("", r)[1:]
+                + [_fail_str(r["exact"]["failures"])] for r in s[key]]
+        L += [f"{title}:", "", md_table(["selection", *cols, *HEAD[1:], "failures (no noise)"], rows), ""]
     return "\n".join(L)
 
 
+def _noisy(r: dict) -> str:
+    z = r["noise"]["of_feasible"]
+    return f"{rate_ci(z['success'], z['of'], z['ci'])} of the poses feasible without noise"
+
+
+def readme_section(s: dict) -> str:
+    """The README's E04 paragraph and table (see ``experiments/report.py``)."""
+    by = {r["selected_by"]: r for r in s["pooled"]}
+    fs = {r["selected_by"]: r for r in s["pooled_fs"]}
+    nz = s["noise"]
+    noise = f"{1000 * nz['position_m']:g} mm / {nz['rotation_deg']:g}°"
+    c = s["cases"]
+    lost = [k for k, v in s["planner"].items() if not v["grasps"]]
+    failed = f" ({', '.join(lost)}: not identified, no map)" if lost else ""
+    L = [f"`{s['command']}` ({c['all']} maps: the primitives {', '.join(c['primitives'])} at "
+         f"{', '.join(f'{x:g}' for x in c['sizes'])}× the paper's size, FS and Combined-scaled maps, and the "
+         f"analogs {', '.join(c['analogs'])} planned from their complete clouds{failed}; "
+         f"{s['config']['per_case']} grasps drawn per "
+         f"map and selection, uniformly over the surface, each simulated without and with execution noise "
+         f"of {noise}):", ""]
+    head = ["grasps drawn from", "drawn", "start in collision (no noise)", "success of feasible, no noise",
+            f"with {noise} noise, of feasible without it", "with noise, of drawn"]
+    rows = []
+    for label, src, key in (("all maps", by, "paper"), ("all maps", by, "pad_contact"),
+                            ("FS maps", fs, "paper"), ("FS maps", fs, "paper_low"), ("FS maps", fs, "all")):
+        if key not in src:
+            continue
+        r = src[key]
+        e, z = r["exact"], r["noise"]
+        rows.append([f"{label}, {LABELS[key]}", r["drawn"], r["start_collision"],
+                     rate_ci(e["success"], e["of"], e["ci"]),
+                     rate_ci(z["of_feasible"]["success"], z["of_feasible"]["of"], z["of_feasible"]["ci"]),
+                     rate_ci(z["of_drawn"]["success"], z["of_drawn"]["of"], z["of_drawn"]["ci"])])
+    L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    L += ["| " + " | ".join(str(x) for x in r) + " |" for r in rows]
+    L += ["", "Without noise, per primitive (FS maps, all sizes): grasps > 0.7 against the base rate:", "",
+          "| FS maps of | grade > 0.7 | grade <= 0.7 | any grade |", "|---|---|---|---|"]
+    for prim in c["primitives"]:
+        cells = []
+        for key in ("paper", "paper_low", "all"):
+            rs = [r for r in s["per_case"] if r["selected_by"] == key and r["kind"] == "fs"
+                  and r["group"].split("@")[0] == prim]
+            k, n = sum(r["exact"]["success"] for r in rs), sum(r["exact"]["of"] for r in rs)
+            cells.append(rate_ci(k, n, digits=0))
+        L.append(f"| {prim} | " + " | ".join(cells) + " |")
+    p = by.get("paper")
+    if p:
+        z = p["noise"]
+        L += ["", f"A drawn pose that starts in collision with the table or the object is not a trial; "
+              f"with noise, {z['pushed_into_collision']} of the {p['feasible']} poses feasible without it start "
+              f"in collision and count as failed attempts (counting only the poses still feasible under noise "
+              f"would give {rate_ci(z['of_feasible_with_noise']['success'], z['of_feasible_with_noise']['of'])}). "
+              f"Failures without noise: {_fail_str(p['exact']['failures']).replace('–', 'none')}."]
+    a = s["paper_test"]
+    if a:
+        d, f0, b = a["all_draws"], a["first_draw"], a["any_grade_draws"]
+        L += ["", f"The paper's test — {a['per_draw']} grasps > 0.7 of the glue-bottle analog's adapted map, drawn "
+              f"among the poses clear of the table, lifted and placed against its true shape: "
+              f"{f0['exact']['success']}/{f0['feasible']} succeed; over {a['draws']} such draws "
+              f"{rate_ci(d['exact']['success'], d['exact']['of'], d['exact']['ci'])}, with noise "
+              f"{_noisy(d)}; the same number of draws over all its grasps clear of the table (any grade: "
+              f"{a['map_grasps'] - a['accepted_grasps']} of its {a['map_grasps']} grasps are <= 0.7) "
+              f"{rate_ci(b['exact']['success'], b['exact']['of'], b['exact']['ci'])}, with noise {_noisy(b)}."]
+    return "\n".join(L) + "\n"
+
+
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

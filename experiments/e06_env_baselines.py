@@ -16,11 +16,16 @@ candidate). On the test episodes all policies are scored on the same episodes:
 
 Success rates with 95 % Wilson intervals, the paired comparison learned vs highest grade
 (exact McNemar test), rates per object kind, the outcomes of the chosen grasps, and the
-cost of an episode (reset, one trial). Episodes are seeded by their split and index
-from one SeedSequence, so results do not depend on ``--workers``. Writes
-results.json, table.md, figure.png, config.json and episodes.npz to ``--out``.
+cost of an episode (reset, one trial). With execution error, every test candidate is
+also simulated at its nominal pose (``evaluate_candidates(execution_error=False)``), so
+each policy's choice is scored on the same episodes without the error too, and the
+chosen grasps' START_COLLISION counts are broken down per object kind with and without
+it. Episodes are seeded by their split and index from one SeedSequence, so results do
+not depend on ``--workers``. Writes summary.json, results.json, table.md, figure.png,
+config.json and episodes.npz to ``--out``.
 
-    python experiments/e06_env_baselines.py --out results/e06
+    python experiments/e06_env_baselines.py
+    python experiments/e06_env_baselines.py --perception model --out results/e06_env_baselines.model
     python experiments/e06_env_baselines.py --quick --out results/e06-quick
 """
 
@@ -43,7 +48,8 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, load_average, write_config, write_json  # noqa: E402
+from _common import (Clock, RunRecord, database_note, database_record, default_out,  # noqa: E402
+                     load_average, pct, rate_ci, write_config, write_json)
 
 import graspsim  # noqa: E402,F401  (registers the environments)
 from graspsim.envs.candidates import CANDIDATE_FEATURES  # noqa: E402
@@ -77,6 +83,10 @@ class E06Config:
     coarse_db: bool
     quick: bool
 
+    @property
+    def noisy(self) -> bool:
+        return self.position_noise > 0 or self.rotation_noise_deg > 0
+
     def env_kwargs(self) -> dict:
         kw = dict(objects=self.objects, n_candidates=self.k, cloud_size=self.cloud_size, view=self.view,
                   perception=self.perception, position_noise=self.position_noise,
@@ -89,7 +99,7 @@ class E06Config:
 
 def parse_args(argv=None) -> tuple[E06Config, Path]:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default="results/e06", help="output folder")
+    p.add_argument("--out", default=default_out(__file__), help="output folder")
     p.add_argument("--quick", action="store_true", help="small CI run on a coarse database in --out")
     p.add_argument("--train", type=int, default=None, help="training episodes (default 400)")
     p.add_argument("--test", type=int, default=None, help="test episodes (default 500)")
@@ -146,6 +156,10 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     c = Clock()
     ev = env.evaluate_candidates(threads=1)
     evaluate = c.record()
+    # the same candidates at their nominal poses (test split only: the policies learn
+    # from the outcomes with the error)
+    exact = (env.evaluate_candidates(threads=1, execution_error=False)["outcome"]
+             if cfg.noisy and split == 1 else ev["outcome"])
     a = highest_grade_policy(obs)
     c = Clock()
     _, _, _, _, step_info = env.step(a)
@@ -153,7 +167,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     return {"split": split, "index": i, "kind": info["object"]["kind"], "pose": info["object"]["pose"],
             "parts": info["parts"], "redraws": info["redraws"], "n_clear": info["n_clear"],
             "features": feats.astype(np.float32), "candidates": obs["candidates"],
-            "mask": obs["action_mask"], "outcome": ev["outcome"], "cloud": obs["cloud"],
+            "mask": obs["action_mask"], "outcome": ev["outcome"], "outcome_exact": exact, "cloud": obs["cloud"],
             "object_pose": obs["object_pose"],
             "reset_s": reset["wall_s"], "reset_cpu_s": reset["cpu_s"], "plan_s": env.timing.get("plan"),
             "evaluate_s": evaluate["wall_s"], "trials": int(obs["action_mask"].sum()),
@@ -221,18 +235,28 @@ def mcnemar(a: np.ndarray, b: np.ndarray) -> dict:
 
 def evaluate(eps: list[dict], pick: dict[str, np.ndarray]) -> dict:
     O, M = _stack(eps, "outcome"), _stack(eps, "mask").astype(bool)
+    OX = _stack(eps, "outcome_exact")
     rows = np.arange(len(eps))
     kinds = np.array([e["kind"] for e in eps])
     ok = {p: O[rows, pick[p]] == 0 for p in POLICIES}
+    sc = OUTCOMES.index("start_collision")
     res = {"overall": {p: rate(ok[p]) for p in POLICIES},
+           # the same choices executed at their nominal poses (= overall without error)
+           "overall_exact": {**{p: rate(OX[rows, pick[p]] == 0) for p in POLICIES},
+                             "oracle": rate(np.any((OX == 0) & M, axis=1))},
            "random_expected": float(np.mean([np.mean(O[i][M[i]] == 0) for i in rows])),
            "by_kind": {k: {"episodes": int(np.sum(kinds == k)),
                            **{p: rate(ok[p][kinds == k])["rate"] for p in POLICIES},
                            "learned_vs_highest_grade": mcnemar(ok["learned"][kinds == k],
-                                                               ok["highest_grade"][kinds == k])}
+                                                               ok["highest_grade"][kinds == k]),
+                           "start_collision": {p: int(np.sum(O[rows, pick[p]][kinds == k] == sc)) for p in POLICIES},
+                           "start_collision_exact": {p: int(np.sum(OX[rows, pick[p]][kinds == k] == sc))
+                                                     for p in POLICIES}}
                        for k in sorted(set(kinds))},
            "chosen_outcomes": {p: {o: int(np.sum(O[rows, pick[p]] == j)) for j, o in enumerate(OUTCOMES)}
                                for p in POLICIES},
+           "chosen_outcomes_exact": {p: {o: int(np.sum(OX[rows, pick[p]] == j)) for j, o in enumerate(OUTCOMES)}
+                                     for p in POLICIES},
            "learned_vs_highest_grade": mcnemar(ok["learned"], ok["highest_grade"]),
            "map_only_vs_highest_grade": mcnemar(ok["learned_map_only"], ok["highest_grade"])}
     return res
@@ -324,11 +348,12 @@ def plot(res: dict, path: Path) -> None:
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     logging.getLogger("graspsim").setLevel(logging.WARNING)  # no per-trial lines
+    run = RunRecord(__file__, argv)
     cfg, out = parse_args(argv)
     out.mkdir(parents=True, exist_ok=True)
     write_config(out / "config.json", cfg)
     total = Clock()
-    _env(cfg)  # builds the reference maps once, before any worker starts
+    db_start = database_record(_env(cfg).db)  # builds the reference maps once, before any worker starts
     log.info("E06: %d training + %d test episodes, objects %s, K = %d, %d worker(s)",
              cfg.train, cfg.test, cfg.objects, cfg.k, cfg.workers)
     t0 = time.perf_counter()
@@ -356,11 +381,66 @@ def main(argv=None) -> int:
         f"{name}_{k}": _stack(eps, k) for name, eps in (("train", train), ("test", test))
         for k in ("features", "candidates", "mask", "outcome", "cloud", "object_pose")},
         test_kind=np.array([e["kind"] for e in test]), feature_names=np.array(FEATURE_NAMES))
+    write_json(out / "summary.json", run.summary({"config": asdict(cfg), "results": res, "cost": cost,
+                                                  "database": {"start": db_start,
+                                                               "end": database_record(_env(cfg).db)}}))
     table = write_table(cfg, res, cost)
     (out / "table.md").write_text("# E06 grasp-selection baselines (GraspSelect-v0)\n\n" + table)
     plot(res, out / "figure.png")
     log.info("%s\nwall %.0f s; results in %s", table, total.wall, out)
     return 0
+
+
+NAMES = {"random": "random valid candidate", "highest_grade": "highest paper grade",
+         "learned": "learned (all features)", "learned_map_only": "learned (map columns only)",
+         "oracle": "oracle (any candidate succeeds)"}
+
+
+def readme_section(s: dict) -> str:
+    """The README's E06 paragraph and tables (see ``experiments/report.py``)."""
+    cfg, r, c = s["config"], s["results"], s["cost"]
+    noisy = cfg["position_noise"] > 0 or cfg["rotation_noise_deg"] > 0
+    err = (f"{1000 * cfg['position_noise']:g} mm / {cfg['rotation_noise_deg']:g}° execution error" if noisy
+           else "no execution error")
+    see = ("identified in its observed cloud" if cfg["perception"] == "cloud"
+           else "given to the planner as its true primitives and pose (`plan_shape`)")
+    L = [f"`{s['command']}`: {r['test_episodes']} test episodes (objects `{cfg['objects']}`, K = {cfg['k']} "
+         f"candidates, the object {see}, {err}); the learned policies are trained on {r['train_candidates']} "
+         f"logged candidates of {r['train_episodes']} other episodes." + database_note(s), ""]
+    sc_err = "START_COLLISION of the chosen grasp" + (" (with / without the error)" if noisy else "")
+    head = ["policy", f"success, {err}"] + (["the same choice without the error"] if noisy else []) + [sc_err]
+    L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for p in POLICIES:
+        o = r["overall"][p]
+        row = [NAMES[p], rate_ci(o["successes"], o["n"], o["ci95"])]
+        if noisy:
+            x = r["overall_exact"][p]
+            row.append(rate_ci(x["successes"], x["n"], x["ci95"]))
+        n_sc = r["chosen_outcomes"][p]["start_collision"]
+        row.append(f"{n_sc} / {r['chosen_outcomes_exact'][p]['start_collision']}" if noisy else str(n_sc))
+        L.append("| " + " | ".join(row) + " |")
+    m = r["learned_vs_highest_grade"]
+    L += ["", f"Random choice's expected success over the valid candidates: {pct(r['random_expected'])} %. "
+          f"Learned vs highest grade on the same episodes: learned alone succeeds in {m['only_first']}, the "
+          f"highest grade alone in {m['only_second']} (exact McNemar p = {m['p_exact']:.2g}). Per object kind:", "",
+          "| kind | episodes | random | highest grade | learned | oracle | learned alone / highest grade alone | "
+          + sc_err.replace("of the chosen grasp", "of the highest-grade grasp") + " |",
+          "|---|---|---|---|---|---|---|---|"]
+    for k, b in r["by_kind"].items():
+        mk = b["learned_vs_highest_grade"]
+        sc = str(b["start_collision"]["highest_grade"])
+        if noisy:
+            sc += f" / {b['start_collision_exact']['highest_grade']}"
+        L.append(f"| {k} | {b['episodes']} | " + " | ".join(f"{pct(b[p], 0)} %" for p in
+                                                              ("random", "highest_grade", "learned", "oracle"))
+                 + f" | {mk['only_first']} / {mk['only_second']} | {sc} |")
+    m = s["machine"]
+    L += ["", f"Cost, mean CPU time: a reset (drawing the object, its cloud, planning) "
+          f"{c['reset_cpu']['mean_ms']:.0f} ms, "
+          f"a step (one trial) {c['step_cpu']['mean_ms']:.0f} ms (wall {c['reset']['mean_ms']:.0f} and "
+          f"{c['step']['mean_ms']:.0f} ms on this {m['cpus']}-core machine shared at a load average of "
+          f"{m['load_avg_start'][0]:g}–{m['load_avg_end'][0]:g})."]
+    return "\n".join(L) + "\n"
 
 
 if __name__ == "__main__":

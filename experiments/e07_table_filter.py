@@ -7,11 +7,14 @@ primitives, standing on a table at a random yaw, seen as single-view clouds from
 camera above the table -- the script plans the adapted map twice, without and with
 ``PlannerConfig(table=TablePlane())`` (table at the object's lowest point along the
 cloud's +z), draws grasps with grade > 0.7 uniformly over each map, and lifts and places
-them in MuJoCo against the true shape standing as in the cloud. Reports per object and
-pooled: grasps kept, share of START_COLLISION, success of the feasible trials (95 %
-Wilson intervals). Writes table.md, results.json and config.json to ``--out``.
+them in MuJoCo against the true shape standing as in the cloud -- by default without
+execution error (the grasps are executed exactly; ``--noise default`` adds 3 mm / 2 deg,
+or ``--noise MM:DEG``). Reports per object and pooled: grasps kept, share of
+START_COLLISION, success of the feasible trials and of all drawn grasps (95 % Wilson
+intervals). Writes summary.json, table.md, results.json and config.json to ``--out``.
 
-    python experiments/e07_table_filter.py --out results/e07
+    python experiments/e07_table_filter.py
+    python experiments/e07_table_filter.py --noise default --out results/e07_table_filter.noise
     python experiments/e07_table_filter.py --quick --out results/e07-quick
 """
 
@@ -28,14 +31,16 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import Clock, provenance, write_config, write_json  # noqa: E402
+from _common import (Clock, RunRecord, database_note, database_record, default_out,  # noqa: E402
+                     noise_sigmas, pct, rate_ci, write_config, write_json)
 
 from graspsim.analogs import ANALOGS  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
 from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402
 from graspsim.primitives import synthetic_cloud  # noqa: E402
-from graspsim.sim import LiftPlace, SimSettings, TrialOutcome, build_scene, object_from_shape, run_trials  # noqa: E402
+from graspsim.sim import (ExecutionNoise, LiftPlace, SimSettings, TrialOutcome, build_scene,  # noqa: E402
+                          object_from_shape, run_trials)
 from graspsim.stats import wilson_interval  # noqa: E402
 from graspsim.transforms import invert_transform, make_transform  # noqa: E402
 
@@ -52,8 +57,14 @@ class Config:
     camera_distance: float = 0.6
     camera_elevation_deg: float = 40.0
     threads: int | None = None
+    execution_error: str = "none"
     db: str = ""
     quick: bool = False
+
+    @property
+    def execution_noise(self) -> ExecutionNoise | None:
+        pos, deg = noise_sigmas(self.execution_error)
+        return ExecutionNoise(pos, math.radians(deg)) if pos > 0 or deg > 0 else None
 
 
 def true_shape(name: str):
@@ -75,30 +86,41 @@ def scene_cloud(name: str, cfg: Config):
     return c.points, truth, T
 
 
+#: (label, with the table, grasps drawn from): the base rate draws from every grasp
+#: of the table-filtered map, any grade
+CONDITIONS = (("no table", False, "accepted"), ("table", True, "accepted"), ("table, any grade", True, "any"))
+
+
+def _trials(m, rows, scene, T_true_obj, cfg: Config) -> dict:
+    r = run_trials(scene, T_true_obj @ m.T_obj_wrist[rows], m.width[rows], LiftPlace(),
+                   threads=cfg.threads, seed=cfg.seed, noise=cfg.execution_noise)
+    ok = int(np.sum(r.outcome == TrialOutcome.SUCCESS))
+    return {"trials": len(rows), "counts": r.counts(), "start_collision": int(len(rows) - r.feasible),
+            "feasible": int(r.feasible), "success": ok, "success_rate": ok / r.feasible if r.feasible else None,
+            "interval_95": list(wilson_interval(ok, r.feasible)) if r.feasible else None}
+
+
 def run_object(name: str, db: MapDatabase, cfg: Config) -> dict:
     points, truth, T_cloud_true = scene_cloud(name, cfg)
     scene = build_scene(object_from_shape(truth), db.gripper, SimSettings(friction=db.quality.friction),
                         up=np.array([0.0, 0.0, 1.0]))
     row = {"object": name}
-    for label, table in (("no table", None), ("table", TablePlane())):
-        clock = Clock()
-        res = plan(points, db=db, rng=np.random.default_rng(cfg.seed), config=PlannerConfig(table=table))
-        t_plan = clock.wall
-        m = res.map.filter(accepted=True)
+    plans = {}
+    for label, with_table, drawn_from in CONDITIONS:
+        if with_table not in plans:
+            clock = Clock()
+            plans[with_table] = (plan(points, db=db, rng=np.random.default_rng(cfg.seed),
+                                      config=PlannerConfig(table=TablePlane() if with_table else None)), clock.wall)
+        res, t_plan = plans[with_table]
+        m = res.map.filter(accepted=True) if drawn_from == "accepted" else res.map
         entry = {"status": res.status.value, "parts": [p.primitive.kind for p in res.parts],
                  "grasps": len(m), "plan_s": t_plan, "table": res.map.meta.extra.get("table")}
         if len(m):
             rows = m.uniform_surface_rows(cfg.trials, np.random.default_rng(cfg.seed))
-            T_true_obj = invert_transform(T_cloud_true) @ res.T_cloud_obj
-            r = run_trials(scene, T_true_obj @ m.T_obj_wrist[rows], m.width[rows], LiftPlace(),
-                           threads=cfg.threads, seed=cfg.seed)
-            ok = int(np.sum(r.outcome == TrialOutcome.SUCCESS))
-            entry.update(trials=len(rows), counts=r.counts(), start_collision=int(len(rows) - r.feasible),
-                         feasible=int(r.feasible), success=ok,
-                         success_rate=ok / r.feasible if r.feasible else None,
-                         interval_95=list(wilson_interval(ok, r.feasible)) if r.feasible else None)
+            entry.update(_trials(m, rows, scene, invert_transform(T_cloud_true) @ res.T_cloud_obj, cfg),
+                         grade_le_07=int(np.sum(m.grade[rows] <= 0.7)))
         row[label] = entry
-        log.info("%-14s %-8s %s, %d grasps > 0.7, %s", name, label, entry["status"], len(m),
+        log.info("%-14s %-16s %s, %d grasps, %s", name, label, entry["status"], len(m),
                  "" if "trials" not in entry else
                  f"START_COLLISION {entry['start_collision']}/{entry['trials']}, success "
                  f"{entry['success']}/{entry['feasible']}")
@@ -112,12 +134,13 @@ def _pct(x):
 def write_table(rows: list[dict], pooled: dict) -> str:
     L = ["# E07: adapted maps with and without the table", "",
          "Single-view clouds (2 mm, 0.8 mm noise) of objects standing on a table; grasps with grade "
-         "> 0.7 drawn uniformly over each adapted map; lift-and-place in MuJoCo against the true "
+         "> 0.7 (or any grade: the base rate) drawn uniformly over each adapted map; lift-and-place in MuJoCo "
+         "against the true "
          "shape. START_COLLISION: the pose already penetrates the table or the object.", "",
-         "| object | condition | identified | grasps > 0.7 | table height [mm] | START_COLLISION | "
+         "| object | condition | identified | grasps drawn from | table height [mm] | START_COLLISION | "
          "success of feasible | 95 % Wilson |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        for label in ("no table", "table"):
+        for label, _, _ in CONDITIONS:
             e = r[label]
             t = e.get("table")
             sc = "-" if "trials" not in e else f"{e['start_collision']}/{e['trials']}"
@@ -139,16 +162,23 @@ def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", default="results/e07", help="output folder")
+    p.add_argument("--out", default=default_out(__file__), help="output folder")
     p.add_argument("--trials", type=int, default=Config.trials, help="grasps per object and condition")
     p.add_argument("--seed", type=int, default=Config.seed)
     p.add_argument("--threads", type=int, default=None)
+    p.add_argument("--noise", default=Config.execution_error,
+                   help="execution error: none (default), default (3 mm / 2 deg) or MM:DEG")
     p.add_argument("--db", default="", help="FS database folder (default: the library's; quick: OUT/fsdb)")
     p.add_argument("--quick", action="store_true", help="two objects, a coarse database, few trials")
     a = p.parse_args(argv)
+    try:
+        noise_sigmas(a.noise)
+    except ValueError as e:
+        p.error(str(e))
+    run = RunRecord(__file__, argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    cfg = Config(trials=a.trials, seed=a.seed, threads=a.threads, db=a.db)
+    cfg = Config(trials=a.trials, seed=a.seed, threads=a.threads, execution_error=a.noise, db=a.db)
     map_cfg = MapConfig()
     if a.quick:
         cfg = replace(cfg, objects=("glue_bottle", "cylinder"), trials=min(a.trials, 12), quick=True,
@@ -158,21 +188,53 @@ def main(argv=None) -> int:
     total = Clock()
     db = MapDatabase(cfg.db or None, config=map_cfg)
     db.build(PAPER_SHAPES.values(), threads=cfg.threads)
+    db_start = database_record(db)
     rows = [run_object(name, db, cfg) for name in cfg.objects]
     pooled = {}
-    for label in ("no table", "table"):
+    for label, _, _ in CONDITIONS:
         es = [r[label] for r in rows if "trials" in r[label]]
         n, sc = sum(e["trials"] for e in es), sum(e["start_collision"] for e in es)
         feas, ok = sum(e["feasible"] for e in es), sum(e["success"] for e in es)
         pooled[label] = {"trials": n, "start_collision": sc, "start_collision_rate": sc / n if n else None,
                          "feasible": feas, "success": ok, "success_rate": ok / feas if feas else None,
-                         "interval_95": list(wilson_interval(ok, feas)) if feas else [0.0, 1.0]}
+                         "interval_95": list(wilson_interval(ok, feas)) if feas else [0.0, 1.0],
+                         "grade_le_07": sum(e["grade_le_07"] for e in es)}
     (out / "table.md").write_text(write_table(rows, pooled))
-    write_json(out / "results.json", {"config": cfg, "provenance": provenance(), "objects": rows,
-                                      "pooled": pooled, "wall_s": total.wall})
+    record = run.summary({"config": cfg, "noise_sigmas": noise_sigmas(cfg.execution_error), "objects": rows,
+                          "pooled": pooled, "database": {"start": db_start, "end": database_record(db)}})
+    write_json(out / "summary.json", record)
+    write_json(out / "results.json", record)
     print(write_table(rows, pooled))
     print(f"wall {total.wall:.0f} s; results in {out}")
     return 0
+
+
+def readme_section(s: dict) -> str:
+    """The README's E07 paragraph (see ``experiments/report.py``)."""
+    cfg, pooled = s["config"], s["pooled"]
+    pos, deg = s["noise_sigmas"]
+    err = ("without execution error (the poses are executed exactly)" if pos == 0 and deg == 0
+           else f"with {1000 * pos:g} mm / {deg:g}° execution error")
+    a, b, c = pooled["no table"], pooled["table"], pooled["table, any grade"]
+    objs = s["objects"]
+    lost = [o["object"] for o in objs if "trials" not in o["table"]]
+    share = [o["no table"]["start_collision"] / o["no table"]["trials"] for o in objs if o["no table"].get("trials")]
+    heights = [abs(o["table"]["table"]["height"]) for o in objs if o["table"].get("table")]
+    L = [f"`{s['command']}`: {len(objs)} objects ({', '.join(o['object'] for o in objs)}) standing on a table at a "
+         f"random yaw, seen as single-view clouds; {cfg['trials']} grasps > 0.7 drawn uniformly over each adapted "
+         f"map and lifted in MuJoCo against the true shape, {err}.", "",
+         "| planner | grasps drawn | start in collision | success of feasible | success of drawn |",
+         "|---|---|---|---|---|"]
+    for label, e in (("without the table, grade > 0.7", a), ("`--table auto`, grade > 0.7", b),
+                     (f"`--table auto`, any grade (base rate; {c['grade_le_07']} drawn <= 0.7)", c)):
+        L.append(f"| {label} | {e['trials']} | {e['start_collision']} ({pct(e['start_collision_rate'], 0)} %) | "
+                 f"{rate_ci(e['success'], e['feasible'], e['interval_95'])} | {rate_ci(e['success'], e['trials'])} |")
+    L += ["", f"Without the table, {pct(min(share), 0)}–{pct(max(share), 0)} % of an object's drawn poses start in "
+          f"collision (pooled {pct(a['start_collision_rate'], 0)} %)."
+          + (f" The estimated table height is within {1000 * max(heights):.1f} mm of the true one." if heights else "")
+          + (f" Not identified from these views, so without grasps: {', '.join(lost)}." if lost else "")
+          + database_note(s)]
+    return "\n".join(L) + "\n"
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Experiment E08: baselines for ``graspsim/GraspPose-v0`` (propose a wrist pose).
 
-Three policies propose a grasp for the same episodes (``reset(seed=s)`` replays an
-episode: object, pose, cloud and execution error):
+Policies propose a grasp for the same episodes (``reset(seed=s)`` replays an episode:
+object, pose, cloud and execution error):
 
 * random: an action drawn uniformly from the action box;
 * top-down: the classic heuristic -- approach straight down over the observed cloud's
@@ -9,12 +9,21 @@ episode: object, pose, cloud and execution error):
   points' x, y), the pads' middle 2 cm below the top, opened to the cloud's width there;
 * planner: graspsim's run-time planner on the observed (fixed-size) cloud, with the
   table known (z = 0), proposing its highest-grade grasp (the top-down pose when the
-  planner finds none).
+  planner finds none);
+* planner, clearance C mm (``--clearance``): the highest-grade grasp whose gripper,
+  with the jaws opened C mm wider on each side than the pre-grasp opening (and executed
+  so), stays C mm clear of the identified primitives -- room for the fingers to miss
+  (the top-down pose when none of the ``--clearance-rows`` best does, or the opening
+  would exceed the gripper's).
 
-Success rates with 95 % Wilson intervals, outcomes, rates per object kind, and the
-policies' decision times. Writes table.md, results.json and config.json to ``--out``.
+Each proposal is executed under every ``--noise`` condition: ``default`` (the
+environment's execution error, 3 mm / 2 deg), ``none``, or ``MM:DEG`` sigmas; the
+episodes are the same (their objects and clouds do not depend on the error). Success
+rates with 95 % Wilson intervals, outcomes, rates per object kind, the same rates on
+the episodes where the planner found a grasp (no fallback), and decision times. Writes
+summary.json, table.md, results.json and config.json to ``--out``.
 
-    python experiments/e08_pose_baselines.py --out results/e08
+    python experiments/e08_pose_baselines.py
     python experiments/e08_pose_baselines.py --quick --out results/e08-quick
 """
 
@@ -33,17 +42,18 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import provenance, write_config, write_json  # noqa: E402
+from _common import (RunRecord, database_note, database_record, default_out, noise_sigmas,  # noqa: E402
+                     rate_ci, write_config, write_json)
 
 import graspsim  # noqa: E402, F401  (registers the environments)
+from graspsim.maps.collide import boxes_clear_sdf  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
 from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402
 from graspsim.stats import wilson_interval  # noqa: E402
-from graspsim.transforms import frame_from_axes, make_transform  # noqa: E402
+from graspsim.transforms import frame_from_axes, invert_transform, make_transform  # noqa: E402
 
 log = logging.getLogger("e08")
-POLICIES = ("random", "top_down", "planner")
 
 
 @dataclass(frozen=True)
@@ -51,8 +61,19 @@ class Config:
     episodes: int = 300
     objects: str = "all"
     seed: int = 20181108
+    noise: tuple[str, ...] = ("default", "none")
+    clearance_mm: tuple[float, ...] = (3.0, 10.0)
+    clearance_rows: int = 2000
     db: str = ""
     quick: bool = False
+
+    @property
+    def policies(self) -> tuple[str, ...]:
+        return ("random", "top_down", "planner") + tuple(_clear_name(c) for c in self.clearance_mm)
+
+
+def _clear_name(mm: float) -> str:
+    return f"planner_clear_{mm:g}mm"
 
 
 def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
@@ -76,13 +97,53 @@ def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
     return make_transform(R, tcp - g.tcp_offset(half_pad) * z), width  # the env's TCP: mid-pad
 
 
-def planner_pose(env, cloud: np.ndarray, db: MapDatabase, seed: int) -> tuple[np.ndarray, float] | None:
+class _Inflated:
+    """A shape grown by ``margin`` [m] (only its signed distance is needed)."""
+
+    def __init__(self, shape, margin: float):
+        self.shape, self.margin = shape, margin
+
+    def sdf(self, points: np.ndarray) -> np.ndarray:
+        return self.shape.sdf(points) - self.margin
+
+
+def clear_row(res, gripper, clearance: float, max_rows: int, chunk: int = 250) -> int | None:
+    """Row of the plan's map (sorted best first) of the highest-grade grasp whose gripper,
+    its jaws opened ``clearance`` [m] wider on each side than the pre-grasp opening, stays
+    ``clearance`` clear of every identified part; None if none of the ``max_rows`` best
+    does."""
+    m = res.map
+    for start in range(0, min(len(m), max_rows), chunk):
+        idx = np.arange(start, min(start + chunk, len(m), max_rows))
+        T = m.T_obj_wrist[idx]
+        opening = m.width[idx] + 2.0 * (gripper.approach_clearance + clearance)
+        ok = opening <= gripper.max_opening
+        opening = np.minimum(opening, gripper.max_opening)
+        for part in res.parts:
+            T_part = invert_transform(part.T_obj_part) @ T
+            ok &= boxes_clear_sdf(_Inflated(part.primitive, clearance), gripper, T_part, opening)
+        if ok.any():
+            return int(idx[np.argmax(ok)])
+    return None
+
+
+def planner_poses(env, cloud: np.ndarray, db: MapDatabase, seed: int, cfg: Config) -> dict:
+    """{policy: (T_world_wrist, width) or None, and seconds} of the planner policies,
+    from one plan of the cloud."""
+    t0 = time.perf_counter()
     res = plan(cloud.astype(float), db=db, rng=np.random.default_rng(seed),
                config=PlannerConfig(table=TablePlane(height=0.0)))
-    if not len(res.map):
-        return None
-    i = int(np.argmax(res.map.grade))
-    return res.T_cloud_obj @ res.map.T_obj_wrist[i], float(res.map.width[i])
+    t_plan = time.perf_counter() - t0
+    out = {}
+    for c in (0.0,) + tuple(cfg.clearance_mm):
+        t1 = time.perf_counter()
+        i = (0 if len(res.map) else None) if c == 0 else (
+            clear_row(res, env.gripper, c / 1000.0, cfg.clearance_rows) if len(res.map) else None)
+        # the action's width: the jaws open to width + 2 x approach clearance, so + 2c more
+        pose = None if i is None else (res.T_cloud_obj @ res.map.T_obj_wrist[i],
+                                       float(res.map.width[i]) + 2.0 * c / 1000.0)
+        out["planner" if c == 0 else _clear_name(c)] = (pose, t_plan + time.perf_counter() - t1)
+    return out
 
 
 def run(cfg: Config) -> dict:
@@ -91,99 +152,179 @@ def run(cfg: Config) -> dict:
     map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.quick else MapConfig()
     db = MapDatabase(cfg.db or None, config=map_cfg)
     db.build(PAPER_SHAPES.values())
-    env = gym.make("graspsim/GraspPose-v0", objects=cfg.objects).unwrapped
+    db_start = database_record(db)
+    envs = {}
+    for label in cfg.noise:
+        pos, deg = noise_sigmas(label)
+        envs[label] = gym.make("graspsim/GraspPose-v0", objects=cfg.objects, position_noise=pos,
+                               rotation_noise=math.radians(deg)).unwrapped
+    env0 = envs[cfg.noise[0]]
     seeds = np.random.SeedSequence(cfg.seed).generate_state(cfg.episodes)
     rows = []
     for k, s in enumerate(seeds):
         s = int(s)
-        row = {"seed": s}
-        for name in POLICIES:
-            obs, info = env.reset(seed=s)
-            row["kind"] = info["object"]["kind"]
-            t0 = time.perf_counter()
-            fallback = False
-            if name == "random":
-                action = np.random.default_rng([s, 1]).uniform(-1, 1, 10).astype(np.float32)
-            else:
-                pose = planner_pose(env, obs["cloud"], db, s) if name == "planner" else None
-                if pose is None:
-                    fallback = name == "planner"
-                    pose = top_down_pose(env, obs["cloud"])
-                action = env.action_from_pose(*pose)
-            t_decide = time.perf_counter() - t0
-            _, reward, _, _, step_info = env.step(action)
-            row[name] = {"reward": reward, "outcome": step_info["outcome"], "seconds": t_decide,
-                         "fallback": fallback}
+        obs, info = env0.reset(seed=s)
+        row = {"seed": s, "kind": info["object"]["kind"], "cloud_points": int(len(obs["cloud"]))}
+        decisions = planner_poses(env0, obs["cloud"], db, s, cfg)
+        t0 = time.perf_counter()
+        decisions["top_down"] = (top_down_pose(env0, obs["cloud"]), time.perf_counter() - t0)
+        actions = {"random": np.random.default_rng([s, 1]).uniform(-1, 1, 10).astype(np.float32)}
+        for name in cfg.policies[1:]:
+            pose, seconds = decisions[name]
+            fallback = pose is None
+            actions[name] = env0.action_from_pose(*(decisions["top_down"][0] if fallback else pose))
+            row[name] = {"seconds": seconds, "fallback": fallback}
+        row["random"] = {"seconds": 0.0, "fallback": False}
+        for label, env in envs.items():
+            for name in cfg.policies:
+                o, _ = env.reset(seed=s)
+                if not np.array_equal(o["cloud"], obs["cloud"]):
+                    raise RuntimeError("the noise conditions drew different episodes")  # pragma: no cover
+                _, reward, _, _, step_info = env.step(actions[name])
+                row[name][label] = {"reward": reward, "outcome": step_info["outcome"]}
         rows.append(row)
-        if (k + 1) % 50 == 0:
+        if (k + 1) % 25 == 0:
             log.info("%d / %d episodes", k + 1, cfg.episodes)
-    return {"rows": rows}
+    return {"rows": rows, "database": {"start": db_start, "end": database_record(db)}}
 
 
-def summarise(rows: list[dict]) -> dict:
-    out = {}
-    for name in POLICIES:
-        r = np.array([row[name]["reward"] for row in rows])
-        ok = int(r.sum())
-        lo, hi = wilson_interval(ok, len(r))
-        kinds = sorted({row["kind"] for row in rows})
-        out[name] = {"success": ok, "episodes": len(r), "rate": ok / len(r), "interval_95": [lo, hi],
-                     "outcomes": dict(Counter(row[name]["outcome"] for row in rows)),
-                     "seconds_mean": float(np.mean([row[name]["seconds"] for row in rows])),
-                     "fallbacks": int(sum(row[name]["fallback"] for row in rows)),
-                     "by_kind": {k: float(np.mean([row[name]["reward"] for row in rows if row["kind"] == k]))
-                                 for k in kinds}}
+def _rates(rows: list[dict], name: str, label: str) -> dict:
+    r = np.array([row[name][label]["reward"] for row in rows])
+    ok = int(r.sum())
+    lo, hi = wilson_interval(ok, len(r))
+    return {"success": ok, "episodes": len(r), "rate": ok / len(r) if len(r) else None, "interval_95": [lo, hi],
+            "outcomes": dict(Counter(row[name][label]["outcome"] for row in rows))}
+
+
+def summarise(rows: list[dict], cfg: Config) -> dict:
+    kinds = sorted({row["kind"] for row in rows})
+    found = [row for row in rows if not row["planner"]["fallback"]]
+    found_all = [row for row in found if not any(row[_clear_name(c)]["fallback"] for c in cfg.clearance_mm)]
+    out = {"episodes": len(rows), "cloud_points": sorted({row["cloud_points"] for row in rows}),
+           "planner_found": len(found), "planner_found_all_clearances": len(found_all),
+           "policies": {}}
+    for name in cfg.policies:
+        out["policies"][name] = {
+            "seconds_mean": float(np.mean([row[name]["seconds"] for row in rows])),
+            "fallbacks": int(sum(row[name]["fallback"] for row in rows)),
+            **{label: {"all": _rates(rows, name, label), "planner_found": _rates(found, name, label),
+                       "planner_found_all_clearances": _rates(found_all, name, label),
+                       "by_kind": {k: _rates([r for r in rows if r["kind"] == k], name, label)["rate"]
+                                   for k in kinds}}
+               for label in cfg.noise}}
     return out
 
 
 def write_table(summary: dict, cfg: Config) -> str:
     L = ["# E08 grasp-proposal baselines (GraspPose-v0)", "",
-         f"{cfg.episodes} episodes, objects `{cfg.objects}`, the same episodes for every policy "
-         "(execution error 3 mm / 2 deg as the environment's default).", "",
-         "| policy | success | 95 % Wilson | decision time [ms] | planner fallbacks |", "|---|---|---|---|---|"]
-    for name, s in summary.items():
-        L.append(f"| {name} | {100 * s['rate']:.1f} % ({s['success']}/{s['episodes']}) | "
-                 f"{100 * s['interval_95'][0]:.1f} - {100 * s['interval_95'][1]:.1f} % | "
-                 f"{1000 * s['seconds_mean']:.1f} | {s['fallbacks'] if name == 'planner' else '-'} |")
-    outcomes = sorted({o for s in summary.values() for o in s["outcomes"]})
-    L += ["", "### outcomes", "", "| policy | " + " | ".join(outcomes) + " |",
-          "|---|" + "---|" * len(outcomes)]
-    for name, s in summary.items():
-        L.append(f"| {name} | " + " | ".join(str(s["outcomes"].get(o, 0)) for o in outcomes) + " |")
-    kinds = sorted(next(iter(summary.values()))["by_kind"])
-    L += ["", "### success by object kind", "", "| policy | " + " | ".join(kinds) + " |",
-          "|---|" + "---|" * len(kinds)]
-    for name, s in summary.items():
-        L.append(f"| {name} | " + " | ".join(f"{100 * s['by_kind'][k]:.0f} %" for k in kinds) + " |")
-    return "\n".join(L) + "\n"
+         f"{cfg.episodes} episodes, objects `{cfg.objects}`, the same episodes for every policy and noise "
+         f"condition; the planner found a grasp in {summary['planner_found']}.", ""]
+    for label in cfg.noise:
+        pol = summary["policies"]
+        L += [f"## execution error: {label}", "",
+              "| policy | success | on the planner's episodes | decision time [ms] | fallbacks |",
+              "|---|---|---|---|---|"]
+        for name, s in pol.items():
+            a, f = s[label]["all"], s[label]["planner_found"]
+            L.append(f"| {name} | {rate_ci(a['success'], a['episodes'], a['interval_95'])} | "
+                     f"{rate_ci(f['success'], f['episodes'])} | {1000 * s['seconds_mean']:.1f} | {s['fallbacks']} |")
+        outcomes = sorted({o for s in pol.values() for o in s[label]["all"]["outcomes"]})
+        L += ["", "| policy | " + " | ".join(outcomes) + " |", "|---|" + "---|" * len(outcomes)]
+        for name, s in pol.items():
+            L.append(f"| {name} | " + " | ".join(str(s[label]["all"]["outcomes"].get(o, 0)) for o in outcomes) + " |")
+        kinds = sorted(next(iter(pol.values()))[label]["by_kind"])
+        L += ["", "| policy | " + " | ".join(kinds) + " |", "|---|" + "---|" * len(kinds)]
+        for name, s in pol.items():
+            L.append(f"| {name} | " + " | ".join(f"{100 * s[label]['by_kind'][k]:.0f} %" for k in kinds) + " |")
+        L.append("")
+    return "\n".join(L)
 
 
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    run_record = RunRecord(__file__, argv)
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default="results/e08", help="output folder")
+    p.add_argument("--out", default=default_out(__file__), help="output folder")
     p.add_argument("--episodes", type=int, default=Config.episodes)
     p.add_argument("--objects", default=Config.objects, help="object set (default all)")
     p.add_argument("--seed", type=int, default=Config.seed)
+    p.add_argument("--noise", nargs="+", default=list(Config.noise),
+                   help="execution error conditions: default (3 mm / 2 deg), none, or MM:DEG (default: default none)")
+    p.add_argument("--clearance", type=float, nargs="*", default=list(Config.clearance_mm), metavar="MM",
+                   help="planner variants asking for this clearance from the identified shape [mm] (default 3 10)")
+    p.add_argument("--clearance-rows", type=int, default=Config.clearance_rows,
+                   help="best grasps searched for a clear one (default 2000)")
     p.add_argument("--db", default="", help="FS database folder (default: the library's; quick: OUT/fsdb)")
     p.add_argument("--quick", action="store_true", help="a few episodes on a coarse database (CI)")
     a = p.parse_args(argv)
+    try:
+        for label in a.noise:
+            noise_sigmas(label)
+    except ValueError as e:
+        p.error(str(e))
+    if any(not (c > 0 and math.isfinite(c)) for c in a.clearance) or len(set(a.noise)) < len(a.noise):
+        p.error("--clearance values must be > 0 mm and --noise conditions distinct")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    cfg = Config(episodes=a.episodes, objects=a.objects, seed=a.seed, db=a.db)
+    cfg = Config(episodes=a.episodes, objects=a.objects, seed=a.seed, noise=tuple(a.noise),
+                 clearance_mm=tuple(a.clearance), clearance_rows=a.clearance_rows, db=a.db)
     if a.quick:
         cfg = replace(cfg, episodes=min(a.episodes, 6), quick=True, db=a.db or str(out / "fsdb"))
     write_config(out / "config.json", cfg)
-    t0 = time.perf_counter()
     res = run(cfg)
-    summary = summarise(res["rows"])
+    summary = summarise(res["rows"], cfg)
     table = write_table(summary, cfg)
     (out / "table.md").write_text(table)
-    write_json(out / "results.json", {"config": cfg, "provenance": provenance(), "summary": summary,
-                                      "episodes": res["rows"], "wall_s": time.perf_counter() - t0})
+    record = run_record.summary({"config": cfg, "noise_sigmas": {k: noise_sigmas(k) for k in cfg.noise},
+                                 "summary": summary, "database": res["database"]})
+    write_json(out / "summary.json", record)
+    write_json(out / "results.json", {**record, "episodes": res["rows"]})
     print(table)
-    print(f"wall {time.perf_counter() - t0:.0f} s; results in {out}")
+    print(f"wall {record['machine']['wall_s']:.0f} s; results in {out}")
     return 0
+
+
+NAMES = {"random": "random action", "top_down": "top-down heuristic",
+         "planner": "planner, highest grade"}
+
+
+def _name(p: str) -> str:
+    return NAMES.get(p) or (f"planner, highest grade with {p.rsplit('_', 1)[1].replace('mm', ' mm')} of "
+                            f"clearance from the shape")
+
+
+def readme_section(s: dict) -> str:
+    """The README's E08 paragraph and table (see ``experiments/report.py``)."""
+    cfg, r = s["config"], s["summary"]
+    labels = cfg["noise"]
+
+    def err(label):
+        pos, deg = s["noise_sigmas"][label]
+        return "no execution error" if pos == 0 and deg == 0 else f"{1000 * pos:g} mm / {deg:g}° error"
+
+    L = [f"`{s['command']}`: {r['episodes']} episodes (objects `{cfg['objects']}`), the same for every policy "
+         f"and execution error; the planner works on the observed "
+         f"{'/'.join(map(str, r['cloud_points']))}-point cloud with the table known and "
+         f"found a grasp in {r['planner_found']} episodes (in the others it falls back to the top-down pose)."
+         + database_note(s), ""]
+    head = ["policy"] + [f"success, {err(x)}" for x in labels] + \
+        [f"on the planner's {r['planner_found']} episodes, {err(x)}" for x in labels] + \
+        [f"START_COLLISION, {err(x)}" for x in labels] + ["falls back to top-down"]
+    L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for name, p in r["policies"].items():
+        cells = [rate_ci(p[x]["all"]["success"], p[x]["all"]["episodes"], p[x]["all"]["interval_95"]) for x in labels]
+        cells += [rate_ci(p[x]["planner_found"]["success"], p[x]["planner_found"]["episodes"]) for x in labels]
+        cells += [str(p[x]["all"]["outcomes"].get("start_collision", 0)) for x in labels]
+        cells.append("–" if name in ("random", "top_down") else str(p["fallbacks"]))
+        L.append(f"| {_name(name)} | " + " | ".join(cells) + " |")
+    if cfg["clearance_mm"]:
+        n = r["planner_found_all_clearances"]
+        x = labels[0]
+        parts = [f"{_name(name)} {rate_ci(p[x]['planner_found_all_clearances']['success'], n)}"
+                 for name, p in r["policies"].items() if name != "random"]
+        L += ["", f"On the {n} episodes where the planner found a grasp at every clearance ({err(x)}): "
+              + "; ".join(parts) + "."]
+    return "\n".join(L) + "\n"
 
 
 if __name__ == "__main__":

@@ -150,6 +150,22 @@ def test_step_gives_the_outcomes_evaluate_candidates_predicts(kw):
         assert info["outcome_code"] == ev["outcome"][k] and r == ev["reward"][k]
 
 
+def test_evaluate_candidates_without_execution_error_is_the_noise_free_episode(kw):
+    """execution_error=False simulates the nominal poses: the outcomes an identical
+    environment without execution error gives for the same episode."""
+    noisy = _make(GRASP_SELECT_ID, kw, position_noise=0.01, rotation_noise=math.radians(8))
+    exact = _make(GRASP_SELECT_ID, kw, position_noise=0.0, rotation_noise=0.0)
+    differs = 0
+    for seed in (3, 5):
+        a, _ = noisy.reset(seed=seed)
+        b, _ = exact.reset(seed=seed)
+        assert _same(a, b)  # the error does not change the episode
+        nominal = noisy.evaluate_candidates(execution_error=False)["outcome"]
+        assert np.array_equal(nominal, exact.evaluate_candidates()["outcome"])
+        differs += int(np.sum(nominal != noisy.evaluate_candidates()["outcome"]))
+    assert differs > 0  # 10 mm / 8 deg of error changes some outcome
+
+
 @pytest.mark.slow
 def test_highest_grade_beats_random_over_a_fixed_seed_set(kw):
     env = _make(GRASP_SELECT_ID, kw, n_candidates=8)

@@ -183,11 +183,14 @@ class GraspSelectEnv(TableTask):
             raise GraspsimError("no episode yet: call reset() first")
         return self._cand["mask"].astype(bool)
 
-    def evaluate_candidates(self, threads: int | None = None) -> dict[str, np.ndarray]:
+    def evaluate_candidates(self, threads: int | None = None, *,
+                            execution_error: bool = True) -> dict[str, np.ndarray]:
         """Simulate every valid candidate of the current episode as ``step`` would (same
         execution error), without ending it: ``outcome`` (K,) int8 TrialOutcome codes
-        (-1 for invalid slots), ``reward`` (K,) float32, ``success`` (K,) bool. For
-        oracles and full-information logging; not something a policy may call."""
+        (-1 for invalid slots), ``reward`` (K,) float32, ``success`` (K,) bool. With
+        ``execution_error=False`` the nominal poses are simulated instead (what the
+        episode would give without execution error). For oracles, ablations and
+        full-information logging; not something a policy may call."""
         if self._cand is None:
             raise GraspsimError("no episode yet: call reset() first")
         cand = self._cand
@@ -196,7 +199,9 @@ class GraspSelectEnv(TableTask):
         outcome = np.full(K, -1, np.int8)
         reward = np.zeros(K, np.float32)
         if len(idx):
-            T = cand["T_world_wrist"][idx] @ cand["noise"][idx]
+            T = cand["T_world_wrist"][idx]
+            if execution_error:
+                T = T @ cand["noise"][idx]
             res = self._trials(T, cand["width"][idx], threads=threads or self.config.threads)
             outcome[idx] = res.outcome
             for j, i in enumerate(idx):

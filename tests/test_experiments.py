@@ -84,3 +84,30 @@ def test_e08_quick_pose_baselines(tmp_path):
     assert set(s) == {"random", "top_down", "planner"} and (out / "table.md").stat().st_size > 0
     assert all(v["episodes"] == len(r["episodes"]) > 0 for v in s.values())
     assert s["top_down"]["rate"] > s["random"]["rate"]
+
+
+@pytest.mark.slow
+def test_bench_fsmap_quick_times_fresh_and_in_process_runs(tmp_path):
+    bench = _load("bench_fsmap")
+    assert bench.main(["--quick", "--out", str(tmp_path / "b")]) == 0
+    s = json.loads((tmp_path / "b" / "summary.json").read_text())
+    assert s["command"] == f"python experiments/bench_fsmap.py --quick --out {tmp_path / 'b'}"
+    (row,) = s["rows"]
+    assert row["primitive"] == "cylinder" and row["threads"] == 1 and row["grasps"] > 0
+    assert row["fresh"]["wall_s"] > row["fresh"]["generation_s"] > 0
+    assert row["in_process"]["rebuilt"]["generation_s"] > 0 and row["fresh"]["peak_rss_mb"] > 0
+    assert {"import graspsim", "graspsim --help", "graspsim info MAP"} <= set(s["startup"])
+    assert len(s["machine"]["load_before"]) == 3 and s["provenance"]["commit"]
+    md = bench.readme_section(s)
+    assert s["command"] in md and "| cylinder | 1 |" in md
+
+
+def test_bench_fsmap_reported_summary_renders():
+    """The committed numbers the README quotes come with their command and load."""
+    bench = _load("bench_fsmap")
+    s = json.loads((EXPERIMENTS / "reported" / "bench_fsmap.json").read_text())
+    md = bench.readme_section(s)
+    assert s["command"].startswith("python experiments/bench_fsmap.py") and s["command"] in md
+    assert {r["primitive"] for r in s["rows"]} == {"cylinder", "box", "sphere", "cone", "half_toroid"}
+    assert all(r["cold"] and r["cold"]["compile_notice"] for r in s["rows"])
+    assert s["db_build"]["serial"]["maps"] == 5 and "FS database" in md

@@ -8,8 +8,8 @@ run on threads.
   ahead of time (e.g. after ``pip install``).
 * The cache lives beside the module (``graspsim/maps/__pycache__``) when that folder is
   writable, else in numba's user cache (``~/.cache/numba`` or ``$XDG_CACHE_HOME/numba``);
-  ``NUMBA_CACHE_DIR`` overrides both (numba's own rules). With none writable the
-  kernels still run, compiled afresh in every process.
+  ``NUMBA_CACHE_DIR`` overrides both (numba's own rules); with neither writable, a
+  per-user folder in the temporary directory.
 * :func:`run_chunks` runs a kernel over index ranges on Python threads: the kernels
   release the GIL, so this is as parallel as numba's ``prange`` without its compile
   cost.
@@ -53,8 +53,7 @@ def ensure_compiled() -> bool:
         k.probe.compile(())
         cold = _misses(k.probe) > 0
         if cold:
-            log.warning("compiling map kernels (first run only; cached in %s) ...", cache_dir() or
-                        "memory: no writable cache folder")
+            log.warning("compiling map kernels (first run only; cached in %s) ...", cache_dir())
         t0 = time.perf_counter()
         n = len(k.SIGNATURES)
         compiled = 0
@@ -67,14 +66,13 @@ def ensure_compiled() -> bool:
             if cold:
                 log.info("  [%d/%d] %s %.1f s", i + 1, n, name.strip("_"), time.perf_counter() - t)
         if compiled:
-            log.log(logging.WARNING if cold else logging.INFO, "map kernels compiled in %.1f s",
-                    time.perf_counter() - t0)
+            log.warning("map kernels compiled in %.1f s", time.perf_counter() - t0)
         _ready = True
         return bool(compiled)
 
 
 def cache_dir() -> str | None:
-    """Folder of the kernels' on-disk cache (None when nothing can be cached)."""
+    """Folder of the kernels' on-disk cache."""
     k = _import_kernel()
     return k.probe.stats.cache_path
 
@@ -89,14 +87,15 @@ def _import_kernel() -> ModuleType:
     except RuntimeError as err:  # numba found no writable cache folder
         if "cannot cache function" not in str(err):
             raise
+        import os
         import tempfile
 
         import numba
 
-        numba.config.CACHE_DIR = tempfile.mkdtemp(prefix="graspsim-numba-")
-        log.warning("no writable cache folder for the map kernels (%s); compiling them in %s "
-                    "for this process only; set NUMBA_CACHE_DIR to keep them", err,
-                    numba.config.CACHE_DIR)
+        user = os.getuid() if hasattr(os, "getuid") else "user"
+        numba.config.CACHE_DIR = os.path.join(tempfile.gettempdir(), f"graspsim-numba-{user}")
+        log.info("no writable cache folder for the map kernels (%s); caching them in %s; "
+                    "set NUMBA_CACHE_DIR to choose", err, numba.config.CACHE_DIR)
         from graspsim.maps import _kernel
     return _kernel
 

@@ -138,7 +138,7 @@ def _in_process(name: str, threads: int, repeat: int, quick: bool, queue) -> Non
                          "load_before": load0})
             del gmap
         out[mode] = {"generation_s": _median(runs, "wall_s"), "cpu_s": _median(runs, "cpu_s"),
-                     "runs": runs}
+                     "load_before": runs[0]["load_before"], "runs": runs}
     out["threads"] = used
     out["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     queue.put(out)
@@ -164,6 +164,7 @@ def bench_primitive(name: str, threads: int, cfg: BenchConfig, tmp: Path) -> dic
     fresh = [_cli_map(name, threads, None, out, cfg.quick) for _ in range(cfg.repeat)]
     row["fresh"] = {k: _median(fresh, k) for k in ("generation_s", "wall_s", "cpu_s", "peak_rss_mb")}
     row["fresh"]["runs"] = fresh
+    row["fresh"]["load_before"] = fresh[0]["load_before"]
     row["grasps"] = fresh[0]["grasps"]
     row["map_mb"] = out.stat().st_size / 2**20
     row["in_process"] = _spawned(_in_process, name, threads, cfg.repeat, cfg.quick)
@@ -270,7 +271,7 @@ def _summary(cfg, argv, rows, startup, db, load0) -> dict:
               "map_mb": r["map_mb"],
               "cold": {k: v for k, v in r["cold"].items() if k in keep} if "cold" in r else None,
               "fresh": {k: v for k, v in r["fresh"].items() if k != "runs"},
-              "in_process": {m: {k: r["in_process"][m][k] for k in ("generation_s", "cpu_s")}
+              "in_process": {m: {k: r["in_process"][m][k] for k in ("generation_s", "cpu_s", "load_before")}
                              for m in ("rebuilt", "reused")} | {
                   "peak_rss_mb": r["in_process"]["peak_rss_mb"]},
               "fresh_wall_over_in_process": r["fresh_wall_over_in_process"],

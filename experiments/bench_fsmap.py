@@ -1,136 +1,343 @@
-"""Benchmark: full-scale map generation per primitive at the paper's resolution.
+"""Benchmark: full-scale map generation as a user meets it, per primitive.
 
-For each of the five paper primitives, in a fresh subprocess (so peak memory is the
-map's own): time on all cores and on one (median of --repeat runs after a warm-up
-that compiles the kernel), grasp counts, SR / VR, and peak memory (resident set
-growth and numpy's traced allocation peak). Prints a markdown table and writes JSON.
+For each of the paper's five primitives and each thread count (all cores, one):
 
-    python experiments/bench_fsmap.py [--repeat 3] [--out results/bench_fsmap]
+* cold: ``graspsim map PRIMITIVE ... -o X.h5`` in a fresh process with an empty numba
+  cache (the first run on a machine: the kernels compile);
+* fresh: the same command with a warm cache (``--repeat`` runs, medians): the time the
+  command reports for generation and the process's wall time, CPU time and peak RSS;
+* in-process: ``generate_fs_map`` repeated in one process after a warm-up (medians),
+  with the collision hierarchy rebuilt every run (``clear_caches``) and reused.
 
-Goals on a 2-core machine (issue 2): cylinder r = 2 cm, h = 20 cm in <= 1 s on both
-cores (<= 2 s on one), the other primitives <= 2 s each, peak memory <= 300 MB. Wall
-times depend on what else runs; the CPU time of the one-thread run measures the work.
+Then the startup costs (``import graspsim``, ``graspsim --help``, ``graspsim info MAP``:
+fresh processes, medians) and, with ``--db``, the FS database build that the demo and
+the planner run on first use (``graspsim db build``: serially in one process as the demo
+does, with the default two worker processes, and serially on a cold numba cache).
+
+    python experiments/bench_fsmap.py [--repeat 3] [--db] [--publish]
+    python experiments/bench_fsmap.py --quick          # seconds: a coarse cylinder only
+
+Results: results/bench_fsmap/summary.json (and rows.json, table.md); --publish copies
+the summary to experiments/reported/bench_fsmap.json (what the README quotes). Cold runs
+compile into empty temporary folders (NUMBA_CACHE_DIR); the others use the user's numba
+cache, warmed first (``graspsim warmup``).
+Wall times depend on what else runs: the load average is recorded before and after
+every measurement; CPU time (all threads) measures the work itself.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import multiprocessing as mp
 import os
-import platform
+import shutil
+import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import load_average, provenance, write_json  # noqa: E402
+
+STEM = "bench_fsmap"
+README_DIMS = {"radius": 0.02, "height": 0.2}  # the README's example cylinder
+QUICK_FLAGS = ("--surface-step", "0.02", "--rotation-step-deg", "30")
 
 
 @dataclass(frozen=True)
 class BenchConfig:
     repeat: int = 3
+    startup_repeat: int = 7
     primitives: tuple[str, ...] = ("cylinder", "box", "sphere", "cone", "half_toroid")
-    out: str = "results/bench_fsmap"
+    threads: tuple[int, ...] = (0, 1)  # 0: all cores
+    cold: bool = True
+    db: bool = False
+    quick: bool = False
+    out: str = f"results/{STEM}"
 
 
-def _rss_mb() -> float:
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024
-    return float("nan")
+def _graspsim_cmd() -> list[str]:
+    """The console script a user runs (beside this interpreter), else the same via -c."""
+    script = Path(sys.executable).parent / "graspsim"
+    if script.exists():
+        return [str(script)]
+    return [sys.executable, "-c", "import sys; from graspsim.cli import main; sys.exit(main())"]
 
 
-def _run_one(name: str, repeat: int, queue) -> None:
+def _child(argv: list[str], env: dict | None = None) -> dict:
+    """Run a fresh process; its wall and CPU time [s], peak RSS [MB], stdout, load."""
+    load0 = load_average()
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        t0 = time.perf_counter()
+        p = subprocess.Popen(argv, stdout=out, stderr=err, env={**os.environ, **(env or {})})
+        _, status, ru = os.wait4(p.pid, 0)
+        wall = time.perf_counter() - t0
+        p.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0), err.seek(0)
+        stdout, stderr = out.read().decode(), err.read().decode()
+    if p.returncode != 0:
+        raise RuntimeError(f"{' '.join(argv)} failed ({p.returncode}):\n{stderr[-2000:]}")
+    return {"wall_s": wall, "cpu_s": ru.ru_utime + ru.ru_stime, "peak_rss_mb": ru.ru_maxrss / 1024,
+            "stdout": stdout, "stderr": stderr, "load_before": load0, "load_after": load_average()}
+
+
+def _median(runs: list[dict], key: str) -> float:
+    return statistics.median(r[key] for r in runs)
+
+
+def _map_argv(name: str, threads: int, out: Path, quick: bool) -> list[str]:
+    from graspsim.maps.database import PAPER_SHAPES
+
+    dims = README_DIMS if name == "cylinder" else PAPER_SHAPES[name].dims
+    argv = _graspsim_cmd() + ["map", name, "-o", str(out), "--json"]
+    argv += [x for k, v in dims.items() for x in (f"--{k.replace('_', '-')}", repr(v))]
+    argv += ["--threads", str(threads)] if threads else []
+    return argv + (list(QUICK_FLAGS) if quick else [])
+
+
+def _cache_env(cache: str | None) -> dict:
+    """NUMBA_CACHE_DIR for a cold run (an empty folder); None: the user's own cache."""
+    return {"NUMBA_CACHE_DIR": cache} if cache else {}
+
+
+def _cli_map(name: str, threads: int, cache: str | None, out: Path, quick: bool) -> dict:
+    r = _child(_map_argv(name, threads, out, quick), _cache_env(cache))
+    s = json.loads(r.pop("stdout").strip().splitlines()[-1])
+    r["compile_notice"] = "compiling map kernels" in r.pop("stderr")
+    return {**r, "generation_s": s["seconds"], "grasps": s["grasps"], "timing": s.get("timing")}
+
+
+def _in_process(name: str, threads: int, repeat: int, quick: bool, queue) -> None:
+    """Spawned worker: in-process generation times (kernels loaded beforehand)."""
     import resource
-    import statistics
-    import tracemalloc
-
-    import numba
 
     from graspsim.maps.database import PAPER_SHAPES
-    from graspsim.maps.generate import generate_fs_map
-    from graspsim.maps.metrics import map_rates
-    from graspsim.primitives import Sphere
+    from graspsim.maps.generate import MapConfig, clear_caches, generate_fs_map
+    from graspsim.maps.kernels import default_threads, ensure_compiled
+    from graspsim.primitives import Cylinder
 
-    shape = PAPER_SHAPES[name]
-    generate_fs_map(Sphere(0.02))  # compile / load the cached kernels
-    base_rss = _rss_mb()
-    tracemalloc.start()
-    t0 = time.perf_counter()
-    gmap = generate_fs_map(shape)
-    first = time.perf_counter() - t0
-    _, traced_peak = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
-    peak_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    rates = map_rates(gmap)
-    acc = map_rates(gmap, min_grade=0.7)
-    all_threads = numba.get_num_threads()
-    times, cpu = {}, {}
-    for threads in sorted({all_threads, 1}, reverse=True):
-        runs, cpus = [], []
+    ensure_compiled()
+    shape = Cylinder(**README_DIMS) if name == "cylinder" else PAPER_SHAPES[name]
+    cfg = MapConfig(surface_step=0.02, rotation_step=math.radians(30)) if quick else MapConfig()
+    used = default_threads(threads or None)
+    generate_fs_map(Cylinder(0.02, 0.05), config=cfg, threads=used)  # first-call effects
+    out = {}
+    for mode in ("rebuilt", "reused"):
+        runs = []
         for _ in range(repeat):
-            t0, c0 = time.perf_counter(), time.process_time()
-            generate_fs_map(shape, threads=threads)
-            runs.append(time.perf_counter() - t0)
-            cpus.append(time.process_time() - c0)
-        times[threads] = statistics.median(runs)
-        cpu[threads] = statistics.median(cpus)
-    queue.put({
-        "primitive": name, "dims": shape.dims, "grasps": len(gmap),
-        "accepted": int(gmap.accepted.sum()), "SR": rates.sr, "VR": rates.vr,
-        "SR_accepted": acc.sr, "VR_accepted": acc.vr,
-        "seconds_all_cores": times[all_threads], "seconds_one_core": times[1],
-        "cpu_seconds_one_core": cpu[1], "cpu_seconds_all_cores": cpu[all_threads],
-        "load_average": os.getloadavg(),
-        "threads": all_threads, "first_run_seconds": first,
-        "timing_breakdown": gmap.meta.timing, "stats": gmap.meta.extra["stats"],
-        "peak_rss_growth_mb": peak_rss - base_rss, "peak_rss_mb": peak_rss,
-        "traced_peak_mb": traced_peak / 2**20,
-        "map_memory_mb": sum(a.nbytes for a in gmap.columns().values()) / 2**20,
-    })
+            if mode == "rebuilt":
+                clear_caches()
+            t0, c0, load0 = time.perf_counter(), time.process_time(), load_average()
+            gmap = generate_fs_map(shape, config=cfg, threads=used)
+            runs.append({"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+                         "load_before": load0})
+            del gmap
+        out[mode] = {"generation_s": _median(runs, "wall_s"), "cpu_s": _median(runs, "cpu_s"),
+                     "load_before": runs[0]["load_before"], "runs": runs}
+    out["threads"] = used
+    out["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    queue.put(out)
+
+
+def _spawned(fn, *args):
+    ctx = mp.get_context("spawn")
+    q = ctx.Queue()
+    p = ctx.Process(target=fn, args=(*args, q))
+    p.start()
+    result = q.get()
+    p.join()
+    return result
+
+
+def bench_primitive(name: str, threads: int, cfg: BenchConfig, tmp: Path) -> dict:
+    """One row: cold process, fresh processes on a warm cache, in-process."""
+    row: dict = {"primitive": name, "threads": threads or os.cpu_count()}
+    out = tmp / f"{name}.h5"
+    if cfg.cold:
+        cold_cache = tempfile.mkdtemp(dir=tmp)
+        row["cold"] = _cli_map(name, threads, cold_cache, out, cfg.quick)
+    fresh = [_cli_map(name, threads, None, out, cfg.quick) for _ in range(cfg.repeat)]
+    row["fresh"] = {k: _median(fresh, k) for k in ("generation_s", "wall_s", "cpu_s", "peak_rss_mb")}
+    row["fresh"]["runs"] = fresh
+    row["fresh"]["load_before"] = fresh[0]["load_before"]
+    row["grasps"] = fresh[0]["grasps"]
+    row["map_mb"] = out.stat().st_size / 2**20
+    row["in_process"] = _spawned(_in_process, name, threads, cfg.repeat, cfg.quick)
+    gen = row["in_process"]["rebuilt"]["generation_s"]
+    row["fresh_wall_over_in_process"] = row["fresh"]["wall_s"] / gen
+    row["fresh_generation_over_in_process"] = row["fresh"]["generation_s"] / gen
+    # the same in CPU time (all threads), which the machine's load hardly moves
+    row["fresh_cpu_over_in_process"] = row["fresh"]["cpu_s"] / row["in_process"]["rebuilt"]["cpu_s"]
+    return row
+
+
+def bench_startup(cfg: BenchConfig, map_file: Path) -> dict:
+    """Fresh-process times of what a user types first (medians of startup_repeat)."""
+    cases = {"import graspsim": [sys.executable, "-c", "import graspsim"],
+             "python -c pass": [sys.executable, "-c", "pass"],
+             "graspsim --help": _graspsim_cmd() + ["--help"],
+             "graspsim map --help": _graspsim_cmd() + ["map", "--help"],
+             "graspsim info MAP": _graspsim_cmd() + ["info", str(map_file)]}
+    out = {}
+    for name, argv in cases.items():
+        runs = [_child(argv) for _ in range(cfg.startup_repeat)]
+        out[name] = {"median_s": _median(runs, "wall_s"), "min_s": min(r["wall_s"] for r in runs),
+                     "max_s": max(r["wall_s"] for r in runs), "runs": len(runs),
+                     "load_before": runs[0]["load_before"], "load_after": runs[-1]["load_after"]}
+    return out
+
+
+def bench_db(tmp: Path) -> dict:
+    """``graspsim db build`` of the five paper maps into an empty folder, as the demo
+    does on first use (serial), with the default local workers, and on a cold cache."""
+    out = {}
+    for case, executor, cache in (("serial", "serial", None), ("local", "local", None),
+                                  ("serial_cold_cache", "serial", tempfile.mkdtemp(dir=tmp))):
+        root = tmp / f"db_{case}"
+        r = _child(_graspsim_cmd() + ["db", "build", "--root", str(root), "--executor", executor,
+                                      "--json"], _cache_env(cache))
+        maps = json.loads(r.pop("stdout").strip().splitlines()[-1])["maps"]
+        r.pop("stderr")
+        out[case] = {**r, "maps": len(maps), "sum_map_seconds": sum(m["seconds"] for m in maps)}
+    return out
+
+
+def _parse(argv: list[str] | None) -> tuple[BenchConfig, bool]:
+    d = BenchConfig()
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeat", type=int, default=d.repeat, help="runs per measurement (median)")
+    ap.add_argument("--startup-repeat", type=int, default=d.startup_repeat)
+    ap.add_argument("--primitives", nargs="+", default=list(d.primitives))
+    ap.add_argument("--threads", type=int, nargs="+", default=list(d.threads),
+                    help="thread counts (0: all cores)")
+    ap.add_argument("--no-cold", action="store_true", help="skip the cold-cache runs")
+    ap.add_argument("--db", action="store_true", help="also time the FS database build")
+    ap.add_argument("--quick", action="store_true",
+                    help="seconds: a coarse cylinder, one run each, one thread, no cold runs")
+    ap.add_argument("--out", default=d.out)
+    ap.add_argument("--publish", action="store_true",
+                    help=f"copy the summary to experiments/reported/{STEM}.json")
+    a = ap.parse_args(argv)
+    if a.quick:
+        cfg = BenchConfig(repeat=1, startup_repeat=1, primitives=("cylinder",), threads=(1,),
+                          cold=False, db=a.db, quick=True, out=a.out)
+    else:
+        cfg = BenchConfig(repeat=a.repeat, startup_repeat=a.startup_repeat,
+                          primitives=tuple(a.primitives), threads=tuple(a.threads),
+                          cold=not a.no_cold, db=a.db, out=a.out)
+    return cfg, a.publish
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--repeat", type=int, default=BenchConfig.repeat)
-    ap.add_argument("--primitives", nargs="+", default=list(BenchConfig.primitives))
-    ap.add_argument("--out", default=BenchConfig.out, help="output path prefix (.json, .md)")
-    a = ap.parse_args(argv)
-    cfg = BenchConfig(repeat=a.repeat, primitives=tuple(a.primitives), out=a.out)
-    ctx = mp.get_context("spawn")
-    rows = []
-    for name in cfg.primitives:
-        q = ctx.Queue()
-        p = ctx.Process(target=_run_one, args=(name, cfg.repeat, q))
-        p.start()
-        rows.append(q.get())
-        p.join()
-    import graspsim
-    import mujoco
+    cfg, publish = _parse(argv)
+    load0 = load_average()
+    tmp = Path(tempfile.mkdtemp(prefix="bench_fsmap-"))
+    try:
+        _child(_graspsim_cmd() + ["warmup"])  # the user's cache: warm from here on
+        rows = [bench_primitive(n, t, cfg, tmp) for n in cfg.primitives for t in cfg.threads]
+        startup = bench_startup(cfg, tmp / f"{cfg.primitives[0]}.h5")
+        db = bench_db(tmp) if cfg.db else None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    summary = _summary(cfg, argv, rows, startup, db, load0)
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / "rows.json", rows)
+    write_json(out / "summary.json", summary)
+    (out / "table.md").write_text(readme_section(summary) + "\n")
+    if publish:
+        reported = Path(__file__).resolve().parent / "reported"
+        reported.mkdir(exist_ok=True)
+        shutil.copyfile(out / "summary.json", reported / f"{STEM}.json")
+    print(readme_section(summary))
+    return 0
+
+
+def _summary(cfg, argv, rows, startup, db, load0) -> dict:
+    import h5py
     import numba
     import numpy
+    import scipy
 
-    header = ("| primitive | grasps | accepted | SR | VR | s (all cores) | s (1 core) | "
-              "CPU s (1 core) | peak RSS growth MB | traced peak MB |\n"
-              "|---|---|---|---|---|---|---|---|---|---|")
-    lines = [header] + [
-        f"| {r['primitive']} | {r['grasps']:,} | {r['accepted']:,} | {r['SR']:.3f} | {r['VR']:.3f} | "
-        f"{r['seconds_all_cores']:.3f} | {r['seconds_one_core']:.3f} | {r['cpu_seconds_one_core']:.3f} | "
-        f"{r['peak_rss_growth_mb']:.0f} | {r['traced_peak_mb']:.0f} |" for r in rows]
-    lines.append(f"\nload average at the end: {os.getloadavg()[0]:.2f} (other processes slow wall "
-                 "times; CPU s (1 core) is the work itself)")
-    table = "\n".join(lines)
-    print(table)
-    out = Path(cfg.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    result = {"config": asdict(cfg), "rows": rows, "machine": {
-        "cpus": os.cpu_count(), "platform": platform.platform(), "python": sys.version.split()[0],
-        "graspsim": graspsim.__version__, "numpy": numpy.__version__, "numba": numba.__version__,
-        "mujoco": mujoco.__version__}}
-    out.with_suffix(".json").write_text(json.dumps(result, indent=1))
-    out.with_suffix(".md").write_text(table + "\n")
-    print(json.dumps({"summary": {r["primitive"]: round(r["seconds_all_cores"], 3) for r in rows}}))
-    return 0
+    args = sys.argv[1:] if argv is None else argv
+    keep = ("generation_s", "wall_s", "cpu_s", "peak_rss_mb", "load_before", "load_after",
+            "compile_notice")
+    table = [{"primitive": r["primitive"], "threads": r["threads"], "grasps": r["grasps"],
+              "map_mb": r["map_mb"],
+              "cold": {k: v for k, v in r["cold"].items() if k in keep} if "cold" in r else None,
+              "fresh": {k: v for k, v in r["fresh"].items() if k != "runs"},
+              "in_process": {m: {k: r["in_process"][m][k] for k in ("generation_s", "cpu_s", "load_before")}
+                             for m in ("rebuilt", "reused")} | {
+                  "peak_rss_mb": r["in_process"]["peak_rss_mb"]},
+              "fresh_wall_over_in_process": r["fresh_wall_over_in_process"],
+              "fresh_generation_over_in_process": r["fresh_generation_over_in_process"],
+              "fresh_cpu_over_in_process": r["fresh_cpu_over_in_process"]}
+             for r in rows]
+    first = table[0]
+    return {
+        "command": " ".join(["python", f"experiments/{STEM}.py", *args]),
+        "headline": {  # the first row: the README's cylinder on all cores unless configured
+            "primitive": first["primitive"], "threads": first["threads"],
+            "cold_generation_s": (first["cold"] or {}).get("generation_s"),
+            "cold_wall_s": (first["cold"] or {}).get("wall_s"),
+            "fresh_generation_s": first["fresh"]["generation_s"],
+            "fresh_wall_s": first["fresh"]["wall_s"],
+            "in_process_generation_s": first["in_process"]["rebuilt"]["generation_s"],
+            "fresh_wall_over_in_process": first["fresh_wall_over_in_process"],
+            "fresh_cpu_over_in_process": first["fresh_cpu_over_in_process"],
+            "import_graspsim_s": startup["import graspsim"]["median_s"],
+            "help_s": startup["graspsim --help"]["median_s"],
+            "info_s": startup["graspsim info MAP"]["median_s"],
+            "db_build_serial_s": db["serial"]["wall_s"] if db else None},
+        "config": asdict(cfg),
+        "denominators": "medians of config.repeat fresh processes / in-process runs per row "
+                        "(startup: of config.startup_repeat processes); one cold process per row",
+        "rows": table, "startup": startup, "db_build": db,
+        "machine": {"cpus": os.cpu_count(), "load_before": load0, "load_after": load_average(),
+                    "python": sys.version.split()[0]},
+        "versions": {"numpy": numpy.__version__, "numba": numba.__version__,
+                     "scipy": scipy.__version__, "h5py": h5py.__version__},
+        "provenance": provenance(),
+    }
+
+
+def _s(x) -> str:
+    return "-" if x is None else f"{x:.2f}"
+
+
+def readme_section(summary: dict) -> str:
+    """Markdown for the README: per-primitive times, startup, database build."""
+    lines = [f"`{summary['command']}` (load {summary['machine']['load_before'][0]:.1f} before, "
+             f"{summary['machine']['load_after'][0]:.1f} after; {summary['machine']['cpus']} cores; "
+             "medians)", "",
+             "| primitive | threads | grasps | first run (empty compile cache): generation / wall s "
+             "| `graspsim map`: generation / wall s | in-process: generation s (CPU s) "
+             "| `graspsim map` / in-process: wall (CPU) | peak RSS MB |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in summary["rows"]:
+        c, f, p = r["cold"] or {}, r["fresh"], r["in_process"]["rebuilt"]
+        lines.append(f"| {r['primitive']} | {r['threads']} | {r['grasps']:,} | "
+                     f"{_s(c.get('generation_s'))} / {_s(c.get('wall_s'))} | "
+                     f"{_s(f['generation_s'])} / {_s(f['wall_s'])} | "
+                     f"{_s(p['generation_s'])} ({_s(p['cpu_s'])}) | "
+                     f"{r['fresh_wall_over_in_process']:.1f} ({r['fresh_cpu_over_in_process']:.1f}) | "
+                     f"{f['peak_rss_mb']:.0f} |")
+    st = summary["startup"]
+    lines += ["", "Startup (fresh processes): " + ", ".join(
+        f"`{k}` {v['median_s']:.2f} s" for k, v in st.items()) + "."]
+    db = summary.get("db_build")
+    if db:
+        lines += ["", f"FS database (the five paper maps) built on first use: "
+                      f"{db['serial']['wall_s']:.0f} s serially as the demo does "
+                      f"(`graspsim db build --executor serial`), {db['local']['wall_s']:.0f} s with "
+                      f"the default worker processes, {db['serial_cold_cache']['wall_s']:.0f} s "
+                      "serially on a machine's first run (kernels compiling)."]
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

@@ -2,10 +2,39 @@
 
 Implements Eizicovits & Berman (2018), "Automatic graspability map generation based on
 shape-primitives for unknown and familiar objects", with MuJoCo validation.
+
+The names users reach for first are here, one import away::
+
+    import numpy as np
+    import graspsim as gs
+
+    fs = gs.generate_fs_map(gs.Cylinder(radius=0.02, height=0.2))  # every collision-free pose
+    best = fs.filter(accepted=True).top_k(10)                          # grade > 0.7, best first
+    cloud = gs.synthetic_cloud(gs.Sphere(0.04), np.random.default_rng(0), noise=0.001)
+    result = gs.plan(cloud.points, db=gs.MapDatabase(), rng=np.random.default_rng(0))
+
+* shapes: ``Box``, ``Cylinder``, ``Sphere``, ``Cone``, ``HalfToroid``, ``Compound``,
+  ``make_primitive``, ``synthetic_cloud``; the gripper: ``GripperSpec``, ``HGPL_25_60_A``;
+  the grade: ``QualityModel``, ``get_grade``, ``regrade``.
+* maps: ``generate_fs_map``, ``MapConfig``, ``GraspabilityMap``, ``load_map``,
+  ``save_map``, ``map_rates``, ``MapDatabase``; planning from a cloud or a known shape:
+  ``plan``, ``plan_shape``, ``PlannerConfig``, ``TablePlane``; perception: ``identify``,
+  ``read_point_cloud``, ...
+* simulation (MuJoCo): ``simulate_map``, ``run_trials``, ``build_scene``, ...
+* errors: every exception is a ``GraspsimError``.
+
+Only the errors are imported eagerly; every other name is imported on first use (PEP 562
+``__getattr__``), so ``import graspsim`` loads neither trimesh, scipy, numba nor mujoco.
+It registers the Gymnasium environments ``graspsim/GraspSelect-v0`` and
+``graspsim/GraspPose-v0`` (by entry-point strings, and only once gymnasium itself is
+imported, so that this import stays light: see :mod:`graspsim.envs`).
 """
 
 from __future__ import annotations
 
+import importlib
+
+from graspsim.envs import register_when_imported as _register_envs
 from graspsim.errors import (
     DependencyNotInstalled,
     GraspsimError,
@@ -20,111 +49,64 @@ from graspsim.errors import (
     PrimitiveError,
     SimulationError,
 )
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
-from graspsim.primitives import (
-    Box,
-    Compound,
-    Cone,
-    Cylinder,
-    HalfToroid,
-    Primitive,
-    Sphere,
-    make_primitive,
-    synthetic_cloud,
-)
-from graspsim.quality import QualityModel
 
 __version__ = "0.1.0"
 
+
+def _from(module: str, *names: str) -> dict[str, str]:
+    return dict.fromkeys(names, module)
+
+
+# public name -> the module that defines it, imported when the name is first used
+_LAZY: dict[str, str] = {
+    # geometry
+    **_from("graspsim.primitives", "Primitive", "Box", "Cylinder", "Sphere", "Cone", "HalfToroid",
+            "Compound", "make_primitive", "synthetic_cloud"),
+    # gripper and grades
+    **_from("graspsim.gripper", "GripperSpec", "HGPL_25_60_A"),
+    **_from("graspsim.quality", "QualityModel"),
+    **_from("graspsim.grades", "get_grade", "regrade", "PaperGrade", "LogisticGrade"),
+    # maps: generation, files, metrics, the full-scale database
+    **_from("graspsim.maps.generate", "generate_fs_map", "MapConfig"),
+    **_from("graspsim.maps.graspmap", "GraspabilityMap", "MapMeta"),
+    **_from("graspsim.maps.io", "load_map", "save_map"),
+    **_from("graspsim.maps.metrics", "map_rates"),
+    **_from("graspsim.maps.database", "MapDatabase"),
+    # run-time planning: point cloud (or known shape) -> adapted map
+    **_from("graspsim.planner", "plan", "plan_shape", "PlannerConfig", "PlanResult", "PlanStatus",
+            "TablePlane"),
+    # perception: point-cloud input and primitive identification (paper 2.2-2.3)
+    **_from("graspsim.perception", "identify", "IdentifyConfig", "Identification",
+            "IdentificationStatus", "PartResult", "Shape", "read_point_cloud", "LoadedCloud",
+            "min_volume_box", "OrientedBox", "classify_match", "MatchKind", "MatchDecision"),
+    # grade-vs-success calibration
+    **_from("graspsim.calibration", "calibrate", "TrialTable"),
+    # MuJoCo validation
+    **_from("graspsim.sim", "TrialOutcome", "TrialResults", "SimSettings", "GripperPhysics",
+            "LiftPlace", "Tug", "ExecutionNoise", "SimObject", "Scene", "object_from_shape",
+            "object_from_mesh", "build_scene", "run_trials", "simulate_map", "render_trial"),
+}
+
 __all__ = [
     "__version__",
-    # errors
-    "GraspsimError",
-    "InvalidParameterError",
-    "PrimitiveError",
-    "GripperError",
-    "NoFeasibleGraspError",
-    "MapFileError",
-    "MapDatabaseError",
-    "PointCloudError",
-    "IdentificationError",
-    "MeshError",
-    "SimulationError",
-    "DependencyNotInstalled",
-    # geometry
-    "Primitive",
-    "Box",
-    "Cylinder",
-    "Sphere",
-    "Cone",
-    "HalfToroid",
-    "Compound",
-    "make_primitive",
-    "synthetic_cloud",
-    # gripper and quality
-    "GripperSpec",
-    "HGPL_25_60_A",
-    "QualityModel",
+    "GraspsimError", "InvalidParameterError", "PrimitiveError", "GripperError",
+    "NoFeasibleGraspError", "MapFileError", "MapDatabaseError", "PointCloudError",
+    "IdentificationError", "MeshError", "SimulationError", "DependencyNotInstalled",
+    *_LAZY,
 ]
-
-# perception: point-cloud input and primitive identification (paper 2.2-2.3)
-from graspsim.perception import (  # noqa: E402
-    Identification,
-    IdentificationStatus,
-    IdentifyConfig,
-    LoadedCloud,
-    MatchDecision,
-    MatchKind,
-    OrientedBox,
-    PartResult,
-    Shape,
-    classify_match,
-    identify,
-    min_volume_box,
-    read_point_cloud,
-)
-
-__all__ += [
-    "identify",
-    "IdentifyConfig",
-    "Identification",
-    "IdentificationStatus",
-    "PartResult",
-    "Shape",
-    "read_point_cloud",
-    "LoadedCloud",
-    "min_volume_box",
-    "OrientedBox",
-    "classify_match",
-    "MatchKind",
-    "MatchDecision",
-]
-
-# MuJoCo validation (graspsim.sim), imported on first use so that `import graspsim`
-# does not load mujoco.
-_SIM_NAMES = (
-    "TrialOutcome", "TrialResults", "SimSettings", "GripperPhysics", "LiftPlace", "Tug",
-    "ExecutionNoise", "SimObject", "Scene", "object_from_shape", "object_from_mesh",
-    "build_scene", "run_trials", "simulate_map", "render_trial",
-)
-__all__ += list(_SIM_NAMES)
 
 
 def __getattr__(name: str):
-    if name in _SIM_NAMES:
-        import graspsim.sim
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'graspsim' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
 
-        return getattr(graspsim.sim, name)
-    raise AttributeError(f"module 'graspsim' has no attribute {name!r}")
 
-# Gymnasium environments (graspsim.envs), registered by entry-point strings: no mujoco
-# import here.
-from graspsim.envs import register_envs as _register_envs  # noqa: E402
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 _register_envs()
-
-# grade models and grade-vs-success calibration (no mujoco import at this point)
-from graspsim.calibration import TrialTable, calibrate  # noqa: E402
-from graspsim.grades import LogisticGrade, PaperGrade, get_grade, regrade  # noqa: E402
-
-__all__ += ["get_grade", "regrade", "PaperGrade", "LogisticGrade", "calibrate", "TrialTable"]

@@ -79,6 +79,7 @@ _CAPPED = """
 import contextlib, io, json, resource, sys, tracemalloc
 resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
 from graspsim.cli import main
+import graspsim.maps.generate, graspsim.maps.io, graspsim.primitives  # imported before tracing
 out = []
 for argv in json.loads(sys.argv[1]):
     err = io.StringIO()

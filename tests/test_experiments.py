@@ -137,3 +137,30 @@ def test_e04_quick_pairs_noise_with_exact(tmp_path):
         assert z["of_feasible"]["success"] <= z["of_drawn"]["success"]
     assert s["paper_test"]["all_draws"]["drawn"] == 2 * 15
     assert s["command"] in mod.readme_section(s)
+
+
+@pytest.mark.slow
+def test_bench_fsmap_quick_times_fresh_and_in_process_runs(tmp_path):
+    bench = _load("bench_fsmap")
+    assert bench.main(["--quick", "--out", str(tmp_path / "b")]) == 0
+    s = json.loads((tmp_path / "b" / "summary.json").read_text())
+    assert s["command"] == f"python experiments/bench_fsmap.py --quick --out {tmp_path / 'b'}"
+    (row,) = s["rows"]
+    assert row["primitive"] == "cylinder" and row["threads"] == 1 and row["grasps"] > 0
+    assert row["fresh"]["wall_s"] > row["fresh"]["generation_s"] > 0
+    assert row["in_process"]["rebuilt"]["generation_s"] > 0 and row["fresh"]["peak_rss_mb"] > 0
+    assert {"import graspsim", "graspsim --help", "graspsim info MAP"} <= set(s["startup"])
+    assert len(s["machine"]["load_before"]) == 3 and s["provenance"]["commit"]
+    md = bench.readme_section(s)
+    assert s["command"] in md and "| cylinder | 1 |" in md
+
+
+def test_bench_fsmap_reported_summary_renders():
+    """The committed numbers the README quotes come with their command and load."""
+    bench = _load("bench_fsmap")
+    s = json.loads((EXPERIMENTS / "reported" / "bench_fsmap.json").read_text())
+    md = bench.readme_section(s)
+    assert s["command"].startswith("python experiments/bench_fsmap.py") and s["command"] in md
+    assert {r["primitive"] for r in s["rows"]} == {"cylinder", "box", "sphere", "cone", "half_toroid"}
+    assert all(r["cold"] and r["cold"]["compile_notice"] for r in s["rows"])
+    assert s["db_build"]["serial"]["maps"] == 5 and "FS database" in md

@@ -3,6 +3,10 @@
 Every subcommand accepts ``--json`` and then prints one JSON summary object as the
 last line of standard output. Errors print ``graspsim: error: ...`` on stderr and exit
 with status 2; interrupted runs exit with 130.
+
+Subcommand modules import nothing heavy at module level (numpy, scipy, numba, h5py,
+mujoco load inside the command functions), so ``graspsim --help`` and
+``graspsim COMMAND --help`` answer at once.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.trial",
     "graspsim.cli.campaign",
     "graspsim.cli.calibrate",
+    "graspsim.cli.warmup",
 )
 
 
@@ -65,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
         level=logging.WARNING - 10 * min(args.verbose, 2),
         format="%(levelname)s %(name)s: %(message)s",
     )
+    _show_compile_progress()
     try:
         return int(args.func(args) or 0)
     except GraspsimError as err:
@@ -73,6 +79,29 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("graspsim: interrupted", file=sys.stderr)
         return 130
+
+
+class _ProgressLineHandler(logging.StreamHandler):
+    """Log lines on stderr that do not break a tqdm progress bar drawn there."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        tqdm = sys.modules.get("tqdm.auto")
+        if tqdm is None:
+            super().emit(record)
+        else:
+            tqdm.tqdm.write(self.format(record), file=sys.stderr)
+
+
+def _show_compile_progress() -> None:
+    """The map kernels' first-run compile notice and per-kernel progress, as
+    ``graspsim: ...`` lines on stderr (the library logs them; see graspsim.maps.kernels)."""
+    log = logging.getLogger("graspsim.maps.kernels")
+    if not any(isinstance(h, _ProgressLineHandler) for h in log.handlers):
+        handler = _ProgressLineHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("graspsim: %(message)s"))
+        log.addHandler(handler)
+    log.setLevel(logging.INFO)
+    log.propagate = False
 
 
 if __name__ == "__main__":  # pragma: no cover

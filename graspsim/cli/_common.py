@@ -6,10 +6,8 @@ import json
 import sys
 from typing import Any, Iterable
 
-from graspsim._jsonable import to_jsonable
-
-__all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "executor_from_args", "format_table",
-           "to_jsonable", "progress"]
+__all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "executor_from_args",
+           "format_table", "progress"]
 
 
 def add_json_flag(p) -> None:
@@ -41,6 +39,8 @@ def executor_from_args(args):
 
 def emit(summary: dict, as_json: bool, human: str | None = None) -> None:
     """Print the human-readable text, or the JSON summary as the last line."""
+    from graspsim._jsonable import to_jsonable
+
     if as_json:
         sys.stdout.write(json.dumps(to_jsonable(summary), sort_keys=False) + "\n")
     elif human is not None:

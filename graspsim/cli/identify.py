@@ -15,12 +15,8 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
 from graspsim.cli._common import add_json_flag, add_units_flag, emit, format_table
 from graspsim.errors import DependencyNotInstalled
-from graspsim.perception.identify import IdentifyConfig, identify
-from graspsim.perception.io import read_point_cloud
 
 __all__ = ["register", "run"]
 
@@ -78,6 +74,11 @@ def _lookup(db_dir: str | None):
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from graspsim.perception.identify import IdentifyConfig, identify
+    from graspsim.perception.io import read_point_cloud
+
     config = IdentifyConfig(repetitions=args.repetitions, theta=args.theta, noise=args.noise)
     cloud = read_point_cloud(args.cloud, units=args.units)
     lookup, db_root = _lookup(args.db)

@@ -6,9 +6,13 @@
 * ``graspsim/GraspPose-v0`` (:class:`~graspsim.envs.grasp_pose.GraspPoseEnv`): propose a
   wrist pose (continuous action) for the same task.
 
-Both are registered when ``graspsim`` is imported (Gymnasium 1.x does not load entry
-points by itself), by entry-point strings, so importing graspsim does not import
-mujoco; ``gymnasium.make("graspsim:graspsim/GraspSelect-v0")`` imports graspsim first.
+Both are registered by ``import graspsim`` (Gymnasium 1.x loads no plugin entry points),
+by entry-point strings, so importing graspsim does not import mujoco. Nor does it import
+gymnasium (with numpy, ~0.1 s): when gymnasium is not loaded yet, a one-shot import hook
+registers the environments right after gymnasium's own import, so
+``import graspsim; import gymnasium; gymnasium.make("graspsim/GraspSelect-v0")`` works in
+either import order. ``gymnasium.make("graspsim:graspsim/GraspSelect-v0")`` imports
+graspsim first.
 Keyword arguments of ``gymnasium.make`` are :class:`~graspsim.envs.config.EnvConfig`
 fields. For ``make_vec`` use ``autoreset_mode=SAME_STEP`` (one-step episodes; see
 :mod:`graspsim.envs.grasp_select`).
@@ -16,8 +20,10 @@ fields. For ``make_vec`` use ``autoreset_mode=SAME_STEP`` (one-step episodes; se
 
 from __future__ import annotations
 
-__all__ = ["GRASP_SELECT_ID", "GRASP_POSE_ID", "register_envs", "GraspSelectEnv", "GraspPoseEnv",
-           "EnvConfig"]
+import sys
+
+__all__ = ["GRASP_SELECT_ID", "GRASP_POSE_ID", "register_envs", "register_when_imported",
+           "GraspSelectEnv", "GraspPoseEnv", "EnvConfig"]
 
 GRASP_SELECT_ID = "graspsim/GraspSelect-v0"
 GRASP_POSE_ID = "graspsim/GraspPose-v0"
@@ -33,6 +39,38 @@ def register_envs() -> None:
         if env_id not in gymnasium.registry:
             # one step per episode: the env ends it itself, no TimeLimit needed
             gymnasium.register(id=env_id, entry_point=entry, disable_env_checker=False)
+
+
+def register_when_imported() -> None:
+    """Register the environments now if gymnasium is loaded, else as soon as it is."""
+    if "gymnasium" in sys.modules:
+        register_envs()
+    elif not any(isinstance(f, _RegisterOnImport) for f in sys.meta_path):
+        sys.meta_path.insert(0, _RegisterOnImport())
+
+
+class _RegisterOnImport:
+    """One-shot import hook (a ``sys.meta_path`` finder): finds ``gymnasium`` with the
+    other finders and wraps its loader so that :func:`register_envs` runs right after
+    gymnasium's module body."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname != "gymnasium":
+            return None
+        import importlib.util
+
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(fullname)
+        loader = getattr(spec, "loader", None)
+        if loader is not None and hasattr(loader, "exec_module"):
+            run = loader.exec_module
+
+            def exec_module(module):
+                run(module)
+                register_envs()
+
+            loader.exec_module = exec_module
+        return spec
 
 
 def __getattr__(name: str):

@@ -30,21 +30,33 @@ exact except that poses within f of touching count as colliding (conservative).
 
 Loops run with the rolls innermost so that numba vectorises them (element-wise minima
 over the roll axis; horizontal min-reductions do not vectorise).
+
+Compilation
+-----------
+Each kernel is compiled once, for the one signature in ``SIGNATURES`` (float32 samples
+and frames, C-contiguous arrays), and cached on disk (``cache=True``); the entry points
+release the GIL and work on a range of line chunks, so :mod:`graspsim.maps.kernels`
+runs them on Python threads. Plain (non-``parallel``) functions compile in about half
+the time of numba's parallel loops; :func:`graspsim.maps.kernels.ensure_compiled`
+compiles them in order and says so on the first run.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, types
 
-__all__ = ["sweep_lines"]
+__all__ = ["sweep_lines", "assemble_rows", "SIGNATURES"]
+
+_f4, _i4, _i8, _u1 = types.float32, types.int32, types.int64, types.uint8
+_V, _M = _f4[::1], _f4[:, ::1]  # float32 vector (n,), matrix (n, k), C order
 
 # A large finite sentinel: fastmath lets LLVM assume there are no infinities.
 _BIG = np.float32(1e9)
 _ZERO = np.float32(0.0)
 
 
-@njit(cache=True, fastmath=True, inline="always")
+@njit(cache=True, fastmath=True)
 def _xoff(s, lo, hi, off):
     return off if (s >= lo and s <= hi) else _BIG
 
@@ -96,7 +108,7 @@ def _gather(Q, NQ, RT, HN, gp, u, e1, e2, ho, fp, fmargin, reach2,
     return n
 
 
-@njit(cache=True, fastmath=True, inline="always")
+@njit(cache=True, fastmath=True)
 def _patch_value(a, b, na, nb, ns, rt, hn, f, jj, h, c, s, hyF, hyJ, hyH, fmargin):
     """Value t - m_t + off of a sample's surface patch at roll (c, s): the patch reaches
     m_y, m_t from the sample along the wrist's y and z axes (tangential radius rt,
@@ -148,7 +160,7 @@ def _roll_minima(n, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH, cr,
             vex[r] = v if v < vex[r] else vex[r]
 
 
-@njit(cache=True, fastmath=True, inline="always")
+@njit(cache=True, fastmath=True)
 def _line_coords(P, N, i, gp, u, e1, e2, rt, hn, ho, fp, margin):
     """Line-frame coordinates of sample ``i`` of (P, N): a, b, its normal's (e1, e2)
     components and |n.u|, and the x-footprint offsets of its patch (tangential radius
@@ -218,11 +230,12 @@ def _refine(n, idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, nu, cu, su, dhi
             hit[0] += 1
 
 
-@njit(cache=True, parallel=True, fastmath=True)
+@njit(cache=True, nogil=True, fastmath=True)
 def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart, F, NF, RTF,
                 HNF, fstart, fp, reach2, cos_r, sin_r, depths, fmargin, refine, need, free,
-                n_refined):
-    """Collision sweep over lines x rolls x depths.
+                n_refined, chunk0, chunk1, nchunk):
+    """Collision sweep over lines x rolls x depths, for the lines of chunks
+    ``chunk0 <= c < chunk1`` (chunk c holds lines c, c + nchunk, c + 2 nchunk, ...).
 
     gp, u, e1, e2: (L, 3) float32 line frames; half_open: (L,) pre-grasp opening / 2.
     Q, NQ: (Mc, 3) coarse samples and their normals; RT, HN: (Mc,) tangential radius
@@ -242,22 +255,21 @@ def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart
     R = cos_r.shape[0]
     D = depths.shape[0]
     Mc = Q.shape[0]
-    nchunk = min(L, 512)
     hyF, hyJ, hyH = fp[0, 2], fp[1, 2], fp[2, 2]
     all_needed = need.shape[0] == 1 and L != 1
-    for ch in prange(nchunk):
-        idx = np.empty(Mc, np.int32)
-        buf = np.empty((13, Mc), np.float32)
-        ca, cb, cna, cnb, cns, crt, chn = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5], buf[6]
-        oF, oJ, oH, xF, xJ, xH = buf[7], buf[8], buf[9], buf[10], buf[11], buf[12]
-        vin = np.empty(R, np.float32)
-        vex = np.empty(R, np.float32)
-        ur = np.empty(R, np.int64)
-        cu = np.empty(R, np.float32)
-        su = np.empty(R, np.float32)
-        dhi = np.empty(R, np.float32)
-        best = np.empty(R, np.float32)
-        hit = np.zeros(1, np.int64)
+    idx = np.empty(Mc, np.int32)
+    buf = np.empty((13, Mc), np.float32)
+    ca, cb, cna, cnb, cns, crt, chn = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5], buf[6]
+    oF, oJ, oH, xF, xJ, xH = buf[7], buf[8], buf[9], buf[10], buf[11], buf[12]
+    vin = np.empty(R, np.float32)
+    vex = np.empty(R, np.float32)
+    ur = np.empty(R, np.int64)
+    cu = np.empty(R, np.float32)
+    su = np.empty(R, np.float32)
+    dhi = np.empty(R, np.float32)
+    best = np.empty(R, np.float32)
+    hit = np.zeros(1, np.int64)
+    for ch in range(chunk0, chunk1):
         for li in range(ch, L, nchunk):
             ho = half_open[li]
             n = _gather(Q, NQ, RT, HN, gp[li], u[li], e1[li], e2[li], ho, fp, fmargin, reach2,
@@ -292,10 +304,11 @@ def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart
             n_refined[li] = nu
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, nogil=True, fastmath=False)
 def assemble_rows(free, u, e1, e2, gp, cos_r, sin_r, tcp, offsets, line_cols, pair_cols,
-                  line_scalars, wrist, quat, rows_vec, rows_c, rows_n, rows_scalar):
-    """Fill the map's row columns for every free pose, in (line, roll, depth) order.
+                  line_scalars, wrist, quat, rows_vec, rows_c, rows_n, rows_scalar, line0, line1):
+    """Fill the map's row columns for every free pose of lines ``line0 <= l < line1``,
+    in (line, roll, depth) order.
 
     free: (L, R, D) uint8; u, e1, e2, gp: (L, 3) line frames and grasp points; tcp: (D,)
     wrist-to-grasp-point distance along z per depth; offsets: (L + 1,) first row of each
@@ -304,9 +317,9 @@ def assemble_rows(free, u, e1, e2, gp, cos_r, sin_r, tcp, offsets, line_cols, pa
     line_scalars (L, S) -> rows_scalar (S, N). Computes wrist (N, 3) and quat (N, 4)
     w,x,y,z of the wrist axes x = u, z = cos e1 + sin e2, y = z x x.
     """
-    L, R, D = free.shape
+    R, D = free.shape[1], free.shape[2]
     S = line_scalars.shape[1]
-    for li in prange(L):
+    for li in range(line0, line1):
         row = offsets[li]
         if offsets[li + 1] == row:
             continue
@@ -340,7 +353,7 @@ def assemble_rows(free, u, e1, e2, gp, cos_r, sin_r, tcp, offsets, line_cols, pa
                     row += 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _quat(m00, m01, m02, m10, m11, m12, m20, m21, m22):
     """Rotation matrix -> unit quaternion w, x, y, z with w >= 0 (Shepperd's method)."""
     tr = m00 + m11 + m22
@@ -359,3 +372,25 @@ def _quat(m00, m01, m02, m10, m11, m12, m20, m21, m22):
     if w < 0.0:
         return -w, -x, -y, -z
     return w, x, y, z
+
+
+@njit(cache=True)
+def probe():
+    """A trivial cached function, compiled first: a cache miss here means a cold cache."""
+    return 0
+
+
+_B = _u1[:, :, ::1]  # (L, R, D) uint8 flags
+_LINE = (_V,) * 13  # the per-line candidate arrays of _gather, in its order
+# One signature per kernel, callees before callers (compiled in this order).
+SIGNATURES = {
+    "_gather": (_M, _M, _V, _V, _V, _V, _V, _V, _f4, _M, _f4, _V, _i4[::1]) + _LINE,
+    "_roll_minima": (_i8,) + _LINE + (_V, _V, _f4, _f4, _f4, _f4, _V, _V),
+    "_refine": (_i8, _i4[::1]) + _LINE[:10] + (_i8, _V, _V, _V, _V, _M, _M, _V, _V, _i8[::1], _M, _M,
+                                                 _V, _V, _i8[::1], _V, _V, _V, _V, _f4, _M, _f4,
+                                                 _i8[::1]),
+    "sweep_lines": (_M, _M, _M, _M, _V, _M, _M, _V, _V, _M, _M, _V, _V, _i8[::1], _M, _M, _V, _V,
+                    _i8[::1], _M, _V, _V, _V, _V, _f4, types.boolean, _B, _B, _i4[::1], _i8, _i8, _i8),
+    "assemble_rows": (_B, *(types.float64[:, ::1],) * 4, *(types.float64[::1],) * 3, _i8[::1], _M,
+                      _f4[:, :, :, ::1], _M, _M, _M, _M, _f4[:, :, ::1], _f4[:, :, ::1], _M, _i8, _i8),
+}

@@ -256,6 +256,9 @@ class MapDatabase:
                 if progress:
                     progress(done, len(shapes), s)
         else:
+            from graspsim.maps.kernels import ensure_compiled
+
+            ensure_compiled()  # here, once: the workers then load the kernels from the cache
             jobs = [_BuildJob(str(self.root), s.to_dict(), self.gripper.to_dict(), self.quality.to_dict(),
                               self.config.to_dict(), self.tol) for s in missing]
             for i, record in executor.imap(_build_job, jobs):

@@ -227,10 +227,9 @@ def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapC
     Rolls [rad] and contact depths [m] default to the config's sampling (depths must be
     increasing). ``need`` (L, R, D) bool: only these poses' answers are wanted (others
     may come back 0 = colliding); None: all."""
-    import numba
+    from graspsim.maps.kernels import default_threads, kernels, run_chunks
 
-    from graspsim.maps import _kernel
-
+    kern = kernels()
     lv = sample_levels(shape, cfg)
     fmargin = lv["fine_cover"]
     fp, offs = _footprints(gripper)
@@ -245,31 +244,19 @@ def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapC
     free = np.zeros((L, R, D), np.uint8)
     n_ref = np.zeros(L, np.int32)
     f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
-    static = (f32(lv["Q"]), f32(lv["NQ"]), f32(lv["RT"]), f32(lv["HN"]), f32(lv["M"]),
-              f32(lv["NM"]), f32(lv["RTM"]), f32(lv["HNM"]), lv["mstart"], f32(lv["F"]),
-              f32(lv["NF"]), f32(lv["RTF"]), f32(lv["HNF"]), lv["fstart"], fp, f32(reach2),
-              f32(np.cos(roll)), f32(np.sin(roll)), depths, np.float32(fmargin),
-              bool(cfg.collision_refine))
-    need_all = np.ones((1, 1, 1), np.uint8)
-    old = numba.get_num_threads()
-    if threads is not None:
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-    try:
-        n_batches = max(1, min(16, L // 2048)) if progress else 1
-        for bi, sl in enumerate(np.array_split(np.arange(L), n_batches)):
-            if len(sl) == 0:
-                continue
-            a, b = sl[0], sl[-1] + 1
-            nd = need_all if need is None else np.ascontiguousarray(need[a:b], np.uint8)
-            _kernel.sweep_lines(f32(lines.gp[a:b]), f32(lines.u[a:b]), f32(lines.e1[a:b]),
-                                f32(lines.e2[a:b]),
-                                f32(0.5 * lines.width[a:b] + gripper.approach_clearance),
-                                *static, nd, free[a:b], n_ref[a:b])
-            if progress:
-                progress((bi + 1) / n_batches)
-        used = numba.get_num_threads()
-    finally:
-        numba.set_num_threads(old)
+    i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
+    args = (f32(lines.gp), f32(lines.u), f32(lines.e1), f32(lines.e2),
+            f32(0.5 * lines.width + gripper.approach_clearance),
+            f32(lv["Q"]), f32(lv["NQ"]), f32(lv["RT"]), f32(lv["HN"]), f32(lv["M"]), f32(lv["NM"]),
+            f32(lv["RTM"]), f32(lv["HNM"]), i64(lv["mstart"]), f32(lv["F"]), f32(lv["NF"]),
+            f32(lv["RTF"]), f32(lv["HNF"]), i64(lv["fstart"]), fp, f32(reach2), f32(np.cos(roll)),
+            f32(np.sin(roll)), f32(depths), np.float32(fmargin), bool(cfg.collision_refine),
+            np.ones((1, 1, 1), np.uint8) if need is None else np.ascontiguousarray(need, np.uint8),
+            free, n_ref)
+    used = default_threads(threads)
+    nchunk = min(L, 512)  # chunk c: lines c, c + nchunk, ... (spread over the object)
+    run_chunks(lambda c0, c1: kern.sweep_lines(*args, c0, c1, nchunk), nchunk, used,
+               parts=max(16, 4 * used) if progress else used, progress=progress)
     free[~lines.outside] = 0
     stats = {"refined_rolls": int(n_ref.sum()), "coarse_samples": int(len(lv["Q"])),
              "middle_samples": int(len(lv["M"])), "fine_samples": int(len(lv["F"])),
@@ -328,7 +315,7 @@ def generate_fs_map(
                  grasps=int(free.sum(dtype=np.int64)))
     roll = roll_angles(cfg)
     depths = gripper.contact_depths(cfg.depth_step)
-    cols = _assemble(free, lines, roll, gripper.fingertip_z - depths, q)
+    cols = _assemble(free, lines, roll, gripper.fingertip_z - depths, q, threads)
     n_rows = len(cols["grade"])
     gmap = GraspabilityMap(
         **cols,
@@ -362,10 +349,10 @@ _SCALARS = ("width", "fc_angle", "q_fc", "stability_distance", "q_st", "grade")
 
 
 def _assemble(free: np.ndarray, lines: ClosingLines, roll: np.ndarray, tcp: np.ndarray,
-              q) -> dict[str, np.ndarray]:
+              q, threads: int | None = None) -> dict[str, np.ndarray]:
     """Map columns (float32, one row per free pose in (line, roll, depth) order), filled
     in one parallel pass without per-column temporaries."""
-    from graspsim.maps import _kernel
+    from graspsim.maps.kernels import default_threads, kernels, run_chunks
 
     counts = free.reshape(len(free), -1).sum(axis=1, dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)])
@@ -380,9 +367,12 @@ def _assemble(free: np.ndarray, lines: ClosingLines, roll: np.ndarray, tcp: np.n
     contacts = np.empty((n, 2, 3), np.float32)
     normals = np.empty((n, 2, 3), np.float32)
     rows_scal = np.empty((len(_SCALARS), n), np.float32)
-    _kernel.assemble_rows(free, lines.u, lines.e1, lines.e2, lines.gp, np.cos(roll), np.sin(roll),
-                          np.asarray(tcp, float), offsets, f32(lines.gp), pair, scal,
-                          wrist, quat, gp, contacts, normals, rows_scal)
+    f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    args = (free, f64(lines.u), f64(lines.e1), f64(lines.e2), f64(lines.gp), f64(np.cos(roll)),
+            f64(np.sin(roll)), f64(tcp), offsets, f32(lines.gp), pair, scal, wrist, quat, gp,
+            contacts, normals, rows_scal)
+    kern, threads = kernels(), default_threads(threads)
+    run_chunks(lambda l0, l1: kern.assemble_rows(*args, l0, l1), len(free), threads, parts=4 * threads)
     cols = {"wrist_position": wrist, "wrist_quat": quat, "grasp_point": gp,
             "contacts": contacts, "normals": normals}
     cols.update({k: rows_scal[i] for i, k in enumerate(_SCALARS)})

@@ -68,14 +68,15 @@ def _h5py():
 def save_map(gmap: GraspabilityMap, path: str | os.PathLike, *, compression: str | None = "lzf") -> Path:
     """Write ``gmap`` to ``path`` atomically (temp file + rename). Returns the path.
 
-    compression: HDF5 filter for the grasp arrays (with byte shuffling): "lzf" (default;
-    maps repeat each closing line's data over rolls and depths, so files shrink ~6x),
-    "gzip", or None. Readers need nothing special: h5py decompresses transparently.
+    compression: HDF5 filter for the grasp arrays: "lzf" (default; maps repeat each
+    closing line's data over rolls and depths, so files shrink ~5x), "gzip", or None.
+    Readers need nothing special: h5py decompresses transparently. (No byte shuffling:
+    it made files 6 % smaller but writing 35 % and reading 30 % slower.)
     """
     h5py = _h5py()
     path = Path(path)
     m = gmap.meta
-    opts = {"compression": compression, "shuffle": True} if compression and len(gmap) else {}
+    opts = {"compression": compression} if compression and len(gmap) else {}
     with atomic_path(path) as tmp:
         try:
             with h5py.File(tmp, "w") as f:

@@ -58,9 +58,12 @@ def map_rates(gmap: GraspabilityMap, *, shape=None, min_grade: float = 0.0,
     hit_pixels = int(hit.sum())
     lo, hi = wrist_box(shape, gmap.meta.gripper)
     n_vox = np.ceil((hi - lo) / res - 1e-9).astype(np.int64)
-    v = np.floor((gmap.wrist_position[sel] - lo.astype(np.float32)) / np.float32(res)).astype(np.int64)
-    inside = np.all((v >= 0) & (v < n_vox), axis=1)
-    v = v[inside]
+    # voxel coordinates as whole float32 numbers, bounds-checked before the integer cast
+    # (in place: maps hold millions of rows)
+    f = (gmap.wrist_position if sel.all() else gmap.wrist_position[sel]) - lo.astype(np.float32)
+    f /= np.float32(res)
+    np.floor(f, out=f)
+    v = f[np.all((f >= 0) & (f < n_vox.astype(np.float32)), axis=1)].astype(np.int64)
     occupied = np.zeros(int(np.prod(n_vox)), bool)
     occupied[(v[:, 0] * n_vox[1] + v[:, 1]) * n_vox[2] + v[:, 2]] = True
     hit_voxels = int(occupied.sum())

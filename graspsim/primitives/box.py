@@ -6,7 +6,6 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-import trimesh
 
 from graspsim.primitives._sampling import rect_samples
 from graspsim.primitives.base import Primitive, SurfaceSamples
@@ -82,4 +81,6 @@ class Box(Primitive):
         return np.stack([-self.half, self.half])
 
     def _mesh_geo(self, sections: int):
+        import trimesh  # only meshes need it: keeps it out of plain imports
+
         return trimesh.creation.box(extents=[self.x, self.y, self.z])

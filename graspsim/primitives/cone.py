@@ -8,7 +8,6 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-import trimesh
 from numpy.polynomial import Polynomial
 
 from graspsim.errors import PrimitiveError
@@ -161,6 +160,8 @@ class Cone(Primitive):
         return np.array([[-r, -r, 0.0], [r, r, self.height]])
 
     def _mesh_geo(self, sections: int):
+        import trimesh  # only meshes need it: keeps it out of plain imports
+
         r0, r1, h = self.bottom_radius, self.top_radius, self.height
         prof = [(0.0, 0.0)] if r0 > 0 else []
         prof += [(r0, 0.0), (r1, h)]

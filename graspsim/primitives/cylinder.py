@@ -7,7 +7,6 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-import trimesh
 
 from graspsim.primitives._sampling import disk_samples, revolution_samples
 from graspsim.primitives.base import Primitive, SurfaceSamples
@@ -84,4 +83,6 @@ class Cylinder(Primitive):
         return np.array([[-r, -r, -h], [r, r, h]])
 
     def _mesh_geo(self, sections: int):
+        import trimesh  # only meshes need it: keeps it out of plain imports
+
         return trimesh.creation.cylinder(radius=self.radius, height=self.height, sections=sections)

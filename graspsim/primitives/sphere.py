@@ -7,7 +7,6 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-import trimesh
 
 from graspsim.primitives._sampling import revolution_samples
 from graspsim.primitives.base import Primitive, SurfaceSamples
@@ -66,5 +65,7 @@ class Sphere(Primitive):
         return np.array([[-1.0] * 3, [1.0] * 3]) * self.radius
 
     def _mesh_geo(self, sections: int):
+        import trimesh  # only meshes need it: keeps it out of plain imports
+
         sub = 2 if sections <= 32 else 3 if sections <= 64 else 4
         return trimesh.creation.icosphere(subdivisions=sub, radius=self.radius)

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-import trimesh
 
 from graspsim.errors import PrimitiveError
 from graspsim.primitives._sampling import disk_samples, revolution_samples
@@ -106,6 +105,8 @@ class HalfToroid(Primitive):
         return np.array([[-R - r, 0.0, -r], [R + r, R + r, r]])
 
     def _mesh_geo(self, sections: int):
+        import trimesh  # only meshes need it: keeps it out of plain imports
+
         R, r = self.major_radius, self.minor_radius
         nt, npsi = max(8, sections // 2), max(8, sections // 2)
         th = np.linspace(0.0, math.pi, nt + 1)

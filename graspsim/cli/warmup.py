@@ -1,0 +1,34 @@
+"""``graspsim warmup``: compile the map kernels now, so that no later command waits.
+
+The first map generation on a machine compiles graspsim's numba kernels (a few seconds;
+cached on disk afterwards). Run this once after installing, e.g. in a container build.
+"""
+
+from __future__ import annotations
+
+import time
+
+from graspsim.cli._common import add_json_flag, emit
+
+__all__ = ["register"]
+
+
+def _cmd_warmup(args) -> int:
+    from graspsim.maps.kernels import cache_dir, ensure_compiled
+
+    t0 = time.perf_counter()
+    compiled = ensure_compiled()
+    summary = {"compiled": compiled, "seconds": time.perf_counter() - t0, "cache": cache_dir()}
+    what = "compiled" if compiled else "loaded from the cache"
+    emit(summary, args.json, f"map kernels {what} in {summary['seconds']:.1f} s "
+                             f"(cache: {summary['cache'] or 'none writable'})")
+    return 0
+
+
+def register(sub) -> None:
+    p = sub.add_parser("warmup", help="compile the map kernels now (first run only; cached)",
+                       description="Compile graspsim's numba kernels now (the first map "
+                       "generation on a machine otherwise does it, a few seconds; they are cached "
+                       "on disk). Run once after installing, e.g. in a container build.")
+    add_json_flag(p)
+    p.set_defaults(func=_cmd_warmup)

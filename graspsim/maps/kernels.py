@@ -1,0 +1,136 @@
+"""Running the compiled map kernels (:mod:`graspsim.maps._kernel`): compile once, say so,
+run on threads.
+
+* :func:`ensure_compiled` compiles the kernels for their one signature each, or loads
+  them from numba's on-disk cache (about 0.3 s). The first run on a machine compiles
+  (a few seconds) and logs ``compiling map kernels (first run only) ...`` as a warning,
+  one INFO line per kernel, so the wait is never silent; ``graspsim warmup`` does it
+  ahead of time (e.g. after ``pip install``).
+* The cache lives beside the module (``graspsim/maps/__pycache__``) when that folder is
+  writable, else in numba's user cache (``~/.cache/numba`` or ``$XDG_CACHE_HOME/numba``);
+  ``NUMBA_CACHE_DIR`` overrides both (numba's own rules); with neither writable, a
+  per-user folder in the temporary directory.
+* :func:`run_chunks` runs a kernel over index ranges on Python threads: the kernels
+  release the GIL, so this is as parallel as numba's ``prange`` without its compile
+  cost.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from types import ModuleType
+from typing import Callable
+
+__all__ = ["ensure_compiled", "kernels", "cache_dir", "default_threads", "run_chunks"]
+
+log = logging.getLogger(__name__)
+
+_lock = threading.Lock()
+_ready = False
+
+
+def kernels() -> ModuleType:
+    """The compiled kernel module, every kernel compiled or loaded (see :func:`ensure_compiled`)."""
+    ensure_compiled()
+    from graspsim.maps import _kernel
+
+    return _kernel
+
+
+def ensure_compiled() -> bool:
+    """Compile (first run on a machine) or load from the cache (later runs) every
+    kernel, once per process. Returns True if this call compiled anything."""
+    global _ready
+    if _ready:
+        return False
+    with _lock:
+        if _ready:
+            return False
+        k = _import_kernel()
+        k.probe.compile(())
+        cold = _misses(k.probe) > 0
+        if cold:
+            log.warning("compiling map kernels (first run only; cached in %s) ...", cache_dir())
+        t0 = time.perf_counter()
+        n = len(k.SIGNATURES)
+        compiled = 0
+        for i, (name, sig) in enumerate(k.SIGNATURES.items()):
+            t = time.perf_counter()
+            fn = getattr(k, name)
+            fn.compile(sig)
+            fn.disable_compile()  # calls with other types fail instead of compiling again
+            compiled += _misses(fn) > 0
+            if cold:
+                log.info("  [%d/%d] %s %.1f s", i + 1, n, name.strip("_"), time.perf_counter() - t)
+        if compiled:
+            log.warning("map kernels compiled in %.1f s", time.perf_counter() - t0)
+        _ready = True
+        return bool(compiled)
+
+
+def cache_dir() -> str | None:
+    """Folder of the kernels' on-disk cache."""
+    k = _import_kernel()
+    return k.probe.stats.cache_path
+
+
+def _misses(fn) -> int:
+    return sum(fn.stats.cache_misses.values())
+
+
+def _import_kernel() -> ModuleType:
+    try:
+        from graspsim.maps import _kernel
+    except RuntimeError as err:  # numba found no writable cache folder
+        if "cannot cache function" not in str(err):
+            raise
+        import os
+        import tempfile
+
+        import numba
+
+        user = os.getuid() if hasattr(os, "getuid") else "user"
+        numba.config.CACHE_DIR = os.path.join(tempfile.gettempdir(), f"graspsim-numba-{user}")
+        log.info("no writable cache folder for the map kernels (%s); caching them in %s; "
+                    "set NUMBA_CACHE_DIR to choose", err, numba.config.CACHE_DIR)
+        from graspsim.maps import _kernel
+    return _kernel
+
+
+def default_threads(threads: int | None = None) -> int:
+    """Threads to use: ``threads`` clamped to [1, numba's thread count] (NUMBA_NUM_THREADS,
+    default: the cores this process may use); None -> all of them."""
+    import numba
+
+    top = int(numba.config.NUMBA_NUM_THREADS)
+    return top if threads is None else max(1, min(int(threads), top))
+
+
+def run_chunks(fn: Callable[[int, int], object], n: int, threads: int, *, parts: int | None = None,
+               progress: Callable[[float], None] | None = None) -> None:
+    """Call ``fn(lo, hi)`` for contiguous ranges covering ``[0, n)`` (``parts`` of them,
+    default one per thread) on ``threads`` threads; ``progress(done_fraction)`` after
+    each range. ``fn`` must release the GIL (a ``nogil`` kernel) to run in parallel."""
+    if n <= 0:
+        return
+    parts = max(1, min(n, parts or threads))
+    bounds = [n * i // parts for i in range(parts + 1)]
+    ranges = list(zip(bounds[:-1], bounds[1:]))
+    if threads <= 1 or parts == 1:
+        for i, (lo, hi) in enumerate(ranges):
+            fn(lo, hi)
+            if progress:
+                progress((i + 1) / parts)
+        return
+    ex = ThreadPoolExecutor(min(threads, parts), thread_name_prefix="graspsim-kernel")
+    try:
+        futures = [ex.submit(fn, lo, hi) for lo, hi in ranges]
+        for i, f in enumerate(as_completed(futures)):
+            f.result()
+            if progress:
+                progress((i + 1) / parts)
+    finally:
+        ex.shutdown(wait=True, cancel_futures=True)

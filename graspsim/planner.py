@@ -25,9 +25,10 @@ from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.maps.match import MatchKind
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import TablePlane, clears_table, table_frame
-from graspsim.perception import Identification, IdentifyConfig, identify
+from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
 from graspsim.primitives import Compound, Primitive
 from graspsim.transforms import invert_transform
 
@@ -47,7 +48,6 @@ class PlanStatus(str, Enum):
 class PlannerConfig:
     """identify: perception settings (paper case study: 10 repetitions, theta 0.5).
     scaling: the map scaling settings (Combined by default).
-    tol: known / familiar tolerance on every dimension [m] (paper: 1 cm).
     partial: when clustering fails, still build the map of the identified parts.
     build_missing: when no stored map of the primitive lies within the scaling range,
         build (and store) an FS map of it, as the paper suggests; else skip the part.
@@ -58,7 +58,6 @@ class PlannerConfig:
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
     scaling: ScalingConfig = field(default_factory=ScalingConfig)
-    tol: float = 0.01
     partial: bool = True
     build_missing: bool = True
     table: TablePlane | None = None
@@ -128,27 +127,6 @@ def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarra
     return prim.with_dims(x=d[order[0]], y=d[order[1]], z=d[order[2]]), T2
 
 
-def _scale_source(prim: Primitive, entries: list[dict], max_ratio: float) -> dict | None:
-    """The stored map of the same primitive needing the smallest relative size change
-    (largest per-dimension ratio), if it is within ``max_ratio``."""
-    best, best_r = None, np.inf
-    for e in entries:
-        if e["primitive"] != prim.kind:
-            continue
-        r = 1.0
-        for k, v in prim.dims.items():
-            w = e["dims"][k]
-            if v == 0 or w == 0:
-                r = 1.0 if v == w else np.inf
-                if r == np.inf:
-                    break
-                continue
-            r = max(r, v / w, w / v)
-        if r < best_r:
-            best, best_r = e, r
-    return best if best_r <= max_ratio else None
-
-
 def _batches(gmap: GraspabilityMap, first: int, growth: float) -> Iterator[GraspabilityMap]:
     """A best-first map in growing slices (for streaming a stored map)."""
     start, size = 0, max(1, first)
@@ -160,20 +138,19 @@ def _batches(gmap: GraspabilityMap, first: int, growth: float) -> Iterator[Grasp
 
 def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig) -> tuple[str, dict, Iterator]:
     """(match, source object, iterator of map batches in the part's frame)."""
-    m = db.lookup(prim.kind, prim.dims, tol=cfg.tol)
+    m = db.match(prim, max_ratio=cfg.scaling.max_ratio)
     stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth)  # noqa: E731
-    if m.match is not None and m.match.value == "known":  # the stored map as is (paper 2.2)
+    if m.match is MatchKind.KNOWN:  # the stored map as is (paper 2.2)
         fs = db.load_entry(m.entry, accepted_only=True)
         return "known", fs.meta.object, stream(fs)
-    entry = _scale_source(prim, db.entries(), cfg.scaling.max_ratio) if m.match is not None else None
-    if entry is not None:
-        fs = db.load_entry(entry, accepted_only=True)
+    if m.match is MatchKind.FAMILIAR:
+        fs = db.load_entry(m.entry, accepted_only=True)
         return "familiar", fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling)
     if not cfg.build_missing:
         return "missing", {}, iter(())
     # no map of this primitive within the scaling range: add one to the database
-    db.get(prim)
-    fs = db.load_entry(db.lookup(prim.kind, prim.dims, tol=0.0).entry, accepted_only=True)
+    fs = db.get(prim)  # sorted best first: the accepted grasps are a prefix
+    fs = fs.select(np.arange(int(fs.accepted.sum())))
     return "built", fs.meta.object, stream(fs)
 
 
@@ -191,7 +168,7 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
         p, T = _canonical_box(part.primitive(), part.T_world_obj)
         prims.append(p)
         T_cloud.append(T)
-    status = PlanStatus.COMPLETE if ident.status.value == "identified" else PlanStatus.PARTIAL
+    status = PlanStatus.COMPLETE if ident.status is IdentificationStatus.IDENTIFIED else PlanStatus.PARTIAL
     if not prims or (status is PlanStatus.PARTIAL and not cfg.partial):
         status = PlanStatus.FAILED
         prims, T_cloud = [], []

@@ -56,7 +56,7 @@ class GraspPoseEnv(TableTask):
         })
         self.action_space = spaces.Box(-1.0, 1.0, (10,), np.float32)
         g = self.gripper
-        self._tcp = float(g.tcp_offset(0.5 * g.pad_length))
+        self._tcp = float(g.nominal_tcp[2])
         self._bounds: np.ndarray | None = None
         self._noise_T: np.ndarray | None = None
         self._done = True

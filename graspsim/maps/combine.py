@@ -58,8 +58,7 @@ def combine_part(part_map: GraspabilityMap, index: int, compound: Compound, *,
     # contact depth and width do not depend on the frame: take them in the part's
     gp_part = part_map.grasp_point[keep].astype(float)
     R_part = quat_to_matrix(part_map.wrist_quat[keep])
-    depth = gripper.fingertip_z - np.einsum(
-        "ni,ni->n", gp_part - part_map.wrist_position[keep], R_part[:, :, 2])
+    depth = gripper.contact_depth(gp_part, part_map.wrist_position[keep], R_part[:, :, 2])
     width = part_map.width[keep].astype(float)
     # collisions with the adjacent parts, each in its own frame (one cached sample
     # hierarchy per primitive), grouped by closing line

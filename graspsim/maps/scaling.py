@@ -147,7 +147,7 @@ def _columns(ch: _Chords, sel: np.ndarray, R: np.ndarray, depth: np.ndarray,
     """Map columns of grasps ``sel`` (indices into the chords) with rotations R and
     contact depths ``depth`` (one per selected grasp)."""
     gp = ch.gp[sel]
-    return {"wrist_position": gp - (gripper.fingertip_z - depth)[:, None] * R[:, :, 2],
+    return {"wrist_position": gripper.wrist_from_grasp_point(gp, R[:, :, 2], depth),
             "grasp_point": gp, "contacts": np.stack([ch.c1[sel], ch.c2[sel]], 1),
             "normals": np.stack([ch.n1[sel], ch.n2[sel]], 1), "width": ch.width[sel],
             "fc_angle": ch.q.fc_angle[sel], "q_fc": ch.q.q_fc[sel],
@@ -235,7 +235,7 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
         line = src.line_of[rows]
         R = quat_to_matrix(fs_map.wrist_quat[src.rows[rows]])
         wrist = fs_map.wrist_position[src.rows[rows]].astype(float)
-        depth = gripper.fingertip_z - np.einsum("ni,ni->n", src.gp[line] - wrist, R[:, :, 2])
+        depth = gripper.contact_depth(src.gp[line], wrist, R[:, :, 2])
         pieces = []
         rest = np.arange(len(rows))
         if sc.method in (ScalingMethod.QUALITY, ScalingMethod.COMBINED):

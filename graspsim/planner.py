@@ -24,7 +24,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import object_description
-from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import TablePlane, clears_table, table_frame
@@ -107,7 +107,7 @@ class PlanResult:
                 "grasps": len(self.map), "accepted": int(self.map.accepted.sum()),
                 "seconds": self.timing.get("total"), "time_to_first_0.95": self.timing.get("first"),
                 "time_to_tenth_0.95": self.timing.get("tenth"),
-                "T_cloud_obj": self.T_cloud_obj.tolist(), "table": self.map.meta.extra.get("table")}
+                "T_cloud_obj": self.T_cloud_obj.tolist(), "table": None if self.map.meta.placement is None else self.map.meta.placement.table}
 
 
 def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarray]:
@@ -145,7 +145,8 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig) -> tuple[
         return "known", fs.meta.object, stream(fs)
     if m.match is MatchKind.FAMILIAR:
         fs = db.load_entry(m.entry, accepted_only=True)
-        return "familiar", fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling)
+        return "familiar", fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling, gripper=db.gripper,
+                                                        quality=db.quality, config=db.config)
     if not cfg.build_missing:
         return "missing", {}, iter(())
     # no map of this primitive within the scaling range: add one to the database
@@ -230,13 +231,13 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         T_cloud_obj = T_ref @ shift
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
-    extra = {"T_cloud_obj": T_cloud_obj.tolist(), "source": source, "status": status.value,
-             "identification": ident_info}
-    T_table_obj = None
+    T_table_obj = table = None
     if cfg.table is not None:
         height = _table_height(cfg.table, points, prims[0] if compound is None else compound, T_cloud_obj)
         T_table_obj = table_frame(cfg.table.normal, height) @ T_cloud_obj
-        extra["table"] = {**cfg.table.to_dict(), "height": height}
+        table = {**cfg.table.to_dict(), "height": height}
+    extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
+             "identification": ident_info}
     n_below = 0
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
@@ -268,8 +269,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             yield GraspBatch(batch, now)
     timing["maps"] = time.perf_counter() - t1
     final = {**extra, "parts": [p.to_dict() for p in parts]}
-    if T_table_obj is not None:  # a new dict: the batches already yielded keep theirs
-        final["table"] = {**extra["table"], "dropped": n_below}
+    if table is not None:  # a new dict: the batches already yielded keep theirs
+        final.update(Placement(T_cloud_obj, {**table, "dropped": n_below}).to_extra())
     meta = replace(obj_meta, method="adapted/" + ("single" if compound is None else "combined"),
                    extra=final)
     full = GraspabilityMap.concat(batches, meta=meta) if batches else GraspabilityMap.empty(meta)
@@ -328,6 +329,6 @@ def _empty_meta(db: MapDatabase, ident: Identification) -> MapMeta:
 
     return MapMeta(object={"primitive": "unidentified"}, gripper=db.gripper.to_dict(),
                    quality=db.quality.to_dict(), resolution=db.config.to_dict(), method="adapted",
-                   version=__version__, extra={"status": "failed", "T_cloud_obj": np.eye(4).tolist(),
+                   version=__version__, extra={"status": "failed", **Placement(np.eye(4)).to_extra(),
                                                "identification": ident.to_dict()})
 

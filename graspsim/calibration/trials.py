@@ -101,7 +101,7 @@ def draw_samples(cases: Sequence[CalibrationCase], per_bin: int, *, seed: int = 
     out = []
     for case in cases:
         gmap = case.gmap
-        gripper = GripperSpec.from_dict(gmap.meta.gripper)
+        gripper = gmap.meta.gripper_spec
         clear = _clears_table(gmap, resting_pose(_sim_object(case)), gripper, min_clearance,
                               T_sim_map=case.T_sim_map)
         rng = np.random.default_rng(case_seed(seed, case.name))
@@ -160,7 +160,7 @@ def _simulate_case(job: _CaseJob) -> TrialTable:
              if condition.noisy else None)
     case, rows = smp.case, smp.rows
     obj = conditioned_object(_sim_object(case), condition)
-    gripper = GripperSpec.from_dict(case.gmap.meta.gripper)
+    gripper = case.gmap.meta.gripper_spec
     scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity)
     res = run_trials(scene, case.T_obj_wrist[rows], case.gmap.width[rows], protocol,
                      threads=job.threads, seed=case_seed(job.seed, case.name), noise=noise)

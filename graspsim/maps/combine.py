@@ -105,10 +105,9 @@ def combine_maps(part_maps: list[GraspabilityMap], compound: Compound, *,
     if not part_maps:
         raise InvalidParameterError("combine_maps needs at least one part")
     t0 = time.perf_counter()
-    gripper = GripperSpec.from_dict(part_maps[0].meta.gripper)
-    quality = quality or QualityModel.from_meta(part_maps[0].meta.quality)
-    cfg = config or MapConfig(**{k: v for k, v in part_maps[0].meta.resolution.items()
-                                 if k in MapConfig.__dataclass_fields__})
+    gripper = part_maps[0].meta.gripper_spec
+    quality = quality or part_maps[0].meta.quality_model
+    cfg = config or part_maps[0].meta.map_config
     d_ref = quality.reference_distance(compound.circumradius)
     meta = MapMeta(object=object_description(compound, mass, cfg.density), gripper=part_maps[0].meta.gripper,
                    quality={**quality.to_dict(), "d_ref": d_ref}, resolution=part_maps[0].meta.resolution,

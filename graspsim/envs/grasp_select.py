@@ -99,19 +99,12 @@ class GraspSelectEnv(TableTask):
             ep_rng, plan_rng, pick_rng, noise_rng = rng.spawn(4)
             episode = self._draw_episode(ep_rng, shape)
             t1 = time.perf_counter()
-            try:
-                if c.perception is Perception.MODEL:
-                    result = plan_shape(episode.drawn.shape, episode.T_world_obj, db=self.db,
-                                        config=self.planner_config, source="graspsim.envs")
-                else:
-                    result = plan(episode.points, db=self.db, rng=plan_rng, config=self.planner_config,
-                                  source="graspsim.envs")
-            except ValueError as err:
-                # graspsim.maps.combine.combine_part fails on a scaled batch none of whose
-                # contacts lies on the compound's surface (np.reshape of an empty array);
-                # until that is fixed such an object is redrawn
-                log.warning("planner error on a %s (redrawn): %s", episode.drawn.kind, err)
-                continue
+            if c.perception is Perception.MODEL:
+                result = plan_shape(episode.drawn.shape, episode.T_world_obj, db=self.db,
+                                    config=self.planner_config, source="graspsim.envs")
+            else:
+                result = plan(episode.points, db=self.db, rng=plan_rng, config=self.planner_config,
+                              source="graspsim.envs")
             t_plan = time.perf_counter() - t1
             gmap = result.map
             T_world_wrist = result.T_cloud_obj @ gmap.T_obj_wrist  # the cloud frame is the world

@@ -1,7 +1,7 @@
 """Experiment E04: the paper's physical validation (section 3.4) replaced by simulation.
 
 A. The paper's test: 15 grasps with grade > 0.7 drawn uniformly about the adapted map
-   of the glue-bottle analog (``graspsim.analogs``: cloud -> identification -> combined
+   of the glue-bottle analog (``graspsim.case_study_objects``: cloud -> identification -> combined
    map of two cylinders), lift-and-place, simulated against the analog's true geometry
    standing as it stood in the cloud -- not against the identified primitives. Drawn among the poses that clear the table (a robot would not be sent
    into it); the same draw over all poses reports START_COLLISION apart.
@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from graspsim.analogs import ANALOGS  # noqa: E402
+from graspsim.case_study_objects import ANALOGS  # noqa: E402
 from graspsim.calibration import (  # noqa: E402
     CalibrationCase, SimCondition, TrialTable, simulate_samples, wilson_interval)
 from graspsim.calibration.markdown import fmt, md_table  # noqa: E402
@@ -110,7 +110,7 @@ def analog_cloud(name: str, seed: int):
 
 
 def analog_cases(cfg: Config) -> tuple[list[CalibrationCase], dict]:
-    """Adapted maps of the case-study analogs (``graspsim.analogs``) from their clouds,
+    """Adapted maps of the case-study analogs (``graspsim.case_study_objects``) from their clouds,
     simulated against the true shapes standing as in the cloud."""
     db = MapDatabase(cfg.db)
     db.build(PAPER_SHAPES.values(), threads=cfg.threads)

@@ -45,8 +45,9 @@ from graspsim.calibration import TrialTable, calibrate, draw_samples, simulate_s
 from graspsim.calibration.conditions import SimCondition, condition
 from graspsim.calibration.markdown import md_table
 from graspsim.calibration.objects import CALIBRATION_CONE, HELD_OUT_SHAPES, paper_size_grid
-from graspsim.calibration.outputs import fs_cases, library_versions, write_json, write_text
+from graspsim.calibration.outputs import library_versions, write_json, write_text
 from graspsim.calibration.plots import plot_reliability, plot_roc, plot_threshold_sweep
+from graspsim.calibration.trials import fs_cases
 from graspsim.grades import get_grade
 from graspsim.maps.generate import MapConfig
 

@@ -1,4 +1,7 @@
-"""Trial campaigns: simulate grasps of many maps, resumably, on any executor.
+"""Map-file simulation campaigns: simulate grasps of many map files, resumably, on any
+executor (``graspsim campaign``). Calibration trials -- grasps drawn from maps in
+memory and run under several physics conditions for the grade-vs-success statistics --
+are :mod:`graspsim.calibration.trials`.
 
 A campaign is a list of :class:`CampaignTask` s -- one map file, a grasp selection, a
 protocol, execution noise and a seed each -- run by ``graspsim.executors`` (local
@@ -22,7 +25,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from graspsim._atomic import atomic_path, atomic_write_text
-from graspsim.errors import GraspsimError, InvalidParameterError
+from graspsim.errors import CampaignError, InvalidParameterError
 from graspsim.executors import Executor, SerialExecutor
 from graspsim.stats import wilson_interval
 
@@ -30,10 +33,6 @@ __all__ = ["CampaignTask", "CampaignResult", "campaign_tasks", "run_campaign", "
            "load_campaign"]
 
 log = logging.getLogger(__name__)
-
-
-class CampaignError(GraspsimError):
-    """A campaign folder that does not match the requested campaign, or is damaged."""
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from graspsim.collision import FclChecker
+from graspsim.maps.collide_fcl import FclChecker
 from graspsim.errors import InvalidParameterError
 from graspsim.gripper import HGPL_25_60_A as G
 from graspsim.maps.combine import combine_maps

@@ -1,6 +1,6 @@
-"""Simulation conditions of trial campaigns, and the named presets.
+"""Simulation conditions of calibration trials, and the named presets.
 
-A :class:`SimCondition` is the physics a campaign runs under: pad friction, grip force,
+A :class:`SimCondition` is the physics calibration trials run under: pad friction, grip force,
 object mass and execution noise. Two presets are named (:data:`CONDITIONS`):
 
 * ``default``: the planner's own assumptions -- pad mu 0.5, the gripper's 250 N per jaw,

@@ -1,4 +1,6 @@
-"""Trial campaigns: grasps drawn from maps, simulated under chosen conditions.
+"""Calibration trials: grasps drawn from maps, simulated under chosen conditions.
+
+(Simulating many map *files* resumably on an executor is :mod:`graspsim.campaign`.)
 
 Build once, run many: :func:`draw_samples` picks the grasps of each case (stratified
 over the grade among the poses that clear the table), :func:`simulate_samples` runs
@@ -12,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 import zlib
 from dataclasses import dataclass
 from typing import Callable, Sequence
@@ -20,7 +23,7 @@ import numpy as np
 
 from graspsim.calibration.conditions import CONDITIONS, FRICTION_LIMITED, SimCondition, conditioned_object
 from graspsim.calibration.sampling import stratified_rows
-from graspsim.calibration.table import TrialTable
+from graspsim.calibration.trial_table import TrialTable
 from graspsim.errors import InvalidParameterError
 from graspsim.grades.features import FEATURES, map_features
 from graspsim.gripper import GripperSpec
@@ -28,7 +31,7 @@ from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.transforms import angle_between
 
 __all__ = ["CalibrationCase", "SimCondition", "FRICTION_LIMITED", "CONDITIONS", "CaseSample", "draw_samples",
-           "simulate_samples", "case_seed", "table_features"]
+           "simulate_samples", "case_seed", "table_features", "fs_cases"]
 
 log = logging.getLogger(__name__)
 
@@ -236,3 +239,28 @@ def table_features(table: TrialTable, names: tuple[str, ...] = FEATURES,
         for k, v in f.items():
             out[k][sel] = v
     return out
+
+
+def fs_cases(shapes: dict, *, config=None, quality=None, gripper=None, kind: str = "fs",
+             threads: int | None = None) -> list:
+    """One :class:`CalibrationCase` per named shape with its FS map (a compound gets
+    the combined map of its parts' FS maps, as the planner builds it)."""
+    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.maps.combine import combine_maps
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.primitives import Compound
+
+    gripper = gripper or HGPL_25_60_A
+    cases = []
+    for name, shape in shapes.items():
+        t = time.perf_counter()
+        if isinstance(shape, Compound):
+            parts = [generate_fs_map(p, gripper, quality, config, threads=threads) for p in shape.parts]
+            gmap = combine_maps(parts, shape, quality=quality, config=config)
+            k = "combined"
+        else:
+            gmap = generate_fs_map(shape, gripper, quality, config, threads=threads)
+            k = kind
+        log.info("map of %s: %d grasps in %.1f s", name, len(gmap), time.perf_counter() - t)
+        cases.append(CalibrationCase(f"{name}/{k}", gmap, group=name, kind=k))
+    return cases

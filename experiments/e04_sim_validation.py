@@ -40,7 +40,7 @@ from graspsim.maps.generate import generate_fs_map  # noqa: E402
 from graspsim.maps.scaling import scale_map  # noqa: E402
 from graspsim.planner import plan  # noqa: E402
 from graspsim.primitives import synthetic_cloud  # noqa: E402
-from graspsim.sim import object_from_shape, select_grasps  # noqa: E402
+from graspsim.sim import ExecutionNoise, object_from_shape, select_grasps  # noqa: E402
 from graspsim.sim.outcomes import TrialOutcome  # noqa: E402
 from graspsim.sim.scene import resting_pose  # noqa: E402
 from graspsim.transforms import invert_transform, make_transform  # noqa: E402
@@ -199,7 +199,7 @@ def main() -> None:
     prim = primitive_cases(cfg)
     analogs, plan_info = analog_cases(cfg)
     conditions = [SimCondition("exact"),
-                  SimCondition("noise", noise_position=cfg.noise[0], noise_rotation=cfg.noise[1])]
+                  SimCondition("noise", noise=ExecutionNoise(*cfg.noise))]
 
     # A. the paper's test, repeated with independent draws of 15
     glue = next((c for c in analogs if c.group == "glue_bottle"), None)

@@ -50,6 +50,7 @@ from graspsim.calibration.plots import plot_reliability, plot_roc, plot_threshol
 from graspsim.calibration.trials import fs_cases
 from graspsim.grades import get_grade
 from graspsim.maps.generate import MapConfig
+from graspsim.sim import ExecutionNoise
 
 log = logging.getLogger("e05")
 STEM = "e05_threshold_calibration"
@@ -115,7 +116,7 @@ def conditions(cfg: Config) -> list[SimCondition]:
     out += [SimCondition(f"mu_{m:g}", friction=m) for m in cfg.frictions if m != 0.5]
     out += [SimCondition(f"force_{f:g}", grip_force=f) for f in cfg.forces if f != 250.0]
     out += [SimCondition(f"mass_x{s:g}", mass_scale=s) for s in cfg.mass_scales if s != 1.0]
-    out += [SimCondition("noise", noise_position=cfg.noise[0], noise_rotation=cfg.noise[1]),
+    out += [SimCondition("noise", noise=ExecutionNoise(*cfg.noise)),
             condition("friction_limited")]
     return out
 

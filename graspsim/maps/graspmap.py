@@ -103,6 +103,13 @@ class MapMeta:
 
         return float(self.resolution.get("surface_step", MapConfig.surface_step))
 
+    @property
+    def rotation_step(self) -> float:
+        """[rad] (the map settings' default if unrecorded)."""
+        from graspsim.maps.generate import MapConfig
+
+        return float(self.resolution.get("rotation_step", MapConfig.rotation_step))
+
     @cached_property
     def placement(self) -> "Placement | None":
         """Where an adapted map's object was seen (None for other maps)."""

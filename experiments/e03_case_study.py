@@ -1,6 +1,6 @@
 """Experiment E03 (paper 3.4 / 4.3, table 3, figures 6-7): case study, cloud -> adapted map.
 
-The library's synthetic analogs of the paper's five RGB-D objects (``graspsim.analogs``),
+The library's synthetic analogs of the paper's five RGB-D objects (``graspsim.case_study_objects``),
 seen by one depth camera (single view: the far side and the bottom are missing) at 1 mm
 resolution with depth noise along the viewing ray and a few outliers:
 
@@ -51,7 +51,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import Clock, RunRecord, default_out, load_average, provenance, write_config, write_json  # noqa: E402
 
-from graspsim import analogs  # noqa: E402
+from graspsim import case_study_objects as analogs  # noqa: E402
 from graspsim.maps import generate as _generate  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
@@ -64,7 +64,7 @@ from graspsim.transforms import make_transform  # noqa: E402
 
 log = logging.getLogger("e03")
 
-# name -> (shape, paper's outcome, what the analog is); the shapes are graspsim.analogs'.
+# name -> (shape, paper's outcome, what the analog is); the shapes are graspsim.case_study_objects'.
 OBJECTS = {
     "pencil_cup": (analogs.pencil_cup(), "familiar cone", "frustum r 3.6 cm (bottom) / 4.4 cm (top), h 11 cm (solid)"),
     "glue_bottle": (analogs.glue_bottle(), "unknown: two cylinders, combined",

@@ -1,7 +1,7 @@
 """Experiment E04: the paper's physical validation (section 3.4) replaced by simulation.
 
 A. The paper's test: 15 grasps with grade > 0.7 drawn uniformly about the adapted map
-   of the glue-bottle analog (``graspsim.analogs``: cloud -> identification -> combined
+   of the glue-bottle analog (``graspsim.case_study_objects``: cloud -> identification -> combined
    map of two cylinders), lift-and-place, simulated against the analog's true geometry
    standing as it stood in the cloud -- not against the identified primitives. Drawn
    among the poses that clear the table (a robot would not be sent into it), repeated
@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import RunRecord, default_out, rate_ci  # noqa: E402
 
-from graspsim.analogs import ANALOGS  # noqa: E402
+from graspsim.case_study_objects import ANALOGS  # noqa: E402
 from graspsim.calibration import (  # noqa: E402
     CalibrationCase, SimCondition, TrialTable, simulate_samples, wilson_interval)
 from graspsim.calibration.markdown import md_table  # noqa: E402
@@ -52,7 +52,7 @@ from graspsim.maps.generate import MapConfig, generate_fs_map  # noqa: E402
 from graspsim.maps.scaling import scale_map  # noqa: E402
 from graspsim.planner import plan  # noqa: E402
 from graspsim.primitives import synthetic_cloud  # noqa: E402
-from graspsim.sim import object_from_shape, select_grasps  # noqa: E402
+from graspsim.sim import ExecutionNoise, object_from_shape, select_grasps  # noqa: E402
 from graspsim.sim.outcomes import TrialOutcome  # noqa: E402
 from graspsim.sim.scene import resting_pose  # noqa: E402
 from graspsim.transforms import invert_transform, make_transform  # noqa: E402
@@ -138,7 +138,7 @@ def analog_cloud(name: str, seed: int):
 
 
 def analog_cases(cfg: Config) -> tuple[list[CalibrationCase], dict]:
-    """Adapted maps of the case-study analogs (``graspsim.analogs``) from their clouds,
+    """Adapted maps of the case-study analogs (``graspsim.case_study_objects``) from their clouds,
     simulated against the true shapes standing as in the cloud."""
     db = MapDatabase(cfg.db, config=cfg.map_config)
     db.build(PAPER_SHAPES.values(), threads=cfg.threads)
@@ -282,7 +282,7 @@ def main(argv=None) -> int:
     prim = primitive_cases(cfg)
     analogs, plan_info = analog_cases(cfg)
     conditions = [SimCondition("exact"),
-                  SimCondition("noise", noise_position=cfg.noise[0], noise_rotation=cfg.noise[1])]
+                  SimCondition("noise", noise=ExecutionNoise(*cfg.noise))]
     glue = next((c for c in analogs if c.group == "glue_bottle"), None)
     part_a = None if glue is None else paper_test(glue, conditions, cfg)
 

@@ -45,10 +45,12 @@ from graspsim.calibration import TrialTable, calibrate, draw_samples, simulate_s
 from graspsim.calibration.conditions import SimCondition, condition
 from graspsim.calibration.markdown import md_table
 from graspsim.calibration.objects import CALIBRATION_CONE, HELD_OUT_SHAPES, paper_size_grid
-from graspsim.calibration.outputs import fs_cases, library_versions, write_json, write_text
+from graspsim.calibration.outputs import library_versions, write_json, write_text
 from graspsim.calibration.plots import plot_reliability, plot_roc, plot_threshold_sweep
+from graspsim.calibration.trials import fs_cases
 from graspsim.grades import get_grade
 from graspsim.maps.generate import MapConfig
+from graspsim.sim import ExecutionNoise
 
 log = logging.getLogger("e05")
 STEM = "e05_threshold_calibration"
@@ -114,7 +116,7 @@ def conditions(cfg: Config) -> list[SimCondition]:
     out += [SimCondition(f"mu_{m:g}", friction=m) for m in cfg.frictions if m != 0.5]
     out += [SimCondition(f"force_{f:g}", grip_force=f) for f in cfg.forces if f != 250.0]
     out += [SimCondition(f"mass_x{s:g}", mass_scale=s) for s in cfg.mass_scales if s != 1.0]
-    out += [SimCondition("noise", noise_position=cfg.noise[0], noise_rotation=cfg.noise[1]),
+    out += [SimCondition("noise", noise=ExecutionNoise(*cfg.noise)),
             condition("friction_limited")]
     return out
 

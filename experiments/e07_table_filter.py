@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import (Clock, RunRecord, database_note, database_record, default_out,  # noqa: E402
                      noise_sigmas, pct, rate_ci, write_config, write_json)
 
-from graspsim.analogs import ANALOGS  # noqa: E402
+from graspsim.case_study_objects import ANALOGS  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
 from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402

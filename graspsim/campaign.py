@@ -1,4 +1,7 @@
-"""Trial campaigns: simulate grasps of many maps, resumably, on any executor.
+"""Map-file simulation campaigns: simulate grasps of many map files, resumably, on any
+executor (``graspsim campaign``). Calibration trials -- grasps drawn from maps in
+memory and run under several physics conditions for the grade-vs-success statistics --
+are :mod:`graspsim.calibration.trials`.
 
 A campaign is a list of :class:`CampaignTask` s -- one map file, a grasp selection, a
 protocol, execution noise and a seed each -- run by ``graspsim.executors`` (local
@@ -17,14 +20,17 @@ import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
 from graspsim._atomic import atomic_path, atomic_write_text
-from graspsim.errors import GraspsimError, InvalidParameterError
+from graspsim.errors import CampaignError, InvalidParameterError
 from graspsim.executors import Executor, SerialExecutor
 from graspsim.stats import wilson_interval
+
+if TYPE_CHECKING:  # graspsim.sim loads mujoco
+    from graspsim.sim.noise import ExecutionNoise
 
 __all__ = ["CampaignTask", "CampaignResult", "campaign_tasks", "run_campaign", "run_task",
            "load_campaign"]
@@ -32,15 +38,11 @@ __all__ = ["CampaignTask", "CampaignResult", "campaign_tasks", "run_campaign", "
 log = logging.getLogger(__name__)
 
 
-class CampaignError(GraspsimError):
-    """A campaign folder that does not match the requested campaign, or is damaged."""
-
-
 @dataclass(frozen=True)
 class CampaignTask:
     """One unit of work: simulate ``top`` best / ``sample`` uniform grasps (grade >
-    ``min_grade``) of ``map_path`` with ``protocol``; ``noise`` = (sigma_pos [m],
-    sigma_rot [rad]) or None; ``mesh`` simulates against a given mesh instead of the
+    ``min_grade``) of ``map_path`` with ``protocol``; ``noise``: an
+    :class:`~graspsim.sim.ExecutionNoise` or None (exact execution); ``mesh`` simulates against a given mesh instead of the
     map's primitives; ``threads`` inside the task (1 when tasks run in parallel)."""
 
     task_id: str
@@ -49,20 +51,21 @@ class CampaignTask:
     top: int | None = None
     sample: int | None = None
     min_grade: float | None = None
-    noise: tuple[float, float] | None = None
+    noise: ExecutionNoise | None = None
     seed: int = 0
     mesh: str | None = None
     threads: int = 1
 
     def to_dict(self) -> dict:
         d = asdict(self)
-        d["noise"] = list(self.noise) if self.noise else None
+        n = self.noise  # recorded as [sigma_pos, sigma_rot] in spec.json
+        d["noise"] = [n.position_sigma, n.rotation_sigma] if n else None
         return d
 
 
 def campaign_tasks(maps: Sequence[str | os.PathLike], *, protocol: str = "lift_place",
                    top: int | None = None, sample: int | None = None, min_grade: float | None = None,
-                   noise: tuple[float, float] | None = None, seeds: Sequence[int] = (0,),
+                   noise: ExecutionNoise | None = None, seeds: Sequence[int] = (0,),
                    mesh: str | None = None, threads: int = 1) -> list[CampaignTask]:
     """The task list of a campaign: every map x seed, with ids stable across runs."""
     if not maps:
@@ -73,7 +76,7 @@ def campaign_tasks(maps: Sequence[str | os.PathLike], *, protocol: str = "lift_p
         for s in seeds:
             tid = f"{p.stem}-{protocol}-{'noise' if noise else 'exact'}-s{int(s)}"
             tasks.append(CampaignTask(tid, str(p.resolve()), protocol, top, sample, min_grade,
-                                      tuple(noise) if noise else None, int(s), mesh, threads))
+                                      noise, int(s), mesh, threads))
     ids = [t.task_id for t in tasks]
     if len(set(ids)) != len(ids):
         raise InvalidParameterError("map files in a campaign must have distinct names")
@@ -82,14 +85,13 @@ def campaign_tasks(maps: Sequence[str | os.PathLike], *, protocol: str = "lift_p
 
 def run_task(task: CampaignTask) -> dict:
     """Run one task in this process; returns its arrays and a JSON-able record."""
-    from graspsim.sim import ExecutionNoise, make_protocol, simulate_map
     from graspsim.maps import load_map
+    from graspsim.sim import make_protocol, simulate_map
 
-    noise = ExecutionNoise(task.noise[0], task.noise[1]) if task.noise else None
     t0 = time.perf_counter()
     trials = simulate_map(task.map_path, protocol=make_protocol(task.protocol), top=task.top,
                           sample=task.sample, min_grade=task.min_grade, threads=task.threads,
-                          seed=task.seed, noise=noise, mesh=task.mesh, write=False)
+                          seed=task.seed, noise=task.noise, mesh=task.mesh, write=False)
     r = trials.results
     gmap = load_map(task.map_path)
     arrays = {"index": trials.index, "grade": gmap.grade[trials.index], **r.arrays()}
@@ -198,7 +200,9 @@ def load_campaign(out: str | os.PathLike) -> tuple[list[CampaignTask], dict[str,
         spec = json.loads((out / "spec.json").read_text())
     except (OSError, ValueError) as err:
         raise CampaignError(f"{out} is not a campaign folder: {err}") from err
-    tasks = [CampaignTask(**{**d, "noise": tuple(d["noise"]) if d["noise"] else None})
+    from graspsim.sim import ExecutionNoise
+
+    tasks = [CampaignTask(**{**d, "noise": ExecutionNoise(*d["noise"]) if d["noise"] else None})
              for d in spec["tasks"]]
     done = {t.task_id: r for t in tasks if _task_file(out, t).exists()
             for r in [_load(_task_file(out, t))] if r is not None}

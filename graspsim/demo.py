@@ -71,7 +71,7 @@ def _database(cfg: DemoConfig, step: Callable):
 
 def _cloud(cfg: DemoConfig, rng: np.random.Generator):
     """(points, true shape or None, T_world_true or None, source)."""
-    from graspsim.analogs import glue_bottle
+    from graspsim.case_study_objects import glue_bottle
     from graspsim.primitives import synthetic_cloud
     from graspsim.transforms import make_transform
 

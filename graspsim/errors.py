@@ -22,6 +22,7 @@ __all__ = [
     "IdentificationError",
     "MeshError",
     "SimulationError",
+    "CampaignError",
     "DependencyNotInstalled",
 ]
 
@@ -83,6 +84,11 @@ class MeshError(GraspsimError):
 
 class SimulationError(GraspsimError):
     """A simulation could not be built or run (bad scene, bad map keys, bad mass)."""
+
+
+class CampaignError(SimulationError):
+    """A simulation campaign folder that does not match the requested campaign, or is
+    damaged (:mod:`graspsim.campaign`)."""
 
 
 class DependencyNotInstalled(GraspsimError, ImportError):

@@ -84,27 +84,10 @@ class GripperSpec:
     arm_length: float = 0.10
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.name == "name":
-                if not isinstance(v, str) or not v:
-                    raise GripperError(f"gripper name must be a non-empty string, got {v!r}")
-                continue
-            if isinstance(v, (tuple, list, np.ndarray)):
-                t = tuple(float(x) for x in v)
-                if len(t) != 3 or not all(math.isfinite(x) and x > 0 for x in t):
-                    raise GripperError(f"{f.name} must be three positive lengths [m], got {v!r}")
-                object.__setattr__(self, f.name, t)
-                continue
-            try:
-                fv = float(v)
-            except (TypeError, ValueError):
-                raise GripperError(f"{f.name} must be a number, got {v!r}") from None
-            lower_ok = fv >= 0 if f.name in ("closed_gap", "arm_length") else fv > 0
-            if not (math.isfinite(fv) and lower_ok):
-                bound = ">= 0" if f.name in ("closed_gap", "arm_length") else "> 0"
-                raise GripperError(f"{f.name} must be finite and {bound}, got {v!r}")
-            object.__setattr__(self, f.name, fv)
+        if not isinstance(self.name, str) or not self.name:
+            raise GripperError(f"gripper name must be a non-empty string, got {self.name!r}")
+        for f in fields(self)[1:]:
+            object.__setattr__(self, f.name, _checked(f.name, getattr(self, f.name)))
         if not 0 < self.efficiency <= 1:
             raise GripperError(f"efficiency must be in (0, 1], got {self.efficiency!r}")
         if self.pad_length > self.finger_size[2]:
@@ -137,11 +120,6 @@ class GripperSpec:
         return self.closed_gap + 2.0 * self.stroke_per_jaw
 
     @property
-    def max_grasp_width(self) -> float:
-        """Widest object chord that can be grasped with the approach clearance [m]."""
-        return self.max_opening - 2.0 * self.approach_clearance
-
-    @property
     def grip_force(self) -> float:
         """Closing force per jaw [N]: efficiency * pressure * pi * bore^2 / 4."""
         return self.efficiency * self.pressure * math.pi * self.bore**2 / 4.0
@@ -156,10 +134,6 @@ class GripperSpec:
         """z of the fingertips in the wrist frame [m]."""
         return self.jaw_base_z + self.finger_size[2]
 
-    @property
-    def total_mass(self) -> float:
-        return self.housing_mass + 2 * (self.jaw_mass + self.finger_mass)
-
     def contact_depths(self, step: float) -> np.ndarray:
         """Contact distances from the fingertip sampled along the pad [m]."""
         if not step > 0:
@@ -168,19 +142,43 @@ class GripperSpec:
         n = int(math.floor((hi - lo) / step + 1e-9)) + 1
         return lo + step * np.arange(n)
 
+    # ------------------------------------------------------------------ wrist <-> TCP
+    # The TCP (grasp point) lies on the wrist z axis at every opening (symmetric jaws),
+    # ``tcp_offset(depth)`` above the flange for contacts ``depth`` from the fingertips.
     def tcp_offset(self, depth: float | np.ndarray) -> np.ndarray:
         """z of the grasp point (TCP) in the wrist frame for a contact ``depth`` from the
-        fingertip [m]. The TCP lies on the wrist z axis at every opening (symmetric jaws)."""
+        fingertip [m] (float or array, as ``depth``)."""
         return self.fingertip_z - np.asarray(depth, dtype=float)
 
-    def T_wrist_tcp(self, depth: float, opening: float | None = None) -> np.ndarray:
-        """4x4 transform of the TCP in the wrist frame. ``opening`` is accepted for
-        asymmetric grippers; this symmetric one does not depend on it."""
-        if opening is not None:
-            self.check_opening(opening)
-        T = np.eye(4)
-        T[2, 3] = float(self.tcp_offset(depth))
-        return T
+    @property
+    def nominal_depth(self) -> float:
+        """Contact depth of the nominal TCP: mid-pad [m]."""
+        return 0.5 * self.pad_length
+
+    @property
+    def nominal_tcp(self) -> np.ndarray:
+        """(3,) the nominal TCP in the wrist frame [m]: on the axis at mid-pad, where
+        execution noise pivots and the envs place the grasp point."""
+        return np.array([0.0, 0.0, float(self.tcp_offset(self.nominal_depth))])
+
+    def wrist_from_grasp_point(self, grasp_point: np.ndarray, approach: np.ndarray,
+                               depth: float | np.ndarray) -> np.ndarray:
+        """Wrist positions (N, 3) [m] holding grasp points (N, 3) at contact ``depth``
+        (scalar or (N,)) from the fingertips, approach (wrist z) unit vectors (N, 3)."""
+        off = self.fingertip_z - np.asarray(depth)
+        return grasp_point - off[..., None] * approach
+
+    def grasp_point_from_wrist(self, wrist_position: np.ndarray, approach: np.ndarray,
+                               depth: float | np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`wrist_from_grasp_point`: grasp points (N, 3) [m]."""
+        off = self.fingertip_z - np.asarray(depth)
+        return wrist_position + off[..., None] * approach
+
+    def contact_depth(self, grasp_point: np.ndarray, wrist_position: np.ndarray,
+                      approach: np.ndarray) -> np.ndarray:
+        """(N,) contact depth from the fingertips [m] of grasp points (N, 3) held by wrists
+        at (N, 3) approaching along unit vectors (N, 3)."""
+        return self.fingertip_z - np.einsum("ni,ni->n", grasp_point - wrist_position, approach)
 
     def check_opening(self, opening: float) -> None:
         if not (self.min_opening - 1e-12 <= opening <= self.max_opening + 1e-12):
@@ -266,6 +264,24 @@ class GripperSpec:
             return cls.from_dict(json.loads(text))
         except json.JSONDecodeError as err:
             raise GripperError(f"gripper configuration is not valid JSON: {err}") from err
+
+
+def _checked(name: str, v):
+    """A field's value validated: three positive lengths (tuples) or a finite number
+    (> 0; >= 0 for the gap and the arm)."""
+    if isinstance(v, (tuple, list, np.ndarray)):
+        t = tuple(float(x) for x in v)
+        if len(t) != 3 or not all(math.isfinite(x) and x > 0 for x in t):
+            raise GripperError(f"{name} must be three positive lengths [m], got {v!r}")
+        return t
+    try:
+        fv = float(v)
+    except (TypeError, ValueError):
+        raise GripperError(f"{name} must be a number, got {v!r}") from None
+    zero_ok = name in ("closed_gap", "arm_length")
+    if not (math.isfinite(fv) and (fv >= 0 if zero_ok else fv > 0)):
+        raise GripperError(f"{name} must be finite and {'>= 0' if zero_ok else '> 0'}, got {v!r}")
+    return fv
 
 
 HGPL_25_60_A = GripperSpec()

@@ -24,10 +24,11 @@ from graspsim.errors import InvalidParameterError
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import object_description
-from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
+from graspsim.maps.match import MatchKind
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import TablePlane, clears_table, table_frame
-from graspsim.perception import Identification, IdentifyConfig, identify
+from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
 from graspsim.primitives import Compound, Primitive
 from graspsim.transforms import invert_transform
 
@@ -47,7 +48,6 @@ class PlanStatus(str, Enum):
 class PlannerConfig:
     """identify: perception settings (paper case study: 10 repetitions, theta 0.5).
     scaling: the map scaling settings (Combined by default).
-    tol: known / familiar tolerance on every dimension [m] (paper: 1 cm).
     partial: when clustering fails, still build the map of the identified parts.
     build_missing: when no stored map of the primitive lies within the scaling range,
         build (and store) an FS map of it, as the paper suggests; else skip the part.
@@ -58,7 +58,6 @@ class PlannerConfig:
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
     scaling: ScalingConfig = field(default_factory=ScalingConfig)
-    tol: float = 0.01
     partial: bool = True
     build_missing: bool = True
     table: TablePlane | None = None
@@ -108,7 +107,7 @@ class PlanResult:
                 "grasps": len(self.map), "accepted": int(self.map.accepted.sum()),
                 "seconds": self.timing.get("total"), "time_to_first_0.95": self.timing.get("first"),
                 "time_to_tenth_0.95": self.timing.get("tenth"),
-                "T_cloud_obj": self.T_cloud_obj.tolist(), "table": self.map.meta.extra.get("table")}
+                "T_cloud_obj": self.T_cloud_obj.tolist(), "table": None if self.map.meta.placement is None else self.map.meta.placement.table}
 
 
 def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarray]:
@@ -128,27 +127,6 @@ def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarra
     return prim.with_dims(x=d[order[0]], y=d[order[1]], z=d[order[2]]), T2
 
 
-def _scale_source(prim: Primitive, entries: list[dict], max_ratio: float) -> dict | None:
-    """The stored map of the same primitive needing the smallest relative size change
-    (largest per-dimension ratio), if it is within ``max_ratio``."""
-    best, best_r = None, np.inf
-    for e in entries:
-        if e["primitive"] != prim.kind:
-            continue
-        r = 1.0
-        for k, v in prim.dims.items():
-            w = e["dims"][k]
-            if v == 0 or w == 0:
-                r = 1.0 if v == w else np.inf
-                if r == np.inf:
-                    break
-                continue
-            r = max(r, v / w, w / v)
-        if r < best_r:
-            best, best_r = e, r
-    return best if best_r <= max_ratio else None
-
-
 def _batches(gmap: GraspabilityMap, first: int, growth: float) -> Iterator[GraspabilityMap]:
     """A best-first map in growing slices (for streaming a stored map)."""
     start, size = 0, max(1, first)
@@ -160,20 +138,20 @@ def _batches(gmap: GraspabilityMap, first: int, growth: float) -> Iterator[Grasp
 
 def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig) -> tuple[str, dict, Iterator]:
     """(match, source object, iterator of map batches in the part's frame)."""
-    m = db.lookup(prim.kind, prim.dims, tol=cfg.tol)
+    m = db.match(prim, max_ratio=cfg.scaling.max_ratio)
     stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth)  # noqa: E731
-    if m.match is not None and m.match.value == "known":  # the stored map as is (paper 2.2)
+    if m.match is MatchKind.KNOWN:  # the stored map as is (paper 2.2)
         fs = db.load_entry(m.entry, accepted_only=True)
         return "known", fs.meta.object, stream(fs)
-    entry = _scale_source(prim, db.entries(), cfg.scaling.max_ratio) if m.match is not None else None
-    if entry is not None:
-        fs = db.load_entry(entry, accepted_only=True)
-        return "familiar", fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling)
+    if m.match is MatchKind.FAMILIAR:
+        fs = db.load_entry(m.entry, accepted_only=True)
+        return "familiar", fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling, gripper=db.gripper,
+                                                        quality=db.quality, config=db.config)
     if not cfg.build_missing:
         return "missing", {}, iter(())
     # no map of this primitive within the scaling range: add one to the database
-    db.get(prim)
-    fs = db.load_entry(db.lookup(prim.kind, prim.dims, tol=0.0).entry, accepted_only=True)
+    fs = db.get(prim)  # sorted best first: the accepted grasps are a prefix
+    fs = fs.select(np.arange(int(fs.accepted.sum())))
     return "built", fs.meta.object, stream(fs)
 
 
@@ -191,7 +169,7 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
         p, T = _canonical_box(part.primitive(), part.T_world_obj)
         prims.append(p)
         T_cloud.append(T)
-    status = PlanStatus.COMPLETE if ident.status.value == "identified" else PlanStatus.PARTIAL
+    status = PlanStatus.COMPLETE if ident.status is IdentificationStatus.IDENTIFIED else PlanStatus.PARTIAL
     if not prims or (status is PlanStatus.PARTIAL and not cfg.partial):
         status = PlanStatus.FAILED
         prims, T_cloud = [], []
@@ -253,13 +231,13 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         T_cloud_obj = T_ref @ shift
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
-    extra = {"T_cloud_obj": T_cloud_obj.tolist(), "source": source, "status": status.value,
-             "identification": ident_info}
-    T_table_obj = None
+    T_table_obj = table = None
     if cfg.table is not None:
         height = _table_height(cfg.table, points, prims[0] if compound is None else compound, T_cloud_obj)
         T_table_obj = table_frame(cfg.table.normal, height) @ T_cloud_obj
-        extra["table"] = {**cfg.table.to_dict(), "height": height}
+        table = {**cfg.table.to_dict(), "height": height}
+    extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
+             "identification": ident_info}
     n_below = 0
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
@@ -291,8 +269,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             yield GraspBatch(batch, now)
     timing["maps"] = time.perf_counter() - t1
     final = {**extra, "parts": [p.to_dict() for p in parts]}
-    if T_table_obj is not None:  # a new dict: the batches already yielded keep theirs
-        final["table"] = {**extra["table"], "dropped": n_below}
+    if table is not None:  # a new dict: the batches already yielded keep theirs
+        final.update(Placement(T_cloud_obj, {**table, "dropped": n_below}).to_extra())
     meta = replace(obj_meta, method="adapted/" + ("single" if compound is None else "combined"),
                    extra=final)
     full = GraspabilityMap.concat(batches, meta=meta) if batches else GraspabilityMap.empty(meta)
@@ -351,6 +329,6 @@ def _empty_meta(db: MapDatabase, ident: Identification) -> MapMeta:
 
     return MapMeta(object={"primitive": "unidentified"}, gripper=db.gripper.to_dict(),
                    quality=db.quality.to_dict(), resolution=db.config.to_dict(), method="adapted",
-                   version=__version__, extra={"status": "failed", "T_cloud_obj": np.eye(4).tolist(),
+                   version=__version__, extra={"status": "failed", **Placement(np.eye(4)).to_extra(),
                                                "identification": ident.to_dict()})
 

@@ -168,7 +168,7 @@ def test_conditions_presets_and_masses():
     with pytest.raises(InvalidParameterError, match="friction_limited"):
         condition("heavy")
     for bad in ({"mass": 0.0}, {"mass": math.nan}, {"mass": "1"}, {"grip_force": -1.0}, {"mass_scale": 0},
-                {"noise_position": -0.1}):
+                {"noise": (0.003, 0.03)}):
         with pytest.raises(InvalidParameterError):
             SimCondition(**bad)
     obj = object_from_shape(Box(0.05, 0.05, 0.05), mass=0.1)

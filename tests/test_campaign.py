@@ -15,6 +15,7 @@ from graspsim.executors import ProcessExecutor, make_executor
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.io import save_map
 from graspsim.primitives import Box, Cylinder
+from graspsim.sim import ExecutionNoise
 
 FAST = MapConfig(surface_step=0.012, rotation_step=math.radians(22))
 
@@ -57,7 +58,7 @@ def test_interrupted_campaign_resumes_to_the_same_trials(maps, tmp_path):
 @pytest.mark.slow
 def test_local_and_ray_campaigns_identical(maps, tmp_path):
     pytest.importorskip("ray", reason="Ray tests need the [ray] extra; CI installs it")
-    tasks = campaign_tasks(maps, top=3, seeds=[0], noise=(0.003, math.radians(2)))
+    tasks = campaign_tasks(maps, top=3, seeds=[0], noise=ExecutionNoise(0.003, math.radians(2)))
     run_campaign(tasks, tmp_path / "serial")
     with ProcessExecutor(2) as ex:
         run_campaign(tasks, tmp_path / "local", executor=ex)
@@ -97,3 +98,14 @@ def test_resuming_with_other_tasks_is_refused(maps, tmp_path):
     run_campaign(campaign_tasks(maps[:1], top=1), tmp_path / "c", max_tasks=0)
     with pytest.raises(CampaignError, match="different campaign"):
         run_campaign(campaign_tasks(maps, top=1), tmp_path / "c", max_tasks=0)
+
+
+def test_noise_is_recorded_as_its_sigmas_and_resumes_equal(maps, tmp_path):
+    from graspsim.errors import GraspsimError
+
+    tasks = campaign_tasks(maps[:1], top=1, noise=ExecutionNoise(0.002, 0.01))
+    assert tasks[0].to_dict()["noise"] == [0.002, 0.01] and "-noise-" in tasks[0].task_id
+    run_campaign(tasks, tmp_path / "c")
+    loaded, done = load_campaign(tmp_path / "c")
+    assert loaded == tasks and set(done) == {tasks[0].task_id}
+    assert issubclass(CampaignError, GraspsimError)

@@ -1,7 +1,7 @@
 """Gymnasium environments: API conformance, determinism, masks, baselines, bad options.
 
 A coarse map database in a temporary folder keeps these fast (small K, small clouds,
-small map pools); the environments share it through ``graspsim.envs.table.database``.
+small map pools); the environments share it through ``graspsim.envs.base.database``.
 """
 
 from __future__ import annotations

@@ -51,3 +51,36 @@ def test_empty_map():
     meta = MapMeta(object={"primitive": "box"}, gripper={}, quality={}, resolution={}, method="x")
     e = GraspabilityMap.empty(meta)
     assert len(e) == 0 and len(e.top_k(3)) == 0
+
+
+def test_meta_typed_views_parse_once_and_round_trip(box_map):
+    from graspsim.errors import InvalidMapError
+    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.quality import QualityModel
+
+    meta = box_map.meta
+    assert meta.gripper_spec == HGPL_25_60_A and meta.gripper_spec is meta.gripper_spec
+    assert meta.quality_model == QualityModel()
+    assert meta.map_config == MapConfig(surface_step=0.01)
+    assert meta.shape == Box(0.04, 0.05, 0.08)
+    assert meta.threshold == 0.7 and meta.surface_step == 0.01
+    assert meta.placement is None
+    bare = MapMeta(object={}, gripper={}, quality={}, resolution={}, method="x")
+    assert bare.threshold == QualityModel().threshold and bare.surface_step == MapConfig().surface_step
+    with pytest.raises(InvalidMapError, match="no gripper"):
+        bare.gripper_spec
+
+
+def test_placement_is_what_extra_records():
+    from graspsim.maps.graspmap import Placement
+
+    T = np.eye(4)
+    T[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]  # object x = cloud y
+    table = {"normal": [0.0, 1.0, 0.0], "height": -0.1, "clearance": 0.0}
+    extra = Placement(T, table).to_extra()
+    assert extra == {"T_cloud_obj": T.tolist(), "table": table}
+    meta = MapMeta(object={}, gripper={}, quality={}, resolution={}, method="adapted", extra=extra)
+    p = meta.placement
+    np.testing.assert_array_equal(p.T_cloud_obj, T)
+    np.testing.assert_allclose(p.up, [1.0, 0.0, 0.0])  # cloud y in the object frame
+    assert Placement.from_extra({"T_cloud_obj": T.tolist(), "table": {}}).up is None

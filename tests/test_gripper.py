@@ -22,8 +22,23 @@ def test_tcp_lies_on_the_pad_at_the_contact_depth():
     depths = g.contact_depths(0.005)
     assert depths[0] == pytest.approx(g.contact_depth_margin)
     assert depths[-1] <= g.pad_length - g.contact_depth_margin + 1e-12
-    T = g.T_wrist_tcp(depths[0], opening=0.05)
-    assert T[2, 3] == pytest.approx(g.fingertip_z - depths[0])
+    assert g.tcp_offset(depths[0]) == pytest.approx(g.fingertip_z - depths[0])
+    assert g.nominal_tcp == pytest.approx([0, 0, g.fingertip_z - 0.5 * g.pad_length])
+
+
+def test_wrist_and_grasp_point_round_trip():
+    g = HGPL_25_60_A
+    rng = np.random.default_rng(0)
+    gp = rng.normal(size=(5, 3))
+    z = rng.normal(size=(5, 3))
+    z /= np.linalg.norm(z, axis=1, keepdims=True)
+    depth = rng.uniform(0.005, 0.035, 5)
+    wrist = g.wrist_from_grasp_point(gp, z, depth)
+    # the grasp point sits tcp_offset(depth) along the approach from the wrist
+    assert np.linalg.norm(gp - wrist, axis=1) == pytest.approx(g.fingertip_z - depth)
+    assert g.contact_depth(gp, wrist, z) == pytest.approx(depth)
+    assert g.grasp_point_from_wrist(wrist, z, depth) == pytest.approx(gp)
+    assert g.wrist_from_grasp_point(gp, z, 0.01) == pytest.approx(gp - (g.fingertip_z - 0.01) * z)
 
 
 def test_boxes_open_symmetrically_and_touch_the_pads():

@@ -262,7 +262,7 @@ def test_known_familiar_decision():
     d = classify_match("cylinder", {"radius": 0.02, "height": 0.22}, stored)
     assert d.match is MatchKind.FAMILIAR and d.entry["key"] == "c1"
     assert d.max_diff == pytest.approx(0.02)
-    assert classify_match("sphere", {"radius": 0.02}, stored).match is None
+    assert classify_match("sphere", {"radius": 0.02}, stored).match is MatchKind.BUILD
     # boxes compare sorted edges
     assert classify_match("box", {"x": 0.04, "y": 0.06, "z": 0.1}, stored).match is MatchKind.KNOWN
     with pytest.raises(InvalidParameterError, match="dims"):

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from graspsim.collision import FclChecker
+from graspsim.maps.collide_fcl import FclChecker
 from graspsim.errors import InvalidParameterError
 from graspsim.gripper import HGPL_25_60_A as G
 from graspsim.maps.combine import combine_maps
@@ -55,3 +55,18 @@ def test_empty_part_batch(ball_tab):
     c, maps, _ = ball_tab
     out = combine_part(maps[0].select(np.zeros(0, int)), 0, c, gripper=G, quality=QualityModel(), d_ref=0.05)
     assert len(out) == 0
+
+
+def test_batch_with_every_contact_buried_in_another_part():
+    """A batch none of whose contacts lies on the compound's surface gives an empty map
+    (it failed in the line grouping's reshape once; the envs redrew such objects)."""
+    from graspsim.maps.combine import combine_part
+    from graspsim.quality import QualityModel
+
+    c = Compound((Sphere(0.02), Box(0.03, 0.03, 0.2)), np.stack([np.eye(4), make_transform(np.eye(3), [0.01, 0, 0])]))
+    m = generate_fs_map(Sphere(0.02), config=FAST).filter(accepted=True)
+    inside = c.parts[1].sdf(m.contacts.reshape(-1, 3).astype(float) - [0.01, 0, 0]).reshape(-1, 2) < -1e-4
+    buried = m.select(np.flatnonzero(inside.all(axis=1)))  # both contacts inside the box
+    assert len(buried) > 0
+    out = combine_part(buried, 0, c, gripper=G, quality=QualityModel(), d_ref=0.05)
+    assert len(out) == 0 and out.contacts.shape == (0, 2, 3)

@@ -6,6 +6,7 @@ import pytest
 from graspsim.errors import MapDatabaseError, PrimitiveError
 from graspsim.maps.database import MapDatabase, size_grid
 from graspsim.maps.generate import MapConfig
+from graspsim.maps.match import MatchKind
 from graspsim.primitives import Cylinder, Sphere
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
@@ -18,7 +19,7 @@ def test_known_familiar_unknown(tmp_path):
     m = db.lookup("cylinder", {"radius": 0.035, "height": 0.10})
     assert m.match == "familiar" and m.max_diff == pytest.approx(0.015)
     assert m.entry["dims"] == {"radius": 0.02, "height": 0.10}
-    assert db.lookup("sphere", {"radius": 0.03}).match is None
+    assert db.lookup("sphere", {"radius": 0.03}).match is MatchKind.BUILD
     with pytest.raises(PrimitiveError):
         db.lookup("cylinder", {"radius": -1, "height": 0.1})
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from graspsim.collision import FclChecker, penetration_depth
+from graspsim.maps.collide_fcl import FclChecker, penetration_depth
 from graspsim.errors import NoFeasibleGraspError
 from graspsim.gripper import HGPL_25_60_A as G
 from graspsim.maps.generate import (

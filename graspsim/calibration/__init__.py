@@ -1,6 +1,6 @@
-"""Grade-vs-success calibration: trial campaigns, statistics, reports, figures.
+"""Grade-vs-success calibration: trials, statistics, reports, figures.
 
-Pure statistics live in :mod:`graspsim.calibration.stats`; campaigns (which need
+Pure statistics live in :mod:`graspsim.calibration.stats`; the trials (which need
 mujoco) in :mod:`graspsim.calibration.trials`, imported on first use; simulation
 conditions and their presets in :mod:`graspsim.calibration.conditions`; the success-rate
 regression in :mod:`graspsim.calibration.regression`.
@@ -23,7 +23,7 @@ from graspsim.calibration.stats import (
     wilson_interval,
     youden_threshold,
 )
-from graspsim.calibration.table import TrialTable
+from graspsim.calibration.trial_table import TrialTable
 
 _CAMPAIGN = ("CalibrationCase", "SimCondition", "FRICTION_LIMITED", "CONDITIONS", "CaseSample",
              "draw_samples", "simulate_samples", "case_seed")

@@ -1,6 +1,6 @@
-"""Simulation conditions of trial campaigns, and the named presets.
+"""Simulation conditions of calibration trials, and the named presets.
 
-A :class:`SimCondition` is the physics a campaign runs under: pad friction, grip force,
+A :class:`SimCondition` is the physics calibration trials run under: pad friction, grip force,
 object mass and execution noise. Two presets are named (:data:`CONDITIONS`):
 
 * ``default``: the planner's own assumptions -- pad mu 0.5, the gripper's 250 N per jaw,
@@ -23,25 +23,28 @@ object mass and execution noise. Two presets are named (:data:`CONDITIONS`):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 from graspsim.errors import InvalidParameterError
+
+if TYPE_CHECKING:  # graspsim.sim loads mujoco
+    from graspsim.sim.noise import ExecutionNoise
 
 __all__ = ["SimCondition", "FRICTION_LIMITED", "CONDITIONS", "condition", "conditioned_object"]
 
 
 @dataclass(frozen=True)
 class SimCondition:
-    """Physics of a campaign: pad friction mu, grip force per jaw [N] (None: the
+    """Physics of calibration trials: pad friction mu, grip force per jaw [N] (None: the
     gripper spec's), object mass [kg] (None: the map's), then scaled by ``mass_scale``,
-    execution noise sigmas (position [m], rotation [rad]; 0 = none)."""
+    execution noise (an :class:`~graspsim.sim.ExecutionNoise`; None = exact execution)."""
 
     name: str = "default"
     friction: float = 0.5
     grip_force: float | None = None
     mass_scale: float = 1.0
-    noise_position: float = 0.0
-    noise_rotation: float = 0.0
+    noise: ExecutionNoise | None = None
     mass: float | None = None
 
     def __post_init__(self) -> None:
@@ -49,10 +52,12 @@ class SimCondition:
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise InvalidParameterError(f"SimCondition.{k} must be > 0, got {v!r}")
-        for k in ("noise_position", "noise_rotation"):
-            v = getattr(self, k)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise InvalidParameterError(f"SimCondition.{k} must be >= 0, got {v!r}")
+        if self.noise is not None:
+            from graspsim.sim.noise import ExecutionNoise
+
+            if not isinstance(self.noise, ExecutionNoise):
+                raise InvalidParameterError(f"SimCondition.noise must be an ExecutionNoise or None, "
+                                            f"got {self.noise!r}")
         for k, unit in (("grip_force", "N"), ("mass", "kg")):
             v = getattr(self, k)
             if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -60,10 +65,15 @@ class SimCondition:
 
     @property
     def noisy(self) -> bool:
-        return self.noise_position > 0 or self.noise_rotation > 0
+        n = self.noise
+        return n is not None and (n.position_sigma > 0 or n.rotation_sigma > 0)
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """A flat record (the noise as ``noise_position`` [m], ``noise_rotation`` [rad])."""
+        n = self.noise
+        return {"name": self.name, "friction": self.friction, "grip_force": self.grip_force,
+                "mass_scale": self.mass_scale, "noise_position": n.position_sigma if n else 0.0,
+                "noise_rotation": n.rotation_sigma if n else 0.0, "mass": self.mass}
 
 
 FRICTION_LIMITED = SimCondition("friction_limited", grip_force=8.0, mass=0.5)

@@ -1,9 +1,8 @@
-"""Writing study outputs: JSON with the config and library versions, markdown, cases."""
+"""Writing study outputs: JSON with the config and library versions, markdown."""
 
 from __future__ import annotations
 
 import json
-import logging
 import os
 import platform
 import subprocess
@@ -16,9 +15,7 @@ from graspsim._atomic import atomic_write_text
 from graspsim._jsonable import to_jsonable
 from graspsim.errors import GraspsimError
 
-__all__ = ["library_versions", "to_jsonable", "write_json", "write_text", "fs_cases"]
-
-log = logging.getLogger(__name__)
+__all__ = ["library_versions", "to_jsonable", "write_json", "write_text"]
 
 
 def library_versions() -> dict:
@@ -54,29 +51,3 @@ def write_json(path: str | os.PathLike, obj) -> Path:
 def write_text(path: str | os.PathLike, text: str) -> Path:
     atomic_write_text(path, text.rstrip("\n") + "\n", GraspsimError)
     return Path(path)
-
-
-def fs_cases(shapes: dict, *, config=None, quality=None, gripper=None, kind: str = "fs",
-             threads: int | None = None) -> list:
-    """One :class:`CalibrationCase` per named shape with its FS map (a compound gets
-    the combined map of its parts' FS maps, as the planner builds it)."""
-    from graspsim.calibration.trials import CalibrationCase
-    from graspsim.gripper import HGPL_25_60_A
-    from graspsim.maps.combine import combine_maps
-    from graspsim.maps.generate import generate_fs_map
-    from graspsim.primitives import Compound
-
-    gripper = gripper or HGPL_25_60_A
-    cases = []
-    for name, shape in shapes.items():
-        t = time.perf_counter()
-        if isinstance(shape, Compound):
-            parts = [generate_fs_map(p, gripper, quality, config, threads=threads) for p in shape.parts]
-            gmap = combine_maps(parts, shape, quality=quality, config=config)
-            k = "combined"
-        else:
-            gmap = generate_fs_map(shape, gripper, quality, config, threads=threads)
-            k = kind
-        log.info("map of %s: %d grasps in %.1f s", name, len(gmap), time.perf_counter() - t)
-        cases.append(CalibrationCase(f"{name}/{k}", gmap, group=name, kind=k))
-    return cases

@@ -70,7 +70,7 @@ import numpy as np
 from scipy.stats import betabinom
 
 from graspsim.calibration.conditions import SimCondition, condition
-from graspsim.calibration.table import TrialTable
+from graspsim.calibration.trial_table import TrialTable
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.generate import MapConfig
 from graspsim.maps.scaling import ScalingConfig
@@ -322,11 +322,11 @@ def check_bands(measured: dict, bands: dict) -> list[dict]:
 
 
 def adapted_glue_case(db_root, *, seed: int = 3):
-    """The glue-bottle analog (``graspsim.analogs``) seen as a cloud, planned by the
+    """The glue-bottle analog (``graspsim.case_study_objects``) seen as a cloud, planned by the
     run-time planner against a coarse FS database in ``db_root`` that accepts every
     graded grasp, as a case simulated against the true compound standing as it stood in
     the cloud."""
-    from graspsim.analogs import glue_bottle
+    from graspsim.case_study_objects import glue_bottle
     from graspsim.calibration.trials import CalibrationCase
     from graspsim.errors import IdentificationError
     from graspsim.maps.database import MapDatabase

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from graspsim.calibration import stats
-from graspsim.calibration.table import TrialTable
+from graspsim.calibration.trial_table import TrialTable
 from graspsim.errors import InvalidParameterError
 
 __all__ = ["ScoreReport", "CalibrationReport", "score_report", "calibrate", "base_rates", "attempt_precision"]

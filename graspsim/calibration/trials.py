@@ -1,4 +1,6 @@
-"""Trial campaigns: grasps drawn from maps, simulated under chosen conditions.
+"""Calibration trials: grasps drawn from maps, simulated under chosen conditions.
+
+(Simulating many map *files* resumably on an executor is :mod:`graspsim.campaign`.)
 
 Build once, run many: :func:`draw_samples` picks the grasps of each case (stratified
 over the grade among the poses that clear the table), :func:`simulate_samples` runs
@@ -12,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 import zlib
 from dataclasses import dataclass
 from typing import Callable, Sequence
@@ -20,7 +23,7 @@ import numpy as np
 
 from graspsim.calibration.conditions import CONDITIONS, FRICTION_LIMITED, SimCondition, conditioned_object
 from graspsim.calibration.sampling import stratified_rows
-from graspsim.calibration.table import TrialTable
+from graspsim.calibration.trial_table import TrialTable
 from graspsim.errors import InvalidParameterError
 from graspsim.grades.features import FEATURES, map_features
 from graspsim.gripper import GripperSpec
@@ -28,7 +31,7 @@ from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.transforms import angle_between
 
 __all__ = ["CalibrationCase", "SimCondition", "FRICTION_LIMITED", "CONDITIONS", "CaseSample", "draw_samples",
-           "simulate_samples", "case_seed", "table_features"]
+           "simulate_samples", "case_seed", "table_features", "fs_cases"]
 
 log = logging.getLogger(__name__)
 
@@ -101,7 +104,7 @@ def draw_samples(cases: Sequence[CalibrationCase], per_bin: int, *, seed: int = 
     out = []
     for case in cases:
         gmap = case.gmap
-        gripper = GripperSpec.from_dict(gmap.meta.gripper)
+        gripper = gmap.meta.gripper_spec
         clear = _clears_table(gmap, resting_pose(_sim_object(case)), gripper, min_clearance,
                               T_sim_map=case.T_sim_map)
         rng = np.random.default_rng(case_seed(seed, case.name))
@@ -152,15 +155,14 @@ class _CaseJob:
 
 def _simulate_case(job: _CaseJob) -> TrialTable:
     """Simulate one case's samples (runs in this process or an executor's worker)."""
-    from graspsim.sim import ExecutionNoise, SimSettings, build_scene, run_trials
+    from graspsim.sim import SimSettings, build_scene, run_trials
 
     smp, condition, protocol = job.sample, job.condition, job.protocol
     settings = SimSettings(friction=condition.friction, grip_force=condition.grip_force)
-    noise = (ExecutionNoise(condition.noise_position, condition.noise_rotation)
-             if condition.noisy else None)
+    noise = condition.noise if condition.noisy else None
     case, rows = smp.case, smp.rows
     obj = conditioned_object(_sim_object(case), condition)
-    gripper = GripperSpec.from_dict(case.gmap.meta.gripper)
+    gripper = case.gmap.meta.gripper_spec
     scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity)
     res = run_trials(scene, case.T_obj_wrist[rows], case.gmap.width[rows], protocol,
                      threads=job.threads, seed=case_seed(job.seed, case.name), noise=noise)
@@ -236,3 +238,28 @@ def table_features(table: TrialTable, names: tuple[str, ...] = FEATURES,
         for k, v in f.items():
             out[k][sel] = v
     return out
+
+
+def fs_cases(shapes: dict, *, config=None, quality=None, gripper=None, kind: str = "fs",
+             threads: int | None = None) -> list:
+    """One :class:`CalibrationCase` per named shape with its FS map (a compound gets
+    the combined map of its parts' FS maps, as the planner builds it)."""
+    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.maps.combine import combine_maps
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.primitives import Compound
+
+    gripper = gripper or HGPL_25_60_A
+    cases = []
+    for name, shape in shapes.items():
+        t = time.perf_counter()
+        if isinstance(shape, Compound):
+            parts = [generate_fs_map(p, gripper, quality, config, threads=threads) for p in shape.parts]
+            gmap = combine_maps(parts, shape, quality=quality, config=config)
+            k = "combined"
+        else:
+            gmap = generate_fs_map(shape, gripper, quality, config, threads=threads)
+            k = kind
+        log.info("map of %s: %d grasps in %.1f s", name, len(gmap), time.perf_counter() - t)
+        cases.append(CalibrationCase(f"{name}/{k}", gmap, group=name, kind=k))
+    return cases

@@ -12,7 +12,6 @@ recall at 0.7, and the binned reliability curve.
 
 from __future__ import annotations
 
-import math
 import sys
 from pathlib import Path
 
@@ -70,10 +69,10 @@ def run(args) -> int:
     for path, name in zip(args.maps, names):
         gmap = load_map(path)
         cases.append(CalibrationCase(name, gmap, group=name, kind=gmap.meta.method))
+    from graspsim.sim import ExecutionNoise
+
     cond = SimCondition("cli", friction=args.friction, grip_force=args.grip_force,
-                        mass_scale=args.mass_scale,
-                        noise_position=0.003 if args.noise else 0.0,
-                        noise_rotation=math.radians(2.0) if args.noise else 0.0)
+                        mass_scale=args.mass_scale, noise=ExecutionNoise() if args.noise else None)
     samples = draw_samples(cases, args.per_bin, seed=args.seed)
     if not sum(len(s.rows) for s in samples):
         raise InvalidParameterError("nothing to calibrate: the maps hold no grasp that clears the table")

@@ -21,7 +21,9 @@ def _cmd_run(args) -> int:
         if n is not None and n < 1:
             raise InvalidParameterError(f"nothing to simulate: --{flag} {n} (give N >= 1)")
     check_folder(args.out, "campaign folder")  # before the work, not after it
-    noise = (args.noise_pos, math.radians(args.noise_rot_deg)) if args.noise else None
+    from graspsim.sim import ExecutionNoise
+
+    noise = ExecutionNoise(args.noise_pos, math.radians(args.noise_rot_deg)) if args.noise else None
     tasks = campaign_tasks(args.maps, protocol=args.protocol, top=args.top, sample=args.sample,
                            min_grade=args.min_grade, noise=noise, seeds=range(args.seeds),
                            threads=args.threads)

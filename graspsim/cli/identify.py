@@ -67,8 +67,8 @@ def _lookup(db_dir: str | None):
     db = MapDatabase(db_dir)
 
     def lookup(kind: str, dims: dict) -> str | None:
-        m = db.lookup(kind, dims).match
-        return None if m is None else str(getattr(m, "value", m))
+        m = db.lookup(kind, dims)
+        return None if m.entry is None else m.match.value  # BUILD: no map of the kind
 
     return lookup, str(db.root)
 

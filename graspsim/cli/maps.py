@@ -237,7 +237,7 @@ def _cmd_db(args) -> int:
     else:  # lookup
         shape = _shape_from_args(args)
         m = db.lookup(shape.kind, shape.dims)
-        match = m.match.value if m.match else None
+        match = m.match.value if m.entry is not None else None  # BUILD: no map of the kind
         emit({"primitive": shape.kind, "dims": shape.dims, "match": match,
               "nearest": m.entry, "max_diff": m.max_diff}, args.json,
              f"{shape}: {match or 'no map of this primitive'}"

@@ -94,7 +94,7 @@ def grasp_features(obs: dict, gripper: GripperSpec = HGPL_25_60_A) -> np.ndarray
     T = T_world_obj @ make_transform(quat_to_matrix(q), cand[:, 0:3])  # (K, 4, 4) world
     width = cand[:, _COL["width"]]
     opening = gripper.pregrasp_opening(width)
-    tcp_z = float(gripper.tcp_offset(0.5 * gripper.pad_length))
+    tcp_z = float(gripper.nominal_tcp[2])
     tcp = T[:, :3, 3] + tcp_z * T[:, :3, 2]
     top = max(float(cloud[:, 2].max()), 1e-3)
     # the cloud in every wrist frame, against the gripper's boxes at the pre-grasp opening

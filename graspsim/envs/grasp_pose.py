@@ -1,7 +1,7 @@
 """``graspsim/GraspPose-v0``: propose a grasp pose for an object seen as a point cloud.
 
 The continuous sibling of ``GraspSelect-v0`` (same objects, table, sensor, trial and
-rewards; see :mod:`graspsim.envs.table`), for policies that propose grasps instead of
+rewards; see :mod:`graspsim.envs.base`), for policies that propose grasps instead of
 picking planned ones. No planner runs: an episode costs its cloud and its trial.
 
 Observation (``Dict``): ``cloud`` (N, 3) float32, world frame [m]; ``bounds`` (2, 3)
@@ -32,7 +32,7 @@ import numpy as np
 from gymnasium import spaces
 
 from graspsim.envs.config import EnvConfig
-from graspsim.envs.table import WORLD_BOUND, TableTask
+from graspsim.envs.base import WORLD_BOUND, TableTask
 from graspsim.errors import GraspsimError
 from graspsim.transforms import make_transform
 
@@ -56,7 +56,7 @@ class GraspPoseEnv(TableTask):
         })
         self.action_space = spaces.Box(-1.0, 1.0, (10,), np.float32)
         g = self.gripper
-        self._tcp = float(g.tcp_offset(0.5 * g.pad_length))
+        self._tcp = float(g.nominal_tcp[2])
         self._bounds: np.ndarray | None = None
         self._noise_T: np.ndarray | None = None
         self._done = True

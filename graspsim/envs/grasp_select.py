@@ -1,7 +1,7 @@
 """``graspsim/GraspSelect-v0``: pick one of K planned grasps (a contextual bandit).
 
 Each episode is one step. ``reset`` puts a random object on the table (see
-:mod:`graspsim.envs.table`), takes its sensor cloud, runs the planner on it (paper
+:mod:`graspsim.envs.base`), takes its sensor cloud, runs the planner on it (paper
 2.2-2.5: identification, known/familiar lookup, scaling, combination) and offers K
 grasps of the adapted map, drawn at random among those whose gripper stays clear of the
 table in the estimated object pose (the planner itself does not know the table). With
@@ -51,7 +51,7 @@ from gymnasium import spaces
 
 from graspsim.envs.candidates import CANDIDATE_FEATURES, candidate_features, feature_bounds
 from graspsim.envs.config import EnvConfig, Perception
-from graspsim.envs.table import WORLD_BOUND, TableTask, pose_vector
+from graspsim.envs.base import WORLD_BOUND, TableTask, pose_vector
 from graspsim.errors import GraspsimError, InvalidParameterError, NoFeasibleGraspError
 from graspsim.maps.scaling import ScalingConfig
 from graspsim.perception import IdentifyConfig
@@ -99,19 +99,12 @@ class GraspSelectEnv(TableTask):
             ep_rng, plan_rng, pick_rng, noise_rng = rng.spawn(4)
             episode = self._draw_episode(ep_rng, shape)
             t1 = time.perf_counter()
-            try:
-                if c.perception is Perception.MODEL:
-                    result = plan_shape(episode.drawn.shape, episode.T_world_obj, db=self.db,
-                                        config=self.planner_config, source="graspsim.envs")
-                else:
-                    result = plan(episode.points, db=self.db, rng=plan_rng, config=self.planner_config,
-                                  source="graspsim.envs")
-            except ValueError as err:
-                # graspsim.maps.combine.combine_part fails on a scaled batch none of whose
-                # contacts lies on the compound's surface (np.reshape of an empty array);
-                # until that is fixed such an object is redrawn
-                log.warning("planner error on a %s (redrawn): %s", episode.drawn.kind, err)
-                continue
+            if c.perception is Perception.MODEL:
+                result = plan_shape(episode.drawn.shape, episode.T_world_obj, db=self.db,
+                                    config=self.planner_config, source="graspsim.envs")
+            else:
+                result = plan(episode.points, db=self.db, rng=plan_rng, config=self.planner_config,
+                              source="graspsim.envs")
             t_plan = time.perf_counter() - t1
             gmap = result.map
             T_world_wrist = result.T_cloud_obj @ gmap.T_obj_wrist  # the cloud frame is the world

@@ -91,7 +91,7 @@ def collision_free(shape, gripper: GripperSpec, T_obj_wrist: np.ndarray, opening
         return np.zeros(0, bool)
     x, z = T[:, :3, 0], T[:, :3, 2]
     d0 = gripper.contact_depth_margin
-    gp = T[:, :3, 3] + (gripper.fingertip_z - d0) * z
+    gp = gripper.grasp_point_from_wrist(T[:, :3, 3], z, d0)
     # one line per pose, its roll 0 the pose's own approach axis: e1 = z, e2 = x X z
     lines = ClosingLines(p1=gp, p2=gp, n1=z, n2=z, u=x, width=opening - 2 * gripper.approach_clearance,
                          gp=gp, e1=z, e2=np.cross(x, z), outside=np.ones(len(T), bool),
@@ -135,7 +135,7 @@ def grasps_collision_free(shape, gripper: GripperSpec, gp: np.ndarray, R: np.nda
     z = R[:, :, 2]
     T = np.zeros((n, 4, 4))
     T[:, :3, :3] = R
-    T[:, :3, 3] = gp - (gripper.fingertip_z - depth)[:, None] * z
+    T[:, :3, 3] = gripper.wrist_from_grasp_point(gp, z, depth)
     T[:, 3, 3] = 1.0
     if n <= small:
         return boxes_clear_sdf(shape, gripper, T, opening, cfg.collision_tolerance)

@@ -58,8 +58,7 @@ def combine_part(part_map: GraspabilityMap, index: int, compound: Compound, *,
     # contact depth and width do not depend on the frame: take them in the part's
     gp_part = part_map.grasp_point[keep].astype(float)
     R_part = quat_to_matrix(part_map.wrist_quat[keep])
-    depth = gripper.fingertip_z - np.einsum(
-        "ni,ni->n", gp_part - part_map.wrist_position[keep], R_part[:, :, 2])
+    depth = gripper.contact_depth(gp_part, part_map.wrist_position[keep], R_part[:, :, 2])
     width = part_map.width[keep].astype(float)
     # collisions with the adjacent parts, each in its own frame (one cached sample
     # hierarchy per primitive), grouped by closing line
@@ -106,10 +105,9 @@ def combine_maps(part_maps: list[GraspabilityMap], compound: Compound, *,
     if not part_maps:
         raise InvalidParameterError("combine_maps needs at least one part")
     t0 = time.perf_counter()
-    gripper = GripperSpec.from_dict(part_maps[0].meta.gripper)
-    quality = quality or QualityModel.from_meta(part_maps[0].meta.quality)
-    cfg = config or MapConfig(**{k: v for k, v in part_maps[0].meta.resolution.items()
-                                 if k in MapConfig.__dataclass_fields__})
+    gripper = part_maps[0].meta.gripper_spec
+    quality = quality or part_maps[0].meta.quality_model
+    cfg = config or part_maps[0].meta.map_config
     d_ref = quality.reference_distance(compound.circumradius)
     meta = MapMeta(object=object_description(compound, mass, cfg.density), gripper=part_maps[0].meta.gripper,
                    quality={**quality.to_dict(), "d_ref": d_ref}, resolution=part_maps[0].meta.resolution,

@@ -1,9 +1,9 @@
 """The full-scale (FS) map database: a folder of map files plus an index.
 
 Maps are keyed by primitive, dimensions, gripper and generation settings; missing
-entries are built on demand. ``lookup`` answers the paper's known/familiar question
-(section 2.4): *known* when a stored map of the same primitive lies within ``tol``
-(1 cm) on every dimension, *familiar* when only other sizes of that primitive exist.
+entries are built on demand. :meth:`MapDatabase.match` answers the paper's
+known / familiar question (section 2.4) with the one rule of :mod:`graspsim.maps.match`
+and the database's one tolerance ``tol`` (1 cm).
 
 Layout::
 
@@ -35,8 +35,8 @@ from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.io import load_map, save_map
 from graspsim.maps.validate import validate_map
-from graspsim.perception.match import MatchDecision, classify_match
-from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Primitive, Sphere, make_primitive
+from graspsim.maps.match import MatchDecision, match_entries
+from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Primitive, Sphere, make_primitive, primitive_from_dict
 from graspsim.quality import QualityModel
 
 __all__ = ["MapDatabase", "PAPER_SHAPES", "default_root", "size_grid", "index_record"]
@@ -88,8 +88,8 @@ def _locked(path: Path):
 
 def _valid_record(entry: dict) -> bool:
     try:
-        make_primitive(entry["primitive"], **entry["dims"])
-    except (GraspsimError, KeyError, TypeError) as err:
+        primitive_from_dict(entry)
+    except GraspsimError as err:
         log.warning("database record %s skipped (%s); `graspsim db check --repair` removes it",
                     entry.get("key"), err)
         return False
@@ -161,18 +161,23 @@ class MapDatabase:
         return self.root / shape.kind / f"{self.key(shape)}.h5"
 
     # ------------------------------------------------------------------ queries
-    def lookup(self, kind: str, dims: dict[str, float], tol: float | None = None) -> MatchDecision:
-        """Known / familiar decision for a primitive of ``kind`` with ``dims`` [m]
-        (``match``: "known", "familiar" or None; ``entry``: the nearest stored record;
-        ``max_diff``: its largest per-dimension difference [m])."""
-        kind = make_primitive(kind, **dims).kind  # validates and normalises the name
-        return classify_match(kind, dims, self.entries(), tol=self.tol if tol is None else tol)
+    def match(self, shape: Primitive, *, max_ratio: float = float("inf")) -> MatchDecision:
+        """Which stored map serves ``shape``: KNOWN (a map within ``self.tol`` on every
+        dimension), FAMILIAR (the nearest map, at most ``max_ratio`` times larger or
+        smaller on every dimension: the scaling range) or BUILD (see
+        :mod:`graspsim.maps.match`); ``entry`` is the serving index record."""
+        return match_entries(shape.kind, shape.dims, self.entries(), tol=self.tol, max_ratio=max_ratio)
+
+    def lookup(self, kind: str, dims: dict[str, float]) -> MatchDecision:
+        """:meth:`match` for a primitive given by name and dims [m] (validated)."""
+        return self.match(make_primitive(kind, **dims))
 
     def contains(self, shape: Primitive) -> bool:
         return any(e["key"] == self.key(shape) for e in self.entries()) and self.path(shape).exists()
 
     def get(self, shape: Primitive, *, build: bool = True, threads: int | None = None) -> GraspabilityMap:
-        """The FS map of ``shape``: loaded if stored (and readable), built otherwise."""
+        """The FS map of ``shape``: loaded if stored (and readable), otherwise built,
+        stored and returned as built (sorted best first, as stored)."""
         p = self.path(shape)
         if self.contains(shape):
             try:
@@ -282,8 +287,6 @@ class _BuildJob:
 
 def _build_job(job: _BuildJob) -> dict:
     """Worker side of a parallel build: generate and store one map, return its record."""
-    from graspsim.primitives import primitive_from_dict
-
     db = MapDatabase(job.root, gripper=GripperSpec.from_dict(job.gripper),
                      quality=QualityModel.from_dict(job.quality), config=MapConfig(**job.config),
                      tol=job.tol)

@@ -315,7 +315,7 @@ def generate_fs_map(
                  grasps=int(free.sum(dtype=np.int64)))
     roll = roll_angles(cfg)
     depths = gripper.contact_depths(cfg.depth_step)
-    cols = _assemble(free, lines, roll, gripper.fingertip_z - depths, q, threads)
+    cols = _assemble(free, lines, roll, gripper.tcp_offset(depths), q, threads)
     n_rows = len(cols["grade"])
     gmap = GraspabilityMap(
         **cols,

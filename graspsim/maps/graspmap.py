@@ -8,14 +8,20 @@ million-grasp maps the surface-to-voxel method produces.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
-from typing import Any
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from graspsim.errors import InvalidParameterError
+from graspsim.errors import InvalidMapError, InvalidParameterError
+from graspsim.gripper import GripperSpec
+from graspsim.quality import QualityModel
 from graspsim.transforms import quat_to_matrix
 
-__all__ = ["GraspabilityMap", "MapMeta", "COLUMNS"]
+if TYPE_CHECKING:
+    from graspsim.maps.generate import MapConfig
+
+__all__ = ["GraspabilityMap", "MapMeta", "Placement", "COLUMNS"]
 
 # column name -> (trailing shape, dtype)
 COLUMNS: dict[str, tuple[tuple[int, ...], type]] = {
@@ -56,6 +62,90 @@ class MapMeta:
     timing: dict = field(default_factory=dict)
     version: str = ""
     extra: dict = field(default_factory=dict)
+
+    # Typed views of the records, each parsed once (the dicts are what the file holds).
+    @cached_property
+    def gripper_spec(self) -> GripperSpec:
+        """The gripper the map was made for."""
+        if not self.gripper:
+            raise InvalidMapError("the map records no gripper (meta.gripper is empty)")
+        return GripperSpec.from_dict(self.gripper)
+
+    @cached_property
+    def quality_model(self) -> QualityModel:
+        """The paper-grade model behind ``quality`` (see :meth:`QualityModel.from_meta`)."""
+        return QualityModel.from_meta(self.quality)
+
+    @cached_property
+    def map_config(self) -> "MapConfig":
+        """The generation settings recorded in ``resolution`` (defaults for missing ones)."""
+        from graspsim.maps.generate import MapConfig
+
+        return MapConfig(**{k: v for k, v in self.resolution.items() if k in MapConfig.__dataclass_fields__})
+
+    @cached_property
+    def shape(self):
+        """The object as a :class:`~graspsim.primitives.Primitive` or
+        :class:`~graspsim.primitives.Compound` (PrimitiveError for a mesh object)."""
+        from graspsim.primitives import shape_from_dict
+
+        return shape_from_dict(self.object)
+
+    @property
+    def threshold(self) -> float:
+        """Grade above which a grasp is accepted (the quality model's default if unrecorded)."""
+        return float(self.quality.get("threshold", QualityModel.threshold))
+
+    @property
+    def surface_step(self) -> float:
+        """[m] (the map settings' default if unrecorded)."""
+        from graspsim.maps.generate import MapConfig
+
+        return float(self.resolution.get("surface_step", MapConfig.surface_step))
+
+    @property
+    def rotation_step(self) -> float:
+        """[rad] (the map settings' default if unrecorded)."""
+        from graspsim.maps.generate import MapConfig
+
+        return float(self.resolution.get("rotation_step", MapConfig.rotation_step))
+
+    @cached_property
+    def placement(self) -> "Placement | None":
+        """Where an adapted map's object was seen (None for other maps)."""
+        return Placement.from_extra(self.extra)
+
+
+@dataclass(frozen=True, eq=False)
+class Placement:
+    """An adapted map's object in the sensor's frame: what the planner hands the
+    simulation. T_cloud_obj: (4, 4) the object frame in the cloud's frame; table: the
+    planner's support-plane record (``TablePlane.to_dict()`` with the resolved height
+    [m], and ``dropped``: the poses it removed) or None. Stored in ``MapMeta.extra``."""
+
+    T_cloud_obj: np.ndarray
+    table: dict | None = None
+
+    def to_extra(self) -> dict:
+        """The ``MapMeta.extra`` entries that record it."""
+        out = {"T_cloud_obj": np.asarray(self.T_cloud_obj, float).tolist()}
+        if self.table is not None:
+            out["table"] = self.table
+        return out
+
+    @classmethod
+    def from_extra(cls, extra: dict) -> "Placement | None":
+        T = extra.get("T_cloud_obj")
+        if T is None:
+            return None
+        return cls(np.asarray(T, float).reshape(4, 4), extra.get("table") or None)
+
+    @property
+    def up(self) -> np.ndarray | None:
+        """(3,) the table's normal in the object frame, or None without a table."""
+        if self.table is None:
+            return None
+        return self.T_cloud_obj[:3, :3].T @ np.asarray(self.table["normal"], float)
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,7 +195,7 @@ class GraspabilityMap:
 
     @property
     def threshold(self) -> float:
-        return float(self.meta.quality.get("threshold", 0.7))
+        return self.meta.threshold
 
     @property
     def accepted(self) -> np.ndarray:
@@ -169,7 +259,7 @@ class GraspabilityMap:
         drew its 15 test grasps "uniformly distributed about the object")."""
         if n <= 0 or len(self) == 0:
             return np.zeros(0, int)
-        cell = float(cell or self.meta.resolution.get("surface_step", 0.005))
+        cell = float(cell or self.meta.surface_step)
         key = np.floor(self.contacts[:, 0] / cell).astype(np.int64)
         _, inverse = np.unique(key, axis=0, return_inverse=True)
         inverse = inverse.ravel()

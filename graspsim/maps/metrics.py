@@ -20,8 +20,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from graspsim.errors import InvalidParameterError
+from graspsim.gripper import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
-from graspsim.primitives import shape_from_dict
 
 __all__ = ["MapRates", "map_rates", "relative_rates", "voxel_keys", "orientation_bins"]
 
@@ -41,8 +41,8 @@ class MapRates:
 def map_rates(gmap: GraspabilityMap, *, shape=None, min_grade: float = 0.0,
               resolution: float | None = None) -> MapRates:
     """SR and VR of ``gmap`` (its object rebuilt from the map's metadata unless given)."""
-    shape = shape if shape is not None else shape_from_dict(gmap.meta.object)
-    res = float(resolution or gmap.meta.resolution.get("surface_step", 0.005))
+    shape = shape if shape is not None else gmap.meta.shape
+    res = float(resolution or gmap.meta.surface_step)
     if not res > 0:
         raise InvalidParameterError(f"resolution must be > 0 m, got {res!r}")
     sel = gmap.grade > min_grade
@@ -56,7 +56,7 @@ def map_rates(gmap: GraspabilityMap, *, shape=None, min_grade: float = 0.0,
         _, pix = cKDTree(pixels).query(c.reshape(-1, 3).astype(float))
         hit[pix] = True
     hit_pixels = int(hit.sum())
-    lo, hi = wrist_box(shape, gmap.meta.gripper)
+    lo, hi = wrist_box(shape, gmap.meta.gripper_spec)
     n_vox = np.ceil((hi - lo) / res - 1e-9).astype(np.int64)
     # voxel coordinates as whole float32 numbers, bounds-checked before the integer cast
     # (in place: maps hold millions of rows)
@@ -72,22 +72,18 @@ def map_rates(gmap: GraspabilityMap, *, shape=None, min_grade: float = 0.0,
                     hit_pixels, hit_voxels)
 
 
-def wrist_box(shape, gripper: dict) -> tuple[np.ndarray, np.ndarray]:
+def wrist_box(shape, gripper: GripperSpec) -> tuple[np.ndarray, np.ndarray]:
     """Box that can hold a wrist: the object's bounds grown by the longest grasp point
-    to wrist distance (fingertip height minus the smallest contact depth) [m]."""
-    reach = _fingertip_z(gripper) - float(gripper.get("contact_depth_margin", 0.0))
+    to wrist distance (the TCP offset at the smallest contact depth) [m]."""
+    reach = float(gripper.tcp_offset(gripper.contact_depth_margin))
     b = shape.aabb
     return b[0] - reach, b[1] + reach
-
-
-def _fingertip_z(gripper: dict) -> float:
-    return float(gripper["housing_size"][2] + gripper["jaw_size"][2] + gripper["finger_size"][2])
 
 
 def relative_rates(gmap: GraspabilityMap, reference: GraspabilityMap, *, shape=None,
                    min_grade: float = 0.0) -> dict[str, float]:
     """SRN and VRN [%] of ``gmap`` against ``reference`` (paper eqs. 7-8)."""
-    shape = shape if shape is not None else shape_from_dict(reference.meta.object)
+    shape = shape if shape is not None else reference.meta.shape
     a = map_rates(gmap, shape=shape, min_grade=min_grade)
     b = map_rates(reference, shape=shape, min_grade=min_grade)
     return {"SR": a.sr, "VR": a.vr, "SR_ref": b.sr, "VR_ref": b.vr,
@@ -123,7 +119,7 @@ def voxel_keys(gmap: GraspabilityMap, resolution: float | None = None,
                rotation_step: float | None = None) -> np.ndarray:
     """(N, 5) int64 voxel of each grasp: wrist position bin (3) at the map resolution
     and orientation bin (2) at the rotation step -- the map's voxel view."""
-    res = float(resolution or gmap.meta.resolution.get("surface_step", 0.005))
-    step = float(rotation_step or gmap.meta.resolution.get("rotation_step", math.radians(11)))
+    res = float(resolution or gmap.meta.surface_step)
+    step = float(rotation_step or gmap.meta.rotation_step)
     pos = np.floor(gmap.wrist_position.astype(float) / res).astype(np.int64)
     return np.column_stack([pos, orientation_bins(gmap.wrist_quat, step)])

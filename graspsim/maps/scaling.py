@@ -39,7 +39,7 @@ from graspsim.gripper import GripperSpec
 from graspsim.maps.collide import grasps_collision_free
 from graspsim.maps.generate import MapConfig, object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
-from graspsim.primitives import Primitive, shape_from_dict
+from graspsim.primitives import Primitive
 from graspsim.quality import QualityModel
 from graspsim.transforms import quat_to_matrix
 
@@ -147,7 +147,7 @@ def _columns(ch: _Chords, sel: np.ndarray, R: np.ndarray, depth: np.ndarray,
     """Map columns of grasps ``sel`` (indices into the chords) with rotations R and
     contact depths ``depth`` (one per selected grasp)."""
     gp = ch.gp[sel]
-    return {"wrist_position": gp - (gripper.fingertip_z - depth)[:, None] * R[:, :, 2],
+    return {"wrist_position": gripper.wrist_from_grasp_point(gp, R[:, :, 2], depth),
             "grasp_point": gp, "contacts": np.stack([ch.c1[sel], ch.c2[sel]], 1),
             "normals": np.stack([ch.n1[sel], ch.n2[sel]], 1), "width": ch.width[sel],
             "fc_angle": ch.q.fc_angle[sel], "q_fc": ch.q.q_fc[sel],
@@ -195,12 +195,14 @@ def _check(target, gripper, cfg, gp, R, depth, width, line=None) -> np.ndarray:
 
 
 def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: QualityModel | None = None,
-                 scaling: ScalingConfig | None = None, config: MapConfig | None = None
-                 ) -> Iterator[GraspabilityMap]:
+                 scaling: ScalingConfig | None = None, config: MapConfig | None = None,
+                 gripper: GripperSpec | None = None) -> Iterator[GraspabilityMap]:
     """Scale ``fs_map`` (a primitive's FS map) to ``target`` (the same primitive at
-    another size), yielding maps of kept grasps in batches, best FS lines first."""
+    another size), yielding maps of kept grasps in batches, best FS lines first.
+    quality, config, gripper: the map's own (from its metadata) unless given -- a
+    caller that holds them (the planner's database) passes them."""
     sc = scaling or ScalingConfig()
-    source = shape_from_dict(fs_map.meta.object)
+    source = fs_map.meta.shape
     if not isinstance(source, Primitive) or source.kind != target.kind:
         raise InvalidParameterError(
             f"can only scale a map of a {target.kind} to another {target.kind}; the map is of "
@@ -211,10 +213,9 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
         raise InvalidParameterError(
             f"scaling {source} to {target} changes {sorted(bad)} by more than the allowed "
             f"factor {sc.max_ratio}; generate an FS map for this size instead")
-    gripper = GripperSpec.from_dict(fs_map.meta.gripper)
-    quality = quality or QualityModel.from_meta(fs_map.meta.quality)
-    cfg = config or MapConfig(**{k: v for k, v in fs_map.meta.resolution.items()
-                                 if k in MapConfig.__dataclass_fields__})
+    gripper = gripper or fs_map.meta.gripper_spec
+    quality = quality or fs_map.meta.quality_model
+    cfg = config or fs_map.meta.map_config
     src_min = fs_map.threshold if sc.source_min_grade is None else sc.source_min_grade
     keep_min = quality.threshold if sc.keep_min_grade is None else sc.keep_min_grade
     d_ref = quality.reference_distance(target.circumradius)
@@ -235,7 +236,7 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
         line = src.line_of[rows]
         R = quat_to_matrix(fs_map.wrist_quat[src.rows[rows]])
         wrist = fs_map.wrist_position[src.rows[rows]].astype(float)
-        depth = gripper.fingertip_z - np.einsum("ni,ni->n", src.gp[line] - wrist, R[:, :, 2])
+        depth = gripper.contact_depth(src.gp[line], wrist, R[:, :, 2])
         pieces = []
         rest = np.arange(len(rows))
         if sc.method in (ScalingMethod.QUALITY, ScalingMethod.COMBINED):
@@ -306,10 +307,10 @@ def scale_map(fs_map: GraspabilityMap, target: Primitive, *, quality: QualityMod
     if batches:
         out = GraspabilityMap.concat(batches)
     else:
-        source = shape_from_dict(fs_map.meta.object)
-        log.warning("scaling %s to %s kept no grasp", source, target)
+        log.warning("scaling %s to %s kept no grasp", fs_map.meta.shape, target)
+        density = (config or fs_map.meta.map_config).density
         out = GraspabilityMap.empty(MapMeta(
-            object=object_description(target, None, MapConfig().density), gripper=fs_map.meta.gripper,
+            object=object_description(target, None, density), gripper=fs_map.meta.gripper,
             quality=fs_map.meta.quality, resolution=fs_map.meta.resolution,
             method=f"scaled/{sc.method.value}", version=__version__))
     return out.with_meta(timing={"total": time.perf_counter() - t0})

@@ -160,8 +160,7 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     T_world = scene.T_world_obj @ T
     if noise is not None:
         g = scene.gripper
-        tcp = np.array([0.0, 0.0, float(g.tcp_offset(0.5 * g.pad_length))])
-        T_world = T_world @ noise.sample(n, np.random.default_rng(seed), pivot=tcp)
+        T_world = T_world @ noise.sample(n, np.random.default_rng(seed), pivot=g.nominal_tcp)
     openings = pregrasp_opening(scene, widths)
     state0 = initial_states(scene, T_world, openings)
     depth = start_penetration(scene, state0, T_world)

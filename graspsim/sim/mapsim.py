@@ -25,7 +25,6 @@ import numpy as np
 from graspsim.errors import GraspsimError, InvalidParameterError, MapFileError, SimulationError
 from graspsim.gripper import GripperSpec
 from graspsim.maps import GraspabilityMap, load_map, read_sim_results, write_sim_results
-from graspsim.primitives import shape_from_dict
 from graspsim.sim.batch import run_trials
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape
@@ -75,7 +74,7 @@ def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int 
 def map_gripper(gmap: GraspabilityMap) -> GripperSpec:
     if not gmap.meta.gripper:
         raise SimulationError("the map records no gripper (meta.gripper is empty)")
-    return GripperSpec.from_dict(gmap.meta.gripper)
+    return gmap.meta.gripper_spec
 
 
 def _given_mass(obj: dict) -> float | None:
@@ -96,12 +95,12 @@ def map_object(gmap: GraspabilityMap, *, mesh: str | os.PathLike | None = None,
     obj = gmap.meta.object or {}
     mass = mass if mass is not None else _given_mass(obj)
     if mesh is not None:
-        T = gmap.meta.extra.get("T_cloud_obj")
-        if T is None:
+        placement = gmap.meta.placement
+        if placement is None:
             log.warning("map has no T_cloud_obj: assuming the mesh is in the object frame")
             T_obj_mesh = None
         else:
-            T_obj_mesh = invert_transform(np.asarray(T, float).reshape(4, 4))
+            T_obj_mesh = invert_transform(placement.T_cloud_obj)
         return object_from_mesh(mesh, T_obj_mesh=T_obj_mesh, scale=mesh_scale, mass=mass,
                                 density=density, cache_dir=cache_dir)
     if obj.get("file"):
@@ -114,7 +113,7 @@ def map_object(gmap: GraspabilityMap, *, mesh: str | os.PathLike | None = None,
         raise SimulationError("the map's object has neither a primitive nor a mesh file; "
                               "pass mesh= to simulate against a mesh")
     try:
-        shape = shape_from_dict(obj)
+        shape = gmap.meta.shape
     except GraspsimError as err:
         raise SimulationError(f"cannot rebuild the map's object {obj!r}: {err}") from err
     return object_from_shape(shape, mass=mass, density=density)
@@ -154,17 +153,14 @@ def _cloud_up(gmap: GraspabilityMap, has_mesh: bool) -> np.ndarray | None:
     above that table), else for a mesh (the real object) the cloud's +z -- the planner's
     object frame may be flipped (a cylinder's axis sign is arbitrary). None: the
     object's own stable resting pose."""
-    T = gmap.meta.extra.get("T_cloud_obj")
-    if T is None:
+    placement = gmap.meta.placement
+    if placement is None:
         return None
-    table = gmap.meta.extra.get("table")
-    if table:
-        n = np.asarray(table["normal"], float)
-    elif has_mesh:
-        n = np.array([0.0, 0.0, 1.0])
-    else:
-        return None
-    return np.asarray(T, float).reshape(4, 4)[:3, :3].T @ n
+    if placement.table is not None:
+        return placement.up
+    if has_mesh:
+        return placement.T_cloud_obj[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    return None
 
 
 def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),

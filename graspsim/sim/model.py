@@ -147,7 +147,7 @@ def build_gripper_spec(
     wrist = spec.worldbody.add_body(name=n.wrist, pos=home_pos, quat=home_quat, gravcomp=1.0)
     wrist.add_freejoint(name=n.wrist)
     wrist.add_site(name="wrist", size=[0.005] * 3, rgba=[0.2, 0.2, 0.9, 0.4], group=4)
-    wrist.add_site(name="tcp", pos=[0, 0, g.fingertip_z - 0.5 * g.pad_length],
+    wrist.add_site(name="tcp", pos=g.nominal_tcp,
                    size=[0.004] * 3, rgba=[0.2, 0.9, 0.2, 0.4], group=4)
     boxes = g.collision_boxes()
     parts = dict(zip(boxes.names, zip(boxes.centers, boxes.half_extents)))

@@ -23,7 +23,7 @@ def grasp_pose(grasp_point, approach, closing, depth: float = 0.02,
     unit vector ``approach`` with jaws closing along ``closing`` (orthogonal to it)."""
     a = np.asarray(approach, dtype=float)
     R = frame_from_axes(np.asarray(closing, dtype=float), a)
-    p = np.asarray(grasp_point, dtype=float) - a / np.linalg.norm(a) * float(gripper.tcp_offset(depth))
+    p = gripper.wrist_from_grasp_point(np.asarray(grasp_point, dtype=float), a / np.linalg.norm(a), depth)
     return make_transform(R, p)
 
 
@@ -34,7 +34,7 @@ def hand_made_map(shape, T_obj_wrist: np.ndarray, widths, *, gripper: GripperSpe
     T = np.asarray(T_obj_wrist, float).reshape(-1, 4, 4)
     w = np.asarray(widths, float).reshape(-1)
     n = len(T)
-    gp = T[:, :3, 3] + T[:, :3, 2] * float(gripper.tcp_offset(depth))
+    gp = gripper.grasp_point_from_wrist(T[:, :3, 3], T[:, :3, 2], depth)
     x = T[:, :3, 0]
     contacts = np.stack([gp - 0.5 * w[:, None] * x, gp + 0.5 * w[:, None] * x], axis=1)
     normals = np.stack([-x, x], axis=1)

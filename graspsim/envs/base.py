@@ -174,8 +174,7 @@ class TableTask(gym.Env):
         (identity without noise), drawn once per episode so a candidate's trial is fixed."""
         if self.noise is None:
             return np.repeat(np.eye(4)[None], n, axis=0)
-        tcp = np.array([0.0, 0.0, float(self.gripper.tcp_offset(0.5 * self.gripper.pad_length))])
-        return self.noise.sample(n, rng, pivot=tcp)
+        return self.noise.sample(n, rng, pivot=self.gripper.nominal_tcp)
 
     def _outcome_info(self, results: TrialResults, i: int = 0) -> tuple[float, dict]:
         """Reward and info entries of trial ``i`` of ``results``."""

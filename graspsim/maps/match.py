@@ -1,0 +1,99 @@
+"""Which stored FS map serves a primitive (paper 2.4): known / familiar / build.
+
+The one rule, used by :meth:`MapDatabase.match <graspsim.maps.database.MapDatabase.match>`
+and through it by the planner and the CLI:
+
+* the stored maps of the same primitive kind are ranked by the size change scaling would
+  need -- the largest per-dimension ratio ``max(v / w, w / v)`` (1 for equal dims);
+* *known*: a stored map lies within ``tol`` (1 cm in the paper) on every dimension; the
+  nearest of those (by the ratio) serves the primitive as is;
+* *familiar*: otherwise the nearest map, if its ratio is at most ``max_ratio`` (the
+  scaling range), is scaled to the primitive;
+* *build*: no stored map of that kind within the scaling range.
+
+Boxes are compared on their sorted edge lengths (a box is the same box whichever edge is
+called x); the planner queries boxes with ascending edges (x <= y <= z) and scales a
+stored box by edge name, so stored boxes should keep that order too (the paper's is a cube).
+Pure: takes the database's index records, reads no file.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+from typing import Any, Iterable
+
+from graspsim.errors import InvalidParameterError
+
+__all__ = ["MatchKind", "MatchDecision", "match_entries"]
+
+
+class MatchKind(str, Enum):
+    KNOWN = "known"  # a stored map within tol on every dimension: used as is
+    FAMILIAR = "familiar"  # the nearest stored map of the kind, scaled
+    BUILD = "build"  # no stored map of the kind within the scaling range
+
+
+@dataclass(frozen=True)
+class MatchDecision:
+    """match: the decision; entry: the stored record serving the primitive (the nearest
+    of its kind for BUILD, None when no map of the kind is stored); max_diff: the entry's
+    largest per-dimension difference [m] (inf without entry); ratio: its largest
+    per-dimension size ratio (>= 1; inf without entry)."""
+
+    match: MatchKind
+    entry: dict[str, Any] | None
+    max_diff: float
+    ratio: float
+
+
+def _ratio(v: float, w: float) -> float:
+    if v == 0 or w == 0:  # e.g. a cone's zero top radius: only equal to zero
+        return 1.0 if v == w else math.inf
+    return max(v / w, w / v)
+
+
+def _dims_of(entry: dict, dims: dict[str, float], kind: str) -> dict[str, float]:
+    other = entry.get("dims")
+    if not isinstance(other, dict):
+        raise InvalidParameterError(f"stored map entry without a dims dict: {entry!r}")
+    if set(other) != set(dims):
+        raise InvalidParameterError(f"stored {kind} map has dims {sorted(other)}, the query {sorted(dims)}")
+    return other
+
+
+def _pairs(kind: str, dims: dict[str, float], other: dict[str, float]) -> list[tuple[float, float]]:
+    """(query, stored) value pairs: by name, or sorted edges for boxes."""
+    if kind == "box":
+        return list(zip(sorted(map(float, dims.values())), sorted(map(float, other.values()))))
+    return [(float(dims[n]), float(other[n])) for n in dims]
+
+
+def match_entries(kind: str, dims: dict[str, float], entries: Iterable[dict], *, tol: float,
+                  max_ratio: float = math.inf) -> MatchDecision:
+    """The decision for a primitive ``kind`` (normalised name, e.g. ``"half_toroid"``)
+    with ``dims`` [m] against index ``entries`` (``{"primitive": kind, "dims": {...}}``;
+    other keys are kept in the returned entry)."""
+    if not tol >= 0:
+        raise InvalidParameterError(f"tol must be >= 0 m, got {tol!r}")
+    if not max_ratio >= 1:
+        raise InvalidParameterError(f"max_ratio must be >= 1, got {max_ratio!r}")
+    best = best_known = None  # (ratio, max_diff, entry)
+    for e in entries:
+        if e.get("primitive") != kind:
+            continue
+        pairs = _pairs(kind, dims, _dims_of(e, dims, kind))
+        r = max([1.0, *(_ratio(v, w) for v, w in pairs)])
+        d = max(abs(v - w) for v, w in pairs)
+        if best is None or r < best[0]:
+            best = (r, d, e)
+        if d <= tol and (best_known is None or r < best_known[0]):
+            best_known = (r, d, e)
+    if best_known is not None:
+        r, d, e = best_known
+        return MatchDecision(MatchKind.KNOWN, e, d, r)
+    if best is None:
+        return MatchDecision(MatchKind.BUILD, None, math.inf, math.inf)
+    r, d, e = best
+    return MatchDecision(MatchKind.FAMILIAR if r <= max_ratio else MatchKind.BUILD, e, d, r)

@@ -1,0 +1,54 @@
+import math
+
+import pytest
+
+from graspsim.errors import InvalidParameterError
+from graspsim.maps.match import MatchKind, match_entries
+
+STORED = [{"primitive": "cylinder", "dims": {"radius": 0.02, "height": 0.20}, "key": "c1"},
+          {"primitive": "cylinder", "dims": {"radius": 0.04, "height": 0.10}, "key": "c2"},
+          {"primitive": "cylinder", "dims": {"radius": 0.02, "height": 0.40}, "key": "c3"},
+          {"primitive": "cone", "dims": {"bottom_radius": 0.04, "top_radius": 0.0, "height": 0.1}, "key": "k1"},
+          {"primitive": "box", "dims": {"x": 0.04, "y": 0.06, "z": 0.10}, "key": "b1"}]
+
+
+def _m(kind, max_ratio=math.inf, tol=0.01, **dims):
+    return match_entries(kind, dims, STORED, tol=tol, max_ratio=max_ratio)
+
+
+def test_known_within_tol_on_every_dimension():
+    d = _m("cylinder", radius=0.025, height=0.205)
+    assert d.match is MatchKind.KNOWN and d.entry["key"] == "c1"
+    assert d.max_diff == pytest.approx(0.005) and d.ratio == pytest.approx(1.25)
+    # 1.1 cm off on one dimension: not known
+    assert _m("cylinder", radius=0.02, height=0.211).match is MatchKind.FAMILIAR
+
+
+def test_nearest_is_the_smallest_size_ratio_not_the_smallest_difference():
+    # height 0.29: c1 (0.20) is 9 cm off, c3 (0.40) 11 cm, but c3 needs the smaller
+    # scaling (x 1.38 against x 1.45)
+    d = _m("cylinder", radius=0.02, height=0.29)
+    assert d.match is MatchKind.FAMILIAR and d.entry["key"] == "c3" and d.ratio == pytest.approx(0.4 / 0.29)
+    assert d.max_diff == pytest.approx(0.11)
+
+
+def test_scaling_range_decides_familiar_or_build():
+    assert _m("cylinder", max_ratio=1.5, radius=0.02, height=0.26).match is MatchKind.FAMILIAR
+    d = _m("cylinder", max_ratio=1.2, radius=0.02, height=0.26)
+    assert d.match is MatchKind.BUILD and d.entry["key"] == "c1"  # the nearest, out of range
+    d = _m("sphere", radius=0.02)
+    assert d.match is MatchKind.BUILD and d.entry is None and d.max_diff == math.inf
+
+
+def test_zero_dimensions_match_only_zero():
+    assert _m("cone", bottom_radius=0.05, top_radius=0.0, height=0.1).ratio == pytest.approx(1.25)
+    d = _m("cone", max_ratio=10, tol=0.0, bottom_radius=0.04, top_radius=0.001, height=0.1)
+    assert d.match is MatchKind.BUILD and d.ratio == math.inf
+
+
+def test_boxes_compare_sorted_edges_and_bad_input():
+    assert _m("box", x=0.06, y=0.04, z=0.1).match is MatchKind.KNOWN
+    with pytest.raises(InvalidParameterError, match="dims"):
+        _m("cylinder", radius=0.02)
+    with pytest.raises(InvalidParameterError, match="tol"):
+        _m("cylinder", tol=-1, radius=0.02, height=0.2)

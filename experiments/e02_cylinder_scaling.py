@@ -38,8 +38,19 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import (Clock, RunRecord, default_out, fmt, load_average, mean_sd, mixed_anova,  # noqa: E402
-                     paired_posthoc, provenance, write_config, write_json)
+from _common import (  # noqa: E402
+    Clock,
+    RunRecord,
+    default_out,
+    fmt,
+    load_average,
+    mean_sd,
+    mixed_anova,
+    paired_posthoc,
+    provenance,
+    write_config,
+    write_json,
+)
 
 from graspsim.gripper import HGPL_25_60_A  # noqa: E402
 from graspsim.maps import generate as _generate  # noqa: E402
@@ -340,7 +351,8 @@ def main(argv=None) -> int:
         gc.collect()
     summary = summarise(rows)
     write_json(out / "results.json", {
-        "config": asdict(cfg), "provenance": provenance(), "base": {**BASE, "grasps": len(fs_base), "accepted": int(fs_base.accepted.sum()),
+        "config": asdict(cfg), "provenance": provenance(),
+        "base": {**BASE, "grasps": len(fs_base), "accepted": int(fs_base.accepted.sum()),
                                         **base_t},
         "note": "SRN/VRN over grasps with grade > 0.7 in both maps; scaled maps keep only grasps > 0.7",
         "summary": summary, "variants": rows, "wall_s": total.wall, "cpu_s": total.cpu,

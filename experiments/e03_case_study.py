@@ -222,7 +222,8 @@ def run_plan(points: np.ndarray, base: MapDatabase, tmp: Path, seed: int, theta:
     ident = result.identification
     row = {
         "theta": theta, "status": result.status.value, "points": len(points),
-        "parts": [{"primitive": p.primitive.kind, "dims_cm": {k: round(100 * v, 2) for k, v in p.primitive.dims.items()},
+        "parts": [{"primitive": p.primitive.kind,
+                   "dims_cm": {k: round(100 * v, 2) for k, v in p.primitive.dims.items()},
                    "match": p.match, "source": p.source.get("dims")} for p in result.parts],
         "unidentified": [u.reason for u in ident.unidentified], "n_splits": ident.n_splits,
         "splits": handler.splits, "grasps": len(result.map), "accepted": int(result.map.accepted.sum()),
@@ -334,7 +335,8 @@ def write_table(objects: list[dict], cfg: E03Config, db_info: dict) -> str:
             ident = f"planner error: {r['error']}" if r.get("error") else _describe(r)
             if r["unidentified"]:
                 ident += "; unidentified: " + "; ".join(r["unidentified"])
-            L.append(f"| {o['object']} | {o['paper'] if key == 'main' else '(rerun)'} | {r['theta']:.2f} | {r['status']} "
+            L.append(f"| {o['object']} | {o['paper'] if key == 'main' else '(rerun)'} | {r['theta']:.2f} "
+                     f"| {r['status']} "
                      f"| {ident} | {th} | {r['wall_s']:.3f} ({r['cpu_s']:.3f}) | "
                      f"{_s(r['identify_s'])} / {_s(r['maps_s'])} | {_ms(r['first_ms'])} / {_ms(r['tenth_ms'])} "
                      f"| {r['grasps']} |")
@@ -407,7 +409,8 @@ def main(argv=None) -> int:
         plot_maps([m for _, _, m in figure_maps], out / "figure7.png", what="wrist", titles=[
             f"{n} (theta_th {th:.2f}):\n{len(m)} grasps" for n, th, m in figure_maps])
     plot_clouds(clouds, out / "clouds.png")
-    write_json(out / "results.json", {"config": asdict(cfg), "provenance": provenance(), "database": db_info, "objects": objects,
+    write_json(out / "results.json", {"config": asdict(cfg), "provenance": provenance(), "database": db_info,
+                                      "objects": objects,
                                       "wall_s": total.wall, "cpu_s": total.cpu, "load_avg_end": load_average()})
     write_json(out / "summary.json", run.summary({
         "config": asdict(cfg), "database": db_info,

@@ -40,12 +40,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import RunRecord, default_out, rate_ci  # noqa: E402
 
-from graspsim.case_study_objects import ANALOGS  # noqa: E402
-from graspsim.calibration import (  # noqa: E402
-    CalibrationCase, SimCondition, TrialTable, simulate_samples, wilson_interval)
+from graspsim.calibration import CalibrationCase, SimCondition, TrialTable, simulate_samples, wilson_interval  # noqa: E402
 from graspsim.calibration.markdown import md_table  # noqa: E402
 from graspsim.calibration.outputs import write_json, write_text  # noqa: E402
 from graspsim.calibration.trials import CaseSample  # noqa: E402
+from graspsim.case_study_objects import ANALOGS  # noqa: E402
 from graspsim.grades import get_grade  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid  # noqa: E402
 from graspsim.maps.generate import MapConfig, generate_fs_map  # noqa: E402

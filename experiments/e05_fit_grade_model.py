@@ -25,11 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from graspsim.calibration import SimCondition, TrialTable, draw_samples, simulate_samples, stats
-from graspsim.calibration.trials import fs_cases, table_features
 from graspsim.calibration.markdown import fmt, md_table
 from graspsim.calibration.objects import CALIBRATION_CONE, TRAIN_SHAPES
 from graspsim.calibration.outputs import library_versions, write_json, write_text
 from graspsim.calibration.plots import plot_roc
+from graspsim.calibration.trials import fs_cases, table_features
 from graspsim.grades.features import FEATURES
 from graspsim.grades.fit import fit_grade
 from graspsim.grades.models import default_model_path

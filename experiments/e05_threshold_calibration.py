@@ -340,7 +340,8 @@ def readme_section(summary: dict) -> str:
         "population estimates (sampling weights); the base rate is the success of *all* table-clear grasps "
         "under the same condition. `default`: 250 N per jaw and the maps' light masses (pad friction holds "
         "the weight a hundred times over); `friction_limited`: 8 N per jaw, 0.5 kg (friction barely "
-        f"exceeds weight plus lift acceleration). The calibration maps include closing directions up to {summary['closing_cone_deg']:.0f}° "
+        f"exceeds weight plus lift acceleration). The calibration maps include closing directions up to "
+        f"{summary['closing_cone_deg']:.0f}° "
         f"(default maps stop at {summary['default_closing_cone_deg']:.0f}°); the ≤ 22° rows are the grasps a "
         "default map holds.", "",
         "| condition | closing dirs | feasible (START_COLLISION) | base rate | paper > 0.7: precision (sample) "

@@ -48,13 +48,22 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import (Clock, RunRecord, database_note, database_record, default_out,  # noqa: E402
-                     load_average, pct, rate_ci, write_config, write_json)
+from _common import (  # noqa: E402
+    Clock,
+    RunRecord,
+    database_note,
+    database_record,
+    default_out,
+    load_average,
+    pct,
+    rate_ci,
+    write_config,
+    write_json,
+)
 
 import graspsim  # noqa: E402,F401  (registers the environments)
+from graspsim.envs.baselines import FEATURE_NAMES, LogisticPolicy, grasp_features, highest_grade_policy, wilson_interval  # noqa: E402
 from graspsim.envs.candidates import CANDIDATE_FEATURES  # noqa: E402
-from graspsim.envs.baselines import (FEATURE_NAMES, LogisticPolicy, grasp_features,  # noqa: E402
-                                     highest_grade_policy, wilson_interval)
 from graspsim.maps.generate import MapConfig  # noqa: E402
 
 log = logging.getLogger("e06")

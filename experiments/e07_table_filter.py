@@ -31,16 +31,33 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import (Clock, RunRecord, database_note, database_record, default_out,  # noqa: E402
-                     noise_sigmas, pct, rate_ci, write_config, write_json)
+from _common import (  # noqa: E402
+    Clock,
+    RunRecord,
+    database_note,
+    database_record,
+    default_out,
+    noise_sigmas,
+    pct,
+    rate_ci,
+    write_config,
+    write_json,
+)
 
 from graspsim.case_study_objects import ANALOGS  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
 from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402
 from graspsim.primitives import synthetic_cloud  # noqa: E402
-from graspsim.sim import (ExecutionNoise, LiftPlace, SimSettings, TrialOutcome, build_scene,  # noqa: E402
-                          object_from_shape, run_trials)
+from graspsim.sim import (  # noqa: E402
+    ExecutionNoise,
+    LiftPlace,
+    SimSettings,
+    TrialOutcome,
+    build_scene,
+    object_from_shape,
+    run_trials,
+)
 from graspsim.stats import wilson_interval  # noqa: E402
 from graspsim.transforms import invert_transform, make_transform  # noqa: E402
 

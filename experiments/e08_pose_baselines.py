@@ -42,8 +42,16 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import (RunRecord, database_note, database_record, default_out, noise_sigmas,  # noqa: E402
-                     rate_ci, write_config, write_json)
+from _common import (  # noqa: E402
+    RunRecord,
+    database_note,
+    database_record,
+    default_out,
+    noise_sigmas,
+    rate_ci,
+    write_config,
+    write_json,
+)
 
 import graspsim  # noqa: E402, F401  (registers the environments)
 from graspsim.maps.collide import boxes_clear_sdf  # noqa: E402

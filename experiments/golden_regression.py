@@ -15,7 +15,8 @@ issue's 0.5 kg where the hi set holds (>= 90 %) and the lo set mostly fails; lig
 0.5 kg holds nothing (half-toroid 0.2 kg; the cone 0.25 kg: its paper grade separates at
 no mass -- hi and lo hold alike at every mass -- so the mass that puts both near one half,
 where a floor and a ceiling can both trip); heavier for the glue bottle (0.6 kg: at 0.5 kg
-two in three of its lo set hold, too many for a ceiling that 30 grasps can trip). ``--mutations`` runs every mutation of ``graspsim.calibration.mutations`` on every
+two in three of its lo set hold, too many for a ceiling that 30 grasps can trip). ``--mutations`` runs every mutation of
+``graspsim.calibration.mutations`` on every
 case against the committed bands (the suite runs a subset) and writes
 tests/data/regression_mutations.json: which bands each break trips.
 """
@@ -35,8 +36,18 @@ from pathlib import Path
 from graspsim.calibration.conditions import FRICTION_LIMITED
 from graspsim.calibration.outputs import library_versions, write_json
 from graspsim.calibration.regression import (
-    CATCHES, FAMILY_ALPHA, REGRESSION_MAPS, SPECS, band_problems, check_bands, pools, regression_bands,
-    regression_cases, regression_rates, regression_trials)
+    CATCHES,
+    FAMILY_ALPHA,
+    REGRESSION_MAPS,
+    SPECS,
+    band_problems,
+    check_bands,
+    pools,
+    regression_bands,
+    regression_cases,
+    regression_rates,
+    regression_trials,
+)
 
 log = logging.getLogger("golden_regression")
 OUT = Path("results/golden_regression")

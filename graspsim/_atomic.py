@@ -21,8 +21,8 @@ import os
 import re
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 from graspsim.errors import MapFileError, OutputPathError
 

@@ -18,9 +18,10 @@ import json
 import logging
 import os
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -42,7 +43,8 @@ log = logging.getLogger(__name__)
 class CampaignTask:
     """One unit of work: simulate ``top`` best / ``sample`` uniform grasps (grade >
     ``min_grade``) of ``map_path`` with ``protocol``; ``noise``: an
-    :class:`~graspsim.sim.ExecutionNoise` or None (exact execution); ``mesh`` simulates against a given mesh instead of the
+    :class:`~graspsim.sim.ExecutionNoise` or None (exact execution); ``mesh`` simulates against a given mesh instead of
+    the
     map's primitives; ``threads`` inside the task (1 when tasks run in parallel)."""
 
     task_id: str

@@ -12,9 +12,9 @@ from __future__ import annotations
 import json
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -94,8 +94,15 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
     from graspsim.maps.table import clears_table
     from graspsim.planner import plan
     from graspsim.plots import plot_map
-    from graspsim.sim import (ExecutionNoise, LiftPlace, SimSettings, TrialOutcome, build_scene,
-                              object_from_shape, run_trials)
+    from graspsim.sim import (
+        ExecutionNoise,
+        LiftPlace,
+        SimSettings,
+        TrialOutcome,
+        build_scene,
+        object_from_shape,
+        run_trials,
+    )
     from graspsim.transforms import invert_transform
 
     if cfg.quick:
@@ -182,9 +189,8 @@ def _render(scene, T, width, folder: Path, n: int, step) -> list[str]:
 
 
 def _finish(summary: dict, out: Path, t0: float) -> dict:
-    from graspsim._jsonable import to_jsonable
-
     from graspsim._atomic import atomic_write_text
+    from graspsim._jsonable import to_jsonable
     from graspsim.errors import OutputPathError
 
     summary["seconds"] = time.perf_counter() - t0

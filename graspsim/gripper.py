@@ -251,7 +251,7 @@ class GripperSpec:
         return json.dumps(self.to_dict(), sort_keys=True)
 
     @classmethod
-    def from_dict(cls, d: dict) -> "GripperSpec":
+    def from_dict(cls, d: dict) -> GripperSpec:
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:
@@ -259,7 +259,7 @@ class GripperSpec:
         return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
 
     @classmethod
-    def from_json(cls, text: str) -> "GripperSpec":
+    def from_json(cls, text: str) -> GripperSpec:
         try:
             return cls.from_dict(json.loads(text))
         except json.JSONDecodeError as err:

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from enum import Enum
-from typing import Iterator
 
 import numpy as np
 
@@ -107,7 +107,8 @@ class PlanResult:
                 "grasps": len(self.map), "accepted": int(self.map.accepted.sum()),
                 "seconds": self.timing.get("total"), "time_to_first_0.95": self.timing.get("first"),
                 "time_to_tenth_0.95": self.timing.get("tenth"),
-                "T_cloud_obj": self.T_cloud_obj.tolist(), "table": None if self.map.meta.placement is None else self.map.meta.placement.table}
+                "T_cloud_obj": self.T_cloud_obj.tolist(),
+                "table": None if self.map.meta.placement is None else self.map.meta.placement.table}
 
 
 def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarray]:

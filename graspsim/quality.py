@@ -147,7 +147,7 @@ class QualityModel:
         return asdict(self)
 
     @classmethod
-    def from_meta(cls, quality: dict) -> "QualityModel":
+    def from_meta(cls, quality: dict) -> QualityModel:
         """The paper-grade model behind a map's ``meta.quality`` record (which also holds
         the reference distance used, and, for re-graded maps, the grade's own fields)."""
         base = quality.get("base_quality", quality)
@@ -155,7 +155,7 @@ class QualityModel:
         return cls(**{k: v for k, v in base.items() if k in fields})
 
     @classmethod
-    def from_dict(cls, d: dict) -> "QualityModel":
+    def from_dict(cls, d: dict) -> QualityModel:
         try:
             return cls(**d)
         except TypeError as err:

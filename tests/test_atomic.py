@@ -12,8 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from graspsim._atomic import (STALE_SECONDS, atomic_path, atomic_paths, check_folder, check_output,
-                              remove_stale_temps)
+from graspsim._atomic import STALE_SECONDS, atomic_path, atomic_paths, check_folder, check_output, remove_stale_temps
 from graspsim.errors import MapFileError, OutputPathError
 
 REPO = Path(__file__).resolve().parents[1]

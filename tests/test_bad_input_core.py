@@ -19,8 +19,16 @@ import numpy as np
 import pytest
 
 from graspsim.cli import main
-from graspsim.errors import (BudgetExceededError, GraspsimError, IdentificationError, InvalidParameterError,
-                             MapDatabaseError, NoFeasibleGraspError, PointCloudError, PrimitiveError)
+from graspsim.errors import (
+    BudgetExceededError,
+    GraspsimError,
+    IdentificationError,
+    InvalidParameterError,
+    MapDatabaseError,
+    NoFeasibleGraspError,
+    PointCloudError,
+    PrimitiveError,
+)
 from graspsim.gripper import HGPL_25_60_A
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.dbcheck import check_database
@@ -31,8 +39,7 @@ from graspsim.maps.validate import map_problems
 from graspsim.perception import identify
 from graspsim.perception.split import theta_star
 from graspsim.planner import plan
-from graspsim.primitives import (PRIMITIVES, Box, Cone, Cylinder, HalfToroid, Sphere, make_primitive,
-                                 synthetic_cloud)
+from graspsim.primitives import PRIMITIVES, Box, Cone, Cylinder, HalfToroid, Sphere, synthetic_cloud
 from graspsim.transforms import make_transform, random_rotation
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
@@ -358,7 +365,7 @@ def test_database_refuses_to_store_an_invalid_map(tmp_path, monkeypatch):
     bad_maps = {"empty": GraspabilityMap.empty(good.meta),
                 "nan": good.select(np.arange(10)).with_meta()}
     bad_maps["nan"].grade[3] = np.nan
-    for name, bad in bad_maps.items():
+    for bad in bad_maps.values():
         monkeypatch.setattr(database, "generate_fs_map", lambda *a, _b=bad, **k: _b)
         with pytest.raises(MapDatabaseError, match="not stored"):
             db.add(Sphere(0.03))

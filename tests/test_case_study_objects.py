@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from graspsim.case_study_objects import (ANALOGS, bottle_brush, bottle_brush_cloud, glue_bottle, glue_bottle_capped)
+from graspsim.case_study_objects import ANALOGS, bottle_brush, bottle_brush_cloud, glue_bottle, glue_bottle_capped
 from graspsim.perception import IdentificationStatus, IdentifyConfig, identify
 from graspsim.primitives import Compound, synthetic_cloud
 from graspsim.transforms import make_transform

@@ -17,9 +17,15 @@ from gymnasium.utils.env_checker import check_env
 
 import graspsim
 from graspsim.envs import GRASP_POSE_ID, GRASP_SELECT_ID
-from graspsim.envs.baselines import (FEATURE_NAMES, LogisticPolicy, grasp_features,
-                                     highest_grade_policy, oracle_choice, random_policy,
-                                     wilson_interval)
+from graspsim.envs.baselines import (
+    FEATURE_NAMES,
+    LogisticPolicy,
+    grasp_features,
+    highest_grade_policy,
+    oracle_choice,
+    random_policy,
+    wilson_interval,
+)
 from graspsim.envs.candidates import CANDIDATE_FEATURES
 from graspsim.envs.config import RewardMode
 from graspsim.envs.objects import COMPOUND_KINDS, PRIMITIVE_KINDS, draw_object, resolve_object_set

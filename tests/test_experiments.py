@@ -34,7 +34,8 @@ def test_mixed_anova_matches_one_way_identities():
     # two levels: the interaction is a one-way ANOVA of the differences, the between
     # effect a one-way ANOVA of the subject means
     assert a["interaction"]["F"] == pytest.approx(stats.f_oneway(d[g == "larger"], d[g == "smaller"]).statistic)
-    assert a["between"]["F"] == pytest.approx(stats.f_oneway(y.mean(1)[g == "larger"], y.mean(1)[g == "smaller"]).statistic)
+    f_oneway = stats.f_oneway(y.mean(1)[g == "larger"], y.mean(1)[g == "smaller"])
+    assert a["between"]["F"] == pytest.approx(f_oneway.statistic)
     assert (a["within"]["df"], a["within"]["df_error"], a["between"]["df_error"]) == (1, 8, 8)
     ph = common.paired_posthoc(rng.normal(size=(10, 3)), ["GQ", "GF", "C"])
     assert len(ph) == 3 and all(p["p"] <= p["p_bonferroni"] <= 1 for p in ph)

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A as G
 from graspsim.grades import (
     FEATURES,
     LogisticGrade,
@@ -17,6 +16,7 @@ from graspsim.grades import (
     regrade,
     resting_frame,
 )
+from graspsim.gripper import HGPL_25_60_A as G
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.primitives import Box, Cylinder, Sphere
 

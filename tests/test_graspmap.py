@@ -68,7 +68,7 @@ def test_meta_typed_views_parse_once_and_round_trip(box_map):
     bare = MapMeta(object={}, gripper={}, quality={}, resolution={}, method="x")
     assert bare.threshold == QualityModel().threshold and bare.surface_step == MapConfig().surface_step
     with pytest.raises(InvalidMapError, match="no gripper"):
-        bare.gripper_spec
+        _ = bare.gripper_spec
 
 
 def test_placement_is_what_extra_records():

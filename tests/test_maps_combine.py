@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from graspsim.maps.collide_fcl import FclChecker
 from graspsim.errors import InvalidParameterError
 from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.maps.collide_fcl import FclChecker
 from graspsim.maps.combine import combine_maps
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.primitives import Box, Compound, Cylinder, Sphere

@@ -4,10 +4,12 @@ import math
 
 import numpy as np
 import pytest
+from conftest import PAPER_SHAPES
 
-from graspsim.maps.collide_fcl import FclChecker, penetration_depth
 from graspsim.errors import NoFeasibleGraspError
 from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.maps.collide import collision_free
+from graspsim.maps.collide_fcl import FclChecker, penetration_depth
 from graspsim.maps.generate import (
     MapConfig,
     closing_directions,
@@ -16,13 +18,10 @@ from graspsim.maps.generate import (
     roll_angles,
     sweep_collisions,
 )
-from graspsim.maps.collide import collision_free
 from graspsim.maps.hierarchy import sample_levels
 from graspsim.primitives import Cylinder, Sphere
 from graspsim.quality import QualityModel
 from graspsim.transforms import make_transform, quat_to_matrix, random_rotation
-
-from conftest import PAPER_SHAPES
 
 # a coarser scan keeps the per-primitive tests fast; the default is exercised below
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))

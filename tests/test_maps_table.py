@@ -8,9 +8,9 @@ import pytest
 
 from graspsim.errors import GraspsimError
 from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.maps.collide_fcl import FclChecker
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.table import TablePlane, clears_table, table_frame
-from graspsim.maps.collide_fcl import FclChecker
 from graspsim.primitives import Box, Cylinder
 from graspsim.transforms import make_transform, matrix_to_quat
 

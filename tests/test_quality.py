@@ -66,7 +66,8 @@ def test_stability_modes():
 
 
 @pytest.mark.parametrize(
-    "kw", [{"friction": 0}, {"fc_weight": 1.5}, {"stability_mode": "x"}, {"threshold": 2}, {"stability_reference": -1.0}]
+    "kw", [{"friction": 0}, {"fc_weight": 1.5}, {"stability_mode": "x"}, {"threshold": 2},
+           {"stability_reference": -1.0}]
 )
 def test_bad_parameters(kw):
     with pytest.raises(InvalidParameterError):

@@ -6,8 +6,17 @@ import pytest
 from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.gripper import HGPL_25_60_A
 from graspsim.primitives import Box, Cylinder, Sphere
-from graspsim.sim import (ExecutionNoise, LiftPlace, SimSettings, TrialOutcome, Tug, build_scene,
-                          object_from_mesh, object_from_shape, run_trials)
+from graspsim.sim import (
+    ExecutionNoise,
+    LiftPlace,
+    SimSettings,
+    TrialOutcome,
+    Tug,
+    build_scene,
+    object_from_mesh,
+    object_from_shape,
+    run_trials,
+)
 from graspsim.sim.testing import grasp_pose
 
 BOX = Box(0.06, 0.06, 0.06)

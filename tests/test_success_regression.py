@@ -15,8 +15,15 @@ from pathlib import Path
 import pytest
 
 from graspsim.calibration.regression import (
-    FAMILY_ALPHA, SPECS, band_problems, check_bands, regression_bands, regression_cases, regression_rates,
-    regression_trials)
+    FAMILY_ALPHA,
+    SPECS,
+    band_problems,
+    check_bands,
+    regression_bands,
+    regression_cases,
+    regression_rates,
+    regression_trials,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = json.loads((ROOT / "tests" / "data" / "success_regression.json").read_text())

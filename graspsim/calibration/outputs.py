@@ -10,7 +10,6 @@ import sys
 import time
 from pathlib import Path
 
-
 from graspsim._atomic import atomic_write_text
 from graspsim._jsonable import to_jsonable
 from graspsim.errors import GraspsimError

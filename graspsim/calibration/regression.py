@@ -78,7 +78,8 @@ from graspsim.primitives import Box, Cylinder
 from graspsim.quality import QualityModel
 
 __all__ = ["REGRESSION_MAPS", "REGRESSION_SCALED", "RegressionSpec", "SPECS", "RegressionSizes",
-           "FAMILY_ALPHA", "CATCHES", "regression_cases", "regression_condition", "pools", "surface_draws", "regression_trials",
+           "FAMILY_ALPHA", "CATCHES", "regression_cases", "regression_condition", "pools", "surface_draws",
+           "regression_trials",
            "regression_rates", "rate_floor", "rate_ceiling", "regression_bands", "check_bands",
            "band_problems", "adapted_glue_case"]
 
@@ -180,11 +181,10 @@ def regression_condition(case, mass: float | None = None) -> SimCondition:
 def pools(case) -> dict:
     """{"hi": rows, "lo": rows}: the table-clear poses of each grade range of the case."""
     from graspsim.calibration.trials import _clears_table, _sim_object
-    from graspsim.gripper import GripperSpec
     from graspsim.sim.scene import resting_pose
 
     g, spec = case.gmap, SPECS[case.object_group]
-    clear = _clears_table(g, resting_pose(_sim_object(case)), GripperSpec.from_dict(g.meta.gripper), 0.0,
+    clear = _clears_table(g, resting_pose(_sim_object(case)), g.meta.gripper_spec, 0.0,
                           T_sim_map=case.T_sim_map)
     return {"hi": np.flatnonzero(clear & (g.grade > spec.hi_min)),
             "lo": np.flatnonzero(clear & (g.grade < spec.lo_max))}
@@ -199,7 +199,7 @@ def surface_draws(gmap, pool: np.ndarray, n: int, rng: np.random.Generator) -> n
     pool = np.asarray(pool)
     if n <= 0 or len(pool) == 0:
         return pool[:0]
-    cell = float(gmap.meta.resolution.get("surface_step", 0.005))
+    cell = float(gmap.meta.surface_step)
     key = np.floor(gmap.contacts[pool, 0].astype(float) / cell).astype(np.int64)
     _, inverse = np.unique(key, axis=0, return_inverse=True)
     inverse = inverse.ravel()
@@ -326,8 +326,8 @@ def adapted_glue_case(db_root, *, seed: int = 3):
     run-time planner against a coarse FS database in ``db_root`` that accepts every
     graded grasp, as a case simulated against the true compound standing as it stood in
     the cloud."""
-    from graspsim.case_study_objects import glue_bottle
     from graspsim.calibration.trials import CalibrationCase
+    from graspsim.case_study_objects import glue_bottle
     from graspsim.errors import IdentificationError
     from graspsim.maps.database import MapDatabase
     from graspsim.planner import PlannerConfig, plan

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from scipy.special import expit
-
 
 from graspsim.errors import InvalidParameterError
 from graspsim.stats import wilson_interval

@@ -57,15 +57,15 @@ class TrialTable:
 
         return self["outcome"] != TrialOutcome.START_COLLISION
 
-    def select(self, mask) -> "TrialTable":
+    def select(self, mask) -> TrialTable:
         m = np.asarray(mask)
         return TrialTable({k: v[m] for k, v in self.columns.items()}, self.meta)
 
-    def with_columns(self, **cols) -> "TrialTable":
+    def with_columns(self, **cols) -> TrialTable:
         return TrialTable({**self.columns, **{k: np.asarray(v) for k, v in cols.items()}}, self.meta)
 
     @staticmethod
-    def concat(tables: list["TrialTable"], meta: dict | None = None) -> "TrialTable":
+    def concat(tables: list[TrialTable], meta: dict | None = None) -> TrialTable:
         """Rows of several tables (columns missing in some are filled with NaN / "")."""
         tables = [t for t in tables if len(t)]
         if not tables:
@@ -97,7 +97,7 @@ class TrialTable:
         return path
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "TrialTable":
+    def load(cls, path: str | os.PathLike) -> TrialTable:
         try:
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["__meta__"])) if "__meta__" in z else {}

@@ -47,8 +47,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from graspsim.calibration import (
-        CalibrationCase, SimCondition, calibrate, draw_samples, simulate_samples)
+    from graspsim.calibration import CalibrationCase, SimCondition, calibrate, draw_samples, simulate_samples
     from graspsim.errors import InvalidParameterError
     from graspsim.grades import get_grade
     from graspsim.maps import load_map

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
 
 from graspsim.cli._common import add_executor_flags, add_json_flag, emit, executor_from_args, format_table, progress
 

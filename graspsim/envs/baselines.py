@@ -28,11 +28,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
 from graspsim.envs.candidates import CANDIDATE_FEATURES
 from graspsim.errors import InvalidParameterError
-from graspsim.stats import wilson_interval
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.stats import wilson_interval
 from graspsim.transforms import make_transform, quat_to_matrix
 
 __all__ = ["random_policy", "highest_grade_policy", "oracle_choice", "grasp_features",
@@ -129,7 +128,7 @@ class LogisticPolicy:
     weights: np.ndarray | None = None  # (F + 1,), intercept last
     history: list = field(default_factory=list)
 
-    def fit(self, X: np.ndarray, y: np.ndarray, *, iterations: int = 50, tol: float = 1e-8) -> "LogisticPolicy":
+    def fit(self, X: np.ndarray, y: np.ndarray, *, iterations: int = 50, tol: float = 1e-8) -> LogisticPolicy:
         """Fit on features X (M, F) and 0/1 labels y (M,)."""
         X, y = np.asarray(X, float), np.asarray(y, float).reshape(-1)
         if X.ndim != 2 or len(X) != len(y) or len(X) == 0:

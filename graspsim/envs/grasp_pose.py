@@ -31,8 +31,8 @@ import time
 import numpy as np
 from gymnasium import spaces
 
-from graspsim.envs.config import EnvConfig
 from graspsim.envs.base import WORLD_BOUND, TableTask
+from graspsim.envs.config import EnvConfig
 from graspsim.errors import GraspsimError
 from graspsim.transforms import make_transform
 

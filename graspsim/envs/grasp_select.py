@@ -49,9 +49,9 @@ import time
 import numpy as np
 from gymnasium import spaces
 
+from graspsim.envs.base import WORLD_BOUND, TableTask, pose_vector
 from graspsim.envs.candidates import CANDIDATE_FEATURES, candidate_features, feature_bounds
 from graspsim.envs.config import EnvConfig, Perception
-from graspsim.envs.base import WORLD_BOUND, TableTask, pose_vector
 from graspsim.errors import GraspsimError, InvalidParameterError, NoFeasibleGraspError
 from graspsim.maps.scaling import ScalingConfig
 from graspsim.perception import IdentifyConfig

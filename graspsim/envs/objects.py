@@ -20,8 +20,8 @@ head), ``primitives`` (the five kinds), ``compounds`` (the three compounds) and 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

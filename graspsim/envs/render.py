@@ -9,10 +9,10 @@ OSMesa); without one, rendering raises :class:`DependencyNotInstalled`.
 
 from __future__ import annotations
 
-import graspsim.sim  # noqa: F401  (picks the headless GL backend before mujoco loads)
 import mujoco
 import numpy as np
 
+import graspsim.sim  # noqa: F401  (picks the headless GL backend before mujoco loads)
 from graspsim.errors import DependencyNotInstalled
 from graspsim.sim.batch import initial_states, pregrasp_opening
 from graspsim.sim.protocols import Protocol

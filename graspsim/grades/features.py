@@ -219,7 +219,7 @@ def map_features(gmap, names: tuple[str, ...] = FEATURES, rows=None,
                  config: FeatureConfig = FeatureConfig()) -> dict[str, np.ndarray]:
     """Features of a :class:`GraspabilityMap`'s rows (all, or ``rows``: indices/mask)."""
     sel = slice(None) if rows is None else np.asarray(rows)
-    gripper = GripperSpec.from_dict(gmap.meta.gripper)
+    gripper = gmap.meta.gripper_spec
     ctx = object_context(gmap.meta.object, gmap.meta.quality.get("d_ref"), config)
     R = quat_to_matrix(np.asarray(gmap.wrist_quat[sel], float))
     return grasp_features(ctx, gripper, gmap.contacts[sel], gmap.normals[sel], R,

@@ -129,7 +129,7 @@ class LogisticGrade:
                 "feature_config": self.feature_config.to_dict(), "provenance": self.provenance}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "LogisticGrade":
+    def from_dict(cls, d: dict) -> LogisticGrade:
         try:
             if d.get("kind", "logistic") != "logistic":
                 raise InvalidParameterError(f"not a logistic grade model: kind {d.get('kind')!r}")
@@ -149,7 +149,7 @@ class LogisticGrade:
         return Path(path)
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "LogisticGrade":
+    def load(cls, path: str | os.PathLike) -> LogisticGrade:
         try:
             d = json.loads(Path(path).read_text())
         except (OSError, json.JSONDecodeError) as err:

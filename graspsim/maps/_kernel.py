@@ -242,7 +242,8 @@ def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart
     and normal height of each sample's patch. M, NM, RTM, HNM: the same for the middle
     level, ordered by coarse parent (parent i owns M[mstart[i]:mstart[i+1]]); F, NF:
     (Mf, 3) fine samples and normals ordered by middle parent (m owns
-    F[fstart[m]:fstart[m+1]]), RTF, HNF: (Mf,) the extent of each fine sample's cell. fp: (3, 5) footprints; reach2: (3,)
+    F[fstart[m]:fstart[m+1]]), RTF, HNF: (Mf,) the extent of each fine sample's cell.
+    fp: (3, 5) footprints; reach2: (3,)
     squared minimum distance from the closing axis at which jaws / housing can be hit.
     cos_r, sin_r: (R,) roll angles; depths: (D,) increasing contact depths [m].
     refine: resolve uncertain poses with the fine level (else they count as colliding).

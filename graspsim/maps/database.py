@@ -22,9 +22,9 @@ import logging
 import os
 import time
 from collections import OrderedDict
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
@@ -34,8 +34,8 @@ from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.io import load_map, save_map
-from graspsim.maps.validate import validate_map
 from graspsim.maps.match import MatchDecision, match_entries
+from graspsim.maps.validate import validate_map
 from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Primitive, Sphere, make_primitive, primitive_from_dict
 from graspsim.quality import QualityModel
 

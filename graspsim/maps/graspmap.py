@@ -77,7 +77,7 @@ class MapMeta:
         return QualityModel.from_meta(self.quality)
 
     @cached_property
-    def map_config(self) -> "MapConfig":
+    def map_config(self) -> MapConfig:
         """The generation settings recorded in ``resolution`` (defaults for missing ones)."""
         from graspsim.maps.generate import MapConfig
 
@@ -111,7 +111,7 @@ class MapMeta:
         return float(self.resolution.get("rotation_step", MapConfig.rotation_step))
 
     @cached_property
-    def placement(self) -> "Placement | None":
+    def placement(self) -> Placement | None:
         """Where an adapted map's object was seen (None for other maps)."""
         return Placement.from_extra(self.extra)
 
@@ -134,7 +134,7 @@ class Placement:
         return out
 
     @classmethod
-    def from_extra(cls, extra: dict) -> "Placement | None":
+    def from_extra(cls, extra: dict) -> Placement | None:
         T = extra.get("T_cloud_obj")
         if T is None:
             return None
@@ -186,7 +186,7 @@ class GraspabilityMap:
         return len(self.grade)
 
     @classmethod
-    def empty(cls, meta: MapMeta) -> "GraspabilityMap":
+    def empty(cls, meta: MapMeta) -> GraspabilityMap:
         cols = {k: np.zeros((0, *s), dtype=d) for k, (s, d) in COLUMNS.items()}
         return cls(**cols, meta=meta)
 
@@ -222,13 +222,13 @@ class GraspabilityMap:
         return quat_to_matrix(self.wrist_quat)[:, :, 2]
 
     # ------------------------------------------------------------------ selection
-    def select(self, index) -> "GraspabilityMap":
+    def select(self, index) -> GraspabilityMap:
         """Rows by boolean mask or integer indices (order kept)."""
         index = np.asarray(index)
         return replace(self, **{k: v[index] for k, v in self.columns().items()})
 
     def filter(self, *, min_grade: float | None = None, part: int | None = None,
-               accepted: bool | None = None) -> "GraspabilityMap":
+               accepted: bool | None = None) -> GraspabilityMap:
         m = np.ones(len(self), bool)
         if min_grade is not None:
             m &= self.grade > min_grade
@@ -238,7 +238,7 @@ class GraspabilityMap:
             m &= self.accepted == accepted
         return self.select(m)
 
-    def top_k(self, k: int) -> "GraspabilityMap":
+    def top_k(self, k: int) -> GraspabilityMap:
         """The k best grasps by grade, best first (stable order among ties)."""
         if k < 0:
             raise InvalidParameterError(f"k must be >= 0, got {k}")
@@ -247,7 +247,7 @@ class GraspabilityMap:
 
     def sample_uniform_surface(
         self, n: int, rng: np.random.Generator, *, cell: float | None = None
-    ) -> "GraspabilityMap":
+    ) -> GraspabilityMap:
         """``n`` grasps spread uniformly over the object (see :meth:`uniform_surface_rows`)."""
         return self.select(self.uniform_surface_rows(n, rng, cell=cell))
 
@@ -275,14 +275,14 @@ class GraspabilityMap:
         return picks
 
     @staticmethod
-    def concat(maps: list["GraspabilityMap"], meta: MapMeta | None = None) -> "GraspabilityMap":
+    def concat(maps: list[GraspabilityMap], meta: MapMeta | None = None) -> GraspabilityMap:
         """Rows of several maps (of the same object frame) in one map."""
         if not maps:
             raise InvalidParameterError("concat needs at least one map")
         cols = {k: np.concatenate([getattr(m, k) for m in maps]) for k in COLUMNS}
         return GraspabilityMap(**cols, meta=meta or maps[0].meta)
 
-    def with_meta(self, **changes: Any) -> "GraspabilityMap":
+    def with_meta(self, **changes: Any) -> GraspabilityMap:
         return replace(self, meta=replace(self.meta, **changes))
 
     def summary(self) -> dict:

@@ -50,7 +50,7 @@ def _patches(parents, children, parent_normals, grow, parent=None):
     return order, RT, HN, start
 
 
-_LEVELS: "collections.OrderedDict[tuple, dict]" = collections.OrderedDict()  # a few objects
+_LEVELS: collections.OrderedDict[tuple, dict] = collections.OrderedDict()  # a few objects
 
 
 def clear_caches() -> None:

@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from graspsim._atomic import atomic_path
 from graspsim.errors import MapFileError
 from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
-from graspsim._atomic import atomic_path
 
 __all__ = ["save_map", "load_map", "write_sim_results", "read_sim_results", "FORMAT",
            "SCHEMA_VERSION"]

@@ -20,9 +20,9 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from types import ModuleType
-from typing import Callable
 
 __all__ = ["ensure_compiled", "kernels", "cache_dir", "default_threads", "run_chunks"]
 

@@ -20,9 +20,10 @@ Pure: takes the database's index records, reads no file.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any, Iterable
+from typing import Any
 
 from graspsim.errors import InvalidParameterError
 

@@ -27,9 +27,9 @@ from __future__ import annotations
 import functools
 import logging
 import time
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from enum import Enum
-from typing import Iterator
 
 import numpy as np
 

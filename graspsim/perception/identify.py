@@ -14,7 +14,8 @@ Per cluster, beyond the paper's MLESAC fits: a cylinder is also refined as a con
 weak taper is ill-posed for four-point cone samples) and an untapered cone yields a
 cylinder; cylinder and cone ends nobody saw are cut back to their points; a model
 larger than its cluster is no hypothesis, and a candidate that reaches beyond its
-points while little of its surface has points near it is rejected (see support). Every random draw comes from the caller's
+points while little of its surface has points near it is rejected (see support).
+Every random draw comes from the caller's
 generator, clusters are visited breadth first, so the same seed gives the same result.
 """
 

@@ -236,7 +236,6 @@ def _refine(kind, R0, t0, d0, points, inliers, sigma, max_points, max_nfev=12):
         sel = sel[np.linspace(0, len(sel) - 1, max_points).astype(int)]
     p = points[sel]
     scale = max(float(np.max(d0)), 10.0 * sigma)
-    k = len(d0)
     eps = 1e-7
 
     def unpack(X):  # X (H, 6 + k)

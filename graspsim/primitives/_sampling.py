@@ -8,7 +8,7 @@ corners and edge midpoints, i.e. every surface point is that close to some sampl
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -61,7 +61,7 @@ class PatchGrid:
         j = np.floor(np.mod(v, self.sweep) / (self.sweep / counts[k])).astype(np.int64)
         return self.offset + starts[k] + np.clip(j, 0, counts[k] - 1)
 
-    def shifted(self, by: int) -> "PatchGrid":
+    def shifted(self, by: int) -> PatchGrid:
         return replace(self, offset=self.offset + by)
 
 
@@ -101,15 +101,15 @@ class SurfaceSamples:
     def __len__(self) -> int:
         return len(self.points)
 
-    def shifted(self, offset: np.ndarray) -> "SurfaceSamples":
+    def shifted(self, offset: np.ndarray) -> SurfaceSamples:
         return replace(self, points=self.points + np.asarray(offset, float))
 
-    def select(self, mask) -> "SurfaceSamples":
+    def select(self, mask) -> SurfaceSamples:
         return replace(self, points=self.points[mask], normals=self.normals[mask],
                        areas=self.areas[mask], tangent_radius=self.tangent_radius[mask],
                        normal_height=self.normal_height[mask], patch=None, uv=None, grids=())
 
-    def locate(self, other: "SurfaceSamples") -> np.ndarray | None:
+    def locate(self, other: SurfaceSamples) -> np.ndarray | None:
         """Index (M,) of this sampling's cell that holds each sample of ``other`` (a
         sampling of the same shape), or None if either lacks its cell layout."""
         if not self.grids or other.patch is None or other.uv is None:
@@ -124,7 +124,7 @@ class SurfaceSamples:
         return out
 
     @staticmethod
-    def concat(parts: list["SurfaceSamples"]) -> "SurfaceSamples":
+    def concat(parts: list[SurfaceSamples]) -> SurfaceSamples:
         layout = all(p.patch is not None and p.uv is not None and p.grids for p in parts)
         patch, uv, grids = None, None, ()
         if layout:
@@ -197,7 +197,7 @@ class Primitive(ABC):
     def dims_vector(self) -> np.ndarray:
         return np.array([getattr(self, n) for n in self.dim_names])
 
-    def with_dims(self, **dims: float) -> "Primitive":
+    def with_dims(self, **dims: float) -> Primitive:
         """A copy with some dimensions replaced (validated)."""
         unknown = set(dims) - set(self.dim_names)
         if unknown:

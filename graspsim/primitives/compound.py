@@ -28,7 +28,7 @@ class Compound:
     kind = "compound"
 
     @classmethod
-    def from_parts(cls, parts, poses) -> "Compound":
+    def from_parts(cls, parts, poses) -> Compound:
         """Build from parts posed in any reference frame; re-centred on the joint COM."""
         parts = tuple(parts)
         poses = np.asarray(poses, dtype=float).reshape(-1, 4, 4)

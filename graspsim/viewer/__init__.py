@@ -1,0 +1,104 @@
+"""Interactive 3D viewer in the browser (viser): maps, clouds, meshes and trial replays.
+
+    import graspsim.viewer
+    server = graspsim.viewer.show("cyl.h5")            # or a GraspabilityMap
+    print(server.get_port())                           # open http://localhost:PORT
+    ...
+    graspsim.viewer.stop(server)
+
+viser is an optional dependency (``pip install 'graspsim[viewer]'``); without it
+:func:`show` raises :class:`~graspsim.errors.DependencyNotInstalled` saying so, and the
+rest of graspsim is unaffected (nothing here is imported by ``import graspsim``).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from graspsim.errors import DependencyNotInstalled
+
+__all__ = ["show", "stop", "require_viser", "INSTALL_HINT"]
+
+INSTALL_HINT = "pip install 'graspsim[viewer]'"
+
+
+def require_viser():
+    """The viser module, or :class:`DependencyNotInstalled` naming what to install."""
+    try:
+        import viser
+    except ImportError as err:
+        raise DependencyNotInstalled(f"the viewer needs viser, which is not installed: {INSTALL_HINT}") from err
+    return viser
+
+
+def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1", port: int = 8080,
+         max_drawn: int = 5000, min_grade: float = 0.0, colour: str = "grade", verbose: bool = False):
+    """Serve a map in the browser and return the running ``viser.ViserServer``
+    (``server.get_port()``; :func:`stop` ends it). Does not block.
+
+    map: a map file (its simulation and robust-score columns are shown too) or a
+    :class:`~graspsim.maps.GraspabilityMap`. cloud: (N, 3) points or a cloud file, in
+    the cloud's frame; mesh: a ``trimesh.Trimesh`` or a mesh file, in the cloud's
+    frame (both placed by the map's ``T_cloud_obj``). recording: a
+    :class:`~graspsim.sim.recording.TrialRecording` or its file, replayed with a
+    timeline. port: the first port tried (the next free one is taken; 0: any).
+    """
+    viser = require_viser()
+    from graspsim.maps.graspmap import GraspabilityMap
+    from graspsim.viewer.app import MapViewer
+    from graspsim.viewer.columns import Selection, ViewData
+
+    if isinstance(map, GraspabilityMap):
+        data = ViewData.from_map(map)
+    else:
+        from graspsim.maps.io import load_map
+
+        data = ViewData.from_map(load_map(map), map)
+    if isinstance(cloud, (str, os.PathLike)):
+        from graspsim.perception.io import read_point_cloud
+
+        cloud = read_point_cloud(cloud).points
+    if isinstance(mesh, (str, os.PathLike)):
+        from graspsim.sim.meshes import load_mesh
+
+        mesh = load_mesh(Path(mesh))
+    if isinstance(recording, (str, os.PathLike)):
+        from graspsim.sim.recording import load_recording
+
+        recording = load_recording(recording)
+    sel = Selection(colour=colour, min_grade=min_grade, max_drawn=max_drawn)
+    data.selected(sel)  # a bad colour name or limit fails before the server starts
+    server = _quietly(verbose, viser.ViserServer, host=host, port=port, verbose=verbose)
+    try:
+        server.gui.configure_theme(control_width="large", show_share_button=False)
+        viewer = MapViewer(server, data, cloud=cloud, mesh=mesh, selection=sel)
+        if recording is not None:
+            from graspsim.viewer.replay import Replay
+
+            server.graspsim_replay = Replay(server, recording, hide=viewer)
+    except BaseException:
+        server.stop()
+        raise
+    server.graspsim_viewer = viewer  # the scene and GUI state (tests, scripts)
+    return server
+
+
+def stop(server) -> None:
+    """Stop a server started by :func:`show` (and its replay's playback thread)."""
+    replay = getattr(server, "graspsim_replay", None)
+    if replay is not None:
+        replay.stop()
+    _quietly(False, server.stop)
+
+
+def _quietly(loud: bool, fn, *args, **kwargs):
+    """Call ``fn`` with viser's banner lines ("HTTP ...", "Server stopped") kept off
+    standard output unless ``loud``."""
+    import contextlib
+    import io
+
+    if loud:
+        return fn(*args, **kwargs)
+    with contextlib.redirect_stdout(io.StringIO()):
+        return fn(*args, **kwargs)

@@ -89,7 +89,7 @@ def load_recording(path: str | os.PathLike) -> TrialRecording:
         raise MapFileError(f"trial recording {path} does not exist")
     try:
         with np.load(path, allow_pickle=False) as z:
-            if "meta" not in z.files:
+            if not isinstance(z, np.lib.npyio.NpzFile) or "meta" not in z.files:
                 raise MapFileError(f"{path} is not a graspsim trial recording (no meta)")
             meta = json.loads(str(z["meta"]))
             if meta.get("format") != RECORDING_FORMAT:
@@ -99,7 +99,7 @@ def load_recording(path: str | os.PathLike) -> TrialRecording:
             if missing:
                 raise MapFileError(f"{path} is a damaged trial recording: missing {', '.join(missing)}")
             arrays = {k: z[k] for k in _ARRAYS}
-    except (OSError, ValueError, zipfile.BadZipFile, json.JSONDecodeError) as err:
+    except (OSError, ValueError, TypeError, EOFError, KeyError, zipfile.BadZipFile) as err:
         raise MapFileError(f"{path} is not a readable trial recording: {err}") from err
     rec = TrialRecording(**arrays, gripper=meta["gripper"], protocol=meta["protocol"],
                          table=bool(meta.get("table", True)))

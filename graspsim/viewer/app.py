@@ -125,7 +125,7 @@ class MapViewer:
                                                for g in self.data.outcomes))), "not simulated"]
         self.g_outcome = gui.add_dropdown("outcome", labels if self.data.outcomes else ["any"],
                                           initial_value=sel.outcome, disabled=not self.data.outcomes)
-        self.g_max = gui.add_slider("max drawn", 100, 50_000, 100, int(sel.max_drawn))
+        self.g_max = gui.add_slider("max drawn", 1, max(50_000, sel.max_drawn), 1, int(sel.max_drawn))
         self.g_size = gui.add_slider("glyph size", 0.1, 2.0, 0.05, float(glyph_size))
         self.g_status = gui.add_markdown("")
         self.g_scale = gui.add_markdown("")

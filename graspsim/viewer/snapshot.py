@@ -37,8 +37,13 @@ def browser_render(server, *, size: tuple[int, int] = (600, 800), timeout: float
                    settle: float = 0.0) -> np.ndarray:
     """Open ``server``'s page in headless Chromium and return its 3D canvas as an
     (H, W, 3) uint8 image; ``size``: (height, width) [px]. ``settle`` [s]: wait this
-    long after the page connects (e.g. for a replay to advance). The browser is ended
-    before returning, whatever happens."""
+    long after the page connects (e.g. for a replay to advance). A frame drawn before
+    the scene arrived (one flat colour) is asked for again until ``timeout`` [s]. The
+    browser is ended before returning, whatever happens."""
+    import logging
+
+    # a browser closing a half-open connection is not an error worth a traceback
+    logging.getLogger("websockets.server").setLevel(logging.CRITICAL)
     browser = find_browser()
     if browser is None:
         raise DependencyNotInstalled("no Chromium found for the screenshot: install it (Debian: apt-get "
@@ -53,19 +58,29 @@ def browser_render(server, *, size: tuple[int, int] = (600, 800), timeout: float
                 f"--window-size={w + 40},{h + 40}", "--remote-debugging-port=0", url]
         proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                 start_new_session=True)
+        deadline = time.monotonic() + timeout
         try:
-            client = _wait_for_client(server, before, proc, time.monotonic() + timeout)
+            client = _wait_for_client(server, before, proc, deadline)
             time.sleep(settle)
-            img = client.get_render(h, w, transport_format="png",
-                                    timeout=max(1.0, timeout - settle))
+            while True:
+                img = _flatten(client.get_render(h, w, transport_format="png",
+                                                 timeout=max(1.0, deadline - time.monotonic())))
+                if img.std() > 1.0 or time.monotonic() > deadline:
+                    break
+                time.sleep(0.2)
         except GraspsimError:
             raise
         except Exception as err:  # viser / websocket failures come as many types
             raise GraspsimError(f"the browser did not render the page: {err}") from err
         finally:
             _end(proc)
+    return img
+
+
+def _flatten(img) -> np.ndarray:
+    """RGB, a transparent background composited on white."""
     img = np.asarray(img)
-    if img.ndim == 3 and img.shape[2] == 4:  # transparent background: composite on white
+    if img.ndim == 3 and img.shape[2] == 4:
         a = img[..., 3:4].astype(float) / 255.0
         img = (img[..., :3] * a + 255.0 * (1.0 - a)).round().astype(np.uint8)
     return img

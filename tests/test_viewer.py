@@ -1,0 +1,215 @@
+"""The viewer (`graspsim view`, `graspsim.viewer.show`): its data model without viser,
+the server as a script uses it, the command as a person uses it (errors, Ctrl-C) and a
+screenshot taken by headless Chromium."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+
+import numpy as np
+import pytest
+
+from graspsim.cli import main
+from graspsim.gripper import HGPL_25_60_A
+from graspsim.maps import load_map, save_map, write_sim_results
+from graspsim.primitives import Cylinder
+from graspsim.sim.testing import grasp_pose, hand_made_map
+from graspsim.viewer.columns import OUTCOME_PREFIX, Selection, ViewData
+from graspsim.viewer.glyphs import colormap, gripper_wireframe
+
+ROBUST = "grasps/qualities/robust"
+
+
+def _map_file(tmp_path, n=60, outcomes=True, robust=False):
+    """A cylinder map of n side grasps (grades spread over [0.3, 1]); outcomes: a
+    simulation group with a known outcome per row; robust: a robust-score group."""
+    ang = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    z = np.linspace(-0.06, 0.06, n)
+    T = np.stack([grasp_pose([0, 0, zi], [-np.cos(a), -np.sin(a), 0], [-np.sin(a), np.cos(a), 0])
+                  for a, zi in zip(ang, z)])
+    grades = np.random.default_rng(0).uniform(0.3, 1.0, n)
+    path = save_map(hand_made_map(Cylinder(0.02, 0.20), T, np.full(n, 0.04), grades=grades),
+                    tmp_path / "cyl.h5")
+    if outcomes:
+        out = np.arange(n) % 5 - 1  # -1 (not simulated), 0 success, 1 start collision, 2, 3
+        codes = {"success": 0, "start_collision": 1, "no_contact": 2, "slipped": 3, "dropped": 4,
+                 "place_failed": 5, "sim_unstable": 6}
+        write_sim_results(path, {"outcome": out.astype(np.int8), "simulated": out >= 0,
+                                 "lift_height": np.where(out == 0, 0.12, np.nan)},
+                          attrs_json={"outcome_codes": codes})
+    if robust:
+        write_sim_results(path, {"score": np.linspace(0.0, 0.5, n)}, group=f"{ROBUST}")
+    return path
+
+
+# ---------------------------------------------------------------- data model (no viser)
+def test_filters_run_on_all_grasps_and_top_k_is_the_best(tmp_path):
+    path = _map_file(tmp_path)
+    m = load_map(path)
+    d = ViewData.from_map(m, path)
+    assert d.colour_names()[:2] == ["grade", OUTCOME_PREFIX + "grasps/qualities/mujoco"]
+    assert np.array_equal(d.selected(Selection(min_grade=0.6)), np.flatnonzero(m.grade > 0.6))
+    top = d.selected(Selection(top_k=7))
+    assert np.array_equal(top, np.argsort(-m.grade, kind="stable")[:7])
+    colour = OUTCOME_PREFIX + "grasps/qualities/mujoco"
+    ok = d.selected(Selection(colour=colour, outcome="success"))
+    assert len(ok) == 12 and np.all(np.arange(60)[ok] % 5 == 1)
+    assert len(d.selected(Selection(colour=colour, outcome="not simulated"))) == 12
+    both = d.selected(Selection(colour=colour, outcome="success", min_grade=0.6))
+    assert set(both) == set(ok) & set(np.flatnonzero(m.grade > 0.6))
+    rgb, _ = d.colours(ok, colour)
+    assert np.all(rgb == (40, 170, 70))  # success green
+    assert d.details(int(ok[0]))["grasps/qualities/mujoco outcome"] == "success"
+
+
+def test_drawn_subset_is_bounded_and_stable_when_filters_loosen(tmp_path):
+    path = _map_file(tmp_path, n=400, outcomes=False)
+    d = ViewData.from_map(load_map(path), path)
+    loose = d.drawn(d.selected(Selection(min_grade=0.3)), 50)
+    strict_rows = d.selected(Selection(min_grade=0.8))
+    strict = d.drawn(strict_rows, 50)
+    assert len(loose) == len(strict) == 50 and set(strict) <= set(strict_rows)
+    # a grasp drawn under the loose filter and passing the strict one stays drawn
+    assert set(loose) & set(strict_rows) <= set(strict)
+    assert np.array_equal(d.drawn(strict_rows[:10], 50), strict_rows[:10])
+
+
+def test_robust_scores_are_a_colour_column_when_present(tmp_path):
+    path = _map_file(tmp_path, outcomes=False, robust=True)
+    d = ViewData.from_map(load_map(path), path)
+    assert d.colour_names()[1] == f"{ROBUST}/score"
+    top = d.selected(Selection(colour=f"{ROBUST}/score", top_k=3))
+    assert top.tolist() == [59, 58, 57]  # ranked by the robust score, not the grade
+    rgb, rng = d.colours(np.array([0, 59]), f"{ROBUST}/score")
+    assert rng == (0.0, 0.5) and rgb[0].tolist() == [68, 1, 84] and rgb[1].tolist() == [253, 231, 37]
+    without = ViewData.from_map(load_map(_map_file(tmp_path / "..", outcomes=False)))
+    assert not any("robust" in c for c in without.colour_names())
+
+
+def test_gripper_wireframe_and_colour_scale():
+    seg = gripper_wireframe(HGPL_25_60_A, np.eye(4), 0.05)
+    assert seg.shape == (12 * len(HGPL_25_60_A.collision_boxes().names), 2, 3)
+    x = seg[..., 0]
+    # the finger boxes' inner faces (the pads) lie at +-opening/2
+    assert np.isclose(np.abs(x).min(), 0.025) and np.any(np.isclose(x, 0.025)) and np.any(np.isclose(x, -0.025))
+    assert np.isclose(seg[..., 2].max(), HGPL_25_60_A.fingertip_z)
+    c = colormap(np.array([0.0, 1.0, np.nan]), 0.0, 1.0)
+    assert c[0].tolist() == [68, 1, 84] and c[1].tolist() == [253, 231, 37] and c[2].tolist() == [205, 205, 215]
+
+
+# ---------------------------------------------------------------- the server (needs viser)
+viser = pytest.importorskip("viser")
+from graspsim.viewer import show, stop  # noqa: E402
+from graspsim.viewer.app import OBJECT_COLOUR  # noqa: E402
+
+
+def _get(url: str, timeout: float = 30.0) -> int:
+    with urllib.request.urlopen(url, timeout=timeout) as r:
+        return r.status
+
+
+def test_show_serves_the_page_and_its_gui_filters_and_picks(tmp_path):
+    path = _map_file(tmp_path, n=120)
+    server = show(str(path), port=0, max_drawn=40)
+    try:
+        port = server.get_port()
+        assert port > 0 and _get(f"http://127.0.0.1:{port}/") == 200
+        v = server.graspsim_viewer
+        g = load_map(path).grade
+        assert len(v.selected_rows) == 120 and len(v.rows) == 40
+        v.g_min.value = 0.8  # as if the slider moved: the callback refilters all grasps
+        assert np.array_equal(v.selected_rows, np.flatnonzero(g > 0.8))
+        assert len(v.rows) == min(40, int((g > 0.8).sum())) and "showing" in v.g_status.content
+        v.g_top.value = 5
+        assert np.array_equal(v.rows, np.argsort(-g)[:5])  # best first
+        v.g_row.value = int(v.rows[0])  # a click sets the row; the gripper and numbers appear
+        assert v.picked == int(v.rows[0]) and f"{g[v.picked]:.4g}" in v.g_details.content
+    finally:
+        stop(server)
+    with pytest.raises(urllib.error.URLError):
+        _get(f"http://127.0.0.1:{port}/", timeout=5)
+
+
+def _chromium_or_skip():
+    from graspsim.viewer.snapshot import find_browser
+
+    if find_browser() is None:
+        pytest.skip("no Chromium on this machine (Debian: apt-get install chromium; .ci/run installs it)")
+
+
+def _hue_share(img: np.ndarray, rgb, tol_deg: float = 12.0) -> float:
+    """Fraction of saturated pixels whose hue is within ``tol_deg`` of ``rgb``'s (shading
+    changes brightness, not hue)."""
+    def hue(a):
+        a = np.asarray(a, float).reshape(-1, 3)
+        r, g, b = a.T
+        return np.degrees(np.arctan2(np.sqrt(3) * (g - b), 2 * r - g - b)) % 360
+
+    px = img.reshape(-1, 3).astype(float)
+    sat = (px.max(axis=1) - px.min(axis=1)) / np.maximum(px.max(axis=1), 1)
+    d = np.abs((hue(px) - hue(rgb)[0] + 180) % 360 - 180)
+    return float(np.mean((sat > 0.35) & (d < tol_deg)))
+
+
+def test_screenshot_in_headless_chromium_shows_the_object(tmp_path):
+    _chromium_or_skip()
+    from graspsim.viewer.snapshot import browser_render
+
+    path = _map_file(tmp_path, n=30)
+    server = show(str(path), port=0, max_drawn=30, min_grade=0.9)
+    try:
+        img = browser_render(server, size=(300, 400), timeout=120)
+    finally:
+        stop(server)
+    assert img.shape == (300, 400, 3)
+    assert img.std() > 10  # not blank
+    assert _hue_share(img, OBJECT_COLOUR) > 0.02  # the object's colour is there
+    assert np.mean(np.all(img > 245, axis=-1)) > 0.3  # and the background around it
+
+
+# ---------------------------------------------------------------- the command
+def test_view_refuses_what_info_refuses(tmp_path, capsys):
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(b"not hdf5 at all")
+    for argv in (["info", str(bad)], ["view", str(bad)], ["view", str(tmp_path / "missing.h5")]):
+        assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0] == err[1] and "not a readable HDF5 map file" in err[0]
+    assert "does not exist" in err[2] and not any("Traceback" in e for e in err)
+
+
+def test_view_without_viser_says_how_to_install_it(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "viser", None)  # import viser now fails
+    assert main(["view", str(_map_file(tmp_path))]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "pip install 'graspsim[viewer]'" in err
+
+
+def test_ctrl_c_stops_the_server_and_leaves_no_process(tmp_path):
+    path = _map_file(tmp_path)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([os.getcwd(), os.environ.get("PYTHONPATH", "")])}
+    p = subprocess.Popen([sys.executable, "-m", "graspsim", "view", str(path), "--port", "0", "--json"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        line = p.stderr.readline()  # "graspsim view: http://localhost:PORT" once serving
+        assert line.startswith("graspsim view: http://"), line + p.stderr.read()
+        url = line.split()[-1]
+        assert _get(url) == 200
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 0, err
+    summary = json.loads(out.strip().splitlines()[-1])
+    assert summary["url"] == url and summary["grasps"] == 60
+    assert "Traceback" not in err
+    with pytest.raises(urllib.error.URLError):
+        _get(url, timeout=5)
+    time.sleep(0)

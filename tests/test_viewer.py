@@ -163,7 +163,7 @@ def test_screenshot_in_headless_chromium_shows_the_object(tmp_path):
     path = _map_file(tmp_path, n=30)
     server = show(str(path), port=0, max_drawn=30, min_grade=0.9)
     try:
-        img = browser_render(server, size=(300, 400), timeout=120)
+        img = browser_render(server, size=(300, 400), camera=server.graspsim_viewer.camera, timeout=120)
     finally:
         stop(server)
     assert img.shape == (300, 400, 3)
@@ -213,3 +213,32 @@ def test_ctrl_c_stops_the_server_and_leaves_no_process(tmp_path):
     with pytest.raises(urllib.error.URLError):
         _get(url, timeout=5)
     time.sleep(0)
+
+
+def test_replay_moves_the_recorded_gripper_and_object_on_its_timeline(tmp_path):
+    from graspsim.sim.recording import load_recording
+    from graspsim.transforms import make_transform, quat_to_matrix
+
+    path = _map_file(tmp_path, outcomes=False)
+    rec_path = tmp_path / "trials.npz"
+    assert main(["trial", str(path), "--top", "2", "--threads", "1", "--record", str(rec_path)]) == 0
+    rec = load_recording(rec_path)
+    server = show(str(path), port=0, recording=rec_path)
+    try:
+        r, v = server.graspsim_replay, server.graspsim_viewer
+        r.g_play.value = False
+        assert not v.root.visible and r.root.visible  # replaying hides the map's glyphs
+        r.g_trial.value = r.g_trial.options[1]
+        lifted = int(np.argmax(rec.obj_pos[1, :, 2]))
+        r.g_frame.value = lifted
+        assert r.trial == 1 and np.allclose(r.obj.position, rec.obj_pos[1, lifted], atol=1e-6)
+        # the replay's frame puts the object's first recorded pose on the map's object frame
+        T_root = make_transform(quat_to_matrix(np.asarray(r.root.wxyz)), np.asarray(r.root.position))
+        T0 = make_transform(quat_to_matrix(rec.obj_quat[1, 0].astype(float)), rec.obj_pos[1, 0])
+        assert np.allclose(T_root @ T0, np.eye(4), atol=1e-5)
+        assert f"{rec.time[lifted]:.2f} s" in r.g_time.content
+        r.g_on.value = False
+        assert v.root.visible and not r.root.visible
+    finally:
+        stop(server)
+    assert not server.graspsim_replay._thread.is_alive()

@@ -51,7 +51,7 @@ def run(args) -> int:
     from graspsim.errors import InvalidParameterError
     from graspsim.viewer import require_viser, show, stop
 
-    require_viser()  # before reading anything
+    require_viser(load=False)  # before reading anything
     if not 0 <= args.port <= 65535:
         raise InvalidParameterError(f"--port must be in 0..65535, got {args.port}")
     if args.max_drawn < 1:
@@ -72,7 +72,8 @@ def run(args) -> int:
         if args.screenshot:
             from graspsim.viewer.snapshot import browser_render, save_png
 
-            save_png(browser_render(server, settle=0.5 if args.replay else 0.0), args.screenshot)
+            save_png(browser_render(server, camera=viewer.camera, settle=0.5 if args.replay else 0.0),
+                     args.screenshot)
             summary.update(screenshot=args.screenshot, frame_s=time.perf_counter() - t0)
         else:
             if not args.json:

@@ -23,13 +23,37 @@ __all__ = ["show", "stop", "require_viser", "INSTALL_HINT"]
 INSTALL_HINT = "pip install 'graspsim[viewer]'"
 
 
-def require_viser():
-    """The viser module, or :class:`DependencyNotInstalled` naming what to install."""
+def require_viser(*, load: bool = True):
+    """The viser module (``load=False``: only check it is installed, without the
+    import), or :class:`DependencyNotInstalled` naming what to install."""
+    import importlib.util
+
+    try:
+        found = importlib.util.find_spec("viser") is not None
+    except (ImportError, ValueError):  # e.g. sys.modules["viser"] is None
+        found = False
+    if not found:
+        raise DependencyNotInstalled(f"the viewer needs viser, which is not installed: {INSTALL_HINT}")
+    if not load:
+        return None
     try:
         import viser
     except ImportError as err:
-        raise DependencyNotInstalled(f"the viewer needs viser, which is not installed: {INSTALL_HINT}") from err
+        raise DependencyNotInstalled(f"the viewer needs viser, which cannot be imported ({err}): "
+                                     f"{INSTALL_HINT}") from err
     return viser
+
+
+def _preload() -> None:
+    """Import what the scene needs (viser, trimesh for the primitives' meshes) while
+    the map is read: the two overlap, which shortens opening a large map."""
+    import contextlib
+
+    with contextlib.suppress(Exception):  # a real failure is reported by the import itself
+        import trimesh  # noqa: F401
+        import viser  # noqa: F401
+
+        import graspsim.viewer.app  # noqa: F401
 
 
 def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1", port: int = 8080,
@@ -44,9 +68,12 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
     :class:`~graspsim.sim.recording.TrialRecording` or its file, replayed with a
     timeline. port: the first port tried (the next free one is taken; 0: any).
     """
-    viser = require_viser()
+    import threading
+
+    require_viser(load=False)
+    warm = threading.Thread(target=_preload, name="graspsim-viewer-preload", daemon=True)
+    warm.start()
     from graspsim.maps.graspmap import GraspabilityMap
-    from graspsim.viewer.app import MapViewer
     from graspsim.viewer.columns import Selection, ViewData
 
     if isinstance(map, GraspabilityMap):
@@ -55,6 +82,10 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
         from graspsim.maps.io import load_map
 
         data = ViewData.from_map(load_map(map), map)
+    warm.join()
+    viser = require_viser()
+    from graspsim.viewer.app import MapViewer
+
     if isinstance(cloud, (str, os.PathLike)):
         from graspsim.perception.io import read_point_cloud
 

@@ -52,7 +52,9 @@ class MapViewer:
                                          color=(160, 160, 170), opacity=0.5)
         self._glyph = fork_glyph()
         self._build_gui(selection, glyph_size)
-        self._frame_camera()
+        server.scene.set_up_direction("+z")
+        self.frame_camera(self.extent + 3 * 0.02 * glyph_size)  # the object and its glyphs' reach
+        server.on_client_connect(self._on_connect)
         self.refresh()
 
     # ------------------------------------------------------------------ static scene
@@ -96,20 +98,26 @@ class MapViewer:
                                           receive_shadow=False, cast_shadow=False, wxyz=matrix_to_quat(R),
                                           position=centre)
 
-    def _frame_camera(self) -> None:
-        d = 1.4 * self.extent  # the object fills about 60 % of the view (fov 75 deg)
-        pose = {"position": (d, -d, 0.7 * d), "look_at": (0.0, 0.0, 0.0)}
-        self.server.scene.set_up_direction("+z")
+    def frame_camera(self, extent: float) -> None:
+        """Aim every (new) browser's camera at the origin from where a sphere of radius
+        ``extent`` [m] fills about 60 % of the view (fov 75 deg)."""
+        d = 1.4 * extent
+        self._camera = {"position": (d, -d, 0.7 * d), "look_at": (0.0, 0.0, 0.0)}
         cam = self.server.initial_camera
         cam.near = 0.001
-        for k, v in pose.items():
+        for k, v in self._camera.items():
             setattr(cam, k, v)
 
-        @self.server.on_client_connect
-        def _(client) -> None:  # clients that connect before (or race) the initial pose
-            client.camera.near = 0.001
-            for k, v in pose.items():
-                setattr(client.camera, k, v)
+    @property
+    def camera(self) -> tuple[tuple, tuple]:
+        """(position, look_at) [m] of the view new browsers get."""
+        return self._camera["position"], self._camera["look_at"]
+
+    def _on_connect(self, client) -> None:
+        """A client that connects before (or races) the initial pose gets it too."""
+        client.camera.near = 0.001
+        for k, v in self._camera.items():
+            setattr(client.camera, k, v)
 
     # ------------------------------------------------------------------ GUI
     def _build_gui(self, sel: Selection, glyph_size: float) -> None:

@@ -66,6 +66,8 @@ class Replay:
         self.g_trial.on_update(lambda _: self._select(self._labels.index(self.g_trial.value)))
         self.g_frame.on_update(lambda _: self.show_frame(int(self.g_frame.value)))
         self.g_on.on_update(lambda _: self._visibility())
+        if hide is not None:  # the gripper is larger than most objects: step back
+            hide.frame_camera(max(hide.extent, 0.6 * float(np.ptp(recording.vertices, axis=0).max()), 0.15))
         self._select(0)
         self._visibility()
         self._thread = threading.Thread(target=self._play, name="graspsim-replay", daemon=True)

@@ -20,7 +20,7 @@ import numpy as np
 
 from graspsim.errors import DependencyNotInstalled, GraspsimError
 
-__all__ = ["find_browser", "browser_render", "save_png"]
+__all__ = ["find_browser", "browser_render", "camera_wxyz", "save_png"]
 
 _NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "chrome")
 
@@ -33,13 +33,27 @@ def find_browser() -> str | None:
     return next((p for p in map(shutil.which, _NAMES) if p), None)
 
 
-def browser_render(server, *, size: tuple[int, int] = (600, 800), timeout: float = 60.0,
-                   settle: float = 0.0) -> np.ndarray:
+def camera_wxyz(position, look_at, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """(4,) w, x, y, z of a camera at ``position`` looking at ``look_at`` with ``up``
+    up in the image (viser's camera convention, OpenCV's: x right, y down, z forward)."""
+    from graspsim.transforms import matrix_to_quat
+
+    z = np.asarray(look_at, float) - np.asarray(position, float)
+    z /= np.linalg.norm(z)
+    x = np.cross(z, np.asarray(up, float))
+    x /= np.linalg.norm(x)
+    return matrix_to_quat(np.stack([x, np.cross(z, x), z], axis=1))
+
+
+def browser_render(server, *, size: tuple[int, int] = (600, 800), camera=None, fov_deg: float = 75.0,
+                   timeout: float = 60.0, settle: float = 0.0) -> np.ndarray:
     """Open ``server``'s page in headless Chromium and return its 3D canvas as an
-    (H, W, 3) uint8 image; ``size``: (height, width) [px]. ``settle`` [s]: wait this
-    long after the page connects (e.g. for a replay to advance). A frame drawn before
-    the scene arrived (one flat colour) is asked for again until ``timeout`` [s]. The
-    browser is ended before returning, whatever happens."""
+    (H, W, 3) uint8 image; ``size``: (height, width) [px]; ``camera``: (position,
+    look_at) [m] to render from (default: the page's own camera, which a new page may
+    not have received yet). ``settle`` [s]: wait this long after the page connects
+    (e.g. for a replay to advance). A frame drawn before the scene arrived (one flat
+    colour) is asked for again until ``timeout`` [s]. The browser is ended before
+    returning, whatever happens."""
     import logging
 
     # a browser closing a half-open connection is not an error worth a traceback
@@ -49,6 +63,8 @@ def browser_render(server, *, size: tuple[int, int] = (600, 800), timeout: float
         raise DependencyNotInstalled("no Chromium found for the screenshot: install it (Debian: apt-get "
                                      "install chromium) or set GRASPSIM_CHROMIUM to its path")
     h, w = size
+    pose = {} if camera is None else {"position": np.asarray(camera[0], float), "fov": np.radians(fov_deg),
+                                      "wxyz": camera_wxyz(*camera)}
     url = f"http://127.0.0.1:{server.get_port()}/"
     before = set(server.get_clients())
     with tempfile.TemporaryDirectory(prefix="graspsim-chromium-") as profile:
@@ -63,7 +79,7 @@ def browser_render(server, *, size: tuple[int, int] = (600, 800), timeout: float
             client = _wait_for_client(server, before, proc, deadline)
             time.sleep(settle)
             while True:
-                img = _flatten(client.get_render(h, w, transport_format="png",
+                img = _flatten(client.get_render(h, w, transport_format="png", **pose,
                                                  timeout=max(1.0, deadline - time.monotonic())))
                 if img.std() > 1.0 or time.monotonic() > deadline:
                     break

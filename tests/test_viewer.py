@@ -135,6 +135,30 @@ def test_show_serves_the_page_and_its_gui_filters_and_picks(tmp_path):
         _get(f"http://127.0.0.1:{port}/", timeout=5)
 
 
+def test_an_adapted_map_shows_its_table_cloud_and_mesh_in_the_object_frame(tmp_path):
+    import trimesh
+
+    from graspsim.maps.graspmap import Placement
+    from graspsim.transforms import make_transform
+
+    T_cloud_obj = make_transform(np.eye(3), [0.1, 0.0, 0.3])  # the object seen 30 cm up, 10 cm aside
+    extra = Placement(T_cloud_obj, {"normal": [0.0, 0.0, 1.0], "height": 0.2, "dropped": 0}).to_extra()
+    T = grasp_pose([0, 0, 0], [-1, 0, 0], [0, 1, 0])[None]
+    path = save_map(hand_made_map(Cylinder(0.02, 0.20), T, [0.04], extra=extra), tmp_path / "adapted.h5")
+    cloud = np.array([[0.1, 0.0, 0.3], [0.12, 0.0, 0.3]] * 6)  # cloud frame
+    mesh = trimesh.creation.box((0.04, 0.04, 0.2))
+    mesh.apply_translation([0.1, 0.0, 0.3])
+    server = show(str(path), cloud=cloud, mesh=mesh, port=0)
+    try:
+        v = server.graspsim_viewer
+        # the plane z = 0.2 in the cloud frame is z = -0.1 in the object frame, under the origin
+        assert np.allclose(v.table.position, [0.0, 0.0, -0.1], atol=1e-9)
+        assert np.allclose(v.cloud.points, cloud - [0.1, 0.0, 0.3], atol=1e-3)  # float16 on the wire
+        assert np.allclose(v.mesh.vertices.mean(axis=0), 0.0, atol=1e-6)
+    finally:
+        stop(server)
+
+
 def _chromium_or_skip():
     from graspsim.viewer.snapshot import find_browser
 

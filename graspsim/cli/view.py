@@ -38,6 +38,8 @@ def register(subparsers) -> None:
                    "one is taken)")
     p.add_argument("--colour", default="grade", help="initial colour column (default grade)")
     p.add_argument("--min-grade", type=float, default=0.0, help="initial min-grade filter (default 0)")
+    p.add_argument("--top", type=int, default=0, metavar="K", help="initial top-K filter (default 0: all)")
+    p.add_argument("--pick", type=int, metavar="ROW", help="show this grasp's numbers and full gripper at start")
     p.add_argument("--max-drawn", type=int, default=2000, metavar="N",
                    help="draw at most N grasps (default 2000; the filters use all)")
     p.add_argument("--screenshot", metavar="PNG",
@@ -54,15 +56,16 @@ def run(args) -> int:
     require_viser(load=False)  # before reading anything
     if not 0 <= args.port <= 65535:
         raise InvalidParameterError(f"--port must be in 0..65535, got {args.port}")
-    if args.max_drawn < 1:
-        raise InvalidParameterError(f"--max-drawn must be >= 1, got {args.max_drawn}")
+    if args.max_drawn < 1 or args.top < 0:
+        raise InvalidParameterError(f"--max-drawn must be >= 1 and --top >= 0, got {args.max_drawn}, {args.top}")
     if args.screenshot:
         from graspsim._atomic import check_output
 
         check_output(args.screenshot, "screenshot")
     _quiet_server_logs()
     server = show(args.map, cloud=args.cloud, mesh=args.mesh, recording=args.replay, host=args.host,
-                  port=args.port, max_drawn=args.max_drawn, min_grade=args.min_grade, colour=args.colour)
+                  port=args.port, max_drawn=args.max_drawn, min_grade=args.min_grade, colour=args.colour,
+                  top_k=args.top, pick=args.pick)
     ready = time.perf_counter() - t0
     url = f"http://{'localhost' if args.host in ('0.0.0.0', '127.0.0.1') else args.host}:{server.get_port()}"
     viewer = server.graspsim_viewer

@@ -57,7 +57,8 @@ def _preload() -> None:
 
 
 def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1", port: int = 8080,
-         max_drawn: int = 5000, min_grade: float = 0.0, colour: str = "grade", verbose: bool = False):
+         max_drawn: int = 2000, min_grade: float = 0.0, colour: str = "grade", top_k: int = 0,
+         pick: int | None = None, verbose: bool = False):
     """Serve a map in the browser and return the running ``viser.ViserServer``
     (``server.get_port()``; :func:`stop` ends it). Does not block.
 
@@ -67,6 +68,8 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
     frame (both placed by the map's ``T_cloud_obj``). recording: a
     :class:`~graspsim.sim.recording.TrialRecording` or its file, replayed with a
     timeline. port: the first port tried (the next free one is taken; 0: any).
+    max_drawn, min_grade, colour, top_k: the GUI's initial settings; pick: a map row
+    whose numbers and full gripper are shown at start.
     """
     import threading
 
@@ -98,12 +101,18 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
         from graspsim.sim.recording import load_recording
 
         recording = load_recording(recording)
-    sel = Selection(colour=colour, min_grade=min_grade, max_drawn=max_drawn)
+    sel = Selection(colour=colour, min_grade=min_grade, max_drawn=max_drawn, top_k=top_k)
     data.selected(sel)  # a bad colour name or limit fails before the server starts
+    if pick is not None and not 0 <= pick < len(data.gmap):
+        from graspsim.errors import InvalidParameterError
+
+        raise InvalidParameterError(f"pick must be a row of the map (0..{len(data.gmap) - 1}), got {pick}")
     server = _quietly(verbose, viser.ViserServer, host=host, port=port, verbose=verbose)
     try:
         server.gui.configure_theme(control_width="large", show_share_button=False)
         viewer = MapViewer(server, data, cloud=cloud, mesh=mesh, selection=sel)
+        if pick is not None:
+            viewer.g_row.value = int(pick)
         if recording is not None:
             from graspsim.viewer.replay import Replay
 

@@ -44,15 +44,17 @@ class MapViewer:
             self._draw_table(placement)
         if cloud is not None:
             pts = transform_points(self.T_obj_cloud, np.asarray(cloud, float))
-            server.scene.add_point_cloud("/map/cloud", pts.astype(np.float32), (40, 40, 40),
+            self.cloud = server.scene.add_point_cloud("/map/cloud", pts.astype(np.float32), (40, 40, 40),
                                          point_size=0.0015, point_shape="circle")
         if mesh is not None:
             v = transform_points(self.T_obj_cloud, np.asarray(mesh.vertices, float))
-            server.scene.add_mesh_simple("/map/mesh", v.astype(np.float32), np.asarray(mesh.faces),
+            self.mesh = server.scene.add_mesh_simple("/map/mesh", v.astype(np.float32), np.asarray(mesh.faces),
                                          color=(160, 160, 170), opacity=0.5)
         self._glyph = fork_glyph()
         self._build_gui(selection, glyph_size)
         server.scene.set_up_direction("+z")
+        server.scene.configure_default_lights(cast_shadow=False)  # shadows cost more than they show
+        server.scene.add_light_hemisphere("/light", intensity=0.6)
         self.frame_camera(self.extent + 3 * 0.02 * glyph_size)  # the object and its glyphs' reach
         server.on_client_connect(self._on_connect)
         self.refresh()
@@ -78,11 +80,15 @@ class MapViewer:
         return [(m.vertices, m.faces)]
 
     def _draw_object(self) -> None:
-        self.extent = 0.05
+        """The parts, coloured by part; sets ``centre`` and ``extent`` (the bounding
+        box's centre and half diagonal [m]) for the camera."""
+        lo, hi = np.full(3, -0.03), np.full(3, 0.03)
         for i, (v, f) in enumerate(self._object_meshes()):
             self.server.scene.add_mesh_simple(f"/map/object/part{i}", np.asarray(v, np.float32),
                                               np.asarray(f, np.int32), color=PART_COLOURS[i % len(PART_COLOURS)])
-            self.extent = max(self.extent, float(np.abs(v).max()))
+            lo, hi = (np.minimum(lo, v.min(axis=0)), np.maximum(hi, v.max(axis=0))) if i else (v.min(axis=0),
+                                                                                              v.max(axis=0))
+        self.centre, self.extent = 0.5 * (lo + hi), float(0.5 * np.linalg.norm(hi - lo))
 
     def _draw_table(self, placement) -> None:
         """A translucent plate on the recorded support plane, under the object."""
@@ -90,19 +96,20 @@ class MapViewer:
         h = float(placement.table.get("height") or 0.0)
         n = self.T_obj_cloud[:3, :3] @ n_cloud
         on_plane = transform_points(self.T_obj_cloud, h * n_cloud[None])[0]
-        centre = on_plane + n * float(np.dot(-on_plane, n))  # the object origin's foot
+        centre = n * float(np.dot(on_plane, n))  # the foot of the object origin on the plane
         R = frame_from_axes(np.eye(3)[int(np.argmin(np.abs(n)))], n)
         s = 3 * self.extent
         v, f = box_mesh(np.array([[0.0, 0.0, -0.001]]), np.array([[s, s, 0.001]]))
-        self.server.scene.add_mesh_simple("/map/table", v, f, color=(200, 180, 150), opacity=0.6,
+        self.table = self.server.scene.add_mesh_simple("/map/table", v, f, color=(200, 180, 150), opacity=0.6,
                                           receive_shadow=False, cast_shadow=False, wxyz=matrix_to_quat(R),
                                           position=centre)
 
     def frame_camera(self, extent: float) -> None:
-        """Aim every (new) browser's camera at the origin from where a sphere of radius
+        """Aim every (new) browser's camera at the object's centre from where a sphere of radius
         ``extent`` [m] fills about 60 % of the view (fov 75 deg)."""
         d = 1.4 * extent
-        self._camera = {"position": (d, -d, 0.7 * d), "look_at": (0.0, 0.0, 0.0)}
+        c = tuple(float(x) for x in self.centre)
+        self._camera = {"position": (c[0] + d, c[1] - d, c[2] + 0.6 * d), "look_at": c}
         cam = self.server.initial_camera
         cam.near = 0.001
         for k, v in self._camera.items():

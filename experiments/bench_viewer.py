@@ -62,11 +62,13 @@ def _fresh_url(path: str) -> dict:
         with urllib.request.urlopen(url, timeout=60) as r:
             status = r.status
         p.send_signal(signal.SIGINT)
-        out, _ = p.communicate(timeout=60)
+        out, err = p.communicate(timeout=60)
     finally:
         if p.poll() is None:
             p.kill()
             p.wait()
+    if p.returncode != 0 or not out.strip():
+        raise RuntimeError(f"view exited {p.returncode} after SIGINT: {err[-2000:]}")
     summary = json.loads(out.strip().splitlines()[-1])
     return {"url_s": url_s, "page_status": status, "exit_after_sigint": p.returncode,
             "ready_s_inside": summary["ready_s"], "grasps": summary["grasps"], "drawn": summary["drawn"],

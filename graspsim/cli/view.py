@@ -51,7 +51,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     t0 = time.perf_counter()
     from graspsim.errors import InvalidParameterError
-    from graspsim.viewer import require_viser, show, stop
+    from graspsim.viewer import require_viser, show
 
     require_viser(load=False)  # before reading anything
     if not 0 <= args.port <= 65535:
@@ -79,20 +79,42 @@ def run(args) -> int:
                      args.screenshot)
             summary.update(screenshot=args.screenshot, frame_s=time.perf_counter() - t0)
         else:
-            if not args.json:
-                print(f"graspsim view: {url}  ({len(viewer.rows):,} of {len(viewer.gmap):,} grasps drawn; "
-                      "Ctrl-C stops)", flush=True)
-            else:
-                print(f"graspsim view: {url}", file=sys.stderr, flush=True)
-            try:
-                while True:
-                    time.sleep(3600)
-            except KeyboardInterrupt:
-                pass
+            _serve(url, viewer, args.json)
     finally:
-        stop(server)
+        _stop_uninterrupted(server)
     emit(summary, args.json, f"wrote {args.screenshot}" if args.screenshot else "graspsim view: stopped")
     return 0
+
+
+def _serve(url: str, viewer, as_json: bool) -> None:
+    """Print the URL (stdout, or stderr under --json) and serve until Ctrl-C."""
+    try:
+        if as_json:
+            print(f"graspsim view: {url}", file=sys.stderr, flush=True)
+        else:
+            print(f"graspsim view: {url}  ({len(viewer.rows):,} of {len(viewer.gmap):,} grasps drawn; "
+                  "Ctrl-C stops)", flush=True)
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+
+
+def _stop_uninterrupted(server) -> None:
+    """Stop the server; a second Ctrl-C meanwhile does not cut the shutdown short."""
+    import signal
+    import threading
+
+    from graspsim.viewer import stop
+
+    if threading.current_thread() is not threading.main_thread():
+        stop(server)
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        stop(server)
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 def _quiet_server_logs() -> None:

@@ -135,6 +135,29 @@ def test_show_serves_the_page_and_its_gui_filters_and_picks(tmp_path):
         _get(f"http://127.0.0.1:{port}/", timeout=5)
 
 
+def test_a_click_picks_the_instance_or_the_grasp_nearest_the_ray_and_wireframes_are_bounded(tmp_path):
+    from types import SimpleNamespace
+
+    from graspsim.viewer.app import MAX_WIREFRAMES
+
+    path = _map_file(tmp_path, n=400, outcomes=False)
+    server = show(str(path), port=0, max_drawn=1000)
+    try:
+        v = server.graspsim_viewer
+        v._on_click(SimpleNamespace(instance_index=7, ray_origin=(0, 0, 0), ray_direction=(1, 0, 0)))
+        assert v.picked == int(v.rows[7])
+        target = int(v.rows[123])
+        p = v.gmap.grasp_point[target].astype(float)
+        origin = p + np.array([0.3, 0.2, 0.1])  # a ray from the camera's side through the grasp point
+        d = (p - origin) / np.linalg.norm(p - origin)
+        v._on_click(SimpleNamespace(instance_index=None, ray_origin=tuple(origin), ray_direction=tuple(d)))
+        assert v.picked == target
+        v.g_glyph.value = "gripper wireframe"
+        assert len(v.rows) == MAX_WIREFRAMES and len(v.selected_rows) == 400
+    finally:
+        stop(server)
+
+
 def test_an_adapted_map_shows_its_table_cloud_and_mesh_in_the_object_frame(tmp_path):
     import trimesh
 

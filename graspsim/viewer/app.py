@@ -18,7 +18,10 @@ from graspsim.transforms import frame_from_axes, invert_transform, matrix_to_qua
 from graspsim.viewer.columns import OUTCOME_PREFIX, Selection, ViewData
 from graspsim.viewer.glyphs import PART_COLOURS, box_mesh, fork_glyph, gripper_wireframe
 
-__all__ = ["MapViewer", "OBJECT_COLOUR"]
+__all__ = ["MapViewer", "OBJECT_COLOUR", "MAX_WIREFRAMES", "GLYPHS"]
+
+GLYPHS = ("fork", "gripper wireframe")
+MAX_WIREFRAMES = 300  # full-gripper glyphs drawn at most (72 edges each)
 
 #: colour of a single-part object (the screenshot test looks for it)
 OBJECT_COLOUR = PART_COLOURS[0]
@@ -141,13 +144,14 @@ class MapViewer:
         self.g_outcome = gui.add_dropdown("outcome", labels if self.data.outcomes else ["any"],
                                           initial_value=sel.outcome, disabled=not self.data.outcomes)
         self.g_max = gui.add_slider("max drawn", 1, max(50_000, sel.max_drawn), 1, int(sel.max_drawn))
+        self.g_glyph = gui.add_dropdown("glyphs", GLYPHS, initial_value=GLYPHS[0])
         self.g_size = gui.add_slider("glyph size", 0.1, 2.0, 0.05, float(glyph_size))
         self.g_status = gui.add_markdown("")
         self.g_scale = gui.add_markdown("")
         with gui.add_folder("grasp"):
             self.g_row = gui.add_number("row", -1, min=-1, max=len(m) - 1, step=1)
             self.g_details = gui.add_markdown("click a grasp (or type its row)")
-        for h in (self.g_colour, self.g_min, self.g_top, self.g_outcome, self.g_max, self.g_size):
+        for h in (self.g_colour, self.g_min, self.g_top, self.g_outcome, self.g_max, self.g_glyph, self.g_size):
             h.on_update(lambda _: self.refresh())
         self.g_row.on_update(lambda _: self.pick(int(self.g_row.value)))
 
@@ -162,15 +166,19 @@ class MapViewer:
         with self._lock:
             sel = self.selection()
             self.selected_rows = self.data.selected(sel)
-            self.rows = self.data.drawn(self.selected_rows, sel.max_drawn)
-            self._draw_glyphs(sel)
+            wire = self.g_glyph.value != GLYPHS[0]
+            self.rows = self.data.drawn(self.selected_rows, min(sel.max_drawn, MAX_WIREFRAMES) if wire
+                                        else sel.max_drawn)
+            self._draw_glyphs(sel, wire)
         self.g_status.content = (f"showing {len(self.rows):,} of {len(self.selected_rows):,} selected "
-                                 f"({len(self.gmap):,} in the map)")
+                                 f"({len(self.gmap):,} in the map)"
+                                 + (f"; at most {MAX_WIREFRAMES} wireframes" if wire else ""))
 
-    def _draw_glyphs(self, sel: Selection) -> None:
+    def _draw_glyphs(self, sel: Selection, wire: bool) -> None:
         rows, m = self.rows, self.gmap
         if not len(rows):
             self.server.scene.remove_by_name("/map/grasps")
+            self.server.scene.remove_by_name("/map/wires")
             return
         colours, (lo, hi) = self.data.colours(rows, sel.colour)
         self.g_scale.content = ("green: success, red: dropped, orange: slipped, grey: start collision"
@@ -178,6 +186,13 @@ class MapViewer:
                                 f"{sel.colour}: purple {lo:.3g} → yellow {hi:.3g}")
         s = float(self.g_size.value)
         opening = self.gripper.pregrasp_opening(m.width[rows])
+        if wire:  # the full gripper's boxes at each pose, edges in the grasp's colour (forks: to click)
+            seg = gripper_wireframe(self.gripper, m.select(rows).T_obj_wrist, opening)
+            self.server.scene.add_line_segments(
+                "/map/wires", seg, np.repeat(colours, len(seg) // len(rows), axis=0)[:, None].repeat(2, axis=1),
+                thickness=1.5, thickness_units="screen")
+        else:
+            self.server.scene.remove_by_name("/map/wires")
         scales = np.stack([opening, np.full(len(rows), s), np.full(len(rows), s)], axis=1)
         handle = self.server.scene.add_batched_meshes_simple(
             "/map/grasps", *self._glyph, batched_wxyzs=m.wrist_quat[rows], batched_positions=m.grasp_point[rows],

@@ -73,12 +73,21 @@ _EDGES = np.array([[0, 1], [2, 3], [4, 5], [6, 7], [0, 2], [1, 3], [4, 6], [5, 7
                    [2, 6], [3, 7]])
 
 
-def gripper_wireframe(gripper, T_obj_wrist: np.ndarray, opening: float) -> np.ndarray:
-    """(12B, 2, 3) edge segments [m] of the gripper's collision boxes (arm keep-out
-    included) at the wrist pose ``T_obj_wrist`` (4, 4) with pad gap ``opening`` [m]."""
-    centers, half = gripper.boxes_at(float(np.clip(opening, gripper.min_opening, gripper.max_opening)))
-    verts, _ = box_mesh(centers, half)
+def gripper_wireframe(gripper, T_obj_wrist: np.ndarray, opening) -> np.ndarray:
+    """Edge segments [m] of the gripper's collision boxes (arm keep-out included) at
+    wrist poses ``T_obj_wrist`` (4, 4) or (N, 4, 4) with pad gaps ``opening`` (scalar or
+    (N,)) [m]: (12B, 2, 3) for one pose, (N * 12B, 2, 3) for N."""
     T = np.asarray(T_obj_wrist, float)
-    world = verts.astype(float) @ T[:3, :3].T + T[:3, 3]
-    idx = (_EDGES[None] + 8 * np.arange(len(centers))[:, None, None]).reshape(-1, 2)
-    return world[idx].astype(np.float32)
+    single = T.ndim == 2
+    T = T.reshape(-1, 4, 4)
+    opening = np.clip(np.broadcast_to(np.asarray(opening, float), (len(T),)), gripper.min_opening,
+                      gripper.max_opening)
+    b = gripper.collision_boxes()
+    verts, _ = box_mesh(b.centers, b.half_extents)  # (8B, 3) at opening 0
+    shift = np.repeat(b.x_sign, 8) * 0.5  # each vertex's x moves with its box
+    local = np.repeat(verts[None].astype(float), len(T), axis=0)
+    local[:, :, 0] += shift[None] * opening[:, None]
+    world = np.einsum("nij,nvj->nvi", T[:, :3, :3], local) + T[:, None, :3, 3]
+    idx = (_EDGES[None] + 8 * np.arange(len(b.names))[:, None, None]).reshape(-1, 2)
+    seg = world[:, idx].reshape(-1, 2, 3).astype(np.float32)
+    return seg if not single else seg.reshape(-1, 2, 3)

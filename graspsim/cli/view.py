@@ -75,9 +75,11 @@ def run(args) -> int:
         if args.screenshot:
             from graspsim.viewer.snapshot import browser_render, save_png
 
-            save_png(browser_render(server, camera=viewer.camera, settle=0.5 if args.replay else 0.0),
-                     args.screenshot)
-            summary.update(screenshot=args.screenshot, frame_s=time.perf_counter() - t0)
+            browser: dict = {}
+            save_png(browser_render(server, camera=viewer.camera, settle=0.5 if args.replay else 0.0,
+                                    timings=browser), args.screenshot)
+            summary.update(screenshot=args.screenshot, frame_s=time.perf_counter() - t0,
+                           browser_connect_s=browser.get("connect_s"), browser_frame_s=browser.get("frame_s"))
         else:
             _serve(url, viewer, args.json)
     finally:

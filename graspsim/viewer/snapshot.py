@@ -46,14 +46,15 @@ def camera_wxyz(position, look_at, up=(0.0, 0.0, 1.0)) -> np.ndarray:
 
 
 def browser_render(server, *, size: tuple[int, int] = (600, 800), camera=None, fov_deg: float = 75.0,
-                   timeout: float = 60.0, settle: float = 0.0) -> np.ndarray:
+                   timeout: float = 60.0, settle: float = 0.0, timings: dict | None = None) -> np.ndarray:
     """Open ``server``'s page in headless Chromium and return its 3D canvas as an
     (H, W, 3) uint8 image; ``size``: (height, width) [px]; ``camera``: (position,
     look_at) [m] to render from (default: the page's own camera, which a new page may
     not have received yet). ``settle`` [s]: wait this long after the page connects
     (e.g. for a replay to advance). A frame drawn before the scene arrived (one flat
     colour) is asked for again until ``timeout`` [s]. The browser is ended before
-    returning, whatever happens."""
+    returning, whatever happens. ``timings``, if given, receives ``connect_s`` (browser
+    launch -> page connected) and ``frame_s`` (-> the returned frame received) [s]."""
     import logging
 
     # a browser closing a half-open connection is not an error worth a traceback
@@ -74,14 +75,18 @@ def browser_render(server, *, size: tuple[int, int] = (600, 800), camera=None, f
                 f"--window-size={w + 40},{h + 40}", "--remote-debugging-port=0", url]
         proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                 start_new_session=True)
-        deadline = time.monotonic() + timeout
+        t0 = time.monotonic()
+        deadline = t0 + timeout
         try:
             client = _wait_for_client(server, before, proc, deadline)
+            connected = time.monotonic()
             time.sleep(settle)
             while True:
                 img = _flatten(client.get_render(h, w, transport_format="png", **pose,
                                                  timeout=max(1.0, deadline - time.monotonic())))
                 if img.std() > 1.0 or time.monotonic() > deadline:
+                    if timings is not None:
+                        timings.update(connect_s=connected - t0, frame_s=time.monotonic() - t0)
                     break
                 time.sleep(0.2)
         except GraspsimError:

@@ -22,6 +22,7 @@ __all__ = ["MapViewer", "OBJECT_COLOUR", "MAX_WIREFRAMES", "GLYPHS"]
 
 GLYPHS = ("fork", "gripper wireframe")
 MAX_WIREFRAMES = 300  # full-gripper glyphs drawn at most (72 edges each)
+MAX_CLOUD = 200_000  # cloud points sent to the browser at most
 
 #: colour of a single-part object (the screenshot test looks for it)
 OBJECT_COLOUR = PART_COLOURS[0]
@@ -46,13 +47,16 @@ class MapViewer:
         if placement is not None and placement.table is not None:
             self._draw_table(placement)
         if cloud is not None:
-            pts = transform_points(self.T_obj_cloud, np.asarray(cloud, float))
-            self.cloud = server.scene.add_point_cloud("/map/cloud", pts.astype(np.float32), (40, 40, 40),
-                                         point_size=0.0015, point_shape="circle")
+            cloud = np.asarray(cloud, float)
+            if len(cloud) > MAX_CLOUD:  # a seeded subset: the browser needs no more
+                cloud = cloud[np.sort(np.random.default_rng(0).choice(len(cloud), MAX_CLOUD, replace=False))]
+            pts = transform_points(self.T_obj_cloud, cloud).astype(np.float32)
+            self.cloud = server.scene.add_point_cloud("/map/cloud", pts, (40, 40, 40), point_size=0.0015,
+                                                      point_shape="circle")
         if mesh is not None:
-            v = transform_points(self.T_obj_cloud, np.asarray(mesh.vertices, float))
-            self.mesh = server.scene.add_mesh_simple("/map/mesh", v.astype(np.float32), np.asarray(mesh.faces),
-                                         color=(160, 160, 170), opacity=0.5)
+            v = transform_points(self.T_obj_cloud, np.asarray(mesh.vertices, float)).astype(np.float32)
+            self.mesh = server.scene.add_mesh_simple("/map/mesh", v, np.asarray(mesh.faces),
+                                                     color=(160, 160, 170), opacity=0.5)
         self._glyph = fork_glyph()
         self._build_gui(selection, glyph_size)
         server.scene.set_up_direction("+z")
@@ -69,6 +73,20 @@ class MapViewer:
         from graspsim.errors import GraspsimError
         from graspsim.primitives import Compound
 
+        obj = self.gmap.meta.object
+        if obj.get("file"):  # a mesh object (its frame is the object frame): its file, if readable
+            from pathlib import Path
+
+            from graspsim.sim.meshes import load_mesh
+
+            path = Path(obj["file"])
+            if not path.is_absolute() and self.data.path is not None:
+                path = Path(self.data.path).parent / path  # as the simulator resolves it
+            try:
+                m = load_mesh(path, scale=float(obj.get("scale", 1.0)))
+            except GraspsimError:
+                return []
+            return [(np.asarray(m.vertices), m.faces)]
         try:
             shape = self.gmap.meta.shape
         except (GraspsimError, KeyError, TypeError, ValueError):

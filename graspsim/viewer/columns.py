@@ -44,13 +44,14 @@ class Selection:
 class ViewData:
     """A map and the per-grasp columns the viewer offers. numbers: name -> (N,) float;
     outcomes: simulation group name -> (N,) int (-1: not simulated); info: group ->
-    its JSON record (protocol, outcome codes)."""
+    its JSON record (protocol, outcome codes); path: the map file, if read from one."""
 
     gmap: GraspabilityMap
     numbers: dict[str, np.ndarray] = field(default_factory=dict)
     outcomes: dict[str, np.ndarray] = field(default_factory=dict)
     info: dict[str, dict] = field(default_factory=dict)
     seed: int = 0
+    path: Path | None = None
 
     @classmethod
     def from_map(cls, gmap: GraspabilityMap, path: str | os.PathLike | None = None) -> ViewData:
@@ -68,7 +69,7 @@ class ViewData:
                 for k, v in arrays.items():
                     if np.issubdtype(v.dtype, np.number) and v.ndim == 1:
                         numbers[f"{group}/{k}"] = v.astype(np.float64)
-        return cls(gmap, numbers, outcomes, info)
+        return cls(gmap, numbers, outcomes, info, path=None if path is None else Path(path))
 
     # ------------------------------------------------------------------ names
     def colour_names(self) -> list[str]:

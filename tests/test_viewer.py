@@ -230,6 +230,21 @@ def test_view_refuses_what_info_refuses(tmp_path, capsys):
     assert "does not exist" in err[2] and not any("Traceback" in e for e in err)
 
 
+@pytest.mark.parametrize("args, words", [
+    (["--host", "10.255.255.1"], "cannot serve on host"),
+    (["--colour", "nope"], "unknown colour column 'nope'"),
+    (["--replay", "MAP"], "not a graspsim trial recording"),
+    (["--pick", "60"], "pick must be a row of the map"),
+    (["--cloud", "missing.pcd"], "does not exist"),
+])
+def test_view_refuses_bad_options_in_one_line_before_serving(tmp_path, capsys, args, words):
+    path = _map_file(tmp_path)
+    args = [str(path) if a == "MAP" else a for a in args]
+    assert main(["view", str(path), "--port", "0", *args]) == 2
+    out, err = capsys.readouterr()
+    assert len(err.strip().splitlines()) == 1 and words in err and "http" not in out
+
+
 def test_view_without_viser_says_how_to_install_it(tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "viser", None)  # import viser now fails
     assert main(["view", str(_map_file(tmp_path))]) == 2

@@ -87,6 +87,9 @@ def load_recording(path: str | os.PathLike) -> TrialRecording:
     path = Path(path)
     if not path.is_file():
         raise MapFileError(f"trial recording {path} does not exist")
+    if not zipfile.is_zipfile(path):
+        raise MapFileError(f"{path} is not a graspsim trial recording (not an .npz file; write one with "
+                           "'graspsim trial MAP --record FILE.npz')")
     try:
         with np.load(path, allow_pickle=False) as z:
             if not isinstance(z, np.lib.npyio.NpzFile) or "meta" not in z.files:

@@ -107,6 +107,7 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
         from graspsim.errors import InvalidParameterError
 
         raise InvalidParameterError(f"pick must be a row of the map (0..{len(data.gmap) - 1}), got {pick}")
+    _check_host(host)
     server = _quietly(verbose, viser.ViserServer, host=host, port=port, verbose=verbose)
     try:
         server.gui.configure_theme(control_width="large", show_share_button=False)
@@ -130,6 +131,22 @@ def stop(server) -> None:
     if replay is not None:
         replay.stop()
     _quietly(False, server.stop)
+
+
+def _check_host(host: str) -> None:
+    """An address this machine cannot serve on is an error now (viser would wait on it
+    forever)."""
+    import socket
+
+    from graspsim.errors import InvalidParameterError
+
+    try:
+        infos = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)
+        with socket.socket(infos[0][0], socket.SOCK_STREAM) as sock:
+            sock.bind(infos[0][4][:2])
+    except OSError as err:
+        raise InvalidParameterError(f"cannot serve on host {host!r}: {err.strerror or err} (use 127.0.0.1 for this "
+                                    "machine, 0.0.0.0 for all its addresses)") from err
 
 
 def _quietly(loud: bool, fn, *args, **kwargs):

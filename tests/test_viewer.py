@@ -182,6 +182,23 @@ def test_an_adapted_map_shows_its_table_cloud_and_mesh_in_the_object_frame(tmp_p
         stop(server)
 
 
+def test_a_mesh_object_is_drawn_from_its_file_beside_the_map(tmp_path):
+    import trimesh
+
+    box = trimesh.creation.box((0.04, 0.06, 0.1))
+    box.export(tmp_path / "part.stl")
+    T = grasp_pose([0, 0, 0], [-1, 0, 0], [0, 1, 0])[None]
+    m = hand_made_map(Cylinder(0.02, 0.20), T, [0.04])
+    m = m.with_meta(object={"primitive": "mesh", "file": "part.stl", "scale": 1.0, "com": [0, 0, 0], "mass": 0.1})
+    path = save_map(m, tmp_path / "mesh.h5")
+    server = show(str(path), port=0)
+    try:
+        v = server.graspsim_viewer
+        assert np.allclose(v.extent, 0.5 * np.linalg.norm([0.04, 0.06, 0.1]))  # the box's half diagonal
+    finally:
+        stop(server)
+
+
 def _chromium_or_skip():
     from graspsim.viewer.snapshot import find_browser
 

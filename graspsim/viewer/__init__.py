@@ -89,18 +89,7 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
     viser = require_viser()
     from graspsim.viewer.app import MapViewer
 
-    if isinstance(cloud, (str, os.PathLike)):
-        from graspsim.perception.io import read_point_cloud
-
-        cloud = read_point_cloud(cloud).points
-    if isinstance(mesh, (str, os.PathLike)):
-        from graspsim.sim.meshes import load_mesh
-
-        mesh = load_mesh(Path(mesh))
-    if isinstance(recording, (str, os.PathLike)):
-        from graspsim.sim.recording import load_recording
-
-        recording = load_recording(recording)
+    cloud, mesh, recording = _read_inputs(cloud, mesh, recording)
     sel = Selection(colour=colour, min_grade=min_grade, max_drawn=max_drawn, top_k=top_k)
     data.selected(sel)  # a bad colour name or limit fails before the server starts
     if pick is not None and not 0 <= pick < len(data.gmap):
@@ -131,6 +120,24 @@ def stop(server) -> None:
     if replay is not None:
         replay.stop()
     _quietly(False, server.stop)
+
+
+def _read_inputs(cloud, mesh, recording):
+    """Files among the cloud, mesh and recording read (their own clear errors), the
+    rest passed through."""
+    if isinstance(cloud, (str, os.PathLike)):
+        from graspsim.perception.io import read_point_cloud
+
+        cloud = read_point_cloud(cloud).points
+    if isinstance(mesh, (str, os.PathLike)):
+        from graspsim.sim.meshes import load_mesh
+
+        mesh = load_mesh(Path(mesh))
+    if isinstance(recording, (str, os.PathLike)):
+        from graspsim.sim.recording import load_recording
+
+        recording = load_recording(recording)
+    return cloud, mesh, recording
 
 
 def _check_host(host: str) -> None:

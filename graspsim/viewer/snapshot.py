@@ -71,7 +71,7 @@ def browser_render(server, *, size: tuple[int, int] = (600, 800), camera=None, f
     with tempfile.TemporaryDirectory(prefix="graspsim-chromium-") as profile:
         argv = [browser, "--headless=new", "--no-sandbox", "--disable-gpu-sandbox", "--use-angle=swiftshader",
                 "--enable-unsafe-swiftshader", "--no-first-run", "--no-default-browser-check",
-                "--disable-extensions", "--mute-audio", f"--user-data-dir={profile}",
+                "--disable-extensions", "--mute-audio", "--disable-dev-shm-usage", f"--user-data-dir={profile}",
                 f"--window-size={w + 40},{h + 40}", "--remote-debugging-port=0", url]
         proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                 start_new_session=True)

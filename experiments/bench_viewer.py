@@ -57,6 +57,7 @@ def _fresh_url(path: str) -> dict:
     try:
         line = p.stderr.readline()
         url_s = time.perf_counter() - t0
+        cpu_s = _cpu_seconds(p.pid)
         if not line.startswith("graspsim view: http"):
             raise RuntimeError(f"view failed: {line}{p.stderr.read()}")
         url = line.split()[-1]
@@ -71,9 +72,20 @@ def _fresh_url(path: str) -> dict:
     if p.returncode != 0 or not out.strip():
         raise RuntimeError(f"view exited {p.returncode} after SIGINT: {err[-2000:]}")
     summary = json.loads(out.strip().splitlines()[-1])
-    return {"url_s": url_s, "page_status": status, "exit_after_sigint": p.returncode,
+    return {"url_s": url_s, "cpu_s_at_url": cpu_s, "page_status": status, "exit_after_sigint": p.returncode,
             "ready_s_inside": summary["ready_s"], "grasps": summary["grasps"], "drawn": summary["drawn"],
             "load_before": load0, "load_after": load_average()}
+
+
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU time [s] a running process has used so far, all its threads
+    (Linux /proc; NaN elsewhere): the work, whatever else the machine runs."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return float("nan")
 
 
 def _fresh_frame(path: str, png: str) -> dict:
@@ -147,6 +159,8 @@ def readme_section(summary: dict) -> str:
              h["fresh_first_url_s"]),
             (f"fresh process, median of the next {h['fresh_runs'] - 1}: launch → URL printed", h["fresh_median_url_s"]),
             ("… of which inside the command (after Python start-up and imports)", h["fresh_median_ready_inside_s"]),
+            ("… CPU time the process had used by then (all threads; independent of the load)",
+             h["fresh_median_cpu_s_at_url"]),
             ("fresh process: command start → first frame rendered by headless Chromium (software WebGL)",
              h["frame_inside_s"]),
             ("… of which Chromium's launch → page connected", h["browser_connect_s"]),
@@ -189,6 +203,7 @@ def main(argv: list[str] | None = None) -> int:
             "grasps": fresh[0]["grasps"], "drawn": fresh[0]["drawn"], "fresh_runs": len(fresh),
             "fresh_first_url_s": fresh[0]["url_s"], "fresh_median_url_s": med,
             "fresh_median_ready_inside_s": statistics.median(r["ready_s_inside"] for r in rest),
+            "fresh_median_cpu_s_at_url": statistics.median(r["cpu_s_at_url"] for r in rest),
             "first_run_file_cache_evicted": evicted,
             "frame_inside_s": frame["frame_s_inside"], "frame_wall_s": frame["wall_s"],
             "browser_connect_s": frame["browser_connect_s"], "browser_frame_s": frame["browser_frame_s"],

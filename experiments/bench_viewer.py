@@ -170,7 +170,8 @@ def readme_section(summary: dict) -> str:
     table = ["| what | seconds |", "|---|---|"] + [f"| {k} | {v:.2f} |" for k, v in rows]
     return ("\n".join(table) + "\n\n"
             f"A {h['grasps']:,}-grasp FS map (cylinder 2 cm × 20 cm), {h['drawn']:,} glyphs drawn. Goal: the map "
-            f"open and served ≤ {GOAL_S:g} s — {'met' if h['goal_met'] else 'NOT met'} (median fresh run). "
+            f"open and served ≤ {GOAL_S:g} s — {'met' if h['goal_met'] else 'NOT met'} (median fresh run, wall time "
+            f"on this shared machine); the process's own work by then is {h['fresh_median_cpu_s_at_url']:.2f} CPU s. "
             f"Ctrl-C ended every served run with exit status {h['sigint_exit_codes']}. The frame time adds "
             "Chromium's start and CPU-emulated WebGL; a browser already open on a GPU draws faster. "
             f"{m['cpus']} cores, load average {m['load_before'][0]} before, {m['load_after'][0]} after "

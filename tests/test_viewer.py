@@ -2,6 +2,7 @@
 the server as a script uses it, the command as a person uses it (errors, Ctrl-C) and a
 screenshot taken by headless Chromium."""
 
+import importlib.util
 import json
 import os
 import signal
@@ -19,6 +20,8 @@ from graspsim.gripper import HGPL_25_60_A
 from graspsim.maps import load_map, save_map, write_sim_results
 from graspsim.primitives import Cylinder
 from graspsim.sim.testing import grasp_pose, hand_made_map
+from graspsim.viewer import show, stop
+from graspsim.viewer.app import OBJECT_COLOUR
 from graspsim.viewer.columns import OUTCOME_PREFIX, Selection, ViewData
 from graspsim.viewer.glyphs import colormap, gripper_wireframe
 
@@ -103,9 +106,8 @@ def test_gripper_wireframe_and_colour_scale():
 
 
 # ---------------------------------------------------------------- the server (needs viser)
-viser = pytest.importorskip("viser")
-from graspsim.viewer import show, stop  # noqa: E402
-from graspsim.viewer.app import OBJECT_COLOUR  # noqa: E402
+needs_viser = pytest.mark.skipif(importlib.util.find_spec("viser") is None,
+                                 reason="viser is not installed (pip install -e '.[viewer]')")
 
 
 def _get(url: str, timeout: float = 30.0) -> int:
@@ -113,6 +115,7 @@ def _get(url: str, timeout: float = 30.0) -> int:
         return r.status
 
 
+@needs_viser
 def test_show_serves_the_page_and_its_gui_filters_and_picks(tmp_path):
     path = _map_file(tmp_path, n=120)
     server = show(str(path), port=0, max_drawn=40)
@@ -135,6 +138,7 @@ def test_show_serves_the_page_and_its_gui_filters_and_picks(tmp_path):
         _get(f"http://127.0.0.1:{port}/", timeout=5)
 
 
+@needs_viser
 def test_a_click_picks_the_instance_or_the_grasp_nearest_the_ray_and_wireframes_are_bounded(tmp_path):
     from types import SimpleNamespace
 
@@ -158,6 +162,7 @@ def test_a_click_picks_the_instance_or_the_grasp_nearest_the_ray_and_wireframes_
         stop(server)
 
 
+@needs_viser
 def test_an_adapted_map_shows_its_table_cloud_and_mesh_in_the_object_frame(tmp_path):
     import trimesh
 
@@ -182,6 +187,7 @@ def test_an_adapted_map_shows_its_table_cloud_and_mesh_in_the_object_frame(tmp_p
         stop(server)
 
 
+@needs_viser
 def test_a_mesh_object_is_drawn_from_its_file_beside_the_map(tmp_path):
     import trimesh
 
@@ -220,6 +226,7 @@ def _hue_share(img: np.ndarray, rgb, tol_deg: float = 12.0) -> float:
     return float(np.mean((sat > 0.35) & (d < tol_deg)))
 
 
+@needs_viser
 def test_screenshot_in_headless_chromium_shows_the_object(tmp_path):
     _chromium_or_skip()
     from graspsim.viewer.snapshot import browser_render
@@ -237,6 +244,7 @@ def test_screenshot_in_headless_chromium_shows_the_object(tmp_path):
 
 
 # ---------------------------------------------------------------- the command
+@needs_viser
 def test_view_refuses_what_info_refuses(tmp_path, capsys):
     bad = tmp_path / "bad.h5"
     bad.write_bytes(b"not hdf5 at all")
@@ -247,6 +255,7 @@ def test_view_refuses_what_info_refuses(tmp_path, capsys):
     assert "does not exist" in err[2] and not any("Traceback" in e for e in err)
 
 
+@needs_viser
 @pytest.mark.parametrize("args, words", [
     (["--host", "10.255.255.1"], "cannot serve on host"),
     (["--colour", "nope"], "unknown colour column 'nope'"),
@@ -269,6 +278,7 @@ def test_view_without_viser_says_how_to_install_it(tmp_path, monkeypatch, capsys
     assert len(err.splitlines()) == 1 and "pip install 'graspsim[viewer]'" in err
 
 
+@needs_viser
 def test_ctrl_c_stops_the_server_and_leaves_no_process(tmp_path):
     path = _map_file(tmp_path)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([os.getcwd(), os.environ.get("PYTHONPATH", "")])}
@@ -294,6 +304,7 @@ def test_ctrl_c_stops_the_server_and_leaves_no_process(tmp_path):
     time.sleep(0)
 
 
+@needs_viser
 def test_replay_moves_the_recorded_gripper_and_object_on_its_timeline(tmp_path):
     from graspsim.sim.recording import load_recording
     from graspsim.transforms import make_transform, quat_to_matrix

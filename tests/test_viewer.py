@@ -332,3 +332,83 @@ def test_replay_moves_the_recorded_gripper_and_object_on_its_timeline(tmp_path):
     finally:
         stop(server)
     assert not server.graspsim_replay._thread.is_alive()
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@needs_viser
+@pytest.mark.slow
+def test_clicking_a_glyph_in_chromium_picks_that_grasp(tmp_path):
+    """A real mouse click (Chrome DevTools Protocol) on a glyph's bridge, at the pixel
+    the viewer's camera projects it to, shows that grasp; a click on empty space none."""
+    _chromium_or_skip()
+    import tempfile
+
+    from websockets.sync.client import connect
+
+    from graspsim.transforms import quat_to_matrix
+    from graspsim.viewer.snapshot import _end, camera_wxyz, find_browser
+
+    a = np.array([-1.0, 1.0, 0.0]) / np.sqrt(2)  # approaching from the camera's side
+    T = grasp_pose([0, 0, 0], a, [1 / np.sqrt(2), 1 / np.sqrt(2), 0])[None]
+    path = save_map(hand_made_map(Cylinder(0.02, 0.20), T, [0.04]), tmp_path / "one.h5")
+    server = show(str(path), port=0)
+    v = server.graspsim_viewer
+    v.g_size.value = 2.0
+    position, look_at = (np.asarray(x, float) for x in v.camera)
+    bridge = -0.02 * 2.0 * a  # the fork's bridge: prong length x glyph size back along the approach
+    debug = _free_port()
+    with tempfile.TemporaryDirectory() as profile:
+        proc = subprocess.Popen(
+            [find_browser(), "--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+             "--disable-dev-shm-usage", f"--user-data-dir={profile}", "--window-size=1600,1100",
+             f"--remote-debugging-port={debug}", f"http://127.0.0.1:{server.get_port()}/"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+        try:
+            deadline = time.monotonic() + 120
+            while not server.get_clients() and time.monotonic() < deadline:
+                time.sleep(0.1)
+            client = next(iter(server.get_clients().values()))
+            while not np.allclose(client.camera.position, position, atol=1e-3) and time.monotonic() < deadline:
+                time.sleep(0.1)
+            with urllib.request.urlopen(f"http://127.0.0.1:{debug}/json/list", timeout=30) as r:
+                ws_url = next(p["webSocketDebuggerUrl"] for p in json.load(r) if p["type"] == "page")
+            with connect(ws_url, max_size=None) as ws:
+                calls = iter(range(1, 10_000))
+
+                def cdp(method, **params):
+                    i = next(calls)
+                    ws.send(json.dumps({"id": i, "method": method, "params": params}))
+                    while True:
+                        m = json.loads(ws.recv(timeout=60))
+                        if m.get("id") == i:
+                            return m.get("result", {})
+
+                def click(x, y):
+                    for kind in ("mouseMoved", "mousePressed", "mouseReleased"):
+                        cdp("Input.dispatchMouseEvent", type=kind, x=float(x), y=float(y), button="left",
+                            clickCount=1)
+
+                size = cdp("Runtime.evaluate", expression="[innerWidth, innerHeight].join()", returnByValue=True)
+                w, h = (int(x) for x in size["result"]["value"].split(","))
+                p = quat_to_matrix(camera_wxyz(position, look_at)).T @ (bridge - position)  # camera frame
+                f = 0.5 * h / np.tan(0.5 * client.camera.fov)
+                u, y = 0.5 * w + f * p[0] / p[2], 0.5 * h + f * p[1] / p[2]
+                click(0.1 * w, 0.9 * h)  # empty space
+                time.sleep(1.0)
+                assert v.picked is None
+                while v.picked is None and time.monotonic() < deadline:  # until the glyph is drawn
+                    click(u, y)
+                    t = time.monotonic()
+                    while v.picked is None and time.monotonic() < t + 3:
+                        time.sleep(0.05)
+        finally:
+            _end(proc)
+            stop(server)
+    assert v.picked == 0 and "**grade**" in v.g_details.content

@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shlex
 import signal
 import statistics
 import subprocess
@@ -38,7 +37,7 @@ import urllib.request
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import load_average, provenance, write_summary  # noqa: E402
+from _common import RunRecord, load_average  # noqa: E402
 
 STEM = "bench_viewer"
 GOAL_S = 3.0
@@ -174,9 +173,32 @@ def readme_section(summary: dict) -> str:
             f"on this shared machine); the process's own work by then is {h['fresh_median_cpu_s_at_url']:.2f} CPU s. "
             f"Ctrl-C ended every served run with exit status {h['sigint_exit_codes']}. The frame time adds "
             "Chromium's start and CPU-emulated WebGL; a browser already open on a GPU draws faster. "
-            f"{m['cpus']} cores, load average {m['load_before'][0]} before, {m['load_after'][0]} after "
+            f"{m['cpus']} cores, load average {_load(m, 'start')} at the start, {_load(m, 'end')} at the end "
             "(shared machine).\n\n"
             f"`{summary['command']}`")
+
+
+def _load(machine: dict, when: str) -> float:
+    """1-minute load average at the run's start or end (older summaries: before / after)."""
+    old = {"start": "load_before", "end": "load_after"}[when]
+    return (machine.get(f"load_avg_{when}") or machine.get(old) or [float("nan")])[0]
+
+
+def _write(run: RunRecord, out: str, data: dict, publish: bool) -> str:
+    """summary.json and README.md in ``out`` (and the published copy): what
+    ``RunRecord.write`` of the harness does, spelled out with what every version of it has."""
+    from graspsim._jsonable import to_jsonable
+    from graspsim.calibration.outputs import write_json, write_text
+
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    summary = to_jsonable(run.summary(data))
+    text = readme_section(summary)
+    write_json(folder / "summary.json", summary)
+    write_text(folder / "README.md", text)
+    if publish:
+        write_json(Path(__file__).resolve().parent / "reported" / f"{STEM}.json", summary)
+    return text
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -187,8 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--publish", action="store_true",
                     help=f"also copy summary.json to experiments/reported/{STEM}.json")
     a = ap.parse_args(argv)
-    argv_used = sys.argv[1:] if argv is None else argv
-    load_before = load_average()
+    run = RunRecord(__file__, argv)
     with tempfile.TemporaryDirectory() as folder:
         path = a.map or _make_map(folder)
         evicted = _evict(path)  # the first run reads the file from disk
@@ -198,8 +219,7 @@ def main(argv: list[str] | None = None) -> int:
         inproc = _in_process(path, 2)
     rest = fresh[1:]
     med = statistics.median(r["url_s"] for r in rest)
-    summary = {
-        "command": " ".join(["python experiments/bench_viewer.py", *map(shlex.quote, argv_used)]),
+    data = {
         "headline": {
             "grasps": fresh[0]["grasps"], "drawn": fresh[0]["drawn"], "fresh_runs": len(fresh),
             "fresh_first_url_s": fresh[0]["url_s"], "fresh_median_url_s": med,
@@ -213,11 +233,10 @@ def main(argv: list[str] | None = None) -> int:
             "sigint_exit_codes": sorted({r["exit_after_sigint"] for r in fresh}),
             "denominator": f"first of {len(fresh)} fresh processes, then the median of the other "
                            f"{len(rest)}; one screenshot process; in-process: median of 2 shows and 6 filter changes"},
+        "config": {"map": a.map, "repeat": a.repeat}, "viewer_versions": _versions(),
         "fresh": fresh, "frame": frame, "in_process": inproc,
-        "machine": {"cpus": os.cpu_count(), "load_before": load_before, "load_after": load_average()},
-        "provenance": provenance(), "versions": _versions(),
     }
-    print(write_summary(summary, a.out, STEM, readme_section, publish=a.publish))
+    print(_write(run, a.out, data, a.publish))
     return 0
 
 

@@ -17,7 +17,7 @@ import pytest
 import graspsim
 from graspsim.cli import COMMAND_MODULES, build_parser
 
-HEAVY = ("numpy", "scipy", "trimesh", "numba", "h5py", "mujoco", "gymnasium", "matplotlib", "tqdm")
+HEAVY = ("numpy", "scipy", "trimesh", "numba", "h5py", "mujoco", "gymnasium", "matplotlib", "tqdm", "viser")
 
 
 def _run(code: str) -> str:

@@ -32,6 +32,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.campaign",
     "graspsim.cli.calibrate",
     "graspsim.cli.warmup",
+    "graspsim.cli.view",
 )
 
 

@@ -53,6 +53,9 @@ def register(subparsers) -> None:
     p.add_argument("--render", metavar="DIR", help="write PNGs (and a GIF) of the first trials that start clear")
     p.add_argument("--render-count", type=int, default=3, metavar="K",
                    help="how many trials --render pictures (default 3)")
+    p.add_argument("--record", metavar="FILE",
+                   help="also save the trials' trajectories (25 frames/s, the first 2000 trials "
+                        "that start clear) to FILE (.npz), for 'graspsim view MAP --replay FILE'")
     p.add_argument("--no-write", action="store_true", help="do not store results in the map")
     p.add_argument("--all", action="store_true",
                    help=f"run the selection however large (without it, more than {MAX_TRIALS:,} "
@@ -78,6 +81,13 @@ def run(args) -> int:
         from graspsim._atomic import check_folder
 
         check_folder(args.render, "render folder")  # before the work, not after it
+    recorder = None
+    if args.record:
+        from graspsim._atomic import check_output
+        from graspsim.sim.recording import Recorder
+
+        check_output(args.record, "trial recording")
+        recorder = Recorder()
     settings = None
     if args.friction is not None or args.grip_force is not None:
         mu = args.friction
@@ -98,7 +108,8 @@ def run(args) -> int:
             min_grade=args.min_grade, threads=args.threads, seed=args.seed,
             noise=ExecutionNoise() if args.noise else None, mesh=args.mesh,
             mesh_scale=args.mesh_scale, mass=args.mass, settings=settings,
-            write=not args.no_write, on_progress=tick, on_selected=_selection_check(args, bar))
+            write=not args.no_write, on_progress=tick, on_selected=_selection_check(args, bar),
+            on_record=recorder)
     finally:
         bar.close()
     res = out.results
@@ -118,13 +129,15 @@ def run(args) -> int:
             paths = render_trial(out.scene, None, float(gmap.width[i]), args.render, protocol,
                                  name=f"grasp{i:06d}", gif=True, T_world_wrist=res.T_world_wrist[j])
             renders += [str(p) for p in paths]
+    if recorder is not None:
+        recorder.recording(out.scene, out.index, res.outcome, res.protocol).save(args.record)
     counts = res.counts()
     summary = {
         "file": str(args.map), "protocol": protocol.name, "trials": len(res),
         "feasible": res.feasible, "counts": counts, "success_rate": res.success_rate,
         "trials_per_second": res.trials_per_second, "wall_time_s": res.wall_time,
         "threads": res.threads, "seed": args.seed, "noise": res.noise,
-        "mesh": args.mesh, "written_to": out.group, "renders": renders,
+        "mesh": args.mesh, "written_to": out.group, "renders": renders, "record": args.record,
     }
     n = max(1, len(res))
     rows = [(o.label, counts[o.label], 100.0 * counts[o.label] / n) for o in TrialOutcome]

@@ -132,7 +132,8 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
                protocol: Protocol = LiftPlace(), *, threads: int | None = None, seed: int = 0,
                noise: ExecutionNoise | None = None, backend: str = "rollout",
                chunk: int | None = None,
-               on_progress: Callable[[int], None] | None = None) -> TrialResults:
+               on_progress: Callable[[int], None] | None = None,
+               on_record: Callable[[np.ndarray, Record], None] | None = None) -> TrialResults:
     """Simulate N grasps of ``scene`` under ``protocol``.
 
     T_obj_wrist: (N, 4, 4) wrist poses in the object frame; widths: (N,) contact
@@ -140,6 +141,8 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     threads (default: all cores); seed: draws the execution noise (if ``noise``), one
     independent draw per trial in trial order, so results do not depend on threads.
     on_progress(k): called with the number of trials finished after each chunk.
+    on_record(index, record): called after each chunk with its trial numbers (n,) and
+    their full :class:`Record` (e.g. a :class:`~graspsim.sim.recording.Recorder`).
     """
     t_start = time.perf_counter()
     T = np.asarray(T_obj_wrist, dtype=float)
@@ -181,8 +184,10 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
             control = protocol.controls(scene, T_world[idx])
             states, sens = simulate(scene, protocol, state0[idx], control, pool=pool,
                                     datas=datas, backend=backend)
-            out, met = protocol.judge(scene, _record(scene, states, sens),
-                                      np.repeat(obj_q[None], len(idx), axis=0))
+            rec = _record(scene, states, sens)
+            out, met = protocol.judge(scene, rec, np.repeat(obj_q[None], len(idx), axis=0))
+            if on_record is not None:
+                on_record(idx, rec)
             outcome[idx] = out
             for k, v in met.items():
                 metrics.setdefault(k, np.full(n, np.nan))[idx] = v

@@ -169,14 +169,15 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                  mesh: str | os.PathLike | None = None, mesh_scale: float = 1.0,
                  mass: float | None = None, settings: SimSettings | None = None,
                  write: bool = True, cache_dir=None, on_progress=None,
-                 on_selected=None) -> MapTrials:
+                 on_selected=None, on_record=None) -> MapTrials:
     """Simulate grasps of the map file ``path`` and (``write``) store the results in it.
 
     settings: defaults to :class:`SimSettings` with the pad friction of the map's quality
     model (the planner's mu). Selection: see :func:`select_grasps` (``seed`` also draws
     the uniform sample). ``on_selected(gmap, index)`` is called once the rows are chosen
     and before anything is simulated (it may raise to stop, e.g. on an empty or huge
-    selection).
+    selection). ``on_record``: see :func:`~graspsim.sim.batch.run_trials` (trial numbers
+    are positions in ``MapTrials.index``).
     """
     path = Path(path)
     gmap = load_map(path)
@@ -193,7 +194,8 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     up = _cloud_up(gmap, mesh is not None)
     scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity, up=up)
     results = run_trials(scene, gmap.T_obj_wrist[index], gmap.width[index], protocol,
-                         threads=threads, seed=seed, noise=noise, on_progress=on_progress)
+                         threads=threads, seed=seed, noise=noise, on_progress=on_progress,
+                         on_record=on_record)
     results = replace(results, extra={"map_file": str(path),
                                       "mesh": None if mesh is None else str(mesh)})
     group = write_results(path, len(gmap), index, results) if write and len(index) else None

@@ -1,0 +1,127 @@
+"""``graspsim view``: the interactive 3D viewer in the browser (viser).
+
+    graspsim view MAP.h5 [--cloud CLOUD] [--mesh MESH] [--replay TRIALS.npz]
+                  [--port P] [--host H] [--max-drawn N] [--screenshot PNG]
+
+Prints the URL and serves until Ctrl-C (then stops the server and exits 0). A map
+file the viewer cannot read is refused with the same error as ``graspsim info``;
+without viser the command says how to install it. ``--screenshot`` opens the page in
+headless Chromium, saves what it draws and exits (no serving).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from graspsim.cli._common import add_json_flag, emit
+
+__all__ = ["register", "run"]
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "view", help="interactive 3D viewer of a map (and cloud, mesh, trial replay) in the browser",
+        description="Serve a map in the browser (viser): the object's primitives coloured by part, "
+                    "the table, the cloud and mesh when given, and the grasps as glyphs coloured by "
+                    "grade, robust score or simulated outcome, with filters; click a grasp for its "
+                    "numbers and the full gripper. Ctrl-C stops it. Needs the 'viewer' extra: "
+                    "pip install 'graspsim[viewer]'.")
+    p.add_argument("map", metavar="MAP.h5", help="graspability map file")
+    p.add_argument("--cloud", metavar="CLOUD", help="the observed cloud (.pcd/.ply/.npy/.xyz), cloud frame")
+    p.add_argument("--mesh", metavar="MESH", help="the true mesh (.obj/.stl/.ply ...), cloud frame")
+    p.add_argument("--replay", metavar="TRIALS.npz",
+                   help="trials recorded by 'graspsim trial MAP --record TRIALS.npz', on a timeline")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to serve on (default 127.0.0.1: this machine only; 0.0.0.0: all)")
+    p.add_argument("--port", type=int, default=8080, help="first port tried (default 8080; the next free "
+                   "one is taken)")
+    p.add_argument("--colour", default="grade", help="initial colour column (default grade)")
+    p.add_argument("--min-grade", type=float, default=0.0, help="initial min-grade filter (default 0)")
+    p.add_argument("--top", type=int, default=0, metavar="K", help="initial top-K filter (default 0: all)")
+    p.add_argument("--pick", type=int, metavar="ROW", help="show this grasp's numbers and full gripper at start")
+    p.add_argument("--max-drawn", type=int, default=2000, metavar="N",
+                   help="draw at most N grasps (default 2000; the filters use all)")
+    p.add_argument("--screenshot", metavar="PNG",
+                   help="save what headless Chromium draws to PNG and exit instead of serving")
+    add_json_flag(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    t0 = time.perf_counter()
+    from graspsim.errors import InvalidParameterError
+    from graspsim.viewer import require_viser, show
+
+    require_viser(load=False)  # before reading anything
+    if not 0 <= args.port <= 65535:
+        raise InvalidParameterError(f"--port must be in 0..65535, got {args.port}")
+    if args.max_drawn < 1 or args.top < 0:
+        raise InvalidParameterError(f"--max-drawn must be >= 1 and --top >= 0, got {args.max_drawn}, {args.top}")
+    if args.screenshot:
+        from graspsim._atomic import check_output
+
+        check_output(args.screenshot, "screenshot")
+    _quiet_server_logs()
+    server = show(args.map, cloud=args.cloud, mesh=args.mesh, recording=args.replay, host=args.host,
+                  port=args.port, max_drawn=args.max_drawn, min_grade=args.min_grade, colour=args.colour,
+                  top_k=args.top, pick=args.pick)
+    ready = time.perf_counter() - t0
+    url = f"http://{'localhost' if args.host in ('0.0.0.0', '127.0.0.1') else args.host}:{server.get_port()}"
+    viewer = server.graspsim_viewer
+    summary = {"file": args.map, "url": url, "grasps": len(viewer.gmap), "drawn": len(viewer.rows),
+               "selected": len(viewer.selected_rows), "ready_s": ready}
+    try:
+        if args.screenshot:
+            from graspsim.viewer.snapshot import browser_render, save_png
+
+            browser: dict = {}
+            save_png(browser_render(server, camera=viewer.camera, settle=0.5 if args.replay else 0.0,
+                                    timings=browser), args.screenshot)
+            summary.update(screenshot=args.screenshot, frame_s=time.perf_counter() - t0,
+                           browser_connect_s=browser.get("connect_s"), browser_frame_s=browser.get("frame_s"))
+        else:
+            _serve(url, viewer, args.json)
+    finally:
+        _stop_uninterrupted(server)
+    emit(summary, args.json, f"wrote {args.screenshot}" if args.screenshot else "graspsim view: stopped")
+    return 0
+
+
+def _serve(url: str, viewer, as_json: bool) -> None:
+    """Print the URL (stdout, or stderr under --json) and serve until Ctrl-C."""
+    try:
+        if as_json:
+            print(f"graspsim view: {url}", file=sys.stderr, flush=True)
+        else:
+            print(f"graspsim view: {url}  ({len(viewer.rows):,} of {len(viewer.gmap):,} grasps drawn; "
+                  "Ctrl-C stops)", flush=True)
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+
+
+def _stop_uninterrupted(server) -> None:
+    """Stop the server; a second Ctrl-C meanwhile does not cut the shutdown short."""
+    import signal
+    import threading
+
+    from graspsim.viewer import stop
+
+    if threading.current_thread() is not threading.main_thread():
+        stop(server)
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        stop(server)
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def _quiet_server_logs() -> None:
+    """A browser closing a half-open connection is not an error worth a traceback."""
+    import logging
+
+    for name in ("websockets.server", "websockets"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)

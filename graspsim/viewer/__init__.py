@@ -1,0 +1,168 @@
+"""Interactive 3D viewer in the browser (viser): maps, clouds, meshes and trial replays.
+
+    import graspsim.viewer
+    server = graspsim.viewer.show("cyl.h5")            # or a GraspabilityMap
+    print(server.get_port())                           # open http://localhost:PORT
+    ...
+    graspsim.viewer.stop(server)
+
+viser is an optional dependency (``pip install 'graspsim[viewer]'``); without it
+:func:`show` raises :class:`~graspsim.errors.DependencyNotInstalled` saying so, and the
+rest of graspsim is unaffected (nothing here is imported by ``import graspsim``).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from graspsim.errors import DependencyNotInstalled
+
+__all__ = ["show", "stop", "require_viser", "INSTALL_HINT"]
+
+INSTALL_HINT = "pip install 'graspsim[viewer]'"
+
+
+def require_viser(*, load: bool = True):
+    """The viser module (``load=False``: only check it is installed, without the
+    import), or :class:`DependencyNotInstalled` naming what to install."""
+    import importlib.util
+
+    try:
+        found = importlib.util.find_spec("viser") is not None
+    except (ImportError, ValueError):  # e.g. sys.modules["viser"] is None
+        found = False
+    if not found:
+        raise DependencyNotInstalled(f"the viewer needs viser, which is not installed: {INSTALL_HINT}")
+    if not load:
+        return None
+    try:
+        import viser
+    except ImportError as err:
+        raise DependencyNotInstalled(f"the viewer needs viser, which cannot be imported ({err}): "
+                                     f"{INSTALL_HINT}") from err
+    return viser
+
+
+def _preload() -> None:
+    """Import what the scene needs (viser, trimesh for the primitives' meshes) while
+    the map is read: the two overlap, which shortens opening a large map."""
+    import contextlib
+
+    with contextlib.suppress(Exception):  # a real failure is reported by the import itself
+        import trimesh  # noqa: F401
+        import viser  # noqa: F401
+
+        import graspsim.viewer.app  # noqa: F401
+
+
+def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1", port: int = 8080,
+         max_drawn: int = 2000, min_grade: float = 0.0, colour: str = "grade", top_k: int = 0,
+         pick: int | None = None, verbose: bool = False):
+    """Serve a map in the browser and return the running ``viser.ViserServer``
+    (``server.get_port()``; :func:`stop` ends it). Does not block.
+
+    map: a map file (its simulation and robust-score columns are shown too) or a
+    :class:`~graspsim.maps.GraspabilityMap`. cloud: (N, 3) points or a cloud file, in
+    the cloud's frame; mesh: a ``trimesh.Trimesh`` or a mesh file, in the cloud's
+    frame (both placed by the map's ``T_cloud_obj``). recording: a
+    :class:`~graspsim.sim.recording.TrialRecording` or its file, replayed with a
+    timeline. port: the first port tried (the next free one is taken; 0: any).
+    max_drawn, min_grade, colour, top_k: the GUI's initial settings; pick: a map row
+    whose numbers and full gripper are shown at start.
+    """
+    import threading
+
+    require_viser(load=False)
+    warm = threading.Thread(target=_preload, name="graspsim-viewer-preload", daemon=True)
+    warm.start()
+    from graspsim.maps.graspmap import GraspabilityMap
+    from graspsim.viewer.columns import Selection, ViewData
+
+    if isinstance(map, GraspabilityMap):
+        data = ViewData.from_map(map)
+    else:
+        from graspsim.maps.io import load_map
+
+        data = ViewData.from_map(load_map(map), map)
+    warm.join()
+    viser = require_viser()
+    from graspsim.viewer.app import MapViewer
+
+    cloud, mesh, recording = _read_inputs(cloud, mesh, recording)
+    sel = Selection(colour=colour, min_grade=min_grade, max_drawn=max_drawn, top_k=top_k)
+    data.selected(sel)  # a bad colour name or limit fails before the server starts
+    if pick is not None and not 0 <= pick < len(data.gmap):
+        from graspsim.errors import InvalidParameterError
+
+        raise InvalidParameterError(f"pick must be a row of the map (0..{len(data.gmap) - 1}), got {pick}")
+    _check_host(host)
+    server = _quietly(verbose, viser.ViserServer, host=host, port=port, verbose=verbose)
+    try:
+        server.gui.configure_theme(control_width="large", show_share_button=False)
+        viewer = MapViewer(server, data, cloud=cloud, mesh=mesh, selection=sel)
+        if pick is not None:
+            viewer.g_row.value = int(pick)
+        if recording is not None:
+            from graspsim.viewer.replay import Replay
+
+            server.graspsim_replay = Replay(server, recording, hide=viewer)
+    except BaseException:
+        server.stop()
+        raise
+    server.graspsim_viewer = viewer  # the scene and GUI state (tests, scripts)
+    return server
+
+
+def stop(server) -> None:
+    """Stop a server started by :func:`show` (and its replay's playback thread)."""
+    replay = getattr(server, "graspsim_replay", None)
+    if replay is not None:
+        replay.stop()
+    _quietly(False, server.stop)
+
+
+def _read_inputs(cloud, mesh, recording):
+    """Files among the cloud, mesh and recording read (their own clear errors), the
+    rest passed through."""
+    if isinstance(cloud, (str, os.PathLike)):
+        from graspsim.perception.io import read_point_cloud
+
+        cloud = read_point_cloud(cloud).points
+    if isinstance(mesh, (str, os.PathLike)):
+        from graspsim.sim.meshes import load_mesh
+
+        mesh = load_mesh(Path(mesh))
+    if isinstance(recording, (str, os.PathLike)):
+        from graspsim.sim.recording import load_recording
+
+        recording = load_recording(recording)
+    return cloud, mesh, recording
+
+
+def _check_host(host: str) -> None:
+    """An address this machine cannot serve on is an error now (viser would wait on it
+    forever)."""
+    import socket
+
+    from graspsim.errors import InvalidParameterError
+
+    try:
+        infos = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)
+        with socket.socket(infos[0][0], socket.SOCK_STREAM) as sock:
+            sock.bind(infos[0][4][:2])
+    except OSError as err:
+        raise InvalidParameterError(f"cannot serve on host {host!r}: {err.strerror or err} (use 127.0.0.1 for this "
+                                    "machine, 0.0.0.0 for all its addresses)") from err
+
+
+def _quietly(loud: bool, fn, *args, **kwargs):
+    """Call ``fn`` with viser's banner lines ("HTTP ...", "Server stopped") kept off
+    standard output unless ``loud``."""
+    import contextlib
+    import io
+
+    if loud:
+        return fn(*args, **kwargs)
+    with contextlib.redirect_stdout(io.StringIO()):
+        return fn(*args, **kwargs)

@@ -3,8 +3,8 @@
 Full mode: 5 primitives x 7 size variants x repetitions {1, 5, 10, 20, 30, 40, 60,
 100, 400} x 100 trials, on complete clouds (0.5 cm resolution, 1 mm Gaussian noise,
 1 % outliers, random poses) and, reported separately, on single-view partial clouds
-(1 mm depth noise along the viewing ray). ``--quick``: 2 trials, repetitions
-{1, 10, 100}, for CI. Writes summary.json, results.json, table.md, figure4.png and
+(1 mm depth noise along the viewing ray). ``--quick``: one trial of one size per
+primitive at 1 and 10 repetitions, for CI. Writes summary.json, results.json, table.md, figure4.png and
 config.json into ``--out``. Each trial has its own stream, ``seed_sequence(seed, mode,
 kind, variant, repetitions, trial)`` (``graspsim.seeding``), so results do not depend on
 ``--workers``. The README's reduced runs:
@@ -53,7 +53,7 @@ class E01Config:
     workers: int = opt(os.cpu_count() or 1, "worker processes")
     noise: float = opt(0.001, "sensor sigma [m]")
     outliers: float = opt(0.01, "outlier fraction")
-    QUICK: ClassVar[dict] = {"repetitions": (1, 10, 100), "trials": 2}
+    QUICK: ClassVar[dict] = {"repetitions": (1, 10), "trials": 1, "variants": 1, "workers": 1}
 
     def __post_init__(self) -> None:
         if not 1 <= self.variants <= 7 or self.trials < 1 or self.workers < 1:

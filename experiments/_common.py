@@ -33,8 +33,9 @@ What lives here, one of each:
 * **Seeds**: ``rng_for(cfg.seed, *keys)`` / ``derived_seed`` from
   :mod:`graspsim.seeding`, the rule the library uses too: one integer seed per run,
   streams keyed by names (CRC-32) and indices. Never ``sum(map(ord, name))``.
-* **Scenes**: :func:`standing_cloud`, an object standing on the table at a random yaw,
-  seen as a (single-view) cloud.
+* **Maps and scenes**: :func:`map_config` (the default or the quick runs' coarse maps),
+  :func:`standing_cloud` (an object standing on the table at a random yaw, seen as a
+  (single-view) cloud).
 * **Timing**: :class:`Clock`, :func:`stopwatch`, :func:`load_average`,
   :func:`run_fresh` (a command in a fresh process: wall, CPU, peak RSS) and
   :func:`run_cli_fresh` (``graspsim ARGS`` so, with the process's own peak RSS).
@@ -70,7 +71,7 @@ from graspsim.calibration.outputs import library_versions, write_json, write_tex
 from graspsim.seeding import derived_seed, rng_for, seed_sequence
 
 __all__ = ["opt", "parse_config", "RunRecord", "machine_load", "provenance", "default_out",
-           "rng_for", "derived_seed", "seed_sequence", "standing_cloud",
+           "rng_for", "derived_seed", "seed_sequence", "map_config", "standing_cloud",
            "Clock", "stopwatch", "load_average", "run_fresh", "run_cli_fresh",
            "write_json", "write_text", "write_config", "fmt", "md_table", "mean_sd_text", "pct", "rate_ci",
            "DEFAULT_NOISE", "noise_sigmas", "database_record", "database_note"]
@@ -210,7 +211,17 @@ def write_config(path: Path, cfg) -> None:
     write_json(path, cfg)
 
 
-# ------------------------------------------------------------------ scenes
+# ------------------------------------------------------------------ maps and scenes
+def map_config(quick: bool = False, **kw):
+    """The scripts' ``MapConfig(**kw)``: at the library's default resolution, or for
+    quick runs coarse (1 cm surface step, 22 deg rotation step)."""
+    from graspsim.maps.generate import MapConfig
+
+    if quick:
+        kw = {"surface_step": 0.01, "rotation_step": math.radians(22.0), **kw}
+    return MapConfig(**kw)
+
+
 def standing_cloud(truth, rng: np.random.Generator, *, resolution: float, noise: float, outliers: float,
                    at=(0.55, -0.05), camera: tuple[float, float] | None = None):
     """A cloud of ``truth`` (a Primitive or Compound) standing on the table (z = 0) at

@@ -38,7 +38,17 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, RunRecord, load_average, machine_load, mean_sd_text, opt, parse_config, write_json
+from _common import (
+    Clock,
+    RunRecord,
+    load_average,
+    machine_load,
+    map_config,
+    mean_sd_text,
+    opt,
+    parse_config,
+    write_json,
+)
 from _stats import mean_sd, mixed_anova, p_text, paired_posthoc, tests_markdown
 
 from graspsim.gripper import HGPL_25_60_A
@@ -73,7 +83,6 @@ VARIANTS: tuple[tuple[str, float, float, str, str], ...] = (
     ("S5", 0.012, 0.12, "smaller", "both"),
 )
 NAMES = tuple(v[0] for v in VARIANTS)
-QUICK_MAP = MapConfig(surface_step=0.01, rotation_step=math.radians(22.0))
 
 
 @dataclass(frozen=True)
@@ -105,7 +114,7 @@ class E02Config:
 
     @property
     def map_config(self) -> MapConfig:
-        return QUICK_MAP if self.quick else MapConfig()
+        return map_config(self.quick)
 
     def record(self) -> dict:
         """The config as summaries hold it (the variants' sizes and the map settings spelt out)."""

@@ -50,7 +50,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, RunRecord, fmt, load_average, machine_load, opt, parse_config, rng_for, write_json
+from _common import Clock, RunRecord, fmt, machine_load, map_config, opt, parse_config, rng_for, write_json
 
 from graspsim import case_study_objects as analogs
 from graspsim.maps import generate as _generate
@@ -116,7 +116,7 @@ class E03Config:
 
     @property
     def map_config(self) -> MapConfig:
-        return MapConfig(surface_step=0.01, rotation_step=math.radians(22.0)) if self.quick else MapConfig()
+        return map_config(self.quick)
 
     def record(self) -> dict:
         """The config as summaries hold it (cloud and map settings spelt out)."""
@@ -164,16 +164,8 @@ class _ThetaLog(logging.Handler):
 def _db_view(base: MapDatabase, tmp: Path) -> MapDatabase:
     """A database over the base's files (linked) in a fresh folder: parts built during a
     run land there and vanish with it. FS maps are loaded (accepted prefix) up front."""
-    view = tmp / "db"
-    if view.exists():
-        shutil.rmtree(view)
-    view.mkdir()
-    shutil.copy2(base.index_path, view / "index.json")
-    for e in base.entries():
-        dst = view / e["file"]
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        dst.symlink_to((base.root / e["file"]).resolve())
-    db = MapDatabase(view, gripper=base.gripper, quality=base.quality, config=base.config)
+    shutil.rmtree(tmp / "db", ignore_errors=True)
+    db = base.linked_copy(tmp / "db")
     for e in db.entries():
         db.load_entry(e, accepted_only=True)
     return db
@@ -347,7 +339,7 @@ def main(argv=None) -> int:
     db_info = {"root": db_root, "config": "1 cm / 22 deg" if cfg.quick else "0.5 cm / 11 deg",
                "maps": [{k: e[k] for k in ("primitive", "dims", "grasps", "accepted", "seconds")} for e in built],
                "build_or_check_s": c.wall}
-    log.info("E03: FS database %s ready in %.1f s; load %s", db_root, c.wall, load_average())
+    log.info("E03: FS database %s ready in %.1f s; load %s", db_root, c.wall, c.load)
     objects, figure_maps, clouds = [], [], {}
     with tempfile.TemporaryDirectory(prefix="e03-") as tmp:
         tmp = Path(tmp)

@@ -37,7 +37,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, md_table, opt, parse_config, rate_ci, rng_for, standing_cloud, write_text
+from _common import RunRecord, map_config, md_table, opt, parse_config, rate_ci, rng_for, standing_cloud, write_text
 
 from graspsim.calibration import CalibrationCase, SimCondition, TrialTable, simulate_samples, wilson_interval
 from graspsim.calibration.trials import CaseSample, case_clears_table
@@ -59,7 +59,6 @@ log = logging.getLogger("e04")
 SELECTIONS = ("paper", "paper_low", "all", "pad_contact")
 LABELS = {"paper": "paper grade > 0.7", "paper_low": "paper grade <= 0.7", "all": "any grade (base rate)",
           "pad_contact": "pad-contact grade > its threshold"}
-QUICK_MAP = MapConfig(surface_step=0.01, rotation_step=math.radians(22.0))
 
 
 @dataclass(frozen=True)
@@ -88,7 +87,7 @@ class Config:
 
     @property
     def map_config(self) -> MapConfig:
-        return QUICK_MAP if self.quick else MapConfig()
+        return map_config(self.quick)
 
 
 # ------------------------------------------------------------------------- cases

@@ -39,7 +39,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, fmt, md_table, opt, parse_config, pct, write_text
+from _common import RunRecord, fmt, map_config, md_table, opt, parse_config, pct, write_text
 
 from graspsim.calibration import TrialTable, calibrate, draw_samples, simulate_samples
 from graspsim.calibration.conditions import SimCondition, condition
@@ -75,12 +75,11 @@ class Config:
     study: bool = opt(False, "replay the issue's feasibility study too")
     study_per_bin: int = opt(40, "grasps per bin of the study replay")
     closing_cone_deg: float = opt(math.degrees(CALIBRATION_CONE), cli=False)
-    map_step_mm: float = opt(0.0, "FS map surface step [mm] (0: the default map resolution)")
     report_only: bool = opt(False, "recompute the report from the saved trials_*.npz (no maps, no simulation)")
-    quick: bool = opt(False, cli=False)
+    quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"objects": ("box_5x7x9", "sphere_r40"), "per_bin": 4, "sensitivity_per_bin": 2,
                              "n_boot": 20, "sensitivity_boot": 10, "frictions": (0.5, 1.0), "forces": (30.0, 250.0),
-                             "mass_scales": (1.0,), "study_per_bin": 2, "map_step_mm": 10.0, "quick": True}
+                             "mass_scales": (1.0,), "study_per_bin": 2, "quick": True}
 
     def __post_init__(self) -> None:
         if min(self.per_bin, self.sensitivity_per_bin, self.study_per_bin, self.n_boot, self.sensitivity_boot) < 1:
@@ -89,10 +88,7 @@ class Config:
 
     @property
     def map_config(self) -> MapConfig:
-        cone = math.radians(self.closing_cone_deg)
-        if not self.map_step_mm:
-            return MapConfig(closing_cone=cone)
-        return MapConfig(closing_cone=cone, surface_step=self.map_step_mm / 1000, rotation_step=math.radians(22.0))
+        return map_config(self.quick, closing_cone=math.radians(self.closing_cone_deg))
 
 
 def conditions(cfg: Config) -> list[SimCondition]:

@@ -35,6 +35,7 @@ from _common import (
     RunRecord,
     database_note,
     database_record,
+    map_config,
     noise_sigmas,
     opt,
     parse_config,
@@ -91,7 +92,7 @@ class Config:
 
     @property
     def map_config(self) -> MapConfig:
-        return MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if self.quick else MapConfig()
+        return map_config(self.quick)
 
 
 def true_shape(name: str):

@@ -28,7 +28,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, fmt, md_table, opt, parse_config, write_text
+from _common import RunRecord, fmt, map_config, md_table, opt, parse_config, write_text
 
 from graspsim.calibration import SimCondition, TrialTable, draw_samples, simulate_samples, stats
 from graspsim.calibration.objects import CALIBRATION_CONE, TRAIN_SHAPES
@@ -52,22 +52,18 @@ class Config:
     features: tuple[str, ...] = opt(FEATURES, cli=False)
     objects: tuple[str, ...] = opt(tuple(TRAIN_SHAPES), "training objects", choices=tuple(TRAIN_SHAPES))
     closing_cone_deg: float = opt(math.degrees(CALIBRATION_CONE), "closing directions kept [deg]")
-    map_step_mm: float = opt(0.0, "FS map surface step [mm] (0: the default map resolution)")
     install: bool = opt(False, "write graspsim/data/grade_model.json")
     reuse: bool = opt(True, "reuse OUT/trials.npz if it holds this configuration's trials")
-    QUICK: ClassVar[dict] = {"objects": ("box@1", "cylinder@1", "sphere@1"), "per_bin": 3, "map_step_mm": 10.0}
+    quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
+    QUICK: ClassVar[dict] = {"objects": ("box@1", "cylinder@1", "sphere@1"), "per_bin": 3, "quick": True}
 
     def __post_init__(self) -> None:
-        if self.per_bin < 1 or len(self.objects) < 2 or self.map_step_mm < 0:
-            raise ValueError(f"--per-bin must be >= 1, --objects two or more, --map-step-mm >= 0; got "
-                             f"{self.per_bin}, {self.objects}, {self.map_step_mm}")
+        if self.per_bin < 1 or len(self.objects) < 2:
+            raise ValueError(f"--per-bin must be >= 1 and --objects two or more; got {self.per_bin}, {self.objects}")
 
     @property
     def map_config(self) -> MapConfig:
-        cone = math.radians(self.closing_cone_deg)
-        if not self.map_step_mm:
-            return MapConfig(closing_cone=cone)
-        return MapConfig(closing_cone=cone, surface_step=self.map_step_mm / 1000, rotation_step=math.radians(22.0))
+        return map_config(self.quick, closing_cone=math.radians(self.closing_cone_deg))
 
 
 def collect(cfg: Config, out: Path) -> TrialTable:
@@ -91,7 +87,7 @@ def _jsonable(cfg: Config, trials_only: bool = False) -> dict:
     """The configuration the stored trials depend on (a rerun reuses them if equal)."""
     d = {"per_bin": cfg.per_bin, "seed": cfg.seed, "objects": list(cfg.objects),
          "closing_cone_deg": cfg.closing_cone_deg}
-    return {**d, "map_step_mm": cfg.map_step_mm} if cfg.map_step_mm else d
+    return {**d, "quick": True} if cfg.quick else d
 
 
 def main(argv=None) -> int:

@@ -22,19 +22,19 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per worker process
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import logging  # noqa: E402 (after the BLAS settings)
-import sys  # noqa: E402
-from concurrent.futures import ProcessPoolExecutor  # noqa: E402
-from dataclasses import asdict, dataclass  # noqa: E402
-from pathlib import Path  # noqa: E402
-from typing import ClassVar  # noqa: E402
+import logging
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import ClassVar
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, RunRecord, opt, parse_config, seed_sequence, write_json  # noqa: E402
+from _common import Clock, RunRecord, opt, parse_config, seed_sequence, write_json
 
-from graspsim.perception.benchmark import SIZE_VARIANTS, CloudSpec, run_trial  # noqa: E402
+from graspsim.perception.benchmark import SIZE_VARIANTS, CloudSpec, run_trial
 
 log = logging.getLogger("e01")
 FULL_REPS = (1, 5, 10, 20, 30, 40, 60, 100, 400)

@@ -59,6 +59,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import types
 import typing
 from contextlib import contextmanager
 from pathlib import Path
@@ -91,7 +92,7 @@ def _flag_kwargs(tp, default, f: dataclasses.Field) -> dict:
     if f.metadata.get("choices"):
         kw["choices"] = list(f.metadata["choices"])
     args = [a for a in typing.get_args(tp) if a is not type(None)]
-    if typing.get_origin(tp) in (typing.Union, getattr(__import__("types"), "UnionType", None)) and args:
+    if typing.get_origin(tp) in (typing.Union, types.UnionType) and args:
         tp = args[0]  # X | None: the flag takes an X
     if tp is bool:
         return {**kw, "action": argparse.BooleanOptionalAction}

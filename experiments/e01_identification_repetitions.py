@@ -34,7 +34,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import Clock, RunRecord, opt, parse_config, seed_sequence, write_json
 
-from graspsim.perception.benchmark import SIZE_VARIANTS, CloudSpec, run_trial
+from graspsim.errors import PointCloudError
+from graspsim.perception.benchmark import SIZE_VARIANTS, CloudSpec, TrialResult, run_trial, trial_cloud
 
 log = logging.getLogger("e01")
 FULL_REPS = (1, 5, 10, 20, 30, 40, 60, 100, 400)
@@ -71,7 +72,12 @@ class E01Config:
 def _task(args):
     cfg, mode, kind, variant, reps, trial = args
     seed = seed_sequence(cfg.seed, mode, kind, variant, reps, trial)
-    return mode, asdict(run_trial(kind, variant, reps, trial, seed, cfg.spec(mode)))
+    try:
+        return mode, asdict(run_trial(kind, variant, reps, trial, seed, cfg.spec(mode)))
+    except PointCloudError:  # a view that sees too little of the object: a failed identification
+        cloud, _ = trial_cloud(kind, variant, seed, cfg.spec(mode))
+        return mode, asdict(TrialResult(kind, variant, reps, trial, False, "too few points", 0, float("nan"),
+                                        0.0, 0.0, len(cloud.points)))
 
 
 def summarise(rows: list[dict]) -> list[dict]:

@@ -169,7 +169,7 @@ def test_bench_fsmap_quick_times_fresh_and_in_process_runs(tmp_path):
     assert row["fresh"]["wall_s"] > row["fresh"]["generation_s"] > 0
     assert row["in_process"]["rebuilt"]["generation_s"] > 0 and row["fresh"]["peak_rss_mb"] > 0
     assert {"import graspsim", "graspsim --help", "graspsim info MAP"} <= set(s["startup"])
-    assert len(s["machine"]["load_before"]) == 3 and s["provenance"]["commit"]
+    assert len(s["machine"]["load_avg_start"]) == 3 and s["provenance"]["commit"]
     md = bench.readme_section(s)
     assert s["command"] in md and "| cylinder | 1 |" in md
 
@@ -271,3 +271,17 @@ def test_golden_regression_quick_refuses_bands_that_cannot_fail(tmp_path):
         mod.main(["--quick", "--golden", str(golden), "--out", str(tmp_path)])
     assert str(e.value.code).startswith("bands that cannot fail:") and "of 4 cannot fail" in str(e.value.code)
     assert not golden.exists()
+
+
+def test_e01_counts_a_view_with_too_few_points_as_a_failure(monkeypatch):
+    from graspsim.errors import PointCloudError
+
+    mod = _load("e01_identification_repetitions")
+
+    def too_few(*a, **k):
+        raise PointCloudError("the cloud has 17 points; at least 30 are needed")
+
+    monkeypatch.setattr(mod, "run_trial", too_few)
+    cfg = mod.E01Config(trials=1, variants=1, workers=1)
+    mode, row = mod._task((cfg, "partial", "box", 0, 10, 0))
+    assert mode == "partial" and not row["success"] and row["predicted"] == "too few points" and row["n_points"] > 0

@@ -204,7 +204,7 @@ def run_plan(points: np.ndarray, base: MapDatabase, tmp: Path, seed: int, theta:
         "theta": theta, "status": result.status.value, "points": len(points),
         "parts": [{"primitive": p.primitive.kind,
                    "dims_cm": {k: round(100 * v, 2) for k, v in p.primitive.dims.items()},
-                   "match": p.match, "source": p.source.get("dims")} for p in result.parts],
+                   "match": p.match.value, "source": p.source.get("dims")} for p in result.parts],
         "unidentified": [u.reason for u in ident.unidentified], "n_splits": ident.n_splits,
         "splits": handler.splits, "grasps": len(result.map), "accepted": int(result.map.accepted.sum()),
         "wall_s": t["wall_s"], "cpu_s": t["cpu_s"], "load_avg": t["load_avg"],

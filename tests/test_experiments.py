@@ -66,6 +66,12 @@ def test_e03_quick_writes_table_json_figures_maps(tmp_path):
     assert [o["object"] for o in r["objects"]] == ["pencil_cup", "glue_bottle", "glue_bottle_capped", "duck_toy",
                                                    "ball_with_tab", "bottle_brush"]
     assert all(run["main"]["wall_s"] > 0 for o in r["objects"] for run in o["runs"])
+    for o in r["objects"]:  # "status: match kind + ...", the match as the README prints it
+        assert sum(o["outcomes"].values()) == o["seeds"] == 1
+        for outcome in o["outcomes"]:
+            words = outcome.split(": ", 1)[1].replace(" + ", " ").split()
+            assert outcome.split(":")[0] in ("complete", "partial", "failed", "error")
+            assert set(words[::2]) <= {"known", "familiar", "build", "no"}, outcome
     assert list((out / "maps").glob("*.h5"))
 
 

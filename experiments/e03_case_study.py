@@ -393,7 +393,7 @@ def readme_section(s: dict) -> str:
                  f"{split} | {re} |")
     start, end = machine_load(s)
     L += ["", f"(Wall times on {s['machine']['cpus']} cores, load average {start[0]:g} at the start, "
-          f"{end[0]:g} at the end. \"built\": a part outside every stored map's scaling range gets "
+          f"{end[0]:g} at the end. \"build\": a part outside every stored map's scaling range gets "
           f"its FS map built and stored on the spot, inside the timed run.)"]
     return "\n".join(L) + "\n"
 

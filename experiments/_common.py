@@ -33,10 +33,12 @@ What lives here, one of each:
 * **Seeds**: ``rng_for(cfg.seed, *keys)`` / ``derived_seed`` from
   :mod:`graspsim.seeding`, the rule the library uses too: one integer seed per run,
   streams keyed by names (CRC-32) and indices. Never ``sum(map(ord, name))``.
-* **Scenes**: :func:`standing_cloud`, an object standing on the table at a random yaw,
-  seen as a (single-view) cloud.
+* **Maps and scenes**: :func:`map_config` (the default or the quick runs' coarse maps),
+  :func:`standing_cloud` (an object standing on the table at a random yaw, seen as a
+  (single-view) cloud).
 * **Timing**: :class:`Clock`, :func:`stopwatch`, :func:`load_average`,
-  :func:`run_cli_fresh` (``graspsim ARGS`` in a fresh process: wall, peak RSS).
+  :func:`run_fresh` (a command in a fresh process: wall, CPU, peak RSS) and
+  :func:`run_cli_fresh` (``graspsim ARGS`` so, with the process's own peak RSS).
 * **Text**: ``fmt`` and ``md_table`` (:mod:`graspsim.calibration.markdown`),
   :func:`mean_sd_text`, :func:`pct`, :func:`rate_ci`.
 * **Simulation settings**: :func:`noise_sigmas`, :func:`database_record`,
@@ -57,6 +59,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import types
 import typing
 from contextlib import contextmanager
 from pathlib import Path
@@ -69,8 +72,8 @@ from graspsim.calibration.outputs import library_versions, write_json, write_tex
 from graspsim.seeding import derived_seed, rng_for, seed_sequence
 
 __all__ = ["opt", "parse_config", "RunRecord", "machine_load", "provenance", "default_out",
-           "rng_for", "derived_seed", "seed_sequence", "standing_cloud",
-           "Clock", "stopwatch", "load_average", "run_cli_fresh",
+           "rng_for", "derived_seed", "seed_sequence", "map_config", "standing_cloud",
+           "Clock", "stopwatch", "load_average", "run_fresh", "run_cli_fresh",
            "write_json", "write_text", "write_config", "fmt", "md_table", "mean_sd_text", "pct", "rate_ci",
            "DEFAULT_NOISE", "noise_sigmas", "database_record", "database_note"]
 
@@ -89,7 +92,7 @@ def _flag_kwargs(tp, default, f: dataclasses.Field) -> dict:
     if f.metadata.get("choices"):
         kw["choices"] = list(f.metadata["choices"])
     args = [a for a in typing.get_args(tp) if a is not type(None)]
-    if typing.get_origin(tp) in (typing.Union, getattr(__import__("types"), "UnionType", None)) and args:
+    if typing.get_origin(tp) in (typing.Union, types.UnionType) and args:
         tp = args[0]  # X | None: the flag takes an X
     if tp is bool:
         return {**kw, "action": argparse.BooleanOptionalAction}
@@ -209,7 +212,17 @@ def write_config(path: Path, cfg) -> None:
     write_json(path, cfg)
 
 
-# ------------------------------------------------------------------ scenes
+# ------------------------------------------------------------------ maps and scenes
+def map_config(quick: bool = False, **kw):
+    """The scripts' ``MapConfig(**kw)``: at the library's default resolution, or for
+    quick runs coarse (1 cm surface step, 22 deg rotation step)."""
+    from graspsim.maps.generate import MapConfig
+
+    if quick:
+        kw = {"surface_step": 0.01, "rotation_step": math.radians(22.0), **kw}
+    return MapConfig(**kw)
+
+
 def standing_cloud(truth, rng: np.random.Generator, *, resolution: float, noise: float, outliers: float,
                    at=(0.55, -0.05), camera: tuple[float, float] | None = None):
     """A cloud of ``truth`` (a Primitive or Compound) standing on the table (z = 0) at
@@ -273,6 +286,24 @@ def stopwatch():
         out.update(c.record())
 
 
+def run_fresh(argv: list[str], env: dict | None = None) -> dict:
+    """``argv`` in a fresh process: exit status, wall time [s], CPU time (user + system)
+    [s] and peak RSS [MB] from ``wait4`` (a forked child's peak can include what it was
+    forked from: :func:`run_cli_fresh` reads the CLI's own), stdout, stderr and the load
+    average before and after. ``env`` is added to this process's environment."""
+    load0 = load_average()
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        t0 = time.perf_counter()
+        p = subprocess.Popen(argv, stdout=out, stderr=err, env={**os.environ, **(env or {})})
+        _, status, ru = os.wait4(p.pid, 0)
+        wall = time.perf_counter() - t0
+        out.seek(0), err.seek(0)
+        stdout, stderr = out.read().decode(), err.read().decode()
+    return {"exit": os.waitstatus_to_exitcode(status), "wall_s": wall, "cpu_s": ru.ru_utime + ru.ru_stime,
+            "peak_rss_mb": ru.ru_maxrss / 1024, "stdout": stdout, "stderr": stderr, "load_before": load0,
+            "load_after": load_average()}
+
+
 _FRESH_CLI = """
 import os, sys
 from graspsim.cli import main
@@ -286,21 +317,18 @@ sys.exit(code)
 
 
 def run_cli_fresh(args: list[str], env: dict | None = None) -> dict:
-    """``graspsim ARGS`` in a fresh Python process, as a user runs it: exit status,
-    wall time [s] (start-up and imports included), that process's own peak resident
-    memory [bytes] (``VmHWM``; Linux), stdout and stderr."""
+    """``graspsim ARGS`` in a fresh Python process, as a user runs it: :func:`run_fresh`'s
+    record, with ``peak_rss_bytes`` the process's own peak resident memory (``VmHWM``;
+    Linux; None where unreadable). ``env`` is added to this process's environment."""
     with tempfile.TemporaryDirectory() as d:
         hwm = os.path.join(d, "hwm")
-        env = {**(os.environ if env is None else env), "GRASPSIM_BENCH_HWM": hwm}
-        t0 = time.perf_counter()
-        p = subprocess.run([sys.executable, "-c", _FRESH_CLI, *args], capture_output=True, text=True, env=env)
-        wall = time.perf_counter() - t0
+        r = run_fresh([sys.executable, "-c", _FRESH_CLI, *args], {**(env or {}), "GRASPSIM_BENCH_HWM": hwm})
         try:
             with open(hwm) as f:
-                peak = int(f.read()) * 1024
+                r["peak_rss_bytes"] = int(f.read()) * 1024
         except (OSError, ValueError):
-            peak = None
-    return {"exit": p.returncode, "wall_s": wall, "peak_rss_bytes": peak, "stdout": p.stdout, "stderr": p.stderr}
+            r["peak_rss_bytes"] = None
+    return r
 
 
 # ------------------------------------------------------------------ text

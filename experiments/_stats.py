@@ -9,7 +9,7 @@ import math
 import numpy as np
 from scipy import stats
 
-__all__ = ["mean_sd", "mixed_anova", "paired_posthoc"]
+__all__ = ["mean_sd", "mixed_anova", "paired_posthoc", "p_text", "tests_markdown"]
 
 
 def mean_sd(x) -> tuple[float, float]:
@@ -98,3 +98,36 @@ def paired_posthoc(y: np.ndarray, names: list[str]) -> list[dict]:
         out.append({"a": names[i], "b": names[j], "mean_diff": float(d.mean()), "t": t,
                     "df": int(len(d) - 1), "p": p, "p_bonferroni": min(1.0, p * len(pairs))})
     return out
+
+
+def p_text(p: float | None) -> str:
+    """A p value as the tables print it: "< .0001", "0.0123" or "n/a"."""
+    return "n/a" if p is None or not math.isfinite(p) else ("< .0001" if p < 1e-4 else f"{p:.4f}")
+
+
+def tests_markdown(tests: dict, metrics: list[tuple[str, str]], within: str = "algorithm",
+                   between: str = "direction") -> list[str]:
+    """Markdown lines of the mixed ANOVA and the post-hoc tests of each metric
+    (``tests[key]``: {"anova": ..., "posthoc": ...} or {"skipped": why}); ``metrics``:
+    (key, label) pairs."""
+    L = ["", f"## Mixed ANOVA ({within} within, {between} between, variants as subjects)", "",
+         "| metric | effect | F (df) | p | p (Greenhouse-Geisser) |", "|---|---|---|---|---|"]
+    for k, lbl in metrics:
+        t = tests[k]
+        if "skipped" in t:
+            L.append(f"| {lbl} | - | skipped: {t['skipped']} | | |")
+            continue
+        for eff, name in (("within", within), ("between", between), ("interaction", f"{within} x {between}")):
+            e = t["anova"][eff]
+            gg = p_text(e["p_gg"]) + f" (eps {e['gg_epsilon']:.2f})" if "p_gg" in e else ""
+            L.append(f"| {lbl} | {name} | {e['F']:.2f} ({e['df']:g}, {e['df_error']:g}) | {p_text(e['p'])} | {gg} |")
+    L += ["", f"## Post-hoc: paired t-tests of the {within}s, Bonferroni-adjusted", "",
+          "| metric | pair | mean difference | t (df) | p (Bonferroni) |", "|---|---|---|---|---|"]
+    for k, lbl in metrics:
+        t = tests[k]
+        if "skipped" in t:
+            continue
+        for ph in t["posthoc"]:
+            L.append(f"| {lbl} | {ph['a']} - {ph['b']} | {ph['mean_diff']:.2f} | "
+                     f"{ph['t']:.2f} ({ph['df']}) | {p_text(ph['p_bonferroni'])} |")
+    return L

@@ -15,7 +15,7 @@ the planner run on first use (``graspsim db build``: serially in one process as 
 does, with the default two worker processes, and serially on a cold numba cache).
 
     python experiments/bench_fsmap.py [--repeat 3] [--db] [--publish]
-    python experiments/bench_fsmap.py --quick          # seconds: a coarse cylinder only
+    python experiments/bench_fsmap.py --quick --out results/bench_fsmap-quick   # a coarse cylinder only
 
 Results: results/bench_fsmap/summary.json (and rows.json, table.md); --publish copies
 the summary to experiments/reported/bench_fsmap.json (what the README quotes). Cold runs
@@ -27,38 +27,43 @@ every measurement; CPU time (all threads) measures the work itself.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import multiprocessing as mp
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import load_average, provenance, write_json  # noqa: E402
+from _common import RunRecord, load_average, machine_load, opt, parse_config, run_fresh, write_json
 
-STEM = "bench_fsmap"
 README_DIMS = {"radius": 0.02, "height": 0.2}  # the README's example cylinder
 QUICK_FLAGS = ("--surface-step", "0.02", "--rotation-step-deg", "30")
+PRIMITIVES = ("cylinder", "box", "sphere", "cone", "half_toroid")
 
 
 @dataclass(frozen=True)
 class BenchConfig:
-    repeat: int = 3
-    startup_repeat: int = 7
-    primitives: tuple[str, ...] = ("cylinder", "box", "sphere", "cone", "half_toroid")
-    threads: tuple[int, ...] = (0, 1)  # 0: all cores
-    cold: bool = True
-    db: bool = False
-    quick: bool = False
-    out: str = f"results/{STEM}"
+    repeat: int = opt(3, "runs per measurement (median)")
+    startup_repeat: int = opt(7, "fresh processes per startup measurement (median)")
+    primitives: tuple[str, ...] = opt(PRIMITIVES, choices=PRIMITIVES)
+    threads: tuple[int, ...] = opt((0, 1), "thread counts (0: all cores)")
+    cold: bool = opt(True, "time a first run on an empty compile cache")
+    db: bool = opt(False, "also time the FS database build")
+    quick: bool = opt(False, "coarse maps (2 cm / 30 deg)", cli=False)
+    QUICK: ClassVar[dict] = {"repeat": 1, "startup_repeat": 1, "primitives": ("cylinder",), "threads": (1,),
+                             "cold": False, "quick": True}
+
+    def __post_init__(self) -> None:
+        if self.repeat < 1 or self.startup_repeat < 1 or min(self.threads) < 0:
+            raise ValueError(f"--repeat and --startup-repeat must be >= 1, --threads >= 0; got {self.repeat}, "
+                             f"{self.startup_repeat}, {self.threads}")
 
 
 def _graspsim_cmd() -> list[str]:
@@ -70,20 +75,11 @@ def _graspsim_cmd() -> list[str]:
 
 
 def _child(argv: list[str], env: dict | None = None) -> dict:
-    """Run a fresh process; its wall and CPU time [s], peak RSS [MB], stdout, load."""
-    load0 = load_average()
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        t0 = time.perf_counter()
-        p = subprocess.Popen(argv, stdout=out, stderr=err, env={**os.environ, **(env or {})})
-        _, status, ru = os.wait4(p.pid, 0)
-        wall = time.perf_counter() - t0
-        p.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0), err.seek(0)
-        stdout, stderr = out.read().decode(), err.read().decode()
-    if p.returncode != 0:
-        raise RuntimeError(f"{' '.join(argv)} failed ({p.returncode}):\n{stderr[-2000:]}")
-    return {"wall_s": wall, "cpu_s": ru.ru_utime + ru.ru_stime, "peak_rss_mb": ru.ru_maxrss / 1024,
-            "stdout": stdout, "stderr": stderr, "load_before": load0, "load_after": load_average()}
+    """:func:`run_fresh` of ``argv``; a failure stops the benchmark."""
+    r = run_fresh(argv, env)
+    if r.pop("exit") != 0:
+        raise RuntimeError(f"{' '.join(argv)} failed:\n{r['stderr'][-2000:]}")
+    return r
 
 
 def _median(runs: list[dict], key: str) -> float:
@@ -207,35 +203,9 @@ def bench_db(tmp: Path) -> dict:
     return out
 
 
-def _parse(argv: list[str] | None) -> tuple[BenchConfig, bool]:
-    d = BenchConfig()
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--repeat", type=int, default=d.repeat, help="runs per measurement (median)")
-    ap.add_argument("--startup-repeat", type=int, default=d.startup_repeat)
-    ap.add_argument("--primitives", nargs="+", default=list(d.primitives))
-    ap.add_argument("--threads", type=int, nargs="+", default=list(d.threads),
-                    help="thread counts (0: all cores)")
-    ap.add_argument("--no-cold", action="store_true", help="skip the cold-cache runs")
-    ap.add_argument("--db", action="store_true", help="also time the FS database build")
-    ap.add_argument("--quick", action="store_true",
-                    help="seconds: a coarse cylinder, one run each, one thread, no cold runs")
-    ap.add_argument("--out", default=d.out)
-    ap.add_argument("--publish", action="store_true",
-                    help=f"copy the summary to experiments/reported/{STEM}.json")
-    a = ap.parse_args(argv)
-    if a.quick:
-        cfg = BenchConfig(repeat=1, startup_repeat=1, primitives=("cylinder",), threads=(1,),
-                          cold=False, db=a.db, quick=True, out=a.out)
-    else:
-        cfg = BenchConfig(repeat=a.repeat, startup_repeat=a.startup_repeat,
-                          primitives=tuple(a.primitives), threads=tuple(a.threads),
-                          cold=not a.no_cold, db=a.db, out=a.out)
-    return cfg, a.publish
-
-
 def main(argv: list[str] | None = None) -> int:
-    cfg, publish = _parse(argv)
-    load0 = load_average()
+    cfg, opts = parse_config(BenchConfig, __file__, argv, __doc__)
+    run = RunRecord(__file__, argv)
     tmp = Path(tempfile.mkdtemp(prefix="bench_fsmap-"))
     try:
         _child(_graspsim_cmd() + ["warmup"])  # the user's cache: warm from here on
@@ -244,27 +214,14 @@ def main(argv: list[str] | None = None) -> int:
         db = bench_db(tmp) if cfg.db else None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    summary = _summary(cfg, argv, rows, startup, db, load0)
-    out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(out / "rows.json", rows)
-    write_json(out / "summary.json", summary)
-    (out / "table.md").write_text(readme_section(summary) + "\n")
-    if publish:
-        reported = Path(__file__).resolve().parent / "reported"
-        reported.mkdir(exist_ok=True)
-        shutil.copyfile(out / "summary.json", reported / f"{STEM}.json")
-    print(readme_section(summary))
+    text = run.write(opts.out, _summary(cfg, rows, startup, db), readme_section, publish=opts.publish)
+    write_json(Path(opts.out) / "rows.json", rows)
+    (Path(opts.out) / "table.md").write_text(text + "\n")
+    print(text)
     return 0
 
 
-def _summary(cfg, argv, rows, startup, db, load0) -> dict:
-    import h5py
-    import numba
-    import numpy
-    import scipy
-
-    args = sys.argv[1:] if argv is None else argv
+def _summary(cfg, rows, startup, db) -> dict:
     keep = ("generation_s", "wall_s", "cpu_s", "peak_rss_mb", "load_before", "load_after",
             "compile_notice")
     table = [{"primitive": r["primitive"], "threads": r["threads"], "grasps": r["grasps"],
@@ -280,7 +237,6 @@ def _summary(cfg, argv, rows, startup, db, load0) -> dict:
              for r in rows]
     first = table[0]
     return {
-        "command": " ".join(["python", f"experiments/{STEM}.py", *args]),
         "headline": {  # the first row: the README's cylinder on all cores unless configured
             "primitive": first["primitive"], "threads": first["threads"],
             "cold_generation_s": (first["cold"] or {}).get("generation_s"),
@@ -294,16 +250,10 @@ def _summary(cfg, argv, rows, startup, db, load0) -> dict:
             "help_s": startup["graspsim --help"]["median_s"],
             "info_s": startup["graspsim info MAP"]["median_s"],
             "db_build_serial_s": db["serial"]["wall_s"] if db else None},
-        "config": asdict(cfg),
+        "config": cfg,
         "denominators": "medians of config.repeat fresh processes / in-process runs per row "
                         "(startup: of config.startup_repeat processes); one cold process per row",
-        "rows": table, "startup": startup, "db_build": db,
-        "machine": {"cpus": os.cpu_count(), "load_before": load0, "load_after": load_average(),
-                    "python": sys.version.split()[0]},
-        "versions": {"numpy": numpy.__version__, "numba": numba.__version__,
-                     "scipy": scipy.__version__, "h5py": h5py.__version__},
-        "provenance": provenance(),
-    }
+        "rows": table, "startup": startup, "db_build": db}
 
 
 def _s(x) -> str:
@@ -312,8 +262,9 @@ def _s(x) -> str:
 
 def readme_section(summary: dict) -> str:
     """Markdown for the README: per-primitive times, startup, database build."""
-    lines = [f"`{summary['command']}` (load {summary['machine']['load_before'][0]:.1f} before, "
-             f"{summary['machine']['load_after'][0]:.1f} after; {summary['machine']['cpus']} cores; "
+    before, after = machine_load(summary)
+    lines = [f"`{summary['command']}` (load {before[0]:.1f} before, "
+             f"{after[0]:.1f} after; {summary['machine']['cpus']} cores; "
              "medians)", "",
              "| primitive | threads | grasps | first run (empty compile cache): generation / wall s "
              "| `graspsim map`: generation / wall s | in-process: generation s (CPU s) "

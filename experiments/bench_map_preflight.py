@@ -18,7 +18,6 @@ it allocates the map's columns.
 from __future__ import annotations
 
 import multiprocessing as mp
-import os
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -51,7 +50,7 @@ class Config:
 def _refusal(name: str, dims: list[str], folder: str) -> dict:
     kind = "box" if name.startswith("plate") else name
     out = Path(folder) / f"{kind}.h5"
-    r = run_cli_fresh(["map", kind, *dims, "-o", str(out)], env={**os.environ, "GRASPSIM_MEMORY_BUDGET": "4GiB"})
+    r = run_cli_fresh(["map", kind, *dims, "-o", str(out)], env={"GRASPSIM_MEMORY_BUDGET": "4GiB"})
     text = r["stderr"].strip()
     return {"case": name, "exit": r["exit"], "wall_s": r["wall_s"], "peak_rss_mib": r["peak_rss_bytes"] / 2**20,
             "stderr_lines": len(text.splitlines()), "message": text, "output_written": out.exists()}

@@ -17,29 +17,30 @@ harness / rollout and harness / raw mj_step of those medians, and trials/s on al
 cores (median). Writes summary.json, table.md and config.json into ``--out``.
 
     python experiments/bench_sim.py
+    python experiments/bench_sim.py --quick --out results/bench_sim-quick
 """
 
 from __future__ import annotations
 
-import argparse
 import logging
 import os
 import statistics
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import mujoco
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, default_out, write_json  # noqa: E402
+from _common import RunRecord, machine_load, opt, parse_config, rng_for
 
-from graspsim.primitives import Cylinder  # noqa: E402
-from graspsim.sim import LiftPlace, build_scene, object_from_mesh, object_from_shape, run_trials  # noqa: E402
-from graspsim.sim.batch import initial_states, pregrasp_opening, simulate  # noqa: E402
-from graspsim.sim.testing import grasp_pose  # noqa: E402
+from graspsim.primitives import Cylinder
+from graspsim.sim import LiftPlace, build_scene, object_from_mesh, object_from_shape, run_trials
+from graspsim.sim.batch import initial_states, pregrasp_opening, simulate
+from graspsim.sim.testing import grasp_pose
 
 log = logging.getLogger("bench_sim")
 BREAD = Path(__file__).resolve().parents[1] / "assets/objects/robosuite/bread.stl"
@@ -48,23 +49,16 @@ _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 @dataclass(frozen=True)
 class BenchConfig:
-    trials: int
-    repeats: int
-    threads: int
-    seed: int
+    trials: int = opt(64, "lift_place trials per object")
+    repeats: int = opt(5, "timed runs (medians)")
+    threads: int = opt(os.cpu_count() or 1, "'all cores'")
+    seed: int = opt(0, "run seed")
+    QUICK: ClassVar[dict] = {"trials": 4, "repeats": 1}
 
-
-def parse_args(argv=None) -> tuple[BenchConfig, Path]:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=default_out(__file__), help="output folder")
-    p.add_argument("--trials", type=int, default=64, help="lift_place trials per object")
-    p.add_argument("--repeats", type=int, default=5, help="timed runs (medians)")
-    p.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="'all cores'")
-    p.add_argument("--seed", type=int, default=0)
-    a = p.parse_args(argv)
-    if a.trials < 1 or a.repeats < 1 or a.threads < 1:
-        p.error("--trials, --repeats and --threads must be >= 1")
-    return BenchConfig(a.trials, a.repeats, a.threads, a.seed), Path(a.out)
+    def __post_init__(self) -> None:
+        if self.trials < 1 or self.repeats < 1 or self.threads < 1:
+            raise ValueError(f"--trials, --repeats and --threads must be >= 1, got {self.trials}, {self.repeats}, "
+                             f"{self.threads}")
 
 
 def _poses(kind: str, n: int, rng: np.random.Generator, com: np.ndarray):
@@ -107,7 +101,7 @@ def _step_rate(scene, state0, control) -> float:
 
 
 def run(cfg: BenchConfig) -> list[dict]:
-    rng = np.random.default_rng(cfg.seed)
+    rng = rng_for(cfg.seed)
     objects = {"primitive": object_from_shape(Cylinder(0.02, 0.20)),
                "coacd_mesh": object_from_mesh(BREAD)}
     rows = []
@@ -152,27 +146,25 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
+    cfg, opts = parse_config(BenchConfig, __file__, argv, __doc__)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger("graspsim.sim.batch").setLevel(logging.WARNING)
     run_record = RunRecord(__file__, argv)
-    cfg, out = parse_args(argv)
     rows = run(cfg)
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(out / "summary.json", run_record.summary({"config": asdict(cfg), "rows": rows}))
-    write_json(out / "config.json", asdict(cfg))
+    run_record.write(opts.out, {"config": cfg, "rows": rows}, readme_section, publish=opts.publish)
     text = table(rows)
-    (out / "table.md").write_text(text + "\n")
-    print(text)  # noqa: T201 (a script's report)
+    (Path(opts.out) / "table.md").write_text(text + "\n")
+    print(text)
     return 0
 
 
 def readme_section(s: dict) -> str:
     """The README's simulation-speed sentence and table (see ``experiments/report.py``)."""
-    m, rows = s["machine"], s["rows"]
+    m, rows, (start, _) = s["machine"], s["rows"], machine_load(s)
     trial = rows[0]["trial_sim_s"]
     L = [f"`{s['command']}` (one batch of lift-and-place trials, {trial:.1f} s simulated each, timed through the "
          f"harness and as bare `mujoco.rollout` and raw `mj_step` of the same trials on one thread; medians of "
-         f"{rows[0]['repeats']} interleaved runs on {m['cpus']} cores, load average {m['load_avg_start'][0]:g} at the "
+         f"{rows[0]['repeats']} interleaved runs on {m['cpus']} cores, load average {start[0]:g} at the "
          f"start):", "", table(rows)]
     return "\n".join(L) + "\n"
 

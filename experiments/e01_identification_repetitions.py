@@ -3,10 +3,11 @@
 Full mode: 5 primitives x 7 size variants x repetitions {1, 5, 10, 20, 30, 40, 60,
 100, 400} x 100 trials, on complete clouds (0.5 cm resolution, 1 mm Gaussian noise,
 1 % outliers, random poses) and, reported separately, on single-view partial clouds
-(1 mm depth noise along the viewing ray). ``--quick``: 2 trials, repetitions
-{1, 10, 100}, for CI. Writes summary.json, results.json, table.md, figure4.png and
-config.json into ``--out``. Trials are seeded by their grid position from one
-SeedSequence, so results do not depend on ``--workers``. The README's reduced runs:
+(1 mm depth noise along the viewing ray). ``--quick``: one trial of one size per
+primitive at 1 and 10 repetitions, for CI. Writes summary.json, results.json, table.md, figure4.png and
+config.json into ``--out``. Each trial has its own stream, ``seed_sequence(seed, mode,
+kind, variant, repetitions, trial)`` (``graspsim.seeding``), so results do not depend on
+``--workers``. The README's reduced runs:
 
     python experiments/e01_identification_repetitions.py --modes full --trials 10 --repetitions 1 5 10 100
     python experiments/e01_identification_repetitions.py --modes partial --trials 10 --repetitions 10 100 \\
@@ -21,71 +22,62 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per worker process
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import logging  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from concurrent.futures import ProcessPoolExecutor  # noqa: E402
-from dataclasses import asdict, dataclass  # noqa: E402
-from pathlib import Path  # noqa: E402
+import logging
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import ClassVar
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, default_out, write_json  # noqa: E402
+from _common import Clock, RunRecord, opt, parse_config, seed_sequence, write_json
 
-from graspsim.perception.benchmark import SIZE_VARIANTS, CloudSpec, run_trial  # noqa: E402
+from graspsim.errors import PointCloudError
+from graspsim.perception.benchmark import SIZE_VARIANTS, CloudSpec, TrialResult, run_trial, trial_cloud
 
 log = logging.getLogger("e01")
 FULL_REPS = (1, 5, 10, 20, 30, 40, 60, 100, 400)
 MODES = ("full", "partial")
+KINDS = tuple(SIZE_VARIANTS)
 
 
 @dataclass(frozen=True)
 class E01Config:
-    repetitions: tuple[int, ...]
-    trials: int
-    kinds: tuple[str, ...]
-    variants: int
-    modes: tuple[str, ...]
-    seed: int
-    workers: int
-    full: CloudSpec
-    partial: CloudSpec
-    quick: bool
+    repetitions: tuple[int, ...] = opt(FULL_REPS, "MLESAC repetitions")
+    trials: int = opt(100, "trials per condition")
+    kinds: tuple[str, ...] = opt(KINDS, choices=KINDS)
+    variants: int = opt(7, "size variants per primitive (<= 7)")
+    modes: tuple[str, ...] = opt(MODES, choices=MODES)
+    seed: int = opt(20180101, "run seed")
+    workers: int = opt(os.cpu_count() or 1, "worker processes")
+    noise: float = opt(0.001, "sensor sigma [m]")
+    outliers: float = opt(0.01, "outlier fraction")
+    QUICK: ClassVar[dict] = {"repetitions": (1, 10), "trials": 1, "variants": 1, "workers": 1}
 
+    def __post_init__(self) -> None:
+        if not 1 <= self.variants <= 7 or self.trials < 1 or self.workers < 1:
+            raise ValueError(f"--variants must be in 1..7, --trials and --workers >= 1; got {self.variants}, "
+                             f"{self.trials}, {self.workers}")
 
-def parse_args(argv=None) -> tuple[E01Config, Path]:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=default_out(__file__), help="output folder")
-    p.add_argument("--quick", action="store_true", help="small CI run")
-    p.add_argument("--trials", type=int, default=None, help="trials per condition")
-    p.add_argument("--repetitions", type=int, nargs="+", default=None)
-    p.add_argument("--kinds", nargs="+", default=list(SIZE_VARIANTS), choices=list(SIZE_VARIANTS))
-    p.add_argument("--variants", type=int, default=7, help="size variants per primitive (<= 7)")
-    p.add_argument("--modes", nargs="+", default=list(MODES), choices=MODES)
-    p.add_argument("--seed", type=int, default=20180101)
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--noise", type=float, default=0.001, help="sensor sigma [m]")
-    p.add_argument("--outliers", type=float, default=0.01, help="outlier fraction")
-    a = p.parse_args(argv)
-    reps = tuple(a.repetitions or ((1, 10, 100) if a.quick else FULL_REPS))
-    trials = a.trials or (2 if a.quick else 100)
-    if not 1 <= a.variants <= 7:
-        p.error(f"--variants must be in 1..7, got {a.variants}")
-    cfg = E01Config(reps, trials, tuple(a.kinds), a.variants, tuple(a.modes), a.seed,
-                    max(1, a.workers), CloudSpec(noise=a.noise, outliers=a.outliers),
-                    CloudSpec(noise=a.noise, outliers=a.outliers, partial=True), a.quick)
-    return cfg, Path(a.out)
+    def spec(self, mode: str) -> CloudSpec:
+        return CloudSpec(noise=self.noise, outliers=self.outliers, partial=mode == "partial")
+
+    def record(self) -> dict:
+        """The config as summaries hold it: with the cloud spec of each mode."""
+        return {**asdict(self), **{m: self.spec(m) for m in MODES}}
 
 
 def _task(args):
     cfg, mode, kind, variant, reps, trial = args
-    key = (MODES.index(mode), list(SIZE_VARIANTS).index(kind), variant, reps, trial)
-    seed = np.random.SeedSequence(entropy=cfg.seed, spawn_key=key)
-    spec = cfg.partial if mode == "partial" else cfg.full
-    return mode, asdict(run_trial(kind, variant, reps, trial, seed, spec))
+    seed = seed_sequence(cfg.seed, mode, kind, variant, reps, trial)
+    try:
+        return mode, asdict(run_trial(kind, variant, reps, trial, seed, cfg.spec(mode)))
+    except PointCloudError:  # a view that sees too little of the object: a failed identification
+        cloud, _ = trial_cloud(kind, variant, seed, cfg.spec(mode))
+        return mode, asdict(TrialResult(kind, variant, reps, trial, False, "too few points", 0, float("nan"),
+                                        0.0, 0.0, len(cloud.points)))
 
 
 def summarise(rows: list[dict]) -> list[dict]:
@@ -152,14 +144,15 @@ def plot(summary: list[dict], cfg: E01Config, path: Path) -> None:
 
 
 def main(argv=None) -> int:
+    cfg, opts = parse_config(E01Config, __file__, argv, __doc__)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     run = RunRecord(__file__, argv)
-    cfg, out = parse_args(argv)
+    out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
     tasks = [(cfg, m, k, v, r, t) for m in cfg.modes for k in cfg.kinds for v in range(cfg.variants)
              for r in cfg.repetitions for t in range(cfg.trials)]
     log.info("E01: %d identifications on %d workers", len(tasks), cfg.workers)
-    t0 = time.perf_counter()
+    clock = Clock()
     if cfg.workers == 1:
         results = [_task(t) for t in tasks]
     else:
@@ -167,16 +160,13 @@ def main(argv=None) -> int:
             results = list(ex.map(_task, tasks, chunksize=8))
     rows = [dict(r, mode=m) for m, r in results]
     summary = summarise(rows)
-    wall = time.perf_counter() - t0
-    (out / "config.json").write_text(json.dumps(asdict(cfg), indent=2) + "\n")
-    (out / "results.json").write_text(json.dumps(
-        {"config": asdict(cfg), "wall_seconds": wall, "summary": summary, "trials": rows},
-        indent=1, default=float) + "\n")
-    write_json(out / "summary.json", run.summary({"config": asdict(cfg), "summary": summary}))
+    write_json(out / "results.json", {"config": cfg.record(), "wall_seconds": clock.wall, "summary": summary,
+                                      "trials": rows})
     table = write_table(summary, cfg)
+    run.write(out, {"config": cfg.record(), "summary": summary}, readme_section, publish=opts.publish)
     (out / "table.md").write_text(f"# E01 identification vs repetitions\n\n{table}\n")
     plot(summary, cfg, out / "figure4.png")
-    log.info("%s\nwall time %.0f s; results in %s", table, wall, out)
+    log.info("%s\nwall time %.0f s; results in %s", table, clock.wall, out)
     return 0
 
 

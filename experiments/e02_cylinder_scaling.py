@@ -26,39 +26,40 @@ config.json to ``--out``.
 
 from __future__ import annotations
 
-import argparse
 import gc
 import logging
 import math
 import statistics
 import sys
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import (  # noqa: E402
+from _common import (
     Clock,
     RunRecord,
-    default_out,
     load_average,
+    machine_load,
+    map_config,
     mean_sd_text,
-    provenance,
-    write_config,
+    opt,
+    parse_config,
     write_json,
 )
-from _stats import mean_sd, mixed_anova, paired_posthoc  # noqa: E402
+from _stats import mean_sd, mixed_anova, p_text, paired_posthoc, tests_markdown
 
-from graspsim.gripper import HGPL_25_60_A  # noqa: E402
-from graspsim.maps import generate as _generate  # noqa: E402
-from graspsim.maps.generate import MapConfig, generate_fs_map  # noqa: E402
-from graspsim.maps.graspmap import GraspabilityMap  # noqa: E402
-from graspsim.maps.metrics import map_rates, relative_rates  # noqa: E402
-from graspsim.maps.scaling import ScalingConfig, scale_stream  # noqa: E402
-from graspsim.plots import plot_maps  # noqa: E402
-from graspsim.primitives import Cylinder  # noqa: E402
-from graspsim.quality import QualityModel  # noqa: E402
+from graspsim.gripper import HGPL_25_60_A
+from graspsim.maps import generate as _generate
+from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.maps.metrics import map_rates, relative_rates
+from graspsim.maps.scaling import ScalingConfig, scale_stream
+from graspsim.plots import plot_maps
+from graspsim.primitives import Cylinder
+from graspsim.quality import QualityModel
 
 log = logging.getLogger("e02")
 
@@ -81,44 +82,44 @@ VARIANTS: tuple[tuple[str, float, float, str, str], ...] = (
     ("S4", 0.015, 0.15, "smaller", "both"),
     ("S5", 0.012, 0.12, "smaller", "both"),
 )
-QUICK_VARIANTS = ("L1", "L3", "S2", "S4")
-QUICK_MAP = MapConfig(surface_step=0.01, rotation_step=math.radians(22.0))
+NAMES = tuple(v[0] for v in VARIANTS)
 
 
 @dataclass(frozen=True)
 class E02Config:
-    variants: tuple[tuple[str, float, float, str, str], ...]
-    map_config: MapConfig = field(default_factory=MapConfig)
-    max_ratio: float = 3.0
-    repeats: int = 3
-    hi_grade: float = 0.95
-    figure_variant: str = "L3"
-    quick: bool = False
+    variants: tuple[str, ...] = opt(NAMES, "size variants", choices=NAMES)
+    max_ratio: float = opt(3.0, "scaling limit per dimension")
+    repeats: int = opt(3, "timed runs per map (median)")
+    hi_grade: float = opt(0.95, cli=False)
+    figure_variant: str = opt("", "variant shown in figure5.png (default L3, else the first)")
+    quick: bool = opt(False, cli=False)
+    QUICK: ClassVar[dict] = {"variants": ("L1", "L3", "S2", "S4"), "repeats": 1, "quick": True}
 
+    def __post_init__(self) -> None:
+        if {"larger", "smaller"} - {v[3] for v in self.sizes}:
+            raise ValueError("choose at least one larger and one smaller variant")
+        if self.figure_variant and self.figure_variant not in self.variants:
+            raise ValueError(f"--figure-variant {self.figure_variant} is not among the variants {self.variants}")
+        if self.repeats < 1:
+            raise ValueError(f"--repeats must be >= 1, got {self.repeats}")
 
-def parse_args(argv=None) -> tuple[E02Config, Path]:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=default_out(__file__), help="output folder")
-    p.add_argument("--quick", action="store_true",
-                   help="smoke test: 1 cm / 22 deg maps, four variants, one repeat")
-    p.add_argument("--repeats", type=int, default=None, help="timed runs per map (median)")
-    p.add_argument("--variants", nargs="+", default=None, choices=[v[0] for v in VARIANTS])
-    p.add_argument("--figure-variant", default=None, help="variant shown in figure5.png")
-    p.add_argument("--max-ratio", type=float, default=3.0, help="scaling limit per dimension")
-    a = p.parse_args(argv)
-    names = a.variants or (QUICK_VARIANTS if a.quick else [v[0] for v in VARIANTS])
-    variants = tuple(v for v in VARIANTS if v[0] in names)
-    if not any(v[3] == "larger" for v in variants) or not any(v[3] == "smaller" for v in variants):
-        p.error("choose at least one larger and one smaller variant")
-    fig = a.figure_variant or ("L3" if "L3" in names else variants[0][0])
-    if fig not in names:
-        p.error(f"--figure-variant {fig} is not among the variants {names}")
-    repeats = a.repeats or (1 if a.quick else 3)
-    if repeats < 1:
-        p.error("--repeats must be >= 1")
-    cfg = E02Config(variants, QUICK_MAP if a.quick else MapConfig(), a.max_ratio, repeats,
-                    figure_variant=fig, quick=a.quick)
-    return cfg, Path(a.out)
+    @property
+    def sizes(self) -> tuple[tuple[str, float, float, str, str], ...]:
+        """The chosen rows of VARIANTS."""
+        return tuple(v for v in VARIANTS if v[0] in self.variants)
+
+    @property
+    def figure(self) -> str:
+        return self.figure_variant or ("L3" if "L3" in self.variants else self.sizes[0][0])
+
+    @property
+    def map_config(self) -> MapConfig:
+        return map_config(self.quick)
+
+    def record(self) -> dict:
+        """The config as summaries hold it (the variants' sizes and the map settings spelt out)."""
+        return {**asdict(self), "variants": self.sizes, "map_config": self.map_config,
+                "figure_variant": self.figure}
 
 
 def _cold() -> None:
@@ -212,7 +213,7 @@ def run_variant(fs_base: GraspabilityMap, v, cfg: E02Config):
                  "first %s ms  tenth %s ms", m, n, rates["SRN"], rates["VRN"],
                  row["methods"][m]["TR"], t["wall_s"], fs_t["wall_s"],
                  _ms(row["methods"][m]["first_ms"]), _ms(row["methods"][m]["tenth_ms"]))
-    figure = (fs, scaled["combined"]) if name == cfg.figure_variant else None
+    figure = (fs, scaled["combined"]) if name == cfg.figure else None
     return row, figure
 
 
@@ -253,10 +254,6 @@ def summarise(rows: list[dict]) -> dict:
     return {"cells": cells, "fs_wall_s": fs, "tests": tests}
 
 
-def _p(p: float) -> str:
-    return "n/a" if p is None or not math.isfinite(p) else ("< .0001" if p < 1e-4 else f"{p:.4f}")
-
-
 def write_table(rows: list[dict], summary: dict, cfg: E02Config) -> str:
     L = ["## Table 2: scaled map quality, time reduction and initial grasps (mean (SD))", "",
          "SRN / VRN over the accepted grasps (grade > 0.7) of both maps; the scaled maps keep "
@@ -281,27 +278,8 @@ def write_table(rows: list[dict], summary: dict, cfg: E02Config) -> str:
             L.append(f"| {LABELS[m]} | {d} | " + " | ".join(vals) + " |")
     f = summary["fs_wall_s"]
     L += ["", f"FS map of a variant: {mean_sd_text(f['larger']['mean'], f['larger']['sd'], 2)} s (larger), "
-          f"{mean_sd_text(f['smaller']['mean'], f['smaller']['sd'], 2)} s (smaller).", "",
-          "## Mixed ANOVA (algorithm within, direction between, variants as subjects)", "",
-          "| metric | effect | F (df) | p | p (Greenhouse-Geisser) |", "|---|---|---|---|---|"]
-    for k, lbl, _ in METRICS[:-1]:
-        t = summary["tests"][k]
-        if "skipped" in t:
-            L.append(f"| {lbl} | - | skipped: {t['skipped']} | | |")
-            continue
-        for eff, name in (("within", "algorithm"), ("between", "direction"), ("interaction", "algorithm x direction")):
-            e = t["anova"][eff]
-            gg = _p(e["p_gg"]) + f" (eps {e['gg_epsilon']:.2f})" if "p_gg" in e else ""
-            L.append(f"| {lbl} | {name} | {e['F']:.2f} ({e['df']:g}, {e['df_error']:g}) | {_p(e['p'])} | {gg} |")
-    L += ["", "## Post-hoc: paired t-tests of the algorithms, Bonferroni-adjusted", "",
-          "| metric | pair | mean difference | t (df) | p (Bonferroni) |", "|---|---|---|---|---|"]
-    for k, lbl, _ in METRICS[:-1]:
-        t = summary["tests"][k]
-        if "skipped" in t:
-            continue
-        for ph in t["posthoc"]:
-            L.append(f"| {lbl} | {ph['a']} - {ph['b']} | {ph['mean_diff']:.2f} | "
-                     f"{ph['t']:.2f} ({ph['df']}) | {_p(ph['p_bonferroni'])} |")
+          f"{mean_sd_text(f['smaller']['mean'], f['smaller']['sd'], 2)} s (smaller).",
+          *tests_markdown(summary["tests"], [(k, lbl) for k, lbl, _ in METRICS[:-1]])]
     L += ["", "## Per variant", "",
           "| variant | r [cm] | h [cm] | changes | FS grasps (> 0.7) | FS [s] | "
           + " | ".join(f"{LABELS[m]} SRN / VRN / TR / first / tenth / s" for m in METHODS) + " |",
@@ -319,11 +297,11 @@ def write_table(rows: list[dict], summary: dict, cfg: E02Config) -> str:
 
 
 def main(argv=None) -> int:
+    cfg, opts = parse_config(E02Config, __file__, argv, __doc__)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     run = RunRecord(__file__, argv)
-    cfg, out = parse_args(argv)
+    out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
-    write_config(out / "config.json", cfg)
     total = Clock()
     base = Cylinder(BASE["radius"], BASE["height"])
     c = Clock()
@@ -333,10 +311,10 @@ def main(argv=None) -> int:
     for _ in scale_stream(fs_base, Cylinder(0.021, 0.21), scaling=ScalingConfig(max_ratio=cfg.max_ratio)):
         break
     log.info("E02: base FS map %d grasps (%d > 0.7) in %.2f s; %d variants x %d algorithms, %d repeat(s)",
-             len(fs_base), int(fs_base.accepted.sum()), base_t["wall_s"], len(cfg.variants), len(METHODS),
+             len(fs_base), int(fs_base.accepted.sum()), base_t["wall_s"], len(cfg.sizes), len(METHODS),
              cfg.repeats)
     rows = []
-    for v in cfg.variants:
+    for v in cfg.sizes:
         row, figure = run_variant(fs_base, v, cfg)
         rows.append(row)
         if figure is not None:
@@ -348,20 +326,17 @@ def main(argv=None) -> int:
             del figure, fs_v, comb
         gc.collect()
     summary = summarise(rows)
+    base_info = {**BASE, "grasps": len(fs_base), "accepted": int(fs_base.accepted.sum())}
     write_json(out / "results.json", {
-        "config": asdict(cfg), "provenance": provenance(),
-        "base": {**BASE, "grasps": len(fs_base), "accepted": int(fs_base.accepted.sum()),
-                                        **base_t},
+        "config": cfg.record(), "base": {**base_info, **base_t},
         "note": "SRN/VRN over grasps with grade > 0.7 in both maps; scaled maps keep only grasps > 0.7",
-        "summary": summary, "variants": rows, "wall_s": total.wall, "cpu_s": total.cpu,
-        "load_avg_end": load_average()})
+        "summary": summary, "variants": rows, "wall_s": total.wall, "cpu_s": total.cpu})
     brief = [{k: v for k, v in r.items() if k not in ("fs", "methods")}
              | {"fs": {k: r["fs"][k] for k in ("grasps", "accepted", "wall_s", "cpu_s")},
                 "methods": {m: {k: v for k, v in x.items() if k != "runs"} for m, x in r["methods"].items()}}
              for r in rows]
-    write_json(out / "summary.json", run.summary({
-        "config": asdict(cfg), "base": {**BASE, "grasps": len(fs_base), "accepted": int(fs_base.accepted.sum())},
-        "summary": summary, "variants": brief}))
+    run.write(out, {"config": cfg.record(), "base": base_info, "summary": summary, "variants": brief},
+              readme_section, publish=opts.publish)
     table = write_table(rows, summary, cfg)
     (out / "table.md").write_text("# E02 cylinder map scaling (paper table 2)\n\n" + table)
     log.info("%s\nwall %.0f s, CPU %.0f s; results in %s", table, total.wall, total.cpu, out)
@@ -382,7 +357,7 @@ PAPER_TR = "The paper's scaled maps saved 96–97 % of its FS maps' time."
 
 def _p_rel(p: float) -> str:
     """"< .0001" or "= 0.0123"."""
-    t = _p(p)
+    t = p_text(p)
     return t if t.startswith("<") else f"= {t}"
 
 
@@ -424,9 +399,9 @@ def readme_section(s: dict) -> str:
         L.append(f"{d.capitalize()} variants: a Combined-scaled map takes {min(comb):.2f}–{max(comb):.2f} s of wall "
                  f"time, an FS map of the same variant {min(fs):.2f}–{max(fs):.2f} s: scaling saves "
                  f"{min(tr):.0f}–{max(tr):.0f} %.")
-    m = s["machine"]
-    L.append(f"(Wall times on {m['cpus']} cores, load average {m['load_avg_start'][0]:g} at the start, "
-             f"{m['load_avg_end'][0]:g} at the end. {PAPER_TR})")
+    start, end = machine_load(s)
+    L.append(f"(Wall times on {s['machine']['cpus']} cores, load average {start[0]:g} at the start, "
+             f"{end[0]:g} at the end. {PAPER_TR})")
     return "\n".join(L) + "\n"
 
 

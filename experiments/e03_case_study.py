@@ -34,7 +34,6 @@ main row, the figures and the saved maps (maps/<object>.h5, for simulated valida
 
 from __future__ import annotations
 
-import argparse
 import gc
 import logging
 import math
@@ -43,24 +42,26 @@ import statistics
 import sys
 import tempfile
 import traceback
-from dataclasses import asdict, dataclass, field
+from collections import Counter
+from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, RunRecord, default_out, load_average, provenance, write_config, write_json  # noqa: E402
+from _common import Clock, RunRecord, fmt, machine_load, map_config, opt, parse_config, rng_for, write_json
 
-from graspsim import case_study_objects as analogs  # noqa: E402
-from graspsim.maps import generate as _generate  # noqa: E402
-from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
-from graspsim.maps.generate import MapConfig  # noqa: E402
-from graspsim.maps.io import save_map  # noqa: E402
-from graspsim.perception import IdentifyConfig  # noqa: E402
-from graspsim.planner import PlannerConfig, plan  # noqa: E402
-from graspsim.plots import plot_maps  # noqa: E402
-from graspsim.primitives import Cylinder, synthetic_cloud  # noqa: E402
-from graspsim.transforms import make_transform  # noqa: E402
+from graspsim import case_study_objects as analogs
+from graspsim.maps import generate as _generate
+from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+from graspsim.maps.generate import MapConfig
+from graspsim.maps.io import save_map
+from graspsim.perception import IdentifyConfig
+from graspsim.planner import PlannerConfig, plan
+from graspsim.plots import plot_clouds, plot_maps
+from graspsim.primitives import Cylinder, synthetic_cloud
+from graspsim.transforms import make_transform
 
 log = logging.getLogger("e03")
 
@@ -95,53 +96,40 @@ class CloudSpec:
 
 @dataclass(frozen=True)
 class E03Config:
-    objects: tuple[str, ...]
-    seeds: int = 5
-    repetitions: int = 10
-    theta: float = 0.5
-    cloud: CloudSpec = field(default_factory=CloudSpec)
-    map_config: MapConfig = field(default_factory=MapConfig)
-    db: str = "results/fsdb"
-    quick: bool = False
+    objects: tuple[str, ...] = opt(tuple(OBJECTS), choices=tuple(OBJECTS))
+    seeds: int = opt(5, "clouds per object")
+    repetitions: int = opt(10, "MLESAC repetitions (paper: 10)")
+    theta: float = opt(0.5, "split threshold theta_th (paper: 0.5)")
+    noise: float = opt(0.0015, "depth noise sigma along the ray [m]")
+    resolution: float = opt(0.001, "cloud point spacing [m]")
+    db: str = opt("", "FS database folder, built if missing (default results/fsdb; quick: OUT/fsdb)")
+    quick: bool = opt(False, "1 cm / 22 deg FS database", cli=False)
+    QUICK: ClassVar[dict] = {"seeds": 1, "quick": True}
 
+    def __post_init__(self) -> None:
+        if self.seeds < 1 or self.repetitions < 1:
+            raise ValueError(f"--seeds and --repetitions must be >= 1, got {self.seeds}, {self.repetitions}")
 
-def parse_args(argv=None) -> tuple[E03Config, Path]:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=default_out(__file__), help="output folder")
-    p.add_argument("--quick", action="store_true",
-                   help="smoke test: 1 cm / 22 deg FS database in OUT/fsdb, one seed")
-    p.add_argument("--objects", nargs="+", default=list(OBJECTS), choices=list(OBJECTS))
-    p.add_argument("--seeds", type=int, default=None, help="clouds per object (5; quick 1)")
-    p.add_argument("--repetitions", type=int, default=10, help="MLESAC repetitions (paper: 10)")
-    p.add_argument("--theta", type=float, default=0.5, help="split threshold theta_th (paper: 0.5)")
-    p.add_argument("--noise", type=float, default=0.0015, help="depth noise sigma along the ray [m]")
-    p.add_argument("--resolution", type=float, default=0.001, help="cloud point spacing [m]")
-    p.add_argument("--db", default=None, help="FS database folder (built if missing; default "
-                   "results/fsdb, quick: OUT/fsdb)")
-    a = p.parse_args(argv)
-    out = Path(a.out)
-    seeds = a.seeds or (1 if a.quick else 5)
-    if seeds < 1:
-        p.error("--seeds must be >= 1")
-    mc = MapConfig(surface_step=0.01, rotation_step=math.radians(22.0)) if a.quick else MapConfig()
-    db = a.db or str(out / "fsdb" if a.quick else "results/fsdb")
-    cfg = E03Config(tuple(a.objects), seeds, a.repetitions, a.theta,
-                    CloudSpec(resolution=a.resolution, noise=a.noise), mc, db, a.quick)
-    return cfg, out
+    @property
+    def cloud(self) -> CloudSpec:
+        return CloudSpec(resolution=self.resolution, noise=self.noise)
+
+    @property
+    def map_config(self) -> MapConfig:
+        return map_config(self.quick)
+
+    def record(self) -> dict:
+        """The config as summaries hold it (cloud and map settings spelt out)."""
+        return {**asdict(self), "cloud": self.cloud, "map_config": self.map_config}
 
 
 # ---------------------------------------------------------------------------- clouds
-#: Seed-stream number of each object: fixed (the first E03 run's order, new objects
-#: appended), so an object's clouds and camera azimuths do not change when the list does.
-STREAM = {"pencil_cup": 0, "glue_bottle_capped": 1, "duck_toy": 2, "ball_with_tab": 3, "bottle_brush": 4,
-          "glue_bottle": 5}
-
 T_WORLD_OBJ = make_transform(np.eye(3), [0.6, 0.0, 0.1])  # the true object's pose in the cloud's frame
 
 
 def camera_position(name: str, seed: int, spec: CloudSpec) -> np.ndarray:
     """Camera position (3,) in the object frame [m]; seed 0 looks from azimuth 20 deg."""
-    rng = np.random.default_rng([seed, STREAM[name], 1])
+    rng = rng_for(seed, name, "camera")
     az = math.radians(20.0) if seed == 0 else rng.uniform(0, 2 * math.pi)
     el = math.radians(spec.camera_elevation_deg)
     return spec.camera_distance * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
@@ -150,7 +138,7 @@ def camera_position(name: str, seed: int, spec: CloudSpec) -> np.ndarray:
 def make_cloud(name: str, seed: int, spec: CloudSpec) -> np.ndarray:
     """(N, 3) single-view cloud of object ``name`` in the cloud's (world) frame, where
     the object stands at ``T_WORLD_OBJ`` and the camera is at :func:`camera_position`."""
-    rng = np.random.default_rng([seed, STREAM[name]])
+    rng = rng_for(seed, name)
     cam = camera_position(name, seed, spec)
     kw = dict(resolution=spec.resolution, noise=spec.noise, outliers=spec.outliers, camera=cam)
     if name == "bottle_brush":
@@ -176,16 +164,8 @@ class _ThetaLog(logging.Handler):
 def _db_view(base: MapDatabase, tmp: Path) -> MapDatabase:
     """A database over the base's files (linked) in a fresh folder: parts built during a
     run land there and vanish with it. FS maps are loaded (accepted prefix) up front."""
-    view = tmp / "db"
-    if view.exists():
-        shutil.rmtree(view)
-    view.mkdir()
-    shutil.copy2(base.index_path, view / "index.json")
-    for e in base.entries():
-        dst = view / e["file"]
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        dst.symlink_to((base.root / e["file"]).resolve())
-    db = MapDatabase(view, gripper=base.gripper, quality=base.quality, config=base.config)
+    shutil.rmtree(tmp / "db", ignore_errors=True)
+    db = base.linked_copy(tmp / "db")
     for e in db.entries():
         db.load_entry(e, accepted_only=True)
     return db
@@ -204,7 +184,7 @@ def run_plan(points: np.ndarray, base: MapDatabase, tmp: Path, seed: int, theta:
     pc = PlannerConfig(identify=IdentifyConfig(repetitions=cfg.repetitions, theta=theta))
     clock = Clock()
     try:
-        result = plan(points, db=db, rng=np.random.default_rng(seed), config=pc, source="synthetic")
+        result = plan(points, db=db, rng=rng_for(seed), config=pc, source="synthetic")
     except Exception as err:  # noqa: BLE001 - a library failure is a result to report, not a crash
         frame = traceback.extract_tb(err.__traceback__)[-1]
         t = clock.record()
@@ -224,7 +204,7 @@ def run_plan(points: np.ndarray, base: MapDatabase, tmp: Path, seed: int, theta:
         "theta": theta, "status": result.status.value, "points": len(points),
         "parts": [{"primitive": p.primitive.kind,
                    "dims_cm": {k: round(100 * v, 2) for k, v in p.primitive.dims.items()},
-                   "match": p.match, "source": p.source.get("dims")} for p in result.parts],
+                   "match": p.match.value, "source": p.source.get("dims")} for p in result.parts],
         "unidentified": [u.reason for u in ident.unidentified], "n_splits": ident.n_splits,
         "splits": handler.splits, "grasps": len(result.map), "accepted": int(result.map.accepted.sum()),
         "wall_s": t["wall_s"], "cpu_s": t["cpu_s"], "load_avg": t["load_avg"],
@@ -300,19 +280,12 @@ def _describe_kinds(row: dict) -> str:
 
 
 def _count(items) -> dict:
-    out: dict[str, int] = {}
-    for x in items:
-        out[x] = out.get(x, 0) + 1
-    return dict(sorted(out.items(), key=lambda kv: -kv[1]))
+    return dict(Counter(items).most_common())
 
 
 # ---------------------------------------------------------------------------- outputs
 def _ms(x):
     return "n/a" if x is None else f"{x:.0f}"
-
-
-def _s(x):
-    return "-" if x is None else f"{x:.3f}"
 
 
 def write_table(objects: list[dict], cfg: E03Config, db_info: dict) -> str:
@@ -338,7 +311,7 @@ def write_table(objects: list[dict], cfg: E03Config, db_info: dict) -> str:
             L.append(f"| {o['object']} | {o['paper'] if key == 'main' else '(rerun)'} | {r['theta']:.2f} "
                      f"| {r['status']} "
                      f"| {ident} | {th} | {r['wall_s']:.3f} ({r['cpu_s']:.3f}) | "
-                     f"{_s(r['identify_s'])} / {_s(r['maps_s'])} | {_ms(r['first_ms'])} / {_ms(r['tenth_ms'])} "
+                     f"{fmt(r['identify_s'], 3)} / {fmt(r['maps_s'], 3)} | {_ms(r['first_ms'])} / {_ms(r['tenth_ms'])} "
                      f"| {r['grasps']} |")
     L += ["", f"## Robustness over {cfg.seeds} clouds per object (other camera azimuths and noise draws)", "",
           "| object | outcomes at theta_th = " + f"{cfg.theta:g}" + " | reruns at the smallest splitting theta_th "
@@ -352,46 +325,26 @@ def write_table(objects: list[dict], cfg: E03Config, db_info: dict) -> str:
     return "\n".join(L) + "\n"
 
 
-def plot_clouds(clouds: dict[str, np.ndarray], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig = plt.figure(figsize=(3.6 * len(clouds), 3.8))
-    for i, (name, pts) in enumerate(clouds.items()):
-        ax = fig.add_subplot(1, len(clouds), i + 1, projection="3d")
-        p = pts[np.random.default_rng(0).permutation(len(pts))[:8000]]
-        ax.scatter(*p.T, s=0.5, c=p[:, 2], cmap="copper")
-        c, r = 0.5 * (p.max(0) + p.min(0)), 0.5 * float(np.max(np.ptp(p, axis=0)))
-        ax.set(xlim=(c[0] - r, c[0] + r), ylim=(c[1] - r, c[1] + r), zlim=(c[2] - r, c[2] + r))
-        ax.set_title(f"{name}: {len(pts)} points", fontsize=9)
-        ax.set_axis_off()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
 def main(argv=None) -> int:
+    cfg, opts = parse_config(E03Config, __file__, argv, __doc__)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     run = RunRecord(__file__, argv)
-    cfg, out = parse_args(argv)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "maps").mkdir(exist_ok=True)
-    write_config(out / "config.json", cfg)
+    out = Path(opts.out)
+    (out / "maps").mkdir(parents=True, exist_ok=True)
+    db_root = cfg.db or str(out / "fsdb" if cfg.quick else "results/fsdb")
     total = Clock()
-    base = MapDatabase(cfg.db, config=cfg.map_config)
+    base = MapDatabase(db_root, config=cfg.map_config)
     c = Clock()
     built = base.build(PAPER_SHAPES.values())
-    db_info = {"root": str(cfg.db), "config": "1 cm / 22 deg" if cfg.quick else "0.5 cm / 11 deg",
+    db_info = {"root": db_root, "config": "1 cm / 22 deg" if cfg.quick else "0.5 cm / 11 deg",
                "maps": [{k: e[k] for k in ("primitive", "dims", "grasps", "accepted", "seconds")} for e in built],
                "build_or_check_s": c.wall}
-    log.info("E03: FS database %s ready in %.1f s; load %s", cfg.db, c.wall, load_average())
+    log.info("E03: FS database %s ready in %.1f s; load %s", db_root, c.wall, c.load)
     objects, figure_maps, clouds = [], [], {}
     with tempfile.TemporaryDirectory(prefix="e03-") as tmp:
         tmp = Path(tmp)
         # warm-up (untimed): imports, compiled kernels, first plan
-        warm = synthetic_cloud(Cylinder(0.025, 0.15), np.random.default_rng(99), resolution=0.004, noise=0.0005)
+        warm = synthetic_cloud(Cylinder(0.025, 0.15), rng_for(99), resolution=0.004, noise=0.0005)
         run_plan(warm.points, base, tmp, 0, cfg.theta, cfg)
         for name in cfg.objects:
             summary, maps = run_object(name, base, tmp, cfg)
@@ -408,13 +361,12 @@ def main(argv=None) -> int:
     if figure_maps:
         plot_maps([m for _, _, m in figure_maps], out / "figure7.png", what="wrist", titles=[
             f"{n} (theta_th {th:.2f}):\n{len(m)} grasps" for n, th, m in figure_maps])
-    plot_clouds(clouds, out / "clouds.png")
-    write_json(out / "results.json", {"config": asdict(cfg), "provenance": provenance(), "database": db_info,
-                                      "objects": objects,
-                                      "wall_s": total.wall, "cpu_s": total.cpu, "load_avg_end": load_average()})
-    write_json(out / "summary.json", run.summary({
-        "config": asdict(cfg), "database": db_info,
-        "objects": [{k: v for k, v in o.items() if k != "runs"} | {"seed0": o["runs"][0]} for o in objects]}))
+    plot_clouds(clouds, out / "clouds.png", rng_for(0))
+    write_json(out / "results.json", {"config": cfg.record(), "database": db_info, "objects": objects,
+                                      "wall_s": total.wall, "cpu_s": total.cpu})
+    brief = [{k: v for k, v in o.items() if k != "runs"} | {"seed0": o["runs"][0]} for o in objects]
+    run.write(out, {"config": cfg.record(), "database": db_info, "objects": brief}, readme_section,
+              publish=opts.publish)
     table = write_table(objects, cfg, db_info)
     (out / "table.md").write_text("# E03 case study (paper table 3)\n\n" + table)
     log.info("%s\nwall %.0f s, CPU %.0f s; results in %s", table, total.wall, total.cpu, out)
@@ -439,9 +391,9 @@ def readme_section(s: dict) -> str:
         split = f"{r['identify_s']:.2f} / {r['maps_s']:.2f} s" if timed else "–"
         L.append(f"| {o['object']} | {o['paper']} | {out} | {o['median_wall_s']:.2f} ({o['max_wall_s']:.2f}) s | "
                  f"{split} | {re} |")
-    m = s["machine"]
-    L += ["", f"(Wall times on {m['cpus']} cores, load average {m['load_avg_start'][0]:g} at the start, "
-          f"{m['load_avg_end'][0]:g} at the end. \"built\": a part outside every stored map's scaling range gets "
+    start, end = machine_load(s)
+    L += ["", f"(Wall times on {s['machine']['cpus']} cores, load average {start[0]:g} at the start, "
+          f"{end[0]:g} at the end. \"build\": a part outside every stored map's scaling range gets "
           f"its FS map built and stored on the spot, inside the timed run.)"]
     return "\n".join(L) + "\n"
 

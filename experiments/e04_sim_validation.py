@@ -27,34 +27,29 @@ feasible without noise and of all drawn poses (95 % Wilson intervals throughout)
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import sys
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RunRecord, map_config, md_table, opt, parse_config, rate_ci, rng_for, standing_cloud, write_text
 
-from _common import RunRecord, default_out, rate_ci  # noqa: E402
-
-from graspsim.calibration import CalibrationCase, SimCondition, TrialTable, simulate_samples, wilson_interval  # noqa: E402
-from graspsim.calibration.markdown import md_table  # noqa: E402
-from graspsim.calibration.outputs import write_json, write_text  # noqa: E402
-from graspsim.calibration.trials import CaseSample  # noqa: E402
-from graspsim.case_study_objects import ANALOGS  # noqa: E402
-from graspsim.grades import get_grade  # noqa: E402
-from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid  # noqa: E402
-from graspsim.maps.generate import MapConfig, generate_fs_map  # noqa: E402
-from graspsim.maps.scaling import scale_map  # noqa: E402
-from graspsim.planner import plan  # noqa: E402
-from graspsim.primitives import synthetic_cloud  # noqa: E402
-from graspsim.sim import ExecutionNoise, object_from_shape, select_grasps  # noqa: E402
-from graspsim.sim.outcomes import TrialOutcome  # noqa: E402
-from graspsim.sim.scene import resting_pose  # noqa: E402
-from graspsim.transforms import invert_transform, make_transform  # noqa: E402
+from graspsim.calibration import CalibrationCase, SimCondition, TrialTable, simulate_samples, wilson_interval
+from graspsim.calibration.trials import CaseSample, case_clears_table
+from graspsim.case_study_objects import ANALOGS
+from graspsim.grades import get_grade
+from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid
+from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.scaling import scale_map
+from graspsim.planner import plan
+from graspsim.sim import ExecutionNoise, object_from_shape, select_grasps
+from graspsim.sim.outcomes import TrialOutcome
+from graspsim.transforms import invert_transform
 
 log = logging.getLogger("e04")
 
@@ -64,48 +59,35 @@ log = logging.getLogger("e04")
 SELECTIONS = ("paper", "paper_low", "all", "pad_contact")
 LABELS = {"paper": "paper grade > 0.7", "paper_low": "paper grade <= 0.7", "all": "any grade (base rate)",
           "pad_contact": "pad-contact grade > its threshold"}
-QUICK_MAP = MapConfig(surface_step=0.01, rotation_step=math.radians(22.0))
 
 
 @dataclass(frozen=True)
 class Config:
-    out: str = default_out(__file__)
-    seed: int = 0
-    per_case: int = 150
-    paper_test: int = 15
-    paper_test_repeats: int = 20
-    sizes: tuple = (0.8, 1.0, 1.25)
-    primitives: tuple = tuple(PAPER_SHAPES)
-    analogs: tuple = tuple(ANALOGS)
-    selections: tuple = SELECTIONS
-    noise: tuple = (0.003, math.radians(2.0))
-    candidates: int = 40000
-    threads: int = 2
-    db: str = ""
-    quick: bool = False
+    seed: int = opt(0, "run seed")
+    per_case: int = opt(150, "grasps drawn per map and selection")
+    paper_test: int = opt(15, "grasps per draw of the paper's test")
+    paper_test_repeats: int = opt(20, "draws of the paper's test")
+    sizes: tuple[float, ...] = opt((0.8, 1.0, 1.25), "sizes relative to the paper's")
+    primitives: tuple[str, ...] = opt(tuple(PAPER_SHAPES), choices=tuple(PAPER_SHAPES))
+    analogs: tuple[str, ...] = opt(tuple(ANALOGS), choices=tuple(ANALOGS))
+    selections: tuple[str, ...] = opt(SELECTIONS, choices=SELECTIONS)
+    noise: tuple[float, ...] = opt((0.003, math.radians(2.0)), "execution error sigmas [m, rad]")
+    candidates: int = opt(40000, "rows regraded for the pad-contact selection")
+    threads: int = opt(2, "simulation and map threads")
+    db: str = opt("", "FS database folder (default OUT/fsdb)")
+    quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
+    QUICK: ClassVar[dict] = {"per_case": 10, "paper_test_repeats": 2, "sizes": (1.0, 1.25),
+                             "primitives": ("box", "cylinder"), "analogs": ("glue_bottle",), "candidates": 5000,
+                             "quick": True}
+
+    def __post_init__(self) -> None:
+        if self.per_case < 1 or self.paper_test < 1 or len(self.noise) != 2:
+            raise ValueError(f"--per-case and --paper-test must be >= 1 and --noise two sigmas, got "
+                             f"{self.per_case}, {self.paper_test}, {self.noise}")
 
     @property
     def map_config(self) -> MapConfig:
-        return QUICK_MAP if self.quick else MapConfig()
-
-
-def parse(argv=None) -> Config:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=Config.out)
-    p.add_argument("--seed", type=int, default=Config.seed)
-    p.add_argument("--per-case", type=int, default=Config.per_case, help="grasps drawn per map and selection")
-    p.add_argument("--threads", type=int, default=Config.threads)
-    p.add_argument("--db", default="", help="FS database folder (default OUT/fsdb)")
-    p.add_argument("--quick", action="store_true",
-                   help="two primitives, one analog, few grasps, coarse maps (1 cm / 22 deg)")
-    a = p.parse_args(argv)
-    if a.per_case < 1:
-        p.error(f"--per-case must be >= 1, got {a.per_case}")
-    cfg = Config(out=a.out, seed=a.seed, per_case=a.per_case, threads=a.threads, db=a.db or f"{a.out}/fsdb")
-    if a.quick:
-        cfg = replace(cfg, per_case=min(a.per_case, 10), paper_test_repeats=2, sizes=(1.0, 1.25),
-                      primitives=("box", "cylinder"), analogs=("glue_bottle",), candidates=5000, quick=True)
-    return cfg
+        return map_config(self.quick)
 
 
 # ------------------------------------------------------------------------- cases
@@ -124,16 +106,12 @@ def primitive_cases(cfg: Config) -> list[CalibrationCase]:
 
 
 def analog_cloud(name: str, seed: int):
-    """A cloud of analog ``name`` standing on the table (z = 0) at a random yaw, as the
-    demo sees it (2 mm spacing, 0.8 mm noise, 1 % outliers); returns (points, true
-    shape, T_cloud_true)."""
+    """A cloud of analog ``name`` standing on the table at a random yaw, as the demo
+    sees it (2 mm spacing, 0.8 mm noise, 1 % outliers); returns (points, true shape,
+    T_cloud_true)."""
     truth = ANALOGS[name]()
-    rng = np.random.default_rng([seed, sum(map(ord, name))])
-    a = rng.uniform(0, 2 * np.pi)
-    R = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
-    T = make_transform(R, [0.55, -0.05, -truth.aabb[0, 2]])
-    c = synthetic_cloud(truth, rng, resolution=0.002, noise=0.0008, outliers=0.01, T_world_obj=T)
-    return c.points, truth, T
+    points, T = standing_cloud(truth, rng_for(seed, name), resolution=0.002, noise=0.0008, outliers=0.01)
+    return points, truth, T
 
 
 def analog_cases(cfg: Config) -> tuple[list[CalibrationCase], dict]:
@@ -144,7 +122,7 @@ def analog_cases(cfg: Config) -> tuple[list[CalibrationCase], dict]:
     cases, info = [], {}
     for name in cfg.analogs:
         cloud, truth, T_cloud_true = analog_cloud(name, cfg.seed)
-        res = plan(cloud, db=db, rng=np.random.default_rng(cfg.seed))
+        res = plan(cloud, db=db, rng=rng_for(cfg.seed))
         info[name] = {"status": res.status.value, "parts": [p.to_dict() for p in res.parts],
                       "grasps": len(res.map), "true_object": truth.to_dict()}
         if not len(res.map):
@@ -177,19 +155,6 @@ def uniform_rows(case: CalibrationCase, rows: np.ndarray, n: int, rng) -> np.nda
     if len(rows) == 0:
         return rows
     return rows[select_grasps(case.gmap.select(rows), sample=n, rng=rng)]
-
-
-def clears_table(case: CalibrationCase, rows: np.ndarray) -> np.ndarray:
-    obj = case.sim_object if case.sim_object is not None else None
-    if obj is None:
-        from graspsim.sim.mapsim import map_object
-
-        obj = map_object(case.gmap)
-    from graspsim.gripper import GripperSpec
-
-    T = resting_pose(obj) @ case.T_obj_wrist[rows]
-    g = GripperSpec.from_dict(case.gmap.meta.gripper)
-    return g.lowest_point(T, g.pregrasp_opening(case.gmap.width[rows])) >= 0.0
 
 
 # -------------------------------------------------------------------- simulation
@@ -248,9 +213,10 @@ def _fail_str(f: dict) -> str:
 def paper_test(glue: CalibrationCase, conditions: list[SimCondition], cfg: Config) -> dict:
     """Part A: independent draws of ``paper_test`` grasps > 0.7 clear of the table; the
     same number of draws over all the map's grasps clear of the table (the base rate)."""
-    rng = np.random.default_rng([cfg.seed, 15])
+    rng = rng_for(cfg.seed, "paper_test")
     hi = np.flatnonzero(glue.gmap.grade > 0.7)
-    clear = hi[clears_table(glue, hi)]
+    clear_all = np.flatnonzero(case_clears_table(glue))
+    clear = np.intersect1d(hi, clear_all)
     draws = [uniform_rows(glue, clear, cfg.paper_test, rng) for _ in range(cfg.paper_test_repeats)]
     raw = uniform_rows(glue, hi, cfg.paper_test, rng)
     rows = np.concatenate(draws)
@@ -258,8 +224,6 @@ def paper_test(glue: CalibrationCase, conditions: list[SimCondition], cfg: Confi
     per_draw = np.split(np.arange(len(t)), np.cumsum([len(d) for d in draws])[:-1])
     t_raw = paired([CaseSample(glue, raw, np.ones(len(raw)), len(hi), len(glue.gmap))], conditions,
                    replace(cfg, seed=cfg.seed + 1))
-    every = np.arange(len(glue.gmap))
-    clear_all = every[clears_table(glue, every)]
     base = np.concatenate([uniform_rows(glue, clear_all, cfg.paper_test, rng) for _ in draws])
     t_base = paired([CaseSample(glue, base, np.ones(len(base)), len(clear_all), len(glue.gmap))], conditions,
                     replace(cfg, seed=cfg.seed + 2))
@@ -270,32 +234,37 @@ def paper_test(glue: CalibrationCase, conditions: list[SimCondition], cfg: Confi
             "accepted_clear_of_table": int(len(clear)), "clear_of_table": int(len(clear_all))}
 
 
+def draw(cases: list[CalibrationCase], sel: str, grade, cfg: Config) -> list[CaseSample]:
+    """``cfg.per_case`` grasps of each case's map that selection ``sel`` keeps, drawn
+    uniformly over the surface (a case and selection's own stream)."""
+    samples = []
+    for case in cases:
+        rng = rng_for(cfg.seed, case.name, sel)
+        eligible = selected_rows(case, sel, grade, rng, cfg.candidates)
+        if sel in ("paper_low", "all") and not np.any(case.gmap.grade[eligible] <= 0.7):
+            continue  # a map of grasps > 0.7 only: "all" would repeat "paper"
+        rows = uniform_rows(case, eligible, cfg.per_case, rng)
+        samples.append(CaseSample(case, rows, np.ones(len(rows)), len(eligible), len(case.gmap)))
+    return samples
+
+
 def main(argv=None) -> int:
+    cfg, opts = parse_config(Config, __file__, argv, __doc__)
+    cfg = replace(cfg, db=cfg.db or f"{opts.out}/fsdb")
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger("graspsim.sim.batch").setLevel(logging.WARNING)
     run = RunRecord(__file__, argv)
-    cfg = parse(argv)
-    out = Path(cfg.out)
+    out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
     grade = get_grade("pad_contact")
     prim = primitive_cases(cfg)
     analogs, plan_info = analog_cases(cfg)
-    conditions = [SimCondition("exact"),
-                  SimCondition("noise", noise=ExecutionNoise(*cfg.noise))]
+    conditions = [SimCondition("exact"), SimCondition("noise", noise=ExecutionNoise(*cfg.noise))]
     glue = next((c for c in analogs if c.group == "glue_bottle"), None)
     part_a = None if glue is None else paper_test(glue, conditions, cfg)
-
     tables = []
     for sel in cfg.selections:
-        samples = []
-        for case in prim + analogs:
-            rng = np.random.default_rng([cfg.seed, len(case.name), sum(map(ord, case.name + sel))])
-            eligible = selected_rows(case, sel, grade, rng, cfg.candidates)
-            if sel in ("paper_low", "all") and not np.any(case.gmap.grade[eligible] <= 0.7):
-                continue  # a map of grasps > 0.7 only: "all" would repeat "paper"
-            rows = uniform_rows(case, eligible, cfg.per_case, rng)
-            samples.append(CaseSample(case, rows, np.ones(len(rows)), len(eligible), len(case.gmap)))
-        t = paired(samples, conditions, cfg)
+        t = paired(draw(prim + analogs, sel, grade, cfg), conditions, cfg)
         tables.append(t.with_columns(selected_by=np.full(len(t), sel)))
     table = TrialTable.concat(tables, meta={"config": asdict(cfg)})
     table.save(out / "trials.npz")
@@ -303,8 +272,8 @@ def main(argv=None) -> int:
     is_prim = np.array([c.split("@")[0] in PAPER_SHAPES for c in table["group"]])
     table = table.with_columns(family=np.where(is_prim, "primitives", "analogs"))
     fs = table.select(table["kind"] == "fs")
-    summary = run.summary({
-        "config": asdict(cfg), "noise": {"position_m": cfg.noise[0], "rotation_deg": math.degrees(cfg.noise[1])},
+    data = {
+        "config": cfg, "noise": {"position_m": cfg.noise[0], "rotation_deg": math.degrees(cfg.noise[1])},
         "grade_thresholds": {"paper": 0.7, "pad_contact": grade.threshold},
         "cases": {"fs": int(len(set(fs["case"]))), "all": len(prim) + len(analogs),
                   "primitives": list(cfg.primitives), "sizes": list(cfg.sizes), "analogs": list(cfg.analogs)},
@@ -312,9 +281,9 @@ def main(argv=None) -> int:
         "pooled": rate_rows(table, ("selected_by",)),
         "pooled_fs": rate_rows(fs, ("selected_by",)),
         "per_kind": rate_rows(table, ("selected_by", "family", "kind")),
-        "per_case": rate_rows(table, ("selected_by", "group", "kind"))})
-    write_json(out / "summary.json", summary)
-    md = markdown(summary)
+        "per_case": rate_rows(table, ("selected_by", "group", "kind"))}
+    run.write(out, data, readme_section, publish=opts.publish)
+    md = markdown(run.summary(data))
     write_text(out / "summary.md", md)
     print(md)
     return 0

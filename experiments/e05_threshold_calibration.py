@@ -24,28 +24,26 @@ Each simulated table is saved (trials_<name>.npz) and reused when its settings m
 
     python experiments/e05_threshold_calibration.py [--publish]      # full configuration
     python experiments/e05_threshold_calibration.py --quick --out results/e05_quick
+    python experiments/e05_threshold_calibration.py --report-only   # the report from saved trials
 """
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
-import os
-import shlex
-import shutil
 import sys
-import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RunRecord, fmt, map_config, md_table, opt, parse_config, pct, write_text
+
 from graspsim.calibration import TrialTable, calibrate, draw_samples, simulate_samples
 from graspsim.calibration.conditions import SimCondition, condition
-from graspsim.calibration.markdown import md_table
 from graspsim.calibration.objects import CALIBRATION_CONE, HELD_OUT_SHAPES, paper_size_grid
-from graspsim.calibration.outputs import library_versions, write_json, write_text
 from graspsim.calibration.plots import plot_reliability, plot_roc, plot_threshold_sweep
 from graspsim.calibration.trials import fs_cases
 from graspsim.grades import get_grade
@@ -53,8 +51,6 @@ from graspsim.maps.generate import MapConfig
 from graspsim.sim import ExecutionNoise
 
 log = logging.getLogger("e05")
-STEM = "e05_threshold_calibration"
-REPORTED = Path(__file__).resolve().parent / "reported" / f"{STEM}.json"
 
 COMPONENTS = ("q_fc", "q_st", "-fc_angle", "-stability_distance", "-f_alpha_min",
               "-f_pad_normal_angle", "-f_pad_residual_angle", "f_pad_edge_margin",
@@ -63,52 +59,36 @@ COMPONENTS = ("q_fc", "q_st", "-fc_angle", "-stability_distance", "-f_alpha_min"
 
 @dataclass(frozen=True)
 class Config:
-    out: str = f"results/{STEM}"
-    per_bin: int = 40
-    sensitivity_per_bin: int = 20
-    seed: int = 1
-    threads: int = 2
-    target: float = 0.97
-    n_boot: int = 500
-    sensitivity_boot: int = 200
-    objects: tuple = tuple(HELD_OUT_SHAPES)
-    main_conditions: tuple = ("default", "friction_limited")
-    frictions: tuple = (0.4, 0.5, 0.6, 0.8, 1.0)
-    forces: tuple = (30.0, 60.0, 100.0, 250.0, 300.0)
-    mass_scales: tuple = (0.5, 1.0, 2.0, 4.0)
-    noise: tuple = (0.003, math.radians(2.0))
-    study: bool = False
-    study_per_bin: int = 40
-    closing_cone_deg: float = math.degrees(CALIBRATION_CONE)
-    report_only: bool = False
-    quick: bool = False
+    per_bin: int = opt(40, "grasps per paper-grade bin and object (main sample)")
+    sensitivity_per_bin: int = opt(20, "grasps per bin and object (sensitivity subsample)")
+    seed: int = opt(1, "run seed")
+    threads: int = opt(2, "simulation and map threads")
+    target: float = opt(0.97, "precision the calibrated threshold reaches")
+    n_boot: int = opt(500, "bootstrap resamples (main)")
+    sensitivity_boot: int = opt(200, "bootstrap resamples (sensitivity)")
+    objects: tuple[str, ...] = opt(tuple(HELD_OUT_SHAPES), "held-out objects", choices=tuple(HELD_OUT_SHAPES))
+    main_conditions: tuple[str, ...] = opt(("default", "friction_limited"), cli=False)
+    frictions: tuple[float, ...] = opt((0.4, 0.5, 0.6, 0.8, 1.0), "pad frictions of the sensitivity")
+    forces: tuple[float, ...] = opt((30.0, 60.0, 100.0, 250.0, 300.0), "grip forces per jaw [N]")
+    mass_scales: tuple[float, ...] = opt((0.5, 1.0, 2.0, 4.0), "object mass factors")
+    noise: tuple[float, ...] = opt((0.003, math.radians(2.0)), cli=False)
+    study: bool = opt(False, "replay the issue's feasibility study too")
+    study_per_bin: int = opt(40, "grasps per bin of the study replay")
+    closing_cone_deg: float = opt(math.degrees(CALIBRATION_CONE), cli=False)
+    report_only: bool = opt(False, "recompute the report from the saved trials_*.npz (no maps, no simulation)")
+    quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
+    QUICK: ClassVar[dict] = {"objects": ("box_5x7x9", "sphere_r40"), "per_bin": 4, "sensitivity_per_bin": 2,
+                             "n_boot": 20, "sensitivity_boot": 10, "frictions": (0.5, 1.0), "forces": (30.0, 250.0),
+                             "mass_scales": (1.0,), "study_per_bin": 2, "quick": True}
 
+    def __post_init__(self) -> None:
+        if min(self.per_bin, self.sensitivity_per_bin, self.study_per_bin, self.n_boot, self.sensitivity_boot) < 1:
+            raise ValueError("--per-bin, --sensitivity-per-bin, --study-per-bin, --n-boot and --sensitivity-boot "
+                             "must be >= 1")
 
-def parse(argv=None) -> tuple[Config, bool]:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=Config.out)
-    p.add_argument("--per-bin", type=int, default=Config.per_bin)
-    p.add_argument("--sensitivity-per-bin", type=int, default=Config.sensitivity_per_bin)
-    p.add_argument("--n-boot", type=int, default=Config.n_boot)
-    p.add_argument("--sensitivity-boot", type=int, default=Config.sensitivity_boot)
-    p.add_argument("--seed", type=int, default=Config.seed)
-    p.add_argument("--threads", type=int, default=Config.threads)
-    p.add_argument("--target", type=float, default=Config.target)
-    p.add_argument("--study", action="store_true", help="replay the issue's feasibility study too")
-    p.add_argument("--quick", action="store_true", help="three objects, few grasps (smoke run)")
-    p.add_argument("--report-only", action="store_true",
-                   help="recompute the report from the saved trials_*.npz (no maps, no simulation)")
-    p.add_argument("--publish", action="store_true",
-                   help=f"copy summary.json to experiments/reported/{STEM}.json (the README's numbers)")
-    a = p.parse_args(argv)
-    cfg = Config(out=a.out, per_bin=a.per_bin, sensitivity_per_bin=a.sensitivity_per_bin, n_boot=a.n_boot,
-                 sensitivity_boot=a.sensitivity_boot, seed=a.seed, threads=a.threads, target=a.target,
-                 study=a.study, report_only=a.report_only, quick=a.quick)
-    if a.quick:
-        cfg = replace(cfg, objects=("box_5x7x9", "cylinder_r25_h160", "sphere_r40"), per_bin=6,
-                      sensitivity_per_bin=3, n_boot=50, sensitivity_boot=20, frictions=(0.4, 0.5, 1.0),
-                      forces=(30.0, 250.0), mass_scales=(1.0, 4.0), study_per_bin=3)
-    return cfg, a.publish
+    @property
+    def map_config(self) -> MapConfig:
+        return map_config(self.quick, closing_cone=math.radians(self.closing_cone_deg))
 
 
 def conditions(cfg: Config) -> list[SimCondition]:
@@ -139,17 +119,13 @@ def simulated(out: Path, name: str, samples, cond: SimCondition, cfg: Config, mo
 SCORES = {"paper": "grade", "pad_contact": "grade_pad_contact"}
 
 
-def main(argv=None) -> int:
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    logging.getLogger("graspsim.sim.batch").setLevel(logging.WARNING)
-    cfg, publish = parse(argv)
-    out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
-    t0, load0 = time.perf_counter(), list(os.getloadavg())
+def run_tables(cfg: Config, out: Path) -> tuple[dict, dict, dict | None]:
+    """(main reports per condition, sensitivity per condition, the study replay or None),
+    with the figures written to ``out``."""
     pad = get_grade("pad_contact")
     # each grade at 0.7 and at its own acceptance threshold (paper 0.7; pad_contact's shipped one)
     ref = {"at_0.7": 0.7, "at_own_threshold": {"paper": 0.7, "pad_contact": pad.threshold}}
-    mcfg = MapConfig(closing_cone=math.radians(cfg.closing_cone_deg))
+    mcfg = cfg.map_config
     lazy: dict = {}
 
     def table(name: str, what: str, cond: SimCondition) -> TrialTable:
@@ -185,8 +161,7 @@ def main(argv=None) -> int:
                   **{c: (f[c], f["success"], None) for c in ("q_fc", "q_st")}},
                  out / f"roc_{cname}.png", title=f"Held-out objects, {cname} (sample)")
 
-    # sensitivity: paired subsample, every condition
-    sens = {}
+    sens = {}  # paired subsample, every condition
     for cond in conditions(cfg):
         t = table(f"sens_{cond.name}", "sens", cond)
         r = calibrate(t, SCORES, target=cfg.target, reference=ref, n_boot=cfg.sensitivity_boot, seed=cfg.seed)
@@ -204,12 +179,20 @@ def main(argv=None) -> int:
             r = calibrate(t, SCORES, target=cfg.target, reference=ref, n_boot=cfg.sensitivity_boot,
                           seed=cfg.seed)
             study[cond.name] = {"summary": r.summary, "scores": {k: v.to_dict() for k, v in r.scores.items()}}
-    summary = {
-        "script": f"experiments/{STEM}.py",
-        "command": "python " + " ".join(shlex.quote(x) for x in [f"experiments/{STEM}.py", *sys.argv[1:]]),
-        "config": asdict(cfg), "reduced": _reduced(cfg),
-        "machine": {"cpus": os.cpu_count(), "load_avg_before": load0, "load_avg_after": list(os.getloadavg())},
-        "versions": library_versions(), "seconds": time.perf_counter() - t0,
+    return main_reports, sens, study
+
+
+def main(argv=None) -> int:
+    cfg, opts = parse_config(Config, __file__, argv, __doc__)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger("graspsim.sim.batch").setLevel(logging.WARNING)
+    run = RunRecord(__file__, argv)
+    out = Path(opts.out)
+    out.mkdir(parents=True, exist_ok=True)
+    main_reports, sens, study = run_tables(cfg, out)
+    pad = get_grade("pad_contact")
+    data = {
+        "script": f"experiments/{run.stem}.py", "config": cfg, "reduced": _reduced(cfg),
         "pad_contact_model": {k: v for k, v in pad.to_dict().items() if k != "provenance"},
         "closing_cone_deg": cfg.closing_cone_deg, "default_closing_cone_deg": math.degrees(MapConfig().closing_cone),
         "headline": {c: {"all_closing_directions": _headline(m["report"]),
@@ -217,22 +200,18 @@ def main(argv=None) -> int:
         "main": {c: {"condition": m["condition"], "report": m["report"].to_dict(),
                      "default_cone": m["default_cone"].to_dict()} for c, m in main_reports.items()},
         "sensitivity": sens, "study": study}
-    write_json(out / "summary.json", summary)
-    write_json(out / "config.json", asdict(cfg))
+    run.write(out, data, readme_section, publish=opts.publish)
     md = _markdown(cfg, main_reports, sens, study)
     write_text(out / "summary.md", md)
     print(md)
-    if publish:
-        REPORTED.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(out / "summary.json", REPORTED)
     return 0
 
 
 def _reduced(cfg: Config) -> str | None:
     """What this run left out of the full configuration (None: nothing)."""
-    full = Config(out=cfg.out, threads=cfg.threads, report_only=cfg.report_only)
-    diff = {k: v for k, v in asdict(cfg).items() if asdict(full)[k] != v and k not in ("out", "threads",
-                                                                                       "report_only")}
+    full = Config()
+    diff = {f: getattr(cfg, f) for f in cfg.__dataclass_fields__
+            if getattr(cfg, f) != getattr(full, f) and f not in ("threads", "report_only")}
     return None if not diff else "reduced configuration: " + ", ".join(f"{k}={v}" for k, v in diff.items())
 
 
@@ -318,7 +297,7 @@ def _markdown(cfg, main_reports, sens, study) -> str:
 
 
 def _pct(v) -> str:
-    return "–" if v is None else f"{100 * v:.1f} %"
+    return pct(v, missing="–") + ("" if v is None else " %")
 
 
 def readme_section(summary: dict) -> str:
@@ -330,8 +309,8 @@ def readme_section(summary: dict) -> str:
             rows.append(f"| {cname} | {subset} | {d['feasible']} ({d['start_collision']}) | "
                         f"{_pct(d['base_rate'])} | {_pct(p07['precision'])} "
                         f"({p07['successes_accepted']}/{p07['trials_accepted']}) | {_pct(p07['recall'])} | "
-                        f"{d['paper']['auc']:.2f} | {own['threshold']:.2f}: {_pct(own['precision'])}, "
-                        f"recall {_pct(own['recall'])} | {d['pad_contact']['auc']:.2f} |")
+                        f"{fmt(d['paper']['auc'], 2)} | {fmt(own['threshold'], 2)}: {_pct(own['precision'])}, "
+                        f"recall {_pct(own['recall'])} | {fmt(d['pad_contact']['auc'], 2)} |")
     noise = summary["sensitivity"].get("noise")
     lines = [
         f"`{summary['command']}`" + (f" ({summary['reduced']})" if summary.get("reduced") else ""), "",

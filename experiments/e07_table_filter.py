@@ -11,7 +11,7 @@ them in MuJoCo against the true shape standing as in the cloud -- by default wit
 execution error (the grasps are executed exactly; ``--noise default`` adds 3 mm / 2 deg,
 or ``--noise MM:DEG``). Reports per object and pooled: grasps kept, share of
 START_COLLISION, success of the feasible trials and of all drawn grasps (95 % Wilson
-intervals). Writes summary.json, table.md, results.json and config.json to ``--out``.
+intervals). Writes summary.json, README.md, table.md and config.json to ``--out``.
 
     python experiments/e07_table_filter.py
     python experiments/e07_table_filter.py --noise default --out results/e07_table_filter.noise
@@ -20,36 +20,36 @@ intervals). Writes summary.json, table.md, results.json and config.json to ``--o
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from _common import (  # noqa: E402
+from _common import (
     Clock,
     RunRecord,
     database_note,
     database_record,
-    default_out,
+    map_config,
     noise_sigmas,
+    opt,
+    parse_config,
     pct,
     rate_ci,
-    write_config,
-    write_json,
+    rng_for,
+    standing_cloud,
 )
 
-from graspsim.case_study_objects import ANALOGS  # noqa: E402
-from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
-from graspsim.maps.generate import MapConfig  # noqa: E402
-from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402
-from graspsim.primitives import synthetic_cloud  # noqa: E402
-from graspsim.sim import (  # noqa: E402
+from graspsim.case_study_objects import ANALOGS
+from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+from graspsim.maps.generate import MapConfig
+from graspsim.planner import PlannerConfig, TablePlane, plan
+from graspsim.sim import (
     ExecutionNoise,
     LiftPlace,
     SimSettings,
@@ -58,30 +58,41 @@ from graspsim.sim import (  # noqa: E402
     object_from_shape,
     run_trials,
 )
-from graspsim.stats import wilson_interval  # noqa: E402
-from graspsim.transforms import invert_transform, make_transform  # noqa: E402
+from graspsim.stats import wilson_interval
+from graspsim.transforms import invert_transform
 
 log = logging.getLogger("e07")
+OBJECTS = tuple(ANALOGS) + tuple(PAPER_SHAPES)
 
 
 @dataclass(frozen=True)
 class Config:
-    objects: tuple[str, ...] = tuple(ANALOGS) + tuple(PAPER_SHAPES)
-    trials: int = 80  # grasps drawn per object and condition
-    seed: int = 7
-    resolution: float = 0.002
-    noise: float = 0.0008
-    camera_distance: float = 0.6
-    camera_elevation_deg: float = 40.0
-    threads: int | None = None
-    execution_error: str = "none"
-    db: str = ""
-    quick: bool = False
+    objects: tuple[str, ...] = opt(OBJECTS, choices=OBJECTS)
+    trials: int = opt(80, "grasps drawn per object and condition")
+    seed: int = opt(7, "run seed")
+    resolution: float = opt(0.002, "cloud point spacing [m]")
+    cloud_noise: float = opt(0.0008, "cloud noise sigma [m]")
+    camera_distance: float = opt(0.6, "[m]")
+    camera_elevation_deg: float = opt(40.0, "[deg]")
+    threads: int | None = opt(None, "simulation threads (default: all cores)")
+    noise: str = opt("none", "execution error: none, default (3 mm / 2 deg) or MM:DEG")
+    db: str = opt("", "FS database folder (default: the library's; quick: OUT/fsdb)")
+    quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
+    QUICK: ClassVar[dict] = {"objects": ("glue_bottle", "cylinder"), "trials": 12, "quick": True}
+
+    def __post_init__(self) -> None:
+        noise_sigmas(self.noise)  # a bad label: ValueError, one line
+        if self.trials < 1:
+            raise ValueError(f"--trials must be >= 1, got {self.trials}")
 
     @property
     def execution_noise(self) -> ExecutionNoise | None:
-        pos, deg = noise_sigmas(self.execution_error)
+        pos, deg = noise_sigmas(self.noise)
         return ExecutionNoise(pos, math.radians(deg)) if pos > 0 or deg > 0 else None
+
+    @property
+    def map_config(self) -> MapConfig:
+        return map_config(self.quick)
 
 
 def true_shape(name: str):
@@ -92,15 +103,9 @@ def scene_cloud(name: str, cfg: Config):
     """Single-view cloud of the object standing on z = 0 at a random yaw, in the cloud's
     (world) frame; returns (points, true shape, T_cloud_true)."""
     truth = true_shape(name)
-    rng = np.random.default_rng([cfg.seed, sum(map(ord, name))])
-    a = rng.uniform(0, 2 * math.pi)
-    R = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
-    T = make_transform(R, [0.55, -0.05, -truth.aabb[0, 2]])
-    az, el = rng.uniform(0, 2 * math.pi), math.radians(cfg.camera_elevation_deg)
-    cam = cfg.camera_distance * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-    c = synthetic_cloud(truth, rng, resolution=cfg.resolution, noise=cfg.noise, outliers=0.005,
-                        camera=cam, T_world_obj=T)
-    return c.points, truth, T
+    points, T = standing_cloud(truth, rng_for(cfg.seed, name), resolution=cfg.resolution, noise=cfg.cloud_noise,
+                               outliers=0.005, camera=(cfg.camera_distance, cfg.camera_elevation_deg))
+    return points, truth, T
 
 
 #: (label, with the table, grasps drawn from): the base rate draws from every grasp
@@ -126,14 +131,14 @@ def run_object(name: str, db: MapDatabase, cfg: Config) -> dict:
     for label, with_table, drawn_from in CONDITIONS:
         if with_table not in plans:
             clock = Clock()
-            plans[with_table] = (plan(points, db=db, rng=np.random.default_rng(cfg.seed),
+            plans[with_table] = (plan(points, db=db, rng=rng_for(cfg.seed),
                                       config=PlannerConfig(table=TablePlane() if with_table else None)), clock.wall)
         res, t_plan = plans[with_table]
         m = res.map.filter(accepted=True) if drawn_from == "accepted" else res.map
         entry = {"status": res.status.value, "parts": [p.primitive.kind for p in res.parts],
                  "grasps": len(m), "plan_s": t_plan, "table": res.map.meta.extra.get("table")}
         if len(m):
-            rows = m.uniform_surface_rows(cfg.trials, np.random.default_rng(cfg.seed))
+            rows = m.uniform_surface_rows(cfg.trials, rng_for(cfg.seed))
             entry.update(_trials(m, rows, scene, invert_transform(T_cloud_true) @ res.T_cloud_obj, cfg),
                          grade_le_07=int(np.sum(m.grade[rows] <= 0.7)))
         row[label] = entry
@@ -145,7 +150,7 @@ def run_object(name: str, db: MapDatabase, cfg: Config) -> dict:
 
 
 def _pct(x):
-    return "-" if x is None else f"{100 * x:.1f}"
+    return pct(x, missing="-")
 
 
 def write_table(rows: list[dict], pooled: dict) -> str:
@@ -175,38 +180,8 @@ def write_table(rows: list[dict], pooled: dict) -> str:
     return "\n".join(L) + "\n"
 
 
-def main(argv=None) -> int:
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", default=default_out(__file__), help="output folder")
-    p.add_argument("--trials", type=int, default=Config.trials, help="grasps per object and condition")
-    p.add_argument("--seed", type=int, default=Config.seed)
-    p.add_argument("--threads", type=int, default=None)
-    p.add_argument("--noise", default=Config.execution_error,
-                   help="execution error: none (default), default (3 mm / 2 deg) or MM:DEG")
-    p.add_argument("--db", default="", help="FS database folder (default: the library's; quick: OUT/fsdb)")
-    p.add_argument("--quick", action="store_true", help="two objects, a coarse database, few trials")
-    a = p.parse_args(argv)
-    try:
-        noise_sigmas(a.noise)
-    except ValueError as e:
-        p.error(str(e))
-    run = RunRecord(__file__, argv)
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
-    cfg = Config(trials=a.trials, seed=a.seed, threads=a.threads, execution_error=a.noise, db=a.db)
-    map_cfg = MapConfig()
-    if a.quick:
-        cfg = replace(cfg, objects=("glue_bottle", "cylinder"), trials=min(a.trials, 12), quick=True,
-                      db=a.db or str(out / "fsdb"))
-        map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
-    write_config(out / "config.json", cfg)
-    total = Clock()
-    db = MapDatabase(cfg.db or None, config=map_cfg)
-    db.build(PAPER_SHAPES.values(), threads=cfg.threads)
-    db_start = database_record(db)
-    rows = [run_object(name, db, cfg) for name in cfg.objects]
+def pool(rows: list[dict]) -> dict:
+    """Trials, START_COLLISION and successes of every object, per condition."""
     pooled = {}
     for label, _, _ in CONDITIONS:
         es = [r[label] for r in rows if "trials" in r[label]]
@@ -216,11 +191,27 @@ def main(argv=None) -> int:
                          "feasible": feas, "success": ok, "success_rate": ok / feas if feas else None,
                          "interval_95": list(wilson_interval(ok, feas)) if feas else [0.0, 1.0],
                          "grade_le_07": sum(e["grade_le_07"] for e in es)}
+    return pooled
+
+
+def main(argv=None) -> int:
+    cfg, opts = parse_config(Config, __file__, argv, __doc__)
+    if cfg.quick and not cfg.db:
+        cfg = replace(cfg, db=str(Path(opts.out) / "fsdb"))
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    run = RunRecord(__file__, argv)
+    out = Path(opts.out)
+    out.mkdir(parents=True, exist_ok=True)
+    total = Clock()
+    db = MapDatabase(cfg.db or None, config=cfg.map_config)
+    db.build(PAPER_SHAPES.values(), threads=cfg.threads)
+    db_start = database_record(db)
+    rows = [run_object(name, db, cfg) for name in cfg.objects]
+    pooled = pool(rows)
     (out / "table.md").write_text(write_table(rows, pooled))
-    record = run.summary({"config": cfg, "noise_sigmas": noise_sigmas(cfg.execution_error), "objects": rows,
-                          "pooled": pooled, "database": {"start": db_start, "end": database_record(db)}})
-    write_json(out / "summary.json", record)
-    write_json(out / "results.json", record)
+    run.write(out, {"config": cfg, "noise_sigmas": noise_sigmas(cfg.noise), "objects": rows, "pooled": pooled,
+                    "database": {"start": db_start, "end": database_record(db)}}, readme_section,
+              publish=opts.publish)
     print(write_table(rows, pooled))
     print(f"wall {total.wall:.0f} s; results in {out}")
     return 0

@@ -9,6 +9,7 @@ with its provenance (command, seeds, sizes, git commit, library versions).
     python experiments/golden_regression.py                  # tests/data/success_regression.json
     python experiments/golden_regression.py --scan-masses    # success vs object mass at 8 N per jaw
     python experiments/golden_regression.py --mutations      # which bands each deliberate break trips
+    python experiments/golden_regression.py --quick --golden /tmp/g.json --out /tmp/g   # smoke run
 
 ``--scan-masses`` is how the cases' masses (``regression.SPECS``) were chosen: the
 issue's 0.5 kg where the hi set holds (>= 90 %) and the lo set mostly fails; lighter where
@@ -23,18 +24,18 @@ tests/data/regression_mutations.json: which bands each break trips.
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
-import os
-import shlex
 import sys
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import ClassVar
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RunRecord, opt, parse_config, write_json
 
 from graspsim.calibration.conditions import FRICTION_LIMITED
-from graspsim.calibration.outputs import library_versions, write_json
 from graspsim.calibration.regression import (
     CATCHES,
     FAMILY_ALPHA,
@@ -50,8 +51,29 @@ from graspsim.calibration.regression import (
 )
 
 log = logging.getLogger("golden_regression")
-OUT = Path("results/golden_regression")
 MASS_GRID = (0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7)
+
+
+@dataclass(frozen=True)
+class Config:
+    golden: str = opt("tests/data/success_regression.json", "the golden file (written; read by --mutations)")
+    seed: int = opt(1000, "seed of the golden run")
+    hi: int = opt(300, "golden grasps per hi set")
+    lo: int = opt(300, "golden grasps per lo set")
+    test_hi: int = opt(30, "the test's grasps per hi set")
+    test_lo: int = opt(30, "the test's grasps per lo set")
+    test_seed: int = opt(7, "the test's seed")
+    threads: int = opt(2, "simulation threads")
+    mutations_out: str = opt("tests/data/regression_mutations.json", "where --mutations writes")
+    scan_masses: bool = opt(False, "success vs mass (how SPECS was chosen)")
+    mutations: bool = opt(False, "every mutation on every case")
+    QUICK: ClassVar[dict] = {"hi": 40, "lo": 40, "test_hi": 4, "test_lo": 4}
+
+    def __post_init__(self) -> None:
+        if self.scan_masses and self.mutations:
+            raise ValueError("--scan-masses and --mutations are two runs: give one")
+        if self.seed == self.test_seed or min(self.hi, self.lo, self.test_hi, self.test_lo) < 1:
+            raise ValueError("the golden and the test seeds must differ, and every size be >= 1")
 
 
 def _sizes(cases, hi: int, lo: int) -> dict:
@@ -59,9 +81,7 @@ def _sizes(cases, hi: int, lo: int) -> dict:
     return {c.name: {"hi": hi, "lo": lo} for c in cases}
 
 
-def golden(a) -> dict:
-    t0 = time.perf_counter()
-    load0 = os.getloadavg()
+def golden(a: Config, run: RunRecord) -> dict:
     cases = regression_cases(threads=a.threads)
     pool = {c.name: {k: len(v) for k, v in pools(c).items()} for c in cases}
     ref = regression_trials(cases, _sizes(cases, a.hi, a.lo), seed=a.seed, threads=a.threads)
@@ -80,23 +100,21 @@ def golden(a) -> dict:
         sys.exit(f"the unchanged code fails its own bands: {failed}")
     return {
         "provenance": {
-            "script": "experiments/golden_regression.py",
-            "command": "python " + " ".join(shlex.quote(x) for x in sys.argv),
+            "script": "experiments/golden_regression.py", "command": run.command,
             "seed": a.seed, "test_seed": a.test_seed, "sizes": {"hi": a.hi, "lo": a.lo},
             "test_sizes": test_sizes, "pool": pool, "map_config": REGRESSION_MAPS.to_dict(),
             "condition": FRICTION_LIMITED.to_dict(), "conditions": ref.meta["conditions"],
             "specs": {k: asdict(v) for k, v in SPECS.items()}, "protocol": ref.meta.get("protocol"),
-            "mujoco_version": ref.meta.get("mujoco_version"), "versions": library_versions(),
+            "mujoco_version": ref.meta.get("mujoco_version"), "versions": run.versions,
             "rule": "floor / ceiling: alpha / 1 - alpha quantiles of BetaBinomial(n, K + 1/2, N - K + 1/2), "
                     f"alpha = {FAMILY_ALPHA:g} / number of checks; counts out of grasps requested",
-            "seconds": time.perf_counter() - t0, "load_avg": [list(load0), list(os.getloadavg())],
-            "cpus": os.cpu_count()},
+            "machine": run.summary({})["machine"]},
         "golden": rates, "bands": bands, "catches": CATCHES,
         "test_run": {"rates": test, "checks": checks},
     }
 
 
-def scan_masses(a) -> dict:
+def scan_masses(a: Config, run: RunRecord) -> dict:
     """Success of each case's hi and lo sets at every mass of the grid (8 N per jaw)."""
     cases = regression_cases(threads=a.threads)
     sizes = _sizes(cases, a.test_hi, a.test_lo)
@@ -111,15 +129,15 @@ def scan_masses(a) -> dict:
         cells = [" ".join(f"{s}:{out[f'{m:g}'][c][s]['k']}/{out[f'{m:g}'][c][s]['n']}" for s in ("hi", "lo"))
                  for m in MASS_GRID]
         print(c.ljust(22) + "".join(f"{x:>19s}" for x in cells))
-    return {"command": "python " + " ".join(shlex.quote(x) for x in sys.argv), "grip_force": 8.0,
-            "masses": list(MASS_GRID), "rates": out, "versions": library_versions()}
+    return {"command": run.command, "grip_force": 8.0, "masses": list(MASS_GRID), "rates": out,
+            "versions": run.versions}
 
 
-def mutations(a) -> dict:
+def mutations(a: Config, run: RunRecord) -> dict:
     """Every mutation on every case, checked against the committed bands."""
     from graspsim.calibration.mutations import MUTATIONS, mutated
 
-    gold = json.loads(Path(a.out).read_text())
+    gold = json.loads(Path(a.golden).read_text())
     sizes = gold["provenance"]["test_sizes"]
     cases = regression_cases(threads=a.threads)
     out = {}
@@ -137,38 +155,28 @@ def mutations(a) -> dict:
         print(f"{name}: {len(tripped)} of {len(checks)} checks tripped")
         for t in tripped:
             print("   ", t)
-    return {"command": "python " + " ".join(shlex.quote(x) for x in sys.argv), "golden": a.out,
+    return {"command": run.command, "golden": a.golden,
             "golden_commit": gold["provenance"]["versions"]["git_commit"],
-            "catches": CATCHES, "mutations": out, "versions": library_versions()}
+            "catches": CATCHES, "mutations": out, "versions": run.versions}
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default="tests/data/success_regression.json")
-    p.add_argument("--seed", type=int, default=1000)
-    p.add_argument("--hi", type=int, default=300, help="golden grasps per hi set")
-    p.add_argument("--lo", type=int, default=300, help="golden grasps per lo set")
-    p.add_argument("--test-hi", type=int, default=30)
-    p.add_argument("--test-lo", type=int, default=30)
-    p.add_argument("--test-seed", type=int, default=7)
-    p.add_argument("--threads", type=int, default=2)
-    p.add_argument("--mutations-out", default="tests/data/regression_mutations.json")
-    mode = p.add_mutually_exclusive_group()
-    mode.add_argument("--scan-masses", action="store_true", help="success vs mass (how SPECS was chosen)")
-    mode.add_argument("--mutations", action="store_true", help="every mutation on every case")
-    a = p.parse_args()
+def main(argv=None) -> int:
+    a, opts = parse_config(Config, __file__, argv, __doc__)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger("graspsim").setLevel(logging.WARNING)
-    OUT.mkdir(parents=True, exist_ok=True)
+    run = RunRecord(__file__, argv)
+    out = Path(opts.out)
+    out.mkdir(parents=True, exist_ok=True)
     if a.scan_masses:
-        write_json(OUT / "mass_scan.json", scan_masses(a))
+        write_json(out / "mass_scan.json", scan_masses(a, run))
     elif a.mutations:
-        write_json(a.mutations_out, mutations(a))
+        write_json(a.mutations_out, mutations(a, run))
     else:
-        out = golden(a)
-        write_json(a.out, out)
-        print(json.dumps(out["bands"], indent=1))
+        gold = golden(a, run)
+        write_json(a.golden, gold)
+        print(json.dumps(gold["bands"], indent=1))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

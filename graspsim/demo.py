@@ -94,16 +94,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
     from graspsim.maps.table import clears_table
     from graspsim.planner import plan
     from graspsim.plots import plot_map
-    from graspsim.sim import (
-        ExecutionNoise,
-        LiftPlace,
-        SimSettings,
-        TrialOutcome,
-        build_scene,
-        object_from_shape,
-        run_trials,
-    )
-    from graspsim.transforms import invert_transform
+    from graspsim.sim import ExecutionNoise, LiftPlace, TrialOutcome, run_trials
 
     if cfg.quick:
         cfg = replace(cfg, trials=min(cfg.trials, 6), renders=min(cfg.renders, 1))
@@ -133,17 +124,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
         step("identification failed: no map, nothing to simulate")
         return _finish(summary, out, t0)
 
-    # the simulated object: the true geometry when known, else the identified one
-    if truth is not None:
-        T_true_obj = invert_transform(T_world_true) @ result.T_cloud_obj
-        sim_shape = truth
-    else:
-        from graspsim.primitives import shape_from_dict
-
-        T_true_obj = np.eye(4)
-        sim_shape = shape_from_dict(gmap.meta.object)
-    scene = build_scene(object_from_shape(sim_shape), db.gripper,
-                        SimSettings(friction=db.quality.friction))
+    scene, T_true_obj = _sim_scene(result, truth, T_world_true, db)
     # grasps whose gripper stays clear of the table (2 mm) with the object standing on it,
     # drawn uniformly over the object
     T_sim = T_true_obj @ gmap.T_obj_wrist
@@ -171,6 +152,21 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
         summary["renders"] = _render(scene, T_sim[rows], gmap.width[rows], out / "renders",
                                      cfg.renders, step)
     return _finish(summary, out, t0)
+
+
+def _sim_scene(result, truth, T_world_true, db):
+    """(the scene, T_true_obj): the simulated object is the true geometry when known
+    (the map's frame at T_true_obj in it), else the identified one."""
+    from graspsim.primitives import shape_from_dict
+    from graspsim.sim import SimSettings, build_scene, object_from_shape
+    from graspsim.transforms import invert_transform
+
+    if truth is not None:
+        T_true_obj, sim_shape = invert_transform(T_world_true) @ result.T_cloud_obj, truth
+    else:
+        T_true_obj, sim_shape = np.eye(4), shape_from_dict(result.map.meta.object)
+    scene = build_scene(object_from_shape(sim_shape), db.gripper, SimSettings(friction=db.quality.friction))
+    return scene, T_true_obj
 
 
 def _render(scene, T, width, folder: Path, n: int, step) -> list[str]:

@@ -65,18 +65,20 @@ class PlannerConfig:
 
 @dataclass(frozen=True)
 class PartPlan:
-    """primitive: as identified (box edges ascending); match: known / familiar / built;
+    """primitive: as identified (box edges ascending); match: the database's decision
+    (:class:`~graspsim.maps.match.MatchKind`: KNOWN, FAMILIAR, or BUILD: an FS map was
+    built for the part -- or, with ``build_missing`` off, none: ``source`` is empty);
     source: the FS map's object; T_cloud_part (4, 4); T_obj_part (4, 4) in the map's
     object frame."""
 
     primitive: Primitive
-    match: str
+    match: MatchKind
     source: dict
     T_cloud_part: np.ndarray
     T_obj_part: np.ndarray
 
     def to_dict(self) -> dict:
-        return {"primitive": self.primitive.kind, "dims": self.primitive.dims, "match": self.match,
+        return {"primitive": self.primitive.kind, "dims": self.primitive.dims, "match": self.match.value,
                 "source": self.source, "T_cloud_part": self.T_cloud_part.tolist()}
 
 
@@ -137,23 +139,23 @@ def _batches(gmap: GraspabilityMap, first: int, growth: float) -> Iterator[Grasp
         start, size = stop, int(size * max(growth, 1.0))
 
 
-def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig) -> tuple[str, dict, Iterator]:
+def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig) -> tuple[MatchKind, dict, Iterator]:
     """(match, source object, iterator of map batches in the part's frame)."""
     m = db.match(prim, max_ratio=cfg.scaling.max_ratio)
     stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth)  # noqa: E731
     if m.match is MatchKind.KNOWN:  # the stored map as is (paper 2.2)
         fs = db.load_entry(m.entry, accepted_only=True)
-        return "known", fs.meta.object, stream(fs)
+        return m.match, fs.meta.object, stream(fs)
     if m.match is MatchKind.FAMILIAR:
         fs = db.load_entry(m.entry, accepted_only=True)
-        return "familiar", fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling, gripper=db.gripper,
+        return m.match, fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling, gripper=db.gripper,
                                                         quality=db.quality, config=db.config)
     if not cfg.build_missing:
-        return "missing", {}, iter(())
+        return MatchKind.BUILD, {}, iter(())
     # no map of this primitive within the scaling range: add one to the database
     fs = db.get(prim)  # sorted best first: the accepted grasps are a prefix
     fs = fs.select(np.arange(int(fs.accepted.sum())))
-    return "built", fs.meta.object, stream(fs)
+    return MatchKind.BUILD, fs.meta.object, stream(fs)
 
 
 def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,

@@ -11,7 +11,7 @@ import numpy as np
 
 from graspsim.maps.graspmap import GraspabilityMap
 
-__all__ = ["plot_map", "plot_maps", "map_figure", "image_format"]
+__all__ = ["plot_map", "plot_maps", "plot_clouds", "map_figure", "image_format"]
 
 _FORMATS = ("png", "pdf", "svg", "jpg", "jpeg", "tif", "tiff", "webp", "eps", "ps")
 
@@ -117,3 +117,29 @@ def map_figure(maps: list[GraspabilityMap], *, what: str = "grasp_point", min_gr
         sc = _draw(ax, m, what, max_points, min_grade, titles[i] if titles else default)
     fig.colorbar(sc, ax=fig.axes, shrink=0.6, pad=0.06, label="grade")
     return fig
+
+
+def plot_clouds(clouds: dict[str, np.ndarray], path: str | os.PathLike, rng: np.random.Generator, *,
+                max_points: int = 8000) -> None:
+    """Point clouds side by side (3-D scatter, equal axes, coloured by z): ``clouds``
+    maps a title to (N, 3) points [m]; at most ``max_points`` drawn from each by ``rng``."""
+    from graspsim._atomic import atomic_path
+    from graspsim.errors import OutputPathError
+
+    fmt = image_format(path)
+    plt = _pyplot()
+    fig = plt.figure(figsize=(3.6 * len(clouds), 3.8))
+    for i, (name, pts) in enumerate(clouds.items()):
+        ax = fig.add_subplot(1, len(clouds), i + 1, projection="3d")
+        p = pts[rng.permutation(len(pts))[:max_points]]
+        ax.scatter(*p.T, s=0.5, c=p[:, 2], cmap="copper")
+        c, r = 0.5 * (p.max(0) + p.min(0)), 0.5 * float(np.max(np.ptp(p, axis=0)))
+        ax.set(xlim=(c[0] - r, c[0] + r), ylim=(c[1] - r, c[1] + r), zlim=(c[2] - r, c[2] + r))
+        ax.set_title(f"{name}: {len(pts)} points", fontsize=9)
+        ax.set_axis_off()
+    fig.tight_layout()
+    try:
+        with atomic_path(path, OutputPathError) as tmp:
+            fig.savefig(tmp, dpi=120, format=fmt)
+    finally:
+        plt.close(fig)

@@ -1,6 +1,6 @@
-"""Experiment scripts E01-E04, E07, E08: quick modes end to end (each writes the
-summary.json its README block is generated from), and the statistics helper they rely
-on."""
+"""Every experiment and benchmark script: its quick mode end to end (each writes the
+summary.json its README block is generated from; structure and invariants, not one
+machine's floats), and the statistics helper they rely on."""
 
 import importlib.util
 import json
@@ -66,16 +66,28 @@ def test_e03_quick_writes_table_json_figures_maps(tmp_path):
     assert [o["object"] for o in r["objects"]] == ["pencil_cup", "glue_bottle", "glue_bottle_capped", "duck_toy",
                                                    "ball_with_tab", "bottle_brush"]
     assert all(run["main"]["wall_s"] > 0 for o in r["objects"] for run in o["runs"])
+    for o in r["objects"]:  # "status: match kind + ...", the match as the README prints it
+        assert sum(o["outcomes"].values()) == o["seeds"] == 1
+        for outcome in o["outcomes"]:
+            words = outcome.split(": ", 1)[1].replace(" + ", " ").split()
+            assert outcome.split(":")[0] in ("complete", "partial", "failed", "error")
+            assert set(words[::2]) <= {"known", "familiar", "build", "no"}, outcome
     assert list((out / "maps").glob("*.h5"))
 
 
 def test_e07_quick_table_filter_removes_start_collisions(tmp_path):
     out = tmp_path / "e07"
-    assert _load("e07_table_filter").main(["--quick", "--out", str(out)]) == 0
-    r = json.loads((out / "results.json").read_text())
+    mod = _load("e07_table_filter")
+    assert mod.main(["--quick", "--out", str(out)]) == 0
+    r = json.loads((out / "summary.json").read_text())
     assert (out / "table.md").stat().st_size > 0
     assert r["pooled"]["table"]["trials"] > 0 and r["pooled"]["table"]["start_collision"] == 0
     assert r["pooled"]["no table"]["start_collision"] > 0
+    for label, p in r["pooled"].items():  # the pooled counts are the objects' counts
+        es = [o[label] for o in r["objects"] if "trials" in o[label]]
+        assert p["trials"] == sum(e["trials"] for e in es) == p["start_collision"] + p["feasible"]
+        assert p["success"] == sum(e["success"] for e in es) <= p["feasible"]
+    assert r["command"] in mod.readme_section(r) == (out / "README.md").read_text().rstrip("\n") + "\n"
 
 
 def test_e08_quick_pose_baselines(tmp_path):
@@ -120,6 +132,18 @@ def test_e01_quick_summary_counts(tmp_path):
     assert s["command"] in text and "| 10 |" in text and "/2)" in text
 
 
+def test_e01_quick(tmp_path):
+    mod = _load("e01_identification_repetitions")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    cells = {(c["mode"], c["kind"], c["repetitions"]) for c in s["summary"]}
+    assert cells == {(m, k, r) for m in ("full", "partial") for k in s["config"]["kinds"] for r in (1, 10)}
+    assert all(c["trials"] == 1 and c["successes"] == round(c["success_rate"]) for c in s["summary"])
+    rows = json.loads((tmp_path / "results.json").read_text())["trials"]
+    assert len(rows) == len(cells) and all(r["n_points"] > 0 for r in rows)
+    assert s["command"] in mod.readme_section(s)
+
+
 @pytest.mark.slow
 def test_e04_quick_pairs_noise_with_exact(tmp_path):
     out = tmp_path / "e04"
@@ -151,7 +175,7 @@ def test_bench_fsmap_quick_times_fresh_and_in_process_runs(tmp_path):
     assert row["fresh"]["wall_s"] > row["fresh"]["generation_s"] > 0
     assert row["in_process"]["rebuilt"]["generation_s"] > 0 and row["fresh"]["peak_rss_mb"] > 0
     assert {"import graspsim", "graspsim --help", "graspsim info MAP"} <= set(s["startup"])
-    assert len(s["machine"]["load_before"]) == 3 and s["provenance"]["commit"]
+    assert len(s["machine"]["load_avg_start"]) == 3 and s["provenance"]["commit"]
     md = bench.readme_section(s)
     assert s["command"] in md and "| cylinder | 1 |" in md
 
@@ -198,3 +222,72 @@ def test_bench_map_preflight_quick(tmp_path):
     assert s["headline"]["refusals"] == 1 and s["headline"]["all_one_line_exit_2"]
     assert s["headline"]["estimate_over_measured_min"] == est["estimate_mib"] / est["measured_growth_mib"]
     assert s["command"] in mod.readme_section(s)
+
+
+@pytest.mark.slow
+def test_e05_threshold_calibration_quick(tmp_path):
+    mod = _load("e05_threshold_calibration")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    assert s["reduced"].startswith("reduced configuration") and set(s["headline"]) == {"default", "friction_limited"}
+    for h in s["headline"].values():
+        for d in h.values():
+            assert d["feasible"] + d["start_collision"] == d["trials"] and d["objects"] == 2
+            assert 0 <= d["base_rate"] <= 1 and set(d) >= {"paper", "pad_contact"}
+    assert set(s["sensitivity"]) == {"default", "mu_1", "force_30", "noise", "friction_limited"}
+    for f in ("summary.md", "trials_main_default.npz", "reliability_default.png", "threshold_vs_mu.png"):
+        assert (tmp_path / f).stat().st_size > 0, f
+    assert s["command"] in mod.readme_section(s)
+
+
+@pytest.mark.slow
+def test_e12_fit_grade_model_quick(tmp_path):
+    mod = _load("e12_fit_grade_model")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    assert s["config"]["objects"] == ["box@1", "cylinder@1", "sphere@1"]
+    assert 0 < s["feasible"] <= s["trials"] and 0 <= s["success_rate"] <= 1
+    assert set(s["cv_auc_by_object"]) == set(s["paper_auc_by_object"]) == set(s["config"]["objects"])
+    model = json.loads((tmp_path / "grade_model.json").read_text())
+    assert model["provenance"]["script"] == "experiments/e12_fit_grade_model.py"
+    assert model["provenance"]["command"] == s["command"] and len(model["coef"]) == len(model["features"])
+    # a rerun with the same configuration reuses the simulated trials
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0 and _summary(tmp_path)["trials"] == s["trials"]
+
+
+@pytest.mark.slow
+def test_bench_sim_quick(tmp_path):
+    mod = _load("bench_sim")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    assert [r["object"] for r in s["rows"]] == ["primitive", "coacd_mesh"]
+    for r in s["rows"]:
+        assert r["trials"] == 4 and 0 <= r["successes"] <= r["feasible"] <= r["trials"] and r["repeats"] == 1
+        assert r["harness_sim_s_per_s"] > 0 and r["harness_over_rollout"] > 0
+    assert s["command"] in mod.readme_section(s)
+
+
+@pytest.mark.slow
+def test_golden_regression_quick_refuses_bands_that_cannot_fail(tmp_path):
+    """Four test grasps per set cannot trip a band: the quick run computes the golden
+    rates and the bands, then refuses them with one message and writes no golden file."""
+    mod = _load("golden_regression")
+    golden = tmp_path / "golden.json"
+    with pytest.raises(SystemExit) as e:
+        mod.main(["--quick", "--golden", str(golden), "--out", str(tmp_path)])
+    assert str(e.value.code).startswith("bands that cannot fail:") and "of 4 cannot fail" in str(e.value.code)
+    assert not golden.exists()
+
+
+def test_e01_counts_a_view_with_too_few_points_as_a_failure(monkeypatch):
+    from graspsim.errors import PointCloudError
+
+    mod = _load("e01_identification_repetitions")
+
+    def too_few(*a, **k):
+        raise PointCloudError("the cloud has 17 points; at least 30 are needed")
+
+    monkeypatch.setattr(mod, "run_trial", too_few)
+    cfg = mod.E01Config(trials=1, variants=1, workers=1)
+    mode, row = mod._task((cfg, "partial", "box", 0, 10, 0))
+    assert mode == "partial" and not row["success"] and row["predicted"] == "too few points" and row["n_points"] > 0

@@ -77,3 +77,16 @@ def test_uncached_database_reads_every_time(tmp_path):
     a = db.load_entry(e, accepted_only=True)
     b = db.load_entry(e, accepted_only=True)
     assert a is not b and len(a) == len(b) == e["accepted"]
+
+
+def test_linked_copy_shares_the_maps_and_keeps_its_own(tmp_path):
+    coarse = MapConfig(surface_step=0.01, rotation_step=math.radians(30))
+    base = MapDatabase(tmp_path / "base", config=coarse)
+    base.add(Sphere(0.03))
+    view = base.linked_copy(tmp_path / "view")
+    assert [e["key"] for e in view.entries()] == [e["key"] for e in base.entries()]
+    assert (tmp_path / "view" / base.entries()[0]["file"]).is_symlink()
+    view.add(Sphere(0.05))  # built in the copy only
+    assert len(view.entries()) == 2 and len(base.entries()) == 1
+    with pytest.raises(FileExistsError):
+        base.linked_copy(tmp_path / "view")

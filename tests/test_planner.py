@@ -9,6 +9,7 @@ from graspsim.gripper import HGPL_25_60_A as G
 from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
+from graspsim.maps.match import MatchKind
 from graspsim.planner import GraspBatch, PlanResult, PlanStatus, plan, plan_stream
 from graspsim.primitives import Box, Compound, Cylinder, Sphere, synthetic_cloud
 from graspsim.transforms import invert_transform, make_transform, random_rotation
@@ -41,7 +42,8 @@ def test_familiar_cylinder_is_scaled_and_fits_the_real_object(db):
     truth = Cylinder(0.025, 0.16)
     cloud = _cloud(truth, 1)
     r = plan(cloud.points, db=db, rng=np.random.default_rng(0))
-    assert r.status is PlanStatus.COMPLETE and [p.match for p in r.parts] == ["familiar"]
+    assert r.status is PlanStatus.COMPLETE and [p.match for p in r.parts] == [MatchKind.FAMILIAR]
+    assert r.parts[0].to_dict()["match"] == "familiar"
     assert len(r.map) > 100 and np.all(r.map.grade > 0.7)
     assert np.allclose(r.map.meta.extra["T_cloud_obj"], r.T_cloud_obj)
     # grasp contacts lie on the true surface, within the perception error

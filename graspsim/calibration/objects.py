@@ -1,7 +1,8 @@
 """The objects of the calibration studies: a training set and a held-out set.
 
 The calibrated grade is fitted on ``TRAIN_SHAPES`` only; ``HELD_OUT_SHAPES`` -- other
-sizes and proportions of the five primitives and two compounds -- are never used in
+sizes and proportions of the five primitives and two compounds (a bottle and the
+case study's ball with a tab, ``graspsim.case_study_objects.ball_with_tab``) -- are never used in
 fitting, so scores on them are scores on unseen objects. Sizes are chosen so that most
 chords fit the HGPL-25-60 (opening <= 120 mm).
 """
@@ -12,12 +13,12 @@ import math
 
 import numpy as np
 
+from graspsim.case_study_objects import ball_with_tab
 from graspsim.maps.database import PAPER_SHAPES, size_grid
 from graspsim.primitives import Box, Compound, Cone, Cylinder, HalfToroid, Sphere
 from graspsim.transforms import make_transform
 
-__all__ = ["TRAIN_SHAPES", "HELD_OUT_SHAPES", "SIZE_SCALES", "paper_size_grid", "bottle",
-           "ball_with_tab", "CALIBRATION_CONE"]
+__all__ = ["TRAIN_SHAPES", "HELD_OUT_SHAPES", "SIZE_SCALES", "paper_size_grid", "bottle", "CALIBRATION_CONE"]
 
 SIZE_SCALES = (0.8, 1.0, 1.25)
 # closing directions up to 44 deg from the inward normal: grasps well outside the
@@ -39,12 +40,6 @@ def bottle() -> Compound:
     return Compound.from_parts([Cylinder(0.03, 0.09), Cylinder(0.011, 0.04)],
                                [make_transform(np.eye(3), [0, 0, 0.045]),
                                 make_transform(np.eye(3), [0, 0, 0.11])])
-
-
-def ball_with_tab() -> Compound:
-    """A ball r 3 cm with a thin box tab (1 x 5 x 6 cm) sticking out sideways."""
-    return Compound.from_parts([Sphere(0.03), Box(0.05, 0.01, 0.06)],
-                               [np.eye(4), make_transform(np.eye(3), [0.045, 0, 0])])
 
 
 TRAIN_SHAPES: dict = {

@@ -180,12 +180,10 @@ def regression_condition(case, mass: float | None = None) -> SimCondition:
 
 def pools(case) -> dict:
     """{"hi": rows, "lo": rows}: the table-clear poses of each grade range of the case."""
-    from graspsim.calibration.trials import _clears_table, _sim_object
-    from graspsim.sim.scene import resting_pose
+    from graspsim.calibration.trials import case_clears_table
 
     g, spec = case.gmap, SPECS[case.object_group]
-    clear = _clears_table(g, resting_pose(_sim_object(case)), g.meta.gripper_spec, 0.0,
-                          T_sim_map=case.T_sim_map)
+    clear = case_clears_table(case)
     return {"hi": np.flatnonzero(clear & (g.grade > spec.hi_min)),
             "lo": np.flatnonzero(clear & (g.grade < spec.lo_max))}
 

@@ -31,7 +31,7 @@ from graspsim.seeding import derived_seed
 from graspsim.transforms import angle_between
 
 __all__ = ["CalibrationCase", "SimCondition", "FRICTION_LIMITED", "CONDITIONS", "CaseSample", "draw_samples",
-           "simulate_samples", "case_seed", "table_features", "fs_cases"]
+           "simulate_samples", "case_seed", "case_clears_table", "table_features", "fs_cases"]
 
 log = logging.getLogger(__name__)
 
@@ -96,17 +96,13 @@ def draw_samples(cases: Sequence[CalibrationCase], per_bin: int, *, seed: int = 
                  min_clearance: float = 0.0) -> list[CaseSample]:
     """Up to ``per_bin`` grasps per grade bin of each case, among the poses whose
     gripper stays ``min_clearance`` [m] above the table with the object at rest."""
-    from graspsim.sim.scene import resting_pose
-
     names = [c.name for c in cases]
     if len(set(names)) != len(names):
         raise InvalidParameterError(f"case names must be unique, got {names}")
     out = []
     for case in cases:
         gmap = case.gmap
-        gripper = gmap.meta.gripper_spec
-        clear = _clears_table(gmap, resting_pose(_sim_object(case)), gripper, min_clearance,
-                              T_sim_map=case.T_sim_map)
+        clear = case_clears_table(case, min_clearance)
         rng = np.random.default_rng(case_seed(seed, case.name))
         rows, w = stratified_rows(getattr(gmap, score), clear, per_bin, rng, edges)
         out.append(CaseSample(case, rows, w, int(clear.sum()), len(gmap)))
@@ -115,16 +111,17 @@ def draw_samples(cases: Sequence[CalibrationCase], per_bin: int, *, seed: int = 
     return out
 
 
-def _clears_table(gmap: GraspabilityMap, T_world_obj: np.ndarray, gripper: GripperSpec,
-                  min_clearance: float, T_sim_map=None) -> np.ndarray:
-    """(N,) bool: the map's poses keep the gripper ``min_clearance`` above the
-    simulator's table (z = 0 in the world), the map's frame at T_world_obj @ T_sim_map."""
+def case_clears_table(case: CalibrationCase, min_clearance: float = 0.0) -> np.ndarray:
+    """(N,) bool over the case's map: the pose keeps the map's gripper ``min_clearance``
+    [m] above the simulator's table (z = 0) with the simulated object at rest (the
+    map's frame at ``resting_pose @ T_sim_map``)."""
     from graspsim.maps.table import clears_table
+    from graspsim.sim.scene import resting_pose
 
-    T = np.asarray(T_world_obj, float)
-    if T_sim_map is not None:
-        T = T @ np.asarray(T_sim_map, float)
-    return clears_table(gmap, T, gripper, min_clearance)
+    T = resting_pose(_sim_object(case))
+    if case.T_sim_map is not None:
+        T = T @ np.asarray(case.T_sim_map, float)
+    return clears_table(case.gmap, T, case.gmap.meta.gripper_spec, min_clearance)
 
 
 def _map_columns(gmap: GraspabilityMap, rows: np.ndarray) -> dict[str, np.ndarray]:

@@ -20,6 +20,7 @@ import hashlib
 import json
 import logging
 import os
+import shutil
 import time
 from collections import OrderedDict
 from collections.abc import Iterable
@@ -218,6 +219,19 @@ class MapDatabase:
         gmap, record = _build_one(self, shape, threads=threads, progress=progress)
         self._merge([record])
         return gmap
+
+    def linked_copy(self, folder: str | os.PathLike) -> MapDatabase:
+        """A database with the same settings in the new ``folder`` over this one's map
+        files (symbolic links and a copy of the index): maps it builds are stored in
+        ``folder`` only, and this database is left as it was."""
+        folder = Path(folder)
+        folder.mkdir(parents=True)
+        shutil.copy2(self.index_path, folder / "index.json")
+        for e in self.entries():
+            dst = folder / e["file"]
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            dst.symlink_to((self.root / e["file"]).resolve())
+        return MapDatabase(folder, gripper=self.gripper, quality=self.quality, config=self.config)
 
     def _merge(self, new: list[dict]) -> None:
         """Add records to the index (replacing those with the same keys)."""

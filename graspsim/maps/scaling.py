@@ -202,17 +202,7 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
     quality, config, gripper: the map's own (from its metadata) unless given -- a
     caller that holds them (the planner's database) passes them."""
     sc = scaling or ScalingConfig()
-    source = fs_map.meta.shape
-    if not isinstance(source, Primitive) or source.kind != target.kind:
-        raise InvalidParameterError(
-            f"can only scale a map of a {target.kind} to another {target.kind}; the map is of "
-            f"{fs_map.meta.object.get('primitive')}")
-    ratios = scale_factors(source, target)
-    bad = {k: r for k, r in ratios.items() if not (1 / sc.max_ratio <= r <= sc.max_ratio)}
-    if bad:
-        raise InvalidParameterError(
-            f"scaling {source} to {target} changes {sorted(bad)} by more than the allowed "
-            f"factor {sc.max_ratio}; generate an FS map for this size instead")
+    source, ratios = _scalable(fs_map, target, sc.max_ratio)
     gripper = gripper or fs_map.meta.gripper_spec
     quality = quality or fs_map.meta.quality_model
     cfg = config or fs_map.meta.map_config
@@ -281,6 +271,23 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
         batch = _assemble(pieces, fs_map, src.rows[rows], meta)
         if len(batch):
             yield batch
+
+
+def _scalable(fs_map: GraspabilityMap, target: Primitive, max_ratio: float) -> tuple[Primitive, dict]:
+    """(the map's primitive, its scale factors to ``target``) if the map may be scaled
+    to it: the same kind, every factor within ``max_ratio``."""
+    source = fs_map.meta.shape
+    if not isinstance(source, Primitive) or source.kind != target.kind:
+        raise InvalidParameterError(
+            f"can only scale a map of a {target.kind} to another {target.kind}; the map is of "
+            f"{fs_map.meta.object.get('primitive')}")
+    ratios = scale_factors(source, target)
+    bad = {k: r for k, r in ratios.items() if not (1 / max_ratio <= r <= max_ratio)}
+    if bad:
+        raise InvalidParameterError(
+            f"scaling {source} to {target} changes {sorted(bad)} by more than the allowed "
+            f"factor {max_ratio}; generate an FS map for this size instead")
+    return source, ratios
 
 
 def _assemble(pieces, fs_map: GraspabilityMap, fs_rows: np.ndarray, meta: MapMeta):

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from graspsim.errors import PrimitiveError
-from graspsim.primitives.base import Primitive, SurfaceSamples
+from graspsim.primitives.base import Primitive
 from graspsim.primitives.box import Box
 from graspsim.primitives.cone import Cone
 from graspsim.primitives.cylinder import Cylinder
+from graspsim.primitives.samples import SurfaceSamples
 from graspsim.primitives.sphere import Sphere
 from graspsim.primitives.toroid import HalfToroid
 

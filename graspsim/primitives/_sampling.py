@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from graspsim.primitives.base import PatchGrid, SurfaceSamples, cells, grid_cover_radius
+from graspsim.primitives.samples import PatchGrid, SurfaceSamples, cells, grid_cover_radius
 
 __all__ = ["rect_samples", "disk_samples", "revolution_samples"]
 

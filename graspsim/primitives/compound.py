@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from graspsim.errors import PrimitiveError
-from graspsim.primitives.base import Primitive, SurfaceSamples, _march_exit
+from graspsim.primitives.base import Primitive, _march_exit
+from graspsim.primitives.samples import SurfaceSamples
 from graspsim.transforms import invert_transform, transform_points
 
 __all__ = ["Compound"]

@@ -12,7 +12,8 @@ from numpy.polynomial import Polynomial
 
 from graspsim.errors import PrimitiveError
 from graspsim.primitives._sampling import disk_samples, revolution_samples
-from graspsim.primitives.base import MIN_DIM, Primitive, SurfaceSamples
+from graspsim.primitives.base import MIN_DIM, Primitive
+from graspsim.primitives.samples import SurfaceSamples
 
 __all__ = ["Cone"]
 

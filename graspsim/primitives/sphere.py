@@ -9,7 +9,8 @@ from typing import ClassVar
 import numpy as np
 
 from graspsim.primitives._sampling import revolution_samples
-from graspsim.primitives.base import Primitive, SurfaceSamples
+from graspsim.primitives.base import Primitive
+from graspsim.primitives.samples import SurfaceSamples
 
 __all__ = ["Sphere"]
 

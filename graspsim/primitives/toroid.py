@@ -16,7 +16,8 @@ import numpy as np
 
 from graspsim.errors import PrimitiveError
 from graspsim.primitives._sampling import disk_samples, revolution_samples
-from graspsim.primitives.base import Primitive, SurfaceSamples, orient_outward
+from graspsim.primitives.base import Primitive, orient_outward
+from graspsim.primitives.samples import SurfaceSamples
 
 __all__ = ["HalfToroid"]
 

@@ -1,4 +1,4 @@
-"""Experiment E05a: fit the calibrated flat-pad contact grade on simulated trials.
+"""Experiment E12: fit the calibrated flat-pad contact grade on simulated trials.
 
 Training objects only (``graspsim.calibration.objects.TRAIN_SHAPES``: the five paper
 primitives at three sizes plus other proportions): FS maps with closing directions up
@@ -9,25 +9,29 @@ out; and, stricter, leave one primitive kind out); its threshold is the one whos
 out-of-fold population precision reaches 97 %. ``--install`` writes the model to
 ``graspsim/data/grade_model.json`` (the shipped ``pad_contact`` grade).
 
-    python experiments/e05_fit_grade_model.py --out results/e05_fit [--install]
-    python experiments/e05_fit_grade_model.py --quick --out results/e05_fit_quick
+    python experiments/e12_fit_grade_model.py [--install]
+    python experiments/e12_fit_grade_model.py --quick --out results/e12_quick
+
+(It was E05a, ``e05_fit_grade_model.py``; E05 is the threshold calibration on held-out
+objects that uses the model this script installs.)
 """
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
-import time
-from dataclasses import asdict, dataclass
+import sys
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RunRecord, fmt, map_config, md_table, opt, parse_config, write_text
+
 from graspsim.calibration import SimCondition, TrialTable, draw_samples, simulate_samples, stats
-from graspsim.calibration.markdown import fmt, md_table
 from graspsim.calibration.objects import CALIBRATION_CONE, TRAIN_SHAPES
-from graspsim.calibration.outputs import library_versions, write_json, write_text
 from graspsim.calibration.plots import plot_roc
 from graspsim.calibration.trials import fs_cases, table_features
 from graspsim.grades.features import FEATURES
@@ -35,41 +39,31 @@ from graspsim.grades.fit import fit_grade
 from graspsim.grades.models import default_model_path
 from graspsim.maps.generate import MapConfig
 
-log = logging.getLogger("e05_fit")
+log = logging.getLogger("e12_fit")
 
 
 @dataclass(frozen=True)
 class Config:
-    out: str = "results/e05_fit"
-    per_bin: int = 40
-    seed: int = 0
-    threads: int = 2
-    l2: float = 1e-3
-    target: float = 0.97
-    features: tuple = FEATURES
-    objects: tuple = tuple(TRAIN_SHAPES)
-    closing_cone_deg: float = math.degrees(CALIBRATION_CONE)
-    install: bool = False
-    reuse: bool = True
+    per_bin: int = opt(40, "grasps drawn per paper-grade bin and object")
+    seed: int = opt(0, "run seed")
+    threads: int = opt(2, "simulation and map threads")
+    l2: float = opt(1e-3, "L2 penalty of the logistic fit")
+    target: float = opt(0.97, "out-of-fold precision the threshold reaches")
+    features: tuple[str, ...] = opt(FEATURES, cli=False)
+    objects: tuple[str, ...] = opt(tuple(TRAIN_SHAPES), "training objects", choices=tuple(TRAIN_SHAPES))
+    closing_cone_deg: float = opt(math.degrees(CALIBRATION_CONE), "closing directions kept [deg]")
+    install: bool = opt(False, "write graspsim/data/grade_model.json")
+    reuse: bool = opt(True, "reuse OUT/trials.npz if it holds this configuration's trials")
+    quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
+    QUICK: ClassVar[dict] = {"objects": ("box@1", "cylinder@1", "sphere@1"), "per_bin": 3, "quick": True}
 
+    def __post_init__(self) -> None:
+        if self.per_bin < 1 or len(self.objects) < 2:
+            raise ValueError(f"--per-bin must be >= 1 and --objects two or more; got {self.per_bin}, {self.objects}")
 
-def parse() -> Config:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=Config.out)
-    p.add_argument("--per-bin", type=int, default=Config.per_bin)
-    p.add_argument("--seed", type=int, default=Config.seed)
-    p.add_argument("--threads", type=int, default=Config.threads)
-    p.add_argument("--l2", type=float, default=Config.l2)
-    p.add_argument("--install", action="store_true", help="write graspsim/data/grade_model.json")
-    p.add_argument("--no-reuse", action="store_true", help="re-simulate even if trials.npz exists")
-    p.add_argument("--quick", action="store_true", help="four objects, 5 grasps per bin (smoke run)")
-    a = p.parse_args()
-    objects = tuple(TRAIN_SHAPES)
-    per_bin = a.per_bin
-    if a.quick:
-        objects, per_bin = ("box@1", "cylinder@1", "sphere@1", "cone@1"), 5
-    return Config(out=a.out, per_bin=per_bin, seed=a.seed, threads=a.threads, l2=a.l2,
-                  objects=objects, install=a.install, reuse=not a.no_reuse)
+    @property
+    def map_config(self) -> MapConfig:
+        return map_config(self.quick, closing_cone=math.radians(self.closing_cone_deg))
 
 
 def collect(cfg: Config, out: Path) -> TrialTable:
@@ -80,8 +74,7 @@ def collect(cfg: Config, out: Path) -> TrialTable:
             log.info("reusing %s", path)
             return table
     shapes = {k: TRAIN_SHAPES[k] for k in cfg.objects}
-    cases = fs_cases(shapes, config=MapConfig(closing_cone=math.radians(cfg.closing_cone_deg)),
-                     threads=cfg.threads)
+    cases = fs_cases(shapes, config=cfg.map_config, threads=cfg.threads)
     samples = draw_samples(cases, cfg.per_bin, seed=cfg.seed)
     table = simulate_samples(samples, SimCondition(), seed=cfg.seed, threads=cfg.threads,
                              features=())
@@ -91,25 +84,25 @@ def collect(cfg: Config, out: Path) -> TrialTable:
 
 
 def _jsonable(cfg: Config, trials_only: bool = False) -> dict:
-    d = {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(cfg).items()}
-    if trials_only:
-        d = {k: d[k] for k in ("per_bin", "seed", "objects", "closing_cone_deg")}
-    return d
+    """The configuration the stored trials depend on (a rerun reuses them if equal)."""
+    d = {"per_bin": cfg.per_bin, "seed": cfg.seed, "objects": list(cfg.objects),
+         "closing_cone_deg": cfg.closing_cone_deg}
+    return {**d, "quick": True} if cfg.quick else d
 
 
-def main() -> None:
+def main(argv=None) -> int:
+    cfg, opts = parse_config(Config, __file__, argv, __doc__)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    cfg = parse()
-    out = Path(cfg.out)
+    run = RunRecord(__file__, argv)
+    out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
     table = collect(cfg, out)
     t = table.select(table.feasible)
     kind_of = {c["group"]: c["object"]["primitive"] for c in table.meta["cases"]}
     kinds = np.array([kind_of[g] for g in t["group"]])
     feats = table_features(t, cfg.features)  # from the stored grasp geometry
-    versions = library_versions()
-    provenance = {"script": "experiments/e05_fit_grade_model.py", "seed": cfg.seed,
+    versions = run.versions
+    provenance = {"script": "experiments/e12_fit_grade_model.py", "command": run.command, "seed": cfg.seed,
                   "per_bin": cfg.per_bin, "objects": list(cfg.objects),
                   "trials": int(len(table)), "feasible_trials": int(len(t)),
                   "protocol": table.meta.get("protocol"), "condition": table.meta.get("condition"),
@@ -130,8 +123,7 @@ def main() -> None:
         log.info("installed %s", default_model_path())
     p07 = stats.precision_recall(t["grade"], y, 0.7, t["weight"])
     pt = stats.precision_recall(fit.oof["object"], y, fit.threshold_oof, t["weight"])
-    summary = {"config": _jsonable(cfg), "versions": versions, "seconds": time.perf_counter() - t0,
-               "trials": len(table), "feasible": int(len(t)), "success_rate": float(y.mean()),
+    summary = {"config": cfg, "trials": len(table), "feasible": int(len(t)), "success_rate": float(y.mean()),
                "cv_auc": fit.auc, "cv_auc_by_object": fit.auc_by_group, "paper_auc": paper_auc,
                "paper_auc_by_object": {str(g): stats.roc_auc(t["grade"][t["group"] == g], y[t["group"] == g])
                                        for g in np.unique(t["group"])},
@@ -139,9 +131,9 @@ def main() -> None:
                "paper_at_0.7": dict(zip(("precision", "recall", "accepted"), p07)),
                "calibrated_at_threshold_oof": dict(zip(("precision", "recall", "accepted"), pt)),
                "model": model.to_dict()}
-    write_json(out / "summary.json", summary)
+    run.write(out, summary)
     rows = [[g, summary["paper_auc_by_object"][g], fit.auc_by_group[g]] for g in fit.auc_by_group]
-    md = [f"# E05a: calibrated grade fit ({len(t)} feasible trials, {len(fit.auc_by_group)} objects)", "",
+    md = [f"# E12: calibrated grade fit ({len(t)} feasible trials, {len(fit.auc_by_group)} objects)", "",
           md_table(["", "paper grade", "calibrated (out of fold)"],
                    [["pooled AUC, leave one object out", paper_auc["object"], fit.auc["object"]],
                     ["pooled AUC, leave one kind out", paper_auc["object"], fit.auc.get("kind")],
@@ -159,9 +151,9 @@ def main() -> None:
               "calibrated, leave-one-object-out": (fit.oof["object"], y, None),
               "calibrated, leave-one-kind-out": (fit.oof["kind"], y, None)},
              out / "roc_fit.png", title="Training objects (out-of-fold)")
-    write_json(out / "config.json", _jsonable(cfg))
     print("\n".join(md))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

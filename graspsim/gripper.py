@@ -91,7 +91,10 @@ class GripperSpec:
                     raise GripperError(f"gripper name must be a non-empty string, got {v!r}")
                 continue
             if isinstance(v, (tuple, list, np.ndarray)):
-                t = tuple(float(x) for x in v)
+                try:
+                    t = tuple(float(x) for x in v)
+                except (TypeError, ValueError):
+                    raise GripperError(f"{f.name} must be three positive lengths [m], got {v!r}") from None
                 if len(t) != 3 or not all(math.isfinite(x) and x > 0 for x in t):
                     raise GripperError(f"{f.name} must be three positive lengths [m], got {v!r}")
                 object.__setattr__(self, f.name, t)
@@ -160,13 +163,16 @@ class GripperSpec:
     def total_mass(self) -> float:
         return self.housing_mass + 2 * (self.jaw_mass + self.finger_mass)
 
-    def contact_depths(self, step: float) -> np.ndarray:
-        """Contact distances from the fingertip sampled along the pad [m]."""
+    def contact_depth_count(self, step: float) -> int:
+        """How many contact depths :meth:`contact_depths` samples at ``step`` [m]."""
         if not step > 0:
             raise GripperError(f"depth step must be > 0 m, got {step!r}")
-        lo, hi = self.contact_depth_margin, self.pad_length - self.contact_depth_margin
-        n = int(math.floor((hi - lo) / step + 1e-9)) + 1
-        return lo + step * np.arange(n)
+        span = self.pad_length - 2 * self.contact_depth_margin
+        return int(min(math.floor(span / step + 1e-9), 2.0**62)) + 1
+
+    def contact_depths(self, step: float) -> np.ndarray:
+        """Contact distances from the fingertip sampled along the pad [m]."""
+        return self.contact_depth_margin + step * np.arange(self.contact_depth_count(step))
 
     def tcp_offset(self, depth: float | np.ndarray) -> np.ndarray:
         """z of the grasp point (TCP) in the wrist frame for a contact ``depth`` from the
@@ -254,6 +260,8 @@ class GripperSpec:
 
     @classmethod
     def from_dict(cls, d: dict) -> "GripperSpec":
+        if not isinstance(d, dict):
+            raise GripperError(f"a gripper specification must be a dict, got {d!r}")
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from graspsim.errors import PointCloudError
-from graspsim.perception.prepare import check_extent, to_metres
+from graspsim.perception.prepare import as_coordinates, check_extent, to_metres
 
 __all__ = ["LoadedCloud", "read_point_cloud", "check_cloud", "lzf_decompress", "MIN_POINTS"]
 
@@ -57,7 +57,11 @@ def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: s
     non-finite points, convert to metres and validate with :func:`check_cloud`."""
     path = Path(path)
     to_metres(np.zeros((0, 3)), units)  # an unknown unit fails before reading
-    if not path.is_file():
+    try:
+        is_file = path.is_file()
+    except OSError as err:  # e.g. a name too long
+        raise PointCloudError(f"cannot read point cloud file {str(path)!r}: {err.strerror or err}") from err
+    if not is_file:
         raise PointCloudError(f"point cloud file {str(path)!r} does not exist or is not a file")
     suffix = path.suffix.lower()
     readers = {".pcd": _read_pcd, ".ply": _read_ply, ".npy": _read_npy, ".xyz": _read_text,
@@ -70,8 +74,10 @@ def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: s
         xyz, fmt = readers[suffix](path)
     except PointCloudError as err:
         raise PointCloudError(f"{path.name}: {err}") from None
-    except (OSError, ValueError, UnicodeDecodeError) as err:
+    except (OSError, ValueError, EOFError, UnicodeDecodeError) as err:  # EOFError: np.load of an empty file
         raise PointCloudError(f"{path.name}: cannot read {suffix} file: {err}") from err
+    except (IndexError, KeyError) as err:  # a header line cut short or garbled
+        raise PointCloudError(f"{path.name}: malformed {suffix} header ({type(err).__name__}: {err})") from err
     xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
     finite = np.all(np.isfinite(xyz), axis=1)
     n_drop = int(len(xyz) - finite.sum())
@@ -90,10 +96,7 @@ def check_cloud(points: np.ndarray, *, min_points: int = MIN_POINTS) -> np.ndarr
     """Validate a cloud: (N, 3), finite, at least ``min_points`` points, not all identical
     (spread above 1 µm), plausible in metres (:func:`~graspsim.perception.prepare.check_extent`).
     Returns it as a float64 array; raises :class:`PointCloudError`."""
-    try:
-        p = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise PointCloudError(f"points must be a numeric (N, 3) array: {err}") from err
+    p = as_coordinates(points)
     if p.ndim != 2 or p.shape[1] != 3:
         raise PointCloudError(f"points must have shape (N, 3), got {p.shape}")
     if len(p) == 0:

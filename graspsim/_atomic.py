@@ -56,7 +56,7 @@ def check_output(path: str | os.PathLike, what: str = "output", error=OutputPath
     folder = _folder(path)
     try:
         for name, other in (others or {}).items():
-            if other is not None and os.path.realpath(path) == os.path.realpath(other):
+            if other is not None and "\0" not in str(other) and os.path.realpath(path) == os.path.realpath(other):
                 raise error(f"cannot write {what} {path}: it is also the {name}")
         if path.is_dir():
             raise error(f"cannot write {what} {path}: it is a directory (give a file name)")

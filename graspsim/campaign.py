@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import time
 from dataclasses import asdict, dataclass, field
@@ -67,6 +68,7 @@ def campaign_tasks(maps: Sequence[str | os.PathLike], *, protocol: str = "lift_p
     """The task list of a campaign: every map x seed, with ids stable across runs."""
     if not maps:
         raise InvalidParameterError("a campaign needs at least one map file")
+    _check_settings(top=top, sample=sample, threads=threads, noise=noise)
     tasks = []
     for m in maps:
         p = Path(m)
@@ -140,12 +142,23 @@ def _load(path: Path) -> dict | None:
         return None
 
 
+def _check_settings(*, top, sample, threads, noise) -> None:
+    """Task settings a trial can run with, checked before a campaign folder is made."""
+    for name, n in (("top", top), ("sample", sample), ("threads", threads)):
+        if n is not None and not n >= 1:
+            raise InvalidParameterError(f"{name} must be >= 1, got {n!r}")
+    if noise is not None and not all(math.isfinite(v) and v >= 0 for v in noise):
+        raise InvalidParameterError(f"noise sigmas must be finite and >= 0, got {noise!r}")
+
+
 def run_campaign(tasks: Sequence[CampaignTask], out: str | os.PathLike, *,
                  executor: Executor | None = None, max_tasks: int | None = None,
                  progress: Callable[[int, int], None] | None = None) -> CampaignResult:
     """Run the tasks not yet done in ``out`` (resumable); ``max_tasks`` stops after that
     many new tasks (a controlled interruption)."""
     out = Path(out)
+    if max_tasks is not None and not max_tasks >= 0:
+        raise InvalidParameterError(f"max_tasks must be >= 0, got {max_tasks!r}")
     (out / "tasks").mkdir(parents=True, exist_ok=True)
     spec = {"format": "graspsim-campaign-1", "tasks": [t.to_dict() for t in tasks]}
     spec_path = out / "spec.json"

@@ -454,3 +454,24 @@ def test_paths_with_nul_bytes_long_names_or_link_loops_are_one_line_errors(tmp_p
     loop.symlink_to(loop)
     assert "broken symbolic link" in _fails(capsys, ["trial", map_file, "--top", "1", "--render", loop])
     assert "no path given" in _fails(capsys, ["show", map_file, "-o", ""])
+
+
+def test_inputs_with_nul_bytes_or_names_too_long_are_one_line_errors(tmp_path, map_file, capsys, no_work):
+    assert "does not exist" in _fails(capsys, ["show", str(tmp_path / "a\0b.h5"), "-o", tmp_path / "x.png"])
+    assert "cannot create map database folder" in _fails(capsys, ["db", "check", "--root", "a\0b"])
+    mesh = tmp_path / ("a" * 300 + ".obj")
+    assert "File name too long" in _fails(capsys, ["trial", map_file, "--top", "1", "--mesh", mesh])
+
+
+def test_campaign_with_impossible_settings_makes_no_folder(tmp_path, map_file, capsys, no_work):
+    # --threads -1 failed only after the campaign folder and its spec were written
+    for bad in (["--threads", "-1"], ["--max-tasks", "-1"], ["--noise", "--noise-pos", "nan"]):
+        out = tmp_path / "camp"
+        _fails(capsys, ["campaign", "run", map_file, "--out", out, "--top", "1", "--executor", "serial", *bad])
+        assert not out.exists(), bad
+
+
+def test_a_scene_that_does_not_compile_is_a_one_line_error(map_file, capsys):
+    # MuJoCo's message ("... in fullinertia\nElement name 'object', id 5") spanned two lines
+    line = _fails(capsys, ["trial", map_file, "--top", "1", "--threads", "1", "--mass", "1e-265", "--no-write", "--json"])
+    assert "does not compile" in line

@@ -80,6 +80,10 @@ def run(args) -> int:
         from graspsim._atomic import check_folder
 
         check_folder(args.render, "render folder")  # before the work, not after it
+    if args.mesh is not None:
+        from graspsim.sim.meshes import check_mesh_path
+
+        check_mesh_path(args.mesh)
     settings = None
     if args.friction is not None or args.grip_force is not None:
         mu = args.friction

@@ -124,7 +124,7 @@ class MapDatabase:
         self._cache: OrderedDict = OrderedDict()
         try:
             self.root.mkdir(parents=True, exist_ok=True)
-        except OSError as err:
+        except (OSError, ValueError) as err:  # ValueError: a NUL byte in the path
             raise MapDatabaseError(f"cannot create map database folder {self.root}: {err}") from err
         self._settings = _digest({"gripper": gripper.to_dict(), "quality": self.quality.to_dict(),
                                   "config": self.config.to_dict()})

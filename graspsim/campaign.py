@@ -68,7 +68,7 @@ def campaign_tasks(maps: Sequence[str | os.PathLike], *, protocol: str = "lift_p
     """The task list of a campaign: every map x seed, with ids stable across runs."""
     if not maps:
         raise InvalidParameterError("a campaign needs at least one map file")
-    _check_settings(top=top, sample=sample, threads=threads, noise=noise)
+    _check_settings(top=top, sample=sample, threads=threads, noise=noise, min_grade=min_grade)
     tasks = []
     for m in maps:
         p = Path(m)
@@ -142,11 +142,14 @@ def _load(path: Path) -> dict | None:
         return None
 
 
-def _check_settings(*, top, sample, threads, noise) -> None:
+def _check_settings(*, top, sample, threads, noise, min_grade) -> None:
     """Task settings a trial can run with, checked before a campaign folder is made."""
     for name, n in (("top", top), ("sample", sample), ("threads", threads)):
         if n is not None and not n >= 1:
             raise InvalidParameterError(f"{name} must be >= 1, got {n!r}")
+    if min_grade is not None and not min_grade < 1.0:  # grades lie in [0, 1]
+        raise InvalidParameterError(f"nothing to simulate: no grasp has a grade > {min_grade!r} (grades lie "
+                                    "in [0, 1])")
     if noise is not None and not all(math.isfinite(v) and v >= 0 for v in noise):
         raise InvalidParameterError(f"noise sigmas must be finite and >= 0, got {noise!r}")
 

@@ -342,8 +342,11 @@ def test_show_and_campaign_with_empty_selections_exit_nonzero(tmp_path, map_file
     assert not (tmp_path / "x.png").exists()
     assert "nothing to simulate" in _fails(capsys, ["campaign", "run", map_file, "--out",
                                                     tmp_path / "camp", "--sample", "0"])
-    line = _fails(capsys, ["campaign", "run", map_file, "--out", tmp_path / "camp2", "--top", "2",
-                           "--min-grade", "2", "--executor", "serial"], code=1)
+    assert "nothing to simulate" in _fails(capsys, ["campaign", "run", map_file, "--out", tmp_path / "camp2",
+                                                    "--top", "2", "--min-grade", "2", "--executor", "serial"])
+    assert not (tmp_path / "camp2").exists()  # no grade exceeds 1: refused before the folder is made
+    line = _fails(capsys, ["campaign", "run", map_file, "--out", tmp_path / "camp3", "--top", "2",
+                           "--min-grade", "0.95", "--executor", "serial"], code=1)  # the map's best is 0.9
     assert "no trials" in line
 
 
@@ -465,7 +468,8 @@ def test_inputs_with_nul_bytes_or_names_too_long_are_one_line_errors(tmp_path, m
 
 def test_campaign_with_impossible_settings_makes_no_folder(tmp_path, map_file, capsys, no_work):
     # --threads -1 failed only after the campaign folder and its spec were written
-    for bad in (["--threads", "-1"], ["--max-tasks", "-1"], ["--noise", "--noise-pos", "nan"]):
+    for bad in (["--threads", "-1"], ["--max-tasks", "-1"], ["--noise", "--noise-pos", "nan"],
+                ["--min-grade", "1"]):  # (no grade exceeds 1: was a folder of empty task records)
         out = tmp_path / "camp"
         _fails(capsys, ["campaign", "run", map_file, "--out", out, "--top", "1", "--executor", "serial", *bad])
         assert not out.exists(), bad
@@ -475,3 +479,41 @@ def test_a_scene_that_does_not_compile_is_a_one_line_error(map_file, capsys):
     # MuJoCo's message ("... in fullinertia\nElement name 'object', id 5") spanned two lines
     line = _fails(capsys, ["trial", map_file, "--top", "1", "--threads", "1", "--mass", "1e-265", "--no-write", "--json"])
     assert "does not compile" in line
+
+
+def test_npy_header_claiming_a_billion_points_is_refused_before_allocating(tmp_path):
+    # np.load allocated what the header claimed: 23 GB for a 100-byte file
+    import io
+    import tracemalloc
+
+    from graspsim.errors import PointCloudError
+    from graspsim.perception import read_point_cloud
+
+    head = io.BytesIO()
+    np.lib.format.write_array_header_1_0(head, {"descr": "<f8", "fortran_order": False, "shape": (10**9, 3)})
+    (tmp_path / "claim.npy").write_bytes(head.getvalue() + np.zeros(12).tobytes())
+    tracemalloc.start()
+    try:
+        with pytest.raises(PointCloudError, match="header says 1000000000 points"):
+            read_point_cloud(tmp_path / "claim.npy")
+        assert tracemalloc.get_traced_memory()[1] < 5e6
+    finally:
+        tracemalloc.stop()
+    garbled = (b"\x93NUMPY\x01\x00v\x00{'descr': '<f8', 'fortran_order': False, 'shape': (0,\x10, }  \xe4"
+               + b" " * 57 + b"\n")  # a flipped byte found by fuzz_long: tokenize.TokenError from np.load
+    (tmp_path / "garbled.npy").write_bytes(garbled)
+    with pytest.raises(PointCloudError, match="garbled.npy"):
+        read_point_cloud(tmp_path / "garbled.npy")
+
+
+def test_min_grade_beyond_float32_and_huge_table_normals_leak_no_warning(tmp_path, map_file, capsys):
+    # a float32 grade compared with 1e308, the norm of (1e300, 0, 0): RuntimeWarning: overflow
+    from graspsim.maps.table import TablePlane
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert "nothing to plot" in _fails(capsys, ["show", map_file, "-o", tmp_path / "x.png", "--min-grade", "1e308"])
+        assert "nothing to simulate" in _fails(capsys, ["trial", map_file, "--min-grade", "1e308"])
+        assert len(load_map(map_file).filter(min_grade=-1e308)) == 4
+        assert TablePlane(normal=(1e300, 0.0, 0.0)).normal == (1.0, 0.0, 0.0)
+

@@ -109,7 +109,7 @@ def _cmd_show(args) -> int:
     check_output(args.output, "image", others={"map": args.file})
     fmt = image_format(args.output)
     gmap = load_map(args.file)
-    shown = int((gmap.grade > args.min_grade).sum())
+    shown = int(gmap.above(args.min_grade).sum())
     if not shown:
         raise InvalidParameterError(f"nothing to plot: none of the map's {len(gmap)} grasps has "
                                     f"grade > {args.min_grade:g} (max {_max_grade(gmap)})")

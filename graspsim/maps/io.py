@@ -16,10 +16,15 @@ Layout (datasets, not attributes; N grasps)::
     object/T_cloud_obj (4, 4) for adapted maps (the object frame in the cloud's frame)
     gripper/type, gripper/configuration (JSON GripperSpec)
 
-Loading validates the file (:func:`load_map`): every dataset present, one row count,
-the trailing shapes, finite geometry and grades, unit quaternions, transforms that match
-the wrist positions, and a schema version this code reads. A file that fails raises
-:class:`MapFileError` naming the first problem.
+Text (names, JSON) is stored as fixed-length UTF-8 strings; files that hold it as
+variable-length strings (earlier versions) read the same.
+
+Loading validates the file (:func:`load_map`): its layout here -- every dataset present
+and numeric, one row count, the trailing shapes, transforms that match the wrist
+positions, a schema version this code reads, rows that fit the memory budget -- and
+the map it holds with :func:`~graspsim.maps.validate.map_problems` (finite columns in
+range, unit quaternions, a valid object, gripper and quality model). A file that fails
+raises :class:`MapFileError` naming the first problem.
 """
 
 from __future__ import annotations

@@ -293,10 +293,25 @@ def _read_ply(path: Path) -> tuple[np.ndarray, str]:
 
 # ----------------------------------------------------------------------- npy, text
 def _read_npy(path: Path) -> tuple[np.ndarray, str]:
-    arr = np.load(path, allow_pickle=False)
-    if arr.ndim != 2 or arr.shape[1] != 3 or not np.issubdtype(arr.dtype, np.number):
-        raise PointCloudError(f"expected a numeric (N, 3) array, got {arr.dtype} {arr.shape}")
-    return arr, "npy"
+    """The (N, 3) array of a .npy file; its header is checked against the file's size
+    first (np.load allocates what a header claims: 24 GB for a 100-byte file)."""
+    import tokenize
+
+    fmt = np.lib.format
+    try:
+        with open(path, "rb") as f:
+            version = fmt.read_magic(f)
+            shape, _, dtype = (fmt.read_array_header_1_0(f) if version == (1, 0)
+                               else fmt.read_array_header_2_0(f))
+            data_bytes = path.stat().st_size - f.tell()
+    except (SyntaxError, tokenize.TokenError, TypeError) as err:  # a garbled header dict
+        raise PointCloudError(f"not a .npy file (garbled header: {err})") from None
+    if len(shape) != 2 or shape[1] != 3 or dtype.kind not in "iuf":
+        raise PointCloudError(f"expected a numeric (N, 3) array, got {dtype} {shape}")
+    if shape[0] * 3 * dtype.itemsize > data_bytes:
+        raise PointCloudError(f"truncated .npy: the header says {shape[0]} points, the file holds "
+                              f"{data_bytes} bytes of data")
+    return np.load(path, allow_pickle=False), "npy"
 
 
 def _read_text(path: Path) -> tuple[np.ndarray, str]:

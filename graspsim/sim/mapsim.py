@@ -60,7 +60,7 @@ def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int 
         raise InvalidParameterError("give top or sample, not both")
     rows = np.arange(len(gmap))
     if min_grade is not None:
-        rows = rows[gmap.grade > min_grade]
+        rows = rows[gmap.above(min_grade)]
     if top is not None:
         if top < 0:
             raise InvalidParameterError(f"top must be >= 0, got {top}")

@@ -160,7 +160,9 @@ def _bytes_op(path: Path, op) -> None:
                 b[i] ^= int(rng.integers(1, 256))
             path.write_bytes(bytes(b))
     elif kind == "replace":
-        if path.is_file():
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
             path.unlink()
         what = op[1]
         if what == "random":

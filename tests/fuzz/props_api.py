@@ -112,9 +112,10 @@ def check_primitive_spec(case: dict) -> str:
     if shape is None:
         return _label(shape, err)
     with no_leaked_warnings():
-        for attr in ("volume", "circumradius", "size_scale", "min_cross_section"):
+        for attr in ("volume", "circumradius", "size_scale"):
             v = getattr(shape, attr)
             assert math.isfinite(v) and v > 0, (attr, v)
+        assert 0 <= shape.min_cross_section < math.inf  # 0: a full cone's tip
     assert _solid(shape.dims), shape.dims
     cfg = MapConfig(**COARSE)
     est, err = api_call(_preflight, shape, case["budget"], cfg)

@@ -76,7 +76,9 @@ def run_checked(argv: list[str], folder: Path, *, inputs: tuple[str, ...] = ()) 
     run = run_cli(argv, env=_env(folder), cwd=folder)
     label = assert_clean(run)
     after = snapshot(folder)
-    if run.code != 0:
+    if run.code != 0 and not (run.code == 1 and argv[:2] == ["campaign", "run"]):
+        # (a campaign that ran and matched no grasp exits 1 and keeps its task records: the
+        # resumable state of the campaign folder, by design)
         assert_unchanged(_outside_db(before), _outside_db(after), " ".join(argv))
     for rel in inputs:
         assert before.get(rel) == after.get(rel), f"{' '.join(argv)} changed its input {rel}"

@@ -92,11 +92,12 @@ def _valid_record(entry) -> bool:
     try:
         if not isinstance(entry, dict):
             raise TypeError(f"not a record: {entry!r}")
-        for k, kind in (("key", str), ("file", str), ("accepted", int)):
-            if not isinstance(entry.get(k), kind) or isinstance(entry.get(k), bool):
-                raise TypeError(f"{k} {entry.get(k)!r} is not a {kind.__name__}")
-        if entry["accepted"] < 0:
-            raise ValueError(f"accepted {entry['accepted']} < 0")
+        for k in ("key", "file"):
+            if not isinstance(entry.get(k), str):
+                raise TypeError(f"{k} {entry.get(k)!r} is not a string")
+        n = entry.get("accepted", 0)
+        if not isinstance(n, int) or isinstance(n, bool) or n < 0:
+            raise TypeError(f"accepted {n!r} is not a count")
         make_primitive(entry["primitive"], **entry["dims"])
     except (GraspsimError, KeyError, TypeError, ValueError) as err:
         log.warning("database record %s skipped (%s); `graspsim db check --repair` removes it",
@@ -209,7 +210,7 @@ class MapDatabase:
                 self._cache.move_to_end(key)
                 return gmap
             gmap = load_map(path, rows=slice(0, int(entry["accepted"])))
-        except (OSError, TypeError, ValueError) as err:  # MapFileError is an OSError
+        except (OSError, KeyError, TypeError, ValueError) as err:  # MapFileError is an OSError
             raise MapDatabaseError(f"stored map {path} is unusable ({err}); `graspsim db check --repair "
                                    f"--root {self.root}` removes it (the next use rebuilds it)") from err
         if len(gmap) and not gmap.accepted.all():

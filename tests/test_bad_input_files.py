@@ -517,3 +517,19 @@ def test_min_grade_beyond_float32_and_huge_table_normals_leak_no_warning(tmp_pat
         assert len(load_map(map_file).filter(min_grade=-1e308)) == 4
         assert TablePlane(normal=(1e300, 0.0, 0.0)).normal == (1.0, 0.0, 0.0)
 
+
+
+def test_negative_point_counts_in_ply_and_pcd_headers_are_refused(tmp_path):
+    # numpy reads count=-5 as "all": a header's lie went unnoticed (found by fuzz_long)
+    from graspsim.errors import PointCloudError
+    from graspsim.perception import read_point_cloud
+
+    pts = np.random.default_rng(0).uniform(-0.05, 0.05, (40, 3)).astype("<f4")
+    ply = b"ply\nformat binary_little_endian 1.0\nelement vertex -5\nproperty float x\nproperty float y\n" \
+          b"property float z\nend_header\n" + pts.tobytes()
+    pcd = b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 40\nHEIGHT 1\nPOINTS -5\nDATA binary\n" \
+          + pts.tobytes()
+    for name, data in (("c.ply", ply), ("c.pcd", pcd)):
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(PointCloudError, match="count is -5"):
+            read_point_cloud(tmp_path / name)

@@ -143,8 +143,8 @@ def _read_pcd(path: Path) -> tuple[np.ndarray, str]:
     if missing:
         raise PointCloudError(f"PCD fields {names} lack {missing}; x, y and z are needed")
     try:
-        n = int(header["POINTS"][0]) if "POINTS" in header else (
-            int(header["WIDTH"][0]) * int(header.get("HEIGHT", ["1"])[0]))
+        n = _count(header["POINTS"][0], "POINTS") if "POINTS" in header else (
+            _count(header["WIDTH"][0], "WIDTH") * _count(header.get("HEIGHT", ["1"])[0], "HEIGHT"))
         fields = []
         for nm, sz, ty, ct in zip(names, sizes, types, counts):
             code = _PCD_TYPES[(ty.upper(), int(sz))]
@@ -184,6 +184,14 @@ def _read_pcd(path: Path) -> tuple[np.ndarray, str]:
             off += nbytes
         return np.column_stack([cols["x"], cols["y"], cols["z"]]), "pcd/binary_compressed"
     raise PointCloudError(f"unsupported PCD DATA {mode!r}; valid: ascii, binary, binary_compressed")
+
+
+def _count(text: str, what: str) -> int:
+    """A header's count: a whole number >= 0 (numpy reads a negative count as 'all')."""
+    n = int(text)
+    if n < 0:
+        raise PointCloudError(f"header {what} count is {n}, not a number of points")
+    return n
 
 
 def _column_index(fields) -> list[int]:
@@ -253,7 +261,7 @@ def _read_ply(path: Path) -> tuple[np.ndarray, str]:
         if tok[0] == "format":
             fmt = tok[1]
         elif tok[0] == "element":
-            elements.append([tok[1], int(tok[2]), []])
+            elements.append([tok[1], _count(tok[2], f"element {tok[1]}"), []])
         elif tok[0] == "property" and elements:
             if tok[1] == "list":
                 elements[-1][2].append((tok[-1], "list"))

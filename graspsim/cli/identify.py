@@ -28,6 +28,8 @@ _DESCRIPTION = (
 
 
 def register(subparsers) -> None:
+    from graspsim.cli._common import seed_value
+
     p = subparsers.add_parser(
         "identify",
         help="identify shape primitives in a point cloud (.pcd, .ply, .npy, .xyz)",
@@ -41,7 +43,7 @@ def register(subparsers) -> None:
                    help="split threshold theta_th of eq. (1), in (0, 1] (default 0.5)")
     p.add_argument("--noise", type=float, default=None,
                    help="sensor noise sigma in metres (default: estimated)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     p.add_argument("--db", metavar="DIR", default=None,
                    help="FS map database folder for the known/familiar decision (default: "
                    "$GRASPSIM_DB or ~/.cache/graspsim/db when it exists; never built here)")

@@ -47,10 +47,9 @@ def _place(exc: BaseException) -> str:
 
 def run_property(prop, examples: int, seed: int, failures: list, out: Path) -> dict:
     """Run one property for ``examples`` generated inputs; failures are recorded, not raised."""
+    from fuzz.registry import hypothesis_settings
     from hypothesis import given
     from hypothesis import seed as hseed
-
-    from fuzz.registry import hypothesis_settings
 
     outcomes: collections.Counter = collections.Counter()
     seen: collections.Counter = collections.Counter()

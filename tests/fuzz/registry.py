@@ -5,8 +5,8 @@ run them from here, so the nightly run checks exactly what CI checks, only more 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from hypothesis import HealthCheck, given, settings
 

@@ -26,8 +26,8 @@ def test_worst_cases_stay_within_memory(capsys):
     folder = a.fresh()
     try:
         np.save(folder / "big.npy", _cloud(Cylinder(0.055, 0.55), 4))
-        from .props_memory import _cloud as cylinder_points
         from .corrupt import apply
+        from .props_memory import _cloud as cylinder_points
 
         million = cylinder_points(folder, "million.npy", 10**6, 1.0, 0)
         dense = cylinder_points(folder, "dense.npy", 5000, 1.0, 1)  # memory: per block of hypotheses

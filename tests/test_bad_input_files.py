@@ -81,6 +81,16 @@ def test_adapt_no_partial_writes_no_file_at_all(tmp_path, capsys):
     assert not out.exists() and _no_temps(tmp_path)
 
 
+def test_identify_of_nothing_exits_1_with_its_summary(tmp_path, capsys):
+    # an honest no-op, as adapt's: was exit 0 with status "failed"
+    rc = main(["identify", str(_blob(tmp_path)), "--json", "--db", str(tmp_path / "db")])
+    out, err = capsys.readouterr()
+    assert rc == 1 and "Traceback" not in err
+    assert json.loads(out.strip().splitlines()[-1])["status"] == "failed"  # the summary still printed
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("graspsim: identify: nothing was identified in 500 points")
+
+
 def test_map_output_that_is_a_directory_fails_before_the_work(tmp_path, capsys, no_work):
     (tmp_path / "outdir").mkdir()
     line = _fails(capsys, ["map", "box", "--x", "0.05", "--y", "0.05", "--z", "0.05",

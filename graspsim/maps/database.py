@@ -193,7 +193,7 @@ class MapDatabase:
         p = self.path(shape)
         if self.contains(shape):
             try:
-                return load_map(p)
+                return load_map(p, verify_transforms=False)
             except MapFileError as err:
                 log.warning("rebuilding damaged database map %s: %s", p, err)
         if not build:
@@ -208,13 +208,13 @@ class MapDatabase:
         path = self.root / entry["file"]
         try:
             if not accepted_only:
-                return load_map(path)
+                return load_map(path, verify_transforms=False)
             key = (str(path), path.stat().st_mtime_ns)
             gmap = self._cache.get(key)
             if gmap is not None:
                 self._cache.move_to_end(key)
                 return gmap
-            gmap = load_map(path, rows=slice(0, int(entry["accepted"])))
+            gmap = load_map(path, rows=slice(0, int(entry["accepted"])), verify_transforms=False)
         except (OSError, KeyError, TypeError, ValueError) as err:  # MapFileError is an OSError
             raise MapDatabaseError(f"stored map {path} is unusable ({err}); `graspsim db check --repair "
                                    f"--root {self.root}` removes it (the next use rebuilds it)") from err

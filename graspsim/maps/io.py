@@ -146,13 +146,19 @@ _REQUIRED = ("grasps/transforms", *_PATHS.values(), "graspability/meta", "object
              "gripper/configuration")
 
 
-def load_map(path: str | os.PathLike, rows: slice | None = None) -> GraspabilityMap:
+def load_map(path: str | os.PathLike, rows: slice | None = None, *,
+             verify_transforms: bool = True) -> GraspabilityMap:
     """Read and validate a map written by :func:`save_map` (only ``rows``, a slice, if
     given: a partial read, validated for those rows). The file's layout is checked here
     (datasets present and numeric, one row count, the trailing shapes, the schema
     version, transforms at the wrist positions, memory to hold the rows); the map's
     own invariants by :func:`~graspsim.maps.validate.map_problems`. A foreign, damaged
-    or corrupted file raises :class:`MapFileError` naming the first problem."""
+    or corrupted file raises :class:`MapFileError` naming the first problem.
+
+    verify_transforms: read ``grasps/transforms`` (the ACRONYM view, which graspsim
+    itself never uses) and check it against the wrist positions -- a third of the load
+    time of a large map. The map database turns it off for its own maps, validated
+    when stored; ``graspsim db check`` verifies them in full."""
     from graspsim.maps.validate import map_problems
 
     path = Path(path)
@@ -163,7 +169,8 @@ def load_map(path: str | os.PathLike, rows: slice | None = None) -> Graspability
         cols = {col: f[dpath][sl] for col, dpath in _PATHS.items()}
         meta, obj, grip = (_json_dict(f, k, path) for k in
                            ("graspability/meta", "object/description", "gripper/configuration"))
-        _check_transforms(f["grasps/transforms"], range(n)[sl], cols["wrist_position"], path)
+        if verify_transforms:
+            _check_transforms(f["grasps/transforms"], range(n)[sl], cols["wrist_position"], path)
     try:
         with np.errstate(over="ignore", invalid="ignore"):  # values beyond float32: caught below
             gmap = GraspabilityMap(

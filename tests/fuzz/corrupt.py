@@ -32,8 +32,8 @@ _JSON_TEXT = ["", "{", "[]", "null", "NaN", "1", '"text"', '{"a": 1}', "\x01", "
 
 def _op(draw):
     kind = draw(st.sampled_from(["delete", "delete", "rows", "trailing", "scalar", "dtype", "inject", "inject",
-                                 "group", "schema", "json", "json", "json_text", "truncate", "flip", "replace",
-                                 "huge_rows", "transpose"]))
+                                 "inject", "inject", "group", "schema", "json", "json", "json_text", "truncate",
+                                 "flip", "replace", "huge_rows", "transpose"]))
     ds = draw(st.sampled_from(GRASP_DATASETS + OTHER_DATASETS))
     grasp_ds = draw(st.sampled_from(GRASP_DATASETS))
     if kind == "delete":

@@ -216,6 +216,33 @@ def assert_unchanged(before: dict, after: dict, what: str) -> None:
     assert not changed, f"{what}: files changed by a failed command: {changed}"
 
 
+def oracle_problems(gmap) -> list[str]:
+    """The map invariants checked independently of graspsim.maps.validate (row by row,
+    in float64), so a regression in the library's own checks cannot hide itself."""
+    import math
+
+    import numpy as np
+
+    out = []
+    for name in ("wrist_position", "wrist_quat", "grasp_point", "contacts", "normals", "width", "fc_angle",
+                 "q_fc", "stability_distance", "q_st", "grade"):
+        a = np.asarray(getattr(gmap, name), np.float64).reshape(len(gmap), -1)
+        if not np.isfinite(a).all():
+            out.append(f"{name}: non-finite")
+    with np.errstate(invalid="ignore"):
+        for name, lo, hi in (("grade", 0, 1), ("q_fc", 0, 1), ("q_st", 0, 1), ("fc_angle", 0, math.pi),
+                             ("stability_distance", 0, math.inf), ("part", 0, math.inf)):
+            a = np.asarray(getattr(gmap, name), np.float64)
+            if np.any((a < lo - 1e-4) | (a > hi + 1e-4)):
+                out.append(f"{name}: outside [{lo}, {hi}]")
+        if np.any(np.asarray(gmap.width, np.float64) <= 0):
+            out.append("width <= 0")
+        norms = np.linalg.norm(np.asarray(gmap.wrist_quat, np.float64), axis=1)
+        if np.any(np.abs(norms - 1) > 1e-2):
+            out.append("wrist_quat: not unit")
+    return out
+
+
 def database_problems(root: Path, touched: set[str]) -> list[str]:
     """Problems of the maps at ``touched`` (paths relative to ``root``) and of the
     index records that list them: every map a command stored must be valid."""
@@ -227,7 +254,8 @@ def database_problems(root: Path, touched: set[str]) -> list[str]:
         if not rel.endswith(".h5") or not (root / rel).is_file():
             continue
         try:
-            probs = map_problems(load_map(root / rel))
+            gmap = load_map(root / rel)
+            probs = map_problems(gmap) + oracle_problems(gmap) + ([] if len(gmap) else ["no grasps"])
         except GraspsimError as err:
             probs = [f"unreadable: {err}"]
         out += [f"{rel}: {p}" for p in probs]

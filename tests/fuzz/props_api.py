@@ -20,7 +20,7 @@ from graspsim.primitives.base import MIN_DIM
 
 from . import cases, corrupt
 from .assets import assets
-from .harness import api_call, count, no_leaked_warnings, snapshot
+from .harness import api_call, count, no_leaked_warnings, oracle_problems, snapshot
 from .registry import register
 
 COARSE = dict(surface_step=0.02, rotation_step=math.radians(45), collision_tolerance=0.002, depth_step=0.02)
@@ -165,10 +165,11 @@ def check_map_file(case: dict) -> str:
         before = snapshot(folder)
         gmap, err = api_call(load_map, target)
         if gmap is not None:
-            assert map_problems(gmap) == [], f"load_map accepted an invalid map: {map_problems(gmap)}"
+            problems = map_problems(gmap) + oracle_problems(gmap)
+            assert problems == [], f"load_map accepted an invalid map: {problems}"
             part, err2 = api_call(load_map, target, rows=slice(0, max(1, len(gmap) // 2)))
             assert part is not None, f"the whole map loads, half of it does not: {err2}"
-            assert map_problems(part) == []
+            assert map_problems(part) + oracle_problems(part) == []
         assert snapshot(folder) == before, "loading changed the file"
         return _label(gmap, err)
     finally:

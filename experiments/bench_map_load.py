@@ -1,0 +1,120 @@
+"""Benchmark: what validation on load costs (issue 13 item 4).
+
+Times, best of ``--repeat`` runs in this process, for one map file:
+
+* ``raw``: the map's columns, metadata and object read with h5py and a
+  :class:`GraspabilityMap` built from them -- no checks (what loading cost before
+  files were validated);
+* ``load_map``: :func:`graspsim.maps.io.load_map`, every check (layout, the
+  ``grasps/transforms`` view, :func:`~graspsim.maps.validate.map_problems`);
+* ``load_map_no_transforms``: ``load_map(..., verify_transforms=False)``, what the
+  map database reads its own (validated when stored) maps with;
+* the parts: ``map_problems`` on the loaded map and the transforms check alone.
+
+Without ``--map`` the FS map of the paper's largest database object (cylinder r 2 cm,
+h 20 cm, default settings: ~1.4 M grasps) is generated first (a few minutes).
+
+    python experiments/bench_map_load.py [--map FILE] [--repeat 5] [--out results/bench_map_load]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import load_average, provenance, write_summary  # noqa: E402
+
+STEM = "bench_map_load"
+
+
+def _raw_load(path: Path):
+    """The map read with no check at all."""
+    import h5py
+
+    from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+    from graspsim.maps.io import _PATHS
+
+    with h5py.File(path, "r") as f:
+        cols = {c: f[d][()] for c, d in _PATHS.items()}
+        meta = json.loads(f["graspability/meta"][()])
+        obj = json.loads(f["object/description"][()])
+        grip = json.loads(f["gripper/configuration"][()])
+    return GraspabilityMap(**cols, meta=MapMeta(object=obj, gripper=grip, quality=meta["quality"],
+                                                resolution=meta["resolution"], method=meta["method"],
+                                                timing=meta.get("timing", {}), version=meta.get("version", ""),
+                                                extra=meta.get("extra", {})))
+
+
+def _transforms_only(path: Path, gmap) -> None:
+    import h5py
+
+    from graspsim.maps.io import _check_transforms
+
+    with h5py.File(path, "r") as f:
+        _check_transforms(f["grasps/transforms"], range(len(gmap)), gmap.wrist_position, path)
+
+
+def _best(fn, repeat: int) -> float:
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def _make_map(folder: Path) -> Path:
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.maps.io import save_map
+    from graspsim.primitives import Cylinder
+
+    print("[bench_map_load] generating the cylinder r 2 cm x h 20 cm map ...", file=sys.stderr, flush=True)
+    return save_map(generate_fs_map(Cylinder(0.02, 0.2)), folder / "cylinder.h5")
+
+
+def readme_section(summary: dict) -> str:
+    t = summary["seconds"]
+    rows = ["| read | seconds |", "|---|---|"] + [f"| {k} | {v:.3f} |" for k, v in t.items()]
+    return ("\n".join(rows) + f"\n\n{summary['grasps']:,} grasps; best of {summary['repeat']} runs; load average "
+            f"{summary['machine']['load_before'][0]} before. `{summary['command']}`")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--map", default=None, help="map file (default: generate the cylinder map)")
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--out", default=f"results/{STEM}")
+    a = ap.parse_args(argv)
+    from graspsim.maps.io import load_map
+    from graspsim.maps.validate import map_problems
+
+    load_before = load_average()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(a.map) if a.map else _make_map(Path(tmp))
+        gmap = load_map(path)  # warm the page cache and the imports
+        seconds = {
+            "raw": _best(lambda: _raw_load(path), a.repeat),
+            "load_map": _best(lambda: load_map(path), a.repeat),
+            "load_map_no_transforms": _best(lambda: load_map(path, verify_transforms=False), a.repeat),
+            "map_problems": _best(lambda: map_problems(gmap), a.repeat),
+            "transforms_check": _best(lambda: _transforms_only(path, gmap), a.repeat),
+        }
+    argv_used = sys.argv[1:] if argv is None else argv
+    summary = {"command": " ".join(["python experiments/bench_map_load.py", *map(shlex.quote, argv_used)]),
+               "map": str(a.map or "generated cylinder r 0.02 m h 0.2 m"), "grasps": len(gmap),
+               "repeat": a.repeat, "seconds": seconds,
+               "overhead_vs_raw": seconds["load_map"] / seconds["raw"],
+               "machine": {"load_before": load_before, "load_after": load_average()},
+               "provenance": provenance()}
+    print(write_summary(summary, Path(a.out), STEM, readme_section))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -66,9 +66,11 @@ def _blob(tmp_path):
     return path
 
 
-def test_adapt_failure_leaves_an_existing_output_untouched(tmp_path, map_file, capsys):
+@pytest.mark.parametrize("flags", [[], ["--no-partial"]])
+def test_adapt_failure_leaves_an_existing_output_untouched(tmp_path, map_file, capsys, flags):
+    # was: replaced by an empty map (also with --no-partial) that `graspsim info` rejected
     before = map_file.read_bytes()
-    line = _fails(capsys, ["adapt", _blob(tmp_path), "-o", map_file, "--db", tmp_path / "db"], code=1)
+    line = _fails(capsys, ["adapt", _blob(tmp_path), "-o", map_file, "--db", tmp_path / "db", *flags], code=1)
     assert "no map written" in line and "left as it was" in line
     assert map_file.read_bytes() == before and _no_temps(tmp_path)
     assert len(load_map(map_file)) == 4
@@ -256,12 +258,14 @@ def test_corrupted_map_is_refused_on_load(map_file, case):
 
 @pytest.mark.parametrize("command", ["info", "show", "trial"])
 @pytest.mark.parametrize("case", ["no_transforms", "nan_transform", "nan_wrist_position"])
-def test_info_show_trial_refuse_a_corrupted_map(tmp_path, map_file, capsys, no_work, command, case):
+def test_info_show_trial_refuse_a_corrupted_map(tmp_path, map_file, capsys, no_work, command, case, recwarn):
+    # was: exit 0 (trial: simulated, then a KeyError lost the results; a RuntimeWarning leaked)
     edit, message = CORRUPTIONS[case]
     _damaged(map_file, edit)
     before = map_file.read_bytes()
     extra = {"info": [], "show": ["-o", tmp_path / "x.png"], "trial": ["--top", "2"]}[command]
     line = _fails(capsys, [command, map_file, *extra])
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
     assert message in line and str(map_file) in line
     assert map_file.read_bytes() == before and not (tmp_path / "x.png").exists()
 

@@ -5,10 +5,21 @@ run them from here, so the nightly run checks exactly what CI checks, only more 
 
 from __future__ import annotations
 
+import atexit
+import shutil
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 
 from hypothesis import HealthCheck, given, settings
+from hypothesis.configuration import set_hypothesis_home_dir
+
+# Hypothesis keeps caches (source constants, unicode tables) in ./.hypothesis even with
+# no example database: the fuzz runs keep theirs in a temporary folder, removed at exit,
+# so they write nothing into the checkout.
+_HOME = tempfile.mkdtemp(prefix="graspsim-hypothesis-")
+set_hypothesis_home_dir(_HOME)
+atexit.register(shutil.rmtree, _HOME, ignore_errors=True)
 
 
 @dataclass(frozen=True)

@@ -446,7 +446,8 @@ def test_adapt_validates_its_options_before_reading_the_cloud(tmp_path, capsys, 
     monkeypatch.setattr("graspsim.perception.read_point_cloud", boom)
     for bad, needle in ((["--theta", "2"], "theta"), (["--surface-step", "0"], "surface_step"),
                         (["--table", "auto", "--table-normal", "0", "0", "0"], "normal"),
-                        (["--threads", "0"], "threads")):
+                        (["--threads", "0"], "threads"), (["--db", _blob(tmp_path)], "not a folder"),
+                        (["--table", "high"], "--table takes")):
         assert needle in _fails(capsys, ["adapt", _blob(tmp_path), "-o", tmp_path / "a.h5", *bad])
 
 

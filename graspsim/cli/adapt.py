@@ -34,6 +34,10 @@ def _cmd_adapt(args) -> int:
                         scaling=ScalingConfig(method=args.scaling), partial=not args.no_partial,
                         table=table)
     map_cfg, quality = _config(args)
+    if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
+        from graspsim.errors import MapDatabaseError
+
+        raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
     cloud = read_point_cloud(args.cloud, units=args.units)
     db = MapDatabase(args.db, quality=quality, config=map_cfg)
     result = plan(cloud.points, db=db, rng=np.random.default_rng(args.seed), config=cfg,

@@ -87,7 +87,7 @@ class GripperSpec:
         if not isinstance(self.name, str) or not self.name:
             raise GripperError(f"gripper name must be a non-empty string, got {self.name!r}")
         for f in fields(self)[1:]:
-            object.__setattr__(self, f.name, _checked(f.name, getattr(self, f.name)))
+            object.__setattr__(self, f.name, _checked(f.name, getattr(self, f.name), isinstance(f.default, tuple)))
         if not 0 < self.efficiency <= 1:
             raise GripperError(f"efficiency must be in (0, 1], got {self.efficiency!r}")
         if self.pad_length > self.finger_size[2]:
@@ -271,10 +271,12 @@ class GripperSpec:
             raise GripperError(f"gripper configuration is not valid JSON: {err}") from err
 
 
-def _checked(name: str, v):
-    """A field's value validated: three positive lengths (tuples) or a finite number
-    (> 0; >= 0 for the gap and the arm)."""
-    if isinstance(v, (tuple, list, np.ndarray)):
+def _checked(name: str, v, triple: bool):
+    """A field's value validated: three positive lengths (``triple``: the box sizes) or
+    a finite number (> 0; >= 0 for the gap and the arm)."""
+    if triple:
+        if not isinstance(v, (tuple, list, np.ndarray)):
+            raise GripperError(f"{name} must be three positive lengths [m], got {v!r}")
         try:
             t = tuple(float(x) for x in v)
         except (TypeError, ValueError):

@@ -590,3 +590,16 @@ def test_unusable_stored_map_says_how_to_repair(fast_db, tmp_path):
     (root / entry["file"]).write_bytes(b"junk")
     with pytest.raises(MapDatabaseError, match="db check --repair"):
         db.load_entry(entry, accepted_only=True)
+
+
+def test_gripper_fields_of_the_wrong_kind_are_gripper_errors():
+    # found by fuzz_long: a map whose gripper JSON held a list as closed_gap ended in a
+    # TypeError (a tuple plus a float) instead of a MapFileError
+    from graspsim.errors import GripperError
+    from graspsim.gripper import GripperSpec
+
+    base = HGPL_25_60_A.to_dict()
+    for field, value in (("closed_gap", [0.01, 0.01, 0.01]), ("finger_size", 0.08), ("stroke_per_jaw", "x"),
+                         ("jaw_size", [0.03, "a", 0.01]), ("pad_length", None)):
+        with pytest.raises(GripperError, match=field):
+            GripperSpec.from_dict({**base, field: value})

@@ -120,7 +120,8 @@ def readme_section(summary: dict) -> str:
     fails = summary["failures"]
     m = summary["machine"]
     text = ("\n".join(rows) + "\n\n"
-            f"{h['inputs']:,} generated inputs ({h['properties']} properties, seed {summary['seed']}), "
+            f"{h['inputs']:,} generated inputs ({h['properties']} properties, seed {summary['seed']}; a damaged "
+            "database counts once per command run on it, a memory batch once per job), "
             f"{h['failing_inputs']} failing ({h['distinct_failures']} distinct failures) in "
             f"{h['wall_s'] / 60:.0f} min on {m['cpus']} cores (load average {m['load_before'][0]} before, "
             f"{m['load_after'][0]} after). A failing input is one that raised anything but a GraspsimError, "
@@ -130,9 +131,11 @@ def readme_section(summary: dict) -> str:
         text += "\n\n" + "\n".join(f"- {f['property']}: {f['error']} at {f['place']}" for f in fails[:10])
     worst = summary.get("default_budget_worst_cases") or []
     if worst:
-        text += ("\n\nUnder the default memory budget (half the RAM, at most 3.5 GiB): "
-                 + "; ".join(f"`graspsim {' '.join(w['argv'][:6])}` exit {w['exit']}, peak "
-                             f"{w['peak_rss_mib'] / 1024:.2f} GiB" for w in worst) + ".")
+        text += ("\n\nUnder the default memory budget (half the RAM, at most 3.5 GiB), one after another in "
+                 "one process (peak: its resident memory's high-water mark, reset before each command): "
+                 + "; ".join(f"`graspsim {' '.join(Path(t).name if '/' in t else t for t in w['argv'][:6])}` "
+                             f"exit {w['exit']}, peak {w['peak_rss_mib'] / 1024:.2f} GiB (grew "
+                             f"{w['growth_mib'] / 1024:.2f} GiB)" for w in worst) + ".")
     return text + f"\n\n`{summary['command']}`"
 
 

@@ -5,8 +5,8 @@ NUL byte, a name too long, a dangling link, a FIFO) or must survive a failure (a
 existing valid map).
 
 A drawn command line is a list of tokens in which the placeholders ``{cloud}``,
-``{map}``, ``{out}``, ``{png}``, ``{db}`` and ``{dir}`` stand for files the property
-makes in the case's folder.
+``{blob}`` (a cloud in which nothing is identified), ``{map}``, ``{out}``, ``{png}``,
+``{db}`` and ``{dir}`` stand for files the property makes in the case's folder.
 """
 
 from __future__ import annotations
@@ -83,9 +83,10 @@ def command_lines(draw, commands=tuple(COMMANDS)) -> dict:
 
 
 # ------------------------------------------------------------------ output paths
-PATH_KINDS = ["fresh", "existing_valid", "existing_valid", "directory", "missing_parent", "file_parent", "proc",
-              "dev_null", "nul_byte", "too_long", "empty", "trailing_slash", "dangling_link", "link_loop", "fifo",
-              "same_as_input", "dot"]
+# an existing file that a failure must leave as it was: drawn most often
+PATH_KINDS = ["fresh", "existing_valid", "existing_valid", "existing_valid", "existing_valid", "directory",
+              "missing_parent", "file_parent", "proc", "dev_null", "nul_byte", "too_long", "empty", "trailing_slash",
+              "dangling_link", "link_loop", "fifo", "same_as_input", "dot"]
 
 #: command -> base tokens (``{path}``: the output under test) and the option making it fail.
 OUTPUT_COMMANDS = {
@@ -96,6 +97,9 @@ OUTPUT_COMMANDS = {
     "show": (["show", "{map}", "-o", "{path}"], ["--min-grade", "2"]),
     "adapt": (["adapt", "{cloud}", "-o", "{path}", "--db", "{db}", "--threads", "1", *FAST_FLAGS],
               ["--repetitions", "0"]),
+    # fails after the work (nothing identified), with or without --no-partial: -o must survive
+    "adapt of nothing": (["adapt", "{blob}", "-o", "{path}", "--db", "{db}", "--threads", "1", *FAST_FLAGS],
+                         ["--no-partial"]),
     "trial --render": (["trial", "{map}", "--top", "1", "--threads", "1", "--render", "{path}", "--render-count",
                         "1"], ["--min-grade", "2"]),
 }

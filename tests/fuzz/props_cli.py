@@ -15,6 +15,7 @@ import os
 import shutil
 from pathlib import Path
 
+import numpy as np
 from hypothesis import strategies as st
 
 from . import cases, corrupt, options
@@ -39,10 +40,12 @@ def materialise(tokens: list[str], folder: Path) -> list[str]:
 
     def get(name: str) -> str:
         if name not in made:
-            path = folder / {"cloud": "cloud.npy", "map": "map.h5", "out": "out.h5", "png": "out.png",
-                             "db": "db", "dir": "adir"}[name]
+            path = folder / {"cloud": "cloud.npy", "blob": "blob.npy", "map": "map.h5", "out": "out.h5",
+                             "png": "out.png", "db": "db", "dir": "adir"}[name]
             if name == "cloud":
                 shutil.copyfile(a.known_cloud, path)
+            elif name == "blob":  # a Gaussian blob: nothing is identified in it
+                np.save(path, np.random.default_rng(0).normal(size=(500, 3)) * 0.03)
             elif name == "map":
                 shutil.copyfile(a.hand_map, path)
             elif name == "db":
@@ -54,7 +57,7 @@ def materialise(tokens: list[str], folder: Path) -> list[str]:
 
     out = []
     for t in tokens:
-        for name in ("cloud", "map", "out", "png", "db", "dir"):
+        for name in ("cloud", "blob", "map", "out", "png", "db", "dir"):
             if "{" + name + "}" in t:
                 t = t.replace("{" + name + "}", get(name))
         out.append(t)
@@ -188,12 +191,14 @@ def check_output_path(case: dict) -> str:
     folder = assets().fresh()
     try:
         tokens, failing = options.OUTPUT_COMMANDS[case["command"]]
-        suffix = {"map": ".h5", "adapt": ".h5", "trial --render": ""}.get(case["command"], ".png")
+        suffix = {"map": ".h5", "adapt": ".h5", "adapt of nothing": ".h5", "trial --render": ""}.get(
+            case["command"], ".png")
         argv = materialise(tokens + (failing if case["fail"] else []), folder)
-        same_as = {"adapt": "cloud.npy", "show": "map.h5", "trial --render": "map.h5"}.get(case["command"])
+        same_as = {"adapt": "cloud.npy", "adapt of nothing": "blob.npy", "show": "map.h5",
+                   "trial --render": "map.h5"}.get(case["command"])
         path = _output_path(case["kind"], folder, suffix, str(folder / same_as) if same_as else None)
         argv = [path if t == "{path}" else t for t in argv]
-        inputs = tuple(x for x in ("cloud.npy", "map.h5") if (folder / x).exists()
+        inputs = tuple(x for x in ("cloud.npy", "blob.npy", "map.h5") if (folder / x).exists()
                        and not (case["command"] == "trial --render" and x == "map.h5"))
         label, run = run_checked(argv, folder, inputs=inputs)
         return label

@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import load_average, provenance, write_summary  # noqa: E402
+from _common import RunRecord, machine_load  # noqa: E402
 
 STEM = "bench_map_load"
 
@@ -85,7 +84,7 @@ def readme_section(summary: dict) -> str:
     t, c = summary["seconds"], summary["cpu_seconds"]
     rows = ["| read | wall s | CPU s |", "|---|---|---|"] + [f"| {k} | {v:.3f} | {c[k]:.3f} |" for k, v in t.items()]
     return ("\n".join(rows) + f"\n\n{summary['grasps']:,} grasps; best of {summary['repeat']} runs; load average "
-            f"{summary['machine']['load_before'][0]} before. `{summary['command']}`")
+            f"{machine_load(summary)[0][0]} before. `{summary['command']}`")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -97,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     from graspsim.maps.io import load_map
     from graspsim.maps.validate import map_problems
 
-    load_before = load_average()
+    run = RunRecord(__file__, argv)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(a.map) if a.map else _make_map(Path(tmp))
         gmap = load_map(path)  # warm the page cache and the imports
@@ -110,15 +109,11 @@ def main(argv: list[str] | None = None) -> int:
         }
     seconds = {k: w for k, (w, _) in timed.items()}
     cpu_seconds = {k: c for k, (_, c) in timed.items()}
-    argv_used = sys.argv[1:] if argv is None else argv
-    summary = {"command": " ".join(["python experiments/bench_map_load.py", *map(shlex.quote, argv_used)]),
-               "map": str(a.map or "generated cylinder r 0.02 m h 0.2 m"), "grasps": len(gmap),
-               "repeat": a.repeat, "seconds": seconds, "cpu_seconds": cpu_seconds,
-               "overhead_vs_raw": seconds["load_map"] / seconds["raw"],
-               "cpu_overhead_vs_raw": cpu_seconds["load_map"] / cpu_seconds["raw"],
-               "machine": {"load_before": load_before, "load_after": load_average()},
-               "provenance": provenance()}
-    print(write_summary(summary, Path(a.out), STEM, readme_section))
+    data = {"map": str(a.map or "generated cylinder r 0.02 m h 0.2 m"), "grasps": len(gmap),
+            "repeat": a.repeat, "seconds": seconds, "cpu_seconds": cpu_seconds,
+            "overhead_vs_raw": seconds["load_map"] / seconds["raw"],
+            "cpu_overhead_vs_raw": cpu_seconds["load_map"] / cpu_seconds["raw"]}
+    print(run.write(a.out, data, readme_section))
     return 0
 
 

@@ -20,9 +20,7 @@ from __future__ import annotations
 import argparse
 import base64
 import collections
-import os
 import pickle
-import shlex
 import sys
 import time
 import traceback
@@ -31,7 +29,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(REPO / "tests"))
-from _common import load_average, provenance, write_summary  # noqa: E402
+from _common import RunRecord, machine_load  # noqa: E402
 
 STEM = "fuzz_long"
 MAX_FAILURES_KEPT = 5  # per distinct failure (property, exception type, place)
@@ -119,12 +117,13 @@ def readme_section(summary: dict) -> str:
     rows += [f"| {k} | {v:,} |" for k, v in sorted(summary["inputs_per_category"].items())]
     fails = summary["failures"]
     m = summary["machine"]
+    load_start, load_end = machine_load(summary)
     text = ("\n".join(rows) + "\n\n"
             f"{h['inputs']:,} generated inputs ({h['properties']} properties, seed {summary['seed']}; a damaged "
             "database counts once per command run on it, a memory batch once per job), "
             f"{h['failing_inputs']} failing ({h['distinct_failures']} distinct failures) in "
-            f"{h['wall_s'] / 60:.0f} min on {m['cpus']} cores (load average {m['load_before'][0]} before, "
-            f"{m['load_after'][0]} after). A failing input is one that raised anything but a GraspsimError, "
+            f"{h['wall_s'] / 60:.0f} min on {m['cpus']} cores (load average {load_start[0]} before, "
+            f"{load_end[0]} after). A failing input is one that raised anything but a GraspsimError, "
             "printed a traceback or more than one error line, leaked a warning, changed a file although it "
             "failed, stored or loaded an invalid map, or ran past its memory or time limit.")
     if fails:
@@ -163,7 +162,8 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         ap.error(f"unknown properties {unknown}; valid: {sorted(props)}")
     out = Path(a.out)
-    load_before, t0 = load_average(), time.perf_counter()
+    run = RunRecord(__file__, argv)
+    t0 = time.perf_counter()
     failures: list = []
     per_property = {}
     for name in names:
@@ -174,9 +174,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[fuzz_long] {name}: {per_property[name]['outcomes']} in {per_property[name]['seconds']:.0f} s",
               file=sys.stderr, flush=True)
     default_budget = _default_budget(failures) if a.default_budget else None
-    argv_used = sys.argv[1:] if argv is None else argv
-    summary = {
-        "command": " ".join(["python experiments/fuzz_long.py", *map(shlex.quote, argv_used)]),
+    data = {
         "seed": a.seed, "scale": a.scale,
         "headline": {"inputs": sum(COUNTS.values()), "properties": len(names),
                      "failing_inputs": sum(p["outcomes"].get("FAILED", 0) for p in per_property.values()),
@@ -185,10 +183,8 @@ def main(argv: list[str] | None = None) -> int:
                      "denominator": "generated inputs run through the properties (each counted once)"},
         "inputs_per_category": dict(COUNTS), "properties": per_property, "failures": failures,
         "default_budget_worst_cases": default_budget,
-        "machine": {"cpus": os.cpu_count(), "load_before": load_before, "load_after": load_average()},
-        "provenance": provenance(),
     }
-    print(write_summary(summary, out, STEM, readme_section, publish=a.publish))
+    print(run.write(out, data, readme_section, publish=a.publish))
     return 0 if not failures else 1
 
 

@@ -36,40 +36,60 @@ def _folder(path: Path) -> Path:
     return path.parent if str(path.parent) else Path(".")
 
 
-def check_output(path: str | os.PathLike, what: str = "output", error=OutputPathError) -> Path:
+def _checked_path(path, what: str, error) -> Path:
+    text = os.fspath(path)
+    if not str(text).strip():
+        raise error(f"cannot write {what}: no path given")
+    if "\0" in str(text):
+        raise error(f"cannot write {what} {text!r}: the path contains a NUL byte")
+    return Path(text)
+
+
+def check_output(path: str | os.PathLike, what: str = "output", error=OutputPathError, *,
+                 others: dict[str, str | os.PathLike] | None = None) -> Path:
     """Raise ``error`` unless ``path`` can be written as a file: it is not a directory
-    (or other non-file), its folder exists, and a file can be created there (tried, not
-    guessed from permission bits). Returns ``path`` as a Path."""
-    path = Path(path)
+    (or other non-file), its folder exists, a file can be created there (tried, not
+    guessed from permission bits), and it is none of ``others`` (name -> path: the
+    command's inputs and other outputs, which writing it would destroy). Returns
+    ``path`` as a Path."""
+    path = _checked_path(path, what, error)
     folder = _folder(path)
-    if path.is_dir():
-        raise error(f"cannot write {what} {path}: it is a directory (give a file name)")
-    if path.exists() and not path.is_file():
-        raise error(f"cannot write {what} {path}: it exists and is not a regular file")
-    if not folder.is_dir():
-        raise error(f"cannot write {what} {path}: folder {folder} does not exist")
     try:
-        tmp = _new_temp(path)
-    except OSError as err:
+        for name, other in (others or {}).items():
+            if other is not None and "\0" not in str(other) and os.path.realpath(path) == os.path.realpath(other):
+                raise error(f"cannot write {what} {path}: it is also the {name}")
+        if path.is_dir():
+            raise error(f"cannot write {what} {path}: it is a directory (give a file name)")
+        if path.exists() and not path.is_file():
+            raise error(f"cannot write {what} {path}: it exists and is not a regular file")
+        if not folder.is_dir():
+            raise error(f"cannot write {what} {path}: folder {folder} does not exist")
+        _new_temp(path).unlink()
+    except OSError as err:  # a name too long, a folder we may not enter, ...
+        if isinstance(err, error):
+            raise
         raise error(f"cannot write {what} {path}: {err.strerror or err}") from err
-    tmp.unlink()
     return path
 
 
 def check_folder(path: str | os.PathLike, what: str = "output folder", error=OutputPathError) -> Path:
     """Raise ``error`` unless ``path`` is (or can be created as) a folder files can be
     written into. Nothing is created. Returns ``path`` as a Path."""
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise error(f"cannot write {what} {path}: it exists and is not a folder")
-    existing = path
-    while not existing.exists():  # the nearest existing ancestor must take new entries
-        existing = existing.parent
-    if not existing.is_dir():
-        raise error(f"cannot write {what} {path}: {existing} is not a folder")
+    path = _checked_path(path, what, error)
     try:
+        if path.exists() and not path.is_dir():
+            raise error(f"cannot write {what} {path}: it exists and is not a folder")
+        if path.is_symlink() and not path.exists():
+            raise error(f"cannot write {what} {path}: it is a broken symbolic link")
+        existing = path
+        while not existing.exists() and existing != existing.parent:  # the nearest existing
+            existing = existing.parent  # ancestor must take new entries
+        if not existing.is_dir():
+            raise error(f"cannot write {what} {path}: {existing} is not a folder")
         fd, probe = tempfile.mkstemp(prefix=".graspsim-probe.", dir=existing)
     except OSError as err:
+        if isinstance(err, error):
+            raise
         raise error(f"cannot write {what} {path}: {err.strerror or err}") from err
     os.close(fd)
     os.unlink(probe)

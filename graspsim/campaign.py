@@ -72,6 +72,7 @@ def campaign_tasks(maps: Sequence[str | os.PathLike], *, protocol: str = "lift_p
     """The task list of a campaign: every map x seed, with ids stable across runs."""
     if not maps:
         raise InvalidParameterError("a campaign needs at least one map file")
+    _check_settings(top=top, sample=sample, threads=threads, min_grade=min_grade)
     tasks = []
     for m in maps:
         p = Path(m)
@@ -144,12 +145,25 @@ def _load(path: Path) -> dict | None:
         return None
 
 
+def _check_settings(*, top, sample, threads, min_grade) -> None:
+    """Task settings a trial can run with, checked before a campaign folder is made
+    (``ExecutionNoise`` checks its own sigmas)."""
+    for name, n in (("top", top), ("sample", sample), ("threads", threads)):
+        if n is not None and not n >= 1:
+            raise InvalidParameterError(f"{name} must be >= 1, got {n!r}")
+    if min_grade is not None and not min_grade < 1.0:  # grades lie in [0, 1]
+        raise InvalidParameterError(f"nothing to simulate: no grasp has a grade > {min_grade!r} (grades lie "
+                                    "in [0, 1])")
+
+
 def run_campaign(tasks: Sequence[CampaignTask], out: str | os.PathLike, *,
                  executor: Executor | None = None, max_tasks: int | None = None,
                  progress: Callable[[int, int], None] | None = None) -> CampaignResult:
     """Run the tasks not yet done in ``out`` (resumable); ``max_tasks`` stops after that
     many new tasks (a controlled interruption)."""
     out = Path(out)
+    if max_tasks is not None and not max_tasks >= 0:
+        raise InvalidParameterError(f"max_tasks must be >= 0, got {max_tasks!r}")
     (out / "tasks").mkdir(parents=True, exist_ok=True)
     spec = {"format": "graspsim-campaign-1", "tasks": [t.to_dict() for t in tasks]}
     spec_path = out / "spec.json"

@@ -87,7 +87,7 @@ class GripperSpec:
         if not isinstance(self.name, str) or not self.name:
             raise GripperError(f"gripper name must be a non-empty string, got {self.name!r}")
         for f in fields(self)[1:]:
-            object.__setattr__(self, f.name, _checked(f.name, getattr(self, f.name)))
+            object.__setattr__(self, f.name, _checked(f.name, getattr(self, f.name), isinstance(f.default, tuple)))
         if not 0 < self.efficiency <= 1:
             raise GripperError(f"efficiency must be in (0, 1], got {self.efficiency!r}")
         if self.pad_length > self.finger_size[2]:
@@ -134,13 +134,16 @@ class GripperSpec:
         """z of the fingertips in the wrist frame [m]."""
         return self.jaw_base_z + self.finger_size[2]
 
-    def contact_depths(self, step: float) -> np.ndarray:
-        """Contact distances from the fingertip sampled along the pad [m]."""
+    def contact_depth_count(self, step: float) -> int:
+        """How many contact depths :meth:`contact_depths` samples at ``step`` [m]."""
         if not step > 0:
             raise GripperError(f"depth step must be > 0 m, got {step!r}")
-        lo, hi = self.contact_depth_margin, self.pad_length - self.contact_depth_margin
-        n = int(math.floor((hi - lo) / step + 1e-9)) + 1
-        return lo + step * np.arange(n)
+        span = self.pad_length - 2 * self.contact_depth_margin
+        return int(min(math.floor(span / step + 1e-9), 2.0**62)) + 1
+
+    def contact_depths(self, step: float) -> np.ndarray:
+        """Contact distances from the fingertip sampled along the pad [m]."""
+        return self.contact_depth_margin + step * np.arange(self.contact_depth_count(step))
 
     # ------------------------------------------------------------------ wrist <-> TCP
     # The TCP (grasp point) lies on the wrist z axis at every opening (symmetric jaws),
@@ -252,6 +255,8 @@ class GripperSpec:
 
     @classmethod
     def from_dict(cls, d: dict) -> GripperSpec:
+        if not isinstance(d, dict):
+            raise GripperError(f"a gripper specification must be a dict, got {d!r}")
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:
@@ -266,11 +271,16 @@ class GripperSpec:
             raise GripperError(f"gripper configuration is not valid JSON: {err}") from err
 
 
-def _checked(name: str, v):
-    """A field's value validated: three positive lengths (tuples) or a finite number
-    (> 0; >= 0 for the gap and the arm)."""
-    if isinstance(v, (tuple, list, np.ndarray)):
-        t = tuple(float(x) for x in v)
+def _checked(name: str, v, triple: bool):
+    """A field's value validated: three positive lengths (``triple``: the box sizes) or
+    a finite number (> 0; >= 0 for the gap and the arm)."""
+    if triple:
+        if not isinstance(v, (tuple, list, np.ndarray)):
+            raise GripperError(f"{name} must be three positive lengths [m], got {v!r}")
+        try:
+            t = tuple(float(x) for x in v)
+        except (TypeError, ValueError):
+            raise GripperError(f"{name} must be three positive lengths [m], got {v!r}") from None
         if len(t) != 3 or not all(math.isfinite(x) and x > 0 for x in t):
             raise GripperError(f"{name} must be three positive lengths [m], got {v!r}")
         return t

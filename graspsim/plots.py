@@ -45,7 +45,7 @@ def _pyplot():
 def _draw(ax, gmap: GraspabilityMap, what: str, max_points: int, min_grade: float, title: str):
     from graspsim.primitives import shape_from_dict
 
-    sel = np.flatnonzero(gmap.grade > min_grade)
+    sel = np.flatnonzero(gmap.above(min_grade))
     if len(sel) > max_points:  # deterministic thinning, keeps the best grasps visible
         sel = np.sort(np.random.default_rng(0).choice(sel, max_points, replace=False))
     pts = (gmap.grasp_point if what == "grasp_point" else gmap.wrist_position)[sel]

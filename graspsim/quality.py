@@ -150,13 +150,18 @@ class QualityModel:
     def from_meta(cls, quality: dict) -> QualityModel:
         """The paper-grade model behind a map's ``meta.quality`` record (which also holds
         the reference distance used, and, for re-graded maps, the grade's own fields)."""
-        base = quality.get("base_quality", quality)
+        base = quality.get("base_quality", quality) if isinstance(quality, dict) else quality
+        if not isinstance(base, dict):
+            raise InvalidParameterError(f"a quality record must be a dict, got {base!r}")
         fields = cls.__dataclass_fields__
-        return cls(**{k: v for k, v in base.items() if k in fields})
+        try:
+            return cls(**{k: v for k, v in base.items() if k in fields})
+        except (TypeError, ValueError) as err:
+            raise InvalidParameterError(f"bad quality model parameters {base!r}: {err}") from err
 
     @classmethod
     def from_dict(cls, d: dict) -> QualityModel:
         try:
             return cls(**d)
-        except TypeError as err:
+        except (TypeError, ValueError) as err:
             raise InvalidParameterError(f"bad quality model parameters {d!r}: {err}") from err

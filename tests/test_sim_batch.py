@@ -185,3 +185,13 @@ def test_a_coacd_decomposed_mesh_object_can_be_grasped(mesh_cache):
 def mesh_cache(tmp_path_factory):
     # shared by every module of the session: CoACD runs once per mesh
     return tmp_path_factory.getbasetemp() / "coacd_cache"
+
+
+def test_a_billion_threads_are_capped_not_allocated(box_scene):
+    # found by fuzz_long: `campaign run --threads 1000000000` made an MjData and a native
+    # thread per requested thread until memory ran out
+    T = grasp_pose([0, 0, 0], **SIDE)[None]
+    one = run_trials(box_scene, T, [0.06], threads=1)
+    many = run_trials(box_scene, T, [0.06], threads=10**9)
+    assert many.threads == 1
+    np.testing.assert_array_equal(one.outcome, many.outcome)

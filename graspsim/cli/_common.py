@@ -7,8 +7,8 @@ import sys
 from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "executor_from_args",
-           "format_table", "progress"]
+__all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value",
+           "executor_from_args", "format_table", "progress"]
 
 
 def add_json_flag(p) -> None:
@@ -21,6 +21,19 @@ def add_units_flag(p) -> None:
     p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
                    help="unit of the cloud's coordinates, converted to metres (default m; a cloud "
                    "wider than 2 m is refused as probably mm or cm)")
+
+
+def seed_value(text: str) -> int:
+    """argparse type of ``--seed``: a whole number >= 0 (numpy's generators take no other)."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 0, got {text!r}")
+    return value
 
 
 def add_executor_flags(p) -> None:

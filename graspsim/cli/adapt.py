@@ -22,8 +22,8 @@ def _cmd_adapt(args) -> int:
     from graspsim.perception import IdentifyConfig, read_point_cloud
     from graspsim.planner import PlannerConfig, plan
 
-    out = check_output(args.output, "map")  # before the work, not after it
-    cloud = read_point_cloud(args.cloud, units=args.units)
+    # every option and the output path before the cloud is read or anything computed
+    out = check_output(args.output, "map", others={"input cloud": args.cloud})
     table = None
     if args.table is not None:
         from graspsim.maps.table import TablePlane
@@ -34,6 +34,11 @@ def _cmd_adapt(args) -> int:
                         scaling=ScalingConfig(method=args.scaling), partial=not args.no_partial,
                         table=table)
     map_cfg, quality = _config(args)
+    if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
+        from graspsim.errors import MapDatabaseError
+
+        raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
+    cloud = read_point_cloud(args.cloud, units=args.units)
     db = MapDatabase(args.db, quality=quality, config=map_cfg)
     result = plan(cloud.points, db=db, rng=np.random.default_rng(args.seed), config=cfg,
                   source=str(Path(args.cloud).resolve()))
@@ -71,6 +76,8 @@ def _height(text: str) -> float:
 
 
 def register(sub) -> None:
+    from graspsim.cli._common import seed_value
+
     p = sub.add_parser(
         "adapt", help="adapted graspability map of an object's point cloud",
         description="Identify the cloud's shape primitives, take their FS maps from the "
@@ -87,7 +94,7 @@ def register(sub) -> None:
                    "~/.cache/graspsim/db)")
     p.add_argument("--repetitions", type=int, default=10, help="MLESAC repetitions (10)")
     p.add_argument("--theta", type=float, default=0.5, help="split threshold theta_th (0.5)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
     p.add_argument("--no-partial", action="store_true",
                    help="no map at all when clustering fails (default: map of the identified parts)")
     p.add_argument("--table", default=None, metavar="auto|HEIGHT",

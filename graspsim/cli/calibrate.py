@@ -21,6 +21,8 @@ __all__ = ["register", "run"]
 
 
 def register(subparsers) -> None:
+    from graspsim.cli._common import seed_value
+
     p = subparsers.add_parser(
         "calibrate", help="calibrate grades against simulated lift-and-place trials",
         description="Draw grasps across the whole grade range of map files, simulate them "
@@ -37,7 +39,7 @@ def register(subparsers) -> None:
     p.add_argument("--grip-force", type=float, metavar="N", help="grip force per jaw [N] (default: spec)")
     p.add_argument("--mass-scale", type=float, default=1.0, help="object mass x this (default 1)")
     p.add_argument("--noise", action="store_true", help="execution noise sigma 3 mm / 2 deg")
-    p.add_argument("--seed", type=int, default=0, help="seed of sampling and noise (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="seed of sampling and noise (default 0)")
     p.add_argument("--threads", type=int, metavar="T", help="native threads (default: all cores)")
     p.add_argument("--boot", type=int, default=500, metavar="B", help="bootstrap replicates (default 500)")
     p.add_argument("-o", "--out", metavar="DIR", help="write trials.npz, report.json/.md and PNGs here")

@@ -40,6 +40,8 @@ def _cmd_demo(args) -> int:
 
 
 def register(sub) -> None:
+    from graspsim.cli._common import seed_value
+
     p = sub.add_parser(
         "demo", help="end to end: cloud -> identification -> adapted map -> MuJoCo trials",
         description="The paper's case study in one run: a glue-bottle analog seen as a noisy "
@@ -53,7 +55,7 @@ def register(sub) -> None:
     p.add_argument("--trials", type=int, default=15, help="grasps to simulate (15, as the paper)")
     p.add_argument("--renders", type=int, default=3, help="trials to render as PNG (3; 0: none)")
     p.add_argument("--noise", action="store_true", help="execution noise (3 mm / 2 deg) in the trials")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed_value, default=0)
     p.add_argument("--threads", type=int, default=None, help="CPU threads (default: all)")
     p.add_argument("--quick", action="store_true",
                    help="coarse database in OUT/db and fewer trials: a fast smoke run (CI)")

@@ -9,6 +9,7 @@ The JSON summary (``--json``, last stdout line)::
 ``match`` is "known" / "familiar" / null from the FS map database given with ``--db``,
 else the default one (``$GRASPSIM_DB`` or ``~/.cache/graspsim/db``, the database
 ``adapt`` uses) when it exists -- identify never builds one; ``database`` says which.
+Exit status 1 (the summary still printed) when nothing is identified, as ``adapt``.
 """
 
 from __future__ import annotations
@@ -24,10 +25,13 @@ _DESCRIPTION = (
     "Identify the shape primitives (box, cylinder, sphere, cone, half-toroid) of an object "
     "point cloud by MLESAC fitting and splitting (paper section 4). Prints each part's "
     "primitive, dimensions, fit rate and whether the map database knows it (known: a map of "
-    "that size is stored; familiar: same primitive, another size). Coordinates in metres.")
+    "that size is stored; familiar: same primitive, another size). Coordinates in metres. "
+    "Exit status 1 when nothing is identified.")
 
 
 def register(subparsers) -> None:
+    from graspsim.cli._common import seed_value
+
     p = subparsers.add_parser(
         "identify",
         help="identify shape primitives in a point cloud (.pcd, .ply, .npy, .xyz)",
@@ -41,7 +45,7 @@ def register(subparsers) -> None:
                    help="split threshold theta_th of eq. (1), in (0, 1] (default 0.5)")
     p.add_argument("--noise", type=float, default=None,
                    help="sensor noise sigma in metres (default: estimated)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     p.add_argument("--db", metavar="DIR", default=None,
                    help="FS map database folder for the known/familiar decision (default: "
                    "$GRASPSIM_DB or ~/.cache/graspsim/db when it exists; never built here)")
@@ -119,4 +123,12 @@ def run(args: argparse.Namespace) -> int:
              + ("" if db_root else "\n(match: no map database yet -- `graspsim db build` or the "
                                    "first `graspsim adapt` makes one)"))
     emit(summary, args.json, human)
+    if res.status.value == "failed":  # an honest no-op, as ``adapt``'s: a nonzero exit
+        import sys
+
+        reasons = sorted({p.reason for p in res.unidentified if p.reason})
+        why = "; ".join(reasons[:2]) + ("; ..." if len(reasons) > 2 else "")
+        print(f"graspsim: identify: nothing was identified in {cloud.n_read} points"
+              + (f" ({why})" if why else ""), file=sys.stderr)
+        return 1
     return 0

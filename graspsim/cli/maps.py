@@ -45,9 +45,12 @@ def _add_generation(p) -> None:
 
 
 def _config(args):
+    from graspsim.errors import InvalidParameterError
     from graspsim.maps.generate import MapConfig
     from graspsim.quality import QualityModel
 
+    if args.threads is not None and args.threads < 1:
+        raise InvalidParameterError(f"--threads must be >= 1, got {args.threads}")
     cfg = MapConfig(surface_step=args.surface_step, rotation_step=math.radians(args.rotation_step_deg),
                     closing_cone=math.radians(args.closing_cone_deg), depth_step=args.depth_step,
                     collision_tolerance=args.tolerance)
@@ -69,7 +72,7 @@ def _cmd_map(args) -> int:
     if args.plot:
         from graspsim.plots import image_format
 
-        plot, fmt = check_output(args.plot, "plot"), image_format(args.plot)
+        plot, fmt = check_output(args.plot, "plot", others={"map (-o)": out}), image_format(args.plot)
     t0 = time.perf_counter()
     with progress(100, f"map {shape.kind}", enabled=not args.json, unit="%") as bar:
         def report(frac: float) -> None:
@@ -102,10 +105,10 @@ def _cmd_show(args) -> int:
     from graspsim.maps.io import load_map
     from graspsim.plots import image_format, plot_map
 
-    check_output(args.output, "image")
+    check_output(args.output, "image", others={"map": args.file})
     fmt = image_format(args.output)
     gmap = load_map(args.file)
-    shown = int((gmap.grade > args.min_grade).sum())
+    shown = int(gmap.above(args.min_grade).sum())
     if not shown:
         raise InvalidParameterError(f"nothing to plot: none of the map's {len(gmap)} grasps has "
                                     f"grade > {args.min_grade:g} (max {_max_grade(gmap)})")

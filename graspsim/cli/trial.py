@@ -25,6 +25,8 @@ TRIALS_PER_SECOND_PER_THREAD = 80.0
 
 
 def register(subparsers) -> None:
+    from graspsim.cli._common import seed_value
+
     p = subparsers.add_parser(
         "trial", help="simulate a map's grasps (lift-and-place or tug) and store the outcomes",
         description="Simulate grasps of a graspability map in MuJoCo; results go back into "
@@ -39,7 +41,7 @@ def register(subparsers) -> None:
                      help="N grasps spread uniformly over the object's surface")
     p.add_argument("--min-grade", type=float, metavar="G", help="only grasps with grade > G")
     p.add_argument("--threads", type=int, metavar="T", help="native threads (default: all cores)")
-    p.add_argument("--seed", type=int, default=0, help="seed of sampling and noise (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="seed of sampling and noise (default 0)")
     p.add_argument("--noise", action="store_true",
                    help="execution noise: wrist pose error sigma 3 mm / 2 deg per trial")
     p.add_argument("--mesh", metavar="FILE",
@@ -88,6 +90,10 @@ def run(args) -> int:
 
         check_output(args.record, "trial recording")
         recorder = Recorder()
+    if args.mesh is not None:
+        from graspsim.sim.meshes import check_mesh_path
+
+        check_mesh_path(args.mesh)
     settings = None
     if args.friction is not None or args.grip_force is not None:
         mu = args.friction

@@ -87,12 +87,22 @@ def _locked(path: Path):
             fcntl.flock(f, fcntl.LOCK_UN)
 
 
-def _valid_record(entry: dict) -> bool:
+def _valid_record(entry) -> bool:
+    """An index record a lookup may use: a dict naming a possible shape, its file and
+    a grasp count (anything else is skipped with a warning, and ``db check`` reports it)."""
     try:
+        if not isinstance(entry, dict):
+            raise TypeError(f"not a record: {entry!r}")
+        for k in ("key", "file"):
+            if not isinstance(entry.get(k), str):
+                raise TypeError(f"{k} {entry.get(k)!r} is not a string")
+        n = entry.get("accepted", 0)
+        if not isinstance(n, int) or isinstance(n, bool) or n < 0:
+            raise TypeError(f"accepted {n!r} is not a count")
         primitive_from_dict(entry)
-    except GraspsimError as err:
+    except (GraspsimError, KeyError, TypeError, ValueError) as err:
         log.warning("database record %s skipped (%s); `graspsim db check --repair` removes it",
-                    entry.get("key"), err)
+                    entry.get("key") if isinstance(entry, dict) else "?", err)
         return False
     return True
 
@@ -116,7 +126,7 @@ class MapDatabase:
         self._cache: OrderedDict = OrderedDict()
         try:
             self.root.mkdir(parents=True, exist_ok=True)
-        except OSError as err:
+        except (OSError, ValueError) as err:  # ValueError: a NUL byte in the path
             raise MapDatabaseError(f"cannot create map database folder {self.root}: {err}") from err
         self._settings = _digest({"gripper": gripper.to_dict(), "quality": self.quality.to_dict(),
                                   "config": self.config.to_dict()})
@@ -131,6 +141,8 @@ class MapDatabase:
             return []
         try:
             data = json.loads(self.index_path.read_text())
+            if not isinstance(data["maps"], list):
+                raise TypeError(f"its maps are a {type(data['maps']).__name__}, not a list")
             return list(data["maps"])
         except (OSError, ValueError, KeyError, TypeError) as err:
             raise MapDatabaseError(
@@ -147,7 +159,7 @@ class MapDatabase:
         of every map in the folder; their ``"settings"`` digest tells them apart). Records of
         impossible shapes (e.g. a zero radius) are skipped: never a lookup source."""
         return [e for e in self._read_index()
-                if (all_settings or e.get("settings") == self._settings) and _valid_record(e)]
+                if _valid_record(e) and (all_settings or e.get("settings") == self._settings)]
 
     @property
     def settings_digest(self) -> str:
@@ -182,7 +194,7 @@ class MapDatabase:
         p = self.path(shape)
         if self.contains(shape):
             try:
-                return load_map(p)
+                return load_map(p, verify_transforms=False)
             except MapFileError as err:
                 log.warning("rebuilding damaged database map %s: %s", p, err)
         if not build:
@@ -192,25 +204,27 @@ class MapDatabase:
     def load_entry(self, entry: dict, *, accepted_only: bool = False) -> GraspabilityMap:
         """A stored map; with ``accepted_only`` just its grasps above the threshold --
         stored maps are sorted best first, so that is a prefix of the file (a partial
-        read) -- kept in a small in-memory cache for repeated run-time use."""
+        read) -- kept in a small in-memory cache for repeated run-time use. A stored
+        map that cannot be read raises :class:`MapDatabaseError` saying how to repair."""
         path = self.root / entry["file"]
-        if not accepted_only:
-            return load_map(path)
         try:
+            if not accepted_only:
+                return load_map(path, verify_transforms=False)
             key = (str(path), path.stat().st_mtime_ns)
-        except OSError as err:
-            raise MapDatabaseError(f"stored map {path} is missing: {err}") from err
-        gmap = self._cache.get(key)
-        if gmap is None:
-            gmap = load_map(path, rows=slice(0, int(entry["accepted"])))
-            if len(gmap) and not gmap.accepted.all():
-                raise MapDatabaseError(f"{path} is not sorted best first; rebuild the database")
-            if self.cache_size > 0:
-                self._cache[key] = gmap
-                while len(self._cache) > self.cache_size:
-                    self._cache.popitem(last=False)
-        else:
-            self._cache.move_to_end(key)
+            gmap = self._cache.get(key)
+            if gmap is not None:
+                self._cache.move_to_end(key)
+                return gmap
+            gmap = load_map(path, rows=slice(0, int(entry["accepted"])), verify_transforms=False)
+        except (OSError, KeyError, TypeError, ValueError) as err:  # MapFileError is an OSError
+            raise MapDatabaseError(f"stored map {path} is unusable ({err}); `graspsim db check --repair "
+                                   f"--root {self.root}` removes it (the next use rebuilds it)") from err
+        if len(gmap) and not gmap.accepted.all():
+            raise MapDatabaseError(f"{path} is not sorted best first; rebuild the database")
+        if self.cache_size > 0:
+            self._cache[key] = gmap
+            while len(self._cache) > self.cache_size:
+                self._cache.popitem(last=False)
         return gmap
 
     # ------------------------------------------------------------------ building
@@ -236,7 +250,8 @@ class MapDatabase:
     def _merge(self, new: list[dict]) -> None:
         """Add records to the index (replacing those with the same keys)."""
         keys = {r["key"] for r in new}
-        self.edit_index(lambda records: [e for e in records if e.get("key") not in keys] + new)
+        self.edit_index(lambda records: [e for e in records if not (isinstance(e, dict) and e.get("key") in keys)]
+                        + new)
 
     def records(self) -> list[dict]:
         """Every index record, whatever its settings (raises if the index is damaged)."""

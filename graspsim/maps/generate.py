@@ -39,6 +39,7 @@ __all__ = [
     "closing_lines",
     "sweep_collisions",
     "roll_angles",
+    "roll_count",
     "object_description",
     "clear_caches",
 ]
@@ -121,8 +122,13 @@ def _ring_sizes(cone: float, step: float) -> list[int]:
 
 
 def closing_direction_count(cone: float, step: float) -> int:
-    """Closing directions per first contact (K of :func:`closing_directions`)."""
-    return sum(_ring_sizes(cone, step))
+    """Closing directions per first contact (K of :func:`closing_directions`). Beyond
+    10^5 rings (a step far too fine to generate) the sum is taken as its integral, so
+    a memory estimate costs no time (saturating at 2^62)."""
+    rings = math.floor(cone / step + 1e-9)
+    if rings <= 100_000:
+        return sum(_ring_sizes(cone, step))
+    return 1 + int(min(2.0 * math.pi / step * ((1.0 - math.cos(min(rings * step, math.pi))) / step), 2.0**62))
 
 
 def _tangents(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -213,9 +219,14 @@ def closing_lines(shape, gripper: GripperSpec, cfg: MapConfig) -> ClosingLines:
                         outside, int(M), int(K))
 
 
+def roll_count(cfg: MapConfig) -> int:
+    """Rolls about the closing axis (length of :func:`roll_angles`)."""
+    return max(1, round(min(2 * math.pi / cfg.rotation_step, 2.0**62)))
+
+
 def roll_angles(cfg: MapConfig) -> np.ndarray:
     """Rolls about the closing axis: a whole number of steps around the circle [rad]."""
-    n = max(1, round(2 * math.pi / cfg.rotation_step))
+    n = roll_count(cfg)
     return 2 * math.pi * np.arange(n) / n
 
 

@@ -227,11 +227,16 @@ class GraspabilityMap:
         index = np.asarray(index)
         return replace(self, **{k: v[index] for k, v in self.columns().items()})
 
+    def above(self, min_grade: float) -> np.ndarray:
+        """(N,) bool: grade > ``min_grade`` (any float: one beyond float32's range, e.g. a
+        user's 1e308, compares as the edge of the grades' [0, 1] range, not as an overflow)."""
+        return self.grade > np.float32(np.clip(float(min_grade), -2.0, 2.0))
+
     def filter(self, *, min_grade: float | None = None, part: int | None = None,
                accepted: bool | None = None) -> GraspabilityMap:
         m = np.ones(len(self), bool)
         if min_grade is not None:
-            m &= self.grade > min_grade
+            m &= self.above(min_grade)
         if part is not None:
             m &= self.part == part
         if accepted is not None:

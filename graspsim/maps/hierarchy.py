@@ -79,8 +79,12 @@ def build_levels(shape, cfg) -> dict[str, np.ndarray | float]:
     belongs to its nearest middle sample and each middle one to its nearest coarse
     one. A sample's patch (RT: tangential radius, HN: height along its normal) bounds
     where the surface points it stands for can be. Children arrays are ordered by
-    parent with CSR offsets.
+    parent with CSR offsets. Raises :class:`~graspsim.errors.BudgetExceededError`
+    first if the fine samples would not fit the memory budget.
     """
+    from graspsim.maps.preflight import check_collision_samples
+
+    check_collision_samples(shape, cfg)
     coarse = shape.surface_samples(min(cfg.collision_step, shape.size_scale))
     fstep = cfg.collision_tolerance * 1.3  # cell-centre grids cover ~ step / sqrt(2)
     fine = shape.surface_samples(fstep)

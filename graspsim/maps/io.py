@@ -16,14 +16,20 @@ Layout (datasets, not attributes; N grasps)::
     object/T_cloud_obj (4, 4) for adapted maps (the object frame in the cloud's frame)
     gripper/type, gripper/configuration (JSON GripperSpec)
 
-Loading validates the file (:func:`load_map`): every dataset present, one row count,
-the trailing shapes, finite geometry and grades, unit quaternions, transforms that match
-the wrist positions, and a schema version this code reads. A file that fails raises
-:class:`MapFileError` naming the first problem.
+Text (names, JSON) is stored as fixed-length UTF-8 strings; files that hold it as
+variable-length strings (earlier versions) read the same.
+
+Loading validates the file (:func:`load_map`): its layout here -- every dataset present
+and numeric, one row count, the trailing shapes, transforms that match the wrist
+positions, a schema version this code reads, rows that fit the memory budget -- and
+the map it holds with :func:`~graspsim.maps.validate.map_problems` (finite columns in
+range, unit quaternions, a valid object, gripper and quality model). A file that fails
+raises :class:`MapFileError` naming the first problem.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -32,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from graspsim._atomic import atomic_path
-from graspsim.errors import MapFileError
+from graspsim.errors import GraspsimError, MapFileError
 from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
 
 __all__ = ["save_map", "load_map", "write_sim_results", "read_sim_results", "FORMAT",
@@ -84,26 +90,26 @@ def save_map(gmap: GraspabilityMap, path: str | os.PathLike, *, compression: str
                 for col, dpath in _PATHS.items():
                     f.create_dataset(dpath, data=getattr(gmap, col), **opts)
                 f.create_dataset("graspability/accepted", data=gmap.accepted, **opts)
-                f["graspability/format"] = FORMAT
+                f["graspability/format"] = _fixed(FORMAT)
                 f["graspability/schema_version"] = SCHEMA_VERSION
-                f["graspability/meta"] = json.dumps(
+                f["graspability/meta"] = _fixed(json.dumps(
                     {"quality": m.quality, "resolution": m.resolution, "method": m.method,
                      "timing": m.timing, "version": m.version, "extra": m.extra},
                     sort_keys=True,
-                )
+                ))
                 obj = m.object
-                f["object/description"] = json.dumps(obj, sort_keys=True)
-                f["object/primitive"] = str(obj.get("primitive", "mesh"))
-                f["object/dims"] = json.dumps(obj.get("dims", {}), sort_keys=True)
+                f["object/description"] = _fixed(json.dumps(obj, sort_keys=True))
+                f["object/primitive"] = _fixed(str(obj.get("primitive", "mesh")))
+                f["object/dims"] = _fixed(json.dumps(obj.get("dims", {}), sort_keys=True))
                 f["object/com"] = np.asarray(obj.get("com", [0.0, 0.0, 0.0]), float)
                 f["object/mass"] = float(obj.get("mass", np.nan))
                 f["object/scale"] = float(obj.get("scale", 1.0))
                 if "file" in obj:
-                    f["object/file"] = str(obj["file"])
+                    f["object/file"] = _fixed(str(obj["file"]))
                 if "T_cloud_obj" in m.extra:  # adapted maps: object frame in the cloud's frame
                     f["object/T_cloud_obj"] = np.asarray(m.extra["T_cloud_obj"], float)
-                f["gripper/type"] = str(m.gripper.get("name", "unknown"))
-                f["gripper/configuration"] = json.dumps(m.gripper, sort_keys=True)
+                f["gripper/type"] = _fixed(str(m.gripper.get("name", "unknown")))
+                f["gripper/configuration"] = _fixed(json.dumps(m.gripper, sort_keys=True))
         except OSError as err:
             raise MapFileError(f"cannot write map {path}: {err}") from err
     return path
@@ -111,52 +117,80 @@ def save_map(gmap: GraspabilityMap, path: str | os.PathLike, *, compression: str
 
 def _open(path: Path, mode: str = "r"):
     h5py = _h5py()
-    if not path.exists():
-        raise MapFileError(f"map file {path} does not exist")
     try:
+        if not path.exists():
+            raise MapFileError(f"map file {path} does not exist")
+        if not path.is_file():
+            raise MapFileError(f"{path} is not a map file (it is a folder or a device)")
         return h5py.File(path, mode)
     except OSError as err:
-        raise MapFileError(
-            f"{path} is not a readable HDF5 map file (truncated or not HDF5): {err}"
-        ) from err
+        if isinstance(err, MapFileError):
+            raise
+        raise MapFileError(f"{path} is not a readable HDF5 map file (truncated or not HDF5): "
+                           + " ".join(str(err).split())) from err  # h5py's messages span lines
+
+
+@contextlib.contextmanager
+def _damaged(path: Path):
+    """Errors h5py raises on a damaged file (flipped bytes in its metadata surface as
+    KeyError, RuntimeError, ValueError ...) as one :class:`MapFileError`."""
+    try:
+        yield
+    except MapFileError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError, RuntimeError, AttributeError) as err:
+        raise MapFileError(f"{path} is damaged: {' '.join(str(err).split())}") from err
 
 
 _REQUIRED = ("grasps/transforms", *_PATHS.values(), "graspability/meta", "object/description",
              "gripper/configuration")
 
 
-def load_map(path: str | os.PathLike, rows: slice | None = None) -> GraspabilityMap:
+def load_map(path: str | os.PathLike, rows: slice | None = None, *,
+             verify_transforms: bool = True) -> GraspabilityMap:
     """Read and validate a map written by :func:`save_map` (only ``rows``, a slice, if
-    given: a partial read, validated for those rows); a foreign, damaged or corrupted
-    file raises :class:`MapFileError` naming the problem."""
+    given: a partial read, validated for those rows). The file's layout is checked here
+    (datasets present and numeric, one row count, the trailing shapes, the schema
+    version, transforms at the wrist positions, memory to hold the rows); the map's
+    own invariants by :func:`~graspsim.maps.validate.map_problems`. A foreign, damaged
+    or corrupted file raises :class:`MapFileError` naming the first problem.
+
+    verify_transforms: read ``grasps/transforms`` (the ACRONYM view, which graspsim
+    itself never uses) and check it against the wrist positions -- a third of the load
+    time of a large map. The map database turns it off for its own maps, validated
+    when stored; ``graspsim db check`` verifies them in full."""
+    from graspsim.maps.validate import map_problems
+
     path = Path(path)
-    with _open(path) as f:
+    with _open(path) as f, _damaged(path):
         n = _check_layout(f, path)
         sl = slice(None) if rows is None else rows
-        try:
-            cols = {col: f[dpath][sl] for col, dpath in _PATHS.items()}
-            meta, obj, grip = (_json_dict(f, k, path) for k in
-                               ("graspability/meta", "object/description", "gripper/configuration"))
-            _check_columns(cols, path)
+        _check_memory(f, len(range(n)[sl]), path)
+        cols = {col: f[dpath][sl] for col, dpath in _PATHS.items()}
+        meta, obj, grip = (_json_dict(f, k, path) for k in
+                           ("graspability/meta", "object/description", "gripper/configuration"))
+        if verify_transforms:
             _check_transforms(f["grasps/transforms"], range(n)[sl], cols["wrist_position"], path)
-        except MapFileError:
-            raise
-        except (OSError, KeyError, ValueError) as err:
-            raise MapFileError(f"{path} is damaged: {err}") from err
-    for k, kind in (("quality", dict), ("resolution", dict), ("method", str)):
-        if not isinstance(meta.get(k), kind):
-            raise MapFileError(f"{path} is damaged: graspability/meta has no {kind.__name__} {k!r}")
-    return GraspabilityMap(
-        **cols,
-        meta=MapMeta(object=obj, gripper=grip, quality=meta["quality"],
-                     resolution=meta["resolution"], method=meta["method"],
-                     timing=meta.get("timing", {}), version=meta.get("version", ""),
-                     extra=meta.get("extra", {})),
-    )
+    try:
+        with np.errstate(over="ignore", invalid="ignore"):  # values beyond float32: caught below
+            gmap = GraspabilityMap(
+                **cols,
+                meta=MapMeta(object=obj, gripper=grip, quality=meta.get("quality"),
+                             resolution=meta.get("resolution"), method=meta.get("method"),
+                             timing=meta.get("timing", {}), version=meta.get("version", ""),
+                             extra=meta.get("extra", {})))
+    except (GraspsimError, ValueError, TypeError, OverflowError) as err:
+        raise MapFileError(f"{path} is damaged: {err}") from err
+    problems = map_problems(gmap, allow_empty=True)
+    if problems:
+        more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
+        raise MapFileError(f"{path} is corrupted: {problems[0]}{more}")
+    return gmap
 
 
 def _check_layout(f, path: Path) -> int:
-    """Datasets present, schema version readable, one row count; returns it."""
+    """Datasets present and numeric, schema version readable, one row count; returns it."""
+    h5py = _h5py()
     missing = [p for p in _REQUIRED if p not in f]
     if missing:
         if "graspability/meta" in f:
@@ -167,23 +201,41 @@ def _check_layout(f, path: Path) -> int:
             kind = "not a graspsim map"
         raise MapFileError(f"{path} is {kind}: missing {', '.join(missing[:4])}"
                            + (" ..." if len(missing) > 4 else ""))
+    not_data = [p for p in _REQUIRED if not isinstance(f[p], h5py.Dataset)]
+    if not_data:
+        raise MapFileError(f"{path} is damaged: {', '.join(not_data[:3])} is not a dataset")
     version = 1
     if "graspability/schema_version" in f:
-        v = f["graspability/schema_version"][()]
+        v = f["graspability/schema_version"][()] if isinstance(f["graspability/schema_version"], h5py.Dataset) else None
         if not (np.ndim(v) == 0 and np.issubdtype(np.asarray(v).dtype, np.integer) and v >= 1):
             raise MapFileError(f"{path} is damaged: schema_version {v!r} is not a positive integer")
         version = int(v)
     if version > SCHEMA_VERSION:
         raise MapFileError(f"{path} has map schema version {version}; this graspsim reads "
                            f"versions up to {SCHEMA_VERSION} (upgrade graspsim)")
-    lengths = {p: f[p].shape[0] if f[p].ndim else None for p in ("grasps/transforms", *_PATHS.values())}
-    if len(set(lengths.values())) != 1:
+    grasp_data = ("grasps/transforms", *_PATHS.values())
+    lengths = {p: f[p].shape[0] if f[p].ndim else None for p in grasp_data}
+    if len(set(lengths.values())) != 1 or None in lengths.values():
         raise MapFileError(f"{path} is damaged: datasets have different row counts "
                            + ", ".join(f"{k} {v}" for k, v in list(lengths.items())[:3]) + " ...")
-    if f["grasps/transforms"].shape[1:] != (4, 4):
-        raise MapFileError(f"{path} is damaged: grasps/transforms has shape "
-                           f"{f['grasps/transforms'].shape}, expected (N, 4, 4)")
+    expected = {"grasps/transforms": (4, 4), **{d: COLUMNS[c][0] for c, d in _PATHS.items()}}
+    for p in grasp_data:
+        if f[p].shape[1:] != expected[p]:
+            want = "(N" + "".join(f", {k}" for k in expected[p]) + ")"
+            raise MapFileError(f"{path} is damaged: {p} has shape {f[p].shape}, expected {want}")
+        if f[p].dtype.kind not in "biuf":
+            raise MapFileError(f"{path} is damaged: {p} holds {f[p].dtype} values, not real numbers")
     return int(lengths["grasps/transforms"])
+
+
+def _check_memory(f, n: int, path: Path) -> None:
+    """Refuse to read ``n`` rows whose columns (and their float32 copies) would not fit
+    the memory budget: a small file can claim billions of rows (chunks never written)."""
+    from graspsim.maps.preflight import check_bytes
+
+    per_row = sum(f[d].dtype.itemsize * int(np.prod(f[d].shape[1:])) for d in _PATHS.values())
+    check_bytes(2 * n * per_row, f"reading {n:,} grasps of {path}",
+                "read part of it (load_map(path, rows=slice(...)))")
 
 
 def _json_dict(f, key: str, path: Path) -> dict:
@@ -205,24 +257,19 @@ def _check_transforms(dset, rows: range, wrist_position: np.ndarray, path: Path)
             bad = i + int(np.flatnonzero(~np.isfinite(T).all(axis=(1, 2)))[0])
             raise MapFileError(f"{path} is corrupted: grasps/transforms has non-finite values "
                                f"(first at row {rows[bad]})")
-        if not (np.all(T[:, 3] == bottom) and np.allclose(T[:, :3, 3], wrist_position[i:i + _BLOCK],
-                                                          atol=1e-5)):
+        wrist = wrist_position[i:i + _BLOCK]
+        with np.errstate(invalid="ignore", over="ignore"):  # non-finite rows: map_problems names them
+            near = (np.abs(T[:, :3, 3] - wrist) <= 1e-5 + 1e-5 * np.abs(T[:, :3, 3])) | ~np.isfinite(wrist)
+        if not (np.all(T[:, 3] == bottom) and np.all(near)):
             raise MapFileError(f"{path} is corrupted: grasps/transforms disagree with "
                                "graspability/wrist_position (or are not rigid transforms)")
 
 
-def _check_columns(cols: dict[str, np.ndarray], path: Path) -> None:
-    for col, (shape, _) in COLUMNS.items():
-        a = cols[col]
-        if a.shape[1:] != shape:
-            raise MapFileError(f"{path}: column {col} has shape {a.shape}, expected (N, *{shape})")
-        if a.dtype.kind == "f" and not np.isfinite(a).all():
-            row = int(np.flatnonzero(~np.isfinite(a.reshape(len(a), -1)).all(axis=1))[0])
-            raise MapFileError(f"{path} is corrupted: {_PATHS[col]} has non-finite values "
-                               f"(first at row {row})")
-    q = cols["wrist_quat"]
-    if len(q) and np.abs(np.einsum("ij,ij->i", q, q) - 1.0).max() > 1e-3:
-        raise MapFileError(f"{path} is corrupted: graspability/wrist_quat holds non-unit quaternions")
+def _fixed(text: str) -> np.bytes_:
+    """``text`` as a fixed-length UTF-8 string dataset value. Variable-length strings live
+    in HDF5's global heap, whose parser in libhdf5 can loop forever on one damaged byte
+    (found by the fuzz suite); fixed-length ones are stored in the dataset itself."""
+    return np.bytes_(text.encode("utf-8"))
 
 
 def _text(v) -> str:
@@ -257,8 +304,8 @@ def write_sim_results(path: str | os.PathLike, results: dict[str, np.ndarray],
                 for k, v in results.items():
                     g.create_dataset(k, data=np.asarray(v))
                 if attrs_json is not None:
-                    g["info"] = json.dumps(attrs_json, sort_keys=True)
-    except (OSError, KeyError, ValueError) as err:
+                    g["info"] = _fixed(json.dumps(attrs_json, sort_keys=True))
+    except (OSError, KeyError, ValueError, TypeError, RuntimeError) as err:  # h5py on a damaged file
         saved = _save_results_aside(path, results, group, attrs_json)
         raise MapFileError(f"cannot store the results in {path}: {err}; they were saved to "
                            f"{saved} instead (numpy .npz, group {group!r})") from err
@@ -288,7 +335,7 @@ def _save_results_aside(path: Path, results: dict, group: str, attrs_json: dict 
 def read_sim_results(path: str | os.PathLike, group: str = "grasps/qualities/mujoco") -> dict:
     """Arrays stored by :func:`write_sim_results` (and ``info`` decoded); {} if none."""
     path = Path(path)
-    with _open(path) as f:
+    with _open(path) as f, _damaged(path):
         if group not in f:
             return {}
         out = {}

@@ -45,7 +45,7 @@ def map_rates(gmap: GraspabilityMap, *, shape=None, min_grade: float = 0.0,
     res = float(resolution or gmap.meta.surface_step)
     if not res > 0:
         raise InvalidParameterError(f"resolution must be > 0 m, got {res!r}")
-    sel = gmap.grade > min_grade
+    sel = gmap.above(min_grade)
     pixels = shape.surface_samples(res).points
     c = gmap.contacts[sel]
     # maps repeat each contact pair over rolls and depths in consecutive rows

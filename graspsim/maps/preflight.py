@@ -26,15 +26,24 @@ import os
 import re
 from dataclasses import dataclass
 
+import numpy as np
+
 from graspsim.errors import BudgetExceededError, InvalidParameterError, NoFeasibleGraspError
 
-__all__ = ["MapEstimate", "estimate_map_memory", "check_graspable", "check_memory", "memory_budget",
-           "parse_size", "total_memory", "BUDGET_ENV"]
+__all__ = ["MapEstimate", "estimate_map_memory", "collision_sample_count", "check_collision_samples",
+           "check_graspable", "check_memory", "check_bytes",
+           "memory_budget", "parse_size", "total_memory", "BUDGET_ENV", "DEFAULT_CAP"]
 
 #: Environment variable holding the memory budget: bytes with an optional binary unit
 #: ("4GiB", "512M") or a percentage of the machine's memory ("50%").
 BUDGET_ENV = "GRASPSIM_MEMORY_BUDGET"
+#: Default budget: half the machine's memory, at most DEFAULT_CAP. The cap keeps any one
+#: command's peak resident memory under 4 GiB (issue 13): the budget bounds the map
+#: (its estimate exceeds the measured growth by 1.2-1.5x, bench_map_preflight), and the
+#: process itself -- interpreter, numpy/scipy/numba and the compiled kernels -- holds
+#: another ~0.25 GiB. The paper's largest FS map needs 0.5 GiB: seven times below it.
 DEFAULT_FRACTION = 0.5
+DEFAULT_CAP = 3584 << 20  # 3.5 GiB
 
 BYTES_PER_LINE = 400  # closing-line scan: contacts, directions, ray marching
 BYTES_PER_COLLISION_SAMPLE = 300  # fine level of the hierarchy + its float32 copy
@@ -77,13 +86,18 @@ def parse_size(text: str) -> int:
         if total is None:
             raise InvalidParameterError(f"memory budget {text!r}: this machine's memory is unknown; "
                                         "give bytes (e.g. 4GiB)")
-        return int(total * value / 100.0)
-    return int(value * _UNITS[m.group(2)])
+        n = total * value / 100.0
+    else:
+        n = value * _UNITS[m.group(2)]
+    if not 1 <= n < 2.0**62:  # "0.5" or "1e-9%": a fraction of a byte; "1e300T": no such memory
+        raise InvalidParameterError(f"memory budget must be between one byte and 4 EiB, got {text!r}")
+    return int(n)
 
 
 def memory_budget(budget: int | float | str | None = None) -> int:
-    """The memory an FS map may use [bytes]: ``budget`` if given (bytes or a size
-    string), else ``$GRASPSIM_MEMORY_BUDGET``, else half the machine's memory."""
+    """The memory an FS map (or a map read from a file) may use [bytes]: ``budget`` if
+    given (bytes or a size string), else ``$GRASPSIM_MEMORY_BUDGET``, else half the
+    machine's memory and at most :data:`DEFAULT_CAP` (3.5 GiB)."""
     if budget is not None:
         return parse_size(str(budget))
     env = os.environ.get(BUDGET_ENV)
@@ -93,7 +107,7 @@ def memory_budget(budget: int | float | str | None = None) -> int:
         except InvalidParameterError as err:
             raise InvalidParameterError(f"${BUDGET_ENV}: {err}") from None
     total = total_memory()
-    return int(DEFAULT_FRACTION * total) if total else 8 << 30
+    return min(int(DEFAULT_FRACTION * total), DEFAULT_CAP) if total else DEFAULT_CAP
 
 
 def check_graspable(shape, gripper) -> None:
@@ -147,17 +161,47 @@ def estimate_map_memory(shape, gripper, config) -> MapEstimate:
     """Counts of what :func:`~graspsim.maps.generate.generate_fs_map` allocates for
     ``shape`` (Primitive or Compound), from its surface area and the sampling steps
     (a few hundred coarse samples; nothing the size of the map)."""
-    from graspsim.maps.generate import closing_direction_count, roll_angles
+    from graspsim.maps.generate import closing_direction_count, roll_count
 
     parts = getattr(shape, "parts", (shape,))
-    area = sum(float(p.surface_samples(p.size_scale / 8).areas.sum()) for p in parts)
     # sampling grids fit whole cells into each patch: up to ~15 % more samples than
-    # area / step^2 (measured on the five primitives); the fine step is refined until
-    # its cover radius meets the tolerance (at most ~25 % more)
-    contacts = math.ceil(1.2 * area / config.surface_step**2) + 16 * len(parts)
-    fine = math.ceil(1.25 * area / (1.3 * config.collision_tolerance) ** 2) + 16 * len(parts)
+    # area / step^2 (measured on the five primitives)
+    step = config.surface_step
+    contacts = _count(1.2 * _surface_area(shape) / step / step) + 16 * len(parts)  # (twice: no underflow)
     return MapEstimate(contacts, closing_direction_count(config.closing_cone, config.rotation_step),
-                       len(roll_angles(config)), len(gripper.contact_depths(config.depth_step)), fine)
+                       roll_count(config), gripper.contact_depth_count(config.depth_step),
+                       collision_sample_count(shape, config))
+
+
+def collision_sample_count(shape, config) -> int:
+    """Fine samples of the collision hierarchy of ``shape`` at ``config.collision_tolerance``
+    (:func:`~graspsim.maps.hierarchy.build_levels`): its step is refined until the cover
+    radius meets the tolerance (at most ~25 % more than area / (1.3 tolerance)^2)."""
+    fstep = 1.3 * config.collision_tolerance
+    return _count(1.25 * _surface_area(shape) / fstep / fstep) + 16 * len(getattr(shape, "parts", (shape,)))
+
+
+def check_collision_samples(shape, config, budget: int | str | None = None) -> None:
+    """Raise :class:`BudgetExceededError` before a collision hierarchy of ``shape`` is
+    built whose samples would not fit the budget (the scaler and combiner build one for
+    objects no FS map was generated for: a familiar object up to three times a stored
+    map's size has up to nine times its surface)."""
+    n = collision_sample_count(shape, config)
+    check_bytes(n * BYTES_PER_COLLISION_SAMPLE, f"the collision samples of {shape}",
+                "coarsen collision_tolerance", budget, detail=f"{n:.3g} samples x {BYTES_PER_COLLISION_SAMPLE} B")
+
+
+def _surface_area(shape) -> float:
+    """Surface area [m^2] from a few hundred coarse samples (inf for a shape too large
+    for floats)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return sum(float(p.surface_samples(p.size_scale / 8).areas.sum()) for p in getattr(shape, "parts", (shape,)))
+
+
+def _count(x: float) -> int:
+    """ceil(x) as an int, saturating at 2^62 (an overflowed or absurd count is refused
+    by the budget, never converted)."""
+    return math.ceil(x) if x < 2.0**62 else 1 << 62
 
 
 def check_memory(shape, estimate: MapEstimate, budget: int, *, grasps: int | None = None) -> None:
@@ -165,15 +209,25 @@ def check_memory(shape, estimate: MapEstimate, budget: int, *, grasps: int | Non
     bytes: before generation (``grasps`` None) the work memory alone is checked, once
     the collision-free poses are counted their map too."""
     need = estimate.work_bytes if grasps is None else estimate.bytes(grasps)
-    if need <= budget:
-        return
     what = (f"{estimate.contacts:.3g} surface contacts x {estimate.directions} closing directions "
             f"and {estimate.collision_samples:.3g} collision samples" if grasps is None else
             f"{grasps:.4g} collision-free grasps x {BYTES_PER_GRASP} B and the scan")
+    check_bytes(need, f"the FS map of {shape}", "coarsen the sampling (surface_step, collision_tolerance)",
+                budget, detail=what)
+
+
+def check_bytes(need: float, what: str, hint: str, budget: int | str | None = None, *,
+                detail: str | None = None) -> None:
+    """Raise :class:`BudgetExceededError` if ``what`` would need more than ``budget``
+    bytes (None: :func:`memory_budget`); the message gives the need, the budget,
+    ``hint`` (what to do instead) and how to raise the budget."""
+    budget = budget if isinstance(budget, int) else memory_budget(budget)
+    if need <= budget:
+        return
     raise BudgetExceededError(
-        f"the FS map of {shape} would need about {_gib(need)} ({what}), more than the memory "
-        f"budget of {_gib(budget)}; coarsen the sampling (surface_step, collision_tolerance) or "
-        f"raise the budget (${BUDGET_ENV}, e.g. {BUDGET_ENV}=16GiB)")
+        f"{what} would need about {_gib(need)}" + (f" ({detail})" if detail else "") + ", more than the "
+        f"memory budget of {_gib(budget)}; {hint} or raise the budget (${BUDGET_ENV}, e.g. "
+        f"{BUDGET_ENV}=16GiB)")
 
 
 def _gib(n: float) -> str:

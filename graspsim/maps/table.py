@@ -43,9 +43,10 @@ class TablePlane:
             n = np.asarray(self.normal, float).ravel()
         except (TypeError, ValueError):
             n = np.full(1, np.nan)
-        if n.shape != (3,) or not np.all(np.isfinite(n)) or not np.linalg.norm(n) > 1e-9:
+        if n.shape != (3,) or not np.all(np.isfinite(n)) or not np.max(np.abs(n)) > 1e-9:
             raise InvalidParameterError(
                 f"table normal must be three finite numbers, not all zero; got {self.normal!r}")
+        n = n / np.max(np.abs(n))  # (1e300, 0, 0): no overflow in the norm
         object.__setattr__(self, "normal", tuple(float(v) for v in n / np.linalg.norm(n)))
         if self.height is not None:
             h = _number(self.height)

@@ -1,13 +1,20 @@
-"""Invariants every usable graspability map keeps.
+"""Invariants every usable graspability map keeps: the one home of map validation.
 
-A map is usable when it has grasps, every column is finite, the wrist quaternions are
-unit, the grasp widths are positive, and its object is a valid shape (dimensions at
-or above the primitive floor, :data:`graspsim.primitives.base.MIN_DIM`). The map
-database refuses to store a map that breaks them and ``graspsim db check`` reports
-(and with ``--repair`` removes) stored maps that do.
+A map is usable when it has grasps, every column is finite and in its range (grades
+in [0, 1], force-closure angles in [0, pi], stability distances and part ids >= 0,
+widths > 0), the wrist quaternions are unit, its object is a valid shape (dimensions
+at or above the primitive floor, :data:`graspsim.primitives.base.MIN_DIM`), and its
+gripper, quality model and metadata can be used (the scaler and the simulator build
+a :class:`~graspsim.gripper.GripperSpec` and a quality model from them).
+
+:func:`~graspsim.maps.io.load_map` refuses a file whose map breaks them (file layout
+checks are its own), the map database refuses to store such a map, and ``graspsim db
+check`` reports (and with ``--repair`` removes) stored maps that do.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -16,28 +23,78 @@ from graspsim.maps.graspmap import COLUMNS, GraspabilityMap
 
 __all__ = ["map_problems", "validate_map"]
 
-_NON_SHAPES = {"mesh"}  # objects described by a file, not by dimensions
+_NON_SHAPES = ("mesh",)  # objects described by a file, not by dimensions
+_RANGES = {"grade": (0.0, 1.0), "q_fc": (0.0, 1.0), "q_st": (0.0, 1.0), "fc_angle": (0.0, math.pi),
+           "stability_distance": (0.0, math.inf), "part": (0, math.inf)}
+_TOL = 1e-5  # float32 columns: rounding at the range's ends
+_META_KINDS = {"object": dict, "gripper": dict, "quality": dict, "resolution": dict, "method": str,
+               "timing": dict, "version": str, "extra": dict}
 
 
-def map_problems(gmap: GraspabilityMap) -> list[str]:
-    """What is wrong with ``gmap`` (empty when nothing): one short sentence per problem."""
+def _rows(bad: np.ndarray, what: str) -> str | None:
+    """"<what> in K grasps (first at row R)" for the rows flagged by ``bad``, or None."""
+    k = int(bad.sum())
+    return f"{what} in {k} grasps (first at row {int(np.argmax(bad))})" if k else None
+
+
+def _columns_pass(gmap: GraspabilityMap) -> bool:
+    """The column invariants from each column's min and max (NaN propagates through
+    both): one pass per column and no per-row temporaries, so a valid million-grasp map
+    is checked in a few ms; :func:`_column_problems` names the rows only when it fails."""
+    if not len(gmap):
+        return True
+    bounds = {name: (-np.inf, np.inf) for name, (_, dtype) in COLUMNS.items() if np.issubdtype(dtype, np.floating)}
+    bounds.update(_RANGES)
+    for name, (lo, hi) in bounds.items():
+        a = getattr(gmap, name)
+        a_min, a_max = float(a.min()), float(a.max())
+        if not (math.isfinite(a_min) and math.isfinite(a_max) and lo - _TOL <= a_min and a_max <= hi + _TOL):
+            return False
+    q = gmap.wrist_quat
+    return float(gmap.width.min()) > 0 and float(np.abs(np.einsum("ij,ij->i", q, q) - 1.0).max()) <= 2e-3
+
+
+def _column_problems(gmap: GraspabilityMap) -> list[str]:
+    if _columns_pass(gmap):
+        return []
     out = []
-    if len(gmap) == 0:
-        out.append("it has no grasps")
+    finite = {}
     for name, (_, dtype) in COLUMNS.items():
         a = getattr(gmap, name)
         if np.issubdtype(dtype, np.floating):
-            nonfinite = ~np.isfinite(a)
-            bad = int((nonfinite.any(axis=tuple(range(1, a.ndim))) if a.ndim > 1 else nonfinite).sum())
-            if bad:
-                out.append(f"{bad} grasps have non-finite {name}")
-    norm = np.linalg.norm(gmap.wrist_quat.astype(np.float64), axis=1)
-    if np.any(np.abs(norm - 1.0) > 1e-3):
-        out.append(f"{int(np.sum(np.abs(norm - 1.0) > 1e-3))} wrist quaternions are not unit")
-    if np.any(gmap.width <= 0):
-        out.append(f"{int(np.sum(gmap.width <= 0))} grasps have a width <= 0")
-    obj = gmap.meta.object
-    if obj.get("primitive") not in _NON_SHAPES and "file" not in obj:
+            ok = np.isfinite(a).reshape(len(a), int(np.prod(a.shape[1:]))).all(axis=1)
+            finite[name] = ok
+            out.append(_rows(~ok, f"{name} has non-finite values"))
+    for name, (lo, hi) in _RANGES.items():
+        a = getattr(gmap, name)
+        ok = finite.get(name, np.ones(len(a), bool))
+        out.append(_rows(ok & ((a < lo - _TOL) | (a > hi + _TOL)), f"{name} outside [{lo:g}, {hi:g}]"))
+    w = gmap.width
+    out.append(_rows(finite["width"] & (w <= 0), "width <= 0"))
+    q = gmap.wrist_quat.astype(np.float64)
+    norm = np.einsum("ij,ij->i", q, q)
+    out.append(_rows(finite["wrist_quat"] & (np.abs(norm - 1.0) > 2e-3), "wrist_quat holds non-unit quaternions"))
+    return [p for p in out if p]
+
+
+def _meta_problems(meta) -> list[str]:
+    from graspsim.gripper import GripperSpec
+    from graspsim.quality import QualityModel
+
+    bad = [f"{k} is {type(getattr(meta, k)).__name__}, not {t.__name__}" for k, t in _META_KINDS.items()
+           if not isinstance(getattr(meta, k), t)]
+    if bad:
+        return [f"its metadata is damaged: {'; '.join(bad)}"]
+    out = []
+    checks = (("gripper", lambda: GripperSpec.from_dict(meta.gripper)),
+              ("quality model", lambda: QualityModel.from_meta(meta.quality)))
+    for what, build in checks:
+        try:
+            build()
+        except GraspsimError as err:
+            out.append(f"its {what} is not valid: {err}")
+    obj = meta.object
+    if not (obj.get("primitive") in _NON_SHAPES or "file" in obj):
         from graspsim.primitives import shape_from_dict
 
         try:
@@ -47,10 +104,17 @@ def map_problems(gmap: GraspabilityMap) -> list[str]:
     return out
 
 
+def map_problems(gmap: GraspabilityMap, *, allow_empty: bool = False) -> list[str]:
+    """What is wrong with ``gmap`` (empty when nothing): one short sentence per problem.
+    ``allow_empty``: a map without grasps is not a problem (a slice of a stored map)."""
+    out = [] if len(gmap) or allow_empty else ["it has no grasps"]
+    return out + _column_problems(gmap) + _meta_problems(gmap.meta)
+
+
 def validate_map(gmap: GraspabilityMap, *, error: type[GraspsimError] = InvalidMapError,
-                 what: str = "the map") -> GraspabilityMap:
+                 what: str = "the map", allow_empty: bool = False) -> GraspabilityMap:
     """``gmap`` if it keeps the invariants, else ``error`` naming every problem."""
-    problems = map_problems(gmap)
+    problems = map_problems(gmap, allow_empty=allow_empty)
     if problems:
         raise error(f"{what} is invalid: " + "; ".join(problems))
     return gmap

@@ -22,6 +22,7 @@ generator, clusters are visited breadth first, so the same seed gives the same r
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
@@ -53,6 +54,12 @@ log = logging.getLogger(__name__)
 class IdentificationStatus(str, Enum):
     IDENTIFIED = "identified"
     FAILED = "failed"
+
+
+#: Most MLESAC repetitions per model: every hypothesis is scored against every point of
+#: the cluster (repetitions x points residuals), so this bounds identification's memory
+#: (1000 x 20000 points: ~0.2 GB per array). The paper's experiments use up to 400.
+MAX_REPETITIONS = 1000
 
 
 @dataclass(frozen=True)
@@ -95,29 +102,39 @@ class IdentifyConfig:
     max_points: int = 20000
 
     def __post_init__(self) -> None:
+        finite = math.isfinite
         checks = [
-            ("repetitions", self.repetitions >= 1 and int(self.repetitions) == self.repetitions, ">= 1, an integer"),
-            ("theta", 0.0 < self.theta <= 1.0, "in (0, 1]"),
-            ("min_cluster_points", self.min_cluster_points >= 10, ">= 10"),
-            ("noise", self.noise is None or self.noise > 0, "> 0 m or None"),
-            ("sample_quantile", 0.0 < self.sample_quantile <= 1.0, "in (0, 1]"),
-            ("max_parts", self.max_parts >= 1, ">= 1"),
-            ("link_factor", self.link_factor > 0, "> 0"),
-            ("min_connected", 0.0 < self.min_connected <= 1.0, "in (0, 1]"),
-            ("max_noise_ratio", self.max_noise_ratio > 0, "> 0"),
-            ("max_extent_ratio", self.max_extent_ratio >= 1.0, ">= 1"),
-            ("min_coverage", 0.0 <= self.min_coverage < 1.0, "in [0, 1)"),
-            ("max_uncovered_extent", self.max_uncovered_extent >= 1.0, ">= 1"),
-            ("min_fit_rate", 0.0 < self.min_fit_rate <= 1.0, "in (0, 1]"),
-            ("fit_margin", 0.0 <= self.fit_margin < 1.0, "in [0, 1)"),
-            ("symmetry_tol", self.symmetry_tol > 0, "> 0"),
-            ("taper_tol", self.taper_tol > 0, "> 0"),
-            ("max_points", self.max_points >= 1000 and int(self.max_points) == self.max_points,
-             ">= 1000, an integer"),
+            ("repetitions", lambda v: _whole(v) and 1 <= v <= MAX_REPETITIONS,
+             f"an integer in [1, {MAX_REPETITIONS}]"),
+            ("theta", lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+            ("min_cluster_points", lambda v: v >= 10, ">= 10"),
+            ("noise", lambda v: v is None or (finite(v) and v > 0), "finite and > 0 m, or None"),
+            ("sample_quantile", lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+            ("max_parts", lambda v: v >= 1, ">= 1"),
+            ("link_factor", lambda v: finite(v) and v > 0, "> 0"),
+            ("min_connected", lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+            ("max_noise_ratio", lambda v: finite(v) and v > 0, "> 0"),
+            ("max_extent_ratio", lambda v: v >= 1.0, ">= 1"),
+            ("min_coverage", lambda v: 0.0 <= v < 1.0, "in [0, 1)"),
+            ("max_uncovered_extent", lambda v: v >= 1.0, ">= 1"),
+            ("min_fit_rate", lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+            ("fit_margin", lambda v: 0.0 <= v < 1.0, "in [0, 1)"),
+            ("symmetry_tol", lambda v: finite(v) and v > 0, "> 0"),
+            ("taper_tol", lambda v: finite(v) and v > 0, "> 0"),
+            ("max_points", lambda v: _whole(v) and v >= 1000, ">= 1000, an integer"),
         ]
         for name, ok, valid in checks:
-            if not ok:
-                raise InvalidParameterError(f"{name} must be {valid}, got {getattr(self, name)!r}")
+            value = getattr(self, name)
+            try:
+                good = bool(ok(value))
+            except (TypeError, ValueError):  # not a number at all
+                good = False
+            if not good:
+                raise InvalidParameterError(f"{name} must be {valid}, got {value!r}")
+
+
+def _whole(v) -> bool:
+    return isinstance(v, (int, np.integer)) or (isinstance(v, float) and v.is_integer())
 
 
 @dataclass(frozen=True, eq=False)

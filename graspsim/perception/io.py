@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from graspsim.errors import PointCloudError
-from graspsim.perception.prepare import check_extent, to_metres
+from graspsim.perception.prepare import as_coordinates, check_extent, to_metres
 
 __all__ = ["LoadedCloud", "read_point_cloud", "check_cloud", "lzf_decompress", "MIN_POINTS"]
 
@@ -57,7 +57,11 @@ def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: s
     non-finite points, convert to metres and validate with :func:`check_cloud`."""
     path = Path(path)
     to_metres(np.zeros((0, 3)), units)  # an unknown unit fails before reading
-    if not path.is_file():
+    try:
+        is_file = path.is_file()
+    except OSError as err:  # e.g. a name too long
+        raise PointCloudError(f"cannot read point cloud file {str(path)!r}: {err.strerror or err}") from err
+    if not is_file:
         raise PointCloudError(f"point cloud file {str(path)!r} does not exist or is not a file")
     suffix = path.suffix.lower()
     readers = {".pcd": _read_pcd, ".ply": _read_ply, ".npy": _read_npy, ".xyz": _read_text,
@@ -70,8 +74,10 @@ def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: s
         xyz, fmt = readers[suffix](path)
     except PointCloudError as err:
         raise PointCloudError(f"{path.name}: {err}") from None
-    except (OSError, ValueError, UnicodeDecodeError) as err:
+    except (OSError, ValueError, EOFError, UnicodeDecodeError) as err:  # EOFError: np.load of an empty file
         raise PointCloudError(f"{path.name}: cannot read {suffix} file: {err}") from err
+    except (IndexError, KeyError) as err:  # a header line cut short or garbled
+        raise PointCloudError(f"{path.name}: malformed {suffix} header ({type(err).__name__}: {err})") from err
     xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
     finite = np.all(np.isfinite(xyz), axis=1)
     n_drop = int(len(xyz) - finite.sum())
@@ -90,10 +96,7 @@ def check_cloud(points: np.ndarray, *, min_points: int = MIN_POINTS) -> np.ndarr
     """Validate a cloud: (N, 3), finite, at least ``min_points`` points, not all identical
     (spread above 1 µm), plausible in metres (:func:`~graspsim.perception.prepare.check_extent`).
     Returns it as a float64 array; raises :class:`PointCloudError`."""
-    try:
-        p = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise PointCloudError(f"points must be a numeric (N, 3) array: {err}") from err
+    p = as_coordinates(points)
     if p.ndim != 2 or p.shape[1] != 3:
         raise PointCloudError(f"points must have shape (N, 3), got {p.shape}")
     if len(p) == 0:
@@ -140,8 +143,8 @@ def _read_pcd(path: Path) -> tuple[np.ndarray, str]:
     if missing:
         raise PointCloudError(f"PCD fields {names} lack {missing}; x, y and z are needed")
     try:
-        n = int(header["POINTS"][0]) if "POINTS" in header else (
-            int(header["WIDTH"][0]) * int(header.get("HEIGHT", ["1"])[0]))
+        n = _count(header["POINTS"][0], "POINTS") if "POINTS" in header else (
+            _count(header["WIDTH"][0], "WIDTH") * _count(header.get("HEIGHT", ["1"])[0], "HEIGHT"))
         fields = []
         for nm, sz, ty, ct in zip(names, sizes, types, counts):
             code = _PCD_TYPES[(ty.upper(), int(sz))]
@@ -181,6 +184,14 @@ def _read_pcd(path: Path) -> tuple[np.ndarray, str]:
             off += nbytes
         return np.column_stack([cols["x"], cols["y"], cols["z"]]), "pcd/binary_compressed"
     raise PointCloudError(f"unsupported PCD DATA {mode!r}; valid: ascii, binary, binary_compressed")
+
+
+def _count(text: str, what: str) -> int:
+    """A header's count: a whole number >= 0 (numpy reads a negative count as 'all')."""
+    n = int(text)
+    if n < 0:
+        raise PointCloudError(f"header {what} count is {n}, not a number of points")
+    return n
 
 
 def _column_index(fields) -> list[int]:
@@ -250,7 +261,7 @@ def _read_ply(path: Path) -> tuple[np.ndarray, str]:
         if tok[0] == "format":
             fmt = tok[1]
         elif tok[0] == "element":
-            elements.append([tok[1], int(tok[2]), []])
+            elements.append([tok[1], _count(tok[2], f"element {tok[1]}"), []])
         elif tok[0] == "property" and elements:
             if tok[1] == "list":
                 elements[-1][2].append((tok[-1], "list"))
@@ -290,10 +301,25 @@ def _read_ply(path: Path) -> tuple[np.ndarray, str]:
 
 # ----------------------------------------------------------------------- npy, text
 def _read_npy(path: Path) -> tuple[np.ndarray, str]:
-    arr = np.load(path, allow_pickle=False)
-    if arr.ndim != 2 or arr.shape[1] != 3 or not np.issubdtype(arr.dtype, np.number):
-        raise PointCloudError(f"expected a numeric (N, 3) array, got {arr.dtype} {arr.shape}")
-    return arr, "npy"
+    """The (N, 3) array of a .npy file; its header is checked against the file's size
+    first (np.load allocates what a header claims: 24 GB for a 100-byte file)."""
+    import tokenize
+
+    fmt = np.lib.format
+    try:
+        with open(path, "rb") as f:
+            version = fmt.read_magic(f)
+            shape, _, dtype = (fmt.read_array_header_1_0(f) if version == (1, 0)
+                               else fmt.read_array_header_2_0(f))
+            data_bytes = path.stat().st_size - f.tell()
+    except (SyntaxError, tokenize.TokenError, TypeError) as err:  # a garbled header dict
+        raise PointCloudError(f"not a .npy file (garbled header: {err})") from None
+    if len(shape) != 2 or shape[1] != 3 or dtype.kind not in "iuf":
+        raise PointCloudError(f"expected a numeric (N, 3) array, got {dtype} {shape}")
+    if shape[0] * 3 * dtype.itemsize > data_bytes:
+        raise PointCloudError(f"truncated .npy: the header says {shape[0]} points, the file holds "
+                              f"{data_bytes} bytes of data")
+    return np.load(path, allow_pickle=False), "npy"
 
 
 def _read_text(path: Path) -> tuple[np.ndarray, str]:

@@ -53,6 +53,11 @@ class ModelFit:
     refined: bool
 
 
+#: Values per (hypotheses x points) array that :func:`fit_model` works on at once (its
+#: memory bound, about 16 MiB each): hypotheses are made and scored in blocks this size.
+SCORE_BLOCK = 1 << 21
+
+
 def mixture_loglik(residuals: np.ndarray, sigma: float, nu: float, *, em_iters: int = 5):
     """Log-likelihood (H,), mixing weight gamma (H,) and inlier posteriors (H, N) of
     residuals (H, N) [m] under the Gaussian/uniform mixture; gamma by EM from 1/2."""
@@ -103,22 +108,47 @@ def fit_model(
     if len(pool) < SAMPLE_SIZE[kind]:
         pool = np.arange(n)
     idx = pool[rng.integers(0, len(pool), size=(repetitions, SAMPLE_SIZE[kind]))]
-    R, t, dims, valid = hypothesise(kind, points, normals, idx, sigma)
-    valid &= np.all(np.isfinite(dims), axis=1) & np.all(dims >= 0, axis=1)
-    valid &= np.all(np.isfinite(t), axis=1) & np.all(np.isfinite(R), axis=(1, 2))
-    if max_extent_ratio is not None and np.any(valid):
-        valid[valid] = extent_ratio(kind, R[valid], t[valid], dims[valid], points, sigma) <= max_extent_ratio
+    R, t, dims, valid = _hypotheses(kind, points, normals, idx, sigma, max_extent_ratio)
     if not np.any(valid):
         return None
-    R, t, dims = R[valid], t[valid], dims[valid]
-    ll, gamma, post = mixture_loglik(np.nan_to_num(model_sdf(kind, R, t, dims, points), nan=nu),
-                                     sigma, nu)
-    b = int(np.argmax(ll))
-    best = (R[b], t[b], dims[b], ll[b], gamma[b], post[b])
+    best = _best(kind, points, R[valid], t[valid], dims[valid], sigma, nu)
     if kind == "half_toroid":
         best = _best_spin(points, best, sigma, nu)
     return _finish(kind, points, best, sigma, nu, refine, max_refine_points, repetitions,
                    int(valid.sum()), max_extent_ratio)
+
+
+def _blocks(h: int, n: int):
+    """Slices of ``h`` hypotheses whose (hypotheses x ``n`` points) arrays hold at most
+    :data:`SCORE_BLOCK` values: identification's memory does not grow with repetitions."""
+    step = max(1, SCORE_BLOCK // max(n, 1))
+    return (slice(s, s + step) for s in range(0, h, step))
+
+
+def _hypotheses(kind, points, normals, idx, sigma, max_extent_ratio):
+    """Hypotheses (R, t, dims, valid) from samples ``idx`` (H, m), block by block."""
+    out = []
+    for sl in _blocks(len(idx), len(points)):
+        R, t, dims, valid = hypothesise(kind, points, normals, idx[sl], sigma)
+        valid &= np.all(np.isfinite(dims), axis=1) & np.all(dims >= 0, axis=1)
+        valid &= np.all(np.isfinite(t), axis=1) & np.all(np.isfinite(R), axis=(1, 2))
+        if max_extent_ratio is not None and np.any(valid):
+            valid[valid] = extent_ratio(kind, R[valid], t[valid], dims[valid], points, sigma) <= max_extent_ratio
+        out.append((R, t, dims, valid))
+    return tuple(np.concatenate(parts) for parts in zip(*out))
+
+
+def _best(kind, points, R, t, dims, sigma, nu):
+    """The most likely hypothesis (R, t, dims, loglik, gamma, posteriors), scored block
+    by block (the first best, as one argmax over all of them would pick)."""
+    best = None
+    for sl in _blocks(len(R), len(points)):
+        ll, gamma, post = mixture_loglik(np.nan_to_num(model_sdf(kind, R[sl], t[sl], dims[sl], points), nan=nu),
+                                         sigma, nu)
+        b = int(np.argmax(ll))
+        if best is None or ll[b] > best[3]:
+            best = (R[sl][b], t[sl][b], dims[sl][b], ll[b], gamma[b], post[b])
+    return best
 
 
 def _best_spin(points, best, sigma, nu, steps: int = 36, max_points: int = 256):

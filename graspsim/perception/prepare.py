@@ -22,7 +22,7 @@ import numpy as np
 from graspsim.errors import IdentificationError, InvalidParameterError, PointCloudError
 from graspsim.primitives.base import MIN_DIM
 
-__all__ = ["UNITS", "MAX_EXTENT", "Downsampling", "to_metres", "check_extent", "check_solid",
+__all__ = ["UNITS", "MAX_EXTENT", "Downsampling", "as_coordinates", "to_metres", "check_extent", "check_solid",
            "voxel_downsample"]
 
 #: Length of one coordinate unit in metres.
@@ -33,12 +33,24 @@ UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 MAX_EXTENT = 2.0
 
 
+def as_coordinates(points) -> np.ndarray:
+    """``points`` as a float64 array, or :class:`PointCloudError` when they are not
+    real numbers (complex, boolean, ragged, text that is no number, overflowing)."""
+    try:
+        a = np.asarray(points)
+        if a.dtype.kind in "bcmMV":  # booleans, complex, times, raw or structured records
+            raise TypeError(f"{a.dtype} values are not coordinates")
+        return a.astype(np.float64, copy=False)
+    except (TypeError, ValueError, OverflowError) as err:
+        raise PointCloudError(f"points must be a real-valued (N, 3) array: {err}") from err
+
+
 def to_metres(points: np.ndarray, units: str = "m") -> np.ndarray:
     """``points`` (N, 3) in ``units`` ("m", "cm" or "mm") as metres (float64)."""
     scale = UNITS.get(str(units).lower())
     if scale is None:
         raise InvalidParameterError(f"unknown length unit {units!r}; valid: {sorted(UNITS)}")
-    p = np.asarray(points, dtype=np.float64)
+    p = as_coordinates(points)
     return p * scale if scale != 1.0 else p
 
 
@@ -71,12 +83,17 @@ def check_extent(points: np.ndarray, *, max_extent: float = MAX_EXTENT) -> None:
 
 def check_solid(points: np.ndarray, *, floor: float = MIN_DIM) -> None:
     """Raise :class:`IdentificationError` when the cloud (N, 3) [m] is thinner than
-    ``floor`` across its principal axes: collinear (two thin directions) or planar
-    (one). No solid primitive of at least ``floor`` in every dimension fits it."""
+    ``floor`` across its principal axes: tiny (three thin directions: probably not in
+    metres), collinear (two) or planar (one). No solid primitive of at least ``floor``
+    in every dimension fits it."""
     c = points - points.mean(axis=0)
     _, vecs = np.linalg.eigh(c.T @ c)
     ext = _robust_ranges(c, vecs[:, ::-1].T)  # largest principal direction first
     mm = lambda x: f"{x * 1000:.3g} mm" if x >= 1e-5 else "0 mm"  # noqa: E731
+    if ext[0] < floor:
+        raise IdentificationError(
+            f"the cloud is only {mm(ext[0])} across, smaller than any solid primitive (every dimension >= "
+            f"{mm(floor)}); are its coordinates in metres? (--units m|cm|mm, Python: to_metres)")
     if ext[1] < floor:
         raise IdentificationError(
             f"the cloud is collinear: its points lie within {mm(ext[1])} of a line {mm(ext[0])} long; no "

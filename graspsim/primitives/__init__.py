@@ -32,6 +32,8 @@ PRIMITIVES: dict[str, type[Primitive]] = {
 def make_primitive(kind: str, **dims: float) -> Primitive:
     """Build a primitive by name (``box``, ``cylinder``, ``sphere``, ``cone``,
     ``half_toroid``; ``half-toroid`` and ``halftoroid`` accepted) from named dims [m]."""
+    if not isinstance(kind, str):
+        raise PrimitiveError(f"a primitive name must be a string, got {kind!r}; valid: {sorted(PRIMITIVES)}")
     key = kind.lower().replace("-", "_")
     key = {"halftoroid": "half_toroid", "torus": "half_toroid", "frustum": "cone"}.get(key, key)
     cls = PRIMITIVES.get(key)
@@ -50,7 +52,7 @@ def primitive_from_dict(d: dict) -> Primitive:
     """Inverse of ``Primitive.to_dict``."""
     try:
         return make_primitive(d["primitive"], **d["dims"])
-    except (KeyError, TypeError) as err:
+    except (KeyError, TypeError, AttributeError) as err:  # not a dict, no dims mapping, ...
         raise PrimitiveError(f"not a primitive description: {d!r}") from err
 
 from graspsim.primitives.clouds import SyntheticCloud, synthetic_cloud  # noqa: E402
@@ -65,7 +67,7 @@ def shape_from_dict(d: dict):
         try:
             parts = [primitive_from_dict(p) for p in d["parts"]]
             return Compound(tuple(parts), __import__("numpy").asarray(d["poses"], float))
-        except (KeyError, TypeError) as err:
+        except (KeyError, TypeError, ValueError) as err:
             raise PrimitiveError(f"not a compound description: {d!r}") from err
     return primitive_from_dict(d)
 

@@ -23,12 +23,16 @@ import numpy as np
 from graspsim.errors import PrimitiveError
 from graspsim.primitives.samples import SurfaceSamples
 
-__all__ = ["Primitive", "orient_outward", "MIN_DIM"]
+__all__ = ["Primitive", "orient_outward", "MIN_DIM", "MAX_DIM"]
 
 #: Smallest dimension of a primitive [m]. Anything thinner is degenerate: a plane or a
 #: line seen as a solid (identification of a flat or collinear cluster), far below
 #: what a sensor resolves or the gripper can hold.
 MIN_DIM = 1e-3
+
+#: Largest dimension of a primitive [m]: nothing a two-jaw gripper handles is a kilometre
+#: long, and beyond it areas and volumes head towards float overflow.
+MAX_DIM = 1e3
 
 
 @dataclass(frozen=True)
@@ -44,12 +48,15 @@ class Primitive(ABC):
             value = getattr(self, f.name)
             try:
                 fvalue = float(value)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise PrimitiveError(
                     f"{self.kind} {f.name} must be a number in metres, got {value!r}"
                 ) from None
             if not math.isfinite(fvalue):
                 raise PrimitiveError(f"{self.kind} {f.name} must be finite, got {value!r}")
+            if abs(fvalue) > MAX_DIM:
+                raise PrimitiveError(f"{self.kind} {f.name} must be at most {MAX_DIM:g} m (no object that "
+                                     f"large is grasped; were the dimensions meant in metres?), got {value!r}")
             object.__setattr__(self, f.name, fvalue)
         self._validate()
 

@@ -160,6 +160,9 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     if threads < 1:
         raise InvalidParameterError(f"threads must be >= 1, got {threads}")
     n = len(T)
+    # threads beyond the trials or a few per core only cost memory (one MjData and one
+    # native thread each; --threads 1000000000 exhausted it): results do not depend on them
+    threads = min(threads, max(n, 1), 4 * (os.cpu_count() or 1))
     T_world = scene.T_world_obj @ T
     if noise is not None:
         g = scene.gripper

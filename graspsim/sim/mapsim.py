@@ -59,7 +59,7 @@ def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int 
         raise InvalidParameterError("give top or sample, not both")
     rows = np.arange(len(gmap))
     if min_grade is not None:
-        rows = rows[gmap.grade > min_grade]
+        rows = rows[gmap.above(min_grade)]
     if top is not None:
         if top < 0:
             raise InvalidParameterError(f"top must be >= 0, got {top}")
@@ -193,7 +193,8 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                      map_dir=path.parent, cache_dir=cache_dir)
     up = _cloud_up(gmap, mesh is not None)
     scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity, up=up)
-    results = run_trials(scene, gmap.T_obj_wrist[index], gmap.width[index], protocol,
+    chosen = gmap.select(index)  # transforms of the chosen rows only (all of a 10 M-grasp map: 1.2 GB)
+    results = run_trials(scene, chosen.T_obj_wrist, chosen.width, protocol,
                          threads=threads, seed=seed, noise=noise, on_progress=on_progress,
                          on_record=on_record)
     results = replace(results, extra={"map_file": str(path),

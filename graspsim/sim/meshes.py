@@ -22,7 +22,7 @@ import numpy as np
 from graspsim._atomic import atomic_path
 from graspsim.errors import DependencyNotInstalled, InvalidParameterError, MeshError
 
-__all__ = ["CoacdParams", "load_mesh", "convex_parts", "default_cache_dir"]
+__all__ = ["CoacdParams", "check_mesh_path", "load_mesh", "convex_parts", "default_cache_dir"]
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +53,21 @@ def default_cache_dir() -> Path:
     return base / "coacd"
 
 
+def check_mesh_path(path: str | os.PathLike) -> Path:
+    """``path`` as a Path if it names a mesh file of a supported type, else :class:`MeshError`
+    (commands call it before their work; :func:`load_mesh` before reading)."""
+    path = Path(path)
+    try:
+        is_file = path.is_file()
+    except (OSError, ValueError) as err:  # a name too long, a NUL byte
+        raise MeshError(f"cannot read mesh file {path}: {getattr(err, 'strerror', None) or err}") from err
+    if not is_file:
+        raise MeshError(f"mesh file {path} does not exist")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise MeshError(f"mesh file {path} has an unsupported type; use one of {MESH_SUFFIXES}")
+    return path
+
+
 def load_mesh(path: str | os.PathLike, *, scale: float = 1.0):
     """Read a triangle mesh (OBJ, STL, PLY, ...) as one ``trimesh.Trimesh`` [m].
 
@@ -60,11 +75,7 @@ def load_mesh(path: str | os.PathLike, *, scale: float = 1.0):
     """
     import trimesh
 
-    path = Path(path)
-    if not path.is_file():
-        raise MeshError(f"mesh file {path} does not exist")
-    if path.suffix.lower() not in MESH_SUFFIXES:
-        raise MeshError(f"mesh file {path} has an unsupported type; use one of {MESH_SUFFIXES}")
+    path = check_mesh_path(path)
     if not (np.isfinite(scale) and scale > 0):
         raise MeshError(f"mesh scale must be > 0, got {scale!r}")
     try:

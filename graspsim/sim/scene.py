@@ -288,7 +288,7 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
     try:
         model = spec.compile()
     except ValueError as err:
-        raise SimulationError(f"the trial scene does not compile: {err}") from err
+        raise SimulationError(f"the trial scene does not compile: {' '.join(str(err).split())}") from err
     jid = lambda n: model.joint(n).id  # noqa: E731
     gids = [model.geom(n).id for n in (NAMES.housing, NAMES.jaw_neg, NAMES.jaw_pos,
                                         NAMES.finger_neg, NAMES.finger_pos)]

@@ -191,10 +191,16 @@ def _solve(ctx: _Ctx, idx: np.ndarray, depth: int, part: PartResult | None = Non
         c = make(ctx, idx, part)
         if c is not None:
             cands.append(_assigned(ctx, idx, c))
-    c = _split(ctx, idx, depth)
-    if c is not None:
-        cands.append(c)
+    if not any(_settled(ctx, c) for c in cands[1:]):  # the split is the costly candidate
+        c = _split(ctx, idx, depth)
+        if c is not None:
+            cands.append(c)
     return min(cands, key=lambda c: _score(ctx, idx, c))
+
+
+def _settled(ctx: _Ctx, parts: list[PartResult]) -> bool:
+    """Every part identified and explaining ``settle_rate`` of its points."""
+    return all(p.shape is not Shape.UNIDENTIFIED and (p.band_rate or 0.0) >= ctx.cfg.settle_rate for p in parts)
 
 
 def _leaf_of(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> PartResult:
@@ -251,8 +257,11 @@ def _merged(ctx: _Ctx, done: list) -> list:
 
 
 def _try_merge(ctx: _Ctx, a: PartResult, b: PartResult) -> PartResult | None:
-    """The union of two touching parts as one part, when one model identified by the
-    paper's rules explains it within the band as well as the two did (within 1 %)."""
+    """The union of two touching parts of one kind as one part, when one model
+    identified by the paper's rules explains it within the band as well as the two did
+    (within 1 %)."""
+    if a.shape is not b.shape:
+        return None
     ia, ib = _local(ctx.cloud, a), _local(ctx.cloud, b)
     pa, pb = ctx.cloud.points[ia], ctx.cloud.points[ib]
     gap = cKDTree(pa).query(pb, k=1, distance_upper_bound=3.0 * ctx.spacing)[0]

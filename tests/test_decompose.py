@@ -190,3 +190,24 @@ def test_a_pure_primitive_is_never_split(shape, seed):
     pts = _posed(shape, seed, resolution=0.004)
     res = identify(pts, rng=np.random.default_rng(seed))
     assert len(res.parts) == 1 and not res.unidentified, [p.shape.value for p in res.parts]
+
+
+def test_over_split_neighbours_of_one_kind_are_merged():
+    from scipy.spatial import cKDTree
+
+    from graspsim.perception import decompose as dc
+    from graspsim.perception.identify import _prepare
+
+    cfg = IdentifyConfig()
+    pts = _posed(Cylinder(0.03, 0.12), 4)
+    cloud = _prepare(pts, cfg)[0]
+    spacing = float(np.median(cKDTree(cloud.points).query(cloud.points, k=2)[0][:, 1]))
+    ctx = dc._Ctx(cloud, np.random.default_rng(0), cfg, spacing, inlier_band(cloud.noise, spacing))
+    axis = np.linalg.svd(cloud.points - cloud.points.mean(0))[2][0]
+    z = (cloud.points - cloud.points.mean(0)) @ axis
+    halves = [np.flatnonzero(z < 0), np.flatnonzero(z >= 0)]
+    parts = [dc._leaf(ctx, h) for h in halves]
+    assert [p.shape.value for p in parts] == ["cylinder", "cylinder"]
+    merged = dc._merged(ctx, [(p, None) for p in parts])
+    assert len(merged) == 1 and merged[0][0].shape.value == "cylinder"
+    assert merged[0][0].dims["height"] == pytest.approx(0.12, abs=0.006)

@@ -9,6 +9,7 @@ from graspsim.gripper import HGPL_25_60_A as G
 from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
+from graspsim.perception import IdentifyConfig
 from graspsim.planner import GraspBatch, PlannerConfig, PlanResult, PlanStatus, TablePlane, plan, plan_stream
 from graspsim.primitives import Box, Compound, Cylinder, Sphere, synthetic_cloud
 from graspsim.transforms import invert_transform, make_transform, random_rotation
@@ -166,3 +167,29 @@ def test_a_flat_box_gets_top_down_grasps_when_the_nearest_stored_box_is_a_plate(
     assert r.parts[0].match == "built"  # the plate's map cannot serve it
     approach_z = (quat_to_matrix(r.map.wrist_quat)[:, :, 2] @ r.T_cloud_obj[:3, :3].T)[:, 2]
     assert len(r.map) and np.sum(approach_z < -0.9) > 0  # top-down grasps, above the table
+
+
+def test_an_approximate_parts_grasps_are_kept_only_where_the_cloud_agrees(db):
+    from scipy.spatial import cKDTree
+
+    from graspsim.planner import _near_cloud, plan_shape
+
+    box = Box(0.12, 0.12, 0.02)
+    gmap = plan_shape(box, db=db).map
+    # the cloud covers the box's surface only where x < 0: grasps touching x > 0 disagree
+    pts = box.surface_samples(0.003).points
+    pts = pts[pts[:, 0] < 0.0]
+    keep = _near_cloud(gmap, pts, np.eye(4), 0.004)
+    assert 0 < keep.sum() < len(gmap)
+    d = cKDTree(pts).query(gmap.contacts[keep].reshape(-1, 3))[0]
+    assert d.max() <= 0.004
+    assert not _near_cloud(gmap, pts + [0.0, 0.0, 0.5], np.eye(4), 0.004).any()
+
+
+def test_the_summary_and_the_map_record_the_identification_mode(db):
+    cloud = _cloud(Sphere(0.03), 2)
+    for mode in ("paper", "robust"):
+        r = plan(cloud.points, db=db, rng=np.random.default_rng(0),
+                 config=PlannerConfig(identify=IdentifyConfig.preset(mode)))
+        assert r.summary()["identification"]["mode"] == mode
+        assert r.map.meta.extra["identification"]["mode"] == mode

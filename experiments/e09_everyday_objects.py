@@ -136,7 +136,7 @@ def visible(mesh, p: np.ndarray, cam: np.ndarray, rng: np.random.Generator, *, p
     pi, pj, pd = project(p)
     pk = (pi - i.min()) * (j.max() - j.min() + 1) + (pj - j.min())
     ok = (pi >= i.min()) & (pi <= i.max()) & (pj >= j.min()) & (pj <= j.max())
-    near = np.array([zbuf.get(k, np.inf) for k in pk.tolist()])
+    near = np.array([zbuf.get(k, -np.inf) for k in pk.tolist()])  # no surface sampled there: unseen
     return ok & (pd <= near + tol)
 
 

@@ -5,7 +5,11 @@ The paper's loop: the whole cloud starts as one cluster; each cluster is identif
 goes back to the hierarchical MVBB fit-and-split; a split is only made while it gains
 enough volume (theta* < theta_th, eq. 1) and leaves ``min_cluster_points`` on both
 sides. When no split is allowed and clusters remain unidentified, identification has
-*failed* and the result still lists the identified parts (for a partial map).
+*failed* and the result still lists the identified parts (for a partial map). That is
+paper mode (``IdentifyConfig.preset("paper")``); robust mode, the default, runs the same
+loop and then decomposes further what it left or explained only roughly
+(:mod:`~graspsim.perception.decompose`), with status *partial* when parts are found but
+some points are not covered or some parts only approximately.
 
 Preprocessing, once per cloud: statistical outlier removal, PCA normals with outward
 orientation and the sensor-noise estimate, over neighbourhoods wider than the noise.

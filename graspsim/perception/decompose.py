@@ -10,12 +10,12 @@ left is decomposed further. Candidate decompositions of the cluster:
   radius profile changes (:func:`~graspsim.perception.profile.profile_segments`);
 * **handle peeled**: the points outside the best cylinder or cone by more than the
   inlier band (a mug's handle) as a part of their own, the rest as the body;
-* **split**: the best MVBB split, at any theta* up to ``max_theta``, each half solved
-  the same way (to a depth of two).
+* **split**: the best MVBB split, at any theta* up to ``max_theta``.
 
 Each piece is identified by the paper's rules first, else as the best-scoring model.
 The candidate with the lowest score -- the BIC-like likelihood of the cluster under
-its parts, with a penalty per parameter -- is kept. A part whose model explains at
+its parts, with a penalty per parameter -- is kept, and its pieces that are still
+unexplained or approximate are decomposed the same way (to a depth of three). A part whose model explains at
 least ``approx_fit_rate`` of its points within the inlier band is used (flagged
 ``approximate`` below ``min_fit_rate``); pieces below that stay unidentified.
 Finally, neighbouring parts whose union one model explains as well as the two did
@@ -42,7 +42,7 @@ from graspsim.perception.split import best_split, theta_star
 
 __all__ = ["keep_going"]
 
-_MAX_DEPTH = 2
+_MAX_DEPTH = 3
 
 
 @dataclass(frozen=True)
@@ -135,9 +135,9 @@ def _peel(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> list[PartResult] | No
     return [_leaf(ctx, idx[~out]), _leaf(ctx, idx[out])]
 
 
-def _split(ctx: _Ctx, idx: np.ndarray, depth: int) -> list[PartResult] | None:
+def _split(ctx: _Ctx, idx: np.ndarray) -> list[PartResult] | None:
     pts = ctx.cloud.points[idx]
-    if depth >= _MAX_DEPTH or len(idx) < 2 * ctx.cfg.min_cluster_points:
+    if len(idx) < 2 * ctx.cfg.min_cluster_points:
         return None
     box = min_volume_box(pts)
     split = best_split(pts, box, min_points=ctx.cfg.min_cluster_points)
@@ -146,7 +146,7 @@ def _split(ctx: _Ctx, idx: np.ndarray, depth: int) -> list[PartResult] | None:
     theta = theta_star(box.volume, (split.boxes[0].volume, split.boxes[1].volume), 0.0)
     if theta >= max(ctx.cfg.max_theta, ctx.cfg.theta):
         return None
-    return _solve(ctx, idx[split.mask], depth + 1) + _solve(ctx, idx[~split.mask], depth + 1)
+    return [_leaf(ctx, idx[split.mask]), _leaf(ctx, idx[~split.mask])]
 
 
 def _assigned(ctx: _Ctx, idx: np.ndarray, parts: list[PartResult]) -> list[PartResult]:
@@ -191,11 +191,19 @@ def _solve(ctx: _Ctx, idx: np.ndarray, depth: int, part: PartResult | None = Non
         c = make(ctx, idx, part)
         if c is not None:
             cands.append(_assigned(ctx, idx, c))
-    if not any(_settled(ctx, c) for c in cands[1:]):  # the split is the costly candidate
-        c = _split(ctx, idx, depth)
+    if not any(_settled(ctx, c) for c in cands[1:]):
+        c = _split(ctx, idx)
         if c is not None:
             cands.append(c)
-    return min(cands, key=lambda c: _score(ctx, idx, c))
+    best = min(cands, key=lambda c: _score(ctx, idx, c))
+    if len(best) == 1 or depth + 1 >= _MAX_DEPTH:
+        return best
+    # the pieces of the chosen decomposition that are still not explained: again
+    out = []
+    for p in best:
+        poor = p.fits and (p.shape is Shape.UNIDENTIFIED or p.approximate)
+        out += _solve(ctx, _local(ctx.cloud, p), depth + 1, p) if poor else [p]
+    return out
 
 
 def _settled(ctx: _Ctx, parts: list[PartResult]) -> bool:

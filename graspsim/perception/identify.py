@@ -350,8 +350,8 @@ def _prepare(points: np.ndarray, cfg: IdentifyConfig):
     """(cloud, number of points used, voxel of each input point or None, downsampling)."""
     pts_all = check_cloud(points, min_points=cfg.min_cluster_points)
     down = voxel = None
-    if len(pts_all) > cfg.max_points:
-        used, voxel, down = voxel_downsample(pts_all, cfg.max_points)
+    if len(pts_all) > cfg.point_limit:
+        used, voxel, down = voxel_downsample(pts_all, cfg.point_limit)
         pts_all = pts_all[used]
     keep = remove_outliers(pts_all) if cfg.remove_outliers else np.ones(len(pts_all), bool)
     if keep.sum() < cfg.min_cluster_points:

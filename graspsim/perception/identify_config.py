@@ -41,7 +41,11 @@ class IdentifyConfig:
     :func:`~graspsim.perception.acceptance.inlier_band`); approx_fit_rate: a part whose
     model explains at least this fraction of its points within the band is used,
     flagged ``approximate`` when that is below min_fit_rate; min_handle_points: fewest
-    points a peeled handle may have. Build either with :meth:`preset`."""
+    points a peeled handle may have; settle_rate: an identified part explaining this
+    fraction of its points within the band is not decomposed further; robust_points: a
+    denser cloud is voxel-downsampled to at most this many points in robust mode (the
+    decomposition fits many candidate clusters; part indices still refer to every input
+    point). Build either with :meth:`preset`."""
 
     repetitions: int = 10
     theta: float = 0.5
@@ -68,6 +72,7 @@ class IdentifyConfig:
     approx_fit_rate: float = 0.6
     min_handle_points: int = 30
     settle_rate: float = 0.97
+    robust_points: int = 1200
 
     def __post_init__(self) -> None:
         checks = [
@@ -95,6 +100,8 @@ class IdentifyConfig:
             ("approx_fit_rate", 0.0 < self.approx_fit_rate <= self.min_fit_rate, "in (0, min_fit_rate]"),
             ("min_handle_points", self.min_handle_points >= 10, ">= 10"),
             ("settle_rate", self.min_fit_rate <= self.settle_rate <= 1.0, "in [min_fit_rate, 1]"),
+            ("robust_points", self.robust_points >= 500 and int(self.robust_points) == self.robust_points,
+             ">= 500, an integer"),
         ]
         for name, ok, valid in checks:
             if not ok:
@@ -114,3 +121,8 @@ class IdentifyConfig:
     @property
     def is_robust(self) -> bool:
         return self.mode == "robust"
+
+    @property
+    def point_limit(self) -> int:
+        """The most points identification works on: max_points, robust_points in robust mode."""
+        return min(self.max_points, self.robust_points) if self.is_robust else self.max_points

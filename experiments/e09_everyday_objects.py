@@ -22,13 +22,13 @@ across) is at most the gripper's opening less the approach clearance on both sid
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import sys
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -38,12 +38,13 @@ from _common import (  # noqa: E402
     RunRecord,
     database_note,
     database_record,
-    default_out,
+    derived_seed,
+    opt,
+    parse_config,
     pct,
     rate_ci,
-    write_config,
+    rng_for,
     write_json,
-    write_summary,
 )
 
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
@@ -65,18 +66,19 @@ MODES = ("paper", "robust")
 
 @dataclass(frozen=True)
 class Config:
-    objects_dir: str = "../shared/objects"
-    objects: tuple[str, ...] = ()  # relative paths; empty: every .stl under objects_dir
-    seed: int = 9
-    resolution: float = 0.003
-    noise: float = 0.001
-    max_points: int = 12000
-    camera_distance: float = 0.6
-    camera_elevation_deg: float = 40.0
-    top: int = 10
-    threads: int | None = None
-    db: str = ""
-    quick: bool = False
+    objects_dir: str = opt("../shared/objects", "folder of .stl meshes [m]")
+    objects: tuple[str, ...] = opt((), "meshes to use, relative to --objects-dir (default: every .stl in it)")
+    seed: int = opt(9, "run seed")
+    resolution: float = opt(0.003, "point spacing of the clouds [m]")
+    noise: float = opt(0.001, "sensor noise sigma [m]")
+    max_points: int = opt(12000, "most points of a full cloud")
+    camera_distance: float = opt(0.6, "single view: camera distance [m]")
+    camera_elevation_deg: float = opt(40.0, "single view: camera elevation [deg]")
+    top: int = opt(10, "best grasps of each map simulated")
+    threads: int | None = opt(None, "simulation threads (default: all cores)")
+    db: str = opt("", "FS database folder (default: the library's)")
+    coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
+    QUICK: ClassVar[dict] = {"resolution": 0.005, "coarse_db": True, "top": 4}
 
 
 def object_names(cfg: Config) -> list[str]:
@@ -161,13 +163,13 @@ def fits_gripper(mesh, gripper) -> tuple[bool, float, float]:
     return width <= limit, width, limit
 
 
-def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config) -> dict | None:
+def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config, seed: int) -> dict | None:
     m = res.map
     rows = np.flatnonzero(m.accepted)[:cfg.top]  # the map is sorted best grade first
     if not len(rows):
         return None
     r = run_trials(scene, T_mesh_world @ res.T_cloud_obj @ m.T_obj_wrist[rows], m.width[rows], LiftPlace(),
-                   threads=cfg.threads, seed=cfg.seed)
+                   threads=cfg.threads, seed=seed)
     out = np.asarray(r.outcome)
     placed = int(np.sum(out == TrialOutcome.SUCCESS))
     held = placed + int(np.sum(out == TrialOutcome.PLACE_FAILED))
@@ -194,7 +196,7 @@ def _plan_entry(points, db, mode: str, cfg: Config) -> tuple[dict, object]:
 
 def run_object(name: str, db: MapDatabase, cfg: Config) -> tuple[dict, dict]:
     """One object: its row and, for the figure, its clouds with part labels."""
-    rng = np.random.default_rng([cfg.seed, sum(map(ord, name))])
+    rng = rng_for(cfg.seed, name)
     path = Path(cfg.objects_dir) / name
     obj = object_from_mesh(path)  # the simulated object in the mesh's frame
     mesh, T_world_mesh = rest_on_table(load_mesh(path), obj, rng)
@@ -207,7 +209,7 @@ def run_object(name: str, db: MapDatabase, cfg: Config) -> tuple[dict, dict]:
     for view in VIEWS:
         for mode in MODES:
             entry, res = _plan_entry(cl[view], db, mode, cfg)
-            entry["sim"] = _sim(res, scene, T_mesh_world, cfg)
+            entry["sim"] = _sim(res, scene, T_mesh_world, cfg, derived_seed(cfg.seed, name, view, mode))
             row[f"{view}/{mode}"] = entry
             figs[f"{view}/{mode}"] = (cl[view], _labels(res, len(cl[view])))
             s = entry["sim"]
@@ -311,31 +313,17 @@ def _pool_table(pool: dict) -> str:
 
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", default=default_out(__file__), help="output folder")
-    p.add_argument("--objects-dir", default=Config.objects_dir, help="folder of .stl meshes [m] (../shared/objects)")
-    p.add_argument("--objects", nargs="+", default=None, help="meshes to use, relative to --objects-dir")
-    p.add_argument("--seed", type=int, default=Config.seed)
-    p.add_argument("--threads", type=int, default=None)
-    p.add_argument("--db", default="", help="FS database folder (default: the library's; quick: OUT/fsdb)")
-    p.add_argument("--quick", action="store_true", help="a coarse database and sparse clouds, for CI")
-    p.add_argument("--publish", action="store_true", help="also write experiments/reported/e09_everyday_objects.json")
-    a = p.parse_args(argv)
-    if not Path(a.objects_dir).is_dir():
-        p.error(f"--objects-dir {a.objects_dir} is not a folder")
+    cfg, opts = parse_config(Config, __file__, argv, __doc__)
+    if not Path(cfg.objects_dir).is_dir():
+        print(f"e09: --objects-dir {cfg.objects_dir} is not a folder", file=sys.stderr)
+        return 2
     run = RunRecord(__file__, argv)
-    out = Path(a.out)
+    out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
-    cfg = Config(objects_dir=a.objects_dir, objects=tuple(a.objects or ()), seed=a.seed, threads=a.threads, db=a.db)
     from graspsim.maps.generate import MapConfig
 
-    map_cfg = MapConfig()
-    if a.quick:
-        cfg = replace(cfg, quick=True, resolution=0.005, db=a.db or str(out / "fsdb"))
-        map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
-    write_config(out / "config.json", cfg)
-    db = MapDatabase(cfg.db or None, config=map_cfg)
+    map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.coarse_db else MapConfig()
+    db = MapDatabase(cfg.db or (str(out / "fsdb") if cfg.coarse_db else None), config=map_cfg)
     db.build(PAPER_SHAPES.values(), threads=cfg.threads)
     db_start = database_record(db)
     rows, figs = [], {}
@@ -347,12 +335,11 @@ def main(argv=None) -> int:
     for key in ("full/robust", "single/robust", "full/paper"):
         figure(figs, out / f"clouds_{key.replace('/', '_')}.png", key)
     (out / "table.md").write_text(write_table(rows, pool))
-    summary = run.summary({"config": asdict(cfg), "pooled": pool, "objects": rows,
-                           "gripper": {"max_opening": db.gripper.max_opening,
-                                       "approach_clearance": db.gripper.approach_clearance},
-                           "database": {"start": db_start, "end": database_record(db)}})
-    write_json(out / "results.json", summary)
-    print(write_summary(summary, out, "e09_everyday_objects", readme_section, publish=a.publish))
+    data = {"config": cfg, "pooled": pool, "objects": rows,
+            "gripper": {"max_opening": db.gripper.max_opening, "approach_clearance": db.gripper.approach_clearance},
+            "database": {"start": db_start, "end": database_record(db)}}
+    print(run.write(out, data, readme_section, publish=opts.publish))
+    write_json(out / "results.json", run.summary(data))
     print(f"results in {out}")
     return 0
 

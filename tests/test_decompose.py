@@ -200,7 +200,7 @@ def test_over_split_neighbours_of_one_kind_are_merged():
 
     cfg = IdentifyConfig()
     pts = _posed(Cylinder(0.03, 0.12), 4)
-    cloud = _prepare(pts, cfg)[0]
+    cloud = _prepare(pts, cfg, cfg.max_points)[0]
     spacing = float(np.median(cKDTree(cloud.points).query(cloud.points, k=2)[0][:, 1]))
     ctx = dc._Ctx(cloud, np.random.default_rng(0), cfg, spacing, inlier_band(cloud.noise, spacing))
     axis = np.linalg.svd(cloud.points - cloud.points.mean(0))[2][0]

@@ -40,7 +40,7 @@ from graspsim.perception.profile import profile_segments
 from graspsim.perception.shapes import fit_to_object
 from graspsim.perception.split import best_split, theta_star
 
-__all__ = ["keep_going"]
+__all__ = ["keep_going", "settled"]
 
 _MAX_DEPTH = 3
 
@@ -220,14 +220,28 @@ def _local(cloud: Cloud, part: PartResult) -> np.ndarray:
     return np.searchsorted(cloud.kept, part.indices)
 
 
+def _context(cloud: Cloud, rng: np.random.Generator, cfg: IdentifyConfig) -> _Ctx:
+    spacing = float(np.median(cKDTree(cloud.points).query(cloud.points, k=2)[0][:, 1]))
+    return _Ctx(cloud, rng, cfg, spacing, inlier_band(cloud.noise, spacing, cfg.band))
+
+
+def settled(cloud: Cloud, done: list, failed: list, cfg: IdentifyConfig) -> list | None:
+    """The paper loop's leaves ``done`` with their band rates when nothing is left to
+    decompose -- no cluster unidentified, every part explaining ``settle_rate`` of its
+    points within the band -- else None."""
+    if failed or not done:
+        return None
+    ctx = _context(cloud, np.random.default_rng(0), cfg)  # no draws: rates only
+    out = [(_leaf_of(ctx, _local(cloud, p), p), box) for p, box in done]
+    return out if _settled(ctx, [p for p, _ in out]) else None
+
+
 def keep_going(cloud: Cloud, done: list, failed: list, n_splits: int, rng: np.random.Generator,
                cfg: IdentifyConfig):
     """Robust continuation of the paper's loop: (identified leaves, unidentified leaves,
     splits) as :func:`~graspsim.perception.identify._hierarchy` returns them, with the
     clusters in ``failed`` decomposed further and over-split neighbours merged."""
-    tree = cKDTree(cloud.points)
-    spacing = float(np.median(tree.query(cloud.points, k=2)[0][:, 1]))
-    ctx = _Ctx(cloud, rng, cfg, spacing, inlier_band(cloud.noise, spacing, cfg.band))
+    ctx = _context(cloud, rng, cfg)
     out, left = [], []
     for part, box in [*done, *failed]:
         idx = _local(cloud, part)

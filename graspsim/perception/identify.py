@@ -346,12 +346,13 @@ def _hierarchy(cloud: Cloud, rng: np.random.Generator, cfg: IdentifyConfig):
     return done, failed, n_splits
 
 
-def _prepare(points: np.ndarray, cfg: IdentifyConfig):
-    """(cloud, number of points used, voxel of each input point or None, downsampling)."""
+def _prepare(points: np.ndarray, cfg: IdentifyConfig, limit: int):
+    """(cloud, number of points used, voxel of each input point or None, downsampling):
+    at most ``limit`` points."""
     pts_all = check_cloud(points, min_points=cfg.min_cluster_points)
     down = voxel = None
-    if len(pts_all) > cfg.point_limit:
-        used, voxel, down = voxel_downsample(pts_all, cfg.point_limit)
+    if len(pts_all) > limit:
+        used, voxel, down = voxel_downsample(pts_all, limit)
         pts_all = pts_all[used]
     keep = remove_outliers(pts_all) if cfg.remove_outliers else np.ones(len(pts_all), bool)
     if keep.sum() < cfg.min_cluster_points:
@@ -374,12 +375,19 @@ def identify(points: np.ndarray, *, rng: np.random.Generator,
     (:func:`~graspsim.perception.decompose.keep_going`)."""
     t0 = time.perf_counter()
     cfg = config or IdentifyConfig()
-    cloud, n_used, voxel, down = _prepare(points, cfg)
+    cloud, n_used, voxel, down = _prepare(points, cfg, cfg.max_points)
     done, failed, n_splits = _hierarchy(cloud, rng, cfg)
     if cfg.is_robust:
-        from graspsim.perception.decompose import keep_going
+        from graspsim.perception.decompose import keep_going, settled
 
-        done, failed, n_splits = keep_going(cloud, done, failed, n_splits, rng, cfg)
+        kept = settled(cloud, done, failed, cfg)
+        if kept is not None:  # the paper's answer explains the cloud: it stands
+            done = kept
+        else:  # decomposition fits many candidates: on a sparser cloud
+            if len(cloud.points) > cfg.robust_points:
+                cloud, n_used, voxel, down = _prepare(points, cfg, cfg.robust_points)
+                done, failed, n_splits = _hierarchy(cloud, rng, cfg)
+            done, failed, n_splits = keep_going(cloud, done, failed, n_splits, rng, cfg)
     if not failed and not any(p.approximate for p, _ in done):
         status = IdentificationStatus.IDENTIFIED
     elif cfg.is_robust and done:

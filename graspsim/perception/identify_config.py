@@ -42,10 +42,10 @@ class IdentifyConfig:
     model explains at least this fraction of its points within the band is used,
     flagged ``approximate`` when that is below min_fit_rate; min_handle_points: fewest
     points a peeled handle may have; settle_rate: an identified part explaining this
-    fraction of its points within the band is not decomposed further; robust_points: a
-    denser cloud is voxel-downsampled to at most this many points in robust mode (the
-    decomposition fits many candidate clusters; part indices still refer to every input
-    point). Build either with :meth:`preset`."""
+    fraction of its points within the band is not decomposed further; robust_points: when
+    the paper's loop leaves something to decompose, a denser cloud is voxel-downsampled
+    to at most this many points and identified again (the decomposition fits many
+    candidate clusters; part indices still refer to every input point). Build either with :meth:`preset`."""
 
     repetitions: int = 10
     theta: float = 0.5
@@ -122,7 +122,3 @@ class IdentifyConfig:
     def is_robust(self) -> bool:
         return self.mode == "robust"
 
-    @property
-    def point_limit(self) -> int:
-        """The most points identification works on: max_points, robust_points in robust mode."""
-        return min(self.max_points, self.robust_points) if self.is_robust else self.max_points

@@ -2,8 +2,9 @@
 
 The JSON summary (``--json``, last stdout line)::
 
-    {"status": "identified" | "failed", "parts": [{"primitive", "dims", "pose",
-     "match", "fit_rate", "points"}], "unidentified": [...], "seconds", ...}
+    {"status": "identified" | "partial" | "failed", "mode": "robust" | "paper",
+     "parts": [{"primitive", "dims", "pose", "match", "fit_rate", "points", "approximate",
+     "band_rate"}], "unidentified": [...], "uncovered": [{"points", "reason"}], "seconds", ...}
 
 ``pose`` is ``T_world_obj`` (4x4, object frame of DESIGN.md §3), ``dims`` in metres,
 ``match`` is "known" / "familiar" / null from the FS map database given with ``--db``,

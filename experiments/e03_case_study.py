@@ -181,7 +181,7 @@ def run_plan(points: np.ndarray, base: MapDatabase, tmp: Path, seed: int, theta:
     ident_log.setLevel(logging.DEBUG)
     ident_log.propagate = False
     ident_log.addHandler(handler)
-    pc = PlannerConfig(identify=IdentifyConfig(repetitions=cfg.repetitions, theta=theta))
+    pc = PlannerConfig(identify=IdentifyConfig.preset("paper", repetitions=cfg.repetitions, theta=theta))
     clock = Clock()
     try:
         result = plan(points, db=db, rng=rng_for(seed), config=pc, source="synthetic")

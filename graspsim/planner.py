@@ -54,6 +54,8 @@ class PlannerConfig:
     table: the plane the object stands on (cloud frame); poses that would take the
         gripper below it are dropped from every batch. None (default, as the paper):
         the map ignores the table.
+    contact_tolerance: a grasp on a part identified only approximately (robust mode) is
+        kept only where both its contacts lie within this distance [m] of the cloud.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -61,6 +63,7 @@ class PlannerConfig:
     partial: bool = True
     build_missing: bool = True
     table: TablePlane | None = None
+    contact_tolerance: float = 0.004
 
 
 @dataclass(frozen=True)
@@ -110,6 +113,9 @@ class PlanResult:
                 "seconds": self.timing.get("total"), "time_to_first_0.95": self.timing.get("first"),
                 "time_to_tenth_0.95": self.timing.get("tenth"),
                 "T_cloud_obj": self.T_cloud_obj.tolist(),
+                "identification": None if self.identification is None else {
+                    "mode": self.identification.mode, "uncovered": self.identification.uncovered,
+                    "approximate": [p.approximate for p in self.identification.parts]},
                 "table": None if self.map.meta.placement is None else self.map.meta.placement.table}
 
 
@@ -181,7 +187,9 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
                          {**timing, "total": time.perf_counter() - t0, "first": None, "tenth": None})
         return
     info = {"status": ident.status.value, "n_points": ident.n_points, "n_splits": ident.n_splits,
-            "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict()}
+            "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict(),
+            "mode": ident.mode, "uncovered": ident.uncovered,
+            "approximate": [i for i, p in enumerate(ident.parts) if p.approximate]}
     yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing)
 
 
@@ -254,6 +262,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             if compound is not None:
                 part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
                                         d_ref=obj_meta.quality["d_ref"], config=db.config, meta=obj_meta)
+            if ident is not None and ident.parts[i].approximate:
+                part_map = part_map.select(_near_cloud(part_map, points, T_cloud_obj, cfg.contact_tolerance))
             if T_table_obj is not None:
                 clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)
                 n_below += int(len(clear) - clear.sum())
@@ -301,6 +311,18 @@ def _last(stream) -> PlanResult:
     if not isinstance(result, PlanResult):  # pragma: no cover - the stream always ends so
         raise InvalidParameterError("planner produced no result")
     return result
+
+
+def _near_cloud(gmap: GraspabilityMap, points: np.ndarray, T_cloud_obj: np.ndarray, tol: float) -> np.ndarray:
+    """(N,) bool: both contacts of each grasp (object frame) within ``tol`` [m] of the
+    cloud (N, 3) -- where an approximate primitive's surface agrees with the points."""
+    from scipy.spatial import cKDTree
+
+    if not len(gmap):
+        return np.zeros(0, bool)
+    c = gmap.contacts.reshape(-1, 3) @ T_cloud_obj[:3, :3].T + T_cloud_obj[:3, 3]
+    d = cKDTree(np.asarray(points, float)).query(c, k=1, distance_upper_bound=tol)[0]
+    return np.all(np.isfinite(d).reshape(-1, 2), axis=1)
 
 
 def _table_height(table: TablePlane, points: np.ndarray, shape, T_cloud_obj: np.ndarray) -> float:

@@ -479,7 +479,7 @@ def test_tiny_cloud_is_named_tiny_not_collinear(tmp_path, capsys):
 
 def test_identify_config_refuses_infinite_noise_huge_repetitions_and_non_numbers():
     from graspsim.perception import IdentifyConfig
-    from graspsim.perception.identify import MAX_REPETITIONS
+    from graspsim.perception.identify_config import MAX_REPETITIONS
 
     for bad in ({"noise": math.inf}, {"repetitions": MAX_REPETITIONS + 1}, {"repetitions": math.nan},
                 {"theta": "0.5"}, {"max_points": None}):

@@ -30,14 +30,17 @@ def test_the_demo_glue_bottle_is_two_cylinders(seed):
     np.testing.assert_allclose(radii, [0.009, 0.026], atol=0.003)
 
 
-def test_the_capped_bottle_is_not_split_at_theta_half():
+def test_the_capped_bottle_is_not_split_at_theta_half_in_paper_mode():
     """Elmer's proportions: cutting a short cap off gains too little box volume for
     eq. (1) at theta_th = 0.5 (theta* ~ 0.6 from one side), so it stays unidentified
     -- the mismatch with the paper E03 reports."""
     c = synthetic_cloud(glue_bottle_capped(), np.random.default_rng(0), resolution=0.002, noise=0.0015,
                         outliers=0.005, camera=_camera(0))
-    res = identify(c.points, rng=np.random.default_rng(0), config=IdentifyConfig(theta=0.5))
+    res = identify(c.points, rng=np.random.default_rng(0), config=IdentifyConfig.preset("paper", theta=0.5))
     assert res.status is IdentificationStatus.FAILED and res.n_splits == 0 and not res.parts
+    # robust mode keeps going: body and cap
+    res = identify(c.points, rng=np.random.default_rng(0))
+    assert res.status is IdentificationStatus.IDENTIFIED and len(res.parts) >= 2
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -46,8 +49,11 @@ def test_the_brush_cloud_does_not_cluster(seed):
     the handle it may still identify."""
     pts = bottle_brush_cloud(np.random.default_rng(seed), camera=_camera(seed))
     assert 300 < len(pts) < 2000
-    res = identify(pts, rng=np.random.default_rng(seed))
+    res = identify(pts, rng=np.random.default_rng(seed), config=IdentifyConfig.preset("paper"))
     assert res.status is IdentificationStatus.FAILED and res.unidentified
+    # robust mode: at most partial, the clumps it cannot explain listed as uncovered
+    res = identify(pts, rng=np.random.default_rng(seed))
+    assert res.status is not IdentificationStatus.IDENTIFIED and res.unidentified and res.uncovered
 
 
 def test_shapes():

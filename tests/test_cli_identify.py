@@ -35,7 +35,8 @@ def test_json_summary(cylinder_file, capsys, tmp_path, monkeypatch):
     out = _json(capsys)
     assert out["status"] == "identified" and out["dropped_nonfinite"] == 5
     (part,) = out["parts"]
-    assert set(part) == {"primitive", "dims", "pose", "match", "fit_rate", "points"}
+    assert set(part) == {"primitive", "dims", "pose", "match", "fit_rate", "points", "approximate", "band_rate"}
+    assert out["mode"] == "robust" and out["uncovered"] == [] and part["approximate"] is False
     assert part["primitive"] == "cylinder" and part["match"] is None
     assert out["database"] is None and not nodb.exists()
     assert part["dims"]["radius"] == pytest.approx(0.02, abs=0.002)

@@ -191,9 +191,9 @@ def test_compound_objects_split_into_their_parts(make, kinds):
         np.testing.assert_allclose(d2, d1, atol=0.006)
 
 
-def test_the_bottle_fails_when_splitting_is_not_allowed():
+def test_the_bottle_fails_in_paper_mode_when_splitting_is_not_allowed():
     cloud = _cloud(bottle(), 5, outliers=0.0)
-    res = identify(cloud.points, rng=np.random.default_rng(5), config=IdentifyConfig(theta=0.2))
+    res = identify(cloud.points, rng=np.random.default_rng(5), config=IdentifyConfig.preset("paper", theta=0.2))
     assert res.status is IdentificationStatus.FAILED and res.parts == ()
     assert len(res.unidentified) == 1 and res.unidentified[0].shape is Shape.UNIDENTIFIED
     assert res.unidentified[0].n_points == len(cloud.points)

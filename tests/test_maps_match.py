@@ -52,3 +52,28 @@ def test_boxes_compare_sorted_edges_and_bad_input():
         _m("cylinder", radius=0.02)
     with pytest.raises(InvalidParameterError, match="tol"):
         _m("cylinder", tol=-1, radius=0.02, height=0.2)
+
+
+PLATES = [{"primitive": "box", "dims": {"x": 0.02, "y": 0.12, "z": 0.12}, "key": "plate"},
+          {"primitive": "box", "dims": {"x": 0.06, "y": 0.06, "z": 0.06}, "key": "cube"}]
+SUGAR = {"x": 0.045, "y": 0.093, "z": 0.176}  # the flat box (edges ascending)
+
+
+def test_a_stored_map_must_cover_every_approach_the_primitive_can_be_grasped_from():
+    from graspsim.maps.match import covers
+
+    # a 12 x 12 cm plate cannot be grasped approaching its faces (both chords across them
+    # are wider than 11 cm): its map cannot serve the flat box, which can
+    assert not covers("box", SUGAR, PLATES[0]["dims"], 0.11)
+    assert covers("box", SUGAR, PLATES[1]["dims"], 0.11)
+    # without the gripper's limit the plate is the nearest (x 2.25 against x 2.93) ...
+    assert match_entries("box", SUGAR, PLATES, tol=0.01, max_ratio=3.0).entry["key"] == "plate"
+    # ... with it the cube serves, and with the plate alone the box's own map is built
+    d = match_entries("box", SUGAR, PLATES, tol=0.01, max_ratio=3.0, max_width=0.11)
+    assert d.match is MatchKind.FAMILIAR and d.entry["key"] == "cube"
+    assert match_entries("box", SUGAR, PLATES[:1], tol=0.01, max_ratio=3.0, max_width=0.11).match is MatchKind.BUILD
+    # a shorter cylinder is served by the paper's 20 cm one: both are grasped across
+    # their diameter from every side (closing across the height is one option, not a direction)
+    assert covers("cylinder", {"radius": 0.03, "height": 0.09}, {"radius": 0.02, "height": 0.20}, 0.11)
+    assert not covers("cylinder", {"radius": 0.03, "height": 0.09}, {"radius": 0.06, "height": 0.20}, 0.11)
+    assert not covers("sphere", {"radius": 0.03}, {"radius": 0.06}, 0.11)

@@ -10,7 +10,8 @@ from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
 from graspsim.maps.match import MatchKind
-from graspsim.planner import GraspBatch, PlanResult, PlanStatus, plan, plan_stream
+from graspsim.perception import IdentifyConfig
+from graspsim.planner import GraspBatch, PlannerConfig, PlanResult, PlanStatus, TablePlane, plan, plan_stream
 from graspsim.primitives import Box, Compound, Cylinder, Sphere, synthetic_cloud
 from graspsim.transforms import invert_transform, make_transform, random_rotation
 
@@ -150,3 +151,47 @@ def test_known_shapes_are_planned_without_a_cloud(db):
         plan_shape("cylinder", db=db)
     with pytest.raises(GraspsimError):
         plan_shape(Sphere(0.03), np.full((4, 4), np.nan), db=db)
+
+
+def test_a_flat_box_gets_top_down_grasps_when_the_nearest_stored_box_is_a_plate(tmp_path):
+    """Issue 15: a sugar-box-size box (17.6 x 9.3 x 4.5 cm) lying on its largest face was
+    scaled from the nearest stored box, a 2 x 12 x 12 cm plate whose map has no grasp
+    approaching its faces (both chords across them exceed the opening): every grasp
+    approached horizontally and ``--table auto`` dropped them all."""
+    from graspsim.transforms import quat_to_matrix
+
+    db = MapDatabase(tmp_path / "db", config=FAST)
+    db.build([Box(0.02, 0.12, 0.12)])
+    box = Box(0.045, 0.093, 0.176)
+    T = make_transform(np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]), [0.0, 0.0, 0.0225])
+    cloud = synthetic_cloud(box, np.random.default_rng(3), resolution=0.006, noise=0.001, T_world_obj=T)
+    r = plan(cloud.points, db=db, rng=np.random.default_rng(0), config=PlannerConfig(table=TablePlane()))
+    assert r.parts[0].match == "built"  # the plate's map cannot serve it
+    approach_z = (quat_to_matrix(r.map.wrist_quat)[:, :, 2] @ r.T_cloud_obj[:3, :3].T)[:, 2]
+    assert len(r.map) and np.sum(approach_z < -0.9) > 0  # top-down grasps, above the table
+
+
+def test_an_approximate_parts_grasps_are_kept_only_where_the_cloud_agrees(db):
+    from scipy.spatial import cKDTree
+
+    from graspsim.planner import _near_cloud, plan_shape
+
+    box = Box(0.12, 0.12, 0.02)
+    gmap = plan_shape(box, db=db).map
+    # the cloud covers the box's surface only where x < 0: grasps touching x > 0 disagree
+    pts = box.surface_samples(0.003).points
+    pts = pts[pts[:, 0] < 0.0]
+    keep = _near_cloud(gmap, pts, np.eye(4), 0.004)
+    assert 0 < keep.sum() < len(gmap)
+    d = cKDTree(pts).query(gmap.contacts[keep].reshape(-1, 3))[0]
+    assert d.max() <= 0.004
+    assert not _near_cloud(gmap, pts + [0.0, 0.0, 0.5], np.eye(4), 0.004).any()
+
+
+def test_the_summary_and_the_map_record_the_identification_mode(db):
+    cloud = _cloud(Sphere(0.03), 2)
+    for mode in ("paper", "robust"):
+        r = plan(cloud.points, db=db, rng=np.random.default_rng(0),
+                 config=PlannerConfig(identify=IdentifyConfig.preset(mode)))
+        assert r.summary()["identification"]["mode"] == mode
+        assert r.map.meta.extra["identification"]["mode"] == mode

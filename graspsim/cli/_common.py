@@ -36,6 +36,12 @@ def seed_value(text: str) -> int:
     return value
 
 
+def add_mode_flag(p) -> None:
+    p.add_argument("--mode", choices=["robust", "paper"], default="robust",
+                   help="identification: 'paper' applies the paper's rules alone (theta_th, 85 %% "
+                   "explained); 'robust' (default) then keeps decomposing what they leave")
+
+
 def add_executor_flags(p) -> None:
     g = p.add_argument_group("scale-out")
     g.add_argument("--executor", choices=["local", "ray", "serial"], default="local",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from graspsim.cli._common import add_json_flag, add_units_flag, emit, format_table
+from graspsim.cli._common import add_json_flag, add_mode_flag, add_units_flag, emit, format_table
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -30,7 +30,7 @@ def _cmd_adapt(args) -> int:
 
         table = TablePlane(normal=tuple(args.table_normal), clearance=args.table_clearance,
                            height=None if args.table == "auto" else _height(args.table))
-    cfg = PlannerConfig(identify=IdentifyConfig(repetitions=args.repetitions, theta=args.theta),
+    cfg = PlannerConfig(identify=IdentifyConfig.preset(args.mode, repetitions=args.repetitions, theta=args.theta),
                         scaling=ScalingConfig(method=args.scaling), partial=not args.no_partial,
                         table=table)
     map_cfg, quality = _config(args)
@@ -95,6 +95,7 @@ def register(sub) -> None:
     p.add_argument("--repetitions", type=int, default=10, help="MLESAC repetitions (10)")
     p.add_argument("--theta", type=float, default=0.5, help="split threshold theta_th (0.5)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
+    add_mode_flag(p)
     p.add_argument("--no-partial", action="store_true",
                    help="no map at all when clustering fails (default: map of the identified parts)")
     p.add_argument("--table", default=None, metavar="auto|HEIGHT",

@@ -2,8 +2,9 @@
 
 The JSON summary (``--json``, last stdout line)::
 
-    {"status": "identified" | "failed", "parts": [{"primitive", "dims", "pose",
-     "match", "fit_rate", "points"}], "unidentified": [...], "seconds", ...}
+    {"status": "identified" | "partial" | "failed", "mode": "robust" | "paper",
+     "parts": [{"primitive", "dims", "pose", "match", "fit_rate", "points", "approximate",
+     "band_rate"}], "unidentified": [...], "uncovered": [{"points", "reason"}], "seconds", ...}
 
 ``pose`` is ``T_world_obj`` (4x4, object frame of DESIGN.md §3), ``dims`` in metres,
 ``match`` is "known" / "familiar" / null from the FS map database given with ``--db``,
@@ -16,7 +17,7 @@ from __future__ import annotations
 
 import argparse
 
-from graspsim.cli._common import add_json_flag, add_units_flag, emit, format_table
+from graspsim.cli._common import add_json_flag, add_mode_flag, add_units_flag, emit, format_table
 from graspsim.errors import DependencyNotInstalled
 
 __all__ = ["register", "run"]
@@ -41,6 +42,7 @@ def register(subparsers) -> None:
     add_units_flag(p)
     p.add_argument("--repetitions", type=int, default=10,
                    help="MLESAC samples per model (default 10)")
+    add_mode_flag(p)
     p.add_argument("--theta", type=float, default=0.5,
                    help="split threshold theta_th of eq. (1), in (0, 1] (default 0.5)")
     p.add_argument("--noise", type=float, default=None,
@@ -83,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     from graspsim.perception.identify import IdentifyConfig, identify
     from graspsim.perception.io import read_point_cloud
 
-    config = IdentifyConfig(repetitions=args.repetitions, theta=args.theta, noise=args.noise)
+    config = IdentifyConfig.preset(args.mode, repetitions=args.repetitions, theta=args.theta, noise=args.noise)
     cloud = read_point_cloud(args.cloud, units=args.units)
     lookup, db_root = _lookup(args.db)
     res = identify(cloud.points, rng=np.random.default_rng(args.seed), config=config)
@@ -91,13 +93,15 @@ def run(args: argparse.Namespace) -> int:
     for p in res.parts:
         parts.append({"primitive": p.shape.value, "dims": p.dims, "pose": p.T_world_obj,
                       "match": lookup(p.shape.value, p.dims), "fit_rate": p.fit_rate,
-                      "points": p.n_points})
+                      "points": p.n_points, "approximate": p.approximate, "band_rate": p.band_rate})
     summary = {
         "status": res.status.value,
+        "mode": res.mode,
         "parts": parts,
         "unidentified": [{"points": p.n_points, "fit_rate": p.fit_rate, "pose": p.T_world_obj,
                           "reason": p.reason}
                          for p in res.unidentified],
+        "uncovered": res.uncovered,
         "seconds": res.seconds,
         "points": cloud.n_read,
         "units": cloud.units,
@@ -115,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
     rows += [[f"u{i}", "unidentified", "", f"{p.fit_rate:.3f}", p.n_points, "-"]
              for i, p in enumerate(res.unidentified)]
     d = res.downsampling
-    human = (f"{args.cloud}: {res.status.value} in {res.seconds * 1000:.0f} ms "
+    human = (f"{args.cloud}: {res.status.value} ({res.mode} mode) in {res.seconds * 1000:.0f} ms "
              f"({cloud.n_read} points, {cloud.n_dropped} NaN/inf dropped, "
              + (f"{d.used_points} used ({d.voxel * 1000:.2g} mm voxels), " if d else "") +
              f"{res.n_removed} outliers removed, noise {res.noise * 1000:.2f} mm)\n"

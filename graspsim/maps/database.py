@@ -177,9 +177,12 @@ class MapDatabase:
     def match(self, shape: Primitive, *, max_ratio: float = float("inf")) -> MatchDecision:
         """Which stored map serves ``shape``: KNOWN (a map within ``self.tol`` on every
         dimension), FAMILIAR (the nearest map, at most ``max_ratio`` times larger or
-        smaller on every dimension: the scaling range) or BUILD (see
-        :mod:`graspsim.maps.match`); ``entry`` is the serving index record."""
-        return match_entries(shape.kind, shape.dims, self.entries(), tol=self.tol, max_ratio=max_ratio)
+        smaller on every dimension: the scaling range, that can be grasped from every
+        direction the shape can) or BUILD (see :mod:`graspsim.maps.match`); ``entry`` is
+        the serving index record."""
+        g = self.gripper
+        return match_entries(shape.kind, shape.dims, self.entries(), tol=self.tol, max_ratio=max_ratio,
+                             max_width=g.max_opening - 2.0 * g.approach_clearance)
 
     def lookup(self, kind: str, dims: dict[str, float]) -> MatchDecision:
         """:meth:`match` for a primitive given by name and dims [m] (validated)."""

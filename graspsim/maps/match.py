@@ -11,6 +11,15 @@ and through it by the planner and the CLI:
   scaling range), is scaled to the primitive;
 * *build*: no stored map of that kind within the scaling range.
 
+A stored map can only serve a primitive it can be grasped like (``max_width``: the widest
+chord the gripper closes across): scaling moves the grasps a map has, keeping their
+orientations, so a direction the primitive can be approached from (along a box edge, a
+cylinder's axis) but the stored one could not -- every chord across it too wide -- would
+have no grasp at all: a 2 x 12 x 12 cm plate's map has no grasp approaching its faces,
+so a flat 4.5 x 9.3 x 17.6 cm box scaled from it could only be grasped from the sides,
+and on a table not at all. Such a stored map is passed over; with none left the
+primitive's own map is built.
+
 Boxes are compared on their sorted edge lengths (a box is the same box whichever edge is
 called x); the planner queries boxes with ascending edges (x <= y <= z) and scales a
 stored box by edge name, so stored boxes should keep that order too (the paper's is a cube).
@@ -27,7 +36,7 @@ from typing import Any
 
 from graspsim.errors import InvalidParameterError
 
-__all__ = ["MatchKind", "MatchDecision", "match_entries"]
+__all__ = ["MatchKind", "MatchDecision", "match_entries", "covers"]
 
 
 class MatchKind(str, Enum):
@@ -71,11 +80,47 @@ def _pairs(kind: str, dims: dict[str, float], other: dict[str, float]) -> list[t
     return [(float(dims[n]), float(other[n])) for n in dims]
 
 
+def _chords(kind: str, d: dict[str, float]) -> dict[str, float]:
+    """The chord widths [m] a grasp of a primitive closes across, by name."""
+    if kind == "box":
+        x, y, z = sorted(d.values())
+        return {"x": x, "y": y, "z": z}
+    if kind == "sphere":
+        return {"d": 2 * d["radius"]}
+    if kind == "cylinder":
+        return {"d": 2 * d["radius"], "h": d["height"]}
+    if kind == "cone":
+        return {"d": 2 * min(d["bottom_radius"], d["top_radius"]), "h": d["height"]}
+    return {"tube": 2 * d["minor_radius"], "ring": 2 * (d["major_radius"] + d["minor_radius"])}
+
+
+#: per kind, the families of approach directions, each with the chords a grasp from
+#: them may close across (any one will do)
+_APPROACHES: dict[str, tuple[tuple[str, ...], ...]] = {
+    "box": (("y", "z"), ("x", "z"), ("x", "y")),  # along x, y, z (edges ascending)
+    "sphere": (("d",),),
+    "cylinder": (("d",), ("d", "h")),  # along the axis; from the side
+    "cone": (("d",), ("d", "h")),
+    "half_toroid": (("tube",), ("tube", "ring")),
+}
+
+
+def covers(kind: str, dims: dict[str, float], stored: dict[str, float], max_width: float) -> bool:
+    """Whether a stored primitive's map can serve ``dims``: from every family of
+    approach directions the query can be grasped from (some chord <= ``max_width``
+    [m]), the stored primitive could be grasped too."""
+    q, s = _chords(kind, dims), _chords(kind, stored)
+    return all(any(s[c] <= max_width for c in fam) for fam in _APPROACHES[kind]
+               if any(q[c] <= max_width for c in fam))
+
+
 def match_entries(kind: str, dims: dict[str, float], entries: Iterable[dict], *, tol: float,
-                  max_ratio: float = math.inf) -> MatchDecision:
+                  max_ratio: float = math.inf, max_width: float | None = None) -> MatchDecision:
     """The decision for a primitive ``kind`` (normalised name, e.g. ``"half_toroid"``)
     with ``dims`` [m] against index ``entries`` (``{"primitive": kind, "dims": {...}}``;
-    other keys are kept in the returned entry)."""
+    other keys are kept in the returned entry). ``max_width`` [m]: the gripper's widest
+    chord; stored maps that do not :func:`cover <covers>` the query are passed over
+    (None: no check)."""
     if not tol >= 0:
         raise InvalidParameterError(f"tol must be >= 0 m, got {tol!r}")
     if not max_ratio >= 1:
@@ -84,7 +129,10 @@ def match_entries(kind: str, dims: dict[str, float], entries: Iterable[dict], *,
     for e in entries:
         if e.get("primitive") != kind:
             continue
-        pairs = _pairs(kind, dims, _dims_of(e, dims, kind))
+        stored = _dims_of(e, dims, kind)
+        if max_width is not None and not covers(kind, dims, stored, max_width):
+            continue
+        pairs = _pairs(kind, dims, stored)
         r = max([1.0, *(_ratio(v, w) for v, w in pairs)])
         d = max(abs(v - w) for v, w in pairs)
         if best is None or r < best[0]:

@@ -94,7 +94,7 @@ def run_trial(kind: str, variant: int, repetitions: int, trial: int, seed: np.ra
     """One identification trial; ``seed`` fixes both the cloud and the identification."""
     cloud, id_rng = trial_cloud(kind, variant, seed, spec)
     dims = SIZE_VARIANTS[kind][variant]
-    cfg = IdentifyConfig(repetitions=repetitions) if config is None else config
+    cfg = IdentifyConfig.preset("paper", repetitions=repetitions) if config is None else config
     t0, c0 = time.perf_counter(), time.process_time()
     res = identify(cloud.points, rng=id_rng, config=cfg)
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0

@@ -5,7 +5,11 @@ The paper's loop: the whole cloud starts as one cluster; each cluster is identif
 goes back to the hierarchical MVBB fit-and-split; a split is only made while it gains
 enough volume (theta* < theta_th, eq. 1) and leaves ``min_cluster_points`` on both
 sides. When no split is allowed and clusters remain unidentified, identification has
-*failed* and the result still lists the identified parts (for a partial map).
+*failed* and the result still lists the identified parts (for a partial map). That is
+paper mode (``IdentifyConfig.preset("paper")``); robust mode, the default, runs the same
+loop and then decomposes further what it left or explained only roughly
+(:mod:`~graspsim.perception.decompose`), with status *partial* when parts are found but
+some points are not covered or some parts only approximately.
 
 Preprocessing, once per cloud: statistical outlier removal, PCA normals with outward
 orientation and the sensor-noise estimate, over neighbourhoods wider than the noise.
@@ -22,7 +26,6 @@ generator, clusters are visited breadth first, so the same seed gives the same r
 from __future__ import annotations
 
 import logging
-import math
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
@@ -33,9 +36,10 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from graspsim.errors import InvalidParameterError, PrimitiveError
+from graspsim.errors import PrimitiveError
 from graspsim.perception.classify import Shape, classify
 from graspsim.perception.features import ShapeFeatures, shape_features
+from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.io import check_cloud
 from graspsim.perception.mlesac import ModelFit, fit_from, fit_model, rescore, residual_sigma
 from graspsim.perception.mvbb import OrientedBox, min_volume_box
@@ -45,96 +49,16 @@ from graspsim.perception.shapes import KINDS, fit_to_object
 from graspsim.perception.split import best_split, theta_star
 from graspsim.perception.support import extent_ratio, surface_coverage
 
-__all__ = ["IdentificationStatus", "IdentifyConfig", "PartResult", "Identification",
+__all__ = ["IdentificationStatus", "IdentifyConfig", "PartResult", "Identification", "Cloud",
            "identify", "identify_cluster"]
 
 log = logging.getLogger(__name__)
 
 
 class IdentificationStatus(str, Enum):
-    IDENTIFIED = "identified"
-    FAILED = "failed"
-
-
-#: Most MLESAC repetitions per model: every hypothesis is scored against every point of
-#: the cluster (repetitions x points residuals), so this bounds identification's memory
-#: (1000 x 20000 points: ~0.2 GB per array). The paper's experiments use up to 400.
-MAX_REPETITIONS = 1000
-
-
-@dataclass(frozen=True)
-class IdentifyConfig:
-    """repetitions: MLESAC samples per model; theta: split threshold theta_th of eq. (1);
-    min_cluster_points: smallest cluster a split may leave; noise: sensor sigma [m]
-    (None: estimated from the cloud); sample_quantile: samples are drawn from the points
-    whose surface variation is below this quantile (most reliable normals); max_parts:
-    cap on clusters; link_factor, min_connected: a cluster is one continuous surface
-    when its largest connected component, linking points closer than link_factor times
-    the median point spacing, holds min_connected of its points; max_noise_ratio: the
-    noise may be at most this fraction of the cluster's bounding-box diagonal;
-    min_fit_rate, fit_margin, symmetry_tol, taper_tol: the classifier's thresholds (see
-    classify); max_extent_ratio: a model may extend along each of its axes at most
-    this many times as far as its cluster (one view sees at least half of a convex
-    body: 2); min_coverage, max_uncovered_extent: a candidate model whose surface has
-    cluster points near less than min_coverage of it (one view covers up to ~1/2, see
-    support) may extend along its axes at most max_uncovered_extent times as far as its
-    cluster; max_points: a denser cloud is voxel-downsampled to at most this many points
-    before anything else (:func:`~graspsim.perception.prepare.voxel_downsample`)."""
-
-    repetitions: int = 10
-    theta: float = 0.5
-    min_cluster_points: int = 30
-    noise: float | None = None
-    remove_outliers: bool = True
-    refine: bool = True
-    sample_quantile: float = 0.7
-    max_parts: int = 16
-    link_factor: float = 4.0
-    min_connected: float = 0.5
-    max_noise_ratio: float = 0.03
-    min_fit_rate: float = 0.85
-    fit_margin: float = 0.03
-    symmetry_tol: float = 2.5
-    taper_tol: float = 3.0
-    max_extent_ratio: float = 2.5  # (new fields last: positional construction still works)
-    min_coverage: float = 0.3
-    max_uncovered_extent: float = 1.25
-    max_points: int = 20000
-
-    def __post_init__(self) -> None:
-        finite = math.isfinite
-        checks = [
-            ("repetitions", lambda v: _whole(v) and 1 <= v <= MAX_REPETITIONS,
-             f"an integer in [1, {MAX_REPETITIONS}]"),
-            ("theta", lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
-            ("min_cluster_points", lambda v: v >= 10, ">= 10"),
-            ("noise", lambda v: v is None or (finite(v) and v > 0), "finite and > 0 m, or None"),
-            ("sample_quantile", lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
-            ("max_parts", lambda v: v >= 1, ">= 1"),
-            ("link_factor", lambda v: finite(v) and v > 0, "> 0"),
-            ("min_connected", lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
-            ("max_noise_ratio", lambda v: finite(v) and v > 0, "> 0"),
-            ("max_extent_ratio", lambda v: v >= 1.0, ">= 1"),
-            ("min_coverage", lambda v: 0.0 <= v < 1.0, "in [0, 1)"),
-            ("max_uncovered_extent", lambda v: v >= 1.0, ">= 1"),
-            ("min_fit_rate", lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
-            ("fit_margin", lambda v: 0.0 <= v < 1.0, "in [0, 1)"),
-            ("symmetry_tol", lambda v: finite(v) and v > 0, "> 0"),
-            ("taper_tol", lambda v: finite(v) and v > 0, "> 0"),
-            ("max_points", lambda v: _whole(v) and v >= 1000, ">= 1000, an integer"),
-        ]
-        for name, ok, valid in checks:
-            value = getattr(self, name)
-            try:
-                good = bool(ok(value))
-            except (TypeError, ValueError):  # not a number at all
-                good = False
-            if not good:
-                raise InvalidParameterError(f"{name} must be {valid}, got {value!r}")
-
-
-def _whole(v) -> bool:
-    return isinstance(v, (int, np.integer)) or (isinstance(v, float) and v.is_integer())
+    IDENTIFIED = "identified"  # every cluster explained by the rules of the mode
+    PARTIAL = "partial"  # robust mode: parts found, but some approximate or some points not covered
+    FAILED = "failed"  # the paper's outcome when a cluster is left; robust: nothing found
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,6 +83,8 @@ class PartResult:
     fits: dict[str, ModelFit | None] = field(repr=False)
     reason: str = ""
     coverage: dict[str, float] = field(default_factory=dict, repr=False)
+    approximate: bool = False
+    band_rate: float | None = None
 
     @property
     def n_points(self) -> int:
@@ -177,7 +103,8 @@ class PartResult:
                 "pose": self.T_world_obj.tolist(), "fit_rate": self.fit_rate,
                 "rms": self.rms, "points": self.n_points, "noise": self.noise,
                 "reason": self.reason,
-                "fit_rates": dict(self.features.fit_rates), "coverage": dict(self.coverage)}
+                "fit_rates": dict(self.features.fit_rates), "coverage": dict(self.coverage),
+                "approximate": self.approximate, "band_rate": self.band_rate}
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,13 +125,24 @@ class Identification:
     n_splits: int
     seconds: float
     downsampling: Downsampling | None = None
+    mode: str = "paper"
+
+    @property
+    def uncovered(self) -> list[dict]:
+        """What the parts do not cover: every unidentified cluster and every approximate
+        part, with its points and why."""
+        out = [{"points": p.n_points, "reason": p.reason} for p in self.unidentified]
+        out += [{"points": p.n_points, "reason": f"approximate {p.shape.value}: "
+                 f"{100 * (p.band_rate or 0.0):.0f} % within the inlier band"} for p in self.parts if p.approximate]
+        return out
 
     def to_dict(self) -> dict:
         return {"status": self.status.value, "parts": [p.to_dict() for p in self.parts],
                 "unidentified": [p.to_dict() for p in self.unidentified],
                 "n_points": self.n_points, "n_removed": self.n_removed, "noise": self.noise,
                 "n_splits": self.n_splits, "seconds": self.seconds,
-                "downsampling": None if self.downsampling is None else self.downsampling.to_dict()}
+                "downsampling": None if self.downsampling is None else self.downsampling.to_dict(),
+                "mode": self.mode, "uncovered": self.uncovered}
 
 
 def _continuity(points: np.ndarray, link_factor: float) -> tuple[float, float, cKDTree]:
@@ -238,27 +176,20 @@ def _off_flat(pool: np.ndarray, normals: np.ndarray, *, share: float = 0.25,
     return pool[~flat]
 
 
-def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.ndarray,
-                     noise: float, rng: np.random.Generator, config: IdentifyConfig,
-                     indices: np.ndarray | None = None) -> PartResult:
-    """Fit all models to one cluster (n, 3) [m] with unit normals (n, 3) and classify.
-
-    sample_pool: indices (into the cluster) that minimal samples are drawn from. A
-    cluster that is not one continuous surface, or whose noise is large for its size,
-    is unidentified without fitting."""
-    indices = np.arange(len(points)) if indices is None else indices
+def _precheck(points: np.ndarray, noise: float, config: IdentifyConfig):
+    """(reason, spacing, tree): why a cluster is not fitted at all ("" if it is)."""
     size = float(np.linalg.norm(np.ptp(points, axis=0)))
-    reason = ""
     if noise > config.max_noise_ratio * size:
-        reason = f"noise {noise * 1000:.2f} mm is too large for a {size * 100:.1f} cm cluster"
-    else:
-        frac, spacing, tree = _continuity(points, config.link_factor)
-        if frac < config.min_connected:
-            reason = f"not one continuous surface: largest connected part {100 * frac:.0f} %"
-    if reason:
-        feats = ShapeFeatures(0.0, 0.0, float("nan"), float("nan"), float("nan"), {})
-        return PartResult(Shape.UNIDENTIFIED, {}, np.eye(4), 0.0, float("inf"), indices, feats,
-                          noise, {}, reason)
+        return f"noise {noise * 1000:.2f} mm is too large for a {size * 100:.1f} cm cluster", 0.0, None
+    frac, spacing, tree = _continuity(points, config.link_factor)
+    if frac < config.min_connected:
+        return f"not one continuous surface: largest connected part {100 * frac:.0f} %", spacing, tree
+    return "", spacing, tree
+
+
+def _fit_all(points, normals, sample_pool, noise, rng, config: IdentifyConfig):
+    """MLESAC fits of every model kind (a cylinder also refined as a cone), rescored with
+    the sharper noise of the most likely model's residuals; (fits, noise)."""
     pools = {k: sample_pool for k in KINDS}
     pools["cone"] = _off_flat(sample_pool, normals)
     fits = {k: fit_model(k, points, normals, rng, repetitions=config.repetitions,
@@ -286,6 +217,36 @@ def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.nd
         if np.isfinite(s1):
             noise = float(np.clip(s1, 0.5 * noise, noise))
             fits = {k: (rescore(f, points, noise) if f is not None else None) for k, f in fits.items()}
+    return fits, noise
+
+
+def _unexplained_reason(fits, coverage, config: IdentifyConfig) -> tuple[str, ModelFit | None]:
+    best = max((f for f in fits.values() if f is not None), key=lambda f: f.fit_rate, default=None)
+    if best is None:
+        return "no model could be hypothesised", None
+    if best.fit_rate >= config.min_fit_rate and coverage.get(best.kind, 1.0) < config.min_coverage:
+        return (f"no model fits: best {best.kind} explains {100 * best.fit_rate:.0f} % of the points "
+                f"but reaches beyond them and only {100 * coverage[best.kind]:.0f} % of its surface "
+                "has points"), best
+    return f"no model fits: best {best.kind} explains {100 * best.fit_rate:.0f} % of the points", best
+
+
+def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.ndarray,
+                     noise: float, rng: np.random.Generator, config: IdentifyConfig,
+                     indices: np.ndarray | None = None) -> PartResult:
+    """Fit all models to one cluster (n, 3) [m] with unit normals (n, 3) and classify
+    by the paper's rules (whatever ``config.mode``).
+
+    sample_pool: indices (into the cluster) that minimal samples are drawn from. A
+    cluster that is not one continuous surface, or whose noise is large for its size,
+    is unidentified without fitting."""
+    indices = np.arange(len(points)) if indices is None else indices
+    reason, spacing, tree = _precheck(points, noise, config)
+    if reason:
+        feats = ShapeFeatures(0.0, 0.0, float("nan"), float("nan"), float("nan"), {})
+        return PartResult(Shape.UNIDENTIFIED, {}, np.eye(4), 0.0, float("inf"), indices, feats,
+                          noise, {}, reason)
+    fits, noise = _fit_all(points, normals, sample_pool, noise, rng, config)
     # models good enough to be candidates must also be supported: their surface must
     # be covered by the cluster about as much as one view covers a body
     radius = 3.0 * noise + 2.0 * spacing
@@ -317,15 +278,7 @@ def identify_cluster(points: np.ndarray, normals: np.ndarray, sample_pool: np.nd
         elif cyl is None:
             shape = Shape.CONE  # no cylinder can be made of it: keep what fits
     if shape is Shape.UNIDENTIFIED:
-        best = max((f for f in fits.values() if f is not None), key=lambda f: f.fit_rate, default=None)
-        if best is None:
-            reason = "no model could be hypothesised"
-        elif best.fit_rate >= config.min_fit_rate and coverage.get(best.kind, 1.0) < config.min_coverage:
-            reason = (f"no model fits: best {best.kind} explains {100 * best.fit_rate:.0f} % of the points "
-                      f"but reaches beyond them and only {100 * coverage[best.kind]:.0f} % of its surface "
-                      "has points")
-        else:
-            reason = f"no model fits: best {best.kind} explains {100 * best.fit_rate:.0f} % of the points"
+        reason, best = _unexplained_reason(fits, coverage, config)
         return PartResult(shape, {}, np.eye(4), best.fit_rate if best else 0.0,
                           best.rms if best else float("inf"), indices, feats, noise, fits, reason, coverage)
     fit = fits[shape.value]
@@ -341,36 +294,35 @@ def _unidentified(part: PartResult, box: OrientedBox) -> PartResult:
     return replace(part, T_world_obj=box.T_world_box.copy())
 
 
-def identify(points: np.ndarray, *, rng: np.random.Generator,
-             config: IdentifyConfig | None = None) -> Identification:
-    """Identify the shape primitives of an object cloud (N, 3), world frame [m]."""
-    t0 = time.perf_counter()
-    cfg = config or IdentifyConfig()
-    pts_all = check_cloud(points, min_points=cfg.min_cluster_points)
-    down = voxel = None
-    if len(pts_all) > cfg.max_points:
-        used, voxel, down = voxel_downsample(pts_all, cfg.max_points)
-        pts_all = pts_all[used]
-    keep = remove_outliers(pts_all) if cfg.remove_outliers else np.ones(len(pts_all), bool)
-    if keep.sum() < cfg.min_cluster_points:
-        keep[:] = True
-    kept = np.flatnonzero(keep)
-    pts = pts_all[kept]
-    check_solid(pts)
-    surf = estimate_local_surface(pts)
-    noise = float(cfg.noise) if cfg.noise is not None else surf.noise
-    reliable = surf.flatness <= np.quantile(surf.flatness, cfg.sample_quantile)
+@dataclass(frozen=True)
+class Cloud:
+    """A prepared cloud: points (n, 3) [m] after downsampling and outlier removal, their
+    unit normals, which are reliable samples, their indices ``kept`` into the points
+    identified, and the noise estimate [m]."""
 
-    # leaves of the hierarchy: (local indices, MVBB or None for the unsplit root)
-    queue: deque[tuple[np.ndarray, OrientedBox | None]] = deque([(np.arange(len(pts)), None)])
+    points: np.ndarray
+    normals: np.ndarray
+    reliable: np.ndarray
+    kept: np.ndarray
+    noise: float
+
+    def cluster(self, idx: np.ndarray, rng: np.random.Generator, cfg: IdentifyConfig) -> PartResult:
+        """The paper's identification of the cluster of local indices ``idx``."""
+        return identify_cluster(self.points[idx], self.normals[idx], np.flatnonzero(self.reliable[idx]),
+                                self.noise, rng, cfg, self.kept[idx])
+
+
+def _hierarchy(cloud: Cloud, rng: np.random.Generator, cfg: IdentifyConfig):
+    """The paper's loop (2.2): (identified leaves, unidentified leaves, splits made);
+    leaves are (part, MVBB or None for the unsplit root)."""
+    queue: deque[tuple[np.ndarray, OrientedBox | None]] = deque([(np.arange(len(cloud.points)), None)])
     done: list[tuple[PartResult, OrientedBox | None]] = []
     failed: list[tuple[PartResult, OrientedBox]] = []
     n_splits = 0
     while queue:
         idx, box = queue.popleft()
-        sub = pts[idx]
-        pool = np.flatnonzero(reliable[idx])
-        part = identify_cluster(sub, surf.normals[idx], pool, noise, rng, cfg, kept[idx])
+        sub = cloud.points[idx]
+        part = cloud.cluster(idx, rng, cfg)
         if part.shape is not Shape.UNIDENTIFIED:
             done.append((part, box))
             continue
@@ -391,10 +343,61 @@ def identify(points: np.ndarray, *, rng: np.random.Generator,
                 queue.append((idx[~split.mask], split.boxes[1]))
                 continue
         failed.append((_unidentified(part, box), box))
-    status = IdentificationStatus.FAILED if failed else IdentificationStatus.IDENTIFIED
+    return done, failed, n_splits
+
+
+def _prepare(points: np.ndarray, cfg: IdentifyConfig, limit: int):
+    """(cloud, number of points used, voxel of each input point or None, downsampling):
+    at most ``limit`` points."""
+    pts_all = check_cloud(points, min_points=cfg.min_cluster_points)
+    down = voxel = None
+    if len(pts_all) > limit:
+        used, voxel, down = voxel_downsample(pts_all, limit)
+        pts_all = pts_all[used]
+    keep = remove_outliers(pts_all) if cfg.remove_outliers else np.ones(len(pts_all), bool)
+    if keep.sum() < cfg.min_cluster_points:
+        keep[:] = True
+    kept = np.flatnonzero(keep)
+    pts = pts_all[kept]
+    check_solid(pts)
+    surf = estimate_local_surface(pts)
+    noise = float(cfg.noise) if cfg.noise is not None else surf.noise
+    reliable = surf.flatness <= np.quantile(surf.flatness, cfg.sample_quantile)
+    return Cloud(pts, surf.normals, reliable, kept, noise), len(pts_all), voxel, down
+
+
+def identify(points: np.ndarray, *, rng: np.random.Generator,
+             config: IdentifyConfig | None = None) -> Identification:
+    """Identify the shape primitives of an object cloud (N, 3), world frame [m].
+
+    Paper mode: the paper's loop; robust mode (default): the same loop, then the
+    clusters it left unexplained are decomposed further
+    (:func:`~graspsim.perception.decompose.keep_going`)."""
+    t0 = time.perf_counter()
+    cfg = config or IdentifyConfig()
+    cloud, n_used, voxel, down = _prepare(points, cfg, cfg.max_points)
+    done, failed, n_splits = _hierarchy(cloud, rng, cfg)
+    if cfg.is_robust:
+        from graspsim.perception.decompose import keep_going, settled
+
+        kept = settled(cloud, done, failed, cfg)
+        if kept is not None:  # the paper's answer explains the cloud: it stands
+            done = kept
+        else:  # decomposition fits many candidates: on a sparser cloud
+            if len(cloud.points) > cfg.robust_points:
+                cloud, n_used, voxel, down = _prepare(points, cfg, cfg.robust_points)
+                done, failed, n_splits = _hierarchy(cloud, rng, cfg)
+            done, failed, n_splits = keep_going(cloud, done, failed, n_splits, rng, cfg)
+    if not failed and not any(p.approximate for p, _ in done):
+        status = IdentificationStatus.IDENTIFIED
+    elif cfg.is_robust and done:
+        status = IdentificationStatus.PARTIAL
+    else:
+        status = IdentificationStatus.FAILED
     parts, left = (tuple(_expand(p, voxel) for p, _ in group) for group in (done, failed))
-    return Identification(status, parts, left, len(pts_all) if down is None else down.input_points,
-                          int(len(pts_all) - len(kept)), noise, n_splits, time.perf_counter() - t0, down)
+    return Identification(status, parts, left, n_used if down is None else down.input_points,
+                          int(n_used - len(cloud.kept)), cloud.noise, n_splits, time.perf_counter() - t0, down,
+                          cfg.mode)
 
 
 def _expand(part: PartResult, voxel: np.ndarray | None) -> PartResult:

@@ -1,0 +1,384 @@
+"""Experiment E09: everyday objects -- paper vs robust identification, and the grasps in MuJoCo.
+
+Every mesh in ``--objects-dir`` (default ``../shared/objects``: 6 robosuite and 36
+pybullet everyday and random objects) rests on a table (z = 0) as the simulator rests it
+(upright when stable, else on the hull face nearest its centre of mass), at a random yaw.
+Two clouds per object, both with 1 mm noise: a *full* cloud (uniform surface samples,
+3 mm spacing) and a *single view* (a camera 0.6 m away at 40 deg elevation, random
+azimuth; the points it sees, noise along the ray). Each cloud is planned in paper and in
+robust mode with the table known (``TablePlane(height=0)``): status, parts, fit rates,
+time for identification + adaptation. The adapted map's 10 best grasps (accepted, best
+grade first) are lifted and placed in MuJoCo against the true mesh (CoACD convex parts);
+a START_COLLISION counts as a failure. *held*: lifted without dropping (success or
+PLACE_FAILED: a round object rolls off after release); *placed*: success.
+
+Which objects fit the gripper is a stated rule, not a choice: an object fits when the
+shortest edge of its minimum-volume bounding box (the narrowest width a grasp can close
+across) is at most the gripper's opening less the approach clearance on both sides.
+
+    python experiments/e09_everyday_objects.py
+    python experiments/e09_everyday_objects.py --quick --objects-dir assets/objects --out results/e09-quick
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _common import (  # noqa: E402
+    RunRecord,
+    database_note,
+    database_record,
+    derived_seed,
+    opt,
+    parse_config,
+    pct,
+    rate_ci,
+    rng_for,
+    write_json,
+)
+
+from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
+from graspsim.perception import IdentifyConfig  # noqa: E402
+from graspsim.perception.mvbb import min_volume_box  # noqa: E402
+from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402
+from graspsim.sim import LiftPlace, SimSettings, TrialOutcome, build_scene, run_trials  # noqa: E402
+from graspsim.sim.meshes import load_mesh  # noqa: E402
+from graspsim.sim.objects import object_from_mesh  # noqa: E402
+from graspsim.sim.scene import resting_pose  # noqa: E402
+from graspsim.stats import wilson_interval  # noqa: E402
+from graspsim.transforms import invert_transform, make_transform  # noqa: E402
+
+log = logging.getLogger("e09")
+
+VIEWS = ("full", "single")
+MODES = ("paper", "robust")
+
+
+@dataclass(frozen=True)
+class Config:
+    objects_dir: str = opt("../shared/objects", "folder of .stl meshes [m]")
+    objects: tuple[str, ...] = opt((), "meshes to use, relative to --objects-dir (default: every .stl in it)")
+    seed: int = opt(9, "run seed")
+    resolution: float = opt(0.003, "point spacing of the clouds [m]")
+    noise: float = opt(0.001, "sensor noise sigma [m]")
+    max_points: int = opt(12000, "most points of a full cloud")
+    camera_distance: float = opt(0.6, "single view: camera distance [m]")
+    camera_elevation_deg: float = opt(40.0, "single view: camera elevation [deg]")
+    top: int = opt(10, "best grasps of each map simulated")
+    threads: int | None = opt(None, "simulation threads (default: all cores)")
+    db: str = opt("", "FS database folder (default: the library's)")
+    coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
+    QUICK: ClassVar[dict] = {"resolution": 0.005, "coarse_db": True, "top": 4}
+
+
+def object_names(cfg: Config) -> list[str]:
+    root = Path(cfg.objects_dir)
+    if cfg.objects:
+        return list(cfg.objects)
+    return sorted(str(p.relative_to(root)) for p in root.rglob("*.stl"))
+
+
+def rest_on_table(mesh, obj, rng: np.random.Generator):
+    """The mesh (a copy) as the simulator rests its object ``obj`` on the table (upright
+    when stable, else on the hull face nearest the centre of mass: :func:`resting_pose`),
+    turned by a random yaw about the vertical through its centre of mass; and
+    T_world_mesh."""
+    a = rng.uniform(0.0, 2.0 * math.pi)
+    Rz = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    T = make_transform(Rz, np.zeros(3)) @ resting_pose(obj)
+    out = mesh.copy()
+    out.apply_transform(T)
+    return out, T
+
+
+def surface_points(mesh, n: int, rng: np.random.Generator) -> np.ndarray:
+    """n points uniform over the mesh's surface by area."""
+    f = rng.choice(len(mesh.faces), size=n, p=mesh.area_faces / mesh.area)
+    tri = mesh.triangles[f]
+    u, v = rng.random((2, n))
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    return tri[:, 0] + u[:, None] * (tri[:, 1] - tri[:, 0]) + v[:, None] * (tri[:, 2] - tri[:, 0])
+
+
+def visible(mesh, p: np.ndarray, cam: np.ndarray, rng: np.random.Generator, *, pixel: float = 0.0025,
+            tol: float = 0.002) -> np.ndarray:
+    """(N,) bool: which points p (N, 3) on the mesh the camera at ``cam`` sees -- a
+    z-buffer of dense surface samples (pixels of ``pixel`` m at the object), a point
+    visible when it is within ``tol`` of the nearest surface along its pixel's ray."""
+    target = np.asarray(mesh.bounds, float).mean(axis=0)
+    f = (target - cam) / np.linalg.norm(target - cam)
+    r = np.cross(f, [0.0, 0.0, 1.0])
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    scale = pixel / np.linalg.norm(target - cam)
+
+    def project(q):
+        d = q - cam
+        depth = d @ f
+        return np.floor((d @ r) / depth / scale).astype(np.int64), np.floor((d @ u) / depth / scale).astype(
+            np.int64), depth
+
+    dense = surface_points(mesh, int(np.clip(mesh.area / (0.4 * pixel) ** 2, 20000, 400000)), rng)
+    i, j, depth = project(dense)
+    key = (i - i.min()) * (j.max() - j.min() + 1) + (j - j.min())
+    order = np.lexsort((depth, key))
+    first = np.r_[True, key[order][1:] != key[order][:-1]]
+    zbuf = dict(zip(key[order][first].tolist(), depth[order][first].tolist()))
+    pi, pj, pd = project(p)
+    pk = (pi - i.min()) * (j.max() - j.min() + 1) + (pj - j.min())
+    ok = (pi >= i.min()) & (pi <= i.max()) & (pj >= j.min()) & (pj <= j.max())
+    near = np.array([zbuf.get(k, -np.inf) for k in pk.tolist()])  # no surface sampled there: unseen
+    return ok & (pd <= near + tol)
+
+
+def clouds(mesh, cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """The full cloud and the single view of the posed mesh (world frame, table z = 0)."""
+    n = int(np.clip(mesh.area / cfg.resolution**2, 400, cfg.max_points))
+    full = surface_points(mesh, n, rng) + rng.normal(0.0, cfg.noise, (n, 3))
+    az, el = rng.uniform(0, 2 * math.pi), math.radians(cfg.camera_elevation_deg)
+    cam = cfg.camera_distance * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    p = surface_points(mesh, n, rng)
+    p = p[(p[:, 2] > 0.002) & visible(mesh, p, cam, rng)]  # the table hides the base
+    ray = (p - cam) / np.linalg.norm(p - cam, axis=1, keepdims=True)
+    single = p + rng.normal(0.0, cfg.noise, len(p))[:, None] * ray
+    return {"full": full, "single": single}
+
+
+def fits_gripper(mesh, gripper) -> tuple[bool, float, float]:
+    """(fits, narrowest width [m], largest graspable width [m]): the rule of the module
+    docstring."""
+    width = float(np.min(min_volume_box(np.asarray(mesh.vertices, float)).extents))
+    limit = float(gripper.max_opening - 2.0 * gripper.approach_clearance)
+    return width <= limit, width, limit
+
+
+def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config, seed: int) -> dict | None:
+    m = res.map
+    rows = np.flatnonzero(m.accepted)[:cfg.top]  # the map is sorted best grade first
+    if not len(rows):
+        return None
+    r = run_trials(scene, T_mesh_world @ res.T_cloud_obj @ m.T_obj_wrist[rows], m.width[rows], LiftPlace(),
+                   threads=cfg.threads, seed=seed)
+    out = np.asarray(r.outcome)
+    placed = int(np.sum(out == TrialOutcome.SUCCESS))
+    held = placed + int(np.sum(out == TrialOutcome.PLACE_FAILED))
+    return {"trials": len(rows), "counts": r.counts(), "start_collision": int(len(rows) - r.feasible),
+            "placed": placed, "held": held}
+
+
+def _plan_entry(points, db, mode: str, cfg: Config) -> tuple[dict, object]:
+    pc = PlannerConfig(identify=IdentifyConfig.preset(mode), table=TablePlane(height=0.0))
+    t0 = time.perf_counter()
+    res = plan(points, db=db, rng=np.random.default_rng(cfg.seed), config=pc)
+    wall = time.perf_counter() - t0
+    ident = res.identification
+    built = any(p.match == "built" for p in res.parts)
+    entry = {"status": res.status.value, "points": len(points),
+             "parts": [{"primitive": p.shape.value, "points": p.n_points, "fit_rate": p.fit_rate,
+                        "band_rate": p.band_rate, "approximate": p.approximate} for p in ident.parts],
+             "unidentified_points": int(sum(p.n_points for p in ident.unidentified)),
+             "matches": [p.match for p in res.parts], "built": built,
+             "identify_s": res.timing.get("identify"), "seconds": wall,
+             "grasps": len(res.map), "accepted": int(res.map.accepted.sum())}
+    return entry, res
+
+
+def run_object(name: str, db: MapDatabase, cfg: Config) -> tuple[dict, dict]:
+    """One object: its row and, for the figure, its clouds with part labels."""
+    rng = rng_for(cfg.seed, name)
+    path = Path(cfg.objects_dir) / name
+    obj = object_from_mesh(path)  # the simulated object in the mesh's frame
+    mesh, T_world_mesh = rest_on_table(load_mesh(path), obj, rng)
+    ok, width, limit = fits_gripper(mesh, db.gripper)
+    cl = clouds(mesh, cfg, rng)
+    scene = build_scene(obj, db.gripper, SimSettings(friction=db.quality.friction))  # rests it as above
+    T_mesh_world = invert_transform(T_world_mesh)
+    row = {"object": name, "fits": ok, "width": width, "extents": sorted(np.ptp(mesh.vertices, axis=0).tolist())}
+    figs = {}
+    for view in VIEWS:
+        for mode in MODES:
+            entry, res = _plan_entry(cl[view], db, mode, cfg)
+            entry["sim"] = _sim(res, scene, T_mesh_world, cfg, derived_seed(cfg.seed, name, view, mode))
+            row[f"{view}/{mode}"] = entry
+            figs[f"{view}/{mode}"] = (cl[view], _labels(res, len(cl[view])))
+            s = entry["sim"]
+            log.info("%-22s %-6s %-6s %-9s %-28s %5.2f s  %s", name, view, mode, entry["status"],
+                     "+".join(p["primitive"] for p in entry["parts"]) or "-", entry["seconds"],
+                     "no grasps" if s is None else f"held {s['held']}/{s['trials']} placed {s['placed']}/{s['trials']}"
+                     f" start-collision {s['start_collision']}")
+    return row, figs
+
+
+def _labels(res, n: int) -> np.ndarray:
+    lab = np.full(n, -1)
+    for i, p in enumerate(res.identification.parts):
+        lab[p.indices] = i
+    return lab
+
+
+def pooled(rows: list[dict]) -> dict:
+    out = {}
+    fit = [r for r in rows if r["fits"]]
+    for view in VIEWS:
+        for mode in MODES:
+            es = [r[f"{view}/{mode}"] for r in fit]
+            sims = [e["sim"] for e in es if e["sim"]]
+            n = sum(s["trials"] for s in sims)
+            placed, held = sum(s["placed"] for s in sims), sum(s["held"] for s in sims)
+            secs = sorted(e["seconds"] for e in es if not e["built"])
+            out[f"{view}/{mode}"] = {
+                "objects": len(es), "with_grasp": sum(e["accepted"] > 0 for e in es),
+                "identified": sum(e["status"] == "complete" for e in es),
+                "trials": n, "placed": placed, "held": held,
+                "start_collision": sum(s["start_collision"] for s in sims),
+                "placed_95": list(wilson_interval(placed, n)) if n else None,
+                "held_95": list(wilson_interval(held, n)) if n else None,
+                "median_s": float(np.median(secs)) if secs else None, "timed": len(secs)}
+    return out
+
+
+def figure(figs: dict, path: Path, key: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(figs)
+    cols = 7
+    rows = math.ceil(len(names) / cols)
+    fig = plt.figure(figsize=(2.2 * cols, 2.2 * rows))
+    cmap = plt.get_cmap("tab10")
+    for i, name in enumerate(names):
+        pts, lab = figs[name][key]
+        ax = fig.add_subplot(rows, cols, i + 1, projection="3d")
+        sel = np.arange(0, len(pts), max(1, len(pts) // 1500))
+        c = np.array([(0.7, 0.7, 0.7, 1.0) if v < 0 else cmap(v % 10) for v in lab[sel]])
+        ax.scatter(pts[sel, 0], pts[sel, 1], pts[sel, 2], s=0.5, c=c)
+        ax.set_title(Path(name).stem, fontsize=7)
+        ax.set_axis_off()
+        r = np.ptp(pts, axis=0).max() / 2
+        m = pts.mean(axis=0)
+        ax.set_xlim(m[0] - r, m[0] + r)
+        ax.set_ylim(m[1] - r, m[1] + r)
+        ax.set_zlim(m[2] - r, m[2] + r)
+    fig.suptitle(f"E09 clouds ({key}), coloured by identified part (grey: not covered)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_table(rows: list[dict], pool: dict) -> str:
+    L = ["# E09: everyday objects, paper vs robust identification", "",
+         "Per object and cloud: status, parts (`~` approximate), seconds for identification + adaptation, "
+         "accepted grasps, and of the 10 best: held / placed / START_COLLISION.", "",
+         "| object | fits | view | mode | status | parts | s | accepted | held | placed | start coll. |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        for view in VIEWS:
+            for mode in MODES:
+                e = r[f"{view}/{mode}"]
+                s = e["sim"] or {}
+                parts = " + ".join(("~" if p["approximate"] else "") + p["primitive"] for p in e["parts"]) or "-"
+                L.append(f"| {Path(r['object']).stem} | {'yes' if r['fits'] else 'no'} | {view} | {mode} | "
+                         f"{e['status']} | {parts} | {e['seconds']:.2f}{' (built)' if e['built'] else ''} | "
+                         f"{e['accepted']} | {s.get('held', '-')} | {s.get('placed', '-')} | "
+                         f"{s.get('start_collision', '-')} |")
+    L += ["", "Pooled over the objects that fit the gripper:", "", _pool_table(pool)]
+    return "\n".join(L) + "\n"
+
+
+def _pool_table(pool: dict) -> str:
+    L = ["| view | mode | objects with an accepted grasp | identified completely | 10-best trials | held | "
+         "placed | start in collision | median s |", "|---|---|---|---|---|---|---|---|---|"]
+    for key, p in pool.items():
+        view, mode = key.split("/")
+        med = "-" if p["median_s"] is None else f"{p['median_s']:.2f}"
+        held = rate_ci(p["held"], p["trials"], p["held_95"])
+        L.append(f"| {view} | {mode} | {p['with_grasp']}/{p['objects']} ({pct(p['with_grasp'] / p['objects'], 0)} %) | "
+                 f"{p['identified']}/{p['objects']} | {p['trials']} | {held} | "
+                 f"{rate_ci(p['placed'], p['trials'], p['placed_95'])} | {p['start_collision']} | {med} |")
+    return "\n".join(L)
+
+
+def main(argv=None) -> int:
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    cfg, opts = parse_config(Config, __file__, argv, __doc__)
+    if not Path(cfg.objects_dir).is_dir():
+        print(f"e09: --objects-dir {cfg.objects_dir} is not a folder", file=sys.stderr)
+        return 2
+    run = RunRecord(__file__, argv)
+    out = Path(opts.out)
+    out.mkdir(parents=True, exist_ok=True)
+    from graspsim.maps.generate import MapConfig
+
+    map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.coarse_db else MapConfig()
+    db = MapDatabase(cfg.db or (str(out / "fsdb") if cfg.coarse_db else None), config=map_cfg)
+    db.build(PAPER_SHAPES.values(), threads=cfg.threads)
+    db_start = database_record(db)
+    rows, figs = [], {}
+    for name in object_names(cfg):
+        row, f = run_object(name, db, cfg)
+        rows.append(row)
+        figs[name] = f
+    pool = pooled(rows)
+    for key in ("full/robust", "single/robust", "full/paper"):
+        figure(figs, out / f"clouds_{key.replace('/', '_')}.png", key)
+    (out / "table.md").write_text(write_table(rows, pool))
+    data = {"config": cfg, "pooled": pool, "objects": rows,
+            "gripper": {"max_opening": db.gripper.max_opening, "approach_clearance": db.gripper.approach_clearance},
+            "database": {"start": db_start, "end": database_record(db)}}
+    print(run.write(out, data, readme_section, publish=opts.publish))
+    write_json(out / "results.json", run.summary(data))
+    print(f"results in {out}")
+    return 0
+
+
+def _timing_line(fit: list[dict]) -> str:
+    """Median identification time and median identification + adaptation time per mode
+    (runs that built a new FS map left out of the latter)."""
+    out = []
+    for key in ("full/paper", "full/robust", "single/paper", "single/robust"):
+        ident = [o[key]["identify_s"] for o in fit]
+        total = [o[key]["seconds"] for o in fit if not o[key]["built"]]
+        out.append(f"{key.replace('/', ', ')}: {np.median(ident):.2f} s identification, "
+                   f"{np.median(total):.2f} s with adaptation ({len(total)} runs without a build)")
+    return "; ".join(out)
+
+
+def readme_section(s: dict) -> str:
+    """The README's E09 paragraph (see ``experiments/report.py``)."""
+    objs, pool, cfg = s["objects"], s["pooled"], s["config"]
+    fit = [o for o in objs if o["fits"]]
+    g = s["gripper"]
+    load = s["machine"]["load_avg_start"], s["machine"]["load_avg_end"]
+    L = [f"`{s['command']}`: {len(objs)} meshes, each resting on a table as the simulator rests it, at a random yaw; "
+         f"a full cloud ({1000 * cfg['resolution']:g} mm spacing) and a single view, both with "
+         f"{1000 * cfg['noise']:g} mm noise, planned with the table known, in paper and robust mode. "
+         f"{len(fit)} of {len(objs)} fit the gripper (rule: the shortest edge of the mesh's minimum-volume box is "
+         f"at most the opening less the clearance, {1000 * (g['max_opening'] - 2 * g['approach_clearance']):.0f} mm). "
+         f"The adapted map's {cfg['top']} best grasps lifted and placed in MuJoCo against the true mesh; "
+         "START_COLLISION counts as a failure; *held*: lifted and carried (success or PLACE_FAILED: a round "
+         "object may roll off after release), *placed*: success. Median s: identification + adaptation per "
+         "object, runs that built a new FS map left out.",
+         "", _pool_table(pool), ""]
+    miss = {k: [Path(o["object"]).stem for o in fit if o[k]["accepted"] == 0] for k in ("full/robust", "single/robust")}
+    L.append(f"Robust mode, no accepted grasp: full cloud {', '.join(miss['full/robust']) or 'none'}; "
+             f"single view {', '.join(miss['single/robust']) or 'none'}. Medians: {_timing_line(fit)}. "
+             f"Load average {load[0][0]:.1f} at the start, {load[1][0]:.1f} at the end, on "
+             f"{s['machine']['cpus']} cores shared with other work." + database_note(s))
+    return "\n".join(L) + "\n"
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,299 @@
+"""Robust identification: decomposition that keeps going where the paper's loop stops.
+
+The paper's loop (2.2) gives up on a cluster when no model explains 85 % of its points
+and no split gains enough volume (theta* < theta_th). In robust mode every cluster it
+left is decomposed further. Candidate decompositions of the cluster:
+
+* **one part**: the model kind with the best score alone (see
+  :func:`~graspsim.perception.acceptance.decomposition_score`);
+* **axial pieces**: a near-axisymmetric cluster (a bottle) cut across its axis where its
+  radius profile changes (:func:`~graspsim.perception.profile.profile_segments`);
+* **handle peeled**: the points outside the best cylinder or cone by more than the
+  inlier band (a mug's handle) as a part of their own, the rest as the body;
+* **split**: the best MVBB split, at any theta* up to ``max_theta``.
+
+Each piece is identified by the paper's rules first, else as the best-scoring model.
+The candidate with the lowest score -- the BIC-like likelihood of the cluster under
+its parts, with a penalty per parameter -- is kept, and its pieces that are still
+unexplained or approximate are decomposed the same way (to a depth of three). A part whose model explains at
+least ``approx_fit_rate`` of its points within the inlier band is used (flagged
+``approximate`` below ``min_fit_rate``); pieces below that stay unidentified.
+Finally, neighbouring parts whose union one model explains as well as the two did
+are merged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from graspsim.errors import PrimitiveError
+from graspsim.perception.acceptance import band_rate, data_scale, decomposition_score, inlier_band, model_distance
+from graspsim.perception.classify import Shape
+from graspsim.perception.identify import Cloud, PartResult
+from graspsim.perception.identify_config import IdentifyConfig
+from graspsim.perception.mlesac import fit_from, rescore
+from graspsim.perception.mvbb import min_volume_box
+from graspsim.perception.profile import profile_segments
+from graspsim.perception.shapes import fit_to_object
+from graspsim.perception.split import best_split, theta_star
+
+__all__ = ["keep_going", "settled"]
+
+_MAX_DEPTH = 3
+
+
+@dataclass(frozen=True)
+class _Ctx:
+    cloud: Cloud
+    rng: np.random.Generator
+    cfg: IdentifyConfig
+    spacing: float
+    band: float
+
+    @property
+    def scale(self) -> float:
+        return data_scale(self.cloud.noise, self.spacing)
+
+
+def _model(part: PartResult):
+    return part.fits.get(part.shape.value) if part.shape is not Shape.UNIDENTIFIED else None
+
+
+def _best_single(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> PartResult:
+    """The part as the best-scoring single model of its fits, if that explains at least
+    ``approx_fit_rate`` of its points within the band; else ``part`` (unidentified)."""
+    pts = ctx.cloud.points[idx]
+    best = None
+    for kind, fit in part.fits.items():
+        if fit is None or part.coverage.get(kind, 1.0) < ctx.cfg.min_coverage:
+            continue
+        score = decomposition_score([fit], pts, ctx.band, ctx.cfg.band)
+        if best is None or score < best[0]:
+            best = (score, fit)
+    if best is None:
+        return part
+    fit = best[1]
+    # refined with the data's scale as sigma: MLESAC's fit under the sensor sigma can
+    # sit off a surface the primitive only approximates (a rounded box's faces)
+    wide = fit_from(fit.kind, pts, fit.R, fit.t, fit.dims, sigma=ctx.band / ctx.cfg.band, refine=ctx.cfg.refine,
+                    max_extent_ratio=ctx.cfg.max_extent_ratio)
+    if decomposition_score([wide], pts, ctx.band, ctx.cfg.band) < best[0]:
+        fit = rescore(wide, pts, part.noise)
+        part = replace(part, fits={**part.fits, fit.kind: fit})
+    rate = band_rate(fit, pts, ctx.band)
+    if rate < ctx.cfg.approx_fit_rate:
+        return replace(part, band_rate=rate)
+    try:
+        prim, T = fit_to_object(fit.kind, fit.R, fit.t, fit.dims)
+    except PrimitiveError:
+        return replace(part, band_rate=rate)
+    return replace(part, shape=Shape(fit.kind), dims=prim.dims, T_world_obj=T, fit_rate=fit.fit_rate,
+                   rms=fit.rms, reason="", approximate=rate < ctx.cfg.min_fit_rate, band_rate=rate)
+
+
+def _leaf(ctx: _Ctx, idx: np.ndarray) -> PartResult:
+    """A piece: the paper's rules, else the best single model."""
+    part = ctx.cloud.cluster(idx, ctx.rng, ctx.cfg)
+    if part.shape is not Shape.UNIDENTIFIED:
+        model = _model(part)
+        rate = band_rate(model, ctx.cloud.points[idx], ctx.band) if model is not None else None
+        return replace(part, band_rate=rate)
+    return _best_single(ctx, idx, part)
+
+
+def _axis_fit(part: PartResult):
+    fits = [part.fits.get(k) for k in ("cylinder", "cone")]
+    fits = [f for f in fits if f is not None]
+    return max(fits, key=lambda f: f.fit_rate, default=None)
+
+
+def _axial(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> list[PartResult] | None:
+    feats = part.features
+    axis = _axis_fit(part)
+    if axis is None or not np.isfinite(feats.cylindrical_symmetry) or not np.isfinite(feats.mean_radius):
+        return None
+    if feats.cylindrical_symmetry > max(0.15 * feats.mean_radius, 3.0 * ctx.scale):
+        return None  # not near-axisymmetric
+    segs = profile_segments(ctx.cloud.points[idx], axis.t, axis.R[:, 2], spacing=ctx.spacing, scale=ctx.scale,
+                            min_points=ctx.cfg.min_cluster_points)
+    return None if segs is None else [_leaf(ctx, idx[s]) for s in segs]
+
+
+def _peel(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> list[PartResult] | None:
+    body = _axis_fit(part)
+    if body is None:
+        return None
+    from graspsim.perception.shapes import model_sdf
+
+    sd = model_sdf(body.kind, body.R[None], body.t[None], body.dims[None], ctx.cloud.points[idx])[0]
+    out = np.nan_to_num(sd, nan=0.0) > ctx.band
+    if out.sum() < ctx.cfg.min_handle_points or len(idx) - out.sum() < ctx.cfg.min_cluster_points:
+        return None
+    return [_leaf(ctx, idx[~out]), _leaf(ctx, idx[out])]
+
+
+def _split(ctx: _Ctx, idx: np.ndarray) -> list[PartResult] | None:
+    pts = ctx.cloud.points[idx]
+    if len(idx) < 2 * ctx.cfg.min_cluster_points:
+        return None
+    box = min_volume_box(pts)
+    split = best_split(pts, box, min_points=ctx.cfg.min_cluster_points)
+    if split is None:
+        return None
+    theta = theta_star(box.volume, (split.boxes[0].volume, split.boxes[1].volume), 0.0)
+    if theta >= max(ctx.cfg.max_theta, ctx.cfg.theta):
+        return None
+    return [_leaf(ctx, idx[split.mask]), _leaf(ctx, idx[~split.mask])]
+
+
+def _assigned(ctx: _Ctx, idx: np.ndarray, parts: list[PartResult]) -> list[PartResult]:
+    """The parts with the cluster's points re-assigned to the nearest identified part's
+    surface (unidentified parts keep the points no identified part is near), and their
+    band rates on those points."""
+    good = [p for p in parts if p.shape is not Shape.UNIDENTIFIED]
+    if len(good) < 2 or len(parts) > len(good):
+        return parts
+    pts = ctx.cloud.points[idx]
+    d = np.stack([model_distance([_model(p)], pts) for p in good])
+    owner = np.argmin(d, axis=0)
+    out = []
+    for j, p in enumerate(good):
+        mine = owner == j
+        if not mine.any():
+            continue
+        rate = float(np.mean(d[j, mine] <= ctx.band))
+        out.append(replace(p, indices=ctx.cloud.kept[idx[mine]], band_rate=rate,
+                           approximate=p.approximate or rate < ctx.cfg.approx_fit_rate))
+    return out
+
+
+def _score(ctx: _Ctx, idx: np.ndarray, parts: list[PartResult]) -> float:
+    models = [_model(p) for p in parts if p.shape is not Shape.UNIDENTIFIED]
+    return decomposition_score(models, ctx.cloud.points[idx], ctx.band, ctx.cfg.band)
+
+
+def _solve(ctx: _Ctx, idx: np.ndarray, depth: int, part: PartResult | None = None) -> list[PartResult]:
+    """The best decomposition of the cluster ``idx`` (local indices); ``part``: its
+    identification by the paper's rules, if made already. An identified part that
+    explains ``settle_rate`` of its points within the band is kept as it is."""
+    if part is None:
+        part = ctx.cloud.cluster(idx, ctx.rng, ctx.cfg)
+    if not part.fits:  # not one surface, or too noisy for its size: nothing to fit
+        return [part]
+    first = _leaf_of(ctx, idx, part) if part.shape is not Shape.UNIDENTIFIED else _best_single(ctx, idx, part)
+    if first.shape is not Shape.UNIDENTIFIED and (first.band_rate is None or first.band_rate >= ctx.cfg.settle_rate):
+        return [first]
+    cands = [[first]]
+    for make in (_axial, _peel):
+        c = make(ctx, idx, part)
+        if c is not None:
+            cands.append(_assigned(ctx, idx, c))
+    if not any(_settled(ctx, c) for c in cands[1:]):
+        c = _split(ctx, idx)
+        if c is not None:
+            cands.append(c)
+    best = min(cands, key=lambda c: _score(ctx, idx, c))
+    if len(best) == 1 or depth + 1 >= _MAX_DEPTH:
+        return best
+    # the pieces of the chosen decomposition that are still not explained: again
+    out = []
+    for p in best:
+        poor = p.fits and (p.shape is Shape.UNIDENTIFIED or p.approximate)
+        out += _solve(ctx, _local(ctx.cloud, p), depth + 1, p) if poor else [p]
+    return out
+
+
+def _settled(ctx: _Ctx, parts: list[PartResult]) -> bool:
+    """Every part identified and explaining ``settle_rate`` of its points."""
+    return all(p.shape is not Shape.UNIDENTIFIED and (p.band_rate or 0.0) >= ctx.cfg.settle_rate for p in parts)
+
+
+def _leaf_of(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> PartResult:
+    model = _model(part)
+    return replace(part, band_rate=None if model is None else band_rate(model, ctx.cloud.points[idx], ctx.band))
+
+
+def _local(cloud: Cloud, part: PartResult) -> np.ndarray:
+    return np.searchsorted(cloud.kept, part.indices)
+
+
+def _context(cloud: Cloud, rng: np.random.Generator, cfg: IdentifyConfig) -> _Ctx:
+    spacing = float(np.median(cKDTree(cloud.points).query(cloud.points, k=2)[0][:, 1]))
+    return _Ctx(cloud, rng, cfg, spacing, inlier_band(cloud.noise, spacing, cfg.band))
+
+
+def settled(cloud: Cloud, done: list, failed: list, cfg: IdentifyConfig) -> list | None:
+    """The paper loop's leaves ``done`` with their band rates when nothing is left to
+    decompose -- no cluster unidentified, every part explaining ``settle_rate`` of its
+    points within the band -- else None."""
+    if failed or not done:
+        return None
+    ctx = _context(cloud, np.random.default_rng(0), cfg)  # no draws: rates only
+    out = [(_leaf_of(ctx, _local(cloud, p), p), box) for p, box in done]
+    return out if _settled(ctx, [p for p, _ in out]) else None
+
+
+def keep_going(cloud: Cloud, done: list, failed: list, n_splits: int, rng: np.random.Generator,
+               cfg: IdentifyConfig):
+    """Robust continuation of the paper's loop: (identified leaves, unidentified leaves,
+    splits) as :func:`~graspsim.perception.identify._hierarchy` returns them, with the
+    clusters in ``failed`` decomposed further and over-split neighbours merged."""
+    ctx = _context(cloud, rng, cfg)
+    out, left = [], []
+    for part, box in [*done, *failed]:
+        idx = _local(cloud, part)
+        parts = _solve(ctx, idx, 0, part)
+        if len(parts) == 1 and parts[0].shape is part.shape:
+            (out if part.shape is not Shape.UNIDENTIFIED else left).append((parts[0], box))
+            continue
+        for p in parts:
+            if p.shape is Shape.UNIDENTIFIED:
+                left.append((replace(p, T_world_obj=min_volume_box(cloud.points[_local(cloud, p)]).T_world_box.copy()),
+                             None))
+            else:
+                out.append((p, None))
+        n_splits += max(len(parts) - 1, 0)
+    done = out
+    return _merged(ctx, done), left, n_splits
+
+
+def _merged(ctx: _Ctx, done: list) -> list:
+    """Merge pairs of touching parts whose union one model explains as well."""
+    parts = list(done)
+    changed = True
+    while changed and len(parts) > 1:
+        changed = False
+        for i in range(len(parts)):
+            for j in range(i + 1, len(parts)):
+                merged = _try_merge(ctx, parts[i][0], parts[j][0])
+                if merged is not None:
+                    parts = [p for k, p in enumerate(parts) if k not in (i, j)] + [(merged, None)]
+                    changed = True
+                    break
+            if changed:
+                break
+    return parts
+
+
+def _try_merge(ctx: _Ctx, a: PartResult, b: PartResult) -> PartResult | None:
+    """The union of two touching parts of one kind as one part, when one model
+    identified by the paper's rules explains it within the band as well as the two did
+    (within 1 %)."""
+    if a.shape is not b.shape:
+        return None
+    ia, ib = _local(ctx.cloud, a), _local(ctx.cloud, b)
+    pa, pb = ctx.cloud.points[ia], ctx.cloud.points[ib]
+    gap = cKDTree(pa).query(pb, k=1, distance_upper_bound=3.0 * ctx.spacing)[0]
+    if not np.isfinite(gap).any():
+        return None  # not neighbours
+    idx = np.concatenate([ia, ib])
+    union = _leaf(ctx, idx)
+    if union.shape is Shape.UNIDENTIFIED or union.approximate or union.band_rate is None:
+        return None
+    d = model_distance([_model(a)], pa) <= ctx.band, model_distance([_model(b)], pb) <= ctx.band
+    if union.band_rate >= (d[0].sum() + d[1].sum()) / len(idx) - 0.01:
+        return union
+    return None

@@ -8,6 +8,11 @@ candidate). On the test episodes all policies are scored on the same episodes:
 
 * random: a valid candidate uniformly at random (and its expected success);
 * highest grade: the paper's choice;
+* robust: the highest robust score (the planner's default ranking: expected success
+  under the execution error, clearance to the observed cloud; ``graspsim.maps.robust``),
+  and its ablations (``robust_<name>``, ``graspsim.maps.robust.ABLATIONS``: without the
+  cloud, without pose error, at half and twice the error, the feasible fraction alone,
+  the paper's grade as the success probability), scored on the same candidates;
 * oracle: succeeds when any candidate does (an upper bound);
 * learned: logistic regression of success on the candidates' features (map columns,
   pose relative to the table, clearance to the observed cloud), trained on the logged
@@ -42,7 +47,7 @@ import math  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
-from dataclasses import asdict, dataclass  # noqa: E402
+from dataclasses import asdict, dataclass, replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -62,12 +67,19 @@ from _common import (  # noqa: E402
 )
 
 import graspsim  # noqa: E402,F401  (registers the environments)
-from graspsim.envs.baselines import FEATURE_NAMES, LogisticPolicy, grasp_features, highest_grade_policy, wilson_interval  # noqa: E402
+from graspsim.envs.baselines import (  # noqa: E402
+    FEATURE_NAMES,
+    LogisticPolicy,
+    grasp_features,
+    highest_grade_policy,
+    wilson_interval,
+)
 from graspsim.envs.candidates import CANDIDATE_FEATURES  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
+from graspsim.maps.robust import ABLATIONS, cloud_in_object, score_rows  # noqa: E402
 
 log = logging.getLogger("e06")
-POLICIES = ("random", "highest_grade", "learned", "learned_map_only", "oracle")
+POLICIES = ("random", "highest_grade", "robust", "learned", "learned_map_only", "oracle")
 MAP_ONLY = tuple(FEATURE_NAMES.index(n) for n in ("grade", "q_fc", "q_st", "fc_angle",
                                                   "stability_distance", "width"))
 OUTCOMES = ("success", "start_collision", "no_contact", "slipped", "dropped", "place_failed",
@@ -155,6 +167,18 @@ def _seed(cfg: E06Config, split: int, i: int) -> int:
     return int(np.random.SeedSequence(entropy=cfg.seed, spawn_key=(split, i)).generate_state(1)[0])
 
 
+def ablation_scores(env, cfg: E06Config) -> np.ndarray:
+    """(len(ABLATIONS), K) robust scores of the episode's candidates under each ablation
+    (0 in invalid slots), from the plan the environment made."""
+    res, rows = env.plan_result, env.candidate_rows
+    cloud = cloud_in_object(env.episode.points, res.T_cloud_obj) if cfg.perception == "cloud" else None
+    out = np.zeros((len(ABLATIONS), cfg.k), np.float32)
+    for j, kw in enumerate(ABLATIONS.values()):
+        cfg_j = replace(env.planner_config.robust, **kw)
+        out[j, :len(rows)] = score_rows(res.map, rows, cloud, cfg_j).robust
+    return out
+
+
 def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     """One logged episode: every candidate simulated, then the highest-grade one stepped."""
     env = _env(cfg)
@@ -162,6 +186,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     obs, info = env.reset(seed=_seed(cfg, split, i))
     reset = c.record()
     feats = grasp_features(obs, env.gripper)
+    ablation = ablation_scores(env, cfg) if split == 1 else np.zeros((len(ABLATIONS), cfg.k), np.float32)
     c = Clock()
     ev = env.evaluate_candidates(threads=1)
     evaluate = c.record()
@@ -177,6 +202,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
             "parts": info["parts"], "redraws": info["redraws"], "n_clear": info["n_clear"],
             "features": feats.astype(np.float32), "candidates": obs["candidates"],
             "mask": obs["action_mask"], "outcome": ev["outcome"], "outcome_exact": exact, "cloud": obs["cloud"],
+            "ablation": ablation,
             "object_pose": obs["object_pose"],
             "reset_s": reset["wall_s"], "reset_cpu_s": reset["cpu_s"], "plan_s": env.timing.get("plan"),
             "evaluate_s": evaluate["wall_s"], "trials": int(obs["action_mask"].sum()),
@@ -213,18 +239,25 @@ def choices(eps: list[dict], learned: LogisticPolicy, map_only: LogisticPolicy,
             rng: np.random.Generator) -> dict[str, np.ndarray]:
     """Chosen candidate (E,) per policy; the oracle's is a successful one if any."""
     X, M, O = _stack(eps, "features").astype(float), _stack(eps, "mask").astype(bool), _stack(eps, "outcome")
-    grade = _stack(eps, "candidates")[:, :, CANDIDATE_FEATURES.index("grade")]
+    cand = _stack(eps, "candidates")
+    grade = cand[:, :, CANDIDATE_FEATURES.index("grade")]
+    robust = cand[:, :, CANDIDATE_FEATURES.index("robust")]
+    A = _stack(eps, "ablation")  # (E, len(ABLATIONS), K)
     E, K, F = X.shape
 
     def argmax_valid(score):
         return np.argmax(np.where(M, score, -np.inf), axis=1)
 
+    def by_robust(score):  # ties by grade (grades are < 1: the score's order comes first)
+        return argmax_valid(np.round(score.astype(float), 6) * 10.0 + grade)
+
     p_full = learned.predict_proba(X.reshape(-1, F)).reshape(E, K)
     p_map = map_only.predict_proba(X.reshape(-1, F)[:, MAP_ONLY]).reshape(E, K)
     rand = np.array([rng.choice(np.flatnonzero(m)) for m in M])
-    return {"random": rand, "highest_grade": argmax_valid(grade), "learned": argmax_valid(p_full),
-            "learned_map_only": argmax_valid(p_map),
-            "oracle": argmax_valid(np.where(O == 0, 2.0, 0.0) + grade)}
+    return {"random": rand, "highest_grade": argmax_valid(grade), "robust": by_robust(robust),
+            "learned": argmax_valid(p_full), "learned_map_only": argmax_valid(p_map),
+            "oracle": argmax_valid(np.where(O == 0, 2.0, 0.0) + grade),
+            **{f"robust_{a}": by_robust(A[:, j]) for j, a in enumerate(ABLATIONS)}}
 
 
 def rate(ok: np.ndarray) -> dict:
@@ -267,7 +300,14 @@ def evaluate(eps: list[dict], pick: dict[str, np.ndarray]) -> dict:
            "chosen_outcomes_exact": {p: {o: int(np.sum(OX[rows, pick[p]] == j)) for j, o in enumerate(OUTCOMES)}
                                      for p in POLICIES},
            "learned_vs_highest_grade": mcnemar(ok["learned"], ok["highest_grade"]),
-           "map_only_vs_highest_grade": mcnemar(ok["learned_map_only"], ok["highest_grade"])}
+           "robust_vs_highest_grade": mcnemar(ok["robust"], ok["highest_grade"]),
+           "robust_vs_learned": mcnemar(ok["robust"], ok["learned"]),
+           "map_only_vs_highest_grade": mcnemar(ok["learned_map_only"], ok["highest_grade"]),
+           "ablation": {a: {"success": rate(O[rows, pick[f"robust_{a}"]] == 0),
+                            "success_exact": rate(OX[rows, pick[f"robust_{a}"]] == 0),
+                            "start_collision": int(np.sum(O[rows, pick[f"robust_{a}"]] == sc)),
+                            "start_collision_exact": int(np.sum(OX[rows, pick[f"robust_{a}"]] == sc))}
+                        for a in ABLATIONS}}
     return res
 
 
@@ -287,7 +327,8 @@ def costs(eps: list[dict]) -> dict:
 
 # ---------------------------------------------------------------------- outputs
 def write_table(cfg: E06Config, res: dict, cost: dict) -> str:
-    names = {"random": "random", "highest_grade": "highest grade", "learned": "learned (all features)",
+    names = {"random": "random", "highest_grade": "highest grade", "robust": "robust score",
+             "learned": "learned (all features)",
              "learned_map_only": "learned (map columns only)", "oracle": "oracle"}
     lines = [f"{res['test_episodes']} test episodes, objects `{cfg.objects}`, K = {cfg.k}, "
              f"execution error {1000 * cfg.position_noise:.0f} mm / {cfg.rotation_noise_deg:.0f} deg; "
@@ -401,8 +442,17 @@ def main(argv=None) -> int:
 
 
 NAMES = {"random": "random valid candidate", "highest_grade": "highest paper grade",
-         "learned": "learned (all features)", "learned_map_only": "learned (map columns only)",
+         "robust": "highest robust score (the planner's default ranking)",
+         "learned": "learned (all features, the robust score included)",
+         "learned_map_only": "learned (map columns only)",
          "oracle": "oracle (any candidate succeeds)"}
+
+
+ABLATION_NAMES = {"no_cloud": "without the observed cloud (primitives and table only)",
+                  "nominal": "without pose error (clearance at the pose only)",
+                  "sigma_half": "at half the error (1.5 mm / 1°)", "sigma_double": "at twice the error (6 mm / 4°)",
+                  "feasible_only": "the feasible fraction alone",
+                  "paper_grade": "the paper's grade as the success probability"}
 
 
 def readme_section(s: dict) -> str:
@@ -432,17 +482,37 @@ def readme_section(s: dict) -> str:
     L += ["", f"Random choice's expected success over the valid candidates: {pct(r['random_expected'])} %. "
           f"Learned vs highest grade on the same episodes: learned alone succeeds in {m['only_first']}, the "
           f"highest grade alone in {m['only_second']} (exact McNemar p = {m['p_exact']:.2g}). Per object kind:", "",
-          "| kind | episodes | random | highest grade | learned | oracle | learned alone / highest grade alone | "
-          + sc_err.replace("of the chosen grasp", "of the highest-grade grasp") + " |",
-          "|---|---|---|---|---|---|---|---|"]
+          "| kind | episodes | random | highest grade | robust | learned | oracle | learned alone / highest grade "
+          "alone | " + sc_err.replace("of the chosen grasp", "of the highest-grade / robust grasp") + " |",
+          "|---|---|---|---|---|---|---|---|---|"]
     for k, b in r["by_kind"].items():
         mk = b["learned_vs_highest_grade"]
-        sc = str(b["start_collision"]["highest_grade"])
-        if noisy:
-            sc += f" / {b['start_collision_exact']['highest_grade']}"
+        sc = " / ".join(str(b[key][p]) for p in ("highest_grade", "robust")
+                        for key in (("start_collision", "start_collision_exact") if noisy else ("start_collision",)))
         L.append(f"| {k} | {b['episodes']} | " + " | ".join(f"{pct(b[p], 0)} %" for p in
-                                                              ("random", "highest_grade", "learned", "oracle"))
+                                                              ("random", "highest_grade", "robust", "learned",
+                                                               "oracle"))
                  + f" | {mk['only_first']} / {mk['only_second']} | {sc} |")
+    if "robust_vs_highest_grade" in r:
+        mr, ml = r["robust_vs_highest_grade"], r["robust_vs_learned"]
+        L += ["", f"Robust score vs highest grade on the same episodes: the robust choice alone succeeds in "
+              f"{mr['only_first']}, the highest grade alone in {mr['only_second']} (exact McNemar p = "
+              f"{mr['p_exact']:.2g}); vs the learned policy: {ml['only_first']} / {ml['only_second']} "
+              f"(p = {ml['p_exact']:.2g})."]
+    if r.get("ablation"):
+        L += ["", "Ablations of the robust score (`graspsim.maps.robust.ABLATIONS`), each choosing among the "
+              "same candidates:", "",
+              "| robust score | " + f"success, {err}" + (" | without the error" if noisy else "") + f" | {sc_err} |",
+              "|---|---|" + ("---|" if noisy else "") + "---|"]
+        for a, x in r["ablation"].items():
+            row = [ABLATION_NAMES.get(a, a), rate_ci(x["success"]["successes"], x["success"]["n"],
+                                                     x["success"]["ci95"])]
+            if noisy:
+                row.append(rate_ci(x["success_exact"]["successes"], x["success_exact"]["n"],
+                                   x["success_exact"]["ci95"]))
+            row.append(f"{x['start_collision']} / {x['start_collision_exact']}" if noisy
+                       else str(x["start_collision"]))
+            L.append("| " + " | ".join(row) + " |")
     m = s["machine"]
     L += ["", f"Cost, mean CPU time: a reset (drawing the object, its cloud, planning) "
           f"{c['reset_cpu']['mean_ms']:.0f} ms, "

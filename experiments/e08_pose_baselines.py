@@ -10,6 +10,13 @@ object, pose, cloud and execution error):
 * planner: graspsim's run-time planner on the observed (fixed-size) cloud, with the
   table known (z = 0), proposing its highest-grade grasp (the top-down pose when the
   planner finds none);
+* planner, robust: the same plan's best grasp by the robust ranking (the planner's
+  default: expected success under 3 mm / 2 deg wrist error, clearance to the observed
+  cloud; ``graspsim.maps.robust``) -- the top-down pose when no grasp scores above 0;
+* ablations of the robust score (``--ablations``): ``no_cloud`` (perturbations checked
+  against the identified primitives and the table only), ``nominal`` (no pose error:
+  clearance at the nominal pose only), ``sigma_half`` and ``sigma_double`` (the
+  perturbations at half and twice the error);
 * planner, clearance C mm (``--clearance``): the highest-grade grasp whose gripper,
   with the jaws opened C mm wider on each side than the pre-grasp opening (and executed
   so), stays C mm clear of the identified primitives -- room for the fingers to miss
@@ -54,9 +61,11 @@ from _common import (  # noqa: E402
 )
 
 import graspsim  # noqa: E402, F401  (registers the environments)
+from graspsim.envs.baselines import planner_pose  # noqa: E402
 from graspsim.maps.collide import boxes_clear_sdf  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
+from graspsim.maps.robust import ABLATIONS, RobustConfig, cloud_in_object, score_map  # noqa: E402
 from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402
 from graspsim.stats import wilson_interval  # noqa: E402
 from graspsim.transforms import frame_from_axes, invert_transform, make_transform  # noqa: E402
@@ -72,12 +81,15 @@ class Config:
     noise: tuple[str, ...] = ("default", "none")
     clearance_mm: tuple[float, ...] = (3.0, 10.0)
     clearance_rows: int = 2000
+    ablations: tuple[str, ...] = tuple(ABLATIONS)
     db: str = ""
     quick: bool = False
 
     @property
     def policies(self) -> tuple[str, ...]:
-        return ("random", "top_down", "planner") + tuple(_clear_name(c) for c in self.clearance_mm)
+        return (("random", "top_down", "planner", "planner_robust")
+                + tuple(_clear_name(c) for c in self.clearance_mm)
+                + tuple(f"planner_robust_{a}" for a in self.ablations))
 
 
 def _clear_name(mm: float) -> str:
@@ -86,7 +98,8 @@ def _clear_name(mm: float) -> str:
 
 def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
     """(T_world_wrist, width): straight down over the centroid, closing across the
-    cloud's narrowest horizontal direction."""
+    cloud's narrowest horizontal direction; the gripper's nominal (mid-pad) TCP
+    2 cm below the top."""
     g = env.gripper
     p = cloud.astype(float)
     c = p[:, :2].mean(axis=0)
@@ -94,7 +107,7 @@ def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
     x = np.array([v[0, 0], v[1, 0], 0.0])  # the smaller eigenvalue's axis
     z = np.array([0.0, 0.0, -1.0])
     top = float(p[:, 2].max())
-    half_pad = 0.5 * g.pad_length
+    half_pad = g.nominal_depth  # the nominal TCP's distance from the fingertips
     tcp_z = max(top - half_pad, half_pad + 0.003)  # fingertips stay above the table
     band = p[np.abs(p[:, 2] - tcp_z) < half_pad]
     s = (band if len(band) else p)[:, :2] @ x[:2]
@@ -102,7 +115,7 @@ def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
     centre = c + (0.5 * (s.max() + s.min()) - c @ x[:2]) * x[:2]
     R = frame_from_axes(x, z)
     tcp = np.array([centre[0], centre[1], tcp_z])
-    return make_transform(R, tcp - g.tcp_offset(half_pad) * z), width  # the env's TCP: mid-pad
+    return make_transform(R, tcp - float(g.nominal_tcp[2]) * z), width
 
 
 class _Inflated:
@@ -142,14 +155,20 @@ def planner_poses(env, cloud: np.ndarray, db: MapDatabase, seed: int, cfg: Confi
     res = plan(cloud.astype(float), db=db, rng=np.random.default_rng(seed),
                config=PlannerConfig(table=TablePlane(height=0.0)))
     t_plan = time.perf_counter() - t0
-    out = {}
+    out = {"planner_robust": (planner_pose(res, "robust"), t_plan)}
+    cloud_obj = cloud_in_object(cloud, res.T_cloud_obj)
+    for name in cfg.ablations:
+        t1 = time.perf_counter()
+        variant = replace(res, map=score_map(res.map, cloud_obj, replace(RobustConfig(), **ABLATIONS[name])))
+        out[f"planner_robust_{name}"] = (planner_pose(variant, "robust"), t_plan + time.perf_counter() - t1)
     for c in (0.0,) + tuple(cfg.clearance_mm):
         t1 = time.perf_counter()
+        paper = replace(res, map=res.map.ranked("paper"))
         i = (0 if len(res.map) else None) if c == 0 else (
-            clear_row(res, env.gripper, c / 1000.0, cfg.clearance_rows) if len(res.map) else None)
+            clear_row(paper, env.gripper, c / 1000.0, cfg.clearance_rows) if len(res.map) else None)
         # the action's width: the jaws open to width + 2 x approach clearance, so + 2c more
-        pose = None if i is None else (res.T_cloud_obj @ res.map.T_obj_wrist[i],
-                                       float(res.map.width[i]) + 2.0 * c / 1000.0)
+        pose = None if i is None else (res.T_cloud_obj @ paper.map.T_obj_wrist[i],
+                                       float(paper.map.width[i]) + 2.0 * c / 1000.0)
         out["planner" if c == 0 else _clear_name(c)] = (pose, t_plan + time.perf_counter() - t1)
     return out
 
@@ -262,6 +281,8 @@ def main(argv=None) -> int:
                    help="planner variants asking for this clearance from the identified shape [mm] (default 3 10)")
     p.add_argument("--clearance-rows", type=int, default=Config.clearance_rows,
                    help="best grasps searched for a clear one (default 2000)")
+    p.add_argument("--ablations", nargs="*", default=list(Config.ablations), choices=sorted(ABLATIONS),
+                   help="robust-score ablations run as extra planner policies (default: all)")
     p.add_argument("--db", default="", help="FS database folder (default: the library's; quick: OUT/fsdb)")
     p.add_argument("--quick", action="store_true", help="a few episodes on a coarse database (CI)")
     a = p.parse_args(argv)
@@ -275,7 +296,8 @@ def main(argv=None) -> int:
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     cfg = Config(episodes=a.episodes, objects=a.objects, seed=a.seed, noise=tuple(a.noise),
-                 clearance_mm=tuple(a.clearance), clearance_rows=a.clearance_rows, db=a.db)
+                 clearance_mm=tuple(a.clearance), clearance_rows=a.clearance_rows,
+                 ablations=tuple(a.ablations), db=a.db)
     if a.quick:
         cfg = replace(cfg, episodes=min(a.episodes, 6), quick=True, db=a.db or str(out / "fsdb"))
     write_config(out / "config.json", cfg)
@@ -293,12 +315,21 @@ def main(argv=None) -> int:
 
 
 NAMES = {"random": "random action", "top_down": "top-down heuristic",
-         "planner": "planner, highest grade"}
+         "planner": "planner, highest paper grade", "planner_robust": "planner, robust ranking (the default)"}
+ABLATION_NAMES = {"no_cloud": "without the observed cloud (primitives and table only)",
+                  "nominal": "without pose error (clearance at the pose only)",
+                  "sigma_half": "at half the error (1.5 mm / 1°)", "sigma_double": "at twice the error (6 mm / 4°)",
+                  "feasible_only": "by the feasible fraction alone",
+                  "paper_grade": "with the paper's grade for the success probability"}
 
 
 def _name(p: str) -> str:
-    return NAMES.get(p) or (f"planner, highest grade with {p.rsplit('_', 1)[1].replace('mm', ' mm')} of "
-                            f"clearance from the shape")
+    if p in NAMES:
+        return NAMES[p]
+    if p.startswith("planner_robust_"):
+        return "planner, robust ranking " + ABLATION_NAMES[p[len("planner_robust_"):]]
+    return (f"planner, highest grade with {p.rsplit('_', 1)[1].replace('mm', ' mm')} of "
+            f"clearance from the shape")
 
 
 def readme_section(s: dict) -> str:

@@ -86,18 +86,21 @@ def measure(seed: int, kinds: tuple[str, ...], repeat: int, db_root: str | None)
         n = min(1000, len(base.map))
         for _ in range(repeat + 1):
             load = load_average()[0]
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             score_map(base.map, cl, RobustConfig(top=1000))
-            scores.append({"ms": 1e3 * (time.perf_counter() - t0), "load": load})
+            scores.append({"ms": 1e3 * (time.perf_counter() - t0), "cpu_ms": 1e3 * (time.process_time() - c0),
+                           "load": load})
 
-        def med(v):
-            x = [r["ms"] for r in v[1:] if r["ms"] is not None]
+        def med(v, key="ms"):
+            x = [r[key] for r in v[1:] if r[key] is not None]
             return statistics.median(x) if x else None
 
         rows.append({"kind": kind, "cloud_points": len(cloud), "grasps": len(base.map), "scored": n,
                      "parts": len(base.parts), "status": base.status.value,
-                     "first_call": {"first_robust_ms": firsts[0]["ms"], "score_1000_ms": scores[0]["ms"]},
-                     "in_process": {"first_robust_ms": med(firsts), "score_1000_ms": med(scores)},
+                     "first_call": {"first_robust_ms": firsts[0]["ms"], "score_1000_ms": scores[0]["ms"],
+                                    "score_1000_cpu_ms": scores[0]["cpu_ms"]},
+                     "in_process": {"first_robust_ms": med(firsts), "score_1000_ms": med(scores),
+                                    "score_1000_cpu_ms": med(scores, "cpu_ms")},
                      "load": [r["load"] for r in firsts + scores]})
     return {"rows": rows, "load_after": load_average()}
 
@@ -132,8 +135,8 @@ def _summarise(runs: dict, cfg: argparse.Namespace, run: RunRecord) -> dict:
         vals = [v["in_process"] for v in table.values() if v["in_process"] is not None]
         return {"per_kind": table, "in_process_worst_ms": max(vals) if vals else None,
                 "in_process_median_ms": statistics.median(vals) if vals else None,
-                "goal_ms": GOALS_MS[key.replace("_ms", "")],
-                "met_in_process": all(v <= GOALS_MS[key.replace("_ms", "")] for v in vals)}
+                "goal_ms": GOALS_MS.get(key.replace("_ms", "")),
+                "met_in_process": all(v <= GOALS_MS.get(key.replace("_ms", ""), float("inf")) for v in vals)}
 
     info = {r["kind"]: {k: r[k] for k in ("cloud_points", "grasps", "scored", "parts", "status")}
             for r in runs["warm"][0]["rows"]}
@@ -144,7 +147,8 @@ def _summarise(runs: dict, cfg: argparse.Namespace, run: RunRecord) -> dict:
         "denominators": f"per kind: the first run in one process on an empty numba cache; the first call of "
                         f"{cfg.processes} fresh processes (median); in-process: medians of {cfg.repeat} calls "
                         f"after the first, median over the processes",
-        "objects": info, "score_1000": stats("score_1000_ms"), "first_robust": stats("first_robust_ms"),
+        "objects": info, "score_1000": stats("score_1000_ms"), "score_1000_cpu": stats("score_1000_cpu_ms"),
+        "first_robust": stats("first_robust_ms"),
         "load_during": {"min": min(loads), "max": max(loads)},
     })
 
@@ -157,15 +161,19 @@ def readme_section(s: dict) -> str:
     L = [f"`{s['command']}`: {s['denominators']}; {s['machine']['cpus']} cores, load average "
          f"{s['load_during']['min']:.1f}–{s['load_during']['max']:.1f} during the measurements.", "",
          "| object | grasps scored | robust scoring of the best 1000 [ms]: first run / fresh process / "
-         "in-process | first robust grasp after identification [ms]: first run / fresh process / in-process |",
+         "in-process (CPU) | first robust grasp after identification [ms]: first run / fresh process / "
+         "in-process |",
          "|---|---|---|---|"]
     for k, o in s["objects"].items():
         a, b = s["score_1000"]["per_kind"][k], s["first_robust"]["per_kind"][k]
+        c = s["score_1000_cpu"]["per_kind"][k]
         L.append(f"| {k} ({o['parts']} part{'s' if o['parts'] > 1 else ''}) | {o['scored']} | "
-                 f"{ms(a['first_run'])} / {ms(a['fresh_process'])} / {ms(a['in_process'])} | "
+                 f"{ms(a['first_run'])} / {ms(a['fresh_process'])} / {ms(a['in_process'])} "
+                 f"({ms(c['in_process'])}) | "
                  f"{ms(b['first_run'])} / {ms(b['fresh_process'])} / {ms(b['in_process'])} |")
     sc, fr = s["score_1000"], s["first_robust"]
-    L += ["", f"In-process, worst object: scoring {ms(sc['in_process_worst_ms'])} ms (goal "
+    L += ["", f"In-process, worst object: scoring {ms(sc['in_process_worst_ms'])} ms of wall time, "
+          f"{ms(s['score_1000_cpu']['in_process_worst_ms'])} ms of CPU time (goal "
           f"{sc['goal_ms']:.0f} ms: {'met' if sc['met_in_process'] else 'missed'}), first robust grasp "
           f"{ms(fr['in_process_worst_ms'])} ms (goal {fr['goal_ms']:.0f} ms: "
           f"{'met' if fr['met_in_process'] else 'missed'})."]

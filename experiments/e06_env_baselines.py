@@ -455,6 +455,11 @@ ABLATION_NAMES = {"no_cloud": "without the observed cloud (primitives and table 
                   "paper_grade": "the paper's grade as the success probability"}
 
 
+KIND_NAMES = {"random": "random", "highest_grade": "highest grade", "robust": "robust", "learned": "learned",
+              "oracle": "oracle"}
+SC_NAMES = {"highest_grade": "highest-grade", "robust": "robust"}
+
+
 def readme_section(s: dict) -> str:
     """The README's E06 paragraph and tables (see ``experiments/report.py``)."""
     cfg, r, c = s["config"], s["results"], s["cost"]
@@ -469,9 +474,11 @@ def readme_section(s: dict) -> str:
     sc_err = "START_COLLISION of the chosen grasp" + (" (with / without the error)" if noisy else "")
     head = ["policy", f"success, {err}"] + (["the same choice without the error"] if noisy else []) + [sc_err]
     L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for p in POLICIES:
+    pols = [p for p in POLICIES if p in r["overall"]]  # summaries from before the robust ranking lack it
+    names = {**NAMES, "learned": NAMES["learned"] if "robust" in pols else "learned (all features)"}
+    for p in pols:
         o = r["overall"][p]
-        row = [NAMES[p], rate_ci(o["successes"], o["n"], o["ci95"])]
+        row = [names[p], rate_ci(o["successes"], o["n"], o["ci95"])]
         if noisy:
             x = r["overall_exact"][p]
             row.append(rate_ci(x["successes"], x["n"], x["ci95"]))
@@ -479,19 +486,20 @@ def readme_section(s: dict) -> str:
         row.append(f"{n_sc} / {r['chosen_outcomes_exact'][p]['start_collision']}" if noisy else str(n_sc))
         L.append("| " + " | ".join(row) + " |")
     m = r["learned_vs_highest_grade"]
+    kind_pols = [p for p in ("random", "highest_grade", "robust", "learned", "oracle") if p in pols]
+    sc_pols = [p for p in ("highest_grade", "robust") if p in pols]
     L += ["", f"Random choice's expected success over the valid candidates: {pct(r['random_expected'])} %. "
           f"Learned vs highest grade on the same episodes: learned alone succeeds in {m['only_first']}, the "
           f"highest grade alone in {m['only_second']} (exact McNemar p = {m['p_exact']:.2g}). Per object kind:", "",
-          "| kind | episodes | random | highest grade | robust | learned | oracle | learned alone / highest grade "
-          "alone | " + sc_err.replace("of the chosen grasp", "of the highest-grade / robust grasp") + " |",
-          "|---|---|---|---|---|---|---|---|---|"]
+          "| kind | episodes | " + " | ".join(KIND_NAMES[p] for p in kind_pols) + " | learned alone / highest grade "
+          "alone | " + sc_err.replace("of the chosen grasp", "of the " + " / ".join(SC_NAMES[p] for p in sc_pols)
+                                      + " grasp") + " |",
+          "|---|---|" + "---|" * (len(kind_pols) + 2)]
     for k, b in r["by_kind"].items():
         mk = b["learned_vs_highest_grade"]
-        sc = " / ".join(str(b[key][p]) for p in ("highest_grade", "robust")
+        sc = " / ".join(str(b[key][p]) for p in sc_pols
                         for key in (("start_collision", "start_collision_exact") if noisy else ("start_collision",)))
-        L.append(f"| {k} | {b['episodes']} | " + " | ".join(f"{pct(b[p], 0)} %" for p in
-                                                              ("random", "highest_grade", "robust", "learned",
-                                                               "oracle"))
+        L.append(f"| {k} | {b['episodes']} | " + " | ".join(f"{pct(b[p], 0)} %" for p in kind_pols)
                  + f" | {mk['only_first']} / {mk['only_second']} | {sc} |")
     if "robust_vs_highest_grade" in r:
         mr, ml = r["robust_vs_highest_grade"], r["robust_vs_learned"]

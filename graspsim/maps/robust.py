@@ -222,7 +222,7 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     n = len(rows)
     cloud = np.zeros((0, 3)) if cloud_obj is None else np.asarray(cloud_obj, float).reshape(-1, 3)
     prim = _object_points(gmap.meta, cfg.primitive_step) if "primitives" in cfg.terms else np.zeros((0, 3))
-    P = np.ascontiguousarray(np.concatenate([cloud, prim]), float)  # the cloud first (clearance)
+    P = np.ascontiguousarray(np.concatenate([cloud, prim]), np.float32)  # the cloud first (clearance)
     R = quat_to_matrix(gmap.wrist_quat[rows].astype(float))
     w = gmap.wrist_position[rows].astype(float)
     opening = g.pregrasp_opening(gmap.width[rows])
@@ -253,8 +253,10 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     mask = np.uint8(sum(_BITS[t] for t in cfg.terms))
     ok = (flags & mask) == 0
     feasible = ok[:, 1:].mean(axis=1)
-    success = _success(gmap, rows, cfg.success)
-    robust = np.where(ok[:, 0], feasible * success, 0.0)
+    live = ok[:, 0] & (feasible > 0)  # the success model only where it can matter
+    success = np.zeros(n)
+    success[live] = _success(gmap, rows[live], cfg.success)
+    robust = np.where(live, feasible * success, 0.0)
     return RobustScores(clearance, feasible, success, robust, flags)
 
 

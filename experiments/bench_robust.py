@@ -79,7 +79,7 @@ def measure(seed: int, kinds: tuple[str, ...], repeat: int, db_root: str | None)
             load = load_average()[0]
             res = plan(cloud, db=db, rng=np.random.default_rng(seed), config=robust_cfg)
             t = res.timing
-            firsts.append({"ms": None if t["first_robust"] is None else 1e3 * (t["first_robust"] - t["identify"]),
+            firsts.append({"ms": None if t.get("first_robust") is None else 1e3 * (t["first_robust"] - t["identify"]),
                            "load": load})
         base = plan(cloud, db=db, rng=np.random.default_rng(seed), config=paper_cfg)
         cl = cloud_in_object(cloud, base.T_cloud_obj)

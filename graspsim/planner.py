@@ -195,7 +195,8 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
         prims, T_cloud = [], []
     if not prims:
         yield PlanResult(status, GraspabilityMap.empty(_empty_meta(db, ident)), (), ident, np.eye(4),
-                         {**timing, "total": time.perf_counter() - t0, "first": None, "tenth": None})
+                         {**timing, "total": time.perf_counter() - t0, "first": None, "tenth": None,
+                          "first_robust": None, "robust": 0.0})
         return
     info = {"status": ident.status.value, "n_points": ident.n_points, "n_splits": ident.n_splits,
             "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict()}

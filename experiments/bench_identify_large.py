@@ -10,39 +10,42 @@ voxel-downsampled before identification (issue 13); the summary also gives how f
 the 10^5-point result lies from the 10^6-point one.
 
     python experiments/bench_identify_large.py [--repeat 3] [--sizes 10000 100000 1000000]
-                                               [--out results/bench_identify_large] [--publish]
+                                               [--quick] [--out results/bench_identify_large] [--publish]
 
 Goal (issue 13): 10^6 points identified in <= 5 s with <= 1 GiB peak memory.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
-import os
-import shlex
 import statistics
 import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import load_average, provenance, run_cli_fresh, write_summary  # noqa: E402
+from _common import RunRecord, machine_load, opt, parse_config, rng_for, run_cli_fresh
 
-STEM = "bench_identify_large"
 SHAPES = {"cylinder": {"radius": 0.03, "height": 0.12}, "sphere": {"radius": 0.04}}
 GOAL_SECONDS, GOAL_BYTES = 5.0, 1 << 30
 
 
 @dataclass(frozen=True)
 class BenchConfig:
-    sizes: tuple[int, ...] = (10**4, 10**5, 10**6)
-    repeat: int = 3
-    seed: int = 0
-    out: str = f"results/{STEM}"
+    sizes: tuple[int, ...] = opt((10**4, 10**5, 10**6), "cloud sizes [points]")
+    repeat: int = opt(3, "fresh processes per row (median)")
+    seed: int = opt(0, "cloud seed")
+    shapes: tuple[str, ...] = opt(tuple(SHAPES), "shapes", choices=tuple(SHAPES))
+    QUICK: ClassVar[dict] = {"sizes": (2000, 25000), "repeat": 1, "shapes": ("sphere",)}
+
+    def __post_init__(self) -> None:
+        if self.repeat < 1 or min(self.sizes) < 100:
+            raise ValueError(f"--repeat must be >= 1 and --sizes >= 100, got {self.repeat}, {self.sizes}")
+        object.__setattr__(self, "sizes", tuple(sorted(self.sizes)))
 
 
 def make_cloud(kind: str, n: int, seed: int) -> np.ndarray:
@@ -51,7 +54,7 @@ def make_cloud(kind: str, n: int, seed: int) -> np.ndarray:
     from graspsim.transforms import make_transform, random_rotation
 
     shape = make_primitive(kind, **SHAPES[kind])
-    rng = np.random.default_rng(seed)
+    rng = rng_for(seed)  # the same stream as every earlier run: np.random.default_rng(seed)
     T = make_transform(random_rotation(rng), [0.2, -0.1, 0.6])
     res = float(np.sqrt(shape.mesh(sections=96).area / (1.02 * n)))
     pts = synthetic_cloud(shape, rng, resolution=res, noise=0.0005, T_world_obj=T).points
@@ -72,7 +75,7 @@ def run_cli(path: Path) -> dict:
 def bench(cfg: BenchConfig) -> dict:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for kind in SHAPES:
+        for kind in cfg.shapes:
             full = make_cloud(kind, max(cfg.sizes), cfg.seed)
             for n in cfg.sizes:
                 path = Path(tmp) / f"{kind}_{n}.npy"
@@ -87,14 +90,14 @@ def bench(cfg: BenchConfig) -> dict:
                     "peak_rss_mib_max": max(x["peak_rss_bytes"] for x in runs) / 2**20,
                     "status": r["status"], "primitive": part["primitive"] if part else None,
                     "dims": part["dims"] if part else None, "downsampling": r["downsampling"]})
-    return {"rows": rows, "agreement": _agreement(rows, cfg.sizes)}
+    return {"rows": rows, "agreement": _agreement(rows, cfg.sizes, cfg.shapes)}
 
 
-def _agreement(rows: list[dict], sizes) -> dict:
+def _agreement(rows: list[dict], sizes, shapes) -> dict:
     """Largest dimension difference [m] of each smaller cloud's result from the largest's."""
     out = {}
     big = max(sizes)
-    for kind in SHAPES:
+    for kind in shapes:
         ref = next(r for r in rows if r["shape"] == kind and r["points"] == big)
         for r in rows:
             if r["shape"] == kind and r["points"] != big and r["dims"] and ref["dims"]:
@@ -117,49 +120,28 @@ def readme_section(summary: dict) -> str:
     agree = "; ".join(
         f"{k}: " + (f"same primitive, dims within {v['max_dim_diff_m'] * 1000:.1f} mm" if v["same_primitive"]
                     else "DIFFERENT primitive") for k, v in summary["agreement"].items())
-    m = summary["machine"]
+    m, (before, after) = summary["machine"], machine_load(summary)
     return ("\n".join(lines) + "\n\n"
             f"Median of {summary['config']['repeat']} fresh `graspsim identify --json` processes per row "
             f"(wall includes start-up and imports); peak RSS is the largest of them. {m['cpus']} cores, "
-            f"load average {m['load_before'][0]} before, {m['load_after'][0]} after. Agreement: {agree}. "
+            f"load average {before[0]} before, {after[0]} after. Agreement: {agree}. "
             f"Goal: 10^6 points in <= {GOAL_SECONDS:g} s, <= 1 GiB.\n\n"
             f"`{summary['command']}`")
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=list(BenchConfig.sizes))
-    ap.add_argument("--repeat", type=int, default=BenchConfig.repeat)
-    ap.add_argument("--seed", type=int, default=BenchConfig.seed)
-    ap.add_argument("--out", default=BenchConfig.out)
-    ap.add_argument("--publish", action="store_true",
-                    help=f"also copy summary.json to experiments/reported/{STEM}.json")
-    a = ap.parse_args(argv)
-    cfg = BenchConfig(sizes=tuple(sorted(a.sizes)), repeat=a.repeat, seed=a.seed, out=a.out)
-    argv_used = sys.argv[1:] if argv is None else argv
-    load_before = load_average()
+    cfg, opts = parse_config(BenchConfig, __file__, argv, __doc__)
+    run = RunRecord(__file__, argv)
     res = bench(cfg)
-    import numba
-    import scipy
-
     big = [r for r in res["rows"] if r["points"] == max(cfg.sizes)]
-    summary = {
-        "command": " ".join(["python experiments/bench_identify_large.py", *map(shlex.quote, argv_used)]),
-        "config": {"sizes": list(cfg.sizes), "repeat": cfg.repeat, "seed": cfg.seed},
-        "headline": {
-            "points": max(cfg.sizes),
-            "identify_s_median": max(r["identify_s_median"] for r in big),
-            "wall_s_median": max(r["wall_s_median"] for r in big),
-            "peak_rss_mib_max": max(r["peak_rss_mib_max"] for r in big),
-            "denominator": f"median of {cfg.repeat} runs per shape, worst of {len(big)} shapes",
-            "goal": {"seconds": GOAL_SECONDS, "peak_rss_mib": GOAL_BYTES / 2**20}},
-        **res,
-        "machine": {"cpus": os.cpu_count(), "load_before": load_before, "load_after": load_average()},
-        "versions": {"numpy": np.__version__, "scipy": scipy.__version__, "numba": numba.__version__,
-                     "python": sys.version.split()[0]},
-        "provenance": provenance(),
-    }
-    print(write_summary(summary, cfg.out, STEM, readme_section, publish=a.publish))
+    headline = {
+        "points": max(cfg.sizes),
+        "identify_s_median": max(r["identify_s_median"] for r in big),
+        "wall_s_median": max(r["wall_s_median"] for r in big),
+        "peak_rss_mib_max": max(r["peak_rss_mib_max"] for r in big),
+        "denominator": f"median of {cfg.repeat} runs per shape, worst of {len(big)} shapes",
+        "goal": {"seconds": GOAL_SECONDS, "peak_rss_mib": GOAL_BYTES / 2**20}}
+    print(run.write(opts.out, {"config": cfg, "headline": headline, **res}, readme_section, publish=opts.publish))
     return 0
 
 

@@ -12,23 +12,22 @@ fresh process: the resident memory growth of ``generate_fs_map`` + ``save_map`` 
 ``estimate_map_memory(...).bytes(grasps)`` -- the bound the generator checks before
 it allocates the map's columns.
 
-    python experiments/bench_map_preflight.py [--out results/bench_map_preflight] [--publish]
+    python experiments/bench_map_preflight.py [--quick] [--out results/bench_map_preflight] [--publish]
 """
 
 from __future__ import annotations
 
-import argparse
 import multiprocessing as mp
 import os
-import shlex
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import load_average, provenance, run_cli_fresh, write_summary  # noqa: E402
+from _common import RunRecord, machine_load, opt, parse_config, run_cli_fresh
 
-STEM = "bench_map_preflight"
 TEN_METRES = {
     "sphere": ["--radius", "10"],
     "cylinder": ["--radius", "10", "--height", "10"],
@@ -37,6 +36,16 @@ TEN_METRES = {
     "half_toroid": ["--major-radius", "10", "--minor-radius", "5"],
     "plate (box 10 x 10 x 0.05 m, budget 4GiB)": ["--x", "10", "--y", "10", "--z", "0.05"],
 }
+
+
+PRIMITIVES = ("cylinder", "box", "sphere", "cone", "half_toroid")
+
+
+@dataclass(frozen=True)
+class Config:
+    refusals: tuple[str, ...] = opt(tuple(TEN_METRES), "10 m requests (part A)", choices=tuple(TEN_METRES))
+    estimates: tuple[str, ...] = opt(PRIMITIVES, "paper primitives measured (part B)", choices=PRIMITIVES)
+    QUICK: ClassVar[dict] = {"refusals": ("sphere",), "estimates": ("sphere",)}
 
 
 def _refusal(name: str, dims: list[str], folder: str) -> dict:
@@ -87,44 +96,34 @@ def readme_section(summary: dict) -> str:
          "|---|---|---|---|---|"]
     b += [f"| {r['primitive']} | {r['grasps']:,} | {r['estimate_mib']:.0f} | {r['measured_growth_mib']:.0f} | "
           f"{r['estimate_mib'] / r['measured_growth_mib']:.2f} |" for r in summary["estimates"]]
-    m = summary["machine"]
+    m, (before, after) = summary["machine"], machine_load(summary)
     return ("\n".join(a) + "\n\n" + "\n".join(b) + "\n\n"
-            f"Each row is one fresh process ({m['cpus']} cores, load average {m['load_before'][0]} before, "
-            f"{m['load_after'][0]} after); wall times include Python start-up and imports. Measured growth: "
+            f"Each row is one fresh process ({m['cpus']} cores, load average {before[0]} before, "
+            f"{after[0]} after); wall times include Python start-up and imports. Measured growth: "
             "peak resident memory of generating and writing the map over the process after imports.\n\n"
             f"`{summary['command']}`")
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--out", default=f"results/{STEM}")
-    ap.add_argument("--publish", action="store_true",
-                    help=f"also copy summary.json to experiments/reported/{STEM}.json")
-    a = ap.parse_args(argv)
-    argv_used = sys.argv[1:] if argv is None else argv
-    load_before = load_average()
+    cfg, opts = parse_config(Config, __file__, argv, __doc__)
+    run = RunRecord(__file__, argv)
     with tempfile.TemporaryDirectory() as folder:
-        refusals = [_refusal(n, d, folder) for n, d in TEN_METRES.items()]
+        refusals = [_refusal(n, TEN_METRES[n], folder) for n in cfg.refusals]
     ctx = mp.get_context("spawn")
     estimates = []
-    for name in ("cylinder", "box", "sphere", "cone", "half_toroid"):
+    for name in cfg.estimates:
         q = ctx.Queue()
         p = ctx.Process(target=_measure, args=(name, q))
         p.start()
         estimates.append(q.get())
         p.join()
-    summary = {
-        "command": " ".join(["python experiments/bench_map_preflight.py", *map(shlex.quote, argv_used)]),
-        "headline": {"refusals": len(refusals), "slowest_refusal_s": max(r["wall_s"] for r in refusals),
-                     "all_one_line_exit_2": all(r["exit"] == 2 and r["stderr_lines"] == 1 for r in refusals),
-                     "estimate_over_measured_min": min(r["estimate_mib"] / r["measured_growth_mib"]
-                                                       for r in estimates),
-                     "denominator": "5 primitives at 10 m + 1 plate; 5 paper primitives for the estimate"},
-        "refusals": refusals, "estimates": estimates,
-        "machine": {"cpus": os.cpu_count(), "load_before": load_before, "load_after": load_average()},
-        "provenance": provenance(),
-    }
-    print(write_summary(summary, a.out, STEM, readme_section, publish=a.publish))
+    headline = {"refusals": len(refusals), "slowest_refusal_s": max(r["wall_s"] for r in refusals),
+                "all_one_line_exit_2": all(r["exit"] == 2 and r["stderr_lines"] == 1 for r in refusals),
+                "estimate_over_measured_min": min(r["estimate_mib"] / r["measured_growth_mib"] for r in estimates),
+                "denominator": f"{len(refusals)} requests at 10 m; {len(estimates)} paper primitives for the "
+                               "estimate"}
+    summary = {"config": cfg, "headline": headline, "refusals": refusals, "estimates": estimates}
+    print(run.write(opts.out, summary, readme_section, publish=opts.publish))
     return 0
 
 

@@ -42,15 +42,13 @@ from _common import (  # noqa: E402
     Clock,
     RunRecord,
     default_out,
-    fmt,
     load_average,
-    mean_sd,
-    mixed_anova,
-    paired_posthoc,
+    mean_sd_text,
     provenance,
     write_config,
     write_json,
 )
+from _stats import mean_sd, mixed_anova, paired_posthoc  # noqa: E402
 
 from graspsim.gripper import HGPL_25_60_A  # noqa: E402
 from graspsim.maps import generate as _generate  # noqa: E402
@@ -276,14 +274,14 @@ def write_table(rows: list[dict], summary: dict, cfg: E02Config) -> str:
             c = summary["cells"][f"{m}/{d}"]
             vals = []
             for k, _, dig in METRICS:
-                s = fmt(c[k]["mean"], c[k]["sd"], dig)
+                s = mean_sd_text(c[k]["mean"], c[k]["sd"], dig)
                 if c[k]["missing"]:
                     s += f" [{c[k]['missing']}/{c['n']} n/a]"
                 vals.append(s)
             L.append(f"| {LABELS[m]} | {d} | " + " | ".join(vals) + " |")
     f = summary["fs_wall_s"]
-    L += ["", f"FS map of a variant: {fmt(f['larger']['mean'], f['larger']['sd'], 2)} s (larger), "
-          f"{fmt(f['smaller']['mean'], f['smaller']['sd'], 2)} s (smaller).", "",
+    L += ["", f"FS map of a variant: {mean_sd_text(f['larger']['mean'], f['larger']['sd'], 2)} s (larger), "
+          f"{mean_sd_text(f['smaller']['mean'], f['smaller']['sd'], 2)} s (smaller).", "",
           "## Mixed ANOVA (algorithm within, direction between, variants as subjects)", "",
           "| metric | effect | F (df) | p | p (Greenhouse-Geisser) |", "|---|---|---|---|---|"]
     for k, lbl, _ in METRICS[:-1]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, is_dataclass
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -13,8 +14,8 @@ __all__ = ["to_jsonable"]
 
 
 def to_jsonable(o: Any) -> Any:
-    """Dataclasses (via ``to_dict`` if they have one), numpy scalars and arrays, paths
-    and non-finite floats (-> null) to plain JSON values, recursively."""
+    """Dataclasses (via ``to_dict`` if they have one), numpy scalars and arrays, paths,
+    enums (their value) and non-finite floats (-> null) to plain JSON values, recursively."""
     if is_dataclass(o) and not isinstance(o, type):
         return to_jsonable(o.to_dict() if hasattr(o, "to_dict") else asdict(o))
     if isinstance(o, dict):
@@ -29,4 +30,6 @@ def to_jsonable(o: Any) -> Any:
         return None
     if isinstance(o, Path):
         return str(o)
+    if isinstance(o, Enum):
+        return to_jsonable(o.value)
     return o

@@ -24,7 +24,7 @@ def _load(name: str):
 
 
 def test_mixed_anova_matches_one_way_identities():
-    common = _load("_common")
+    common = _load("_stats")
     rng = np.random.default_rng(0)
     y = rng.normal(size=(10, 2)) + [0.0, 0.5]
     g = np.repeat(["larger", "smaller"], 5)
@@ -165,3 +165,36 @@ def test_bench_fsmap_reported_summary_renders():
     assert {r["primitive"] for r in s["rows"]} == {"cylinder", "box", "sphere", "cone", "half_toroid"}
     assert all(r["cold"] and r["cold"]["compile_notice"] for r in s["rows"])
     assert s["db_build"]["serial"]["maps"] == 5 and "FS database" in md
+
+
+def _summary(out):
+    return json.loads((out / "summary.json").read_text())
+
+
+@pytest.mark.slow
+def test_bench_identify_large_quick(tmp_path):
+    mod = _load("bench_identify_large")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    assert [(r["shape"], r["points"]) for r in s["rows"]] == [("sphere", 2000), ("sphere", 25000)]
+    for r in s["rows"]:
+        assert r["runs"] == 1 and r["status"] == "identified" and r["primitive"] == "sphere"
+        assert r["wall_s_median"] > r["identify_s_median"] > 0 and r["peak_rss_mib_max"] > 0
+    big = s["rows"][1]  # above IdentifyConfig.max_points: downsampled
+    assert 0 < big["downsampling"]["used_points"] < big["points"]
+    assert s["headline"]["points"] == 25000 and "of 1 shapes" in s["headline"]["denominator"]
+    assert s["agreement"]["sphere 2000 vs 25000"]["same_primitive"]
+    assert s["command"] in mod.readme_section(s) == (tmp_path / "README.md").read_text().strip()
+
+
+@pytest.mark.slow
+def test_bench_map_preflight_quick(tmp_path):
+    mod = _load("bench_map_preflight")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    (ref,), (est,) = s["refusals"], s["estimates"]
+    assert ref["exit"] == 2 and ref["stderr_lines"] == 1 and not ref["output_written"]
+    assert est["primitive"] == "sphere" and est["grasps"] > 0 and est["measured_growth_mib"] > 0
+    assert s["headline"]["refusals"] == 1 and s["headline"]["all_one_line_exit_2"]
+    assert s["headline"]["estimate_over_measured_min"] == est["estimate_mib"] / est["measured_growth_mib"]
+    assert s["command"] in mod.readme_section(s)

@@ -15,7 +15,6 @@ from __future__ import annotations
 import logging
 import math
 import time
-import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -28,6 +27,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.grades.features import FEATURES, map_features
 from graspsim.gripper import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.seeding import derived_seed
 from graspsim.transforms import angle_between
 
 __all__ = ["CalibrationCase", "SimCondition", "FRICTION_LIMITED", "CONDITIONS", "CaseSample", "draw_samples",
@@ -82,7 +82,7 @@ class CaseSample:
 
 def case_seed(seed: int, name: str) -> int:
     """A case's own seed, independent of the order of cases."""
-    return int(np.random.SeedSequence([int(seed), zlib.crc32(name.encode())]).generate_state(1)[0])
+    return derived_seed(seed, name)
 
 
 def _sim_object(case: CalibrationCase):

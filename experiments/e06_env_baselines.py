@@ -32,6 +32,12 @@ config.json and episodes.npz to ``--out``.
     python experiments/e06_env_baselines.py
     python experiments/e06_env_baselines.py --perception model --out results/e06_env_baselines.model
     python experiments/e06_env_baselines.py --quick --out results/e06-quick
+
+Flags: one per field of :class:`E06Config` (the experiment harness, ``_common.py``);
+``--publish`` copies the summary to ``experiments/reported/``. Episodes are seeded as in
+the published runs, by ``SeedSequence(entropy=seed, spawn_key=(split, index))``, not yet
+by the harness's ``graspsim.seeding`` rule (switching changes every episode: it needs a
+re-run of the published numbers).
 """
 
 from __future__ import annotations
@@ -41,7 +47,6 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per worker process
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
 import logging  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
@@ -49,6 +54,7 @@ import time  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 from dataclasses import asdict, dataclass, replace  # noqa: E402
 from pathlib import Path  # noqa: E402
+from typing import ClassVar  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -58,11 +64,11 @@ from _common import (  # noqa: E402
     RunRecord,
     database_note,
     database_record,
-    default_out,
     load_average,
+    opt,
+    parse_config,
     pct,
     rate_ci,
-    write_config,
     write_json,
 )
 
@@ -88,21 +94,29 @@ OUTCOMES = ("success", "start_collision", "no_contact", "slipped", "dropped", "p
 
 @dataclass(frozen=True)
 class E06Config:
-    train: int
-    test: int
-    objects: str
-    k: int
-    cloud_size: int
-    view: str
-    perception: str
-    position_noise: float
-    rotation_noise_deg: float
-    l2: float
-    seed: int
-    workers: int
-    db: str | None
-    coarse_db: bool
-    quick: bool
+    train: int = opt(400, "training episodes")
+    test: int = opt(500, "test episodes")
+    objects: str = opt("all", "object set")
+    k: int = opt(16, "candidates per episode")
+    cloud_size: int = opt(512, "points in the observed cloud")
+    view: str = opt("full", "camera view", choices=("full", "single"))
+    perception: str = opt("cloud", "identify the object in its cloud (the paper), or give the planner the "
+                                   "true model", choices=("cloud", "model"))
+    position_noise: float = opt(0.003, "execution error sigma [m]")
+    rotation_noise_deg: float = opt(2.0, "execution error sigma [deg]")
+    l2: float = opt(1.0, "logistic regression L2 penalty")
+    seed: int = opt(20180606, "run seed")
+    workers: int = opt(os.cpu_count() or 1, "worker processes")
+    db: str | None = opt(None, "map database folder (default: the library's; --quick: OUT/db)")
+    coarse_db: bool = opt(False, "a coarse map database (8 mm, 22 deg: CI)")
+    QUICK: ClassVar[dict] = {"train": 16, "test": 16, "objects": "primitives", "k": 6, "cloud_size": 128,
+                             "coarse_db": True}
+
+    def __post_init__(self) -> None:
+        if self.train < 2 or self.test < 1:
+            raise ValueError(f"need --train >= 2 and --test >= 1, got {self.train} and {self.test}")
+        if self.workers < 1:
+            raise ValueError(f"--workers must be >= 1, got {self.workers}")
 
     @property
     def noisy(self) -> bool:
@@ -116,38 +130,6 @@ class E06Config:
         if self.coarse_db:
             kw["map_config"] = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
         return kw
-
-
-def parse_args(argv=None) -> tuple[E06Config, Path]:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=default_out(__file__), help="output folder")
-    p.add_argument("--quick", action="store_true", help="small CI run on a coarse database in --out")
-    p.add_argument("--train", type=int, default=None, help="training episodes (default 400)")
-    p.add_argument("--test", type=int, default=None, help="test episodes (default 500)")
-    p.add_argument("--objects", default=None, help="object set (default all)")
-    p.add_argument("--k", type=int, default=None, help="candidates per episode (default 16)")
-    p.add_argument("--cloud-size", type=int, default=512)
-    p.add_argument("--view", default="full", choices=("full", "single"))
-    p.add_argument("--perception", default="cloud", choices=("cloud", "model"),
-                   help="identify the object in its cloud (the paper), or give the planner the true model")
-    p.add_argument("--position-noise", type=float, default=0.003, help="execution error sigma [m]")
-    p.add_argument("--rotation-noise-deg", type=float, default=2.0, help="execution error sigma [deg]")
-    p.add_argument("--l2", type=float, default=1.0, help="logistic regression L2 penalty")
-    p.add_argument("--seed", type=int, default=20180606)
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--db", default=None, help="map database folder (default: the library's)")
-    a = p.parse_args(argv)
-    out = Path(a.out)
-    q = a.quick
-    cfg = E06Config(train=a.train or (16 if q else 400), test=a.test or (16 if q else 500),
-                    objects=a.objects or ("primitives" if q else "all"), k=a.k or (6 if q else 16),
-                    cloud_size=128 if q else a.cloud_size, view=a.view, perception=a.perception,
-                    position_noise=a.position_noise,
-                    rotation_noise_deg=a.rotation_noise_deg, l2=a.l2, seed=a.seed, workers=max(1, a.workers),
-                    db=str(out / "db") if q and a.db is None else a.db, coarse_db=q, quick=q)
-    if cfg.train < 2 or cfg.test < 1:
-        p.error("need --train >= 2 and --test >= 1")
-    return cfg, out
 
 
 # ---------------------------------------------------------------------- episodes
@@ -398,10 +380,12 @@ def plot(res: dict, path: Path) -> None:
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     logging.getLogger("graspsim").setLevel(logging.WARNING)  # no per-trial lines
+    cfg, opts = parse_config(E06Config, __file__, argv, __doc__)
     run = RunRecord(__file__, argv)
-    cfg, out = parse_args(argv)
+    out = Path(opts.out)
+    if opts.quick and cfg.db is None:  # a CI run builds its coarse database in its own folder
+        cfg = replace(cfg, db=str(out / "db"))
     out.mkdir(parents=True, exist_ok=True)
-    write_config(out / "config.json", cfg)
     total = Clock()
     db_start = database_record(_env(cfg).db)  # builds the reference maps once, before any worker starts
     log.info("E06: %d training + %d test episodes, objects %s, K = %d, %d worker(s)",
@@ -431,9 +415,9 @@ def main(argv=None) -> int:
         f"{name}_{k}": _stack(eps, k) for name, eps in (("train", train), ("test", test))
         for k in ("features", "candidates", "mask", "outcome", "cloud", "object_pose")},
         test_kind=np.array([e["kind"] for e in test]), feature_names=np.array(FEATURE_NAMES))
-    write_json(out / "summary.json", run.summary({"config": asdict(cfg), "results": res, "cost": cost,
-                                                  "database": {"start": db_start,
-                                                               "end": database_record(_env(cfg).db)}}))
+    run.write(out, {"config": asdict(cfg), "results": res, "cost": cost,
+                    "database": {"start": db_start, "end": database_record(_env(cfg).db)}},
+              readme_section, publish=opts.publish)
     table = write_table(cfg, res, cost)
     (out / "table.md").write_text("# E06 grasp-selection baselines (GraspSelect-v0)\n\n" + table)
     plot(res, out / "figure.png")

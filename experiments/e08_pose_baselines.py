@@ -32,11 +32,16 @@ summary.json, table.md, results.json and config.json to ``--out``.
 
     python experiments/e08_pose_baselines.py
     python experiments/e08_pose_baselines.py --quick --out results/e08-quick
+
+Flags: one per field of :class:`Config` (the experiment harness, ``_common.py``);
+``--publish`` copies the summary to ``experiments/reported/``. Episodes are seeded as in
+the published runs (``SeedSequence(seed).generate_state(episodes)``), not yet by the
+harness's ``graspsim.seeding`` rule (switching changes every episode: it needs a re-run
+of the published numbers).
 """
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import sys
@@ -44,6 +49,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -53,10 +59,10 @@ from _common import (  # noqa: E402
     RunRecord,
     database_note,
     database_record,
-    default_out,
     noise_sigmas,
+    opt,
+    parse_config,
     rate_ci,
-    write_config,
     write_json,
 )
 
@@ -75,15 +81,29 @@ log = logging.getLogger("e08")
 
 @dataclass(frozen=True)
 class Config:
-    episodes: int = 300
-    objects: str = "all"
-    seed: int = 20181108
-    noise: tuple[str, ...] = ("default", "none")
-    clearance_mm: tuple[float, ...] = (3.0, 10.0)
-    clearance_rows: int = 2000
-    ablations: tuple[str, ...] = tuple(ABLATIONS)
-    db: str = ""
-    quick: bool = False
+    episodes: int = opt(300, "episodes")
+    objects: str = opt("all", "object set")
+    seed: int = opt(20181108, "run seed")
+    noise: tuple[str, ...] = opt(("default", "none"), "execution error conditions: default (3 mm / 2 deg), "
+                                                      "none, or MM:DEG")
+    clearance_mm: tuple[float, ...] = opt((3.0, 10.0), "planner variants asking for this clearance from the "
+                                                       "identified shape [mm]")
+    clearance_rows: int = opt(2000, "best grasps searched for a clear one")
+    ablations: tuple[str, ...] = opt(tuple(ABLATIONS), "robust-score ablations run as extra planner policies",
+                                     choices=tuple(ABLATIONS))
+    db: str | None = opt(None, "FS database folder (default: the library's; --quick: OUT/fsdb)")
+    coarse_db: bool = opt(False, "a coarse FS database (10 mm, 22 deg: CI)")
+    QUICK: ClassVar[dict] = {"episodes": 6, "coarse_db": True}
+
+    def __post_init__(self) -> None:
+        for label in self.noise:
+            noise_sigmas(label)  # ValueError naming the bad label
+        if len(set(self.noise)) < len(self.noise):
+            raise ValueError(f"--noise conditions must be distinct, got {self.noise}")
+        if any(not (c > 0 and math.isfinite(c)) for c in self.clearance_mm):
+            raise ValueError(f"--clearance-mm values must be > 0 mm, got {self.clearance_mm}")
+        if self.episodes < 1:
+            raise ValueError(f"--episodes must be >= 1, got {self.episodes}")
 
     @property
     def policies(self) -> tuple[str, ...]:
@@ -176,8 +196,8 @@ def planner_poses(env, cloud: np.ndarray, db: MapDatabase, seed: int, cfg: Confi
 def run(cfg: Config) -> dict:
     import gymnasium as gym
 
-    map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.quick else MapConfig()
-    db = MapDatabase(cfg.db or None, config=map_cfg)
+    map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.coarse_db else MapConfig()
+    db = MapDatabase(cfg.db, config=map_cfg)
     db.build(PAPER_SHAPES.values())
     db_start = database_record(db)
     envs = {}
@@ -269,48 +289,22 @@ def write_table(summary: dict, cfg: Config) -> str:
 
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    cfg, opts = parse_config(Config, __file__, argv, __doc__)
     run_record = RunRecord(__file__, argv)
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=default_out(__file__), help="output folder")
-    p.add_argument("--episodes", type=int, default=Config.episodes)
-    p.add_argument("--objects", default=Config.objects, help="object set (default all)")
-    p.add_argument("--seed", type=int, default=Config.seed)
-    p.add_argument("--noise", nargs="+", default=list(Config.noise),
-                   help="execution error conditions: default (3 mm / 2 deg), none, or MM:DEG (default: default none)")
-    p.add_argument("--clearance", type=float, nargs="*", default=list(Config.clearance_mm), metavar="MM",
-                   help="planner variants asking for this clearance from the identified shape [mm] (default 3 10)")
-    p.add_argument("--clearance-rows", type=int, default=Config.clearance_rows,
-                   help="best grasps searched for a clear one (default 2000)")
-    p.add_argument("--ablations", nargs="*", default=list(Config.ablations), choices=sorted(ABLATIONS),
-                   help="robust-score ablations run as extra planner policies (default: all)")
-    p.add_argument("--db", default="", help="FS database folder (default: the library's; quick: OUT/fsdb)")
-    p.add_argument("--quick", action="store_true", help="a few episodes on a coarse database (CI)")
-    a = p.parse_args(argv)
-    try:
-        for label in a.noise:
-            noise_sigmas(label)
-    except ValueError as e:
-        p.error(str(e))
-    if any(not (c > 0 and math.isfinite(c)) for c in a.clearance) or len(set(a.noise)) < len(a.noise):
-        p.error("--clearance values must be > 0 mm and --noise conditions distinct")
-    out = Path(a.out)
+    out = Path(opts.out)
+    if opts.quick and cfg.db is None:  # a CI run builds its coarse database in its own folder
+        cfg = replace(cfg, db=str(out / "fsdb"))
     out.mkdir(parents=True, exist_ok=True)
-    cfg = Config(episodes=a.episodes, objects=a.objects, seed=a.seed, noise=tuple(a.noise),
-                 clearance_mm=tuple(a.clearance), clearance_rows=a.clearance_rows,
-                 ablations=tuple(a.ablations), db=a.db)
-    if a.quick:
-        cfg = replace(cfg, episodes=min(a.episodes, 6), quick=True, db=a.db or str(out / "fsdb"))
-    write_config(out / "config.json", cfg)
     res = run(cfg)
     summary = summarise(res["rows"], cfg)
     table = write_table(summary, cfg)
     (out / "table.md").write_text(table)
-    record = run_record.summary({"config": cfg, "noise_sigmas": {k: noise_sigmas(k) for k in cfg.noise},
-                                 "summary": summary, "database": res["database"]})
-    write_json(out / "summary.json", record)
-    write_json(out / "results.json", {**record, "episodes": res["rows"]})
+    data = {"config": cfg, "noise_sigmas": {k: noise_sigmas(k) for k in cfg.noise}, "summary": summary,
+            "database": res["database"]}
+    run_record.write(out, data, readme_section, publish=opts.publish)
+    write_json(out / "results.json", {**run_record.summary(data), "episodes": res["rows"]})
     print(table)
-    print(f"wall {record['machine']['wall_s']:.0f} s; results in {out}")
+    print(f"wall {run_record.clock.wall:.0f} s; results in {out}")
     return 0
 
 

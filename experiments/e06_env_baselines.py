@@ -82,7 +82,7 @@ from graspsim.envs.baselines import (  # noqa: E402
 )
 from graspsim.envs.candidates import CANDIDATE_FEATURES  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
-from graspsim.maps.robust import ABLATIONS, cloud_in_object, score_rows  # noqa: E402
+from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, cloud_in_object, score_rows  # noqa: E402
 
 log = logging.getLogger("e06")
 POLICIES = ("random", "highest_grade", "robust", "learned", "learned_map_only", "oracle")
@@ -432,11 +432,6 @@ NAMES = {"random": "random valid candidate", "highest_grade": "highest paper gra
          "oracle": "oracle (any candidate succeeds)"}
 
 
-ABLATION_NAMES = {"no_cloud": "without the observed cloud (primitives and table only)",
-                  "nominal": "without pose error (clearance at the pose only)",
-                  "sigma_half": "at half the error (1.5 mm / 1°)", "sigma_double": "at twice the error (6 mm / 4°)",
-                  "feasible_only": "the feasible fraction alone",
-                  "paper_grade": "the paper's grade as the success probability"}
 
 
 KIND_NAMES = {"random": "random", "highest_grade": "highest grade", "robust": "robust", "learned": "learned",
@@ -497,7 +492,7 @@ def readme_section(s: dict) -> str:
               "| robust score | " + f"success, {err}" + (" | without the error" if noisy else "") + f" | {sc_err} |",
               "|---|---|" + ("---|" if noisy else "") + "---|"]
         for a, x in r["ablation"].items():
-            row = [ABLATION_NAMES.get(a, a), rate_ci(x["success"]["successes"], x["success"]["n"],
+            row = [ABLATION_LABELS.get(a, a), rate_ci(x["success"]["successes"], x["success"]["n"],
                                                      x["success"]["ci95"])]
             if noisy:
                 row.append(rate_ci(x["success_exact"]["successes"], x["success_exact"]["n"],

@@ -71,7 +71,7 @@ from graspsim.envs.baselines import planner_pose  # noqa: E402
 from graspsim.maps.collide import boxes_clear_sdf  # noqa: E402
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
 from graspsim.maps.generate import MapConfig  # noqa: E402
-from graspsim.maps.robust import ABLATIONS, RobustConfig, cloud_in_object, score_map  # noqa: E402
+from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, RobustConfig, cloud_in_object, score_map  # noqa: E402
 from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402
 from graspsim.stats import wilson_interval  # noqa: E402
 from graspsim.transforms import frame_from_axes, invert_transform, make_transform  # noqa: E402
@@ -310,18 +310,13 @@ def main(argv=None) -> int:
 
 NAMES = {"random": "random action", "top_down": "top-down heuristic",
          "planner": "planner, highest paper grade", "planner_robust": "planner, robust ranking (the default)"}
-ABLATION_NAMES = {"no_cloud": "without the observed cloud (primitives and table only)",
-                  "nominal": "without pose error (clearance at the pose only)",
-                  "sigma_half": "at half the error (1.5 mm / 1°)", "sigma_double": "at twice the error (6 mm / 4°)",
-                  "feasible_only": "by the feasible fraction alone",
-                  "paper_grade": "with the paper's grade for the success probability"}
 
 
 def _name(p: str) -> str:
     if p in NAMES:
         return NAMES[p]
     if p.startswith("planner_robust_"):
-        return "planner, robust ranking " + ABLATION_NAMES[p[len("planner_robust_"):]]
+        return "planner, robust ranking: " + ABLATION_LABELS[p[len("planner_robust_"):]]
     return (f"planner, highest grade with {p.rsplit('_', 1)[1].replace('mm', ' mm')} of "
             f"clearance from the shape")
 

@@ -42,8 +42,8 @@ from graspsim.errors import InvalidParameterError
 from graspsim.gripper import GripperSpec
 from graspsim.transforms import make_transform, quat_to_matrix
 
-__all__ = ["RobustConfig", "RobustScores", "TERMS", "RANKS", "ABLATIONS", "wrist_perturbations", "score_rows",
-           "score_map", "ranking", "cloud_in_object"]
+__all__ = ["RobustConfig", "RobustScores", "TERMS", "RANKS", "ABLATIONS", "ABLATION_LABELS",
+           "wrist_perturbations", "score_rows", "score_map", "ranking", "cloud_in_object"]
 
 #: What a perturbation must keep to count as feasible (``RobustConfig.terms``).
 TERMS = ("cloud", "primitives", "table", "pads", "force_closure")
@@ -59,6 +59,15 @@ ABLATIONS: dict[str, dict] = {
     "sigma_double": {"position_sigma": 0.006, "rotation_sigma": math.radians(4.0)},
     "feasible_only": {"success": "none"},  # the feasible fraction alone
     "paper_grade": {"success": "grade"},  # feasible fraction x the paper's grade
+}
+#: What each ablation changes, in words (for tables).
+ABLATION_LABELS: dict[str, str] = {
+    "no_cloud": "without the observed cloud (primitives and table only)",
+    "nominal": "without pose error (clearance at the pose only)",
+    "sigma_half": "at half the error (1.5 mm / 1°)",
+    "sigma_double": "at twice the error (6 mm / 4°)",
+    "feasible_only": "the feasible fraction alone",
+    "paper_grade": "the paper's grade as the success probability",
 }
 
 

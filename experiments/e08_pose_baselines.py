@@ -13,6 +13,9 @@ object, pose, cloud and execution error):
 * planner, robust: the same plan's best grasp by the robust ranking (the planner's
   default: expected success under 3 mm / 2 deg wrist error, clearance to the observed
   cloud; ``graspsim.maps.robust``) -- the top-down pose when no grasp scores above 0;
+* planner, robust, opening: the same, scoring each grasp also with the jaws opened
+  wider (``--open-mm``, extra gap per side) and executing the best grasp at the opening
+  its score assumed;
 * ablations of the robust score (``--ablations``): ``no_cloud`` (perturbations checked
   against the identified primitives and the table only), ``nominal`` (no pose error:
   clearance at the nominal pose only), ``sigma_half`` and ``sigma_double`` (the
@@ -89,6 +92,8 @@ class Config:
     clearance_mm: tuple[float, ...] = opt((3.0, 10.0), "planner variants asking for this clearance from the "
                                                        "identified shape [mm]")
     clearance_rows: int = opt(2000, "best grasps searched for a clear one")
+    open_mm: tuple[float, ...] = opt((0.0, 3.0, 6.0, 10.0), "extra jaw openings per side [mm] the robust "
+                                                           "ranking may choose from (planner_robust_open)")
     ablations: tuple[str, ...] = opt(tuple(ABLATIONS), "robust-score ablations run as extra planner policies",
                                      choices=tuple(ABLATIONS))
     db: str | None = opt(None, "FS database folder (default: the library's; --quick: OUT/fsdb)")
@@ -107,7 +112,7 @@ class Config:
 
     @property
     def policies(self) -> tuple[str, ...]:
-        return (("random", "top_down", "planner", "planner_robust")
+        return (("random", "top_down", "planner", "planner_robust", "planner_robust_open")
                 + tuple(_clear_name(c) for c in self.clearance_mm)
                 + tuple(f"planner_robust_{a}" for a in self.ablations))
 
@@ -177,6 +182,10 @@ def planner_poses(env, cloud: np.ndarray, db: MapDatabase, seed: int, cfg: Confi
     t_plan = time.perf_counter() - t0
     out = {"planner_robust": (planner_pose(res, "robust"), t_plan)}
     cloud_obj = cloud_in_object(cloud, res.T_cloud_obj)
+    t1 = time.perf_counter()
+    wide = RobustConfig(openings=tuple(mm / 1000.0 for mm in cfg.open_mm))
+    out["planner_robust_open"] = (planner_pose(replace(res, map=score_map(res.map, cloud_obj, wide)), "robust"),
+                                  t_plan + time.perf_counter() - t1)
     for name in cfg.ablations:
         t1 = time.perf_counter()
         variant = replace(res, map=score_map(res.map, cloud_obj, replace(RobustConfig(), **ABLATIONS[name])))
@@ -309,7 +318,8 @@ def main(argv=None) -> int:
 
 
 NAMES = {"random": "random action", "top_down": "top-down heuristic",
-         "planner": "planner, highest paper grade", "planner_robust": "planner, robust ranking (the default)"}
+         "planner": "planner, highest paper grade", "planner_robust": "planner, robust ranking (the default)",
+         "planner_robust_open": "planner, robust ranking choosing the jaw opening too"}
 
 
 def _name(p: str) -> str:

@@ -86,7 +86,7 @@ def test_e08_quick_pose_baselines(tmp_path):
     pol = s["summary"]["policies"]
     from graspsim.maps.robust import ABLATIONS
 
-    assert set(pol) == {"random", "top_down", "planner", "planner_robust", "planner_clear_3mm",
+    assert set(pol) == {"random", "top_down", "planner", "planner_robust", "planner_robust_open", "planner_clear_3mm",
                         "planner_clear_10mm"} | {f"planner_robust_{a}" for a in ABLATIONS}
     n = s["summary"]["episodes"]
     for p in pol.values():
@@ -95,7 +95,7 @@ def test_e08_quick_pose_baselines(tmp_path):
     # a policy that falls back proposes the top-down pose: the same outcome under every condition
     r = json.loads((out / "results.json").read_text())
     for ep in r["episodes"]:
-        for name in ("planner", "planner_robust"):
+        for name in ("planner", "planner_robust", "planner_robust_open"):
             if ep[name]["fallback"]:
                 assert ep[name]["none"] == ep["top_down"]["none"]
     assert pol["top_down"]["none"]["all"]["success"] > pol["random"]["none"]["all"]["success"]

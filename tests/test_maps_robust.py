@@ -155,3 +155,19 @@ def test_transform_of_points_matches_a_moved_cloud(box_map, cloud):
     moved = cloud @ T[:3, :3].T + T[:3, 3]
     np.testing.assert_allclose(cloud_in_object(moved, T), cloud, atol=1e-12)
     assert cloud_in_object(np.full((3, 3), np.nan), T) is None
+
+
+def test_wider_openings_are_scored_and_the_best_kept(box_map, cloud):
+    narrow = score_rows(box_map, np.arange(len(box_map)), cloud, RobustConfig(samples=16))
+    wide = score_rows(box_map, np.arange(len(box_map)), cloud, RobustConfig(samples=16, openings=(0.0, 0.004)))
+    assert np.all(wide.robust >= narrow.robust - 1e-12)
+    assert set(np.unique(wide.extra_opening)) <= {0.0, 0.004}
+    gain = wide.robust > narrow.robust + 1e-9
+    assert gain.any() and np.all(wide.extra_opening[gain] == 0.004)
+    np.testing.assert_array_equal(narrow.extra_opening, 0.0)
+    # an opening beyond the stroke is never chosen
+    g = box_map.meta.gripper_spec
+    huge = score_rows(box_map, np.arange(len(box_map)), cloud, RobustConfig(samples=4, openings=(g.max_opening,)))
+    assert np.all(huge.robust == 0)
+    with pytest.raises(InvalidParameterError, match="openings"):
+        RobustConfig(openings=(-0.001,))

@@ -89,7 +89,8 @@ def oracle_choice(obs: dict, rewards: np.ndarray) -> int:
 
 
 def planner_pose(result, rank: str = "robust") -> tuple[np.ndarray, float] | None:
-    """(T_world_wrist (4, 4), contact width [m]) of a plan's best grasp by ``rank``
+    """(T_world_wrist (4, 4), width [m]) of a plan's best grasp by ``rank`` (the contact
+    width, plus twice the extra opening per side its robust score assumed, if any)
     (``graspsim.planner.plan`` of a world-frame cloud, e.g. with the table known:
     ``PlannerConfig(table=TablePlane(height=0.0))``), or None when the map is empty or,
     ranked robustly, its best grasp scored 0 (it collides with the cloud at its pose
@@ -100,7 +101,11 @@ def planner_pose(result, rank: str = "robust") -> tuple[np.ndarray, float] | Non
     best = gmap.top_k(1, rank=rank)
     if rank == "robust" and best.has_robust and not best.robust[0] > 0:
         return None
-    return result.T_cloud_obj @ best.T_obj_wrist[0], float(best.width[0])
+    width = float(best.width[0])
+    extra = float(best.robust_extra_opening[0]) if rank == "robust" else 0.0
+    if np.isfinite(extra):  # the robust score assumed the jaws that much wider per side
+        width += 2.0 * extra
+    return result.T_cloud_obj @ best.T_obj_wrist[0], width
 
 
 def _box_sdf(p: np.ndarray, centers: np.ndarray, half: np.ndarray) -> np.ndarray:

@@ -40,11 +40,13 @@ COLUMNS: dict[str, tuple[tuple[int, ...], type]] = {
 }
 #: Columns a map may lack (NaN: not computed): the robust scores of
 #: :mod:`graspsim.maps.robust` -- clearance to the observed points [m], the fraction of
-#: pose perturbations that stay feasible, and the robust score (expected success).
+#: pose perturbations that stay feasible, the robust score (expected success) and the
+#: extra pad gap per side it assumes [m] (0 unless ``RobustConfig.openings`` says more).
 OPTIONAL_COLUMNS: dict[str, tuple[tuple[int, ...], type]] = {
     "clearance": ((), np.float32),
     "robust_feasible": ((), np.float32),
     "robust": ((), np.float32),
+    "robust_extra_opening": ((), np.float32),
 }
 
 
@@ -179,6 +181,7 @@ class GraspabilityMap:
     clearance: np.ndarray | None = None
     robust_feasible: np.ndarray | None = None
     robust: np.ndarray | None = None
+    robust_extra_opening: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(np.asarray(self.wrist_position))  # the first column sets the row count

@@ -6,7 +6,8 @@ Layout (datasets, not attributes; N grasps)::
     grasps/qualities/analytic/grade   (N,)  and fc_angle [rad], force_closure (q_fc),
                                       stability (q_st), stability_distance [m]
     grasps/qualities/robust/score     (N,) robust score (expected success under pose error),
-                                      feasible_fraction, clearance [m]; NaN where not
+                                      feasible_fraction, clearance [m], extra_opening
+                                      [m per side]; NaN where not
                                       scored (graspsim.maps.robust); the group's attribute
                                       ``provenance`` (JSON) says how; optional on reading
     grasps/qualities/mujoco/...       simulation results, once simulated
@@ -66,6 +67,7 @@ _OPTIONAL_PATHS = {
     "robust": "grasps/qualities/robust/score",
     "robust_feasible": "grasps/qualities/robust/feasible_fraction",
     "clearance": "grasps/qualities/robust/clearance",
+    "robust_extra_opening": "grasps/qualities/robust/extra_opening",
 }
 
 

@@ -80,7 +80,10 @@ class RobustConfig:
     spacing of the identified primitives' surface samples [m]; terms: which of
     :data:`TERMS` a perturbation must keep; success: the success probability the
     feasible fraction multiplies (``pad_contact``: the calibrated grade model,
-    ``grade``: the map's own grade, ``none``: 1); threads: native threads (None: all)."""
+    ``grade``: the map's own grade, ``none``: 1); threads: native threads (None: all);
+    openings: extra pad gap per side [m] the jaws may open beyond the pre-grasp opening
+    (each is scored, the best kept per grasp and recorded as ``robust_extra_opening``;
+    an executor then opens the jaws that much wider). Default (0,): the map's opening."""
 
     position_sigma: float = 0.003
     rotation_sigma: float = math.radians(2.0)
@@ -92,6 +95,7 @@ class RobustConfig:
     terms: tuple[str, ...] = TERMS
     success: str = "pad_contact"
     threads: int | None = None
+    openings: tuple[float, ...] = (0.0,)
 
     def __post_init__(self) -> None:
         for k in ("position_sigma", "rotation_sigma", "margin"):
@@ -110,12 +114,16 @@ class RobustConfig:
         if bad:
             raise InvalidParameterError(f"unknown robustness terms {bad}; valid: {list(TERMS)}")
         object.__setattr__(self, "terms", terms)
+        openings = tuple(float(v) for v in np.atleast_1d(self.openings))
+        if not openings or any(not (math.isfinite(v) and v >= 0) for v in openings):
+            raise InvalidParameterError(f"RobustConfig.openings must be extra gaps >= 0 m, got {self.openings!r}")
+        object.__setattr__(self, "openings", openings)
         if self.success not in SUCCESS_MODELS:
             raise InvalidParameterError(f"RobustConfig.success must be one of {list(SUCCESS_MODELS)}, "
                                         f"got {self.success!r}")
 
     def to_dict(self) -> dict:
-        return {**asdict(self), "terms": list(self.terms)}
+        return {**asdict(self), "terms": list(self.terms), "openings": list(self.openings)}
 
 
 def wrist_perturbations(n: int, rng: np.random.Generator, position_sigma: float, rotation_sigma: float,
@@ -133,14 +141,16 @@ def wrist_perturbations(n: int, rng: np.random.Generator, position_sigma: float,
 @dataclass(frozen=True, eq=False)
 class RobustScores:
     """Per scored grasp (n,): clearance [m], feasible fraction, success probability,
-    robust score; flags (n, K + 1) uint8 bit sets of :mod:`graspsim.maps._robust_kernel`
-    (column 0: the nominal pose)."""
+    robust score, the extra opening per side chosen [m]; flags (n, K + 1) uint8 bit sets
+    of :mod:`graspsim.maps._robust_kernel` (column 0: the nominal pose), all at the chosen
+    opening."""
 
     clearance: np.ndarray
     feasible: np.ndarray
     success: np.ndarray
     robust: np.ndarray
     flags: np.ndarray
+    extra_opening: np.ndarray
 
 
 _BITS = {"cloud": 1, "primitives": 2, "table": 4, "pads": 8, "force_closure": 16}
@@ -234,7 +244,6 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     P = np.ascontiguousarray(np.concatenate([cloud, prim]), np.float32)  # the cloud first (clearance)
     R = quat_to_matrix(gmap.wrist_quat[rows].astype(float))
     w = gmap.wrist_position[rows].astype(float)
-    opening = g.pregrasp_opening(gmap.width[rows])
     centers, half, x_sign = _merged_boxes(g)
     c = gmap.contacts[rows].astype(float)
     nrm = gmap.normals[rows].astype(float)
@@ -250,23 +259,35 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     table = _table_rows(gmap, R, w)
     pad = np.array([0.5 * g.finger_size[1], g.fingertip_z - g.pad_length, g.fingertip_z])
     cos_fc = math.cos(gmap.meta.quality_model.friction_angle)
-    clearance = np.full(n, np.inf)
-    flags = np.zeros((n, len(D)), np.uint8)
-    if n:
-        args = (P, len(cloud), np.ascontiguousarray(R), np.ascontiguousarray(w), opening,
-                centers, half, x_sign, np.ascontiguousarray(qc), np.ascontiguousarray(nq), sign, DR, Dt,
-                theta, tlen, np.asarray(pivot), table, pad, cos_fc, float(cfg.margin))
-        threads = default_threads(cfg.threads) if n >= 256 else 1
-        run_chunks(lambda lo, hi: robust_flags(*args, lo, hi, clearance, flags), n, threads)
-    clearance = np.where(clearance > 1e8, np.inf, clearance)
     mask = np.uint8(sum(_BITS[t] for t in cfg.terms))
-    ok = (flags & mask) == 0
-    feasible = ok[:, 1:].mean(axis=1)
-    live = ok[:, 0] & (feasible > 0)  # the success model only where it can matter
+    base = g.pregrasp_opening(gmap.width[rows])
+    results = []
+    for extra in cfg.openings:  # the jaws opened wider: each extra gap per side scored
+        opening = base + 2.0 * extra
+        clearance = np.full(n, np.inf)
+        flags = np.zeros((n, len(D)), np.uint8)
+        if n:
+            args = (P, len(cloud), np.ascontiguousarray(R), np.ascontiguousarray(w), opening,
+                    centers, half, x_sign, np.ascontiguousarray(qc), np.ascontiguousarray(nq), sign, DR, Dt,
+                    theta, tlen, np.asarray(pivot), table, pad, cos_fc, float(cfg.margin))
+            threads = default_threads(cfg.threads) if n >= 256 else 1
+            run_chunks(lambda lo, hi: robust_flags(*args, lo, hi, clearance, flags), n, threads)  # noqa: B023
+        ok = (flags & mask) == 0
+        feasible = ok[:, 1:].mean(axis=1)
+        live = ok[:, 0] & (feasible > 0) & (opening <= g.max_opening + 1e-12)
+        results.append((np.where(clearance > 1e8, np.inf, clearance), flags, feasible, live))
+    live_any = np.any([r[3] for r in results], axis=0)
     success = np.zeros(n)
-    success[live] = _success(gmap, rows[live], cfg.success)
-    robust = np.where(live, feasible * success, 0.0)
-    return RobustScores(clearance, feasible, success, robust, flags)
+    success[live_any] = _success(gmap, rows[live_any], cfg.success)  # only where it can matter
+    scores = np.array([np.where(r[3], r[2] * success, 0.0) for r in results])  # (E, n)
+    best = np.argmax(scores, axis=0)  # the first (narrowest) on ties
+    idx = np.arange(n)
+    clearance = np.array([r[0] for r in results])[best, idx]
+    flags = np.array([r[1] for r in results])[best, idx]
+    feasible = np.array([r[2] for r in results])[best, idx]
+    robust = scores[best, idx]
+    extra = np.asarray(cfg.openings)[best]
+    return RobustScores(clearance, feasible, success, robust, flags, extra)
 
 
 def _success(gmap, rows: np.ndarray, model: str) -> np.ndarray:
@@ -292,10 +313,11 @@ def score_map(gmap, cloud_obj: np.ndarray | None = None, config: RobustConfig = 
     rows = np.asarray(rows, int)
     s = score_rows(gmap, rows, cloud_obj, config, gripper)
     n_cloud = 0 if cloud_obj is None else len(np.asarray(cloud_obj).reshape(-1, 3))
-    cols = {k: getattr(gmap, k).copy() for k in ("clearance", "robust_feasible", "robust")}
+    cols = {k: getattr(gmap, k).copy() for k in ("clearance", "robust_feasible", "robust", "robust_extra_opening")}
     cols["clearance"][rows] = np.clip(s.clearance, -1.0, 1.0) if n_cloud else np.nan
     cols["robust_feasible"][rows] = s.feasible
     cols["robust"][rows] = s.robust
+    cols["robust_extra_opening"][rows] = s.extra_opening
     prov = {**config.to_dict(), "scored": int(np.isfinite(cols["robust"]).sum()), "cloud_points": n_cloud,
             "pivot": "nominal_tcp", "model": "robust_feasible x success; 0 if the nominal pose collides",
             "module": "graspsim.maps.robust"}

@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, machine_load  # noqa: E402
+from _common import RunRecord, machine_load
 
 STEM = "bench_map_load"
 

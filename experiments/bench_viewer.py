@@ -37,7 +37,7 @@ import urllib.request
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, load_average  # noqa: E402
+from _common import RunRecord, load_average
 
 STEM = "bench_viewer"
 GOAL_S = 3.0

@@ -8,6 +8,11 @@ candidate). On the test episodes all policies are scored on the same episodes:
 
 * random: a valid candidate uniformly at random (and its expected success);
 * highest grade: the paper's choice;
+* robust: the highest robust score (the planner's default ranking: expected success
+  under the execution error, clearance to the observed cloud; ``graspsim.maps.robust``),
+  and its ablations (``robust_<name>``, ``graspsim.maps.robust.ABLATIONS``: without the
+  cloud, without pose error, at half and twice the error, the feasible fraction alone,
+  the paper's grade as the success probability), scored on the same candidates;
 * oracle: succeeds when any candidate does (an upper bound);
 * learned: logistic regression of success on the candidates' features (map columns,
   pose relative to the table, clearance to the observed cloud), trained on the logged
@@ -27,6 +32,12 @@ config.json and episodes.npz to ``--out``.
     python experiments/e06_env_baselines.py
     python experiments/e06_env_baselines.py --perception model --out results/e06_env_baselines.model
     python experiments/e06_env_baselines.py --quick --out results/e06-quick
+
+Flags: one per field of :class:`E06Config` (the experiment harness, ``_common.py``);
+``--publish`` copies the summary to ``experiments/reported/``. Episodes are seeded as in
+the published runs, by ``SeedSequence(entropy=seed, spawn_key=(split, index))``, not yet
+by the harness's ``graspsim.seeding`` rule (switching changes every episode: it needs a
+re-run of the published numbers).
 """
 
 from __future__ import annotations
@@ -36,38 +47,45 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per worker process
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import logging  # noqa: E402
-import math  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from concurrent.futures import ProcessPoolExecutor  # noqa: E402
-from dataclasses import asdict, dataclass  # noqa: E402
-from pathlib import Path  # noqa: E402
+import logging
+import math
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import ClassVar
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import (  # noqa: E402
+from _common import (
     Clock,
     RunRecord,
     database_note,
     database_record,
-    default_out,
     load_average,
+    opt,
+    parse_config,
     pct,
     rate_ci,
-    write_config,
     write_json,
 )
 
 import graspsim  # noqa: E402,F401  (registers the environments)
-from graspsim.envs.baselines import FEATURE_NAMES, LogisticPolicy, grasp_features, highest_grade_policy, wilson_interval  # noqa: E402
-from graspsim.envs.candidates import CANDIDATE_FEATURES  # noqa: E402
-from graspsim.maps.generate import MapConfig  # noqa: E402
+from graspsim.envs.baselines import (
+    FEATURE_NAMES,
+    LogisticPolicy,
+    grasp_features,
+    highest_grade_policy,
+    wilson_interval,
+)
+from graspsim.envs.candidates import CANDIDATE_FEATURES
+from graspsim.maps.generate import MapConfig
+from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, cloud_in_object, score_rows
 
 log = logging.getLogger("e06")
-POLICIES = ("random", "highest_grade", "learned", "learned_map_only", "oracle")
+POLICIES = ("random", "highest_grade", "robust", "learned", "learned_map_only", "oracle")
 MAP_ONLY = tuple(FEATURE_NAMES.index(n) for n in ("grade", "q_fc", "q_st", "fc_angle",
                                                   "stability_distance", "width"))
 OUTCOMES = ("success", "start_collision", "no_contact", "slipped", "dropped", "place_failed",
@@ -76,21 +94,29 @@ OUTCOMES = ("success", "start_collision", "no_contact", "slipped", "dropped", "p
 
 @dataclass(frozen=True)
 class E06Config:
-    train: int
-    test: int
-    objects: str
-    k: int
-    cloud_size: int
-    view: str
-    perception: str
-    position_noise: float
-    rotation_noise_deg: float
-    l2: float
-    seed: int
-    workers: int
-    db: str | None
-    coarse_db: bool
-    quick: bool
+    train: int = opt(400, "training episodes")
+    test: int = opt(500, "test episodes")
+    objects: str = opt("all", "object set")
+    k: int = opt(16, "candidates per episode")
+    cloud_size: int = opt(512, "points in the observed cloud")
+    view: str = opt("full", "camera view", choices=("full", "single"))
+    perception: str = opt("cloud", "identify the object in its cloud (the paper), or give the planner the "
+                                   "true model", choices=("cloud", "model"))
+    position_noise: float = opt(0.003, "execution error sigma [m]")
+    rotation_noise_deg: float = opt(2.0, "execution error sigma [deg]")
+    l2: float = opt(1.0, "logistic regression L2 penalty")
+    seed: int = opt(20180606, "run seed")
+    workers: int = opt(os.cpu_count() or 1, "worker processes")
+    db: str | None = opt(None, "map database folder (default: the library's; --quick: OUT/db)")
+    coarse_db: bool = opt(False, "a coarse map database (8 mm, 22 deg: CI)")
+    QUICK: ClassVar[dict] = {"train": 16, "test": 16, "objects": "primitives", "k": 6, "cloud_size": 128,
+                             "coarse_db": True}
+
+    def __post_init__(self) -> None:
+        if self.train < 2 or self.test < 1:
+            raise ValueError(f"need --train >= 2 and --test >= 1, got {self.train} and {self.test}")
+        if self.workers < 1:
+            raise ValueError(f"--workers must be >= 1, got {self.workers}")
 
     @property
     def noisy(self) -> bool:
@@ -104,38 +130,6 @@ class E06Config:
         if self.coarse_db:
             kw["map_config"] = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
         return kw
-
-
-def parse_args(argv=None) -> tuple[E06Config, Path]:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=default_out(__file__), help="output folder")
-    p.add_argument("--quick", action="store_true", help="small CI run on a coarse database in --out")
-    p.add_argument("--train", type=int, default=None, help="training episodes (default 400)")
-    p.add_argument("--test", type=int, default=None, help="test episodes (default 500)")
-    p.add_argument("--objects", default=None, help="object set (default all)")
-    p.add_argument("--k", type=int, default=None, help="candidates per episode (default 16)")
-    p.add_argument("--cloud-size", type=int, default=512)
-    p.add_argument("--view", default="full", choices=("full", "single"))
-    p.add_argument("--perception", default="cloud", choices=("cloud", "model"),
-                   help="identify the object in its cloud (the paper), or give the planner the true model")
-    p.add_argument("--position-noise", type=float, default=0.003, help="execution error sigma [m]")
-    p.add_argument("--rotation-noise-deg", type=float, default=2.0, help="execution error sigma [deg]")
-    p.add_argument("--l2", type=float, default=1.0, help="logistic regression L2 penalty")
-    p.add_argument("--seed", type=int, default=20180606)
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--db", default=None, help="map database folder (default: the library's)")
-    a = p.parse_args(argv)
-    out = Path(a.out)
-    q = a.quick
-    cfg = E06Config(train=a.train or (16 if q else 400), test=a.test or (16 if q else 500),
-                    objects=a.objects or ("primitives" if q else "all"), k=a.k or (6 if q else 16),
-                    cloud_size=128 if q else a.cloud_size, view=a.view, perception=a.perception,
-                    position_noise=a.position_noise,
-                    rotation_noise_deg=a.rotation_noise_deg, l2=a.l2, seed=a.seed, workers=max(1, a.workers),
-                    db=str(out / "db") if q and a.db is None else a.db, coarse_db=q, quick=q)
-    if cfg.train < 2 or cfg.test < 1:
-        p.error("need --train >= 2 and --test >= 1")
-    return cfg, out
 
 
 # ---------------------------------------------------------------------- episodes
@@ -155,6 +149,18 @@ def _seed(cfg: E06Config, split: int, i: int) -> int:
     return int(np.random.SeedSequence(entropy=cfg.seed, spawn_key=(split, i)).generate_state(1)[0])
 
 
+def ablation_scores(env, cfg: E06Config) -> np.ndarray:
+    """(len(ABLATIONS), K) robust scores of the episode's candidates under each ablation
+    (0 in invalid slots), from the plan the environment made."""
+    res, rows = env.plan_result, env.candidate_rows
+    cloud = cloud_in_object(env.episode.points, res.T_cloud_obj) if cfg.perception == "cloud" else None
+    out = np.zeros((len(ABLATIONS), cfg.k), np.float32)
+    for j, kw in enumerate(ABLATIONS.values()):
+        cfg_j = replace(env.planner_config.robust, **kw)
+        out[j, :len(rows)] = score_rows(res.map, rows, cloud, cfg_j).robust
+    return out
+
+
 def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     """One logged episode: every candidate simulated, then the highest-grade one stepped."""
     env = _env(cfg)
@@ -162,6 +168,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     obs, info = env.reset(seed=_seed(cfg, split, i))
     reset = c.record()
     feats = grasp_features(obs, env.gripper)
+    ablation = ablation_scores(env, cfg) if split == 1 else np.zeros((len(ABLATIONS), cfg.k), np.float32)
     c = Clock()
     ev = env.evaluate_candidates(threads=1)
     evaluate = c.record()
@@ -177,6 +184,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
             "parts": info["parts"], "redraws": info["redraws"], "n_clear": info["n_clear"],
             "features": feats.astype(np.float32), "candidates": obs["candidates"],
             "mask": obs["action_mask"], "outcome": ev["outcome"], "outcome_exact": exact, "cloud": obs["cloud"],
+            "ablation": ablation,
             "object_pose": obs["object_pose"],
             "reset_s": reset["wall_s"], "reset_cpu_s": reset["cpu_s"], "plan_s": env.timing.get("plan"),
             "evaluate_s": evaluate["wall_s"], "trials": int(obs["action_mask"].sum()),
@@ -213,18 +221,25 @@ def choices(eps: list[dict], learned: LogisticPolicy, map_only: LogisticPolicy,
             rng: np.random.Generator) -> dict[str, np.ndarray]:
     """Chosen candidate (E,) per policy; the oracle's is a successful one if any."""
     X, M, O = _stack(eps, "features").astype(float), _stack(eps, "mask").astype(bool), _stack(eps, "outcome")
-    grade = _stack(eps, "candidates")[:, :, CANDIDATE_FEATURES.index("grade")]
+    cand = _stack(eps, "candidates")
+    grade = cand[:, :, CANDIDATE_FEATURES.index("grade")]
+    robust = cand[:, :, CANDIDATE_FEATURES.index("robust")]
+    A = _stack(eps, "ablation")  # (E, len(ABLATIONS), K)
     E, K, F = X.shape
 
     def argmax_valid(score):
         return np.argmax(np.where(M, score, -np.inf), axis=1)
 
+    def by_robust(score):  # ties by grade (grades are < 1: the score's order comes first)
+        return argmax_valid(np.round(score.astype(float), 6) * 10.0 + grade)
+
     p_full = learned.predict_proba(X.reshape(-1, F)).reshape(E, K)
     p_map = map_only.predict_proba(X.reshape(-1, F)[:, MAP_ONLY]).reshape(E, K)
     rand = np.array([rng.choice(np.flatnonzero(m)) for m in M])
-    return {"random": rand, "highest_grade": argmax_valid(grade), "learned": argmax_valid(p_full),
-            "learned_map_only": argmax_valid(p_map),
-            "oracle": argmax_valid(np.where(O == 0, 2.0, 0.0) + grade)}
+    return {"random": rand, "highest_grade": argmax_valid(grade), "robust": by_robust(robust),
+            "learned": argmax_valid(p_full), "learned_map_only": argmax_valid(p_map),
+            "oracle": argmax_valid(np.where(O == 0, 2.0, 0.0) + grade),
+            **{f"robust_{a}": by_robust(A[:, j]) for j, a in enumerate(ABLATIONS)}}
 
 
 def rate(ok: np.ndarray) -> dict:
@@ -267,7 +282,14 @@ def evaluate(eps: list[dict], pick: dict[str, np.ndarray]) -> dict:
            "chosen_outcomes_exact": {p: {o: int(np.sum(OX[rows, pick[p]] == j)) for j, o in enumerate(OUTCOMES)}
                                      for p in POLICIES},
            "learned_vs_highest_grade": mcnemar(ok["learned"], ok["highest_grade"]),
-           "map_only_vs_highest_grade": mcnemar(ok["learned_map_only"], ok["highest_grade"])}
+           "robust_vs_highest_grade": mcnemar(ok["robust"], ok["highest_grade"]),
+           "robust_vs_learned": mcnemar(ok["robust"], ok["learned"]),
+           "map_only_vs_highest_grade": mcnemar(ok["learned_map_only"], ok["highest_grade"]),
+           "ablation": {a: {"success": rate(O[rows, pick[f"robust_{a}"]] == 0),
+                            "success_exact": rate(OX[rows, pick[f"robust_{a}"]] == 0),
+                            "start_collision": int(np.sum(O[rows, pick[f"robust_{a}"]] == sc)),
+                            "start_collision_exact": int(np.sum(OX[rows, pick[f"robust_{a}"]] == sc))}
+                        for a in ABLATIONS}}
     return res
 
 
@@ -287,7 +309,8 @@ def costs(eps: list[dict]) -> dict:
 
 # ---------------------------------------------------------------------- outputs
 def write_table(cfg: E06Config, res: dict, cost: dict) -> str:
-    names = {"random": "random", "highest_grade": "highest grade", "learned": "learned (all features)",
+    names = {"random": "random", "highest_grade": "highest grade", "robust": "robust score",
+             "learned": "learned (all features)",
              "learned_map_only": "learned (map columns only)", "oracle": "oracle"}
     lines = [f"{res['test_episodes']} test episodes, objects `{cfg.objects}`, K = {cfg.k}, "
              f"execution error {1000 * cfg.position_noise:.0f} mm / {cfg.rotation_noise_deg:.0f} deg; "
@@ -357,10 +380,12 @@ def plot(res: dict, path: Path) -> None:
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     logging.getLogger("graspsim").setLevel(logging.WARNING)  # no per-trial lines
+    cfg, opts = parse_config(E06Config, __file__, argv, __doc__)
     run = RunRecord(__file__, argv)
-    cfg, out = parse_args(argv)
+    out = Path(opts.out)
+    if opts.quick and cfg.db is None:  # a CI run builds its coarse database in its own folder
+        cfg = replace(cfg, db=str(out / "db"))
     out.mkdir(parents=True, exist_ok=True)
-    write_config(out / "config.json", cfg)
     total = Clock()
     db_start = database_record(_env(cfg).db)  # builds the reference maps once, before any worker starts
     log.info("E06: %d training + %d test episodes, objects %s, K = %d, %d worker(s)",
@@ -390,9 +415,9 @@ def main(argv=None) -> int:
         f"{name}_{k}": _stack(eps, k) for name, eps in (("train", train), ("test", test))
         for k in ("features", "candidates", "mask", "outcome", "cloud", "object_pose")},
         test_kind=np.array([e["kind"] for e in test]), feature_names=np.array(FEATURE_NAMES))
-    write_json(out / "summary.json", run.summary({"config": asdict(cfg), "results": res, "cost": cost,
-                                                  "database": {"start": db_start,
-                                                               "end": database_record(_env(cfg).db)}}))
+    run.write(out, {"config": asdict(cfg), "results": res, "cost": cost,
+                    "database": {"start": db_start, "end": database_record(_env(cfg).db)}},
+              readme_section, publish=opts.publish)
     table = write_table(cfg, res, cost)
     (out / "table.md").write_text("# E06 grasp-selection baselines (GraspSelect-v0)\n\n" + table)
     plot(res, out / "figure.png")
@@ -401,8 +426,17 @@ def main(argv=None) -> int:
 
 
 NAMES = {"random": "random valid candidate", "highest_grade": "highest paper grade",
-         "learned": "learned (all features)", "learned_map_only": "learned (map columns only)",
+         "robust": "highest robust score (the planner's default ranking)",
+         "learned": "learned (all features, the robust score included)",
+         "learned_map_only": "learned (map columns only)",
          "oracle": "oracle (any candidate succeeds)"}
+
+
+
+
+KIND_NAMES = {"random": "random", "highest_grade": "highest grade", "robust": "robust", "learned": "learned",
+              "oracle": "oracle"}
+SC_NAMES = {"highest_grade": "highest-grade", "robust": "robust"}
 
 
 def readme_section(s: dict) -> str:
@@ -419,9 +453,11 @@ def readme_section(s: dict) -> str:
     sc_err = "START_COLLISION of the chosen grasp" + (" (with / without the error)" if noisy else "")
     head = ["policy", f"success, {err}"] + (["the same choice without the error"] if noisy else []) + [sc_err]
     L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for p in POLICIES:
+    pols = [p for p in POLICIES if p in r["overall"]]  # summaries from before the robust ranking lack it
+    names = {**NAMES, "learned": NAMES["learned"] if "robust" in pols else "learned (all features)"}
+    for p in pols:
         o = r["overall"][p]
-        row = [NAMES[p], rate_ci(o["successes"], o["n"], o["ci95"])]
+        row = [names[p], rate_ci(o["successes"], o["n"], o["ci95"])]
         if noisy:
             x = r["overall_exact"][p]
             row.append(rate_ci(x["successes"], x["n"], x["ci95"]))
@@ -429,20 +465,41 @@ def readme_section(s: dict) -> str:
         row.append(f"{n_sc} / {r['chosen_outcomes_exact'][p]['start_collision']}" if noisy else str(n_sc))
         L.append("| " + " | ".join(row) + " |")
     m = r["learned_vs_highest_grade"]
+    kind_pols = [p for p in ("random", "highest_grade", "robust", "learned", "oracle") if p in pols]
+    sc_pols = [p for p in ("highest_grade", "robust") if p in pols]
     L += ["", f"Random choice's expected success over the valid candidates: {pct(r['random_expected'])} %. "
           f"Learned vs highest grade on the same episodes: learned alone succeeds in {m['only_first']}, the "
           f"highest grade alone in {m['only_second']} (exact McNemar p = {m['p_exact']:.2g}). Per object kind:", "",
-          "| kind | episodes | random | highest grade | learned | oracle | learned alone / highest grade alone | "
-          + sc_err.replace("of the chosen grasp", "of the highest-grade grasp") + " |",
-          "|---|---|---|---|---|---|---|---|"]
+          "| kind | episodes | " + " | ".join(KIND_NAMES[p] for p in kind_pols) + " | learned alone / highest grade "
+          "alone | " + sc_err.replace("of the chosen grasp", "of the " + " / ".join(SC_NAMES[p] for p in sc_pols)
+                                      + " grasp") + " |",
+          "|---|---|" + "---|" * (len(kind_pols) + 2)]
     for k, b in r["by_kind"].items():
         mk = b["learned_vs_highest_grade"]
-        sc = str(b["start_collision"]["highest_grade"])
-        if noisy:
-            sc += f" / {b['start_collision_exact']['highest_grade']}"
-        L.append(f"| {k} | {b['episodes']} | " + " | ".join(f"{pct(b[p], 0)} %" for p in
-                                                              ("random", "highest_grade", "learned", "oracle"))
+        sc = " / ".join(str(b[key][p]) for p in sc_pols
+                        for key in (("start_collision", "start_collision_exact") if noisy else ("start_collision",)))
+        L.append(f"| {k} | {b['episodes']} | " + " | ".join(f"{pct(b[p], 0)} %" for p in kind_pols)
                  + f" | {mk['only_first']} / {mk['only_second']} | {sc} |")
+    if "robust_vs_highest_grade" in r:
+        mr, ml = r["robust_vs_highest_grade"], r["robust_vs_learned"]
+        L += ["", f"Robust score vs highest grade on the same episodes: the robust choice alone succeeds in "
+              f"{mr['only_first']}, the highest grade alone in {mr['only_second']} (exact McNemar p = "
+              f"{mr['p_exact']:.2g}); vs the learned policy: {ml['only_first']} / {ml['only_second']} "
+              f"(p = {ml['p_exact']:.2g})."]
+    if r.get("ablation"):
+        L += ["", "Ablations of the robust score (`graspsim.maps.robust.ABLATIONS`), each choosing among the "
+              "same candidates:", "",
+              "| robust score | " + f"success, {err}" + (" | without the error" if noisy else "") + f" | {sc_err} |",
+              "|---|---|" + ("---|" if noisy else "") + "---|"]
+        for a, x in r["ablation"].items():
+            row = [ABLATION_LABELS.get(a, a), rate_ci(x["success"]["successes"], x["success"]["n"],
+                                                     x["success"]["ci95"])]
+            if noisy:
+                row.append(rate_ci(x["success_exact"]["successes"], x["success_exact"]["n"],
+                                   x["success_exact"]["ci95"]))
+            row.append(f"{x['start_collision']} / {x['start_collision_exact']}" if noisy
+                       else str(x["start_collision"]))
+            L.append("| " + " | ".join(row) + " |")
     m = s["machine"]
     L += ["", f"Cost, mean CPU time: a reset (drawing the object, its cloud, planning) "
           f"{c['reset_cpu']['mean_ms']:.0f} ms, "

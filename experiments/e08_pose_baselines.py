@@ -10,6 +10,16 @@ object, pose, cloud and execution error):
 * planner: graspsim's run-time planner on the observed (fixed-size) cloud, with the
   table known (z = 0), proposing its highest-grade grasp (the top-down pose when the
   planner finds none);
+* planner, robust: the same plan's best grasp by the robust ranking (the planner's
+  default: expected success under 3 mm / 2 deg wrist error, clearance to the observed
+  cloud; ``graspsim.maps.robust``) -- the top-down pose when no grasp scores above 0;
+* planner, robust, opening: the same, scoring each grasp also with the jaws opened
+  wider (``--open-mm``, extra gap per side) and executing the best grasp at the opening
+  its score assumed;
+* ablations of the robust score (``--ablations``): ``no_cloud`` (perturbations checked
+  against the identified primitives and the table only), ``nominal`` (no pose error:
+  clearance at the nominal pose only), ``sigma_half`` and ``sigma_double`` (the
+  perturbations at half and twice the error);
 * planner, clearance C mm (``--clearance``): the highest-grade grasp whose gripper,
   with the jaws opened C mm wider on each side than the pre-grasp opening (and executed
   so), stays C mm clear of the identified primitives -- room for the fingers to miss
@@ -25,11 +35,16 @@ summary.json, table.md, results.json and config.json to ``--out``.
 
     python experiments/e08_pose_baselines.py
     python experiments/e08_pose_baselines.py --quick --out results/e08-quick
+
+Flags: one per field of :class:`Config` (the experiment harness, ``_common.py``);
+``--publish`` copies the summary to ``experiments/reported/``. Episodes are seeded as in
+the published runs (``SeedSequence(seed).generate_state(episodes)``), not yet by the
+harness's ``graspsim.seeding`` rule (switching changes every episode: it needs a re-run
+of the published numbers).
 """
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import sys
@@ -37,47 +52,69 @@ import time
 from collections import Counter
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import (  # noqa: E402
+from _common import (
     RunRecord,
     database_note,
     database_record,
-    default_out,
     noise_sigmas,
+    opt,
+    parse_config,
     rate_ci,
-    write_config,
     write_json,
 )
 
 import graspsim  # noqa: E402, F401  (registers the environments)
-from graspsim.maps.collide import boxes_clear_sdf  # noqa: E402
-from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
-from graspsim.maps.generate import MapConfig  # noqa: E402
-from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402
-from graspsim.stats import wilson_interval  # noqa: E402
-from graspsim.transforms import frame_from_axes, invert_transform, make_transform  # noqa: E402
+from graspsim.envs.baselines import planner_pose
+from graspsim.maps.collide import boxes_clear_sdf
+from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+from graspsim.maps.generate import MapConfig
+from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, RobustConfig, cloud_in_object, score_map
+from graspsim.planner import PlannerConfig, TablePlane, plan
+from graspsim.stats import wilson_interval
+from graspsim.transforms import frame_from_axes, invert_transform, make_transform
 
 log = logging.getLogger("e08")
 
 
 @dataclass(frozen=True)
 class Config:
-    episodes: int = 300
-    objects: str = "all"
-    seed: int = 20181108
-    noise: tuple[str, ...] = ("default", "none")
-    clearance_mm: tuple[float, ...] = (3.0, 10.0)
-    clearance_rows: int = 2000
-    db: str = ""
-    quick: bool = False
+    episodes: int = opt(300, "episodes")
+    objects: str = opt("all", "object set")
+    seed: int = opt(20181108, "run seed")
+    noise: tuple[str, ...] = opt(("default", "none"), "execution error conditions: default (3 mm / 2 deg), "
+                                                      "none, or MM:DEG")
+    clearance_mm: tuple[float, ...] = opt((3.0, 10.0), "planner variants asking for this clearance from the "
+                                                       "identified shape [mm]")
+    clearance_rows: int = opt(2000, "best grasps searched for a clear one")
+    open_mm: tuple[float, ...] = opt((0.0, 3.0, 6.0, 10.0), "extra jaw openings per side [mm] the robust "
+                                                           "ranking may choose from (planner_robust_open)")
+    ablations: tuple[str, ...] = opt(tuple(ABLATIONS), "robust-score ablations run as extra planner policies",
+                                     choices=tuple(ABLATIONS))
+    db: str | None = opt(None, "FS database folder (default: the library's; --quick: OUT/fsdb)")
+    coarse_db: bool = opt(False, "a coarse FS database (10 mm, 22 deg: CI)")
+    QUICK: ClassVar[dict] = {"episodes": 6, "coarse_db": True}
+
+    def __post_init__(self) -> None:
+        for label in self.noise:
+            noise_sigmas(label)  # ValueError naming the bad label
+        if len(set(self.noise)) < len(self.noise):
+            raise ValueError(f"--noise conditions must be distinct, got {self.noise}")
+        if any(not (c > 0 and math.isfinite(c)) for c in self.clearance_mm):
+            raise ValueError(f"--clearance-mm values must be > 0 mm, got {self.clearance_mm}")
+        if self.episodes < 1:
+            raise ValueError(f"--episodes must be >= 1, got {self.episodes}")
 
     @property
     def policies(self) -> tuple[str, ...]:
-        return ("random", "top_down", "planner") + tuple(_clear_name(c) for c in self.clearance_mm)
+        return (("random", "top_down", "planner", "planner_robust", "planner_robust_open")
+                + tuple(_clear_name(c) for c in self.clearance_mm)
+                + tuple(f"planner_robust_{a}" for a in self.ablations))
 
 
 def _clear_name(mm: float) -> str:
@@ -86,7 +123,8 @@ def _clear_name(mm: float) -> str:
 
 def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
     """(T_world_wrist, width): straight down over the centroid, closing across the
-    cloud's narrowest horizontal direction."""
+    cloud's narrowest horizontal direction; the gripper's nominal (mid-pad) TCP
+    2 cm below the top."""
     g = env.gripper
     p = cloud.astype(float)
     c = p[:, :2].mean(axis=0)
@@ -94,7 +132,7 @@ def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
     x = np.array([v[0, 0], v[1, 0], 0.0])  # the smaller eigenvalue's axis
     z = np.array([0.0, 0.0, -1.0])
     top = float(p[:, 2].max())
-    half_pad = 0.5 * g.pad_length
+    half_pad = g.nominal_depth  # the nominal TCP's distance from the fingertips
     tcp_z = max(top - half_pad, half_pad + 0.003)  # fingertips stay above the table
     band = p[np.abs(p[:, 2] - tcp_z) < half_pad]
     s = (band if len(band) else p)[:, :2] @ x[:2]
@@ -102,7 +140,7 @@ def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
     centre = c + (0.5 * (s.max() + s.min()) - c @ x[:2]) * x[:2]
     R = frame_from_axes(x, z)
     tcp = np.array([centre[0], centre[1], tcp_z])
-    return make_transform(R, tcp - g.tcp_offset(half_pad) * z), width  # the env's TCP: mid-pad
+    return make_transform(R, tcp - float(g.nominal_tcp[2]) * z), width
 
 
 class _Inflated:
@@ -142,14 +180,24 @@ def planner_poses(env, cloud: np.ndarray, db: MapDatabase, seed: int, cfg: Confi
     res = plan(cloud.astype(float), db=db, rng=np.random.default_rng(seed),
                config=PlannerConfig(table=TablePlane(height=0.0)))
     t_plan = time.perf_counter() - t0
-    out = {}
+    out = {"planner_robust": (planner_pose(res, "robust"), t_plan)}
+    cloud_obj = cloud_in_object(cloud, res.T_cloud_obj)
+    t1 = time.perf_counter()
+    wide = RobustConfig(openings=tuple(mm / 1000.0 for mm in cfg.open_mm))
+    out["planner_robust_open"] = (planner_pose(replace(res, map=score_map(res.map, cloud_obj, wide)), "robust"),
+                                  t_plan + time.perf_counter() - t1)
+    for name in cfg.ablations:
+        t1 = time.perf_counter()
+        variant = replace(res, map=score_map(res.map, cloud_obj, replace(RobustConfig(), **ABLATIONS[name])))
+        out[f"planner_robust_{name}"] = (planner_pose(variant, "robust"), t_plan + time.perf_counter() - t1)
     for c in (0.0,) + tuple(cfg.clearance_mm):
         t1 = time.perf_counter()
+        paper = replace(res, map=res.map.ranked("paper"))
         i = (0 if len(res.map) else None) if c == 0 else (
-            clear_row(res, env.gripper, c / 1000.0, cfg.clearance_rows) if len(res.map) else None)
+            clear_row(paper, env.gripper, c / 1000.0, cfg.clearance_rows) if len(res.map) else None)
         # the action's width: the jaws open to width + 2 x approach clearance, so + 2c more
-        pose = None if i is None else (res.T_cloud_obj @ res.map.T_obj_wrist[i],
-                                       float(res.map.width[i]) + 2.0 * c / 1000.0)
+        pose = None if i is None else (res.T_cloud_obj @ paper.map.T_obj_wrist[i],
+                                       float(paper.map.width[i]) + 2.0 * c / 1000.0)
         out["planner" if c == 0 else _clear_name(c)] = (pose, t_plan + time.perf_counter() - t1)
     return out
 
@@ -157,8 +205,8 @@ def planner_poses(env, cloud: np.ndarray, db: MapDatabase, seed: int, cfg: Confi
 def run(cfg: Config) -> dict:
     import gymnasium as gym
 
-    map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.quick else MapConfig()
-    db = MapDatabase(cfg.db or None, config=map_cfg)
+    map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.coarse_db else MapConfig()
+    db = MapDatabase(cfg.db, config=map_cfg)
     db.build(PAPER_SHAPES.values())
     db_start = database_record(db)
     envs = {}
@@ -250,55 +298,37 @@ def write_table(summary: dict, cfg: Config) -> str:
 
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    cfg, opts = parse_config(Config, __file__, argv, __doc__)
     run_record = RunRecord(__file__, argv)
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=default_out(__file__), help="output folder")
-    p.add_argument("--episodes", type=int, default=Config.episodes)
-    p.add_argument("--objects", default=Config.objects, help="object set (default all)")
-    p.add_argument("--seed", type=int, default=Config.seed)
-    p.add_argument("--noise", nargs="+", default=list(Config.noise),
-                   help="execution error conditions: default (3 mm / 2 deg), none, or MM:DEG (default: default none)")
-    p.add_argument("--clearance", type=float, nargs="*", default=list(Config.clearance_mm), metavar="MM",
-                   help="planner variants asking for this clearance from the identified shape [mm] (default 3 10)")
-    p.add_argument("--clearance-rows", type=int, default=Config.clearance_rows,
-                   help="best grasps searched for a clear one (default 2000)")
-    p.add_argument("--db", default="", help="FS database folder (default: the library's; quick: OUT/fsdb)")
-    p.add_argument("--quick", action="store_true", help="a few episodes on a coarse database (CI)")
-    a = p.parse_args(argv)
-    try:
-        for label in a.noise:
-            noise_sigmas(label)
-    except ValueError as e:
-        p.error(str(e))
-    if any(not (c > 0 and math.isfinite(c)) for c in a.clearance) or len(set(a.noise)) < len(a.noise):
-        p.error("--clearance values must be > 0 mm and --noise conditions distinct")
-    out = Path(a.out)
+    out = Path(opts.out)
+    if opts.quick and cfg.db is None:  # a CI run builds its coarse database in its own folder
+        cfg = replace(cfg, db=str(out / "fsdb"))
     out.mkdir(parents=True, exist_ok=True)
-    cfg = Config(episodes=a.episodes, objects=a.objects, seed=a.seed, noise=tuple(a.noise),
-                 clearance_mm=tuple(a.clearance), clearance_rows=a.clearance_rows, db=a.db)
-    if a.quick:
-        cfg = replace(cfg, episodes=min(a.episodes, 6), quick=True, db=a.db or str(out / "fsdb"))
-    write_config(out / "config.json", cfg)
     res = run(cfg)
     summary = summarise(res["rows"], cfg)
     table = write_table(summary, cfg)
     (out / "table.md").write_text(table)
-    record = run_record.summary({"config": cfg, "noise_sigmas": {k: noise_sigmas(k) for k in cfg.noise},
-                                 "summary": summary, "database": res["database"]})
-    write_json(out / "summary.json", record)
-    write_json(out / "results.json", {**record, "episodes": res["rows"]})
+    data = {"config": cfg, "noise_sigmas": {k: noise_sigmas(k) for k in cfg.noise}, "summary": summary,
+            "database": res["database"]}
+    run_record.write(out, data, readme_section, publish=opts.publish)
+    write_json(out / "results.json", {**run_record.summary(data), "episodes": res["rows"]})
     print(table)
-    print(f"wall {record['machine']['wall_s']:.0f} s; results in {out}")
+    print(f"wall {run_record.clock.wall:.0f} s; results in {out}")
     return 0
 
 
 NAMES = {"random": "random action", "top_down": "top-down heuristic",
-         "planner": "planner, highest grade"}
+         "planner": "planner, highest paper grade", "planner_robust": "planner, robust ranking (the default)",
+         "planner_robust_open": "planner, robust ranking choosing the jaw opening too"}
 
 
 def _name(p: str) -> str:
-    return NAMES.get(p) or (f"planner, highest grade with {p.rsplit('_', 1)[1].replace('mm', ' mm')} of "
-                            f"clearance from the shape")
+    if p in NAMES:
+        return NAMES[p]
+    if p.startswith("planner_robust_"):
+        return "planner, robust ranking: " + ABLATION_LABELS[p[len("planner_robust_"):]]
+    return (f"planner, highest grade with {p.rsplit('_', 1)[1].replace('mm', ' mm')} of "
+            f"clearance from the shape")
 
 
 def readme_section(s: dict) -> str:

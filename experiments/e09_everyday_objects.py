@@ -34,7 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import (  # noqa: E402
+from _common import (
     RunRecord,
     database_note,
     database_record,
@@ -47,16 +47,17 @@ from _common import (  # noqa: E402
     write_json,
 )
 
-from graspsim.maps.database import PAPER_SHAPES, MapDatabase  # noqa: E402
-from graspsim.perception import IdentifyConfig  # noqa: E402
-from graspsim.perception.mvbb import min_volume_box  # noqa: E402
-from graspsim.planner import PlannerConfig, TablePlane, plan  # noqa: E402
-from graspsim.sim import LiftPlace, SimSettings, TrialOutcome, build_scene, run_trials  # noqa: E402
-from graspsim.sim.meshes import load_mesh  # noqa: E402
-from graspsim.sim.objects import object_from_mesh  # noqa: E402
-from graspsim.sim.scene import resting_pose  # noqa: E402
-from graspsim.stats import wilson_interval  # noqa: E402
-from graspsim.transforms import invert_transform, make_transform  # noqa: E402
+from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+from graspsim.maps.match import MatchKind
+from graspsim.perception import IdentifyConfig
+from graspsim.perception.mvbb import min_volume_box
+from graspsim.planner import PlannerConfig, TablePlane, plan
+from graspsim.sim import LiftPlace, SimSettings, TrialOutcome, build_scene, run_trials
+from graspsim.sim.meshes import load_mesh
+from graspsim.sim.objects import object_from_mesh
+from graspsim.sim.scene import resting_pose
+from graspsim.stats import wilson_interval
+from graspsim.transforms import invert_transform, make_transform
 
 log = logging.getLogger("e09")
 
@@ -183,12 +184,12 @@ def _plan_entry(points, db, mode: str, cfg: Config) -> tuple[dict, object]:
     res = plan(points, db=db, rng=np.random.default_rng(cfg.seed), config=pc)
     wall = time.perf_counter() - t0
     ident = res.identification
-    built = any(p.match == "built" for p in res.parts)
+    built = any(p.match == MatchKind.BUILD for p in res.parts)
     entry = {"status": res.status.value, "points": len(points),
              "parts": [{"primitive": p.shape.value, "points": p.n_points, "fit_rate": p.fit_rate,
                         "band_rate": p.band_rate, "approximate": p.approximate} for p in ident.parts],
              "unidentified_points": int(sum(p.n_points for p in ident.unidentified)),
-             "matches": [p.match for p in res.parts], "built": built,
+             "matches": [p.match.value for p in res.parts], "built": built,
              "identify_s": res.timing.get("identify"), "seconds": wall,
              "grasps": len(res.map), "accepted": int(res.map.accepted.sum())}
     return entry, res

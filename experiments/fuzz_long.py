@@ -29,7 +29,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(REPO / "tests"))
-from _common import RunRecord, machine_load  # noqa: E402
+from _common import RunRecord, machine_load  # noqa: E402 (after the sys.path lines, which need REPO)
 
 STEM = "fuzz_long"
 MAX_FAILURES_KEPT = 5  # per distinct failure (property, exception type, place)

@@ -17,8 +17,10 @@ The names users reach for first are here, one import away::
   ``make_primitive``, ``synthetic_cloud``; the gripper: ``GripperSpec``, ``HGPL_25_60_A``;
   the grade: ``QualityModel``, ``get_grade``, ``regrade``.
 * maps: ``generate_fs_map``, ``MapConfig``, ``GraspabilityMap``, ``load_map``,
-  ``save_map``, ``map_rates``, ``MapDatabase``; planning from a cloud or a known shape:
-  ``plan``, ``plan_shape``, ``PlannerConfig``, ``TablePlane``; perception: ``identify``,
+  ``save_map``, ``map_rates``, ``MapDatabase``; robust scores (clearance to the observed
+  cloud, success under wrist pose error): ``RobustConfig``, ``score_map``; planning from a
+  cloud or a known shape (ranked by the robust score): ``plan``, ``plan_shape``,
+  ``PlannerConfig``, ``TablePlane``; perception: ``identify``,
   ``read_point_cloud``, ...
 * simulation (MuJoCo): ``simulate_map``, ``run_trials``, ``build_scene``, ...
 * errors: every exception is a ``GraspsimError``.
@@ -72,6 +74,7 @@ _LAZY: dict[str, str] = {
     **_from("graspsim.maps.io", "load_map", "save_map"),
     **_from("graspsim.maps.metrics", "map_rates"),
     **_from("graspsim.maps.database", "MapDatabase"),
+    **_from("graspsim.maps.robust", "RobustConfig", "score_map"),
     # run-time planning: point cloud (or known shape) -> adapted map
     **_from("graspsim.planner", "plan", "plan_shape", "PlannerConfig", "PlanResult", "PlanStatus",
             "TablePlane"),

@@ -91,6 +91,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
     """Run the demo; ``step(message)`` reports progress. Returns the summary dict (also
     written to ``out/summary.json``)."""
     from graspsim.maps.io import save_map
+    from graspsim.maps.robust import ranking
     from graspsim.maps.table import clears_table
     from graspsim.planner import plan
     from graspsim.plots import plot_map
@@ -131,16 +132,21 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
     clear = clears_table(gmap, scene.T_world_obj @ T_true_obj, db.gripper, 0.002)
     candidates = np.flatnonzero(gmap.accepted & clear)
     summary["clear_of_table"] = len(candidates)
-    rows = candidates[gmap.select(candidates).uniform_surface_rows(cfg.trials, rng)]
-    step(f"simulating {len(rows)} lift-and-place trials in MuJoCo, drawn from the "
-         f"{len(candidates)} grasps > 0.7 whose gripper stays clear of the table "
-         f"(of {summary['accepted']} > 0.7)")
+    # first the grasp a robot would execute (the best by the planner's robust ranking),
+    # then grasps drawn uniformly over the object
+    best = candidates[ranking(gmap.select(candidates))[:1]]
+    rest = candidates[gmap.select(candidates).uniform_surface_rows(cfg.trials, rng)]
+    rows = np.concatenate([best, rest[rest != best[0]] if len(best) else rest])[:cfg.trials]
+    step(f"simulating {len(rows)} lift-and-place trials in MuJoCo: the best grasp by the robust "
+         f"ranking, then grasps drawn from the {len(candidates)} grasps > 0.7 whose gripper stays "
+         f"clear of the table (of {summary['accepted']} > 0.7)")
     noise = ExecutionNoise() if cfg.noise else None
     res = run_trials(scene, T_sim[rows], gmap.width[rows], LiftPlace(), threads=cfg.threads,
                      seed=cfg.seed, noise=noise)
     ok = int(np.sum(res.outcome == TrialOutcome.SUCCESS))
     lo, hi = wilson_interval(ok, res.feasible)
     summary["trials"] = [{"row": int(r), "part": int(gmap.part[r]), "grade": float(gmap.grade[r]),
+                          "robust": float(gmap.robust[r]) if np.isfinite(gmap.robust[r]) else None,
                           "outcome": o.label,
                           "lift_height": float(res.metrics.get("lift_height", np.full(len(rows), np.nan))[i]),
                           "hold_slip": float(res.metrics.get("hold_lin", np.full(len(rows), np.nan))[i])}

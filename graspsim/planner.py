@@ -6,8 +6,13 @@
 
 :func:`plan_stream` yields grasps as soon as they exist (best-first within each part),
 so a caller can act on the first grasps before the whole map is built; :func:`plan`
-returns the finished map. Every map records ``extra["T_cloud_obj"]`` (4x4): the
-object frame in the cloud's frame, so poses can be taken back to the sensor.
+returns the finished map. With ``PlannerConfig.rank="robust"`` (the default) every
+batch's best-graded grasps get robust scores as they stream (clearance to the observed
+cloud, feasibility under wrist pose error; :mod:`graspsim.maps.robust`), up to
+``PlannerConfig.robust.top`` per part, and batches and the finished map are ordered by
+them; ``rank="paper"`` keeps the paper's grade order and scores nothing. Every map
+records ``extra["T_cloud_obj"]`` (4x4): the object frame in the cloud's frame, so poses
+can be taken back to the sensor.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
+from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import TablePlane, clears_table, table_frame
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
@@ -56,6 +62,9 @@ class PlannerConfig:
         the map ignores the table.
     contact_tolerance: a grasp on a part identified only approximately (robust mode) is
         kept only where both its contacts lie within this distance [m] of the cloud.
+    rank: ``"robust"`` (default): score the best-graded grasps for robustness
+        (``robust``) and order by the robust score; ``"paper"``: the paper's grade.
+    robust: the robustness settings (pose error, perturbations, grasps scored per part).
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -64,6 +73,14 @@ class PlannerConfig:
     build_missing: bool = True
     table: TablePlane | None = None
     contact_tolerance: float = 0.004
+    rank: str = "robust"
+    robust: RobustConfig = field(default_factory=RobustConfig)
+
+    def __post_init__(self) -> None:
+        if self.rank not in RANKS:
+            raise InvalidParameterError(f"PlannerConfig.rank must be one of {list(RANKS)}, got {self.rank!r}")
+        if not isinstance(self.robust, RobustConfig):
+            raise InvalidParameterError(f"PlannerConfig.robust must be a RobustConfig, got {self.robust!r}")
 
 
 @dataclass(frozen=True)
@@ -98,7 +115,8 @@ class PlanResult:
     """status; map: adapted map (object frame; ``extra["T_cloud_obj"]``); parts;
     identification (None for :func:`plan_shape`); T_cloud_obj (4, 4); timing [s] per
     stage plus ``first`` and ``tenth`` (time to the first and tenth grasp with grade
-    > 0.95, None if never)."""
+    > 0.95, None if never), ``first_robust`` (time to the first grasp with a robust
+    score > 0; None if never or ``rank="paper"``) and ``robust`` (seconds spent scoring)."""
 
     status: PlanStatus
     map: GraspabilityMap
@@ -112,6 +130,7 @@ class PlanResult:
                 "grasps": len(self.map), "accepted": int(self.map.accepted.sum()),
                 "seconds": self.timing.get("total"), "time_to_first_0.95": self.timing.get("first"),
                 "time_to_tenth_0.95": self.timing.get("tenth"),
+                "time_to_first_robust": self.timing.get("first_robust"),
                 "T_cloud_obj": self.T_cloud_obj.tolist(),
                 "identification": None if self.identification is None else {
                     "mode": self.identification.mode, "uncovered": self.identification.uncovered,
@@ -184,7 +203,8 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
         prims, T_cloud = [], []
     if not prims:
         yield PlanResult(status, GraspabilityMap.empty(_empty_meta(db, ident)), (), ident, np.eye(4),
-                         {**timing, "total": time.perf_counter() - t0, "first": None, "tenth": None})
+                         {**timing, "total": time.perf_counter() - t0, "first": None, "tenth": None,
+                          "first_robust": None, "robust": 0.0})
         return
     info = {"status": ident.status.value, "n_points": ident.n_points, "n_splits": ident.n_splits,
             "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict(),
@@ -252,12 +272,15 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     n_below = 0
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
-    first = tenth = None
+    first = tenth = first_robust = None
     n_hi = 0
+    t_robust = 0.0
+    cloud_obj = cloud_in_object(points, T_cloud_obj)
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):
         match, src, stream = _part_stream(prim, db, cfg)
         parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i]))
+        budget = cfg.robust.top if cfg.rank == "robust" else 0
         for part_map in stream:
             if compound is not None:
                 part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
@@ -271,6 +294,14 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             batch = replace(part_map, meta=replace(obj_meta, extra=extra), part=np.full(len(part_map), i, np.int16))
             if not len(batch):
                 continue
+            if budget > 0:  # robustness of the batch's best-graded grasps, then its order
+                t2 = time.perf_counter()
+                rows = np.argsort(-batch.grade, kind="stable")[:budget]
+                batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper).ranked()
+                budget -= len(rows)
+                t_robust += time.perf_counter() - t2
+                if first_robust is None and bool(np.any(batch.robust > 0)):
+                    first_robust = time.perf_counter() - t0
             now = time.perf_counter() - t0
             hi = int((batch.grade > 0.95).sum())
             if hi and first is None:
@@ -287,8 +318,12 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     meta = replace(obj_meta, method="adapted/" + ("single" if compound is None else "combined"),
                    extra=final)
     full = GraspabilityMap.concat(batches, meta=meta) if batches else GraspabilityMap.empty(meta)
-    full = full.select(np.argsort(-full.grade, kind="stable"))
-    timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth)
+    if cfg.rank == "robust" and batches:
+        prov = {**batches[0].meta.extra["robust"], "scored": int(np.isfinite(full.robust).sum())}
+        full = full.with_meta(extra={**final, "robust": prov})
+    full = full.ranked(cfg.rank)
+    timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
+                  robust=t_robust)
     yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
 
 

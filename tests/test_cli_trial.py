@@ -51,3 +51,22 @@ def test_bad_input_exits_with_a_clear_error(tmp_path, capsys):
     path = _map(tmp_path)
     assert main(["trial", str(path), "--mass", "-1", "--no-write"]) == 2
     assert "mass" in capsys.readouterr().err
+
+
+def test_top_executes_the_best_by_the_chosen_ranking(tmp_path, capsys):
+    from dataclasses import replace
+
+    from graspsim.maps import load_map
+
+    m = load_map(_map(tmp_path))  # grades rise with the row: row 3 is the paper's best
+    scored = replace(m, robust=np.array([0.9, 0.1, np.nan, 0.0]))  # row 0: the robust best
+    for rank, row in (("robust", 0), ("paper", 3)):
+        path = save_map(scored, tmp_path / f"{rank}.h5")
+        assert main(["trial", str(path), "--top", "1", "--rank", rank, "--threads", "1", "--json"]) == 0
+        assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["rank"] == rank
+        assert np.flatnonzero(read_sim_results(path)["simulated"]).tolist() == [row]
+    # the robust order: scored > 0 by score, unscored by grade, scored 0 last
+    from graspsim.sim.mapsim import select_grasps
+
+    assert select_grasps(load_map(path), top=4).tolist() == [0, 1, 2, 3]
+    assert select_grasps(load_map(path), top=4, rank="paper").tolist() == [3, 2, 1, 0]

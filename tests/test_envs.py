@@ -24,6 +24,7 @@ from graspsim.envs.baselines import (
     highest_grade_policy,
     oracle_choice,
     random_policy,
+    robust_policy,
     wilson_interval,
 )
 from graspsim.envs.candidates import CANDIDATE_FEATURES
@@ -334,6 +335,23 @@ def test_baseline_policies_respect_the_mask():
     assert oracle_choice(obs, np.array([1.0, 0.0, 0.0, 1.0, 1.0])) == 3
     assert oracle_choice(obs, np.zeros(K)) == 2  # nothing succeeds: the highest grade
     assert grasp_features(obs).shape == (K, len(FEATURE_NAMES))
+    cand[:, CANDIDATE_FEATURES.index("robust")] = [0.99, 0.5, 0.0, 0.5, 0.9]
+    assert robust_policy(obs) == 1  # the masked 0 and 4 never; a tie of 1 and 3 goes to the higher grade
+
+
+def test_candidates_carry_the_planners_robust_scores(kw):
+    env = _make(GRASP_SELECT_ID, kw, n_candidates=8)
+    obs, _ = env.reset(seed=11)
+    rows, mask = env.candidate_rows, obs["action_mask"].astype(bool)
+    gmap = env.plan_result.map
+    assert gmap.has_robust and gmap.meta.extra["robust"]["scored"] == int(np.isfinite(gmap.robust).sum())
+    robust = obs["candidates"][mask, CANDIDATE_FEATURES.index("robust")]
+    np.testing.assert_allclose(robust, np.nan_to_num(gmap.robust[rows]), atol=1e-6)
+    assert np.all((robust >= 0) & (robust <= 1))
+    # the planner's map is ordered by the robust ranking
+    from graspsim.maps.robust import ranking
+
+    np.testing.assert_array_equal(ranking(gmap), np.arange(len(gmap)))
 
 
 def test_logistic_policy_learns_a_separable_rule_and_wilson_bounds():
@@ -368,7 +386,10 @@ def test_e06_quick_writes_results(tmp_path):
         assert (out / f).stat().st_size > 0, f
     r = json.loads((out / "results.json").read_text())
     overall = r["results"]["overall"]
-    assert set(overall) == {"random", "highest_grade", "learned", "learned_map_only", "oracle"}
+    assert set(overall) == {"random", "highest_grade", "robust", "learned", "learned_map_only", "oracle"}
+    from graspsim.maps.robust import ABLATIONS
+
+    assert set(r["results"]["ablation"]) == set(ABLATIONS)
     assert all(v["n"] == 6 and v["ci95"][0] <= v["rate"] <= v["ci95"][1] for v in overall.values())
     assert overall["oracle"]["rate"] >= max(v["rate"] for v in overall.values())
     assert r["cost"]["step_agrees_with_evaluate"] == 12

@@ -96,7 +96,10 @@ def test_e08_quick_pose_baselines(tmp_path):
     assert mod.main(["--quick", "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     pol = s["summary"]["policies"]
-    assert set(pol) == {"random", "top_down", "planner", "planner_clear_3mm", "planner_clear_10mm"}
+    from graspsim.maps.robust import ABLATIONS
+
+    assert set(pol) == {"random", "top_down", "planner", "planner_robust", "planner_robust_open", "planner_clear_3mm",
+                        "planner_clear_10mm"} | {f"planner_robust_{a}" for a in ABLATIONS}
     n = s["summary"]["episodes"]
     for p in pol.values():
         assert set(p) >= {"default", "none"} and p["default"]["all"]["episodes"] == n > 0
@@ -104,8 +107,9 @@ def test_e08_quick_pose_baselines(tmp_path):
     # a policy that falls back proposes the top-down pose: the same outcome under every condition
     r = json.loads((out / "results.json").read_text())
     for ep in r["episodes"]:
-        if ep["planner"]["fallback"]:
-            assert ep["planner"]["none"] == ep["top_down"]["none"]
+        for name in ("planner", "planner_robust", "planner_robust_open"):
+            if ep[name]["fallback"]:
+                assert ep[name]["none"] == ep["top_down"]["none"]
     assert pol["top_down"]["none"]["all"]["success"] > pol["random"]["none"]["all"]["success"]
     assert s["command"].startswith("python experiments/e08_pose_baselines.py --quick")
     assert s["command"] in mod.readme_section(s)

@@ -166,7 +166,7 @@ def test_a_flat_box_gets_top_down_grasps_when_the_nearest_stored_box_is_a_plate(
     T = make_transform(np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]), [0.0, 0.0, 0.0225])
     cloud = synthetic_cloud(box, np.random.default_rng(3), resolution=0.006, noise=0.001, T_world_obj=T)
     r = plan(cloud.points, db=db, rng=np.random.default_rng(0), config=PlannerConfig(table=TablePlane()))
-    assert r.parts[0].match == "built"  # the plate's map cannot serve it
+    assert r.parts[0].match == MatchKind.BUILD  # the plate's map cannot serve it
     approach_z = (quat_to_matrix(r.map.wrist_quat)[:, :, 2] @ r.T_cloud_obj[:3, :3].T)[:, 2]
     assert len(r.map) and np.sum(approach_z < -0.9) > 0  # top-down grasps, above the table
 
@@ -195,3 +195,33 @@ def test_the_summary_and_the_map_record_the_identification_mode(db):
                  config=PlannerConfig(identify=IdentifyConfig.preset(mode)))
         assert r.summary()["identification"]["mode"] == mode
         assert r.map.meta.extra["identification"]["mode"] == mode
+
+
+def test_robust_ranking_streams_first_and_never_offers_a_pose_into_the_cloud(db):
+    from graspsim.maps.robust import RobustConfig, ranking
+    from graspsim.planner import PlannerConfig
+
+    cloud = _cloud(Cylinder(0.024, 0.17), 4)
+    cfg = PlannerConfig(robust=RobustConfig(top=300, samples=8))
+    items = list(plan_stream(cloud.points, db=db, rng=np.random.default_rng(0), config=cfg))
+    r = items[-1]
+    # every batch is scored (best-graded first) and ordered by the robust score
+    assert items[0].map.has_robust and r.timing["first_robust"] is not None
+    assert r.timing["first_robust"] <= r.timing["total"]
+    for b in items[:-1]:
+        np.testing.assert_array_equal(ranking(b.map), np.arange(len(b.map)))
+    m = r.map
+    assert np.isfinite(m.robust).sum() == 300 and m.meta.extra["robust"]["scored"] == 300
+    top = m.top_k(20)
+    assert np.all(top.robust > 0)
+    # no top pose touches an observed point at its nominal pose (independent check)
+    T_obj_cloud = invert_transform(r.T_cloud_obj)
+    pts = cloud.points @ T_obj_cloud[:3, :3].T + T_obj_cloud[:3, 3]
+    for T, w in zip(top.T_obj_wrist, top.width):
+        c, h = G.boxes_at(float(G.pregrasp_opening(w)))
+        q = (pts - T[:3, 3]) @ T[:3, :3]
+        assert not np.any(np.all(np.abs(q[:, None, :] - c[None]) < h[None], axis=-1))
+    # the paper's order is still there, and plan(rank="paper") scores nothing
+    np.testing.assert_array_equal(m.ranked("paper").grade, np.sort(m.grade)[::-1])
+    p = plan(cloud.points, db=db, rng=np.random.default_rng(0), config=PlannerConfig(rank="paper"))
+    assert not p.map.has_robust and p.timing["first_robust"] is None

@@ -28,9 +28,11 @@ def _cmd_demo(args) -> int:
                 if "clear_of_table" in s else "")
              + f", built in {s['plan_seconds']:.2f} s from the cloud"]
     if s["trials"]:
-        rows = [(i, t["part"], f"{t['grade']:.3f}", t["outcome"], f"{100 * t['lift_height']:.1f}",
-                 f"{1000 * t['hold_slip']:.1f}") for i, t in enumerate(s["trials"])]
-        lines.append(format_table(rows, ["#", "part", "grade", "outcome", "lift cm", "hold slip mm"]))
+        rows = [(i, t["part"], f"{t['grade']:.3f}", "-" if t.get("robust") is None else f"{t['robust']:.3f}",
+                 t["outcome"], f"{100 * t['lift_height']:.1f}", f"{1000 * t['hold_slip']:.1f}")
+                for i, t in enumerate(s["trials"])]
+        lines.append("trial 0: the best grasp by the robust ranking; the others drawn over the object")
+        lines.append(format_table(rows, ["#", "part", "grade", "robust", "outcome", "lift cm", "hold slip mm"]))
         lo, hi = s["interval_95"]
         lines.append(f"success {s['success']}/{s['feasible']} feasible trials "
                      f"({100 * s['success_rate']:.0f} %, 95 % CI {100 * lo:.0f}-{100 * hi:.0f} %)")

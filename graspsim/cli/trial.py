@@ -1,7 +1,8 @@
 """``graspsim trial``: simulate a map's grasps in MuJoCo and store the outcomes in the map.
 
-    graspsim trial MAP.h5 [--protocol lift_place|tug] [--top N | --sample N --min-grade G]
-                   [--threads T] [--render DIR] [--mesh FILE] [--seed S] [--noise] [--all] [--json]
+    graspsim trial MAP.h5 [--protocol lift_place|tug] [--top N [--rank robust|paper] |
+                   --sample N --min-grade G] [--threads T] [--render DIR] [--mesh FILE]
+                   [--seed S] [--noise] [--all] [--json]
 
 A selection that holds no grasp is an error (nonzero exit), not an empty table. Before
 simulating, the command says how many trials will run and about how long they take;
@@ -36,9 +37,14 @@ def register(subparsers) -> None:
                    help="lift_place: the paper's lift-and-place test (default); tug: "
                         "table-free pulls of 1 g x mass in six gripper directions")
     sel = p.add_mutually_exclusive_group()
-    sel.add_argument("--top", type=int, metavar="N", help="the N best grasps by grade")
+    sel.add_argument("--top", type=int, metavar="N",
+                     help="the N best grasps by --rank (the ones a robot would execute)")
     sel.add_argument("--sample", type=int, metavar="N",
                      help="N grasps spread uniformly over the object's surface")
+    p.add_argument("--rank", choices=("robust", "paper"), default="robust",
+                   help="order of --top: robust (default): the map's robust scores (expected success "
+                        "under wrist pose error, clearance to the observed cloud; maps planned from a "
+                        "cloud have them), then the grade; paper: the paper's grade")
     p.add_argument("--min-grade", type=float, metavar="G", help="only grasps with grade > G")
     p.add_argument("--threads", type=int, metavar="T", help="native threads (default: all cores)")
     p.add_argument("--seed", type=seed_value, default=0, help="seed of sampling and noise (default 0)")
@@ -115,7 +121,7 @@ def run(args) -> int:
             noise=ExecutionNoise() if args.noise else None, mesh=args.mesh,
             mesh_scale=args.mesh_scale, mass=args.mass, settings=settings,
             write=not args.no_write, on_progress=tick, on_selected=_selection_check(args, bar),
-            on_record=recorder)
+            on_record=recorder, rank=args.rank)
     finally:
         bar.close()
     res = out.results
@@ -142,7 +148,7 @@ def run(args) -> int:
         "file": str(args.map), "protocol": protocol.name, "trials": len(res),
         "feasible": res.feasible, "counts": counts, "success_rate": res.success_rate,
         "trials_per_second": res.trials_per_second, "wall_time_s": res.wall_time,
-        "threads": res.threads, "seed": args.seed, "noise": res.noise,
+        "threads": res.threads, "seed": args.seed, "noise": res.noise, "rank": args.rank,
         "mesh": args.mesh, "written_to": out.group, "renders": renders, "record": args.record,
     }
     n = max(1, len(res))

@@ -5,8 +5,12 @@ Policies map an observation (and a generator, where they draw) to an action:
 * :func:`random_policy`: a valid candidate uniformly at random;
 * :func:`highest_grade_policy`: the valid candidate with the highest grade (the paper's
   choice);
+* :func:`robust_policy`: the valid candidate with the highest robust score (the
+  planner's default ranking, :mod:`graspsim.maps.robust`), ties by grade;
 * :func:`oracle_choice`: given every candidate's simulated reward
   (``env.evaluate_candidates()``), one that succeeds, if any (an upper bound);
+* :func:`planner_pose` (``GraspPose-v0``): the run-time planner's best grasp of the
+  observed cloud, by the robust ranking (default) or the paper's grade;
 * :class:`LogisticPolicy`: L2-regularised logistic regression of a candidate's success
   on :func:`grasp_features`, trained on logged candidates; it picks the valid candidate
   with the highest predicted success probability.
@@ -34,14 +38,14 @@ from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.stats import wilson_interval
 from graspsim.transforms import make_transform, quat_to_matrix
 
-__all__ = ["random_policy", "highest_grade_policy", "oracle_choice", "grasp_features",
+__all__ = ["random_policy", "highest_grade_policy", "robust_policy", "oracle_choice", "planner_pose", "grasp_features",
            "FEATURE_NAMES", "LogisticPolicy", "wilson_interval"]
 
 _COL = {name: i for i, name in enumerate(CANDIDATE_FEATURES)}
 
 FEATURE_NAMES = ("grade", "q_fc", "q_st", "fc_angle", "stability_distance", "width",
                  "approach_z", "closing_z", "tcp_height", "tcp_height_rel", "table_clearance",
-                 "cloud_clearance", "points_in_gripper", "points_between_pads")
+                 "cloud_clearance", "points_in_gripper", "points_between_pads", "robust")
 
 
 def _valid(obs: dict) -> np.ndarray:
@@ -63,6 +67,17 @@ def highest_grade_policy(obs: dict) -> int:
     return int(v[np.argmax(g)])
 
 
+def robust_policy(obs: dict) -> int:
+    """The valid candidate with the highest robust score, ties broken by grade (the
+    first such on full ties)."""
+    v = _valid(obs)
+    if not len(v):
+        return 0
+    c = np.asarray(obs["candidates"])[v]
+    order = np.lexsort((-c[:, _COL["grade"]], -c[:, _COL["robust"]]))
+    return int(v[order[0]])
+
+
 def oracle_choice(obs: dict, rewards: np.ndarray) -> int:
     """The valid candidate with the highest simulated reward (K,), ties broken by grade."""
     v = _valid(obs)
@@ -71,6 +86,26 @@ def oracle_choice(obs: dict, rewards: np.ndarray) -> int:
     g = np.asarray(obs["candidates"])[v, _COL["grade"]]
     order = np.lexsort((-g, -np.asarray(rewards)[v]))
     return int(v[order[0]])
+
+
+def planner_pose(result, rank: str = "robust") -> tuple[np.ndarray, float] | None:
+    """(T_world_wrist (4, 4), width [m]) of a plan's best grasp by ``rank`` (the contact
+    width, plus twice the extra opening per side its robust score assumed, if any)
+    (``graspsim.planner.plan`` of a world-frame cloud, e.g. with the table known:
+    ``PlannerConfig(table=TablePlane(height=0.0))``), or None when the map is empty or,
+    ranked robustly, its best grasp scored 0 (it collides with the cloud at its pose
+    or no perturbation stays feasible)."""
+    gmap = result.map
+    if not len(gmap):
+        return None
+    best = gmap.top_k(1, rank=rank)
+    if rank == "robust" and best.has_robust and not best.robust[0] > 0:
+        return None
+    width = float(best.width[0])
+    extra = float(best.robust_extra_opening[0]) if rank == "robust" else 0.0
+    if np.isfinite(extra):  # the robust score assumed the jaws that much wider per side
+        width += 2.0 * extra
+    return result.T_cloud_obj @ best.T_obj_wrist[0], width
 
 
 def _box_sdf(p: np.ndarray, centers: np.ndarray, half: np.ndarray) -> np.ndarray:
@@ -113,6 +148,7 @@ def grasp_features(obs: dict, gripper: GripperSpec = HGPL_25_60_A) -> np.ndarray
         T[:, 2, 2], np.abs(T[:, 2, 0]), tcp[:, 2], tcp[:, 2] / top,
         gripper.lowest_point(T, opening),
         np.clip(d.min(axis=1), -0.02, 0.03), (d < 0).mean(axis=1), between.mean(axis=1),
+        cand[:, _COL["robust"]],
     ])
     return f
 

@@ -33,11 +33,15 @@ log = logging.getLogger(__name__)
 #: Columns of the ``candidates`` observation (one row per candidate): wrist position
 #: [m] and quaternion (w, x, y, z) in the estimated object frame, grade and its
 #: components q_fc, q_st, force-closure angle [rad], stability distance [m], contact
-#: width [m] (the jaws open to width + 2 x the approach clearance).
+#: width [m] (the jaws open to width + 2 x the approach clearance), the planner's robust
+#: score (expected success under the execution error; 0 when not scored) and the
+#: gripper's clearance to the observed cloud [m] (clipped to +-5 cm; 5 cm when not
+#: scored) -- see :mod:`graspsim.maps.robust`.
 CANDIDATE_FEATURES = ("x", "y", "z", "qw", "qx", "qy", "qz", "grade", "q_fc", "q_st",
-                      "fc_angle", "stability_distance", "width")
-_LOW = np.array([-1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0], np.float32)
-_HIGH = np.array([1, 1, 1, 1, 1, 1, 1, 1, 1, 1, np.pi, 1, 1], np.float32)
+                      "fc_angle", "stability_distance", "width", "robust", "clearance")
+_CLEARANCE_CAP = 0.05
+_LOW = np.array([-1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, -_CLEARANCE_CAP], np.float32)
+_HIGH = np.array([1, 1, 1, 1, 1, 1, 1, 1, 1, 1, np.pi, 1, 1, 1, _CLEARANCE_CAP], np.float32)
 
 
 class PooledDatabase(MapDatabase):
@@ -81,6 +85,8 @@ def candidate_features(gmap: GraspabilityMap, rows: np.ndarray, k: int) -> np.nd
     out[:n, 10] = gmap.fc_angle[rows]
     out[:n, 11] = gmap.stability_distance[rows]
     out[:n, 12] = gmap.width[rows]
+    out[:n, 13] = np.nan_to_num(gmap.robust[rows], nan=0.0)
+    out[:n, 14] = np.nan_to_num(gmap.clearance[rows], nan=_CLEARANCE_CAP)
     return np.clip(out, _LOW, _HIGH)
 
 

@@ -15,7 +15,8 @@ Observation (``Dict``):
 * ``cloud`` (N, 3) float32: the sensor cloud, world frame (z up, table top z = 0) [m];
 * ``candidates`` (K, F) float32: one row per candidate, columns
   :data:`~graspsim.envs.candidates.CANDIDATE_FEATURES` (wrist pose in the *estimated*
-  object frame, grade and its components, contact width); zeros in invalid slots;
+  object frame, grade and its components, contact width, the planner's robust score
+  and clearance to the observed cloud); zeros in invalid slots;
 * ``object_pose`` (7,) float32: the estimated object frame in the world, position [m]
   and quaternion (w, x, y, z) -- world pose of a candidate = object_pose @ its pose;
 * ``action_mask`` (K,) int8: 1 for the valid candidates (also ``info["action_mask"]``
@@ -55,7 +56,7 @@ from graspsim.envs.config import EnvConfig, Perception
 from graspsim.errors import GraspsimError, InvalidParameterError, NoFeasibleGraspError
 from graspsim.maps.scaling import ScalingConfig
 from graspsim.perception import IdentifyConfig
-from graspsim.planner import PlannerConfig, PlanResult, plan, plan_shape
+from graspsim.planner import PlannerConfig, PlanResult, TablePlane, plan, plan_shape
 
 __all__ = ["GraspSelectEnv"]
 
@@ -79,10 +80,12 @@ class GraspSelectEnv(TableTask):
         })
         self.action_space = spaces.Discrete(K)
         # small scaling batches go to the branch-and-bound collision check, which needs
-        # no per-object set-up: the fastest for pools of a few hundred grasps
+        # no per-object set-up: the fastest for pools of a few hundred grasps; the table
+        # (world z = 0) is known, so robust scores count perturbations into it
         self.planner_config = PlannerConfig(
             identify=IdentifyConfig(repetitions=c.identify_repetitions),
-            scaling=ScalingConfig(first_batch=48, growth=1.0), build_missing=False)
+            scaling=ScalingConfig(first_batch=48, growth=1.0), build_missing=False,
+            table=TablePlane(height=0.0, clearance=c.table_margin))
         self.plan_result: PlanResult | None = None
         self._obs: dict | None = None
         self._cand: dict | None = None
@@ -170,6 +173,13 @@ class GraspSelectEnv(TableTask):
         return self._observation(), float(reward), True, False, info
 
     # ------------------------------------------------------------------ helpers
+    @property
+    def candidate_rows(self) -> np.ndarray:
+        """(n,) rows of ``plan_result.map`` offered as the valid candidates, in slot order."""
+        if self._cand is None:
+            raise GraspsimError("no episode yet: call reset() first")
+        return self._cand["rows"].copy()
+
     def action_masks(self) -> np.ndarray:
         """(K,) bool: the valid candidates of the current episode."""
         if self._cand is None:

@@ -21,7 +21,7 @@ from graspsim.transforms import quat_to_matrix
 if TYPE_CHECKING:
     from graspsim.maps.generate import MapConfig
 
-__all__ = ["GraspabilityMap", "MapMeta", "Placement", "COLUMNS"]
+__all__ = ["GraspabilityMap", "MapMeta", "Placement", "COLUMNS", "OPTIONAL_COLUMNS"]
 
 # column name -> (trailing shape, dtype)
 COLUMNS: dict[str, tuple[tuple[int, ...], type]] = {
@@ -37,6 +37,16 @@ COLUMNS: dict[str, tuple[tuple[int, ...], type]] = {
     "q_st": ((), np.float32),
     "grade": ((), np.float32),
     "part": ((), np.int16),
+}
+#: Columns a map may lack (NaN: not computed): the robust scores of
+#: :mod:`graspsim.maps.robust` -- clearance to the observed points [m], the fraction of
+#: pose perturbations that stay feasible, the robust score (expected success) and the
+#: extra pad gap per side it assumes [m] (0 unless ``RobustConfig.openings`` says more).
+OPTIONAL_COLUMNS: dict[str, tuple[tuple[int, ...], type]] = {
+    "clearance": ((), np.float32),
+    "robust_feasible": ((), np.float32),
+    "robust": ((), np.float32),
+    "robust_extra_opening": ((), np.float32),
 }
 
 
@@ -168,13 +178,16 @@ class GraspabilityMap:
     grade: np.ndarray
     part: np.ndarray
     meta: MapMeta
+    clearance: np.ndarray | None = None
+    robust_feasible: np.ndarray | None = None
+    robust: np.ndarray | None = None
+    robust_extra_opening: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        n = None
-        for name, (shape, dtype) in COLUMNS.items():
-            a = np.ascontiguousarray(getattr(self, name), dtype=dtype)
-            if n is None:
-                n = len(a)
+        n = len(np.asarray(self.wrist_position))  # the first column sets the row count
+        for name, (shape, dtype) in {**COLUMNS, **OPTIONAL_COLUMNS}.items():
+            v = getattr(self, name)
+            a = np.full((n, *shape), np.nan, dtype) if v is None else np.ascontiguousarray(v, dtype=dtype)
             if a.shape != (n, *shape):
                 raise InvalidParameterError(
                     f"map column {name} has shape {a.shape}, expected {(n, *shape)}"
@@ -191,7 +204,8 @@ class GraspabilityMap:
         return cls(**cols, meta=meta)
 
     def columns(self) -> dict[str, np.ndarray]:
-        return {k: getattr(self, k) for k in COLUMNS}
+        """Every column, the optional (robust) ones included."""
+        return {k: getattr(self, k) for k in (*COLUMNS, *OPTIONAL_COLUMNS)}
 
     @property
     def threshold(self) -> float:
@@ -243,12 +257,26 @@ class GraspabilityMap:
             m &= self.accepted == accepted
         return self.select(m)
 
-    def top_k(self, k: int) -> GraspabilityMap:
-        """The k best grasps by grade, best first (stable order among ties)."""
+    @property
+    def has_robust(self) -> bool:
+        """Whether any row has a robust score (:mod:`graspsim.maps.robust`)."""
+        return bool(np.isfinite(self.robust).any())
+
+    def ranked(self, rank: str = "robust") -> GraspabilityMap:
+        """The map ordered best first: ``"robust"`` (default): rows with a robust score by
+        it, then the others by grade -- the grade alone for a map without robust scores;
+        ``"paper"``: by the paper's grade (stable order among ties)."""
+        from graspsim.maps.robust import ranking
+
+        return self.select(ranking(self, rank))
+
+    def top_k(self, k: int, rank: str = "robust") -> GraspabilityMap:
+        """The k best grasps, best first, by ``rank`` (see :meth:`ranked`)."""
         if k < 0:
             raise InvalidParameterError(f"k must be >= 0, got {k}")
-        order = np.argsort(-self.grade, kind="stable")[:k]
-        return self.select(order)
+        from graspsim.maps.robust import ranking
+
+        return self.select(ranking(self, rank)[:k])
 
     def sample_uniform_surface(
         self, n: int, rng: np.random.Generator, *, cell: float | None = None
@@ -284,7 +312,7 @@ class GraspabilityMap:
         """Rows of several maps (of the same object frame) in one map."""
         if not maps:
             raise InvalidParameterError("concat needs at least one map")
-        cols = {k: np.concatenate([getattr(m, k) for m in maps]) for k in COLUMNS}
+        cols = {k: np.concatenate([getattr(m, k) for m in maps]) for k in (*COLUMNS, *OPTIONAL_COLUMNS)}
         return GraspabilityMap(**cols, meta=meta or maps[0].meta)
 
     def with_meta(self, **changes: Any) -> GraspabilityMap:

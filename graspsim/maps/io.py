@@ -5,6 +5,11 @@ Layout (datasets, not attributes; N grasps)::
     grasps/transforms                 (N, 4, 4) wrist pose in the object frame
     grasps/qualities/analytic/grade   (N,)  and fc_angle [rad], force_closure (q_fc),
                                       stability (q_st), stability_distance [m]
+    grasps/qualities/robust/score     (N,) robust score (expected success under pose error),
+                                      feasible_fraction, clearance [m], extra_opening
+                                      [m per side]; NaN where not
+                                      scored (graspsim.maps.robust); the group's attribute
+                                      ``provenance`` (JSON) says how; optional on reading
     grasps/qualities/mujoco/...       simulation results, once simulated
     graspability/wrist_position (N,3), wrist_quat (N,4) wxyz, grasp_point (N,3),
                  contacts (N,2,3), normals (N,2,3), width (N,), part (N,), accepted (N,)
@@ -63,6 +68,13 @@ _PATHS = {
     "width": "graspability/width",
     "part": "graspability/part",
 }
+# optional columns (robust scores) -> dataset path; absent in older files (read as NaN)
+_OPTIONAL_PATHS = {
+    "robust": "grasps/qualities/robust/score",
+    "robust_feasible": "grasps/qualities/robust/feasible_fraction",
+    "clearance": "grasps/qualities/robust/clearance",
+    "robust_extra_opening": "grasps/qualities/robust/extra_opening",
+}
 
 
 def _h5py():
@@ -90,6 +102,11 @@ def save_map(gmap: GraspabilityMap, path: str | os.PathLike, *, compression: str
                 for col, dpath in _PATHS.items():
                     f.create_dataset(dpath, data=getattr(gmap, col), **opts)
                 f.create_dataset("graspability/accepted", data=gmap.accepted, **opts)
+                if gmap.has_robust:
+                    for col, dpath in _OPTIONAL_PATHS.items():
+                        f.create_dataset(dpath, data=getattr(gmap, col), **opts)
+                    f["grasps/qualities/robust"].attrs["provenance"] = json.dumps(
+                        m.extra.get("robust", {}), sort_keys=True)
                 f["graspability/format"] = _fixed(FORMAT)
                 f["graspability/schema_version"] = SCHEMA_VERSION
                 f["graspability/meta"] = _fixed(json.dumps(
@@ -167,6 +184,8 @@ def load_map(path: str | os.PathLike, rows: slice | None = None, *,
         sl = slice(None) if rows is None else rows
         _check_memory(f, len(range(n)[sl]), path)
         cols = {col: f[dpath][sl] for col, dpath in _PATHS.items()}
+        cols.update({col: f[dpath][sl] for col, dpath in _OPTIONAL_PATHS.items()
+                     if dpath in f and f[dpath].shape[:1] == (n,)})
         meta, obj, grip = (_json_dict(f, k, path) for k in
                            ("graspability/meta", "object/description", "gripper/configuration"))
         if verify_transforms:

@@ -52,9 +52,12 @@ class MapTrials:
 
 
 def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int | None = None,
-                  min_grade: float | None = None, rng: np.random.Generator | None = None) -> np.ndarray:
-    """Map row indices to simulate: the ``top`` best by grade, or ``sample`` grasps
-    spread uniformly over the surface among those with grade > ``min_grade``, or all."""
+                  min_grade: float | None = None, rng: np.random.Generator | None = None,
+                  rank: str = "robust") -> np.ndarray:
+    """Map row indices to simulate: the ``top`` best by ``rank`` (``"robust"``: the
+    map's robust scores where it has them, else the grade; ``"paper"``: the grade; see
+    :func:`graspsim.maps.robust.ranking`), or ``sample`` grasps spread uniformly over the
+    surface among those with grade > ``min_grade``, or all."""
     if top is not None and sample is not None:
         raise InvalidParameterError("give top or sample, not both")
     rows = np.arange(len(gmap))
@@ -63,7 +66,9 @@ def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int 
     if top is not None:
         if top < 0:
             raise InvalidParameterError(f"top must be >= 0, got {top}")
-        return rows[np.argsort(-gmap.grade[rows], kind="stable")[:top]]
+        from graspsim.maps.robust import ranking
+
+        return rows[ranking(gmap.select(rows), rank)[:top]]
     if sample is not None:
         if sample < 0:
             raise InvalidParameterError(f"sample must be >= 0, got {sample}")
@@ -169,12 +174,12 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                  mesh: str | os.PathLike | None = None, mesh_scale: float = 1.0,
                  mass: float | None = None, settings: SimSettings | None = None,
                  write: bool = True, cache_dir=None, on_progress=None,
-                 on_selected=None, on_record=None) -> MapTrials:
+                 on_selected=None, on_record=None, rank: str = "robust") -> MapTrials:
     """Simulate grasps of the map file ``path`` and (``write``) store the results in it.
 
     settings: defaults to :class:`SimSettings` with the pad friction of the map's quality
     model (the planner's mu). Selection: see :func:`select_grasps` (``seed`` also draws
-    the uniform sample). ``on_selected(gmap, index)`` is called once the rows are chosen
+    the uniform sample; ``rank`` orders ``top``). ``on_selected(gmap, index)`` is called once the rows are chosen
     and before anything is simulated (it may raise to stop, e.g. on an empty or huge
     selection). ``on_record``: see :func:`~graspsim.sim.batch.run_trials` (trial numbers
     are positions in ``MapTrials.index``).
@@ -186,7 +191,7 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
         mu = gmap.meta.quality.get("friction")
         settings = SimSettings(friction=float(mu)) if mu else SimSettings()
     rng = np.random.default_rng(seed)
-    index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng)
+    index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng, rank=rank)
     if on_selected is not None:
         on_selected(gmap, index)
     obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,

@@ -5,7 +5,8 @@ from N(0, position_sigma^2 I) and a rotation whose rotation vector is drawn from
 N(0, rotation_sigma^2 I). Draws come from an explicit ``np.random.Generator``, one per
 trial in trial order, so a seed fixes every trial's pose whatever the thread count.
 The rotation turns about the TCP (mid-pad), where a robot's accuracy is specified: about
-the flange, 2 deg would swing the fingertips 6 mm.
+the flange, 2 deg would swing the fingertips 6 mm. The draw is
+:func:`graspsim.maps.robust.wrist_perturbations`, the planner's robustness model.
 """
 
 from __future__ import annotations
@@ -14,10 +15,9 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from graspsim.errors import InvalidParameterError
-from graspsim.transforms import make_transform
+from graspsim.maps.robust import wrist_perturbations
 
 __all__ = ["ExecutionNoise"]
 
@@ -42,10 +42,7 @@ class ExecutionNoise:
         pivot: (3,) wrist-frame point the rotation turns about and the translation is
         measured at (the TCP, where a robot's accuracy is specified) [m].
         """
-        draws = rng.standard_normal((n, 6))
-        R = Rotation.from_rotvec(self.rotation_sigma * draws[:, 3:]).as_matrix()
-        c = np.asarray(pivot, dtype=float)
-        return make_transform(R, self.position_sigma * draws[:, :3] + c - R @ c)
+        return wrist_perturbations(n, rng, self.position_sigma, self.rotation_sigma, pivot)
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -1,0 +1,339 @@
+"""Robust grasp scores: clearance against what was seen, success under wrist pose error.
+
+The paper's grade knows the two contacts on the identified primitives. A grasp the
+robot executes also needs room for the fingers to miss by a few millimetres, and the
+identified primitives are not the object: the observed points show what they missed (a
+mug's handle, a sphere's true radius). For each grasp of a map this module computes
+
+* ``clearance`` [m]: the signed distance from the gripper's volume (fingers at the
+  pre-grasp opening, jaws, housing, arm keep-out) to the closest observed point;
+  negative when a point lies inside it;
+* ``robust_feasible``: the fraction of K wrist pose perturbations (the execution
+  error: translation N(0, sigma_p^2 I) at the TCP, rotation vector N(0, sigma_r^2 I)
+  about it; :func:`wrist_perturbations`) under which the gripper stays clear of the
+  observed points, the identified primitives' surface and the table, both contacts stay
+  on the pads and the closing axis stays inside both friction cones. The same K
+  perturbations (common random numbers, drawn from ``RobustConfig.seed``) serve every
+  grasp, so scores are deterministic and comparable;
+* ``robust``: the expected success, ``robust_feasible`` x the calibrated success
+  probability of the grasp's contacts (the shipped ``pad_contact`` grade model,
+  fitted on simulated trials with held-out objects), and 0 for a grasp that collides
+  with the observed points (or the table) at its nominal pose.
+
+Scores are computed for the ``RobustConfig.top`` best-graded grasps (the rest stay NaN:
+unscored) and stored as map columns (files: ``grasps/qualities/robust/*``) with their
+provenance in ``meta.extra["robust"]``. :func:`ranking` orders a map by them.
+The compiled kernel (:mod:`graspsim.maps._robust_kernel`) culls, per grasp, the points
+that no perturbation can bring to the gripper, so K perturbations cost little more
+than one.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from graspsim.errors import InvalidParameterError
+from graspsim.gripper import GripperSpec
+from graspsim.transforms import make_transform, quat_to_matrix
+
+__all__ = ["RobustConfig", "RobustScores", "TERMS", "RANKS", "ABLATIONS", "ABLATION_LABELS",
+           "wrist_perturbations", "score_rows", "score_map", "ranking", "cloud_in_object"]
+
+#: What a perturbation must keep to count as feasible (``RobustConfig.terms``).
+TERMS = ("cloud", "primitives", "table", "pads", "force_closure")
+#: Map orderings: ``robust`` (scored rows by robust score, then the rest by grade) or
+#: ``paper`` (the grade alone).
+RANKS = ("robust", "paper")
+SUCCESS_MODELS = ("pad_contact", "grade", "none")
+#: Named variants of :class:`RobustConfig` for ablation studies (the fields they change).
+ABLATIONS: dict[str, dict] = {
+    "no_cloud": {"terms": ("primitives", "table", "pads", "force_closure")},  # identified shape only
+    "nominal": {"position_sigma": 0.0, "rotation_sigma": 0.0, "samples": 1},  # no pose error
+    "sigma_half": {"position_sigma": 0.0015, "rotation_sigma": math.radians(1.0)},
+    "sigma_double": {"position_sigma": 0.006, "rotation_sigma": math.radians(4.0)},
+    "feasible_only": {"success": "none"},  # the feasible fraction alone
+    "paper_grade": {"success": "grade"},  # feasible fraction x the paper's grade
+}
+#: What each ablation changes, in words (for tables).
+ABLATION_LABELS: dict[str, str] = {
+    "no_cloud": "without the observed cloud (primitives and table only)",
+    "nominal": "without pose error (clearance at the pose only)",
+    "sigma_half": "at half the error (1.5 mm / 1°)",
+    "sigma_double": "at twice the error (6 mm / 4°)",
+    "feasible_only": "the feasible fraction alone",
+    "paper_grade": "the paper's grade as the success probability",
+}
+
+
+@dataclass(frozen=True)
+class RobustConfig:
+    """position_sigma [m], rotation_sigma [rad]: the wrist pose error (default 3 mm /
+    2 deg, as ``graspsim.sim.ExecutionNoise``); samples: K perturbations; seed: their
+    generator's seed; top: how many of the best-graded grasps are scored; margin: a
+    point closer than this to the gripper counts as touching it [m]; primitive_step:
+    spacing of the identified primitives' surface samples [m]; terms: which of
+    :data:`TERMS` a perturbation must keep; success: the success probability the
+    feasible fraction multiplies (``pad_contact``: the calibrated grade model,
+    ``grade``: the map's own grade, ``none``: 1); threads: native threads (None: all);
+    openings: extra pad gap per side [m] the jaws may open beyond the pre-grasp opening
+    (each is scored, the best kept per grasp and recorded as ``robust_extra_opening``;
+    an executor then opens the jaws that much wider). Default (0,): the map's opening."""
+
+    position_sigma: float = 0.003
+    rotation_sigma: float = math.radians(2.0)
+    samples: int = 32
+    seed: int = 0
+    top: int = 1000
+    margin: float = 0.0
+    primitive_step: float = 0.005
+    terms: tuple[str, ...] = TERMS
+    success: str = "pad_contact"
+    threads: int | None = None
+    openings: tuple[float, ...] = (0.0,)
+
+    def __post_init__(self) -> None:
+        for k in ("position_sigma", "rotation_sigma", "margin"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise InvalidParameterError(f"RobustConfig.{k} must be >= 0, got {v!r}")
+        if not (isinstance(self.primitive_step, (int, float)) and self.primitive_step > 0):
+            raise InvalidParameterError(f"RobustConfig.primitive_step must be > 0 m, got {self.primitive_step!r}")
+        for k in ("samples", "top"):
+            v = getattr(self, k)
+            if isinstance(v, bool) or not isinstance(v, int) or v < (1 if k == "samples" else 0):
+                raise InvalidParameterError(f"RobustConfig.{k} must be an integer >= "
+                                            f"{1 if k == 'samples' else 0}, got {v!r}")
+        terms = (self.terms,) if isinstance(self.terms, str) else tuple(self.terms)
+        bad = sorted(set(terms) - set(TERMS))
+        if bad:
+            raise InvalidParameterError(f"unknown robustness terms {bad}; valid: {list(TERMS)}")
+        object.__setattr__(self, "terms", terms)
+        openings = tuple(float(v) for v in np.atleast_1d(self.openings))
+        if not openings or any(not (math.isfinite(v) and v >= 0) for v in openings):
+            raise InvalidParameterError(f"RobustConfig.openings must be extra gaps >= 0 m, got {self.openings!r}")
+        object.__setattr__(self, "openings", openings)
+        if self.success not in SUCCESS_MODELS:
+            raise InvalidParameterError(f"RobustConfig.success must be one of {list(SUCCESS_MODELS)}, "
+                                        f"got {self.success!r}")
+
+    def to_dict(self) -> dict:
+        return {**asdict(self), "terms": list(self.terms), "openings": list(self.openings)}
+
+
+def wrist_perturbations(n: int, rng: np.random.Generator, position_sigma: float, rotation_sigma: float,
+                        pivot: np.ndarray = np.zeros(3)) -> np.ndarray:
+    """(n, 4, 4) wrist pose errors T_wrist_perturbed, to right-multiply onto wrist poses:
+    a rotation vector N(0, rotation_sigma^2 I) turning about ``pivot`` (3,) (wrist
+    frame, the TCP) and a translation N(0, position_sigma^2 I) measured there. One
+    (n, 6) standard normal draw from ``rng``: the execution noise of the simulator."""
+    draws = rng.standard_normal((n, 6))
+    R = Rotation.from_rotvec(rotation_sigma * draws[:, 3:]).as_matrix()
+    c = np.asarray(pivot, dtype=float)
+    return make_transform(R, position_sigma * draws[:, :3] + c - R @ c)
+
+
+@dataclass(frozen=True, eq=False)
+class RobustScores:
+    """Per scored grasp (n,): clearance [m], feasible fraction, success probability,
+    robust score, the extra opening per side chosen [m]; flags (n, K + 1) uint8 bit sets
+    of :mod:`graspsim.maps._robust_kernel` (column 0: the nominal pose), all at the chosen
+    opening."""
+
+    clearance: np.ndarray
+    feasible: np.ndarray
+    success: np.ndarray
+    robust: np.ndarray
+    flags: np.ndarray
+    extra_opening: np.ndarray
+
+
+_BITS = {"cloud": 1, "primitives": 2, "table": 4, "pads": 8, "force_closure": 16}
+
+
+@functools.lru_cache(maxsize=8)
+def _perturbations(samples: int, seed: int, position_sigma: float, rotation_sigma: float,
+                   pivot: tuple[float, float, float]) -> np.ndarray:
+    T = wrist_perturbations(samples, np.random.default_rng(seed), position_sigma, rotation_sigma,
+                            np.asarray(pivot))
+    return np.concatenate([np.eye(4)[None], T])  # index 0: the nominal pose
+
+
+@functools.lru_cache(maxsize=16)
+def _primitive_points(obj_json: str, step: float) -> np.ndarray:
+    from graspsim.primitives import shape_from_dict
+
+    shape = shape_from_dict(json.loads(obj_json))
+    step = min(step, 0.5 * shape.size_scale) if hasattr(shape, "size_scale") else step
+    return np.ascontiguousarray(shape.surface_samples(step).points, float)
+
+
+def _object_points(meta, step: float) -> np.ndarray:
+    """Surface samples (M, 3) of the map's identified shape (none for a mesh object)."""
+    obj = meta.object
+    if obj.get("primitive") in (None, "mesh", "unidentified") or "file" in obj:
+        return np.zeros((0, 3))
+    key = {k: obj[k] for k in ("primitive", "dims", "parts", "poses", "com") if k in obj}
+    return _primitive_points(json.dumps(key, sort_keys=True), float(step))
+
+
+def cloud_in_object(points: np.ndarray, T_cloud_obj: np.ndarray) -> np.ndarray | None:
+    """Observed points (M, 3) given in the cloud (sensor) frame, in the object frame
+    whose pose in the cloud is ``T_cloud_obj`` (4, 4) (a map's ``meta.placement``);
+    non-finite points dropped; None when no point is left."""
+    pts = np.asarray(points, float).reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if not len(pts):
+        return None
+    T = np.asarray(T_cloud_obj, float)
+    return (pts - T[:3, 3]) @ T[:3, :3]
+
+
+def _table_rows(gmap, R: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(n, 5) per grasp: the table's normal in the wrist frame, the wrist origin's height
+    above the table, the required height (0); no table: a zero normal and -1 so that
+    every box stays above it."""
+    out = np.zeros((len(R), 5))
+    pl = gmap.meta.placement
+    if pl is None or pl.table is None:
+        out[:, 3] = 1.0
+        return out
+    n = np.asarray(pl.table["normal"], float)
+    n_obj = pl.T_cloud_obj[:3, :3].T @ n
+    h_obj = float(pl.table["height"]) - float(n @ pl.T_cloud_obj[:3, 3])
+    out[:, :3] = np.einsum("nji,j->ni", R, n_obj)
+    out[:, 3] = w @ n_obj - h_obj
+    return out
+
+
+def _merged_boxes(g: GripperSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The gripper's boxes (centres, half extents (B, 3), x signs (B,)), with the arm
+    keep-out and the housing -- one footprint, stacked -- as one box (the same union)."""
+    b = g.collision_boxes()
+    c, h, sgn = b.centers.astype(float), b.half_extents.astype(float), b.x_sign.astype(float)
+    names = list(b.names)
+    if "arm" in names and "housing" in names:
+        a, k = names.index("arm"), names.index("housing")
+        if np.allclose(h[a, :2], h[k, :2]) and abs((c[a, 2] + h[a, 2]) - (c[k, 2] - h[k, 2])) < 1e-12:
+            lo, hi = c[a, 2] - h[a, 2], c[k, 2] + h[k, 2]
+            c[k, 2], h[k, 2] = 0.5 * (lo + hi), 0.5 * (hi - lo)
+            keep = np.arange(len(names)) != a
+            c, h, sgn = c[keep], h[keep], sgn[keep]
+    return np.ascontiguousarray(c), np.ascontiguousarray(h), np.ascontiguousarray(sgn)
+
+
+def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: RobustConfig = RobustConfig(),
+               gripper: GripperSpec | None = None) -> RobustScores:
+    """Robust scores of the map's ``rows`` (indices) against ``cloud_obj`` (M, 3) observed
+    points in the object frame (None: the identified shape is all that was seen), the
+    map's identified shape and its table (``meta.placement``)."""
+    from graspsim.maps._robust_kernel import robust_flags
+    from graspsim.maps.kernels import default_threads, run_chunks
+
+    cfg = config
+    g = gripper or gmap.meta.gripper_spec
+    rows = np.asarray(rows, int).reshape(-1)
+    n = len(rows)
+    cloud = np.zeros((0, 3)) if cloud_obj is None else np.asarray(cloud_obj, float).reshape(-1, 3)
+    prim = _object_points(gmap.meta, cfg.primitive_step) if "primitives" in cfg.terms else np.zeros((0, 3))
+    P = np.ascontiguousarray(np.concatenate([cloud, prim]), np.float32)  # the cloud first (clearance)
+    R = quat_to_matrix(gmap.wrist_quat[rows].astype(float))
+    w = gmap.wrist_position[rows].astype(float)
+    centers, half, x_sign = _merged_boxes(g)
+    c = gmap.contacts[rows].astype(float)
+    nrm = gmap.normals[rows].astype(float)
+    qc = np.einsum("nji,nkj->nki", R, c - w[:, None])
+    nq = np.einsum("nji,nkj->nki", R, nrm)
+    sign = np.where(np.einsum("ni,ni->n", c[:, 1] - c[:, 0], R[:, :, 0]) >= 0, 1.0, -1.0)
+    pivot = tuple(float(v) for v in g.nominal_tcp)
+    D = _perturbations(cfg.samples, cfg.seed, float(cfg.position_sigma), float(cfg.rotation_sigma), pivot)
+    DR = np.ascontiguousarray(D[:, :3, :3])
+    Dt = np.ascontiguousarray(D[:, :3, 3])
+    theta = np.linalg.norm(Rotation.from_matrix(DR).as_rotvec(), axis=1)
+    tlen = np.linalg.norm(Dt - (np.asarray(pivot) - DR @ np.asarray(pivot)), axis=1)
+    table = _table_rows(gmap, R, w)
+    pad = np.array([0.5 * g.finger_size[1], g.fingertip_z - g.pad_length, g.fingertip_z])
+    cos_fc = math.cos(gmap.meta.quality_model.friction_angle)
+    mask = np.uint8(sum(_BITS[t] for t in cfg.terms))
+    base = g.pregrasp_opening(gmap.width[rows])
+    results = []
+    for extra in cfg.openings:  # the jaws opened wider: each extra gap per side scored
+        opening = base + 2.0 * extra
+        clearance = np.full(n, np.inf)
+        flags = np.zeros((n, len(D)), np.uint8)
+        if n:
+            args = (P, len(cloud), np.ascontiguousarray(R), np.ascontiguousarray(w), opening,
+                    centers, half, x_sign, np.ascontiguousarray(qc), np.ascontiguousarray(nq), sign, DR, Dt,
+                    theta, tlen, np.asarray(pivot), table, pad, cos_fc, float(cfg.margin))
+            threads = default_threads(cfg.threads) if n >= 256 else 1
+            run_chunks(lambda lo, hi: robust_flags(*args, lo, hi, clearance, flags), n, threads)  # noqa: B023
+        ok = (flags & mask) == 0
+        feasible = ok[:, 1:].mean(axis=1)
+        live = ok[:, 0] & (feasible > 0) & (opening <= g.max_opening + 1e-12)
+        results.append((np.where(clearance > 1e8, np.inf, clearance), flags, feasible, live))
+    live_any = np.any([r[3] for r in results], axis=0)
+    success = np.zeros(n)
+    success[live_any] = _success(gmap, rows[live_any], cfg.success)  # only where it can matter
+    scores = np.array([np.where(r[3], r[2] * success, 0.0) for r in results])  # (E, n)
+    best = np.argmax(scores, axis=0)  # the first (narrowest) on ties
+    idx = np.arange(n)
+    clearance = np.array([r[0] for r in results])[best, idx]
+    flags = np.array([r[1] for r in results])[best, idx]
+    feasible = np.array([r[2] for r in results])[best, idx]
+    robust = scores[best, idx]
+    extra = np.asarray(cfg.openings)[best]
+    return RobustScores(clearance, feasible, success, robust, flags, extra)
+
+
+def _success(gmap, rows: np.ndarray, model: str) -> np.ndarray:
+    if model == "none" or not len(rows):
+        return np.ones(len(rows))
+    if model == "grade":
+        return gmap.grade[rows].astype(float)
+    from graspsim.grades import get_grade
+
+    try:
+        return np.asarray(get_grade("pad_contact").grade_rows(gmap, rows), float)
+    except InvalidParameterError:  # a mesh object: no primitive to compute pad features on
+        return gmap.grade[rows].astype(float)
+
+
+def score_map(gmap, cloud_obj: np.ndarray | None = None, config: RobustConfig = RobustConfig(), *,
+              rows: np.ndarray | None = None, gripper: GripperSpec | None = None):
+    """The map with its robust columns filled for ``rows`` (default: the
+    ``config.top`` best-graded rows), the others kept; provenance in
+    ``meta.extra["robust"]``. ``cloud_obj``: observed points (M, 3), object frame."""
+    if rows is None:
+        rows = np.argsort(-gmap.grade, kind="stable")[:config.top]
+    rows = np.asarray(rows, int)
+    s = score_rows(gmap, rows, cloud_obj, config, gripper)
+    n_cloud = 0 if cloud_obj is None else len(np.asarray(cloud_obj).reshape(-1, 3))
+    cols = {k: getattr(gmap, k).copy() for k in ("clearance", "robust_feasible", "robust", "robust_extra_opening")}
+    cols["clearance"][rows] = np.clip(s.clearance, -1.0, 1.0) if n_cloud else np.nan
+    cols["robust_feasible"][rows] = s.feasible
+    cols["robust"][rows] = s.robust
+    cols["robust_extra_opening"][rows] = s.extra_opening
+    prov = {**config.to_dict(), "scored": int(np.isfinite(cols["robust"]).sum()), "cloud_points": n_cloud,
+            "pivot": "nominal_tcp", "model": "robust_feasible x success; 0 if the nominal pose collides",
+            "module": "graspsim.maps.robust"}
+    out = replace(gmap, **cols)
+    return out.with_meta(extra={**gmap.meta.extra, "robust": prov})
+
+
+def ranking(gmap, rank: str = "robust") -> np.ndarray:
+    """Row order, best first: ``"robust"``: rows with a robust score > 0 by it (ties by
+    grade), then unscored rows by grade, last the rows scored 0 (colliding at their
+    nominal pose or never feasible); ``"paper"``: by grade alone (stable)."""
+    if rank not in RANKS:
+        raise InvalidParameterError(f"rank must be one of {list(RANKS)}, got {rank!r}")
+    grade = -gmap.grade.astype(float)
+    if rank == "paper":
+        return np.argsort(grade, kind="stable")
+    r = gmap.robust.astype(float)
+    group = np.where(np.isfinite(r), np.where(r > 0, 0, 2), 1)
+    return np.lexsort((grade, np.where(group == 0, -r, 0.0), group))

@@ -1,0 +1,173 @@
+"""Robust grasp scores: clearance to the observed points, feasibility under pose error."""
+
+import numpy as np
+import pytest
+
+from graspsim.errors import InvalidParameterError
+from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.io import load_map, save_map
+from graspsim.maps.robust import RobustConfig, ranking, score_map, score_rows, wrist_perturbations
+from graspsim.primitives import Box, synthetic_cloud
+from graspsim.transforms import make_transform
+
+
+@pytest.fixture(scope="module")
+def box_map():
+    m = generate_fs_map(Box(0.04, 0.05, 0.08), config=MapConfig(surface_step=0.01))
+    return m.filter(accepted=True).sample_uniform_surface(300, np.random.default_rng(0)).ranked("paper")
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    return synthetic_cloud(Box(0.04, 0.05, 0.08), np.random.default_rng(3), resolution=0.005, noise=0.0005).points
+
+
+def _gripper_sdf(gmap, rows, points, T_err=None):
+    """Independent check: (len(rows), M) signed distance of points (object frame) to the
+    gripper's boxes at each row's pose (times ``T_err``) and pre-grasp opening."""
+    g = gmap.meta.gripper_spec
+    T = gmap.T_obj_wrist[rows]
+    if T_err is not None:
+        T = T @ T_err
+    out = []
+    for Ti, w in zip(T, gmap.width[rows]):
+        c, h = g.boxes_at(float(g.pregrasp_opening(w)))
+        q = (points - Ti[:3, 3]) @ Ti[:3, :3]
+        e = np.abs(q[:, None, :] - c[None]) - h[None]
+        d = np.linalg.norm(np.maximum(e, 0.0), axis=-1) + np.minimum(e.max(axis=-1), 0.0)
+        out.append(d.min(axis=1))
+    return np.array(out)
+
+
+def _handle_points(gmap, row):
+    """A 5 x 5 patch of points inside the +x finger of grasp ``row`` (object frame):
+    something the identified box does not have, where that grasp's finger goes."""
+    g = gmap.meta.gripper_spec
+    c, _ = g.boxes_at(float(g.pregrasp_opening(gmap.width[row])))
+    centre = c[-1]  # finger_pos
+    y, z = np.meshgrid(np.linspace(-0.004, 0.004, 5), np.linspace(-0.02, 0.02, 5))
+    local = np.column_stack([np.full(y.size, centre[0]), y.ravel() + centre[1], z.ravel() + centre[2]])
+    T = gmap.T_obj_wrist[row]
+    return local @ T[:3, :3].T + T[:3, 3]
+
+
+def test_fingers_clearing_the_primitive_but_not_the_points_rank_below(box_map, cloud):
+    scored = score_map(box_map, cloud, RobustConfig(samples=16, success="grade"))
+    best = int(ranking(scored)[0])
+    assert scored.robust[best] > 0
+    seen = np.concatenate([cloud, _handle_points(box_map, best)])
+    rescored = score_map(box_map, seen, RobustConfig(samples=16, success="grade"))
+    flags = score_rows(box_map, [best], seen, RobustConfig(samples=16)).flags
+    assert flags[0, 0] & 2 == 0  # clear of the identified primitive at its pose ...
+    assert rescored.clearance[best] < 0 and rescored.robust[best] == 0  # ... not of the points
+    order = ranking(rescored)
+    pos = int(np.flatnonzero(order == best)[0])
+    n_pos = int((rescored.robust > 0).sum())
+    assert n_pos > 0 and pos >= n_pos and np.all(rescored.robust[order[:n_pos]] > 0)
+    # without the observed points the same grasp would rank among the feasible ones:
+    # the clearance term is what demotes it
+    blind = score_map(box_map, seen, RobustConfig(samples=16, success="grade",
+                                                  terms=("primitives", "table", "pads", "force_closure")))
+    blind_pos = int(np.flatnonzero(ranking(blind) == best)[0])
+    assert blind.robust[best] > 0 and blind_pos < int((blind.robust > 0).sum()) - 1
+
+
+def test_ranking_never_returns_a_pose_colliding_with_the_cloud(box_map, cloud):
+    rng = np.random.default_rng(5)
+    rows = rng.choice(len(box_map), 6, replace=False)
+    seen = np.concatenate([cloud] + [_handle_points(box_map, int(r)) for r in rows])
+    scored = score_map(box_map, seen, RobustConfig(samples=8))
+    top = ranking(scored)[:50]
+    assert np.all(scored.robust[top] > 0)
+    assert _gripper_sdf(box_map, top, seen).min() >= 0.0
+    # the rows the extra points collide with are scored 0 and ranked after every other
+    hit = np.flatnonzero(_gripper_sdf(box_map, np.arange(len(box_map)), seen).min(axis=1) < 0)
+    assert len(hit) >= len(rows) and np.all(scored.robust[hit] == 0)
+    n_pos = int((scored.robust > 0).sum())
+    assert set(hit) <= set(ranking(scored)[n_pos:].tolist())
+
+
+def test_scores_are_deterministic_for_a_seed(box_map, cloud):
+    cfg = RobustConfig(samples=24, seed=7)
+    a, b = score_map(box_map, cloud, cfg), score_map(box_map, cloud, cfg)
+    np.testing.assert_array_equal(a.robust, b.robust)
+    np.testing.assert_array_equal(a.clearance, b.clearance)
+    c = score_map(box_map, cloud, RobustConfig(samples=24, seed=8))
+    assert not np.array_equal(a.robust_feasible, c.robust_feasible)
+    assert a.meta.extra["robust"]["seed"] == 7 and a.meta.extra["robust"]["scored"] == len(box_map)
+
+
+def test_culled_kernel_matches_brute_force(box_map, cloud):
+    cfg = RobustConfig(samples=12, seed=2, terms=("cloud",))
+    rows = np.arange(0, len(box_map), 20)
+    s = score_rows(box_map, rows, cloud, cfg)
+    g = box_map.meta.gripper_spec
+    D = np.concatenate([np.eye(4)[None], wrist_perturbations(12, np.random.default_rng(2), cfg.position_sigma,
+                                                             cfg.rotation_sigma, g.nominal_tcp)])
+    for k in range(len(D)):
+        hit = _gripper_sdf(box_map, rows, cloud, D[k]).min(axis=1) < 0
+        np.testing.assert_array_equal(s.flags[:, k] & 1 > 0, hit)
+    np.testing.assert_allclose(s.clearance, _gripper_sdf(box_map, rows, cloud).min(axis=1), atol=1e-6)
+
+
+def test_perturbations_fail_a_grasp_near_the_table(box_map, cloud):
+    # the table touches the gripper's lowest point at one pose: about half of the
+    # perturbations push it into the table; far below, none does
+    row = 0
+    g = box_map.meta.gripper_spec
+    low = float(g.lowest_point(box_map.T_obj_wrist[row:row + 1], g.pregrasp_opening(box_map.width[row:row + 1]))[0])
+    cfg = RobustConfig(samples=64, terms=("table",), success="none")
+    fractions = []
+    for height in (low - 1e-6, low - 0.1):
+        placed = box_map.with_meta(extra={"T_cloud_obj": np.eye(4).tolist(),
+                                          "table": {"normal": [0, 0, 1], "height": height, "clearance": 0.0}})
+        fractions.append(score_rows(placed, [row], cloud, cfg).feasible[0])
+    assert 0.2 < fractions[0] < 0.8 and fractions[1] == 1.0
+
+
+def test_robust_columns_round_trip_through_files(box_map, cloud, tmp_path):
+    scored = score_map(box_map, cloud, RobustConfig(samples=8, top=100))
+    assert np.isfinite(scored.robust).sum() == 100
+    back = load_map(save_map(scored, tmp_path / "m.h5"))
+    np.testing.assert_array_equal(back.robust, scored.robust)
+    np.testing.assert_array_equal(back.clearance, scored.clearance)
+    assert back.meta.extra["robust"]["samples"] == 8
+    old = load_map(save_map(box_map, tmp_path / "plain.h5"))
+    assert not old.has_robust and np.all(np.isnan(old.robust))
+    np.testing.assert_array_equal(ranking(old), ranking(old, "paper"))
+
+
+def test_bad_settings_say_what_is_valid(box_map):
+    with pytest.raises(InvalidParameterError, match="samples"):
+        RobustConfig(samples=0)
+    with pytest.raises(InvalidParameterError, match="terms"):
+        RobustConfig(terms=("cloud", "walls"))
+    with pytest.raises(InvalidParameterError, match="rank"):
+        ranking(box_map, "best")
+    with pytest.raises(InvalidParameterError, match="rank"):
+        box_map.top_k(3, rank="grade")
+
+
+def test_transform_of_points_matches_a_moved_cloud(box_map, cloud):
+    from graspsim.maps.robust import cloud_in_object
+
+    T = make_transform(np.array([[0, -1.0, 0], [1.0, 0, 0], [0, 0, 1.0]]), [0.3, 0.1, 0.2])
+    moved = cloud @ T[:3, :3].T + T[:3, 3]
+    np.testing.assert_allclose(cloud_in_object(moved, T), cloud, atol=1e-12)
+    assert cloud_in_object(np.full((3, 3), np.nan), T) is None
+
+
+def test_wider_openings_are_scored_and_the_best_kept(box_map, cloud):
+    narrow = score_rows(box_map, np.arange(len(box_map)), cloud, RobustConfig(samples=16))
+    wide = score_rows(box_map, np.arange(len(box_map)), cloud, RobustConfig(samples=16, openings=(0.0, 0.004)))
+    assert np.all(wide.robust >= narrow.robust - 1e-12)
+    assert set(np.unique(wide.extra_opening)) <= {0.0, 0.004}
+    gain = wide.robust > narrow.robust + 1e-9
+    assert gain.any() and np.all(wide.extra_opening[gain] == 0.004)
+    np.testing.assert_array_equal(narrow.extra_opening, 0.0)
+    # an opening beyond the stroke is never chosen
+    g = box_map.meta.gripper_spec
+    huge = score_rows(box_map, np.arange(len(box_map)), cloud, RobustConfig(samples=4, openings=(g.max_opening,)))
+    assert np.all(huge.robust == 0)
+    with pytest.raises(InvalidParameterError, match="openings"):
+        RobustConfig(openings=(-0.001,))

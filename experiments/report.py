@@ -96,8 +96,21 @@ def section(key: str, root: Path = ROOT) -> str:
         raise ReportError(f"report:{key}: no summary {path.relative_to(root)} "
                           f"(run the script, then `python experiments/report.py --collect`)")
     summary = json.loads(path.read_text())
-    text = _module(key.split(".")[0], root).readme_section(summary)
-    return text.strip("\n") + "\n"
+    text = _module(key.split(".")[0], root).readme_section(summary).strip("\n")
+    return text + measured_at(summary) + "\n"
+
+
+def measured_at(summary: dict) -> str:
+    """The line naming the code a block's numbers came from (the summary's git commit,
+    taken when the run started): a reader re-running the command on newer code can tell
+    whether a difference is the code's."""
+    prov = summary.get("provenance")
+    commit = prov.get("commit") if isinstance(prov, dict) else None
+    if not commit:
+        return ""
+    clean = commit.removesuffix("-dirty")
+    dirty = " with uncommitted changes" if clean != commit else ""
+    return f"\n\n<sub>Measured at commit `{clean}`{dirty}.</sub>"
 
 
 def render(text: str, root: Path = ROOT) -> tuple[str, list[str], list[str]]:

@@ -39,6 +39,7 @@ from _common import (
     database_note,
     database_record,
     derived_seed,
+    experiment_database,
     opt,
     parse_config,
     pct,
@@ -47,7 +48,7 @@ from _common import (
     write_json,
 )
 
-from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+from graspsim.maps.database import MapDatabase
 from graspsim.maps.match import MatchKind
 from graspsim.perception import IdentifyConfig
 from graspsim.perception.mvbb import min_volume_box
@@ -77,7 +78,7 @@ class Config:
     camera_elevation_deg: float = opt(40.0, "single view: camera elevation [deg]")
     top: int = opt(10, "best grasps of each map simulated")
     threads: int | None = opt(None, "simulation threads (default: all cores)")
-    db: str = opt("", "FS database folder (default: the library's)")
+    db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
     coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
     QUICK: ClassVar[dict] = {"resolution": 0.005, "coarse_db": True, "top": 4}
 
@@ -324,8 +325,7 @@ def main(argv=None) -> int:
     from graspsim.maps.generate import MapConfig
 
     map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.coarse_db else MapConfig()
-    db = MapDatabase(cfg.db or (str(out / "fsdb") if cfg.coarse_db else None), config=map_cfg)
-    db.build(PAPER_SHAPES.values(), threads=cfg.threads)
+    db = experiment_database(cfg.db, out, map_cfg, threads=cfg.threads)
     db_start = database_record(db)
     rows, figs = [], {}
     for name in object_names(cfg):

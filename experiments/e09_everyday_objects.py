@@ -6,9 +6,11 @@ pybullet everyday and random objects) rests on a table (z = 0) as the simulator 
 Two clouds per object, both with 1 mm noise: a *full* cloud (uniform surface samples,
 3 mm spacing) and a *single view* (a camera 0.6 m away at 40 deg elevation, random
 azimuth; the points it sees, noise along the ray). Each cloud is planned in paper and in
-robust mode with the table known (``TablePlane(height=0)``): status, parts, fit rates,
-time for identification + adaptation. The adapted map's 10 best grasps (accepted, best
-grade first) are lifted and placed in MuJoCo against the true mesh (CoACD convex parts);
+robust mode with the table known (``TablePlane(height=0)``) and a private FS database
+(``_common.experiment_database``): status, parts, fit rates, time for identification +
+adaptation. The adapted map's 10 best grasps (accepted, in the planner's order: the
+robust ranking, clearance to the observed cloud) are lifted and placed in MuJoCo against
+the true mesh (CoACD convex parts);
 a START_COLLISION counts as a failure. *held*: lifted without dropping (success or
 PLACE_FAILED: a round object rolls off after release); *placed*: success.
 
@@ -167,7 +169,7 @@ def fits_gripper(mesh, gripper) -> tuple[bool, float, float]:
 
 def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config, seed: int) -> dict | None:
     m = res.map
-    rows = np.flatnonzero(m.accepted)[:cfg.top]  # the map is sorted best grade first
+    rows = np.flatnonzero(m.accepted)[:cfg.top]  # in the planner's order (robust ranking by default)
     if not len(rows):
         return None
     r = run_trials(scene, T_mesh_world @ res.T_cloud_obj @ m.T_obj_wrist[rows], m.width[rows], LiftPlace(),
@@ -368,7 +370,8 @@ def readme_section(s: dict) -> str:
          f"{1000 * cfg['noise']:g} mm noise, planned with the table known, in paper and robust mode. "
          f"{len(fit)} of {len(objs)} fit the gripper (rule: the shortest edge of the mesh's minimum-volume box is "
          f"at most the opening less the clearance, {1000 * (g['max_opening'] - 2 * g['approach_clearance']):.0f} mm). "
-         f"The adapted map's {cfg['top']} best grasps lifted and placed in MuJoCo against the true mesh; "
+         f"The adapted map's {cfg['top']} best accepted grasps by the planner's ranking (robust: clearance to the "
+         "observed cloud under wrist pose error) lifted and placed in MuJoCo against the true mesh; "
          "START_COLLISION counts as a failure; *held*: lifted and carried (success or PLACE_FAILED: a round "
          "object may roll off after release), *placed*: success. Median s: identification + adaptation per "
          "object, runs that built a new FS map left out.",

@@ -359,6 +359,18 @@ def _timing_line(fit: list[dict]) -> str:
     return "; ".join(out)
 
 
+def _outcome_line(fit: list[dict]) -> str:
+    """The trial outcomes pooled per view in robust mode (where the failures go)."""
+    out = []
+    for key in ("full/robust", "single/robust"):
+        counts: dict[str, int] = {}
+        for o in fit:
+            for k, v in ((o[key]["sim"] or {}).get("counts") or {}).items():
+                counts[k] = counts.get(k, 0) + v
+        out.append(f"{key.split('/')[0]}: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
+    return "; ".join(out)
+
+
 def readme_section(s: dict) -> str:
     """The README's E09 paragraph (see ``experiments/report.py``)."""
     objs, pool, cfg = s["objects"], s["pooled"], s["config"]
@@ -376,6 +388,8 @@ def readme_section(s: dict) -> str:
          "object may roll off after release), *placed*: success. Median s: identification + adaptation per "
          "object, runs that built a new FS map left out.",
          "", _pool_table(pool), ""]
+    L.append(f"Outcomes of the 10-best trials in robust mode: {_outcome_line(fit)}.")
+    L.append("")
     miss = {k: [Path(o["object"]).stem for o in fit if o[k]["accepted"] == 0] for k in ("full/robust", "single/robust")}
     L.append(f"Robust mode, no accepted grasp: full cloud {', '.join(miss['full/robust']) or 'none'}; "
              f"single view {', '.join(miss['single/robust']) or 'none'}. Medians: {_timing_line(fit)}. "

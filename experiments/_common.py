@@ -41,7 +41,11 @@ What lives here, one of each:
   :func:`run_cli_fresh` (``graspsim ARGS`` so, with the process's own peak RSS).
 * **Text**: ``fmt`` and ``md_table`` (:mod:`graspsim.calibration.markdown`),
   :func:`mean_sd_text`, :func:`pct`, :func:`rate_ci`.
-* **Simulation settings**: :func:`noise_sigmas`, :func:`database_record`,
+* **Simulation settings**: :func:`noise_sigmas`.
+* **The FS map database**: :func:`experiment_database` (unless ``--db`` names one, a
+  private ``<out>/fsdb`` built fresh from the paper's five shapes at the script's map
+  config, so a rerun from a clean clone starts from the same maps, never the user's
+  shared database another run has grown), :func:`database_record`,
   :func:`database_note`.
 
 The statistics of the paper's table 2 (mixed ANOVA, Bonferroni post-hoc) are in
@@ -55,6 +59,7 @@ import dataclasses
 import math
 import os
 import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -75,7 +80,7 @@ __all__ = ["opt", "parse_config", "RunRecord", "machine_load", "provenance", "de
            "rng_for", "derived_seed", "seed_sequence", "map_config", "standing_cloud",
            "Clock", "stopwatch", "load_average", "run_fresh", "run_cli_fresh",
            "write_json", "write_text", "write_config", "fmt", "md_table", "mean_sd_text", "pct", "rate_ci",
-           "DEFAULT_NOISE", "noise_sigmas", "database_record", "database_note"]
+           "DEFAULT_NOISE", "noise_sigmas", "experiment_database", "database_record", "database_note"]
 
 EXPERIMENTS = Path(__file__).resolve().parent
 
@@ -376,6 +381,22 @@ def noise_sigmas(label: str) -> tuple[float, float]:
     if not (mm >= 0 and deg >= 0 and math.isfinite(mm + deg)):
         raise ValueError(f"--noise sigmas must be finite and >= 0, got {label!r}")
     return mm / 1000.0, deg
+
+
+def experiment_database(db: str | os.PathLike | None, out: str | os.PathLike, config, *, threads: int | None = None):
+    """The ``MapDatabase`` a run plans against, with the paper's five shapes
+    (``PAPER_SHAPES``) built in it at ``config`` (a ``MapConfig``): ``db`` (a folder
+    given with ``--db``) used as it is, or by default a private ``<out>/fsdb`` emptied
+    and built fresh (seconds), so the run does not depend on what ran before it. Maps
+    the planner builds for parts during the run are added to it."""
+    from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+
+    root = Path(db) if db else Path(out) / "fsdb"
+    if not db:
+        shutil.rmtree(root, ignore_errors=True)
+    database = MapDatabase(root, config=config)
+    database.build(PAPER_SHAPES.values(), threads=threads)
+    return database
 
 
 def database_record(db) -> dict:

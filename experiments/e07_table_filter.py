@@ -23,7 +23,7 @@ from __future__ import annotations
 import logging
 import math
 import sys
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
 
@@ -35,6 +35,7 @@ from _common import (
     RunRecord,
     database_note,
     database_record,
+    experiment_database,
     map_config,
     noise_sigmas,
     opt,
@@ -76,7 +77,7 @@ class Config:
     camera_elevation_deg: float = opt(40.0, "[deg]")
     threads: int | None = opt(None, "simulation threads (default: all cores)")
     noise: str = opt("none", "execution error: none, default (3 mm / 2 deg) or MM:DEG")
-    db: str = opt("", "FS database folder (default: the library's; quick: OUT/fsdb)")
+    db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"objects": ("glue_bottle", "cylinder"), "trials": 12, "quick": True}
 
@@ -196,15 +197,12 @@ def pool(rows: list[dict]) -> dict:
 
 def main(argv=None) -> int:
     cfg, opts = parse_config(Config, __file__, argv, __doc__)
-    if cfg.quick and not cfg.db:
-        cfg = replace(cfg, db=str(Path(opts.out) / "fsdb"))
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     run = RunRecord(__file__, argv)
     out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
     total = Clock()
-    db = MapDatabase(cfg.db or None, config=cfg.map_config)
-    db.build(PAPER_SHAPES.values(), threads=cfg.threads)
+    db = experiment_database(cfg.db, out, cfg.map_config, threads=cfg.threads)
     db_start = database_record(db)
     rows = [run_object(name, db, cfg) for name in cfg.objects]
     pooled = pool(rows)

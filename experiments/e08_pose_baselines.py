@@ -62,6 +62,7 @@ from _common import (
     RunRecord,
     database_note,
     database_record,
+    experiment_database,
     noise_sigmas,
     opt,
     parse_config,
@@ -72,7 +73,7 @@ from _common import (
 import graspsim  # noqa: E402, F401  (registers the environments)
 from graspsim.envs.baselines import planner_pose
 from graspsim.maps.collide import boxes_clear_sdf
-from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
 from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, RobustConfig, cloud_in_object, score_map
 from graspsim.planner import PlannerConfig, TablePlane, plan
@@ -96,7 +97,7 @@ class Config:
                                                            "ranking may choose from (planner_robust_open)")
     ablations: tuple[str, ...] = opt(tuple(ABLATIONS), "robust-score ablations run as extra planner policies",
                                      choices=tuple(ABLATIONS))
-    db: str | None = opt(None, "FS database folder (default: the library's; --quick: OUT/fsdb)")
+    db: str | None = opt(None, "FS database folder (default: OUT/fsdb, built fresh)")
     coarse_db: bool = opt(False, "a coarse FS database (10 mm, 22 deg: CI)")
     QUICK: ClassVar[dict] = {"episodes": 6, "coarse_db": True}
 
@@ -202,12 +203,11 @@ def planner_poses(env, cloud: np.ndarray, db: MapDatabase, seed: int, cfg: Confi
     return out
 
 
-def run(cfg: Config) -> dict:
+def run(cfg: Config, out: Path) -> dict:
     import gymnasium as gym
 
     map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.coarse_db else MapConfig()
-    db = MapDatabase(cfg.db, config=map_cfg)
-    db.build(PAPER_SHAPES.values())
+    db = experiment_database(cfg.db, out, map_cfg)
     db_start = database_record(db)
     envs = {}
     for label in cfg.noise:
@@ -301,10 +301,8 @@ def main(argv=None) -> int:
     cfg, opts = parse_config(Config, __file__, argv, __doc__)
     run_record = RunRecord(__file__, argv)
     out = Path(opts.out)
-    if opts.quick and cfg.db is None:  # a CI run builds its coarse database in its own folder
-        cfg = replace(cfg, db=str(out / "fsdb"))
     out.mkdir(parents=True, exist_ok=True)
-    res = run(cfg)
+    res = run(cfg, out)
     summary = summarise(res["rows"], cfg)
     table = write_table(summary, cfg)
     (out / "table.md").write_text(table)

@@ -108,3 +108,21 @@ def test_mean_sd_and_rates_text():
     assert h.mean_sd_text(float("nan"), 1.0) == "n/a"
     assert h.rate_ci(3, 4, (0.3, 0.95)) == "75.0 % (3/4) [30.0, 95.0]" and h.rate_ci(0, 0) == "n/a (0/0)"
     assert h.pct(None) == "n/a" and h.pct(None, missing="-") == "-"
+
+
+def test_experiment_database_is_private_and_fresh_unless_given(tmp_path):
+    from graspsim.maps.database import PAPER_SHAPES
+    from graspsim.primitives import Box
+
+    cfg = h.map_config(quick=True)
+    db = h.experiment_database(None, tmp_path, cfg)
+    assert db.root == tmp_path / "fsdb" and len(h.database_record(db)["maps"]) == len(PAPER_SHAPES)
+    db.add(Box(0.02, 0.03, 0.04))  # a part's map built during a run
+    assert len(h.database_record(db)["maps"]) == len(PAPER_SHAPES) + 1
+    again = h.experiment_database(None, tmp_path, cfg)  # a rerun starts from the paper's shapes only
+    other = h.experiment_database(None, tmp_path / "b", cfg)
+    assert h.database_record(again)["maps"] == h.database_record(other)["maps"]
+    assert len(h.database_record(again)["maps"]) == len(PAPER_SHAPES)
+    again.add(Box(0.02, 0.03, 0.04))
+    given = h.experiment_database(str(tmp_path / "fsdb"), tmp_path / "elsewhere", cfg)  # --db: used as it is
+    assert len(h.database_record(given)["maps"]) == len(PAPER_SHAPES) + 1 and not (tmp_path / "elsewhere").exists()

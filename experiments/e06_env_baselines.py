@@ -38,7 +38,8 @@ figure.png, config.json and episodes.npz to ``--out``.
     python experiments/e06_env_baselines.py --quick --out results/e06-quick
 
 Flags: one per field of :class:`E06Config` (the experiment harness, ``_common.py``);
-``--publish`` copies the summary to ``experiments/reported/``.
+``--publish`` copies the summary to ``experiments/reported/e06_env_baselines.json`` (the
+published ``--perception model`` run's summary is copied by hand to ``...model.json``).
 """
 
 from __future__ import annotations

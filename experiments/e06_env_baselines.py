@@ -25,19 +25,21 @@ cost of an episode (reset, one trial). With execution error, every test candidat
 also simulated at its nominal pose (``evaluate_candidates(execution_error=False)``), so
 each policy's choice is scored on the same episodes without the error too, and the
 chosen grasps' START_COLLISION counts are broken down per object kind with and without
-it. Episodes are seeded by their split and index from one SeedSequence, so results do
-not depend on ``--workers``. Writes summary.json, results.json, table.md, figure.png,
-config.json and episodes.npz to ``--out``.
+it. Episodes are seeded by the harness's seed rule (``graspsim.seeding``): episode i of
+split s (0 training, 1 test) resets with ``derived_seed(seed, s, i)``, the random policy
+draws from ``rng_for(seed, "choices")``, so results do not depend on ``--workers``. The
+planner uses the harness's database (``_common.experiment_database``): unless ``--db``
+names one, a private ``OUT/fsdb`` built fresh from the paper's five shapes (coarse maps
+with ``--coarse-db``, as ``--quick`` sets). Writes summary.json, results.json, table.md,
+figure.png, config.json and episodes.npz to ``--out``.
 
     python experiments/e06_env_baselines.py
     python experiments/e06_env_baselines.py --perception model --out results/e06_env_baselines.model
     python experiments/e06_env_baselines.py --quick --out results/e06-quick
 
 Flags: one per field of :class:`E06Config` (the experiment harness, ``_common.py``);
-``--publish`` copies the summary to ``experiments/reported/``. Episodes are seeded as in
-the published runs, by ``SeedSequence(entropy=seed, spawn_key=(split, index))``, not yet
-by the harness's ``graspsim.seeding`` rule (switching changes every episode: it needs a
-re-run of the published numbers).
+``--publish`` copies the summary to ``experiments/reported/e06_env_baselines.json`` (the
+published ``--perception model`` run's summary is copied by hand to ``...model.json``).
 """
 
 from __future__ import annotations
@@ -64,11 +66,14 @@ from _common import (
     RunRecord,
     database_note,
     database_record,
+    derived_seed,
+    experiment_database,
     load_average,
     opt,
     parse_config,
     pct,
     rate_ci,
+    rng_for,
     write_json,
 )
 
@@ -107,7 +112,7 @@ class E06Config:
     l2: float = opt(1.0, "logistic regression L2 penalty")
     seed: int = opt(20180606, "run seed")
     workers: int = opt(os.cpu_count() or 1, "worker processes")
-    db: str | None = opt(None, "map database folder (default: the library's; --quick: OUT/db)")
+    db: str | None = opt(None, "map database folder, used as it is (default: OUT/fsdb, built fresh)")
     coarse_db: bool = opt(False, "a coarse map database (8 mm, 22 deg: CI)")
     QUICK: ClassVar[dict] = {"train": 16, "test": 16, "objects": "primitives", "k": 6, "cloud_size": 128,
                              "coarse_db": True}
@@ -122,14 +127,15 @@ class E06Config:
     def noisy(self) -> bool:
         return self.position_noise > 0 or self.rotation_noise_deg > 0
 
+    @property
+    def map_config(self) -> MapConfig:
+        return MapConfig(surface_step=0.008, rotation_step=math.radians(22)) if self.coarse_db else MapConfig()
+
     def env_kwargs(self) -> dict:
-        kw = dict(objects=self.objects, n_candidates=self.k, cloud_size=self.cloud_size, view=self.view,
-                  perception=self.perception, position_noise=self.position_noise,
-                  rotation_noise=math.radians(self.rotation_noise_deg),
-                  db_root=self.db)
-        if self.coarse_db:
-            kw["map_config"] = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
-        return kw
+        return dict(objects=self.objects, n_candidates=self.k, cloud_size=self.cloud_size, view=self.view,
+                    perception=self.perception, position_noise=self.position_noise,
+                    rotation_noise=math.radians(self.rotation_noise_deg), db_root=self.db,
+                    map_config=self.map_config)
 
 
 # ---------------------------------------------------------------------- episodes
@@ -143,10 +149,6 @@ def _env(cfg: E06Config):
 
         _ENV = gym.make("graspsim/GraspSelect-v0", **cfg.env_kwargs()).unwrapped
     return _ENV
-
-
-def _seed(cfg: E06Config, split: int, i: int) -> int:
-    return int(np.random.SeedSequence(entropy=cfg.seed, spawn_key=(split, i)).generate_state(1)[0])
 
 
 def ablation_scores(env, cfg: E06Config) -> np.ndarray:
@@ -165,7 +167,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     """One logged episode: every candidate simulated, then the highest-grade one stepped."""
     env = _env(cfg)
     c = Clock()
-    obs, info = env.reset(seed=_seed(cfg, split, i))
+    obs, info = env.reset(seed=derived_seed(cfg.seed, split, i))
     reset = c.record()
     feats = grasp_features(obs, env.gripper)
     ablation = ablation_scores(env, cfg) if split == 1 else np.zeros((len(ABLATIONS), cfg.k), np.float32)
@@ -383,11 +385,11 @@ def main(argv=None) -> int:
     cfg, opts = parse_config(E06Config, __file__, argv, __doc__)
     run = RunRecord(__file__, argv)
     out = Path(opts.out)
-    if opts.quick and cfg.db is None:  # a CI run builds its coarse database in its own folder
-        cfg = replace(cfg, db=str(out / "db"))
     out.mkdir(parents=True, exist_ok=True)
     total = Clock()
-    db_start = database_record(_env(cfg).db)  # builds the reference maps once, before any worker starts
+    db = experiment_database(cfg.db, out, cfg.map_config, threads=cfg.workers)  # before any worker starts
+    db_start, given = database_record(db), cfg
+    cfg = replace(cfg, db=str(db.root))  # the episodes' environments plan against it
     log.info("E06: %d training + %d test episodes, objects %s, K = %d, %d worker(s)",
              cfg.train, cfg.test, cfg.objects, cfg.k, cfg.workers)
     t0 = time.perf_counter()
@@ -399,13 +401,13 @@ def main(argv=None) -> int:
     Xv, yv = X[M].astype(float), (O[M] == 0).astype(float)
     learned = LogisticPolicy(l2=cfg.l2).fit(Xv, yv)
     map_only = LogisticPolicy(l2=cfg.l2).fit(Xv[:, MAP_ONLY], yv)
-    pick = choices(test, learned, map_only, np.random.default_rng(cfg.seed))
+    pick = choices(test, learned, map_only, rng_for(cfg.seed, "choices"))
     res = evaluate(test, pick)
     res.update(test_episodes=len(test), train_episodes=len(train), train_candidates=int(len(yv)),
                train_success_rate=float(yv.mean()))
     cost = costs(train + test)
     write_json(out / "results.json", {
-        "config": asdict(cfg), "env": {k: (v.to_dict() if hasattr(v, "to_dict") else v)
+        "config": asdict(given), "env": {k: (v.to_dict() if hasattr(v, "to_dict") else v)
                                        for k, v in cfg.env_kwargs().items()},
         "results": res, "cost": cost,
         "learned": {"all_features": learned.to_dict(),
@@ -415,8 +417,8 @@ def main(argv=None) -> int:
         f"{name}_{k}": _stack(eps, k) for name, eps in (("train", train), ("test", test))
         for k in ("features", "candidates", "mask", "outcome", "cloud", "object_pose")},
         test_kind=np.array([e["kind"] for e in test]), feature_names=np.array(FEATURE_NAMES))
-    run.write(out, {"config": asdict(cfg), "results": res, "cost": cost,
-                    "database": {"start": db_start, "end": database_record(_env(cfg).db)}},
+    run.write(out, {"config": asdict(given), "results": res, "cost": cost,
+                    "database": {"start": db_start, "end": database_record(db)}},
               readme_section, publish=opts.publish)
     table = write_table(cfg, res, cost)
     (out / "table.md").write_text("# E06 grasp-selection baselines (GraspSelect-v0)\n\n" + table)
@@ -430,10 +432,6 @@ NAMES = {"random": "random valid candidate", "highest_grade": "highest paper gra
          "learned": "learned (all features, the robust score included)",
          "learned_map_only": "learned (map columns only)",
          "oracle": "oracle (any candidate succeeds)"}
-
-
-
-
 KIND_NAMES = {"random": "random", "highest_grade": "highest grade", "robust": "robust", "learned": "learned",
               "oracle": "oracle"}
 SC_NAMES = {"highest_grade": "highest-grade", "robust": "robust"}

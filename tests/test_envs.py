@@ -393,3 +393,6 @@ def test_e06_quick_writes_results(tmp_path):
     assert all(v["n"] == 6 and v["ci95"][0] <= v["rate"] <= v["ci95"][1] for v in overall.values())
     assert overall["oracle"]["rate"] >= max(v["rate"] for v in overall.values())
     assert r["cost"]["step_agrees_with_evaluate"] == 12
+    # planned against the harness's private database, built fresh in the run's folder
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["database"]["start"]["root"] == str(out / "fsdb") and len(summary["database"]["start"]["maps"]) == 5

@@ -37,13 +37,24 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, map_config, md_table, opt, parse_config, rate_ci, rng_for, standing_cloud, write_text
+from _common import (
+    RunRecord,
+    experiment_database,
+    map_config,
+    md_table,
+    opt,
+    parse_config,
+    rate_ci,
+    rng_for,
+    standing_cloud,
+    write_text,
+)
 
 from graspsim.calibration import CalibrationCase, SimCondition, TrialTable, simulate_samples, wilson_interval
 from graspsim.calibration.trials import CaseSample, case_clears_table
 from graspsim.case_study_objects import ANALOGS
 from graspsim.grades import get_grade
-from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid
+from graspsim.maps.database import PAPER_SHAPES, size_grid
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.scaling import scale_map
 from graspsim.planner import plan
@@ -74,7 +85,7 @@ class Config:
     noise: tuple[float, ...] = opt((0.003, math.radians(2.0)), "execution error sigmas [m, rad]")
     candidates: int = opt(40000, "rows regraded for the pad-contact selection")
     threads: int = opt(2, "simulation and map threads")
-    db: str = opt("", "FS database folder (default OUT/fsdb)")
+    db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"per_case": 10, "paper_test_repeats": 2, "sizes": (1.0, 1.25),
                              "primitives": ("box", "cylinder"), "analogs": ("glue_bottle",), "candidates": 5000,
@@ -114,11 +125,10 @@ def analog_cloud(name: str, seed: int):
     return points, truth, T
 
 
-def analog_cases(cfg: Config) -> tuple[list[CalibrationCase], dict]:
+def analog_cases(cfg: Config, out: Path) -> tuple[list[CalibrationCase], dict]:
     """Adapted maps of the case-study analogs (``graspsim.case_study_objects``) from their clouds,
     simulated against the true shapes standing as in the cloud."""
-    db = MapDatabase(cfg.db, config=cfg.map_config)
-    db.build(PAPER_SHAPES.values(), threads=cfg.threads)
+    db = experiment_database(cfg.db, out, cfg.map_config, threads=cfg.threads)
     cases, info = [], {}
     for name in cfg.analogs:
         cloud, truth, T_cloud_true = analog_cloud(name, cfg.seed)
@@ -250,7 +260,6 @@ def draw(cases: list[CalibrationCase], sel: str, grade, cfg: Config) -> list[Cas
 
 def main(argv=None) -> int:
     cfg, opts = parse_config(Config, __file__, argv, __doc__)
-    cfg = replace(cfg, db=cfg.db or f"{opts.out}/fsdb")
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger("graspsim.sim.batch").setLevel(logging.WARNING)
     run = RunRecord(__file__, argv)
@@ -258,7 +267,7 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     grade = get_grade("pad_contact")
     prim = primitive_cases(cfg)
-    analogs, plan_info = analog_cases(cfg)
+    analogs, plan_info = analog_cases(cfg, out)
     conditions = [SimCondition("exact"), SimCondition("noise", noise=ExecutionNoise(*cfg.noise))]
     glue = next((c for c in analogs if c.group == "glue_bottle"), None)
     part_a = None if glue is None else paper_test(glue, conditions, cfg)

@@ -80,7 +80,7 @@ __all__ = ["opt", "parse_config", "RunRecord", "machine_load", "provenance", "de
            "rng_for", "derived_seed", "seed_sequence", "map_config", "standing_cloud",
            "Clock", "stopwatch", "load_average", "run_fresh", "run_cli_fresh",
            "write_json", "write_text", "write_config", "fmt", "md_table", "mean_sd_text", "pct", "rate_ci",
-           "DEFAULT_NOISE", "noise_sigmas", "experiment_database", "database_record", "database_note"]
+           "noise_sigmas", "experiment_database", "database_record", "database_note"]
 
 EXPERIMENTS = Path(__file__).resolve().parent
 
@@ -364,14 +364,14 @@ def rate_ci(k: int, n: int, ci=None, digits: int = 1) -> str:
 
 
 # ------------------------------------------------------------------ simulation settings
-#: the execution error of the environments and E04 (sigma: position [m], rotation [deg])
-DEFAULT_NOISE = (0.003, 2.0)
-
-
 def noise_sigmas(label: str) -> tuple[float, float]:
-    """(position [m], rotation [deg]) of a ``--noise`` label: default, none or MM:DEG."""
+    """(position [m], rotation [deg]) of a ``--noise`` label: default (``ExecutionNoise``'s
+    defaults, the execution error of the environments and E04), none or MM:DEG."""
     if label == "default":
-        return DEFAULT_NOISE
+        from graspsim.sim.noise import ExecutionNoise
+
+        d = ExecutionNoise()
+        return d.position_sigma, round(math.degrees(d.rotation_sigma), 12)
     if label == "none":
         return 0.0, 0.0
     try:

@@ -32,7 +32,7 @@ What lives here, one of each:
   reads the load average of any summary, old or new.
 * **Seeds**: ``rng_for(cfg.seed, *keys)`` / ``derived_seed`` from
   :mod:`graspsim.seeding`, the rule the library uses too: one integer seed per run,
-  streams keyed by names (CRC-32) and indices. Never ``sum(map(ord, name))``.
+  streams keyed by names (CRC-32) and indices, never a sum of character codes.
 * **Maps and scenes**: :func:`map_config` (the default or the quick runs' coarse maps),
   :func:`standing_cloud` (an object standing on the table at a random yaw, seen as a
   (single-view) cloud).

@@ -30,7 +30,7 @@ from __future__ import annotations
 import logging
 import math
 import sys
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, astuple, dataclass
 from pathlib import Path
 from typing import ClassVar
 
@@ -39,6 +39,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import (
     RunRecord,
+    derived_seed,
     experiment_database,
     map_config,
     md_table,
@@ -82,7 +83,7 @@ class Config:
     primitives: tuple[str, ...] = opt(tuple(PAPER_SHAPES), choices=tuple(PAPER_SHAPES))
     analogs: tuple[str, ...] = opt(tuple(ANALOGS), choices=tuple(ANALOGS))
     selections: tuple[str, ...] = opt(SELECTIONS, choices=SELECTIONS)
-    noise: tuple[float, ...] = opt((0.003, math.radians(2.0)), "execution error sigmas [m, rad]")
+    noise: tuple[float, ...] = opt(astuple(ExecutionNoise()), "execution error sigmas [m, rad]")
     candidates: int = opt(40000, "rows regraded for the pad-contact selection")
     threads: int = opt(2, "simulation and map threads")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
@@ -168,10 +169,12 @@ def uniform_rows(case: CalibrationCase, rows: np.ndarray, n: int, rng) -> np.nda
 
 
 # -------------------------------------------------------------------- simulation
-def paired(samples: list[CaseSample], conditions: list[SimCondition], cfg: Config) -> TrialTable:
+def paired(samples: list[CaseSample], conditions: list[SimCondition], cfg: Config, *keys: str) -> TrialTable:
     """Every sample simulated without (``outcome``) and with execution noise
-    (``outcome_noise``), row by row the same grasps."""
-    exact, noisy = (simulate_samples(samples, c, seed=cfg.seed, threads=cfg.threads, features=())
+    (``outcome_noise``), row by row the same grasps; the noise drawn from the run's seed,
+    or from ``derived_seed(seed, *keys)`` for a second table of the same cases."""
+    seed = derived_seed(cfg.seed, *keys) if keys else cfg.seed
+    exact, noisy = (simulate_samples(samples, c, seed=seed, threads=cfg.threads, features=())
                     for c in conditions)
     if not (np.array_equal(exact["case"], noisy["case"]) and np.array_equal(exact["row"], noisy["row"])):
         raise RuntimeError("the two conditions simulated different grasps")  # pragma: no cover
@@ -232,11 +235,11 @@ def paper_test(glue: CalibrationCase, conditions: list[SimCondition], cfg: Confi
     rows = np.concatenate(draws)
     t = paired([CaseSample(glue, rows, np.ones(len(rows)), len(clear), len(glue.gmap))], conditions, cfg)
     per_draw = np.split(np.arange(len(t)), np.cumsum([len(d) for d in draws])[:-1])
-    t_raw = paired([CaseSample(glue, raw, np.ones(len(raw)), len(hi), len(glue.gmap))], conditions,
-                   replace(cfg, seed=cfg.seed + 1))
+    t_raw = paired([CaseSample(glue, raw, np.ones(len(raw)), len(hi), len(glue.gmap))], conditions, cfg,
+                   "uniform_over_all_poses")
     base = np.concatenate([uniform_rows(glue, clear_all, cfg.paper_test, rng) for _ in draws])
     t_base = paired([CaseSample(glue, base, np.ones(len(base)), len(clear_all), len(glue.gmap))], conditions,
-                    replace(cfg, seed=cfg.seed + 2))
+                    cfg, "any_grade_draws")
     return {"first_draw": rates(t.select(per_draw[0])), "draws": len(draws), "per_draw": cfg.paper_test,
             "successes_per_draw": [int(np.sum(t["outcome"][i] == 0)) for i in per_draw],
             "all_draws": rates(t), "uniform_over_all_poses": rates(t_raw), "any_grade_draws": rates(t_base),

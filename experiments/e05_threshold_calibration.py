@@ -32,14 +32,14 @@ from __future__ import annotations
 import logging
 import math
 import sys
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, fmt, map_config, md_table, opt, parse_config, pct, write_text
+from _common import RunRecord, derived_seed, fmt, map_config, md_table, opt, parse_config, pct, write_text
 
 from graspsim.calibration import TrialTable, calibrate, draw_samples, simulate_samples
 from graspsim.calibration.conditions import SimCondition, condition
@@ -71,7 +71,7 @@ class Config:
     frictions: tuple[float, ...] = opt((0.4, 0.5, 0.6, 0.8, 1.0), "pad frictions of the sensitivity")
     forces: tuple[float, ...] = opt((30.0, 60.0, 100.0, 250.0, 300.0), "grip forces per jaw [N]")
     mass_scales: tuple[float, ...] = opt((0.5, 1.0, 2.0, 4.0), "object mass factors")
-    noise: tuple[float, ...] = opt((0.003, math.radians(2.0)), cli=False)
+    noise: tuple[float, ...] = opt(astuple(ExecutionNoise()), cli=False)
     study: bool = opt(False, "replay the issue's feasibility study too")
     study_per_bin: int = opt(40, "grasps per bin of the study replay")
     closing_cone_deg: float = opt(math.degrees(CALIBRATION_CONE), cli=False)
@@ -136,13 +136,13 @@ def run_tables(cfg: Config, out: Path) -> tuple[dict, dict, dict | None]:
         if what not in lazy:
             if what == "study":
                 cases = fs_cases(paper_size_grid(), config=mcfg, threads=cfg.threads)
-                lazy[what] = draw_samples(cases, cfg.study_per_bin, seed=cfg.seed + 200)
+                lazy[what] = draw_samples(cases, cfg.study_per_bin, seed=derived_seed(cfg.seed, "study"))
             else:
                 if "cases" not in lazy:
                     lazy["cases"] = fs_cases({k: HELD_OUT_SHAPES[k] for k in cfg.objects}, config=mcfg,
                                              threads=cfg.threads)
                 per_bin, seed = (cfg.per_bin, cfg.seed) if what == "main" else \
-                    (cfg.sensitivity_per_bin, cfg.seed + 100)
+                    (cfg.sensitivity_per_bin, derived_seed(cfg.seed, "sensitivity"))
                 lazy[what] = draw_samples(lazy["cases"], per_bin, seed=seed)
         return simulated(out, name, lazy[what], cond, cfg, [pad])
 

@@ -35,3 +35,19 @@ def test_stable_across_processes_and_the_calibration_case_seed():
 def test_negative_seeds_are_refused():
     with pytest.raises(InvalidParameterError, match="seeds and keys must be >= 0"):
         rng_for(-1, "a")
+
+
+def test_no_second_seed_rule_in_the_tree():
+    """Seeds are derived only by graspsim.seeding: no offsets (``seed + 1``), sums of
+    character codes, hashes or SeedSequence lists spelled out elsewhere."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    bad = re.compile(r"sum\(map\(ord|default_rng\(\[|\.generate_state\(|SeedSequence\(\[?[a-z_.]*seed"
+                     r"|seed\s*[-+*^%]\s*\d|hashlib\.\w+\((seed|key|name)\b")
+    found = [f"{p.relative_to(root)}:{i}: {line.strip()}"
+             for p in sorted([*(root / "graspsim").rglob("*.py"), *(root / "experiments").glob("*.py")])
+             if p.name != "seeding.py"
+             for i, line in enumerate(p.read_text().splitlines(), 1) if bad.search(line)]
+    assert not found, "seeds derived outside graspsim.seeding:\n" + "\n".join(found)

@@ -238,28 +238,30 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
                            db, cfg, source, t0, {"identify": 0.0})
 
 
+def _object_frame(prims: list, T_cloud: list) -> tuple[np.ndarray, Compound | None]:
+    """(T_cloud_obj, the compound or None): one part -> its frame; several -> the
+    compound's centre of mass with the axes of its largest part."""
+    if len(prims) == 1:
+        return T_cloud[0], None
+    vols = [p.volume for p in prims]
+    big = int(np.argmax(vols))
+    com = sum(v * T[:3, 3] for v, T in zip(vols, T_cloud)) / sum(vols)
+    T_ref = T_cloud[big].copy()
+    T_ref[:3, 3] = com
+    inv = invert_transform(T_ref)
+    compound = Compound.from_parts(prims, np.stack([inv @ T for T in T_cloud]))
+    # from_parts re-centred the parts on the exact union COM (overlaps removed)
+    shift = np.eye(4)
+    shift[:3, 3] = (inv @ T_cloud[0])[:3, 3] - compound.poses[0][:3, 3]
+    return T_ref @ shift, compound
+
+
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
                 ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
                 source: str, t0: float, timing: dict) -> Iterator[GraspBatch | PlanResult]:
     """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
     part frames in the cloud's frame)."""
-    # the object frame: one part -> its frame; several -> the compound's centre of
-    # mass with the axes of its largest part
-    if len(prims) == 1:
-        T_cloud_obj = T_cloud[0]
-        compound = None
-    else:
-        vols = [p.volume for p in prims]
-        big = int(np.argmax(vols))
-        com = sum(v * T[:3, 3] for v, T in zip(vols, T_cloud)) / sum(vols)
-        T_ref = T_cloud[big].copy()
-        T_ref[:3, 3] = com
-        inv = invert_transform(T_ref)
-        compound = Compound.from_parts(prims, np.stack([inv @ T for T in T_cloud]))
-        # from_parts re-centred the parts on the exact union COM (overlaps removed)
-        shift = np.eye(4)
-        shift[:3, 3] = (inv @ T_cloud[0])[:3, 3] - compound.poses[0][:3, 3]
-        T_cloud_obj = T_ref @ shift
+    T_cloud_obj, compound = _object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
     T_table_obj = table = None

@@ -125,22 +125,7 @@ def run(args) -> int:
     finally:
         bar.close()
     res = out.results
-    renders = []
-    if args.render and len(out.index):
-        from graspsim.sim.render import render_trial
-
-        gmap = load_map(args.map)
-        shown = 0
-        for j in range(len(out.index)):  # the first --render-count trials that started
-            if shown == args.render_count:
-                break
-            i = int(out.index[j])
-            if res.outcome[j] == TrialOutcome.START_COLLISION:
-                continue
-            shown += 1
-            paths = render_trial(out.scene, None, float(gmap.width[i]), args.render, protocol,
-                                 name=f"grasp{i:06d}", gif=True, T_world_wrist=res.T_world_wrist[j])
-            renders += [str(p) for p in paths]
+    renders = _render(args, out, protocol) if args.render and len(out.index) else []
     if recorder is not None:
         recorder.recording(out.scene, out.index, res.outcome, res.protocol).save(args.record)
     counts = res.counts()
@@ -159,6 +144,28 @@ def run(args) -> int:
              f"on {res.threads} thread(s)" + (f"; results in {out.group}" if out.group else ""))
     emit(summary, args.json, human)
     return 0
+
+
+def _render(args, out, protocol) -> list[str]:
+    """Pictures and GIFs of the first ``--render-count`` trials that started (not in
+    collision) into ``--render``; their paths."""
+    from graspsim.maps import load_map
+    from graspsim.sim import TrialOutcome
+    from graspsim.sim.render import render_trial
+
+    res, gmap = out.results, load_map(args.map)
+    renders, shown = [], 0
+    for j in range(len(out.index)):
+        if shown == args.render_count:
+            break
+        i = int(out.index[j])
+        if res.outcome[j] == TrialOutcome.START_COLLISION:
+            continue
+        shown += 1
+        paths = render_trial(out.scene, None, float(gmap.width[i]), args.render, protocol,
+                             name=f"grasp{i:06d}", gif=True, T_world_wrist=res.T_world_wrist[j])
+        renders += [str(p) for p in paths]
+    return renders
 
 
 def _duration(seconds: float) -> str:

@@ -14,6 +14,7 @@ from enum import Enum
 from graspsim.envs.objects import resolve_object_set
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.generate import MapConfig
+from graspsim.maps.robust import POSITION_SIGMA, ROTATION_SIGMA
 
 __all__ = ["EnvConfig", "Perception", "RewardMode", "View", "make_config"]
 
@@ -78,8 +79,8 @@ class EnvConfig:
     view: View = View.FULL
     camera_distance: float = 0.6
     table_cut: float = 0.003
-    position_noise: float = 0.003
-    rotation_noise: float = math.radians(2.0)
+    position_noise: float = POSITION_SIGMA
+    rotation_noise: float = ROTATION_SIGMA
     protocol: object = "lift_place"
     reward: RewardMode = RewardMode.BINARY
     lying: float = 0.5

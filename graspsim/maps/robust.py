@@ -43,7 +43,14 @@ from graspsim.gripper import GripperSpec
 from graspsim.transforms import make_transform, quat_to_matrix
 
 __all__ = ["RobustConfig", "RobustScores", "TERMS", "RANKS", "ABLATIONS", "ABLATION_LABELS",
-           "wrist_perturbations", "score_rows", "score_map", "ranking", "cloud_in_object"]
+           "POSITION_SIGMA", "ROTATION_SIGMA", "wrist_perturbations", "score_rows", "score_map", "ranking",
+           "cloud_in_object"]
+
+#: The default wrist pose error at the TCP, one place for the planner's robustness model
+#: (:class:`RobustConfig`), the simulated execution error (``graspsim.sim.ExecutionNoise``)
+#: and the environments: 3 mm [m] and 2 deg [rad] (sigmas), a typical industrial arm with
+#: hand-eye calibration.
+POSITION_SIGMA, ROTATION_SIGMA = 0.003, math.radians(2.0)
 
 #: What a perturbation must keep to count as feasible (``RobustConfig.terms``).
 TERMS = ("cloud", "primitives", "table", "pads", "force_closure")
@@ -85,8 +92,8 @@ class RobustConfig:
     (each is scored, the best kept per grasp and recorded as ``robust_extra_opening``;
     an executor then opens the jaws that much wider). Default (0,): the map's opening."""
 
-    position_sigma: float = 0.003
-    rotation_sigma: float = math.radians(2.0)
+    position_sigma: float = POSITION_SIGMA
+    rotation_sigma: float = ROTATION_SIGMA
     samples: int = 32
     seed: int = 0
     top: int = 1000

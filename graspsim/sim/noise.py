@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.robust import wrist_perturbations
+from graspsim.maps.robust import POSITION_SIGMA, ROTATION_SIGMA, wrist_perturbations
 
 __all__ = ["ExecutionNoise"]
 
@@ -25,10 +25,11 @@ __all__ = ["ExecutionNoise"]
 @dataclass(frozen=True)
 class ExecutionNoise:
     """Wrist pose error per trial: position_sigma [m], rotation_sigma [rad]
-    (defaults 3 mm and 2 deg, a typical industrial arm with hand-eye calibration)."""
+    (defaults 3 mm and 2 deg, ``graspsim.maps.robust.POSITION_SIGMA`` / ``ROTATION_SIGMA``:
+    a typical industrial arm with hand-eye calibration)."""
 
-    position_sigma: float = 0.003
-    rotation_sigma: float = math.radians(2.0)
+    position_sigma: float = POSITION_SIGMA
+    rotation_sigma: float = ROTATION_SIGMA
 
     def __post_init__(self) -> None:
         for k, v in asdict(self).items():

@@ -1,6 +1,8 @@
 """The statistics of the paper's table 2 for the experiment scripts: mean and SD,
 split-plot (mixed) ANOVA with the Greenhouse-Geisser correction, Bonferroni-adjusted
-paired post-hoc tests. Not part of the library (``import _stats`` from a script)."""
+paired post-hoc tests; the exact McNemar test of paired successes (E06); a rate's
+interval resampling whole clusters (E04). Not part of the library (``import _stats``
+from a script)."""
 
 from __future__ import annotations
 
@@ -131,3 +133,26 @@ def tests_markdown(tests: dict, metrics: list[tuple[str, str]], within: str = "a
             L.append(f"| {lbl} | {ph['a']} - {ph['b']} | {ph['mean_diff']:.2f} | "
                      f"{ph['t']:.2f} ({ph['df']}) | {p_text(ph['p_bonferroni'])} |")
     return L
+
+
+def mcnemar(a: np.ndarray, b: np.ndarray) -> dict:
+    """Exact McNemar test of paired successes a, b (E,) bool."""
+    from scipy.stats import binomtest
+
+    only_a, only_b = int(np.sum(a & ~b)), int(np.sum(~a & b))
+    p = binomtest(only_a, only_a + only_b, 0.5).pvalue if only_a + only_b else 1.0
+    return {"only_first": only_a, "only_second": only_b, "p_exact": float(p)}
+
+
+def cluster_bootstrap_interval(k, n, rng: np.random.Generator, *, reps: int = 4000,
+                               confidence: float = 0.95) -> tuple[float, float]:
+    """Percentile interval of a pooled rate sum(k) / sum(n) when whole clusters (k, n:
+    successes and trials per cluster, e.g. per map) are resampled with replacement:
+    trials within a cluster are not taken as independent."""
+    k, n = np.asarray(k, float), np.asarray(n, float)
+    idx = rng.integers(0, len(k), (reps, len(k)))
+    tot = n[idx].sum(axis=1)
+    rate = np.divide(k[idx].sum(axis=1), tot, out=np.full(reps, np.nan), where=tot > 0)
+    a = 50.0 * (1.0 - confidence)
+    lo, hi = np.nanpercentile(rate, [a, 100.0 - a])
+    return float(lo), float(hi)

@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, load_average, machine_load, opt, parse_config, run_fresh, write_json
+from _common import load_average, machine_load, opt, run_fresh, start, write_json
 
 README_DIMS = {"radius": 0.02, "height": 0.2}  # the README's example cylinder
 QUICK_FLAGS = ("--surface-step", "0.02", "--rotation-step-deg", "30")
@@ -204,8 +204,7 @@ def bench_db(tmp: Path) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    cfg, opts = parse_config(BenchConfig, __file__, argv, __doc__)
-    run = RunRecord(__file__, argv)
+    cfg, out, run = start(BenchConfig, __file__, argv, __doc__, log_format=None)
     tmp = Path(tempfile.mkdtemp(prefix="bench_fsmap-"))
     try:
         _child(_graspsim_cmd() + ["warmup"])  # the user's cache: warm from here on
@@ -214,9 +213,9 @@ def main(argv: list[str] | None = None) -> int:
         db = bench_db(tmp) if cfg.db else None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    text = run.write(opts.out, _summary(cfg, rows, startup, db), readme_section, publish=opts.publish)
-    write_json(Path(opts.out) / "rows.json", rows)
-    (Path(opts.out) / "table.md").write_text(text + "\n")
+    text = run.write(out, _summary(cfg, rows, startup, db), readme_section)
+    write_json(out / "rows.json", rows)
+    (out / "table.md").write_text(text + "\n")
     print(text)
     return 0
 

@@ -28,7 +28,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, machine_load, opt, parse_config, rng_for, run_cli_fresh
+from _common import machine_load, opt, rng_for, run_cli_fresh, start
 
 SHAPES = {"cylinder": {"radius": 0.03, "height": 0.12}, "sphere": {"radius": 0.04}}
 GOAL_SECONDS, GOAL_BYTES = 5.0, 1 << 30
@@ -130,8 +130,7 @@ def readme_section(summary: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    cfg, opts = parse_config(BenchConfig, __file__, argv, __doc__)
-    run = RunRecord(__file__, argv)
+    cfg, out, run = start(BenchConfig, __file__, argv, __doc__, log_format=None)
     res = bench(cfg)
     big = [r for r in res["rows"] if r["points"] == max(cfg.sizes)]
     headline = {
@@ -141,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         "peak_rss_mib_max": max(r["peak_rss_mib_max"] for r in big),
         "denominator": f"median of {cfg.repeat} runs per shape, worst of {len(big)} shapes",
         "goal": {"seconds": GOAL_SECONDS, "peak_rss_mib": GOAL_BYTES / 2**20}}
-    print(run.write(opts.out, {"config": cfg, "headline": headline, **res}, readme_section, publish=opts.publish))
+    print(run.write(out, {"config": cfg, "headline": headline, **res}, readme_section))
     return 0
 
 

@@ -19,17 +19,15 @@ h 20 cm, default settings: ~1.4 M grasps) is generated first (a few minutes).
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, machine_load
-
-STEM = "bench_map_load"
+from _common import machine_load, opt, start
 
 
 def _raw_load(path: Path):
@@ -87,33 +85,34 @@ def readme_section(summary: dict) -> str:
             f"{machine_load(summary)[0][0]} before. `{summary['command']}`")
 
 
+@dataclass(frozen=True)
+class Config:
+    map: str | None = opt(None, "map file (default: generate the cylinder map)")
+    repeat: int = opt(5, "timed reads (the best is kept)")
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--map", default=None, help="map file (default: generate the cylinder map)")
-    ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--out", default=f"results/{STEM}")
-    a = ap.parse_args(argv)
+    cfg, out, run = start(Config, __file__, argv, __doc__, log_format=None)
     from graspsim.maps.io import load_map
     from graspsim.maps.validate import map_problems
 
-    run = RunRecord(__file__, argv)
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(a.map) if a.map else _make_map(Path(tmp))
+        path = Path(cfg.map) if cfg.map else _make_map(Path(tmp))
         gmap = load_map(path)  # warm the page cache and the imports
         timed = {
-            "raw": _best(lambda: _raw_load(path), a.repeat),
-            "load_map": _best(lambda: load_map(path), a.repeat),
-            "load_map_no_transforms": _best(lambda: load_map(path, verify_transforms=False), a.repeat),
-            "map_problems": _best(lambda: map_problems(gmap), a.repeat),
-            "transforms_check": _best(lambda: _transforms_only(path, gmap), a.repeat),
+            "raw": _best(lambda: _raw_load(path), cfg.repeat),
+            "load_map": _best(lambda: load_map(path), cfg.repeat),
+            "load_map_no_transforms": _best(lambda: load_map(path, verify_transforms=False), cfg.repeat),
+            "map_problems": _best(lambda: map_problems(gmap), cfg.repeat),
+            "transforms_check": _best(lambda: _transforms_only(path, gmap), cfg.repeat),
         }
     seconds = {k: w for k, (w, _) in timed.items()}
     cpu_seconds = {k: c for k, (_, c) in timed.items()}
-    data = {"map": str(a.map or "generated cylinder r 0.02 m h 0.2 m"), "grasps": len(gmap),
-            "repeat": a.repeat, "seconds": seconds, "cpu_seconds": cpu_seconds,
+    data = {"map": str(cfg.map or "generated cylinder r 0.02 m h 0.2 m"), "grasps": len(gmap),
+            "repeat": cfg.repeat, "seconds": seconds, "cpu_seconds": cpu_seconds,
             "overhead_vs_raw": seconds["load_map"] / seconds["raw"],
             "cpu_overhead_vs_raw": cpu_seconds["load_map"] / cpu_seconds["raw"]}
-    print(run.write(a.out, data, readme_section))
+    print(run.write(out, {"config": cfg, **data}, readme_section))
     return 0
 
 

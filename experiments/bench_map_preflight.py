@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, machine_load, opt, parse_config, run_cli_fresh
+from _common import machine_load, opt, run_cli_fresh, start
 
 TEN_METRES = {
     "sphere": ["--radius", "10"],
@@ -104,8 +104,7 @@ def readme_section(summary: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    cfg, opts = parse_config(Config, __file__, argv, __doc__)
-    run = RunRecord(__file__, argv)
+    cfg, out, run = start(Config, __file__, argv, __doc__, log_format=None)
     with tempfile.TemporaryDirectory() as folder:
         refusals = [_refusal(n, TEN_METRES[n], folder) for n in cfg.refusals]
     ctx = mp.get_context("spawn")
@@ -122,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
                 "denominator": f"{len(refusals)} requests at 10 m; {len(estimates)} paper primitives for the "
                                "estimate"}
     summary = {"config": cfg, "headline": headline, "refusals": refusals, "estimates": estimates}
-    print(run.write(opts.out, summary, readme_section, publish=opts.publish))
+    print(run.write(out, summary, readme_section))
     return 0
 
 

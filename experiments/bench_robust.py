@@ -14,7 +14,8 @@ Each is measured in fresh processes: the first run on a machine (an empty numba 
 the kernels compile), the first call of a fresh process with a warm cache, and in-process
 medians over ``--repeat`` calls after that first one. Goals (issue 16): scoring <= 50 ms,
 first robust grasp <= 20 ms. Wall times depend on what else runs: the load average is
-recorded around every process.
+recorded around every process. The planner uses a private FS map database, ``OUT/fsdb``,
+built fresh at the default map settings (``--quick``: coarse) before the first process (``--db`` to give one).
 
     python experiments/bench_robust.py [--repeat 5] [--processes 3] [--publish]
     python experiments/bench_robust.py --quick
@@ -22,21 +23,19 @@ recorded around every process.
 
 from __future__ import annotations
 
-import argparse
 import json
-import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, default_out, load_average, write_json
+from _common import experiment_database, load_average, map_config, opt, run_fresh, start, write_json
 
-STEM = "bench_robust"
 KINDS = ("box", "cylinder", "sphere", "cone", "bottle", "mug", "hammer")
 GOALS_MS = {"score_1000": 50.0, "first_robust": 20.0}
 
@@ -59,7 +58,7 @@ def _scenes(seed: int, kinds: tuple[str, ...]):
     return out
 
 
-def measure(seed: int, kinds: tuple[str, ...], repeat: int, db_root: str | None) -> dict:
+def measure(seed: int, kinds: list[str], repeat: int, db_root: str) -> dict:
     """In this process: per object, the first call and the medians of ``repeat`` more."""
     from graspsim.maps.database import MapDatabase
     from graspsim.maps.robust import RobustConfig, cloud_in_object, score_map
@@ -103,18 +102,16 @@ def measure(seed: int, kinds: tuple[str, ...], repeat: int, db_root: str | None)
     return {"rows": rows, "load_after": load_average()}
 
 
-def _child(args: list[str], env: dict | None = None) -> dict:
-    load0 = load_average()
-    t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, __file__, "--child", *args], capture_output=True, text=True,
-                       env={**os.environ, **(env or {})}, check=False)
-    if p.returncode:
-        raise RuntimeError(f"benchmark child failed: {p.stderr[-2000:]}")
-    out = json.loads(p.stdout.strip().splitlines()[-1])
-    return {**out, "wall_s": time.perf_counter() - t0, "load_before": load0}
+def _child(args: dict, env: dict | None = None) -> dict:
+    """:func:`measure` of ``args`` in a fresh process (``env`` added to its environment)."""
+    r = run_fresh([sys.executable, __file__, "--child", json.dumps(args)], env)
+    if r["exit"]:
+        raise RuntimeError(f"benchmark child failed: {r['stderr'][-2000:]}")
+    return {**json.loads(r["stdout"].strip().splitlines()[-1]), "wall_s": r["wall_s"],
+            "load_before": r["load_before"]}
 
 
-def _summarise(runs: dict, cfg: argparse.Namespace, run: RunRecord) -> dict:
+def _summarise(runs: dict, cfg: Config) -> dict:
     kinds = [r["kind"] for r in runs["warm"][0]["rows"]]
     info = {r["kind"]: {k: r[k] for k in ("cloud_points", "grasps", "scored", "parts", "status")}
             for r in runs["warm"][0]["rows"]}
@@ -139,16 +136,16 @@ def _summarise(runs: dict, cfg: argparse.Namespace, run: RunRecord) -> dict:
                 "met_in_process": all(v <= GOALS_MS.get(key.replace("_ms", ""), float("inf")) for v in vals)}
 
     loads = [x for p in runs["warm"] for r in p["rows"] for x in r["load"]]
-    return run.summary({
+    return {
         "config": {"repeat": cfg.repeat, "processes": cfg.processes, "seed": cfg.seed, "kinds": kinds,
-                   "cold": not cfg.no_cold},
+                   "cold": cfg.cold, "db": cfg.db},
         "denominators": f"per kind: the first run in one process on an empty numba cache; the first call of "
                         f"{cfg.processes} fresh processes (median); in-process: medians of {cfg.repeat} calls "
                         f"after the first, median over the processes",
         "objects": info, "score_1000": stats("score_1000_ms"), "score_1000_cpu": stats("score_1000_cpu_ms"),
         "first_robust": stats("first_robust_ms"),
         "load_during": {"min": min(loads), "max": max(loads)},
-    })
+    }
 
 
 def readme_section(s: dict) -> str:
@@ -181,44 +178,39 @@ def readme_section(s: dict) -> str:
     return "\n".join(L) + "\n"
 
 
+@dataclass(frozen=True)
+class Config:
+    repeat: int = opt(5, "in-process calls after the first (median)")
+    processes: int = opt(3, "fresh processes with a warm cache")
+    seed: int = opt(16, "run seed")
+    db: str | None = opt(None, "FS database folder (default: OUT/fsdb, built fresh)")
+    cold: bool = opt(True, "also the first run on an empty numba cache")
+    kinds: tuple[str, ...] = opt(KINDS, "objects", choices=KINDS)
+    quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
+    QUICK: ClassVar[dict] = {"repeat": 2, "processes": 1, "kinds": ("cylinder", "mug"), "cold": False, "quick": True}
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--repeat", type=int, default=5, help="in-process calls after the first (median)")
-    p.add_argument("--processes", type=int, default=3, help="fresh processes with a warm cache")
-    p.add_argument("--seed", type=int, default=16)
-    p.add_argument("--db", default=None, help="FS map database (default: the library's)")
-    p.add_argument("--no-cold", action="store_true", help="skip the empty-cache first run")
-    p.add_argument("--quick", action="store_true", help="two objects, one process, two repeats")
-    p.add_argument("--out", default=default_out(__file__))
-    p.add_argument("--publish", action="store_true", help=f"copy the summary to experiments/reported/{STEM}.json")
-    p.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
-    p.add_argument("--kinds", nargs="*", default=list(KINDS), help=argparse.SUPPRESS)
-    a = p.parse_args(argv)
-    if a.quick:
-        a.repeat, a.processes, a.kinds, a.no_cold = 2, 1, ["cylinder", "mug"], True
-    if a.child:
-        print(json.dumps(measure(a.seed, tuple(a.kinds), a.repeat, a.db)))
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["--child"]:  # one measuring process (see _child)
+        print(json.dumps(measure(**json.loads(argv[1]))))
         return 0
-    run = RunRecord(__file__, argv)
-    args = ["--repeat", str(a.repeat), "--seed", str(a.seed), "--kinds", *a.kinds] + (["--db", a.db] if a.db else [])
+    cfg, out, run = start(Config, __file__, argv, __doc__, log_format=None)
+    db = experiment_database(cfg.db, out, map_config(cfg.quick))
+    args = {"seed": cfg.seed, "kinds": list(cfg.kinds), "repeat": cfg.repeat, "db_root": str(db.root)}
     runs = {"warm": []}
-    _child(args + ["--repeat", "0"])  # warm the user's numba cache
-    if not a.no_cold:
+    _child({**args, "repeat": 0})  # warm the user's numba cache
+    if cfg.cold:
         tmp = tempfile.mkdtemp(prefix="bench_robust-")
         try:
             runs["cold"] = _child(args, {"NUMBA_CACHE_DIR": tmp})
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
-    runs["warm"] = [_child(args) for _ in range(a.processes)]
-    summary = _summarise(runs, a, run)
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+    runs["warm"] = [_child(args) for _ in range(cfg.processes)]
     write_json(out / "runs.json", runs)
-    write_json(out / "summary.json", summary)
-    (out / "table.md").write_text(readme_section(summary))
-    if a.publish:
-        shutil.copyfile(out / "summary.json", Path(__file__).resolve().parent / "reported" / f"{STEM}.json")
-    print(readme_section(summary))
+    text = run.write(out, _summarise(runs, cfg), readme_section)
+    (out / "table.md").write_text(text)
+    print(text)
     return 0
 
 

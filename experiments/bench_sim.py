@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, machine_load, opt, parse_config, rng_for
+from _common import NAMED, machine_load, opt, rng_for, start
 
 from graspsim.primitives import Cylinder
 from graspsim.sim import LiftPlace, build_scene, object_from_mesh, object_from_shape, run_trials
@@ -146,14 +146,11 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    cfg, opts = parse_config(BenchConfig, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    logging.getLogger("graspsim.sim.batch").setLevel(logging.WARNING)
-    run_record = RunRecord(__file__, argv)
+    cfg, out, run_record = start(BenchConfig, __file__, argv, __doc__, log_format=NAMED, quiet=("graspsim.sim.batch",))
     rows = run(cfg)
-    run_record.write(opts.out, {"config": cfg, "rows": rows}, readme_section, publish=opts.publish)
+    run_record.write(out, {"config": cfg, "rows": rows}, readme_section)
     text = table(rows)
-    (Path(opts.out) / "table.md").write_text(text + "\n")
+    (out / "table.md").write_text(text + "\n")
     print(text)
     return 0
 

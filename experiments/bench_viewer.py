@@ -24,7 +24,6 @@ and after each measurement (the machine is shared).
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import signal
@@ -34,12 +33,12 @@ import sys
 import tempfile
 import time
 import urllib.request
+from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, load_average
+from _common import load_average, machine_load, opt, start
 
-STEM = "bench_viewer"
 GOAL_S = 3.0
 
 
@@ -153,6 +152,7 @@ def _make_map(folder: str) -> str:
 
 def readme_section(summary: dict) -> str:
     h, m = summary["headline"], summary["machine"]
+    load0, load1 = machine_load(summary)
     first = "file read from disk" if h.get("first_run_file_cache_evicted") else "file possibly cached"
     rows = [(f"fresh process, first run ({first}): launch → URL printed (map read and validated, scene served)",
              h["fresh_first_url_s"]),
@@ -173,49 +173,24 @@ def readme_section(summary: dict) -> str:
             f"on this shared machine); the process's own work by then is {h['fresh_median_cpu_s_at_url']:.2f} CPU s. "
             f"Ctrl-C ended every served run with exit status {h['sigint_exit_codes']}. The frame time adds "
             "Chromium's start and CPU-emulated WebGL; a browser already open on a GPU draws faster. "
-            f"{m['cpus']} cores, load average {_load(m, 'start')} at the start, {_load(m, 'end')} at the end "
+            f"{m['cpus']} cores, load average {load0[0]} at the start, {load1[0]} at the end "
             "(shared machine).\n\n"
             f"`{summary['command']}`")
 
 
-def _load(machine: dict, when: str) -> float:
-    """1-minute load average at the run's start or end (older summaries: before / after)."""
-    old = {"start": "load_before", "end": "load_after"}[when]
-    return (machine.get(f"load_avg_{when}") or machine.get(old) or [float("nan")])[0]
-
-
-def _write(run: RunRecord, out: str, data: dict, publish: bool) -> str:
-    """summary.json and README.md in ``out`` (and the published copy): what
-    ``RunRecord.write`` of the harness does, spelled out with what every version of it has."""
-    from graspsim._jsonable import to_jsonable
-    from graspsim.calibration.outputs import write_json, write_text
-
-    folder = Path(out)
-    folder.mkdir(parents=True, exist_ok=True)
-    summary = to_jsonable(run.summary(data))
-    text = readme_section(summary)
-    write_json(folder / "summary.json", summary)
-    write_text(folder / "README.md", text)
-    if publish:
-        write_json(Path(__file__).resolve().parent / "reported" / f"{STEM}.json", summary)
-    return text
+@dataclass(frozen=True)
+class Config:
+    map: str | None = opt(None, "a map file (default: generate the 1.4 M-grasp FS cylinder)")
+    repeat: int = opt(4, "fresh processes for the URL time")
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--map", default=None, help="a map file (default: generate the 1.4 M-grasp FS cylinder)")
-    ap.add_argument("--repeat", type=int, default=4, help="fresh processes for the URL time (default 4)")
-    ap.add_argument("--out", default=f"results/{STEM}")
-    ap.add_argument("--publish", action="store_true",
-                    help=f"also copy summary.json to experiments/reported/{STEM}.json")
-    a = ap.parse_args(argv)
-    run = RunRecord(__file__, argv)
+    cfg, out, run = start(Config, __file__, argv, __doc__, log_format=None)
     with tempfile.TemporaryDirectory() as folder:
-        path = a.map or _make_map(folder)
+        path = cfg.map or _make_map(folder)
         evicted = _evict(path)  # the first run reads the file from disk
-        fresh = [_fresh_url(path) for _ in range(max(2, a.repeat))]
-        Path(a.out).mkdir(parents=True, exist_ok=True)
-        frame = _fresh_frame(path, str(Path(a.out) / "frame.png"))
+        fresh = [_fresh_url(path) for _ in range(max(2, cfg.repeat))]
+        frame = _fresh_frame(path, str(out / "frame.png"))
         inproc = _in_process(path, 2)
     rest = fresh[1:]
     med = statistics.median(r["url_s"] for r in rest)
@@ -233,10 +208,10 @@ def main(argv: list[str] | None = None) -> int:
             "sigint_exit_codes": sorted({r["exit_after_sigint"] for r in fresh}),
             "denominator": f"first of {len(fresh)} fresh processes, then the median of the other "
                            f"{len(rest)}; one screenshot process; in-process: median of 2 shows and 6 filter changes"},
-        "config": {"map": a.map, "repeat": a.repeat}, "viewer_versions": _versions(),
+        "config": cfg, "viewer_versions": _versions(),
         "fresh": fresh, "frame": frame, "in_process": inproc,
     }
-    print(_write(run, a.out, data, a.publish))
+    print(run.write(out, data, readme_section))
     return 0
 
 

@@ -32,7 +32,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, RunRecord, opt, parse_config, seed_sequence, write_json
+from _common import Clock, opt, seed_sequence, start, write_json
 
 from graspsim.errors import PointCloudError
 from graspsim.perception.benchmark import SIZE_VARIANTS, CloudSpec, TrialResult, run_trial, trial_cloud
@@ -144,11 +144,7 @@ def plot(summary: list[dict], cfg: E01Config, path: Path) -> None:
 
 
 def main(argv=None) -> int:
-    cfg, opts = parse_config(E01Config, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
+    cfg, out, run = start(E01Config, __file__, argv, __doc__)
     tasks = [(cfg, m, k, v, r, t) for m in cfg.modes for k in cfg.kinds for v in range(cfg.variants)
              for r in cfg.repetitions for t in range(cfg.trials)]
     log.info("E01: %d identifications on %d workers", len(tasks), cfg.workers)
@@ -163,7 +159,7 @@ def main(argv=None) -> int:
     write_json(out / "results.json", {"config": cfg.record(), "wall_seconds": clock.wall, "summary": summary,
                                       "trials": rows})
     table = write_table(summary, cfg)
-    run.write(out, {"config": cfg.record(), "summary": summary}, readme_section, publish=opts.publish)
+    run.write(out, {"config": cfg.record(), "summary": summary}, readme_section)
     (out / "table.md").write_text(f"# E01 identification vs repetitions\n\n{table}\n")
     plot(summary, cfg, out / "figure4.png")
     log.info("%s\nwall time %.0f s; results in %s", table, clock.wall, out)

@@ -29,7 +29,6 @@ from __future__ import annotations
 import gc
 import logging
 import math
-import statistics
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -40,19 +39,18 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import (
     Clock,
-    RunRecord,
     load_average,
     machine_load,
     map_config,
     mean_sd_text,
     opt,
-    parse_config,
+    start,
     write_json,
 )
+from _map_timing import time_fs, time_scaled
 from _stats import mean_sd, mixed_anova, p_text, paired_posthoc, tests_markdown
 
 from graspsim.gripper import HGPL_25_60_A
-from graspsim.maps import generate as _generate
 from graspsim.maps.generate import MapConfig, generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.metrics import map_rates, relative_rates
@@ -122,57 +120,6 @@ class E02Config:
                 "figure_variant": self.figure}
 
 
-def _cold() -> None:
-    """Forget cached collision sample hierarchies (a new object has none at run time)."""
-    _generate.clear_caches()
-    gc.collect()
-
-
-def time_fs(shape, cfg: E02Config) -> tuple[GraspabilityMap, dict]:
-    runs = []
-    gmap = None
-    for _ in range(cfg.repeats):
-        gmap = None
-        _cold()
-        c = Clock()
-        gmap = generate_fs_map(shape, HGPL_25_60_A, QualityModel(), cfg.map_config)
-        runs.append(c.record())
-    return gmap, _median_runs(runs)
-
-
-def time_scaled(fs: GraspabilityMap, shape, method: str, cfg: E02Config) -> tuple[GraspabilityMap, dict]:
-    """Stream the scaled map best-first; times to the first and tenth grasp above
-    ``hi_grade`` and to the whole map (concatenated)."""
-    sc = ScalingConfig(method=method, max_ratio=cfg.max_ratio)
-    runs = []
-    gmap = None
-    for _ in range(cfg.repeats):
-        gmap = None
-        _cold()
-        c = Clock()
-        first = tenth = None
-        n_hi = 0
-        batches = []
-        for batch in scale_stream(fs, shape, scaling=sc):
-            n_hi += int(np.count_nonzero(batch.grade > cfg.hi_grade))
-            if first is None and n_hi >= 1:
-                first = c.wall
-            if tenth is None and n_hi >= 10:
-                tenth = c.wall
-            batches.append(batch)
-        gmap = GraspabilityMap.concat(batches) if batches else None
-        runs.append({**c.record(), "first_s": first, "tenth_s": tenth, "batches": len(batches)})
-    return gmap, _median_runs(runs)
-
-
-def _median_runs(runs: list[dict]) -> dict:
-    out = {"runs": runs, "load_avg": runs[0]["load_avg"]}
-    for k in ("wall_s", "cpu_s", "first_s", "tenth_s"):
-        vals = [r[k] for r in runs if r.get(k) is not None]
-        out[k] = statistics.median(vals) if len(vals) == len(runs) else None
-    return out
-
-
 def run_variant(fs_base: GraspabilityMap, v, cfg: E02Config):
     name, r, h, direction, change = v
     shape = Cylinder(r, h)
@@ -182,8 +129,9 @@ def run_variant(fs_base: GraspabilityMap, v, cfg: E02Config):
     # every timed run starts cold)
     scaled, scaled_t = {}, {}
     for m in METHODS:
-        scaled[m], scaled_t[m] = time_scaled(fs_base, shape, m, cfg)
-    fs, fs_t = time_fs(shape, cfg)
+        scaled[m], scaled_t[m] = time_scaled(fs_base, shape, ScalingConfig(method=m, max_ratio=cfg.max_ratio),
+                                             cfg.repeats, cfg.hi_grade)
+    fs, fs_t = time_fs(shape, cfg.map_config, cfg.repeats)
     coarse = 2.0 * cfg.map_config.surface_step  # bins twice the map's step: less sensitive to
     ref2 = map_rates(fs, shape=shape, min_grade=fs.threshold, resolution=coarse)  # sampling density
     row = {"variant": name, "radius": r, "height": h, "direction": direction, "change": change,
@@ -297,11 +245,7 @@ def write_table(rows: list[dict], summary: dict, cfg: E02Config) -> str:
 
 
 def main(argv=None) -> int:
-    cfg, opts = parse_config(E02Config, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
+    cfg, out, run = start(E02Config, __file__, argv, __doc__)
     total = Clock()
     base = Cylinder(BASE["radius"], BASE["height"])
     c = Clock()
@@ -336,7 +280,7 @@ def main(argv=None) -> int:
                 "methods": {m: {k: v for k, v in x.items() if k != "runs"} for m, x in r["methods"].items()}}
              for r in rows]
     run.write(out, {"config": cfg.record(), "base": base_info, "summary": summary, "variants": brief},
-              readme_section, publish=opts.publish)
+              readme_section)
     table = write_table(rows, summary, cfg)
     (out / "table.md").write_text("# E02 cylinder map scaling (paper table 2)\n\n" + table)
     log.info("%s\nwall %.0f s, CPU %.0f s; results in %s", table, total.wall, total.cpu, out)

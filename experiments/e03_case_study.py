@@ -23,8 +23,9 @@ theta* and reported next to it -- the objects are not tuned until they pass.
 Timing is cloud -> adapted map (identification, retrieval, scaling, combination), with
 the FS maps held in memory (a-priori work, as their generation) and the target's
 collision sample cache empty; wall and process CPU time and the load average are
-recorded. Each run gets a fresh view of the database, so an FS map built for a part out
-of the scaling range does not leak into later runs. ``--seeds`` repeats each object with
+recorded. The FS database is a private ``OUT/fsdb`` built fresh (``experiment_database``;
+``--db`` to give one), and each run gets a fresh view of it, so an FS map built for a part
+out of the scaling range does not leak into later runs. ``--seeds`` repeats each object with
 other clouds and camera azimuths (identification robustness); seed 0 gives the table's
 main row, the figures and the saved maps (maps/<object>.h5, for simulated validation).
 
@@ -50,11 +51,11 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, RunRecord, fmt, machine_load, map_config, opt, parse_config, rng_for, write_json
+from _common import Clock, experiment_database, fmt, machine_load, map_config, opt, rng_for, start, write_json
 
 from graspsim import case_study_objects as analogs
 from graspsim.maps import generate as _generate
-from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
 from graspsim.maps.io import save_map
 from graspsim.perception import IdentifyConfig
@@ -102,7 +103,7 @@ class E03Config:
     theta: float = opt(0.5, "split threshold theta_th (paper: 0.5)")
     noise: float = opt(0.0015, "depth noise sigma along the ray [m]")
     resolution: float = opt(0.001, "cloud point spacing [m]")
-    db: str = opt("", "FS database folder, built if missing (default results/fsdb; quick: OUT/fsdb)")
+    db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
     quick: bool = opt(False, "1 cm / 22 deg FS database", cli=False)
     QUICK: ClassVar[dict] = {"seeds": 1, "quick": True}
 
@@ -326,16 +327,13 @@ def write_table(objects: list[dict], cfg: E03Config, db_info: dict) -> str:
 
 
 def main(argv=None) -> int:
-    cfg, opts = parse_config(E03Config, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
+    cfg, out, run = start(E03Config, __file__, argv, __doc__)
     (out / "maps").mkdir(parents=True, exist_ok=True)
-    db_root = cfg.db or str(out / "fsdb" if cfg.quick else "results/fsdb")
     total = Clock()
-    base = MapDatabase(db_root, config=cfg.map_config)
     c = Clock()
-    built = base.build(PAPER_SHAPES.values())
+    base = experiment_database(cfg.db, out, cfg.map_config)
+    built = base.entries()
+    db_root = str(base.root)
     db_info = {"root": db_root, "config": "1 cm / 22 deg" if cfg.quick else "0.5 cm / 11 deg",
                "maps": [{k: e[k] for k in ("primitive", "dims", "grasps", "accepted", "seconds")} for e in built],
                "build_or_check_s": c.wall}
@@ -365,8 +363,7 @@ def main(argv=None) -> int:
     write_json(out / "results.json", {"config": cfg.record(), "database": db_info, "objects": objects,
                                       "wall_s": total.wall, "cpu_s": total.cpu})
     brief = [{k: v for k, v in o.items() if k != "runs"} | {"seed0": o["runs"][0]} for o in objects]
-    run.write(out, {"config": cfg.record(), "database": db_info, "objects": brief}, readme_section,
-              publish=opts.publish)
+    run.write(out, {"config": cfg.record(), "database": db_info, "objects": brief}, readme_section)
     table = write_table(objects, cfg, db_info)
     (out / "table.md").write_text("# E03 case study (paper table 3)\n\n" + table)
     log.info("%s\nwall %.0f s, CPU %.0f s; results in %s", table, total.wall, total.cpu, out)

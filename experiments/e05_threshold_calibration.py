@@ -39,7 +39,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, derived_seed, fmt, map_config, md_table, opt, parse_config, pct, write_text
+from _common import NAMED, derived_seed, fmt, map_config, md_table, opt, pct, start, write_text
 
 from graspsim.calibration import TrialTable, calibrate, draw_samples, simulate_samples
 from graspsim.calibration.conditions import SimCondition, condition
@@ -183,12 +183,7 @@ def run_tables(cfg: Config, out: Path) -> tuple[dict, dict, dict | None]:
 
 
 def main(argv=None) -> int:
-    cfg, opts = parse_config(Config, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    logging.getLogger("graspsim.sim.batch").setLevel(logging.WARNING)
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
+    cfg, out, run = start(Config, __file__, argv, __doc__, log_format=NAMED, quiet=("graspsim.sim.batch",))
     main_reports, sens, study = run_tables(cfg, out)
     pad = get_grade("pad_contact")
     data = {
@@ -200,7 +195,7 @@ def main(argv=None) -> int:
         "main": {c: {"condition": m["condition"], "report": m["report"].to_dict(),
                      "default_cone": m["default_cone"].to_dict()} for c, m in main_reports.items()},
         "sensitivity": sens, "study": study}
-    run.write(out, data, readme_section, publish=opts.publish)
+    run.write(out, data, readme_section)
     md = _markdown(cfg, main_reports, sens, study)
     write_text(out / "summary.md", md)
     print(md)

@@ -53,7 +53,6 @@ import logging
 import math
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import ClassVar
@@ -63,38 +62,30 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import (
     Clock,
-    RunRecord,
     database_note,
     database_record,
-    derived_seed,
     experiment_database,
     load_average,
+    noise_sigmas,
     opt,
-    parse_config,
     pct,
     rate_ci,
     rng_for,
+    start,
     write_json,
 )
+from _e06_episodes import collect
+from _e06_evaluation import MAP_ONLY, OUTCOMES, POLICIES, choices, costs, evaluate, stack
 
-import graspsim  # noqa: E402,F401  (registers the environments)
+import graspsim  # noqa: F401  (registers the environments)
 from graspsim.envs.baselines import (
     FEATURE_NAMES,
     LogisticPolicy,
-    grasp_features,
-    highest_grade_policy,
-    wilson_interval,
 )
-from graspsim.envs.candidates import CANDIDATE_FEATURES
 from graspsim.maps.generate import MapConfig
-from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, cloud_in_object, score_rows
+from graspsim.maps.robust import ABLATION_LABELS
 
 log = logging.getLogger("e06")
-POLICIES = ("random", "highest_grade", "robust", "learned", "learned_map_only", "oracle")
-MAP_ONLY = tuple(FEATURE_NAMES.index(n) for n in ("grade", "q_fc", "q_st", "fc_angle",
-                                                  "stability_distance", "width"))
-OUTCOMES = ("success", "start_collision", "no_contact", "slipped", "dropped", "place_failed",
-            "sim_unstable")
 
 
 @dataclass(frozen=True)
@@ -107,8 +98,8 @@ class E06Config:
     view: str = opt("full", "camera view", choices=("full", "single"))
     perception: str = opt("cloud", "identify the object in its cloud (the paper), or give the planner the "
                                    "true model", choices=("cloud", "model"))
-    position_noise: float = opt(0.003, "execution error sigma [m]")
-    rotation_noise_deg: float = opt(2.0, "execution error sigma [deg]")
+    position_noise: float = opt(noise_sigmas("default")[0], "execution error sigma [m]")
+    rotation_noise_deg: float = opt(noise_sigmas("default")[1], "execution error sigma [deg]")
     l2: float = opt(1.0, "logistic regression L2 penalty")
     seed: int = opt(20180606, "run seed")
     workers: int = opt(os.cpu_count() or 1, "worker processes")
@@ -138,175 +129,8 @@ class E06Config:
                     map_config=self.map_config)
 
 
-# ---------------------------------------------------------------------- episodes
-_ENV = None
 
 
-def _env(cfg: E06Config):
-    global _ENV
-    if _ENV is None:
-        import gymnasium as gym
-
-        _ENV = gym.make("graspsim/GraspSelect-v0", **cfg.env_kwargs()).unwrapped
-    return _ENV
-
-
-def ablation_scores(env, cfg: E06Config) -> np.ndarray:
-    """(len(ABLATIONS), K) robust scores of the episode's candidates under each ablation
-    (0 in invalid slots), from the plan the environment made."""
-    res, rows = env.plan_result, env.candidate_rows
-    cloud = cloud_in_object(env.episode.points, res.T_cloud_obj) if cfg.perception == "cloud" else None
-    out = np.zeros((len(ABLATIONS), cfg.k), np.float32)
-    for j, kw in enumerate(ABLATIONS.values()):
-        cfg_j = replace(env.planner_config.robust, **kw)
-        out[j, :len(rows)] = score_rows(res.map, rows, cloud, cfg_j).robust
-    return out
-
-
-def run_episode(cfg: E06Config, split: int, i: int) -> dict:
-    """One logged episode: every candidate simulated, then the highest-grade one stepped."""
-    env = _env(cfg)
-    c = Clock()
-    obs, info = env.reset(seed=derived_seed(cfg.seed, split, i))
-    reset = c.record()
-    feats = grasp_features(obs, env.gripper)
-    ablation = ablation_scores(env, cfg) if split == 1 else np.zeros((len(ABLATIONS), cfg.k), np.float32)
-    c = Clock()
-    ev = env.evaluate_candidates(threads=1)
-    evaluate = c.record()
-    # the same candidates at their nominal poses (test split only: the policies learn
-    # from the outcomes with the error)
-    exact = (env.evaluate_candidates(threads=1, execution_error=False)["outcome"]
-             if cfg.noisy and split == 1 else ev["outcome"])
-    a = highest_grade_policy(obs)
-    c = Clock()
-    _, _, _, _, step_info = env.step(a)
-    step = c.record()
-    return {"split": split, "index": i, "kind": info["object"]["kind"], "pose": info["object"]["pose"],
-            "parts": info["parts"], "redraws": info["redraws"], "n_clear": info["n_clear"],
-            "features": feats.astype(np.float32), "candidates": obs["candidates"],
-            "mask": obs["action_mask"], "outcome": ev["outcome"], "outcome_exact": exact, "cloud": obs["cloud"],
-            "ablation": ablation,
-            "object_pose": obs["object_pose"],
-            "reset_s": reset["wall_s"], "reset_cpu_s": reset["cpu_s"], "plan_s": env.timing.get("plan"),
-            "evaluate_s": evaluate["wall_s"], "trials": int(obs["action_mask"].sum()),
-            "step_s": step["wall_s"], "step_cpu_s": step["cpu_s"],
-            "step_agrees": step_info["outcome_code"] == int(ev["outcome"][a])}
-
-
-def _chunk(args) -> list[dict]:
-    cfg, split, idx = args
-    return [run_episode(cfg, split, i) for i in idx]
-
-
-def collect(cfg: E06Config, split: int, n: int) -> list[dict]:
-    chunks = [(cfg, split, list(range(a, min(n, a + 8)))) for a in range(0, n, 8)]
-    out: list[dict] = []
-    if cfg.workers == 1:
-        for ch in chunks:
-            out += _chunk(ch)
-    else:
-        with ProcessPoolExecutor(cfg.workers) as ex:
-            for part in ex.map(_chunk, chunks):
-                out += part
-                if len(out) % 100 < len(part) or len(out) == n:
-                    log.info("split %d: %d / %d episodes", split, len(out), n)
-    return out
-
-
-# ---------------------------------------------------------------------- evaluation
-def _stack(eps: list[dict], key: str) -> np.ndarray:
-    return np.stack([e[key] for e in eps])
-
-
-def choices(eps: list[dict], learned: LogisticPolicy, map_only: LogisticPolicy,
-            rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """Chosen candidate (E,) per policy; the oracle's is a successful one if any."""
-    X, M, O = _stack(eps, "features").astype(float), _stack(eps, "mask").astype(bool), _stack(eps, "outcome")
-    cand = _stack(eps, "candidates")
-    grade = cand[:, :, CANDIDATE_FEATURES.index("grade")]
-    robust = cand[:, :, CANDIDATE_FEATURES.index("robust")]
-    A = _stack(eps, "ablation")  # (E, len(ABLATIONS), K)
-    E, K, F = X.shape
-
-    def argmax_valid(score):
-        return np.argmax(np.where(M, score, -np.inf), axis=1)
-
-    def by_robust(score):  # ties by grade (grades are < 1: the score's order comes first)
-        return argmax_valid(np.round(score.astype(float), 6) * 10.0 + grade)
-
-    p_full = learned.predict_proba(X.reshape(-1, F)).reshape(E, K)
-    p_map = map_only.predict_proba(X.reshape(-1, F)[:, MAP_ONLY]).reshape(E, K)
-    rand = np.array([rng.choice(np.flatnonzero(m)) for m in M])
-    return {"random": rand, "highest_grade": argmax_valid(grade), "robust": by_robust(robust),
-            "learned": argmax_valid(p_full), "learned_map_only": argmax_valid(p_map),
-            "oracle": argmax_valid(np.where(O == 0, 2.0, 0.0) + grade),
-            **{f"robust_{a}": by_robust(A[:, j]) for j, a in enumerate(ABLATIONS)}}
-
-
-def rate(ok: np.ndarray) -> dict:
-    n, s = len(ok), int(np.sum(ok))
-    lo, hi = wilson_interval(s, n)
-    return {"n": n, "successes": s, "rate": s / n if n else math.nan, "ci95": [lo, hi]}
-
-
-def mcnemar(a: np.ndarray, b: np.ndarray) -> dict:
-    """Exact McNemar test of paired successes a, b (E,) bool."""
-    from scipy.stats import binomtest
-
-    only_a, only_b = int(np.sum(a & ~b)), int(np.sum(~a & b))
-    p = binomtest(only_a, only_a + only_b, 0.5).pvalue if only_a + only_b else 1.0
-    return {"only_first": only_a, "only_second": only_b, "p_exact": float(p)}
-
-
-def evaluate(eps: list[dict], pick: dict[str, np.ndarray]) -> dict:
-    O, M = _stack(eps, "outcome"), _stack(eps, "mask").astype(bool)
-    OX = _stack(eps, "outcome_exact")
-    rows = np.arange(len(eps))
-    kinds = np.array([e["kind"] for e in eps])
-    ok = {p: O[rows, pick[p]] == 0 for p in POLICIES}
-    sc = OUTCOMES.index("start_collision")
-    res = {"overall": {p: rate(ok[p]) for p in POLICIES},
-           # the same choices executed at their nominal poses (= overall without error)
-           "overall_exact": {**{p: rate(OX[rows, pick[p]] == 0) for p in POLICIES},
-                             "oracle": rate(np.any((OX == 0) & M, axis=1))},
-           "random_expected": float(np.mean([np.mean(O[i][M[i]] == 0) for i in rows])),
-           "by_kind": {k: {"episodes": int(np.sum(kinds == k)),
-                           **{p: rate(ok[p][kinds == k])["rate"] for p in POLICIES},
-                           "learned_vs_highest_grade": mcnemar(ok["learned"][kinds == k],
-                                                               ok["highest_grade"][kinds == k]),
-                           "start_collision": {p: int(np.sum(O[rows, pick[p]][kinds == k] == sc)) for p in POLICIES},
-                           "start_collision_exact": {p: int(np.sum(OX[rows, pick[p]][kinds == k] == sc))
-                                                     for p in POLICIES}}
-                       for k in sorted(set(kinds))},
-           "chosen_outcomes": {p: {o: int(np.sum(O[rows, pick[p]] == j)) for j, o in enumerate(OUTCOMES)}
-                               for p in POLICIES},
-           "chosen_outcomes_exact": {p: {o: int(np.sum(OX[rows, pick[p]] == j)) for j, o in enumerate(OUTCOMES)}
-                                     for p in POLICIES},
-           "learned_vs_highest_grade": mcnemar(ok["learned"], ok["highest_grade"]),
-           "robust_vs_highest_grade": mcnemar(ok["robust"], ok["highest_grade"]),
-           "robust_vs_learned": mcnemar(ok["robust"], ok["learned"]),
-           "map_only_vs_highest_grade": mcnemar(ok["learned_map_only"], ok["highest_grade"]),
-           "ablation": {a: {"success": rate(O[rows, pick[f"robust_{a}"]] == 0),
-                            "success_exact": rate(OX[rows, pick[f"robust_{a}"]] == 0),
-                            "start_collision": int(np.sum(O[rows, pick[f"robust_{a}"]] == sc)),
-                            "start_collision_exact": int(np.sum(OX[rows, pick[f"robust_{a}"]] == sc))}
-                        for a in ABLATIONS}}
-    return res
-
-
-def costs(eps: list[dict]) -> dict:
-    def ms(key):
-        v = np.array([e[key] for e in eps if e[key] is not None], float)
-        return {"mean_ms": 1e3 * float(v.mean()), "median_ms": 1e3 * float(np.median(v))}
-
-    trials = np.array([e["trials"] for e in eps])
-    return {"reset": ms("reset_s"), "reset_cpu": ms("reset_cpu_s"), "plan": ms("plan_s"),
-            "step": ms("step_s"), "step_cpu": ms("step_cpu_s"),
-            "trial_in_batch_ms": 1e3 * float(sum(e["evaluate_s"] for e in eps) / max(1, trials.sum())),
-            "redraws_mean": float(np.mean([e["redraws"] for e in eps])),
-            "valid_candidates_mean": float(trials.mean()),
-            "step_agrees_with_evaluate": int(sum(e["step_agrees"] for e in eps)), "episodes": len(eps)}
 
 
 # ---------------------------------------------------------------------- outputs
@@ -380,12 +204,7 @@ def plot(res: dict, path: Path) -> None:
 
 
 def main(argv=None) -> int:
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    logging.getLogger("graspsim").setLevel(logging.WARNING)  # no per-trial lines
-    cfg, opts = parse_config(E06Config, __file__, argv, __doc__)
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
+    cfg, out, run = start(E06Config, __file__, argv, __doc__, quiet=("graspsim",))
     total = Clock()
     db = experiment_database(cfg.db, out, cfg.map_config, threads=cfg.workers)  # before any worker starts
     db_start, given = database_record(db), cfg
@@ -396,7 +215,7 @@ def main(argv=None) -> int:
     train = collect(cfg, 0, cfg.train)
     test = collect(cfg, 1, cfg.test)
     log.info("episodes logged in %.0f s", time.perf_counter() - t0)
-    X, M, O = (_stack(train, k) for k in ("features", "mask", "outcome"))
+    X, M, O = (stack(train, k) for k in ("features", "mask", "outcome"))
     M = M.astype(bool)
     Xv, yv = X[M].astype(float), (O[M] == 0).astype(float)
     learned = LogisticPolicy(l2=cfg.l2).fit(Xv, yv)
@@ -414,12 +233,12 @@ def main(argv=None) -> int:
                     "map_only": {**map_only.to_dict(), "features": [FEATURE_NAMES[i] for i in MAP_ONLY]}},
         "wall_s": total.wall, "cpu_s": total.cpu, "load_avg_end": load_average()})
     np.savez_compressed(out / "episodes.npz", **{
-        f"{name}_{k}": _stack(eps, k) for name, eps in (("train", train), ("test", test))
+        f"{name}_{k}": stack(eps, k) for name, eps in (("train", train), ("test", test))
         for k in ("features", "candidates", "mask", "outcome", "cloud", "object_pose")},
         test_kind=np.array([e["kind"] for e in test]), feature_names=np.array(FEATURE_NAMES))
     run.write(out, {"config": asdict(given), "results": res, "cost": cost,
                     "database": {"start": db_start, "end": database_record(db)}},
-              readme_section, publish=opts.publish)
+              readme_section)
     table = write_table(cfg, res, cost)
     (out / "table.md").write_text("# E06 grasp-selection baselines (GraspSelect-v0)\n\n" + table)
     plot(res, out / "figure.png")

@@ -32,18 +32,17 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import (
     Clock,
-    RunRecord,
     database_note,
     database_record,
     experiment_database,
     map_config,
     noise_sigmas,
     opt,
-    parse_config,
     pct,
     rate_ci,
     rng_for,
     standing_cloud,
+    start,
 )
 
 from graspsim.case_study_objects import ANALOGS
@@ -196,11 +195,7 @@ def pool(rows: list[dict]) -> dict:
 
 
 def main(argv=None) -> int:
-    cfg, opts = parse_config(Config, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
+    cfg, out, run = start(Config, __file__, argv, __doc__)
     total = Clock()
     db = experiment_database(cfg.db, out, cfg.map_config, threads=cfg.threads)
     db_start = database_record(db)
@@ -208,8 +203,7 @@ def main(argv=None) -> int:
     pooled = pool(rows)
     (out / "table.md").write_text(write_table(rows, pooled))
     run.write(out, {"config": cfg, "noise_sigmas": noise_sigmas(cfg.noise), "objects": rows, "pooled": pooled,
-                    "database": {"start": db_start, "end": database_record(db)}}, readme_section,
-              publish=opts.publish)
+                    "database": {"start": db_start, "end": database_record(db)}}, readme_section)
     print(write_table(rows, pooled))
     print(f"wall {total.wall:.0f} s; results in {out}")
     return 0

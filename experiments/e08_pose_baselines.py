@@ -59,24 +59,23 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import (
-    RunRecord,
     database_note,
     database_record,
     derived_seed,
     experiment_database,
+    map_config,
     noise_sigmas,
     opt,
-    parse_config,
     rate_ci,
     rng_for,
+    start,
     write_json,
 )
 
-import graspsim  # noqa: E402, F401  (registers the environments)
+import graspsim  # noqa: F401  (registers the environments)
 from graspsim.envs.baselines import planner_pose
 from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
 from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, RobustConfig, cloud_in_object, score_map
 from graspsim.planner import PlannerConfig, TablePlane, plan
 from graspsim.stats import wilson_interval
@@ -162,8 +161,8 @@ def clear_row(res, gripper, clearance: float, max_rows: int, chunk: int = 250) -
     ``clearance`` clear of every identified part; None if none of the ``max_rows`` best
     does."""
     m = res.map
-    for start in range(0, min(len(m), max_rows), chunk):
-        idx = np.arange(start, min(start + chunk, len(m), max_rows))
+    for i0 in range(0, min(len(m), max_rows), chunk):
+        idx = np.arange(i0, min(i0 + chunk, len(m), max_rows))
         T = m.T_obj_wrist[idx]
         opening = m.width[idx] + 2.0 * (gripper.approach_clearance + clearance)
         ok = opening <= gripper.max_opening
@@ -208,7 +207,7 @@ def planner_poses(env, cloud: np.ndarray, db: MapDatabase, seed: int, cfg: Confi
 def run(cfg: Config, out: Path) -> dict:
     import gymnasium as gym
 
-    map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.coarse_db else MapConfig()
+    map_cfg = map_config(cfg.coarse_db)
     db = experiment_database(cfg.db, out, map_cfg)
     db_start = database_record(db)
     envs = {}
@@ -298,18 +297,14 @@ def write_table(summary: dict, cfg: Config) -> str:
 
 
 def main(argv=None) -> int:
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    cfg, opts = parse_config(Config, __file__, argv, __doc__)
-    run_record = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
+    cfg, out, run_record = start(Config, __file__, argv, __doc__)
     res = run(cfg, out)
     summary = summarise(res["rows"], cfg)
     table = write_table(summary, cfg)
     (out / "table.md").write_text(table)
     data = {"config": cfg, "noise_sigmas": {k: noise_sigmas(k) for k in cfg.noise}, "summary": summary,
             "database": res["database"]}
-    run_record.write(out, data, readme_section, publish=opts.publish)
+    run_record.write(out, data, readme_section)
     write_json(out / "results.json", {**run_record.summary(data), "episodes": res["rows"]})
     print(table)
     print(f"wall {run_record.clock.wall:.0f} s; results in {out}")

@@ -37,18 +37,19 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import (
-    RunRecord,
     database_note,
     database_record,
     derived_seed,
     experiment_database,
+    map_config,
     opt,
-    parse_config,
     pct,
     rate_ci,
     rng_for,
+    start,
     write_json,
 )
+from _mesh_views import clouds, rest_on_table
 
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.match import MatchKind
@@ -59,9 +60,8 @@ from graspsim.planner import PlannerConfig, TablePlane, plan
 from graspsim.sim import LiftPlace, SimSettings, TrialOutcome, build_scene, run_trials
 from graspsim.sim.meshes import load_mesh
 from graspsim.sim.objects import object_from_mesh
-from graspsim.sim.scene import resting_pose
 from graspsim.stats import wilson_interval
-from graspsim.transforms import invert_transform, make_transform
+from graspsim.transforms import invert_transform
 
 log = logging.getLogger("e09")
 
@@ -92,73 +92,6 @@ def object_names(cfg: Config) -> list[str]:
     if cfg.objects:
         return list(cfg.objects)
     return sorted(str(p.relative_to(root)) for p in root.rglob("*.stl"))
-
-
-def rest_on_table(mesh, obj, rng: np.random.Generator):
-    """The mesh (a copy) as the simulator rests its object ``obj`` on the table (upright
-    when stable, else on the hull face nearest the centre of mass: :func:`resting_pose`),
-    turned by a random yaw about the vertical through its centre of mass; and
-    T_world_mesh."""
-    a = rng.uniform(0.0, 2.0 * math.pi)
-    Rz = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
-    T = make_transform(Rz, np.zeros(3)) @ resting_pose(obj)
-    out = mesh.copy()
-    out.apply_transform(T)
-    return out, T
-
-
-def surface_points(mesh, n: int, rng: np.random.Generator) -> np.ndarray:
-    """n points uniform over the mesh's surface by area."""
-    f = rng.choice(len(mesh.faces), size=n, p=mesh.area_faces / mesh.area)
-    tri = mesh.triangles[f]
-    u, v = rng.random((2, n))
-    flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    return tri[:, 0] + u[:, None] * (tri[:, 1] - tri[:, 0]) + v[:, None] * (tri[:, 2] - tri[:, 0])
-
-
-def visible(mesh, p: np.ndarray, cam: np.ndarray, rng: np.random.Generator, *, pixel: float = 0.0025,
-            tol: float = 0.002) -> np.ndarray:
-    """(N,) bool: which points p (N, 3) on the mesh the camera at ``cam`` sees -- a
-    z-buffer of dense surface samples (pixels of ``pixel`` m at the object), a point
-    visible when it is within ``tol`` of the nearest surface along its pixel's ray."""
-    target = np.asarray(mesh.bounds, float).mean(axis=0)
-    f = (target - cam) / np.linalg.norm(target - cam)
-    r = np.cross(f, [0.0, 0.0, 1.0])
-    r /= np.linalg.norm(r)
-    u = np.cross(r, f)
-    scale = pixel / np.linalg.norm(target - cam)
-
-    def project(q):
-        d = q - cam
-        depth = d @ f
-        return np.floor((d @ r) / depth / scale).astype(np.int64), np.floor((d @ u) / depth / scale).astype(
-            np.int64), depth
-
-    dense = surface_points(mesh, int(np.clip(mesh.area / (0.4 * pixel) ** 2, 20000, 400000)), rng)
-    i, j, depth = project(dense)
-    key = (i - i.min()) * (j.max() - j.min() + 1) + (j - j.min())
-    order = np.lexsort((depth, key))
-    first = np.r_[True, key[order][1:] != key[order][:-1]]
-    zbuf = dict(zip(key[order][first].tolist(), depth[order][first].tolist()))
-    pi, pj, pd = project(p)
-    pk = (pi - i.min()) * (j.max() - j.min() + 1) + (pj - j.min())
-    ok = (pi >= i.min()) & (pi <= i.max()) & (pj >= j.min()) & (pj <= j.max())
-    near = np.array([zbuf.get(k, -np.inf) for k in pk.tolist()])  # no surface sampled there: unseen
-    return ok & (pd <= near + tol)
-
-
-def clouds(mesh, cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """The full cloud and the single view of the posed mesh (world frame, table z = 0)."""
-    n = int(np.clip(mesh.area / cfg.resolution**2, 400, cfg.max_points))
-    full = surface_points(mesh, n, rng) + rng.normal(0.0, cfg.noise, (n, 3))
-    az, el = rng.uniform(0, 2 * math.pi), math.radians(cfg.camera_elevation_deg)
-    cam = cfg.camera_distance * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-    p = surface_points(mesh, n, rng)
-    p = p[(p[:, 2] > 0.002) & visible(mesh, p, cam, rng)]  # the table hides the base
-    ray = (p - cam) / np.linalg.norm(p - cam, axis=1, keepdims=True)
-    single = p + rng.normal(0.0, cfg.noise, len(p))[:, None] * ray
-    return {"full": full, "single": single}
 
 
 def fits_gripper(mesh, gripper) -> tuple[bool, float, float]:
@@ -318,17 +251,11 @@ def _pool_table(pool: dict) -> str:
 
 
 def main(argv=None) -> int:
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    cfg, opts = parse_config(Config, __file__, argv, __doc__)
+    cfg, out, run = start(Config, __file__, argv, __doc__)
     if not Path(cfg.objects_dir).is_dir():
         print(f"e09: --objects-dir {cfg.objects_dir} is not a folder", file=sys.stderr)
         return 2
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
-    from graspsim.maps.generate import MapConfig
-
-    map_cfg = MapConfig(surface_step=0.01, rotation_step=math.radians(22)) if cfg.coarse_db else MapConfig()
+    map_cfg = map_config(cfg.coarse_db)
     db = experiment_database(cfg.db, out, map_cfg, threads=cfg.threads)
     db_start = database_record(db)
     rows, figs = [], {}
@@ -343,7 +270,7 @@ def main(argv=None) -> int:
     data = {"config": cfg, "pooled": pool, "objects": rows,
             "gripper": {"max_opening": db.gripper.max_opening, "approach_clearance": db.gripper.approach_clearance},
             "database": {"start": db_start, "end": database_record(db)}}
-    print(run.write(out, data, readme_section, publish=opts.publish))
+    print(run.write(out, data, readme_section))
     write_json(out / "results.json", run.summary(data))
     print(f"results in {out}")
     return 0

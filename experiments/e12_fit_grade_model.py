@@ -28,7 +28,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, fmt, map_config, md_table, opt, parse_config, write_text
+from _common import NAMED, fmt, map_config, md_table, opt, start, write_text
 
 from graspsim.calibration import SimCondition, TrialTable, draw_samples, simulate_samples, stats
 from graspsim.calibration.objects import CALIBRATION_CONE, TRAIN_SHAPES
@@ -91,11 +91,7 @@ def _jsonable(cfg: Config, trials_only: bool = False) -> dict:
 
 
 def main(argv=None) -> int:
-    cfg, opts = parse_config(Config, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
+    cfg, out, run = start(Config, __file__, argv, __doc__, log_format=NAMED)
     table = collect(cfg, out)
     t = table.select(table.feasible)
     kind_of = {c["group"]: c["object"]["primitive"] for c in table.meta["cases"]}

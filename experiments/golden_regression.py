@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, opt, parse_config, write_json
+from _common import NAMED, RunRecord, opt, start, write_json
 
 from graspsim.calibration.conditions import FRICTION_LIMITED
 from graspsim.calibration.regression import (
@@ -161,12 +161,7 @@ def mutations(a: Config, run: RunRecord) -> dict:
 
 
 def main(argv=None) -> int:
-    a, opts = parse_config(Config, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    logging.getLogger("graspsim").setLevel(logging.WARNING)
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
+    a, out, run = start(Config, __file__, argv, __doc__, log_format=NAMED, quiet=("graspsim",))
     if a.scan_masses:
         write_json(out / "mass_scan.json", scan_masses(a, run))
     elif a.mutations:

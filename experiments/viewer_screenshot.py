@@ -1,12 +1,13 @@
 """The README's viewer screenshot, made as a user makes it.
 
 The README's two-cylinder "bottle" (a 3 x 8 cm body under a 1 x 12 cm neck) standing
-on a table: its adapted map from the FS database (built on first use), 40 grasps with
+on a table: its adapted map from a private FS database (``results/viewer_screenshot/fsdb``,
+built fresh from the paper's five shapes unless ``--db`` names one), 40 grasps with
 grade > 0.7 drawn uniformly and lifted in MuJoCo (``graspsim trial``, recorded), then
 ``graspsim view --screenshot`` of 500 of the grasps with grade > 0.7 coloured by grade,
 the parts coloured by part, the table, and the full gripper of a successful grasp.
 
-    python experiments/viewer_screenshot.py [--out docs/viewer.png]
+    python experiments/viewer_screenshot.py [--out docs/viewer.png] [--db FOLDER]
 
 Needs the viewer extra and Chromium. The picture depends on the simulated outcomes
 (seeded) and on Chromium's software renderer; it is an illustration, not a measurement.
@@ -22,10 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import default_out, experiment_database, map_config
 
-def _bottle_map(path: Path) -> Path:
+
+def _bottle_map(path: Path, db) -> Path:
     import graspsim as gs
-    from graspsim.maps.database import MapDatabase
     from graspsim.maps.io import save_map
     from graspsim.maps.table import TablePlane
     from graspsim.planner import PlannerConfig, plan_shape
@@ -33,7 +36,7 @@ def _bottle_map(path: Path) -> Path:
 
     bottle = gs.Compound.from_parts([gs.Cylinder(0.03, 0.08), gs.Cylinder(0.01, 0.12)],
                                     [np.eye(4), make_transform(np.eye(3), [0, 0, 0.1])])
-    result = plan_shape(bottle, T_world_obj=np.eye(4), db=MapDatabase(), config=PlannerConfig(table=TablePlane()))
+    result = plan_shape(bottle, T_world_obj=np.eye(4), db=db, config=PlannerConfig(table=TablePlane()))
     return save_map(result.map, path)
 
 
@@ -47,11 +50,14 @@ def _graspsim(*args: str) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="docs/viewer.png")
+    ap.add_argument("--db", default=None,
+                    help=f"FS database folder (default: {default_out(__file__)}/fsdb, built fresh)")
     a = ap.parse_args(argv)
     from graspsim.maps.io import read_sim_results
 
+    db = experiment_database(a.db, default_out(__file__), map_config())
     with tempfile.TemporaryDirectory() as d:
-        m = _bottle_map(Path(d) / "bottle.h5")
+        m = _bottle_map(Path(d) / "bottle.h5", db)
         _graspsim("trial", str(m), "--sample", "40", "--min-grade", "0.7", "--seed", "0",
                   "--record", str(Path(d) / "trials.npz"))
         first = int(np.flatnonzero(read_sim_results(m)["outcome"] == 0)[0])  # a successful grasp

@@ -36,13 +36,15 @@ def test_the_fits_rule_is_the_narrowest_width_against_the_opening():
 def test_the_single_view_sees_the_near_side_only():
     import trimesh
 
-    e09 = _e09()
+    _e09()  # puts experiments/ on the path
+    import _mesh_views as views
+
     mesh = trimesh.creation.box(extents=(0.06, 0.06, 0.06))
     mesh.apply_translation([0.0, 0.0, 0.03])
     rng = np.random.default_rng(0)
-    p = e09.surface_points(mesh, 4000, rng)
+    p = views.surface_points(mesh, 4000, rng)
     cam = np.array([0.6, 0.0, 0.03])  # level with the box, on +x
-    seen = e09.visible(mesh, p, cam, rng)
+    seen = views.visible(mesh, p, cam, rng)
     near = p[:, 0] > 0.0299
     assert seen[near].mean() > 0.95 and seen[p[:, 0] < -0.0299].mean() < 0.01  # silhouette pixels
     assert seen[~near].mean() < 0.05

@@ -41,6 +41,20 @@ def test_mixed_anova_matches_one_way_identities():
     assert len(ph) == 3 and all(p["p"] <= p["p_bonferroni"] <= 1 for p in ph)
 
 
+def test_cluster_bootstrap_widens_the_interval_only_when_clusters_differ():
+    st = _load("_stats")
+    from graspsim.stats import wilson_interval
+
+    rng = np.random.default_rng(0)
+    same = st.cluster_bootstrap_interval([45] * 20, [50] * 20, rng)
+    assert same == pytest.approx((0.9, 0.9))  # identical maps: resampling them changes nothing
+    k, n = [50] * 10 + [40] * 10, [50] * 20  # half the maps perfect, half at 80 %
+    lo, hi = st.cluster_bootstrap_interval(k, n, rng)
+    wlo, whi = wilson_interval(sum(k), sum(n))
+    assert lo < 0.9 < hi and hi - lo > whi - wlo
+    assert st.mcnemar(np.array([1, 1, 0, 0], bool), np.array([0, 1, 1, 1], bool))["only_first"] == 1
+
+
 @pytest.mark.slow
 def test_e02_quick_writes_table_json_figure(tmp_path):
     out = tmp_path / "e02"
@@ -234,6 +248,18 @@ def test_bench_map_preflight_quick(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.slow
+def test_bench_robust_quick(tmp_path):
+    mod = _load("bench_robust")
+    out = tmp_path / "br"
+    assert mod.main(["--quick", "--kinds", "cylinder", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert set(s["objects"]) == {"cylinder"} and s["config"]["processes"] == 1 and not s["config"]["cold"]
+    assert (out / "fsdb").is_dir()  # a private database, not the user's
+    assert s["score_1000"]["per_kind"]["cylinder"]["fresh_process"] is not None
+    assert s["command"] in mod.readme_section(s)
+
+
 def test_e05_threshold_calibration_quick(tmp_path):
     mod = _load("e05_threshold_calibration")
     assert mod.main(["--quick", "--out", str(tmp_path)]) == 0

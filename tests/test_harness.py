@@ -82,6 +82,24 @@ def test_run_record_writes_summary_readme_config_and_publishes(tmp_path, monkeyp
     assert json.loads((tmp_path / "experiments" / "reported" / "e99_x.json").read_text()) == s
 
 
+def test_start_is_mains_preamble(tmp_path, monkeypatch):
+    import logging
+
+    monkeypatch.setattr(h, "EXPERIMENTS", tmp_path / "experiments")
+    monkeypatch.setattr(logging.getLogger("graspsim.x"), "level", logging.NOTSET)
+    out = tmp_path / "o" / "p"
+    cfg, got, run = h.start(Cfg, "experiments/e99_x.py", ["--quick", "--out", str(out), "--publish"], "doc",
+                            quiet=("graspsim.x",))
+    assert cfg == Cfg(per_case=8, kinds=("box",)) and got == out and out.is_dir()
+    assert logging.getLogger("graspsim.x").level == logging.WARNING
+    assert run.command.startswith("python experiments/e99_x.py --quick")
+    run.write(out, {"config": cfg})  # --publish given: write publishes unless told otherwise
+    assert (tmp_path / "experiments" / "reported" / "e99_x.json").is_file()
+    _, _, quiet_run = h.start(Cfg, "experiments/e98_y.py", ["--out", str(out)])
+    quiet_run.write(out, {"config": cfg})
+    assert not (tmp_path / "experiments" / "reported" / "e98_y.json").exists()
+
+
 def test_machine_load_reads_old_and_new_summaries():
     assert h.machine_load({"machine": {"load_before": [1.0], "load_after": [2.0]}}) == ([1.0], [2.0])
     assert h.machine_load({"machine": {"load_avg_start": [3.0], "load_avg_end": [4.0]}}) == ([3.0], [4.0])

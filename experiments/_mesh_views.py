@@ -1,0 +1,83 @@
+"""E09's view of a mesh: resting on the table as the simulator rests it, at a random yaw,
+seen as a full cloud (uniform over the surface) and as a single view (the points one
+camera sees, z-buffered; noise along the ray). World frame, table at z = 0, metres."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from _scenes import camera_position
+
+from graspsim.sim.scene import resting_pose
+from graspsim.transforms import make_transform
+
+__all__ = ["rest_on_table", "surface_points", "visible", "clouds"]
+
+
+def rest_on_table(mesh, obj, rng: np.random.Generator):
+    """The mesh (a copy) as the simulator rests its object ``obj`` on the table (upright
+    when stable, else on the hull face nearest the centre of mass: :func:`resting_pose`),
+    turned by a random yaw about the vertical through its centre of mass; and
+    T_world_mesh."""
+    a = rng.uniform(0.0, 2.0 * math.pi)
+    Rz = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    T = make_transform(Rz, np.zeros(3)) @ resting_pose(obj)
+    out = mesh.copy()
+    out.apply_transform(T)
+    return out, T
+
+
+def surface_points(mesh, n: int, rng: np.random.Generator) -> np.ndarray:
+    """n points uniform over the mesh's surface by area."""
+    f = rng.choice(len(mesh.faces), size=n, p=mesh.area_faces / mesh.area)
+    tri = mesh.triangles[f]
+    u, v = rng.random((2, n))
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    return tri[:, 0] + u[:, None] * (tri[:, 1] - tri[:, 0]) + v[:, None] * (tri[:, 2] - tri[:, 0])
+
+
+def visible(mesh, p: np.ndarray, cam: np.ndarray, rng: np.random.Generator, *, pixel: float = 0.0025,
+            tol: float = 0.002) -> np.ndarray:
+    """(N,) bool: which points p (N, 3) on the mesh the camera at ``cam`` sees -- a
+    z-buffer of dense surface samples (pixels of ``pixel`` m at the object), a point
+    visible when it is within ``tol`` of the nearest surface along its pixel's ray."""
+    target = np.asarray(mesh.bounds, float).mean(axis=0)
+    f = (target - cam) / np.linalg.norm(target - cam)
+    r = np.cross(f, [0.0, 0.0, 1.0])
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    scale = pixel / np.linalg.norm(target - cam)
+
+    def project(q):
+        d = q - cam
+        depth = d @ f
+        return np.floor((d @ r) / depth / scale).astype(np.int64), np.floor((d @ u) / depth / scale).astype(
+            np.int64), depth
+
+    dense = surface_points(mesh, int(np.clip(mesh.area / (0.4 * pixel) ** 2, 20000, 400000)), rng)
+    i, j, depth = project(dense)
+    key = (i - i.min()) * (j.max() - j.min() + 1) + (j - j.min())
+    order = np.lexsort((depth, key))
+    first = np.r_[True, key[order][1:] != key[order][:-1]]
+    zbuf = dict(zip(key[order][first].tolist(), depth[order][first].tolist()))
+    pi, pj, pd = project(p)
+    pk = (pi - i.min()) * (j.max() - j.min() + 1) + (pj - j.min())
+    ok = (pi >= i.min()) & (pi <= i.max()) & (pj >= j.min()) & (pj <= j.max())
+    near = np.array([zbuf.get(k, -np.inf) for k in pk.tolist()])  # no surface sampled there: unseen
+    return ok & (pd <= near + tol)
+
+
+def clouds(mesh, cfg, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """The full cloud and the single view of the posed mesh (world frame, table z = 0);
+    ``cfg`` (E09's ``Config``) gives resolution, max_points, noise, camera_distance and
+    camera_elevation_deg."""
+    n = int(np.clip(mesh.area / cfg.resolution**2, 400, cfg.max_points))
+    full = surface_points(mesh, n, rng) + rng.normal(0.0, cfg.noise, (n, 3))
+    cam = camera_position(cfg.camera_distance, cfg.camera_elevation_deg, rng.uniform(0, 2 * math.pi))
+    p = surface_points(mesh, n, rng)
+    p = p[(p[:, 2] > 0.002) & visible(mesh, p, cam, rng)]  # the table hides the base
+    ray = (p - cam) / np.linalg.norm(p - cam, axis=1, keepdims=True)
+    single = p + rng.normal(0.0, cfg.noise, len(p))[:, None] * ray
+    return {"full": full, "single": single}

@@ -1,0 +1,113 @@
+"""The experiment harness's scene helpers: what a run plans and simulates against.
+
+* :func:`map_config`: the scripts' ``MapConfig`` (the default, or quick runs' coarse maps);
+* :func:`standing_cloud`: an object standing on the table at a random yaw, seen as a
+  (single-view) cloud; :func:`camera_position` (distance, elevation, azimuth);
+* :func:`noise_sigmas`: a ``--noise`` label (default, none, MM:DEG) as sigmas;
+* :func:`experiment_database`: the FS map database a run plans against (a private
+  ``<out>/fsdb`` built fresh unless ``--db``), :func:`database_record`,
+  :func:`database_note`.
+
+Scripts import these through ``_common``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["map_config", "camera_position", "standing_cloud", "noise_sigmas", "experiment_database", "database_record",
+           "database_note"]
+
+
+def map_config(quick: bool = False, **kw):
+    """The scripts' ``MapConfig(**kw)``: at the library's default resolution, or for
+    quick runs coarse (1 cm surface step, 22 deg rotation step)."""
+    from graspsim.maps.generate import MapConfig
+
+    if quick:
+        kw = {"surface_step": 0.01, "rotation_step": math.radians(22.0), **kw}
+    return MapConfig(**kw)
+
+
+def camera_position(distance: float, elevation_deg: float, azimuth: float) -> np.ndarray:
+    """(3,) a camera ``distance`` [m] from the origin at ``elevation_deg`` above the
+    horizontal and ``azimuth`` [rad] about the vertical."""
+    el = math.radians(elevation_deg)
+    return distance * np.array([math.cos(el) * math.cos(azimuth), math.cos(el) * math.sin(azimuth), math.sin(el)])
+
+
+def standing_cloud(truth, rng: np.random.Generator, *, resolution: float, noise: float, outliers: float,
+                   at=(0.55, -0.05), camera: tuple[float, float] | None = None):
+    """A cloud of ``truth`` (a Primitive or Compound) standing on the table (z = 0) at
+    ``at`` (x, y) [m] and a yaw drawn from ``rng``; seen from all around, or with
+    ``camera`` = (distance [m], elevation [deg]) from one camera at an azimuth drawn
+    next. Returns (points (N, 3) [m] in the cloud's (world) frame, T_cloud_true)."""
+    from graspsim.primitives import synthetic_cloud
+    from graspsim.transforms import make_transform
+
+    a = rng.uniform(0, 2 * math.pi)
+    R = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+    T = make_transform(R, [at[0], at[1], -truth.aabb[0, 2]])
+    cam = None if camera is None else camera_position(camera[0], camera[1], rng.uniform(0, 2 * math.pi))
+    c = synthetic_cloud(truth, rng, resolution=resolution, noise=noise, outliers=outliers, camera=cam,
+                        T_world_obj=T)
+    return c.points, T
+
+
+
+def noise_sigmas(label: str) -> tuple[float, float]:
+    """(position [m], rotation [deg]) of a ``--noise`` label: default (``ExecutionNoise``'s
+    defaults, the execution error of the environments and E04), none or MM:DEG."""
+    if label == "default":
+        from graspsim.sim.noise import ExecutionNoise
+
+        d = ExecutionNoise()
+        return d.position_sigma, round(math.degrees(d.rotation_sigma), 12)
+    if label == "none":
+        return 0.0, 0.0
+    try:
+        mm, deg = (float(x) for x in label.split(":"))
+    except ValueError:
+        raise ValueError(f"a noise condition is default, none or MM:DEG (e.g. 3:2), got {label!r}") from None
+    if not (mm >= 0 and deg >= 0 and math.isfinite(mm + deg)):
+        raise ValueError(f"--noise sigmas must be finite and >= 0, got {label!r}")
+    return mm / 1000.0, deg
+
+
+def experiment_database(db: str | os.PathLike | None, out: str | os.PathLike, config, *, threads: int | None = None):
+    """The ``MapDatabase`` a run plans against, with the paper's five shapes
+    (``PAPER_SHAPES``) built in it at ``config`` (a ``MapConfig``): ``db`` (a folder
+    given with ``--db``) used as it is, or by default a private ``<out>/fsdb`` emptied
+    and built fresh (seconds), so the run does not depend on what ran before it. Maps
+    the planner builds for parts during the run are added to it."""
+    from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+
+    root = Path(db) if db else Path(out) / "fsdb"
+    if not db:
+        shutil.rmtree(root, ignore_errors=True)
+    database = MapDatabase(root, config=config)
+    database.build(PAPER_SHAPES.values(), threads=threads)
+    return database
+
+
+def database_record(db) -> dict:
+    """The FS maps a ``MapDatabase`` holds (keys), with its folder: maps the planner
+    builds for parts out of every stored map's range are added during a run, and a
+    rerun on a database that has grown can plan some objects differently."""
+    return {"root": str(db.root), "maps": sorted(e["key"] for e in db.entries())}
+
+
+def database_note(summary: dict) -> str:
+    """A README sentence on the database a run planned against ("" if not recorded)."""
+    d = summary.get("database")
+    if not d:
+        return ""
+    a, b = len(d["start"]["maps"]), len(d["end"]["maps"])
+    grew = f", {b} at the end: parts out of every stored map's range are built and stored during the run" \
+        if b != a else ", none added during the run"
+    return f" The FS map database held {a} maps at the start{grew}."

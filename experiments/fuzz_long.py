@@ -17,21 +17,20 @@ with reproducers, wall time, machine load) and ``README.md`` to ``--out``.
 
 from __future__ import annotations
 
-import argparse
 import base64
 import collections
 import pickle
 import sys
 import time
 import traceback
+from dataclasses import dataclass
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(REPO / "tests"))
-from _common import RunRecord, machine_load  # noqa: E402 (after the sys.path lines, which need REPO)
+from _common import machine_load, opt, start  # noqa: E402 (after the sys.path lines, which need REPO)
 
-STEM = "fuzz_long"
 MAX_FAILURES_KEPT = 5  # per distinct failure (property, exception type, place)
 
 
@@ -138,31 +137,32 @@ def readme_section(summary: dict) -> str:
     return text + f"\n\n`{summary['command']}`"
 
 
+@dataclass(frozen=True)
+class Config:
+    scale: float = opt(10.0, "examples per property = scale x its CI count")
+    seed: int = opt(0, "hypothesis seed")
+    only: tuple[str, ...] = opt((), "run only these properties (default: all)")
+    replay: str | None = opt(None, "run one recorded failure again (a .pkl of --out/failures)")
+    default_budget: bool = opt(True, "also the maps that fill the default memory budget (a few minutes)")
+
+    def __post_init__(self) -> None:
+        if not self.scale > 0:
+            raise ValueError(f"--scale must be > 0, got {self.scale}")
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--scale", type=float, default=10.0, help="examples per property = scale x its CI count (10)")
-    ap.add_argument("--seed", type=int, default=0, help="hypothesis seed (0)")
-    ap.add_argument("--only", nargs="+", default=None, help="run only these properties")
-    ap.add_argument("--out", default=f"results/{STEM}")
-    ap.add_argument("--publish", action="store_true", help=f"also write experiments/reported/{STEM}.json")
-    ap.add_argument("--replay", default=None, help="run one recorded failure again (a .pkl of --out/failures)")
-    ap.add_argument("--no-default-budget", dest="default_budget", action="store_false",
-                    help="skip the maps that fill the default memory budget (a few minutes)")
-    a = ap.parse_args(argv)
+    a, out, run = start(Config, __file__, argv, __doc__, log_format=None)
     if a.replay:
         return replay(a.replay)
-    if a.scale <= 0:
-        ap.error("--scale must be > 0")
     from fuzz.harness import COUNTS
     from fuzz.registry import all_properties
 
     props = all_properties()
-    names = a.only or list(props)
+    names = list(a.only) or list(props)
     unknown = sorted(set(names) - set(props))
     if unknown:
-        ap.error(f"unknown properties {unknown}; valid: {sorted(props)}")
-    out = Path(a.out)
-    run = RunRecord(__file__, argv)
+        print(f"fuzz_long: unknown properties {unknown}; valid: {sorted(props)}", file=sys.stderr)
+        return 2
     t0 = time.perf_counter()
     failures: list = []
     per_property = {}
@@ -175,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr, flush=True)
     default_budget = _default_budget(failures) if a.default_budget else None
     data = {
-        "seed": a.seed, "scale": a.scale,
+        "config": a, "seed": a.seed, "scale": a.scale,
         "headline": {"inputs": sum(COUNTS.values()), "properties": len(names),
                      "failing_inputs": sum(p["outcomes"].get("FAILED", 0) for p in per_property.values()),
                      "distinct_failures": sum(len(p["distinct_failures"]) for p in per_property.values()),
@@ -184,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
         "inputs_per_category": dict(COUNTS), "properties": per_property, "failures": failures,
         "default_budget_worst_cases": default_budget,
     }
-    print(run.write(out, data, readme_section, publish=a.publish))
+    print(run.write(out, data, readme_section))
     return 0 if not failures else 1
 
 

@@ -354,6 +354,33 @@ def test_candidates_carry_the_planners_robust_scores(kw):
     np.testing.assert_array_equal(ranking(gmap), np.arange(len(gmap)))
 
 
+def test_trials_open_the_jaws_as_the_robust_score_chose(kw):
+    """Each candidate is executed at the extra opening its robust score chose among
+    ``openings`` (the candidate column); ``openings=(0.0,)`` keeps the map's opening."""
+    wide = _make(GRASP_SELECT_ID, kw, n_candidates=8, openings=(0.0, 0.003, 0.006, 0.010))
+    paper = _make(GRASP_SELECT_ID, kw, n_candidates=8, openings=(0.0,))
+    col_w, col_e = CANDIDATE_FEATURES.index("width"), CANDIDATE_FEATURES.index("extra_opening")
+    widened = 0
+    for seed in range(6):
+        a, _ = wide.reset(seed=seed)
+        b, _ = paper.reset(seed=seed)
+        mask = a["action_mask"].astype(bool)
+        np.testing.assert_array_equal(wide.candidate_rows, paper.candidate_rows)  # the same pool
+        assert np.all(b["candidates"][:, col_e] == 0)
+        extra = a["candidates"][:, col_e]
+        assert np.all(np.min(np.abs(extra[mask, None] - np.array([0.0, 0.003, 0.006, 0.010])), axis=1) < 1e-6)
+        # a wider choice only where it scores higher than the map's opening
+        rob = CANDIDATE_FEATURES.index("robust")
+        assert np.all(a["candidates"][mask, rob] >= b["candidates"][mask, rob] - 1e-6)
+        k = int(np.argmax(np.where(mask, extra, -1)))
+        widened += int(extra[k] > 0)
+        for env, obs in ((wide, a), (paper, b)):
+            _, _, _, _, info = env.step(k)
+            w, e = float(obs["candidates"][k, col_w]), float(obs["candidates"][k, col_e])
+            assert info["opening"] == pytest.approx(float(G.pregrasp_opening(w + 2.0 * e)), abs=1e-6)
+    assert widened > 0  # some candidate's score chose a wider opening
+
+
 def test_logistic_policy_learns_a_separable_rule_and_wilson_bounds():
     rng = np.random.default_rng(1)
     X = rng.normal(size=(400, 3))

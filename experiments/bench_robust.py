@@ -43,16 +43,15 @@ GOALS_MS = {"score_1000": 50.0, "first_robust": 20.0}
 
 def _scenes(seed: int, kinds: tuple[str, ...]):
     """(kind, world cloud (M, 3)) per kind: the object resting on the table at the origin."""
-    import numpy as np
-
     from graspsim.envs.objects import draw_object
     from graspsim.primitives import synthetic_cloud
+    from graspsim.seeding import rng_for
     from graspsim.sim.objects import object_from_shape
     from graspsim.sim.scene import resting_pose
 
     out = []
     for j, kind in enumerate(kinds):
-        rng = np.random.default_rng([seed, j])
+        rng = rng_for(seed, j)
         drawn = draw_object((kind,), rng, lying=0.0)
         T = resting_pose(object_from_shape(drawn.shape))
         cloud = synthetic_cloud(drawn.shape, rng, resolution=0.005, noise=0.001, T_world_obj=T).points
@@ -62,11 +61,10 @@ def _scenes(seed: int, kinds: tuple[str, ...]):
 
 def measure(seed: int, kinds: tuple[str, ...], repeat: int, db_root: str | None) -> dict:
     """In this process: per object, the first call and the medians of ``repeat`` more."""
-    import numpy as np
-
     from graspsim.maps.database import MapDatabase
     from graspsim.maps.robust import RobustConfig, cloud_in_object, score_map
     from graspsim.planner import PlannerConfig, TablePlane, plan
+    from graspsim.seeding import rng_for
 
     db = MapDatabase(db_root)
     scenes = _scenes(seed, kinds)
@@ -77,11 +75,11 @@ def measure(seed: int, kinds: tuple[str, ...], repeat: int, db_root: str | None)
         firsts, scores = [], []
         for _ in range(repeat + 1):
             load = load_average()[0]
-            res = plan(cloud, db=db, rng=np.random.default_rng(seed), config=robust_cfg)
+            res = plan(cloud, db=db, rng=rng_for(seed), config=robust_cfg)
             t = res.timing
             firsts.append({"ms": None if t.get("first_robust") is None else 1e3 * (t["first_robust"] - t["identify"]),
                            "load": load})
-        base = plan(cloud, db=db, rng=np.random.default_rng(seed), config=paper_cfg)
+        base = plan(cloud, db=db, rng=rng_for(seed), config=paper_cfg)
         cl = cloud_in_object(cloud, base.T_cloud_obj)
         n = min(1000, len(base.map))
         for _ in range(repeat + 1):

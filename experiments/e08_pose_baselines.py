@@ -37,10 +37,10 @@ summary.json, table.md, results.json and config.json to ``--out``.
     python experiments/e08_pose_baselines.py --quick --out results/e08-quick
 
 Flags: one per field of :class:`Config` (the experiment harness, ``_common.py``);
-``--publish`` copies the summary to ``experiments/reported/``. Episodes are seeded as in
-the published runs (``SeedSequence(seed).generate_state(episodes)``), not yet by the
-harness's ``graspsim.seeding`` rule (switching changes every episode: it needs a re-run
-of the published numbers).
+``--publish`` copies the summary to ``experiments/reported/``. Episodes are seeded by the
+seed rule (``graspsim.seeding``): episode k resets with ``derived_seed(seed, "episode", k)``;
+its plan draws from ``rng_for(s, "plan")`` and the random policy's action from
+``rng_for(s, "random")`` (s the episode's seed), streams apart from the episode's own.
 """
 
 from __future__ import annotations
@@ -62,11 +62,13 @@ from _common import (
     RunRecord,
     database_note,
     database_record,
+    derived_seed,
     experiment_database,
     noise_sigmas,
     opt,
     parse_config,
     rate_ci,
+    rng_for,
     write_json,
 )
 
@@ -178,7 +180,7 @@ def planner_poses(env, cloud: np.ndarray, db: MapDatabase, seed: int, cfg: Confi
     """{policy: (T_world_wrist, width) or None, and seconds} of the planner policies,
     from one plan of the cloud."""
     t0 = time.perf_counter()
-    res = plan(cloud.astype(float), db=db, rng=np.random.default_rng(seed),
+    res = plan(cloud.astype(float), db=db, rng=rng_for(seed, "plan"),
                config=PlannerConfig(table=TablePlane(height=0.0)))
     t_plan = time.perf_counter() - t0
     out = {"planner_robust": (planner_pose(res, "robust"), t_plan)}
@@ -215,16 +217,15 @@ def run(cfg: Config, out: Path) -> dict:
         envs[label] = gym.make("graspsim/GraspPose-v0", objects=cfg.objects, position_noise=pos,
                                rotation_noise=math.radians(deg)).unwrapped
     env0 = envs[cfg.noise[0]]
-    seeds = np.random.SeedSequence(cfg.seed).generate_state(cfg.episodes)
     rows = []
-    for k, s in enumerate(seeds):
-        s = int(s)
+    for k in range(cfg.episodes):
+        s = derived_seed(cfg.seed, "episode", k)
         obs, info = env0.reset(seed=s)
         row = {"seed": s, "kind": info["object"]["kind"], "cloud_points": int(len(obs["cloud"]))}
         decisions = planner_poses(env0, obs["cloud"], db, s, cfg)
         t0 = time.perf_counter()
         decisions["top_down"] = (top_down_pose(env0, obs["cloud"]), time.perf_counter() - t0)
-        actions = {"random": np.random.default_rng([s, 1]).uniform(-1, 1, 10).astype(np.float32)}
+        actions = {"random": rng_for(s, "random").uniform(-1, 1, 10).astype(np.float32)}
         for name in cfg.policies[1:]:
             pose, seconds = decisions[name]
             fallback = pose is None

@@ -186,7 +186,7 @@ def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config, seed: int) -> dict |
 def _plan_entry(points, db, mode: str, cfg: Config) -> tuple[dict, object]:
     pc = PlannerConfig(identify=IdentifyConfig.preset(mode), table=TablePlane(height=0.0), rank=cfg.rank)
     t0 = time.perf_counter()
-    res = plan(points, db=db, rng=np.random.default_rng(cfg.seed), config=pc)
+    res = plan(points, db=db, rng=rng_for(cfg.seed), config=pc)
     wall = time.perf_counter() - t0
     ident = res.identification
     built = any(p.match == MatchKind.BUILD for p in res.parts)

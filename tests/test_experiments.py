@@ -111,6 +111,11 @@ def test_e08_quick_pose_baselines(tmp_path):
             if ep[name]["fallback"]:
                 assert ep[name]["none"] == ep["top_down"]["none"]
     assert pol["top_down"]["none"]["all"]["success"] > pol["random"]["none"]["all"]["success"]
+    # episodes are seeded by the seed rule, keyed by their index
+    from graspsim.seeding import derived_seed
+
+    seed = json.loads((out / "config.json").read_text())["seed"]
+    assert [ep["seed"] for ep in r["episodes"]] == [derived_seed(seed, "episode", k) for k in range(n)]
     assert s["command"].startswith("python experiments/e08_pose_baselines.py --quick")
     assert s["command"] in mod.readme_section(s)
 

@@ -6,8 +6,9 @@ fixed-size candidate feature table.
   surface-uniform subset of ``pool_size`` accepted grasps of each stored map instead of
   all of them (10^4 - 10^5). Scaling a pool of 10^3 grasps takes tens of milliseconds
   instead of half a second, so an episode costs little more than its trial; the adapted
-  map is a uniform subsample of the full one. The pool is drawn once per map with a
-  generator seeded by the map's key, so it is the same in every process.
+  map is a uniform subsample of the full one. The pool is drawn once per map from the
+  stream ``rng_for(seed, "pool", key)`` of the seed rule (:mod:`graspsim.seeding`), so it
+  is the same in every process for a given ``seed`` (default 0).
 * Whether a candidate clears the table is :meth:`GripperSpec.lowest_point` (the arm
   keep-out included) at the pre-grasp opening.
 * :func:`candidate_features` lays K grasps out as the observation's rows.
@@ -17,13 +18,13 @@ Pure numpy: no mujoco here.
 
 from __future__ import annotations
 
-import hashlib
 import logging
 
 import numpy as np
 
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.seeding import rng_for
 
 __all__ = ["PooledDatabase", "candidate_features", "extra_openings",
            "CANDIDATE_FEATURES"]
@@ -47,11 +48,13 @@ _HIGH = np.array([1, 1, 1, 1, 1, 1, 1, 1, 1, 1, np.pi, 1, 1, 1, _CLEARANCE_CAP, 
 
 class PooledDatabase(MapDatabase):
     """A map database whose planner reads return ``pool_size`` surface-uniform accepted
-    grasps per stored map (see the module docstring). Other reads are unchanged."""
+    grasps per stored map (see the module docstring), drawn from the stream
+    ``rng_for(seed, "pool", map key)``. Other reads are unchanged."""
 
-    def __init__(self, *args, pool_size: int = 1000, **kwargs):
+    def __init__(self, *args, pool_size: int = 1000, seed: int = 0, **kwargs):
         super().__init__(*args, **kwargs)
         self.pool_size = int(pool_size)
+        self.seed = int(seed)
         self._pools: dict[str, GraspabilityMap] = {}
 
     def load_entry(self, entry: dict, *, accepted_only: bool = False) -> GraspabilityMap:
@@ -62,8 +65,7 @@ class PooledDatabase(MapDatabase):
         if pool is None:
             full = super().load_entry(entry, accepted_only=True)
             if len(full) > self.pool_size:
-                seed = int.from_bytes(hashlib.sha1(key.encode()).digest()[:8], "little")
-                sub = full.sample_uniform_surface(self.pool_size, np.random.default_rng(seed))
+                sub = full.sample_uniform_surface(self.pool_size, rng_for(self.seed, "pool", key))
                 pool = sub.select(np.argsort(-sub.grade, kind="stable"))  # best first, as stored
             else:
                 pool = full

@@ -87,7 +87,7 @@ from graspsim.envs.baselines import (
 )
 from graspsim.envs.candidates import CANDIDATE_FEATURES
 from graspsim.maps.generate import MapConfig
-from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, cloud_in_object, score_rows
+from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, cloud_in_object, ranking, score_rows
 
 log = logging.getLogger("e06")
 POLICIES = ("random", "highest_grade", "robust", "learned", "learned_map_only", "oracle")
@@ -114,6 +114,8 @@ class E06Config:
     workers: int = opt(os.cpu_count() or 1, "worker processes")
     db: str | None = opt(None, "map database folder, used as it is (default: OUT/fsdb, built fresh)")
     coarse_db: bool = opt(False, "a coarse map database (8 mm, 22 deg: CI)")
+    open_mm: tuple[float, ...] = opt((0.0, 3.0, 6.0, 10.0), "extra jaw openings per side [mm] the robust "
+                                     "score chooses among and the trial executes (0: the map's opening only)")
     QUICK: ClassVar[dict] = {"train": 16, "test": 16, "objects": "primitives", "k": 6, "cloud_size": 128,
                              "coarse_db": True}
 
@@ -135,7 +137,7 @@ class E06Config:
         return dict(objects=self.objects, n_candidates=self.k, cloud_size=self.cloud_size, view=self.view,
                     perception=self.perception, position_noise=self.position_noise,
                     rotation_noise=math.radians(self.rotation_noise_deg), db_root=self.db,
-                    map_config=self.map_config)
+                    map_config=self.map_config, openings=tuple(mm / 1000.0 for mm in self.open_mm))
 
 
 # ---------------------------------------------------------------------- episodes
@@ -163,6 +165,26 @@ def ablation_scores(env, cfg: E06Config) -> np.ndarray:
     return out
 
 
+def map_opening_choices(env, obs, cfg: E06Config) -> dict:
+    """The paper's setting on the same episode (test split): the highest-grade candidate
+    and the best candidate by the robust score at the map's opening only, both executed
+    at the map's opening (the candidate's execution error), and the planner's robust
+    best of the whole adapted map (not only the K candidates) executed at its chosen
+    opening with the episode's extra execution error draw. Outcome codes; -1: none."""
+    res, rows = env.plan_result, env.candidate_rows
+    cloud = cloud_in_object(env.episode.points, res.T_cloud_obj) if cfg.perception == "cloud" else None
+    at_map = score_rows(res.map, rows, cloud, replace(env.planner_config.robust, openings=(0.0,))).robust
+    grade = obs["candidates"][:len(rows), CANDIDATE_FEATURES.index("grade")].astype(float)
+    a_hg = highest_grade_policy(obs)
+    a_rm = int(np.lexsort((-grade, -np.round(at_map, 6)))[0]) if len(rows) else 0
+    ev = env.evaluate_candidates(threads=1, map_opening=True, slots=[a_hg, a_rm])["outcome"]
+    planner = -1
+    if len(res.map) and (not res.map.has_robust or res.map.robust[ranking(res.map)[0]] > 0):
+        planner = int(env.evaluate_map_rows([ranking(res.map)[0]])[0])
+    return {"highest_grade_map": int(ev[a_hg]), "robust_map": int(ev[a_rm]), "planner": planner,
+            "robust_map_choice": a_rm}
+
+
 def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     """One logged episode: every candidate simulated, then the highest-grade one stepped."""
     env = _env(cfg)
@@ -171,6 +193,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     reset = c.record()
     feats = grasp_features(obs, env.gripper)
     ablation = ablation_scores(env, cfg) if split == 1 else np.zeros((len(ABLATIONS), cfg.k), np.float32)
+    paper = map_opening_choices(env, obs, cfg) if split == 1 else {}
     c = Clock()
     ev = env.evaluate_candidates(threads=1)
     evaluate = c.record()
@@ -186,7 +209,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
             "parts": info["parts"], "redraws": info["redraws"], "n_clear": info["n_clear"],
             "features": feats.astype(np.float32), "candidates": obs["candidates"],
             "mask": obs["action_mask"], "outcome": ev["outcome"], "outcome_exact": exact, "cloud": obs["cloud"],
-            "ablation": ablation,
+            "ablation": ablation, "paper": paper,
             "object_pose": obs["object_pose"],
             "reset_s": reset["wall_s"], "reset_cpu_s": reset["cpu_s"], "plan_s": env.timing.get("plan"),
             "evaluate_s": evaluate["wall_s"], "trials": int(obs["action_mask"].sum()),
@@ -292,7 +315,23 @@ def evaluate(eps: list[dict], pick: dict[str, np.ndarray]) -> dict:
                             "start_collision": int(np.sum(O[rows, pick[f"robust_{a}"]] == sc)),
                             "start_collision_exact": int(np.sum(OX[rows, pick[f"robust_{a}"]] == sc))}
                         for a in ABLATIONS}}
+    res.update(paper_setting(eps, ok["robust"]))
     return res
+
+
+def paper_setting(eps: list[dict], robust_ok: np.ndarray) -> dict:
+    """The map's-opening rows (the paper's setting on the same episodes) and the
+    planner's robust best of the whole map, with paired comparisons to the robust
+    choice at its chosen opening."""
+    sc = OUTCOMES.index("start_collision")
+    out: dict = {"map_opening": {}}
+    for p in ("highest_grade_map", "robust_map", "planner"):
+        o = np.array([e["paper"][p] for e in eps])
+        has = o >= 0
+        out["map_opening"][p] = {**rate(o == 0), "start_collision": int(np.sum(o == sc)),
+                                 "no_grasp": int(np.sum(~has)),
+                                 "vs_robust": mcnemar(robust_ok, o == 0)}
+    return out
 
 
 def costs(eps: list[dict]) -> dict:
@@ -437,6 +476,26 @@ KIND_NAMES = {"random": "random", "highest_grade": "highest grade", "robust": "r
 SC_NAMES = {"highest_grade": "highest-grade", "robust": "robust"}
 
 
+MAP_OPENING_NAMES = {"highest_grade_map": "highest paper grade, the map's opening (the paper)",
+                     "robust_map": "highest robust score at the map's opening only",
+                     "planner": "planner: the adapted map's robust best (any grasp, not only the K candidates)"}
+
+
+def _map_opening_rows(r: dict, cfg: dict, err: str) -> list[str]:
+    wide = [mm for mm in cfg.get("open_mm", (0.0,)) if mm > 0]
+    L = ["", f"The table's policies execute each candidate at the jaw opening its robust score chose "
+         f"(the map's, or {', '.join(f'{mm:g}' for mm in wide)} mm wider per side; `EnvConfig.openings`). "
+         "On the same episodes, with the error:", "",
+         "| choice | success | START_COLLISION | robust choice above alone / this alone (McNemar p) |",
+         "|---|---|---|---|"]
+    for p, x in r["map_opening"].items():
+        m = x["vs_robust"]
+        none = f" ({x['no_grasp']} episodes without a scored grasp count as failures)" if x["no_grasp"] else ""
+        L.append(f"| {MAP_OPENING_NAMES[p]}{none} | {rate_ci(x['successes'], x['n'], x['ci95'])} | "
+                 f"{x['start_collision']} | {m['only_first']} / {m['only_second']} ({m['p_exact']:.2g}) |")
+    return L
+
+
 def readme_section(s: dict) -> str:
     """The README's E06 paragraph and tables (see ``experiments/report.py``)."""
     cfg, r, c = s["config"], s["results"], s["cost"]
@@ -484,6 +543,8 @@ def readme_section(s: dict) -> str:
               f"{mr['only_first']}, the highest grade alone in {mr['only_second']} (exact McNemar p = "
               f"{mr['p_exact']:.2g}); vs the learned policy: {ml['only_first']} / {ml['only_second']} "
               f"(p = {ml['p_exact']:.2g})."]
+    if r.get("map_opening"):
+        L += _map_opening_rows(r, cfg, err)
     if r.get("ablation"):
         L += ["", "Ablations of the robust score (`graspsim.maps.robust.ABLATIONS`), each choosing among the "
               "same candidates:", "",

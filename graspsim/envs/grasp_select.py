@@ -141,8 +141,9 @@ class GraspSelectEnv(TableTask):
         width[:len(rows)] += 2.0 * extra_openings(gmap, rows)
         self.episode = episode
         self.plan_result = result
+        noise = self._noise(K, noise_rng)
         self._cand = {"rows": rows, "T_world_wrist": T_nominal, "width": width, "map_width": map_width,
-                      "mask": mask, "noise": self._noise(K, noise_rng)}
+                      "mask": mask, "noise": noise, "noise_extra": self._noise(1, noise_rng)[0]}
         self._obs = {"cloud": episode.cloud, "candidates": candidate_features(gmap, rows, K),
                      "object_pose": np.clip(pose_vector(result.T_cloud_obj), -WORLD_BOUND, WORLD_BOUND),
                      "action_mask": mask}
@@ -195,21 +196,44 @@ class GraspSelectEnv(TableTask):
             raise GraspsimError("no episode yet: call reset() first")
         return self._cand["mask"].astype(bool)
 
+    def evaluate_map_rows(self, rows, *, execution_error: bool = True) -> np.ndarray:
+        """TrialOutcome codes (n,) int8 of rows of ``plan_result.map`` -- offered or not
+        -- executed as a candidate would be (the jaws at the opening its robust score
+        chose), each with one more execution error draw of the episode (not a
+        candidate's). For policies that pick from the whole map instead of the K
+        candidates (e.g. the planner's robust best) in experiments; not something a
+        policy may call."""
+        if self._cand is None or self.plan_result is None:
+            raise GraspsimError("no episode yet: call reset() first")
+        gmap = self.plan_result.map
+        rows = np.asarray(rows, int).reshape(-1)
+        if len(rows) and (rows.min() < 0 or rows.max() >= len(gmap)):
+            raise InvalidParameterError(f"rows must index the plan's map of {len(gmap)} grasps, got {rows!r}")
+        if not len(rows):
+            return np.zeros(0, np.int8)
+        T = self.plan_result.T_cloud_obj @ gmap.T_obj_wrist[rows]
+        if execution_error:
+            T = T @ self._cand["noise_extra"]
+        return self._trials(T, gmap.width[rows] + 2.0 * extra_openings(gmap, rows)).outcome.astype(np.int8)
+
     def evaluate_candidates(self, threads: int | None = None, *, execution_error: bool = True,
-                            map_opening: bool = False) -> dict[str, np.ndarray]:
+                            map_opening: bool = False, slots=None) -> dict[str, np.ndarray]:
         """Simulate every valid candidate of the current episode as ``step`` would (same
         execution error), without ending it: ``outcome`` (K,) int8 TrialOutcome codes
         (-1 for invalid slots), ``reward`` (K,) float32, ``success`` (K,) bool. With
         ``execution_error=False`` the nominal poses are simulated instead (what the
         episode would give without execution error). With ``map_opening=True`` the jaws
         open to the map's pre-grasp opening instead of the one the robust score chose
-        (``EnvConfig.openings``; the same when that is ``(0.0,)``). For oracles,
+        (``EnvConfig.openings``; the same when that is ``(0.0,)``). ``slots``: simulate
+        only these candidates (the others read as invalid). For oracles,
         ablations and full-information logging; not something a policy may call."""
         if self._cand is None:
             raise GraspsimError("no episode yet: call reset() first")
         cand = self._cand
         K = self.config.n_candidates
         idx = np.flatnonzero(cand["mask"])
+        if slots is not None:
+            idx = np.intersect1d(idx, np.asarray(slots, int).reshape(-1))
         outcome = np.full(K, -1, np.int8)
         reward = np.zeros(K, np.float32)
         if len(idx):

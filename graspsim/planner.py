@@ -33,7 +33,7 @@ from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map
 from graspsim.maps.scaling import ScalingConfig, scale_stream
-from graspsim.maps.table import TablePlane, clears_table, table_frame
+from graspsim.maps.table import TablePlane, clears_table, heights_above, stream_order, table_frame
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
 from graspsim.primitives import Compound, Primitive
 from graspsim.transforms import invert_transform
@@ -155,26 +155,38 @@ def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarra
     return prim.with_dims(x=d[order[0]], y=d[order[1]], z=d[order[2]]), T2
 
 
-def _batches(gmap: GraspabilityMap, first: int, growth: float) -> Iterator[GraspabilityMap]:
-    """A best-first map in growing slices (for streaming a stored map)."""
-    start, size = 0, max(1, first)
-    while start < len(gmap):
-        stop = min(len(gmap), start + size)
-        yield gmap.select(np.arange(start, stop))
-        start, size = stop, int(size * max(growth, 1.0))
+def _batches(gmap: GraspabilityMap, first: int, growth: float, prefer=None) -> Iterator[GraspabilityMap]:
+    """A best-first map in growing slices (for streaming a stored map); the rows
+    ``prefer`` (as in :func:`graspsim.maps.scaling.scale_stream`) accepts first."""
+    pick = None if prefer is None else (
+        lambda pos: prefer(gmap.wrist_quat[pos], gmap.wrist_position[pos], gmap.width[pos]))
+    for rows in stream_order(len(gmap), first, growth, pick):
+        yield gmap.select(rows)
 
 
-def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig) -> tuple[MatchKind, dict, Iterator]:
-    """(match, source object, iterator of map batches in the part's frame)."""
+# only predicted poses this far above the table's clearance stream first: the
+# prediction of a scaled pose (before its exact chord) is off by a few millimetres
+_TABLE_TOLERANCE = 0.005
+
+
+def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig,
+                 T_table_part: np.ndarray | None = None) -> tuple[MatchKind, dict, Iterator]:
+    """(match, source object, iterator of map batches in the part's frame); with the
+    table's frame ``T_table_part`` in the part's frame, the grasps likely to clear it
+    stream first (the table filter would empty the first batches otherwise)."""
     m = db.match(prim, max_ratio=cfg.scaling.max_ratio)
-    stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth)  # noqa: E731
+    prefer = None
+    if T_table_part is not None:
+        least = cfg.table.clearance + _TABLE_TOLERANCE
+        prefer = lambda q, p, w: heights_above(db.gripper, T_table_part, q, p, w) >= least  # noqa: E731
+    stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth, prefer)  # noqa: E731
     if m.match is MatchKind.KNOWN:  # the stored map as is (paper 2.2)
         fs = db.load_entry(m.entry, accepted_only=True)
         return m.match, fs.meta.object, stream(fs)
     if m.match is MatchKind.FAMILIAR:
         fs = db.load_entry(m.entry, accepted_only=True)
         return m.match, fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling, gripper=db.gripper,
-                                                        quality=db.quality, config=db.config)
+                                                        quality=db.quality, config=db.config, prefer=prefer)
     if not cfg.build_missing:
         return MatchKind.BUILD, {}, iter(())
     # no map of this primitive within the scaling range: add one to the database
@@ -278,7 +290,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     cloud_obj = cloud_in_object(points, T_cloud_obj)
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):
-        match, src, stream = _part_stream(prim, db, cfg)
+        match, src, stream = _part_stream(prim, db, cfg,
+                                          None if T_table_obj is None else T_table_obj @ T_obj_part[i])
         parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i]))
         budget = cfg.robust.top if cfg.rank == "robust" else 0
         for part_map in stream:

@@ -512,6 +512,8 @@ def readme_section(s: dict) -> str:
     L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     pols = [p for p in POLICIES if p in r["overall"]]  # summaries from before the robust ranking lack it
     names = {**NAMES, "learned": NAMES["learned"] if "robust" in pols else "learned (all features)"}
+    if any(mm > 0 for mm in cfg.get("open_mm", ())):  # runs before the env executed chosen openings lack it
+        names["robust"] = "highest robust score, each grasp at the jaw opening it chose (the env's default)"
     for p in pols:
         o = r["overall"][p]
         row = [names[p], rate_ci(o["successes"], o["n"], o["ci95"])]

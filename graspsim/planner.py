@@ -116,7 +116,9 @@ class PlanResult:
     identification (None for :func:`plan_shape`); T_cloud_obj (4, 4); timing [s] per
     stage plus ``first`` and ``tenth`` (time to the first and tenth grasp with grade
     > 0.95, None if never), ``first_robust`` (time to the first grasp with a robust
-    score > 0; None if never or ``rank="paper"``) and ``robust`` (seconds spent scoring)."""
+    score > 0; None if never or ``rank="paper"``), ``first_robust_cpu`` (the calling
+    thread's CPU seconds from the end of identification to that grasp: a measure that
+    other processes' load barely changes) and ``robust`` (seconds spent scoring)."""
 
     status: PlanStatus
     map: GraspabilityMap
@@ -204,6 +206,7 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
     points = np.asarray(points, float)
     ident = identify(points, rng=rng, config=cfg.identify)
     timing = {"identify": time.perf_counter() - t0}
+    cpu0 = time.thread_time()
     prims, T_cloud = [], []
     for part in ident.parts:
         p, T = _canonical_box(part.primitive(), part.T_world_obj)
@@ -222,7 +225,7 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
             "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict(),
             "mode": ident.mode, "uncovered": ident.uncovered,
             "approximate": [i for i, p in enumerate(ident.parts) if p.approximate]}
-    yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing)
+    yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0)
 
 
 def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,
@@ -247,14 +250,15 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
         raise InvalidParameterError(f"plan_shape needs a Primitive or a Compound, got {type(shape).__name__}")
     prims, T_cloud = zip(*(_canonical_box(p, Tp) for p, Tp in pairs))
     yield from _plan_parts(list(prims), list(T_cloud), PlanStatus.COMPLETE, None, None, np.zeros((0, 3)),
-                           db, cfg, source, t0, {"identify": 0.0})
+                           db, cfg, source, t0, {"identify": 0.0}, time.thread_time())
 
 
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
                 ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
-                source: str, t0: float, timing: dict) -> Iterator[GraspBatch | PlanResult]:
+                source: str, t0: float, timing: dict, cpu0: float) -> Iterator[GraspBatch | PlanResult]:
     """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
-    part frames in the cloud's frame)."""
+    part frames in the cloud's frame); ``cpu0``: the calling thread's CPU clock when
+    identification ended."""
     # the object frame: one part -> its frame; several -> the compound's centre of
     # mass with the axes of its largest part
     if len(prims) == 1:
@@ -284,7 +288,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     n_below = 0
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
-    first = tenth = first_robust = None
+    first = tenth = first_robust = first_robust_cpu = None
     n_hi = 0
     t_robust = 0.0
     cloud_obj = cloud_in_object(points, T_cloud_obj)
@@ -315,6 +319,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 t_robust += time.perf_counter() - t2
                 if first_robust is None and bool(np.any(batch.robust > 0)):
                     first_robust = time.perf_counter() - t0
+                    first_robust_cpu = time.thread_time() - cpu0
             now = time.perf_counter() - t0
             hi = int((batch.grade > 0.95).sum())
             if hi and first is None:
@@ -336,6 +341,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         full = full.with_meta(extra={**final, "robust": prov})
     full = full.ranked(cfg.rank)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
+                  first_robust_cpu=first_robust_cpu,
                   robust=t_robust)
     yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
 

@@ -208,6 +208,8 @@ def test_robust_ranking_streams_first_and_never_offers_a_pose_into_the_cloud(db)
     # every batch is scored (best-graded first) and ordered by the robust score
     assert items[0].map.has_robust and r.timing["first_robust"] is not None
     assert r.timing["first_robust"] <= r.timing["total"]
+    # the calling thread's CPU from the end of identification: never more than the wall time
+    assert 0 <= r.timing["first_robust_cpu"] <= r.timing["first_robust"] - r.timing["identify"] + 1e-3
     for b in items[:-1]:
         np.testing.assert_array_equal(ranking(b.map), np.arange(len(b.map)))
     m = r.map

@@ -483,9 +483,9 @@ MAP_OPENING_NAMES = {"highest_grade_map": "highest paper grade, the map's openin
 
 def _map_opening_rows(r: dict, cfg: dict, err: str) -> list[str]:
     wide = [mm for mm in cfg.get("open_mm", (0.0,)) if mm > 0]
-    L = ["", f"The table's policies execute each candidate at the jaw opening its robust score chose "
-         f"(the map's, or {', '.join(f'{mm:g}' for mm in wide)} mm wider per side; `EnvConfig.openings`). "
-         "On the same episodes, with the error:", "",
+    L = ["", f"The paper's setting on the same episodes and candidates, every grasp at the map's opening "
+         f"instead of the one its robust score chose (the map's, or {', '.join(f'{mm:g}' for mm in wide)} mm "
+         "wider per side), and the planner's own robust best, with the error:", "",
          "| choice | success | START_COLLISION | robust choice above alone / this alone (McNemar p) |",
          "|---|---|---|---|"]
     for p, x in r["map_opening"].items():
@@ -504,16 +504,19 @@ def readme_section(s: dict) -> str:
            else "no execution error")
     see = ("identified in its observed cloud" if cfg["perception"] == "cloud"
            else "given to the planner as its true primitives and pose (`plan_shape`)")
+    wide = [mm for mm in cfg.get("open_mm", ()) if mm > 0]
+    opening = (f", each candidate executed at the jaw opening its robust score chose (the map's, or "
+               f"{', '.join(f'{mm:g}' for mm in wide)} mm wider per side; `EnvConfig.openings`)" if wide else "")
     L = [f"`{s['command']}`: {r['test_episodes']} test episodes (objects `{cfg['objects']}`, K = {cfg['k']} "
-         f"candidates, the object {see}, {err}); the learned policies are trained on {r['train_candidates']} "
-         f"logged candidates of {r['train_episodes']} other episodes." + database_note(s), ""]
+         f"candidates, the object {see}, {err}{opening}); the learned policies are trained on "
+         f"{r['train_candidates']} logged candidates of {r['train_episodes']} other episodes." + database_note(s), ""]
     sc_err = "START_COLLISION of the chosen grasp" + (" (with / without the error)" if noisy else "")
     head = ["policy", f"success, {err}"] + (["the same choice without the error"] if noisy else []) + [sc_err]
     L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     pols = [p for p in POLICIES if p in r["overall"]]  # summaries from before the robust ranking lack it
     names = {**NAMES, "learned": NAMES["learned"] if "robust" in pols else "learned (all features)"}
     if any(mm > 0 for mm in cfg.get("open_mm", ())):  # runs before the env executed chosen openings lack it
-        names["robust"] = "highest robust score, each grasp at the jaw opening it chose (the env's default)"
+        names["robust"] = "highest robust score (its opening choice is the env's default)"
     for p in pols:
         o = r["overall"][p]
         row = [names[p], rate_ci(o["successes"], o["n"], o["ci95"])]

@@ -174,18 +174,20 @@ def test_evaluate_candidates_without_execution_error_is_the_noise_free_episode(k
 
 
 @pytest.mark.slow
-def test_highest_grade_beats_random_over_a_fixed_seed_set(kw):
-    env = _make(GRASP_SELECT_ID, kw, n_candidates=8, openings=(0.0,))  # the paper's setting
-    hg, rnd, orc = [], [], []
+def test_robust_choice_beats_random_over_a_fixed_seed_set(kw):
+    """The planner's robust score picks better than chance under the execution error (the
+    paper's grade does not reliably: E06), and no choice beats the oracle."""
+    env = _make(GRASP_SELECT_ID, kw, n_candidates=8)
+    rb, rnd, orc = [], [], []
     for seed in range(16):
         obs, _ = env.reset(seed=seed)
         ok = env.evaluate_candidates()["success"]
         mask = obs["action_mask"].astype(bool)
-        hg.append(ok[highest_grade_policy(obs)])
+        rb.append(ok[robust_policy(obs)])
         rnd.append(ok[mask].mean())  # the random policy's expected success
         orc.append(ok[mask].any())
-    assert np.mean(hg) > np.mean(rnd)
-    assert np.mean(orc) >= np.mean(hg)
+    assert np.mean(rb) > np.mean(rnd)
+    assert np.mean(orc) >= np.mean(rb)
 
 
 def test_bad_options_raise_clear_errors(kw):

@@ -16,7 +16,8 @@ import numpy as np
 from _common import Clock, derived_seed
 
 from graspsim.envs.baselines import grasp_features, highest_grade_policy
-from graspsim.maps.robust import ABLATIONS, cloud_in_object, score_rows
+from graspsim.envs.candidates import CANDIDATE_FEATURES
+from graspsim.maps.robust import ABLATIONS, cloud_in_object, ranking, score_rows
 
 if TYPE_CHECKING:
     from e06_env_baselines import E06Config
@@ -50,6 +51,26 @@ def ablation_scores(env, cfg: E06Config) -> np.ndarray:
     return out
 
 
+def map_opening_choices(env, obs, cfg: E06Config) -> dict:
+    """The paper's setting on the same episode (test split): the highest-grade candidate
+    and the best candidate by the robust score at the map's opening only, both executed
+    at the map's opening (the candidate's execution error), and the planner's robust
+    best of the whole adapted map (not only the K candidates) executed at its chosen
+    opening with the episode's extra execution error draw. Outcome codes; -1: none."""
+    res, rows = env.plan_result, env.candidate_rows
+    cloud = cloud_in_object(env.episode.points, res.T_cloud_obj) if cfg.perception == "cloud" else None
+    at_map = score_rows(res.map, rows, cloud, replace(env.planner_config.robust, openings=(0.0,))).robust
+    grade = obs["candidates"][:len(rows), CANDIDATE_FEATURES.index("grade")].astype(float)
+    a_hg = highest_grade_policy(obs)
+    a_rm = int(np.lexsort((-grade, -np.round(at_map, 6)))[0]) if len(rows) else 0
+    ev = env.evaluate_candidates(threads=1, map_opening=True, slots=[a_hg, a_rm])["outcome"]
+    planner = -1
+    if len(res.map) and (not res.map.has_robust or res.map.robust[ranking(res.map)[0]] > 0):
+        planner = int(env.evaluate_map_rows([ranking(res.map)[0]])[0])
+    return {"highest_grade_map": int(ev[a_hg]), "robust_map": int(ev[a_rm]), "planner": planner,
+            "robust_map_choice": a_rm}
+
+
 def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     """One logged episode: every candidate simulated, then the highest-grade one stepped."""
     env = _env(cfg)
@@ -58,6 +79,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     reset = c.record()
     feats = grasp_features(obs, env.gripper)
     ablation = ablation_scores(env, cfg) if split == 1 else np.zeros((len(ABLATIONS), cfg.k), np.float32)
+    paper = map_opening_choices(env, obs, cfg) if split == 1 else {}
     c = Clock()
     ev = env.evaluate_candidates(threads=1)
     evaluate = c.record()
@@ -73,7 +95,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
             "parts": info["parts"], "redraws": info["redraws"], "n_clear": info["n_clear"],
             "features": feats.astype(np.float32), "candidates": obs["candidates"],
             "mask": obs["action_mask"], "outcome": ev["outcome"], "outcome_exact": exact, "cloud": obs["cloud"],
-            "ablation": ablation,
+            "ablation": ablation, "paper": paper,
             "object_pose": obs["object_pose"],
             "reset_s": reset["wall_s"], "reset_cpu_s": reset["cpu_s"], "plan_s": env.timing.get("plan"),
             "evaluate_s": evaluate["wall_s"], "trials": int(obs["action_mask"].sum()),

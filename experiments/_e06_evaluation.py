@@ -92,7 +92,23 @@ def evaluate(eps: list[dict], pick: dict[str, np.ndarray]) -> dict:
                             "start_collision": int(np.sum(O[rows, pick[f"robust_{a}"]] == sc)),
                             "start_collision_exact": int(np.sum(OX[rows, pick[f"robust_{a}"]] == sc))}
                         for a in ABLATIONS}}
+    res.update(paper_setting(eps, ok["robust"]))
     return res
+
+
+def paper_setting(eps: list[dict], robust_ok: np.ndarray) -> dict:
+    """The map's-opening rows (the paper's setting on the same episodes) and the
+    planner's robust best of the whole map, with paired comparisons to the robust
+    choice at its chosen opening."""
+    sc = OUTCOMES.index("start_collision")
+    out: dict = {"map_opening": {}}
+    for p in ("highest_grade_map", "robust_map", "planner"):
+        o = np.array([e["paper"][p] for e in eps])
+        has = o >= 0
+        out["map_opening"][p] = {**rate(o == 0), "start_collision": int(np.sum(o == sc)),
+                                 "no_grasp": int(np.sum(~has)),
+                                 "vs_robust": mcnemar(robust_ok, o == 0)}
+    return out
 
 
 def costs(eps: list[dict]) -> dict:

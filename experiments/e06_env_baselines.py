@@ -105,6 +105,8 @@ class E06Config:
     workers: int = opt(os.cpu_count() or 1, "worker processes")
     db: str | None = opt(None, "map database folder, used as it is (default: OUT/fsdb, built fresh)")
     coarse_db: bool = opt(False, "a coarse map database (8 mm, 22 deg: CI)")
+    open_mm: tuple[float, ...] = opt((0.0, 3.0, 6.0, 10.0), "extra jaw openings per side [mm] the robust "
+                                     "score chooses among and the trial executes (0: the map's opening only)")
     QUICK: ClassVar[dict] = {"train": 16, "test": 16, "objects": "primitives", "k": 6, "cloud_size": 128,
                              "coarse_db": True}
 
@@ -126,7 +128,7 @@ class E06Config:
         return dict(objects=self.objects, n_candidates=self.k, cloud_size=self.cloud_size, view=self.view,
                     perception=self.perception, position_noise=self.position_noise,
                     rotation_noise=math.radians(self.rotation_noise_deg), db_root=self.db,
-                    map_config=self.map_config)
+                    map_config=self.map_config, openings=tuple(mm / 1000.0 for mm in self.open_mm))
 
 
 
@@ -256,6 +258,26 @@ KIND_NAMES = {"random": "random", "highest_grade": "highest grade", "robust": "r
 SC_NAMES = {"highest_grade": "highest-grade", "robust": "robust"}
 
 
+MAP_OPENING_NAMES = {"highest_grade_map": "highest paper grade, the map's opening (the paper)",
+                     "robust_map": "highest robust score at the map's opening only",
+                     "planner": "planner: the adapted map's robust best (any grasp, not only the K candidates)"}
+
+
+def _map_opening_rows(r: dict, cfg: dict, err: str) -> list[str]:
+    wide = [mm for mm in cfg.get("open_mm", (0.0,)) if mm > 0]
+    L = ["", f"The paper's setting on the same episodes and candidates, every grasp at the map's opening "
+         f"instead of the one its robust score chose (the map's, or {', '.join(f'{mm:g}' for mm in wide)} mm "
+         "wider per side), and the planner's own robust best, with the error:", "",
+         "| choice | success | START_COLLISION | robust choice above alone / this alone (McNemar p) |",
+         "|---|---|---|---|"]
+    for p, x in r["map_opening"].items():
+        m = x["vs_robust"]
+        none = f" ({x['no_grasp']} episodes without a scored grasp count as failures)" if x["no_grasp"] else ""
+        L.append(f"| {MAP_OPENING_NAMES[p]}{none} | {rate_ci(x['successes'], x['n'], x['ci95'])} | "
+                 f"{x['start_collision']} | {m['only_first']} / {m['only_second']} ({m['p_exact']:.2g}) |")
+    return L
+
+
 def readme_section(s: dict) -> str:
     """The README's E06 paragraph and tables (see ``experiments/report.py``)."""
     cfg, r, c = s["config"], s["results"], s["cost"]
@@ -264,14 +286,19 @@ def readme_section(s: dict) -> str:
            else "no execution error")
     see = ("identified in its observed cloud" if cfg["perception"] == "cloud"
            else "given to the planner as its true primitives and pose (`plan_shape`)")
+    wide = [mm for mm in cfg.get("open_mm", ()) if mm > 0]
+    opening = (f", each candidate executed at the jaw opening its robust score chose (the map's, or "
+               f"{', '.join(f'{mm:g}' for mm in wide)} mm wider per side; `EnvConfig.openings`)" if wide else "")
     L = [f"`{s['command']}`: {r['test_episodes']} test episodes (objects `{cfg['objects']}`, K = {cfg['k']} "
-         f"candidates, the object {see}, {err}); the learned policies are trained on {r['train_candidates']} "
-         f"logged candidates of {r['train_episodes']} other episodes." + database_note(s), ""]
+         f"candidates, the object {see}, {err}{opening}); the learned policies are trained on "
+         f"{r['train_candidates']} logged candidates of {r['train_episodes']} other episodes." + database_note(s), ""]
     sc_err = "START_COLLISION of the chosen grasp" + (" (with / without the error)" if noisy else "")
     head = ["policy", f"success, {err}"] + (["the same choice without the error"] if noisy else []) + [sc_err]
     L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     pols = [p for p in POLICIES if p in r["overall"]]  # summaries from before the robust ranking lack it
     names = {**NAMES, "learned": NAMES["learned"] if "robust" in pols else "learned (all features)"}
+    if any(mm > 0 for mm in cfg.get("open_mm", ())):  # runs before the env executed chosen openings lack it
+        names["robust"] = "highest robust score (its opening choice is the env's default)"
     for p in pols:
         o = r["overall"][p]
         row = [names[p], rate_ci(o["successes"], o["n"], o["ci95"])]
@@ -303,6 +330,8 @@ def readme_section(s: dict) -> str:
               f"{mr['only_first']}, the highest grade alone in {mr['only_second']} (exact McNemar p = "
               f"{mr['p_exact']:.2g}); vs the learned policy: {ml['only_first']} / {ml['only_second']} "
               f"(p = {ml['p_exact']:.2g})."]
+    if r.get("map_opening"):
+        L += _map_opening_rows(r, cfg, err)
     if r.get("ablation"):
         L += ["", "Ablations of the robust score (`graspsim.maps.robust.ABLATIONS`), each choosing among the "
               "same candidates:", "",

@@ -236,14 +236,21 @@ class GripperSpec:
         (N, 4, 4) with pad gaps (N,): a pose with a table at z = 0 is reachable only if
         this is above 0."""
         T = np.asarray(T_world_wrist, float).reshape(-1, 4, 4)
-        opening = np.broadcast_to(np.asarray(opening, float), (len(T),))
+        return self.lowest_along(T[:, 2, :3], T[:, 2, 3], opening)
+
+    def lowest_along(self, up: np.ndarray, height: np.ndarray, opening: np.ndarray) -> np.ndarray:
+        """(N,) lowest height [m] of any gripper box (arm keep-out included) along a unit
+        direction whose components in each wrist frame are ``up`` (N, 3) (row 2 of
+        R_world_wrist for world z), the wrist origin at ``height`` (N,) along it, pad
+        gaps ``opening`` (N,). A box's lowest corner is its centre's height minus
+        sum_i |up_i| x half extent_i, so no corner is enumerated: O(N x boxes)."""
+        up = np.asarray(up, float).reshape(-1, 3)
+        height = np.asarray(height, float).reshape(-1)
+        opening = np.broadcast_to(np.asarray(opening, float), (len(up),))
         b = self.collision_boxes()
-        signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T
-        corners = b.centers[:, None, :] + b.half_extents[:, None, :] * signs[None]  # (B, 8, 3)
-        x = corners[None, :, :, 0] + (b.x_sign[None, :, None] * 0.5 * opening[:, None, None])
-        z = (T[:, 2, 0, None, None] * x + T[:, 2, 1, None, None] * corners[None, :, :, 1]
-             + T[:, 2, 2, None, None] * corners[None, :, :, 2] + T[:, 2, 3, None, None])
-        return z.reshape(len(T), -1).min(axis=1)
+        z = b.centers @ up.T - b.half_extents @ np.abs(up).T  # (B, N): a reduction over rows is fast
+        z += b.x_sign[:, None] * (0.5 * opening * up[:, 0])[None]  # the jaws and fingers open along x
+        return z.min(axis=0) + height
 
     # ------------------------------------------------------------------ storage
     def to_dict(self) -> dict:

@@ -33,7 +33,7 @@ from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map
 from graspsim.maps.scaling import ScalingConfig, scale_stream
-from graspsim.maps.table import TablePlane, clears_table, table_frame
+from graspsim.maps.table import TablePlane, clears_table, heights_above, stream_order, table_frame
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
 from graspsim.primitives import Compound, Primitive
 from graspsim.transforms import invert_transform
@@ -116,7 +116,9 @@ class PlanResult:
     identification (None for :func:`plan_shape`); T_cloud_obj (4, 4); timing [s] per
     stage plus ``first`` and ``tenth`` (time to the first and tenth grasp with grade
     > 0.95, None if never), ``first_robust`` (time to the first grasp with a robust
-    score > 0; None if never or ``rank="paper"``) and ``robust`` (seconds spent scoring)."""
+    score > 0; None if never or ``rank="paper"``), ``first_robust_cpu`` (the calling
+    thread's CPU seconds from the end of identification to that grasp: a measure that
+    other processes' load barely changes) and ``robust`` (seconds spent scoring)."""
 
     status: PlanStatus
     map: GraspabilityMap
@@ -155,26 +157,38 @@ def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarra
     return prim.with_dims(x=d[order[0]], y=d[order[1]], z=d[order[2]]), T2
 
 
-def _batches(gmap: GraspabilityMap, first: int, growth: float) -> Iterator[GraspabilityMap]:
-    """A best-first map in growing slices (for streaming a stored map)."""
-    start, size = 0, max(1, first)
-    while start < len(gmap):
-        stop = min(len(gmap), start + size)
-        yield gmap.select(np.arange(start, stop))
-        start, size = stop, int(size * max(growth, 1.0))
+def _batches(gmap: GraspabilityMap, first: int, growth: float, prefer=None) -> Iterator[GraspabilityMap]:
+    """A best-first map in growing slices (for streaming a stored map); the rows
+    ``prefer`` (as in :func:`graspsim.maps.scaling.scale_stream`) accepts first."""
+    pick = None if prefer is None else (
+        lambda pos: prefer(gmap.wrist_quat[pos], gmap.wrist_position[pos], gmap.width[pos]))
+    for rows in stream_order(len(gmap), first, growth, pick):
+        yield gmap.select(rows)
 
 
-def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig) -> tuple[MatchKind, dict, Iterator]:
-    """(match, source object, iterator of map batches in the part's frame)."""
+# only predicted poses this far above the table's clearance stream first: the
+# prediction of a scaled pose (before its exact chord) is off by a few millimetres
+_TABLE_TOLERANCE = 0.005
+
+
+def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig,
+                 T_table_part: np.ndarray | None = None) -> tuple[MatchKind, dict, Iterator]:
+    """(match, source object, iterator of map batches in the part's frame); with the
+    table's frame ``T_table_part`` in the part's frame, the grasps likely to clear it
+    stream first (the table filter would empty the first batches otherwise)."""
     m = db.match(prim, max_ratio=cfg.scaling.max_ratio)
-    stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth)  # noqa: E731
+    prefer = None
+    if T_table_part is not None:
+        least = cfg.table.clearance + _TABLE_TOLERANCE
+        prefer = lambda q, p, w: heights_above(db.gripper, T_table_part, q, p, w) >= least  # noqa: E731
+    stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth, prefer)  # noqa: E731
     if m.match is MatchKind.KNOWN:  # the stored map as is (paper 2.2)
         fs = db.load_entry(m.entry, accepted_only=True)
         return m.match, fs.meta.object, stream(fs)
     if m.match is MatchKind.FAMILIAR:
         fs = db.load_entry(m.entry, accepted_only=True)
         return m.match, fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling, gripper=db.gripper,
-                                                        quality=db.quality, config=db.config)
+                                                        quality=db.quality, config=db.config, prefer=prefer)
     if not cfg.build_missing:
         return MatchKind.BUILD, {}, iter(())
     # no map of this primitive within the scaling range: add one to the database
@@ -192,6 +206,7 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
     points = np.asarray(points, float)
     ident = identify(points, rng=rng, config=cfg.identify)
     timing = {"identify": time.perf_counter() - t0}
+    cpu0 = time.thread_time()
     prims, T_cloud = [], []
     for part in ident.parts:
         p, T = _canonical_box(part.primitive(), part.T_world_obj)
@@ -210,7 +225,7 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
             "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict(),
             "mode": ident.mode, "uncovered": ident.uncovered,
             "approximate": [i for i, p in enumerate(ident.parts) if p.approximate]}
-    yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing)
+    yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0)
 
 
 def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,
@@ -235,7 +250,7 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
         raise InvalidParameterError(f"plan_shape needs a Primitive or a Compound, got {type(shape).__name__}")
     prims, T_cloud = zip(*(_canonical_box(p, Tp) for p, Tp in pairs))
     yield from _plan_parts(list(prims), list(T_cloud), PlanStatus.COMPLETE, None, None, np.zeros((0, 3)),
-                           db, cfg, source, t0, {"identify": 0.0})
+                           db, cfg, source, t0, {"identify": 0.0}, time.thread_time())
 
 
 def _object_frame(prims: list, T_cloud: list) -> tuple[np.ndarray, Compound | None]:
@@ -258,9 +273,10 @@ def _object_frame(prims: list, T_cloud: list) -> tuple[np.ndarray, Compound | No
 
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
                 ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
-                source: str, t0: float, timing: dict) -> Iterator[GraspBatch | PlanResult]:
+                source: str, t0: float, timing: dict, cpu0: float) -> Iterator[GraspBatch | PlanResult]:
     """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
-    part frames in the cloud's frame)."""
+    part frames in the cloud's frame); ``cpu0``: the calling thread's CPU clock when
+    identification ended."""
     T_cloud_obj, compound = _object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
@@ -274,13 +290,14 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     n_below = 0
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
-    first = tenth = first_robust = None
+    first = tenth = first_robust = first_robust_cpu = None
     n_hi = 0
     t_robust = 0.0
     cloud_obj = cloud_in_object(points, T_cloud_obj)
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):
-        match, src, stream = _part_stream(prim, db, cfg)
+        match, src, stream = _part_stream(prim, db, cfg,
+                                          None if T_table_obj is None else T_table_obj @ T_obj_part[i])
         parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i]))
         budget = cfg.robust.top if cfg.rank == "robust" else 0
         for part_map in stream:
@@ -304,6 +321,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 t_robust += time.perf_counter() - t2
                 if first_robust is None and bool(np.any(batch.robust > 0)):
                     first_robust = time.perf_counter() - t0
+                    first_robust_cpu = time.thread_time() - cpu0
             now = time.perf_counter() - t0
             hi = int((batch.grade > 0.95).sum())
             if hi and first is None:
@@ -325,6 +343,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         full = full.with_meta(extra={**final, "robust": prov})
     full = full.ranked(cfg.rank)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
+                  first_robust_cpu=first_robust_cpu,
                   robust=t_robust)
     yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
 

@@ -110,3 +110,59 @@ def test_bad_table_pose_is_refused():
     m = generate_fs_map(Cylinder(0.02, 0.05), config=FAST)
     with pytest.raises(GraspsimError):
         clears_table(m, np.full((4, 4), np.nan), G)
+
+
+def test_lowest_point_equals_the_lowest_of_all_box_corners():
+    """The closed form (a box's lowest corner: centre height - sum |up_i| x half extent_i)
+    against enumerating all eight corners of every box, jaws opened along x."""
+    rng = np.random.default_rng(3)
+    n = 500
+    from graspsim.transforms import random_rotation
+
+    T = np.stack([make_transform(random_rotation(rng), rng.normal(scale=0.1, size=3)) for _ in range(n)])
+    opening = rng.uniform(G.min_opening, G.max_opening, n)
+    b = G.collision_boxes()
+    signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T
+    corners = b.centers[None, :, None, :] + b.half_extents[None, :, None, :] * signs[None, None]
+    corners = np.repeat(corners, n, axis=0)
+    corners[..., 0] += b.x_sign[None, :, None] * 0.5 * opening[:, None, None]
+    z = np.einsum("nj,nbcj->nbc", T[:, 2, :3], corners) + T[:, 2, 3, None, None]
+    np.testing.assert_allclose(G.lowest_point(T, opening), z.reshape(n, -1).min(axis=1), atol=1e-12)
+
+
+def test_heights_above_match_the_lowest_point_in_the_table_frame():
+    from graspsim.maps.table import heights_above
+    from graspsim.transforms import quat_to_matrix, random_rotation
+
+    rng = np.random.default_rng(4)
+    q = rng.normal(size=(300, 4)) * rng.uniform(0.5, 2.0, (300, 1))  # any length: normalised
+    p = rng.normal(scale=0.05, size=(300, 3))
+    width = rng.uniform(0.0, 0.05, 300)
+    T_table_obj = make_transform(random_rotation(rng), [0.01, -0.02, 0.07])
+    T = T_table_obj @ make_transform(quat_to_matrix(q), p)
+    np.testing.assert_allclose(heights_above(G, T_table_obj, q, p, width),
+                               G.lowest_point(T, G.pregrasp_opening(width)), atol=1e-12)
+
+
+@pytest.mark.parametrize("n,first,growth", [(0, 1, 4.0), (1, 1, 4.0), (1000, 1, 4.0), (999, 48, 1.0), (10000, 7, 2.5)])
+def test_stream_order_yields_every_position_once_preferred_first(n, first, growth):
+    from graspsim.maps.table import stream_order
+
+    plain = list(stream_order(n, first, growth))
+    assert np.array_equal(np.concatenate(plain) if plain else np.zeros(0), np.arange(n))
+    liked = np.random.default_rng(n).random(n) < 0.1
+    calls = []
+
+    def prefer(pos):
+        calls.append(len(pos))
+        return liked[pos]
+
+    batches = list(stream_order(n, first, growth, prefer, chunk=500))
+    out = np.concatenate(batches) if batches else np.zeros(0, int)
+    assert np.array_equal(np.sort(out), np.arange(n))  # each exactly once
+    k = int(liked.sum())
+    assert np.all(liked[out[:k]]) and not np.any(liked[out[k:]])  # the preferred ones first, in order
+    assert np.all(np.diff(out[:k]) > 0) and np.all(np.diff(out[k:]) > 0)
+    assert all(np.all(np.diff(b) > 0) for b in batches)
+    assert len(batches) == 0 or len(batches[0]) <= max(first, 1)
+    assert max(calls, default=0) <= 500  # evaluated lazily, a chunk at a time

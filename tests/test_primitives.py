@@ -164,3 +164,21 @@ def test_cloud_noise_and_outliers(rng):
     assert c.is_outlier.mean() == pytest.approx(0.1, abs=0.01)
     r = np.abs(s.sdf(c.points[~c.is_outlier]))
     assert 0.0006 < np.sqrt(np.mean(r**2)) < 0.0014
+
+
+def test_a_compounds_volume_is_integrated_once(monkeypatch):
+    """Building a compound integrates its mass properties once; its volume (read twice
+    by a map's object description, on a planner's path to its first grasp) is not
+    integrated again, and equals a fresh integration."""
+    import graspsim.primitives.compound as compound
+    from graspsim.maps.generate import object_description
+
+    calls = []
+    real = compound._mass_properties
+    monkeypatch.setattr(compound, "_mass_properties", lambda *a, **k: calls.append(1) or real(*a, **k))
+    T = np.eye(4)
+    T[2, 3] = 0.1
+    c = compound.Compound.from_parts([Cylinder(0.03, 0.16), Cylinder(0.012, 0.06)], [np.eye(4), T])
+    d = object_description(c, None, 1000.0)
+    assert len(calls) == 1
+    assert d["volume"] == c.volume == pytest.approx(real(c.parts, c.poses)[1], rel=1e-12)

@@ -127,7 +127,7 @@ def grasp_features(obs: dict, gripper: GripperSpec = HGPL_25_60_A) -> np.ndarray
     q[np.linalg.norm(q, axis=1) < 1e-6] = (1.0, 0.0, 0.0, 0.0)  # empty slots
     T = T_world_obj @ make_transform(quat_to_matrix(q), cand[:, 0:3])  # (K, 4, 4) world
     width = cand[:, _COL["width"]]
-    opening = gripper.pregrasp_opening(width)
+    opening = gripper.pregrasp_opening(width) + 2.0 * cand[:, _COL["extra_opening"]]  # as executed
     tcp_z = float(gripper.nominal_tcp[2])
     tcp = T[:, :3, 3] + tcp_z * T[:, :3, 2]
     top = max(float(cloud[:, 2].max()), 1e-3)

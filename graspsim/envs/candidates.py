@@ -26,7 +26,7 @@ from graspsim.maps.database import MapDatabase
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.seeding import rng_for
 
-__all__ = ["PooledDatabase", "candidate_features",
+__all__ = ["PooledDatabase", "candidate_features", "extra_openings",
            "CANDIDATE_FEATURES"]
 
 log = logging.getLogger(__name__)
@@ -37,12 +37,13 @@ log = logging.getLogger(__name__)
 #: width [m] (the jaws open to width + 2 x the approach clearance), the planner's robust
 #: score (expected success under the execution error; 0 when not scored) and the
 #: gripper's clearance to the observed cloud [m] (clipped to +-5 cm; 5 cm when not
-#: scored) -- see :mod:`graspsim.maps.robust`.
+#: scored) -- see :mod:`graspsim.maps.robust` -- and the extra pad gap per side [m] the
+#: robust score chose and the trial opens the jaws by (0: the map's pre-grasp opening).
 CANDIDATE_FEATURES = ("x", "y", "z", "qw", "qx", "qy", "qz", "grade", "q_fc", "q_st",
-                      "fc_angle", "stability_distance", "width", "robust", "clearance")
+                      "fc_angle", "stability_distance", "width", "robust", "clearance", "extra_opening")
 _CLEARANCE_CAP = 0.05
-_LOW = np.array([-1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, -_CLEARANCE_CAP], np.float32)
-_HIGH = np.array([1, 1, 1, 1, 1, 1, 1, 1, 1, 1, np.pi, 1, 1, 1, _CLEARANCE_CAP], np.float32)
+_LOW = np.array([-1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, -_CLEARANCE_CAP, 0], np.float32)
+_HIGH = np.array([1, 1, 1, 1, 1, 1, 1, 1, 1, 1, np.pi, 1, 1, 1, _CLEARANCE_CAP, 0.05], np.float32)
 
 
 class PooledDatabase(MapDatabase):
@@ -89,7 +90,14 @@ def candidate_features(gmap: GraspabilityMap, rows: np.ndarray, k: int) -> np.nd
     out[:n, 12] = gmap.width[rows]
     out[:n, 13] = np.nan_to_num(gmap.robust[rows], nan=0.0)
     out[:n, 14] = np.nan_to_num(gmap.clearance[rows], nan=_CLEARANCE_CAP)
+    out[:n, 15] = extra_openings(gmap, rows)
     return np.clip(out, _LOW, _HIGH)
+
+
+def extra_openings(gmap: GraspabilityMap, rows: np.ndarray) -> np.ndarray:
+    """(n,) extra pad gap per side [m] the robust score of each of the map's ``rows``
+    chose (0 where unscored: the map's pre-grasp opening)."""
+    return np.nan_to_num(gmap.robust_extra_opening[np.asarray(rows, int)].astype(float), nan=0.0)
 
 
 def feature_bounds() -> tuple[np.ndarray, np.ndarray]:

@@ -11,6 +11,8 @@ import math
 from dataclasses import asdict, dataclass, fields
 from enum import Enum
 
+import numpy as np
+
 from graspsim.envs.objects import resolve_object_set
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.generate import MapConfig
@@ -68,6 +70,11 @@ class EnvConfig:
     max_redraws: objects drawn per reset before giving up when none offers a valid
         candidate (GraspSelect).
     threads: native threads for :meth:`GraspSelectEnv.evaluate_candidates`.
+    openings: extra pad gaps per side [m] the planner's robust ranking may open the
+        jaws beyond the map's pre-grasp opening (``RobustConfig.openings``); each
+        candidate is executed at the one its robust score chose (GraspSelect; the
+        ``extra_opening`` candidate column). ``(0.0,)``: the map's opening, as the
+        paper.
     """
 
     objects: str | tuple[str, ...] = "primitives"
@@ -93,6 +100,7 @@ class EnvConfig:
     perception: Perception = Perception.CLOUD
     max_redraws: int = 20
     threads: int = 1
+    openings: tuple[float, ...] = (0.0, 0.003, 0.006, 0.010)
 
     def __post_init__(self) -> None:
         objects = self.objects if isinstance(self.objects, str) else tuple(self.objects)
@@ -131,6 +139,14 @@ class EnvConfig:
         except ValueError:
             raise InvalidParameterError(
                 f"reward must be one of {[r.value for r in RewardMode]}, got {self.reward!r}") from None
+        try:
+            openings = tuple(float(v) for v in np.atleast_1d(np.asarray(self.openings, float)))
+        except (TypeError, ValueError):
+            openings = ()
+        if not openings or any(not (math.isfinite(v) and 0 <= v <= 0.05) for v in openings):
+            raise InvalidParameterError(
+                f"openings must be extra gaps per side in [0, 0.05] m (0.0: the map's opening), got {self.openings!r}")
+        object.__setattr__(self, "openings", openings)
         if self.map_config is not None and not isinstance(self.map_config, MapConfig):
             raise InvalidParameterError(f"map_config must be a MapConfig or None, got {self.map_config!r}")
         if self.db_root is not None:
@@ -142,6 +158,7 @@ class EnvConfig:
         p = self.protocol
         d["protocol"] = p if isinstance(p, str) else p.to_dict()
         d["map_config"] = None if self.map_config is None else self.map_config.to_dict()
+        d["openings"] = list(self.openings)
         return d
 
 

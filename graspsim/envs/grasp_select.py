@@ -9,6 +9,9 @@ table in the estimated object pose (the planner itself does not know the table).
 cloud (no identification error; a much cheaper reset).
 ``step(k)`` executes candidate k as one trial of the protocol (``lift_place``: grasp,
 lift 12 cm, hold, place back) with the robot's execution error, and ends the episode.
+The jaws open to the candidate's pre-grasp opening plus the extra gap per side its
+robust score chose among ``EnvConfig.openings`` (the ``extra_opening`` column;
+``openings=(0.0,)`` executes the map's opening, as the paper).
 
 Observation (``Dict``):
 
@@ -16,7 +19,8 @@ Observation (``Dict``):
 * ``candidates`` (K, F) float32: one row per candidate, columns
   :data:`~graspsim.envs.candidates.CANDIDATE_FEATURES` (wrist pose in the *estimated*
   object frame, grade and its components, contact width, the planner's robust score
-  and clearance to the observed cloud); zeros in invalid slots;
+  and clearance to the observed cloud, the extra opening per side the trial uses);
+  zeros in invalid slots;
 * ``object_pose`` (7,) float32: the estimated object frame in the world, position [m]
   and quaternion (w, x, y, z) -- world pose of a candidate = object_pose @ its pose;
 * ``action_mask`` (K,) int8: 1 for the valid candidates (also ``info["action_mask"]``
@@ -26,8 +30,8 @@ Action: ``Discrete(K)``. An invalid (masked) choice ends the episode with reward
 ``info["outcome"] == "invalid_action"``, without a trial. Reward: 1 for SUCCESS, else 0
 (``reward="shaped"``: partial credit, see :mod:`graspsim.envs.rewards`). ``info`` has
 ``outcome`` (label), ``outcome_code``, ``success``, ``metrics`` (slip and force metrics
-of the trial; None where not simulated), ``start_penetration`` and the chosen
-candidate's ``grade``.
+of the trial; None where not simulated), ``start_penetration``, the chosen
+candidate's ``grade`` and the pad gap the jaws opened to, ``opening`` [m].
 
 The execution error of every candidate is drawn at reset, so the trial of candidate k
 is fixed for the episode: :meth:`GraspSelectEnv.evaluate_candidates` simulates all of
@@ -51,9 +55,10 @@ import numpy as np
 from gymnasium import spaces
 
 from graspsim.envs.base import WORLD_BOUND, TableTask, pose_vector
-from graspsim.envs.candidates import CANDIDATE_FEATURES, candidate_features, feature_bounds
+from graspsim.envs.candidates import CANDIDATE_FEATURES, candidate_features, extra_openings, feature_bounds
 from graspsim.envs.config import EnvConfig, Perception
 from graspsim.errors import GraspsimError, InvalidParameterError, NoFeasibleGraspError
+from graspsim.maps.robust import RobustConfig
 from graspsim.maps.scaling import ScalingConfig
 from graspsim.perception import IdentifyConfig
 from graspsim.planner import PlannerConfig, PlanResult, TablePlane, plan, plan_shape
@@ -85,7 +90,8 @@ class GraspSelectEnv(TableTask):
         self.planner_config = PlannerConfig(
             identify=IdentifyConfig(repetitions=c.identify_repetitions),
             scaling=ScalingConfig(first_batch=48, growth=1.0), build_missing=False,
-            table=TablePlane(height=0.0, clearance=c.table_margin))
+            table=TablePlane(height=0.0, clearance=c.table_margin),
+            robust=RobustConfig(openings=c.openings))
         self.plan_result: PlanResult | None = None
         self._obs: dict | None = None
         self._cand: dict | None = None
@@ -129,12 +135,15 @@ class GraspSelectEnv(TableTask):
         mask[:len(rows)] = 1
         T_nominal = np.repeat(np.eye(4)[None], K, axis=0)
         T_nominal[:len(rows)] = T_world_wrist[rows]
-        width = np.zeros(K)
-        width[:len(rows)] = gmap.width[rows]
+        map_width = np.zeros(K)
+        map_width[:len(rows)] = gmap.width[rows]
+        width = map_width.copy()  # the jaws open width + 2 x (approach clearance + extra)
+        width[:len(rows)] += 2.0 * extra_openings(gmap, rows)
         self.episode = episode
         self.plan_result = result
-        self._cand = {"rows": rows, "T_world_wrist": T_nominal, "width": width, "mask": mask,
-                      "noise": self._noise(K, noise_rng)}
+        noise = self._noise(K, noise_rng)
+        self._cand = {"rows": rows, "T_world_wrist": T_nominal, "width": width, "map_width": map_width,
+                      "mask": mask, "noise": noise, "noise_extra": self._noise(1, noise_rng)[0]}
         self._obs = {"cloud": episode.cloud, "candidates": candidate_features(gmap, rows, K),
                      "object_pose": np.clip(pose_vector(result.T_cloud_obj), -WORLD_BOUND, WORLD_BOUND),
                      "action_mask": mask}
@@ -169,7 +178,8 @@ class GraspSelectEnv(TableTask):
         self._done = True
         self.timing = {**self.timing, "step": time.perf_counter() - t0}
         info.update(action_mask=cand["mask"].copy(), candidate=a,
-                    grade=float(self._obs["candidates"][a, CANDIDATE_FEATURES.index("grade")]))
+                    grade=float(self._obs["candidates"][a, CANDIDATE_FEATURES.index("grade")]),
+                    opening=float(self.gripper.pregrasp_opening(cand["width"][a])) if cand["mask"][a] else None)
         return self._observation(), float(reward), True, False, info
 
     # ------------------------------------------------------------------ helpers
@@ -186,26 +196,52 @@ class GraspSelectEnv(TableTask):
             raise GraspsimError("no episode yet: call reset() first")
         return self._cand["mask"].astype(bool)
 
-    def evaluate_candidates(self, threads: int | None = None, *,
-                            execution_error: bool = True) -> dict[str, np.ndarray]:
+    def evaluate_map_rows(self, rows, *, execution_error: bool = True) -> np.ndarray:
+        """TrialOutcome codes (n,) int8 of rows of ``plan_result.map`` -- offered or not
+        -- executed as a candidate would be (the jaws at the opening its robust score
+        chose), each with one more execution error draw of the episode (not a
+        candidate's). For policies that pick from the whole map instead of the K
+        candidates (e.g. the planner's robust best) in experiments; not something a
+        policy may call."""
+        if self._cand is None or self.plan_result is None:
+            raise GraspsimError("no episode yet: call reset() first")
+        gmap = self.plan_result.map
+        rows = np.asarray(rows, int).reshape(-1)
+        if len(rows) and (rows.min() < 0 or rows.max() >= len(gmap)):
+            raise InvalidParameterError(f"rows must index the plan's map of {len(gmap)} grasps, got {rows!r}")
+        if not len(rows):
+            return np.zeros(0, np.int8)
+        T = self.plan_result.T_cloud_obj @ gmap.T_obj_wrist[rows]
+        if execution_error:
+            T = T @ self._cand["noise_extra"]
+        return self._trials(T, gmap.width[rows] + 2.0 * extra_openings(gmap, rows)).outcome.astype(np.int8)
+
+    def evaluate_candidates(self, threads: int | None = None, *, execution_error: bool = True,
+                            map_opening: bool = False, slots=None) -> dict[str, np.ndarray]:
         """Simulate every valid candidate of the current episode as ``step`` would (same
         execution error), without ending it: ``outcome`` (K,) int8 TrialOutcome codes
         (-1 for invalid slots), ``reward`` (K,) float32, ``success`` (K,) bool. With
         ``execution_error=False`` the nominal poses are simulated instead (what the
-        episode would give without execution error). For oracles, ablations and
-        full-information logging; not something a policy may call."""
+        episode would give without execution error). With ``map_opening=True`` the jaws
+        open to the map's pre-grasp opening instead of the one the robust score chose
+        (``EnvConfig.openings``; the same when that is ``(0.0,)``). ``slots``: simulate
+        only these candidates (the others read as invalid). For oracles,
+        ablations and full-information logging; not something a policy may call."""
         if self._cand is None:
             raise GraspsimError("no episode yet: call reset() first")
         cand = self._cand
         K = self.config.n_candidates
         idx = np.flatnonzero(cand["mask"])
+        if slots is not None:
+            idx = np.intersect1d(idx, np.asarray(slots, int).reshape(-1))
         outcome = np.full(K, -1, np.int8)
         reward = np.zeros(K, np.float32)
         if len(idx):
             T = cand["T_world_wrist"][idx]
             if execution_error:
                 T = T @ cand["noise"][idx]
-            res = self._trials(T, cand["width"][idx], threads=threads or self.config.threads)
+            width = cand["map_width" if map_opening else "width"][idx]
+            res = self._trials(T, width, threads=threads or self.config.threads)
             outcome[idx] = res.outcome
             for j, i in enumerate(idx):
                 reward[i] = self._outcome_info(res, j)[0]

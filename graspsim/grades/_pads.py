@@ -87,10 +87,23 @@ def pad_patches(P, N, A, R, p, half_width, tip_z, face_length, tol, out):  # pra
 def run_pad_patches(points: np.ndarray, normals: np.ndarray, areas: np.ndarray,
                     R: np.ndarray, p: np.ndarray, half_width: float, tip_z: float,
                     face_length: float, tol: float) -> np.ndarray:
-    """Typed wrapper of :func:`pad_patches`; returns (n, 2, 7)."""
+    """Typed wrapper of :func:`pad_patches`; returns (n, 2, 7). A few grasps run on the
+    calling thread only: waking the thread pool costs more than they do (tens of
+    milliseconds on a busy machine, where a streaming planner scores its first grasp)."""
+    import numba
+
     f = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
     out = np.zeros((len(R), 2, 7))
     if len(R):
-        pad_patches(f(points), f(normals), f(areas), f(R), f(p), float(half_width),
-                    float(tip_z), float(face_length), float(tol), out)
+        threads = numba.get_num_threads()
+        numba.set_num_threads(threads if len(R) >= SERIAL_BELOW else 1)  # this thread's setting only
+        try:
+            pad_patches(f(points), f(normals), f(areas), f(R), f(p), float(half_width),
+                        float(tip_z), float(face_length), float(tol), out)
+        finally:
+            numba.set_num_threads(threads)
     return out
+
+
+#: Fewer grasps than this are scored on the calling thread.
+SERIAL_BELOW = 64

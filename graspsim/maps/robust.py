@@ -302,12 +302,19 @@ def _success(gmap, rows: np.ndarray, model: str) -> np.ndarray:
         return np.ones(len(rows))
     if model == "grade":
         return gmap.grade[rows].astype(float)
-    from graspsim.grades import get_grade
-
     try:
-        return np.asarray(get_grade("pad_contact").grade_rows(gmap, rows), float)
+        return np.asarray(_pad_contact().grade_rows(gmap, rows), float)
     except InvalidParameterError:  # a mesh object: no primitive to compute pad features on
         return gmap.grade[rows].astype(float)
+
+
+@functools.lru_cache(maxsize=1)
+def _pad_contact():
+    """The shipped calibrated grade model, read once per process (a streaming planner
+    scores its first grasps within milliseconds)."""
+    from graspsim.grades import get_grade
+
+    return get_grade("pad_contact")
 
 
 def score_map(gmap, cloud_obj: np.ndarray | None = None, config: RobustConfig = RobustConfig(), *,

@@ -39,6 +39,7 @@ from graspsim.gripper import GripperSpec
 from graspsim.maps.collide import grasps_collision_free
 from graspsim.maps.generate import MapConfig, object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.maps.table import stream_order
 from graspsim.primitives import Primitive
 from graspsim.quality import QualityModel
 from graspsim.transforms import quat_to_matrix
@@ -196,11 +197,16 @@ def _check(target, gripper, cfg, gp, R, depth, width, line=None) -> np.ndarray:
 
 def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: QualityModel | None = None,
                  scaling: ScalingConfig | None = None, config: MapConfig | None = None,
-                 gripper: GripperSpec | None = None) -> Iterator[GraspabilityMap]:
+                 gripper: GripperSpec | None = None, prefer=None) -> Iterator[GraspabilityMap]:
     """Scale ``fs_map`` (a primitive's FS map) to ``target`` (the same primitive at
     another size), yielding maps of kept grasps in batches, best FS lines first.
     quality, config, gripper: the map's own (from its metadata) unless given -- a
-    caller that holds them (the planner's database) passes them."""
+    caller that holds them (the planner's database) passes them. ``prefer``: a
+    function of predicted scaled poses -- wrist quaternions (m, 4), wrist positions
+    (m, 3) and contact widths (m,) in the target's frame, from the grasp's contacts
+    mapped as Quality maps them, before the exact chord -- returning (m,) bool: those
+    grasps are scaled first (see :func:`graspsim.maps.table.stream_order`); the same
+    grasps are kept, only the order they stream in changes."""
     sc = scaling or ScalingConfig()
     source, ratios = _scalable(fs_map, target, sc.max_ratio)
     gripper = gripper or fs_map.meta.gripper_spec
@@ -217,12 +223,15 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
                           "factors": ratios, "source_grasps": int(len(src.rows))})
     lo = gripper.contact_depth_margin - 1e-6
     hi = gripper.pad_length - gripper.contact_depth_margin + 1e-6
-    n_rows = len(src.rows)
-    start, size = 0, sc.first_batch
-    while start < n_rows:
-        stop = min(n_rows, start + size)
-        rows = np.arange(start, stop)
-        start, size = stop, int(size * sc.growth)
+    predicted = None
+    if prefer is not None:
+        def predicted(pos: np.ndarray) -> np.ndarray:
+            r = src.rows[pos]
+            c = fs_map.contacts[r].astype(float)
+            c2 = target.from_unit(source.to_unit(c.reshape(-1, 3))).reshape(c.shape)
+            wrist = fs_map.wrist_position[r] + (c2.mean(axis=1) - c.mean(axis=1))
+            return prefer(fs_map.wrist_quat[r], wrist, np.linalg.norm(c2[:, 1] - c2[:, 0], axis=1))
+    for rows in stream_order(len(src.rows), sc.first_batch, sc.growth, predicted):
         line = src.line_of[rows]
         R = quat_to_matrix(fs_map.wrist_quat[src.rows[rows]])
         wrist = fs_map.wrist_position[src.rows[rows]].astype(float)

@@ -17,9 +17,9 @@ import numpy as np
 from graspsim.errors import InvalidParameterError
 from graspsim.gripper import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
-from graspsim.transforms import frame_from_axes, make_transform, quat_to_matrix
+from graspsim.transforms import frame_from_axes, make_transform
 
-__all__ = ["TablePlane", "clears_table", "table_frame"]
+__all__ = ["TablePlane", "clears_table", "heights_above", "stream_order", "table_frame"]
 
 
 @dataclass(frozen=True)
@@ -89,6 +89,63 @@ def clears_table(gmap: GraspabilityMap, T_table_obj: np.ndarray, gripper: Grippe
     out = np.zeros(len(gmap), bool)
     for a in range(0, len(gmap), chunk):
         sl = slice(a, a + chunk)
-        T = T_table_obj @ make_transform(quat_to_matrix(gmap.wrist_quat[sl]), gmap.wrist_position[sl])
-        out[sl] = gripper.lowest_point(T, gripper.pregrasp_opening(gmap.width[sl])) >= clearance
+        out[sl] = heights_above(gripper, T_table_obj, gmap.wrist_quat[sl], gmap.wrist_position[sl],
+                                gmap.width[sl]) >= clearance
     return out
+
+
+def heights_above(gripper: GripperSpec, T_table_obj: np.ndarray, wrist_quat: np.ndarray,
+                  wrist_position: np.ndarray, width: np.ndarray) -> np.ndarray:
+    """(N,) lowest height [m] of the gripper above the table (frame ``T_table_obj`` in
+    the object frame) at wrist poses given by quaternions (N, 4) (w, x, y, z) and
+    positions (N, 3) in the object frame, jaws at the pre-grasp opening of contact
+    widths (N,) [m]."""
+    n, h = T_table_obj[2, :3], T_table_obj[2, 3]  # the table's z axis and offset in the object frame
+    up = _in_wrist_frames(wrist_quat, n)
+    height = np.asarray(wrist_position, float) @ n + h
+    return gripper.lowest_along(up, height, gripper.pregrasp_opening(width))
+
+
+def _in_wrist_frames(q_wxyz: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(N, 3) R(q)^T v: the object-frame vector ``v`` (3,) in each wrist frame of
+    quaternions (N, 4) (w, x, y, z; normalised here), without building the matrices."""
+    q = np.asarray(q_wxyz, float).reshape(-1, 4)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    x, y, z = -x, -y, -z  # the inverse rotation: v' = v + 2 w (u x v) + 2 u x (u x v)
+    tx, ty, tz = 2.0 * (y * v[2] - z * v[1]), 2.0 * (z * v[0] - x * v[2]), 2.0 * (x * v[1] - y * v[0])
+    return np.column_stack([v[0] + w * tx + (y * tz - z * ty), v[1] + w * ty + (z * tx - x * tz),
+                            v[2] + w * tz + (x * ty - y * tx)])
+
+
+def stream_order(n: int, first: int, growth: float, prefer=None, chunk: int = 4096):
+    """Yield the positions 0..n-1 in batches of growing size (``first``, then x
+    ``growth``), each ascending. ``prefer``: a function of positions (m,) returning
+    (m,) bool, evaluated lazily a ``chunk`` at a time: the positions it prefers stream
+    first, in order, the others after them (e.g. poses likely to clear a table, so a
+    streaming planner's first batches are not emptied by it). Every position is
+    yielded exactly once."""
+    size, grow = max(1, int(first)), max(float(growth), 1.0)
+    if prefer is None:
+        start = 0
+        while start < n:
+            yield np.arange(start, min(n, start + size))
+            start, size = start + size, int(size * grow)
+        return
+    queue, later = np.zeros(0, np.int64), []
+    for a in range(0, n, chunk):
+        pos = np.arange(a, min(n, a + chunk))
+        ok = np.asarray(prefer(pos), bool)
+        queue = np.concatenate([queue, pos[ok]])
+        later.append(pos[~ok])
+        while len(queue) >= size:
+            yield queue[:size]
+            queue, size = queue[size:], int(size * grow)
+    if len(queue):
+        yield queue
+        size = int(size * grow)
+    rest = np.concatenate(later) if later else np.zeros(0, np.int64)
+    start = 0
+    while start < len(rest):
+        yield rest[start:start + size]
+        start, size = start + size, int(size * grow)

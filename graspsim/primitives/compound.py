@@ -7,6 +7,7 @@ density, overlaps counted once); each part keeps its own object frame, placed by
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,10 +39,12 @@ class Compound:
                 f"a compound needs one pose per part and at least one part; got "
                 f"{len(parts)} parts, {len(poses)} poses"
             )
-        com, _ = _mass_properties(parts, poses)
+        com, volume = _mass_properties(parts, poses)
         shifted = poses.copy()
         shifted[:, :3, 3] -= com
-        return cls(parts, shifted)
+        out = cls(parts, shifted)
+        out.__dict__["volume"] = volume  # a shift keeps the volume: no second integration
+        return out
 
     # ------------------------------------------------------------------ geometry
     def _part_points(self, i: int, p: np.ndarray) -> np.ndarray:
@@ -105,8 +108,9 @@ class Compound:
         """Thinnest local width of any part [m] (a lower bound for the union's)."""
         return min(p.min_cross_section for p in self.parts)
 
-    @property
+    @functools.cached_property
     def volume(self) -> float:
+        """[m^3], integrated once per compound (overlaps on a grid: tens of ms)."""
         return _mass_properties(self.parts, self.poses)[1]
 
     @property

@@ -286,15 +286,17 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         match, src, stream = _part_stream(prim, db, cfg)
         parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i]))
         budget = cfg.robust.top if cfg.rank == "robust" else 0
+        # the part map's frame in the cloud's (a part's own frame until it is combined)
+        T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
         for part_map in stream:
-            if compound is not None:
-                part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
-                                        d_ref=obj_meta.quality["d_ref"], config=db.config, meta=obj_meta)
-            if observed is not None:
-                c = part_map.contacts.astype(float) @ T_cloud_obj[:3, :3].T + T_cloud_obj[:3, 3]
+            if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
+                c = part_map.contacts.astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
                 part_map = part_map.select(observed.borne_out(
                     c, tol=cfg.contact_tolerance, max_angle=db.quality.friction_angle,
                     min_observed=2 if ident.parts[i].approximate else 1))
+            if compound is not None:
+                part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
+                                        d_ref=obj_meta.quality["d_ref"], config=db.config, meta=obj_meta)
             if T_table_obj is not None:
                 clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)
                 n_below += int(len(clear) - clear.sum())

@@ -365,7 +365,7 @@ def _prepare(points: np.ndarray, cfg: IdentifyConfig, limit: int, noise: tuple[f
     kept = np.flatnonzero(keep)
     pts = pts_all[kept]
     check_solid(pts)
-    surf = estimate_local_surface(pts, robust=cfg.is_robust)
+    surf = estimate_local_surface(pts, robust=cfg.is_robust and noise is None)
     if noise is None:
         sigma = float(cfg.noise) if cfg.noise is not None else surf.noise
         noise = (sigma, sigma if cfg.noise is not None or not cfg.is_robust else surf.robust_noise)

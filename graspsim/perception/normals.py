@@ -179,10 +179,16 @@ def estimate_local_surface(points: np.ndarray, *, k: int = 16, noise_radius: flo
     base = [np.arange(n), cKDTree(p), 0.0]  # reference indices, their tree, voxel cell [m]
     state = list(base)
     last: dict = {}
+    first: dict = {}  # the unthinned neighbourhoods, measured once for every statistic
 
     def measure(stat):
-        nb, rad, near = _neighbourhoods(p, query, state[0], state[1], k)
-        fits = _local_fits(nb)
+        if state[2] == 0.0 and first:
+            nb, rad, near, fits = first["at"]
+        else:
+            nb, rad, near = _neighbourhoods(p, query, state[0], state[1], k)
+            fits = _local_fits(nb)
+            if state[2] == 0.0:
+                first["at"] = nb, rad, near, fits
         last.update(cell=state[2], fits=fits, rad=rad)
         return stat(nb, fits[3]), float(np.median(fits[3])), float(np.median(rad)), float(np.median(near))
 

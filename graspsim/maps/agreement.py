@@ -69,24 +69,27 @@ class ObservedSurface:
         u = c[:, 1] - c[:, 0]
         half = 0.5 * np.linalg.norm(u, axis=1)
         u /= np.maximum(2.0 * half, 1e-12)[:, None]
+        enough = seen.sum(axis=1) >= min_observed  # the rest fail whatever their normals
+        live = np.repeat(enough, 2)
         shown = seen.reshape(-1).copy()
-        self._probe(c, u, half, tol, shown, j)
+        self._probe(c, u, half, tol, shown, j, live)
         agree = np.ones(seen.size, bool)
-        flat = np.flatnonzero(shown)
+        flat = np.flatnonzero(shown & live)
         if len(flat):
             uniq, inv = np.unique(j[flat], return_inverse=True)
             n = self.normals_at(uniq)[inv.reshape(-1)]
             cos = np.abs(np.einsum("ij,ij->i", n, np.repeat(u, 2, axis=0)[flat]))
             agree[flat] = cos >= np.cos(max_angle)
-        return np.all(agree.reshape(-1, 2), axis=1) & (seen.sum(axis=1) >= min_observed)
+        return np.all(agree.reshape(-1, 2), axis=1) & enough
 
     def _probe(self, c: np.ndarray, u: np.ndarray, half: np.ndarray, tol: float,
-               shown: np.ndarray, j: np.ndarray) -> None:
-        """For the unobserved contacts (``shown`` False, flat index g * 2 + side), the
+               shown: np.ndarray, j: np.ndarray, live: np.ndarray) -> None:
+        """For the unobserved contacts still in question (``shown`` False, ``live``
+        True; flat index g * 2 + side), the
         first cloud point within ``tol`` of the closing line inwards of the contact, up
         to the grasp's middle: ``shown`` set and ``j`` (the nearest point's index)
         replaced where there is one. In place."""
-        miss = np.flatnonzero(~shown)
+        miss = np.flatnonzero(~shown & live)
         if not len(miss):
             return
         g, side = miss // 2, miss % 2

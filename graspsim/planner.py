@@ -26,6 +26,7 @@ from enum import Enum
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
+from graspsim.maps.agreement import ObservedSurface
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import object_description
@@ -60,8 +61,11 @@ class PlannerConfig:
     table: the plane the object stands on (cloud frame); poses that would take the
         gripper below it are dropped from every batch. None (default, as the paper):
         the map ignores the table.
-    contact_tolerance: a grasp on a part identified only approximately (robust mode) is
-        kept only where both its contacts lie within this distance [m] of the cloud.
+    contact_tolerance: robust identification: a grasp is kept only where the cloud bears
+        it out (:mod:`~graspsim.maps.agreement`): its contacts observed -- a cloud point
+        within this distance [m] -- both of them on a part identified only
+        approximately, at least one on any other part, and the cloud's normal at every
+        observed contact within the friction cone about the closing line.
     rank: ``"robust"`` (default): score the best-graded grasps for robustness
         (``robust``) and order by the robust score; ``"paper"``: the paper's grade.
     robust: the robustness settings (pose error, perturbations, grasps scored per part).
@@ -294,18 +298,24 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     n_hi = 0
     t_robust = 0.0
     cloud_obj = cloud_in_object(points, T_cloud_obj)
+    observed = ObservedSurface(points) if ident is not None and ident.mode == "robust" else None
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):
         match, src, stream = _part_stream(prim, db, cfg,
                                           None if T_table_obj is None else T_table_obj @ T_obj_part[i])
         parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i]))
         budget = cfg.robust.top if cfg.rank == "robust" else 0
+        # the part map's frame in the cloud's (a part's own frame until it is combined)
+        T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
         for part_map in stream:
+            if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
+                c = part_map.contacts.astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
+                part_map = part_map.select(observed.borne_out(
+                    c, tol=cfg.contact_tolerance, max_angle=db.quality.friction_angle,
+                    min_observed=2 if ident.parts[i].approximate else 1))
             if compound is not None:
                 part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
                                         d_ref=obj_meta.quality["d_ref"], config=db.config, meta=obj_meta)
-            if ident is not None and ident.parts[i].approximate:
-                part_map = part_map.select(_near_cloud(part_map, points, T_cloud_obj, cfg.contact_tolerance))
             if T_table_obj is not None:
                 clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)
                 n_below += int(len(clear) - clear.sum())
@@ -367,18 +377,6 @@ def _last(stream) -> PlanResult:
     if not isinstance(result, PlanResult):  # pragma: no cover - the stream always ends so
         raise InvalidParameterError("planner produced no result")
     return result
-
-
-def _near_cloud(gmap: GraspabilityMap, points: np.ndarray, T_cloud_obj: np.ndarray, tol: float) -> np.ndarray:
-    """(N,) bool: both contacts of each grasp (object frame) within ``tol`` [m] of the
-    cloud (N, 3) -- where an approximate primitive's surface agrees with the points."""
-    from scipy.spatial import cKDTree
-
-    if not len(gmap):
-        return np.zeros(0, bool)
-    c = gmap.contacts.reshape(-1, 3) @ T_cloud_obj[:3, :3].T + T_cloud_obj[:3, 3]
-    d = cKDTree(np.asarray(points, float)).query(c, k=1, distance_upper_bound=tol)[0]
-    return np.all(np.isfinite(d).reshape(-1, 2), axis=1)
 
 
 def _table_height(table: TablePlane, points: np.ndarray, shape, T_cloud_obj: np.ndarray) -> float:

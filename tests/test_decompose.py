@@ -139,16 +139,24 @@ def test_a_bottle_with_a_short_neck_is_two_or_three_cylinders(seed):
     assert radii[0] == pytest.approx(0.012, abs=0.003) and radii[-1] == pytest.approx(0.03, abs=0.003)
 
 
-@pytest.mark.parametrize("seed", [0, 1])
-def test_a_mug_is_a_cylinder_and_a_half_toroid(seed):
-    pts = _posed(mug(), seed)
-    paper = identify(pts, rng=np.random.default_rng(seed), config=IdentifyConfig.preset("paper"))
-    assert _kinds(paper) == ["cylinder"]  # the paper accepts the body and forgets the handle
-    res = identify(pts, rng=np.random.default_rng(seed))
-    assert _kinds(res) == ["cylinder", "half_toroid"]
-    (handle,) = [p for p in res.parts if p.shape.value == "half_toroid"]
-    assert handle.dims["major_radius"] == pytest.approx(0.028, abs=0.004)
-    assert handle.dims["minor_radius"] == pytest.approx(0.007, abs=0.002)
+def test_a_mug_is_a_cylinder_and_a_half_toroid():
+    """Over eight poses: the paper accepts the body and forgets the handle; robust mode
+    peels the handle off every time, as a half-toroid at least six times in eight (its
+    points fit a box about as well in the others; before the noise estimate was made
+    robust, three in eight)."""
+    toroids = 0
+    for seed in range(8):
+        pts = _posed(mug(), seed)
+        if seed < 2:
+            paper = identify(pts, rng=np.random.default_rng(seed), config=IdentifyConfig.preset("paper"))
+            assert _kinds(paper) == ["cylinder"]
+        res = identify(pts, rng=np.random.default_rng(seed))
+        assert len(res.parts) == 2 and "cylinder" in _kinds(res)
+        for handle in [p for p in res.parts if p.shape.value == "half_toroid"]:
+            toroids += 1
+            assert handle.dims["major_radius"] == pytest.approx(0.028, abs=0.004)
+            assert handle.dims["minor_radius"] == pytest.approx(0.007, abs=0.002)
+    assert toroids >= 6
 
 
 def test_a_rounded_box_is_a_box_in_robust_mode_only():
@@ -211,3 +219,30 @@ def test_over_split_neighbours_of_one_kind_are_merged():
     merged = dc._merged(ctx, [(p, None) for p in parts])
     assert len(merged) == 1 and merged[0][0].shape.value == "cylinder"
     assert merged[0][0].dims["height"] == pytest.approx(0.12, abs=0.006)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_noise_check_passes_a_thin_body_and_refuses_a_noisy_one_in_robust_mode(seed):
+    """Issue 15: E09's domino (and lego, mug, teddy) got no grasp in robust mode: the
+    noise estimate, inflated by thin walls, failed the check (noise <= 3 % of the
+    cluster's size). Paper mode keeps the paper's estimate and refuses it as before; a
+    cloud that really is too noisy is refused in both."""
+    rng = np.random.default_rng(seed)
+    p = Box(0.00635, 0.0254, 0.0508).surface_samples(0.001).points
+    p = p[rng.choice(len(p), 400, replace=False)]
+    clean, loud = p + rng.normal(0.0, 0.001, p.shape), p + rng.normal(0.0, 0.0027, p.shape)
+    robust = identify(clean, rng=np.random.default_rng(0), config=IdentifyConfig.preset("robust"))
+    assert robust.status is IdentificationStatus.IDENTIFIED and robust.parts[0].shape.value == "box"
+    for mode, cloud in (("paper", clean), ("robust", loud)):
+        r = identify(cloud, rng=np.random.default_rng(0), config=IdentifyConfig.preset(mode))
+        assert r.status is IdentificationStatus.FAILED and "too large" in r.unidentified[0].reason
+
+
+def test_robust_decomposition_keeps_the_dense_clouds_noise():
+    """The decomposition re-identifies a dense cloud thinned to ``robust_points``; the
+    sensor's noise is the dense cloud's (thinning keeps real points), not a new estimate
+    on the sparse one, which wider neighbourhoods inflate (a mug: 1.6 -> 5.5 mm)."""
+    p = _posed(short_neck_bottle(), 0, resolution=0.002)
+    r = identify(p, rng=np.random.default_rng(0), config=IdentifyConfig.preset("robust"))
+    assert r.downsampling is not None and r.downsampling.used_points <= 1200
+    assert 0.6e-3 <= r.noise <= 1.1e-3

@@ -264,6 +264,6 @@ def test_known_familiar_decision():
     assert d.max_diff == pytest.approx(0.02)
     assert classify_match("sphere", {"radius": 0.02}, stored).match is MatchKind.BUILD
     # boxes compare sorted edges
-    assert classify_match("box", {"x": 0.04, "y": 0.06, "z": 0.1}, stored).match is MatchKind.KNOWN
+    assert classify_match("box", {"x": 0.06, "y": 0.04, "z": 0.1}, stored).match is MatchKind.KNOWN
     with pytest.raises(InvalidParameterError, match="dims"):
         classify_match("cylinder", {"radius": 0.02}, stored)

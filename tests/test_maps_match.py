@@ -46,8 +46,16 @@ def test_zero_dimensions_match_only_zero():
     assert d.match is MatchKind.BUILD and d.ratio == math.inf
 
 
-def test_boxes_compare_sorted_edges_and_bad_input():
-    assert _m("box", x=0.06, y=0.04, z=0.1).match is MatchKind.KNOWN
+def test_boxes_compare_edges_by_name_as_scaling_pairs_them_and_bad_input():
+    assert _m("box", x=0.04, y=0.06, z=0.1).match is MatchKind.KNOWN
+    # the same box with x and y swapped is not the stored map's frame: 2 cm off on x
+    d = _m("box", x=0.06, y=0.04, z=0.1)
+    assert d.match is MatchKind.FAMILIAR and d.ratio == pytest.approx(1.5) and d.max_diff == pytest.approx(0.02)
+    # 10 x 6 x 4 cm stored, 3 x 6 x 10 cm queried: sorted edges differ by x 1.33, but
+    # scaling pairs x with x (x 3.33), beyond a range of 3: the box's own map is built
+    flat = [{"primitive": "box", "dims": {"x": 0.10, "y": 0.06, "z": 0.04}}]
+    d = match_entries("box", {"x": 0.03, "y": 0.06, "z": 0.10}, flat, tol=0.01, max_ratio=3.0)
+    assert d.match is MatchKind.BUILD and d.ratio == pytest.approx(0.10 / 0.03)
     with pytest.raises(InvalidParameterError, match="dims"):
         _m("cylinder", radius=0.02)
     with pytest.raises(InvalidParameterError, match="tol"):

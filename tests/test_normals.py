@@ -67,3 +67,24 @@ def test_validation_and_outliers(rng):
     q = np.vstack([p, [[0.05, 0.05, 0.08]]])
     keep = remove_outliers(q)
     assert not keep[-1] and keep[:-1].mean() > 0.99
+
+
+def _thin_box_cloud(seed, sigma):
+    """A domino (6.35 x 25.4 x 50.8 mm) sampled with 400 points, as E09's full cloud."""
+    from graspsim.primitives import Box
+
+    rng = np.random.default_rng(seed)
+    p = Box(0.00635, 0.0254, 0.0508).surface_samples(0.001).points
+    return p[rng.choice(len(p), 400, replace=False)] + rng.normal(0.0, sigma, (400, 3))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_robust_noise_is_not_inflated_by_a_thin_body_and_still_sees_real_noise(seed):
+    """Both faces of a 6 mm thin body and its edges lie within most neighbourhoods of a
+    sparse cloud: the upper quartile reads 1 mm noise as ~2.7 mm; the robust estimate
+    reads it within 25 %, and 2.7 mm of noise as at least 2.4 mm."""
+    p = _thin_box_cloud(seed, 0.001)
+    assert estimate_local_surface(p).noise > 2.2e-3  # the bias being fixed
+    assert 0.8e-3 <= estimate_local_surface(p, robust=True).robust_noise <= 1.25e-3
+    loud = _thin_box_cloud(seed, 0.0027)
+    assert estimate_local_surface(loud, robust=True).robust_noise >= 2.4e-3

@@ -20,9 +20,14 @@ so a flat 4.5 x 9.3 x 17.6 cm box scaled from it could only be grasped from the 
 and on a table not at all. Such a stored map is passed over; with none left the
 primitive's own map is built.
 
-Boxes are compared on their sorted edge lengths (a box is the same box whichever edge is
-called x); the planner queries boxes with ascending edges (x <= y <= z) and scales a
-stored box by edge name, so stored boxes should keep that order too (the paper's is a cube).
+Every primitive, boxes included, is compared dimension by dimension *by name*, the way
+the stored map is then used: a known map serves in its own frame and scaling carries each
+named dimension to the same name (``scaling.scale_factors``). Sorting a box's edges here
+would call a stored 10 x 6 x 4 cm box the same as the query's 4 x 6 x 10 cm one, and its
+map would then be scaled 2.5-fold per edge (or used as is, every grasp in the wrong place).
+The planner queries boxes with ascending edges (x <= y <= z), and the maps it builds keep
+that order, so its own boxes pair edge for edge; a stored box in another order is only as
+near as its named edges are.
 Pure: takes the database's index records, reads no file.
 """
 
@@ -73,18 +78,15 @@ def _dims_of(entry: dict, dims: dict[str, float], kind: str) -> dict[str, float]
     return other
 
 
-def _pairs(kind: str, dims: dict[str, float], other: dict[str, float]) -> list[tuple[float, float]]:
-    """(query, stored) value pairs: by name, or sorted edges for boxes."""
-    if kind == "box":
-        return list(zip(sorted(map(float, dims.values())), sorted(map(float, other.values()))))
+def _pairs(dims: dict[str, float], other: dict[str, float]) -> list[tuple[float, float]]:
+    """(query, stored) value pairs, by name (as scaling pairs them)."""
     return [(float(dims[n]), float(other[n])) for n in dims]
 
 
 def _chords(kind: str, d: dict[str, float]) -> dict[str, float]:
     """The chord widths [m] a grasp of a primitive closes across, by name."""
-    if kind == "box":
-        x, y, z = sorted(d.values())
-        return {"x": x, "y": y, "z": z}
+    if kind == "box":  # by name: scaling keeps a grasp's approach along the same edge
+        return {"x": d["x"], "y": d["y"], "z": d["z"]}
     if kind == "sphere":
         return {"d": 2 * d["radius"]}
     if kind == "cylinder":
@@ -97,7 +99,7 @@ def _chords(kind: str, d: dict[str, float]) -> dict[str, float]:
 #: per kind, the families of approach directions, each with the chords a grasp from
 #: them may close across (any one will do)
 _APPROACHES: dict[str, tuple[tuple[str, ...], ...]] = {
-    "box": (("y", "z"), ("x", "z"), ("x", "y")),  # along x, y, z (edges ascending)
+    "box": (("y", "z"), ("x", "z"), ("x", "y")),  # along x, y, z
     "sphere": (("d",),),
     "cylinder": (("d",), ("d", "h")),  # along the axis; from the side
     "cone": (("d",), ("d", "h")),
@@ -132,7 +134,7 @@ def match_entries(kind: str, dims: dict[str, float], entries: Iterable[dict], *,
         stored = _dims_of(e, dims, kind)
         if max_width is not None and not covers(kind, dims, stored, max_width):
             continue
-        pairs = _pairs(kind, dims, stored)
+        pairs = _pairs(dims, stored)
         r = max([1.0, *(_ratio(v, w) for v, w in pairs)])
         d = max(abs(v - w) for v, w in pairs)
         if best is None or r < best[0]:

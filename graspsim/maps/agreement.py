@@ -1,0 +1,105 @@
+"""Whether an adapted grasp is borne out by the observed cloud (robust mode).
+
+An adapted map's grasps are made on the identified primitives, and a primitive is only
+as good as its fit. Where a decomposition's parts are coarse -- a half-toroid laid over a
+ring's hole, a sphere over a knobbly end, a box over a rounded body -- the map can offer
+grasps whose contacts lie centimetres from any observed point: the fingers close on air
+(NO_CONTACT), or touch the real surface where it slopes and the object turns in the hand
+(PLACE_FAILED) or slides out (DROPPED). In E09 (full clouds, robust identification) every
+failed trial of the published run had such contacts; the contacts of the successful ones
+lay within the noise of the cloud.
+
+A contact is *observed* when a cloud point lies within ``tol`` of it. Where none does,
+the finger closing along the line goes on past it, and the cloud says where it will
+touch: the first observed point within ``tol`` of the closing line, probed inwards from
+the contact to the grasp's middle (none: the surface there was not seen -- the far side
+of a single view). Every contact the cloud shows, at its place or further in, must
+*agree*: the cloud's own surface normal there (PCA over the ``k`` nearest points) within
+the friction cone about the closing line -- the condition the map's grade assumed for
+the primitive's normal. And at least ``min_observed`` contacts must be observed at their
+place: 2 where the part is only approximate (its surface is trusted only where the
+points confirm it), else 1 -- a single view does not see the far side of an object,
+where the second contact of most grasps lies.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from graspsim.errors import InvalidParameterError
+
+__all__ = ["ObservedSurface"]
+
+
+class ObservedSurface:
+    """The observed points (N, 3) [m] of one plan, indexed once for every batch."""
+
+    def __init__(self, points: np.ndarray, *, k: int = 16) -> None:
+        p = np.asarray(points, float)
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise InvalidParameterError(f"points must be (N, 3), got shape {p.shape}")
+        self.points = p[np.all(np.isfinite(p), axis=1)]
+        self.k = int(min(k, max(len(self.points) - 1, 1)))
+        self.tree = cKDTree(self.points) if len(self.points) else None
+        self._normals: dict[int, np.ndarray] = {}
+
+    def normals_at(self, index: np.ndarray) -> np.ndarray:
+        """(M, 3) unit normals (sign arbitrary) of the surface at cloud points ``index``
+        (M,): the least-variance axis of each point's k nearest points."""
+        index = np.asarray(index, np.int64)
+        _, nb = self.tree.query(self.points[index], k=self.k + 1)
+        q = self.points[nb]
+        q = q - q.mean(axis=1, keepdims=True)
+        _, vecs = np.linalg.eigh(np.matmul(q.transpose(0, 2, 1), q))
+        return vecs[:, :, 0]
+
+    def borne_out(self, contacts: np.ndarray, *, tol: float, max_angle: float,
+                  min_observed: int) -> np.ndarray:
+        """(G,) bool for grasps with ``contacts`` (G, 2, 3) in the cloud's frame [m]: see
+        the module docstring. tol [m]; max_angle: the friction cone's half-angle [rad];
+        min_observed: 1 or 2."""
+        if min_observed not in (1, 2):
+            raise InvalidParameterError(f"min_observed must be 1 or 2, got {min_observed!r}")
+        c = np.asarray(contacts, float)
+        if not len(c) or self.tree is None:
+            return np.zeros(len(c), bool)
+        d, j = self.tree.query(c.reshape(-1, 3), k=1, distance_upper_bound=tol)
+        seen = np.isfinite(d).reshape(-1, 2)
+        u = c[:, 1] - c[:, 0]
+        half = 0.5 * np.linalg.norm(u, axis=1)
+        u /= np.maximum(2.0 * half, 1e-12)[:, None]
+        enough = seen.sum(axis=1) >= min_observed  # the rest fail whatever their normals
+        live = np.repeat(enough, 2)
+        shown = seen.reshape(-1).copy()
+        self._probe(c, u, half, tol, shown, j, live)
+        agree = np.ones(seen.size, bool)
+        flat = np.flatnonzero(shown & live)
+        if len(flat):
+            uniq, inv = np.unique(j[flat], return_inverse=True)
+            n = self.normals_at(uniq)[inv.reshape(-1)]
+            cos = np.abs(np.einsum("ij,ij->i", n, np.repeat(u, 2, axis=0)[flat]))
+            agree[flat] = cos >= np.cos(max_angle)
+        return np.all(agree.reshape(-1, 2), axis=1) & enough
+
+    def _probe(self, c: np.ndarray, u: np.ndarray, half: np.ndarray, tol: float,
+               shown: np.ndarray, j: np.ndarray, live: np.ndarray) -> None:
+        """For the unobserved contacts still in question (``shown`` False, ``live``
+        True; flat index g * 2 + side), the
+        first cloud point within ``tol`` of the closing line inwards of the contact, up
+        to the grasp's middle: ``shown`` set and ``j`` (the nearest point's index)
+        replaced where there is one. In place."""
+        miss = np.flatnonzero(~shown & live)
+        if not len(miss):
+            return
+        g, side = miss // 2, miss % 2
+        inward = np.where(side[:, None] == 0, u[g], -u[g])
+        steps = np.arange(1, int(np.ceil(half[g].max() / tol)) + 1) * tol  # (S,)
+        probe = c[g, side][:, None, :] + steps[None, :, None] * inward[:, None, :]  # (M, S, 3)
+        within = steps[None, :] <= half[g][:, None]
+        dd, jj = self.tree.query(probe.reshape(-1, 3), k=1, distance_upper_bound=tol)
+        hit = (np.isfinite(dd).reshape(probe.shape[:2]) & within)
+        any_hit = hit.any(axis=1)
+        first = np.argmax(hit, axis=1)
+        shown[miss[any_hit]] = True
+        j[miss[any_hit]] = jj.reshape(probe.shape[:2])[any_hit, first[any_hit]]

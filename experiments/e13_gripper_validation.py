@@ -29,6 +29,7 @@ from _common import RunRecord, map_config, md_table, opt, parse_config, rate_ci,
 
 from graspsim.calibration import CalibrationCase, SimCondition, simulate_samples, wilson_interval
 from graspsim.calibration.trials import CaseSample, case_clears_table
+from graspsim.errors import NoFeasibleGraspError
 from graspsim.grippers import get_gripper
 from graspsim.maps.database import PAPER_SHAPES, size_grid
 from graspsim.maps.generate import MapConfig, generate_fs_map
@@ -69,7 +70,13 @@ def cases(cfg: Config, gripper) -> tuple[list[CaseSample], list[dict]]:
     samples, info = [], []
     for name in cfg.primitives:
         for s, shape in zip(cfg.sizes, size_grid(PAPER_SHAPES[name], cfg.sizes)):
-            fs = generate_fs_map(shape, gripper, config=cfg.map_config, threads=cfg.threads)
+            try:
+                fs = generate_fs_map(shape, gripper, config=cfg.map_config, threads=cfg.threads)
+            except NoFeasibleGraspError as err:  # wider than the gripper opens, everywhere
+                info.append({"case": f"{name}@{s:g}", "primitive": name, "size": s, "shape": shape.to_dict(),
+                             "map_grasps": 0, "accepted": 0, "accepted_clear_of_table": 0, "drawn": 0,
+                             "why_none": str(err)})
+                continue
             case = CalibrationCase(f"{name}@{s:g}", fs, group=name, kind="fs")
             eligible = np.flatnonzero((fs.grade > 0.7) & case_clears_table(case))
             rng = rng_for(cfg.seed, case.name)
@@ -142,9 +149,13 @@ def readme_section(s: dict) -> str:
             rate_ci(r["success"], r["of"], r["ci"]) if r["of"] else "–"] for r in s["per_case"]]
     L += ["Per size:", "", md_table(["map", "grasps > 0.7", "of them clear of the table", "success of feasible"],
                                     per), ""]
-    if s["impossible"]:
-        L.append(f"No grasp > 0.7 clear of the table: {', '.join(s['impossible'])} (the gripper's widest "
-                 f"chord is {1000 * s['widest_chord']:g} mm: opening minus the approach clearance).")
+    for r in s["per_case"]:
+        if not r["drawn"]:
+            why = r.get("why_none") or (
+                f"{r['map_grasps']} collision-free grasps, none > 0.7 (the widest chord the gripper takes is "
+                f"{1000 * s['widest_chord']:g} mm: its opening minus the approach clearance)" if not r["accepted"]
+                else f"none of its {r['accepted']} grasps > 0.7 keeps the gripper clear of the table")
+            L.append(f"- {r['case']}: impossible: {why}")
     return "\n".join(L) + "\n"
 
 

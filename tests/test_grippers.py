@@ -120,6 +120,14 @@ def test_unknown_names_and_missing_files_are_errors(tmp_path):
         get_gripper(str(tmp_path / "missing.json"))
     with pytest.raises(GripperError, match="no vendored gripper model"):
         mount("robotiq_2f85")
+    for odd in ("a\0b.json", str(tmp_path)):  # a NUL byte, a folder
+        with pytest.raises(GripperError):
+            get_gripper(odd)
+    huge = tmp_path / "huge.json"
+    with huge.open("wb") as f:
+        f.truncate(2 << 20)  # sparse: refused by its size, never read
+    with pytest.raises(GripperError, match="a small JSON file"):
+        get_gripper(huge)
 
 
 def test_optional_fields_leave_the_default_spec_and_its_digest_unchanged():

@@ -75,6 +75,11 @@ class EnvConfig:
         candidate is executed at the one its robust score chose (GraspSelect; the
         ``extra_opening`` candidate column). ``(0.0,)``: the map's opening, as the
         paper.
+    gripper: the gripper: a registered name (``"festo_hgpl_25_60_a"``, ``"franka_hand"``),
+        a spec .json or a :class:`~graspsim.gripper.GripperSpec`; its own FS maps (the
+        database keys maps by the gripper) and its own simulated model. The object sets'
+        size ranges were chosen for the Festo: a smaller gripper redraws objects it cannot
+        grasp (``max_redraws``).
     """
 
     objects: str | tuple[str, ...] = "primitives"
@@ -101,6 +106,7 @@ class EnvConfig:
     max_redraws: int = 20
     threads: int = 1
     openings: tuple[float, ...] = (0.0, 0.003, 0.006, 0.010)
+    gripper: object = "festo_hgpl_25_60_a"
 
     def __post_init__(self) -> None:
         objects = self.objects if isinstance(self.objects, str) else tuple(self.objects)
@@ -151,6 +157,9 @@ class EnvConfig:
             raise InvalidParameterError(f"map_config must be a MapConfig or None, got {self.map_config!r}")
         if self.db_root is not None:
             object.__setattr__(self, "db_root", str(self.db_root))
+        from graspsim.grippers import get_gripper
+
+        get_gripper(self.gripper)  # raises GripperError (an InvalidParameterError) on a bad one
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -159,6 +168,7 @@ class EnvConfig:
         d["protocol"] = p if isinstance(p, str) else p.to_dict()
         d["map_config"] = None if self.map_config is None else self.map_config.to_dict()
         d["openings"] = list(self.openings)
+        d["gripper"] = self.gripper if isinstance(self.gripper, str) else self.gripper.to_dict()
         return d
 
 

@@ -38,7 +38,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
 
 __all__ = ["GripperPhysics", "GripperNames", "NAMES", "build_gripper_spec", "gripper_xml",
-           "opening_to_qpos"]
+           "opening_to_qpos", "add_wrist", "add_weld", "drive_force"]
 
 
 @dataclass(frozen=True)
@@ -114,6 +114,17 @@ _DARK = (0.25, 0.27, 0.3, 1.0)
 _PAD = (0.15, 0.15, 0.15, 1.0)
 
 
+def drive_force(gripper: GripperSpec, grip_force: float | None, condim: int) -> float:
+    """The grip force per jaw [N] a model is built with (``grip_force`` or the spec's),
+    validated with the pad contact dimension."""
+    force = float(gripper.grip_force if grip_force is None else grip_force)
+    if not (np.isfinite(force) and force > 0):
+        raise InvalidParameterError(f"grip_force must be > 0 N, got {grip_force!r}")
+    if condim not in (1, 3, 4, 6):
+        raise InvalidParameterError(f"condim must be 1, 3, 4 or 6, got {condim!r}")
+    return force
+
+
 def build_gripper_spec(
     gripper: GripperSpec = HGPL_25_60_A,
     physics: GripperPhysics = GripperPhysics(),
@@ -131,24 +142,13 @@ def build_gripper_spec(
     home_pos / home_quat (w, x, y, z): the wrist pose in the world at ``qpos0``
     (default: 35 cm up, approach pointing down).
     """
-    force = float(gripper.grip_force if grip_force is None else grip_force)
-    if not (np.isfinite(force) and force > 0):
-        raise InvalidParameterError(f"grip_force must be > 0 N, got {grip_force!r}")
-    if condim not in (1, 3, 4, 6):
-        raise InvalidParameterError(f"condim must be 1, 3, 4 or 6, got {condim!r}")
+    force = drive_force(gripper, grip_force, condim)
     g, n = gripper, NAMES
     spec = mujoco.MjSpec()
     spec.modelname = g.name
     spec.compiler.degree = False
 
-    target = spec.worldbody.add_body(name=n.target, mocap=True, pos=home_pos, quat=home_quat)
-    target.add_site(name="wrist_target", size=[0.005] * 3, rgba=[0.9, 0.2, 0.2, 0.4], group=4)
-
-    wrist = spec.worldbody.add_body(name=n.wrist, pos=home_pos, quat=home_quat, gravcomp=1.0)
-    wrist.add_freejoint(name=n.wrist)
-    wrist.add_site(name="wrist", size=[0.005] * 3, rgba=[0.2, 0.2, 0.9, 0.4], group=4)
-    wrist.add_site(name="tcp", pos=g.nominal_tcp,
-                   size=[0.004] * 3, rgba=[0.2, 0.9, 0.2, 0.4], group=4)
+    wrist = add_wrist(spec, g, home_pos, home_quat)
     boxes = g.collision_boxes()
     parts = dict(zip(boxes.names, zip(boxes.centers, boxes.half_extents)))
     c, h = parts["housing"]
@@ -173,10 +173,7 @@ def build_gripper_spec(
         )
     spec.add_exclude(bodyname1=n.jaw_neg, bodyname2=n.jaw_pos)
 
-    weld = spec.add_equality(name=n.weld, type=mujoco.mjtEq.mjEQ_WELD,
-                             objtype=mujoco.mjtObj.mjOBJ_BODY, name1=n.wrist, name2=n.target)
-    weld.data[:11] = [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1]
-    weld.solref = physics.weld_solref
+    add_weld(spec, physics)
     sync = spec.add_equality(name=n.sync, type=mujoco.mjtEq.mjEQ_JOINT,
                              objtype=mujoco.mjtObj.mjOBJ_JOINT, name1=n.jaw_pos, name2=n.jaw_neg)
     sync.data[:5] = [0, 1, 0, 0, 0]
@@ -191,6 +188,28 @@ def build_gripper_spec(
     act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
     act.ctrlrange = [-1.0, 1.0]
     return spec
+
+
+def add_wrist(spec: mujoco.MjSpec, gripper: GripperSpec, home_pos, home_quat) -> mujoco.MjsBody:
+    """The mocap target and the free, gravity-compensated wrist body with its ``wrist``
+    and ``tcp`` sites (the wrist frame of :class:`GripperSpec`); returns the wrist."""
+    n = NAMES
+    target = spec.worldbody.add_body(name=n.target, mocap=True, pos=home_pos, quat=home_quat)
+    target.add_site(name="wrist_target", size=[0.005] * 3, rgba=[0.9, 0.2, 0.2, 0.4], group=4)
+    wrist = spec.worldbody.add_body(name=n.wrist, pos=home_pos, quat=home_quat, gravcomp=1.0)
+    wrist.add_freejoint(name=n.wrist)
+    wrist.add_site(name="wrist", size=[0.005] * 3, rgba=[0.2, 0.2, 0.9, 0.4], group=4)
+    wrist.add_site(name="tcp", pos=gripper.nominal_tcp,
+                   size=[0.004] * 3, rgba=[0.2, 0.9, 0.2, 0.4], group=4)
+    return wrist
+
+
+def add_weld(spec: mujoco.MjSpec, physics: GripperPhysics) -> None:
+    """The weld pulling the wrist to its mocap target (the arm)."""
+    weld = spec.add_equality(name=NAMES.weld, type=mujoco.mjtEq.mjEQ_WELD,
+                             objtype=mujoco.mjtObj.mjOBJ_BODY, name1=NAMES.wrist, name2=NAMES.target)
+    weld.data[:11] = [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1]
+    weld.solref = physics.weld_solref
 
 
 def gripper_xml(gripper: GripperSpec = HGPL_25_60_A,

@@ -75,6 +75,7 @@ _LAZY: dict[str, str] = {
     **_from("graspsim.maps.metrics", "map_rates"),
     **_from("graspsim.maps.database", "MapDatabase"),
     **_from("graspsim.maps.robust", "RobustConfig", "score_map"),
+    **_from("graspsim.maps.regrip", "adapt_to_gripper"),
     # run-time planning: point cloud (or known shape) -> adapted map
     **_from("graspsim.planner", "plan", "plan_shape", "PlannerConfig", "PlanResult", "PlanStatus",
             "TablePlane"),

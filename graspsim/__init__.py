@@ -14,7 +14,8 @@ The names users reach for first are here, one import away::
     result = gs.plan(cloud.points, db=gs.MapDatabase(), rng=np.random.default_rng(0))
 
 * shapes: ``Box``, ``Cylinder``, ``Sphere``, ``Cone``, ``HalfToroid``, ``Compound``,
-  ``make_primitive``, ``synthetic_cloud``; the gripper: ``GripperSpec``, ``HGPL_25_60_A``;
+  ``make_primitive``, ``synthetic_cloud``; the gripper: ``GripperSpec``, ``HGPL_25_60_A``,
+  ``get_gripper`` (``"festo_hgpl_25_60_a"``, ``"franka_hand"`` or a spec .json);
   the grade: ``QualityModel``, ``get_grade``, ``regrade``.
 * maps: ``generate_fs_map``, ``MapConfig``, ``GraspabilityMap``, ``load_map``,
   ``save_map``, ``map_rates``, ``MapDatabase``; robust scores (clearance to the observed
@@ -66,6 +67,7 @@ _LAZY: dict[str, str] = {
             "Compound", "make_primitive", "synthetic_cloud"),
     # gripper and grades
     **_from("graspsim.gripper", "GripperSpec", "HGPL_25_60_A"),
+    **_from("graspsim.grippers", "get_gripper", "gripper_names"),
     **_from("graspsim.quality", "QualityModel"),
     **_from("graspsim.grades", "get_grade", "regrade", "PaperGrade", "LogisticGrade"),
     # maps: generation, files, metrics, the full-scale database

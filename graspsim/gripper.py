@@ -82,12 +82,25 @@ class GripperSpec:
     finger_mass: float = 0.043
     # Robot wrist behind the flange, kept out of the object by the planner.
     arm_length: float = 0.10
+    # Grip force per jaw [N] as its maker rates it (an electric gripper); None: the
+    # pneumatic efficiency x pressure x piston area above. Left out of ``to_dict`` when
+    # None, so the digests of specs without it do not change.
+    rated_force: float | None = None
+    # The vendored MuJoCo model that simulates this gripper (folder ``mjcf/<model>/``,
+    # see graspsim.grippers); None: the box model generated from this spec. Left out of
+    # ``to_dict`` when None.
+    model: str | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise GripperError(f"gripper name must be a non-empty string, got {self.name!r}")
         for f in fields(self)[1:]:
-            object.__setattr__(self, f.name, _checked(f.name, getattr(self, f.name), isinstance(f.default, tuple)))
+            v = getattr(self, f.name)
+            if f.name == "model":
+                if v is not None and not (isinstance(v, str) and v.isidentifier()):
+                    raise GripperError(f"model must be a model folder name like 'franka_hand' or null, got {v!r}")
+            elif not (f.name in _OPTIONAL and v is None):
+                object.__setattr__(self, f.name, _checked(f.name, v, isinstance(f.default, tuple)))
         if not 0 < self.efficiency <= 1:
             raise GripperError(f"efficiency must be in (0, 1], got {self.efficiency!r}")
         if self.pad_length > self.finger_size[2]:
@@ -121,7 +134,10 @@ class GripperSpec:
 
     @property
     def grip_force(self) -> float:
-        """Closing force per jaw [N]: efficiency * pressure * pi * bore^2 / 4."""
+        """Closing force per jaw [N]: ``rated_force`` if given, else the pneumatic
+        efficiency * pressure * pi * bore^2 / 4."""
+        if self.rated_force is not None:
+            return self.rated_force
         return self.efficiency * self.pressure * math.pi * self.bore**2 / 4.0
 
     @property
@@ -248,7 +264,8 @@ class GripperSpec:
     # ------------------------------------------------------------------ storage
     def to_dict(self) -> dict:
         d = asdict(self)
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()
+                if not (k in _OPTIONAL and v is None)}
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), sort_keys=True)
@@ -293,5 +310,7 @@ def _checked(name: str, v, triple: bool):
         raise GripperError(f"{name} must be finite and {'>= 0' if zero_ok else '> 0'}, got {v!r}")
     return fv
 
+
+_OPTIONAL = ("rated_force", "model")
 
 HGPL_25_60_A = GripperSpec()

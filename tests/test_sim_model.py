@@ -24,7 +24,8 @@ def _step_warning_free(model: mujoco.MjModel, seconds: float = 1.0, ctrl: float 
     return data
 
 
-@pytest.mark.parametrize("path", sorted(MJCF.rglob("*.xml")), ids=lambda p: str(p.relative_to(MJCF)))
+@pytest.mark.parametrize("path", sorted([*MJCF.rglob("*.xml"), *MJCF.rglob("*.urdf")]),
+                         ids=lambda p: str(p.relative_to(MJCF)))
 def test_every_mjcf_compiles_and_steps_one_second_without_warnings(path):
     model = mujoco.MjModel.from_xml_path(str(path))
     for ctrl in (-1.0, 1.0):  # jaws driven into both end stops

@@ -1,0 +1,71 @@
+"""Named grippers: the registry behind every ``gripper=`` argument and ``--gripper``.
+
+``get_gripper("festo_hgpl_25_60_a" | "franka_hand" | "path/to/spec.json")`` returns a
+:class:`~graspsim.gripper.GripperSpec`. A JSON file holds ``GripperSpec.to_dict()``'s
+fields (any subset; missing ones take the defaults); it is validated on loading and a
+bad one is a one-line :class:`~graspsim.errors.GripperError`. Specs without a vendored
+``model`` are simulated with the box model generated from the spec.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from graspsim.errors import GripperError
+from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.franka import franka_hand_mount, franka_hand_spec
+from graspsim.grippers.vendored import Mount, mjcf_root, model_folder
+
+__all__ = ["GRIPPERS", "DEFAULT_GRIPPER", "get_gripper", "gripper_names", "load_gripper_json", "mount",
+           "Mount", "mjcf_root", "model_folder", "franka_hand_spec"]
+
+DEFAULT_GRIPPER = HGPL_25_60_A.name
+GRIPPERS: dict[str, Callable[[], GripperSpec]] = {
+    HGPL_25_60_A.name: lambda: HGPL_25_60_A,
+    "franka_hand": franka_hand_spec,
+}
+_MOUNTS: dict[str, Callable[[], Mount]] = {"franka_hand": franka_hand_mount}
+
+
+def gripper_names() -> tuple[str, ...]:
+    return tuple(GRIPPERS)
+
+
+def load_gripper_json(path: str | Path) -> GripperSpec:
+    """A spec from a JSON file; every problem is one GripperError line naming the file."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except (OSError, UnicodeDecodeError) as err:
+        raise GripperError(f"cannot read gripper spec {str(p)!r}: {err}") from err
+    try:
+        return GripperSpec.from_json(text)
+    except GripperError as err:
+        raise GripperError(f"gripper spec {str(p)!r}: {err}") from err
+    except (TypeError, ValueError) as err:
+        raise GripperError(f"gripper spec {str(p)!r}: {err}") from err
+
+
+def get_gripper(gripper: str | Path | GripperSpec | None = None) -> GripperSpec:
+    """A registered name, a JSON spec file (a name ending in .json or an existing
+    file), or a spec (returned as it is); None: the default (Festo) gripper."""
+    if gripper is None:
+        return HGPL_25_60_A
+    if isinstance(gripper, GripperSpec):
+        return gripper
+    if not isinstance(gripper, (str, Path)):
+        raise GripperError(f"a gripper is a name, a JSON file or a GripperSpec, got {gripper!r}")
+    key = str(gripper)
+    if key in GRIPPERS:
+        return GRIPPERS[key]()
+    if key.endswith(".json") or Path(key).is_file():
+        return load_gripper_json(key)
+    raise GripperError(f"unknown gripper {key!r}; valid: {list(GRIPPERS)} or a spec .json file")
+
+
+def mount(model: str) -> Mount:
+    """How the vendored ``model`` mounts on the wrist (for the simulator)."""
+    if model not in _MOUNTS:
+        raise GripperError(f"no vendored gripper model {model!r}; available: {sorted(_MOUNTS)}")
+    return _MOUNTS[model]()

@@ -58,11 +58,14 @@ def _check_param(param: str) -> None:
 def vary(base: GripperSpec, param: str, value: float) -> GripperSpec:
     """``base`` with design parameter ``param`` set to ``value`` [m], named after it.
     A longer stroke lengthens the housing just enough to carry the jaws at full opening
-    (a real gripper of that stroke is longer); nothing else changes. GripperError if the
-    variant is not a valid gripper (e.g. a pad longer than the finger)."""
+    (a real gripper of that stroke is longer); nothing else changes. A variant is
+    simulated with the model built from its spec (a vendored model is of the base
+    gripper only). GripperError if the variant is not a valid gripper (e.g. a pad
+    longer than the finger)."""
     _check_param(param)
     v = float(value)
     name = f"{base.name}[{param}={1000 * v:g}mm]"
+    base = replace(base, model=None)
     if param == "finger_length":
         f = base.finger_size
         return replace(base, name=name, finger_size=(f[0], f[1], v))
@@ -188,24 +191,9 @@ def resolve_design(text: str, base: GripperSpec) -> GripperSpec:
         except ValueError:
             raise InvalidParameterError(f"{text!r}: the value after '=' must be a length in metres") from None
         return vary(base, param.strip(), v)
-    return _named_gripper(text)
+    from graspsim.grippers import get_gripper
 
-
-def _named_gripper(text: str) -> GripperSpec:
-    from pathlib import Path
-
-    from graspsim.gripper import HGPL_25_60_A
-
-    if text == HGPL_25_60_A.name:
-        return HGPL_25_60_A
-    p = Path(text)
-    if p.suffix == ".json":
-        try:
-            return GripperSpec.from_json(p.read_text())
-        except OSError as err:
-            raise InvalidParameterError(f"cannot read gripper spec {text!r}: {err}") from err
-    raise InvalidParameterError(f"unknown gripper {text!r}; valid: {HGPL_25_60_A.name}, a spec .json "
-                                f"or param=value with param in {sorted(PARAMS)}")
+    return get_gripper(text)
 
 
 def adapted_vs_own(shape, name: str, source: GripperSpec, target: GripperSpec, *,
@@ -214,7 +202,8 @@ def adapted_vs_own(shape, name: str, source: GripperSpec, target: GripperSpec, *
     """The map of ``shape`` made for ``source`` adapted to ``target``
     (:func:`graspsim.maps.regrip.adapt_to_gripper`) against ``target``'s own FS map:
     SRN / VRN [%] of the accepted grasps (grade above the threshold) in both, the
-    median wall time of ``repeats`` adaptations and of one FS map, and lift-and-place
+    median wall (and process CPU) time of ``repeats`` adaptations and of one FS map
+    (the adaptation's threads: numba's default), and lift-and-place
     trials of ``sim_grasps`` accepted grasps of each map (drawn the same way)."""
     from graspsim.maps.metrics import relative_rates
     from graspsim.maps.regrip import adapt_to_gripper
@@ -222,17 +211,18 @@ def adapted_vs_own(shape, name: str, source: GripperSpec, target: GripperSpec, *
     cfg = config or MapConfig()
     fs_a = generate_fs_map(shape, source, config=cfg, threads=threads)
     adapt_to_gripper(fs_a, target)  # the target's collision samples, as a stored map has them
-    times = []
+    times, cpu = [], []
     for _ in range(max(1, repeats)):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         adapted = adapt_to_gripper(fs_a, target)
         times.append(time.perf_counter() - t0)
-    t0 = time.perf_counter()
+        cpu.append(time.process_time() - c0)
+    t0, c0 = time.perf_counter(), time.process_time()
     own = generate_fs_map(shape, target, config=cfg, threads=threads)
-    own_s = time.perf_counter() - t0
+    own_s, own_cpu = time.perf_counter() - t0, time.process_time() - c0
     row = {"object": name, "kind": getattr(shape, "kind", name), "source": source.name,
            "target": target.name, "adapt_s": float(np.median(times)), "adapt_runs": times,
-           "own_s": own_s, "source_accepted": int(fs_a.accepted.sum()), "adapted": len(adapted),
+           "adapt_cpu_s": float(np.median(cpu)), "own_s": own_s, "own_cpu_s": own_cpu, "source_accepted": int(fs_a.accepted.sum()), "adapted": len(adapted),
            "own_accepted": int(own.accepted.sum()), **adapted.meta.extra["gripper_adaptation"]}
     if row["own_accepted"] and len(adapted):
         rates = relative_rates(adapted, own, min_grade=own.threshold)

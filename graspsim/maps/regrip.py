@@ -54,10 +54,24 @@ def _span(g: GripperSpec) -> float:
 
 
 def _ids(*arrays: np.ndarray) -> np.ndarray:
-    """(N,) int id of each row's combination of values in ``arrays`` (each (N, ...))."""
+    """(N,) int id of each row's combination of values in ``arrays`` (each (N, ...)):
+    runs of equal consecutive rows first (a map's rows come grouped by line, roll and
+    depth), then equal runs merged, so the sort is over runs, not rows."""
     c = np.concatenate([np.ascontiguousarray(a, np.float32).reshape(len(a), -1) for a in arrays], axis=1)
-    c = np.ascontiguousarray(c)
-    return np.unique(c.view(np.dtype((np.void, 4 * c.shape[1]))).ravel(), return_inverse=True)[1].ravel()
+    if len(c) == 0:
+        return np.zeros(0, np.int64)
+    new = np.ones(len(c), bool)
+    np.any(c[1:] != c[:-1], axis=1, out=new[1:])
+    reps = np.ascontiguousarray(c[new])
+    inv = np.unique(reps.view(np.dtype((np.void, 4 * c.shape[1]))).ravel(), return_inverse=True)[1].ravel()
+    return inv[np.cumsum(new) - 1]
+
+
+def _approach(q: np.ndarray) -> np.ndarray:
+    """(N, 3) wrist z axes of unit quaternions (N, 4) w, x, y, z (the third column of
+    the rotation matrix, without building the matrices)."""
+    w, x, y, z = np.asarray(q, float).T
+    return np.column_stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
 
 
 def _grid_index(depth: np.ndarray, gripper: GripperSpec, step: float) -> np.ndarray:
@@ -98,20 +112,20 @@ def adapt_to_gripper(gmap: GraspabilityMap, gripper: GripperSpec, *, config: Map
     cfg = config or gmap.meta.map_config
     src_min = gmap.threshold if source_min_grade is None else float(source_min_grade)
     rows = np.flatnonzero(gmap.above(src_min))
-    sub = gmap.select(rows)
-    R = quat_to_matrix(sub.wrist_quat)
-    gp, width = sub.grasp_point.astype(float), sub.width.astype(float)
-    d_src = source.contact_depth(gp, sub.wrist_position.astype(float), R[:, :, 2])
+    quat = gmap.wrist_quat[rows]
+    z = _approach(quat)
+    gp, width = gmap.grasp_point[rows].astype(float), gmap.width[rows].astype(float)
+    d_src = source.contact_depth(gp, gmap.wrist_position[rows].astype(float), z)
     fits = (width >= max(cfg.min_width, gripper.min_opening) - 1e-9) \
         & (width + 2 * gripper.approach_clearance <= gripper.max_opening + 1e-9)
-    line = _ids(sub.contacts)
-    pose = _ids(line[:, None], sub.wrist_quat)  # a closing line at one orientation
+    line = _ids(gmap.contacts[rows])
+    pose = _ids(line[:, None], quat)  # a closing line at one orientation
     n_grid = gripper.contact_depth_count(cfg.depth_step)
     grid = gripper.contact_depths(cfg.depth_step)
 
     def check(cand: np.ndarray, idx: np.ndarray) -> np.ndarray:
-        return grasps_collision_free(shape, gripper, gp[cand], R[cand], grid[idx], width[cand], cfg,
-                                     line=line[cand])
+        return grasps_collision_free(shape, gripper, gp[cand], quat_to_matrix(quat[cand]), grid[idx],
+                                     width[cand], cfg, line=line[cand])
 
     # Quality pose: the grasp point kept, the contact at the same place on the pad
     q_idx = _grid_index(pad_depth(d_src, source, gripper), gripper, cfg.depth_step)
@@ -129,8 +143,8 @@ def adapt_to_gripper(gmap: GraspabilityMap, gripper: GripperSpec, *, config: Map
     order = np.argsort(np.concatenate([kept, rest[free_f]]), kind="stable")
     keep = np.concatenate([kept, rest[free_f]])[order]
     depth = grid[np.concatenate([kept_idx, f_idx[rest[free_f]]])[order]]
-    out = replace(sub.select(keep), **{k: None for k in OPTIONAL_COLUMNS},
-                  wrist_position=gripper.wrist_from_grasp_point(gp[keep], R[keep, :, 2], depth))
+    out = replace(gmap.select(rows[keep]), **{k: None for k in OPTIONAL_COLUMNS},
+                  wrist_position=gripper.wrist_from_grasp_point(gp[keep], z[keep], depth))
     extra = {**gmap.meta.extra, "source_gripper": source.to_dict(), "source_method": gmap.meta.method,
              "gripper_adaptation": {"source_grasps": int(len(rows)), "fit_opening": int(fits.sum()),
                                     "quality_pose": int(len(kept)), "feasibility_pose": int(free_f.sum()),

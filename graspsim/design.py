@@ -222,7 +222,8 @@ def adapted_vs_own(shape, name: str, source: GripperSpec, target: GripperSpec, *
     own_s, own_cpu = time.perf_counter() - t0, time.process_time() - c0
     row = {"object": name, "kind": getattr(shape, "kind", name), "source": source.name,
            "target": target.name, "adapt_s": float(np.median(times)), "adapt_runs": times,
-           "adapt_cpu_s": float(np.median(cpu)), "own_s": own_s, "own_cpu_s": own_cpu, "source_accepted": int(fs_a.accepted.sum()), "adapted": len(adapted),
+           "adapt_cpu_s": float(np.median(cpu)), "own_s": own_s, "own_cpu_s": own_cpu,
+           "source_accepted": int(fs_a.accepted.sum()), "adapted": len(adapted),
            "own_accepted": int(own.accepted.sum()), **adapted.meta.extra["gripper_adaptation"]}
     if row["own_accepted"] and len(adapted):
         rates = relative_rates(adapted, own, min_grade=own.threshold)

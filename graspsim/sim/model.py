@@ -38,7 +38,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
 
 __all__ = ["GripperPhysics", "GripperNames", "NAMES", "build_gripper_spec", "gripper_xml",
-           "opening_to_qpos"]
+           "opening_to_qpos", "add_wrist", "add_weld"]
 
 
 @dataclass(frozen=True)
@@ -141,14 +141,7 @@ def build_gripper_spec(
     spec.modelname = g.name
     spec.compiler.degree = False
 
-    target = spec.worldbody.add_body(name=n.target, mocap=True, pos=home_pos, quat=home_quat)
-    target.add_site(name="wrist_target", size=[0.005] * 3, rgba=[0.9, 0.2, 0.2, 0.4], group=4)
-
-    wrist = spec.worldbody.add_body(name=n.wrist, pos=home_pos, quat=home_quat, gravcomp=1.0)
-    wrist.add_freejoint(name=n.wrist)
-    wrist.add_site(name="wrist", size=[0.005] * 3, rgba=[0.2, 0.2, 0.9, 0.4], group=4)
-    wrist.add_site(name="tcp", pos=g.nominal_tcp,
-                   size=[0.004] * 3, rgba=[0.2, 0.9, 0.2, 0.4], group=4)
+    wrist = add_wrist(spec, g, home_pos, home_quat)
     boxes = g.collision_boxes()
     parts = dict(zip(boxes.names, zip(boxes.centers, boxes.half_extents)))
     c, h = parts["housing"]
@@ -173,10 +166,7 @@ def build_gripper_spec(
         )
     spec.add_exclude(bodyname1=n.jaw_neg, bodyname2=n.jaw_pos)
 
-    weld = spec.add_equality(name=n.weld, type=mujoco.mjtEq.mjEQ_WELD,
-                             objtype=mujoco.mjtObj.mjOBJ_BODY, name1=n.wrist, name2=n.target)
-    weld.data[:11] = [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1]
-    weld.solref = physics.weld_solref
+    add_weld(spec, physics)
     sync = spec.add_equality(name=n.sync, type=mujoco.mjtEq.mjEQ_JOINT,
                              objtype=mujoco.mjtObj.mjOBJ_JOINT, name1=n.jaw_pos, name2=n.jaw_neg)
     sync.data[:5] = [0, 1, 0, 0, 0]
@@ -191,6 +181,28 @@ def build_gripper_spec(
     act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
     act.ctrlrange = [-1.0, 1.0]
     return spec
+
+
+def add_wrist(spec: mujoco.MjSpec, gripper: GripperSpec, home_pos, home_quat) -> mujoco.MjsBody:
+    """The mocap target and the free, gravity-compensated wrist body with its ``wrist``
+    and ``tcp`` sites (the wrist frame of :class:`GripperSpec`); returns the wrist."""
+    n = NAMES
+    target = spec.worldbody.add_body(name=n.target, mocap=True, pos=home_pos, quat=home_quat)
+    target.add_site(name="wrist_target", size=[0.005] * 3, rgba=[0.9, 0.2, 0.2, 0.4], group=4)
+    wrist = spec.worldbody.add_body(name=n.wrist, pos=home_pos, quat=home_quat, gravcomp=1.0)
+    wrist.add_freejoint(name=n.wrist)
+    wrist.add_site(name="wrist", size=[0.005] * 3, rgba=[0.2, 0.2, 0.9, 0.4], group=4)
+    wrist.add_site(name="tcp", pos=gripper.nominal_tcp,
+                   size=[0.004] * 3, rgba=[0.2, 0.9, 0.2, 0.4], group=4)
+    return wrist
+
+
+def add_weld(spec: mujoco.MjSpec, physics: GripperPhysics) -> None:
+    """The weld pulling the wrist to its mocap target (the arm)."""
+    weld = spec.add_equality(name=NAMES.weld, type=mujoco.mjtEq.mjEQ_WELD,
+                             objtype=mujoco.mjtObj.mjOBJ_BODY, name1=NAMES.wrist, name2=NAMES.target)
+    weld.data[:11] = [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1]
+    weld.solref = physics.weld_solref
 
 
 def gripper_xml(gripper: GripperSpec = HGPL_25_60_A,

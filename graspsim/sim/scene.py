@@ -25,6 +25,7 @@ from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.sim.model import NAMES, GripperPhysics, build_gripper_spec
 from graspsim.sim.objects import SimObject
+from graspsim.sim.vendored import build_vendored_gripper_spec
 
 __all__ = ["SimSettings", "Scene", "build_scene", "resting_pose", "state_slice"]
 
@@ -262,8 +263,12 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
     T_world_obj = resting_pose(obj, up=up) if table else np.eye(4)
     top = float((obj.surface.vertices @ T_world_obj[:3, :3].T)[:, 2].max() + T_world_obj[2, 3])
     home = (0.0, 0.0, top + gripper.fingertip_z + 0.1)  # qpos0: hanging clear above the object
-    spec = build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
-                              condim=s.condim, home_pos=home)
+    if gripper.model is None:  # the box model generated from the spec
+        spec, names = build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
+                                         condim=s.condim, home_pos=home), NAMES
+    else:  # the vendored model (e.g. mjcf/franka_hand), attached as it is
+        spec, names = build_vendored_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
+                                                  condim=s.condim, home_pos=home)
     spec.modelname = f"trial_{gripper.name}"
     o = spec.option
     o.timestep, o.impratio, o.tolerance = s.timestep, s.impratio, s.tolerance
@@ -282,7 +287,7 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
     _add_object(spec, obj, T_world_obj, s)
     for side in ("neg", "pos"):
         sens = spec.add_sensor(name=f"pad_{side}", type=mujoco.mjtSensor.mjSENS_CONTACT,
-                               objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=f"finger_{side}",
+                               objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=getattr(names, f"finger_{side}"),
                                reftype=mujoco.mjtObj.mjOBJ_BODY, refname=OBJECT)
         sens.intprm[:3] = [3, 3, 1]  # data: found | force; reduce: net force; one slot
     try:
@@ -290,8 +295,9 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
     except ValueError as err:
         raise SimulationError(f"the trial scene does not compile: {' '.join(str(err).split())}") from err
     jid = lambda n: model.joint(n).id  # noqa: E731
-    gids = [model.geom(n).id for n in (NAMES.housing, NAMES.jaw_neg, NAMES.jaw_pos,
-                                        NAMES.finger_neg, NAMES.finger_pos)]
+    wrist = model.body(NAMES.wrist).id  # the gripper: every colliding geom on the wrist's subtree
+    gids = [i for i in range(model.ngeom) if model.body_rootid[model.geom_bodyid[i]] == wrist
+            and (model.geom_contype[i] or model.geom_conaffinity[i])]
     others = [i for i in range(model.ngeom) if model.geom_bodyid[i] == model.body(OBJECT).id]
     if table:
         others.append(model.geom(TABLE).id)
@@ -299,7 +305,7 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
         model=model, gripper=gripper, obj=obj, settings=s, T_world_obj=T_world_obj,
         table=table, gravity=gravity, grip_force=force,
         qadr_wrist=int(model.jnt_qposadr[jid(NAMES.wrist)]),
-        qadr_jaws=np.array([model.jnt_qposadr[jid(NAMES.jaw_neg)], model.jnt_qposadr[jid(NAMES.jaw_pos)]]),
+        qadr_jaws=np.array([model.jnt_qposadr[jid(names.jaw_neg)], model.jnt_qposadr[jid(names.jaw_pos)]]),
         qadr_obj=int(model.jnt_qposadr[jid(OBJECT)]), dadr_obj=int(model.jnt_dofadr[jid(OBJECT)]),
         obj_body=int(model.body(OBJECT).id),
         pad_sensors=np.array([model.sensor_adr[model.sensor(f"pad_{k}").id] for k in ("neg", "pos")]),

@@ -181,6 +181,20 @@ def sweep(base: GripperSpec, param: str, values: Sequence[float], objects: dict,
 
 
 
+def _found(a, b, tol: float = 1e-6) -> np.ndarray:
+    """(len(a),) bool: map ``a``'s grasp is one of map ``b``'s -- the same contacts,
+    orientation and wrist position, to ``tol`` [m] (a pose-by-pose comparison, free of
+    the voxel grid's edges, on which a box map's wrists lie)."""
+    from scipy.spatial import cKDTree
+
+    def rows(m):
+        return np.column_stack([m.contacts.reshape(-1, 6), m.wrist_quat, m.wrist_position]).astype(float)
+
+    if not len(a) or not len(b):
+        return np.zeros(len(a), bool)
+    return cKDTree(rows(b)).query(rows(a), distance_upper_bound=tol)[0] <= tol
+
+
 def resolve_design(text: str, base: GripperSpec) -> GripperSpec:
     """A gripper named on a command line: ``param=value`` ([m]) varies ``base`` (e.g.
     ``finger_length=0.05``); anything else is a registered gripper name or a JSON spec."""
@@ -196,23 +210,26 @@ def resolve_design(text: str, base: GripperSpec) -> GripperSpec:
     return get_gripper(text)
 
 
-def adapted_vs_own(shape, name: str, source: GripperSpec, target: GripperSpec, *,
-                   config: MapConfig | None = None, repeats: int = 3, sim_grasps: int = 0,
+def adapted_vs_own(fs_a, name: str, target: GripperSpec, *, repeats: int = 3, sim_grasps: int = 0,
                    seed: int = 0, threads: int | None = None) -> dict:
-    """The map of ``shape`` made for ``source`` adapted to ``target``
-    (:func:`graspsim.maps.regrip.adapt_to_gripper`) against ``target``'s own FS map:
-    SRN / VRN [%] of the accepted grasps (grade above the threshold) in both; times:
-    one cold adaptation (the object's collision samples built inside it, as for an
-    object seen at run time), the median wall (and process CPU) time of ``repeats``
-    warm ones (the samples cached, as for a stored map's object) and one cold FS map of
-    the target (the adaptation's threads: numba's default); and lift-and-place
-    trials of ``sim_grasps`` accepted grasps of each map (drawn the same way)."""
+    """``fs_a``, an FS map of a primitive for its gripper A, adapted to ``target``
+    (:func:`graspsim.maps.regrip.adapt_to_gripper`) against ``target``'s own FS map
+    at the same settings.
+
+    Rates: SRN / VRN [%] of the accepted grasps (grade above the threshold) in both,
+    and pose by pose how many of the own map's accepted grasps the adapted map holds
+    (``own_found``) and how many adapted ones the own map holds (``adapted_in_own``),
+    which the voxel grid's edges cannot blur. Times: one cold adaptation (the object's
+    collision samples built inside it, as for an object seen at run time), the median
+    wall (and process CPU) time of ``repeats`` warm ones (the samples cached, as for a
+    stored map's object) and one cold FS map of the target (threads: numba's default).
+    Trials: lift-and-place of ``sim_grasps`` accepted grasps of each map (drawn the
+    same way)."""
     from graspsim.maps.hierarchy import clear_caches
     from graspsim.maps.metrics import relative_rates
     from graspsim.maps.regrip import adapt_to_gripper
 
-    cfg = config or MapConfig()
-    fs_a = generate_fs_map(shape, source, config=cfg, threads=threads)
+    shape, source, cfg = fs_a.meta.shape, fs_a.meta.gripper_spec, fs_a.meta.map_config
     clear_caches()  # cold: the object's collision samples are built inside the timed run
     t0 = time.perf_counter()
     adapt_to_gripper(fs_a, target)
@@ -225,7 +242,7 @@ def adapted_vs_own(shape, name: str, source: GripperSpec, target: GripperSpec, *
         cpu.append(time.process_time() - c0)
     clear_caches()
     t0, c0 = time.perf_counter(), time.process_time()
-    own = generate_fs_map(shape, target, config=cfg, threads=threads)
+    own = generate_fs_map(shape, target, fs_a.meta.quality_model, cfg, threads=threads)
     own_s, own_cpu = time.perf_counter() - t0, time.process_time() - c0
     row = {"object": name, "kind": getattr(shape, "kind", name), "source": source.name,
            "target": target.name, "adapt_s": float(np.median(times)), "adapt_runs": times,
@@ -233,9 +250,12 @@ def adapted_vs_own(shape, name: str, source: GripperSpec, target: GripperSpec, *
            "source_accepted": int(fs_a.accepted.sum()), "adapted": len(adapted),
            "own_accepted": int(own.accepted.sum()), **adapted.meta.extra["gripper_adaptation"]}
     if row["own_accepted"] and len(adapted):
-        rates = relative_rates(adapted, own, min_grade=own.threshold)
+        own_acc = own.filter(accepted=True)
+        rates = relative_rates(adapted, own_acc, min_grade=own.threshold)
         row.update(SRN=rates["SRN"], VRN=rates["VRN"], SR=rates["SR"], VR=rates["VR"],
-                   SR_own=rates["SR_ref"], VR_own=rates["VR_ref"])
+                   SR_own=rates["SR_ref"], VR_own=rates["VR_ref"],
+                   own_found=int(_found(own_acc, adapted).sum()),
+                   adapted_in_own=int(_found(adapted.filter(accepted=True), own_acc).sum()))
     if sim_grasps:
         for key, m in (("sim_adapted", adapted), ("sim_own", own)):
             rng = rng_for(seed, "adapted_vs_own", target.name, name, key)

@@ -316,5 +316,6 @@ def test_e11_quick_gripper_design_sweeps_and_adaptation(tmp_path):
         assert len({r["voxels"] for r in sw["rows"] if r["object"] == sw["rows"][0]["object"]}) == 1
     for r in s["adapted"]:
         assert r["adapted"] <= r["source_accepted"] and r["quality_pose"] + r["feasibility_pose"] >= r["adapted"]
-        assert r["SRN"] > 0 and r["adapt_s"] > 0
+        assert r["SRN"] > 0 and r["adapt_s"] > 0 and r["own_found"] <= r["own_accepted"]
+        assert r["adapted_in_own"] <= r["adapted"]
     assert "**finger length**" in e11.readme_section(s)

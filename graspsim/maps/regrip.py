@@ -71,7 +71,11 @@ def _approach(q: np.ndarray) -> np.ndarray:
     """(N, 3) wrist z axes of unit quaternions (N, 4) w, x, y, z (the third column of
     the rotation matrix, without building the matrices)."""
     w, x, y, z = np.asarray(q, float).T
-    return np.column_stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+    a = np.column_stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+    # to 1e-7, below the stored float32 quaternions' own precision: an axis-aligned
+    # approach (a box face's) comes out exact, so wrists land where the FS kernel puts them
+    # (on the voxel grid's edges, where a last-bit difference changes the voxel)
+    return np.round(a, 7)
 
 
 def _grid_index(depth: np.ndarray, gripper: GripperSpec, step: float) -> np.ndarray:

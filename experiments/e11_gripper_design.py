@@ -32,7 +32,18 @@ from pathlib import Path
 from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import Clock, RunRecord, machine_load, map_config, md_table, opt, parse_config, rate_ci, write_json
+from _common import (
+    Clock,
+    RunRecord,
+    load_average,
+    machine_load,
+    map_config,
+    md_table,
+    opt,
+    parse_config,
+    rate_ci,
+    write_json,
+)
 
 from graspsim.design import DesignConfig, adapted_vs_own, common_reach, evaluate, param_value, resolve_design, sweep
 from graspsim.errors import GraspsimError
@@ -63,7 +74,7 @@ class E11Config:
     adapt_to: tuple[str, ...] = opt(("franka_hand", "finger_length=0.05", "stroke=0.04"),
                                     "grippers the Festo maps are adapted to (names, spec .json or "
                                     "param=value variants of the Festo gripper)")
-    adapt_sim_grasps: int = opt(24, "accepted grasps simulated per adapted / own map")
+    adapt_sim_grasps: int = opt(40, "accepted grasps simulated per adapted / own map")
     adapt_repeats: int = opt(3, "timed adaptations per map (median)")
     threads: int = opt(2, "map and simulation threads")
     quick: bool = opt(False, cli=False)
@@ -107,14 +118,14 @@ def run_sweeps(cfg: E11Config, out: Path) -> dict:
     for param in cfg.params:
         c = Clock()
         rows = sweep(HGPL_25_60_A, param, cfg.values(param), objs, cfg.design, progress=_log_row)
-        timing = c.record()
+        timing = {**c.record(), "load_avg_end": load_average()}
         base = param_value(HGPL_25_60_A, param)
         plot_design(rows, out / f"{param}.png", param=param, base_value=base,
                     title=f"{param.replace('_', ' ')} around the Festo HGPL-25-60-A ({1000 * base:g} mm, dotted)")
         sweeps[param] = {"values": list(cfg.values(param)), "base": base, "timing": timing,
                          "maps": len(rows), "rows": rows}
         log.info("%s: %d maps in %.1f s wall (%.1f s CPU), load %s -> %s", param, len(rows),
-                 timing["wall_s"], timing["cpu_s"], c.load, timing["load_avg"])
+                 timing["wall_s"], timing["cpu_s"], timing["load_avg"], timing["load_avg_end"])
     return sweeps
 
 
@@ -216,7 +227,8 @@ def readme_section(s: dict) -> str:
     for param, sw in s["sweeps"].items():
         t = sw["timing"]
         L += [f"**{param.replace('_', ' ')}** ({sw['maps']} maps and their trials in {t['wall_s']:.0f} s wall, "
-              f"{t['cpu_s']:.0f} s CPU, load average {t['load_avg'][0]:g} at its end):", "",
+              f"{t['cpu_s']:.0f} s CPU, load average {t['load_avg'][0]:g} at its start, "
+              f"{t.get('load_avg_end', [math.nan])[0]:g} at its end):", "",
               _sweep_table(sw, kinds), ""]
     if s["grippers"]:
         body = []
@@ -238,10 +250,21 @@ def readme_section(s: dict) -> str:
               "map's grasps > 0.7 that the adapted map holds, pose by pose (1 um); adapt: wall (CPU) seconds, "
               f"median of {cfg['adapt_repeats']} runs with the object's collision samples cached, and one cold run; "
               "own FS map: one cold run; success: lift-and-place of up to "
-              f"{cfg['adapt_sim_grasps']} accepted grasps of each map. A box map's wrists lie on the voxel grid's "
+              f"{cfg['adapt_sim_grasps']} accepted grasps of each map, both drawn from one random stream (where the "
+              "maps hold the same grasps, the same grasps are simulated). A box map's wrists lie on the voxel grid's "
               "faces, so two maps of the same poses can differ in VR by last-bit rounding:", "",
               md_table(["gripper", "primitive", "SRN [%]", "VRN [%]", "own found", "adapt [s]", "adapt cold [s]",
                         "own FS map [s]", "success, adapted", "success, own"], body), ""]
+        for target in dict.fromkeys(r["target"] for r in s["adapted"]):
+            rs = [r for r in s["adapted"] if r["target"] == target and "error" not in r]
+            (ka, na), (ko, no) = _pool(rs, "sim_adapted"), _pool(rs, "sim_own")
+            gap = 100 * (ka / na - ko / no) if na and no else math.nan
+            L.append(f"- {target}, pooled over the primitives: adapted {_rate(ka, na)}, own {_rate(ko, no)}: "
+                     f"{gap:+.1f} points; own grasps > 0.7 found in the adapted maps "
+                     f"{sum(r.get('own_found', 0) for r in rs)} of {sum(r['own_accepted'] for r in rs)}; "
+                     f"adaptation {min(r['adapt_s'] for r in rs):.3f}–{max(r['adapt_s'] for r in rs):.3f} s wall, "
+                     f"{min(r['adapt_cpu_s'] for r in rs):.3f}–{max(r['adapt_cpu_s'] for r in rs):.3f} s CPU.")
+        L.append("")
     L.append(f"({s['machine']['cpus']} cores, load average {start[0]:g} at the start, {end[0]:g} at the end.)")
     return "\n".join(L) + "\n"
 

@@ -223,8 +223,9 @@ def adapted_vs_own(fs_a, name: str, target: GripperSpec, *, repeats: int = 3, si
     collision samples built inside it, as for an object seen at run time), the median
     wall (and process CPU) time of ``repeats`` warm ones (the samples cached, as for a
     stored map's object) and one cold FS map of the target (threads: numba's default).
-    Trials: lift-and-place of ``sim_grasps`` accepted grasps of each map (drawn the
-    same way)."""
+    Trials: lift-and-place of ``sim_grasps`` accepted grasps of each map, drawn the
+    same way from the same random stream (common random numbers: where the two maps
+    hold the same grasps, the same grasps are simulated)."""
     from graspsim.maps.hierarchy import clear_caches
     from graspsim.maps.metrics import relative_rates
     from graspsim.maps.regrip import adapt_to_gripper
@@ -258,6 +259,8 @@ def adapted_vs_own(fs_a, name: str, target: GripperSpec, *, repeats: int = 3, si
                    adapted_in_own=int(_found(adapted.filter(accepted=True), own_acc).sum()))
     if sim_grasps:
         for key, m in (("sim_adapted", adapted), ("sim_own", own)):
-            rng = rng_for(seed, "adapted_vs_own", target.name, name, key)
+            # common random numbers: both maps drawn (and simulated) from the same stream,
+            # so maps holding the same grasps give the same draw
+            rng = rng_for(seed, "adapted_vs_own", target.name, name)
             row[key] = simulate_accepted(m, sim_grasps, rng, threads=threads) if len(m) else _sim_record(None, 0, 0.0)
     return row

@@ -188,6 +188,8 @@ def plot_design(rows: list[dict], path: str | os.PathLike, *, param: str, base_v
                 ax.fill_between(x, lo, hi, color=f"C{i}", alpha=0.12, linewidth=0)
         if base_value is not None:
             ax.axvline(1000 * base_value, color="0.5", linestyle=":", linewidth=1)
+        if key == "success":
+            ax.set_ylim(0, 103)  # a rate: not zoomed onto a few points' spread
         ax.set_xlabel(f"{param.replace('_', ' ')} [mm]")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)

@@ -11,6 +11,8 @@ is reported as impossible, with the widest chord the gripper could take.
 
     python experiments/e13_gripper_validation.py                      # the Franka hand
     python experiments/e13_gripper_validation.py --gripper festo_hgpl_25_60_a
+    python experiments/e13_gripper_validation.py --gripper experiments/grippers/franka_hand_slow_fingers.json \
+        --out results/e13_gripper_validation.slow_fingers      # the hand at 0.05 m/s per finger
     python experiments/e13_gripper_validation.py --quick --out results/e13-quick
 """
 
@@ -134,7 +136,8 @@ def readme_section(s: dict) -> str:
     g, c = s["gripper"], s["config"]
     L = [f"`{s['command']}` (gripper `{g['name']}`"
          + (f", simulated with its vendored model `mjcf/{g['model']}`" if g.get("model") else "")
-         + f", grip force {s['grip_force']:g} N per finger; the primitives at "
+         + f", grip force {s['grip_force']:g} N per finger, fingers closing at {g['closing_speed']:g} m/s; the "
+         "primitives at "
          f"{', '.join(f'{x:g}' for x in c['sizes'])}× the paper's size; {c['per_case']} grasps > 0.7 per map "
          "drawn uniformly over the surface among the poses clear of the table; lift-and-place without "
          "execution error; the feasible poses are the denominator):", ""]

@@ -32,7 +32,8 @@ class DemoConfig:
     (then the grasps are simulated against the identified primitives, the truth being
     unknown); db: FS database folder (default: the user cache); quick: a coarse
     database in ``out/db`` and fewer trials (CI); trials: grasps validated (paper: 15);
-    renders: trials rendered; noise: execution noise in the trials; seed."""
+    renders: trials rendered; noise: execution noise in the trials; seed; gripper: a
+    registered name or a spec .json (None: the Festo; see :func:`graspsim.grippers.get_gripper`)."""
 
     out: str = "graspsim-demo"
     cloud: str | None = None
@@ -43,8 +44,12 @@ class DemoConfig:
     noise: bool = False
     seed: int = 0
     threads: int | None = None
+    gripper: str | None = None
 
     def __post_init__(self) -> None:
+        from graspsim.grippers import get_gripper
+
+        get_gripper(self.gripper)  # a bad name or spec: one line, before any work
         if self.trials < 1:
             raise InvalidParameterError(f"trials must be >= 1, got {self.trials}")
         if self.renders < 0:
@@ -54,14 +59,16 @@ class DemoConfig:
 def _database(cfg: DemoConfig, step: Callable):
     import math
 
+    from graspsim.grippers import get_gripper
     from graspsim.maps.database import PAPER_SHAPES, MapDatabase
     from graspsim.maps.generate import MapConfig
 
+    gripper = get_gripper(cfg.gripper)
     if cfg.quick:
-        db = MapDatabase(cfg.db or Path(cfg.out) / "db",
+        db = MapDatabase(cfg.db or Path(cfg.out) / "db", gripper=gripper,
                          config=MapConfig(surface_step=0.01, rotation_step=math.radians(22)))
     else:
-        db = MapDatabase(cfg.db)
+        db = MapDatabase(cfg.db, gripper=gripper)
     missing = [s for s in PAPER_SHAPES.values() if not db.contains(s)]
     if missing:
         step(f"building the FS map database ({len(missing)} maps, first use) in {db.root}")

@@ -319,3 +319,21 @@ def test_e11_quick_gripper_design_sweeps_and_adaptation(tmp_path):
         assert r["SRN"] > 0 and r["adapt_s"] > 0 and r["own_found"] <= r["own_accepted"]
         assert r["adapted_in_own"] <= r["adapted"]
     assert "**finger length**" in e11.readme_section(s)
+
+
+def test_e13_gripper_validation_quick_counts_add_up_and_reports_impossible_sizes(tmp_path):
+    out = tmp_path / "e13"
+    mod = _load("e13_gripper_validation")
+    # the Franka hand opens 80 mm: the sphere at 1.25x (87.5 mm) is impossible, with its reason
+    assert mod.main(["--quick", "--sizes", "1.0", "1.25", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["gripper"]["name"] == "franka_hand" and s["grip_force"] == 70.0
+    for r in [s["pooled"], *s["per_primitive"].values(), *s["per_case"]]:
+        assert r["drawn"] == r["of"] + r["start_collision"]
+        assert r["success"] + sum(r["failures"].values()) == r["of"]
+    assert sum(r["drawn"] for r in s["per_case"]) == s["pooled"]["drawn"] > 0
+    assert "sphere@1.25" in s["impossible"] and "87.5 mm" in mod.readme_section(s)
+    assert s["command"] in mod.readme_section(s)
+    with pytest.raises(SystemExit) as exit_:  # a bad gripper: one line, exit 2, before any work
+        mod.main(["--quick", "--gripper", "robotiq", "--out", str(tmp_path / "bad")])
+    assert exit_.value.code == 2 and not (tmp_path / "bad").exists()

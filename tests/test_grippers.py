@@ -79,7 +79,7 @@ def test_franka_stroke_force_and_speed_come_from_the_model():
     g = get_gripper("franka_hand")
     assert g.stroke_per_jaw == pytest.approx(0.04) and g.closed_gap == 0.0
     assert (g.min_opening, g.max_opening) == (0.0, pytest.approx(0.08))
-    assert g.grip_force == 70.0 and g.closing_speed == pytest.approx(0.05)
+    assert g.grip_force == 70.0 and g.closing_speed == pytest.approx(0.2)  # URDF velocity limit
     assert g.model == "franka_hand"
 
 
@@ -120,6 +120,14 @@ def test_unknown_names_and_missing_files_are_errors(tmp_path):
         get_gripper(str(tmp_path / "missing.json"))
     with pytest.raises(GripperError, match="no vendored gripper model"):
         mount("robotiq_2f85")
+    for odd in ("a\0b.json", str(tmp_path)):  # a NUL byte, a folder
+        with pytest.raises(GripperError):
+            get_gripper(odd)
+    huge = tmp_path / "huge.json"
+    with huge.open("wb") as f:
+        f.truncate(2 << 20)  # sparse: refused by its size, never read
+    with pytest.raises(GripperError, match="a small JSON file"):
+        get_gripper(huge)
 
 
 def test_optional_fields_leave_the_default_spec_and_its_digest_unchanged():

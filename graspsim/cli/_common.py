@@ -8,7 +8,7 @@ from collections.abc import Iterable
 from typing import Any
 
 __all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value",
-           "executor_from_args", "format_table", "progress"]
+           "executor_from_args", "format_table", "progress", "add_gripper_flag", "gripper_from_args"]
 
 
 def add_json_flag(p) -> None:
@@ -21,6 +21,23 @@ def add_units_flag(p) -> None:
     p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
                    help="unit of the cloud's coordinates, converted to metres (default m; a cloud "
                    "wider than 2 m is refused as probably mm or cm)")
+
+
+GRIPPER_HELP = ("the gripper: festo_hgpl_25_60_a (default), franka_hand, or a JSON file of your own "
+                "parallel gripper's GripperSpec fields (see docs/grippers.md)")
+
+
+def add_gripper_flag(p, help: str = GRIPPER_HELP) -> None:
+    """``--gripper NAME|SPEC.json`` (resolved by :func:`gripper_from_args`: a bad name or
+    spec file is a one-line error, exit 2)."""
+    p.add_argument("--gripper", default=None, metavar="NAME|SPEC.json", help=help)
+
+
+def gripper_from_args(args):
+    """The :class:`~graspsim.gripper.GripperSpec` of ``--gripper`` (default: the Festo)."""
+    from graspsim.grippers import get_gripper
+
+    return get_gripper(getattr(args, "gripper", None))
 
 
 def seed_value(text: str) -> int:

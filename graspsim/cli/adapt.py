@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from graspsim.cli._common import add_json_flag, add_mode_flag, add_units_flag, emit, format_table
+from graspsim.cli._common import add_json_flag, add_mode_flag, add_units_flag, emit, format_table, gripper_from_args
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -24,6 +24,7 @@ def _cmd_adapt(args) -> int:
 
     # every option and the output path before the cloud is read or anything computed
     out = check_output(args.output, "map", others={"input cloud": args.cloud})
+    gripper = gripper_from_args(args)
     table = None
     if args.table is not None:
         from graspsim.maps.table import TablePlane
@@ -39,7 +40,7 @@ def _cmd_adapt(args) -> int:
 
         raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
     cloud = read_point_cloud(args.cloud, units=args.units)
-    db = MapDatabase(args.db, quality=quality, config=map_cfg)
+    db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
     result = plan(cloud.points, db=db, rng=np.random.default_rng(args.seed), config=cfg,
                   source=str(Path(args.cloud).resolve()))
     # only a map with grasps is written: a failed run leaves an existing file as it was

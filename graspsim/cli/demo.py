@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from graspsim.cli._common import add_json_flag, emit, format_table
+from graspsim.cli._common import add_gripper_flag, add_json_flag, emit, format_table
 
 __all__ = ["register"]
 
@@ -14,7 +14,7 @@ def _cmd_demo(args) -> int:
 
     cfg = DemoConfig(out=args.out, cloud=args.cloud, db=args.db, quick=args.quick,
                      trials=args.trials, renders=args.renders, noise=args.noise, seed=args.seed,
-                     threads=args.threads)
+                     threads=args.threads, gripper=args.gripper)
 
     def step(msg: str) -> None:
         if not args.json:
@@ -61,5 +61,6 @@ def register(sub) -> None:
     p.add_argument("--threads", type=int, default=None, help="CPU threads (default: all)")
     p.add_argument("--quick", action="store_true",
                    help="coarse database in OUT/db and fewer trials: a fast smoke run (CI)")
+    add_gripper_flag(p)
     add_json_flag(p)
     p.set_defaults(func=_cmd_demo)

@@ -17,7 +17,15 @@ from __future__ import annotations
 
 import argparse
 
-from graspsim.cli._common import add_json_flag, add_mode_flag, add_units_flag, emit, format_table
+from graspsim.cli._common import (
+    add_gripper_flag,
+    add_json_flag,
+    add_mode_flag,
+    add_units_flag,
+    emit,
+    format_table,
+    gripper_from_args,
+)
 from graspsim.errors import DependencyNotInstalled
 
 __all__ = ["register", "run"]
@@ -51,11 +59,13 @@ def register(subparsers) -> None:
     p.add_argument("--db", metavar="DIR", default=None,
                    help="FS map database folder for the known/familiar decision (default: "
                    "$GRASPSIM_DB or ~/.cache/graspsim/db when it exists; never built here)")
+    add_gripper_flag(p, help="whose maps --db's known / familiar decision reads: festo_hgpl_25_60_a "
+                     "(default), franka_hand or a gripper spec .json")
     add_json_flag(p)
     p.set_defaults(func=run)
 
 
-def _lookup(db_dir: str | None):
+def _lookup(db_dir: str | None, gripper=None):
     """(kind, dims) -> "known" / "familiar" / None, and the database folder used (None:
     no database). Without ``db_dir`` the default database is used only if it exists."""
     try:
@@ -70,7 +80,7 @@ def _lookup(db_dir: str | None):
         if not (root / "index.json").is_file():  # nothing to ask; do not create it
             return (lambda kind, dims: None), None
         db_dir = root
-    db = MapDatabase(db_dir)
+    db = MapDatabase(db_dir, **({} if gripper is None else {"gripper": gripper}))
 
     def lookup(kind: str, dims: dict) -> str | None:
         m = db.lookup(kind, dims)
@@ -87,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = IdentifyConfig.preset(args.mode, repetitions=args.repetitions, theta=args.theta, noise=args.noise)
     cloud = read_point_cloud(args.cloud, units=args.units)
-    lookup, db_root = _lookup(args.db)
+    lookup, db_root = _lookup(args.db, gripper_from_args(args))
     res = identify(cloud.points, rng=np.random.default_rng(args.seed), config=config)
     parts = []
     for p in res.parts:

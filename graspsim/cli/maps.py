@@ -5,7 +5,16 @@ from __future__ import annotations
 import math
 import time
 
-from graspsim.cli._common import add_executor_flags, add_json_flag, emit, executor_from_args, format_table, progress
+from graspsim.cli._common import (
+    add_executor_flags,
+    add_gripper_flag,
+    add_json_flag,
+    emit,
+    executor_from_args,
+    format_table,
+    gripper_from_args,
+    progress,
+)
 
 __all__ = ["register"]
 
@@ -42,6 +51,7 @@ def _add_generation(p) -> None:
                    help="poses closer than this to touching count as colliding [m] (0.00025)")
     g.add_argument("--mu", type=float, default=0.5, help="friction coefficient of the grade (0.5)")
     g.add_argument("--threads", type=int, default=None, help="CPU threads (default: all cores)")
+    add_gripper_flag(g)
 
 
 def _config(args):
@@ -60,11 +70,11 @@ def _config(args):
 def _cmd_map(args) -> int:
     from graspsim._atomic import atomic_paths, check_output
     from graspsim.errors import MapFileError
-    from graspsim.gripper import HGPL_25_60_A
     from graspsim.maps.generate import generate_fs_map
     from graspsim.maps.io import save_map
     from graspsim.maps.metrics import map_rates
 
+    gripper = gripper_from_args(args)
     shape = _shape_from_args(args)
     cfg, quality = _config(args)
     out = check_output(args.output, "map")  # before the work, not after it
@@ -79,7 +89,7 @@ def _cmd_map(args) -> int:
             bar.n = int(100 * frac)
             bar.refresh()
 
-        gmap = generate_fs_map(shape, HGPL_25_60_A, quality, cfg, mass=args.mass,
+        gmap = generate_fs_map(shape, gripper, quality, cfg, mass=args.mass,
                                threads=args.threads, progress=report)
     seconds = time.perf_counter() - t0
     rates = map_rates(gmap)
@@ -91,8 +101,8 @@ def _cmd_map(args) -> int:
             plot_map(gmap, tmps[1], format=fmt)
     summary = {"file": str(out), "object": gmap.meta.object, "grasps": len(gmap),
                "accepted": int(gmap.accepted.sum()), "SR": rates.sr, "VR": rates.vr,
-               "seconds": seconds, "timing": gmap.meta.timing, "plot": args.plot}
-    human = (f"{shape}: {len(gmap)} collision-free grasps, {summary['accepted']} with grade > "
+               "seconds": seconds, "timing": gmap.meta.timing, "plot": args.plot, "gripper": gripper.name}
+    human = (f"{shape} ({gripper.name}): {len(gmap)} collision-free grasps, {summary['accepted']} with grade > "
              f"{gmap.threshold:g}; SR {rates.sr:.3f}, VR {rates.vr:.3f}; {seconds:.2f} s -> {out}"
              + (f" (plot: {plot})" if plot else ""))
     emit(summary, args.json, human)
@@ -200,20 +210,21 @@ def _dims_text(dims: dict) -> str:
 def _cmd_db(args) -> int:
     from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid
 
+    gripper = gripper_from_args(args)  # the maps of one gripper (its spec keys them)
     if args.db_command == "list":  # every stored map, whatever its settings
-        db = MapDatabase(args.root)
+        db = MapDatabase(args.root, gripper=gripper)
         ents = db.entries(all_settings=True)
-        rows = [(e["primitive"], _dims_text(e["dims"]), e["grasps"], e.get("settings", "?")
+        rows = [(e["primitive"], _dims_text(e["dims"]), e["grasps"], e.get("gripper", "?"), e.get("settings", "?")
                  + (" (default)" if e.get("settings") == db.settings_digest else ""), e["file"])
                 for e in ents]
         emit({"root": str(db.root), "maps": ents, "default_settings": db.settings_digest}, args.json,
-             format_table(rows, ["primitive", "dims", "grasps", "settings", "file"])
+             format_table(rows, ["primitive", "dims", "grasps", "gripper", "settings", "file"])
              + f"\n{len(ents)} maps in {db.root}")
         return 0
     if args.db_command == "check":  # every stored map, whatever its settings
         return _db_check(MapDatabase(args.root), args)
     cfg, quality = _config(args)
-    db = MapDatabase(args.root, quality=quality, config=cfg)
+    db = MapDatabase(args.root, gripper=gripper, quality=quality, config=cfg)
     if args.db_command == "build":
         from graspsim._atomic import check_folder
 
@@ -262,8 +273,8 @@ def _db_check(db, args) -> int:
 
 def register(sub) -> None:
     p = sub.add_parser("map", help="generate a full-scale graspability map of a primitive",
-                       description="Surface-to-voxel FS map of a shape primitive for the "
-                       "Festo HGPL-25-60-A style gripper; writes an HDF5 map file.")
+                       description="Surface-to-voxel FS map of a shape primitive for a two-jaw "
+                       "gripper (default the Festo HGPL-25-60-A style; --gripper); writes an HDF5 map file.")
     p.add_argument("primitive", help="box, cylinder, sphere, cone or half_toroid")
     _add_dims(p)
     p.add_argument("-o", "--output", required=True, help="map file to write (.h5)")
@@ -306,8 +317,8 @@ def register(sub) -> None:
              "--primitives), optionally at several sizes (--grid); maps already stored with the "
              "same settings are kept."),
             ("list", "list stored maps",
-             "List every map stored in the database folder with its settings digest; "
-             "'(default)' marks the maps of the default generation settings."),
+             "List every map stored in the database folder with its gripper and settings digest; "
+             "'(default)' marks the maps of the default generation settings (for --gripper)."),
             ("lookup", "known / familiar decision",
              "Say whether a primitive of the given dimensions is known (a stored map of the same "
              "size), familiar (same primitive, another size: its map is scaled) or absent, for "
@@ -322,6 +333,8 @@ def register(sub) -> None:
                        "~/.cache/graspsim/db)")
         if name not in ("list", "check"):
             _add_generation(q)
+        elif name == "list":
+            add_gripper_flag(q)
         add_json_flag(q)
         if name == "build":
             q.add_argument("--primitives", nargs="+", default=None, help="subset of the five")

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import sys
 
-from graspsim.cli._common import add_json_flag, emit, format_table, progress
+from graspsim.cli._common import add_gripper_flag, add_json_flag, emit, format_table, gripper_from_args, progress
 
 __all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD"]
 
@@ -68,6 +68,8 @@ def register(subparsers) -> None:
     p.add_argument("--all", action="store_true",
                    help=f"run the selection however large (without it, more than {MAX_TRIALS:,} "
                         "trials are refused with an estimate of their duration)")
+    add_gripper_flag(p, help="the gripper the map was made for (default: the one it records; a "
+                     "name or spec .json that differs from it is an error: the map's poses are that gripper's)")
     add_json_flag(p)
     p.set_defaults(func=run)
 
@@ -96,6 +98,8 @@ def run(args) -> int:
 
         check_output(args.record, "trial recording")
         recorder = Recorder()
+    if args.gripper is not None:
+        _check_gripper(gripper_from_args(args), load_map(args.map, rows=slice(0, 0)).meta.gripper_spec)
     if args.mesh is not None:
         from graspsim.sim.meshes import check_mesh_path
 
@@ -159,6 +163,14 @@ def run(args) -> int:
              f"on {res.threads} thread(s)" + (f"; results in {out.group}" if out.group else ""))
     emit(summary, args.json, human)
     return 0
+
+
+def _check_gripper(asked, recorded) -> None:
+    from graspsim.errors import GripperError
+
+    if asked != recorded:
+        raise GripperError(f"the map was made for gripper {recorded.name!r}, not {asked.name!r} (its "
+                           "poses are that gripper's); build the map with --gripper to simulate another")
 
 
 def _duration(seconds: float) -> str:

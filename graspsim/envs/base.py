@@ -51,10 +51,12 @@ WORLD_BOUND = 1.0
 
 
 @functools.lru_cache(maxsize=4)
-def database(root: str | None, map_config, pool_size: int) -> PooledDatabase:
-    """The pooled map database at ``root`` (shared by the environments of a process),
-    with the five reference FS maps built on first use."""
-    db = PooledDatabase(root, config=map_config, pool_size=pool_size)
+def database(root: str | None, map_config, pool_size: int, gripper=None) -> PooledDatabase:
+    """The pooled map database at ``root`` of ``gripper`` (a name, spec .json or spec;
+    None: the Festo), with the five reference FS maps built on first use."""
+    from graspsim.grippers import get_gripper
+
+    db = PooledDatabase(root, gripper=get_gripper(gripper), config=map_config, pool_size=pool_size)
     missing = [s for s in PAPER_SHAPES.values() if not db.contains(s)]
     if missing:
         log.info("building %d reference FS maps in %s (first use)", len(missing), db.root)
@@ -109,7 +111,7 @@ class TableTask(gym.Env):
         self.settings = SimSettings()
         self.noise = (ExecutionNoise(c.position_noise, c.rotation_noise)
                       if c.position_noise > 0 or c.rotation_noise > 0 else None)
-        self.db = database(c.db_root, c.map_config, c.pool_size)
+        self.db = database(c.db_root, c.map_config, c.pool_size, c.gripper)
         self.gripper = self.db.gripper
         self._renderer: FrameRenderer | None = None
         self.episode: TableEpisode | None = None

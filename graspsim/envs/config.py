@@ -67,6 +67,11 @@ class EnvConfig:
     max_redraws: objects drawn per reset before giving up when none offers a valid
         candidate (GraspSelect).
     threads: native threads for :meth:`GraspSelectEnv.evaluate_candidates`.
+    gripper: the gripper: a registered name (``"festo_hgpl_25_60_a"``, ``"franka_hand"``),
+        a spec .json or a :class:`~graspsim.gripper.GripperSpec`; its own FS maps (the
+        database keys maps by the gripper) and its own simulated model. The object sets'
+        size ranges were chosen for the Festo: a smaller gripper redraws objects it cannot
+        grasp (``max_redraws``).
     """
 
     objects: str | tuple[str, ...] = "primitives"
@@ -92,6 +97,7 @@ class EnvConfig:
     perception: Perception = Perception.CLOUD
     max_redraws: int = 20
     threads: int = 1
+    gripper: object = "festo_hgpl_25_60_a"
 
     def __post_init__(self) -> None:
         objects = self.objects if isinstance(self.objects, str) else tuple(self.objects)
@@ -134,6 +140,9 @@ class EnvConfig:
             raise InvalidParameterError(f"map_config must be a MapConfig or None, got {self.map_config!r}")
         if self.db_root is not None:
             object.__setattr__(self, "db_root", str(self.db_root))
+        from graspsim.grippers import get_gripper
+
+        get_gripper(self.gripper)  # raises GripperError (an InvalidParameterError) on a bad one
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -141,6 +150,7 @@ class EnvConfig:
         p = self.protocol
         d["protocol"] = p if isinstance(p, str) else p.to_dict()
         d["map_config"] = None if self.map_config is None else self.map_config.to_dict()
+        d["gripper"] = self.gripper if isinstance(self.gripper, str) else self.gripper.to_dict()
         return d
 
 

@@ -21,6 +21,7 @@ __all__ = ["GRIPPERS", "DEFAULT_GRIPPER", "get_gripper", "gripper_names", "load_
            "Mount", "mjcf_root", "model_folder", "franka_hand_spec"]
 
 DEFAULT_GRIPPER = HGPL_25_60_A.name
+MAX_SPEC_BYTES = 1 << 20
 GRIPPERS: dict[str, Callable[[], GripperSpec]] = {
     HGPL_25_60_A.name: lambda: HGPL_25_60_A,
     "franka_hand": franka_hand_spec,
@@ -36,8 +37,12 @@ def load_gripper_json(path: str | Path) -> GripperSpec:
     """A spec from a JSON file; every problem is one GripperError line naming the file."""
     p = Path(path)
     try:
+        if not p.is_file():  # a folder, a FIFO, a device
+            raise OSError("not a regular file")
+        if p.stat().st_size > MAX_SPEC_BYTES:
+            raise OSError(f"{p.stat().st_size} bytes; a gripper spec is a small JSON file (<= {MAX_SPEC_BYTES})")
         text = p.read_text()
-    except (OSError, UnicodeDecodeError) as err:
+    except (OSError, UnicodeDecodeError, ValueError) as err:  # ValueError: a NUL byte in the path
         raise GripperError(f"cannot read gripper spec {str(p)!r}: {err}") from err
     try:
         return GripperSpec.from_json(text)
@@ -59,9 +64,16 @@ def get_gripper(gripper: str | Path | GripperSpec | None = None) -> GripperSpec:
     key = str(gripper)
     if key in GRIPPERS:
         return GRIPPERS[key]()
-    if key.endswith(".json") or Path(key).is_file():
+    if key.endswith(".json") or _is_file(key):
         return load_gripper_json(key)
     raise GripperError(f"unknown gripper {key!r}; valid: {list(GRIPPERS)} or a spec .json file")
+
+
+def _is_file(key: str) -> bool:
+    try:
+        return Path(key).is_file()
+    except (OSError, ValueError):
+        return False
 
 
 def mount(model: str) -> Mount:

@@ -38,7 +38,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
 
 __all__ = ["GripperPhysics", "GripperNames", "NAMES", "build_gripper_spec", "gripper_xml",
-           "opening_to_qpos", "add_wrist", "add_weld"]
+           "opening_to_qpos", "add_wrist", "add_weld", "drive_force"]
 
 
 @dataclass(frozen=True)
@@ -114,6 +114,17 @@ _DARK = (0.25, 0.27, 0.3, 1.0)
 _PAD = (0.15, 0.15, 0.15, 1.0)
 
 
+def drive_force(gripper: GripperSpec, grip_force: float | None, condim: int) -> float:
+    """The grip force per jaw [N] a model is built with (``grip_force`` or the spec's),
+    validated with the pad contact dimension."""
+    force = float(gripper.grip_force if grip_force is None else grip_force)
+    if not (np.isfinite(force) and force > 0):
+        raise InvalidParameterError(f"grip_force must be > 0 N, got {grip_force!r}")
+    if condim not in (1, 3, 4, 6):
+        raise InvalidParameterError(f"condim must be 1, 3, 4 or 6, got {condim!r}")
+    return force
+
+
 def build_gripper_spec(
     gripper: GripperSpec = HGPL_25_60_A,
     physics: GripperPhysics = GripperPhysics(),
@@ -131,11 +142,7 @@ def build_gripper_spec(
     home_pos / home_quat (w, x, y, z): the wrist pose in the world at ``qpos0``
     (default: 35 cm up, approach pointing down).
     """
-    force = float(gripper.grip_force if grip_force is None else grip_force)
-    if not (np.isfinite(force) and force > 0):
-        raise InvalidParameterError(f"grip_force must be > 0 N, got {grip_force!r}")
-    if condim not in (1, 3, 4, 6):
-        raise InvalidParameterError(f"condim must be 1, 3, 4 or 6, got {condim!r}")
+    force = drive_force(gripper, grip_force, condim)
     g, n = gripper, NAMES
     spec = mujoco.MjSpec()
     spec.modelname = g.name

@@ -19,11 +19,10 @@ Geometry, joints, masses, the coupling and the force limit stay the model's.
 from __future__ import annotations
 
 import mujoco
-import numpy as np
 
 from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.gripper import GripperSpec
-from graspsim.sim.model import NAMES, GripperNames, GripperPhysics, add_weld, add_wrist
+from graspsim.sim.model import NAMES, GripperNames, GripperPhysics, add_weld, add_wrist, drive_force
 
 __all__ = ["build_vendored_gripper_spec", "PREFIX"]
 
@@ -61,9 +60,7 @@ def build_vendored_gripper_spec(
     if gripper.model is None:
         raise InvalidParameterError(f"gripper {gripper.name!r} has no vendored model")
     mnt = mount(gripper.model)
-    force = float(gripper.grip_force if grip_force is None else grip_force)
-    if not (np.isfinite(force) and force > 0):
-        raise InvalidParameterError(f"grip_force must be > 0 N, got {grip_force!r}")
+    force = drive_force(gripper, grip_force, condim)
     spec = mujoco.MjSpec()
     spec.modelname = gripper.name
     spec.compiler.degree = False

@@ -27,9 +27,12 @@ def _value(pool: list[str]) -> st.SearchStrategy:
     return st.one_of(st.sampled_from(pool), st.sampled_from(pool), option_text())
 
 
-_GENERATION = {"--surface-step": _LENGTHS, "--rotation-step-deg": _ANGLES, "--closing-cone-deg": _ANGLES,
-               "--depth-step": _LENGTHS, "--tolerance": _LENGTHS, "--mu": _GRADES + ["1e6"],
-               "--threads": _COUNTS}
+#: registered names, an unknown one, and files that are no gripper spec (a map, a cloud, a folder)
+_GRIPPERS = ["franka_hand", "festo_hgpl_25_60_a", "robotiq", "{map}", "{cloud}", "{dir}", "{out}", "x.json", ""]
+
+_GENERATION = {"--gripper": _GRIPPERS, "--surface-step": _LENGTHS, "--rotation-step-deg": _ANGLES,
+               "--closing-cone-deg": _ANGLES, "--depth-step": _LENGTHS, "--tolerance": _LENGTHS,
+               "--mu": _GRADES + ["1e6"], "--threads": _COUNTS}
 
 #: command -> (base tokens, {option: value pool}); flags with a None pool take no value.
 COMMANDS: dict[str, tuple[list[str], dict]] = {
@@ -49,7 +52,7 @@ COMMANDS: dict[str, tuple[list[str], dict]] = {
                "--mass": _LENGTHS, "--friction": _GRADES + ["1e6"], "--grip-force": _LENGTHS,
                "--mesh-scale": _LENGTHS, "--mesh": ["{out}", "{dir}", "{cloud}"], "--render-count": _COUNTS,
                "--protocol": ["lift_place", "tug", "shake"], "--noise": None, "--no-write": None, "--all": None,
-               "--render": ["{dir}/r", "{out}"]}),
+               "--render": ["{dir}/r", "{out}"], "--gripper": _GRIPPERS}),
     "show": (["show", "{map}", "-o", "{png}"],
              {"--min-grade": _GRADES, "--what": ["grasp_point", "wrist", "both"]}),
     "db lookup": (["db", "lookup", "cylinder", "--radius", "0.02", "--height", "0.2", "--root", "{db}"],

@@ -224,6 +224,11 @@ def readme_section(s: dict) -> str:
          f"success: lift-and-place of up to {cfg['sim_grasps']} accepted grasps per map clearing the table, "
          f"pooled, 95 % Wilson interval):", ""]
     kinds = list(cfg["kinds"])
+    unsimulated = sorted({r["object"] for sw in s["sweeps"].values() for r in sw["rows"]
+                          if r.get("accepted") and not r["sim"]["eligible"] and abs(r["value"] - sw["base"]) < 1e-12})
+    if unsimulated:
+        L += [f"Not simulated at the base design, since none of their grasps > 0.7 clears the table with the "
+              f"object at rest: {', '.join(unsimulated)}.", ""]
     for param, sw in s["sweeps"].items():
         t = sw["timing"]
         L += [f"**{param.replace('_', ' ')}** ({sw['maps']} maps and their trials in {t['wall_s']:.0f} s wall, "

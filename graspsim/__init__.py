@@ -18,7 +18,8 @@ The names users reach for first are here, one import away::
   ``get_gripper`` (``"festo_hgpl_25_60_a"``, ``"franka_hand"`` or a spec .json);
   the grade: ``QualityModel``, ``get_grade``, ``regrade``.
 * maps: ``generate_fs_map``, ``MapConfig``, ``GraspabilityMap``, ``load_map``,
-  ``save_map``, ``map_rates``, ``MapDatabase``; robust scores (clearance to the observed
+  ``save_map``, ``map_rates``, ``MapDatabase``, ``adapt_to_gripper`` (a map carried to
+  another gripper, paper section 5); robust scores (clearance to the observed
   cloud, success under wrist pose error): ``RobustConfig``, ``score_map``; planning from a
   cloud or a known shape (ranked by the robust score): ``plan``, ``plan_shape``,
   ``PlannerConfig``, ``TablePlane``; perception: ``identify``,
@@ -77,6 +78,7 @@ _LAZY: dict[str, str] = {
     **_from("graspsim.maps.metrics", "map_rates"),
     **_from("graspsim.maps.database", "MapDatabase"),
     **_from("graspsim.maps.robust", "RobustConfig", "score_map"),
+    **_from("graspsim.maps.regrip", "adapt_to_gripper"),
     # run-time planning: point cloud (or known shape) -> adapted map
     **_from("graspsim.planner", "plan", "plan_shape", "PlannerConfig", "PlanResult", "PlanStatus",
             "TablePlane"),

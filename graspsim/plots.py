@@ -11,7 +11,7 @@ import numpy as np
 
 from graspsim.maps.graspmap import GraspabilityMap
 
-__all__ = ["plot_map", "plot_maps", "plot_clouds", "map_figure", "image_format"]
+__all__ = ["plot_map", "plot_maps", "plot_clouds", "map_figure", "image_format", "plot_design"]
 
 _FORMATS = ("png", "pdf", "svg", "jpg", "jpeg", "tif", "tiff", "webp", "eps", "ps")
 
@@ -141,5 +141,64 @@ def plot_clouds(clouds: dict[str, np.ndarray], path: str | os.PathLike, rng: np.
     try:
         with atomic_path(path, OutputPathError) as tmp:
             fig.savefig(tmp, dpi=120, format=fmt)
+    finally:
+        plt.close(fig)
+
+
+#: design-sweep panels: (row key, axis label), every value in percent
+DESIGN_METRICS = (("VR", "VR of grasps > 0.7 [%]"), ("SR", "SR of grasps > 0.7 [%]"),
+                  ("share_accepted", "grasps > 0.7 [% of collision-free]"),
+                  ("success", "lift-and-place success [% of feasible]"))
+
+
+def _design_series(rows: list[dict], obj: str, key: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """x [mm], mean, min, max over the sizes of ``obj`` (rows with ``kind``, ``value``)."""
+    xs = sorted({r["value"] for r in rows if r["kind"] == obj})
+    mean, lo, hi = [], [], []
+    for x in xs:
+        if key == "success":  # pooled over the sizes: successes / feasible trials
+            sims = [r["sim"] for r in rows if r["kind"] == obj and r["value"] == x and "sim" in r]
+            f = sum(s["feasible"] for s in sims)
+            v = [100.0 * sum(s["success"] for s in sims) / f] if f else [np.nan]
+        else:
+            v = [100.0 * r[key] for r in rows if r["kind"] == obj and r["value"] == x and key in r]
+        mean.append(np.mean(v) if v else np.nan)
+        lo.append(np.min(v) if v else np.nan)
+        hi.append(np.max(v) if v else np.nan)
+    return 1000 * np.asarray(xs), np.asarray(mean), np.asarray(lo), np.asarray(hi)
+
+
+def plot_design(rows: list[dict], path: str | os.PathLike, *, param: str, base_value: float | None = None,
+                title: str | None = None) -> None:
+    """A design sweep (rows of :func:`graspsim.design.sweep` with ``kind`` set to the
+    primitive): one panel per metric against the parameter [mm], a line per primitive
+    (mean over its sizes, band from the smallest to the largest; success pooled over
+    the sizes), the base gripper's value marked. Written atomically."""
+    from graspsim._atomic import atomic_path
+    from graspsim.errors import OutputPathError
+
+    plt = _pyplot()
+    kinds = list(dict.fromkeys(r["kind"] for r in rows))
+    fig, axes = plt.subplots(1, len(DESIGN_METRICS), figsize=(4.2 * len(DESIGN_METRICS), 3.8))
+    for ax, (key, label) in zip(axes, DESIGN_METRICS):
+        for i, k in enumerate(kinds):
+            x, m, lo, hi = _design_series(rows, k, key)
+            ax.plot(x, m, marker="o", color=f"C{i}", label=k.replace("_", " "))
+            if key != "success":
+                ax.fill_between(x, lo, hi, color=f"C{i}", alpha=0.12, linewidth=0)
+        if base_value is not None:
+            ax.axvline(1000 * base_value, color="0.5", linestyle=":", linewidth=1)
+        if key == "success":
+            ax.set_ylim(0, 103)  # a rate: not zoomed onto a few points' spread
+        ax.set_xlabel(f"{param.replace('_', ' ')} [mm]")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    try:
+        with atomic_path(path, OutputPathError) as tmp:
+            fig.savefig(tmp, dpi=110, format=image_format(path))
     finally:
         plt.close(fig)

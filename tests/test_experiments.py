@@ -328,6 +328,30 @@ def test_e01_counts_a_view_with_too_few_points_as_a_failure(monkeypatch):
     assert mode == "partial" and not row["success"] and row["predicted"] == "too few points" and row["n_points"] > 0
 
 
+@pytest.mark.slow
+def test_e11_quick_gripper_design_sweeps_and_adaptation(tmp_path):
+    out = tmp_path / "e11"
+    e11 = _load("e11_gripper_design")
+    assert e11.main(["--quick", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    cfg = s["config"]
+    objects = len(cfg["kinds"]) * len(cfg["sizes"])
+    for param, sw in s["sweeps"].items():
+        assert (out / f"{param}.png").stat().st_size > 0
+        assert sw["maps"] == len(sw["rows"]) == len(sw["values"]) * objects
+        for r in sw["rows"]:
+            assert 0 <= r["hit_voxels"] <= r["voxels"] and 0 <= r["hit_pixels"] <= r["pixels"]
+            assert r["accepted"] <= r["grasps"] and r["sim"]["success"] <= r["sim"]["feasible"] <= r["sim"]["drawn"]
+            assert r["sim"]["drawn"] == min(cfg["sim_grasps"], r["sim"]["eligible"])
+        # one voxel box per sweep: the same hits over more voxels would be a smaller VR
+        assert len({r["voxels"] for r in sw["rows"] if r["object"] == sw["rows"][0]["object"]}) == 1
+    for r in s["adapted"]:
+        assert r["adapted"] <= r["source_accepted"] and r["quality_pose"] + r["feasibility_pose"] >= r["adapted"]
+        assert r["SRN"] > 0 and r["adapt_s"] > 0 and r["own_found"] <= r["own_accepted"]
+        assert r["adapted_in_own"] <= r["adapted"]
+    assert "**finger length**" in e11.readme_section(s)
+
+
 def test_e13_gripper_validation_quick_counts_add_up_and_reports_impossible_sizes(tmp_path):
     out = tmp_path / "e13"
     mod = _load("e13_gripper_validation")

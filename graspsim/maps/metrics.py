@@ -39,8 +39,10 @@ class MapRates:
 
 
 def map_rates(gmap: GraspabilityMap, *, shape=None, min_grade: float = 0.0,
-              resolution: float | None = None) -> MapRates:
-    """SR and VR of ``gmap`` (its object rebuilt from the map's metadata unless given)."""
+              resolution: float | None = None, box_gripper: GripperSpec | None = None) -> MapRates:
+    """SR and VR of ``gmap`` (its object rebuilt from the map's metadata unless given).
+    box_gripper: the gripper whose reach sizes VR's voxel box (default: the map's own;
+    give one gripper to compare maps of different grippers over the same box)."""
     shape = shape if shape is not None else gmap.meta.shape
     res = float(resolution or gmap.meta.surface_step)
     if not res > 0:
@@ -56,7 +58,7 @@ def map_rates(gmap: GraspabilityMap, *, shape=None, min_grade: float = 0.0,
         _, pix = cKDTree(pixels).query(c.reshape(-1, 3).astype(float))
         hit[pix] = True
     hit_pixels = int(hit.sum())
-    lo, hi = wrist_box(shape, gmap.meta.gripper_spec)
+    lo, hi = wrist_box(shape, box_gripper or gmap.meta.gripper_spec)
     n_vox = np.ceil((hi - lo) / res - 1e-9).astype(np.int64)
     # voxel coordinates as whole float32 numbers, bounds-checked before the integer cast
     # (in place: maps hold millions of rows)

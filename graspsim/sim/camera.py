@@ -233,12 +233,14 @@ def fuse(frames, *, voxel: float = 0.0, stride: int = 1) -> tuple[np.ndarray, np
 
 class DepthRenderer:
     """Renders :class:`DepthFrame` s of one model at one image size (build once, render
-    many; ``close()`` frees the GL context). The model's offscreen buffer must hold the image."""
+    many; ``close()`` frees the GL context). The model's offscreen buffer must hold the image;
+    scene_option: what is drawn (e.g. geom groups hidden)."""
 
-    def __init__(self, model: mujoco.MjModel, intrinsics: Intrinsics) -> None:
+    def __init__(self, model: mujoco.MjModel, intrinsics: Intrinsics, *,
+                 scene_option: mujoco.MjvOption | None = None) -> None:
         from graspsim.sim.render import _renderer
 
-        self.model, self.intrinsics = model, intrinsics
+        self.model, self.intrinsics, self._option = model, intrinsics, scene_option
         self._r = _renderer(model, intrinsics.height, intrinsics.width)
         self._rays = intrinsics.rays()
 
@@ -253,7 +255,7 @@ class DepthRenderer:
 
     def _set_view(self, data: mujoco.MjData, camera: Camera) -> None:
         """Update the scene, then replace its GL camera by ours: pose and off-centre frustum."""
-        self._r.update_scene(data, mujoco.MjvCamera())
+        self._r.update_scene(data, mujoco.MjvCamera(), self._option)
         k, T = camera.intrinsics, camera.T_world_camera
         R = T[:3, :3] @ _GL_FROM_CV
         for c in self._r.scene.camera:

@@ -92,8 +92,9 @@ def _edges(depth: np.ndarray, jump: float) -> np.ndarray:
     d = np.where(depth > 0, depth, np.inf)
     p = np.pad(d, 1, mode="edge")
     far = np.zeros(depth.shape, bool)
-    for nb in (p[:-2, 1:-1], p[2:, 1:-1], p[1:-1, :-2], p[1:-1, 2:]):
-        far |= nb - d > jump
+    with np.errstate(invalid="ignore"):  # inf - inf where both are invalid: not an edge
+        for nb in (p[:-2, 1:-1], p[2:, 1:-1], p[1:-1, :-2], p[1:-1, 2:]):
+            far |= nb - d > jump
     return far & (depth > 0)
 
 

@@ -204,3 +204,19 @@ def test_fuse_two_views_covers_more_and_agrees(world, tmp_path):
     assert np.allclose(to_world(backproject(frames[0]).points, cams[0].T_world_camera), backproject(frames[0]).world())
     save_view(tmp_path / "v.ply", backproject(frames[0]), frame="world")
     assert read_camera(tmp_path / "v.ply")[1] == "world"
+
+
+def test_orbit_and_rig_look_at_the_target():
+    from graspsim.sim.camera import orbit, rig
+
+    T = orbit([0.1, 0.0, 0.03], distance=0.7, elevation=55.0, azimuth=-90.0)
+    assert np.isclose(np.linalg.norm(T[:3, 3] - [0.1, 0, 0.03]), 0.7) and T[1, 3] < 0 and T[2, 3] > 0.5
+    cams = rig(3, target=(0.0, 0.0, 0.03))
+    k = cams[0].intrinsics
+    for c in cams:  # the target projects onto the principal point
+        p = np.linalg.inv(c.T_world_camera) @ [0.0, 0.0, 0.03, 1.0]
+        assert np.allclose(k.project(p[None, :3]), [[k.cx, k.cy]])
+    az = [np.degrees(np.arctan2(c.T_world_camera[1, 3], c.T_world_camera[0, 3])) for c in cams]
+    assert np.allclose(np.diff(np.sort(az)), 120.0)
+    with pytest.raises(InvalidParameterError):
+        rig(0)

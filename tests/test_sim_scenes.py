@@ -157,3 +157,20 @@ def test_render_labels_match_the_objects(gl):
     g = sim.render(cam, noise=DepthNoise(), rng=np.random.default_rng(0))
     assert 2 not in set(np.unique(g.labels)) and set(np.unique(g.labels)) >= {0, 1, 3, 4}
     sim.close()
+
+
+def test_execution_noise_is_seeded_and_width_sets_the_opening():
+    from graspsim.sim import ExecutionNoise
+
+    T = _top_down(_at(0, 0))
+    runs = []
+    for seed in (7, 7, 8):
+        sim = SceneSim([(BOX, _at(0, 0))])
+        out = sim.execute(T, width=0.06, target=0, noise=ExecutionNoise(), rng=np.random.default_rng(seed))
+        runs.append(out)
+    assert runs[0].to_dict() == runs[1].to_dict() and runs[0].extra["T_world_wrist"] != runs[2].extra["T_world_wrist"]
+    assert runs[0].extra["opening"] == pytest.approx(0.06 + 2 * HGPL_25_60_A.approach_clearance)
+    assert not np.allclose(runs[0].extra["T_world_wrist"], T)
+    assert runs[0].outcome == TrialOutcome.SUCCESS  # this draw (seed 7) still picks the box
+    with pytest.raises(InvalidParameterError):
+        SceneSim([(BOX, _at(0, 0))]).execute(T, 0.07, width=0.06)

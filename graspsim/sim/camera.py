@@ -31,7 +31,7 @@ from graspsim.sim.cloud_io import read_camera, save_cloud, save_view
 from graspsim.sim.depth_noise import DepthNoise
 from graspsim.transforms import make_transform, transform_points
 
-__all__ = ["Intrinsics", "Camera", "DepthFrame", "CloudView", "DepthNoise", "DepthRenderer", "look_at",
+__all__ = ["Intrinsics", "Camera", "DepthFrame", "CloudView", "DepthNoise", "DepthRenderer", "look_at", "orbit", "rig",
            "render_depth", "backproject", "to_world", "fuse", "save_cloud", "save_view", "read_camera",
            "PRESETS"]
 
@@ -135,6 +135,31 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
         x = np.cross(z, [0.0, 1.0, 0.0] if abs(z[1]) < 0.9 else [1.0, 0.0, 0.0])
     x /= np.linalg.norm(x)
     return make_transform(np.stack([x, np.cross(z, x), z], axis=1), eye)
+
+
+def orbit(target=(0.0, 0.0, 0.0), *, distance: float = 0.7, elevation: float = 55.0,
+          azimuth: float = -90.0) -> np.ndarray:
+    """T_world_camera (4, 4) looking at ``target`` from ``distance`` [m], ``elevation``
+    [deg] above the horizontal and ``azimuth`` [deg] (from +x towards +y; -90: from -y)."""
+    if not (np.isfinite(distance) and distance > 0 and -90 < elevation <= 90):
+        raise InvalidParameterError(f"distance must be > 0 m and elevation in (-90, 90] deg, "
+                                    f"got {distance!r}, {elevation!r}")
+    e, a = math.radians(elevation), math.radians(azimuth)
+    eye = np.asarray(target, float) + distance * np.array([math.cos(e) * math.cos(a),
+                                                            math.cos(e) * math.sin(a), math.sin(e)])
+    return look_at(eye, target)
+
+
+def rig(n: int = 1, intrinsics: Intrinsics | None = None, *, target=(0.0, 0.0, 0.03), distance: float = 0.7,
+        elevation: float = 55.0, azimuth: float = -90.0) -> list[Camera]:
+    """``n`` cameras (default D435) around ``target``, evenly spaced in azimuth from
+    ``azimuth``, all at ``distance`` and ``elevation`` (see :func:`orbit`): a table-top
+    view for one, a fused all-round view for 2-3."""
+    if not (isinstance(n, int) and 1 <= n <= 8):
+        raise InvalidParameterError(f"a rig has 1 to 8 cameras, got {n!r}")
+    k = intrinsics or Intrinsics.preset("d435")
+    return [Camera(k, orbit(target, distance=distance, elevation=elevation, azimuth=azimuth + 360.0 * i / n))
+            for i in range(n)]
 
 
 @dataclass(frozen=True, eq=False)

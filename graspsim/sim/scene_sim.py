@@ -24,6 +24,7 @@ from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.sim.batch import arm_below_table, simulate
 from graspsim.sim.camera import Camera, DepthFrame, DepthRenderer, Intrinsics
 from graspsim.sim.model import NAMES, build_gripper_spec
+from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.outcomes import TrialOutcome
 from graspsim.sim.protocols import LiftPlace
 from graspsim.sim.scene import SimSettings, _add_object, _add_table, _set_options
@@ -242,15 +243,26 @@ class SceneSim:
         keys = sorted(k for k in bad if k != "table") + (["table"] if "table" in bad else [])
         return tuple(keys), max(hits.values(), default=0.0)
 
-    def execute(self, T_world_wrist: np.ndarray, opening: float, *, target: int | None = None,
-                commit: bool = True) -> SceneOutcome:
-        """Grasp at ``T_world_wrist`` (4, 4) with the jaws open to ``opening`` [m] (for a
-        map's contact width w: ``gripper.pregrasp_opening(w)``), close and lift.
-        commit: keep what happened (a picked object is removed, the others settle where
-        the attempt left them); False leaves the scene as it was."""
+    def execute(self, T_world_wrist: np.ndarray, opening: float | None = None, *, width: float | None = None,
+                target: int | None = None, noise: ExecutionNoise | None = None,
+                rng: np.random.Generator | None = None, commit: bool = True) -> SceneOutcome:
+        """Grasp at ``T_world_wrist`` (4, 4) with the jaws open to ``opening`` [m] (or give
+        a map's contact ``width`` [m]: the jaws open to ``gripper.pregrasp_opening(width)``),
+        close and lift. noise: the arm misses the pose by one draw from ``rng`` (the
+        outcome's ``extra["T_world_wrist"]`` is the pose executed). commit: keep what
+        happened (a picked object is removed, the others settle where the attempt left
+        them); False leaves the scene as it was."""
         T = np.asarray(T_world_wrist, float)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise InvalidParameterError(f"T_world_wrist must be a finite 4x4 transform, got shape {T.shape}")
+        if (opening is None) == (width is None):
+            raise InvalidParameterError("give the jaw opening or the contact width, one of them")
+        if width is not None:
+            opening = float(self.gripper.pregrasp_opening(np.array([width]))[0])
+        if noise is not None:
+            if rng is None:
+                raise InvalidParameterError("execution noise needs rng (a seeded numpy Generator)")
+            T = T @ noise.sample(1, rng, pivot=self.gripper.nominal_tcp)[0]
         if not (self.gripper.min_opening <= opening <= self.gripper.max_opening):
             raise InvalidParameterError(f"opening {opening!r} m outside the gripper's "
                                         f"[{self.gripper.min_opening}, {self.gripper.max_opening}] m")
@@ -262,8 +274,10 @@ class SceneSim:
             kind = ("table" if collided == ("table",) else "target" if target in collided
                     else "neighbour" if target is not None else "object")
             return SceneOutcome(TrialOutcome.START_COLLISION, None, target, f"start_collision_{kind}",
-                                collided, depth)
-        return self._run(T, state0, target, depth, commit)
+                                collided, depth, extra={"T_world_wrist": T.tolist(), "opening": opening})
+        out = self._run(T, state0, target, depth, commit)
+        out.extra.update(T_world_wrist=T.tolist(), opening=opening)
+        return out
 
     def _run(self, T, state0, target, depth, commit) -> SceneOutcome:
         p, m = self.protocol, self.model

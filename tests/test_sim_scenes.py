@@ -174,3 +174,23 @@ def test_execution_noise_is_seeded_and_width_sets_the_opening():
     assert runs[0].outcome == TrialOutcome.SUCCESS  # this draw (seed 7) still picks the box
     with pytest.raises(InvalidParameterError):
         SceneSim([(BOX, _at(0, 0))]).execute(T, 0.07, width=0.06)
+
+
+def test_the_bin_holds_a_rolling_ball_until_opened():
+    from graspsim.primitives import Sphere
+
+    ball = ObjectSpec("primitive", "sphere", Sphere(0.03).to_dict())
+    xs = []
+    for walls in (0.1, None):
+        sim = SceneSim([(ball, make_transform(np.eye(3), [0, 0, 0.03]))], bin=walls)
+        sim.data.qvel[sim.dadr[0]] = 1.0  # rolling along +x at 1 m/s
+        sim.settle(max_time=1.0)
+        xs.append(sim.pose(0)[0, 3])
+    assert xs[0] < 0.1 and xs[1] > 0.15
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_ten_object_piles_settle_on_the_table(seed):
+    s = make_scene(10, "pile", seed=seed)
+    pos = np.array([o.pos for o in s.objects])
+    assert len(pos) == 10 and np.abs(pos[:, :2]).max() <= 0.35 and pos[:, 2].min() > 0

@@ -37,6 +37,7 @@ log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 HOME = (0.0, 0.0, 3.0)  # the waiting gripper's wrist [m]
 GRIPPER_GROUP = 2
+BIN_GROUP = 3
 _PALETTE = np.array([[0.85, 0.55, 0.2], [0.2, 0.55, 0.85], [0.3, 0.75, 0.35], [0.85, 0.3, 0.35],
                      [0.6, 0.4, 0.8], [0.9, 0.8, 0.3], [0.3, 0.8, 0.8], [0.55, 0.35, 0.2]])
 
@@ -73,12 +74,13 @@ class SceneOutcome:
 class SceneSim:
     """The compiled scene. objects: (spec, T_world_obj (4, 4)) pairs; object ids are
     their indices. table_rolling [m]: rolling resistance on the table (without it a
-    dropped ball rolls off); held_height [m]: a picked object rose at least this much."""
+    dropped ball rolls off); held_height [m]: a picked object rose at least this much;
+    bin [m]: walls around [-bin, bin]^2 that hold a pile while it settles (``open_bin``)."""
 
     def __init__(self, objects: Sequence[tuple[ObjectSpec, np.ndarray]], *,
                  gripper: GripperSpec = HGPL_25_60_A, settings: SimSettings = SimSettings(),
-                 protocol: LiftPlace = LiftPlace(), table_rolling: float = 0.002,
-                 held_height: float = 0.05) -> None:
+                 protocol: LiftPlace = LiftPlace(), table_rolling: float = 0.003,
+                 held_height: float = 0.05, bin: float | None = None) -> None:
         if not objects:
             raise InvalidParameterError("a scene needs at least one object")
         self.gripper, self.settings, self.protocol, self.held_height = gripper, settings, protocol, held_height
@@ -92,6 +94,11 @@ class SceneSim:
         spec.modelname = f"table_scene_{gripper.name}"
         _set_options(spec, s)
         _add_table(spec, s, rolling=table_rolling)
+        if bin is not None:  # four walls around [-bin, bin]^2, 40 cm high, never drawn
+            for i, (x, y, hx, hy) in enumerate([(bin + 0.01, 0, 0.01, bin + 0.02), (-bin - 0.01, 0, 0.01, bin + 0.02),
+                                                (0, bin + 0.01, bin + 0.02, 0.01), (0, -bin - 0.01, bin + 0.02, 0.01)]):
+                spec.worldbody.add_geom(name=f"bin_{i}", type=mujoco.mjtGeom.mjGEOM_BOX, pos=[x, y, 0.2],
+                                        size=[hx, hy, 0.2], group=BIN_GROUP, rgba=[0.5, 0.5, 0.5, 0.3])
         for k, (o, T) in enumerate(objects):
             T = np.asarray(T, float)
             if T.shape != (4, 4) or not np.all(np.isfinite(T)):
@@ -114,6 +121,7 @@ class SceneSim:
         for k, b in enumerate(self.body):
             self.geom_object[m.geom_bodyid == b] = k
         self.table_geom = m.geom("table").id
+        self.bin_geoms = np.array([m.geom(f"bin_{i}").id for i in range(4)] if bin is not None else [], int)
         self.gripper_geoms = np.array([m.geom(g).id for g in (NAMES.housing, NAMES.jaw_neg, NAMES.jaw_pos,
                                                                NAMES.finger_neg, NAMES.finger_pos)])
         self.pad_adr = np.array([[m.sensor_adr[m.sensor(f"pad_{side}_{k}").id] for side in ("neg", "pos")]
@@ -167,6 +175,11 @@ class SceneSim:
                 break
         return t
 
+    def open_bin(self) -> None:
+        """Take the bin's walls away (their collisions off): what leaned on them falls."""
+        self.model.geom_contype[self.bin_geoms] = 0
+        self.model.geom_conaffinity[self.bin_geoms] = 0
+
     def remove(self, k: int) -> None:
         """Take object ``k`` out of the scene: parked far away, collisions off, weightless."""
         if k not in self._left:
@@ -197,6 +210,7 @@ class SceneSim:
             self.close()
             opt = mujoco.MjvOption()
             opt.geomgroup[GRIPPER_GROUP] = 0
+            opt.geomgroup[BIN_GROUP] = 0
             self._renderer = DepthRenderer(self.model, intrinsics, scene_option=opt)
         return self._renderer
 

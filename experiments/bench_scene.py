@@ -36,7 +36,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RunRecord, machine_load, opt, parse_config, run_fresh
 
 log = logging.getLogger("bench_scene")
-_CHILD = "--child"
 
 
 @dataclass(frozen=True)
@@ -80,21 +79,27 @@ def one_scene(kind: str, n: int, seed: int, renders: int) -> dict:
             "objects_seen": len(seen), "valid_pixels": float((frame.depth > 0).mean())}
 
 
-def _child(arg: str) -> int:
-    """A fresh process's work: import, a 5-object pile, one frame; prints its timings."""
-    t0 = time.perf_counter()
-    import graspsim.sim  # noqa: F401
-
-    imported = time.perf_counter() - t0
-    row = one_scene("pile", 5, int(arg), 1)
-    print(json.dumps({"import_s": imported, **row}))
-    return 0
+# a fresh process meets graspsim as a user's script does (without the harness's imports)
+_FRESH = """
+import json, sys, time
+t0 = time.perf_counter()
+from graspsim.sim.camera import rig
+from graspsim.sim.scenes import make_scene
+imported = time.perf_counter() - t0
+t = time.perf_counter()
+scene = make_scene(5, "pile", int(sys.argv[1]))
+settle = time.perf_counter() - t
+t = time.perf_counter()
+frame = scene.sim().render(rig(1)[0])
+first = time.perf_counter() - t
+print(json.dumps({"import_s": imported, "settle_s": settle, "first_render_s": first, "total_s": settle + first}))
+"""
 
 
 def fresh_runs(cfg: BenchConfig) -> dict:
     runs = []
     for _ in range(cfg.fresh):
-        r = run_fresh([sys.executable, __file__, _CHILD, str(cfg.seed)])
+        r = run_fresh([sys.executable, "-c", _FRESH, str(cfg.seed)])
         if r["exit"] != 0:
             raise SystemExit(f"fresh run failed: {r['stderr'][-2000:]}")
         runs.append({**json.loads(r["stdout"].strip().splitlines()[-1]), "wall_s": r["wall_s"],
@@ -134,9 +139,6 @@ def table(groups: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    args = sys.argv[1:] if argv is None else list(argv)
-    if args[:1] == [_CHILD]:
-        return _child(args[1])
     cfg, opts = parse_config(BenchConfig, __file__, argv, __doc__)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     record = RunRecord(__file__, argv)

@@ -154,8 +154,8 @@ def readme_section(s: dict) -> str:
     f = s["fresh"]
     L = [f"`{s['command']}` (in one process after a warm-up; {m['cpus']} cores, load average {start[0]:g} at "
          f"the start, {end[0]:g} at the end). Settle: draw, compile and settle the scene; first frame: "
-         "compile it again and render one D435-like 640 x 480 depth + segmentation frame with a new renderer. "
-         "Goal: settle + first frame <= 1 s.", "", table(s["groups"]), "",
+         "compile it again and render one D435-like 640 x 480 (87 deg) depth + segmentation frame with a new "
+         "renderer. Goal: settle + first frame <= 1 s.", "", table(s["groups"]), "",
          f"In a fresh process (import, a 5-object pile, one frame): {f['first']['wall_s']:.2f} s the first run, "
          f"{f['median_rest']['wall_s']:.2f} s the median of the next {f['of']} "
          f"(of which import {f['median_rest']['import_s']:.2f} s, scene + frame {f['median_rest']['total_s']:.2f} s; "

@@ -194,3 +194,22 @@ def test_ten_object_piles_settle_on_the_table(seed):
     s = make_scene(10, "pile", seed=seed)
     pos = np.array([o.pos for o in s.objects])
     assert len(pos) == 10 and np.abs(pos[:, :2]).max() <= 0.35 and pos[:, 2].min() > 0
+
+
+def test_a_grasp_can_be_pictured_without_touching_the_scene(gl):
+    sim = SceneSim([(BOX, _at(0, 0)), (BOX, _at(0, 0.15))])
+    cam = Camera(Intrinsics(160, 120, 90.0, 90.0, 79.5, 59.5), look_at([0.0, -0.45, 0.5], [0, 0, 0.05]))
+    before = sim.data.qpos.copy()
+    plain = sim.render(cam)
+    shown = sim.render(cam, gripper_at=(_top_down(_at(0, 0)), 0.07), rgb=True)
+    assert np.array_equal(sim.data.qpos, before)
+    grip = np.isin(shown.segmentation, sim.gripper_geoms)
+    assert grip.sum() > 50 and not np.isin(plain.segmentation, sim.gripper_geoms).any()
+    assert np.all(shown.labels[grip] == -1) and shown.rgb.shape == (120, 160, 3)
+    assert np.array_equal(sim.render(cam).depth, plain.depth)  # hidden again
+
+
+def test_picking_another_object_than_the_target_says_so():
+    sim = SceneSim([(BOX, _at(0, 0)), (BOX, _at(0, 0.2))])
+    out = sim.execute(_top_down(_at(0, 0)), 0.07, target=1)
+    assert out.outcome == TrialOutcome.SUCCESS and out.picked == 0 and out.cause == "success_other_object"

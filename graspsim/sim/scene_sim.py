@@ -46,7 +46,9 @@ _PALETTE = np.array([[0.85, 0.55, 0.2], [0.2, 0.55, 0.85], [0.3, 0.75, 0.35], [0
 class SceneOutcome:
     """One grasp in a scene. outcome: a :class:`TrialOutcome`; picked: the object lifted
     and held (None: none); target: the object meant (None: not said); cause: the outcome
-    label, START_COLLISION refined to ``start_collision_target | _neighbour | _table``;
+    label, START_COLLISION refined to ``start_collision_target | _neighbour | _table``
+    (``_object`` when no target was named), ``success_other_object`` when another object
+    than the target came up;
     collided: what the gripper overlaps at t = 0 beyond ``start_penetration`` (object
     ids, "table"); penetration [m]: the deepest overlap; lift_height [m]: how far the
     picked (else the target) object rose; moved: other objects displaced > 1 cm."""
@@ -198,11 +200,20 @@ class SceneSim:
 
     # -- looking ----------------------------------------------------------------
     def render(self, camera: Camera, *, noise=None, rng: np.random.Generator | None = None,
-               rgb: bool = False) -> DepthFrame:
+               rgb: bool = False, gripper_at: tuple[np.ndarray, float] | None = None) -> DepthFrame:
         """A :class:`DepthFrame` of the scene now, ``labels`` = object id per pixel (-1:
-        the table or nothing); the gripper is hidden."""
+        the table, the gripper or nothing). The gripper is hidden, unless ``gripper_at`` =
+        (T_world_wrist (4, 4), opening [m]) shows it there (for pictures of a grasp;
+        nothing is simulated and the scene is left as it was)."""
         r = self._renderer_for(camera.intrinsics)
-        f = r.render(self.data, camera, noise=noise, rng=rng, segmentation=True, rgb=rgb)
+        d = self.data
+        if gripper_at is not None:
+            d = mujoco.MjData(self.model)
+            mujoco.mj_setState(self.model, d, self._start_state(np.asarray(gripper_at[0], float),
+                                                                float(gripper_at[1])), _FULL)
+            mujoco.mj_forward(self.model, d)
+        r.scene_option.geomgroup[GRIPPER_GROUP] = int(gripper_at is not None)
+        f = r.render(d, camera, noise=noise, rng=rng, segmentation=True, rgb=rgb)
         labels = np.where(f.segmentation >= 0, self.geom_object[np.maximum(f.segmentation, 0)], -1)
         return DepthFrame(f.depth, camera, f.segmentation, labels.astype(np.int32), f.rgb, f.noise)
 
@@ -327,7 +338,8 @@ class SceneSim:
                       if k != picked and dd > 0.01)
         if commit:
             self._commit(states[-1], picked)
-        return SceneOutcome(out, picked, target, out.label, (), depth, lift, moved)
+        cause = "success_other_object" if picked is not None and target not in (None, picked) else out.label
+        return SceneOutcome(out, picked, target, cause, (), depth, lift, moved)
 
     def _commit(self, state: np.ndarray, picked: int | None) -> None:
         """Continue from ``state``: the picked object out, the gripper home, the rest settle."""

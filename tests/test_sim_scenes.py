@@ -213,3 +213,28 @@ def test_picking_another_object_than_the_target_says_so():
     sim = SceneSim([(BOX, _at(0, 0)), (BOX, _at(0, 0.2))])
     out = sim.execute(_top_down(_at(0, 0)), 0.07, target=1)
     assert out.outcome == TrialOutcome.SUCCESS and out.picked == 0 and out.cause == "success_other_object"
+
+
+def test_every_object_of_a_packed_scene_can_be_lifted_from_above():
+    """A physically sound scene: each object, at its settled pose, comes up with a plain
+    top-down grasp across a narrow horizontal extent: the first closing direction (narrowest
+    first) whose fingers clear the neighbours (1 cm gaps are narrower than a finger and its
+    clearance, so some directions hit them) lifts it."""
+    scene = make_scene(5, "packed", seed=0)
+    sim = scene.sim()
+    g = HGPL_25_60_A
+    for k in range(5):
+        T = sim.pose(k)
+        v = np.asarray(sim.specs[k].sim_object().surface.vertices) @ T[:3, :3].T + T[:3, 3]
+        dirs = [np.array([np.cos(a), np.sin(a), 0.0]) for a in np.linspace(0, np.pi, 12, endpoint=False)]
+        top = v[:, 2].max()
+        grasp_point = np.array([*v[:, :2].mean(0), top - min(0.03, top - 0.005)])
+        outs = []
+        for x in sorted(dirs, key=lambda d: np.ptp(v[:, :2] @ d[:2])):
+            R = np.stack([x, np.cross([0, 0, -1.0], x), [0, 0, -1.0]], 1)
+            Tw = make_transform(R, grasp_point - R @ g.nominal_tcp)
+            outs.append(sim.execute(Tw, width=float(np.ptp(v[:, :2] @ x[:2])), target=k, commit=False))
+            if outs[-1].outcome != TrialOutcome.START_COLLISION:
+                break
+        assert outs[-1].outcome == TrialOutcome.SUCCESS and outs[-1].picked == k, (k, sim.specs[k].name, outs[-1])
+        assert all(o.cause == "start_collision_neighbour" for o in outs[:-1])

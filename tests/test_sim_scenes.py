@@ -101,8 +101,12 @@ def test_top_down_grasp_lifts_a_lone_box_and_removes_it():
     assert np.linalg.norm(sim.pose(1)[:3, 3] - [0, 0.2, 0.03]) < 0.002  # the other one stays put
     with pytest.raises(InvalidParameterError):
         sim.execute(_top_down(_at(0, 0)), 0.07, target=0)  # gone
-    # a grasp where the box was now closes on nothing
+    # a grasp where the box was now closes on nothing, also on an empty table
     assert sim.execute(_top_down(_at(0, 0)), 0.07).outcome == TrialOutcome.NO_CONTACT
+    sim.remove(1)
+    assert sim.objects_left() == [] and sim.execute(_top_down(_at(0, 0)), 0.07).outcome == TrialOutcome.NO_CONTACT
+    with pytest.raises(InvalidParameterError):
+        sim.remove(1)
 
 
 def test_finger_hitting_a_neighbour_is_a_start_collision_with_it():
@@ -225,7 +229,7 @@ def test_every_object_of_a_packed_scene_can_be_lifted_from_above():
     g = HGPL_25_60_A
     for k in range(5):
         T = sim.pose(k)
-        v = np.asarray(sim.specs[k].sim_object().surface.vertices) @ T[:3, :3].T + T[:3, 3]
+        v = np.asarray(sim.sim_objects[k].surface.vertices) @ T[:3, :3].T + T[:3, 3]
         dirs = [np.array([np.cos(a), np.sin(a), 0.0]) for a in np.linspace(0, np.pi, 12, endpoint=False)]
         top = v[:, 2].max()
         grasp_point = np.array([*v[:, :2].mean(0), top - min(0.03, top - 0.005)])
@@ -238,3 +242,16 @@ def test_every_object_of_a_packed_scene_can_be_lifted_from_above():
                 break
         assert outs[-1].outcome == TrialOutcome.SUCCESS and outs[-1].picked == k, (k, sim.specs[k].name, outs[-1])
         assert all(o.cause == "start_collision_neighbour" for o in outs[:-1])
+
+
+def test_object_view_sees_the_object_where_it_stands(gl):
+    from graspsim.sim.camera import rig
+    from graspsim.sim.scenes import object_view
+
+    cam = rig(1, Intrinsics(320, 240, 170.0, 170.0, 159.5, 119.5), distance=0.5)[0]
+    pts, T = object_view(BOX, cam)
+    local = (pts - T[:3, 3]) @ T[:3, :3]
+    assert len(pts) > 500 and np.abs(local).max() < 0.03 + 1e-3  # on the 6 cm box
+    assert np.mean(np.isclose(np.abs(local).max(1), 0.03, atol=1e-3)) > 0.99  # on its faces
+    noisy, _ = object_view(BOX, cam, noise=DepthNoise(), rng=np.random.default_rng(0))
+    assert 0.5 * len(pts) < len(noisy) <= len(pts)

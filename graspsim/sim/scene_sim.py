@@ -74,8 +74,8 @@ class SceneOutcome:
 
 
 class SceneSim:
-    """The compiled scene. objects: (spec, T_world_obj (4, 4)) pairs; object ids are
-    their indices. table_rolling [m]: rolling resistance on the table (without it a
+    """The compiled scene. objects: (ObjectSpec or SimObject, T_world_obj (4, 4)) pairs;
+    object ids are their indices. table_rolling [m]: rolling resistance on the table (without it a
     dropped ball rolls off); held_height [m]: a picked object rose at least this much;
     bin [m]: walls around [-bin, bin]^2 that hold a pile while it settles (``open_bin``)."""
 
@@ -87,6 +87,7 @@ class SceneSim:
             raise InvalidParameterError("a scene needs at least one object")
         self.gripper, self.settings, self.protocol, self.held_height = gripper, settings, protocol, held_height
         self.specs = [o for o, _ in objects]
+        self.sim_objects = [o.sim_object() if isinstance(o, ObjectSpec) else o for o in self.specs]
         s = settings
         fric = (s.friction, s.torsional_friction, s.rolling_friction)
         spec = build_gripper_spec(gripper, s.physics, grip_force=gripper.grip_force if s.grip_force is None
@@ -102,11 +103,11 @@ class SceneSim:
                                                 (0, bin + 0.01, bin + 0.02, 0.01), (0, -bin - 0.01, bin + 0.02, 0.01)]):
                 spec.worldbody.add_geom(name=f"bin_{i}", type=mujoco.mjtGeom.mjGEOM_BOX, pos=[x, y, 0.2],
                                         size=[hx, hy, 0.2], group=BIN_GROUP, rgba=[0.5, 0.5, 0.5, 0.3])
-        for k, (o, T) in enumerate(objects):
+        for k, (_, T) in enumerate(objects):
             T = np.asarray(T, float)
             if T.shape != (4, 4) or not np.all(np.isfinite(T)):
                 raise InvalidParameterError(f"object {k}'s pose must be a finite 4x4 transform")
-            _add_object(spec, o.sim_object(), T, s, name=f"obj{k}", rgba=(*_PALETTE[k % len(_PALETTE)], 1.0))
+            _add_object(spec, self.sim_objects[k], T, s, name=f"obj{k}", rgba=(*_PALETTE[k % len(_PALETTE)], 1.0))
             for side in ("neg", "pos"):
                 sens = spec.add_sensor(name=f"pad_{side}_{k}", type=mujoco.mjtSensor.mjSENS_CONTACT,
                                        objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=f"finger_{side}",
@@ -313,15 +314,15 @@ class SceneSim:
         states, sens = simulate(self, p, state0[None], np.ascontiguousarray(control))
         states, sens = states[0], sens[0]
         qpos = states[:, 1:1 + m.nq]
-        left = np.array(self._left)
-        z = np.stack([qpos[:, a + 2] for a in self.qadr[left]], 1)  # (S, n_left)
+        left = np.array(self._left, int)
+        z = qpos[:, self.qadr[left] + 2]  # (S, n_left)
         pads = np.stack([sens[:, self.pad_adr[left] + i] for i in range(4)], -1)  # (S, n, 2, 4)
         touching = ((pads[..., 0] > 0) & (np.linalg.norm(pads[..., 1:], axis=-1) > 1e-3)).sum(-1)
         rise = z[h1] - z[0]
         held = (touching[h1] == 2) & (rise > self.held_height)
         v = states[:, 1 + m.nq:1 + m.nq + m.nv]
-        lin = np.stack([np.linalg.norm(v[:, a:a + 3], axis=1) for a in self.dadr[left]], 1)
-        if not (np.all(np.isfinite(states)) and lin.max() <= p.max_speed):
+        lin = np.linalg.norm(v[:, self.dadr[left][:, None] + np.arange(3)], axis=-1)  # (S, n_left)
+        if not (np.all(np.isfinite(states)) and lin.max(initial=0.0) <= p.max_speed):
             out, picked = TrialOutcome.SIM_UNSTABLE, None
         elif held.any():
             out, picked = TrialOutcome.SUCCESS, int(left[np.argmax(np.where(held, rise, -np.inf))])
@@ -333,8 +334,8 @@ class SceneSim:
             out, picked = TrialOutcome.DROPPED, None
         who = picked if picked is not None else target
         lift = float(rise[list(left).index(who)]) if who is not None else 0.0
-        xy = np.stack([qpos[:, a:a + 3] for a in self.qadr[left]], 1)
-        moved = tuple(int(k) for k, dd in zip(left, np.linalg.norm(xy[-1] - xy[0], axis=1))
+        xyz = qpos[:, self.qadr[left][:, None] + np.arange(3)]  # (S, n_left, 3)
+        moved = tuple(int(k) for k, dd in zip(left, np.linalg.norm(xyz[-1] - xyz[0], axis=1))
                       if k != picked and dd > 0.01)
         if commit:
             self._commit(states[-1], picked)

@@ -33,7 +33,7 @@ from graspsim.sim.scene_objects import OBJECT_SETS, ObjectSpec, draw_object
 from graspsim.sim.scene_sim import SceneOutcome, SceneSim
 from graspsim.transforms import make_transform, quat_to_matrix, random_rotation
 
-__all__ = ["PlacedObject", "TableScene", "make_scene", "save_scene", "load_scene", "footprint_gaps",
+__all__ = ["PlacedObject", "TableScene", "make_scene", "save_scene", "load_scene", "footprint_gaps", "object_view",
            "SceneSim", "SceneOutcome", "KINDS"]
 
 KINDS = ("pile", "packed")
@@ -225,3 +225,21 @@ def make_scene(n_objects: int, kind: str = "pile", seed: int = 0, *, object_set:
             return TableScene(int(seed), kind, object_set, tuple(placed), attempt)
     raise SimulationError(f"no {kind} scene of {n_objects} objects settled on the table in {max_attempts} draws "
                           f"(seed {seed})")
+
+
+def object_view(obj, camera, *, T_world_obj: np.ndarray | None = None, noise=None,
+                rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """What ``camera`` sees of one object (an ObjectSpec or SimObject) on the table:
+    (points (N, 3), world frame [m], T_world_obj (4, 4)). The object rests upright at the
+    origin (``resting_pose``) unless ``T_world_obj`` is given; noise: a ``DepthNoise``
+    drawn from ``rng``. The one camera model for single views and table scenes."""
+    from graspsim.sim.camera import backproject
+
+    body = obj.sim_object() if isinstance(obj, ObjectSpec) else obj
+    T = resting_pose(body) if T_world_obj is None else np.asarray(T_world_obj, float)
+    sim = SceneSim([(obj, T)])
+    try:
+        view = backproject(sim.render(camera, noise=noise, rng=rng))
+    finally:
+        sim.close()
+    return view.world()[view.labels == 0], sim.pose(0)

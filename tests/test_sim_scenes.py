@@ -190,6 +190,7 @@ def test_the_bin_holds_a_rolling_ball_until_opened():
         sim.data.qvel[sim.dadr[0]] = 1.0  # rolling along +x at 1 m/s
         sim.settle(max_time=1.0)
         xs.append(sim.pose(0)[0, 3])
+        assert sim.outside(0.12) == ([] if walls else [0])
     assert xs[0] < 0.1 and xs[1] > 0.15
 
 

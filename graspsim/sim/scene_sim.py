@@ -31,13 +31,14 @@ from graspsim.sim.scene import SimSettings, _add_object, _add_table, _set_option
 from graspsim.sim.scene_objects import ObjectSpec
 from graspsim.transforms import make_transform, matrix_to_quat, quat_to_matrix
 
-__all__ = ["SceneSim", "SceneOutcome", "HOME", "GRIPPER_GROUP"]
+__all__ = ["SceneSim", "SceneOutcome", "HOME", "GRIPPER_GROUP", "TABLE_REGION"]
 
 log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 HOME = (0.0, 0.0, 3.0)  # the waiting gripper's wrist [m]
 GRIPPER_GROUP = 2
 BIN_GROUP = 3
+TABLE_REGION = 0.35  # [m]: objects rest within +-this in x and y (the drawn table: +-0.4)
 _PALETTE = np.array([[0.85, 0.55, 0.2], [0.2, 0.55, 0.85], [0.3, 0.75, 0.35], [0.85, 0.3, 0.35],
                      [0.6, 0.4, 0.8], [0.9, 0.8, 0.3], [0.3, 0.8, 0.8], [0.55, 0.35, 0.2]])
 
@@ -155,6 +156,11 @@ class SceneSim:
 
     def poses(self) -> dict[int, np.ndarray]:
         return {k: self.pose(k) for k in self._left}
+
+    def outside(self, region: float = TABLE_REGION) -> list[int]:
+        """Objects left whose centre lies beyond +-``region`` [m] in x or y (off the table:
+        knocked away; the simulated table top is unbounded)."""
+        return [k for k in self._left if np.any(np.abs(self.data.qpos[self.qadr[k]:self.qadr[k] + 2]) > region)]
 
     def speeds(self) -> np.ndarray:
         """(n_left, 2) linear [m/s] and angular [rad/s] speed of the objects left."""

@@ -39,7 +39,6 @@ __all__ = ["PlacedObject", "TableScene", "make_scene", "save_scene", "load_scene
 KINDS = ("pile", "packed")
 FORMAT = "graspsim.table_scene/1"
 MAX_OBJECTS = 30
-TABLE_REGION = 0.35  # [m]: a settled object's centre lies within +-this in x and y (the drawn table: 0.4)
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,10 +186,12 @@ def _settled(sim: SceneSim, kind: str, gap: float, specs) -> list[PlacedObject] 
         sim.settle(max_time=3.0)
     if len(sim.speeds()) and (sim.speeds()[:, 0].max() > 0.02):
         return None
+    if sim.outside():
+        return None
     placed = []
     for k, spec in enumerate(specs):
         q = sim.data.qpos[sim.qadr[k]:sim.qadr[k] + 7]
-        if np.any(np.abs(q[:2]) > TABLE_REGION) or q[2] < 0:
+        if q[2] < 0:
             return None
         placed.append(PlacedObject(spec, tuple(float(x) for x in q[:3]), tuple(float(x) for x in q[3:])))
     if kind == "packed":

@@ -78,10 +78,12 @@ class DepthNoise:
         edge_u = rng.random(depth.shape) < self.edge_dropout
         err = rng.standard_normal(depth.shape)
         if self.max_incidence < 90:
-            n = surface_normals(depth, rays)
-            cos = np.abs(np.einsum("hwk,hwk->hw", n, rays)) / np.sqrt(np.einsum("hwk,hwk->hw", rays, rays))
-            known = np.any(n != 0, axis=-1)
-            drop |= valid & known & (cos < math.cos(math.radians(self.max_incidence)))
+            n, ok = _normal_components(depth, rays)
+            dot = n[0] * rays[..., 0] + n[1] * rays[..., 1] + n[2]  # rays have z = 1
+            nn = n[0] * n[0] + n[1] * n[1] + n[2] * n[2]
+            rr = rays[..., 0] ** 2 + rays[..., 1] ** 2 + 1.0
+            c = math.cos(math.radians(self.max_incidence))
+            drop |= ok & (nn > 0) & (dot * dot < c * c * nn * rr)  # cos(normal, ray) < c
         if math.isfinite(self.edge_jump) and self.edge_dropout > 0:
             drop |= _edges(depth, self.edge_jump) & edge_u
         if self.baseline > 0:
@@ -120,16 +122,22 @@ def _edges(depth: np.ndarray, jump: float) -> np.ndarray:
     return far & (depth > 0)
 
 
+def _normal_components(depth: np.ndarray, rays: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """Unnormalised normals (3 arrays (H, W), float32, camera frame) from central
+    differences of the back-projected image, and where they are valid (all 4 neighbours)."""
+    P = [np.pad((depth * rays[..., i]).astype(np.float32), 1, mode="edge") for i in range(3)]
+    du = [c[1:-1, 2:] - c[1:-1, :-2] for c in P]
+    dv = [c[2:, 1:-1] - c[:-2, 1:-1] for c in P]
+    n = [du[1] * dv[2] - du[2] * dv[1], du[2] * dv[0] - du[0] * dv[2], du[0] * dv[1] - du[1] * dv[0]]
+    v = np.pad(depth > 0, 1, mode="edge")
+    ok = (depth > 0) & v[:-2, 1:-1] & v[2:, 1:-1] & v[1:-1, :-2] & v[1:-1, 2:]
+    return n, ok
+
+
 def surface_normals(depth: np.ndarray, rays: np.ndarray) -> np.ndarray:
     """Unit normals (H, W, 3), camera frame, from central differences of the back-projected
     depth image (zero where a neighbour is invalid)."""
-    P = [np.pad(depth * rays[..., i], 1, mode="edge") for i in range(3)]
-    du = [c[1:-1, 2:] - c[1:-1, :-2] for c in P]
-    dv = [c[2:, 1:-1] - c[:-2, 1:-1] for c in P]
-    n = np.stack([du[1] * dv[2] - du[2] * dv[1], du[2] * dv[0] - du[0] * dv[2],
-                  du[0] * dv[1] - du[1] * dv[0]], axis=-1)
-    norm = np.sqrt(np.einsum("hwk,hwk->hw", n, n))[..., None]
-    ok = (depth > 0)
-    v = np.pad(ok, 1, mode="edge")
-    ok &= v[:-2, 1:-1] & v[2:, 1:-1] & v[1:-1, :-2] & v[1:-1, 2:]
+    n, ok = _normal_components(depth, rays)
+    n = np.stack(n, axis=-1).astype(float)
+    norm = np.linalg.norm(n, axis=-1, keepdims=True)
     return np.where(ok[..., None] & (norm > 0), n / np.maximum(norm, 1e-300), 0.0)

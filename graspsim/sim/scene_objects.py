@@ -24,7 +24,7 @@ from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.primitives import Box, Cylinder, Sphere, shape_from_dict
 from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape
 
-__all__ = ["ObjectSpec", "OBJECT_SETS", "draw_object", "MESHES", "ASSETS"]
+__all__ = ["ObjectSpec", "OBJECT_SETS", "draw_object", "narrowest_extent", "MESHES", "ASSETS"]
 
 #: Where the shipped meshes live (the repository's ``assets/objects``).
 ASSETS = Path(__file__).resolve().parents[2] / "assets" / "objects"

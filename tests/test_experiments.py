@@ -368,3 +368,14 @@ def test_e13_gripper_validation_quick_counts_add_up_and_reports_impossible_sizes
     with pytest.raises(SystemExit) as exit_:  # a bad gripper: one line, exit 2, before any work
         mod.main(["--quick", "--gripper", "robotiq", "--out", str(tmp_path / "bad")])
     assert exit_.value.code == 2 and not (tmp_path / "bad").exists()
+
+
+def test_bench_scene_quick(tmp_path):
+    bench = _load("bench_scene")
+    assert bench.main(["--quick", "--out", str(tmp_path / "b")]) == 0
+    s = _summary(tmp_path / "b")
+    (row,) = s["rows"]
+    assert row["objects_seen"] == row["objects"] == 5 and 0 < row["valid_pixels"] <= 1
+    assert row["total_s"] >= row["settle_s"] > 0 and row["warm_render_s"] > 0
+    assert s["fresh"]["of"] == 1 and s["fresh"]["first"]["wall_s"] > s["fresh"]["first"]["total_s"] > 0
+    assert s["command"] in bench.readme_section(s)

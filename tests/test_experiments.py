@@ -295,3 +295,15 @@ def test_e01_counts_a_view_with_too_few_points_as_a_failure(monkeypatch):
     cfg = mod.E01Config(trials=1, variants=1, workers=1)
     mode, row = mod._task((cfg, "partial", "box", 0, 10, 0))
     assert mode == "partial" and not row["success"] and row["predicted"] == "too few points" and row["n_points"] > 0
+
+
+@pytest.mark.slow
+def test_bench_scene_quick(tmp_path):
+    bench = _load("bench_scene")
+    assert bench.main(["--quick", "--out", str(tmp_path / "b")]) == 0
+    s = _summary(tmp_path / "b")
+    (row,) = s["rows"]
+    assert row["objects_seen"] == row["objects"] == 5 and 0 < row["valid_pixels"] <= 1
+    assert row["total_s"] >= row["settle_s"] > 0 and row["warm_render_s"] > 0
+    assert s["fresh"]["of"] == 1 and s["fresh"]["first"]["wall_s"] > s["fresh"]["first"]["total_s"] > 0
+    assert s["command"] in bench.readme_section(s)

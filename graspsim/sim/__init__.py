@@ -31,6 +31,7 @@ def _default_gl() -> None:
 _default_gl()
 
 from graspsim.sim.batch import initial_states, pregrasp_opening, run_trials, start_penetration  # noqa: E402
+from graspsim.sim.camera import Camera, DepthFrame, DepthNoise, Intrinsics, look_at, render_depth  # noqa: E402
 from graspsim.sim.mapsim import MapTrials, map_object, select_grasps, simulate_map, write_results  # noqa: E402
 from graspsim.sim.meshes import CoacdParams, convex_parts, load_mesh  # noqa: E402
 from graspsim.sim.model import GripperPhysics, build_gripper_spec, gripper_xml  # noqa: E402
@@ -40,6 +41,7 @@ from graspsim.sim.outcomes import TrialOutcome  # noqa: E402
 from graspsim.sim.protocols import PROTOCOLS, LiftPlace, Protocol, Tug, make_protocol  # noqa: E402
 from graspsim.sim.results import RESULT_GROUPS, TrialResults  # noqa: E402
 from graspsim.sim.scene import Scene, SimSettings, build_scene, resting_pose  # noqa: E402
+from graspsim.sim.scenes import SceneOutcome, SceneSim, TableScene, load_scene, make_scene, save_scene  # noqa: E402
 
 __all__ = [
     "GripperPhysics", "build_gripper_spec", "gripper_xml",
@@ -50,6 +52,8 @@ __all__ = [
     "run_trials", "start_penetration", "initial_states", "pregrasp_opening",
     "MapTrials", "simulate_map", "select_grasps", "map_object", "write_results",
     "render_trial",
+    "Camera", "Intrinsics", "DepthNoise", "DepthFrame", "look_at", "render_depth",
+    "TableScene", "SceneSim", "SceneOutcome", "make_scene", "save_scene", "load_scene",
 ]
 
 

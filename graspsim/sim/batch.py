@@ -28,7 +28,7 @@ from graspsim.sim.results import TrialResults
 from graspsim.sim.scene import Scene
 from graspsim.transforms import matrix_to_quat
 
-__all__ = ["run_trials", "start_penetration", "initial_states", "simulate", "pregrasp_opening"]
+__all__ = ["run_trials", "start_penetration", "initial_states", "simulate", "pregrasp_opening", "arm_below_table"]
 
 log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -73,14 +73,21 @@ def start_penetration(scene: Scene, state0: np.ndarray, T_world_wrist: np.ndarra
             if np.any(hit):
                 depth[i] = max(0.0, -float(d.contact.dist[: d.ncon][hit].min()))
     if scene.table:
-        b = scene.gripper.collision_boxes()
-        if "arm" in b.names:
-            k = b.names.index("arm")
-            corners = b.centers[k] + b.half_extents[k] * np.array(
-                np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T
-            z = np.einsum("nj,cj->nc", T_world_wrist[:, 2, :3], corners) + T_world_wrist[:, 2, 3:4]
-            depth = np.maximum(depth, -z.min(axis=1))
+        depth = np.maximum(depth, arm_below_table(scene.gripper, T_world_wrist))
     return depth
+
+
+def arm_below_table(gripper, T_world_wrist: np.ndarray) -> np.ndarray:
+    """(N,) how deep [m] the gripper's arm keep-out box reaches below the table (z = 0) at
+    the wrist poses (N, 4, 4); 0 where it stays above or the gripper has no arm box."""
+    b = gripper.collision_boxes()
+    if "arm" not in b.names:
+        return np.zeros(len(T_world_wrist))
+    k = b.names.index("arm")
+    corners = b.centers[k] + b.half_extents[k] * np.array(
+        np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T
+    z = np.einsum("nj,cj->nc", T_world_wrist[:, 2, :3], corners) + T_world_wrist[:, 2, 3:4]
+    return np.maximum(0.0, -z.min(axis=1))
 
 
 def simulate(scene: Scene, protocol: Protocol, state0: np.ndarray, control: np.ndarray, *,

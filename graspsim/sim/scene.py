@@ -225,12 +225,14 @@ def resting_pose(obj: SimObject, *, support_tol: float = 0.002,
 
 
 def _add_object(spec: mujoco.MjSpec, obj: SimObject, T_world_obj: np.ndarray,
-                s: SimSettings) -> None:
+                s: SimSettings, *, name: str = OBJECT,
+                rgba: tuple[float, float, float, float] = (0.85, 0.55, 0.2, 1.0)) -> None:
+    """Add ``obj`` as a free body ``name`` (geoms ``<name>_<i>``) at ``T_world_obj``."""
     from graspsim.transforms import matrix_to_quat
 
-    body = spec.worldbody.add_body(name=OBJECT, pos=T_world_obj[:3, 3],
+    body = spec.worldbody.add_body(name=name, pos=T_world_obj[:3, 3],
                                    quat=matrix_to_quat(T_world_obj[:3, :3]))
-    body.add_freejoint(name=OBJECT)
+    body.add_freejoint(name=name)
     body.explicitinertial = True
     body.mass = obj.mass
     body.ipos = obj.com
@@ -240,15 +242,40 @@ def _add_object(spec: mujoco.MjSpec, obj: SimObject, T_world_obj: np.ndarray,
     kinds = {"box": mujoco.mjtGeom.mjGEOM_BOX, "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
              "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER, "mesh": mujoco.mjtGeom.mjGEOM_MESH}
     for i, g in enumerate(obj.geoms):
-        kw = dict(name=f"object_{i}", type=kinds[g.kind], pos=g.pos, quat=g.quat,
-                  friction=friction, condim=s.condim, rgba=[0.85, 0.55, 0.2, 1.0])
+        kw = dict(name=f"{name}_{i}", type=kinds[g.kind], pos=g.pos, quat=g.quat,
+                  friction=friction, condim=s.condim, rgba=list(rgba))
         if g.kind == "mesh":
-            mesh = spec.add_mesh(name=f"object_{i}", uservert=np.asarray(g.vertices, float).ravel())
+            mesh = spec.add_mesh(name=f"{name}_{i}", uservert=np.asarray(g.vertices, float).ravel())
             mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX
             kw["meshname"] = mesh.name
         else:
             kw["size"] = g.size
         body.add_geom(**kw)
+
+
+def _set_options(spec: mujoco.MjSpec, s: SimSettings, *, gravity: bool = True) -> None:
+    """The solver options of :class:`SimSettings`, an offscreen buffer and a light."""
+    o = spec.option
+    o.timestep, o.impratio, o.tolerance = s.timestep, s.impratio, s.tolerance
+    o.iterations, o.ls_iterations = s.iterations, s.ls_iterations
+    o.cone, o.integrator = _CONES[s.cone], _INTEGRATORS[s.integrator]
+    if s.diagexact:
+        o.enableflags |= mujoco.mjtEnableBit.mjENBL_DIAGEXACT
+    if not gravity:
+        o.gravity = [0.0, 0.0, 0.0]
+    spec.visual.global_.offwidth, spec.visual.global_.offheight = 1280, 960
+    spec.worldbody.add_light(pos=[0.3, -0.3, 1.2], dir=[-0.25, 0.25, -1.0])
+
+
+def _add_table(spec: mujoco.MjSpec, s: SimSettings, *, rolling: float | None = None,
+               size: float = 0.4) -> None:
+    """The table: a plane at z = 0 (infinite for collisions; ``size`` [m] half side drawn).
+    ``rolling`` [m]: a rolling resistance (contact dimension 6 on the table; None: the
+    settings' friction and condim)."""
+    roll = s.rolling_friction if rolling is None else rolling
+    spec.worldbody.add_geom(name=TABLE, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[size, size, 0.01],
+                            friction=[s.table_friction, s.torsional_friction, roll],
+                            condim=s.condim if rolling is None else 6, rgba=[0.6, 0.6, 0.62, 1.0])
 
 
 def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
@@ -265,20 +292,9 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
     spec = build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
                               condim=s.condim, home_pos=home)
     spec.modelname = f"trial_{gripper.name}"
-    o = spec.option
-    o.timestep, o.impratio, o.tolerance = s.timestep, s.impratio, s.tolerance
-    o.iterations, o.ls_iterations = s.iterations, s.ls_iterations
-    o.cone, o.integrator = _CONES[s.cone], _INTEGRATORS[s.integrator]
-    if s.diagexact:
-        o.enableflags |= mujoco.mjtEnableBit.mjENBL_DIAGEXACT
-    if not gravity:
-        o.gravity = [0.0, 0.0, 0.0]
-    spec.visual.global_.offwidth, spec.visual.global_.offheight = 1280, 960
-    spec.worldbody.add_light(pos=[0.3, -0.3, 1.2], dir=[-0.25, 0.25, -1.0])
+    _set_options(spec, s, gravity=gravity)
     if table:
-        spec.worldbody.add_geom(name=TABLE, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.4, 0.4, 0.01],
-                                friction=[s.table_friction, s.torsional_friction, s.rolling_friction],
-                                condim=s.condim, rgba=[0.6, 0.6, 0.62, 1.0])
+        _add_table(spec, s)
     _add_object(spec, obj, T_world_obj, s)
     for side in ("neg", "pos"):
         sens = spec.add_sensor(name=f"pad_{side}", type=mujoco.mjtSensor.mjSENS_CONTACT,

@@ -1,0 +1,165 @@
+"""Benchmark: making a table-top scene (draw, compile, settle) and rendering what a
+640 x 480 depth camera sees of it (issue 17's goal: rendering + settling <= 1 s).
+
+For pile and packed scenes of 5 and 10 objects (``--scenes`` seeds each), in this process
+after a warm-up scene:
+
+* settle: ``make_scene`` (draw the objects, compile the MuJoCo scene, drop/place them and
+  step until every object is at rest);
+* first render: ``scene.sim()`` (compile again, as a user reloading it does) and one
+  D435-like 640 x 480 depth + segmentation frame with a new renderer (its GL context
+  included);
+* warm render: the next frames from the same renderer (median of ``--renders``), depth
+  and segmentation, and depth alone;
+* scene total = settle + first render (the goal's number).
+
+And in fresh processes (``run_fresh``), as a user's script meets it: ``import graspsim.sim``,
+make a 5-object pile, render one frame; the first run and the median of the next
+``--fresh`` runs. Writes summary.json and config.json into ``--out``.
+
+    python experiments/bench_scene.py
+    python experiments/bench_scene.py --quick --out results/bench_scene-quick
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import statistics
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RunRecord, machine_load, opt, parse_config, run_fresh
+
+log = logging.getLogger("bench_scene")
+_CHILD = "--child"
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    scenes: int = opt(5, "scenes (seeds) per kind and size")
+    sizes: tuple[int, ...] = opt((5, 10), "objects per scene")
+    kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
+    renders: int = opt(5, "warm renders per scene (median)")
+    fresh: int = opt(4, "fresh processes (the first, then the median of the rest)")
+    seed: int = opt(0, "first scene seed")
+    QUICK: ClassVar[dict] = {"scenes": 1, "sizes": (5,), "kinds": ("pile",), "renders": 2, "fresh": 2}
+
+    def __post_init__(self) -> None:
+        if min(self.scenes, self.renders, self.fresh, *self.sizes) < 1:
+            raise ValueError("--scenes, --renders, --fresh and --sizes must be >= 1")
+
+
+def _timed(fn):
+    t = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - t
+
+
+def one_scene(kind: str, n: int, seed: int, renders: int) -> dict:
+    """Timings [s] of one scene: settle, first render, warm renders."""
+    from graspsim.sim.camera import rig
+    from graspsim.sim.scenes import make_scene
+
+    cam = rig(1)[0]
+    scene, settle = _timed(lambda: make_scene(n, kind, seed))
+    sim, build = _timed(scene.sim)
+    frame, first = _timed(lambda: sim.render(cam))
+    warm = [_timed(lambda: sim.render(cam))[1] for _ in range(renders)]
+    r = sim._renderer_for(cam.intrinsics)
+    depth_only = [_timed(lambda: r.render(sim.data, cam, segmentation=False))[1] for _ in range(renders)]
+    sim.close()
+    seen = sorted(int(k) for k in set(frame.labels.ravel().tolist()) - {-1})
+    return {"kind": kind, "objects": n, "seed": seed, "attempts": scene.attempts, "settle_s": settle,
+            "build_s": build, "first_render_s": build + first, "total_s": settle + build + first,
+            "warm_render_s": statistics.median(warm), "warm_depth_only_s": statistics.median(depth_only),
+            "objects_seen": len(seen), "valid_pixels": float((frame.depth > 0).mean())}
+
+
+def _child(arg: str) -> int:
+    """A fresh process's work: import, a 5-object pile, one frame; prints its timings."""
+    t0 = time.perf_counter()
+    import graspsim.sim  # noqa: F401
+
+    imported = time.perf_counter() - t0
+    row = one_scene("pile", 5, int(arg), 1)
+    print(json.dumps({"import_s": imported, **row}))
+    return 0
+
+
+def fresh_runs(cfg: BenchConfig) -> dict:
+    runs = []
+    for _ in range(cfg.fresh):
+        r = run_fresh([sys.executable, __file__, _CHILD, str(cfg.seed)])
+        if r["exit"] != 0:
+            raise SystemExit(f"fresh run failed: {r['stderr'][-2000:]}")
+        runs.append({**json.loads(r["stdout"].strip().splitlines()[-1]), "wall_s": r["wall_s"],
+                     "cpu_s": r["cpu_s"], "peak_rss_mb": r["peak_rss_mb"], "load_before": r["load_before"]})
+    rest = runs[1:] or runs
+    med = {k: statistics.median(r[k] for r in rest) for k in ("wall_s", "cpu_s", "import_s", "total_s", "peak_rss_mb")}
+    return {"first": {k: runs[0][k] for k in med}, "median_rest": med, "of": len(rest), "runs": runs}
+
+
+def run(cfg: BenchConfig) -> dict:
+    one_scene("pile", 3, 10**6, 1)  # warm-up: imports, CoACD cache, GL library
+    rows = [one_scene(kind, n, cfg.seed + i, cfg.renders)
+            for kind in cfg.kinds for n in cfg.sizes for i in range(cfg.scenes)]
+    groups = []
+    for kind in cfg.kinds:
+        for n in cfg.sizes:
+            g = [r for r in rows if r["kind"] == kind and r["objects"] == n]
+            groups.append({"kind": kind, "objects": n, "scenes": len(g),
+                           **{f"median_{k}": statistics.median(r[k] for r in g)
+                              for k in ("settle_s", "first_render_s", "total_s", "warm_render_s",
+                                        "warm_depth_only_s")},
+                           "max_total_s": max(r["total_s"] for r in g),
+                           "within_goal": sum(r["total_s"] <= 1.0 for r in g)})
+    return {"rows": rows, "groups": groups, "fresh": fresh_runs(cfg)}
+
+
+def table(groups: list[dict]) -> str:
+    head = ("scene", "scenes", "settle (median)", "first 640x480 frame", "settle + first frame (median / max)",
+            "within 1 s", "next frames: depth + seg / depth")
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for g in groups:
+        out.append(f"| {g['kind']}, {g['objects']} objects | {g['scenes']} | {g['median_settle_s']:.2f} s | "
+                   f"{g['median_first_render_s']:.2f} s | {g['median_total_s']:.2f} / {g['max_total_s']:.2f} s | "
+                   f"{g['within_goal']}/{g['scenes']} | {1000 * g['median_warm_render_s']:.0f} / "
+                   f"{1000 * g['median_warm_depth_only_s']:.0f} ms |")
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    args = sys.argv[1:] if argv is None else list(argv)
+    if args[:1] == [_CHILD]:
+        return _child(args[1])
+    cfg, opts = parse_config(BenchConfig, __file__, argv, __doc__)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    record = RunRecord(__file__, argv)
+    res = run(cfg)
+    record.write(opts.out, {"config": cfg, **res}, readme_section, publish=opts.publish)
+    print(readme_section(json.loads((Path(opts.out) / "summary.json").read_text())))
+    return 0
+
+
+def readme_section(s: dict) -> str:
+    """The README's scene-speed paragraph and table (see ``experiments/report.py``)."""
+    m, (start, end) = s["machine"], machine_load(s)
+    f = s["fresh"]
+    L = [f"`{s['command']}` (in one process after a warm-up; {m['cpus']} cores, load average {start[0]:g} at "
+         f"the start, {end[0]:g} at the end). Settle: draw, compile and settle the scene; first frame: "
+         "compile it again and render one D435-like 640 x 480 depth + segmentation frame with a new renderer. "
+         "Goal: settle + first frame <= 1 s.", "", table(s["groups"]), "",
+         f"In a fresh process (import, a 5-object pile, one frame): {f['first']['wall_s']:.2f} s the first run, "
+         f"{f['median_rest']['wall_s']:.2f} s the median of the next {f['of']} "
+         f"(of which import {f['median_rest']['import_s']:.2f} s, scene + frame {f['median_rest']['total_s']:.2f} s; "
+         f"peak RSS {f['median_rest']['peak_rss_mb']:.0f} MB)."]
+    return "\n".join(L) + "\n"
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -33,6 +33,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.calibrate",
     "graspsim.cli.warmup",
     "graspsim.cli.view",
+    "graspsim.cli.scene",
 )
 
 

@@ -15,6 +15,7 @@ per-scene details.
 from __future__ import annotations
 
 from graspsim.cli._common import add_json_flag, emit, format_table
+from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
 
@@ -53,7 +54,8 @@ def _cmd_scene(args) -> int:
     cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours),
                         execution=ExecutionNoise() if args.noise else None, ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts)
-    db = MapDatabase(args.db)
+    map_cfg, quality = _config(args)
+    db = MapDatabase(args.db, quality=quality, config=map_cfg)
     on_step = None
     if render is not None:
         render.mkdir(parents=True, exist_ok=True)
@@ -121,5 +123,6 @@ def register(sub) -> None:
                    "~/.cache/graspsim/db)")
     p.add_argument("--render", default=None, metavar="DIR",
                    help="write a picture of every grasp (colour, depth, segments, the grasp) into DIR")
+    _add_generation(p)
     add_json_flag(p)
     p.set_defaults(func=_cmd_scene)

@@ -216,9 +216,9 @@ def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | 
 
 
 def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, config: ClutterConfig | None = None,
-                  object_set: str = "mixed", on_step=None, on_scene=None) -> list[ClutterResult]:
-    """``scenes`` episodes on scenes of ``n_objects`` of ``kind`` ("pile" | "packed").
-    Scene ``i`` is ``make_scene(n_objects, kind, derived_seed(seed, "scene", i))`` and its
+                  object_set: str = "mixed", first: int = 0, on_step=None, on_scene=None) -> list[ClutterResult]:
+    """``scenes`` episodes on scenes ``first``, ``first + 1``, ... of ``n_objects`` of
+    ``kind`` ("pile" | "packed"). Scene ``i`` is ``make_scene(n_objects, kind, derived_seed(seed, "scene", i))`` and its
     episode draws from ``rng_for(seed, "clutter", i)``: every condition (noise,
     ablation) meets the same scenes and the same draws. on_step(i, view, frame, plan,
     attempt) as :func:`run_clutter`'s; on_scene(i, scene, result) after each episode."""
@@ -228,7 +228,7 @@ def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, conf
     if isinstance(scenes, bool) or not isinstance(scenes, int) or scenes < 1:
         raise InvalidParameterError(f"scenes must be a whole number >= 1, got {scenes!r}")
     out = []
-    for i in range(scenes):
+    for i in range(first, first + scenes):
         scene = make_scene(n_objects, kind, derived_seed(seed, "scene", i), object_set=object_set,
                            gripper=db.gripper)
         step = None if on_step is None else (lambda *a, i=i: on_step(i, *a))

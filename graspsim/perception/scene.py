@@ -10,12 +10,12 @@
 The whole scene is the observed points of the other segments plus surface samples of
 their identified primitives (one camera sees a neighbour's front; the primitive stands
 for its back; a cluster left unidentified stands as its bounding box down to the
-table), and the table as a plane. A grasp whose fingers would close on a
-neighbour collides at its nominal pose, so its robust score is 0 and it ranks last. ``SceneConfig(neighbours=False)``
-scores each segment against its own points only (the ablation). Planning stops per
-segment once ``enough`` grasps with a positive robust score are found or ``per_segment``
-grasps are scored (:func:`graspsim.planner.plan_stream` streams best-first), which keeps a
-scene of several objects within a fraction of a second.
+table), and the table as a plane. A grasp whose fingers would close on a neighbour
+collides at its nominal pose, so its robust score is 0 and it ranks last.
+``SceneConfig(neighbours=False)`` scores each segment against its own points only (the
+ablation). :func:`graspsim.planner.plan_stream` streams best-first; planning of a
+segment stops once ``enough`` grasps with a positive robust score are found or
+``per_segment`` grasps per part are scored (later batches would not be scored).
 
 Frames: the cloud's frame is called the world here (``T_world_wrist``); a cloud in the
 camera's frame gives poses in the camera's frame.
@@ -304,8 +304,10 @@ def _plan_segment(per: ScenePerception, k: int, ident: Identification, obstacles
             if isinstance(item, PlanResult):
                 break
             batches.append(item.map)
-            if sum(int(np.sum(b.robust > 0)) for b in batches) >= cfg.enough:
-                break
+            good = sum(int(np.sum(b.robust > 0)) for b in batches)
+            scored = sum(int(np.isfinite(b.robust).sum()) for b in batches)
+            if good >= cfg.enough or scored >= cfg.per_segment * len(ident.parts):
+                break  # enough found, or every part's scoring budget spent: the rest is unscored
     finally:
         stream.close()
     scored = sum(int(np.isfinite(b.robust).sum()) for b in batches)

@@ -26,8 +26,11 @@ scenes it finished (``complete`` says whether it did).
 from __future__ import annotations
 
 import logging
+import shutil
 import sys
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from multiprocessing import get_context
 from pathlib import Path
 from typing import ClassVar
 
@@ -44,6 +47,7 @@ from _common import (
     rate_ci,
 )
 
+from graspsim.maps.database import MapDatabase
 from graspsim.perception.scene import SceneConfig
 from graspsim.sim.clutter import ClutterConfig, run_benchmark, summarize
 from graspsim.sim.noise import ExecutionNoise
@@ -67,6 +71,8 @@ class Config:
     seed: int = opt(0, "run seed")
     quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
+    workers: int = opt(1, "processes; results do not depend on it (each condition plans against its own "
+                       "linked copy of the database)")
     QUICK: ClassVar[dict] = {"scenes": 1, "block": 1, "objects": (2,), "kinds": ("packed",), "noise": ("none",),
                              "ablations": ("ground_truth",), "ablation_objects": (2,), "quick_maps": True}
 
@@ -105,23 +111,45 @@ def main(argv=None) -> int:
     db = experiment_database(cfg.db, out, map_config(cfg.quick_maps))
     db_start = database_record(db)
     conds = conditions(cfg)
+    # each condition grows its own database (maps built for parts on first use), so a
+    # condition's results depend neither on the others nor on the process running it
+    roots = []
+    for i in range(len(conds)):
+        shutil.rmtree(out / f"fsdb-{i}", ignore_errors=True)
+        roots.append(str(db.linked_copy(out / f"fsdb-{i}").root))
     done: list[list] = [[] for _ in conds]
-    for start in range(0, cfg.scenes, cfg.block):
-        n = min(cfg.block, cfg.scenes - start)
-        for c, results in zip(conds, done):
-            # scene i of every condition of one kind and size is the same scene (seeded by i)
-            results += _block(c, cfg, db, start, n)
-            log.info("%s: %d scenes", c, len(results))
-        data = {"config": cfg, "complete": start + n >= cfg.scenes, "scenes_done": start + n,
-                "conditions": [_row(c, r) for c, r in zip(conds, done)],
-                "database": {"start": db_start, "end": database_record(db)}}
-        text = run.write(out, data, readme_section, publish=opts.publish)
+    pool = ProcessPoolExecutor(cfg.workers, mp_context=get_context("spawn")) if cfg.workers > 1 else None
+    try:
+        for start in range(0, cfg.scenes, cfg.block):
+            n = min(cfg.block, cfg.scenes - start)
+            tasks = [(c, cfg, root, start, n) for c, root in zip(conds, roots)]
+            blocks = pool.map(_block, tasks) if pool is not None else map(_block, tasks)
+            for c, results, new in zip(conds, done, blocks):
+                results += new
+                log.info("%s: %d scenes", c, len(results))
+            data = {"config": cfg, "complete": start + n >= cfg.scenes, "scenes_done": start + n,
+                    "conditions": [_row(c, r) for c, r in zip(conds, done)],
+                    "database": {"start": db_start, "end": _grown(db_start, roots)}}
+            text = run.write(out, data, readme_section, publish=opts.publish)
+    finally:
+        if pool is not None:
+            pool.shutdown()
     print(text)
     return 0
 
 
-def _block(c: dict, cfg: Config, db, start: int, n: int) -> list:
-    """Scenes start .. start + n - 1 of condition ``c``."""
+def _grown(start: dict, roots: list[str]) -> dict:
+    """The database record at the end: the start's maps and every map a condition added."""
+    maps = set(start["maps"])
+    for r in roots:
+        maps |= set(database_record(MapDatabase(r))["maps"])
+    return {"root": start["root"], "maps": sorted(maps)}
+
+
+def _block(task) -> list:
+    """Scenes start .. start + n - 1 of a condition, against its database."""
+    c, cfg, root, start, n = task
+    db = MapDatabase(root, config=map_config(cfg.quick_maps))
     return run_benchmark(c["objects"], c["kind"], n, cfg.seed, db=db, config=_clutter_config(c),
                          object_set=cfg.object_set, first=start)
 

@@ -14,22 +14,10 @@ per-scene details.
 
 from __future__ import annotations
 
-from graspsim.cli._common import add_json_flag, emit, format_table
+from graspsim.cli._common import add_json_flag, emit, format_table, whole_number
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
-
-
-def _positive(text: str) -> int:
-    import argparse
-
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {text!r}")
-    return v
 
 
 def _cmd_scene(args) -> int:
@@ -105,8 +93,8 @@ def register(sub) -> None:
         "a D435-like depth camera, and clear each table grasp by grasp: segment the cloud, plan every "
         "object (grasps checked against the whole scene), execute the best, remove what was lifted, "
         "render again. Reports the grasp success rate and the share of objects cleared.")
-    p.add_argument("--objects", type=_positive, default=5, help="objects per scene (5)")
-    p.add_argument("--scenes", type=_positive, default=1, help="scenes (1)")
+    p.add_argument("--objects", type=whole_number(1), default=5, help="objects per scene (5)")
+    p.add_argument("--scenes", type=whole_number(1), default=1, help="scenes (1)")
     p.add_argument("--kind", choices=["pile", "packed"], default="pile",
                    help="pile: dropped and settled; packed: upright side by side, >= 1 cm apart (pile)")
     p.add_argument("--object-set", default="mixed", help="objects drawn from this set (mixed)")
@@ -116,7 +104,7 @@ def register(sub) -> None:
                    help="ablation: check grasps against the object's own points only")
     p.add_argument("--ground-truth", action="store_true",
                    help="ablation: segment by the simulator's object labels instead of clustering")
-    p.add_argument("--max-attempts", type=_positive, default=None,
+    p.add_argument("--max-attempts", type=whole_number(1), default=None,
                    help="grasps per scene at most (default 2 x objects + 2)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
     p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "

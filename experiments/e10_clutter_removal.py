@@ -183,6 +183,17 @@ def readme_section(s: dict) -> str:
                  f"{rate_ci(r['removed'], r['placed'], r['cleared_interval_95'])} | {r['scenes_cleared']} | "
                  f"{pct(seg['share'], 0)} % ({seg['one_cluster']}/{seg['objects_seen']}) | "
                  f"{'n/a' if med is None else f'{med:.2f} s'} | {causes} |")
+    L += ["", "Where the planning time goes (median seconds per grasp, `plan_scene`'s stages; the planning "
+          "column above also counts the back-projection): table fit, segmentation, identification of every "
+          "segment, maps and robust scores of every segment (including FS maps built for parts no stored map "
+          "covers, on first use):", "",
+          "| scene | objects | condition | table | segmentation | identification | maps + scores | total |",
+          "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        st = r["planning_s"].get("stages_median") or {}
+        cells = " | ".join("n/a" if k not in st else f"{st[k]:.2f}" for k in ("table", "segment", "identify",
+                                                                            "plan", "total"))
+        L.append(f"| {r['kind']} | {r['objects']} | {_label(r)} | {cells} |")
     m = s["machine"]
     L += ["", f"Planning = depth frame to ranked grasps for the whole scene (table, segmentation, identification "
           f"of every segment, maps, robust scores against the scene), measured at load "

@@ -90,6 +90,9 @@ _LAZY: dict[str, str] = {
     **_from("graspsim.sim", "TrialOutcome", "TrialResults", "SimSettings", "GripperPhysics",
             "LiftPlace", "Tug", "ExecutionNoise", "SimObject", "Scene", "object_from_shape",
             "object_from_mesh", "build_scene", "run_trials", "simulate_map", "render_trial"),
+    # table-top scenes and the simulated depth camera
+    **_from("graspsim.sim", "Camera", "Intrinsics", "DepthNoise", "render_depth", "TableScene", "SceneSim",
+            "make_scene", "load_scene", "save_scene"),
 }
 
 __all__ = [

@@ -220,3 +220,18 @@ def test_orbit_and_rig_look_at_the_target():
     assert np.allclose(np.diff(np.sort(az)), 120.0)
     with pytest.raises(InvalidParameterError):
         rig(0)
+
+
+def test_stereo_shadow_lies_left_of_a_near_object_and_has_the_predicted_width():
+    k = Intrinsics(200, 100, 150.0, 150.0, 99.5, 49.5)
+    depth = np.full((100, 200), 1.0)
+    depth[:, 100:140] = 0.5  # a near slab in front of a wall
+    n = DepthNoise(sigma0=0, sigma_z2=0, max_incidence=90.0, edge_dropout=0, dropout=0, quantisation=0,
+                   baseline=0.05)
+    out = n.apply(depth, k.rays(), np.random.default_rng(0))
+    band = np.flatnonzero(out[50] == 0)
+    width = 150.0 * 0.05 * (1 / 0.5 - 1 / 1.0)  # f b (1/z1 - 1/z2) = 7.5 px
+    assert band.max() == 99 and len(band) == int(width)  # just left of the slab: the s < 7.5 columns
+    assert np.all(out[:, 140:] > 0) and np.all(out[:, 100:140] > 0)  # its right side and itself stay
+    off = DepthNoise(sigma0=0, sigma_z2=0, max_incidence=90.0, edge_dropout=0, dropout=0, quantisation=0, baseline=0)
+    assert np.all(off.apply(depth, k.rays(), np.random.default_rng(0)) > 0)

@@ -101,8 +101,12 @@ def test_top_down_grasp_lifts_a_lone_box_and_removes_it():
     assert np.linalg.norm(sim.pose(1)[:3, 3] - [0, 0.2, 0.03]) < 0.002  # the other one stays put
     with pytest.raises(InvalidParameterError):
         sim.execute(_top_down(_at(0, 0)), 0.07, target=0)  # gone
-    # a grasp where the box was now closes on nothing
+    # a grasp where the box was now closes on nothing, also on an empty table
     assert sim.execute(_top_down(_at(0, 0)), 0.07).outcome == TrialOutcome.NO_CONTACT
+    sim.remove(1)
+    assert sim.objects_left() == [] and sim.execute(_top_down(_at(0, 0)), 0.07).outcome == TrialOutcome.NO_CONTACT
+    with pytest.raises(InvalidParameterError):
+        sim.remove(1)
 
 
 def test_finger_hitting_a_neighbour_is_a_start_collision_with_it():
@@ -174,3 +178,81 @@ def test_execution_noise_is_seeded_and_width_sets_the_opening():
     assert runs[0].outcome == TrialOutcome.SUCCESS  # this draw (seed 7) still picks the box
     with pytest.raises(InvalidParameterError):
         SceneSim([(BOX, _at(0, 0))]).execute(T, 0.07, width=0.06)
+
+
+def test_the_bin_holds_a_rolling_ball_until_opened():
+    from graspsim.primitives import Sphere
+
+    ball = ObjectSpec("primitive", "sphere", Sphere(0.03).to_dict())
+    xs = []
+    for walls in (0.1, None):
+        sim = SceneSim([(ball, make_transform(np.eye(3), [0, 0, 0.03]))], bin=walls)
+        sim.data.qvel[sim.dadr[0]] = 1.0  # rolling along +x at 1 m/s
+        sim.settle(max_time=1.0)
+        xs.append(sim.pose(0)[0, 3])
+        assert sim.outside(0.12) == ([] if walls else [0])
+    assert xs[0] < 0.1 and xs[1] > 0.15
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_ten_object_piles_settle_on_the_table(seed):
+    s = make_scene(10, "pile", seed=seed)
+    pos = np.array([o.pos for o in s.objects])
+    assert len(pos) == 10 and np.abs(pos[:, :2]).max() <= 0.35 and pos[:, 2].min() > 0
+
+
+def test_a_grasp_can_be_pictured_without_touching_the_scene(gl):
+    sim = SceneSim([(BOX, _at(0, 0)), (BOX, _at(0, 0.15))])
+    cam = Camera(Intrinsics(160, 120, 90.0, 90.0, 79.5, 59.5), look_at([0.0, -0.45, 0.5], [0, 0, 0.05]))
+    before = sim.data.qpos.copy()
+    plain = sim.render(cam)
+    shown = sim.render(cam, gripper_at=(_top_down(_at(0, 0)), 0.07), rgb=True)
+    assert np.array_equal(sim.data.qpos, before)
+    grip = np.isin(shown.segmentation, sim.gripper_geoms)
+    assert grip.sum() > 50 and not np.isin(plain.segmentation, sim.gripper_geoms).any()
+    assert np.all(shown.labels[grip] == -1) and shown.rgb.shape == (120, 160, 3)
+    assert np.array_equal(sim.render(cam).depth, plain.depth)  # hidden again
+
+
+def test_picking_another_object_than_the_target_says_so():
+    sim = SceneSim([(BOX, _at(0, 0)), (BOX, _at(0, 0.2))])
+    out = sim.execute(_top_down(_at(0, 0)), 0.07, target=1)
+    assert out.outcome == TrialOutcome.SUCCESS and out.picked == 0 and out.cause == "success_other_object"
+
+
+def test_every_object_of_a_packed_scene_can_be_lifted_from_above():
+    """A physically sound scene: each object, at its settled pose, comes up with a plain
+    top-down grasp across a narrow horizontal extent: the first closing direction (narrowest
+    first) whose fingers clear the neighbours (1 cm gaps are narrower than a finger and its
+    clearance, so some directions hit them) lifts it."""
+    scene = make_scene(5, "packed", seed=0)
+    sim = scene.sim()
+    g = HGPL_25_60_A
+    for k in range(5):
+        T = sim.pose(k)
+        v = np.asarray(sim.sim_objects[k].surface.vertices) @ T[:3, :3].T + T[:3, 3]
+        dirs = [np.array([np.cos(a), np.sin(a), 0.0]) for a in np.linspace(0, np.pi, 12, endpoint=False)]
+        top = v[:, 2].max()
+        grasp_point = np.array([*v[:, :2].mean(0), top - min(0.03, top - 0.005)])
+        outs = []
+        for x in sorted(dirs, key=lambda d: np.ptp(v[:, :2] @ d[:2])):
+            R = np.stack([x, np.cross([0, 0, -1.0], x), [0, 0, -1.0]], 1)
+            Tw = make_transform(R, grasp_point - R @ g.nominal_tcp)
+            outs.append(sim.execute(Tw, width=float(np.ptp(v[:, :2] @ x[:2])), target=k, commit=False))
+            if outs[-1].outcome != TrialOutcome.START_COLLISION:
+                break
+        assert outs[-1].outcome == TrialOutcome.SUCCESS and outs[-1].picked == k, (k, sim.specs[k].name, outs[-1])
+        assert all(o.cause == "start_collision_neighbour" for o in outs[:-1])
+
+
+def test_object_view_sees_the_object_where_it_stands(gl):
+    from graspsim.sim.camera import rig
+    from graspsim.sim.scenes import object_view
+
+    cam = rig(1, Intrinsics(320, 240, 170.0, 170.0, 159.5, 119.5), distance=0.5)[0]
+    pts, T = object_view(BOX, cam)
+    local = (pts - T[:3, 3]) @ T[:3, :3]
+    assert len(pts) > 500 and np.abs(local).max() < 0.03 + 1e-3  # on the 6 cm box
+    assert np.mean(np.isclose(np.abs(local).max(1), 0.03, atol=1e-3)) > 0.99  # on its faces
+    noisy, _ = object_view(BOX, cam, noise=DepthNoise(), rng=np.random.default_rng(0))
+    assert 0.5 * len(pts) < len(noisy) <= len(pts)

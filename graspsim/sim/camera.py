@@ -265,7 +265,7 @@ class DepthRenderer:
                  scene_option: mujoco.MjvOption | None = None) -> None:
         from graspsim.sim.render import _renderer
 
-        self.model, self.intrinsics, self._option = model, intrinsics, scene_option
+        self.model, self.intrinsics, self.scene_option = model, intrinsics, scene_option
         self._r = _renderer(model, intrinsics.height, intrinsics.width)
         self._rays = intrinsics.rays()
 
@@ -280,7 +280,7 @@ class DepthRenderer:
 
     def _set_view(self, data: mujoco.MjData, camera: Camera) -> None:
         """Update the scene, then replace its GL camera by ours: pose and off-centre frustum."""
-        self._r.update_scene(data, mujoco.MjvCamera(), self._option)
+        self._r.update_scene(data, mujoco.MjvCamera(), self.scene_option)
         k, T = camera.intrinsics, camera.T_world_camera
         R = T[:3, :3] @ _GL_FROM_CV
         for c in self._r.scene.camera:

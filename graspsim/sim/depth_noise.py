@@ -26,8 +26,12 @@ class DepthNoise:
     """Depth sensor noise. sigma0 [m] + sigma_z2 [1/m] x z^2: Gaussian depth error;
     max_incidence [deg]: pixels whose surface normal is farther than this from the
     viewing ray are dropped; edge_jump [m] (inf: off): a pixel whose 4-neighbour is farther by more
-    than this is on a depth edge, dropped with probability ``edge_dropout``; dropout:
-    fraction of all valid pixels dropped at random; quantisation [m]: depth step (0: none).
+    than this is on a depth edge, dropped with probability ``edge_dropout`` (what a
+    sensor's flying-pixel filter removes); baseline [m] (0: off): the stereo baseline
+    (the second imager at +x): background the second imager cannot see past a nearer
+    surface to its right is invalid (the shadow band left of objects, f b (1/z1 - 1/z2)
+    pixels wide); dropout: fraction of all valid pixels dropped at random;
+    quantisation [m]: depth step (0: none).
     """
 
     sigma0: float = 0.0005
@@ -37,6 +41,7 @@ class DepthNoise:
     edge_dropout: float = 0.5
     dropout: float = 0.002
     quantisation: float = 0.001
+    baseline: float = 0.05
 
     def __post_init__(self) -> None:
         for k, v in asdict(self).items():
@@ -54,7 +59,7 @@ class DepthNoise:
     def none(cls) -> DepthNoise:
         """A perfect sensor: no error, no dropouts, no quantisation."""
         return cls(sigma0=0.0, sigma_z2=0.0, max_incidence=90.0, edge_jump=math.inf, edge_dropout=0.0,
-                   dropout=0.0, quantisation=0.0)
+                   dropout=0.0, quantisation=0.0, baseline=0.0)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -73,18 +78,37 @@ class DepthNoise:
         edge_u = rng.random(depth.shape) < self.edge_dropout
         err = rng.standard_normal(depth.shape)
         if self.max_incidence < 90:
-            n = surface_normals(depth, rays)
-            ray = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
-            cos = np.abs(np.einsum("hwk,hwk->hw", n, ray))
-            known = np.any(n != 0, axis=-1)
-            drop |= valid & known & (cos < math.cos(math.radians(self.max_incidence)))
+            n, ok = _normal_components(depth, rays)
+            dot = n[0] * rays[..., 0] + n[1] * rays[..., 1] + n[2]  # rays have z = 1
+            nn = n[0] * n[0] + n[1] * n[1] + n[2] * n[2]
+            rr = rays[..., 0] ** 2 + rays[..., 1] ** 2 + 1.0
+            c = math.cos(math.radians(self.max_incidence))
+            drop |= ok & (nn > 0) & (dot * dot < c * c * nn * rr)  # cos(normal, ray) < c
         if math.isfinite(self.edge_jump) and self.edge_dropout > 0:
             drop |= _edges(depth, self.edge_jump) & edge_u
+        if self.baseline > 0:
+            drop |= _stereo_shadow(depth, self.baseline / (rays[0, 1, 0] - rays[0, 0, 0]))
         out = np.where(valid, depth + self.sigma(depth) * err, 0.0)
         if self.quantisation > 0:
             out = np.round(out / self.quantisation) * self.quantisation
         out[drop | ~valid | (out <= 0)] = 0.0
         return out.astype(np.float32)
+
+
+def _stereo_shadow(depth: np.ndarray, fb: float) -> np.ndarray:
+    """(H, W) bool: pixels hidden from a second imager ``fb`` = focal length [px] x
+    baseline [m] to the right: a pixel at depth z is hidden by a pixel s columns to its
+    right at depth z' < z when s < fb (1/z' - 1/z) (its disparity overtakes ours)."""
+    valid = depth > 0
+    hidden = np.zeros(depth.shape, bool)
+    if not valid.any():
+        return hidden
+    inv = np.where(valid, 1.0 / np.where(valid, depth, 1.0), 0.0)  # 1/z, 0 = nothing
+    reach = int(math.ceil(fb * (inv.max() - inv[valid].min())))  # the widest possible band
+    for s in range(1, min(reach + 1, depth.shape[1])):
+        gain = inv[:, s:] - inv[:, :-s]  # 1/z' - 1/z of the pixel s to the right
+        hidden[:, :-s] |= (depth[:, s:] > 0) & (gain * fb > s)
+    return hidden & (depth > 0)
 
 
 def _edges(depth: np.ndarray, jump: float) -> np.ndarray:
@@ -98,16 +122,22 @@ def _edges(depth: np.ndarray, jump: float) -> np.ndarray:
     return far & (depth > 0)
 
 
+def _normal_components(depth: np.ndarray, rays: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """Unnormalised normals (3 arrays (H, W), float32, camera frame) from central
+    differences of the back-projected image, and where they are valid (all 4 neighbours)."""
+    P = [np.pad((depth * rays[..., i]).astype(np.float32), 1, mode="edge") for i in range(3)]
+    du = [c[1:-1, 2:] - c[1:-1, :-2] for c in P]
+    dv = [c[2:, 1:-1] - c[:-2, 1:-1] for c in P]
+    n = [du[1] * dv[2] - du[2] * dv[1], du[2] * dv[0] - du[0] * dv[2], du[0] * dv[1] - du[1] * dv[0]]
+    v = np.pad(depth > 0, 1, mode="edge")
+    ok = (depth > 0) & v[:-2, 1:-1] & v[2:, 1:-1] & v[1:-1, :-2] & v[1:-1, 2:]
+    return n, ok
+
+
 def surface_normals(depth: np.ndarray, rays: np.ndarray) -> np.ndarray:
     """Unit normals (H, W, 3), camera frame, from central differences of the back-projected
     depth image (zero where a neighbour is invalid)."""
-    P = depth[..., None] * rays
-    p = np.pad(P, ((1, 1), (1, 1), (0, 0)), mode="edge")
-    du = p[1:-1, 2:] - p[1:-1, :-2]
-    dv = p[2:, 1:-1] - p[:-2, 1:-1]
-    n = np.cross(du, dv)
+    n, ok = _normal_components(depth, rays)
+    n = np.stack(n, axis=-1).astype(float)
     norm = np.linalg.norm(n, axis=-1, keepdims=True)
-    ok = (depth > 0)
-    v = np.pad(ok, 1, mode="edge")
-    ok &= v[:-2, 1:-1] & v[2:, 1:-1] & v[1:-1, :-2] & v[1:-1, 2:]
     return np.where(ok[..., None] & (norm > 0), n / np.maximum(norm, 1e-300), 0.0)

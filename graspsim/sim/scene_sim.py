@@ -31,12 +31,14 @@ from graspsim.sim.scene import SimSettings, _add_object, _add_table, _set_option
 from graspsim.sim.scene_objects import ObjectSpec
 from graspsim.transforms import make_transform, matrix_to_quat, quat_to_matrix
 
-__all__ = ["SceneSim", "SceneOutcome", "HOME", "GRIPPER_GROUP"]
+__all__ = ["SceneSim", "SceneOutcome", "HOME", "GRIPPER_GROUP", "TABLE_REGION"]
 
 log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 HOME = (0.0, 0.0, 3.0)  # the waiting gripper's wrist [m]
 GRIPPER_GROUP = 2
+BIN_GROUP = 3
+TABLE_REGION = 0.35  # [m]: objects rest within +-this in x and y (the drawn table: +-0.4)
 _PALETTE = np.array([[0.85, 0.55, 0.2], [0.2, 0.55, 0.85], [0.3, 0.75, 0.35], [0.85, 0.3, 0.35],
                      [0.6, 0.4, 0.8], [0.9, 0.8, 0.3], [0.3, 0.8, 0.8], [0.55, 0.35, 0.2]])
 
@@ -45,7 +47,9 @@ _PALETTE = np.array([[0.85, 0.55, 0.2], [0.2, 0.55, 0.85], [0.3, 0.75, 0.35], [0
 class SceneOutcome:
     """One grasp in a scene. outcome: a :class:`TrialOutcome`; picked: the object lifted
     and held (None: none); target: the object meant (None: not said); cause: the outcome
-    label, START_COLLISION refined to ``start_collision_target | _neighbour | _table``;
+    label, START_COLLISION refined to ``start_collision_target | _neighbour | _table``
+    (``_object`` when no target was named), ``success_other_object`` when another object
+    than the target came up;
     collided: what the gripper overlaps at t = 0 beyond ``start_penetration`` (object
     ids, "table"); penetration [m]: the deepest overlap; lift_height [m]: how far the
     picked (else the target) object rose; moved: other objects displaced > 1 cm."""
@@ -71,18 +75,20 @@ class SceneOutcome:
 
 
 class SceneSim:
-    """The compiled scene. objects: (spec, T_world_obj (4, 4)) pairs; object ids are
-    their indices. table_rolling [m]: rolling resistance on the table (without it a
-    dropped ball rolls off); held_height [m]: a picked object rose at least this much."""
+    """The compiled scene. objects: (ObjectSpec or SimObject, T_world_obj (4, 4)) pairs;
+    object ids are their indices. table_rolling [m]: rolling resistance on the table (without it a
+    dropped ball rolls off); held_height [m]: a picked object rose at least this much;
+    bin [m]: walls around [-bin, bin]^2 that hold a pile while it settles (``open_bin``)."""
 
     def __init__(self, objects: Sequence[tuple[ObjectSpec, np.ndarray]], *,
                  gripper: GripperSpec = HGPL_25_60_A, settings: SimSettings = SimSettings(),
-                 protocol: LiftPlace = LiftPlace(), table_rolling: float = 0.002,
-                 held_height: float = 0.05) -> None:
+                 protocol: LiftPlace = LiftPlace(), table_rolling: float = 0.003,
+                 held_height: float = 0.05, bin: float | None = None) -> None:
         if not objects:
             raise InvalidParameterError("a scene needs at least one object")
         self.gripper, self.settings, self.protocol, self.held_height = gripper, settings, protocol, held_height
         self.specs = [o for o, _ in objects]
+        self.sim_objects = [o.sim_object() if isinstance(o, ObjectSpec) else o for o in self.specs]
         s = settings
         fric = (s.friction, s.torsional_friction, s.rolling_friction)
         spec = build_gripper_spec(gripper, s.physics, grip_force=gripper.grip_force if s.grip_force is None
@@ -91,12 +97,18 @@ class SceneSim:
             g.group = GRIPPER_GROUP
         spec.modelname = f"table_scene_{gripper.name}"
         _set_options(spec, s)
+        spec.visual.quality.offsamples = 0  # no multisampling: a 40 % faster renderer, same depth and labels
         _add_table(spec, s, rolling=table_rolling)
-        for k, (o, T) in enumerate(objects):
+        if bin is not None:  # four walls around [-bin, bin]^2, 40 cm high, never drawn
+            for i, (x, y, hx, hy) in enumerate([(bin + 0.01, 0, 0.01, bin + 0.02), (-bin - 0.01, 0, 0.01, bin + 0.02),
+                                                (0, bin + 0.01, bin + 0.02, 0.01), (0, -bin - 0.01, bin + 0.02, 0.01)]):
+                spec.worldbody.add_geom(name=f"bin_{i}", type=mujoco.mjtGeom.mjGEOM_BOX, pos=[x, y, 0.2],
+                                        size=[hx, hy, 0.2], group=BIN_GROUP, rgba=[0.5, 0.5, 0.5, 0.3])
+        for k, (_, T) in enumerate(objects):
             T = np.asarray(T, float)
             if T.shape != (4, 4) or not np.all(np.isfinite(T)):
                 raise InvalidParameterError(f"object {k}'s pose must be a finite 4x4 transform")
-            _add_object(spec, o.sim_object(), T, s, name=f"obj{k}", rgba=(*_PALETTE[k % len(_PALETTE)], 1.0))
+            _add_object(spec, self.sim_objects[k], T, s, name=f"obj{k}", rgba=(*_PALETTE[k % len(_PALETTE)], 1.0))
             for side in ("neg", "pos"):
                 sens = spec.add_sensor(name=f"pad_{side}_{k}", type=mujoco.mjtSensor.mjSENS_CONTACT,
                                        objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=f"finger_{side}",
@@ -114,6 +126,7 @@ class SceneSim:
         for k, b in enumerate(self.body):
             self.geom_object[m.geom_bodyid == b] = k
         self.table_geom = m.geom("table").id
+        self.bin_geoms = np.array([m.geom(f"bin_{i}").id for i in range(4)] if bin is not None else [], int)
         self.gripper_geoms = np.array([m.geom(g).id for g in (NAMES.housing, NAMES.jaw_neg, NAMES.jaw_pos,
                                                                NAMES.finger_neg, NAMES.finger_pos)])
         self.pad_adr = np.array([[m.sensor_adr[m.sensor(f"pad_{side}_{k}").id] for side in ("neg", "pos")]
@@ -144,6 +157,11 @@ class SceneSim:
     def poses(self) -> dict[int, np.ndarray]:
         return {k: self.pose(k) for k in self._left}
 
+    def outside(self, region: float = TABLE_REGION) -> list[int]:
+        """Objects left whose centre lies beyond +-``region`` [m] in x or y (off the table:
+        knocked away; the simulated table top is unbounded)."""
+        return [k for k in self._left if np.any(np.abs(self.data.qpos[self.qadr[k]:self.qadr[k] + 2]) > region)]
+
     def speeds(self) -> np.ndarray:
         """(n_left, 2) linear [m/s] and angular [rad/s] speed of the objects left."""
         v = np.array([self.data.qvel[a:a + 6] for a in self.dadr[self._left]]).reshape(-1, 6)
@@ -167,6 +185,11 @@ class SceneSim:
                 break
         return t
 
+    def open_bin(self) -> None:
+        """Take the bin's walls away (their collisions off): what leaned on them falls."""
+        self.model.geom_contype[self.bin_geoms] = 0
+        self.model.geom_conaffinity[self.bin_geoms] = 0
+
     def remove(self, k: int) -> None:
         """Take object ``k`` out of the scene: parked far away, collisions off, weightless."""
         if k not in self._left:
@@ -184,11 +207,20 @@ class SceneSim:
 
     # -- looking ----------------------------------------------------------------
     def render(self, camera: Camera, *, noise=None, rng: np.random.Generator | None = None,
-               rgb: bool = False) -> DepthFrame:
+               rgb: bool = False, gripper_at: tuple[np.ndarray, float] | None = None) -> DepthFrame:
         """A :class:`DepthFrame` of the scene now, ``labels`` = object id per pixel (-1:
-        the table or nothing); the gripper is hidden."""
+        the table, the gripper or nothing). The gripper is hidden, unless ``gripper_at`` =
+        (T_world_wrist (4, 4), opening [m]) shows it there (for pictures of a grasp;
+        nothing is simulated and the scene is left as it was)."""
         r = self._renderer_for(camera.intrinsics)
-        f = r.render(self.data, camera, noise=noise, rng=rng, segmentation=True, rgb=rgb)
+        d = self.data
+        if gripper_at is not None:
+            d = mujoco.MjData(self.model)
+            mujoco.mj_setState(self.model, d, self._start_state(np.asarray(gripper_at[0], float),
+                                                                float(gripper_at[1])), _FULL)
+            mujoco.mj_forward(self.model, d)
+        r.scene_option.geomgroup[GRIPPER_GROUP] = int(gripper_at is not None)
+        f = r.render(d, camera, noise=noise, rng=rng, segmentation=True, rgb=rgb)
         labels = np.where(f.segmentation >= 0, self.geom_object[np.maximum(f.segmentation, 0)], -1)
         return DepthFrame(f.depth, camera, f.segmentation, labels.astype(np.int32), f.rgb, f.noise)
 
@@ -197,6 +229,7 @@ class SceneSim:
             self.close()
             opt = mujoco.MjvOption()
             opt.geomgroup[GRIPPER_GROUP] = 0
+            opt.geomgroup[BIN_GROUP] = 0
             self._renderer = DepthRenderer(self.model, intrinsics, scene_option=opt)
         return self._renderer
 
@@ -287,15 +320,15 @@ class SceneSim:
         states, sens = simulate(self, p, state0[None], np.ascontiguousarray(control))
         states, sens = states[0], sens[0]
         qpos = states[:, 1:1 + m.nq]
-        left = np.array(self._left)
-        z = np.stack([qpos[:, a + 2] for a in self.qadr[left]], 1)  # (S, n_left)
+        left = np.array(self._left, int)
+        z = qpos[:, self.qadr[left] + 2]  # (S, n_left)
         pads = np.stack([sens[:, self.pad_adr[left] + i] for i in range(4)], -1)  # (S, n, 2, 4)
         touching = ((pads[..., 0] > 0) & (np.linalg.norm(pads[..., 1:], axis=-1) > 1e-3)).sum(-1)
         rise = z[h1] - z[0]
         held = (touching[h1] == 2) & (rise > self.held_height)
         v = states[:, 1 + m.nq:1 + m.nq + m.nv]
-        lin = np.stack([np.linalg.norm(v[:, a:a + 3], axis=1) for a in self.dadr[left]], 1)
-        if not (np.all(np.isfinite(states)) and lin.max() <= p.max_speed):
+        lin = np.linalg.norm(v[:, self.dadr[left][:, None] + np.arange(3)], axis=-1)  # (S, n_left)
+        if not (np.all(np.isfinite(states)) and lin.max(initial=0.0) <= p.max_speed):
             out, picked = TrialOutcome.SIM_UNSTABLE, None
         elif held.any():
             out, picked = TrialOutcome.SUCCESS, int(left[np.argmax(np.where(held, rise, -np.inf))])
@@ -307,12 +340,13 @@ class SceneSim:
             out, picked = TrialOutcome.DROPPED, None
         who = picked if picked is not None else target
         lift = float(rise[list(left).index(who)]) if who is not None else 0.0
-        xy = np.stack([qpos[:, a:a + 3] for a in self.qadr[left]], 1)
-        moved = tuple(int(k) for k, dd in zip(left, np.linalg.norm(xy[-1] - xy[0], axis=1))
+        xyz = qpos[:, self.qadr[left][:, None] + np.arange(3)]  # (S, n_left, 3)
+        moved = tuple(int(k) for k, dd in zip(left, np.linalg.norm(xyz[-1] - xyz[0], axis=1))
                       if k != picked and dd > 0.01)
         if commit:
             self._commit(states[-1], picked)
-        return SceneOutcome(out, picked, target, out.label, (), depth, lift, moved)
+        cause = "success_other_object" if picked is not None and target not in (None, picked) else out.label
+        return SceneOutcome(out, picked, target, cause, (), depth, lift, moved)
 
     def _commit(self, state: np.ndarray, picked: int | None) -> None:
         """Continue from ``state``: the picked object out, the gripper home, the rest settle."""

@@ -2,7 +2,8 @@
 
 ``make_scene(n, "pile", seed)`` drops ``n`` objects (from :mod:`graspsim.sim.scene_objects`)
 at random orientations over a ``area`` x ``area`` square of the table, the lowest free
-height each, and lets them settle; ``"packed"`` stands them upright at random yaw side by
+height each, into a bin of that size, lets them settle, takes the bin away (as VGN does)
+and lets them settle again; ``"packed"`` stands them upright at random yaw side by
 side in rows, at least ``gap`` apart (axis-aligned footprints), and settles them. A scene
 that does not come to rest inside the table's region is drawn again from the same stream
 (``attempts`` records how many it took). The :class:`TableScene` records every object's
@@ -32,7 +33,7 @@ from graspsim.sim.scene_objects import OBJECT_SETS, ObjectSpec, draw_object
 from graspsim.sim.scene_sim import SceneOutcome, SceneSim
 from graspsim.transforms import make_transform, quat_to_matrix, random_rotation
 
-__all__ = ["PlacedObject", "TableScene", "make_scene", "save_scene", "load_scene", "footprint_gaps",
+__all__ = ["PlacedObject", "TableScene", "make_scene", "save_scene", "load_scene", "footprint_gaps", "object_view",
            "SceneSim", "SceneOutcome", "KINDS"]
 
 KINDS = ("pile", "packed")
@@ -117,13 +118,14 @@ def _radius(spec: ObjectSpec) -> float:
 
 
 def _pile_poses(specs: list[ObjectSpec], rng: np.random.Generator, area: float) -> list[np.ndarray]:
-    """Random orientations over the area, each at the lowest height where its bounding
-    sphere clears the table and the objects placed before it."""
+    """Random orientations over the area (bounding spheres inside it), each at the lowest
+    height where its bounding sphere clears the table and the objects placed before it."""
     out, centres, radii = [], [], []
     for spec in specs:
         r = _radius(spec)
         R = random_rotation(rng)
-        xy = rng.uniform(-0.5 * area + 0.03, 0.5 * area - 0.03, 2)
+        half = max(0.0, 0.5 * area - r - 0.005)  # inside the bin's walls
+        xy = rng.uniform(-half, half, 2)
         z = r + 0.005
         while any(np.linalg.norm(np.array([*xy, z]) - c) < r + rc + 0.005 for c, rc in zip(centres, radii)):
             z += 0.005
@@ -175,16 +177,21 @@ def footprint_gaps(scene: TableScene) -> np.ndarray:
     return g
 
 
-def _settled(sim: SceneSim, kind: str, area: float, gap: float, specs) -> list[PlacedObject] | None:
-    """The objects' settled poses, or None when the draw is unusable (off the table,
-    still moving, or a packed gap closed)."""
+def _settled(sim: SceneSim, kind: str, gap: float, specs) -> list[PlacedObject] | None:
+    """The objects' settled poses, or None when the draw is unusable (off the table
+    region, still moving, or a packed gap closed)."""
     sim.settle(max_time=4.0 if kind == "pile" else 1.0)
+    if len(sim.bin_geoms):
+        sim.open_bin()
+        sim.settle(max_time=3.0)
     if len(sim.speeds()) and (sim.speeds()[:, 0].max() > 0.02):
+        return None
+    if sim.outside():
         return None
     placed = []
     for k, spec in enumerate(specs):
         q = sim.data.qpos[sim.qadr[k]:sim.qadr[k] + 7]
-        if np.any(np.abs(q[:2]) > 0.5 * area + 0.1) or q[2] < 0:
+        if q[2] < 0:
             return None
         placed.append(PlacedObject(spec, tuple(float(x) for x in q[:3]), tuple(float(x) for x in q[3:])))
     if kind == "packed":
@@ -212,9 +219,28 @@ def make_scene(n_objects: int, kind: str = "pile", seed: int = 0, *, object_set:
     for attempt in range(1, max_attempts + 1):
         specs = [draw_object(rng, object_set, gripper) for _ in range(n_objects)]
         poses = _pile_poses(specs, rng, area) if kind == "pile" else _packed_poses(specs, rng, gap)
-        sim = SceneSim(list(zip(specs, poses)), gripper=gripper, settings=settings)
-        placed = _settled(sim, kind, area, gap, specs)
+        sim = SceneSim(list(zip(specs, poses)), gripper=gripper, settings=settings,
+                       bin=0.5 * area if kind == "pile" else None)
+        placed = _settled(sim, kind, gap, specs)
         if placed is not None:
             return TableScene(int(seed), kind, object_set, tuple(placed), attempt)
     raise SimulationError(f"no {kind} scene of {n_objects} objects settled on the table in {max_attempts} draws "
                           f"(seed {seed})")
+
+
+def object_view(obj, camera, *, T_world_obj: np.ndarray | None = None, noise=None,
+                rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """What ``camera`` sees of one object (an ObjectSpec or SimObject) on the table:
+    (points (N, 3), world frame [m], T_world_obj (4, 4)). The object rests upright at the
+    origin (``resting_pose``) unless ``T_world_obj`` is given; noise: a ``DepthNoise``
+    drawn from ``rng``. The one camera model for single views and table scenes."""
+    from graspsim.sim.camera import backproject
+
+    body = obj.sim_object() if isinstance(obj, ObjectSpec) else obj
+    T = resting_pose(body) if T_world_obj is None else np.asarray(T_world_obj, float)
+    sim = SceneSim([(obj, T)])
+    try:
+        view = backproject(sim.render(camera, noise=noise, rng=rng))
+    finally:
+        sim.close()
+    return view.world()[view.labels == 0], sim.pose(0)

@@ -47,6 +47,7 @@ from _common import (
     rate_ci,
 )
 
+from graspsim.errors import SimulationError
 from graspsim.maps.database import MapDatabase
 from graspsim.perception.scene import SceneConfig
 from graspsim.sim.clutter import ClutterConfig, run_benchmark, summarize
@@ -118,17 +119,19 @@ def main(argv=None) -> int:
         shutil.rmtree(out / f"fsdb-{i}", ignore_errors=True)
         roots.append(str(db.linked_copy(out / f"fsdb-{i}").root))
     done: list[list] = [[] for _ in conds]
+    skipped: list[list] = [[] for _ in conds]
     pool = ProcessPoolExecutor(cfg.workers, mp_context=get_context("spawn")) if cfg.workers > 1 else None
     try:
         for start in range(0, cfg.scenes, cfg.block):
             n = min(cfg.block, cfg.scenes - start)
             tasks = [(c, cfg, root, start, n) for c, root in zip(conds, roots)]
             blocks = pool.map(_block, tasks) if pool is not None else map(_block, tasks)
-            for c, results, new in zip(conds, done, blocks):
+            for c, results, lost, (new, miss) in zip(conds, done, skipped, blocks):
                 results += new
+                lost += miss
                 log.info("%s: %d scenes", c, len(results))
             data = {"config": cfg, "complete": start + n >= cfg.scenes, "scenes_done": start + n,
-                    "conditions": [_row(c, r) for c, r in zip(conds, done)],
+                    "conditions": [{**_row(c, r), "skipped": k} for c, r, k in zip(conds, done, skipped)],
                     "database": {"start": db_start, "end": _grown(db_start, roots)}}
             text = run.write(out, data, readme_section, publish=opts.publish)
     finally:
@@ -146,12 +149,22 @@ def _grown(start: dict, roots: list[str]) -> dict:
     return {"root": start["root"], "maps": sorted(maps)}
 
 
-def _block(task) -> list:
-    """Scenes start .. start + n - 1 of a condition, against its database."""
+def _block(task) -> tuple[list, list]:
+    """Scenes start .. start + n - 1 of a condition, against its database: (results,
+    skipped scenes). A scene that cannot be drawn (it does not settle on the table) or
+    whose simulation fails is skipped and said so; the same scene is then skipped in
+    every condition of its kind and size that fails the same way."""
     c, cfg, root, start, n = task
     db = MapDatabase(root, config=map_config(cfg.quick_maps))
-    return run_benchmark(c["objects"], c["kind"], n, cfg.seed, db=db, config=_clutter_config(c),
-                         object_set=cfg.object_set, first=start)
+    out, skipped = [], []
+    for i in range(start, start + n):
+        try:
+            out += run_benchmark(c["objects"], c["kind"], 1, cfg.seed, db=db, config=_clutter_config(c),
+                                 object_set=cfg.object_set, first=i)
+        except SimulationError as err:
+            log.warning("%s scene %d skipped: %s", c, i, err)
+            skipped.append({"scene": i, "reason": str(err)})
+    return out, skipped
 
 
 def _label(c: dict) -> str:
@@ -183,6 +196,10 @@ def readme_section(s: dict) -> str:
                  f"{rate_ci(r['removed'], r['placed'], r['cleared_interval_95'])} | {r['scenes_cleared']} | "
                  f"{pct(seg['share'], 0)} % ({seg['one_cluster']}/{seg['objects_seen']}) | "
                  f"{'n/a' if med is None else f'{med:.2f} s'} | {causes} |")
+    lost = [(r, k) for r in rows for k in r.get("skipped", [])]
+    if lost:
+        L += ["", "Skipped (not counted above): " + "; ".join(
+            f"{r['kind']} {r['objects']} {_label(r)}, scene {k['scene']}: {k['reason']}" for r, k in lost) + "."]
     L += ["", "Where the planning time goes (median seconds per grasp, `plan_scene`'s stages; the planning "
           "column above also counts the back-projection): table fit, segmentation, identification of every "
           "segment, maps and robust scores of every segment (including FS maps built for parts no stored map "

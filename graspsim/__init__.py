@@ -86,6 +86,8 @@ _LAZY: dict[str, str] = {
     **_from("graspsim.perception", "identify", "IdentifyConfig", "Identification",
             "IdentificationStatus", "PartResult", "Shape", "read_point_cloud", "LoadedCloud",
             "min_volume_box", "OrientedBox", "classify_match", "MatchKind", "MatchDecision"),
+    # scenes: a table with several objects -> ranked grasps (issue 17)
+    **_from("graspsim.perception.scene", "plan_scene", "perceive_scene", "SceneConfig", "ScenePlan", "SceneGrasp"),
     # grade-vs-success calibration
     **_from("graspsim.calibration", "calibrate", "TrialTable"),
     # MuJoCo validation

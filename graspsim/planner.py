@@ -202,13 +202,18 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig,
 
 
 def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
-                config: PlannerConfig | None = None, source: str = "array"
+                config: PlannerConfig | None = None, source: str = "array",
+                obstacles: np.ndarray | None = None, identification: Identification | None = None
                 ) -> Iterator[GraspBatch | PlanResult]:
-    """Yield :class:`GraspBatch` es as grasps are found, then the :class:`PlanResult`."""
+    """Yield :class:`GraspBatch` es as grasps are found, then the :class:`PlanResult`.
+    obstacles: (M, 3) further observed points [m, cloud frame] the robust score keeps the
+    gripper clear of besides the object's own (a scene's neighbours); None: none.
+    identification: the cloud's, when the caller has identified it already (``points``
+    must be the cloud it was made from); None: identified here."""
     cfg = config or PlannerConfig()
     t0 = time.perf_counter()
     points = np.asarray(points, float)
-    ident = identify(points, rng=rng, config=cfg.identify)
+    ident = identification if identification is not None else identify(points, rng=rng, config=cfg.identify)
     timing = {"identify": time.perf_counter() - t0}
     cpu0 = time.thread_time()
     prims, T_cloud = [], []
@@ -229,7 +234,8 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
             "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict(),
             "mode": ident.mode, "uncovered": ident.uncovered,
             "approximate": [i for i, p in enumerate(ident.parts) if p.approximate]}
-    yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0)
+    yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0,
+                           obstacles)
 
 
 def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,
@@ -277,7 +283,8 @@ def _object_frame(prims: list, T_cloud: list) -> tuple[np.ndarray, Compound | No
 
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
                 ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
-                source: str, t0: float, timing: dict, cpu0: float) -> Iterator[GraspBatch | PlanResult]:
+                source: str, t0: float, timing: dict, cpu0: float, obstacles: np.ndarray | None = None
+                ) -> Iterator[GraspBatch | PlanResult]:
     """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
     part frames in the cloud's frame); ``cpu0``: the calling thread's CPU clock when
     identification ended."""
@@ -297,7 +304,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     first = tenth = first_robust = first_robust_cpu = None
     n_hi = 0
     t_robust = 0.0
-    cloud_obj = cloud_in_object(points, T_cloud_obj)
+    seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
+    cloud_obj = cloud_in_object(seen, T_cloud_obj)
     observed = ObservedSurface(points) if ident is not None and ident.mode == "robust" else None
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):
@@ -359,9 +367,10 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
 
 
 def plan(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
-         config: PlannerConfig | None = None, source: str = "array") -> PlanResult:
+         config: PlannerConfig | None = None, source: str = "array",
+         obstacles: np.ndarray | None = None) -> PlanResult:
     """The adapted map of an object cloud (N, 3) [m] (see :func:`plan_stream`)."""
-    return _last(plan_stream(points, db=db, rng=rng, config=config, source=source))
+    return _last(plan_stream(points, db=db, rng=rng, config=config, source=source, obstacles=obstacles))
 
 
 def plan_shape(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,

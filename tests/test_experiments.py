@@ -379,3 +379,20 @@ def test_bench_scene_quick(tmp_path):
     assert row["total_s"] >= row["settle_s"] > 0 and row["warm_render_s"] > 0
     assert s["fresh"]["of"] == 1 and s["fresh"]["first"]["wall_s"] > s["fresh"]["first"]["total_s"] > 0
     assert s["command"] in bench.readme_section(s)
+
+
+@pytest.mark.slow
+def test_e10_quick_clutter_removal_counts_add_up(tmp_path):
+    mod = _load("e10_clutter_removal")
+    out = tmp_path / "e10"
+    assert mod.main(["--quick", "--out", str(out)]) == 0
+    s = _summary(out)
+    assert s["complete"] and len(s["conditions"]) == len(mod.conditions(mod.Config(**mod.Config.QUICK)))
+    for r in s["conditions"]:
+        eps = r["episodes"]
+        assert r["scenes"] == len(eps) == 1
+        assert r["attempts"] == sum(e["attempts"] for e in eps) == r["successes"] + sum(r["failure_causes"].values())
+        assert r["removed"] == sum(e["removed"] for e in eps) == r["successes"] <= r["placed"] == 2
+        assert r["segmentation"]["objects_seen"] >= r["segmentation"]["one_cluster"]
+    assert s["conditions"][1]["ablation"] == "ground_truth"
+    assert s["command"] in mod.readme_section(s) == (out / "README.md").read_text().rstrip("\n") + "\n"

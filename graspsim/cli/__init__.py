@@ -34,6 +34,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.warmup",
     "graspsim.cli.view",
     "graspsim.cli.design",
+    "graspsim.cli.scene",
 )
 
 
@@ -52,6 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
             "  graspsim adapt cloud.pcd -o adapted.h5          # cloud -> adapted map\n"
             "  graspsim trial adapted.h5 --sample 15 --min-grade 0.7\n"
             "  graspsim campaign run maps/*.h5 --out camp --top 100 --executor ray\n"
+            "  graspsim scene --objects 5 --scenes 5 --kind packed --json   # clutter removal\n"
             "run 'graspsim COMMAND --help' for a command's options."
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,

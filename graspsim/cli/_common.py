@@ -7,7 +7,7 @@ import sys
 from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value",
+__all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value", "whole_number",
            "executor_from_args", "format_table", "progress", "add_gripper_flag", "gripper_from_args"]
 
 
@@ -40,17 +40,25 @@ def gripper_from_args(args):
     return get_gripper(getattr(args, "gripper", None))
 
 
-def seed_value(text: str) -> int:
-    """argparse type of ``--seed``: a whole number >= 0 (numpy's generators take no other)."""
-    import argparse
+def whole_number(minimum: int):
+    """argparse type: a whole number >= ``minimum``."""
 
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be a whole number >= 0, got {text!r}")
-    return value
+    def parse(text: str) -> int:
+        import argparse
+
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a whole number >= {minimum}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be a whole number >= {minimum}, got {text!r}")
+        return value
+
+    return parse
+
+
+#: argparse type of ``--seed``: a whole number >= 0 (numpy's generators take no other).
+seed_value = whole_number(0)
 
 
 def add_mode_flag(p) -> None:

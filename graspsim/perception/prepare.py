@@ -23,7 +23,7 @@ from graspsim.errors import IdentificationError, InvalidParameterError, PointClo
 from graspsim.primitives.base import MIN_DIM
 
 __all__ = ["UNITS", "MAX_EXTENT", "Downsampling", "as_coordinates", "to_metres", "check_extent", "check_solid",
-           "voxel_downsample"]
+           "voxel_downsample", "voxel_keep"]
 
 #: Length of one coordinate unit in metres.
 UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -62,9 +62,11 @@ def _robust_ranges(points: np.ndarray, axes: np.ndarray | None = None) -> np.nda
     return hi - lo
 
 
-def check_extent(points: np.ndarray, *, max_extent: float = MAX_EXTENT) -> None:
+def check_extent(points: np.ndarray, *, max_extent: float = MAX_EXTENT, what: str = "one graspable object"
+                 ) -> None:
     """Raise :class:`PointCloudError` when the cloud (N, 3) is wider than
-    ``max_extent`` metres: coordinates in millimetres or centimetres read as metres."""
+    ``max_extent`` metres: coordinates in millimetres or centimetres read as metres
+    (``what`` the cloud should be, for the message)."""
     width = float(np.max(_robust_ranges(points)))
     if width <= max_extent:
         return
@@ -77,7 +79,7 @@ def check_extent(points: np.ndarray, *, max_extent: float = MAX_EXTENT) -> None:
     else:
         hint = "is it several objects, or in another unit? segment or convert it first"
     raise PointCloudError(
-        f"the cloud is {width:.4g} units across, implausible in metres (one graspable object is at most "
+        f"the cloud is {width:.4g} units across, implausible in metres ({what} is at most "
         f"{max_extent:g} m); {hint}")
 
 
@@ -122,6 +124,17 @@ def _voxel_keys(points: np.ndarray, lo: np.ndarray, voxel: float) -> np.ndarray:
     q = np.floor((points - lo) / voxel).astype(np.int64)
     n = q.max(axis=0) + 1
     return (q[:, 0] * n[1] + q[:, 1]) * n[2] + q[:, 2]
+
+
+def voxel_keep(points: np.ndarray, voxel: float) -> np.ndarray:
+    """Indices (M,) into ``points`` (N, 3) [m] of one point per occupied voxel of edge
+    ``voxel`` [m] (the first in input order), ascending."""
+    if not (math.isfinite(voxel) and voxel > 0):
+        raise InvalidParameterError(f"voxel must be > 0 m, got {voxel!r}")
+    if not len(points):
+        return np.zeros(0, np.int64)
+    _, kept = np.unique(_voxel_keys(points, points.min(axis=0), voxel), return_index=True)
+    return np.sort(kept)
 
 
 def voxel_downsample(points: np.ndarray, max_points: int) -> tuple[np.ndarray, np.ndarray, Downsampling]:

@@ -15,7 +15,7 @@ import numpy as np
 from graspsim.errors import InvalidParameterError
 from graspsim.transforms import normalize, transform_points
 
-__all__ = ["SyntheticCloud", "synthetic_cloud", "sample_surface", "visible_mask"]
+__all__ = ["SyntheticCloud", "synthetic_cloud", "sample_surface", "visible_mask", "table_scene_cloud"]
 
 
 @dataclass(frozen=True)
@@ -117,3 +117,54 @@ def synthetic_cloud(
     is_out[len(p) - n_out :] = True
     T = np.eye(4) if T_world_obj is None else np.asarray(T_world_obj, float)
     return SyntheticCloud(transform_points(T, p), nrm @ T[:3, :3].T, is_out, T)
+
+
+def table_scene_cloud(
+    shapes,
+    xy: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    yaw: np.ndarray | None = None,
+    resolution: float = 0.003,
+    noise: float = 0.0,
+    camera: tuple[float, float, float] = (0.0, -0.45, 0.55),
+    table_size: float = 0.5,
+    T_world_table: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A table-top scene seen by one camera: ``shapes`` (K primitives or compounds)
+    standing upright (object +z up) on a square table of side ``table_size`` [m] at
+    ``xy`` (K, 2) [m] in the table's frame (z up, top at z = 0) with yaws ``yaw`` (K,)
+    [rad] (default 0), each seen from ``camera`` (table frame) as by
+    :func:`synthetic_cloud`; the table sampled on a grid of step ``resolution``, less
+    the objects' footprints, with the same noise along z. The whole scene is posed at
+    ``T_world_table`` (identity: level table).
+
+    Returns (points (N, 3) world [m], labels (N,): object index, -1 the table,
+    T_world_obj (K, 4, 4))."""
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    yaw = np.zeros(len(xy)) if yaw is None else np.asarray(yaw, float)
+    T_table = np.eye(4) if T_world_table is None else np.asarray(T_world_table, float)
+    cam = np.asarray(camera, float)
+    pts, labels, poses = [], [], []
+    g = np.arange(-table_size / 2, table_size / 2, resolution)
+    table = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    table = np.column_stack([table, np.zeros(len(table))])
+    under = np.zeros(len(table), bool)
+    for k, (shape, (x, y), a) in enumerate(zip(shapes, xy, yaw)):
+        c, s = np.cos(a), np.sin(a)
+        T = np.eye(4)
+        T[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+        T[:3, 3] = (x, y, -shape.aabb[0, 2])
+        cloud = synthetic_cloud(shape, rng, resolution=resolution, noise=noise,
+                                camera=transform_points(np.linalg.inv(T), cam[None])[0], T_world_obj=T)
+        pts.append(cloud.points)
+        labels.append(np.full(len(cloud.points), k))
+        under |= shape.sdf(transform_points(np.linalg.inv(T), table + (0.0, 0.0, 1e-3))) < 0
+        poses.append(T_table @ T)
+    table = table[~under]
+    if noise > 0:
+        table[:, 2] += rng.normal(0.0, noise, len(table))
+    pts.append(table)
+    labels.append(np.full(len(table), -1))
+    return (transform_points(T_table, np.concatenate(pts)), np.concatenate(labels),
+            np.array(poses).reshape(-1, 4, 4))

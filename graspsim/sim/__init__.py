@@ -41,8 +41,8 @@ from graspsim.sim.outcomes import TrialOutcome  # noqa: E402
 from graspsim.sim.protocols import PROTOCOLS, LiftPlace, Protocol, Tug, make_protocol  # noqa: E402
 from graspsim.sim.results import RESULT_GROUPS, TrialResults  # noqa: E402
 from graspsim.sim.scene import Scene, SimSettings, build_scene, resting_pose  # noqa: E402
-from graspsim.sim.vendored import build_vendored_gripper_spec  # noqa: E402
 from graspsim.sim.scenes import SceneOutcome, SceneSim, TableScene, load_scene, make_scene, save_scene  # noqa: E402
+from graspsim.sim.vendored import build_vendored_gripper_spec  # noqa: E402
 
 __all__ = [
     "GripperPhysics", "build_gripper_spec", "gripper_xml", "build_vendored_gripper_spec",

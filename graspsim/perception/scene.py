@@ -1,0 +1,356 @@
+"""Scene perception: a table with several objects seen as one cloud -> ranked grasps.
+
+    scene cloud -> table plane (MLESAC, :mod:`~graspsim.perception.plane`) -> the points
+    above it, thinned to a voxel grid -> objects by Euclidean clustering
+    (:mod:`~graspsim.perception.segment`) -> every segment identified -> every segment
+    planned by the run-time planner (stored/scaled/combined maps, the table as its
+    ``TablePlane``) with the robust score computed against the WHOLE scene near it, not
+    the segment's points alone -> one ranking of every segment's best grasps
+
+The whole scene is the observed points of the other segments plus surface samples of
+their identified primitives (one camera sees a neighbour's front; the primitive stands
+for its back; a cluster left unidentified stands as its bounding box down to the
+table), and the table as a plane. A grasp whose fingers would close on a neighbour
+collides at its nominal pose, so its robust score is 0 and it ranks last.
+``SceneConfig(neighbours=False)`` scores each segment against its own points only (the
+ablation). :func:`graspsim.planner.plan_stream` streams best-first; planning of a
+segment stops once ``enough`` grasps with a positive robust score are found or
+``per_segment`` grasps per part are scored (later batches would not be scored).
+
+Frames: the cloud's frame is called the world here (``T_world_wrist``); a cloud in the
+camera's frame gives poses in the camera's frame.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from graspsim.errors import IdentificationError, InvalidParameterError, PointCloudError
+from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.maps.table import TablePlane
+from graspsim.perception.identify import Identification, identify
+from graspsim.perception.mvbb import min_volume_box
+from graspsim.perception.plane import PlaneFit, fit_table
+from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
+from graspsim.perception.segment import cluster_radius, euclidean_clusters
+from graspsim.planner import PlannerConfig, PlanResult, plan_stream
+from graspsim.primitives import Box
+from graspsim.primitives.base import MIN_DIM
+
+__all__ = ["SceneConfig", "ScenePerception", "SceneGrasp", "SegmentPlan", "ScenePlan", "perceive_scene",
+           "plan_scene", "MAX_SCENE_EXTENT"]
+
+#: Widest plausible table-top scene [m]; wider clouds are taken for millimetres or centimetres.
+MAX_SCENE_EXTENT = 10.0
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """planner: the per-segment planner settings (its ``table`` is replaced by the
+    fitted plane). plane_sigma [m], plane_repetitions: the table fit; table_band [m]:
+    points less than this above the table belong to it; max_height [m]: points higher
+    above it are ignored; voxel [m]: the grid the points above the table are thinned
+    to; radius [m]: the clustering radius (None: from the spacing, at most max_radius);
+    min_points: smallest object (points after thinning); neighbours: score grasps
+    against the whole scene (False: the segment's points only); reach [m]: scene points
+    farther than this from a segment's bounding box cannot touch the gripper and are
+    left out of its check; solid_step [m]: spacing of the surface samples of the
+    neighbours' identified primitives added to the check (their unseen sides);
+    per_segment: grasps scored per segment at most; enough: planning of a segment
+    stops at this many grasps with a robust score > 0; keep: grasps per segment in the
+    scene ranking; clearance [m]: the gripper's clearance above the table; up: the
+    table's upward direction if known (cloud frame)."""
+
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    plane_sigma: float = 0.002
+    plane_repetitions: int = 200
+    table_band: float = 0.006
+    max_height: float = 0.5
+    voxel: float = 0.003
+    radius: float | None = None
+    max_radius: float = 0.007
+    min_points: int = 40
+    neighbours: bool = True
+    reach: float = 0.15
+    solid_step: float = 0.004
+    per_segment: int = 200
+    enough: int = 32
+    keep: int = 10
+    clearance: float = 0.002
+    up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
+
+    def __post_init__(self) -> None:
+        for k in ("plane_sigma", "table_band", "max_height", "voxel", "max_radius", "reach", "solid_step"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise InvalidParameterError(f"SceneConfig.{k} must be > 0 m, got {v!r}")
+        if self.radius is not None and not (np.isfinite(self.radius) and self.radius > 0):
+            raise InvalidParameterError(f"SceneConfig.radius must be > 0 m or None, got {self.radius!r}")
+        for k in ("plane_repetitions", "min_points", "per_segment", "enough", "keep"):
+            v = getattr(self, k)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise InvalidParameterError(f"SceneConfig.{k} must be an integer >= 1, got {v!r}")
+        if not isinstance(self.planner, PlannerConfig) or self.planner.rank != "robust":
+            raise InvalidParameterError("SceneConfig.planner must be a PlannerConfig ranking by the robust score "
+                                        f"(the scene check is part of it), got {self.planner!r}")
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "planner"}
+
+
+@dataclass(frozen=True, eq=False)
+class ScenePerception:
+    """plane: the table's fit; labels (N,) per input point: segment id >= 0, -1 table,
+    below it, too high, non-finite, thinned away or noise; points (M, 3) and
+    indices (M,) into the input: the thinned points above the table; segment (M,) their
+    labels; radius [m]: the clustering radius used; timing [s]."""
+
+    plane: PlaneFit
+    labels: np.ndarray
+    points: np.ndarray
+    indices: np.ndarray
+    segment: np.ndarray
+    radius: float
+    timing: dict
+
+    @property
+    def n_segments(self) -> int:
+        return int(self.segment.max()) + 1 if len(self.segment) and self.segment.max() >= 0 else 0
+
+    def segment_points(self, k: int) -> np.ndarray:
+        return self.points[self.segment == k]
+
+
+@dataclass(frozen=True, eq=False)
+class SceneGrasp:
+    """segment: which segment it grasps; T_world_wrist (4, 4) in the cloud's frame;
+    opening: the pad gap to open the jaws to before closing [m]; score: the robust score
+    (expected success; 0: colliding with the scene at its pose); grade: the map's grade;
+    clearance: distance of the gripper to the nearest observed point [m]."""
+
+    segment: int
+    T_world_wrist: np.ndarray
+    opening: float
+    score: float
+    grade: float
+    clearance: float
+
+    def to_dict(self) -> dict:
+        return {"segment": self.segment, "T_world_wrist": self.T_world_wrist.tolist(), "opening": self.opening,
+                "score": self.score, "grade": self.grade, "clearance": self.clearance}
+
+
+@dataclass(frozen=True, eq=False)
+class SegmentPlan:
+    """One segment's planning: points (count), status ("planned": grasps found,
+    "no_grasp", "failed": identification could not run, with ``reason``), the primitives
+    identified, grasps scored, seconds."""
+
+    segment: int
+    points: int
+    status: str
+    reason: str | None
+    primitives: tuple[str, ...]
+    scored: int
+    seconds: float
+
+    def to_dict(self) -> dict:
+        return {"segment": self.segment, "points": self.points, "status": self.status, "reason": self.reason,
+                "primitives": list(self.primitives), "scored": self.scored, "seconds": self.seconds}
+
+
+@dataclass(frozen=True, eq=False)
+class ScenePlan:
+    """perception; table: the fitted plane as the planner used it; segments:
+    per-segment planning; grasps: every segment's best ``keep`` grasps, best first
+    (score, then grade); timing [s]: ``table``, ``segment``, ``identify`` (every
+    segment), ``plan`` (maps and scores) and ``total``."""
+
+    perception: ScenePerception
+    table: TablePlane
+    segments: tuple[SegmentPlan, ...]
+    grasps: tuple[SceneGrasp, ...]
+    timing: dict
+
+    @property
+    def best(self) -> SceneGrasp | None:
+        """The best grasp of the scene with a robust score > 0, or None."""
+        return self.grasps[0] if self.grasps and self.grasps[0].score > 0 else None
+
+    def summary(self) -> dict:
+        return {"table": self.perception.plane.to_dict(), "segments": [s.to_dict() for s in self.segments],
+                "radius": self.perception.radius, "grasps": len(self.grasps),
+                "best": None if self.best is None else self.best.to_dict(), "timing": self.timing}
+
+
+def _check_scene(points) -> tuple[np.ndarray, np.ndarray]:
+    pts = as_coordinates(points)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise PointCloudError(f"a scene cloud must be an (N, 3) array, got shape {pts.shape}")
+    finite = np.flatnonzero(np.all(np.isfinite(pts), axis=1))
+    if len(finite) < 100:
+        raise PointCloudError(f"the scene cloud has {len(finite)} finite points; a table with objects needs "
+                              "at least 100 (is the camera looking at the table?)")
+    check_extent(pts[finite], max_extent=MAX_SCENE_EXTENT, what="a table-top scene")
+    return pts, finite
+
+
+def perceive_scene(points: np.ndarray, rng: np.random.Generator, config: SceneConfig | None = None, *,
+                   labels: np.ndarray | None = None) -> ScenePerception:
+    """The table and the objects of a scene cloud (N, 3) [m] (NaN rows: no depth).
+    ``labels`` (N,): given segment ids (>= 0 objects, < 0 none; e.g. the simulator's
+    ground truth) replace the clustering."""
+    cfg = config or SceneConfig()
+    t0 = time.perf_counter()
+    pts, finite = _check_scene(points)
+    plane = fit_table(pts[finite], rng, sigma=cfg.plane_sigma, repetitions=cfg.plane_repetitions,
+                      up=None if cfg.up is None else np.asarray(cfg.up, float))
+    t1 = time.perf_counter()
+    h = plane.heights(pts[finite])
+    above = finite[(h > cfg.table_band) & (h < cfg.max_height)]
+    idx = above[voxel_keep(pts[above], cfg.voxel)] if len(above) else above
+    sub = pts[idx]
+    if labels is not None:
+        seg, radius = _given_segments(labels, idx, len(pts), cfg.min_points), float("nan")
+    else:
+        radius = cfg.radius if cfg.radius is not None else cluster_radius(sub, max_radius=cfg.max_radius)
+        seg = euclidean_clusters(sub, radius=radius, min_points=cfg.min_points)
+    full = np.full(len(pts), -1, np.int64)
+    full[idx] = seg
+    t2 = time.perf_counter()
+    return ScenePerception(replace(plane, inliers=_spread(plane.inliers, finite, len(pts))), full, sub, idx, seg,
+                           radius, {"table": t1 - t0, "segment": t2 - t1})
+
+
+def _given_segments(labels, idx: np.ndarray, n: int, min_points: int) -> np.ndarray:
+    """Segment ids 0, 1, ... (ascending given id) of the thinned points from given
+    labels (n,) (< 0: none); ids with fewer than ``min_points`` thinned points: -1."""
+    given = np.asarray(labels).reshape(-1)
+    if given.shape != (n,):
+        raise InvalidParameterError(f"labels must have one entry per point ({n}), got shape {given.shape}")
+    g = given[idx].astype(np.int64)
+    ids, counts = np.unique(g[g >= 0], return_counts=True)
+    ids = ids[counts >= min_points]
+    keep = np.isin(g, ids)
+    seg = np.full(len(g), -1, np.int64)
+    seg[keep] = np.searchsorted(ids, g[keep])
+    return seg
+
+
+def _spread(mask: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
+    out = np.zeros(n, bool)
+    out[rows] = mask
+    return out
+
+
+def _box_samples(points: np.ndarray, plane: PlaneFit, step: float) -> np.ndarray:
+    """Surface samples (M, 3) of the smallest box around ``points`` (N, 3) and their
+    footprint on the table: the room an object the planner could not identify takes."""
+    foot = points - np.outer(plane.heights(points), plane.normal)
+    box = min_volume_box(np.concatenate([points, foot]))
+    ext = np.maximum(box.extents, 2.0 * MIN_DIM)
+    s = Box(*ext).surface_samples(min(step, 0.5 * float(ext.min()))).points
+    return s @ box.axes.T + box.center
+
+
+def _solid_samples(seg: np.ndarray, ident: Identification | None, plane: PlaneFit, step: float) -> np.ndarray:
+    """Surface samples (M, 3) [m, cloud frame] of what segment points ``seg`` stand
+    for: its identified primitives, and a box around each cluster it left unidentified
+    (the whole segment when identification could not run) -- the sides of a neighbour
+    the camera does not see."""
+    if ident is None:
+        return _box_samples(seg, plane, step)
+    out = [np.zeros((0, 3))]
+    for part in ident.parts:
+        prim = part.primitive()
+        s = prim.surface_samples(min(step, 0.5 * prim.size_scale)).points
+        out.append(s @ part.T_world_obj[:3, :3].T + part.T_world_obj[:3, 3])
+    out += [_box_samples(seg[p.indices], plane, step) for p in ident.unidentified if p.n_points >= 4]
+    return np.concatenate(out)
+
+
+def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray], reach: float) -> np.ndarray:
+    """What the gripper must clear besides segment ``k``: the scene's points above the
+    table outside it (noise points included: they were seen) and the surface samples
+    of the other segments' identified primitives, within ``reach`` of its bounding box."""
+    own = per.segment == k
+    lo, hi = per.points[own].min(axis=0) - reach, per.points[own].max(axis=0) + reach
+    pts = np.concatenate([per.points[~own], *(s for j, s in enumerate(solids) if j != k)])
+    return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+
+
+def _identify(seg: np.ndarray, rng: np.random.Generator, cfg: SceneConfig) -> tuple[Identification | None, str]:
+    """The segment's identification, or None and why it could not run."""
+    try:
+        return identify(seg, rng=rng, config=cfg.planner.identify), ""
+    except (IdentificationError, PointCloudError) as err:  # e.g. a flat face seen head-on
+        return None, str(err)
+
+
+def _plan_segment(per: ScenePerception, k: int, ident: Identification, obstacles: np.ndarray | None, db,
+                  rng: np.random.Generator, cfg: SceneConfig, table: TablePlane
+                  ) -> tuple[SegmentPlan, list[SceneGrasp]]:
+    t0 = time.perf_counter()
+    seg = per.segment_points(k)
+    pcfg = replace(cfg.planner, table=table, robust=replace(cfg.planner.robust, top=cfg.per_segment))
+    batches: list[GraspabilityMap] = []
+    prims = tuple(p.shape.value for p in ident.parts)
+    stream = plan_stream(seg, db=db, rng=rng, config=pcfg, obstacles=obstacles, identification=ident)
+    try:
+        for item in stream:
+            if isinstance(item, PlanResult):
+                break
+            batches.append(item.map)
+            good = sum(int(np.sum(b.robust > 0)) for b in batches)
+            scored = sum(int(np.isfinite(b.robust).sum()) for b in batches)
+            if good >= cfg.enough or scored >= cfg.per_segment * len(ident.parts):
+                break  # enough found, or every part's scoring budget spent: the rest is unscored
+    finally:
+        stream.close()
+    scored = sum(int(np.isfinite(b.robust).sum()) for b in batches)
+    if not batches:
+        return SegmentPlan(k, len(seg), "no_grasp", None, prims, 0, time.perf_counter() - t0), []
+    gmap = GraspabilityMap.concat(batches, meta=batches[0].meta)
+    gmap = gmap.select(np.isfinite(gmap.robust)).top_k(cfg.keep)  # the rows scored against the scene
+    T_world_obj = gmap.meta.placement.T_cloud_obj
+    T = T_world_obj @ gmap.T_obj_wrist
+    g = db.gripper
+    extra = np.nan_to_num(gmap.robust_extra_opening.astype(float))
+    opening = g.pregrasp_opening(gmap.width.astype(float) + 2.0 * extra)
+    score = np.nan_to_num(gmap.robust.astype(float), nan=0.0)
+    grasps = [SceneGrasp(k, T[i], float(opening[i]), float(score[i]), float(gmap.grade[i]),
+                         float(gmap.clearance[i])) for i in range(len(gmap))]
+    return SegmentPlan(k, len(seg), "planned", None, prims, scored, time.perf_counter() - t0), grasps
+
+
+def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: SceneConfig | None = None,
+               labels: np.ndarray | None = None) -> ScenePlan:
+    """Ranked grasps for every object of a scene cloud (N, 3) [m] (see the module
+    docstring); ``db``: the :class:`~graspsim.maps.database.MapDatabase`; ``labels``:
+    see :func:`perceive_scene`."""
+    cfg = config or SceneConfig()
+    t0 = time.perf_counter()
+    per = perceive_scene(points, rng, cfg, labels=labels)
+    table = per.plane.table(cfg.clearance)
+    t1 = time.perf_counter()
+    segs = [per.segment_points(k) for k in range(per.n_segments)]
+    idents = [_identify(seg, rng, cfg) for seg in segs]
+    solids = [_solid_samples(seg, i, per.plane, cfg.solid_step) for seg, (i, _) in zip(segs, idents)] \
+        if cfg.neighbours else []
+    t2 = time.perf_counter()
+    plans, grasps = [], []
+    for k, (ident, why) in enumerate(idents):
+        if ident is None:
+            plans.append(SegmentPlan(k, len(segs[k]), "failed", why, (), 0, 0.0))
+            continue
+        obstacles = _obstacles(per, k, solids, cfg.reach) if cfg.neighbours else None
+        p, g = _plan_segment(per, k, ident, obstacles, db, rng, cfg, table)
+        plans.append(p)
+        grasps += g
+    grasps.sort(key=lambda s: (-s.score, -s.grade, s.segment))
+    now = time.perf_counter()
+    timing = {**per.timing, "identify": t2 - t1, "plan": now - t2, "total": now - t0}
+    return ScenePlan(per, table, tuple(plans), tuple(grasps), timing)

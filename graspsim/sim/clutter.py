@@ -1,0 +1,269 @@
+"""Clutter removal: clear a table of several objects, one grasp at a time.
+
+The benchmark of VGN, GPD and their successors, on a :class:`~graspsim.sim.scenes.TableScene`:
+
+    render a depth frame (one D435-like camera, sensor noise) -> back-project to the world
+    -> :func:`~graspsim.perception.scene.plan_scene` (table, segments, every segment
+    planned, grasps checked against the whole scene) -> execute the best grasp on any
+    object (execution error optional) -> a lifted object leaves the scene -> render again
+
+until the table is clear, two consecutive grasps failed, no grasp is found, or
+``max_attempts`` grasps were tried. Metrics (:class:`ClutterResult`): grasp success rate
+(GSR = objects lifted / grasps executed), declutter rate (objects removed / objects
+placed), planning seconds per grasp (from the depth image, back-projection included,
+to the ranked grasps), each failure's cause, and segmentation quality
+against MuJoCo's segmentation render: of the objects seen in a frame, the share whose
+points form exactly one cluster (:func:`one_cluster_objects`).
+Ablations: ``SceneConfig(neighbours=False)`` (no neighbour check) and
+``ClutterConfig(ground_truth=True)`` (the render's object labels as the segments).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from graspsim.errors import InvalidParameterError
+from graspsim.perception.scene import SceneConfig, plan_scene
+from graspsim.sim.camera import Camera, DepthNoise, backproject, rig
+from graspsim.sim.noise import ExecutionNoise
+
+__all__ = ["ClutterConfig", "Attempt", "ClutterResult", "run_clutter", "run_benchmark", "summarize",
+           "one_cluster_objects", "STOPS"]
+
+#: Why an episode ended.
+STOPS = ("cleared", "failures", "no_grasp", "max_attempts")
+
+
+@dataclass(frozen=True)
+class ClutterConfig:
+    """scene: the perception and planning settings; depth_noise: the sensor's (None: a
+    perfect sensor); execution: the arm's pose error (None: none); ground_truth: segment
+    by the render's object labels instead of clustering (ablation); max_failures:
+    consecutive failed grasps that end an episode; max_attempts: grasps per episode at
+    most (None: 2 x objects + 2); min_seen: points (after thinning) an object needs in
+    a frame to count in the segmentation quality."""
+
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    depth_noise: DepthNoise | None = field(default_factory=DepthNoise)
+    execution: ExecutionNoise | None = None
+    ground_truth: bool = False
+    max_failures: int = 2
+    max_attempts: int | None = None
+    min_seen: int = 40
+
+    def __post_init__(self) -> None:
+        for k in ("max_failures", "min_seen"):
+            v = getattr(self, k)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise InvalidParameterError(f"ClutterConfig.{k} must be an integer >= 1, got {v!r}")
+        m = self.max_attempts
+        if m is not None and (isinstance(m, bool) or not isinstance(m, int) or m < 1):
+            raise InvalidParameterError(f"ClutterConfig.max_attempts must be an integer >= 1 or None, got {m!r}")
+
+    def to_dict(self) -> dict:
+        return {"scene": self.scene.to_dict(), "depth_noise": None if self.depth_noise is None
+                else self.depth_noise.to_dict(), "execution": None if self.execution is None
+                else self.execution.to_dict(), "ground_truth": self.ground_truth,
+                "max_failures": self.max_failures, "max_attempts": self.max_attempts, "min_seen": self.min_seen}
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """One executed grasp: target (the object the chosen segment is mostly of, ground
+    truth), outcome (:meth:`SceneOutcome.to_dict`), success, cause, score (robust),
+    planning [s] (depth frame to ranked grasps; ``timing`` per stage), segments found,
+    objects seen, and of those segmented as one cluster."""
+
+    target: int | None
+    outcome: dict
+    success: bool
+    cause: str
+    score: float
+    planning: float
+    timing: dict
+    segments: int
+    seen: int
+    one_cluster: int
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class ClutterResult:
+    """One episode: placed objects, attempts in order, removed objects, why it stopped
+    (:data:`STOPS`), the first frame's segmentation quality (objects seen, one cluster)."""
+
+    placed: int
+    attempts: tuple[Attempt, ...]
+    removed: int
+    stop: str
+    first_seen: int
+    first_one_cluster: int
+    seconds: float
+
+    @property
+    def successes(self) -> int:
+        return sum(a.success for a in self.attempts)
+
+    @property
+    def grasp_success_rate(self) -> float:
+        return self.successes / len(self.attempts) if self.attempts else float("nan")
+
+    @property
+    def declutter_rate(self) -> float:
+        return self.removed / self.placed
+
+    def to_dict(self) -> dict:
+        return {"placed": self.placed, "removed": self.removed, "attempts": len(self.attempts),
+                "successes": self.successes, "grasp_success_rate": self.grasp_success_rate,
+                "declutter_rate": self.declutter_rate, "stop": self.stop, "first_seen": self.first_seen,
+                "first_one_cluster": self.first_one_cluster, "seconds": self.seconds,
+                "steps": [a.to_dict() for a in self.attempts]}
+
+
+def one_cluster_objects(truth: np.ndarray, found: np.ndarray, *, min_seen: int = 40,
+                        share: float = 0.9) -> tuple[int, int]:
+    """(objects seen, objects segmented as one cluster) from per-point ground-truth
+    object ids ``truth`` (N,) (< 0: none) and found segment ids ``found`` (N,) (< 0:
+    none) of the same points. An object is seen with ``min_seen`` points or more; it is
+    one cluster when one segment holds at least ``share`` of its segmented points and at
+    least ``share`` of that segment's points are the object's."""
+    truth, found = np.asarray(truth), np.asarray(found)
+    seen = one = 0
+    for k in np.unique(truth[truth >= 0]):
+        mine = truth == k
+        if mine.sum() < min_seen:
+            continue
+        seen += 1
+        segs = found[mine & (found >= 0)]
+        if not len(segs):
+            continue
+        ids, counts = np.unique(segs, return_counts=True)
+        best = ids[np.argmax(counts)]
+        if counts.max() >= share * len(segs) and np.mean(truth[found == best] == k) >= share:
+            one += 1
+    return seen, one
+
+
+def _target(per, seg: int, truth: np.ndarray) -> int | None:
+    """The object most of segment ``seg``'s points show (ground truth), or None."""
+    t = truth[per.indices[per.segment == seg]]
+    t = t[t >= 0]
+    return int(np.bincount(t).argmax()) if len(t) else None
+
+
+def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
+                camera: Camera | None = None, on_step=None) -> ClutterResult:
+    """One clutter-removal episode on ``scene`` (a :class:`~graspsim.sim.scenes.TableScene`)
+    seen by ``camera`` (default: one D435-like camera, ``rig(1)``), planning against the
+    :class:`~graspsim.maps.database.MapDatabase` ``db``. Deterministic given ``rng``.
+    on_step(view, frame, plan, attempt): called after each executed grasp with the
+    back-projected view, the depth frame (colour rendered too), the ScenePlan and the
+    Attempt (e.g. to draw it: :func:`~graspsim.sim.clutter_figure.save_step_figure`)."""
+    cfg = config or ClutterConfig()
+    cam = camera or rig(1)[0]
+    t0 = time.perf_counter()
+    sim = scene.sim()
+    depth_rng, plan_rng, exec_rng = rng.spawn(3)
+    cap = cfg.max_attempts or 2 * len(scene.objects) + 2
+    attempts: list[Attempt] = []
+    first = None
+    failures, stop = 0, "max_attempts"
+    try:
+        while len(attempts) < cap:
+            if not sim.objects_left():
+                stop = "cleared"
+                break
+            frame = sim.render(cam, noise=cfg.depth_noise, rng=depth_rng, rgb=on_step is not None)
+            t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
+            view = backproject(frame)
+            truth = view.labels
+            sp = plan_scene(view.world(), db=db, rng=plan_rng, config=cfg.scene,
+                            labels=truth if cfg.ground_truth else None)
+            planning = time.perf_counter() - t1
+            per = sp.perception
+            seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
+            if first is None:
+                first = (seen, one)
+            best = sp.best
+            if best is None:
+                stop = "no_grasp"
+                break
+            target = _target(per, best.segment, truth)
+            out = sim.execute(best.T_world_wrist, best.opening, target=target, noise=cfg.execution,
+                              rng=exec_rng if cfg.execution is not None else None)
+            a = Attempt(target, out.to_dict(), out.success, out.cause, best.score, planning, sp.timing,
+                        per.n_segments, seen, one)
+            attempts.append(a)
+            if on_step is not None:
+                on_step(view, frame, sp, a)
+            failures = 0 if out.success else failures + 1
+            if failures >= cfg.max_failures:
+                stop = "failures"
+                break
+        else:
+            if not sim.objects_left():
+                stop = "cleared"
+        removed = len(scene.objects) - len(sim.objects_left())
+    finally:
+        sim.close()
+    first = first or (0, 0)
+    return ClutterResult(len(scene.objects), tuple(attempts), removed, stop, first[0], first[1],
+                         time.perf_counter() - t0)
+
+
+def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, config: ClutterConfig | None = None,
+                  object_set: str = "mixed", first: int = 0, on_step=None, on_scene=None) -> list[ClutterResult]:
+    """``scenes`` episodes on scenes ``first``, ``first + 1``, ... of ``n_objects`` of
+    ``kind`` ("pile" | "packed"). Scene ``i`` is ``make_scene(n_objects, kind, derived_seed(seed, "scene", i))`` and its
+    episode draws from ``rng_for(seed, "clutter", i)``: every condition (noise,
+    ablation) meets the same scenes and the same draws. on_step(i, view, frame, plan,
+    attempt) as :func:`run_clutter`'s; on_scene(i, scene, result) after each episode."""
+    from graspsim.seeding import derived_seed, rng_for
+    from graspsim.sim.scenes import make_scene
+
+    if isinstance(scenes, bool) or not isinstance(scenes, int) or scenes < 1:
+        raise InvalidParameterError(f"scenes must be a whole number >= 1, got {scenes!r}")
+    out = []
+    for i in range(first, first + scenes):
+        scene = make_scene(n_objects, kind, derived_seed(seed, "scene", i), object_set=object_set,
+                           gripper=db.gripper)
+        step = None if on_step is None else (lambda *a, i=i: on_step(i, *a))
+        r = run_clutter(scene, db=db, rng=rng_for(seed, "clutter", i), config=config, on_step=step)
+        out.append(r)
+        if on_scene is not None:
+            on_scene(i, scene, r)
+    return out
+
+
+def summarize(results: list[ClutterResult]) -> dict:
+    """Pooled metrics of episodes: grasp success rate (successes / attempts), cleared
+    rate (objects removed / placed), scenes cleared, stops, failure causes, planning
+    seconds per grasp (mean, median, max; median per stage of ``plan_scene``), segmentation quality of the first frames
+    (objects seen, segmented as one cluster)."""
+    attempts = [a for r in results for a in r.attempts]
+    ok = sum(a.success for a in attempts)
+    placed, removed = sum(r.placed for r in results), sum(r.removed for r in results)
+    causes: dict[str, int] = {}
+    for a in attempts:
+        if not a.success:
+            causes[a.cause] = causes.get(a.cause, 0) + 1
+    plan_s = np.array([a.planning for a in attempts]) if attempts else np.zeros(0)
+    seen, one = sum(r.first_seen for r in results), sum(r.first_one_cluster for r in results)
+    stages = sorted({k for a in attempts for k in a.timing})
+    medians = {k: float(np.median([a.timing.get(k, 0.0) for a in attempts])) for k in stages}
+    return {"scenes": len(results), "attempts": len(attempts), "successes": ok,
+            "grasp_success_rate": ok / len(attempts) if attempts else None,
+            "placed": placed, "removed": removed, "cleared_rate": removed / placed if placed else None,
+            "scenes_cleared": sum(r.removed == r.placed for r in results),
+            "stops": {s: sum(r.stop == s for r in results) for s in STOPS},
+            "failure_causes": dict(sorted(causes.items())),
+            "planning_s": {"mean": float(plan_s.mean()) if len(plan_s) else None,
+                           "median": float(np.median(plan_s)) if len(plan_s) else None,
+                           "max": float(plan_s.max()) if len(plan_s) else None, "stages_median": medians},
+            "segmentation": {"objects_seen": seen, "one_cluster": one,
+                             "share": one / seen if seen else None}}

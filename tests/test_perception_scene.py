@@ -1,0 +1,148 @@
+"""Scene perception on synthetic table-top scenes with known answers: the table plane,
+one cluster per object, grasps checked against the neighbours, bad input."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from graspsim.errors import GraspsimError, PointCloudError
+from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.maps.collide import boxes_clear_sdf
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import MapConfig
+from graspsim.perception.plane import fit_table
+from graspsim.perception.scene import SceneConfig, perceive_scene, plan_scene
+from graspsim.perception.segment import cluster_radius, euclidean_clusters
+from graspsim.primitives import Box, Cylinder, Sphere
+from graspsim.primitives.clouds import table_scene_cloud
+from graspsim.transforms import invert_transform, make_transform
+
+FAST = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
+TILTS = [0.0, 20.0]
+
+
+def _table(tilt_deg: float) -> np.ndarray:
+    """T_world_table: tilted about x and y, lifted and shifted off the origin."""
+    R = Rotation.from_euler("xy", [tilt_deg, 0.5 * tilt_deg], degrees=True).as_matrix()
+    return make_transform(R, [0.45, -0.1, 0.72])
+
+
+def _row(shapes, gap: float) -> np.ndarray:
+    """x, y of shapes standing in a row along x with ``gap`` [m] between their sides."""
+    widths = [s.aabb[1, 0] - s.aabb[0, 0] for s in shapes]
+    x, out = -0.5 * (sum(widths) + gap * (len(shapes) - 1)), []
+    for w in widths:
+        out.append((x + 0.5 * w, 0.0))
+        x += w + gap
+    return np.array(out)
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory):
+    d = MapDatabase(tmp_path_factory.mktemp("db"), config=FAST)
+    d.build([Box(0.06, 0.06, 0.06), Cylinder(0.02, 0.2), Sphere(0.035)])
+    return d
+
+
+@pytest.mark.parametrize("tilt", TILTS)
+def test_table_plane_recovered(tilt):
+    rng = np.random.default_rng(3)
+    T = _table(tilt)
+    shapes = [Box(0.05, 0.06, 0.1), Cylinder(0.03, 0.12), Sphere(0.03)]
+    pts, labels, _ = table_scene_cloud(shapes, _row(shapes, 0.03), rng, noise=0.001, T_world_table=T)
+    fit = fit_table(pts, np.random.default_rng(0), up=T[:3, 2])
+    assert math.degrees(math.acos(min(1.0, float(fit.normal @ T[:3, 2])))) < 0.5
+    assert abs(fit.height - float(T[:3, 2] @ T[:3, 3])) < 0.001
+    assert np.mean(fit.inliers[labels == -1]) > 0.98  # the table's points are on it
+    assert np.mean(fit.inliers[labels >= 0]) < 0.1  # the objects' are not (their base rows only)
+    # without a hint the normal points to the side the objects stand on
+    assert fit_table(pts, np.random.default_rng(1), up=None).normal @ T[:3, 2] > 0.999
+
+
+def _one_cluster_each(labels_true: np.ndarray, labels_found: np.ndarray) -> list[bool]:
+    """Per object: all its clustered points in one cluster that holds no other object's."""
+    out = []
+    for k in range(labels_true.max() + 1):
+        found = np.unique(labels_found[(labels_true == k) & (labels_found >= 0)])
+        pure = len(found) == 1 and set(np.unique(labels_true[labels_found == found[0]])) == {k}
+        out.append(bool(pure))
+    return out
+
+
+@pytest.mark.parametrize("tilt, resolution", [(0.0, 0.003), (20.0, 0.003), (0.0, 0.0045)])
+def test_segmentation_one_cluster_per_object_at_1_cm_gaps(tilt, resolution):
+    """A sparse cloud (4.5 mm spacing) asks for a wide radius: the cap keeps 1 cm gaps."""
+    rng = np.random.default_rng(5)
+    shapes = [Box(0.05, 0.06, 0.1), Cylinder(0.03, 0.12), Sphere(0.03), Box(0.04, 0.08, 0.05),
+              Cylinder(0.02, 0.15)]
+    pts, truth, _ = table_scene_cloud(shapes, _row(shapes, 0.010), rng, resolution=resolution, noise=0.001,
+                                      T_world_table=_table(tilt))
+    per = perceive_scene(pts, np.random.default_rng(0), SceneConfig(up=tuple(_table(tilt)[:3, 2])))
+    assert per.n_segments == len(shapes)
+    assert all(_one_cluster_each(truth, per.labels))
+    assert per.radius <= SceneConfig().max_radius
+    # the ground truth given as labels gives the same objects
+    given = perceive_scene(pts, np.random.default_rng(0), SceneConfig(up=tuple(_table(tilt)[:3, 2])), labels=truth)
+    assert given.n_segments == len(shapes) and all(_one_cluster_each(truth, given.labels))
+
+
+def test_euclidean_clusters_by_size_and_noise():
+    rng = np.random.default_rng(0)
+    big = rng.uniform(0, 0.05, (400, 3))
+    small = rng.uniform(0, 0.03, (150, 3)) + (0.2, 0, 0)
+    speck = rng.uniform(0, 0.002, (5, 3)) + (0.5, 0, 0)
+    lab = euclidean_clusters(np.concatenate([small, speck, big]), radius=0.02, min_points=20)
+    assert set(lab[:150]) == {1} and set(lab[150:155]) == {-1} and set(lab[155:]) == {0}
+    assert cluster_radius(big, max_radius=0.004) == 0.004
+
+
+def test_a_grasp_colliding_only_with_a_neighbour_is_rejected(db):
+    """Box A (a stored map) beside a taller box B 1.5 cm away: without the neighbour check
+    some of A's best grasps put a finger into B; with it those score 0 and rank last."""
+    shapes = [Box(0.06, 0.06, 0.06), Box(0.03, 0.10, 0.12)]
+    pts, truth, poses = table_scene_cloud(shapes, _row(shapes, 0.015), np.random.default_rng(2), noise=0.0005)
+    seg_a = None
+    runs = {}
+    for nb in (False, True):
+        cfg = SceneConfig(neighbours=nb, enough=10**6, per_segment=400, keep=400)
+        sp = plan_scene(pts, db=db, rng=np.random.default_rng(7), config=cfg)
+        seg_a = int(np.bincount(sp.perception.labels[(truth == 0) & (sp.perception.labels >= 0)]).argmax())
+        runs[nb] = [g for g in sp.grasps if g.segment == seg_a]
+    T_B = invert_transform(poses[1])
+
+    def hits_b(g):
+        return not boxes_clear_sdf(shapes[1], G, T_B @ g.T_world_wrist, g.opening)[0]
+
+    bad = [g for g in runs[False] if g.score > 0 and hits_b(g)]
+    assert bad, "the scene should offer grasps on A that only the neighbour blocks"
+    checked = runs[True]
+    assert not [g for g in checked if g.score > 0 and hits_b(g)]
+    for g in bad:  # the same pose, now scored 0
+        same = [h for h in checked if np.allclose(h.T_world_wrist, g.T_world_wrist, atol=1e-9)]
+        assert same and all(h.score == 0 for h in same)
+    clear = [g for g in checked if g.score > 0]
+    assert clear and checked.index(clear[-1]) < min(checked.index(h) for h in checked if h.score == 0)
+
+
+def test_bad_scene_input_is_a_clear_error():
+    rng = np.random.default_rng(0)
+    with pytest.raises(PointCloudError, match="finite points"):
+        perceive_scene(np.zeros((0, 3)), rng)
+    with pytest.raises(PointCloudError, match=r"\(N, 3\)"):
+        perceive_scene(np.zeros((500, 2)), rng)
+    ball = Sphere(0.05).surface_samples(0.004).points
+    with pytest.raises(PointCloudError, match="no table plane"):
+        perceive_scene(ball, rng)
+    pts, _, _ = table_scene_cloud([Box(0.05, 0.05, 0.1)], np.zeros((1, 2)), rng)
+    with pytest.raises(PointCloudError, match="millimetres"):
+        perceive_scene(pts * 1000.0, rng)
+    with pytest.raises(GraspsimError, match="voxel"):
+        SceneConfig(voxel=0.0)
+
+
+def test_empty_table_has_no_segments(db):
+    pts, _, _ = table_scene_cloud([], np.zeros((0, 2)), np.random.default_rng(0), noise=0.001)
+    sp = plan_scene(pts, db=db, rng=np.random.default_rng(0))
+    assert sp.perception.n_segments == 0 and sp.best is None and sp.grasps == ()

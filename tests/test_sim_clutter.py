@@ -1,0 +1,110 @@
+"""Clutter removal: the protocol on small simulated scenes (deterministic, counts that
+add up, segmentation against the render's labels) and the ``graspsim scene`` CLI."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from graspsim.cli import main
+from graspsim.errors import InvalidParameterError
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import MapConfig
+from graspsim.primitives import Box, Cylinder, Sphere
+from graspsim.sim.clutter import STOPS, ClutterConfig, one_cluster_objects, run_benchmark, run_clutter, summarize
+from graspsim.sim.scenes import make_scene
+
+FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
+FAST_FLAGS = ["--surface-step", "0.01", "--rotation-step-deg", "22"]
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory):
+    d = MapDatabase(tmp_path_factory.mktemp("db"), config=FAST)
+    d.build([Box(0.06, 0.06, 0.06), Cylinder(0.02, 0.2), Sphere(0.035)])
+    return d
+
+
+def test_one_cluster_objects_counts_merges_and_splits():
+    truth = np.array([0] * 50 + [1] * 50 + [2] * 50 + [3] * 10)
+    found = np.array([0] * 50 + [1] * 25 + [2] * 25 + [3] * 50 + [-1] * 10)
+    assert one_cluster_objects(truth, found, min_seen=40) == (3, 2)  # 0, 2 fine; 1 split; 3 too small
+    merged = np.array([0] * 100 + [1] * 50 + [-1] * 10)
+    assert one_cluster_objects(truth, merged, min_seen=40) == (3, 1)  # 0 and 1 share a segment
+    noisy = found.copy()
+    noisy[[0, 1]] = -1  # unsegmented points do not count against the object
+    assert one_cluster_objects(truth, noisy, min_seen=40) == (3, 2)
+
+
+def test_clutter_episode_is_deterministic_and_its_counts_add_up(db):
+    scene = make_scene(2, "packed", seed=4, object_set="primitives")
+    run_clutter(scene, db=db, rng=np.random.default_rng(1))  # maps of new sizes built on first use
+    a = run_clutter(scene, db=db, rng=np.random.default_rng(1))
+    b = run_clutter(scene, db=db, rng=np.random.default_rng(1))
+    strip = lambda r: [{k: v for k, v in s.items() if k not in ("planning", "timing")}  # noqa: E731
+                       for s in r.to_dict()["steps"]]
+    assert strip(a) == strip(b) and a.stop == b.stop and a.removed == b.removed
+    assert a.stop in STOPS and a.placed == 2
+    assert a.removed == a.successes <= len(a.attempts) <= 2 * 2 + 2
+    assert a.declutter_rate == a.removed / 2
+    assert a.first_seen == 2 and a.first_one_cluster == 2  # packed, >= 1 cm apart
+    assert a.stop != "cleared" or a.removed == 2
+    for s in a.attempts:
+        assert s.planning > 0 and s.timing["total"] <= s.planning + 1e-6 and s.success == s.cause.startswith("success")
+
+
+def test_benchmark_pairs_scenes_across_conditions_and_summarises(db):
+    seen = {}
+
+    def scene_of(label):
+        return lambda i, scene, r: seen.setdefault(label, []).append(scene.to_dict())
+
+    runs = {}
+    for label, cfg in (("full", ClutterConfig(max_attempts=1)),
+                       ("truth", ClutterConfig(max_attempts=1, ground_truth=True))):
+        runs[label] = run_benchmark(2, "packed", 1, 3, db=db, config=cfg, object_set="primitives", first=1,
+                                    on_scene=scene_of(label))
+    assert seen["full"] == seen["truth"]  # the same scene for both conditions
+    s = summarize(runs["full"] + runs["truth"])
+    assert s["scenes"] == 2 and s["attempts"] == sum(len(r.attempts) for v in runs.values() for r in v) <= 2
+    assert s["successes"] + sum(s["failure_causes"].values()) == s["attempts"]
+    assert s["placed"] == 4 and s["cleared_rate"] == s["removed"] / 4
+    assert sum(s["stops"].values()) == 2
+    with pytest.raises(InvalidParameterError):
+        ClutterConfig(max_failures=0)
+
+
+@pytest.mark.slow
+def test_cli_scene_json_and_renders(tmp_path, capsys, db):
+    code = main(["scene", "--objects", "2", "--kind", "packed", "--object-set", "primitives", "--seed", "1",
+                 "--max-attempts", "2", "--db", str(db.root), *FAST_FLAGS, "--render", str(tmp_path / "r"),
+                 "--json"])
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and s["scenes"] == 1 and s["placed"] == 2
+    assert s["grasp_success_rate"] == s["successes"] / s["attempts"] and s["cleared_rate"] == s["removed"] / 2
+    assert len(s["details"]) == 1 and s["details"][0]["attempts"] == s["attempts"]
+    assert len(list((tmp_path / "r").glob("scene000_step*.png"))) == s["attempts"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--objects", "0"], "--objects"),
+    (["--objects", "31"], "at most 30"),
+    (["--object-set", "toys"], "unknown"),
+    (["--kind", "heap"], "invalid choice"),
+    (["--scenes", "x"], "--scenes"),
+])
+def test_cli_scene_bad_arguments_are_one_line_errors(args, message, capsys, tmp_path):
+    try:
+        code = main(["scene", *args, "--db", str(tmp_path / "db")])
+    except SystemExit as e:  # argparse's own errors
+        code = e.code
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and "Traceback" not in err
+
+
+def test_cli_scene_render_into_a_file_fails_before_the_work(tmp_path, capsys):
+    f = tmp_path / "file"
+    f.write_text("x")
+    assert main(["scene", "--render", str(f), "--db", str(tmp_path / "db")]) == 2
+    assert "not a folder" in capsys.readouterr().err and not (tmp_path / "db").exists()

@@ -37,6 +37,7 @@ from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import TablePlane, clears_table, heights_above, stream_order, table_frame
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
 from graspsim.primitives import Compound, Primitive
+from graspsim.primitives.compound import object_frame
 from graspsim.transforms import invert_transform
 
 __all__ = ["PlanStatus", "PlannerConfig", "PartPlan", "PlanResult", "GraspBatch", "TablePlane", "plan",
@@ -263,24 +264,6 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
                            db, cfg, source, t0, {"identify": 0.0}, time.thread_time())
 
 
-def _object_frame(prims: list, T_cloud: list) -> tuple[np.ndarray, Compound | None]:
-    """(T_cloud_obj, the compound or None): one part -> its frame; several -> the
-    compound's centre of mass with the axes of its largest part."""
-    if len(prims) == 1:
-        return T_cloud[0], None
-    vols = [p.volume for p in prims]
-    big = int(np.argmax(vols))
-    com = sum(v * T[:3, 3] for v, T in zip(vols, T_cloud)) / sum(vols)
-    T_ref = T_cloud[big].copy()
-    T_ref[:3, 3] = com
-    inv = invert_transform(T_ref)
-    compound = Compound.from_parts(prims, np.stack([inv @ T for T in T_cloud]))
-    # from_parts re-centred the parts on the exact union COM (overlaps removed)
-    shift = np.eye(4)
-    shift[:3, 3] = (inv @ T_cloud[0])[:3, 3] - compound.poses[0][:3, 3]
-    return T_ref @ shift, compound
-
-
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
                 ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
                 source: str, t0: float, timing: dict, cpu0: float, obstacles: np.ndarray | None = None
@@ -288,7 +271,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
     part frames in the cloud's frame); ``cpu0``: the calling thread's CPU clock when
     identification ended."""
-    T_cloud_obj, compound = _object_frame(prims, T_cloud)
+    T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
     T_table_obj = table = None

@@ -265,7 +265,9 @@ def test_grasps_likely_to_clear_the_table_stream_first(db, monkeypatch, truth, m
     R = np.eye(3) if isinstance(truth, Sphere) else np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]], float)
     T = make_transform(R, [0.4, 0.0, 0.035 if isinstance(truth, Sphere) else 0.024])
     cloud = synthetic_cloud(truth, np.random.default_rng(2), resolution=0.004, noise=0.0005, T_world_obj=T)
-    cfg = PlannerConfig(table=TablePlane(height=0.0))
+    # paper identification: robust mode's cloud-agreement filter (graspsim.maps.agreement)
+    # also thins the batches, so a batch's size would no longer tell what the table did
+    cfg = PlannerConfig(table=TablePlane(height=0.0), identify=IdentifyConfig.preset("paper"))
     items = list(plan_stream(cloud.points, db=db, rng=np.random.default_rng(0), config=cfg))
     first, result = items[0], items[-1]
     assert [p.match.value for p in result.parts] == [match]

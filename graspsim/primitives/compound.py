@@ -17,7 +17,7 @@ from graspsim.primitives.base import Primitive, _march_exit
 from graspsim.primitives.samples import SurfaceSamples
 from graspsim.transforms import invert_transform, transform_points
 
-__all__ = ["Compound"]
+__all__ = ["Compound", "object_frame"]
 
 
 @dataclass(frozen=True)
@@ -172,3 +172,22 @@ def _mass_properties(parts, poses, n_grid: int = 48) -> tuple[np.ndarray, float]
             V -= dv * k.sum()
             M1 -= dv * (k[:, None] * g[extra]).sum(0)
     return M1 / V, float(V)
+
+
+def object_frame(prims: list, T_cloud: list) -> tuple[np.ndarray, Compound | None]:
+    """The object frame of identified parts, ``T_cloud`` their poses in the cloud frame:
+    (T_cloud_obj, the compound or None): one part -> its frame; several -> the
+    compound's centre of mass with the axes of its largest part."""
+    if len(prims) == 1:
+        return T_cloud[0], None
+    vols = [p.volume for p in prims]
+    big = int(np.argmax(vols))
+    com = sum(v * T[:3, 3] for v, T in zip(vols, T_cloud)) / sum(vols)
+    T_ref = T_cloud[big].copy()
+    T_ref[:3, 3] = com
+    inv = invert_transform(T_ref)
+    compound = Compound.from_parts(prims, np.stack([inv @ T for T in T_cloud]))
+    # from_parts re-centred the parts on the exact union COM (overlaps removed)
+    shift = np.eye(4)
+    shift[:3, 3] = (inv @ T_cloud[0])[:3, 3] - compound.poses[0][:3, 3]
+    return T_ref @ shift, compound

@@ -59,10 +59,10 @@ def _fresh_url(path: str) -> dict:
         if not line.startswith("graspsim view: http"):
             raise RuntimeError(f"view failed: {line}{p.stderr.read()}")
         url = line.split()[-1]
-        with urllib.request.urlopen(url, timeout=60) as r:
+        with urllib.request.urlopen(url, timeout=300) as r:
             status = r.status
         p.send_signal(signal.SIGINT)
-        out, err = p.communicate(timeout=60)
+        out, err = p.communicate(timeout=300)
     finally:
         if p.poll() is None:
             p.kill()

@@ -53,7 +53,7 @@ from _mesh_views import clouds, rest_on_table
 
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.match import MatchKind
-from graspsim.maps.robust import RANKS
+from graspsim.maps.robust import RANKS, executed_width
 from graspsim.perception import IdentifyConfig
 from graspsim.perception.mvbb import min_volume_box
 from graspsim.planner import PlannerConfig, TablePlane, plan
@@ -107,7 +107,7 @@ def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config, seed: int) -> dict |
     rows = np.flatnonzero(m.accepted)[:cfg.top]  # in the planner's order (robust ranking by default)
     if not len(rows):
         return None
-    r = run_trials(scene, T_mesh_world @ res.T_cloud_obj @ m.T_obj_wrist[rows], m.width[rows], LiftPlace(),
+    r = run_trials(scene, T_mesh_world @ res.T_cloud_obj @ m.T_obj_wrist[rows], executed_width(m, rows), LiftPlace(),
                    threads=cfg.threads, seed=seed)
     out = np.asarray(r.outcome)
     placed = int(np.sum(out == TrialOutcome.SUCCESS))

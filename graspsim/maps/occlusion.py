@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.ndimage import minimum_filter
-from scipy.spatial import cKDTree
 
 from graspsim.errors import InvalidParameterError
 from graspsim.gripper import GripperSpec
+from graspsim.perception.prepare import median_spacing
 
 __all__ = ["ViewDepth", "finger_samples", "finger_occlusion"]
 
@@ -52,8 +52,7 @@ class ViewDepth:
         b1 = np.cross(a, helper)
         b1 /= np.linalg.norm(b1)
         self.basis = np.stack([b1, np.cross(a, b1), a])  # rows: image x, image y, optical axis
-        spacing = float(np.median(cKDTree(P).query(P, k=2)[0][:, 1])) if len(P) > 1 else 1e-3
-        spacing = max(spacing, 1e-4)
+        spacing = max(median_spacing(P), 1e-4)
         self.tolerance = max(2.0 * spacing, 0.002) if tolerance is None else float(tolerance)
         uv, r, front = self._project(P)
         if not front.all():

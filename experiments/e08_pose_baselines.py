@@ -15,7 +15,8 @@ object, pose, cloud and execution error):
   cloud; ``graspsim.maps.robust``) -- the stand-in when no grasp scores above 0;
 * planner, robust, opening: the same, scoring each grasp also with the jaws opened
   wider (``--open-mm``, extra gap per side) and executing the best grasp at the opening
-  its score assumed;
+  its score assumed (the planner's default scores 0/3/6/10 mm already, so with the
+  default ``--open-mm`` this row repeats the one above);
 * ablations of the robust score (``--ablations``): ``no_cloud`` (perturbations checked
   against the identified primitives and the table only), ``nominal`` (no pose error:
   clearance at the nominal pose only), ``sigma_half`` and ``sigma_double`` (the

@@ -13,8 +13,10 @@ failed): top-down candidates at several closing directions, centres and heights,
 closing on the points between its pads, scored with the planner's robust score
 (:func:`graspsim.maps.robust.score_poses`: the gripper clear of the observed points and
 the table at the pose and under wrist pose error, the contacts on the pads), the best
-returned -- or None ("no grasp") when none scores above 0, rather than a pose that
-collides with what was seen.
+returned (among equals the one most like the heuristic's pose) -- or None ("no grasp")
+when none scores above 0, rather than a pose that collides with what was seen. The
+score knows room, not grip: on the episodes where E08's planner found nothing it
+trades the heuristic's start collisions for some drops (see the E08 section).
 """
 
 from __future__ import annotations
@@ -117,7 +119,12 @@ def robust_top_down(cloud: np.ndarray, gripper: GripperSpec, *, config: RobustCo
         return None
     s = score_poses(T, width, contacts, normals, cloud, gripper, table=(np.array([0.0, 0.0, 1.0]), 0.0),
                     config=cfg)
-    i = int(np.lexsort((-s.clearance, -s.robust))[0])  # ties: the most room to the points
+    # ties (the score is a fraction of 32 perturbations): the candidate most like the
+    # heuristic's own pose -- its closing direction, then nearest its centre, then its height
+    tcp = T[:, :3, 3] + float(gripper.nominal_tcp[2]) * T[:, :3, 2]
+    like = np.round(np.abs(T[:, :3, 0] @ T[0, :3, 0]), 3)
+    off = np.round(np.linalg.norm(tcp[:, :2] - tcp[0, :2], axis=1), 3)
+    i = int(np.lexsort((np.abs(tcp[:, 2] - tcp[0, 2]), off, -like, -s.robust))[0])
     if not s.robust[i] > 0:
         return None
     return T[i], float(width[i] + 2.0 * s.extra_opening[i])

@@ -8,11 +8,11 @@ object, pose, cloud and execution error):
   centroid, close across its narrowest horizontal direction (principal axes of the
   points' x, y), the pads' middle 2 cm below the top, opened to the cloud's width there;
 * planner: graspsim's run-time planner on the observed (fixed-size) cloud, with the
-  table known (z = 0), proposing its highest-grade grasp (the top-down pose when the
-  planner finds none);
+  table known (z = 0), proposing its highest-grade grasp (when the planner finds none:
+  the stand-in below);
 * planner, robust: the same plan's best grasp by the robust ranking (the planner's
   default: expected success under 3 mm / 2 deg wrist error, clearance to the observed
-  cloud; ``graspsim.maps.robust``) -- the top-down pose when no grasp scores above 0;
+  cloud; ``graspsim.maps.robust``) -- the stand-in when no grasp scores above 0;
 * planner, robust, opening: the same, scoring each grasp also with the jaws opened
   wider (``--open-mm``, extra gap per side) and executing the best grasp at the opening
   its score assumed;
@@ -23,8 +23,13 @@ object, pose, cloud and execution error):
 * planner, clearance C mm (``--clearance``): the highest-grade grasp whose gripper,
   with the jaws opened C mm wider on each side than the pre-grasp opening (and executed
   so), stays C mm clear of the identified primitives -- room for the fingers to miss
-  (the top-down pose when none of the ``--clearance-rows`` best does, or the opening
-  would exceed the gripper's).
+  (the stand-in when none of the ``--clearance-rows`` best does, or the opening would
+  exceed the gripper's).
+
+The stand-in, wherever the planner offers no grasp (identification failed, or nothing
+scored): the best top-down candidate scored against the observed cloud and the table
+with the planner's robust score (``graspsim.envs.top_down.robust_top_down``), or *no
+grasp* (nothing executed, a failure) when no top-down candidate clears what was seen.
 
 Each proposal is executed under every ``--noise`` condition: ``default`` (the
 environment's execution error, 3 mm / 2 deg), ``none``, or ``MM:DEG`` sigmas; the
@@ -74,12 +79,13 @@ from _common import (
 
 import graspsim  # noqa: F401  (registers the environments)
 from graspsim.envs.baselines import planner_pose
+from graspsim.envs.top_down import robust_top_down, top_down_pose
 from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, RobustConfig, cloud_in_object, score_map
 from graspsim.planner import PlannerConfig, TablePlane, plan
 from graspsim.stats import wilson_interval
-from graspsim.transforms import frame_from_axes, invert_transform, make_transform
+from graspsim.transforms import invert_transform
 
 log = logging.getLogger("e08")
 
@@ -121,28 +127,6 @@ class Config:
 
 def _clear_name(mm: float) -> str:
     return f"planner_clear_{mm:g}mm"
-
-
-def top_down_pose(env, cloud: np.ndarray) -> tuple[np.ndarray, float]:
-    """(T_world_wrist, width): straight down over the centroid, closing across the
-    cloud's narrowest horizontal direction; the gripper's nominal (mid-pad) TCP
-    2 cm below the top."""
-    g = env.gripper
-    p = cloud.astype(float)
-    c = p[:, :2].mean(axis=0)
-    w, v = np.linalg.eigh(np.cov((p[:, :2] - c).T))
-    x = np.array([v[0, 0], v[1, 0], 0.0])  # the smaller eigenvalue's axis
-    z = np.array([0.0, 0.0, -1.0])
-    top = float(p[:, 2].max())
-    half_pad = g.nominal_depth  # the nominal TCP's distance from the fingertips
-    tcp_z = max(top - half_pad, half_pad + 0.003)  # fingertips stay above the table
-    band = p[np.abs(p[:, 2] - tcp_z) < half_pad]
-    s = (band if len(band) else p)[:, :2] @ x[:2]
-    width = float(np.clip(np.ptp(s), g.min_opening, g.max_opening - 2 * g.approach_clearance))
-    centre = c + (0.5 * (s.max() + s.min()) - c @ x[:2]) * x[:2]
-    R = frame_from_axes(x, z)
-    tcp = np.array([centre[0], centre[1], tcp_z])
-    return make_transform(R, tcp - float(g.nominal_tcp[2]) * z), width
 
 
 class _Inflated:
@@ -223,19 +207,27 @@ def run(cfg: Config, out: Path) -> dict:
         row = {"seed": s, "kind": info["object"]["kind"], "cloud_points": int(len(obs["cloud"]))}
         decisions = planner_poses(env0, obs["cloud"], db, s, cfg)
         t0 = time.perf_counter()
-        decisions["top_down"] = (top_down_pose(env0, obs["cloud"]), time.perf_counter() - t0)
+        decisions["top_down"] = (top_down_pose(obs["cloud"], env0.gripper), time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        stand_in = robust_top_down(obs["cloud"], env0.gripper)  # None: no top-down grasp clears the cloud
+        t_stand_in = time.perf_counter() - t0
         actions = {"random": rng_for(s, "random").uniform(-1, 1, 10).astype(np.float32)}
         for name in cfg.policies[1:]:
             pose, seconds = decisions[name]
             fallback = pose is None
-            actions[name] = env0.action_from_pose(*(decisions["top_down"][0] if fallback else pose))
-            row[name] = {"seconds": seconds, "fallback": fallback}
-        row["random"] = {"seconds": 0.0, "fallback": False}
+            if fallback:
+                pose, seconds = stand_in, seconds + t_stand_in
+            actions[name] = None if pose is None else env0.action_from_pose(*pose)
+            row[name] = {"seconds": seconds, "fallback": fallback, "no_grasp": pose is None}
+        row["random"] = {"seconds": 0.0, "fallback": False, "no_grasp": False}
         for label, env in envs.items():
             for name in cfg.policies:
                 o, _ = env.reset(seed=s)
                 if not np.array_equal(o["cloud"], obs["cloud"]):
                     raise RuntimeError("the noise conditions drew different episodes")  # pragma: no cover
+                if actions[name] is None:  # reported as no grasp: nothing executed, a failure
+                    row[name][label] = {"reward": 0.0, "outcome": "no_grasp"}
+                    continue
                 _, reward, _, _, step_info = env.step(actions[name])
                 row[name][label] = {"reward": reward, "outcome": step_info["outcome"]}
         rows.append(row)
@@ -263,6 +255,7 @@ def summarise(rows: list[dict], cfg: Config) -> dict:
         out["policies"][name] = {
             "seconds_mean": float(np.mean([row[name]["seconds"] for row in rows])),
             "fallbacks": int(sum(row[name]["fallback"] for row in rows)),
+            "no_grasps": int(sum(row[name].get("no_grasp", False) for row in rows)),
             **{label: {"all": _rates(rows, name, label), "planner_found": _rates(found, name, label),
                        "planner_found_all_clearances": _rates(found_all, name, label),
                        "by_kind": {k: _rates([r for r in rows if r["kind"] == k], name, label)["rate"]
@@ -337,17 +330,20 @@ def readme_section(s: dict) -> str:
     L = [f"`{s['command']}`: {r['episodes']} episodes (objects `{cfg['objects']}`), the same for every policy "
          f"and execution error; the planner works on the observed "
          f"{'/'.join(map(str, r['cloud_points']))}-point cloud with the table known and "
-         f"found a grasp in {r['planner_found']} episodes (in the others it falls back to the top-down pose)."
+         f"found a grasp in {r['planner_found']} episodes (in the others the best top-down candidate by the robust "
+         f"score against the observed cloud stands in, or no grasp where none clears it)."
          + database_note(s), ""]
     head = ["policy"] + [f"success, {err(x)}" for x in labels] + \
         [f"on the planner's {r['planner_found']} episodes, {err(x)}" for x in labels] + \
-        [f"START_COLLISION, {err(x)}" for x in labels] + ["falls back to top-down"]
+        [f"START_COLLISION, {err(x)}" for x in labels] + ["planner found none (stand-in)"]
     L += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for name, p in r["policies"].items():
         cells = [rate_ci(p[x]["all"]["success"], p[x]["all"]["episodes"], p[x]["all"]["interval_95"]) for x in labels]
         cells += [rate_ci(p[x]["planner_found"]["success"], p[x]["planner_found"]["episodes"]) for x in labels]
         cells += [str(p[x]["all"]["outcomes"].get("start_collision", 0)) for x in labels]
-        cells.append("–" if name in ("random", "top_down") else str(p["fallbacks"]))
+        no = p.get("no_grasps", 0)
+        stand_in = f"{p['fallbacks']}" + (f" ({no} no grasp)" if no else "")
+        cells.append("–" if name in ("random", "top_down") else stand_in)
         L.append(f"| {_name(name)} | " + " | ".join(cells) + " |")
     if cfg["clearance_mm"]:
         n = r["planner_found_all_clearances"]

@@ -5,7 +5,8 @@ pybullet everyday and random objects) rests on a table (z = 0) as the simulator 
 (upright when stable, else on the hull face nearest its centre of mass), at a random yaw.
 Two clouds per object, both with 1 mm noise: a *full* cloud (uniform surface samples,
 3 mm spacing) and a *single view* (a camera 0.6 m away at 40 deg elevation, random
-azimuth; the points it sees, noise along the ray). Each cloud is planned in paper and in
+azimuth; the points it sees, noise along the ray; planned with that camera as its
+viewpoint: the robust score's occluded-space term). Each cloud is planned in paper and in
 robust mode with the table known (``TablePlane(height=0)``) and a private FS database
 (``_common.experiment_database``): status, parts, fit rates, time for identification +
 adaptation. The adapted map's 10 best grasps (accepted, in the planner's order: the
@@ -56,7 +57,7 @@ from _mesh_views import clouds, rest_on_table
 
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.match import MatchKind
-from graspsim.maps.robust import RANKS
+from graspsim.maps.robust import RANKS, executed_width
 from graspsim.maps.separation import separated_rows
 from graspsim.perception import IdentifyConfig
 from graspsim.perception.mvbb import min_volume_box
@@ -115,7 +116,7 @@ def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config, seed: int, separated
                           angle=math.radians(cfg.separation_deg)) if separated else rows[:cfg.top]
     if not len(rows):
         return None
-    r = run_trials(scene, T_mesh_world @ res.T_cloud_obj @ m.T_obj_wrist[rows], m.width[rows], LiftPlace(),
+    r = run_trials(scene, T_mesh_world @ res.T_cloud_obj @ m.T_obj_wrist[rows], executed_width(m, rows), LiftPlace(),
                    threads=cfg.threads, seed=seed)
     out = np.asarray(r.outcome)
     placed = int(np.sum(out == TrialOutcome.SUCCESS))
@@ -124,10 +125,10 @@ def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config, seed: int, separated
             "placed": placed, "held": held}
 
 
-def _plan_entry(points, db, mode: str, cfg: Config) -> tuple[dict, object]:
+def _plan_entry(points, db, mode: str, cfg: Config, viewpoint=None) -> tuple[dict, object]:
     pc = PlannerConfig(identify=IdentifyConfig.preset(mode), table=TablePlane(height=0.0), rank=cfg.rank)
     t0 = time.perf_counter()
-    res = plan(points, db=db, rng=rng_for(cfg.seed), config=pc)
+    res = plan(points, db=db, rng=rng_for(cfg.seed), config=pc, viewpoint=viewpoint)
     wall = time.perf_counter() - t0
     ident = res.identification
     built = any(p.match == MatchKind.BUILD for p in res.parts)
@@ -155,7 +156,7 @@ def run_object(name: str, db: MapDatabase, cfg: Config) -> tuple[dict, dict]:
     figs = {}
     for view in VIEWS:
         for mode in MODES:
-            entry, res = _plan_entry(cl[view], db, mode, cfg)
+            entry, res = _plan_entry(cl[view], db, mode, cfg, cl["camera"] if view == "single" else None)
             entry["sim"] = _sim(res, scene, T_mesh_world, cfg, derived_seed(cfg.seed, name, view, mode))
             if cfg.separation_mm > 0:
                 entry["sim_separated"] = _sim(res, scene, T_mesh_world, cfg, derived_seed(cfg.seed, name, view, mode),

@@ -98,7 +98,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
     """Run the demo; ``step(message)`` reports progress. Returns the summary dict (also
     written to ``out/summary.json``)."""
     from graspsim.maps.io import save_map
-    from graspsim.maps.robust import ranking
+    from graspsim.maps.robust import executed_width, ranking
     from graspsim.maps.table import clears_table
     from graspsim.planner import plan
     from graspsim.plots import plot_map
@@ -148,7 +148,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
          f"ranking, then grasps drawn from the {len(candidates)} grasps > 0.7 whose gripper stays "
          f"clear of the table (of {summary['accepted']} > 0.7)")
     noise = ExecutionNoise() if cfg.noise else None
-    res = run_trials(scene, T_sim[rows], gmap.width[rows], LiftPlace(), threads=cfg.threads,
+    res = run_trials(scene, T_sim[rows], executed_width(gmap, rows), LiftPlace(), threads=cfg.threads,
                      seed=cfg.seed, noise=noise)
     ok = int(np.sum(res.outcome == TrialOutcome.SUCCESS))
     lo, hi = wilson_interval(ok, res.feasible)
@@ -162,7 +162,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
                    success_rate=res.success_rate, interval_95=[lo, hi],
                    trials_per_second=res.trials_per_second)
     if cfg.renders:
-        summary["renders"] = _render(scene, T_sim[rows], gmap.width[rows], out / "renders",
+        summary["renders"] = _render(scene, T_sim[rows], executed_width(gmap, rows), out / "renders",
                                      cfg.renders, step)
     return _finish(summary, out, t0)
 

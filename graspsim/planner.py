@@ -205,13 +205,15 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig,
 
 def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
                 config: PlannerConfig | None = None, source: str = "array",
-                obstacles: np.ndarray | None = None, identification: Identification | None = None
-                ) -> Iterator[GraspBatch | PlanResult]:
+                obstacles: np.ndarray | None = None, identification: Identification | None = None,
+                viewpoint: np.ndarray | None = None) -> Iterator[GraspBatch | PlanResult]:
     """Yield :class:`GraspBatch` es as grasps are found, then the :class:`PlanResult`.
     obstacles: (M, 3) further observed points [m, cloud frame] the robust score keeps the
     gripper clear of besides the object's own (a scene's neighbours); None: none.
     identification: the cloud's, when the caller has identified it already (``points``
-    must be the cloud it was made from); None: identified here."""
+    must be the cloud it was made from); None: identified here. viewpoint: (3,) where a
+    single-view cloud was seen from [m, cloud frame] (the robust score's occlusion term);
+    None: unknown or seen all round."""
     cfg = config or PlannerConfig()
     t0 = time.perf_counter()
     points = np.asarray(points, float)
@@ -237,7 +239,7 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
             "mode": ident.mode, "uncovered": ident.uncovered,
             "approximate": [i for i, p in enumerate(ident.parts) if p.approximate]}
     yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0,
-                           obstacles)
+                           obstacles, viewpoint)
 
 
 def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,
@@ -267,8 +269,8 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
 
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
                 ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
-                source: str, t0: float, timing: dict, cpu0: float, obstacles: np.ndarray | None = None
-                ) -> Iterator[GraspBatch | PlanResult]:
+                source: str, t0: float, timing: dict, cpu0: float, obstacles: np.ndarray | None = None,
+                viewpoint: np.ndarray | None = None) -> Iterator[GraspBatch | PlanResult]:
     """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
     part frames in the cloud's frame); ``cpu0``: the calling thread's CPU clock when
     identification ended."""
@@ -290,6 +292,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     t_robust = 0.0
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     cloud_obj = cloud_in_object(seen, T_cloud_obj)
+    view_obj = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0]
     observed = ObservedSurface(points) if ident is not None and ident.mode == "robust" else None
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):
@@ -317,7 +320,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             if budget > 0:  # robustness of the batch's best-graded grasps, then its order
                 t2 = time.perf_counter()
                 rows = np.argsort(-batch.grade, kind="stable")[:budget]
-                batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper).ranked()
+                batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper,
+                                  viewpoint=view_obj).ranked()
                 budget -= len(rows)
                 t_robust += time.perf_counter() - t2
                 if first_robust is None and bool(np.any(batch.robust > 0)):
@@ -351,9 +355,10 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
 
 def plan(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
          config: PlannerConfig | None = None, source: str = "array",
-         obstacles: np.ndarray | None = None) -> PlanResult:
+         obstacles: np.ndarray | None = None, viewpoint: np.ndarray | None = None) -> PlanResult:
     """The adapted map of an object cloud (N, 3) [m] (see :func:`plan_stream`)."""
-    return _last(plan_stream(points, db=db, rng=rng, config=config, source=source, obstacles=obstacles))
+    return _last(plan_stream(points, db=db, rng=rng, config=config, source=source, obstacles=obstacles,
+                             viewpoint=viewpoint))
 
 
 def plan_shape(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,

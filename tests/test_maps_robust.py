@@ -22,16 +22,18 @@ def cloud():
     return synthetic_cloud(Box(0.04, 0.05, 0.08), np.random.default_rng(3), resolution=0.005, noise=0.0005).points
 
 
-def _gripper_sdf(gmap, rows, points, T_err=None):
+def _gripper_sdf(gmap, rows, points, T_err=None, extra=None):
     """Independent check: (len(rows), M) signed distance of points (object frame) to the
-    gripper's boxes at each row's pose (times ``T_err``) and pre-grasp opening."""
+    gripper's boxes at each row's pose (times ``T_err``) and pre-grasp opening (plus
+    ``extra`` (len(rows),) per side)."""
     g = gmap.meta.gripper_spec
     T = gmap.T_obj_wrist[rows]
     if T_err is not None:
         T = T @ T_err
     out = []
-    for Ti, w in zip(T, gmap.width[rows]):
-        c, h = g.boxes_at(float(g.pregrasp_opening(w)))
+    extra = np.zeros(len(T)) if extra is None else np.asarray(extra, float)
+    for Ti, w, e in zip(T, gmap.width[rows], extra):
+        c, h = g.boxes_at(float(g.pregrasp_opening(w) + 2.0 * e))
         q = (points - Ti[:3, 3]) @ Ti[:3, :3]
         e = np.abs(q[:, None, :] - c[None]) - h[None]
         d = np.linalg.norm(np.maximum(e, 0.0), axis=-1) + np.minimum(e.max(axis=-1), 0.0)
@@ -52,12 +54,13 @@ def _handle_points(gmap, row):
 
 
 def test_fingers_clearing_the_primitive_but_not_the_points_rank_below(box_map, cloud):
-    scored = score_map(box_map, cloud, RobustConfig(samples=16, success="grade"))
+    at_map = (0.0,)  # the points sit in the finger at the map's opening
+    scored = score_map(box_map, cloud, RobustConfig(samples=16, success="grade", openings=at_map))
     best = int(ranking(scored)[0])
     assert scored.robust[best] > 0
     seen = np.concatenate([cloud, _handle_points(box_map, best)])
-    rescored = score_map(box_map, seen, RobustConfig(samples=16, success="grade"))
-    flags = score_rows(box_map, [best], seen, RobustConfig(samples=16)).flags
+    rescored = score_map(box_map, seen, RobustConfig(samples=16, success="grade", openings=at_map))
+    flags = score_rows(box_map, [best], seen, RobustConfig(samples=16, openings=at_map)).flags
     assert flags[0, 0] & 2 == 0  # clear of the identified primitive at its pose ...
     assert rescored.clearance[best] < 0 and rescored.robust[best] == 0  # ... not of the points
     order = ranking(rescored)
@@ -66,7 +69,7 @@ def test_fingers_clearing_the_primitive_but_not_the_points_rank_below(box_map, c
     assert n_pos > 0 and pos >= n_pos and np.all(rescored.robust[order[:n_pos]] > 0)
     # without the observed points the same grasp would rank among the feasible ones:
     # the clearance term is what demotes it
-    blind = score_map(box_map, seen, RobustConfig(samples=16, success="grade",
+    blind = score_map(box_map, seen, RobustConfig(samples=16, success="grade", openings=at_map,
                                                   terms=("primitives", "table", "pads", "force_closure")))
     blind_pos = int(np.flatnonzero(ranking(blind) == best)[0])
     assert blind.robust[best] > 0 and blind_pos < int((blind.robust > 0).sum()) - 1
@@ -76,11 +79,12 @@ def test_ranking_never_returns_a_pose_colliding_with_the_cloud(box_map, cloud):
     rng = np.random.default_rng(5)
     rows = rng.choice(len(box_map), 6, replace=False)
     seen = np.concatenate([cloud] + [_handle_points(box_map, int(r)) for r in rows])
-    scored = score_map(box_map, seen, RobustConfig(samples=8))
-    top = ranking(scored)[:50]
-    assert np.all(scored.robust[top] > 0)
-    assert _gripper_sdf(box_map, top, seen).min() >= 0.0
-    # the rows the extra points collide with are scored 0 and ranked after every other
+    for openings in (RobustConfig().openings, (0.0,)):  # at the opening each grasp would be executed at
+        scored = score_map(box_map, seen, RobustConfig(samples=8, openings=openings))
+        top = ranking(scored)[:50]
+        assert np.all(scored.robust[top] > 0)
+        assert _gripper_sdf(box_map, top, seen, extra=scored.robust_extra_opening[top]).min() >= 0.0
+    # at the map's opening: the rows the extra points collide with are scored 0 and ranked after every other
     hit = np.flatnonzero(_gripper_sdf(box_map, np.arange(len(box_map)), seen).min(axis=1) < 0)
     assert len(hit) >= len(rows) and np.all(scored.robust[hit] == 0)
     n_pos = int((scored.robust > 0).sum())
@@ -98,7 +102,7 @@ def test_scores_are_deterministic_for_a_seed(box_map, cloud):
 
 
 def test_culled_kernel_matches_brute_force(box_map, cloud):
-    cfg = RobustConfig(samples=12, seed=2, terms=("cloud",))
+    cfg = RobustConfig(samples=12, seed=2, terms=("cloud",), openings=(0.0,))
     rows = np.arange(0, len(box_map), 20)
     s = score_rows(box_map, rows, cloud, cfg)
     g = box_map.meta.gripper_spec
@@ -158,7 +162,7 @@ def test_transform_of_points_matches_a_moved_cloud(box_map, cloud):
 
 
 def test_wider_openings_are_scored_and_the_best_kept(box_map, cloud):
-    narrow = score_rows(box_map, np.arange(len(box_map)), cloud, RobustConfig(samples=16))
+    narrow = score_rows(box_map, np.arange(len(box_map)), cloud, RobustConfig(samples=16, openings=(0.0,)))
     wide = score_rows(box_map, np.arange(len(box_map)), cloud, RobustConfig(samples=16, openings=(0.0, 0.004)))
     assert np.all(wide.robust >= narrow.robust - 1e-12)
     assert set(np.unique(wide.extra_opening)) <= {0.0, 0.004}

@@ -42,7 +42,7 @@ def _cmd_adapt(args) -> int:
     cloud = read_point_cloud(args.cloud, units=args.units)
     db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
     result = plan(cloud.points, db=db, rng=np.random.default_rng(args.seed), config=cfg,
-                  source=str(Path(args.cloud).resolve()))
+                  source=str(Path(args.cloud).resolve()), viewpoint=cloud.viewpoint)
     # only a map with grasps is written: a failed run leaves an existing file as it was
     why = ("nothing was identified" if result.status.value == "failed"
            else "the identified parts have no collision-free grasp" if not len(result.map) else None)

@@ -154,6 +154,7 @@ def _render(args, out, protocol) -> list[str]:
     """Pictures and GIFs of the first ``--render-count`` trials that started (not in
     collision) into ``--render``; their paths."""
     from graspsim.maps import load_map
+    from graspsim.maps.robust import executed_width
     from graspsim.sim import TrialOutcome
     from graspsim.sim.render import render_trial
 
@@ -166,7 +167,7 @@ def _render(args, out, protocol) -> list[str]:
         if res.outcome[j] == TrialOutcome.START_COLLISION:
             continue
         shown += 1
-        paths = render_trial(out.scene, None, float(gmap.width[i]), args.render, protocol,
+        paths = render_trial(out.scene, None, float(executed_width(gmap, [i])[0]), args.render, protocol,
                              name=f"grasp{i:06d}", gif=True, T_world_wrist=res.T_world_wrist[j])
         renders += [str(p) for p in paths]
     return renders

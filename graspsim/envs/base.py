@@ -79,13 +79,15 @@ def _yaw(angle: float) -> np.ndarray:
 class TableEpisode:
     """One object on the table. scene: the trial scene; T_world_obj: (4, 4) the true
     object pose in the world; points: (M, 3) the segmented sensor cloud, world [m];
-    cloud: (N, 3) float32 the observed fixed-size sample of it."""
+    cloud: (N, 3) float32 the observed fixed-size sample of it; viewpoint: (3,) the
+    camera's position, world [m], for a single view (None: seen all round)."""
 
     drawn: DrawnObject
     scene: Scene
     T_world_obj: np.ndarray
     points: np.ndarray
     cloud: np.ndarray
+    viewpoint: np.ndarray | None = None
 
 
 class TableTask(gym.Env):
@@ -160,7 +162,7 @@ class TableTask(gym.Env):
         n = c.cloud_size
         pick = (sample_rng.choice(len(pts), n, replace=len(pts) < n) if len(pts) else np.zeros(n, int))
         cloud = (pts[pick] if len(pts) else np.zeros((n, 3))).astype(np.float32)
-        return TableEpisode(drawn, scene, T_world_obj, pts, cloud)
+        return TableEpisode(drawn, scene, T_world_obj, pts, cloud, None if camera is None else eye)
 
     # ------------------------------------------------------------------ trials
     def _trials(self, T_world_wrist: np.ndarray, widths: np.ndarray, threads: int = 1) -> TrialResults:

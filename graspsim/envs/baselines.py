@@ -35,6 +35,7 @@ import numpy as np
 from graspsim.envs.candidates import CANDIDATE_FEATURES
 from graspsim.errors import InvalidParameterError
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.maps.robust import executed_width
 from graspsim.stats import wilson_interval
 from graspsim.transforms import make_transform, quat_to_matrix
 
@@ -101,10 +102,8 @@ def planner_pose(result, rank: str = "robust") -> tuple[np.ndarray, float] | Non
     best = gmap.top_k(1, rank=rank)
     if rank == "robust" and best.has_robust and not best.robust[0] > 0:
         return None
-    width = float(best.width[0])
-    extra = float(best.robust_extra_opening[0]) if rank == "robust" else 0.0
-    if np.isfinite(extra):  # the robust score assumed the jaws that much wider per side
-        width += 2.0 * extra
+    # the robust score assumed the jaws that much wider per side
+    width = float(executed_width(best)[0]) if rank == "robust" else float(best.width[0])
     return result.T_cloud_obj @ best.T_obj_wrist[0], width
 
 

@@ -24,10 +24,10 @@ import numpy as np
 
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.maps.robust import extra_openings
 from graspsim.seeding import rng_for
 
-__all__ = ["PooledDatabase", "candidate_features", "extra_openings",
-           "CANDIDATE_FEATURES"]
+__all__ = ["PooledDatabase", "candidate_features", "CANDIDATE_FEATURES"]
 
 log = logging.getLogger(__name__)
 
@@ -92,12 +92,6 @@ def candidate_features(gmap: GraspabilityMap, rows: np.ndarray, k: int) -> np.nd
     out[:n, 14] = np.nan_to_num(gmap.clearance[rows], nan=_CLEARANCE_CAP)
     out[:n, 15] = extra_openings(gmap, rows)
     return np.clip(out, _LOW, _HIGH)
-
-
-def extra_openings(gmap: GraspabilityMap, rows: np.ndarray) -> np.ndarray:
-    """(n,) extra pad gap per side [m] the robust score of each of the map's ``rows``
-    chose (0 where unscored: the map's pre-grasp opening)."""
-    return np.nan_to_num(gmap.robust_extra_opening[np.asarray(rows, int)].astype(float), nan=0.0)
 
 
 def feature_bounds() -> tuple[np.ndarray, np.ndarray]:

@@ -16,7 +16,7 @@ import numpy as np
 from graspsim.envs.objects import resolve_object_set
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.generate import MapConfig
-from graspsim.maps.robust import POSITION_SIGMA, ROTATION_SIGMA
+from graspsim.maps.robust import DEFAULT_OPENINGS, POSITION_SIGMA, ROTATION_SIGMA
 
 __all__ = ["EnvConfig", "Perception", "RewardMode", "View", "make_config"]
 
@@ -105,7 +105,7 @@ class EnvConfig:
     perception: Perception = Perception.CLOUD
     max_redraws: int = 20
     threads: int = 1
-    openings: tuple[float, ...] = (0.0, 0.003, 0.006, 0.010)
+    openings: tuple[float, ...] = DEFAULT_OPENINGS
     gripper: object = "festo_hgpl_25_60_a"
 
     def __post_init__(self) -> None:

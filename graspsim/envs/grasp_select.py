@@ -55,10 +55,10 @@ import numpy as np
 from gymnasium import spaces
 
 from graspsim.envs.base import WORLD_BOUND, TableTask, pose_vector
-from graspsim.envs.candidates import CANDIDATE_FEATURES, candidate_features, extra_openings, feature_bounds
+from graspsim.envs.candidates import CANDIDATE_FEATURES, candidate_features, feature_bounds
 from graspsim.envs.config import EnvConfig, Perception
 from graspsim.errors import GraspsimError, InvalidParameterError, NoFeasibleGraspError
-from graspsim.maps.robust import RobustConfig
+from graspsim.maps.robust import RobustConfig, executed_width
 from graspsim.maps.scaling import ScalingConfig
 from graspsim.perception import IdentifyConfig
 from graspsim.planner import PlannerConfig, PlanResult, TablePlane, plan, plan_shape
@@ -113,7 +113,7 @@ class GraspSelectEnv(TableTask):
                                     config=self.planner_config, source="graspsim.envs")
             else:
                 result = plan(episode.points, db=self.db, rng=plan_rng, config=self.planner_config,
-                              source="graspsim.envs")
+                              source="graspsim.envs", viewpoint=episode.viewpoint)
             t_plan = time.perf_counter() - t1
             gmap = result.map
             T_world_wrist = result.T_cloud_obj @ gmap.T_obj_wrist  # the cloud frame is the world
@@ -138,7 +138,7 @@ class GraspSelectEnv(TableTask):
         map_width = np.zeros(K)
         map_width[:len(rows)] = gmap.width[rows]
         width = map_width.copy()  # the jaws open width + 2 x (approach clearance + extra)
-        width[:len(rows)] += 2.0 * extra_openings(gmap, rows)
+        width[:len(rows)] = executed_width(gmap, rows)
         self.episode = episode
         self.plan_result = result
         noise = self._noise(K, noise_rng)
@@ -214,7 +214,7 @@ class GraspSelectEnv(TableTask):
         T = self.plan_result.T_cloud_obj @ gmap.T_obj_wrist[rows]
         if execution_error:
             T = T @ self._cand["noise_extra"]
-        return self._trials(T, gmap.width[rows] + 2.0 * extra_openings(gmap, rows)).outcome.astype(np.int8)
+        return self._trials(T, executed_width(gmap, rows)).outcome.astype(np.int8)
 
     def evaluate_candidates(self, threads: int | None = None, *, execution_error: bool = True,
                             map_opening: bool = False, slots=None) -> dict[str, np.ndarray]:

@@ -31,7 +31,6 @@ than one.
 from __future__ import annotations
 
 import functools
-import json
 import math
 from dataclasses import asdict, dataclass, replace
 
@@ -40,17 +39,22 @@ from scipy.spatial.transform import Rotation
 
 from graspsim.errors import InvalidParameterError
 from graspsim.gripper import GripperSpec
+from graspsim.maps._robust_geometry import cloud_in_object, map_table, merged_boxes, object_points, table_rows
 from graspsim.transforms import make_transform, quat_to_matrix
 
 __all__ = ["RobustConfig", "RobustScores", "TERMS", "RANKS", "ABLATIONS", "ABLATION_LABELS",
-           "POSITION_SIGMA", "ROTATION_SIGMA", "wrist_perturbations", "score_rows", "score_map", "ranking",
-           "cloud_in_object"]
+           "POSITION_SIGMA", "ROTATION_SIGMA", "DEFAULT_OPENINGS", "wrist_perturbations", "score_rows", "score_map",
+           "ranking", "cloud_in_object", "extra_openings", "executed_width", "score_poses"]
 
 #: The default wrist pose error at the TCP, one place for the planner's robustness model
 #: (:class:`RobustConfig`), the simulated execution error (``graspsim.sim.ExecutionNoise``)
 #: and the environments: 3 mm [m] and 2 deg [rad] (sigmas), a typical industrial arm with
 #: hand-eye calibration.
 POSITION_SIGMA, ROTATION_SIGMA = 0.003, math.radians(2.0)
+#: The jaw openings the robust score chooses among by default: the map's pre-grasp
+#: opening and 3, 6, 10 mm wider per side (every executor opens to what was chosen:
+#: :func:`executed_width`). ``RobustConfig(openings=(0.0,))``: the map's opening only.
+DEFAULT_OPENINGS = (0.0, 0.003, 0.006, 0.010)
 
 #: What a perturbation must keep to count as feasible (``RobustConfig.terms``).
 TERMS = ("cloud", "primitives", "table", "pads", "force_closure")
@@ -90,7 +94,13 @@ class RobustConfig:
     ``grade``: the map's own grade, ``none``: 1); threads: native threads (None: all);
     openings: extra pad gap per side [m] the jaws may open beyond the pre-grasp opening
     (each is scored, the best kept per grasp and recorded as ``robust_extra_opening``;
-    an executor then opens the jaws that much wider). Default (0,): the map's opening."""
+    an executor then opens the jaws that much wider). Default :data:`DEFAULT_OPENINGS`;
+    (0,): the map's opening only. A wider opening is scored only for grasps the
+    narrower ones left short of their success probability (exact: ties go to the
+    narrowest).
+    occlusion: with a viewpoint (a single-view cloud), scale each score by 1 - the
+    fraction of the finger volume lying in the space the view could not see
+    (:mod:`graspsim.maps.occlusion`)."""
 
     position_sigma: float = POSITION_SIGMA
     rotation_sigma: float = ROTATION_SIGMA
@@ -102,7 +112,8 @@ class RobustConfig:
     terms: tuple[str, ...] = TERMS
     success: str = "pad_contact"
     threads: int | None = None
-    openings: tuple[float, ...] = (0.0,)
+    openings: tuple[float, ...] = DEFAULT_OPENINGS
+    occlusion: bool = True
 
     def __post_init__(self) -> None:
         for k in ("position_sigma", "rotation_sigma", "margin"):
@@ -148,9 +159,10 @@ def wrist_perturbations(n: int, rng: np.random.Generator, position_sigma: float,
 @dataclass(frozen=True, eq=False)
 class RobustScores:
     """Per scored grasp (n,): clearance [m], feasible fraction, success probability,
-    robust score, the extra opening per side chosen [m]; flags (n, K + 1) uint8 bit sets
-    of :mod:`graspsim.maps._robust_kernel` (column 0: the nominal pose), all at the chosen
-    opening."""
+    robust score, the extra opening per side chosen [m], the fraction of the finger
+    volume in occluded space (0 without a viewpoint; :mod:`graspsim.maps.occlusion`);
+    flags (n, K + 1) uint8 bit sets of :mod:`graspsim.maps._robust_kernel` (column 0:
+    the nominal pose), all at the chosen opening."""
 
     clearance: np.ndarray
     feasible: np.ndarray
@@ -158,6 +170,7 @@ class RobustScores:
     robust: np.ndarray
     flags: np.ndarray
     extra_opening: np.ndarray
+    occluded: np.ndarray | None = None
 
 
 _BITS = {"cloud": 1, "primitives": 2, "table": 4, "pads": 8, "force_closure": 16}
@@ -171,89 +184,18 @@ def _perturbations(samples: int, seed: int, position_sigma: float, rotation_sigm
     return np.concatenate([np.eye(4)[None], T])  # index 0: the nominal pose
 
 
-@functools.lru_cache(maxsize=16)
-def _primitive_points(obj_json: str, step: float) -> np.ndarray:
-    from graspsim.primitives import shape_from_dict
-
-    shape = shape_from_dict(json.loads(obj_json))
-    step = min(step, 0.5 * shape.size_scale) if hasattr(shape, "size_scale") else step
-    return np.ascontiguousarray(shape.surface_samples(step).points, float)
-
-
-def _object_points(meta, step: float) -> np.ndarray:
-    """Surface samples (M, 3) of the map's identified shape (none for a mesh object)."""
-    obj = meta.object
-    if obj.get("primitive") in (None, "mesh", "unidentified") or "file" in obj:
-        return np.zeros((0, 3))
-    key = {k: obj[k] for k in ("primitive", "dims", "parts", "poses", "com") if k in obj}
-    return _primitive_points(json.dumps(key, sort_keys=True), float(step))
-
-
-def cloud_in_object(points: np.ndarray, T_cloud_obj: np.ndarray) -> np.ndarray | None:
-    """Observed points (M, 3) given in the cloud (sensor) frame, in the object frame
-    whose pose in the cloud is ``T_cloud_obj`` (4, 4) (a map's ``meta.placement``);
-    non-finite points dropped; None when no point is left."""
-    pts = np.asarray(points, float).reshape(-1, 3)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if not len(pts):
-        return None
-    T = np.asarray(T_cloud_obj, float)
-    return (pts - T[:3, 3]) @ T[:3, :3]
-
-
-def _table_rows(gmap, R: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """(n, 5) per grasp: the table's normal in the wrist frame, the wrist origin's height
-    above the table, the required height (0); no table: a zero normal and -1 so that
-    every box stays above it."""
-    out = np.zeros((len(R), 5))
-    pl = gmap.meta.placement
-    if pl is None or pl.table is None:
-        out[:, 3] = 1.0
-        return out
-    n = np.asarray(pl.table["normal"], float)
-    n_obj = pl.T_cloud_obj[:3, :3].T @ n
-    h_obj = float(pl.table["height"]) - float(n @ pl.T_cloud_obj[:3, 3])
-    out[:, :3] = np.einsum("nji,j->ni", R, n_obj)
-    out[:, 3] = w @ n_obj - h_obj
-    return out
-
-
-def _merged_boxes(g: GripperSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The gripper's boxes (centres, half extents (B, 3), x signs (B,)), with the arm
-    keep-out and the housing -- one footprint, stacked -- as one box (the same union)."""
-    b = g.collision_boxes()
-    c, h, sgn = b.centers.astype(float), b.half_extents.astype(float), b.x_sign.astype(float)
-    names = list(b.names)
-    if "arm" in names and "housing" in names:
-        a, k = names.index("arm"), names.index("housing")
-        if np.allclose(h[a, :2], h[k, :2]) and abs((c[a, 2] + h[a, 2]) - (c[k, 2] - h[k, 2])) < 1e-12:
-            lo, hi = c[a, 2] - h[a, 2], c[k, 2] + h[k, 2]
-            c[k, 2], h[k, 2] = 0.5 * (lo + hi), 0.5 * (hi - lo)
-            keep = np.arange(len(names)) != a
-            c, h, sgn = c[keep], h[keep], sgn[keep]
-    return np.ascontiguousarray(c), np.ascontiguousarray(h), np.ascontiguousarray(sgn)
-
-
-def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: RobustConfig = RobustConfig(),
-               gripper: GripperSpec | None = None) -> RobustScores:
-    """Robust scores of the map's ``rows`` (indices) against ``cloud_obj`` (M, 3) observed
-    points in the object frame (None: the identified shape is all that was seen), the
-    map's identified shape and its table (``meta.placement``)."""
+def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, view=None) -> RobustScores:
+    """The robust score of wrist poses (R (n, 3, 3), w (n, 3)) with contact widths (n,),
+    contacts and outward normals (n, 2, 3) against the points P (cloud first), the
+    table rows of :func:`table_rows`, at every opening of ``cfg``; ``success_of(live)``
+    the success probability of the live poses (bool mask); ``view``: a
+    :class:`~graspsim.maps.occlusion.ViewDepth` of the cloud, or None."""
     from graspsim.maps._robust_kernel import robust_flags
     from graspsim.maps.kernels import default_threads, run_chunks
+    from graspsim.maps.occlusion import finger_occlusion
 
-    cfg = config
-    g = gripper or gmap.meta.gripper_spec
-    rows = np.asarray(rows, int).reshape(-1)
-    n = len(rows)
-    cloud = np.zeros((0, 3)) if cloud_obj is None else np.asarray(cloud_obj, float).reshape(-1, 3)
-    prim = _object_points(gmap.meta, cfg.primitive_step) if "primitives" in cfg.terms else np.zeros((0, 3))
-    P = np.ascontiguousarray(np.concatenate([cloud, prim]), np.float32)  # the cloud first (clearance)
-    R = quat_to_matrix(gmap.wrist_quat[rows].astype(float))
-    w = gmap.wrist_position[rows].astype(float)
-    centers, half, x_sign = _merged_boxes(g)
-    c = gmap.contacts[rows].astype(float)
-    nrm = gmap.normals[rows].astype(float)
+    n = len(R)
+    centers, half, x_sign = merged_boxes(g)
     qc = np.einsum("nji,nkj->nki", R, c - w[:, None])
     nq = np.einsum("nji,nkj->nki", R, nrm)
     sign = np.where(np.einsum("ni,ni->n", c[:, 1] - c[:, 0], R[:, :, 0]) >= 0, 1.0, -1.0)
@@ -263,38 +205,93 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     Dt = np.ascontiguousarray(D[:, :3, 3])
     theta = np.linalg.norm(Rotation.from_matrix(DR).as_rotvec(), axis=1)
     tlen = np.linalg.norm(Dt - (np.asarray(pivot) - DR @ np.asarray(pivot)), axis=1)
-    table = _table_rows(gmap, R, w)
     pad = np.array([0.5 * g.finger_size[1], g.fingertip_z - g.pad_length, g.fingertip_z])
-    cos_fc = math.cos(gmap.meta.quality_model.friction_angle)
     mask = np.uint8(sum(_BITS[t] for t in cfg.terms))
-    base = g.pregrasp_opening(gmap.width[rows])
+    base = g.pregrasp_opening(np.asarray(width, float))
     results = []
+    todo = np.ones(n, bool)  # rows a wider opening could still improve
     for extra in cfg.openings:  # the jaws opened wider: each extra gap per side scored
         opening = base + 2.0 * extra
+        idx = np.flatnonzero(todo)
         clearance = np.full(n, np.inf)
-        flags = np.zeros((n, len(D)), np.uint8)
-        if n:
-            args = (P, len(cloud), np.ascontiguousarray(R), np.ascontiguousarray(w), opening,
-                    centers, half, x_sign, np.ascontiguousarray(qc), np.ascontiguousarray(nq), sign, DR, Dt,
-                    theta, tlen, np.asarray(pivot), table, pad, cos_fc, float(cfg.margin))
-            threads = default_threads(cfg.threads) if n >= 256 else 1
-            run_chunks(lambda lo, hi: robust_flags(*args, lo, hi, clearance, flags), n, threads)  # noqa: B023
+        flags = np.full((n, len(D)), 255, np.uint8)  # rows not re-scored: never chosen
+        if len(idx):
+            sub_c = np.full(len(idx), np.inf)
+            sub_f = np.zeros((len(idx), len(D)), np.uint8)
+            args = (P, n_cloud, np.ascontiguousarray(R[idx]), np.ascontiguousarray(w[idx]), opening[idx],
+                    centers, half, x_sign, np.ascontiguousarray(qc[idx]), np.ascontiguousarray(nq[idx]), sign[idx],
+                    DR, Dt, theta, tlen, np.asarray(pivot), np.ascontiguousarray(table[idx]), pad, cos_fc,
+                    float(cfg.margin))
+            threads = default_threads(cfg.threads) if len(idx) >= 256 else 1
+            run_chunks(lambda lo, hi: robust_flags(*args, lo, hi, sub_c, sub_f), len(idx), threads)  # noqa: B023
+            clearance[idx], flags[idx] = sub_c, sub_f
         ok = (flags & mask) == 0
         feasible = ok[:, 1:].mean(axis=1)
         live = ok[:, 0] & (feasible > 0) & (opening <= g.max_opening + 1e-12)
-        results.append((np.where(clearance > 1e8, np.inf, clearance), flags, feasible, live))
+        occ = np.zeros(n) if view is None or not cfg.occlusion else finger_occlusion(view, R, w, opening, g)
+        results.append((np.where(clearance > 1e8, np.inf, clearance), flags, feasible, live, occ))
+        # exact: a row feasible under every perturbation with no occluded finger volume
+        # already scores its success probability, the most any opening can give it
+        todo &= ~(live & (feasible >= 1.0) & (occ <= 0.0))
     live_any = np.any([r[3] for r in results], axis=0)
     success = np.zeros(n)
-    success[live_any] = _success(gmap, rows[live_any], cfg.success)  # only where it can matter
-    scores = np.array([np.where(r[3], r[2] * success, 0.0) for r in results])  # (E, n)
+    success[live_any] = success_of(live_any)  # only where it can matter
+    scores = np.array([np.where(r[3], r[2] * success * (1.0 - r[4]), 0.0) for r in results])  # (E, n)
     best = np.argmax(scores, axis=0)  # the first (narrowest) on ties
     idx = np.arange(n)
-    clearance = np.array([r[0] for r in results])[best, idx]
-    flags = np.array([r[1] for r in results])[best, idx]
-    feasible = np.array([r[2] for r in results])[best, idx]
-    robust = scores[best, idx]
-    extra = np.asarray(cfg.openings)[best]
-    return RobustScores(clearance, feasible, success, robust, flags, extra)
+    pick = [np.array([r[j] for r in results])[best, idx] for j in (0, 1, 2, 4)]
+    return RobustScores(pick[0], pick[2], success, scores[best, idx], pick[1],
+                        np.asarray(cfg.openings)[best], pick[3])
+
+
+def _view(cloud: np.ndarray, viewpoint, cfg: RobustConfig):
+    """The depth image of the cloud from ``viewpoint`` (None: no occlusion term)."""
+    from graspsim.maps.occlusion import ViewDepth
+
+    if viewpoint is None or not cfg.occlusion or len(cloud) < 3:
+        return None
+    return ViewDepth(cloud, viewpoint)
+
+
+def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: RobustConfig = RobustConfig(),
+               gripper: GripperSpec | None = None, *, viewpoint: np.ndarray | None = None) -> RobustScores:
+    """Robust scores of the map's ``rows`` (indices) against ``cloud_obj`` (M, 3) observed
+    points in the object frame (None: the identified shape is all that was seen), the
+    map's identified shape and its table (``meta.placement``). ``viewpoint`` (3,): where
+    a single-view cloud was seen from, object frame: finger volume in the space behind
+    what it saw scales the score down (the occlusion term); None: no such term."""
+    cfg = config
+    g = gripper or gmap.meta.gripper_spec
+    rows = np.asarray(rows, int).reshape(-1)
+    cloud = np.zeros((0, 3)) if cloud_obj is None else np.asarray(cloud_obj, float).reshape(-1, 3)
+    prim = object_points(gmap.meta, cfg.primitive_step) if "primitives" in cfg.terms else np.zeros((0, 3))
+    P = np.ascontiguousarray(np.concatenate([cloud, prim]), np.float32)  # the cloud first (clearance)
+    R = quat_to_matrix(gmap.wrist_quat[rows].astype(float))
+    w = gmap.wrist_position[rows].astype(float)
+    cos_fc = math.cos(gmap.meta.quality_model.friction_angle)
+    return _score(P, len(cloud), R, w, gmap.width[rows], gmap.contacts[rows].astype(float),
+                  gmap.normals[rows].astype(float), table_rows(map_table(gmap), R, w), g, cfg, cos_fc,
+                  lambda live: _success(gmap, rows[live], cfg.success), _view(cloud, viewpoint, cfg))
+
+
+def score_poses(T_wrist: np.ndarray, width: np.ndarray, contacts: np.ndarray, normals: np.ndarray,
+                cloud: np.ndarray, gripper: GripperSpec, *, table: tuple[np.ndarray, float] | None = None,
+                config: RobustConfig = RobustConfig(), friction_angle: float = math.atan(0.5),
+                viewpoint: np.ndarray | None = None) -> RobustScores:
+    """Robust scores of wrist poses that no map holds (e.g. a heuristic's), in the
+    cloud's frame: ``T_wrist`` (n, 4, 4), contact widths (n,) [m], the contacts and
+    outward normals (n, 2, 3) the poses expect, the observed ``cloud`` (M, 3), ``table``
+    (unit normal (3,), height along it) or None. The success probability is 1 (no
+    grade): the score is the feasible fraction (``config.terms``; "primitives" has
+    nothing to check), times 1 - the occluded finger fraction with a ``viewpoint``."""
+    T = np.asarray(T_wrist, float).reshape(-1, 4, 4)
+    cloud = np.asarray(cloud, float).reshape(-1, 3)
+    R, w = T[:, :3, :3], T[:, :3, 3]
+    P = np.ascontiguousarray(cloud, np.float32)
+    return _score(P, len(cloud), R, w, np.asarray(width, float).reshape(-1),
+                  np.asarray(contacts, float).reshape(-1, 2, 3), np.asarray(normals, float).reshape(-1, 2, 3),
+                  table_rows(table, R, w), gripper, config, math.cos(friction_angle),
+                  lambda live: np.ones(int(live.sum())), _view(cloud, viewpoint, config))
 
 
 def _success(gmap, rows: np.ndarray, model: str) -> np.ndarray:
@@ -318,14 +315,17 @@ def _pad_contact():
 
 
 def score_map(gmap, cloud_obj: np.ndarray | None = None, config: RobustConfig = RobustConfig(), *,
-              rows: np.ndarray | None = None, gripper: GripperSpec | None = None):
+              rows: np.ndarray | None = None, gripper: GripperSpec | None = None,
+              viewpoint: np.ndarray | None = None):
     """The map with its robust columns filled for ``rows`` (default: the
     ``config.top`` best-graded rows), the others kept; provenance in
-    ``meta.extra["robust"]``. ``cloud_obj``: observed points (M, 3), object frame."""
+    ``meta.extra["robust"]``. ``cloud_obj``: observed points (M, 3), object frame;
+    ``viewpoint`` (3,): where a single-view cloud was seen from, object frame (the
+    occlusion term; see :func:`score_rows`)."""
     if rows is None:
         rows = np.argsort(-gmap.grade, kind="stable")[:config.top]
     rows = np.asarray(rows, int)
-    s = score_rows(gmap, rows, cloud_obj, config, gripper)
+    s = score_rows(gmap, rows, cloud_obj, config, gripper, viewpoint=viewpoint)
     n_cloud = 0 if cloud_obj is None else len(np.asarray(cloud_obj).reshape(-1, 3))
     cols = {k: getattr(gmap, k).copy() for k in ("clearance", "robust_feasible", "robust", "robust_extra_opening")}
     cols["clearance"][rows] = np.clip(s.clearance, -1.0, 1.0) if n_cloud else np.nan
@@ -333,10 +333,27 @@ def score_map(gmap, cloud_obj: np.ndarray | None = None, config: RobustConfig = 
     cols["robust"][rows] = s.robust
     cols["robust_extra_opening"][rows] = s.extra_opening
     prov = {**config.to_dict(), "scored": int(np.isfinite(cols["robust"]).sum()), "cloud_points": n_cloud,
-            "pivot": "nominal_tcp", "model": "robust_feasible x success; 0 if the nominal pose collides",
+            "pivot": "nominal_tcp", "viewpoint": viewpoint is not None and config.occlusion,
+            "model": "robust_feasible x success x (1 - occluded finger fraction); 0 if the nominal pose collides",
             "module": "graspsim.maps.robust"}
     out = replace(gmap, **cols)
     return out.with_meta(extra={**gmap.meta.extra, "robust": prov})
+
+
+def extra_openings(gmap, rows=None) -> np.ndarray:
+    """(n,) extra pad gap per side [m] the robust score chose for the map's ``rows``
+    (default: all), 0 where unscored (the map's pre-grasp opening)."""
+    col = gmap.robust_extra_opening if rows is None else gmap.robust_extra_opening[np.asarray(rows, int)]
+    return np.nan_to_num(np.asarray(col, float), nan=0.0)
+
+
+def executed_width(gmap, rows=None) -> np.ndarray:
+    """(n,) the contact width [m] an executor opens the jaws for, for the map's ``rows``
+    (default: all): ``width + 2 x`` the extra opening per side the robust score chose
+    (the jaws then open to ``gripper.pregrasp_opening`` of it). Every executor (trials,
+    the demo, the environments, clutter removal) opens the jaws through this."""
+    w = gmap.width if rows is None else gmap.width[np.asarray(rows, int)]
+    return np.asarray(w, float) + 2.0 * extra_openings(gmap, rows)
 
 
 def ranking(gmap, rank: str = "robust") -> np.ndarray:

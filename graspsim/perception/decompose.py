@@ -36,6 +36,7 @@ from graspsim.perception.identify import Cloud, PartResult
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.mlesac import fit_from, rescore
 from graspsim.perception.mvbb import min_volume_box
+from graspsim.perception.prepare import median_spacing
 from graspsim.perception.profile import profile_segments
 from graspsim.perception.shapes import fit_to_object
 from graspsim.perception.split import best_split, theta_star
@@ -221,7 +222,7 @@ def _local(cloud: Cloud, part: PartResult) -> np.ndarray:
 
 
 def _context(cloud: Cloud, rng: np.random.Generator, cfg: IdentifyConfig) -> _Ctx:
-    spacing = float(np.median(cKDTree(cloud.points).query(cloud.points, k=2)[0][:, 1]))
+    spacing = median_spacing(cloud.points)
     return _Ctx(cloud, rng, cfg, spacing, inlier_band(cloud.noise, spacing, cfg.band))
 
 

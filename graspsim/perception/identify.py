@@ -43,7 +43,7 @@ from graspsim.perception.io import check_cloud
 from graspsim.perception.mlesac import ModelFit, fit_from, fit_model, rescore, residual_sigma
 from graspsim.perception.mvbb import OrientedBox, min_volume_box
 from graspsim.perception.normals import estimate_local_surface, remove_outliers
-from graspsim.perception.prepare import check_solid, voxel_downsample
+from graspsim.perception.prepare import check_solid, median_spacing, voxel_downsample
 from graspsim.perception.results import Identification, IdentificationStatus, PartResult
 from graspsim.perception.shapes import KINDS, fit_to_object
 from graspsim.perception.split import best_split, theta_star
@@ -60,7 +60,7 @@ def _continuity(points: np.ndarray, link_factor: float) -> tuple[float, float, c
     closer than ``link_factor`` times the median nearest-neighbour distance; that
     distance [m]; the points' KD-tree."""
     tree = cKDTree(points)
-    spacing = float(np.median(tree.query(points, k=2)[0][:, 1]))
+    spacing = median_spacing(points)  # repeated points count once
     pairs = tree.query_pairs(link_factor * max(spacing, 1e-9), output_type="ndarray")
     n = len(points)
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))

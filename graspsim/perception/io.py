@@ -42,7 +42,11 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
 class LoadedCloud:
     """points: (N, 3) float64, finite, file frame [m]; n_dropped: points removed for a
     NaN/inf coordinate; n_read: points in the file; fmt: e.g. ``pcd/binary``; units:
-    of the file's coordinates (converted to metres)."""
+    of the file's coordinates (converted to metres); viewpoint: (3,) where the cloud was
+    seen from, file frame [m], when a camera record (``<file>.json``, written by
+    :func:`graspsim.sim.cloud_io.save_cloud`) says so, else None (unknown: the planner's
+    robust score then adds no occlusion term).
+    """
 
     points: np.ndarray
     n_dropped: int
@@ -50,6 +54,7 @@ class LoadedCloud:
     path: str
     fmt: str
     units: str = "m"
+    viewpoint: np.ndarray | None = None
 
 
 def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: str = "m") -> LoadedCloud:
@@ -89,7 +94,19 @@ def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: s
     except PointCloudError as err:
         extra = f" ({n_drop} of {len(xyz)} points were NaN/inf)" if n_drop else ""
         raise PointCloudError(f"{path.name}: {err}{extra}") from None
-    return LoadedCloud(pts, n_drop, len(xyz), str(path), fmt, str(units).lower())
+    return LoadedCloud(pts, n_drop, len(xyz), str(path), fmt, str(units).lower(), _viewpoint(path))
+
+
+def _viewpoint(path: Path) -> np.ndarray | None:
+    """The camera's position in the cloud's frame from the record beside ``path`` (metres,
+    as ``save_cloud`` writes it): the origin for points in the camera frame, the camera's
+    position for world points."""
+    if not Path(str(path) + ".json").is_file():
+        return None
+    from graspsim.sim.cloud_io import read_camera
+
+    camera, frame = read_camera(path)
+    return np.zeros(3) if frame == "camera" else np.array(camera.T_world_camera[:3, 3], float)
 
 
 def check_cloud(points: np.ndarray, *, min_points: int = MIN_POINTS) -> np.ndarray:

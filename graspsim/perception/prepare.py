@@ -22,8 +22,8 @@ import numpy as np
 from graspsim.errors import IdentificationError, InvalidParameterError, PointCloudError
 from graspsim.primitives.base import MIN_DIM
 
-__all__ = ["UNITS", "MAX_EXTENT", "Downsampling", "as_coordinates", "to_metres", "check_extent", "check_solid",
-           "voxel_downsample", "voxel_keep"]
+__all__ = ["UNITS", "MAX_EXTENT", "Downsampling", "median_spacing", "as_coordinates", "to_metres", "check_extent",
+           "check_solid", "voxel_downsample", "voxel_keep"]
 
 #: Length of one coordinate unit in metres.
 UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -31,6 +31,18 @@ UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 #: Largest extent of a cloud taken as one object in metres [m]: the default gripper
 #: spans 12 cm; nothing this wide is one graspable object.
 MAX_EXTENT = 2.0
+
+
+def median_spacing(points: np.ndarray) -> float:
+    """The median distance [m] from each point of (N, 3) to its nearest *other location*:
+    repeated points (a fixed-size cloud sampled with replacement) count once, so they
+    do not read as zero spacing. 0 for fewer than two distinct points."""
+    from scipy.spatial import cKDTree
+
+    u = np.unique(np.asarray(points, float).reshape(-1, 3), axis=0)
+    if len(u) < 2:
+        return 0.0
+    return float(np.median(cKDTree(u).query(u, k=2)[0][:, 1]))
 
 
 def as_coordinates(points) -> np.ndarray:

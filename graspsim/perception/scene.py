@@ -30,6 +30,7 @@ import numpy as np
 
 from graspsim.errors import IdentificationError, InvalidParameterError, PointCloudError
 from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.maps.robust import executed_width
 from graspsim.maps.table import TablePlane
 from graspsim.perception.identify import Identification, identify
 from graspsim.perception.mvbb import min_volume_box
@@ -318,8 +319,7 @@ def _plan_segment(per: ScenePerception, k: int, ident: Identification, obstacles
     T_world_obj = gmap.meta.placement.T_cloud_obj
     T = T_world_obj @ gmap.T_obj_wrist
     g = db.gripper
-    extra = np.nan_to_num(gmap.robust_extra_opening.astype(float))
-    opening = g.pregrasp_opening(gmap.width.astype(float) + 2.0 * extra)
+    opening = g.pregrasp_opening(executed_width(gmap))
     score = np.nan_to_num(gmap.robust.astype(float), nan=0.0)
     grasps = [SceneGrasp(k, T[i], float(opening[i]), float(score[i]), float(gmap.grade[i]),
                          float(gmap.clearance[i])) for i in range(len(gmap))]

@@ -25,6 +25,7 @@ import numpy as np
 from graspsim.errors import GraspsimError, InvalidParameterError, MapFileError, SimulationError
 from graspsim.gripper import GripperSpec
 from graspsim.maps import GraspabilityMap, load_map, read_sim_results, write_sim_results
+from graspsim.maps.robust import executed_width
 from graspsim.sim.batch import run_trials
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape
@@ -199,7 +200,7 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     up = _cloud_up(gmap, mesh is not None)
     scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity, up=up)
     chosen = gmap.select(index)  # transforms of the chosen rows only (all of a 10 M-grasp map: 1.2 GB)
-    results = run_trials(scene, chosen.T_obj_wrist, chosen.width, protocol,
+    results = run_trials(scene, chosen.T_obj_wrist, executed_width(chosen), protocol,
                          threads=threads, seed=seed, noise=noise, on_progress=on_progress,
                          on_record=on_record)
     results = replace(results, extra={"map_file": str(path),

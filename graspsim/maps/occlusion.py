@@ -1,0 +1,120 @@
+"""Occluded space of a single-view cloud: where a finger may meet what was not seen.
+
+A cloud seen from one viewpoint shows the surfaces that face it. The space behind them,
+along the sensor's rays, is unknown: a mug's handle turned away from the camera is
+there, unobserved, and a finger put there may start in collision. The space a ray
+passed through before it met a surface (or the table) is known to be free.
+
+:class:`ViewDepth` turns a cloud and its viewpoint (both in one frame) into a depth
+image in a pinhole projection about the direction from the viewpoint to the cloud's
+centroid: per pixel the nearest observed range, eroded by a pixel (the minimum over
+3 x 3) so the gaps between neighbouring points do not read as seen-through.
+:meth:`ViewDepth.occluded` tells, for any points, whether they lie more than
+``tolerance`` behind the observed surface along their ray. :func:`finger_occlusion`
+is the fraction of a gripper's finger volume (fingers at a pad gap) in occluded space,
+per wrist pose -- the robust score's occlusion term (:mod:`graspsim.maps.robust`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import minimum_filter
+
+from graspsim.errors import InvalidParameterError
+from graspsim.gripper import GripperSpec
+from graspsim.perception.prepare import median_spacing
+
+__all__ = ["ViewDepth", "finger_samples", "finger_occlusion"]
+
+_MAX_PIXELS = 1024  # per image side (memory bound)
+
+
+class ViewDepth:
+    """The depth image of ``points`` (M, 3) seen from ``viewpoint`` (3,), one frame [m].
+    tolerance [m]: how far behind the observed surface a point must lie to count as
+    occluded (default: 2 point spacings, at least 2 mm: fingers touching the surface
+    are not occluded)."""
+
+    def __init__(self, points: np.ndarray, viewpoint: np.ndarray, tolerance: float | None = None):
+        P = np.asarray(points, float).reshape(-1, 3)
+        P = P[np.all(np.isfinite(P), axis=1)]
+        v = np.asarray(viewpoint, float).reshape(-1)
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise InvalidParameterError(f"viewpoint must be 3 finite coordinates, got {viewpoint!r}")
+        if len(P) < 3:
+            raise InvalidParameterError(f"need >= 3 observed points for a depth image, got {len(P)}")
+        self.viewpoint = v
+        axis = P.mean(axis=0) - v
+        if np.linalg.norm(axis) < 1e-9:
+            raise InvalidParameterError("the viewpoint lies at the cloud's centroid")
+        a = axis / np.linalg.norm(axis)
+        helper = np.eye(3)[int(np.argmin(np.abs(a)))]
+        b1 = np.cross(a, helper)
+        b1 /= np.linalg.norm(b1)
+        self.basis = np.stack([b1, np.cross(a, b1), a])  # rows: image x, image y, optical axis
+        spacing = max(median_spacing(P), 1e-4)
+        self.tolerance = max(2.0 * spacing, 0.002) if tolerance is None else float(tolerance)
+        uv, r, front = self._project(P)
+        if not front.all():
+            raise InvalidParameterError("observed points lie behind the viewpoint")
+        self.pixel = 1.5 * spacing / float(np.median(r))  # tangent-plane units per pixel
+        lo = uv.min(axis=0) - 2 * self.pixel
+        size = np.ceil((uv.max(axis=0) + 2 * self.pixel - lo) / self.pixel).astype(int) + 1
+        if np.any(size > _MAX_PIXELS):
+            self.pixel *= float(size.max()) / _MAX_PIXELS
+            size = np.ceil((uv.max(axis=0) + 2 * self.pixel - lo) / self.pixel).astype(int) + 1
+        self.origin, self.size = lo, size
+        img = np.full(tuple(size), np.inf)
+        ij = self._pixels(uv)
+        np.minimum.at(img, (ij[:, 0], ij[:, 1]), r)
+        self.depth = minimum_filter(img, size=3, mode="constant", cval=np.inf)
+
+    def _project(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        d = (X - self.viewpoint) @ self.basis.T  # (n, 3) in the view frame
+        front = d[:, 2] > 1e-9
+        z = np.where(front, d[:, 2], 1.0)
+        return d[:, :2] / z[:, None], np.linalg.norm(d, axis=1), front
+
+    def _pixels(self, uv: np.ndarray) -> np.ndarray:
+        return np.floor((uv - self.origin) / self.pixel).astype(int)
+
+    def occluded(self, X: np.ndarray) -> np.ndarray:
+        """(n,) bool: points X (n, 3) more than ``tolerance`` behind the observed surface
+        along their ray (outside the image or behind the viewpoint: not occluded)."""
+        X = np.asarray(X, float).reshape(-1, 3)
+        uv, r, front = self._project(X)
+        ij = self._pixels(uv)
+        inside = front & np.all((ij >= 0) & (ij < self.size), axis=1)
+        out = np.zeros(len(X), bool)
+        k = np.flatnonzero(inside)
+        out[k] = r[k] > self.depth[ij[k, 0], ij[k, 1]] + self.tolerance
+        return out
+
+
+def finger_samples(gripper: GripperSpec, per_axis: tuple[int, int, int] = (2, 3, 8)) -> tuple[np.ndarray, np.ndarray]:
+    """(S, 3) sample points of the fingers' boxes in the wrist frame at zero pad gap, and
+    their x signs (S,) (each moves by sign x gap / 2 with the opening)."""
+    b = gripper.collision_boxes()
+    pts, signs = [], []
+    for name, c, h, s in zip(b.names, b.centers, b.half_extents, b.x_sign):
+        if not name.startswith("finger"):
+            continue
+        axes = [np.linspace(-hh, hh, n) if n > 1 else np.zeros(1) for hh, n in zip(h, per_axis)]
+        g = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3) + c
+        pts.append(g)
+        signs.append(np.full(len(g), float(s)))
+    return np.concatenate(pts), np.concatenate(signs)
+
+
+def finger_occlusion(view: ViewDepth, R: np.ndarray, w: np.ndarray, opening: np.ndarray,
+                     gripper: GripperSpec) -> np.ndarray:
+    """(n,) the fraction of the finger samples of each wrist pose (R (n, 3, 3), w (n, 3),
+    in the view's frame; pad gaps ``opening`` (n,) [m]) in occluded space."""
+    q, s = finger_samples(gripper)
+    n = len(R)
+    if not n:
+        return np.zeros(0)
+    local = np.broadcast_to(q, (n, *q.shape)).copy()
+    local[:, :, 0] += s[None] * 0.5 * np.asarray(opening, float).reshape(-1)[:, None]
+    X = np.einsum("nij,nsj->nsi", R, local) + np.asarray(w, float)[:, None]
+    return view.occluded(X.reshape(-1, 3)).reshape(n, -1).mean(axis=1)

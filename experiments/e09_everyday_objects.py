@@ -323,7 +323,8 @@ def _separated_line(s: dict) -> str:
     cfg, out = s["config"], []
     for key in ("full/robust", "single/robust"):
         p = s["pooled_separated"][key]
-        out.append(f"{key.split('/')[0]} clouds {rate_ci(p['placed'], p['trials'], p['placed_95'])} placed, "
+        out.append(f"{'full clouds' if key.startswith('full') else 'single views'} "
+                   f"{rate_ci(p['placed'], p['trials'], p['placed_95'])} placed, "
                    f"{p['start_collision']} START_COLLISION")
     return (f"The same maps' {cfg['top']} best with non-maximum suppression (`graspsim.maps.separation`: each "
             f"grasp point at least {cfg['separation_mm']:g} mm or the wrist {cfg['separation_deg']:g} deg from every "

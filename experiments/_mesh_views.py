@@ -70,7 +70,8 @@ def visible(mesh, p: np.ndarray, cam: np.ndarray, rng: np.random.Generator, *, p
 
 
 def clouds(mesh, cfg, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """The full cloud and the single view of the posed mesh (world frame, table z = 0);
+    """The full cloud and the single view of the posed mesh (world frame, table z = 0),
+    and the single view's camera position ("camera", (3,));
     ``cfg`` (E09's ``Config``) gives resolution, max_points, noise, camera_distance and
     camera_elevation_deg."""
     n = int(np.clip(mesh.area / cfg.resolution**2, 400, cfg.max_points))
@@ -80,4 +81,4 @@ def clouds(mesh, cfg, rng: np.random.Generator) -> dict[str, np.ndarray]:
     p = p[(p[:, 2] > 0.002) & visible(mesh, p, cam, rng)]  # the table hides the base
     ray = (p - cam) / np.linalg.norm(p - cam, axis=1, keepdims=True)
     single = p + rng.normal(0.0, cfg.noise, len(p))[:, None] * ray
-    return {"full": full, "single": single}
+    return {"full": full, "single": single, "camera": cam}

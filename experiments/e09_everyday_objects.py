@@ -5,14 +5,18 @@ pybullet everyday and random objects) rests on a table (z = 0) as the simulator 
 (upright when stable, else on the hull face nearest its centre of mass), at a random yaw.
 Two clouds per object, both with 1 mm noise: a *full* cloud (uniform surface samples,
 3 mm spacing) and a *single view* (a camera 0.6 m away at 40 deg elevation, random
-azimuth; the points it sees, noise along the ray). Each cloud is planned in paper and in
+azimuth; the points it sees, noise along the ray; planned with that camera as its
+viewpoint: the robust score's occluded-space term). Each cloud is planned in paper and in
 robust mode with the table known (``TablePlane(height=0)``) and a private FS database
 (``_common.experiment_database``): status, parts, fit rates, time for identification +
 adaptation. The adapted map's 10 best grasps (accepted, in the planner's order: the
 robust ranking, clearance to the observed cloud) are lifted and placed in MuJoCo against
 the true mesh (CoACD convex parts);
 a START_COLLISION counts as a failure. *held*: lifted without dropping (success or
-PLACE_FAILED: a round object rolls off after release); *placed*: success.
+PLACE_FAILED: a round object rolls off after release); *placed*: success. With
+``--separation-mm`` > 0 the run also simulates the 10 best at least that far apart
+(grasp points) or ``--separation-deg`` apart (wrist orientation, jaws swapped counted
+the same): non-maximum suppression (:mod:`graspsim.maps.separation`), reported apart.
 
 Which objects fit the gripper is a stated rule, not a choice: an object fits when the
 shortest edge of its minimum-volume bounding box (the narrowest width a grasp can close
@@ -54,6 +58,7 @@ from _mesh_views import clouds, rest_on_table
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS, executed_width
+from graspsim.maps.separation import separated_rows
 from graspsim.perception import IdentifyConfig
 from graspsim.perception.mvbb import min_volume_box
 from graspsim.planner import PlannerConfig, TablePlane, plan
@@ -83,6 +88,8 @@ class Config:
     rank: str = opt("robust", "the planner's ranking of the grasps simulated", choices=RANKS)
     threads: int | None = opt(None, "simulation threads (default: all cores)")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
+    separation_mm: float = opt(10.0, "also simulate the best grasps at least this far apart [mm] (0: not)")
+    separation_deg: float = opt(20.0, "... or this far apart in orientation [deg]")
     coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
     QUICK: ClassVar[dict] = {"resolution": 0.005, "coarse_db": True, "top": 4}
 
@@ -102,9 +109,11 @@ def fits_gripper(mesh, gripper) -> tuple[bool, float, float]:
     return width <= limit, width, limit
 
 
-def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config, seed: int) -> dict | None:
+def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config, seed: int, separated: bool = False) -> dict | None:
     m = res.map
-    rows = np.flatnonzero(m.accepted)[:cfg.top]  # in the planner's order (robust ranking by default)
+    rows = np.flatnonzero(m.accepted)  # in the planner's order (robust ranking by default)
+    rows = separated_rows(m.grasp_point, m.wrist_quat, rows, cfg.top, distance=1e-3 * cfg.separation_mm,
+                          angle=math.radians(cfg.separation_deg)) if separated else rows[:cfg.top]
     if not len(rows):
         return None
     r = run_trials(scene, T_mesh_world @ res.T_cloud_obj @ m.T_obj_wrist[rows], executed_width(m, rows), LiftPlace(),
@@ -116,10 +125,10 @@ def _sim(res, scene, T_mesh_world: np.ndarray, cfg: Config, seed: int) -> dict |
             "placed": placed, "held": held}
 
 
-def _plan_entry(points, db, mode: str, cfg: Config) -> tuple[dict, object]:
+def _plan_entry(points, db, mode: str, cfg: Config, viewpoint=None) -> tuple[dict, object]:
     pc = PlannerConfig(identify=IdentifyConfig.preset(mode), table=TablePlane(height=0.0), rank=cfg.rank)
     t0 = time.perf_counter()
-    res = plan(points, db=db, rng=rng_for(cfg.seed), config=pc)
+    res = plan(points, db=db, rng=rng_for(cfg.seed), config=pc, viewpoint=viewpoint)
     wall = time.perf_counter() - t0
     ident = res.identification
     built = any(p.match == MatchKind.BUILD for p in res.parts)
@@ -147,8 +156,11 @@ def run_object(name: str, db: MapDatabase, cfg: Config) -> tuple[dict, dict]:
     figs = {}
     for view in VIEWS:
         for mode in MODES:
-            entry, res = _plan_entry(cl[view], db, mode, cfg)
+            entry, res = _plan_entry(cl[view], db, mode, cfg, cl["camera"] if view == "single" else None)
             entry["sim"] = _sim(res, scene, T_mesh_world, cfg, derived_seed(cfg.seed, name, view, mode))
+            if cfg.separation_mm > 0:
+                entry["sim_separated"] = _sim(res, scene, T_mesh_world, cfg, derived_seed(cfg.seed, name, view, mode),
+                                              separated=True)
             row[f"{view}/{mode}"] = entry
             figs[f"{view}/{mode}"] = (cl[view], _labels(res, len(cl[view])))
             s = entry["sim"]
@@ -166,13 +178,15 @@ def _labels(res, n: int) -> np.ndarray:
     return lab
 
 
-def pooled(rows: list[dict]) -> dict:
+def pooled(rows: list[dict], sim: str = "sim") -> dict:
+    """Per view and mode over the objects that fit: counts and the trials of ``sim``
+    ("sim": the 10 best; "sim_separated": the 10 best a pose apart)."""
     out = {}
     fit = [r for r in rows if r["fits"]]
     for view in VIEWS:
         for mode in MODES:
             es = [r[f"{view}/{mode}"] for r in fit]
-            sims = [e["sim"] for e in es if e["sim"]]
+            sims = [e.get(sim) for e in es if e.get(sim)]
             n = sum(s["trials"] for s in sims)
             placed, held = sum(s["placed"] for s in sims), sum(s["held"] for s in sims)
             secs = sorted(e["seconds"] for e in es if not e["built"])
@@ -264,10 +278,11 @@ def main(argv=None) -> int:
         rows.append(row)
         figs[name] = f
     pool = pooled(rows)
+    pool_sep = pooled(rows, "sim_separated") if cfg.separation_mm > 0 else None
     for key in ("full/robust", "single/robust", "full/paper"):
         figure(figs, out / f"clouds_{key.replace('/', '_')}.png", key)
     (out / "table.md").write_text(write_table(rows, pool))
-    data = {"config": cfg, "pooled": pool, "objects": rows,
+    data = {"config": cfg, "pooled": pool, "pooled_separated": pool_sep, "objects": rows,
             "gripper": {"max_opening": db.gripper.max_opening, "approach_clearance": db.gripper.approach_clearance},
             "database": {"start": db_start, "end": database_record(db)}}
     print(run.write(out, data, readme_section))
@@ -303,6 +318,19 @@ def _outcome_line(fit: list[dict]) -> str:
     return "; ".join(out)
 
 
+def _separated_line(s: dict) -> str:
+    """The 10 best at least a pose apart (non-maximum suppression), robust mode."""
+    cfg, out = s["config"], []
+    for key in ("full/robust", "single/robust"):
+        p = s["pooled_separated"][key]
+        out.append(f"{'full clouds' if key.startswith('full') else 'single views'} "
+                   f"{rate_ci(p['placed'], p['trials'], p['placed_95'])} placed, "
+                   f"{p['start_collision']} START_COLLISION")
+    return (f"The same maps' {cfg['top']} best with non-maximum suppression (`graspsim.maps.separation`: each "
+            f"grasp point at least {cfg['separation_mm']:g} mm or the wrist {cfg['separation_deg']:g} deg from every "
+            f"better one kept), robust mode: " + "; ".join(out) + ". The table above is the plain 10 best.")
+
+
 def readme_section(s: dict) -> str:
     """The README's E09 paragraph (see ``experiments/report.py``)."""
     objs, pool, cfg = s["objects"], s["pooled"], s["config"]
@@ -321,6 +349,8 @@ def readme_section(s: dict) -> str:
          "object, runs that built a new FS map left out.",
          "", _pool_table(pool), ""]
     L.append(f"Outcomes of the 10-best trials in robust mode: {_outcome_line(fit)}.")
+    if s.get("pooled_separated"):
+        L += ["", _separated_line(s), ""]
     L.append("")
     miss = {k: [Path(o["object"]).stem for o in fit if o[k]["accepted"] == 0] for k in ("full/robust", "single/robust")}
     L.append(f"Robust mode, no accepted grasp: full cloud {', '.join(miss['full/robust']) or 'none'}; "

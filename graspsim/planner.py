@@ -63,10 +63,11 @@ class PlannerConfig:
         gripper below it are dropped from every batch. None (default, as the paper):
         the map ignores the table.
     contact_tolerance: robust identification: a grasp is kept only where the cloud bears
-        it out (:mod:`~graspsim.maps.agreement`): its contacts observed -- a cloud point
-        within this distance [m] -- both of them on a part identified only
-        approximately, at least one on any other part, and the cloud's normal at every
-        observed contact within the friction cone about the closing line.
+        it out (:mod:`~graspsim.maps.agreement`): at least one contact where the cloud
+        shows the finger's touch -- a cloud point within this distance [m] of the
+        contact or of its closing path further in -- and the cloud's normal at every
+        touch it shows within the friction cone about the closing line; a contact
+        whose path meets no observed point (the far side of a view) is no evidence.
     rank: ``"robust"`` (default): score the best-graded grasps for robustness
         (``robust``) and order by the robust score; ``"paper"``: the paper's grade.
     robust: the robustness settings (pose error, perturbations, grasps scored per part).
@@ -305,8 +306,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
                 c = part_map.contacts.astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
                 part_map = part_map.select(observed.borne_out(
-                    c, tol=cfg.contact_tolerance, max_angle=db.quality.friction_angle,
-                    min_observed=2 if ident.parts[i].approximate else 1))
+                    c, tol=cfg.contact_tolerance, max_angle=db.quality.friction_angle, min_observed=1))
             if compound is not None:
                 part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
                                         d_ref=obj_meta.quality["d_ref"], config=db.config, meta=obj_meta)

@@ -246,3 +246,36 @@ def test_robust_decomposition_keeps_the_dense_clouds_noise():
     r = identify(p, rng=np.random.default_rng(0), config=IdentifyConfig.preset("robust"))
     assert r.downsampling is not None and r.downsampling.used_points <= 1200
     assert 0.6e-3 <= r.noise <= 1.1e-3
+
+
+def test_two_halves_of_one_body_are_merged_though_a_fresh_fit_of_their_union_fails(monkeypatch):
+    """E09's random_008: a body split lengthwise, each half fitted with the whole body's
+    cylinder -- two overlapping parts, and the combined map dropped every grasp of each
+    as colliding with the other. Either part's own model, refined on the union, explains
+    it: merged even where a fresh identification of the union draws badly (forced here)."""
+    from dataclasses import replace
+
+    from scipy.spatial import cKDTree
+
+    from graspsim.perception import decompose as dc
+    from graspsim.perception.classify import Shape
+    from graspsim.perception.identify import _prepare
+
+    cfg = IdentifyConfig.preset("robust")
+    pts = _posed(Cylinder(0.03, 0.12), 7)
+    cloud = _prepare(pts, cfg, cfg.max_points)[0]
+    spacing = float(np.median(cKDTree(cloud.points).query(cloud.points, k=2)[0][:, 1]))
+    ctx = dc._Ctx(cloud, np.random.default_rng(0), cfg, spacing, inlier_band(cloud.noise, spacing))
+    whole = dc._leaf(ctx, np.arange(len(cloud.points)))
+    assert whole.shape.value == "cylinder"
+    axis = whole.T_world_obj[:3, 2]
+    side = np.cross(axis, [1.0, 0.0, 0.0])
+    x = (cloud.points - whole.T_world_obj[:3, 3]) @ (side / np.linalg.norm(side))
+    halves = [np.flatnonzero(x < 0), np.flatnonzero(x >= 0)]  # lengthwise, through the axis
+    parts = [replace(whole, indices=cloud.kept[h]) for h in halves]  # each the whole cylinder
+    real_leaf = dc._leaf
+    monkeypatch.setattr(dc, "_leaf", lambda c, i: replace(real_leaf(c, i), shape=Shape.UNIDENTIFIED))
+    merged = dc._merged(ctx, [(p, None) for p in parts])
+    assert len(merged) == 1 and merged[0][0].shape.value == "cylinder"
+    assert merged[0][0].n_points == len(cloud.points)
+    assert merged[0][0].dims["radius"] == pytest.approx(0.03, abs=0.003)

@@ -65,6 +65,8 @@ def test_e09_quick_on_the_vendored_mesh(tmp_path):
     assert pooled["objects"] == 1 and pooled["trials"] <= 10
     md = e09.readme_section(s)
     assert s["command"] in md and "| full | robust |" in md
+    sep = s["pooled_separated"]["full/robust"]  # the 10 best a pose apart, simulated beside
+    assert sep["trials"] <= 10 and "non-maximum suppression" in md
     assert (out / "table.md").stat().st_size > 0 and (out / "clouds_full_robust.png").exists()
 
 

@@ -32,15 +32,28 @@ def test_contacts_on_the_observed_faces_along_their_normal_are_borne_out(box_clo
     assert _check(s, [across_x, across_y], min_observed=2).all()
 
 
-def test_contacts_in_the_air_or_across_a_slope_are_not(box_cloud):
+def test_contacts_beside_the_object_or_across_a_slope_are_not(box_cloud):
     _, p = box_cloud
     s = ObservedSurface(p)
-    in_air = [[-0.04, 0.0, 0.01], [0.04, 0.0, 0.01]]  # 2 cm outside both faces
+    beside = [[-0.04, 0.05, 0.01], [0.04, 0.05, 0.01]]  # closing 2 cm beside the box: on nothing
     # on the x faces, but closing at 45 deg to their normal: outside the friction cone
     slanted = [[-0.02, -0.02, 0.0], [0.02, 0.02, 0.0]]
-    assert not _check(s, [in_air, slanted]).any()
+    assert not _check(s, [beside, slanted]).any()
     # the same slanted line with the cone widened past 45 deg passes: the angle decides
     assert s.borne_out(np.asarray([slanted]), tol=0.004, max_angle=math.radians(50), min_observed=2).all()
+
+
+def test_contacts_in_the_air_are_borne_out_where_the_closing_fingers_meet_the_faces(box_cloud):
+    """A coarse part's contacts 2 cm out in the air over both x faces: the fingers close
+    on to the faces, which the cloud shows square to the closing line -- both contacts
+    borne out, though no point lies near either (the rule E09's single views needed)."""
+    _, p = box_cloud
+    s = ObservedSurface(p)
+    in_air = [[-0.04, 0.0, 0.01], [0.04, 0.0, 0.01]]
+    assert _check(s, [in_air], min_observed=2).all()
+    # the faces cut away where the fingers would meet them: nothing shown, nothing borne out
+    hole = ObservedSurface(p[(np.abs(p[:, 1]) > 0.01) | (np.abs(p[:, 2] - 0.01) > 0.01)])
+    assert not _check(hole, [in_air]).any()
 
 
 def test_one_unseen_contact_is_allowed_only_off_approximate_parts(box_cloud):

@@ -270,13 +270,22 @@ class GraspabilityMap:
 
         return self.select(ranking(self, rank))
 
-    def top_k(self, k: int, rank: str = "robust") -> GraspabilityMap:
-        """The k best grasps, best first, by ``rank`` (see :meth:`ranked`)."""
+    def top_k(self, k: int, rank: str = "robust", *,
+              separation: tuple[float, float] | None = None) -> GraspabilityMap:
+        """The k best grasps, best first, by ``rank`` (see :meth:`ranked`); with
+        ``separation`` = (distance [m], angle [rad]), each at least that far from every
+        better one kept (non-maximum suppression: :mod:`graspsim.maps.separation`)."""
         if k < 0:
             raise InvalidParameterError(f"k must be >= 0, got {k}")
         from graspsim.maps.robust import ranking
 
-        return self.select(ranking(self, rank)[:k])
+        order = ranking(self, rank)
+        if separation is None:
+            return self.select(order[:k])
+        from graspsim.maps.separation import separated_rows
+
+        return self.select(separated_rows(self.grasp_point, self.wrist_quat, order, k,
+                                          distance=separation[0], angle=separation[1]))
 
     def sample_uniform_surface(
         self, n: int, rng: np.random.Generator, *, cell: float | None = None

@@ -280,21 +280,44 @@ def _merged(ctx: _Ctx, done: list) -> list:
 
 
 def _try_merge(ctx: _Ctx, a: PartResult, b: PartResult) -> PartResult | None:
-    """The union of two touching parts of one kind as one part, when one model
-    identified by the paper's rules explains it within the band as well as the two did
-    (within 1 %)."""
-    if a.shape is not b.shape:
-        return None
+    """The union of two touching parts as one part, when one model explains it within
+    the band as well as the two did (within 1 %): a fresh identification of the union
+    by the paper's rules (parts of one kind), or either part's own model refined on the
+    union -- two halves of one body each fitted with the whole body's primitive (a
+    cylinder split lengthwise) overlap, and the combined map drops every grasp of each
+    as colliding with the other, while a fresh fit of the union may draw worse. The
+    union is approximate only where a part was."""
     ia, ib = _local(ctx.cloud, a), _local(ctx.cloud, b)
     pa, pb = ctx.cloud.points[ia], ctx.cloud.points[ib]
     gap = cKDTree(pa).query(pb, k=1, distance_upper_bound=3.0 * ctx.spacing)[0]
     if not np.isfinite(gap).any():
         return None  # not neighbours
     idx = np.concatenate([ia, ib])
-    union = _leaf(ctx, idx)
-    if union.shape is Shape.UNIDENTIFIED or union.approximate or union.band_rate is None:
-        return None
     d = model_distance([_model(a)], pa) <= ctx.band, model_distance([_model(b)], pb) <= ctx.band
-    if union.band_rate >= (d[0].sum() + d[1].sum()) / len(idx) - 0.01:
-        return union
-    return None
+    pair = (d[0].sum() + d[1].sum()) / len(idx)
+    cands = [_leaf(ctx, idx)] if a.shape is b.shape else []
+    cands += [_refit(ctx, idx, p) for p in (a, b)]
+    loose = a.approximate or b.approximate
+    good = [u for u in cands if u is not None and u.shape is not Shape.UNIDENTIFIED and u.band_rate is not None
+            and (loose or not u.approximate) and u.band_rate >= max(pair - 0.01, ctx.cfg.approx_fit_rate)]
+    return max(good, key=lambda u: u.band_rate, default=None)
+
+
+def _refit(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> PartResult | None:
+    """``part``'s model refined on the points ``idx`` (local indices) and the part it
+    makes there (None: no model, or the refined one is no primitive)."""
+    model = _model(part)
+    if model is None:
+        return None
+    pts = ctx.cloud.points[idx]
+    wide = fit_from(model.kind, pts, model.R, model.t, model.dims, sigma=ctx.band / ctx.cfg.band,
+                    refine=ctx.cfg.refine, max_extent_ratio=ctx.cfg.max_extent_ratio)
+    fit = rescore(wide, pts, part.noise)
+    rate = band_rate(fit, pts, ctx.band)
+    try:
+        prim, T = fit_to_object(fit.kind, fit.R, fit.t, fit.dims)
+    except PrimitiveError:
+        return None
+    return replace(part, dims=prim.dims, T_world_obj=T, fit_rate=fit.fit_rate, rms=fit.rms,
+                   indices=ctx.cloud.kept[np.sort(idx)], fits={fit.kind: fit}, coverage={},
+                   approximate=rate < ctx.cfg.min_fit_rate, band_rate=rate)

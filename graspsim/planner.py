@@ -33,6 +33,7 @@ from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map
+from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import TablePlane, clears_table, heights_above, stream_order, table_frame, table_height
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
@@ -357,10 +358,12 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
 def _borne_out(observed: ObservedSurface, part_map: GraspabilityMap, T_cloud_map: np.ndarray, tol: float,
                db: MapDatabase, min_observed: int) -> GraspabilityMap:
     """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) the observed cloud
-    bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`)."""
-    c = part_map.contacts.astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
+    bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`); the answer
+    depends on a grasp's contacts alone, so it is found once per closing line."""
+    line = row_ids(part_map.contacts)
+    c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
     return part_map.select(observed.borne_out(c, tol=tol, max_angle=db.quality.friction_angle,
-                                              min_observed=min_observed))
+                                              min_observed=min_observed)[line])
 
 
 def plan(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,

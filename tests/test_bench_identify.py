@@ -1,6 +1,6 @@
 """bench_identify (issue 15's time goal): the quick mode end to end on the vendored
 bread mesh -- E09's clouds, per-stage times that add up, a fresh 'graspsim adapt' -- and
-the helper it relies on: the planner's stage clock."""
+the helpers it relies on: the planner's stage clock and the row ids of repeated lines."""
 
 import importlib.util
 import json
@@ -8,6 +8,9 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
+from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.stages import StageClock
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -21,6 +24,21 @@ def _load(name):
     sys.modules[name] = mod
     spec.loader.exec_module(mod)
     return mod
+
+
+def test_row_ids_number_distinct_rows_and_first_rows_finds_them():
+    rng = np.random.default_rng(0)
+    base = rng.normal(size=(7, 2, 3)).astype(np.float32)
+    pick = rng.integers(0, 7, 60)
+    rows = base[pick]
+    ids = row_ids(rows)
+    # equal rows share an id, different rows do not; ids as np.unique numbers them
+    expect = np.unique(rows.reshape(60, -1).view(np.dtype((np.void, 24))).ravel(), return_inverse=True)[1]
+    assert np.array_equal(ids, expect.ravel())
+    first = first_rows(ids)
+    assert np.array_equal(rows[first][ids], rows)
+    assert all(first[i] == np.flatnonzero(ids == i)[0] for i in range(len(first)))
+    assert len(row_ids(rows[:0])) == 0 and len(first_rows(row_ids(rows[:0]))) == 0
 
 
 def test_stage_clock_counts_production_not_consumption():

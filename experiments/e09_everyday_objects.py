@@ -142,14 +142,20 @@ def _plan_entry(points, db, mode: str, cfg: Config, viewpoint=None) -> tuple[dic
     return entry, res
 
 
-def run_object(name: str, db: MapDatabase, cfg: Config) -> tuple[dict, dict]:
-    """One object: its row and, for the figure, its clouds with part labels."""
+def object_views(name: str, cfg: Config):
+    """(simulated object in the mesh's frame, mesh resting on the table, T_world_mesh,
+    {"full": cloud, "single": cloud}) of one mesh, drawn from ``rng_for(cfg.seed, name)``."""
     rng = rng_for(cfg.seed, name)
     path = Path(cfg.objects_dir) / name
-    obj = object_from_mesh(path)  # the simulated object in the mesh's frame
+    obj = object_from_mesh(path)
     mesh, T_world_mesh = rest_on_table(load_mesh(path), obj, rng)
+    return obj, mesh, T_world_mesh, clouds(mesh, cfg, rng)
+
+
+def run_object(name: str, db: MapDatabase, cfg: Config) -> tuple[dict, dict]:
+    """One object: its row and, for the figure, its clouds with part labels."""
+    obj, mesh, T_world_mesh, cl = object_views(name, cfg)
     ok, width, limit = fits_gripper(mesh, db.gripper)
-    cl = clouds(mesh, cfg, rng)
     scene = build_scene(obj, db.gripper, SimSettings(friction=db.quality.friction))  # rests it as above
     T_mesh_world = invert_transform(T_world_mesh)
     row = {"object": name, "fits": ok, "width": width, "extents": sorted(np.ptp(mesh.vertices, axis=0).tolist())}

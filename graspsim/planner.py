@@ -33,11 +33,13 @@ from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map
+from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.scaling import ScalingConfig, scale_stream
-from graspsim.maps.table import TablePlane, clears_table, heights_above, stream_order, table_frame
+from graspsim.maps.table import TablePlane, clears_table, heights_above, stream_order, table_frame, table_height
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
 from graspsim.primitives import Compound, Primitive
 from graspsim.primitives.compound import object_frame
+from graspsim.stages import StageClock
 from graspsim.transforms import invert_transform
 
 __all__ = ["PlanStatus", "PlannerConfig", "PartPlan", "PlanResult", "GraspBatch", "TablePlane", "plan",
@@ -120,7 +122,9 @@ class GraspBatch:
 class PlanResult:
     """status; map: adapted map (object frame; ``extra["T_cloud_obj"]``); parts;
     identification (None for :func:`plan_shape`); T_cloud_obj (4, 4); timing [s] per
-    stage plus ``first`` and ``tenth`` (time to the first and tenth grasp with grade
+    stage (``identify``; ``maps``: all that follows, of which ``adapt``: retrieval and
+    scaling, ``agreement``: the cloud-agreement filter, ``combine``, ``table``: the table
+    filter, ``robust``: scoring) plus ``first`` and ``tenth`` (time to the first and tenth grasp with grade
     > 0.95, None if never), ``first_robust`` (time to the first grasp with a robust
     score > 0; None if never or ``rank="paper"``), ``first_robust_cpu`` (the calling
     thread's CPU seconds from the end of identification to that grasp: a measure that
@@ -279,7 +283,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
     T_table_obj = table = None
     if cfg.table is not None:
-        height = _table_height(cfg.table, points, prims[0] if compound is None else compound, T_cloud_obj)
+        height = table_height(cfg.table, points, prims[0] if compound is None else compound, T_cloud_obj)
         T_table_obj = table_frame(cfg.table.normal, height) @ T_cloud_obj
         table = {**cfg.table.to_dict(), "height": height}
     extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
@@ -289,41 +293,44 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     parts: list[PartPlan] = []
     first = tenth = first_robust = first_robust_cpu = None
     n_hi = 0
-    t_robust = 0.0
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     cloud_obj = cloud_in_object(seen, T_cloud_obj)
     view_obj = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0]
     observed = ObservedSurface(points) if ident is not None and ident.mode == "robust" else None
+    stage = StageClock("adapt", "agreement", "combine", "table", "robust")
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):
+        stage.start()
         match, src, stream = _part_stream(prim, db, cfg,
                                           None if T_table_obj is None else T_table_obj @ T_obj_part[i])
+        stage.lap("adapt")
         parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i]))
         budget = cfg.robust.top if cfg.rank == "robust" else 0
         # the part map's frame in the cloud's (a part's own frame until it is combined)
         T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
-        for part_map in stream:
+        for part_map in stage.iterate(stream, "adapt"):
             if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
-                c = part_map.contacts.astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
-                part_map = part_map.select(observed.borne_out(
-                    c, tol=cfg.contact_tolerance, max_angle=db.quality.friction_angle, min_observed=1))
+                part_map = _borne_out(observed, part_map, T_cloud_map, cfg.contact_tolerance, db)
+            stage.lap("agreement")
             if compound is not None:
                 part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
                                         d_ref=obj_meta.quality["d_ref"], config=db.config, meta=obj_meta)
+            stage.lap("combine")
             if T_table_obj is not None:
                 clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)
                 n_below += int(len(clear) - clear.sum())
                 part_map = part_map.select(clear)
+            stage.lap("table")
             batch = replace(part_map, meta=replace(obj_meta, extra=extra), part=np.full(len(part_map), i, np.int16))
             if not len(batch):
                 continue
             if budget > 0:  # robustness of the batch's best-graded grasps, then its order
-                t2 = time.perf_counter()
+                stage.start()
                 rows = np.argsort(-batch.grade, kind="stable")[:budget]
                 batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper,
                                   viewpoint=view_obj).ranked()
                 budget -= len(rows)
-                t_robust += time.perf_counter() - t2
+                stage.lap("robust")
                 if first_robust is None and bool(np.any(batch.robust > 0)):
                     first_robust = time.perf_counter() - t0
                     first_robust_cpu = time.thread_time() - cpu0
@@ -348,9 +355,19 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         full = full.with_meta(extra={**final, "robust": prov})
     full = full.ranked(cfg.rank)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
-                  first_robust_cpu=first_robust_cpu,
-                  robust=t_robust)
+                  first_robust_cpu=first_robust_cpu, **stage.seconds)
     yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
+
+
+def _borne_out(observed: ObservedSurface, part_map: GraspabilityMap, T_cloud_map: np.ndarray, tol: float,
+               db: MapDatabase) -> GraspabilityMap:
+    """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) the observed cloud
+    bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`); the answer
+    depends on a grasp's contacts alone, so it is found once per closing line."""
+    line = row_ids(part_map.contacts)
+    c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
+    return part_map.select(observed.borne_out(c, tol=tol, max_angle=db.quality.friction_angle,
+                                              min_observed=1)[line])
 
 
 def plan(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
@@ -374,21 +391,6 @@ def _last(stream) -> PlanResult:
     if not isinstance(result, PlanResult):  # pragma: no cover - the stream always ends so
         raise InvalidParameterError("planner produced no result")
     return result
-
-
-def _table_height(table: TablePlane, points: np.ndarray, shape, T_cloud_obj: np.ndarray) -> float:
-    """The table's offset along its normal: given, or the object's lowest point (the
-    identified shape's -- a camera rarely sees the base -- or the cloud's 0.5 % quantile
-    where that is lower: unidentified parts)."""
-    if table.height is not None:
-        return table.height
-    n = np.asarray(table.normal)
-    v = np.asarray(shape.mesh().vertices, float)
-    low_shape = float(np.min((v @ T_cloud_obj[:3, :3].T + T_cloud_obj[:3, 3]) @ n))
-    pts = np.asarray(points, float)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    low_cloud = float(np.quantile(pts @ n, 0.005)) if len(pts) else np.inf
-    return min(low_shape, low_cloud)
 
 
 def _object_meta(shape, db: MapDatabase) -> MapMeta:

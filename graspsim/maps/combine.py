@@ -21,6 +21,7 @@ from graspsim.gripper import GripperSpec
 from graspsim.maps.collide import grasps_collision_free
 from graspsim.maps.generate import MapConfig, object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.maps.rowids import row_ids
 from graspsim.primitives import Compound
 from graspsim.quality import QualityModel, stability_distance
 from graspsim.transforms import invert_transform, matrix_to_quat, quat_multiply, quat_to_matrix
@@ -28,14 +29,6 @@ from graspsim.transforms import invert_transform, matrix_to_quat, quat_multiply,
 __all__ = ["combine_maps", "combine_part"]
 
 log = logging.getLogger(__name__)
-
-
-def _line_ids(contacts: np.ndarray) -> np.ndarray:
-    if len(contacts) == 0:
-        return np.zeros(0, np.int64)
-    c = np.ascontiguousarray(contacts).reshape(len(contacts), -1)
-    return np.unique(c.view(np.dtype((np.void, c.dtype.itemsize * c.shape[1]))).ravel(),
-                     return_inverse=True)[1].ravel()
 
 
 def combine_part(part_map: GraspabilityMap, index: int, compound: Compound, *,
@@ -63,7 +56,7 @@ def combine_part(part_map: GraspabilityMap, index: int, compound: Compound, *,
     # collisions with the adjacent parts, each in its own frame (one cached sample
     # hierarchy per primitive), grouped by closing line
     free = np.ones(len(keep), bool)
-    lines = _line_ids(part_map.contacts[keep])
+    lines = row_ids(part_map.contacts[keep])
     for j in others:
         T_j_part = invert_transform(compound.poses[j]) @ T
         idx = np.flatnonzero(free)

@@ -256,12 +256,14 @@ def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapC
     n_ref = np.zeros(L, np.int32)
     f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
     i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
-    args = (f32(lines.gp), f32(lines.u), f32(lines.e1), f32(lines.e2),
-            f32(0.5 * lines.width + gripper.approach_clearance),
+    if "_kernel_args" not in lv:  # the samples as the kernel takes them, once per (cached) hierarchy
+        lv["_kernel_args"] = (
             f32(lv["Q"]), f32(lv["NQ"]), f32(lv["RT"]), f32(lv["HN"]), f32(lv["M"]), f32(lv["NM"]),
             f32(lv["RTM"]), f32(lv["HNM"]), i64(lv["mstart"]), f32(lv["F"]), f32(lv["NF"]),
-            f32(lv["RTF"]), f32(lv["HNF"]), i64(lv["fstart"]), fp, f32(reach2), f32(np.cos(roll)),
-            f32(np.sin(roll)), f32(depths), np.float32(fmargin), bool(cfg.collision_refine),
+            f32(lv["RTF"]), f32(lv["HNF"]), i64(lv["fstart"]))
+    args = (f32(lines.gp), f32(lines.u), f32(lines.e1), f32(lines.e2),
+            f32(0.5 * lines.width + gripper.approach_clearance), *lv["_kernel_args"], fp, f32(reach2),
+            f32(np.cos(roll)), f32(np.sin(roll)), f32(depths), np.float32(fmargin), bool(cfg.collision_refine),
             np.ones((1, 1, 1), np.uint8) if need is None else np.ascontiguousarray(need, np.uint8),
             free, n_ref)
     used = default_threads(threads)

@@ -10,7 +10,8 @@ run on threads.
   writable, else in numba's user cache (``~/.cache/numba`` or ``$XDG_CACHE_HOME/numba``);
   ``NUMBA_CACHE_DIR`` overrides both (numba's own rules); with neither writable, a
   per-user folder in the temporary directory.
-* :func:`run_chunks` runs a kernel over index ranges on Python threads: the kernels
+* :func:`run_chunks` runs a kernel over index ranges on Python threads (one pool per
+  process, started on first use): the kernels
   release the GIL, so this is as parallel as numba's ``prange`` without its compile
   cost.
 """
@@ -18,10 +19,11 @@ run on threads.
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import ThreadPoolExecutor, as_completed, wait
 from types import ModuleType
 
 __all__ = ["ensure_compiled", "kernels", "cache_dir", "default_threads", "run_chunks"]
@@ -87,7 +89,6 @@ def _import_kernel() -> ModuleType:
     except RuntimeError as err:  # numba found no writable cache folder
         if "cannot cache function" not in str(err):
             raise
-        import os
         import tempfile
 
         import numba
@@ -113,24 +114,43 @@ def run_chunks(fn: Callable[[int, int], object], n: int, threads: int, *, parts:
                progress: Callable[[float], None] | None = None) -> None:
     """Call ``fn(lo, hi)`` for contiguous ranges covering ``[0, n)`` (``parts`` of them,
     default one per thread) on ``threads`` threads; ``progress(done_fraction)`` after
-    each range. ``fn`` must release the GIL (a ``nogil`` kernel) to run in parallel."""
+    each range. ``fn`` must release the GIL (a ``nogil`` kernel) to run in parallel.
+    The threads are the process's kernel pool (:func:`_pool`), started once: starting
+    threads for every call costs milliseconds, more on a loaded machine."""
     if n <= 0:
         return
     parts = max(1, min(n, parts or threads))
     bounds = [n * i // parts for i in range(parts + 1)]
     ranges = list(zip(bounds[:-1], bounds[1:]))
-    if threads <= 1 or parts == 1:
+    if threads <= 1 or parts == 1 or threading.current_thread().name.startswith(_PREFIX):
         for i, (lo, hi) in enumerate(ranges):
             fn(lo, hi)
             if progress:
                 progress((i + 1) / parts)
         return
-    ex = ThreadPoolExecutor(min(threads, parts), thread_name_prefix="graspsim-kernel")
+    futures = [_pool(min(threads, parts)).submit(fn, lo, hi) for lo, hi in ranges]
     try:
-        futures = [ex.submit(fn, lo, hi) for lo, hi in ranges]
         for i, f in enumerate(as_completed(futures)):
             f.result()
             if progress:
                 progress((i + 1) / parts)
-    finally:
-        ex.shutdown(wait=True, cancel_futures=True)
+    finally:  # nothing may still write into the caller's arrays once this returns
+        for f in futures:
+            f.cancel()
+        wait(futures)
+
+
+_PREFIX = "graspsim-kernel"
+_pools: dict[int, tuple[int, ThreadPoolExecutor]] = {}  # workers -> (pid, pool)
+_pool_lock = threading.Lock()
+
+
+def _pool(workers: int) -> ThreadPoolExecutor:
+    """The process's pool of ``workers`` kernel threads (made again in a forked child,
+    whose copy has no threads)."""
+    with _pool_lock:
+        pid, ex = _pools.get(workers, (None, None))
+        if ex is None or pid != os.getpid():
+            ex = ThreadPoolExecutor(workers, thread_name_prefix=_PREFIX)
+            _pools[workers] = (os.getpid(), ex)
+        return ex

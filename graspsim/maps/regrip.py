@@ -36,6 +36,7 @@ from graspsim.gripper import GripperSpec
 from graspsim.maps.collide import grasps_collision_free
 from graspsim.maps.generate import MapConfig
 from graspsim.maps.graspmap import OPTIONAL_COLUMNS, GraspabilityMap
+from graspsim.maps.rowids import row_ids
 from graspsim.transforms import quat_to_matrix
 
 __all__ = ["adapt_to_gripper", "pad_depth"]
@@ -51,20 +52,6 @@ def pad_depth(depth: np.ndarray, source: GripperSpec, target: GripperSpec) -> np
 
 def _span(g: GripperSpec) -> float:
     return g.pad_length - 2.0 * g.contact_depth_margin
-
-
-def _ids(*arrays: np.ndarray) -> np.ndarray:
-    """(N,) int id of each row's combination of values in ``arrays`` (each (N, ...)):
-    runs of equal consecutive rows first (a map's rows come grouped by line, roll and
-    depth), then equal runs merged, so the sort is over runs, not rows."""
-    c = np.concatenate([np.ascontiguousarray(a, np.float32).reshape(len(a), -1) for a in arrays], axis=1)
-    if len(c) == 0:
-        return np.zeros(0, np.int64)
-    new = np.ones(len(c), bool)
-    np.any(c[1:] != c[:-1], axis=1, out=new[1:])
-    reps = np.ascontiguousarray(c[new])
-    inv = np.unique(reps.view(np.dtype((np.void, 4 * c.shape[1]))).ravel(), return_inverse=True)[1].ravel()
-    return inv[np.cumsum(new) - 1]
 
 
 def _approach(q: np.ndarray) -> np.ndarray:
@@ -122,8 +109,8 @@ def adapt_to_gripper(gmap: GraspabilityMap, gripper: GripperSpec, *, config: Map
     d_src = source.contact_depth(gp, gmap.wrist_position[rows].astype(float), z)
     fits = (width >= max(cfg.min_width, gripper.min_opening) - 1e-9) \
         & (width + 2 * gripper.approach_clearance <= gripper.max_opening + 1e-9)
-    line = _ids(gmap.contacts[rows])
-    pose = _ids(line[:, None], quat)  # a closing line at one orientation
+    line = row_ids(gmap.contacts[rows])
+    pose = row_ids(line[:, None], quat)  # a closing line at one orientation
     n_grid = gripper.contact_depth_count(cfg.depth_step)
     grid = gripper.contact_depths(cfg.depth_step)
 

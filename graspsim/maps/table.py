@@ -19,7 +19,7 @@ from graspsim.gripper import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.transforms import frame_from_axes, make_transform
 
-__all__ = ["TablePlane", "clears_table", "heights_above", "stream_order", "table_frame"]
+__all__ = ["TablePlane", "clears_table", "heights_above", "stream_order", "table_frame", "table_height"]
 
 
 @dataclass(frozen=True)
@@ -149,3 +149,18 @@ def stream_order(n: int, first: int, growth: float, prefer=None, chunk: int = 40
     while start < len(rest):
         yield rest[start:start + size]
         start, size = start + size, int(size * grow)
+
+
+def table_height(table: TablePlane, points: np.ndarray, shape, T_cloud_obj: np.ndarray) -> float:
+    """The table's offset along its normal: given, or the object's lowest point (the
+    identified shape's -- a camera rarely sees the base -- or the cloud's 0.5 % quantile
+    where that is lower: unidentified parts)."""
+    if table.height is not None:
+        return table.height
+    n = np.asarray(table.normal)
+    v = np.asarray(shape.mesh().vertices, float)
+    low_shape = float(np.min((v @ T_cloud_obj[:3, :3].T + T_cloud_obj[:3, 3]) @ n))
+    pts = np.asarray(points, float)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    low_cloud = float(np.quantile(pts @ n, 0.005)) if len(pts) else np.inf
+    return min(low_shape, low_cloud)

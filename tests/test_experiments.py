@@ -362,7 +362,9 @@ def test_e13_gripper_validation_quick_counts_add_up_and_reports_impossible_sizes
     for r in [s["pooled"], *s["per_primitive"].values(), *s["per_case"]]:
         assert r["drawn"] == r["of"] + r["start_collision"]
         assert r["success"] + sum(r["failures"].values()) == r["of"]
+        assert 0 <= r["place_failed_upright_after_settle"] <= r["failures"]["place_failed"]
     assert sum(r["drawn"] for r in s["per_case"]) == s["pooled"]["drawn"] > 0
+    assert s["grade"]["name"] == "paper" and s["config"]["settle"] == 2.0
     assert "sphere@1.25" in s["impossible"] and "87.5 mm" in mod.readme_section(s)
     assert s["command"] in mod.readme_section(s)
     with pytest.raises(SystemExit) as exit_:  # a bad gripper: one line, exit 2, before any work

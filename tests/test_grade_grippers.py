@@ -110,3 +110,23 @@ def test_the_papers_grade_grades_any_gripper(other_map):
 
     check_gripper(PaperGrade(), other_map.meta.gripper)
     np.testing.assert_allclose(PaperGrade().grade_rows(other_map, np.arange(5)), other_map.grade[:5], atol=1e-6)
+
+
+def test_the_franka_hand_ships_its_own_model_and_the_robust_score_uses_it():
+    from graspsim.maps.robust import RobustConfig, score_map
+
+    franka = get_gripper("franka_hand")
+    model = get_grade("pad_contact", gripper="franka_hand")
+    assert model.gripper == gripper_identity(franka) and model.provenance["gripper"]["name"] == "franka_hand"
+    assert model.provenance["trials"] > 1000 and model.provenance["cv_auc"]["object"] > 0.8
+    fs = generate_fs_map(Box(0.04, 0.05, 0.06), franka, config=COARSE, threads=1)
+    scored = score_map(fs, None, RobustConfig(top=20, samples=4))
+    rows = np.flatnonzero(scored.robust_feasible > 0)[:5]
+    assert len(rows)
+    np.testing.assert_allclose(scored.robust[rows], scored.robust_feasible[rows] * model.grade_rows(fs, rows),
+                               rtol=1e-6)
+    assert scored.meta.extra["robust"]["success_model"] == "pad_contact fitted for 'franka_hand'"
+    pad = regrade(fs, model)
+    assert pad.meta.quality["grade_model"]["gripper"]["name"] == "franka_hand"
+    with pytest.raises(GripperError):
+        get_grade("pad_contact").grade_rows(fs, rows)  # the Festo's model: refused

@@ -34,14 +34,13 @@ from typing import ClassVar
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import (
     Clock,
-    RunRecord,
     load_average,
     machine_load,
     map_config,
     md_table,
     opt,
-    parse_config,
     rate_ci,
+    start,
     write_json,
 )
 
@@ -166,18 +165,14 @@ def run_adapted(cfg: E11Config) -> list[dict]:
 
 
 def main(argv=None) -> int:
-    cfg, opts = parse_config(E11Config, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
+    cfg, out, run = start(E11Config, __file__, argv, __doc__)
     sweeps = run_sweeps(cfg, out)
     grippers = run_grippers(cfg)
     adapted = run_adapted(cfg)
     write_json(out / "results.json", {"config": cfg.record(), "sweeps": sweeps, "grippers": grippers,
                                       "adapted": adapted})
     text = run.write(out, {"config": cfg.record(), "sweeps": sweeps, "grippers": grippers,
-                           "adapted": adapted}, readme_section, publish=opts.publish)
+                           "adapted": adapted}, readme_section)
     log.info("%s", text)
     return 0
 

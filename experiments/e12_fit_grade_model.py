@@ -9,7 +9,15 @@ out; and, stricter, leave one primitive kind out); its threshold is the one whos
 out-of-fold population precision reaches 97 %. ``--install`` writes the model to
 ``graspsim/data/grade_model.json`` (the shipped ``pad_contact`` grade).
 
+The model is the gripper's (``--gripper``, default the Festo HGPL-25-60-A): its maps,
+its simulated model and grip force; the model records the gripper, and ``--install``
+writes it where ``get_grade("pad_contact", gripper=...)`` finds it
+(``graspsim.grades.model_path``). A training object the gripper cannot take at all
+(no collision-free grasp: wider than it opens) is left out and listed.
+
     python experiments/e12_fit_grade_model.py [--install]
+    python experiments/e12_fit_grade_model.py --gripper franka_hand --out results/e12_fit_grade_model.franka_hand \
+        [--install]
     python experiments/e12_fit_grade_model.py --quick --out results/e12_quick
 
 (It was E05a, ``e05_fit_grade_model.py``; E05 is the threshold calibration on held-out
@@ -34,9 +42,11 @@ from graspsim.calibration import SimCondition, TrialTable, draw_samples, simulat
 from graspsim.calibration.objects import CALIBRATION_CONE, TRAIN_SHAPES
 from graspsim.calibration.plots import plot_roc
 from graspsim.calibration.trials import fs_cases, table_features
+from graspsim.errors import NoFeasibleGraspError
 from graspsim.grades.features import FEATURES
 from graspsim.grades.fit import fit_grade
-from graspsim.grades.models import default_model_path
+from graspsim.grades.models import FESTO, gripper_identity, model_path
+from graspsim.grippers import get_gripper
 from graspsim.maps.generate import MapConfig
 
 log = logging.getLogger("e12_fit")
@@ -44,6 +54,7 @@ log = logging.getLogger("e12_fit")
 
 @dataclass(frozen=True)
 class Config:
+    gripper: str = opt(FESTO, "gripper: a registered name or a spec .json")
     per_bin: int = opt(40, "grasps drawn per paper-grade bin and object")
     seed: int = opt(0, "run seed")
     threads: int = opt(2, "simulation and map threads")
@@ -60,6 +71,7 @@ class Config:
     def __post_init__(self) -> None:
         if self.per_bin < 1 or len(self.objects) < 2:
             raise ValueError(f"--per-bin must be >= 1 and --objects two or more; got {self.per_bin}, {self.objects}")
+        get_gripper(self.gripper)  # a bad name or spec file: one line, exit 2
 
     @property
     def map_config(self) -> MapConfig:
@@ -73,12 +85,18 @@ def collect(cfg: Config, out: Path) -> TrialTable:
         if table.meta.get("config") == _jsonable(cfg, trials_only=True):
             log.info("reusing %s", path)
             return table
-    shapes = {k: TRAIN_SHAPES[k] for k in cfg.objects}
-    cases = fs_cases(shapes, config=cfg.map_config, threads=cfg.threads)
+    gripper, cases, skipped = get_gripper(cfg.gripper), [], []
+    for k in cfg.objects:
+        try:
+            cases += fs_cases({k: TRAIN_SHAPES[k]}, config=cfg.map_config, gripper=gripper, threads=cfg.threads)
+        except NoFeasibleGraspError as err:  # wider than this gripper opens, everywhere
+            log.warning("%s left out: %s", k, err)
+            skipped.append(k)
     samples = draw_samples(cases, cfg.per_bin, seed=cfg.seed)
     table = simulate_samples(samples, SimCondition(), seed=cfg.seed, threads=cfg.threads,
                              features=())
-    table = TrialTable(table.columns, {**table.meta, "config": _jsonable(cfg, trials_only=True)})
+    table = TrialTable(table.columns, {**table.meta, "config": _jsonable(cfg, trials_only=True),
+                                       "objects_left_out": skipped})
     table.save(path)
     return table
 
@@ -87,6 +105,8 @@ def _jsonable(cfg: Config, trials_only: bool = False) -> dict:
     """The configuration the stored trials depend on (a rerun reuses them if equal)."""
     d = {"per_bin": cfg.per_bin, "seed": cfg.seed, "objects": list(cfg.objects),
          "closing_cone_deg": cfg.closing_cone_deg}
+    if cfg.gripper != FESTO:  # (the Festo's stored trials predate the field)
+        d["gripper"] = gripper_identity(get_gripper(cfg.gripper))
     return {**d, "quick": True} if cfg.quick else d
 
 
@@ -98,8 +118,11 @@ def main(argv=None) -> int:
     kinds = np.array([kind_of[g] for g in t["group"]])
     feats = table_features(t, cfg.features)  # from the stored grasp geometry
     versions = run.versions
+    gripper = gripper_identity(get_gripper(cfg.gripper))
+    left_out = table.meta.get("objects_left_out", [])
     provenance = {"script": "experiments/e12_fit_grade_model.py", "command": run.command, "seed": cfg.seed,
-                  "per_bin": cfg.per_bin, "objects": list(cfg.objects),
+                  "per_bin": cfg.per_bin, "gripper": gripper,
+                  "objects": [k for k in cfg.objects if k not in left_out], "objects_left_out": left_out,
                   "trials": int(len(table)), "feasible_trials": int(len(t)),
                   "protocol": table.meta.get("protocol"), "condition": table.meta.get("condition"),
                   "mujoco_version": table.meta.get("mujoco_version"),
@@ -110,16 +133,17 @@ def main(argv=None) -> int:
     paper_auc = {"object": stats.roc_auc(t["grade"], y),
                  "object_population": stats.roc_auc(t["grade"], y, t["weight"])}
     model = fit.model
-    model = type(model).from_dict({**model.to_dict(), "provenance": {
+    model = type(model).from_dict({**model.to_dict(), "gripper": gripper, "provenance": {
         **provenance, "cv_auc": fit.auc, "cv_threshold": fit.threshold_oof,
         "paper_grade_auc": paper_auc}})
     model.save(out / "grade_model.json")
     if cfg.install:
-        model.save(default_model_path())
-        log.info("installed %s", default_model_path())
+        model.save(model_path(gripper["name"]))
+        log.info("installed %s", model_path(gripper["name"]))
     p07 = stats.precision_recall(t["grade"], y, 0.7, t["weight"])
     pt = stats.precision_recall(fit.oof["object"], y, fit.threshold_oof, t["weight"])
-    summary = {"config": cfg, "trials": len(table), "feasible": int(len(t)), "success_rate": float(y.mean()),
+    summary = {"config": cfg, "gripper": gripper, "objects_left_out": left_out,
+               "trials": len(table), "feasible": int(len(t)), "success_rate": float(y.mean()),
                "cv_auc": fit.auc, "cv_auc_by_object": fit.auc_by_group, "paper_auc": paper_auc,
                "paper_auc_by_object": {str(g): stats.roc_auc(t["grade"][t["group"] == g], y[t["group"] == g])
                                        for g in np.unique(t["group"])},
@@ -129,7 +153,8 @@ def main(argv=None) -> int:
                "model": model.to_dict()}
     run.write(out, summary)
     rows = [[g, summary["paper_auc_by_object"][g], fit.auc_by_group[g]] for g in fit.auc_by_group]
-    md = [f"# E12: calibrated grade fit ({len(t)} feasible trials, {len(fit.auc_by_group)} objects)", "",
+    md = [f"# E12: calibrated grade fit for {gripper['name']} ({len(t)} feasible trials, "
+          f"{len(fit.auc_by_group)} objects" + (f"; left out: {', '.join(left_out)}" if left_out else "") + ")", "",
           md_table(["", "paper grade", "calibrated (out of fold)"],
                    [["pooled AUC, leave one object out", paper_auc["object"], fit.auc["object"]],
                     ["pooled AUC, leave one kind out", paper_auc["object"], fit.auc.get("kind")],

@@ -363,12 +363,41 @@ def test_e13_gripper_validation_quick_counts_add_up_and_reports_impossible_sizes
     for r in [s["pooled"], *s["per_primitive"].values(), *s["per_case"]]:
         assert r["drawn"] == r["of"] + r["start_collision"]
         assert r["success"] + sum(r["failures"].values()) == r["of"]
+        assert 0 <= r["place_failed_upright_after_settle"] <= r["failures"]["place_failed"]
     assert sum(r["drawn"] for r in s["per_case"]) == s["pooled"]["drawn"] > 0
+    assert s["grade"]["name"] == "paper" and s["config"]["settle"] == 2.0
     assert "sphere@1.25" in s["impossible"] and "87.5 mm" in mod.readme_section(s)
     assert s["command"] in mod.readme_section(s)
     with pytest.raises(SystemExit) as exit_:  # a bad gripper: one line, exit 2, before any work
         mod.main(["--quick", "--gripper", "robotiq", "--out", str(tmp_path / "bad")])
     assert exit_.value.code == 2 and not (tmp_path / "bad").exists()
+
+
+def test_e13_draws_the_grasps_the_grippers_own_calibrated_grade_accepts(tmp_path, capsys):
+    from graspsim.grades import get_grade
+
+    mod = _load("e13_gripper_validation")
+    out = tmp_path / "pad"
+    assert mod.main(["--quick", "--grade", "pad_contact", "--primitives", "box", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    model = get_grade("pad_contact", gripper="franka_hand")
+    assert s["grade"] == {"name": "pad_contact", "threshold": model.threshold, "fitted_for": model.gripper}
+    (box,) = s["per_case"]
+    assert 0 < box["accepted"] and box["drawn"] == min(6, box["accepted_clear_of_table"])
+    from graspsim.grades import regrade
+    from graspsim.grippers import get_gripper
+    from graspsim.maps.database import PAPER_SHAPES
+    from graspsim.maps.generate import generate_fs_map
+
+    fs = generate_fs_map(PAPER_SHAPES["box"], get_gripper("franka_hand"), config=mod.Config(quick=True).map_config)
+    assert box["accepted"] == int(np.sum(regrade(fs, model).grade > model.threshold)) != int(np.sum(fs.grade > 0.7))
+    assert "calibrated grade `pad_contact` fitted for `franka_hand`" in mod.readme_section(s)
+    spec = tmp_path / "mine.json"  # a gripper with no calibrated model: one line, exit 2, before any work
+    spec.write_text(json.dumps({"name": "mine"}))
+    with pytest.raises(SystemExit) as exit_:
+        mod.main(["--quick", "--grade", "pad_contact", "--gripper", str(spec), "--out", str(tmp_path / "bad")])
+    assert exit_.value.code == 2 and not (tmp_path / "bad").exists()
+    assert "no pad_contact grade model was fitted for gripper 'mine'" in capsys.readouterr().err
 
 
 def test_bench_scene_quick(tmp_path):

@@ -8,6 +8,10 @@ Grasps are drawn evenly over ten grade bins among each map's poses that clear th
 simulated with lift-and-place, and every grade is calibrated: ROC AUC, the threshold for
 the target precision and the Youden threshold (bootstrap intervals), precision and
 recall at 0.7, and the binned reliability curve.
+
+A calibrated grade is a gripper's: ``pad_contact`` is the model fitted for the maps'
+gripper (skipped, with a note, when none was fitted for it), and a model fitted for
+another gripper than a map's is refused before anything is simulated.
 """
 
 from __future__ import annotations
@@ -32,8 +36,8 @@ def register(subparsers) -> None:
     p.add_argument("--per-bin", type=int, default=20, metavar="N",
                    help="grasps per grade bin (ten bins) per map (default 20)")
     p.add_argument("--grade", action="append", metavar="NAME|FILE",
-                   help="extra grade beside the map's own: pad_contact or a model .json "
-                        "(repeatable; default: pad_contact)")
+                   help="extra grade beside the map's own: pad_contact (the model fitted for the "
+                        "maps' gripper) or a model .json (repeatable; default: pad_contact)")
     p.add_argument("--target", type=float, default=0.97, help="target precision (default 0.97)")
     p.add_argument("--friction", type=float, default=0.5, help="pad friction mu (default 0.5)")
     p.add_argument("--grip-force", type=float, metavar="N", help="grip force per jaw [N] (default: spec)")
@@ -51,7 +55,6 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from graspsim.calibration import CalibrationCase, SimCondition, calibrate, draw_samples, simulate_samples
     from graspsim.errors import InvalidParameterError
-    from graspsim.grades import get_grade
     from graspsim.maps import load_map
 
     if args.per_bin < 1:
@@ -62,7 +65,6 @@ def run(args) -> int:
         from graspsim._atomic import check_folder
 
         check_folder(args.out, "output folder")  # before the work, not after it
-    models = [get_grade(g) for g in (args.grade or ["pad_contact"])]
     names = [Path(m).stem for m in args.maps]
     if len(set(names)) != len(names):
         raise InvalidParameterError("map files must have distinct names")
@@ -70,6 +72,7 @@ def run(args) -> int:
     for path, name in zip(args.maps, names):
         gmap = load_map(path)
         cases.append(CalibrationCase(name, gmap, group=name, kind=gmap.meta.method))
+    models = _grade_models(args.grade, [c.gmap for c in cases], quiet=args.json)
     from graspsim.sim import ExecutionNoise
 
     cond = SimCondition("cli", friction=args.friction, grip_force=args.grip_force,
@@ -111,6 +114,33 @@ def run(args) -> int:
              f"{100 * rep.summary['success_rate']:.1f} %" + (f"; files in {args.out}" if args.out else ""))
     emit(summary, args.json, human)
     return 0
+
+
+def _grade_models(grades, maps, *, quiet: bool) -> list:
+    """The extra grade models, each checked against every map's gripper (GripperError:
+    a model fitted for another gripper). The default ``pad_contact`` is the maps'
+    gripper's model, left out with a note when none was fitted for it."""
+    from graspsim.errors import GripperError, InvalidParameterError
+    from graspsim.grades import get_grade
+    from graspsim.grades.models import check_gripper
+
+    grippers = sorted({str(g.meta.gripper.get("name")) for g in maps})
+    models = []
+    for g in grades or ["pad_contact"]:
+        if g == "pad_contact" and len(grippers) > 1:
+            raise InvalidParameterError(f"pad_contact is one gripper's model; the maps are of {grippers}")
+        try:
+            model = get_grade(g, gripper=grippers[0]) if g == "pad_contact" else get_grade(g)
+        except GripperError as err:
+            if grades:  # asked for by name: an error
+                raise
+            if not quiet:
+                print(f"note: {err}; only the maps' own grade is calibrated", file=sys.stderr)
+            continue
+        for gmap in maps:
+            check_gripper(model, gmap.meta.gripper)
+        models.append(model)
+    return models
 
 
 def _write(out: Path, table, rep, scores: dict) -> list[str]:

@@ -137,7 +137,7 @@ class TableTask(gym.Env):
         c = self.config
         obj_rng, place_rng, cloud_rng, sample_rng = rng.spawn(4)
         if shape is None:
-            drawn = draw_object(self.kinds, obj_rng, lying=c.lying)
+            drawn = draw_object(self.kinds, obj_rng, lying=c.lying, gripper=self.gripper)
         elif isinstance(shape, (Primitive, Compound)):
             drawn = DrawnObject("custom", shape)
         else:

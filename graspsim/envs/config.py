@@ -77,9 +77,9 @@ class EnvConfig:
         paper.
     gripper: the gripper: a registered name (``"festo_hgpl_25_60_a"``, ``"franka_hand"``),
         a spec .json or a :class:`~graspsim.gripper.GripperSpec`; its own FS maps (the
-        database keys maps by the gripper) and its own simulated model. The object sets'
-        size ranges were chosen for the Festo: a smaller gripper redraws objects it cannot
-        grasp (``max_redraws``).
+        database keys maps by the gripper) and its own simulated model. The objects' widths
+        are drawn within what it spans (:func:`graspsim.envs.objects.size_limits`: its
+        stroke; the Festo takes the sets' full ranges).
     """
 
     objects: str | tuple[str, ...] = "primitives"

@@ -6,6 +6,13 @@ up to ~11 cm) and (b) every dimension lies within the planner's scaling range (f
 3) of the database's reference shape of that primitive (``PAPER_SHAPES``), so a
 correctly identified object is always *familiar* or *known*, never missing.
 
+(a) is the gripper's: the widths a grasp must span (a box's side edges, a cylinder's,
+sphere's, cone's, mug's diameter) are drawn within :func:`size_limits` of the gripper,
+from its stroke (the widest chord: largest opening minus the approach clearance on both
+sides) down to its closed gap. The ranges above fit the HGPL-25-60 as they are, so its
+draws are the same; a smaller gripper (the Franka hand: 70 mm) gets the same objects up
+to what it can span.
+
 The object frame of the drawn shape is the one the simulator rests on the table:
 its +z stays up when that is stable (DESIGN.md §3). A cylinder is stood upright or,
 with probability ``lying``, laid on its side (a one-part :class:`Compound` whose part
@@ -25,12 +32,37 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graspsim.errors import InvalidParameterError
+from graspsim.errors import GripperError, InvalidParameterError
+from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.primitives import Box, Compound, Cone, Cylinder, HalfToroid, Primitive, Sphere
 from graspsim.transforms import make_transform
 
 __all__ = ["DrawnObject", "PRIMITIVE_KINDS", "COMPOUND_KINDS", "OBJECT_SETS", "resolve_object_set",
-           "draw_object"]
+           "draw_object", "SizeLimits", "size_limits"]
+
+
+@dataclass(frozen=True)
+class SizeLimits:
+    """The widths [m] a gripper can grasp across: ``widest`` (its largest opening minus
+    the approach clearance on both sides), ``narrowest`` (its closed pad gap)."""
+
+    widest: float
+    narrowest: float
+
+    def width(self, rng: np.random.Generator, lo: float, hi: float, what: str, per: float = 1.0) -> float:
+        """A dimension drawn uniformly from [lo, hi] cut to the limits; ``per``: widths
+        per unit of the dimension (2 for a radius)."""
+        a, b = max(lo, self.narrowest / per), min(hi, self.widest / per)
+        if a > b:
+            raise GripperError(f"the gripper takes widths {1000 * self.narrowest:g}-{1000 * self.widest:g} mm; "
+                               f"no {what} of the object set fits ({1000 * per * lo:g}-{1000 * per * hi:g} mm)")
+        return float(rng.uniform(a, b))
+
+
+def size_limits(gripper: GripperSpec | None = None) -> SizeLimits:
+    """What ``gripper`` (default the HGPL-25-60) can span (see :class:`SizeLimits`)."""
+    g = gripper or HGPL_25_60_A
+    return SizeLimits(widest=g.max_opening - 2.0 * g.approach_clearance, narrowest=g.min_opening)
 
 
 @dataclass(frozen=True)
@@ -61,32 +93,33 @@ def _lay_down(part: Primitive) -> Compound:
     return Compound.from_parts([part], make_transform(_rot_x(math.pi / 2), np.zeros(3))[None])
 
 
-def _box(rng, lying):
-    return Box(_u(rng, 0.03, 0.09), _u(rng, 0.03, 0.09), _u(rng, 0.04, 0.14)), "upright"
+def _box(rng, lying, lim):
+    return Box(lim.width(rng, 0.03, 0.09, "box side"), lim.width(rng, 0.03, 0.09, "box side"),
+               _u(rng, 0.04, 0.14)), "upright"
 
 
-def _cylinder(rng, lying):
-    c = Cylinder(_u(rng, 0.012, 0.04), _u(rng, 0.07, 0.20))
+def _cylinder(rng, lying, lim):
+    c = Cylinder(lim.width(rng, 0.012, 0.04, "cylinder diameter", 2.0), _u(rng, 0.07, 0.20))
     if rng.random() < lying:
         return _lay_down(c), "lying"
     return c, "upright"
 
 
-def _sphere(rng, lying):
-    return Sphere(_u(rng, 0.02, 0.05)), "upright"
+def _sphere(rng, lying, lim):
+    return Sphere(lim.width(rng, 0.02, 0.05, "sphere diameter", 2.0)), "upright"
 
 
-def _cone(rng, lying):
-    rb = _u(rng, 0.025, 0.05)
+def _cone(rng, lying, lim):
+    rb = lim.width(rng, 0.025, 0.05, "cone base diameter", 2.0)
     return Cone(rb, rb * _u(rng, 0.3, 0.7), _u(rng, 0.06, 0.12)), "upright"
 
 
-def _half_toroid(rng, lying):
+def _half_toroid(rng, lying, lim):
     R = _u(rng, 0.03, 0.06)
     return HalfToroid(R, _u(rng, 0.007, min(0.015, 0.3 * R))), "upright"
 
 
-def _bottle(rng, lying):
+def _bottle(rng, lying, lim):
     # a slim bottle with a long neck: identification splits stouter ones rarely (the
     # split's volume ratio stays above theta = 0.5), and then fails on the whole
     rb, hb = _u(rng, 0.025, 0.032), _u(rng, 0.068, 0.085)
@@ -96,8 +129,8 @@ def _bottle(rng, lying):
     return Compound.from_parts(parts, poses), "upright"
 
 
-def _mug(rng, lying):
-    r, h = _u(rng, 0.03, 0.04), _u(rng, 0.08, 0.11)
+def _mug(rng, lying, lim):
+    r, h = lim.width(rng, 0.03, 0.04, "mug diameter", 2.0), _u(rng, 0.08, 0.11)
     rm = _u(rng, 0.007, 0.01)
     handle = HalfToroid(_u(rng, 0.025, min(0.035, 0.5 * h - rm - 0.005)), rm)
     # the handle's ring lies in the mug's x-z plane and bulges out of +x: its geometric
@@ -110,7 +143,7 @@ def _mug(rng, lying):
     return Compound.from_parts(parts, [make_transform(np.eye(3), [0, 0, 0.5 * h]), T_handle]), "upright"
 
 
-def _hammer(rng, lying):
+def _hammer(rng, lying, lim):
     rh, lh = _u(rng, 0.012, 0.018), _u(rng, 0.14, 0.20)
     head = Box(_u(rng, 0.025, 0.035), _u(rng, 0.025, 0.035), _u(rng, 0.08, 0.11))
     # both parts lie on the table (z = 0 below them): the handle along x, the head's
@@ -148,9 +181,11 @@ def resolve_object_set(objects: str | tuple[str, ...] | list[str]) -> tuple[str,
     return tuple(kinds)
 
 
-def draw_object(kinds: tuple[str, ...], rng: np.random.Generator, *, lying: float = 0.5) -> DrawnObject:
-    """A random member of ``kinds`` (uniform over kinds) with random dimensions.
+def draw_object(kinds: tuple[str, ...], rng: np.random.Generator, *, lying: float = 0.5,
+                gripper: GripperSpec | None = None) -> DrawnObject:
+    """A random member of ``kinds`` (uniform over kinds) with random dimensions, the
+    widths within what ``gripper`` (default the HGPL-25-60) spans (:func:`size_limits`).
     lying: probability that a cylinder lies on its side."""
     kind = kinds[int(rng.integers(len(kinds)))]
-    shape, pose = _DRAW[kind](rng, lying)
+    shape, pose = _DRAW[kind](rng, lying, size_limits(gripper))
     return DrawnObject(kind, shape, pose)

@@ -11,11 +11,20 @@
 :func:`regrade` gives a map the grade of a model; the map records it in
 ``meta.quality``: ``name``, ``threshold``, ``d_ref``, the model (``grade_model``) and
 the quality it replaced (``base_quality``).
+
+A calibrated grade is a gripper's: its pad features and the outcomes it was fitted to
+are that gripper's. Each model names the gripper it was fitted for (``gripper``, with
+the spec's digest); ``"pad_contact"`` resolves to the model shipped for a map's gripper
+(:func:`model_path`: ``grade_model.json`` for the Festo HGPL-25-60-A,
+``grade_model.<gripper>.json`` for the others), and grading a map of another gripper
+with a model is a :class:`~graspsim.errors.GripperError`.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
+import logging
 import os
 from dataclasses import dataclass, field, replace
 from importlib import resources
@@ -24,19 +33,59 @@ from pathlib import Path
 import numpy as np
 from scipy.special import expit
 
-from graspsim.errors import InvalidParameterError
+from graspsim.errors import GripperError, InvalidParameterError
 from graspsim.grades.features import FEATURES, FeatureConfig, map_features
 from graspsim.quality import QualityModel
 
 __all__ = ["PaperGrade", "LogisticGrade", "get_grade", "regrade", "GRADE_NAMES",
-           "default_model_path"]
+           "default_model_path", "model_path", "gripper_identity", "check_gripper"]
 
 GRADE_NAMES = ("paper", "pad_contact")
+log = logging.getLogger(__name__)
+#: The gripper of the first shipped model (``grade_model.json``, fitted before models
+#: named their gripper: E12 at a577077 fitted it on Festo trials).
+FESTO = "festo_hgpl_25_60_a"
+
+
+def model_path(gripper: str = FESTO) -> Path:
+    """Where the calibrated model shipped for ``gripper`` (a name) lives:
+    ``graspsim/data/grade_model.json`` (the Festo's) or ``grade_model.<name>.json``."""
+    if not isinstance(gripper, str) or not gripper or "/" in gripper or "\\" in gripper:
+        raise GripperError(f"a grade model's gripper is a gripper name, got {gripper!r}")
+    name = "grade_model.json" if gripper == FESTO else f"grade_model.{gripper}.json"
+    return Path(str(resources.files("graspsim") / "data" / name))
 
 
 def default_model_path() -> Path:
-    """The shipped calibrated model (``graspsim/data/grade_model.json``)."""
-    return Path(str(resources.files("graspsim") / "data" / "grade_model.json"))
+    """The shipped calibrated model of the default (Festo) gripper."""
+    return model_path(FESTO)
+
+
+def gripper_identity(spec) -> dict:
+    """``{"name", "digest"}`` of a gripper (a ``GripperSpec`` or its dict): what a
+    fitted model records as the gripper it was fitted for."""
+    d = spec if isinstance(spec, dict) else spec.to_dict()
+    digest = hashlib.sha1(json.dumps(d, sort_keys=True).encode()).hexdigest()[:10]
+    return {"name": str(d.get("name")), "digest": digest}
+
+
+def check_gripper(model, gripper: dict) -> None:
+    """Refuse (GripperError) to grade grasps of ``gripper`` (a map's ``meta.gripper``)
+    with a model fitted for another gripper (a model that names none, an old file, is
+    the Festo's); the same name with another spec digest is logged as a warning. The
+    paper's grade (no ``gripper`` field) sees only the contacts: any gripper."""
+    if not hasattr(model, "gripper"):
+        return
+    fitted = model.gripper or {"name": FESTO}
+    name = str(gripper.get("name"))
+    if fitted.get("name") != name:
+        raise GripperError(
+            f"grade model {model.name!r} was fitted for gripper {fitted.get('name')!r}; the map is of "
+            f"{name!r} (fit one for it: python experiments/e12_fit_grade_model.py --gripper {name})")
+    digest = gripper_identity(gripper)["digest"]
+    if fitted.get("digest") not in (None, digest):
+        log.warning("grade model %r was fitted for another spec of gripper %r (digest %s, the map's %s)",
+                    model.name, name, fitted["digest"], digest)
 
 
 def _rows(gmap, rows):
@@ -80,8 +129,10 @@ class PaperGrade:
 class LogisticGrade:
     """grade = expit(intercept + sum_k coef_k (x_k - mean_k) / scale_k) over the named
     features; an estimate of P(success) under the protocol it was fitted to.
-    threshold: accepted above it. provenance: how it was fitted (script, seed, data,
-    MuJoCo version, cross-validated scores)."""
+    threshold: accepted above it. gripper: ``{"name", "digest"}`` of the gripper it was
+    fitted for (:func:`gripper_identity`; None: a file from before models named it,
+    the Festo's); maps of another gripper are refused. provenance: how it was fitted
+    (script, seed, data, MuJoCo version, cross-validated scores)."""
 
     name: str
     features: tuple[str, ...]
@@ -91,6 +142,7 @@ class LogisticGrade:
     intercept: float
     threshold: float = 0.5
     feature_config: FeatureConfig = FeatureConfig()
+    gripper: dict | None = field(default=None, compare=False, hash=False)
     provenance: dict = field(default_factory=dict, compare=False, hash=False)
 
     def __post_init__(self) -> None:
@@ -117,6 +169,7 @@ class LogisticGrade:
         return expit(z)
 
     def grade_rows(self, gmap, rows=None) -> np.ndarray:
+        check_gripper(self, gmap.meta.gripper)
         return self.score(map_features(gmap, self.features, rows, self.feature_config))
 
     def apply(self, gmap):
@@ -126,7 +179,9 @@ class LogisticGrade:
         return {"kind": "logistic", "name": self.name, "features": list(self.features),
                 "mean": list(self.mean), "scale": list(self.scale), "coef": list(self.coef),
                 "intercept": float(self.intercept), "threshold": float(self.threshold),
-                "feature_config": self.feature_config.to_dict(), "provenance": self.provenance}
+                "feature_config": self.feature_config.to_dict(),
+                **({"gripper": dict(self.gripper)} if self.gripper is not None else {}),
+                "provenance": self.provenance}
 
     @classmethod
     def from_dict(cls, d: dict) -> LogisticGrade:
@@ -137,8 +192,8 @@ class LogisticGrade:
                        coef=d["coef"], intercept=float(d["intercept"]),
                        threshold=float(d.get("threshold", 0.5)),
                        feature_config=FeatureConfig(**d.get("feature_config", {})),
-                       provenance=d.get("provenance", {}))
-        except (KeyError, TypeError) as err:
+                       gripper=_gripper_field(d.get("gripper")), provenance=d.get("provenance", {}))
+        except (KeyError, TypeError, AttributeError) as err:
             raise InvalidParameterError(f"bad logistic grade model: {err}") from err
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -157,13 +212,27 @@ class LogisticGrade:
         return cls.from_dict(d)
 
 
-def get_grade(spec: str | os.PathLike | None = "paper", quality: QualityModel | None = None):
+def _gripper_field(g) -> dict | None:
+    if g is None:
+        return None
+    if not isinstance(g, dict) or not isinstance(g.get("name"), str):
+        raise InvalidParameterError(f"a grade model's gripper is {{'name': ..., 'digest': ...}}, got {g!r}")
+    return {"name": g["name"], **({"digest": str(g["digest"])} if "digest" in g else {})}
+
+
+def get_grade(spec: str | os.PathLike | None = "paper", quality: QualityModel | None = None, *,
+              gripper: str | None = None):
     """A grade model: ``"paper"`` (the default; ``quality`` overrides its parameters),
-    ``"pad_contact"`` (the shipped calibrated model) or a path to a model JSON."""
+    ``"pad_contact"`` (the calibrated model shipped for ``gripper``, a name; default
+    the Festo's; a GripperError when none was fitted for it) or a path to a model JSON."""
     if spec is None or spec == "paper":
         return PaperGrade(quality or QualityModel())
     if spec == "pad_contact":
-        return LogisticGrade.load(default_model_path())
+        path = model_path(gripper or FESTO)
+        if not path.exists():
+            raise GripperError(f"no pad_contact grade model was fitted for gripper {gripper!r} (fit one: "
+                               f"python experiments/e12_fit_grade_model.py --gripper {gripper} --install)")
+        return LogisticGrade.load(path)
     p = Path(spec)
     if p.suffix == ".json" and p.exists():
         return LogisticGrade.load(p)

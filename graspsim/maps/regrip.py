@@ -26,6 +26,7 @@ The adapted map records B as its gripper and A under ``meta.extra["source_grippe
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import replace
 
@@ -40,6 +41,7 @@ from graspsim.maps.rowids import row_ids
 from graspsim.transforms import quat_to_matrix
 
 __all__ = ["adapt_to_gripper", "pad_depth"]
+log = logging.getLogger(__name__)
 
 
 def pad_depth(depth: np.ndarray, source: GripperSpec, target: GripperSpec) -> np.ndarray:
@@ -149,10 +151,26 @@ def adapt_to_gripper(gmap: GraspabilityMap, gripper: GripperSpec, *, config: Map
 
 def _regraded(gmap: GraspabilityMap) -> GraspabilityMap:
     """The map re-graded for its (new) gripper when its grade model depends on the
-    gripper (a recorded ``grade_model``); the paper's grade sees only the contacts."""
+    gripper (a recorded ``grade_model``); the paper's grade sees only the contacts.
+    A model fitted for another gripper is replaced by the one fitted for this gripper
+    (``pad_contact``: the one shipped for it) or, when there is none, by the paper's
+    grade the map was graded with before (logged)."""
     spec = gmap.meta.quality.get("grade_model")
     if not spec or not len(gmap):
         return gmap
-    from graspsim.grades.models import LogisticGrade
+    from graspsim.errors import GripperError
+    from graspsim.grades.models import FESTO, LogisticGrade, PaperGrade, get_grade
+    from graspsim.quality import QualityModel
 
-    return LogisticGrade.from_dict(spec).apply(gmap)
+    name = str(gmap.meta.gripper.get("name"))
+    model = LogisticGrade.from_dict(spec)
+    if (model.gripper or {"name": FESTO})["name"] != name:
+        try:
+            model = get_grade(model.name, gripper=name) if model.name == "pad_contact" else None
+        except GripperError:
+            model = None
+        if model is None:
+            log.warning("no %r grade model fitted for gripper %r: the adapted map takes the paper's grade",
+                        spec.get("name"), name)
+            model = PaperGrade(QualityModel.from_meta(gmap.meta.quality))
+    return model.apply(gmap)

@@ -17,7 +17,8 @@ mug's handle, a sphere's true radius). For each grasp of a map this module compu
   grasp, so scores are deterministic and comparable;
 * ``robust``: the expected success, ``robust_feasible`` x the calibrated success
   probability of the grasp's contacts (the shipped ``pad_contact`` grade model,
-  fitted on simulated trials with held-out objects), and 0 for a grasp that collides
+  fitted on simulated trials with held-out objects, for the map's gripper; the map's grade
+  where none was fitted for it), and 0 for a grasp that collides
   with the observed points (or the table) at its nominal pose.
 
 Scores are computed for the ``RobustConfig.top`` best-graded grasps (the rest stay NaN:
@@ -31,6 +32,8 @@ than one.
 from __future__ import annotations
 
 import functools
+import json
+import logging
 import math
 from dataclasses import asdict, dataclass, replace
 
@@ -41,6 +44,8 @@ from graspsim.errors import InvalidParameterError
 from graspsim.gripper import GripperSpec
 from graspsim.maps._robust_geometry import cloud_in_object, map_table, merged_boxes, object_points, table_rows
 from graspsim.transforms import make_transform, quat_to_matrix
+
+log = logging.getLogger(__name__)
 
 __all__ = ["RobustConfig", "RobustScores", "TERMS", "RANKS", "ABLATIONS", "ABLATION_LABELS",
            "POSITION_SIGMA", "ROTATION_SIGMA", "DEFAULT_OPENINGS", "wrist_perturbations", "score_rows", "score_map",
@@ -297,21 +302,38 @@ def score_poses(T_wrist: np.ndarray, width: np.ndarray, contacts: np.ndarray, no
 def _success(gmap, rows: np.ndarray, model: str) -> np.ndarray:
     if model == "none" or not len(rows):
         return np.ones(len(rows))
-    if model == "grade":
+    calibrated = _pad_contact(str(gmap.meta.gripper.get("name")))
+    if model == "grade" or calibrated is None:
         return gmap.grade[rows].astype(float)
     try:
-        return np.asarray(_pad_contact().grade_rows(gmap, rows), float)
+        return np.asarray(calibrated.grade_rows(gmap, rows), float)
     except InvalidParameterError:  # a mesh object: no primitive to compute pad features on
         return gmap.grade[rows].astype(float)
 
 
-@functools.lru_cache(maxsize=1)
-def _pad_contact():
-    """The shipped calibrated grade model, read once per process (a streaming planner
-    scores its first grasps within milliseconds)."""
+def success_source(gmap, model: str) -> str:
+    """What the robust score's success term of ``gmap`` is (for provenance)."""
+    if model != "pad_contact":
+        return model
+    name = str(gmap.meta.gripper.get("name"))
+    if _pad_contact(name) is None:
+        return f"grade (no pad_contact model fitted for gripper {name!r})"
+    return f"pad_contact fitted for {name!r}"
+
+
+@functools.lru_cache(maxsize=8)
+def _pad_contact(gripper: str):
+    """The calibrated grade model shipped for ``gripper`` (a name), read once per process
+    (a streaming planner scores its first grasps within milliseconds); None, with a
+    warning, when none was fitted for it: the map's own grade stands in."""
+    from graspsim.errors import GripperError
     from graspsim.grades import get_grade
 
-    return get_grade("pad_contact")
+    try:
+        return get_grade("pad_contact", gripper=gripper)
+    except GripperError as err:
+        log.warning("robust score: %s; the map's grade is the success term", err)
+        return None
 
 
 def score_map(gmap, cloud_obj: np.ndarray | None = None, config: RobustConfig = RobustConfig(), *,
@@ -335,6 +357,7 @@ def score_map(gmap, cloud_obj: np.ndarray | None = None, config: RobustConfig = 
     prov = {**config.to_dict(), "scored": int(np.isfinite(cols["robust"]).sum()), "cloud_points": n_cloud,
             "pivot": "nominal_tcp", "viewpoint": viewpoint is not None and config.occlusion,
             "model": "robust_feasible x success x (1 - occluded finger fraction); 0 if the nominal pose collides",
+            "success_model": success_source(gmap, config.success),
             "module": "graspsim.maps.robust"}
     out = replace(gmap, **cols)
     return out.with_meta(extra={**gmap.meta.extra, "robust": prov})

@@ -30,8 +30,8 @@ from graspsim.perception.scene import SceneConfig, plan_scene
 from graspsim.sim.camera import Camera, DepthNoise, backproject, rig
 from graspsim.sim.noise import ExecutionNoise
 
-__all__ = ["ClutterConfig", "Attempt", "ClutterResult", "run_clutter", "run_benchmark", "summarize",
-           "one_cluster_objects", "STOPS"]
+__all__ = ["ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame", "ClutterEpisode", "run_clutter",
+           "run_benchmark", "summarize", "one_cluster_objects", "STOPS"]
 
 #: Why an episode ended.
 STOPS = ("cleared", "failures", "no_grasp", "max_attempts")
@@ -156,64 +156,135 @@ def _target(per, seg: int, truth: np.ndarray) -> int | None:
     return int(np.bincount(t).argmax()) if len(t) else None
 
 
+@dataclass(frozen=True, eq=False)
+class ClutterFrame:
+    """What one look at the scene gives: the depth ``frame`` (colour too when asked),
+    its back-projected ``view``, the :class:`~graspsim.perception.scene.ScenePlan`
+    ``plan``, ``planning`` [s] (depth frame to ranked grasps), and of the objects seen
+    (ground truth), those segmented as one cluster."""
+
+    frame: object
+    view: object
+    plan: object
+    planning: float
+    seen: int
+    one_cluster: int
+
+
+class ClutterEpisode:
+    """One clutter-removal episode, stepped by its caller: the one implementation of
+    the protocol's render -> plan -> execute step and of its stopping rules, shared by
+    :func:`run_clutter` (which always executes the best grasp) and the Gymnasium env
+    ``graspsim/ClutterClear-v0`` (where a policy chooses).
+
+        ep = ClutterEpisode(scene, db=db, rng=rng)
+        while ep.stop is None:
+            look = ep.observe()            # None when it ended (cleared, no grasp)
+            if look is not None:
+                ep.execute(look, look.plan.best)
+        result = ep.result(); ep.close()
+
+    ``stop`` is None while it runs, then one of :data:`STOPS`: the table is clear, no
+    grasp with a robust score > 0 was found, ``max_failures`` consecutive grasps
+    failed, or ``max_attempts`` grasps were executed. Deterministic given ``rng``."""
+
+    def __init__(self, scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
+                 camera: Camera | None = None, rgb: bool = False):
+        self.config = cfg = config or ClutterConfig()
+        self.scene, self.db, self.rgb = scene, db, rgb
+        self.camera = camera or rig(1)[0]
+        self.cap = cfg.max_attempts or 2 * len(scene.objects) + 2
+        self._t0 = time.perf_counter()
+        self.sim = scene.sim()
+        self._depth_rng, self._plan_rng, self._exec_rng = rng.spawn(3)
+        self.attempts: list[Attempt] = []
+        self.failures = 0
+        self.first: tuple[int, int] | None = None
+        self.stop: str | None = None if self.sim.objects_left() else "cleared"
+
+    def render(self):
+        """A depth frame of the scene now (the sensor's noise drawn from the episode)."""
+        return self.sim.render(self.camera, noise=self.config.depth_noise, rng=self._depth_rng, rgb=self.rgb)
+
+    def observe(self) -> ClutterFrame | None:
+        """Render and plan the scene; None (and ``stop`` = "no_grasp") when no grasp has
+        a robust score > 0."""
+        if self.stop is not None:
+            raise InvalidParameterError(f"the episode has ended ({self.stop}); nothing to observe")
+        cfg = self.config
+        frame = self.render()
+        t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
+        view = backproject(frame)
+        truth = view.labels
+        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene,
+                        labels=truth if cfg.ground_truth else None)
+        planning = time.perf_counter() - t1
+        per = sp.perception
+        seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
+        if self.first is None:
+            self.first = (seen, one)
+        if sp.best is None:
+            self.stop = "no_grasp"
+            return None
+        return ClutterFrame(frame, view, sp, planning, seen, one)
+
+    def execute(self, look: ClutterFrame, grasp) -> Attempt:
+        """Execute ``grasp`` (a :class:`~graspsim.perception.scene.SceneGrasp` of
+        ``look.plan``) with the configured execution error, then apply the stopping rules."""
+        if self.stop is not None:
+            raise InvalidParameterError(f"the episode has ended ({self.stop}); no more grasps")
+        cfg = self.config
+        sp, truth = look.plan, look.view.labels
+        target = _target(sp.perception, grasp.segment, truth)
+        out = self.sim.execute(grasp.T_world_wrist, grasp.opening, target=target, noise=cfg.execution,
+                               rng=self._exec_rng if cfg.execution is not None else None)
+        a = Attempt(target, out.to_dict(), out.success, out.cause, grasp.score, look.planning, sp.timing,
+                    sp.perception.n_segments, look.seen, look.one_cluster)
+        self.attempts.append(a)
+        self.failures = 0 if out.success else self.failures + 1
+        if self.failures >= cfg.max_failures:
+            self.stop = "failures"
+        elif not self.sim.objects_left():
+            self.stop = "cleared"
+        elif len(self.attempts) >= self.cap:
+            self.stop = "max_attempts"
+        return a
+
+    @property
+    def removed(self) -> int:
+        return len(self.scene.objects) - len(self.sim.objects_left())
+
+    def result(self) -> ClutterResult:
+        first = self.first or (0, 0)
+        return ClutterResult(len(self.scene.objects), tuple(self.attempts), self.removed, self.stop or "max_attempts",
+                             first[0], first[1], time.perf_counter() - self._t0)
+
+    def close(self) -> None:
+        """Free the renderer (the simulation stays readable)."""
+        self.sim.close()
+
+
 def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
                 camera: Camera | None = None, on_step=None) -> ClutterResult:
     """One clutter-removal episode on ``scene`` (a :class:`~graspsim.sim.scenes.TableScene`)
     seen by ``camera`` (default: one D435-like camera, ``rig(1)``), planning against the
-    :class:`~graspsim.maps.database.MapDatabase` ``db``. Deterministic given ``rng``.
+    :class:`~graspsim.maps.database.MapDatabase` ``db``, executing the best grasp each
+    time (:class:`ClutterEpisode`). Deterministic given ``rng``.
     on_step(view, frame, plan, attempt): called after each executed grasp with the
     back-projected view, the depth frame (colour rendered too), the ScenePlan and the
     Attempt (e.g. to draw it: :func:`~graspsim.sim.clutter_figure.save_step_figure`)."""
-    cfg = config or ClutterConfig()
-    cam = camera or rig(1)[0]
-    t0 = time.perf_counter()
-    sim = scene.sim()
-    depth_rng, plan_rng, exec_rng = rng.spawn(3)
-    cap = cfg.max_attempts or 2 * len(scene.objects) + 2
-    attempts: list[Attempt] = []
-    first = None
-    failures, stop = 0, "max_attempts"
+    ep = ClutterEpisode(scene, db=db, rng=rng, config=config, camera=camera, rgb=on_step is not None)
     try:
-        while len(attempts) < cap:
-            if not sim.objects_left():
-                stop = "cleared"
+        while ep.stop is None:
+            look = ep.observe()
+            if look is None:
                 break
-            frame = sim.render(cam, noise=cfg.depth_noise, rng=depth_rng, rgb=on_step is not None)
-            t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
-            view = backproject(frame)
-            truth = view.labels
-            sp = plan_scene(view.world(), db=db, rng=plan_rng, config=cfg.scene,
-                            labels=truth if cfg.ground_truth else None)
-            planning = time.perf_counter() - t1
-            per = sp.perception
-            seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
-            if first is None:
-                first = (seen, one)
-            best = sp.best
-            if best is None:
-                stop = "no_grasp"
-                break
-            target = _target(per, best.segment, truth)
-            out = sim.execute(best.T_world_wrist, best.opening, target=target, noise=cfg.execution,
-                              rng=exec_rng if cfg.execution is not None else None)
-            a = Attempt(target, out.to_dict(), out.success, out.cause, best.score, planning, sp.timing,
-                        per.n_segments, seen, one)
-            attempts.append(a)
+            a = ep.execute(look, look.plan.best)
             if on_step is not None:
-                on_step(view, frame, sp, a)
-            failures = 0 if out.success else failures + 1
-            if failures >= cfg.max_failures:
-                stop = "failures"
-                break
-        else:
-            if not sim.objects_left():
-                stop = "cleared"
-        removed = len(scene.objects) - len(sim.objects_left())
+                on_step(look.view, look.frame, look.plan, a)
     finally:
-        sim.close()
-    first = first or (0, 0)
-    return ClutterResult(len(scene.objects), tuple(attempts), removed, stop, first[0], first[1],
-                         time.perf_counter() - t0)
+        ep.close()
+    return ep.result()
 
 
 def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, config: ClutterConfig | None = None,

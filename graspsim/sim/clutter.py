@@ -200,6 +200,7 @@ class ClutterEpisode:
         self.attempts: list[Attempt] = []
         self.failures = 0
         self.first: tuple[int, int] | None = None
+        self.last: ClutterFrame | None = None  # the latest look, also when it found no grasp
         self.stop: str | None = None if self.sim.objects_left() else "cleared"
 
     def render(self):
@@ -208,7 +209,7 @@ class ClutterEpisode:
 
     def observe(self) -> ClutterFrame | None:
         """Render and plan the scene; None (and ``stop`` = "no_grasp") when no grasp has
-        a robust score > 0."""
+        a robust score > 0 (``last`` holds that look all the same)."""
         if self.stop is not None:
             raise InvalidParameterError(f"the episode has ended ({self.stop}); nothing to observe")
         cfg = self.config
@@ -223,10 +224,11 @@ class ClutterEpisode:
         seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
         if self.first is None:
             self.first = (seen, one)
+        self.last = ClutterFrame(frame, view, sp, planning, seen, one)
         if sp.best is None:
             self.stop = "no_grasp"
             return None
-        return ClutterFrame(frame, view, sp, planning, seen, one)
+        return self.last
 
     def execute(self, look: ClutterFrame, grasp) -> Attempt:
         """Execute ``grasp`` (a :class:`~graspsim.perception.scene.SceneGrasp` of

@@ -57,10 +57,10 @@ def test_short_episode_rewards_are_lifts_and_it_ends_by_the_protocols_rules(kw):
     rewards, ended = [], False
     while not ended:
         obs, r, term, trunc, info = env.step(0)  # the robust best, as the benchmark does
-        assert r == float(info["success"]) and (info["picked"] is not None) == info["success"]
+        assert r == float(info["success"]) and (not info["success"] or info["picked"] == info["target"])
         rewards.append(r)
         ended = term or trunc
-    assert info["removed"] == sum(rewards) and info["attempts"] == len(rewards) <= 2 * 2 + 2
+    assert info["removed"] >= sum(rewards) and info["attempts"] == len(rewards) <= 2 * 2 + 2
     assert term != trunc and info["stop"] in ("cleared", "failures", "no_grasp", "max_attempts")
     assert trunc == (info["stop"] == "max_attempts")
     assert (info["stop"] == "cleared") == (info["objects_left"] == []) and not obs["action_mask"].any()

@@ -25,7 +25,10 @@ Observation (``Dict``):
   and :meth:`ClutterClearEnv.action_masks`);
 * ``depth`` (H, W) float32 [m], with ``depth_image=True``: the depth image (0: no depth).
 
-Action: ``Discrete(K)``. Reward: 1 when the grasp lifts an object out of the scene, else 0.
+Action: ``Discrete(K)``. Reward: 1 when the grasp lifts its target (the object most of
+the chosen segment's points show) out of the scene, else 0 -- the protocol's success; a
+grasp that lifts another object gets 0 (``info["outcome"] == "success_other_object"``),
+though that object leaves the scene too.
 Termination: the table is clear, ``max_failures`` (2) consecutive grasps failed, or no
 grasp with a robust score > 0 is left; also a masked (invalid) choice, which ends the
 episode with reward 0 and ``info["outcome"] == "invalid_action"`` without a grasp.

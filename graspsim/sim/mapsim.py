@@ -43,12 +43,14 @@ log = logging.getLogger(__name__)
 class MapTrials:
     """Results of simulating some rows of a map: ``index`` (n,) the map rows, in the
     order of ``results``; ``scene`` the compiled scene; ``group`` where they were
-    written (None if not written)."""
+    written (None if not written); ``width`` (n,) their contact widths [m] (the map
+    need not be read again to draw them)."""
 
     index: np.ndarray
     results: TrialResults
     scene: Scene
     group: str | None
+    width: np.ndarray | None = None
 
 
 def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int | None = None,
@@ -205,4 +207,4 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     results = replace(results, extra={"map_file": str(path),
                                       "mesh": None if mesh is None else str(mesh)})
     group = write_results(path, len(gmap), index, results) if write and len(index) else None
-    return MapTrials(index=index, results=results, scene=scene, group=group)
+    return MapTrials(index=index, results=results, scene=scene, group=group, width=chosen.width.copy())

@@ -7,7 +7,7 @@ is valid. Importing it loads no mujoco (validating the object set does).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.generate import MapConfig
@@ -74,13 +74,9 @@ class ClutterEnvConfig:
         for name in ("depth_image", "depth_noise", "execution_error", "neighbours"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidParameterError(f"{name} must be True or False, got {getattr(self, name)!r}")
-        if self.map_config is not None and not isinstance(self.map_config, MapConfig):
-            raise InvalidParameterError(f"map_config must be a MapConfig or None, got {self.map_config!r}")
-        if self.db_root is not None:
-            object.__setattr__(self, "db_root", str(self.db_root))
-        from graspsim.grippers import get_gripper
+        from graspsim.envs.config import check_database_fields
 
-        get_gripper(self.gripper)  # raises GripperError (an InvalidParameterError) on a bad one
+        check_database_fields(self)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -90,14 +86,8 @@ class ClutterEnvConfig:
 
 
 def make_clutter_config(config: ClutterEnvConfig | None = None, **kwargs) -> ClutterEnvConfig:
-    """``config`` (or the defaults) with ``kwargs`` overriding fields; unknown names
-    raise :class:`InvalidParameterError` listing the valid ones."""
-    valid = {f.name for f in fields(ClutterEnvConfig)}
-    unknown = sorted(set(kwargs) - valid)
-    if unknown:
-        raise InvalidParameterError(f"unknown environment option(s) {unknown}; valid: {sorted(valid)}")
-    if config is not None and not isinstance(config, ClutterEnvConfig):
-        raise InvalidParameterError(f"config must be a ClutterEnvConfig, got {type(config).__name__}")
-    d = {} if config is None else {f.name: getattr(config, f.name) for f in fields(ClutterEnvConfig)}
-    d.update(kwargs)
-    return ClutterEnvConfig(**d)
+    """``config`` (or the defaults) with ``kwargs`` overriding fields (see
+    :func:`graspsim.envs.config.make_config`)."""
+    from graspsim.envs.config import make_config
+
+    return make_config(config, ClutterEnvConfig, **kwargs)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from graspsim.transforms import frame_from_axes, matrix_to_quat
+from graspsim.viewer.camera import BrowserView
 from graspsim.viewer.glyphs import PART_COLOURS, box_mesh, colormap, fork_glyph, gripper_wireframe
 
 __all__ = ["SceneViewer", "SEGMENT_COLOURS", "CLOUD_COLOUR"]
@@ -53,8 +54,8 @@ class SceneViewer:
         scene.set_up_direction("+z")
         scene.configure_default_lights(cast_shadow=False)
         scene.add_light_hemisphere("/light", intensity=0.6)
+        self.view = BrowserView(server)
         self._aim()
-        server.on_client_connect(self._on_connect)
         self.refresh()
 
     # ------------------------------------------------------------------ static scene
@@ -81,22 +82,12 @@ class SceneViewer:
     def _aim(self) -> None:
         """New browsers look at the objects from the depth camera's side, at half its distance."""
         eye = np.asarray(self.look.frame.camera.T_world_camera, float)[:3, 3]
-        eye = self.centre + 0.5 * (eye - self.centre)
-        self._camera = {"position": tuple(float(x) for x in eye), "look_at": tuple(float(x) for x in self.centre)}
-        cam = self.server.initial_camera
-        cam.near = 0.001
-        for k, v in self._camera.items():
-            setattr(cam, k, v)
+        self.view.aim(self.centre + 0.5 * (eye - self.centre), self.centre)
 
     @property
     def camera(self) -> tuple[tuple, tuple]:
         """(position, look_at) [m] of the view new browsers get."""
-        return self._camera["position"], self._camera["look_at"]
-
-    def _on_connect(self, client) -> None:
-        client.camera.near = 0.001
-        for k, v in self._camera.items():
-            setattr(client.camera, k, v)
+        return self.view.pose
 
     # ------------------------------------------------------------------ GUI and grasps
     def _build_gui(self, top_k: int) -> None:

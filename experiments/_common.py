@@ -218,8 +218,8 @@ class RunRecord:
         """Write ``out/summary.json`` (:meth:`summary` of ``data``), ``out/README.md``
         (``readme_section(summary)``), ``out/config.json`` (``config``, or
         ``data["config"]``) and, with ``publish`` (default: the record's),
-        ``experiments/reported/<stem>.json``. Returns the markdown ("" without
-        ``readme_section``)."""
+        ``experiments/reported/<key>.json`` (:meth:`report_key`). Returns the markdown
+        ("" without ``readme_section``)."""
         publish = self.publish if publish is None else publish
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
@@ -233,8 +233,15 @@ class RunRecord:
             write_text(out / "README.md", text)
         if publish:
             (EXPERIMENTS / "reported").mkdir(parents=True, exist_ok=True)
-            write_json(EXPERIMENTS / "reported" / f"{self.stem}.json", summary)
+            write_json(EXPERIMENTS / "reported" / f"{self.report_key(out)}.json", summary)
         return text
+
+    def report_key(self, out: str | Path) -> str:
+        """The reported JSON's name: ``STEM.VARIANT`` when the results folder is
+        ``STEM.VARIANT`` (a second configuration of the script, as ``experiments/report.py``
+        names its blocks), else the script's stem."""
+        name = Path(out).name
+        return name if name.startswith(f"{self.stem}.") and len(name) > len(self.stem) + 1 else self.stem
 
 
 def machine_load(summary: dict) -> tuple[list, list]:

@@ -35,7 +35,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunRecord, machine_load, opt, parse_config, run_fresh
+from _common import NAMED, machine_load, opt, run_fresh, start
 
 log = logging.getLogger("bench_scene")
 
@@ -145,12 +145,10 @@ def table(groups: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    cfg, opts = parse_config(BenchConfig, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    record = RunRecord(__file__, argv)
+    cfg, out, record = start(BenchConfig, __file__, argv, __doc__, log_format=NAMED)
     res = run(cfg)
-    record.write(opts.out, {"config": cfg, **res}, readme_section, publish=opts.publish)
-    print(readme_section(json.loads((Path(opts.out) / "summary.json").read_text())))
+    record.write(out, {"config": cfg, **res}, readme_section)
+    print(readme_section(json.loads((out / "summary.json").read_text())))
     return 0
 
 

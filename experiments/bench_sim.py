@@ -43,7 +43,7 @@ from graspsim.sim.batch import initial_states, pregrasp_opening, simulate
 from graspsim.sim.testing import grasp_pose
 
 log = logging.getLogger("bench_sim")
-BREAD = Path(__file__).resolve().parents[1] / "assets/objects/robosuite/bread.stl"
+BREAD = Path(__file__).resolve().parents[1] / "graspsim/assets/objects/robosuite/bread.stl"
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 

@@ -26,7 +26,7 @@ scenes it finished (``complete`` says whether it did).
 from __future__ import annotations
 
 import logging
-import shutil
+import signal
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -35,22 +35,23 @@ from pathlib import Path
 from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
 from _common import (
-    RunRecord,
     database_note,
     database_record,
     experiment_database,
     map_config,
     opt,
-    parse_config,
     pct,
     rate_ci,
+    start,
 )
 
-from graspsim.errors import SimulationError
+from graspsim.errors import MapDatabaseError, SimulationError
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import generate_fs_map
 from graspsim.perception.scene import SceneConfig
-from graspsim.sim.clutter import ClutterConfig, run_benchmark, summarize
+from graspsim.sim.clutter import OTHER, ClutterConfig, run_benchmark, summarize
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.stats import wilson_interval
 
@@ -61,6 +62,8 @@ ABLATIONS = ("no_neighbours", "ground_truth")
 @dataclass(frozen=True)
 class Config:
     scenes: int = opt(50, "scenes per condition")
+    others: int = opt(0, "scenes of the conditions outside the goals (other sizes, ablations; 0: --scenes)")
+    goal_objects: int = opt(5, "objects per scene of the goal conditions (--others does not cut them)")
     block: int = opt(2, "scenes per condition between summary updates")
     objects: tuple[int, ...] = opt((5, 10), "objects per scene")
     kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
@@ -72,10 +75,11 @@ class Config:
     seed: int = opt(0, "run seed")
     quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
-    workers: int = opt(1, "processes; results do not depend on it (each condition plans against its own "
-                       "linked copy of the database)")
+    grid: bool = opt(True, "store FS maps of a size grid (GRID) in the database before the first scene")
+    workers: int = opt(1, "processes; results do not depend on it (the database is read only during the run)")
     QUICK: ClassVar[dict] = {"scenes": 1, "block": 1, "objects": (2,), "kinds": ("packed",), "noise": ("none",),
-                             "ablations": ("ground_truth",), "ablation_objects": (2,), "quick_maps": True}
+                             "ablations": ("ground_truth",), "ablation_objects": (2,), "quick_maps": True,
+                             "grid": False}
 
 
 def conditions(cfg: Config) -> list[dict]:
@@ -104,36 +108,36 @@ def _row(c: dict, results: list) -> dict:
 
 
 def main(argv=None) -> int:
-    cfg, opts = parse_config(Config, __file__, argv, __doc__)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    run = RunRecord(__file__, argv)
-    out = Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
+    cfg, out, run = start(Config, __file__, argv, __doc__)
     db = experiment_database(cfg.db, out, map_config(cfg.quick_maps))
-    db_start = database_record(db)
+    empty = build_grid(db) if cfg.grid else []  # the maps the run plans from, before the first scene
+    db_start = {**database_record(db), "grid_without_grasps": empty}
     conds = conditions(cfg)
-    # each condition grows its own database (maps built for parts on first use), so a
-    # condition's results depend neither on the others nor on the process running it
-    roots = []
-    for i in range(len(conds)):
-        shutil.rmtree(out / f"fsdb-{i}", ignore_errors=True)
-        roots.append(str(db.linked_copy(out / f"fsdb-{i}").root))
+    goal = [target(cfg, c) for c in conds]
     done: list[list] = [[] for _ in conds]
     skipped: list[list] = [[] for _ in conds]
+    built: list[set] = [set() for _ in conds]
     pool = ProcessPoolExecutor(cfg.workers, mp_context=get_context("spawn")) if cfg.workers > 1 else None
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill PID: stop as Ctrl-C does
+    text = ""
     try:
-        for start in range(0, cfg.scenes, cfg.block):
-            n = min(cfg.block, cfg.scenes - start)
-            tasks = [(c, cfg, root, start, n) for c, root in zip(conds, roots)]
+        for first in range(0, max(goal), cfg.block):
+            todo = [i for i, g in enumerate(goal) if g > first]
+            tasks = [(conds[i], cfg, str(db.root), first, min(cfg.block, goal[i] - first)) for i in todo]
             blocks = pool.map(_block, tasks) if pool is not None else map(_block, tasks)
-            for c, results, lost, (new, miss) in zip(conds, done, skipped, blocks):
-                results += new
-                lost += miss
-                log.info("%s: %d scenes", c, len(results))
-            data = {"config": cfg, "complete": start + n >= cfg.scenes, "scenes_done": start + n,
-                    "conditions": [{**_row(c, r), "skipped": k} for c, r, k in zip(conds, done, skipped)],
-                    "database": {"start": db_start, "end": _grown(db_start, roots)}}
-            text = run.write(out, data, readme_section, publish=opts.publish)
+            for i, (new, miss, keys) in zip(todo, blocks):
+                done[i] += new
+                skipped[i] += miss
+                built[i] |= keys
+            log.info("scenes done per condition: %s", [len(d) + len(k) for d, k in zip(done, skipped)])
+            data = _data(cfg, conds, goal, done, skipped, built, db_start, database_record(db))
+            text = run.write(out, data, readme_section)
+    except KeyboardInterrupt:  # the blocks finished so far are in the summary already (complete: false)
+        log.warning("interrupted: %s holds the blocks finished before", out / "summary.json")
+        if pool is not None:
+            pool.shutdown(wait=False, cancel_futures=True)
+            pool = None
+        return 130
     finally:
         if pool is not None:
             pool.shutdown()
@@ -141,30 +145,108 @@ def main(argv=None) -> int:
     return 0
 
 
-def _grown(start: dict, roots: list[str]) -> dict:
-    """The database record at the end: the start's maps and every map a condition added."""
-    maps = set(start["maps"])
-    for r in roots:
-        maps |= set(database_record(MapDatabase(r))["maps"])
-    return {"root": start["root"], "maps": sorted(maps)}
+def target(cfg: Config, c: dict) -> int:
+    """Scenes a condition runs: ``scenes`` for the goal conditions (``goal_objects``
+    objects, the full method), ``others`` (if > 0) for the rest."""
+    return cfg.scenes if (c["objects"] == cfg.goal_objects and c["ablation"] is None) or not cfg.others \
+        else min(cfg.others, cfg.scenes)
 
 
-def _block(task) -> tuple[list, list]:
-    """Scenes start .. start + n - 1 of a condition, against its database: (results,
-    skipped scenes). A scene that cannot be drawn (it does not settle on the table) or
-    whose simulation fails is skipped and said so; the same scene is then skipped in
-    every condition of its kind and size that fails the same way."""
-    c, cfg, root, start, n = task
-    db = MapDatabase(root, config=map_config(cfg.quick_maps))
+def _data(cfg: Config, conds: list, goal: list, done: list, skipped: list, built: list, db_start: dict,
+          db_end: dict) -> dict:
+    """The summary's data so far: per condition its scenes asked (``target``) and
+    whether they all ran (``complete``)."""
+    counts = [len(d) + len(k) for d, k in zip(done, skipped)]
+    return {"config": cfg, "complete": all(n >= g for n, g in zip(counts, goal)),
+            "conditions": [{**_row(c, r), "target": g, "complete": n >= g, "skipped": k,
+                            "built_in_memory": sorted(b)}
+                           for c, r, g, n, k, b in zip(conds, done, goal, counts, skipped, built)],
+            "database": {"start": db_start, "end": db_end}}
+
+
+class RunDatabase(MapDatabase):
+    """The run's database, read only: a part no stored map serves within the scaling
+    range gets its FS map built in memory (kept in this process, never stored), so
+    every scene plans against the same stored maps whatever ran before it. ``built``:
+    the keys of the maps built so."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.built: set[str] = set()
+        self._memory: dict = {}
+
+    def get(self, shape, *, build: bool = True, threads: int | None = None):
+        if self.contains(shape) or not build:
+            return super().get(shape, build=build, threads=threads)
+        key = self.key(shape)
+        if key not in self._memory:
+            gmap = generate_fs_map(shape, self.gripper, self.quality, self.config, threads=threads)
+            self._memory[key] = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # as stored: best first
+            self.built.add(key)
+            while len(self._memory) > 8:
+                self._memory.pop(next(iter(self._memory)))
+        return self._memory[key]
+
+
+#: the size grid of the run's database (the paper's five shapes besides): every
+#: dimension in steps of x4, so a part from 0.5 mm to 29 cm is within a ratio of 2 of a
+#: stored map on every dimension (the planner scales maps by up to 3)
+GRID = (0.0015, 0.006, 0.024, 0.096)
+
+
+def grid_shapes(config) -> list:
+    """The primitives of the run's database besides the paper's shapes: boxes with
+    sorted sides (identification orders them), cylinders, spheres, cones (tops down to
+    0.4 mm: identified cones are often pointed) and half-toroids of :data:`GRID` sizes,
+    those larger than the surface step of the map config ``config``."""
+    from itertools import combinations_with_replacement as cwr
+
+    from graspsim.primitives import make_primitive
+
+    g = GRID
+    out = [make_primitive("box", x=x, y=y, z=z) for x, y, z in cwr(g, 3)]
+    out += [make_primitive("cylinder", radius=r, height=h) for r in g for h in g]
+    out += [make_primitive("sphere", radius=r) for r in g[1:]]
+    out += [make_primitive("cone", bottom_radius=b, top_radius=t, height=h) for b in g[1:]
+            for t in (0.0004, *g) if t <= b for h in g[1:]]
+    out += [make_primitive("half_toroid", major_radius=a, minor_radius=b) for a in g for b in g if b < a]
+    return [s for s in out if s.size_scale > config.surface_step]
+
+
+def build_grid(db) -> list[str]:
+    """Store the maps of :func:`grid_shapes` in ``db`` (those stored already are kept);
+    returns the shapes that have no grasp at all (e.g. a 1.5 mm disc 19 cm wide),
+    which are not stored."""
+    empty = []
+    for shape in grid_shapes(db.config):
+        if db.contains(shape):
+            continue
+        try:
+            db.add(shape, threads=2)
+        except MapDatabaseError as err:
+            if "no grasps" not in str(err):
+                raise
+            empty.append(str(shape))
+    return empty
+
+
+def _block(task) -> tuple[list, list, set]:
+    """Scenes first .. first + n - 1 of a condition, against the run's database:
+    (results, skipped scenes, keys of maps built in memory). A scene that cannot be
+    drawn (it does not settle on the table) or whose simulation fails is skipped and
+    said so; the same scene is then skipped in every condition of its kind and size
+    that fails the same way."""
+    c, cfg, root, first, n = task
+    db = RunDatabase(root, config=map_config(cfg.quick_maps))
     out, skipped = [], []
-    for i in range(start, start + n):
+    for i in range(first, first + n):
         try:
             out += run_benchmark(c["objects"], c["kind"], 1, cfg.seed, db=db, config=_clutter_config(c),
                                  object_set=cfg.object_set, first=i)
         except SimulationError as err:
             log.warning("%s scene %d skipped: %s", c, i, err)
             skipped.append({"scene": i, "reason": str(err)})
-    return out, skipped
+    return out, skipped, db.built
 
 
 def _label(c: dict) -> str:
@@ -175,35 +257,53 @@ def _label(c: dict) -> str:
     return "with execution error" if c["noise"] == "default" else "no execution error"
 
 
+def _memory_note(rows: list) -> str:
+    keys = {k for r in rows for k in r.get("built_in_memory", ())}
+    return f" {len(keys)} FS maps were built in memory during the run (parts no stored map serves; not stored)." \
+        if "built_in_memory" in rows[0] else ""
+
+
+def _median(spread: dict | None) -> str:
+    if not spread or spread.get("median") is None:
+        return "n/a"
+    return f"{spread['median']:.2f} s ({spread['count']})"
+
+
 def readme_section(s: dict) -> str:
     """The README's E10 block (see ``experiments/report.py``)."""
     rows = s["conditions"]
-    sizes = sorted({r["scenes"] for r in rows})
-    L = [f"`{s['command']}`: {'/'.join(map(str, sizes))} scenes per condition"
-         + ("" if s.get("complete") else " (the run was cut short: the scenes finished so far)")
-         + f", objects from the \"{s['config']['object_set']}\" set, one D435-like depth camera with sensor noise; "
-         "grasps until the table is clear, two failures in a row, or no grasp found. GSR = lifts / grasps, "
-         "DR = objects removed / placed (95 % Wilson intervals; grasps of one scene are correlated, so the "
-         "intervals understate the spread between scenes).", "",
-         "| scene | objects | condition | scenes | GSR | DR | cleared scenes | one cluster (first frame) | "
-         "planning per grasp (median) | failure causes |", "|---|---|---|---|---|---|---|---|---|---|"]
+    short = [r for r in rows if not r.get("complete", s.get("complete"))]
+    L = [f"`{s['command']}`: the scenes per condition are in the table"
+         + ("" if not short else f" ({len(short)} of {len(rows)} conditions did not run all the scenes asked: "
+            "the run was cut short, each row holds the scenes it finished)")
+         + f"; objects from the \"{s['config']['object_set']}\" set, one D435-like depth camera with sensor noise; "
+         "grasps until the table is clear, two failures in a row, or no grasp found. GSR = grasps that lifted "
+         "their target / grasps; a grasp that lifted another object is no success (its own column; the object "
+         "leaves the table and counts in DR). DR = objects removed / placed (95 % Wilson intervals; grasps of "
+         "one scene are correlated, so the intervals understate the spread between scenes). Planning per grasp: "
+         "median seconds from the depth frame to the ranked grasps of the whole scene, in the first frame of a "
+         "scene and in later frames (which reuse the plans of segments that did not change).", "",
+         "| scene | objects | condition | scenes (of asked) | GSR | other object lifted | DR | cleared scenes | "
+         "one cluster (first frame) | planning: first frame / later | failure causes |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        causes = ", ".join(f"{k} {v}" for k, v in r["failure_causes"].items()) or "-"
+        causes = ", ".join(f"{k} {v}" for k, v in r["failure_causes"].items() if k != OTHER) or "-"
         seg = r["segmentation"]
-        med = r["planning_s"]["median"]
-        L.append(f"| {r['kind']} | {r['objects']} | {_label(r)} | {r['scenes']} | "
+        p = r["planning_s"]
+        L.append(f"| {r['kind']} | {r['objects']} | {_label(r)} | {r['scenes']} ({r.get('target', '-')}) | "
                  f"{rate_ci(r['successes'], r['attempts'], r['gsr_interval_95'])} | "
+                 f"{r.get('other_objects', 'n/a')} | "
                  f"{rate_ci(r['removed'], r['placed'], r['cleared_interval_95'])} | {r['scenes_cleared']} | "
                  f"{pct(seg['share'], 0)} % ({seg['one_cluster']}/{seg['objects_seen']}) | "
-                 f"{'n/a' if med is None else f'{med:.2f} s'} | {causes} |")
+                 f"{_median(p.get('first_frame'))} / {_median(p.get('later_frames'))} | {causes} |")
     lost = [(r, k) for r in rows for k in r.get("skipped", [])]
     if lost:
         L += ["", "Skipped (not counted above): " + "; ".join(
             f"{r['kind']} {r['objects']} {_label(r)}, scene {k['scene']}: {k['reason']}" for r, k in lost) + "."]
     L += ["", "Where the planning time goes (median seconds per grasp, `plan_scene`'s stages; the planning "
           "column above also counts the back-projection): table fit, segmentation, identification of every "
-          "segment, maps and robust scores of every segment (including FS maps built for parts no stored map "
-          "covers, on first use):", "",
+          "segment, maps and robust scores of every segment (including FS maps built in memory for parts no "
+          "stored map serves):", "",
           "| scene | objects | condition | table | segmentation | identification | maps + scores | total |",
           "|---|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -214,8 +314,9 @@ def readme_section(s: dict) -> str:
     m = s["machine"]
     L += ["", f"Planning = depth frame to ranked grasps for the whole scene (table, segmentation, identification "
           f"of every segment, maps, robust scores against the scene), measured at load "
-          f"{m['load_avg_start'][0] if m.get('load_avg_start') else 'n/a'} on {m['cpus']} cores."
-          + database_note(s)]
+          f"{m['load_avg_start'][0] if m.get('load_avg_start') else 'n/a'} (start) to "
+          f"{m['load_avg_end'][0] if m.get('load_avg_end') else 'n/a'} (end) on {m['cpus']} cores."
+          + database_note(s) + _memory_note(rows)]
     return "\n".join(L) + "\n"
 
 

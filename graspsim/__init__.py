@@ -29,8 +29,8 @@ The names users reach for first are here, one import away::
 
 Only the errors are imported eagerly; every other name is imported on first use (PEP 562
 ``__getattr__``), so ``import graspsim`` loads neither trimesh, scipy, numba nor mujoco.
-It registers the Gymnasium environments ``graspsim/GraspSelect-v0`` and
-``graspsim/GraspPose-v0`` (by entry-point strings, and only once gymnasium itself is
+It registers the Gymnasium environments ``graspsim/GraspSelect-v0``,
+``graspsim/GraspPose-v0`` and ``graspsim/ClutterClear-v0`` (by entry-point strings, and only once gymnasium itself is
 imported, so that this import stays light: see :mod:`graspsim.envs`).
 """
 

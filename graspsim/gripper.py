@@ -86,7 +86,7 @@ class GripperSpec:
     # pneumatic efficiency x pressure x piston area above. Left out of ``to_dict`` when
     # None, so the digests of specs without it do not change.
     rated_force: float | None = None
-    # The vendored MuJoCo model that simulates this gripper (folder ``mjcf/<model>/``,
+    # The vendored MuJoCo model that simulates this gripper (folder ``graspsim/mjcf/<model>/``,
     # see graspsim.grippers); None: the box model generated from this spec. Left out of
     # ``to_dict`` when None.
     model: str | None = None

@@ -70,3 +70,19 @@ def test_top_executes_the_best_by_the_chosen_ranking(tmp_path, capsys):
 
     assert select_grasps(load_map(path), top=4).tolist() == [0, 1, 2, 3]
     assert select_grasps(load_map(path), top=4, rank="paper").tolist() == [3, 2, 1, 0]
+
+
+def test_trial_reads_the_map_once_in_full(tmp_path, capsys, monkeypatch):
+    """--grip-force (the friction from the map's header), --gripper and --render read the
+    header or nothing more: the grasps are read once, by the simulation."""
+    import graspsim.maps.io as io
+
+    reads = []
+    real = io._check_memory
+    monkeypatch.setattr(io, "_check_memory", lambda f, n, path: (reads.append(n), real(f, n, path))[1])
+    path = _map(tmp_path, n=6)
+    assert main(["trial", str(path), "--top", "2", "--threads", "1", "--grip-force", "100", "--gripper",
+                 "festo_hgpl_25_60_a", "--render", str(tmp_path / "r"), "--render-count", "1", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["trials"] == 2 and summary["renders"]
+    assert sorted(reads) == [0, 6]  # the header once (no rows), the whole map once

@@ -53,7 +53,7 @@ def test_the_single_view_sees_the_near_side_only():
 def test_e09_quick_on_the_vendored_mesh(tmp_path):
     e09 = _e09()
     out = tmp_path / "e09"
-    assert e09.main(["--quick", "--objects-dir", str(ROOT / "assets" / "objects"), "--out", str(out)]) == 0
+    assert e09.main(["--quick", "--objects-dir", str(ROOT / "graspsim" / "assets" / "objects"), "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     (row,) = s["objects"]
     assert row["object"] == "robosuite/bread.stl" and row["fits"]

@@ -422,7 +422,38 @@ def test_e10_quick_clutter_removal_counts_add_up(tmp_path):
         eps = r["episodes"]
         assert r["scenes"] == len(eps) == 1
         assert r["attempts"] == sum(e["attempts"] for e in eps) == r["successes"] + sum(r["failure_causes"].values())
-        assert r["removed"] == sum(e["removed"] for e in eps) == r["successes"] <= r["placed"] == 2
+        assert r["removed"] == sum(e["removed"] for e in eps) == r["successes"] + r["other_objects"] <= r["placed"]
+        assert r["placed"] == 2 and r["complete"] and r["target"] == 1
         assert r["segmentation"]["objects_seen"] >= r["segmentation"]["one_cluster"]
+        p = r["planning_s"]
+        assert p["first_frame"]["count"] == 1 and p["first_frame"]["count"] + p["later_frames"]["count"] == p["count"]
     assert s["conditions"][1]["ablation"] == "ground_truth"
+    assert s["database"]["start"]["maps"] == s["database"]["end"]["maps"]  # nothing stored during the run
     assert s["command"] in mod.readme_section(s) == (out / "README.md").read_text().rstrip("\n") + "\n"
+
+
+def test_e10_run_database_builds_missing_maps_in_memory_only(tmp_path):
+    """The run's database never grows: a part no stored map serves gets its map built in
+    memory, the same map a stored build gives, and the index and folder stay as they were."""
+    from graspsim.maps.database import MapDatabase
+    from graspsim.primitives import Box
+
+    mod = _load("e10_clutter_removal")
+    cfg = mod.map_config(True)
+    MapDatabase(tmp_path / "db", config=cfg).build([Box(0.06, 0.06, 0.06)])
+    files = sorted(p.name for p in (tmp_path / "db").rglob("*"))
+    run = mod.RunDatabase(tmp_path / "db", config=cfg)
+    m = run.get(Box(0.03, 0.04, 0.05))
+    assert sorted(p.name for p in (tmp_path / "db").rglob("*")) == files and len(run.entries()) == 1
+    assert run.built == {run.key(Box(0.03, 0.04, 0.05))} and run.get(Box(0.03, 0.04, 0.05)) is m
+    ref = MapDatabase(tmp_path / "ref", config=cfg).get(Box(0.03, 0.04, 0.05))
+    assert len(m) == len(ref) and np.array_equal(m.grade, ref.grade) and np.array_equal(m.T_obj_wrist, ref.T_obj_wrist)
+
+
+def test_e10_others_cut_only_the_conditions_outside_the_goals():
+    mod = _load("e10_clutter_removal")
+    cfg = mod.Config(scenes=50, others=20)
+    got = {(c["kind"], c["objects"], c["noise"], c["ablation"]): mod.target(cfg, c) for c in mod.conditions(cfg)}
+    assert got[("pile", 5, "none", None)] == got[("packed", 5, "default", None)] == 50
+    assert got[("pile", 10, "none", None)] == got[("pile", 5, "none", "ground_truth")] == 20
+    assert mod.target(mod.Config(scenes=50), {"objects": 10, "ablation": None}) == 50

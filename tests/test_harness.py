@@ -100,6 +100,21 @@ def test_start_is_mains_preamble(tmp_path, monkeypatch):
     assert not (tmp_path / "experiments" / "reported" / "e98_y.json").exists()
 
 
+def test_publishing_a_variant_writes_its_own_reported_json(tmp_path, monkeypatch):
+    """--out results/STEM.VARIANT --publish -> experiments/reported/STEM.VARIANT.json; the
+    script's own STEM.json stays as it was."""
+    monkeypatch.setattr(h, "EXPERIMENTS", tmp_path / "experiments")
+    reported = tmp_path / "experiments" / "reported"
+    reported.mkdir(parents=True)
+    (reported / "e99_x.json").write_text('{"kept": true}\n')
+    out = tmp_path / "results" / "e99_x.noise"
+    _, _, run = h.start(Cfg, "experiments/e99_x.py", ["--quick", "--out", str(out), "--publish"], "doc")
+    run.write(out, {"config": Cfg()})
+    assert json.loads((reported / "e99_x.noise.json").read_text())["experiment"] == "e99_x"
+    assert json.loads((reported / "e99_x.json").read_text()) == {"kept": True}
+    assert run.report_key(tmp_path / "e99_xy") == run.report_key(tmp_path / "e99_x.") == "e99_x"
+
+
 def test_machine_load_reads_old_and_new_summaries():
     assert h.machine_load({"machine": {"load_before": [1.0], "load_after": [2.0]}}) == ([1.0], [2.0])
     assert h.machine_load({"machine": {"load_avg_start": [3.0], "load_avg_end": [4.0]}}) == ([3.0], [4.0])

@@ -72,4 +72,4 @@ def test_envs_registered_in_either_import_order_without_mujoco(order):
     code = (f"import sys, {order}\nimport gymnasium\n"
             "assert 'mujoco' not in sys.modules\n"
             "print(sorted(i for i in gymnasium.registry if i.startswith('graspsim/')))")
-    assert _run(code).strip() == "['graspsim/GraspPose-v0', 'graspsim/GraspSelect-v0']"
+    assert _run(code).strip() == "['graspsim/ClutterClear-v0', 'graspsim/GraspPose-v0', 'graspsim/GraspSelect-v0']"

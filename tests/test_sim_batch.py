@@ -170,7 +170,7 @@ def test_bad_inputs_are_rejected(box_scene):
 def test_a_coacd_decomposed_mesh_object_can_be_grasped(mesh_cache):
     from pathlib import Path
 
-    bread = Path(__file__).resolve().parents[1] / "assets/objects/robosuite/bread.stl"
+    bread = Path(__file__).resolve().parents[1] / "graspsim/assets/objects/robosuite/bread.stl"
     obj = object_from_mesh(bread, cache_dir=mesh_cache)
     assert len(obj.geoms) >= 2  # really decomposed
     scene = build_scene(obj)

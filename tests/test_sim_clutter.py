@@ -13,7 +13,7 @@ from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
 from graspsim.primitives import Box, Cylinder, Sphere
 from graspsim.sim.clutter import STOPS, ClutterConfig, one_cluster_objects, run_benchmark, run_clutter, summarize
-from graspsim.sim.scenes import make_scene
+from graspsim.sim.scenes import load_scene, make_scene
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
 FAST_FLAGS = ["--surface-step", "0.01", "--rotation-step-deg", "22"]
@@ -46,12 +46,12 @@ def test_clutter_episode_is_deterministic_and_its_counts_add_up(db):
                        for s in r.to_dict()["steps"]]
     assert strip(a) == strip(b) and a.stop == b.stop and a.removed == b.removed
     assert a.stop in STOPS and a.placed == 2
-    assert a.removed == a.successes <= len(a.attempts) <= 2 * 2 + 2
+    assert a.removed == a.successes + a.other_objects and a.successes <= len(a.attempts) <= 2 * 2 + 2
     assert a.declutter_rate == a.removed / 2
     assert a.first_seen == 2 and a.first_one_cluster == 2  # packed, >= 1 cm apart
     assert a.stop != "cleared" or a.removed == 2
     for s in a.attempts:
-        assert s.planning > 0 and s.timing["total"] <= s.planning + 1e-6 and s.success == s.cause.startswith("success")
+        assert s.planning > 0 and s.timing["total"] <= s.planning + 1e-6 and s.success == (s.cause == "success")
 
 
 def test_benchmark_pairs_scenes_across_conditions_and_summarises(db):
@@ -79,12 +79,13 @@ def test_benchmark_pairs_scenes_across_conditions_and_summarises(db):
 def test_cli_scene_json_and_renders(tmp_path, capsys, db):
     code = main(["scene", "--objects", "2", "--kind", "packed", "--object-set", "primitives", "--seed", "1",
                  "--max-attempts", "2", "--db", str(db.root), *FAST_FLAGS, "--render", str(tmp_path / "r"),
-                 "--json"])
+                 "--save-scenes", str(tmp_path / "s"), "--json"])
     s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert code == 0 and s["scenes"] == 1 and s["placed"] == 2
     assert s["grasp_success_rate"] == s["successes"] / s["attempts"] and s["cleared_rate"] == s["removed"] / 2
     assert len(s["details"]) == 1 and s["details"][0]["attempts"] == s["attempts"]
     assert len(list((tmp_path / "r").glob("scene000_step*.png"))) == s["attempts"]
+    assert [o.name for o in load_scene(tmp_path / "s" / "scene000.json").objects] == s["details"][0]["objects"]
 
 
 @pytest.mark.parametrize("args, message", [

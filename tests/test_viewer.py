@@ -412,3 +412,95 @@ def test_clicking_a_glyph_in_chromium_picks_that_grasp(tmp_path):
             _end(proc)
             stop(server)
     assert v.picked == 0 and "**grade**" in v.g_details.content
+
+
+# ---------------------------------------------------------------- scene mode
+@pytest.fixture(scope="module")
+def scene_db(tmp_path_factory):
+    import math
+
+    from graspsim.maps.database import MapDatabase
+    from graspsim.maps.generate import MapConfig
+    from graspsim.primitives import Box, Sphere
+
+    db = MapDatabase(tmp_path_factory.mktemp("scenedb"),
+                     config=MapConfig(surface_step=0.01, rotation_step=math.radians(22)))
+    db.build([Box(0.06, 0.06, 0.06), Sphere(0.035)])
+    return db
+
+
+@pytest.fixture(scope="module")
+def scene_file(tmp_path_factory):
+    from graspsim.sim.scenes import make_scene, save_scene
+
+    path = tmp_path_factory.mktemp("scene") / "packed.json"
+    save_scene(make_scene(3, "packed", 1, object_set="primitives"), path)
+    return path
+
+
+SCENE_FLAGS = ["--surface-step", "0.01", "--rotation-step-deg", "22"]
+
+
+@needs_viser
+def test_scene_mode_colours_segments_and_draws_each_objects_top_k_and_the_chosen_grasp(scene_file, scene_db):
+    from graspsim.viewer import show_scene
+    from graspsim.viewer.scene_view import SEGMENT_COLOURS
+
+    server = show_scene(scene_file, db=scene_db, port=0, top_k=2)
+    try:
+        v = server.graspsim_viewer
+        per, plan = v.per, v.plan
+        assert per.n_segments == 3 and len(v.segments.points) == len(per.points)
+        colours = v.point_colours()
+        for k in range(per.n_segments):  # every segment's points in its own colour
+            assert np.all(colours[per.segment == k] == SEGMENT_COLOURS[k])
+        # the table plate lies on the fitted plane (z = 0 up to the fit) and faces up
+        assert abs(v.table.position[2]) < 0.005
+        drawn = v.drawn
+        assert all(sum(g.segment == k for g in drawn) == min(2, sum(g.segment == k for g in plan.grasps))
+                   for k in range(per.n_segments))
+        assert plan.best is not None and plan.best in drawn and plan.best.score == max(g.score for g in plan.grasps)
+        v.g_top.value = 1  # the slider: one grasp per object, each the object's best
+        assert [g.segment for g in v.drawn] == sorted({g.segment for g in plan.grasps}, key=[
+            g.segment for g in plan.grasps].index)
+        assert "| 0 |" in v.segment_table() and "planned" in v.segment_table()
+    finally:
+        stop(server)
+
+
+@needs_viser
+def test_screenshot_of_a_scene_shows_its_segments_in_their_colours(scene_file, scene_db):
+    _chromium_or_skip()
+    from graspsim.viewer import show_scene
+    from graspsim.viewer.scene_view import SEGMENT_COLOURS
+    from graspsim.viewer.snapshot import browser_render
+
+    server = show_scene(scene_file, db=scene_db, port=0)
+    try:
+        img = browser_render(server, size=(300, 400), camera=server.graspsim_viewer.camera, timeout=120)
+    finally:
+        stop(server)
+    assert img.shape == (300, 400, 3) and img.std() > 10
+    for k in range(3):  # each object's points, coloured by its segment
+        assert _hue_share(img, SEGMENT_COLOURS[k]) > 0.002, k
+
+
+@needs_viser
+def test_view_scene_command_screenshot_and_one_line_errors(scene_file, scene_db, tmp_path, capsys):
+    base = ["view", "--scene", str(scene_file), "--db", str(scene_db.root), *SCENE_FLAGS, "--port", "0"]
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")
+    for argv, words in ((["view"], "one of them"), (["view", "x.h5", "--scene", str(scene_file)], "one of them"),
+                        ([*base, "--cloud", "c.pcd"], "--cloud belong to a map"),
+                        (["view", "--scene", str(bad)], "not a table scene")):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and words in err, err
+    from graspsim.viewer.snapshot import find_browser
+
+    if find_browser() is None:
+        return
+    png = tmp_path / "scene.png"
+    assert main([*base, "--screenshot", str(png), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert png.stat().st_size > 0 and s["segments"] == 3 and s["objects"] == 3 and s["chosen"]["score"] > 0

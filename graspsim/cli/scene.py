@@ -2,7 +2,7 @@
 
     graspsim scene [--objects N] [--scenes S] [--kind pile|packed] [--object-set SET]
                    [--noise] [--no-neighbours] [--ground-truth] [--max-attempts M]
-                   [--seed S] [--db DIR] [--render DIR] [--json]
+                   [--seed S] [--db DIR] [--render DIR] [--save-scenes DIR] [--json]
 
 Each scene is drawn and settled in MuJoCo, rendered by one D435-like depth camera, and
 cleared grasp by grasp (:mod:`graspsim.sim.clutter`): segment, plan every object, execute
@@ -37,6 +37,7 @@ def _cmd_scene(args) -> int:
     if args.object_set not in OBJECT_SETS:
         raise InvalidParameterError(f"--object-set {args.object_set!r} unknown; valid: {sorted(OBJECT_SETS)}")
     render = check_folder(args.render, "render folder") if args.render else None
+    saves = check_folder(args.save_scenes, "scene folder") if args.save_scenes else None
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
         raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
     cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours),
@@ -51,6 +52,11 @@ def _cmd_scene(args) -> int:
     details = []
 
     def on_scene(i, scene, result):
+        if saves is not None:  # for 'graspsim view --scene'
+            from graspsim.sim.scenes import save_scene
+
+            saves.mkdir(parents=True, exist_ok=True)
+            save_scene(scene, saves / f"scene{i:03d}.json")
         details.append({"scene": i, "seed": scene.seed, "objects": [o.name for o in scene.objects],
                         **result.to_dict()})
 
@@ -111,6 +117,8 @@ def register(sub) -> None:
                    "~/.cache/graspsim/db)")
     p.add_argument("--render", default=None, metavar="DIR",
                    help="write a picture of every grasp (colour, depth, segments, the grasp) into DIR")
+    p.add_argument("--save-scenes", default=None, metavar="DIR",
+                   help="write every scene as DIR/sceneNNN.json (for 'graspsim view --scene')")
     _add_generation(p)
     add_json_flag(p)
     p.set_defaults(func=_cmd_scene)

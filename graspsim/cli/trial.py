@@ -98,8 +98,11 @@ def run(args) -> int:
 
         check_output(args.record, "trial recording")
         recorder = Recorder()
+    # the map's header (no rows) for the checks; simulate_map reads the map once in full
+    header = load_map(args.map, rows=slice(0, 0)).meta if args.gripper is not None or (
+        args.grip_force is not None and args.friction is None) else None
     if args.gripper is not None:
-        _check_gripper(gripper_from_args(args), load_map(args.map, rows=slice(0, 0)).meta.gripper_spec)
+        _check_gripper(gripper_from_args(args), header.gripper_spec)
     if args.mesh is not None:
         from graspsim.sim.meshes import check_mesh_path
 
@@ -108,7 +111,7 @@ def run(args) -> int:
     if args.friction is not None or args.grip_force is not None:
         mu = args.friction
         if mu is None:
-            mu = float(load_map(args.map).meta.quality.get("friction", 0.5))
+            mu = float(header.quality.get("friction", 0.5))
         settings = SimSettings(friction=mu, grip_force=args.grip_force)
     protocol = make_protocol(args.protocol)
     bar = progress(None, "trials", enabled=not args.json and sys.stderr.isatty(), unit="trial")
@@ -153,12 +156,10 @@ def run(args) -> int:
 def _render(args, out, protocol) -> list[str]:
     """Pictures and GIFs of the first ``--render-count`` trials that started (not in
     collision) into ``--render``; their paths."""
-    from graspsim.maps import load_map
-    from graspsim.maps.robust import executed_width
     from graspsim.sim import TrialOutcome
     from graspsim.sim.render import render_trial
 
-    res, gmap = out.results, load_map(args.map)
+    res = out.results
     renders, shown = [], 0
     for j in range(len(out.index)):
         if shown == args.render_count:
@@ -167,7 +168,7 @@ def _render(args, out, protocol) -> list[str]:
         if res.outcome[j] == TrialOutcome.START_COLLISION:
             continue
         shown += 1
-        paths = render_trial(out.scene, None, float(executed_width(gmap, [i])[0]), args.render, protocol,
+        paths = render_trial(out.scene, None, float(out.width[j]), args.render, protocol,
                              name=f"grasp{i:06d}", gif=True, T_world_wrist=res.T_world_wrist[j])
         renders += [str(p) for p in paths]
     return renders

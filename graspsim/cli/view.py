@@ -2,11 +2,15 @@
 
     graspsim view MAP.h5 [--cloud CLOUD] [--mesh MESH] [--replay TRIALS.npz]
                   [--port P] [--host H] [--max-drawn N] [--screenshot PNG]
+    graspsim view --scene SCENE.json [--db DIR] [--seed S] [--top K] [generation flags]
 
 Prints the URL and serves until Ctrl-C (then stops the server and exits 0). A map
 file the viewer cannot read is refused with the same error as ``graspsim info``;
 without viser the command says how to install it. ``--screenshot`` opens the page in
-headless Chromium, saves what it draws and exits (no serving).
+headless Chromium, saves what it draws and exits (no serving). ``--scene`` shows a
+table-top scene (a file of ``graspsim scene --save-scenes DIR``) as the depth camera saw it
+and the planner planned it (:mod:`graspsim.viewer.scene_view`): the cloud coloured by
+segment, the table, each object's top K grasps and the chosen one.
 """
 
 from __future__ import annotations
@@ -14,7 +18,8 @@ from __future__ import annotations
 import sys
 import time
 
-from graspsim.cli._common import add_json_flag, emit
+from graspsim.cli._common import add_json_flag, emit, seed_value
+from graspsim.cli.maps import _add_generation
 
 __all__ = ["register", "run"]
 
@@ -27,7 +32,13 @@ def register(subparsers) -> None:
                     "grade, robust score or simulated outcome, with filters; click a grasp for its "
                     "numbers and the full gripper. Ctrl-C stops it. Needs the 'viewer' extra: "
                     "pip install 'graspsim[viewer]'.")
-    p.add_argument("map", metavar="MAP.h5", help="graspability map file")
+    p.add_argument("map", metavar="MAP.h5", nargs="?", help="graspability map file (or --scene)")
+    p.add_argument("--scene", metavar="SCENE.json", help="show a table-top scene instead: rendered, "
+                   "segmented and planned once (its top K grasps per object, default 3)")
+    p.add_argument("--db", default=None, help="with --scene: the FS map database folder (default $GRASPSIM_DB or "
+                   "~/.cache/graspsim/db)")
+    p.add_argument("--seed", type=seed_value, default=0, help="with --scene: random seed of the render's noise "
+                   "and the planning (0)")
     p.add_argument("--cloud", metavar="CLOUD", help="the observed cloud (.pcd/.ply/.npy/.xyz), cloud frame")
     p.add_argument("--mesh", metavar="MESH", help="the true mesh (.obj/.stl/.ply ...), cloud frame")
     p.add_argument("--replay", metavar="TRIALS.npz",
@@ -44,6 +55,7 @@ def register(subparsers) -> None:
                    help="draw at most N grasps (default 2000; the filters use all)")
     p.add_argument("--screenshot", metavar="PNG",
                    help="save what headless Chromium draws to PNG and exit instead of serving")
+    _add_generation(p)
     add_json_flag(p)
     p.set_defaults(func=run)
 
@@ -58,19 +70,30 @@ def run(args) -> int:
         raise InvalidParameterError(f"--port must be in 0..65535, got {args.port}")
     if args.max_drawn < 1 or args.top < 0:
         raise InvalidParameterError(f"--max-drawn must be >= 1 and --top >= 0, got {args.max_drawn}, {args.top}")
+    if (args.map is None) == (args.scene is None):
+        raise InvalidParameterError("give a map file or --scene SCENE.json, one of them")
+    mapped = [f for f, v in (("--cloud", args.cloud), ("--mesh", args.mesh), ("--replay", args.replay),
+                              ("--pick", args.pick)) if v is not None]
+    if args.scene is not None and mapped:
+        raise InvalidParameterError(f"{', '.join(mapped)} belong to a map, not to --scene")
     if args.screenshot:
         from graspsim._atomic import check_output
 
         check_output(args.screenshot, "screenshot")
     _quiet_server_logs()
-    server = show(args.map, cloud=args.cloud, mesh=args.mesh, recording=args.replay, host=args.host,
-                  port=args.port, max_drawn=args.max_drawn, min_grade=args.min_grade, colour=args.colour,
-                  top_k=args.top, pick=args.pick)
-    ready = time.perf_counter() - t0
+    if args.scene is not None:
+        server, summary, banner = _show_scene(args)
+    else:
+        server = show(args.map, cloud=args.cloud, mesh=args.mesh, recording=args.replay, host=args.host,
+                      port=args.port, max_drawn=args.max_drawn, min_grade=args.min_grade, colour=args.colour,
+                      top_k=args.top, pick=args.pick)
+        viewer = server.graspsim_viewer
+        summary = {"file": args.map, "grasps": len(viewer.gmap), "drawn": len(viewer.rows),
+                   "selected": len(viewer.selected_rows)}
+        banner = f"{len(viewer.rows):,} of {len(viewer.gmap):,} grasps drawn"
     url = f"http://{'localhost' if args.host in ('0.0.0.0', '127.0.0.1') else args.host}:{server.get_port()}"
     viewer = server.graspsim_viewer
-    summary = {"file": args.map, "url": url, "grasps": len(viewer.gmap), "drawn": len(viewer.rows),
-               "selected": len(viewer.selected_rows), "ready_s": ready}
+    summary = {**summary, "url": url, "ready_s": time.perf_counter() - t0}
     try:
         if args.screenshot:
             from graspsim.viewer.snapshot import browser_render, save_png
@@ -81,21 +104,40 @@ def run(args) -> int:
             summary.update(screenshot=args.screenshot, frame_s=time.perf_counter() - t0,
                            browser_connect_s=browser.get("connect_s"), browser_frame_s=browser.get("frame_s"))
         else:
-            _serve(url, viewer, args.json)
+            _serve(url, banner, args.json)
     finally:
         _stop_uninterrupted(server)
     emit(summary, args.json, f"wrote {args.screenshot}" if args.screenshot else "graspsim view: stopped")
     return 0
 
 
-def _serve(url: str, viewer, as_json: bool) -> None:
+def _show_scene(args):
+    """The scene viewer's server, its summary and banner."""
+    from graspsim.cli._common import gripper_from_args
+    from graspsim.cli.maps import _config
+    from graspsim.maps.database import MapDatabase
+    from graspsim.sim.scenes import load_scene
+    from graspsim.viewer import show_scene
+
+    scene = load_scene(args.scene)  # a bad file fails before the database is touched
+    map_cfg, quality = _config(args)
+    db = MapDatabase(args.db, gripper=gripper_from_args(args), quality=quality, config=map_cfg)
+    server = show_scene(scene, db=db, seed=args.seed, top_k=args.top or 3, host=args.host, port=args.port)
+    v = server.graspsim_viewer
+    best = v.plan.best
+    summary = {"scene": args.scene, "objects": len(scene.objects), "segments": v.per.n_segments,
+               "grasps": len(v.plan.grasps), "drawn": len(v.drawn), "chosen": None if best is None else
+               {"segment": best.segment, "score": best.score, "grade": best.grade}}
+    return server, summary, f"{v.per.n_segments} segments, {len(v.drawn)} grasps drawn"
+
+
+def _serve(url: str, banner: str, as_json: bool) -> None:
     """Print the URL (stdout, or stderr under --json) and serve until Ctrl-C."""
     try:
         if as_json:
             print(f"graspsim view: {url}", file=sys.stderr, flush=True)
         else:
-            print(f"graspsim view: {url}  ({len(viewer.rows):,} of {len(viewer.gmap):,} grasps drawn; "
-                  "Ctrl-C stops)", flush=True)
+            print(f"graspsim view: {url}  ({banner}; Ctrl-C stops)", flush=True)
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:

@@ -5,8 +5,11 @@
   a one-step contextual bandit with an action mask.
 * ``graspsim/GraspPose-v0`` (:class:`~graspsim.envs.grasp_pose.GraspPoseEnv`): propose a
   wrist pose (continuous action) for the same task.
+* ``graspsim/ClutterClear-v0`` (:class:`~graspsim.envs.clutter_clear.ClutterClearEnv`):
+  clear a table-top scene of several objects seen by a depth camera, one chosen grasp
+  per step (the clutter-removal protocol of :mod:`graspsim.sim.clutter`).
 
-Both are registered by ``import graspsim`` (Gymnasium 1.x loads no plugin entry points),
+All are registered by ``import graspsim`` (Gymnasium 1.x loads no plugin entry points),
 by entry-point strings, so importing graspsim does not import mujoco. Nor does it import
 gymnasium (with numpy, ~0.1 s): when gymnasium is not loaded yet, a one-shot import hook
 registers the environments right after gymnasium's own import, so
@@ -22,13 +25,15 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["GRASP_SELECT_ID", "GRASP_POSE_ID", "register_envs", "register_when_imported",
-           "GraspSelectEnv", "GraspPoseEnv", "EnvConfig"]
+__all__ = ["GRASP_SELECT_ID", "GRASP_POSE_ID", "CLUTTER_CLEAR_ID", "register_envs", "register_when_imported",
+           "GraspSelectEnv", "GraspPoseEnv", "ClutterClearEnv", "EnvConfig"]
 
 GRASP_SELECT_ID = "graspsim/GraspSelect-v0"
 GRASP_POSE_ID = "graspsim/GraspPose-v0"
+CLUTTER_CLEAR_ID = "graspsim/ClutterClear-v0"
 _ENTRY_POINTS = {GRASP_SELECT_ID: "graspsim.envs.grasp_select:GraspSelectEnv",
-                 GRASP_POSE_ID: "graspsim.envs.grasp_pose:GraspPoseEnv"}
+                 GRASP_POSE_ID: "graspsim.envs.grasp_pose:GraspPoseEnv",
+                 CLUTTER_CLEAR_ID: "graspsim.envs.clutter_clear:ClutterClearEnv"}
 
 
 def register_envs() -> None:
@@ -37,7 +42,7 @@ def register_envs() -> None:
 
     for env_id, entry in _ENTRY_POINTS.items():
         if env_id not in gymnasium.registry:
-            # one step per episode: the env ends it itself, no TimeLimit needed
+            # each env ends its episodes itself (ClutterClear truncates at its attempt limit): no TimeLimit
             gymnasium.register(id=env_id, entry_point=entry, disable_env_checker=False)
 
 
@@ -82,6 +87,10 @@ def __getattr__(name: str):
         from graspsim.envs.grasp_pose import GraspPoseEnv
 
         return GraspPoseEnv
+    if name == "ClutterClearEnv":
+        from graspsim.envs.clutter_clear import ClutterClearEnv
+
+        return ClutterClearEnv
     if name == "EnvConfig":
         from graspsim.envs.config import EnvConfig
 

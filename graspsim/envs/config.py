@@ -153,13 +153,7 @@ class EnvConfig:
             raise InvalidParameterError(
                 f"openings must be extra gaps per side in [0, 0.05] m (0.0: the map's opening), got {self.openings!r}")
         object.__setattr__(self, "openings", openings)
-        if self.map_config is not None and not isinstance(self.map_config, MapConfig):
-            raise InvalidParameterError(f"map_config must be a MapConfig or None, got {self.map_config!r}")
-        if self.db_root is not None:
-            object.__setattr__(self, "db_root", str(self.db_root))
-        from graspsim.grippers import get_gripper
-
-        get_gripper(self.gripper)  # raises GripperError (an InvalidParameterError) on a bad one
+        check_database_fields(self)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -172,17 +166,30 @@ class EnvConfig:
         return d
 
 
-def make_config(config: EnvConfig | None = None, **kwargs) -> EnvConfig:
-    """``config`` (or the defaults) with ``kwargs`` overriding fields; unknown names
-    raise :class:`InvalidParameterError` listing the valid ones."""
-    valid = {f.name for f in fields(EnvConfig)}
+def check_database_fields(cfg) -> None:
+    """The map database fields every env's settings share: ``map_config`` (a MapConfig
+    or None), ``db_root`` (made a str), ``gripper`` (a name, spec .json or spec)."""
+    if cfg.map_config is not None and not isinstance(cfg.map_config, MapConfig):
+        raise InvalidParameterError(f"map_config must be a MapConfig or None, got {cfg.map_config!r}")
+    if cfg.db_root is not None:
+        object.__setattr__(cfg, "db_root", str(cfg.db_root))
+    from graspsim.grippers import get_gripper
+
+    get_gripper(cfg.gripper)  # raises GripperError (an InvalidParameterError) on a bad one
+
+
+def make_config(config=None, kind: type = EnvConfig, /, **kwargs):
+    """``config`` (or the defaults) of the settings dataclass ``kind`` (EnvConfig, or
+    another env's) with ``kwargs`` overriding fields; unknown names raise
+    :class:`InvalidParameterError` listing the valid ones."""
+    valid = {f.name for f in fields(kind)}
     unknown = sorted(set(kwargs) - valid)
     if unknown:
         raise InvalidParameterError(f"unknown environment option(s) {unknown}; valid: {sorted(valid)}")
     if config is None:
-        return EnvConfig(**kwargs)
-    if not isinstance(config, EnvConfig):
-        raise InvalidParameterError(f"config must be an EnvConfig, got {type(config).__name__}")
-    d = {f.name: getattr(config, f.name) for f in fields(EnvConfig)}
+        return kind(**kwargs)
+    if not isinstance(config, kind):
+        raise InvalidParameterError(f"config must be a {kind.__name__}, got {type(config).__name__}")
+    d = {f.name: getattr(config, f.name) for f in fields(kind)}
     d.update(kwargs)
-    return EnvConfig(**d)
+    return kind(**d)

@@ -36,6 +36,7 @@ from graspsim.perception.identify import Identification, identify
 from graspsim.perception.mvbb import min_volume_box
 from graspsim.perception.plane import PlaneFit, fit_table
 from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
+from graspsim.perception.scene_reuse import SegmentMemory, find_previous, nothing_new, reused_grasps
 from graspsim.perception.segment import cluster_radius, euclidean_clusters
 from graspsim.planner import PlannerConfig, PlanResult, plan_stream
 from graspsim.primitives import Box
@@ -62,7 +63,9 @@ class SceneConfig:
     neighbours' identified primitives added to the check (their unseen sides);
     per_segment: grasps scored per segment at most; enough: planning of a segment
     stops at this many grasps with a robust score > 0; keep: grasps per segment in the
-    scene ranking; clearance [m]: the gripper's clearance above the table; up: the
+    scene ranking; clearance [m]: the gripper's clearance above the table; reuse_tol
+    [m]: how far points may move between frames for a segment to count as unchanged
+    (``plan_scene(previous=...)``); up: the
     table's upward direction if known (cloud frame)."""
 
     planner: PlannerConfig = field(default_factory=PlannerConfig)
@@ -81,10 +84,12 @@ class SceneConfig:
     enough: int = 32
     keep: int = 10
     clearance: float = 0.002
+    reuse_tol: float = 0.005
     up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
 
     def __post_init__(self) -> None:
-        for k in ("plane_sigma", "table_band", "max_height", "voxel", "max_radius", "reach", "solid_step"):
+        for k in ("plane_sigma", "table_band", "max_height", "voxel", "max_radius", "reach", "solid_step",
+                  "reuse_tol"):
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InvalidParameterError(f"SceneConfig.{k} must be > 0 m, got {v!r}")
@@ -146,7 +151,7 @@ class SceneGrasp:
 
 @dataclass(frozen=True, eq=False)
 class SegmentPlan:
-    """One segment's planning: points (count), status ("planned": grasps found,
+    """One segment's planning: points (count), status ("planned": grasps found, "reused": the previous frame's,
     "no_grasp", "failed": identification could not run, with ``reason``), the primitives
     identified, grasps scored, seconds."""
 
@@ -168,13 +173,15 @@ class ScenePlan:
     """perception; table: the fitted plane as the planner used it; segments:
     per-segment planning; grasps: every segment's best ``keep`` grasps, best first
     (score, then grade); timing [s]: ``table``, ``segment``, ``identify`` (every
-    segment), ``plan`` (maps and scores) and ``total``."""
+    segment), ``plan`` (maps and scores) and ``total``; memory: what the next frame
+    may reuse (``plan_scene(previous=...)``)."""
 
     perception: ScenePerception
     table: TablePlane
     segments: tuple[SegmentPlan, ...]
     grasps: tuple[SceneGrasp, ...]
     timing: dict
+    memory: tuple[SegmentMemory, ...] = ()
 
     @property
     def best(self) -> SceneGrasp | None:
@@ -283,6 +290,13 @@ def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray], reach: fl
     return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
 
 
+def _inner(seg: np.ndarray, cfg: SceneConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The box where new obstacles stop a segment's plan from being reused: its reach
+    box (:func:`_obstacles`) less twice the reuse tolerance."""
+    m = cfg.reach - 2.0 * cfg.reuse_tol
+    return seg.min(axis=0) - m, seg.max(axis=0) + m
+
+
 def _identify(seg: np.ndarray, rng: np.random.Generator, cfg: SceneConfig) -> tuple[Identification | None, str]:
     """The segment's identification, or None and why it could not run."""
     try:
@@ -327,30 +341,43 @@ def _plan_segment(per: ScenePerception, k: int, ident: Identification, obstacles
 
 
 def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: SceneConfig | None = None,
-               labels: np.ndarray | None = None) -> ScenePlan:
+               labels: np.ndarray | None = None, previous: ScenePlan | None = None) -> ScenePlan:
     """Ranked grasps for every object of a scene cloud (N, 3) [m] (see the module
     docstring); ``db``: the :class:`~graspsim.maps.database.MapDatabase`; ``labels``:
-    see :func:`perceive_scene`."""
+    see :func:`perceive_scene`; ``previous``: the plan of the previous frame of the same
+    scene (same frame of reference): segments that did not change keep their
+    identification, and their grasps when no new obstacle came near them
+    (:mod:`~graspsim.perception.scene_reuse`; status ``"reused"``)."""
     cfg = config or SceneConfig()
     t0 = time.perf_counter()
     per = perceive_scene(points, rng, cfg, labels=labels)
     table = per.plane.table(cfg.clearance)
     t1 = time.perf_counter()
     segs = [per.segment_points(k) for k in range(per.n_segments)]
-    idents = [_identify(seg, rng, cfg) for seg in segs]
-    solids = [_solid_samples(seg, i, per.plane, cfg.solid_step) for seg, (i, _) in zip(segs, idents)] \
-        if cfg.neighbours else []
+    before = previous.memory if previous is not None else ()
+    olds = [find_previous(seg, before, tol=cfg.reuse_tol) for seg in segs]
+    idents = [(o.ident, o.why) if o is not None else _identify(seg, rng, cfg) for seg, o in zip(segs, olds)]
+    solids = [o.solids if o is not None and o.solids is not None else _solid_samples(seg, i, per.plane, cfg.solid_step)
+              for seg, (i, _), o in zip(segs, idents, olds)] if cfg.neighbours else []
     t2 = time.perf_counter()
-    plans, grasps = [], []
+    plans, grasps, memory = [], [], []
     for k, (ident, why) in enumerate(idents):
-        if ident is None:
-            plans.append(SegmentPlan(k, len(segs[k]), "failed", why, (), 0, 0.0))
-            continue
         obstacles = _obstacles(per, k, solids, cfg.reach) if cfg.neighbours else None
-        p, g = _plan_segment(per, k, ident, obstacles, db, rng, cfg, table)
+        if ident is None:
+            p, g = SegmentPlan(k, len(segs[k]), "failed", why, (), 0, 0.0), []
+        else:
+            o = olds[k]
+            g = reused_grasps(o, k) if o is not None and o.plan.status != "failed" and \
+                nothing_new(o.obstacles, obstacles, tol=cfg.reuse_tol, within=_inner(segs[k], cfg), own=segs[k]) \
+                else []
+            if g:
+                p = replace(o.plan, segment=k, status="reused", seconds=0.0)
+            else:
+                p, g = _plan_segment(per, k, ident, obstacles, db, rng, cfg, table)
         plans.append(p)
         grasps += g
+        memory.append(SegmentMemory(segs[k], ident, why, solids[k] if solids else None, obstacles, p, tuple(g)))
     grasps.sort(key=lambda s: (-s.score, -s.grade, s.segment))
     now = time.perf_counter()
     timing = {**per.timing, "identify": t2 - t1, "plan": now - t2, "total": now - t0}
-    return ScenePlan(per, table, tuple(plans), tuple(grasps), timing)
+    return ScenePlan(per, table, tuple(plans), tuple(grasps), timing, tuple(memory))

@@ -9,8 +9,10 @@ The benchmark of VGN, GPD and their successors, on a :class:`~graspsim.sim.scene
 
 until the table is clear, two consecutive grasps failed, no grasp is found, or
 ``max_attempts`` grasps were tried. Metrics (:class:`ClutterResult`): grasp success rate
-(GSR = objects lifted / grasps executed), declutter rate (objects removed / objects
-placed), planning seconds per grasp (from the depth image, back-projection included,
+(GSR = grasps that lifted their target / grasps executed; a grasp that lifted another
+object than its target is no success: it is counted apart (cause ``success_other_object``), and the
+object it lifted leaves the scene), declutter rate (objects removed / objects placed),
+planning seconds per grasp (from the depth image, back-projection included,
 to the ranked grasps), each failure's cause, and segmentation quality
 against MuJoCo's segmentation render: of the objects seen in a frame, the share whose
 points form exactly one cluster (:func:`one_cluster_objects`).
@@ -21,20 +23,23 @@ Ablations: ``SceneConfig(neighbours=False)`` (no neighbour check) and
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
 from graspsim.perception.scene import SceneConfig, plan_scene
+from graspsim.perception.scene_reuse import drop_grasp
 from graspsim.sim.camera import Camera, DepthNoise, backproject, rig
 from graspsim.sim.noise import ExecutionNoise
 
-__all__ = ["ClutterConfig", "Attempt", "ClutterResult", "run_clutter", "run_benchmark", "summarize",
-           "one_cluster_objects", "STOPS"]
+__all__ = ["ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame", "ClutterEpisode", "run_clutter",
+           "run_benchmark", "summarize", "one_cluster_objects", "STOPS", "OTHER"]
 
 #: Why an episode ended.
 STOPS = ("cleared", "failures", "no_grasp", "max_attempts")
+#: The cause of a grasp that lifted an object other than its target.
+OTHER = "success_other_object"
 
 
 @dataclass(frozen=True)
@@ -44,7 +49,9 @@ class ClutterConfig:
     by the render's object labels instead of clustering (ablation); max_failures:
     consecutive failed grasps that end an episode; max_attempts: grasps per episode at
     most (None: 2 x objects + 2); min_seen: points (after thinning) an object needs in
-    a frame to count in the segmentation quality."""
+    a frame to count in the segmentation quality; reuse: a segment that did not change
+    since the previous frame keeps its plan (``plan_scene(previous=...)``), less the
+    grasp that was executed."""
 
     scene: SceneConfig = field(default_factory=SceneConfig)
     depth_noise: DepthNoise | None = field(default_factory=DepthNoise)
@@ -53,6 +60,7 @@ class ClutterConfig:
     max_failures: int = 2
     max_attempts: int | None = None
     min_seen: int = 40
+    reuse: bool = True
 
     def __post_init__(self) -> None:
         for k in ("max_failures", "min_seen"):
@@ -67,13 +75,15 @@ class ClutterConfig:
         return {"scene": self.scene.to_dict(), "depth_noise": None if self.depth_noise is None
                 else self.depth_noise.to_dict(), "execution": None if self.execution is None
                 else self.execution.to_dict(), "ground_truth": self.ground_truth,
-                "max_failures": self.max_failures, "max_attempts": self.max_attempts, "min_seen": self.min_seen}
+                "max_failures": self.max_failures, "max_attempts": self.max_attempts, "min_seen": self.min_seen,
+                "reuse": self.reuse}
 
 
 @dataclass(frozen=True)
 class Attempt:
     """One executed grasp: target (the object the chosen segment is mostly of, ground
-    truth), outcome (:meth:`SceneOutcome.to_dict`), success, cause, score (robust),
+    truth), outcome (:meth:`SceneOutcome.to_dict`), success (the target lifted), cause
+    (``success_other_object``: another object came up; not a success), score (robust),
     planning [s] (depth frame to ranked grasps; ``timing`` per stage), segments found,
     objects seen, and of those segmented as one cluster."""
 
@@ -110,6 +120,11 @@ class ClutterResult:
         return sum(a.success for a in self.attempts)
 
     @property
+    def other_objects(self) -> int:
+        """Grasps that lifted an object other than their target (not successes)."""
+        return sum(a.cause == OTHER for a in self.attempts)
+
+    @property
     def grasp_success_rate(self) -> float:
         return self.successes / len(self.attempts) if self.attempts else float("nan")
 
@@ -119,7 +134,8 @@ class ClutterResult:
 
     def to_dict(self) -> dict:
         return {"placed": self.placed, "removed": self.removed, "attempts": len(self.attempts),
-                "successes": self.successes, "grasp_success_rate": self.grasp_success_rate,
+                "successes": self.successes, "other_objects": self.other_objects,
+                "grasp_success_rate": self.grasp_success_rate,
                 "declutter_rate": self.declutter_rate, "stop": self.stop, "first_seen": self.first_seen,
                 "first_one_cluster": self.first_one_cluster, "seconds": self.seconds,
                 "steps": [a.to_dict() for a in self.attempts]}
@@ -156,64 +172,143 @@ def _target(per, seg: int, truth: np.ndarray) -> int | None:
     return int(np.bincount(t).argmax()) if len(t) else None
 
 
+@dataclass(frozen=True, eq=False)
+class ClutterFrame:
+    """What one look at the scene gives: the depth ``frame`` (colour too when asked),
+    its back-projected ``view``, the :class:`~graspsim.perception.scene.ScenePlan`
+    ``plan``, ``planning`` [s] (depth frame to ranked grasps), and of the objects seen
+    (ground truth), those segmented as one cluster."""
+
+    frame: object
+    view: object
+    plan: object
+    planning: float
+    seen: int
+    one_cluster: int
+
+
+class ClutterEpisode:
+    """One clutter-removal episode, stepped by its caller: the one implementation of
+    the protocol's render -> plan -> execute step and of its stopping rules, shared by
+    :func:`run_clutter` (which always executes the best grasp) and the Gymnasium env
+    ``graspsim/ClutterClear-v0`` (where a policy chooses).
+
+        ep = ClutterEpisode(scene, db=db, rng=rng)
+        while ep.stop is None:
+            look = ep.observe()            # None when it ended (cleared, no grasp)
+            if look is not None:
+                ep.execute(look, look.plan.best)
+        result = ep.result(); ep.close()
+
+    ``stop`` is None while it runs, then one of :data:`STOPS`: the table is clear, no
+    grasp with a robust score > 0 was found, ``max_failures`` consecutive grasps
+    failed, or ``max_attempts`` grasps were executed. Deterministic given ``rng``."""
+
+    def __init__(self, scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
+                 camera: Camera | None = None, rgb: bool = False):
+        self.config = cfg = config or ClutterConfig()
+        self.scene, self.db, self.rgb = scene, db, rgb
+        self.camera = camera or rig(1)[0]
+        self.cap = cfg.max_attempts or 2 * len(scene.objects) + 2
+        self._t0 = time.perf_counter()
+        self.sim = scene.sim()
+        self._depth_rng, self._plan_rng, self._exec_rng = rng.spawn(3)
+        self.attempts: list[Attempt] = []
+        self.failures = 0
+        self.first: tuple[int, int] | None = None
+        self.last: ClutterFrame | None = None  # the latest look, also when it found no grasp
+        self._previous = None  # the plan the next look may reuse (ClutterConfig.reuse)
+        self.stop: str | None = None if self.sim.objects_left() else "cleared"
+
+    def render(self):
+        """A depth frame of the scene now (the sensor's noise drawn from the episode)."""
+        return self.sim.render(self.camera, noise=self.config.depth_noise, rng=self._depth_rng, rgb=self.rgb)
+
+    def observe(self) -> ClutterFrame | None:
+        """Render and plan the scene; None (and ``stop`` = "no_grasp") when no grasp has
+        a robust score > 0 (``last`` holds that look all the same)."""
+        if self.stop is not None:
+            raise InvalidParameterError(f"the episode has ended ({self.stop}); nothing to observe")
+        cfg = self.config
+        frame = self.render()
+        t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
+        view = backproject(frame)
+        truth = view.labels
+        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene,
+                        labels=truth if cfg.ground_truth else None, previous=self._previous)
+        planning = time.perf_counter() - t1
+        per = sp.perception
+        seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
+        if self.first is None:
+            self.first = (seen, one)
+        self.last = ClutterFrame(frame, view, sp, planning, seen, one)
+        if sp.best is None:
+            self.stop = "no_grasp"
+            return None
+        return self.last
+
+    def execute(self, look: ClutterFrame, grasp) -> Attempt:
+        """Execute ``grasp`` (a :class:`~graspsim.perception.scene.SceneGrasp` of
+        ``look.plan``) with the configured execution error, then apply the stopping rules."""
+        if self.stop is not None:
+            raise InvalidParameterError(f"the episode has ended ({self.stop}); no more grasps")
+        cfg = self.config
+        sp, truth = look.plan, look.view.labels
+        target = _target(sp.perception, grasp.segment, truth)
+        out = self.sim.execute(grasp.T_world_wrist, grasp.opening, target=target, noise=cfg.execution,
+                               rng=self._exec_rng if cfg.execution is not None else None)
+        if cfg.reuse:  # the executed grasp is not offered again
+            self._previous = replace(sp, memory=drop_grasp(sp.memory, grasp.T_world_wrist))
+        hit = out.success and out.picked == target  # the target came up (None: unknown target)
+        cause = OTHER if out.success and not hit else out.cause
+        a = Attempt(target, out.to_dict(), hit, cause, grasp.score, look.planning, sp.timing,
+                    sp.perception.n_segments, look.seen, look.one_cluster)
+        self.attempts.append(a)
+        # a grasp that lifted another object is no success, but the scene changed: no failure in a row
+        self.failures = 0 if out.success else self.failures + 1
+        if self.failures >= cfg.max_failures:
+            self.stop = "failures"
+        elif not self.sim.objects_left():
+            self.stop = "cleared"
+        elif len(self.attempts) >= self.cap:
+            self.stop = "max_attempts"
+        return a
+
+    @property
+    def removed(self) -> int:
+        return len(self.scene.objects) - len(self.sim.objects_left())
+
+    def result(self) -> ClutterResult:
+        first = self.first or (0, 0)
+        return ClutterResult(len(self.scene.objects), tuple(self.attempts), self.removed, self.stop or "max_attempts",
+                             first[0], first[1], time.perf_counter() - self._t0)
+
+    def close(self) -> None:
+        """Free the renderer (the simulation stays readable)."""
+        self.sim.close()
+
+
 def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
                 camera: Camera | None = None, on_step=None) -> ClutterResult:
     """One clutter-removal episode on ``scene`` (a :class:`~graspsim.sim.scenes.TableScene`)
     seen by ``camera`` (default: one D435-like camera, ``rig(1)``), planning against the
-    :class:`~graspsim.maps.database.MapDatabase` ``db``. Deterministic given ``rng``.
+    :class:`~graspsim.maps.database.MapDatabase` ``db``, executing the best grasp each
+    time (:class:`ClutterEpisode`). Deterministic given ``rng``.
     on_step(view, frame, plan, attempt): called after each executed grasp with the
     back-projected view, the depth frame (colour rendered too), the ScenePlan and the
     Attempt (e.g. to draw it: :func:`~graspsim.sim.clutter_figure.save_step_figure`)."""
-    cfg = config or ClutterConfig()
-    cam = camera or rig(1)[0]
-    t0 = time.perf_counter()
-    sim = scene.sim()
-    depth_rng, plan_rng, exec_rng = rng.spawn(3)
-    cap = cfg.max_attempts or 2 * len(scene.objects) + 2
-    attempts: list[Attempt] = []
-    first = None
-    failures, stop = 0, "max_attempts"
+    ep = ClutterEpisode(scene, db=db, rng=rng, config=config, camera=camera, rgb=on_step is not None)
     try:
-        while len(attempts) < cap:
-            if not sim.objects_left():
-                stop = "cleared"
+        while ep.stop is None:
+            look = ep.observe()
+            if look is None:
                 break
-            frame = sim.render(cam, noise=cfg.depth_noise, rng=depth_rng, rgb=on_step is not None)
-            t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
-            view = backproject(frame)
-            truth = view.labels
-            sp = plan_scene(view.world(), db=db, rng=plan_rng, config=cfg.scene,
-                            labels=truth if cfg.ground_truth else None)
-            planning = time.perf_counter() - t1
-            per = sp.perception
-            seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
-            if first is None:
-                first = (seen, one)
-            best = sp.best
-            if best is None:
-                stop = "no_grasp"
-                break
-            target = _target(per, best.segment, truth)
-            out = sim.execute(best.T_world_wrist, best.opening, target=target, noise=cfg.execution,
-                              rng=exec_rng if cfg.execution is not None else None)
-            a = Attempt(target, out.to_dict(), out.success, out.cause, best.score, planning, sp.timing,
-                        per.n_segments, seen, one)
-            attempts.append(a)
+            a = ep.execute(look, look.plan.best)
             if on_step is not None:
-                on_step(view, frame, sp, a)
-            failures = 0 if out.success else failures + 1
-            if failures >= cfg.max_failures:
-                stop = "failures"
-                break
-        else:
-            if not sim.objects_left():
-                stop = "cleared"
-        removed = len(scene.objects) - len(sim.objects_left())
+                on_step(look.view, look.frame, look.plan, a)
     finally:
-        sim.close()
-    first = first or (0, 0)
-    return ClutterResult(len(scene.objects), tuple(attempts), removed, stop, first[0], first[1],
-                         time.perf_counter() - t0)
+        ep.close()
+    return ep.result()
 
 
 def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, config: ClutterConfig | None = None,
@@ -240,10 +335,21 @@ def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, conf
     return out
 
 
+def _spread(values: list[float]) -> dict:
+    """count, mean, median and max of seconds (None when there are none)."""
+    v = np.asarray(values, float)
+    if not len(v):
+        return {"count": 0, "mean": None, "median": None, "max": None}
+    return {"count": len(v), "mean": float(v.mean()), "median": float(np.median(v)), "max": float(v.max())}
+
+
 def summarize(results: list[ClutterResult]) -> dict:
     """Pooled metrics of episodes: grasp success rate (successes / attempts), cleared
-    rate (objects removed / placed), scenes cleared, stops, failure causes, planning
-    seconds per grasp (mean, median, max; median per stage of ``plan_scene``), segmentation quality of the first frames
+    rate (objects removed / placed), grasps that lifted another object than their
+    target (``other_objects``, not successes), scenes cleared, stops, failure causes,
+    planning seconds per grasp (count, mean, median, max; of the episodes' first frames
+    and of later frames, which may reuse plans, apart; median per stage of
+    ``plan_scene``), segmentation quality of the first frames
     (objects seen, segmented as one cluster)."""
     attempts = [a for r in results for a in r.attempts]
     ok = sum(a.success for a in attempts)
@@ -252,18 +358,19 @@ def summarize(results: list[ClutterResult]) -> dict:
     for a in attempts:
         if not a.success:
             causes[a.cause] = causes.get(a.cause, 0) + 1
-    plan_s = np.array([a.planning for a in attempts]) if attempts else np.zeros(0)
     seen, one = sum(r.first_seen for r in results), sum(r.first_one_cluster for r in results)
     stages = sorted({k for a in attempts for k in a.timing})
     medians = {k: float(np.median([a.timing.get(k, 0.0) for a in attempts])) for k in stages}
+    first = [r.attempts[0].planning for r in results if r.attempts]
+    later = [a.planning for r in results for a in r.attempts[1:]]
     return {"scenes": len(results), "attempts": len(attempts), "successes": ok,
+            "other_objects": sum(a.cause == OTHER for a in attempts),
             "grasp_success_rate": ok / len(attempts) if attempts else None,
             "placed": placed, "removed": removed, "cleared_rate": removed / placed if placed else None,
             "scenes_cleared": sum(r.removed == r.placed for r in results),
             "stops": {s: sum(r.stop == s for r in results) for s in STOPS},
             "failure_causes": dict(sorted(causes.items())),
-            "planning_s": {"mean": float(plan_s.mean()) if len(plan_s) else None,
-                           "median": float(np.median(plan_s)) if len(plan_s) else None,
-                           "max": float(plan_s.max()) if len(plan_s) else None, "stages_median": medians},
+            "planning_s": {**_spread([a.planning for a in attempts]), "stages_median": medians,
+                           "first_frame": _spread(first), "later_frames": _spread(later)},
             "segmentation": {"objects_seen": seen, "one_cluster": one,
                              "share": one / seen if seen else None}}

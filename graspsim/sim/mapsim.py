@@ -44,12 +44,14 @@ log = logging.getLogger(__name__)
 class MapTrials:
     """Results of simulating some rows of a map: ``index`` (n,) the map rows, in the
     order of ``results``; ``scene`` the compiled scene; ``group`` where they were
-    written (None if not written)."""
+    written (None if not written); ``width`` (n,) the widths the jaws opened to [m],
+    :func:`~graspsim.maps.robust.executed_width` (the map need not be read again to draw them)."""
 
     index: np.ndarray
     results: TrialResults
     scene: Scene
     group: str | None
+    width: np.ndarray | None = None
 
 
 def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int | None = None,
@@ -200,10 +202,11 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     up = _cloud_up(gmap, mesh is not None)
     scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity, up=up)
     chosen = gmap.select(index)  # transforms of the chosen rows only (all of a 10 M-grasp map: 1.2 GB)
-    results = run_trials(scene, chosen.T_obj_wrist, executed_width(chosen), protocol,
+    width = executed_width(chosen)
+    results = run_trials(scene, chosen.T_obj_wrist, width, protocol,
                          threads=threads, seed=seed, noise=noise, on_progress=on_progress,
                          on_record=on_record)
     results = replace(results, extra={"map_file": str(path),
                                       "mesh": None if mesh is None else str(mesh)})
     group = write_results(path, len(gmap), index, results) if write and len(index) else None
-    return MapTrials(index=index, results=results, scene=scene, group=group)
+    return MapTrials(index=index, results=results, scene=scene, group=group, width=width)

@@ -214,7 +214,7 @@ def add_weld(spec: mujoco.MjSpec, physics: GripperPhysics) -> None:
 
 def gripper_xml(gripper: GripperSpec = HGPL_25_60_A,
                 physics: GripperPhysics = GripperPhysics()) -> str:
-    """MJCF text of the stand-alone gripper (what ``mjcf/<name>/<name>.xml`` holds)."""
+    """MJCF text of the stand-alone gripper (what ``graspsim/mjcf/<name>/<name>.xml`` holds)."""
     spec = build_gripper_spec(gripper, physics)
     spec.option.timestep = 0.002
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC

@@ -293,7 +293,7 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
     if gripper.model is None:  # the box model generated from the spec
         spec, names = build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
                                          condim=s.condim, home_pos=home), NAMES
-    else:  # the vendored model (e.g. mjcf/franka_hand), attached as it is
+    else:  # the vendored model (e.g. graspsim/mjcf/franka_hand), attached as it is
         spec, names = build_vendored_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
                                                   condim=s.condim, home_pos=home)
     spec.modelname = f"trial_{gripper.name}"

@@ -1,5 +1,5 @@
 """The objects table-top scenes draw from: primitives sized for the gripper, the
-case-study analogs and the mesh objects shipped in ``assets/objects``.
+case-study analogs and the mesh objects shipped in ``graspsim/assets/objects``.
 
 An :class:`ObjectSpec` says what an object is (a shape description or a mesh file) and
 how heavy it is; :meth:`ObjectSpec.sim_object` builds its simulation body (cached per
@@ -14,10 +14,10 @@ import functools
 import json
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
+from graspsim._resources import package_path
 from graspsim.case_study_objects import ANALOGS
 from graspsim.errors import InvalidParameterError
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
@@ -26,8 +26,8 @@ from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape
 
 __all__ = ["ObjectSpec", "OBJECT_SETS", "draw_object", "narrowest_extent", "MESHES", "ASSETS"]
 
-#: Where the shipped meshes live (the repository's ``assets/objects``).
-ASSETS = Path(__file__).resolve().parents[2] / "assets" / "objects"
+#: Where the shipped meshes live: ``graspsim/assets/objects``, installed with the package.
+ASSETS = package_path("assets", "objects")
 #: Mesh objects by name: (file under ASSETS, scale).
 MESHES = {"bread": ("robosuite/bread.stl", 1.0)}
 #: The object sets a scene draws from.

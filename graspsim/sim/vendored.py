@@ -1,6 +1,6 @@
 """A vendored (externally authored) gripper model in the trial harness.
 
-The model file ``mjcf/<model>/<model>.xml`` is attached as it is under the harness's
+The model file ``graspsim/mjcf/<model>/<model>.xml`` is attached as it is under the harness's
 wrist body (the same mocap target, free wrist and weld as the generated box model, see
 :mod:`graspsim.sim.model`), at the pose its :class:`~graspsim.grippers.Mount` gives.
 What the harness sets on the attached model, as it does on the box model:

@@ -1,10 +1,11 @@
-"""Interactive 3D viewer in the browser (viser): maps, clouds, meshes and trial replays.
+"""Interactive 3D viewer in the browser (viser): maps, clouds, meshes, trial replays, scenes.
 
     import graspsim.viewer
     server = graspsim.viewer.show("cyl.h5")            # or a GraspabilityMap
     print(server.get_port())                           # open http://localhost:PORT
     ...
     graspsim.viewer.stop(server)
+    server = graspsim.viewer.show_scene("pile.json")   # a table-top scene, seen and planned
 
 viser is an optional dependency (``pip install 'graspsim[viewer]'``); without it
 :func:`show` raises :class:`~graspsim.errors.DependencyNotInstalled` saying so, and the
@@ -18,7 +19,7 @@ from pathlib import Path
 
 from graspsim.errors import DependencyNotInstalled
 
-__all__ = ["show", "stop", "require_viser", "INSTALL_HINT"]
+__all__ = ["show", "show_scene", "stop", "require_viser", "INSTALL_HINT"]
 
 INSTALL_HINT = "pip install 'graspsim[viewer]'"
 
@@ -112,6 +113,66 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
         raise
     server.graspsim_viewer = viewer  # the scene and GUI state (tests, scripts)
     return server
+
+
+def show_scene(scene, *, db=None, look=None, seed: int = 0, config=None, top_k: int = 3,
+               host: str = "127.0.0.1", port: int = 8080, verbose: bool = False):
+    """Serve a table-top scene as the robot's depth camera saw and planned it, and
+    return the running ``viser.ViserServer`` (:mod:`graspsim.viewer.scene_view`: the
+    cloud coloured by segment, the table plane, each object's top-K grasps and the chosen
+    one). Does not block.
+
+    scene: a :class:`~graspsim.sim.scenes.TableScene` or its JSON file
+    (``save_scene``); it is rendered and planned once, as the clutter-removal protocol's
+    first look (:class:`~graspsim.sim.clutter.ClutterEpisode`, ``config`` a
+    ``ClutterConfig``, draws from ``rng_for(seed)``) against the map database ``db``
+    (None: the default folder), unless ``look`` (a ``ClutterFrame`` of it) is given.
+    top_k: grasps drawn per object at start."""
+    require_viser(load=False)
+    from graspsim.errors import InvalidParameterError
+
+    if isinstance(top_k, bool) or not isinstance(top_k, int) or top_k < 0:
+        raise InvalidParameterError(f"top_k must be a whole number >= 0, got {top_k!r}")
+    if look is None:
+        look, gripper = _scene_look(scene, db, seed, config)
+    else:
+        gripper = db.gripper if db is not None else _default_gripper()
+    viser = require_viser()
+    from graspsim.viewer.scene_view import SceneViewer
+
+    _check_host(host)
+    server = _quietly(verbose, viser.ViserServer, host=host, port=port, verbose=verbose)
+    try:
+        server.gui.configure_theme(control_width="large", show_share_button=False)
+        server.graspsim_viewer = SceneViewer(server, look, gripper, top_k=top_k)
+    except BaseException:
+        server.stop()
+        raise
+    return server
+
+
+def _default_gripper():
+    from graspsim.gripper import HGPL_25_60_A
+
+    return HGPL_25_60_A
+
+
+def _scene_look(scene, db, seed: int, config):
+    """The first look of ``scene`` (a TableScene or its file): render and plan once."""
+    from graspsim.maps.database import MapDatabase
+    from graspsim.seeding import rng_for
+    from graspsim.sim.clutter import ClutterEpisode
+    from graspsim.sim.scenes import load_scene
+
+    if isinstance(scene, (str, os.PathLike)):
+        scene = load_scene(scene)
+    db = db if db is not None else MapDatabase()
+    ep = ClutterEpisode(scene, db=db, rng=rng_for(seed), config=config)
+    try:
+        ep.observe()
+    finally:
+        ep.close()
+    return ep.last, db.gripper
 
 
 def stop(server) -> None:

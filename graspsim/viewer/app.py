@@ -15,6 +15,7 @@ import threading
 import numpy as np
 
 from graspsim.transforms import frame_from_axes, invert_transform, matrix_to_quat, transform_points
+from graspsim.viewer.camera import BrowserView
 from graspsim.viewer.columns import OUTCOME_PREFIX, Selection, ViewData
 from graspsim.viewer.glyphs import PART_COLOURS, box_mesh, fork_glyph, gripper_wireframe
 
@@ -62,8 +63,8 @@ class MapViewer:
         server.scene.set_up_direction("+z")
         server.scene.configure_default_lights(cast_shadow=False)  # shadows cost more than they show
         server.scene.add_light_hemisphere("/light", intensity=0.6)
+        self.view = BrowserView(server)
         self.frame_camera(self.extent + 3 * 0.02 * glyph_size)  # the object and its glyphs' reach
-        server.on_client_connect(self._on_connect)
         self.refresh()
 
     # ------------------------------------------------------------------ static scene
@@ -129,23 +130,13 @@ class MapViewer:
         """Aim every (new) browser's camera at the object's centre from where a sphere of radius
         ``extent`` [m] fills about 60 % of the view (fov 75 deg)."""
         d = 1.4 * extent
-        c = tuple(float(x) for x in self.centre)
-        self._camera = {"position": (c[0] + d, c[1] - d, c[2] + 0.6 * d), "look_at": c}
-        cam = self.server.initial_camera
-        cam.near = 0.001
-        for k, v in self._camera.items():
-            setattr(cam, k, v)
+        c = self.centre
+        self.view.aim((c[0] + d, c[1] - d, c[2] + 0.6 * d), c)
 
     @property
     def camera(self) -> tuple[tuple, tuple]:
         """(position, look_at) [m] of the view new browsers get."""
-        return self._camera["position"], self._camera["look_at"]
-
-    def _on_connect(self, client) -> None:
-        """A client that connects before (or races) the initial pose gets it too."""
-        client.camera.near = 0.001
-        for k, v in self._camera.items():
-            setattr(client.camera, k, v)
+        return self.view.pose
 
     # ------------------------------------------------------------------ GUI
     def _build_gui(self, sel: Selection, glyph_size: float) -> None:

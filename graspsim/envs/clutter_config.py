@@ -1,0 +1,93 @@
+"""Settings of ``graspsim/ClutterClear-v0``: one frozen, validated dataclass.
+
+``gymnasium.make("graspsim/ClutterClear-v0", **kwargs)`` passes its keyword arguments
+here; an unknown name or a bad value raises :class:`InvalidParameterError` saying what
+is valid. Importing it loads no mujoco (validating the object set does).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+from graspsim.errors import InvalidParameterError
+from graspsim.maps.generate import MapConfig
+
+__all__ = ["ClutterEnvConfig", "make_clutter_config"]
+
+_KINDS = ("pile", "packed")  # graspsim.sim.scenes.KINDS (not imported: it loads mujoco)
+_MAX_OBJECTS = 30  # graspsim.sim.scenes.MAX_OBJECTS
+
+
+@dataclass(frozen=True)
+class ClutterEnvConfig:
+    """Environment settings.
+
+    n_objects, kind (``"pile"`` | ``"packed"``), object_set: the scenes drawn at reset
+        (:func:`graspsim.sim.scenes.make_scene`; sets of :mod:`graspsim.sim.scene_objects`).
+    n_candidates: K, candidate grasps offered per step (the scene's ranking, best first).
+    cloud_size: N, points of the observed depth cloud (a fixed-size sample of the frame's
+        back-projected points, with repeats when it has fewer).
+    depth_image: also observe the (H, W) depth image [m] (0: no depth).
+    depth_noise: the sensor's noise model (False: a perfect sensor).
+    execution_error: the arm misses each pose (3 mm / 2 deg sigma, ``ExecutionNoise()``).
+    neighbours: grasps are checked against the whole scene (False: the ablation).
+    max_attempts: grasps per episode before truncation (None: 2 x objects + 2);
+    max_failures: consecutive failed grasps that end (terminate) an episode.
+    max_redraws: scenes drawn per reset before giving up when none offers a grasp.
+    db_root, map_config, gripper: the map database (None: ``$GRASPSIM_DB`` or
+        ``~/.cache/graspsim/db``; the paper's generation settings; the Festo); maps of
+        new sizes are built there on first use.
+    """
+
+    n_objects: int = 3
+    kind: str = "pile"
+    object_set: str = "mixed"
+    n_candidates: int = 16
+    cloud_size: int = 2048
+    depth_image: bool = False
+    depth_noise: bool = True
+    execution_error: bool = False
+    neighbours: bool = True
+    max_attempts: int | None = None
+    max_failures: int = 2
+    max_redraws: int = 4
+    db_root: str | None = None
+    map_config: MapConfig | None = None
+    gripper: object = "festo_hgpl_25_60_a"
+
+    def __post_init__(self) -> None:
+        for name in ("n_objects", "n_candidates", "cloud_size", "max_failures", "max_redraws"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise InvalidParameterError(f"{name} must be an integer >= 1, got {v!r}")
+        if self.n_objects > _MAX_OBJECTS:
+            raise InvalidParameterError(f"n_objects must be at most {_MAX_OBJECTS}, got {self.n_objects}")
+        m = self.max_attempts
+        if m is not None and (isinstance(m, bool) or not isinstance(m, int) or m < 1):
+            raise InvalidParameterError(f"max_attempts must be an integer >= 1 or None, got {m!r}")
+        if self.kind not in _KINDS:
+            raise InvalidParameterError(f"kind {self.kind!r} unknown; valid: {list(_KINDS)}")
+        from graspsim.sim.scene_objects import OBJECT_SETS
+
+        if self.object_set not in OBJECT_SETS:
+            raise InvalidParameterError(f"object_set {self.object_set!r} unknown; valid: {sorted(OBJECT_SETS)}")
+        for name in ("depth_image", "depth_noise", "execution_error", "neighbours"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidParameterError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        from graspsim.envs.config import check_database_fields
+
+        check_database_fields(self)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["map_config"] = None if self.map_config is None else self.map_config.to_dict()
+        d["gripper"] = self.gripper if isinstance(self.gripper, str) else self.gripper.to_dict()
+        return d
+
+
+def make_clutter_config(config: ClutterEnvConfig | None = None, **kwargs) -> ClutterEnvConfig:
+    """``config`` (or the defaults) with ``kwargs`` overriding fields (see
+    :func:`graspsim.envs.config.make_config`)."""
+    from graspsim.envs.config import make_config
+
+    return make_config(config, ClutterEnvConfig, **kwargs)

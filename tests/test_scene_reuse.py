@@ -1,0 +1,80 @@
+"""Plan reuse between frames of a scene: an unchanged segment keeps its plan, a moved
+one (and its neighbours, which now meet new points) is planned again, an executed
+grasp is not offered twice."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import MapConfig
+from graspsim.perception.scene import SceneConfig, plan_scene
+from graspsim.perception.scene_reuse import drop_grasp, nothing_new, same_points
+from graspsim.primitives import Box, Cylinder, Sphere
+from graspsim.primitives.clouds import table_scene_cloud
+
+FAST = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
+SHAPES = [Box(0.06, 0.06, 0.06), Cylinder(0.02, 0.12), Sphere(0.035)]
+XY = np.array([[-0.11, 0.0], [0.0, 0.0], [0.11, 0.0]])
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory):
+    d = MapDatabase(tmp_path_factory.mktemp("db"), config=FAST)
+    d.build([Box(0.06, 0.06, 0.06), Cylinder(0.02, 0.2), Sphere(0.035)])
+    return d
+
+
+def _frame(keep, xy, seed):
+    """The scene's cloud with the objects ``keep`` at ``xy``, fresh sensor noise."""
+    pts, truth, _ = table_scene_cloud([SHAPES[k] for k in keep], xy[list(keep)], np.random.default_rng(seed),
+                                      noise=0.0007)
+    return pts, truth
+
+
+def _segment_of(sp, truth, k):
+    lab = sp.perception.labels[(truth == k) & (sp.perception.labels >= 0)]
+    return int(np.bincount(lab).argmax())
+
+
+def test_unchanged_segments_keep_their_plan_moved_ones_are_planned_again(db):
+    cfg = SceneConfig()
+    pts, truth = _frame((0, 1, 2), XY, 1)
+    sp1 = plan_scene(pts, db=db, rng=np.random.default_rng(0), config=cfg)
+    assert [p.status for p in sp1.segments] == ["planned"] * 3 and sp1.best is not None
+    # the same scene, new noise: every segment reused, the same grasps
+    pts2, _ = _frame((0, 1, 2), XY, 2)
+    sp2 = plan_scene(pts2, db=db, rng=np.random.default_rng(1), config=cfg, previous=sp1)
+    assert [p.status for p in sp2.segments] == ["reused"] * 3
+    assert [g.T_world_wrist.tolist() for g in sp2.grasps] == [g.T_world_wrist.tolist() for g in sp1.grasps]
+    assert sp2.timing["plan"] < 0.5 * sp1.timing["plan"] + 0.05
+    # the grasp executed (and failed) is not offered again
+    prev = replace(sp1, memory=drop_grasp(sp1.memory, sp1.best.T_world_wrist))
+    sp3 = plan_scene(pts2, db=db, rng=np.random.default_rng(1), config=cfg, previous=prev)
+    assert len(sp3.grasps) == len(sp1.grasps) - 1
+    assert not any(np.allclose(g.T_world_wrist, sp1.best.T_world_wrist) for g in sp3.grasps)
+    # the sphere picked: box and cylinder unchanged (an obstacle gone frees space only)
+    pts4, truth4 = _frame((0, 1), XY, 3)
+    sp4 = plan_scene(pts4, db=db, rng=np.random.default_rng(2), config=cfg, previous=sp1)
+    assert [p.status for p in sp4.segments] == ["reused"] * 2
+    # the cylinder pushed 2 cm towards the box: both meet new points and are planned again
+    moved = XY.copy()
+    moved[1, 0] -= 0.02
+    pts5, truth5 = _frame((0, 1), moved, 4)
+    sp5 = plan_scene(pts5, db=db, rng=np.random.default_rng(3), config=cfg, previous=sp4)
+    assert sp5.segments[_segment_of(sp5, truth5, 1)].status == "planned"
+    assert sp5.segments[_segment_of(sp5, truth5, 0)].status == "planned"
+
+
+def test_same_points_and_nothing_new_tolerances():
+    rng = np.random.default_rng(0)
+    a = rng.uniform(0, 0.05, (400, 3))
+    assert same_points(a, a + rng.normal(0, 0.001, a.shape), tol=0.005)
+    assert not same_points(a, a + (0.01, 0, 0), tol=0.005)  # moved 1 cm
+    assert not same_points(a, a[:300], tol=0.005)  # a quarter gone
+    assert nothing_new(a, a[:200], tol=0.005)  # points gone: nothing new
+    assert not nothing_new(a[:200], np.concatenate([a[:200], a[:20] + 0.05]), tol=0.005)
+    assert nothing_new(a[:200], np.concatenate([a[:200], a[:5] + 0.05]), tol=0.005)  # a few strays
+    assert nothing_new(None, None, tol=0.005) and not nothing_new(None, a, tol=0.005)

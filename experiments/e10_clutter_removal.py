@@ -28,7 +28,6 @@ from __future__ import annotations
 import logging
 import signal
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
@@ -47,7 +46,7 @@ from _common import (
     start,
 )
 
-from graspsim.errors import MapDatabaseError, SimulationError
+from graspsim.errors import MapDatabaseError, NoFeasibleGraspError, SimulationError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import generate_fs_map
 from graspsim.perception.scene import SceneConfig
@@ -117,14 +116,14 @@ def main(argv=None) -> int:
     done: list[list] = [[] for _ in conds]
     skipped: list[list] = [[] for _ in conds]
     built: list[set] = [set() for _ in conds]
-    pool = ProcessPoolExecutor(cfg.workers, mp_context=get_context("spawn")) if cfg.workers > 1 else None
+    pool = get_context("spawn").Pool(cfg.workers) if cfg.workers > 1 else None
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill PID: stop as Ctrl-C does
-    text = ""
+    text = run.write(out, _data(cfg, conds, goal, done, skipped, built, db_start, db_start), readme_section)
     try:
         for first in range(0, max(goal), cfg.block):
             todo = [i for i, g in enumerate(goal) if g > first]
             tasks = [(conds[i], cfg, str(db.root), first, min(cfg.block, goal[i] - first)) for i in todo]
-            blocks = pool.map(_block, tasks) if pool is not None else map(_block, tasks)
+            blocks = pool.imap(_block, tasks) if pool is not None else map(_block, tasks)
             for i, (new, miss, keys) in zip(todo, blocks):
                 done[i] += new
                 skipped[i] += miss
@@ -135,12 +134,12 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:  # the blocks finished so far are in the summary already (complete: false)
         log.warning("interrupted: %s holds the blocks finished before", out / "summary.json")
         if pool is not None:
-            pool.shutdown(wait=False, cancel_futures=True)
-            pool = None
+            pool.terminate()
         return 130
     finally:
         if pool is not None:
-            pool.shutdown()
+            pool.close()
+            pool.join()
     print(text)
     return 0
 
@@ -215,14 +214,16 @@ def grid_shapes(config) -> list:
 
 def build_grid(db) -> list[str]:
     """Store the maps of :func:`grid_shapes` in ``db`` (those stored already are kept);
-    returns the shapes that have no grasp at all (e.g. a 1.5 mm disc 19 cm wide),
-    which are not stored."""
+    returns the shapes that have no grasp at all (e.g. a 1.5 mm disc 19 cm wide, a
+    sphere wider than the gripper opens), which are not stored."""
     empty = []
     for shape in grid_shapes(db.config):
         if db.contains(shape):
             continue
         try:
             db.add(shape, threads=2)
+        except NoFeasibleGraspError:
+            empty.append(str(shape))
         except MapDatabaseError as err:
             if "no grasps" not in str(err):
                 raise

@@ -75,6 +75,8 @@ def test_same_points_and_nothing_new_tolerances():
     assert not same_points(a, a + (0.01, 0, 0), tol=0.005)  # moved 1 cm
     assert not same_points(a, a[:300], tol=0.005)  # a quarter gone
     assert nothing_new(a, a[:200], tol=0.005)  # points gone: nothing new
-    assert not nothing_new(a[:200], np.concatenate([a[:200], a[:20] + 0.05]), tol=0.005)
-    assert nothing_new(a[:200], np.concatenate([a[:200], a[:5] + 0.05]), tol=0.005)  # a few strays
+    patch = rng.uniform(0, 0.01, (20, 3)) + 0.06  # a new surface: 20 points within 1 cm
+    assert not nothing_new(a[:200], np.concatenate([a[:200], patch]), tol=0.005)
+    speckle = rng.uniform(0.06, 0.3, (30, 3))  # 30 isolated points: the sensor's speckle
+    assert nothing_new(a[:200], np.concatenate([a[:200], speckle]), tol=0.005)
     assert nothing_new(None, None, tol=0.005) and not nothing_new(None, a, tol=0.005)

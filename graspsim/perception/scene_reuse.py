@@ -60,15 +60,15 @@ def same_points(a: np.ndarray, b: np.ndarray, *, tol: float, share: float = 0.97
     return _near_share(a, b, tol) >= share and _near_share(b, a, tol) >= share
 
 
-def nothing_new(old: np.ndarray | None, new: np.ndarray | None, *, tol: float, allowed: int = 10,
+def nothing_new(old: np.ndarray | None, new: np.ndarray | None, *, tol: float, allowed: int = 3,
                 within: tuple[np.ndarray, np.ndarray] | None = None, own: np.ndarray | None = None) -> bool:
-    """Whether obstacle points ``new`` hold at most ``allowed`` points farther than
-    ``tol`` [m] from every point of ``old`` (None: no obstacles). Only new points inside
-    the box ``within`` (lo, hi) count when given (a segment's reach box jitters with its
-    points: far points at its edge come and go), and none within ``2 tol`` of the
-    segment's ``own`` points (stray points at its fringe that clustering left out). A
-    new object or a moved neighbour shows many more than ``allowed`` new points: at a
-    3 mm grid a 1 cm^2 patch has about 11."""
+    """Whether obstacle points ``new`` show nothing that ``old`` did not (None: no
+    obstacles): at most ``allowed`` new points farther than ``tol`` [m] from every old
+    point that have three or more such points within ``2 tol`` -- a surface, not the
+    sensor's speckle (isolated points, e.g. at the table band's edge, that come and go
+    between frames). Only new points inside the box ``within`` (lo, hi) count when
+    given (a segment's reach box jitters with its points), and none within ``2 tol`` of
+    the segment's ``own`` points (stray points at its fringe that clustering left out)."""
     if new is not None and within is not None:
         new = new[np.all((new >= within[0]) & (new <= within[1]), axis=1)]
     if new is not None and own is not None and len(own) and len(new):
@@ -77,8 +77,11 @@ def nothing_new(old: np.ndarray | None, new: np.ndarray | None, *, tol: float, a
         return True
     if old is None or not len(old):
         return False
-    d, _ = cKDTree(old).query(new, distance_upper_bound=tol)
-    return int(np.sum(~np.isfinite(d))) <= allowed
+    far = new[~np.isfinite(cKDTree(old).query(new, distance_upper_bound=tol)[0])]
+    if len(far) <= allowed:
+        return True
+    crowd = np.array([len(n) - 1 for n in cKDTree(far).query_ball_point(far, 2.0 * tol)])
+    return int(np.sum(crowd >= 3)) <= allowed
 
 
 def find_previous(points: np.ndarray, previous, *, tol: float) -> SegmentMemory | None:

@@ -10,9 +10,10 @@ scored against (points the gripper must clear that the previous check did not ha
 a neighbour that moved or was uncovered). Obstacles that disappeared (the picked
 object) only free space, so the stored robust scores remain valid lower bounds
 (a grasp scored 0 because it hit the picked object stays at 0: the segment is planned
-again when no grasp with a score > 0 is left). A grasp that was executed and failed
-is dropped from what is reused (:func:`drop_grasp`): it is not tried twice on an
-unchanged scene.
+again when no grasp with a score > 0 is left). A grasp that was executed is dropped
+from what is reused, with its near twins (:func:`drop_grasp`): a start collision
+leaves the scene as it was, and the next rows of the same map would collide the same
+way.
 """
 
 from __future__ import annotations
@@ -106,9 +107,18 @@ def reused_grasps(mem: SegmentMemory, k: int) -> list:
     return [replace(g, segment=k) for g in mem.grasps]
 
 
-def drop_grasp(memory, T_world_wrist: np.ndarray, *, tol: float = 1e-9) -> tuple:
-    """``memory`` (segment memories) without the grasp at pose ``T_world_wrist`` (an
-    executed grasp that failed)."""
+def drop_grasp(memory, T_world_wrist: np.ndarray, *, distance: float = 0.01, angle_deg: float = 20.0) -> tuple:
+    """``memory`` (segment memories) without the grasps near pose ``T_world_wrist`` (an
+    executed grasp): wrist within ``distance`` [m] and rotated by at most ``angle_deg``.
+    A failed grasp's near twins (the next rows of the same map) fail the same way on a
+    scene that did not change; they are not retried."""
     T = np.asarray(T_world_wrist, float)
-    return tuple(replace(m, grasps=tuple(g for g in m.grasps if not np.allclose(g.T_world_wrist, T, atol=tol)))
-                 for m in memory)
+    cos_max = np.cos(np.radians(angle_deg))
+
+    def near(g) -> bool:
+        if np.linalg.norm(g.T_world_wrist[:3, 3] - T[:3, 3]) > distance:
+            return False
+        c = 0.5 * (np.trace(T[:3, :3].T @ g.T_world_wrist[:3, :3]) - 1.0)
+        return c >= cos_max
+
+    return tuple(replace(m, grasps=tuple(g for g in m.grasps if not near(g))) for m in memory)

@@ -61,7 +61,8 @@ ABLATIONS = ("no_neighbours", "ground_truth")
 @dataclass(frozen=True)
 class Config:
     scenes: int = opt(50, "scenes per condition")
-    others: int = opt(0, "scenes of the conditions outside the goals (other sizes, ablations; 0: --scenes)")
+    others: int = opt(0, "scenes of the conditions outside the goals (other sizes, ablations), run after the "
+                      "goal conditions (0: --scenes, all conditions together)")
     goal_objects: int = opt(5, "objects per scene of the goal conditions (--others does not cut them)")
     block: int = opt(2, "scenes per condition between summary updates")
     objects: tuple[int, ...] = opt((5, 10), "objects per scene")
@@ -120,11 +121,10 @@ def main(argv=None) -> int:
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill PID: stop as Ctrl-C does
     text = run.write(out, _data(cfg, conds, goal, done, skipped, built, db_start, db_start), readme_section)
     try:
-        for first in range(0, max(goal), cfg.block):
-            todo = [i for i, g in enumerate(goal) if g > first]
-            tasks = [(conds[i], cfg, str(db.root), first, min(cfg.block, goal[i] - first)) for i in todo]
+        for todo in rounds(cfg, conds):
+            tasks = [(conds[i], cfg, str(db.root), j, 1) for i, j in todo]  # one scene a task: even loads
             blocks = pool.imap(_block, tasks) if pool is not None else map(_block, tasks)
-            for i, (new, miss, keys) in zip(todo, blocks):
+            for (i, _), (new, miss, keys) in zip(todo, blocks):
                 done[i] += new
                 skipped[i] += miss
                 built[i] |= keys
@@ -144,11 +144,28 @@ def main(argv=None) -> int:
     return 0
 
 
+def rounds(cfg: Config, conds: list) -> list[list[tuple[int, int]]]:
+    """The run's order: rounds of (condition index, scene) with a summary after each,
+    ``block`` scenes of every condition a round; with ``others`` the goal conditions
+    (:func:`target`) run all their scenes first, then the others, so a run cut short
+    has finished the goals."""
+    goal = [target(cfg, c) for c in conds]
+    first = [i for i, c in enumerate(conds) if not cfg.others or goal[i] == cfg.scenes and _is_goal(cfg, c)]
+    out = []
+    for group in (first, [i for i in range(len(conds)) if i not in first]):
+        for lo in range(0, max((goal[i] for i in group), default=0), cfg.block):
+            out.append([(i, j) for i in group for j in range(lo, min(lo + cfg.block, goal[i]))])
+    return [r for r in out if r]
+
+
+def _is_goal(cfg: Config, c: dict) -> bool:
+    return c["objects"] == cfg.goal_objects and c["ablation"] is None
+
+
 def target(cfg: Config, c: dict) -> int:
     """Scenes a condition runs: ``scenes`` for the goal conditions (``goal_objects``
     objects, the full method), ``others`` (if > 0) for the rest."""
-    return cfg.scenes if (c["objects"] == cfg.goal_objects and c["ablation"] is None) or not cfg.others \
-        else min(cfg.others, cfg.scenes)
+    return cfg.scenes if _is_goal(cfg, c) or not cfg.others else min(cfg.others, cfg.scenes)
 
 
 def _data(cfg: Config, conds: list, goal: list, done: list, skipped: list, built: list, db_start: dict,
@@ -167,7 +184,7 @@ class RunDatabase(MapDatabase):
     """The run's database, read only: a part no stored map serves within the scaling
     range gets its FS map built in memory (kept in this process, never stored), so
     every scene plans against the same stored maps whatever ran before it. ``built``:
-    the keys of the maps built so."""
+    the keys of the maps served so (since it was last emptied)."""
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
@@ -178,10 +195,10 @@ class RunDatabase(MapDatabase):
         if self.contains(shape) or not build:
             return super().get(shape, build=build, threads=threads)
         key = self.key(shape)
+        self.built.add(key)
         if key not in self._memory:
             gmap = generate_fs_map(shape, self.gripper, self.quality, self.config, threads=threads)
             self._memory[key] = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # as stored: best first
-            self.built.add(key)
             while len(self._memory) > 8:
                 self._memory.pop(next(iter(self._memory)))
         return self._memory[key]
@@ -238,7 +255,11 @@ def _block(task) -> tuple[list, list, set]:
     said so; the same scene is then skipped in every condition of its kind and size
     that fails the same way."""
     c, cfg, root, first, n = task
-    db = RunDatabase(root, config=map_config(cfg.quick_maps))
+    key = (root, cfg.quick_maps)
+    if key not in _DATABASES:  # one per process: its cache of loaded maps serves every task
+        _DATABASES[key] = RunDatabase(root, config=map_config(cfg.quick_maps))
+    db = _DATABASES[key]
+    db.built = set()
     out, skipped = [], []
     for i in range(first, first + n):
         try:
@@ -248,6 +269,9 @@ def _block(task) -> tuple[list, list, set]:
             log.warning("%s scene %d skipped: %s", c, i, err)
             skipped.append({"scene": i, "reason": str(err)})
     return out, skipped, db.built
+
+
+_DATABASES: dict = {}
 
 
 def _label(c: dict) -> str:

@@ -14,9 +14,13 @@ Reports per condition: grasp success rate (GSR = lifts / grasps) and declutter r
 (DR = objects removed / placed) with 95 % Wilson intervals (grasps and objects of one
 scene are correlated: the intervals understate the spread between scenes), scenes
 cleared, failure causes, planning seconds per grasp, and the share of objects
-segmented as one cluster in the first frame. Conditions run in blocks of scenes, and
-the summary is rewritten after every block, so a run cut short still reports the
-scenes it finished (``complete`` says whether it did).
+segmented as one cluster in the first frame. The summary is rewritten after every
+scene, so a run cut short (Ctrl-C, or SIGTERM to the main process) still reports the
+scenes it finished (``complete`` says whether every condition ran all it asked;
+``--others N`` runs the goal conditions -- 5 objects, the full method -- first and N
+scenes of the rest after them). The database is read only during the run: a size grid
+of FS maps is stored in it before the first scene, so the first scene plans like the
+last; a part no stored map serves gets a map built in memory, not stored.
 
     python experiments/e10_clutter_removal.py                 # 50 scenes per condition
     python experiments/e10_clutter_removal.py --scenes 5 --publish
@@ -64,7 +68,7 @@ class Config:
     others: int = opt(0, "scenes of the conditions outside the goals (other sizes, ablations), run after the "
                       "goal conditions (0: --scenes, all conditions together)")
     goal_objects: int = opt(5, "objects per scene of the goal conditions (--others does not cut them)")
-    block: int = opt(2, "scenes per condition between summary updates")
+    block: int = opt(2, "scenes of a condition in a row in the run's order (the summary is written after each scene)")
     objects: tuple[int, ...] = opt((5, 10), "objects per scene")
     kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
     noise: tuple[str, ...] = opt(("none", "default"), "execution error: none, default (3 mm / 2 deg)",
@@ -121,18 +125,18 @@ def main(argv=None) -> int:
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill PID: stop as Ctrl-C does
     text = run.write(out, _data(cfg, conds, goal, done, skipped, built, db_start, db_start), readme_section)
     try:
-        for todo in rounds(cfg, conds):
-            tasks = [(conds[i], cfg, str(db.root), j, 1) for i, j in todo]  # one scene a task: even loads
-            blocks = pool.imap(_block, tasks) if pool is not None else map(_block, tasks)
-            for (i, _), (new, miss, keys) in zip(todo, blocks):
-                done[i] += new
-                skipped[i] += miss
-                built[i] |= keys
+        order = [p for r in rounds(cfg, conds) for p in r]
+        tasks = [(conds[i], cfg, str(db.root), j, 1) for i, j in order]  # one scene a task: even loads
+        results = pool.imap(_block, tasks) if pool is not None else map(_block, tasks)
+        for (i, _), (new, miss, keys) in zip(order, results):  # in order: each condition's first scenes
+            done[i] += new
+            skipped[i] += miss
+            built[i] |= keys
             log.info("scenes done per condition: %s", [len(d) + len(k) for d, k in zip(done, skipped)])
             data = _data(cfg, conds, goal, done, skipped, built, db_start, database_record(db))
-            text = run.write(out, data, readme_section)
-    except KeyboardInterrupt:  # the blocks finished so far are in the summary already (complete: false)
-        log.warning("interrupted: %s holds the blocks finished before", out / "summary.json")
+            text = run.write(out, data, readme_section)  # after every scene: a run cut short reports them
+    except KeyboardInterrupt:  # the scenes finished so far are in the summary already (complete: false)
+        log.warning("interrupted: %s holds the scenes finished before", out / "summary.json")
         if pool is not None:
             pool.terminate()
         return 130
@@ -145,8 +149,8 @@ def main(argv=None) -> int:
 
 
 def rounds(cfg: Config, conds: list) -> list[list[tuple[int, int]]]:
-    """The run's order: rounds of (condition index, scene) with a summary after each,
-    ``block`` scenes of every condition a round; with ``others`` the goal conditions
+    """The run's order: rounds of (condition index, scene), ``block`` scenes of every
+    condition a round; with ``others`` the goal conditions
     (:func:`target`) run all their scenes first, then the others, so a run cut short
     has finished the goals."""
     goal = [target(cfg, c) for c in conds]

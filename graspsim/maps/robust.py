@@ -32,7 +32,6 @@ than one.
 from __future__ import annotations
 
 import functools
-import json
 import logging
 import math
 from dataclasses import asdict, dataclass, replace

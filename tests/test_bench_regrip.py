@@ -1,19 +1,12 @@
 """bench_regrip (issue 18's time goal): the quick mode end to end and its README block."""
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+from test_experiments import _load  # the experiment scripts' loader
 
 
 def test_bench_regrip_quick(tmp_path):
-    sys.path.insert(0, str(EXPERIMENTS))
-    spec = importlib.util.spec_from_file_location("bench_regrip", EXPERIMENTS / "bench_regrip.py")
-    bench = importlib.util.module_from_spec(spec)
-    sys.modules["bench_regrip"] = bench
-    spec.loader.exec_module(bench)
+    bench = _load("bench_regrip")
     out = tmp_path / "b"
     assert bench.main(["--quick", "--kinds", "box", "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())

@@ -15,7 +15,15 @@ after a warm-up scene:
 
 And in fresh processes (``run_fresh``), as a user's script meets it: ``import graspsim.sim``,
 make a 5-object pile, render one frame; the first run and the median of the next
-``--fresh`` runs. Writes summary.json and config.json into ``--out``.
+``--fresh`` runs.
+
+Planning (issue 17's goal: from a rendered 640 x 480 depth image to a ranked grasp for the
+whole scene <= 0.5 s): for ``--plans`` 5-object scenes of each kind, the first frame
+back-projected and planned by ``plan_scene`` (E10's scene settings, against a private FS
+map database ``OUT/fsdb`` built fresh, or ``--db``), once to warm up (it builds the maps
+parts need) and once timed: per stage (back-projection, table, segmentation,
+identification of every segment, maps + robust scores against the neighbours) and in
+total. Writes summary.json and config.json into ``--out``.
 
     python experiments/bench_scene.py
     python experiments/bench_scene.py --quick --out results/bench_scene-quick
@@ -35,7 +43,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import NAMED, machine_load, opt, run_fresh, start
+from _common import NAMED, experiment_database, machine_load, map_config, opt, run_fresh, start
 
 log = logging.getLogger("bench_scene")
 
@@ -48,11 +56,17 @@ class BenchConfig:
     renders: int = opt(5, "warm renders per scene (median)")
     fresh: int = opt(4, "fresh processes (the first, then the median of the rest)")
     seed: int = opt(0, "first scene seed")
-    QUICK: ClassVar[dict] = {"scenes": 1, "sizes": (5,), "kinds": ("pile",), "renders": 2, "fresh": 2}
+    plans: int = opt(3, "5-object scenes of each kind planned from their first frame (0: none)")
+    db: str = opt("", "FS database folder for planning (default: OUT/fsdb, built fresh)")
+    coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
+    QUICK: ClassVar[dict] = {"scenes": 1, "sizes": (5,), "kinds": ("pile",), "renders": 2, "fresh": 2, "plans": 1,
+                             "coarse_db": True}
 
     def __post_init__(self) -> None:
         if min(self.scenes, self.renders, self.fresh, *self.sizes) < 1:
             raise ValueError("--scenes, --renders, --fresh and --sizes must be >= 1")
+        if self.plans < 0:
+            raise ValueError("--plans must be >= 0")
 
 
 def _timed(fn):
@@ -114,6 +128,43 @@ def fresh_runs(cfg: BenchConfig) -> dict:
     return {"first": {k: runs[0][k] for k in med}, "median_rest": med, "of": len(rest), "runs": runs}
 
 
+PLAN_STAGES = ("backproject", "table", "segment", "identify", "plan", "total")
+
+
+def plan_one(kind: str, seed: int, db) -> dict:
+    """Planning times [s] of one 5-object scene's first frame (a warm-up plan, then the
+    timed one): per stage and in total (back-projection included)."""
+    from graspsim.perception.scene import plan_scene
+    from graspsim.seeding import rng_for
+    from graspsim.sim.camera import backproject, rig
+    from graspsim.sim.clutter import ClutterConfig
+    from graspsim.sim.scenes import make_scene
+
+    clutter = ClutterConfig()  # E10's settings: its scene planning, its sensor noise
+    sim = make_scene(5, kind, seed).sim()
+    frame = sim.render(rig(1)[0], noise=clutter.depth_noise, rng=rng_for(seed, "depth"))
+    sim.close()
+    scene_cfg = clutter.scene
+    plan_scene(backproject(frame).world(), db=db, rng=rng_for(seed, "plan"), config=scene_cfg)
+    points, bp = _timed(lambda: backproject(frame).world())
+    sp, _ = _timed(lambda: plan_scene(points, db=db, rng=rng_for(seed, "plan"), config=scene_cfg))
+    t = {k: float(sp.timing.get(k, 0.0)) for k in PLAN_STAGES[1:]}
+    t["total"] += bp
+    return {"kind": kind, "seed": seed, "points": len(points), "segments": len(sp.segments),
+            "grasps": len(sp.grasps), "backproject": bp, **{k: t[k] for k in PLAN_STAGES[1:]}}
+
+
+def plan_runs(cfg: BenchConfig, out: Path) -> dict:
+    if not cfg.plans:
+        return {}
+    db = experiment_database(cfg.db, out, map_config(cfg.coarse_db))
+    rows = [plan_one(kind, cfg.seed + i, db) for kind in cfg.kinds for i in range(cfg.plans)]
+    groups = [{"kind": kind, "scenes": len(g), **{k: statistics.median(r[k] for r in g) for k in PLAN_STAGES},
+               "max_total": max(r["total"] for r in g), "within_goal": sum(r["total"] <= 0.5 for r in g)}
+              for kind in cfg.kinds for g in [[r for r in rows if r["kind"] == kind]]]
+    return {"rows": rows, "groups": groups}
+
+
 def run(cfg: BenchConfig) -> dict:
     one_scene("pile", 3, 10**6, 1)  # warm-up: imports, CoACD cache, GL library
     rows = [one_scene(kind, n, cfg.seed + i, cfg.renders)
@@ -147,6 +198,7 @@ def table(groups: list[dict]) -> str:
 def main(argv=None) -> int:
     cfg, out, record = start(BenchConfig, __file__, argv, __doc__, log_format=NAMED)
     res = run(cfg)
+    res["planning"] = plan_runs(cfg, out)
     record.write(out, {"config": cfg, **res}, readme_section)
     print(readme_section(json.loads((out / "summary.json").read_text())))
     return 0
@@ -164,6 +216,15 @@ def readme_section(s: dict) -> str:
          f"{f['median_rest']['wall_s']:.2f} s the median of the next {f['of']} "
          f"(of which import {f['median_rest']['import_s']:.2f} s, scene + frame {f['median_rest']['total_s']:.2f} s; "
          f"peak RSS {f['median_rest']['peak_rss_mb']:.0f} MB)."]
+    if s.get("planning"):
+        L += ["", "Planning a 5-object scene's first frame with `plan_scene` (E10's settings; after a warm-up plan "
+              "of the same frame; medians over scenes [s]; goal: <= 0.5 s from depth image to ranked grasps):", "",
+              "| scene | scenes | back-projection | table | segmentation | identification | maps + robust | total "
+              "(median / max) | within 0.5 s |", "|---|---|---|---|---|---|---|---|---|"]
+        for g in s["planning"]["groups"]:
+            L.append(f"| {g['kind']}, 5 objects | {g['scenes']} | " + " | ".join(
+                f"{g[k]:.3f}" for k in PLAN_STAGES[:-1]) + f" | {g['total']:.2f} / {g['max_total']:.2f} | "
+                f"{g['within_goal']}/{g['scenes']} |")
     return "\n".join(L) + "\n"
 
 

@@ -2,28 +2,17 @@
 bread mesh -- E09's clouds, per-stage times that add up, a fresh 'graspsim adapt' -- and
 the helpers it relies on: the planner's stage clock and the row ids of repeated lines."""
 
-import importlib.util
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from test_experiments import _load  # the experiment scripts' loader
 
 from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.stages import StageClock
 
 ROOT = Path(__file__).resolve().parents[1]
-EXPERIMENTS = ROOT / "experiments"
-
-
-def _load(name):
-    sys.path.insert(0, str(EXPERIMENTS))
-    spec = importlib.util.spec_from_file_location(name, EXPERIMENTS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def test_row_ids_number_distinct_rows_and_first_rows_finds_them():

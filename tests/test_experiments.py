@@ -409,6 +409,10 @@ def test_bench_scene_quick(tmp_path):
     assert row["total_s"] >= row["settle_s"] > 0 and row["warm_render_s"] > 0
     assert s["fresh"]["of"] == 1 and s["fresh"]["first"]["wall_s"] > s["fresh"]["first"]["total_s"] > 0
     assert s["command"] in bench.readme_section(s)
+    (p,) = s["planning"]["rows"]  # one 5-object pile planned from its first frame
+    stages = sum(p[k] for k in ("backproject", "table", "segment", "identify", "plan"))
+    assert p["segments"] >= 1 and 0 < stages <= p["total"] + 1e-6
+    assert "| pile, 5 objects | 1 |" in bench.readme_section(s)
 
 
 @pytest.mark.slow

@@ -46,6 +46,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, types
 
+from graspsim.maps._assemble_kernel import assemble_rows  # compiled and cached with the sweep (SIGNATURES)
+
 __all__ = ["sweep_lines", "assemble_rows", "SIGNATURES"]
 
 _f4, _i4, _i8, _u1 = types.float32, types.int32, types.int64, types.uint8
@@ -62,49 +64,97 @@ def _xoff(s, lo, hi, off):
 
 
 @njit(cache=True, fastmath=True)
-def _gather(Q, NQ, RT, HN, gp, u, e1, e2, ho, fp, fmargin, reach2,
-            idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH):
+def _cluster_near(cc, r, cx, gp, u, e1, e2, ho, fp, fmargin, c1, s1, dlim):
+    """Whether any sample of a cluster (within r of cc, rt + hn at most cx) can have a
+    patch value at or below ``dlim`` at the roll (c1, s1) (see :func:`_gather`)."""
+    dx = cc[0] - gp[0]
+    dy = cc[1] - gp[1]
+    dz = cc[2] - gp[2]
+    sc = abs(dx * u[0] + dy * u[1] + dz * u[2])
+    ac = dx * e1[0] + dy * e1[1] + dz * e1[2]
+    bc = dx * e2[0] + dy * e2[1] + dz * e2[2]
+    mc = cx + fmargin  # bounds a sample's x growth
+    grow = np.float32(2.0) * cx + fmargin  # bounds its patch's reach along the wrist's y and z
+    tlo = ac * c1 + bc * s1 - r - grow  # the least t - m_t of any sample of the cluster
+    ylo = abs(ac * s1 - bc * c1) - r - grow
+    slo = sc - r
+    shi = sc + r
+    near = shi >= ho + fp[0, 0] - mc and slo <= ho + fp[0, 1] + mc and ylo <= fp[0, 2] and tlo + fp[0, 3] <= dlim
+    near = near or (shi >= ho + fp[1, 0] - mc and slo <= ho + fp[1, 1] + mc and ylo <= fp[1, 2]
+                    and tlo + fp[1, 3] <= dlim)
+    return near or (slo <= fp[2, 1] + mc and ylo <= fp[2, 2] and tlo + fp[2, 3] <= dlim)
+
+
+@njit(cache=True, fastmath=True)
+def _gather(Q, NQ, RT, HN, order, cstart, CC, CR, CX, gp, u, e1, e2, ho, fp, fmargin, reach2, single, c1, s1,
+            dlim, idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH):
     """Collect the coarse samples that can touch the gripper on this line and their
     per-sample data; returns the count. fp rows finger/jaw/housing:
     (x_inner, x_outer, half_width_y, off, unused); sided parts sit at |x| in
-    [o/2 + x_inner, o/2 + x_outer], the housing at |x| <= x_outer."""
+    [o/2 + x_inner, o/2 + x_outer], the housing at |x| <= x_outer.
+
+    single: the line is swept at one roll only (cos c1, sin s1): a sample whose patch
+    values there (conservative and exact, as :func:`_roll_minima` computes them) both
+    exceed ``dlim`` (above the deepest depth) changes no answer -- every depth is below
+    it, and the fine level descends only from values at or below a depth -- and is left
+    out; and whole clusters of samples are (cluster c: ``order[cstart[c]:cstart[c + 1]]``,
+    within CR[c] of CC[c], rt + hn at most CX[c]) where bounds over the cluster show no
+    sample's value there can be at or below ``dlim``. The samples kept are the same;
+    every later use of them takes minima, which their order does not change."""
     n = 0
-    for i in range(Q.shape[0]):
-        dx = Q[i, 0] - gp[0]
-        dy = Q[i, 1] - gp[1]
-        dz = Q[i, 2] - gp[2]
-        s = dx * u[0] + dy * u[1] + dz * u[2]
-        a = dx * e1[0] + dy * e1[1] + dz * e1[2]
-        b = dx * e2[0] + dy * e2[1] + dz * e2[2]
-        ns = NQ[i, 0] * u[0] + NQ[i, 1] * u[1] + NQ[i, 2] * u[2]
-        rt = RT[i]
-        hn = HN[i]
-        ans = abs(ns)
-        # |n x e_x| <= |n.e1| + |n.e2|
-        na_ = abs(NQ[i, 0] * e1[0] + NQ[i, 1] * e1[1] + NQ[i, 2] * e1[2])
-        nb_ = abs(NQ[i, 0] * e2[0] + NQ[i, 1] * e2[1] + NQ[i, 2] * e2[2])
-        mx = rt * min(na_ + nb_, np.float32(1.0)) + hn * ans + fmargin
-        sa = abs(s)
-        fo = _xoff(sa, ho + fp[0, 0] - mx, ho + fp[0, 1] + mx, fp[0, 3])
-        jo = _xoff(sa, ho + fp[1, 0] - mx, ho + fp[1, 1] + mx, fp[1, 3])
-        hh = _xoff(sa, np.float32(-1.0), fp[2, 1] + mx, fp[2, 3])
-        rho2 = a * a + b * b
-        if fo < _BIG or (jo < _BIG and rho2 >= reach2[1]) or (hh < _BIG and rho2 >= reach2[2]):
-            idx[n] = i
-            ca[n] = a
-            cb[n] = b
-            cna[n] = NQ[i, 0] * e1[0] + NQ[i, 1] * e1[1] + NQ[i, 2] * e1[2]
-            cnb[n] = NQ[i, 0] * e2[0] + NQ[i, 1] * e2[1] + NQ[i, 2] * e2[2]
-            cns[n] = ans
-            crt[n] = rt
-            chn[n] = hn
-            oF[n] = fo
-            oJ[n] = jo
-            oH[n] = hh
-            xF[n] = _xoff(sa, ho + fp[0, 0], ho + fp[0, 1], fp[0, 3])
-            xJ[n] = _xoff(sa, ho + fp[1, 0], ho + fp[1, 1], fp[1, 3])
-            xH[n] = _xoff(sa, np.float32(-1.0), fp[2, 1], fp[2, 3])
-            n += 1
+    for c in range(CR.shape[0] if single else 1):
+        k0, k1 = 0, Q.shape[0]
+        if single:
+            if not _cluster_near(CC[c], CR[c], CX[c], gp, u, e1, e2, ho, fp, fmargin, c1, s1, dlim):
+                continue
+            k0, k1 = cstart[c], cstart[c + 1]
+        for k in range(k0, k1):
+            i = order[k] if single else k
+            dx = Q[i, 0] - gp[0]
+            dy = Q[i, 1] - gp[1]
+            dz = Q[i, 2] - gp[2]
+            s = dx * u[0] + dy * u[1] + dz * u[2]
+            a = dx * e1[0] + dy * e1[1] + dz * e1[2]
+            b = dx * e2[0] + dy * e2[1] + dz * e2[2]
+            ns = NQ[i, 0] * u[0] + NQ[i, 1] * u[1] + NQ[i, 2] * u[2]
+            rt = RT[i]
+            hn = HN[i]
+            ans = abs(ns)
+            # |n x e_x| <= |n.e1| + |n.e2|
+            na_ = abs(NQ[i, 0] * e1[0] + NQ[i, 1] * e1[1] + NQ[i, 2] * e1[2])
+            nb_ = abs(NQ[i, 0] * e2[0] + NQ[i, 1] * e2[1] + NQ[i, 2] * e2[2])
+            mx = rt * min(na_ + nb_, np.float32(1.0)) + hn * ans + fmargin
+            sa = abs(s)
+            fo = _xoff(sa, ho + fp[0, 0] - mx, ho + fp[0, 1] + mx, fp[0, 3])
+            jo = _xoff(sa, ho + fp[1, 0] - mx, ho + fp[1, 1] + mx, fp[1, 3])
+            hh = _xoff(sa, np.float32(-1.0), fp[2, 1] + mx, fp[2, 3])
+            rho2 = a * a + b * b
+            if fo < _BIG or (jo < _BIG and rho2 >= reach2[1]) or (hh < _BIG and rho2 >= reach2[2]):
+                na = NQ[i, 0] * e1[0] + NQ[i, 1] * e1[1] + NQ[i, 2] * e1[2]
+                nb = NQ[i, 0] * e2[0] + NQ[i, 1] * e2[1] + NQ[i, 2] * e2[2]
+                ef = _xoff(sa, ho + fp[0, 0], ho + fp[0, 1], fp[0, 3])
+                ej = _xoff(sa, ho + fp[1, 0], ho + fp[1, 1], fp[1, 3])
+                eh = _xoff(sa, np.float32(-1.0), fp[2, 1], fp[2, 3])
+                if single and _patch_value(a, b, na, nb, ans, rt, hn, fo, jo, hh, c1, s1, fp[0, 2], fp[1, 2],
+                                           fp[2, 2], fmargin) > dlim \
+                        and _patch_value(a, b, na, nb, ans, _ZERO, _ZERO, ef, ej, eh, c1, s1, fp[0, 2], fp[1, 2],
+                                         fp[2, 2], _ZERO) > dlim:
+                    continue
+                idx[n] = i
+                ca[n] = a
+                cb[n] = b
+                cna[n] = na
+                cnb[n] = nb
+                cns[n] = ans
+                crt[n] = rt
+                chn[n] = hn
+                oF[n] = fo
+                oJ[n] = jo
+                oH[n] = hh
+                xF[n] = ef
+                xJ[n] = ej
+                xH[n] = eh
+                n += 1
     return n
 
 
@@ -231,15 +281,16 @@ def _refine(n, idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, nu, cu, su, dhi
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart, F, NF, RTF,
-                HNF, fstart, fp, reach2, cos_r, sin_r, depths, fmargin, refine, need, free,
+def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, order, cstart, CC, CR, CX, M, NM, RTM, HNM, mstart,
+                F, NF, RTF, HNF, fstart, fp, reach2, cos_r, sin_r, depths, fmargin, refine, need, free,
                 n_refined, chunk0, chunk1, nchunk):
     """Collision sweep over lines x rolls x depths, for the lines of chunks
     ``chunk0 <= c < chunk1`` (chunk c holds lines c, c + nchunk, c + 2 nchunk, ...).
 
     gp, u, e1, e2: (L, 3) float32 line frames; half_open: (L,) pre-grasp opening / 2.
     Q, NQ: (Mc, 3) coarse samples and their normals; RT, HN: (Mc,) tangential radius
-    and normal height of each sample's patch. M, NM, RTM, HNM: the same for the middle
+    and normal height of each sample's patch; order, cstart, CC, CR, CX: their spatial
+    clusters (see :func:`_gather`). M, NM, RTM, HNM: the same for the middle
     level, ordered by coarse parent (parent i owns M[mstart[i]:mstart[i+1]]); F, NF:
     (Mf, 3) fine samples and normals ordered by middle parent (m owns
     F[fstart[m]:fstart[m+1]]), RTF, HNF: (Mf,) the extent of each fine sample's cell.
@@ -258,6 +309,7 @@ def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart
     Mc = Q.shape[0]
     hyF, hyJ, hyH = fp[0, 2], fp[1, 2], fp[2, 2]
     all_needed = need.shape[0] == 1 and L != 1
+    dlim = depths[D - 1] + np.float32(1e-6)  # a patch value above this answers no depth
     idx = np.empty(Mc, np.int32)
     buf = np.empty((13, Mc), np.float32)
     ca, cb, cna, cnb, cns, crt, chn = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5], buf[6]
@@ -273,8 +325,9 @@ def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart
     for ch in range(chunk0, chunk1):
         for li in range(ch, L, nchunk):
             ho = half_open[li]
-            n = _gather(Q, NQ, RT, HN, gp[li], u[li], e1[li], e2[li], ho, fp, fmargin, reach2,
-                        idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH)
+            n = _gather(Q, NQ, RT, HN, order, cstart, CC, CR, CX, gp[li], u[li], e1[li], e2[li], ho, fp, fmargin,
+                        reach2, R == 1, cos_r[0], sin_r[0], dlim, idx, ca, cb, cna, cnb, cns, crt, chn, oF, oJ,
+                        oH, xF, xJ, xH)
             _roll_minima(n, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH, cos_r,
                          sin_r, hyF, hyJ, hyH, fmargin, vin, vex)
             nu = 0
@@ -305,76 +358,6 @@ def sweep_lines(gp, u, e1, e2, half_open, Q, NQ, RT, HN, M, NM, RTM, HNM, mstart
             n_refined[li] = nu
 
 
-@njit(cache=True, nogil=True, fastmath=False)
-def assemble_rows(free, u, e1, e2, gp, cos_r, sin_r, tcp, offsets, line_cols, pair_cols,
-                  line_scalars, wrist, quat, rows_vec, rows_c, rows_n, rows_scalar, line0, line1):
-    """Fill the map's row columns for every free pose of lines ``line0 <= l < line1``,
-    in (line, roll, depth) order.
-
-    free: (L, R, D) uint8; u, e1, e2, gp: (L, 3) line frames and grasp points; tcp: (D,)
-    wrist-to-grasp-point distance along z per depth; offsets: (L + 1,) first row of each
-    line. Per-line data copied to each of the line's rows: line_cols (L, 3) -> rows_vec
-    (N, 3); pair_cols (L, 2, 2, 3) (contacts, normals) -> rows_c, rows_n (N, 2, 3);
-    line_scalars (L, S) -> rows_scalar (S, N). Computes wrist (N, 3) and quat (N, 4)
-    w,x,y,z of the wrist axes x = u, z = cos e1 + sin e2, y = z x x.
-    """
-    R, D = free.shape[1], free.shape[2]
-    S = line_scalars.shape[1]
-    for li in range(line0, line1):
-        row = offsets[li]
-        if offsets[li + 1] == row:
-            continue
-        ux, uy, uz = u[li, 0], u[li, 1], u[li, 2]
-        for r in range(R):
-            c, s = cos_r[r], sin_r[r]
-            zx = c * e1[li, 0] + s * e2[li, 0]
-            zy = c * e1[li, 1] + s * e2[li, 1]
-            zz = c * e1[li, 2] + s * e2[li, 2]
-            yx = zy * uz - zz * uy
-            yy = zz * ux - zx * uz
-            yz = zx * uy - zy * ux
-            w, x, y, z = _quat(ux, yx, zx, uy, yy, zy, uz, yz, zz)
-            for k in range(D):
-                if free[li, r, k]:
-                    wrist[row, 0] = gp[li, 0] - tcp[k] * zx
-                    wrist[row, 1] = gp[li, 1] - tcp[k] * zy
-                    wrist[row, 2] = gp[li, 2] - tcp[k] * zz
-                    quat[row, 0] = w
-                    quat[row, 1] = x
-                    quat[row, 2] = y
-                    quat[row, 3] = z
-                    for j in range(3):
-                        rows_vec[row, j] = line_cols[li, j]
-                    for a in range(2):
-                        for j in range(3):
-                            rows_c[row, a, j] = pair_cols[li, 0, a, j]
-                            rows_n[row, a, j] = pair_cols[li, 1, a, j]
-                    for j in range(S):
-                        rows_scalar[j, row] = line_scalars[li, j]
-                    row += 1
-
-
-@njit(cache=True)
-def _quat(m00, m01, m02, m10, m11, m12, m20, m21, m22):
-    """Rotation matrix -> unit quaternion w, x, y, z with w >= 0 (Shepperd's method)."""
-    tr = m00 + m11 + m22
-    if tr > 0.0:
-        S = np.sqrt(tr + 1.0) * 2.0
-        w, x, y, z = 0.25 * S, (m21 - m12) / S, (m02 - m20) / S, (m10 - m01) / S
-    elif m00 > m11 and m00 > m22:
-        S = np.sqrt(1.0 + m00 - m11 - m22) * 2.0
-        w, x, y, z = (m21 - m12) / S, 0.25 * S, (m01 + m10) / S, (m02 + m20) / S
-    elif m11 > m22:
-        S = np.sqrt(1.0 + m11 - m00 - m22) * 2.0
-        w, x, y, z = (m02 - m20) / S, (m01 + m10) / S, 0.25 * S, (m12 + m21) / S
-    else:
-        S = np.sqrt(1.0 + m22 - m00 - m11) * 2.0
-        w, x, y, z = (m10 - m01) / S, (m02 + m20) / S, (m12 + m21) / S, 0.25 * S
-    if w < 0.0:
-        return -w, -x, -y, -z
-    return w, x, y, z
-
-
 @njit(cache=True)
 def probe():
     """A trivial cached function, compiled first: a cache miss here means a cold cache."""
@@ -385,13 +368,15 @@ _B = _u1[:, :, ::1]  # (L, R, D) uint8 flags
 _LINE = (_V,) * 13  # the per-line candidate arrays of _gather, in its order
 # One signature per kernel, callees before callers (compiled in this order).
 SIGNATURES = {
-    "_gather": (_M, _M, _V, _V, _V, _V, _V, _V, _f4, _M, _f4, _V, _i4[::1]) + _LINE,
+    "_gather": (_M, _M, _V, _V, _i8[::1], _i8[::1], _M, _V, _V, _V, _V, _V, _V, _f4, _M, _f4, _V, types.boolean,
+                _f4, _f4, _f4, _i4[::1]) + _LINE,
     "_roll_minima": (_i8,) + _LINE + (_V, _V, _f4, _f4, _f4, _f4, _V, _V),
     "_refine": (_i8, _i4[::1]) + _LINE[:10] + (_i8, _V, _V, _V, _V, _M, _M, _V, _V, _i8[::1], _M, _M,
                                                  _V, _V, _i8[::1], _V, _V, _V, _V, _f4, _M, _f4,
                                                  _i8[::1]),
-    "sweep_lines": (_M, _M, _M, _M, _V, _M, _M, _V, _V, _M, _M, _V, _V, _i8[::1], _M, _M, _V, _V,
-                    _i8[::1], _M, _V, _V, _V, _V, _f4, types.boolean, _B, _B, _i4[::1], _i8, _i8, _i8),
+    "sweep_lines": (_M, _M, _M, _M, _V, _M, _M, _V, _V, _i8[::1], _i8[::1], _M, _V, _V, _M, _M, _V, _V,
+                    _i8[::1], _M, _M, _V, _V, _i8[::1], _M, _V, _V, _V, _V, _f4, types.boolean, _B, _B,
+                    _i4[::1], _i8, _i8, _i8),
     "assemble_rows": (_B, *(types.float64[:, ::1],) * 4, *(types.float64[::1],) * 3, _i8[::1], _M,
                       _f4[:, :, :, ::1], _M, _M, _M, _M, _f4[:, :, ::1], _f4[:, :, ::1], _M, _i8, _i8),
 }

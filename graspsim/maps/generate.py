@@ -24,7 +24,7 @@ from graspsim import __version__
 from graspsim.errors import GripperError, InvalidParameterError, NoFeasibleGraspError
 from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
-from graspsim.maps.hierarchy import clear_caches, sample_levels
+from graspsim.maps.hierarchy import clear_caches, clusters, sample_levels
 from graspsim.maps.preflight import check_graspable, check_memory, estimate_map_memory
 from graspsim.maps.preflight import memory_budget as preflight_budget
 from graspsim.quality import QualityModel
@@ -257,10 +257,11 @@ def sweep_collisions(shape, lines: ClosingLines, gripper: GripperSpec, cfg: MapC
     f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
     i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
     if "_kernel_args" not in lv:  # the samples as the kernel takes them, once per (cached) hierarchy
+        order, start, centre, radius, reach_max = clusters(lv["Q"], lv["RT"] + lv["HN"])
         lv["_kernel_args"] = (
-            f32(lv["Q"]), f32(lv["NQ"]), f32(lv["RT"]), f32(lv["HN"]), f32(lv["M"]), f32(lv["NM"]),
-            f32(lv["RTM"]), f32(lv["HNM"]), i64(lv["mstart"]), f32(lv["F"]), f32(lv["NF"]),
-            f32(lv["RTF"]), f32(lv["HNF"]), i64(lv["fstart"]))
+            f32(lv["Q"]), f32(lv["NQ"]), f32(lv["RT"]), f32(lv["HN"]), i64(order), i64(start), f32(centre),
+            f32(radius), f32(reach_max), f32(lv["M"]), f32(lv["NM"]), f32(lv["RTM"]), f32(lv["HNM"]),
+            i64(lv["mstart"]), f32(lv["F"]), f32(lv["NF"]), f32(lv["RTF"]), f32(lv["HNF"]), i64(lv["fstart"]))
     args = (f32(lines.gp), f32(lines.u), f32(lines.e1), f32(lines.e2),
             f32(0.5 * lines.width + gripper.approach_clearance), *lv["_kernel_args"], fp, f32(reach2),
             f32(np.cos(roll)), f32(np.sin(roll)), f32(depths), np.float32(fmargin), bool(cfg.collision_refine),

@@ -19,7 +19,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["sample_levels", "build_levels", "clear_caches"]
+__all__ = ["sample_levels", "build_levels", "clear_caches", "clusters"]
 
 
 def _patches(parents, children, parent_normals, grow, parent=None):
@@ -113,3 +113,29 @@ def build_levels(shape, cfg) -> dict[str, np.ndarray | float]:
             "F": fine.points[fsel], "NF": fine.normals[fsel], "RTF": fine.tangent_radius[fsel],
             "HNF": fine.normal_height[fsel], "fstart": fstart_new,
             "fine_cover": float(fine.cover_radius)}
+
+
+def clusters(points: np.ndarray, reach: np.ndarray, size: int = 16, margin: float = 1e-5):
+    """Spatial clusters of samples, for the compiled sweep to pass over the clusters
+    that cannot touch the gripper: ``(order, start, centre, radius, reach_max)`` --
+    cluster c holds samples ``order[start[c]:start[c + 1]]`` (at most ``size``, by
+    halving along the widest extent at the median), all within ``radius[c]`` of
+    ``centre[c]`` and with ``reach`` (N,) at most ``reach_max[c]``, both grown by
+    ``margin`` [m] (far more than float32 rounding of the coordinates)."""
+    points = np.asarray(points, float)
+    leaves: list[np.ndarray] = []
+    todo = [np.arange(len(points))]
+    while todo:
+        ids = todo.pop()
+        if len(ids) <= size:
+            leaves.append(ids)
+            continue
+        half = np.argsort(points[ids, int(np.argmax(np.ptp(points[ids], axis=0)))], kind="stable")
+        todo += [ids[half[len(ids) // 2:]], ids[half[:len(ids) // 2]]]
+    leaves = [x for x in leaves if len(x)]
+    order = np.concatenate(leaves).astype(np.int64) if leaves else np.zeros(0, np.int64)
+    start = np.concatenate([[0], np.cumsum([len(x) for x in leaves])]).astype(np.int64)
+    centre = np.array([0.5 * (points[x].min(axis=0) + points[x].max(axis=0)) for x in leaves]).reshape(-1, 3)
+    radius = np.array([np.sqrt(np.max(np.sum((points[x] - c) ** 2, axis=1))) for x, c in zip(leaves, centre)])
+    reach_max = np.array([np.max(reach[x]) for x in leaves])
+    return order, start, centre, radius + margin, reach_max + margin

@@ -74,9 +74,15 @@ def _grid_index(depth: np.ndarray, gripper: GripperSpec, step: float) -> np.ndar
 
 
 def _first_of_each(rows: np.ndarray, key: np.ndarray) -> np.ndarray:
-    """``rows`` keeping the first of each ``key`` (keys (len(rows),)), in order."""
-    _, first = np.unique(key, return_index=True)
-    return rows[np.sort(first)]
+    """``rows`` keeping the first of each ``key`` (keys (len(rows),) >= 0), in order."""
+    key = np.asarray(key, np.int64)
+    n = len(key)
+    if n == 0 or int(key.max()) >= 8 * n + 4096:  # keys too sparse for a table of them
+        _, first = np.unique(key, return_index=True)
+        return rows[np.sort(first)]
+    first = np.full(int(key.max()) + 1, n, np.int64)
+    np.minimum.at(first, key, np.arange(n))  # a table instead of a sort
+    return rows[np.sort(first[first < n])]
 
 
 def adapt_to_gripper(gmap: GraspabilityMap, gripper: GripperSpec, *, config: MapConfig | None = None,

@@ -27,6 +27,6 @@ def first_rows(ids: np.ndarray) -> np.ndarray:
     """(K,) the first row of each id 0 .. K - 1 of ``ids`` (N,) (as :func:`row_ids`
     numbers them: every id below the largest occurs)."""
     ids = np.asarray(ids, np.int64)
-    first = np.empty(int(ids.max()) + 1 if len(ids) else 0, np.int64)
-    first[ids[::-1]] = np.arange(len(ids) - 1, -1, -1)
+    first = np.full(int(ids.max()) + 1 if len(ids) else 0, len(ids), np.int64)
+    np.minimum.at(first, ids, np.arange(len(ids)))
     return first

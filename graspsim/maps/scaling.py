@@ -229,7 +229,7 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
             r = src.rows[pos]
             c = fs_map.contacts[r].astype(float)
             c2 = target.from_unit(source.to_unit(c.reshape(-1, 3))).reshape(c.shape)
-            wrist = fs_map.wrist_position[r] + (c2.mean(axis=1) - c.mean(axis=1))
+            wrist = fs_map.wrist_position[r] + ((c2[:, 0] + c2[:, 1]) / 2 - (c[:, 0] + c[:, 1]) / 2)  # = mean(1)
             return prefer(fs_map.wrist_quat[r], wrist, np.linalg.norm(c2[:, 1] - c2[:, 0], axis=1))
     for rows in stream_order(len(src.rows), sc.first_batch, sc.growth, predicted):
         line = src.line_of[rows]

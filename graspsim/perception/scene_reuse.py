@@ -23,7 +23,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["SegmentMemory", "same_points", "nothing_new", "find_previous", "reused_grasps", "drop_grasp"]
+__all__ = ["SegmentMemory", "same_points", "nothing_new", "find_previous", "reused_grasps", "drop_grasp",
+           "near_pose"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,18 +108,25 @@ def reused_grasps(mem: SegmentMemory, k: int) -> list:
     return [replace(g, segment=k) for g in mem.grasps]
 
 
+_FLIP = np.diag([-1.0, -1.0, 1.0])  # the two-jaw gripper's symmetry: 180 deg about its approach (wrist z)
+
+
+def near_pose(T_a: np.ndarray, T_b: np.ndarray, *, distance: float = 0.01, angle_deg: float = 20.0) -> bool:
+    """Whether wrist poses ``T_a`` and ``T_b`` (4, 4) are the same grasp give or take:
+    wrists within ``distance`` [m] and turned by at most ``angle_deg``, the jaws'
+    180 deg symmetry about the approach axis included."""
+    if np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]) > distance:
+        return False
+    R = T_a[:3, :3].T @ T_b[:3, :3]
+    c = 0.5 * (max(np.trace(R), np.trace(R @ _FLIP)) - 1.0)
+    return c >= np.cos(np.radians(angle_deg))
+
+
 def drop_grasp(memory, T_world_wrist: np.ndarray, *, distance: float = 0.01, angle_deg: float = 20.0) -> tuple:
     """``memory`` (segment memories) without the grasps near pose ``T_world_wrist`` (an
-    executed grasp): wrist within ``distance`` [m] and rotated by at most ``angle_deg``.
-    A failed grasp's near twins (the next rows of the same map) fail the same way on a
-    scene that did not change; they are not retried."""
+    executed grasp; :func:`near_pose`). A failed grasp's near twins (the next rows of
+    the same map) fail the same way on a scene that did not change."""
     T = np.asarray(T_world_wrist, float)
-    cos_max = np.cos(np.radians(angle_deg))
-
-    def near(g) -> bool:
-        if np.linalg.norm(g.T_world_wrist[:3, 3] - T[:3, 3]) > distance:
-            return False
-        c = 0.5 * (np.trace(T[:3, :3].T @ g.T_world_wrist[:3, :3]) - 1.0)
-        return c >= cos_max
-
-    return tuple(replace(m, grasps=tuple(g for g in m.grasps if not near(g))) for m in memory)
+    return tuple(replace(m, grasps=tuple(g for g in m.grasps
+                                         if not near_pose(T, g.T_world_wrist, distance=distance, angle_deg=angle_deg)))
+                 for m in memory)

@@ -29,7 +29,7 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError
 from graspsim.perception.scene import SceneConfig, plan_scene
-from graspsim.perception.scene_reuse import drop_grasp
+from graspsim.perception.scene_reuse import drop_grasp, near_pose
 from graspsim.sim.camera import Camera, DepthNoise, backproject, rig
 from graspsim.sim.noise import ExecutionNoise
 
@@ -172,6 +172,18 @@ def _target(per, seg: int, truth: np.ndarray) -> int | None:
     return int(np.bincount(t).argmax()) if len(t) else None
 
 
+def _choose(sp, failed: list[np.ndarray]):
+    """The best grasp of plan ``sp`` with a robust score > 0 that is not near a grasp
+    that failed earlier in the episode (:func:`~graspsim.perception.scene_reuse.near_pose`:
+    its twins, the jaws turned 180 deg included, fail the same way), or None."""
+    for g in sp.grasps:
+        if g.score <= 0:
+            return None
+        if not any(near_pose(T, g.T_world_wrist) for T in failed):
+            return g
+    return None
+
+
 def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
                 camera: Camera | None = None, on_step=None) -> ClutterResult:
     """One clutter-removal episode on ``scene`` (a :class:`~graspsim.sim.scenes.TableScene`)
@@ -189,6 +201,7 @@ def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | 
     attempts: list[Attempt] = []
     first = previous = None
     failures, stop = 0, "max_attempts"
+    failed: list[np.ndarray] = []  # wrist poses of the episode's failed grasps
     try:
         while len(attempts) < cap:
             if not sim.objects_left():
@@ -205,7 +218,7 @@ def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | 
             seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
             if first is None:
                 first = (seen, one)
-            best = sp.best
+            best = _choose(sp, failed)
             if best is None:
                 stop = "no_grasp"
                 break
@@ -223,6 +236,8 @@ def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | 
                 on_step(view, frame, sp, a)
             # a grasp that lifted another object is no success, but the scene changed: no failure in a row
             failures = 0 if out.success else failures + 1
+            if not out.success:  # not tried again (a start collision leaves the scene as it was)
+                failed.append(np.asarray(best.T_world_wrist, float))
             if failures >= cfg.max_failures:
                 stop = "failures"
                 break

@@ -14,9 +14,13 @@ Reports per condition: grasp success rate (GSR = lifts / grasps) and declutter r
 (DR = objects removed / placed) with 95 % Wilson intervals (grasps and objects of one
 scene are correlated: the intervals understate the spread between scenes), scenes
 cleared, failure causes, planning seconds per grasp, and the share of objects
-segmented as one cluster in the first frame. Conditions run in blocks of scenes, and
-the summary is rewritten after every block, so a run cut short still reports the
-scenes it finished (``complete`` says whether it did).
+segmented as one cluster in the first frame. The summary is rewritten after every
+scene, so a run cut short (Ctrl-C, or SIGTERM to the main process) still reports the
+scenes it finished (``complete`` says whether every condition ran all it asked;
+``--others N`` runs the goal conditions -- 5 objects, the full method -- first and N
+scenes of the rest after them). The database is read only during the run: a size grid
+of FS maps is stored in it before the first scene, so the first scene plans like the
+last; a part no stored map serves gets a map built in memory, not stored.
 
     python experiments/e10_clutter_removal.py                 # 50 scenes per condition
     python experiments/e10_clutter_removal.py --scenes 5 --publish
@@ -28,7 +32,6 @@ from __future__ import annotations
 import logging
 import signal
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
@@ -47,7 +50,7 @@ from _common import (
     start,
 )
 
-from graspsim.errors import MapDatabaseError, SimulationError
+from graspsim.errors import MapDatabaseError, NoFeasibleGraspError, SimulationError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import generate_fs_map
 from graspsim.perception.scene import SceneConfig
@@ -62,9 +65,10 @@ ABLATIONS = ("no_neighbours", "ground_truth")
 @dataclass(frozen=True)
 class Config:
     scenes: int = opt(50, "scenes per condition")
-    others: int = opt(0, "scenes of the conditions outside the goals (other sizes, ablations; 0: --scenes)")
+    others: int = opt(0, "scenes of the conditions outside the goals (other sizes, ablations), run after the "
+                      "goal conditions (0: --scenes, all conditions together)")
     goal_objects: int = opt(5, "objects per scene of the goal conditions (--others does not cut them)")
-    block: int = opt(2, "scenes per condition between summary updates")
+    block: int = opt(2, "scenes of a condition in a row in the run's order (the summary is written after each scene)")
     objects: tuple[int, ...] = opt((5, 10), "objects per scene")
     kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
     noise: tuple[str, ...] = opt(("none", "default"), "execution error: none, default (3 mm / 2 deg)",
@@ -117,39 +121,55 @@ def main(argv=None) -> int:
     done: list[list] = [[] for _ in conds]
     skipped: list[list] = [[] for _ in conds]
     built: list[set] = [set() for _ in conds]
-    pool = ProcessPoolExecutor(cfg.workers, mp_context=get_context("spawn")) if cfg.workers > 1 else None
+    pool = get_context("spawn").Pool(cfg.workers) if cfg.workers > 1 else None
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill PID: stop as Ctrl-C does
-    text = ""
+    text = run.write(out, _data(cfg, conds, goal, done, skipped, built, db_start, db_start), readme_section)
     try:
-        for first in range(0, max(goal), cfg.block):
-            todo = [i for i, g in enumerate(goal) if g > first]
-            tasks = [(conds[i], cfg, str(db.root), first, min(cfg.block, goal[i] - first)) for i in todo]
-            blocks = pool.map(_block, tasks) if pool is not None else map(_block, tasks)
-            for i, (new, miss, keys) in zip(todo, blocks):
-                done[i] += new
-                skipped[i] += miss
-                built[i] |= keys
+        order = [p for r in rounds(cfg, conds) for p in r]
+        tasks = [(conds[i], cfg, str(db.root), j, 1) for i, j in order]  # one scene a task: even loads
+        results = pool.imap(_block, tasks) if pool is not None else map(_block, tasks)
+        for (i, _), (new, miss, keys) in zip(order, results):  # in order: each condition's first scenes
+            done[i] += new
+            skipped[i] += miss
+            built[i] |= keys
             log.info("scenes done per condition: %s", [len(d) + len(k) for d, k in zip(done, skipped)])
             data = _data(cfg, conds, goal, done, skipped, built, db_start, database_record(db))
-            text = run.write(out, data, readme_section)
-    except KeyboardInterrupt:  # the blocks finished so far are in the summary already (complete: false)
-        log.warning("interrupted: %s holds the blocks finished before", out / "summary.json")
+            text = run.write(out, data, readme_section)  # after every scene: a run cut short reports them
+    except KeyboardInterrupt:  # the scenes finished so far are in the summary already (complete: false)
+        log.warning("interrupted: %s holds the scenes finished before", out / "summary.json")
         if pool is not None:
-            pool.shutdown(wait=False, cancel_futures=True)
-            pool = None
+            pool.terminate()
         return 130
     finally:
         if pool is not None:
-            pool.shutdown()
+            pool.close()
+            pool.join()
     print(text)
     return 0
+
+
+def rounds(cfg: Config, conds: list) -> list[list[tuple[int, int]]]:
+    """The run's order: rounds of (condition index, scene), ``block`` scenes of every
+    condition a round; with ``others`` the goal conditions
+    (:func:`target`) run all their scenes first, then the others, so a run cut short
+    has finished the goals."""
+    goal = [target(cfg, c) for c in conds]
+    first = [i for i, c in enumerate(conds) if not cfg.others or goal[i] == cfg.scenes and _is_goal(cfg, c)]
+    out = []
+    for group in (first, [i for i in range(len(conds)) if i not in first]):
+        for lo in range(0, max((goal[i] for i in group), default=0), cfg.block):
+            out.append([(i, j) for i in group for j in range(lo, min(lo + cfg.block, goal[i]))])
+    return [r for r in out if r]
+
+
+def _is_goal(cfg: Config, c: dict) -> bool:
+    return c["objects"] == cfg.goal_objects and c["ablation"] is None
 
 
 def target(cfg: Config, c: dict) -> int:
     """Scenes a condition runs: ``scenes`` for the goal conditions (``goal_objects``
     objects, the full method), ``others`` (if > 0) for the rest."""
-    return cfg.scenes if (c["objects"] == cfg.goal_objects and c["ablation"] is None) or not cfg.others \
-        else min(cfg.others, cfg.scenes)
+    return cfg.scenes if _is_goal(cfg, c) or not cfg.others else min(cfg.others, cfg.scenes)
 
 
 def _data(cfg: Config, conds: list, goal: list, done: list, skipped: list, built: list, db_start: dict,
@@ -168,7 +188,7 @@ class RunDatabase(MapDatabase):
     """The run's database, read only: a part no stored map serves within the scaling
     range gets its FS map built in memory (kept in this process, never stored), so
     every scene plans against the same stored maps whatever ran before it. ``built``:
-    the keys of the maps built so."""
+    the keys of the maps served so (since it was last emptied)."""
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
@@ -179,10 +199,10 @@ class RunDatabase(MapDatabase):
         if self.contains(shape) or not build:
             return super().get(shape, build=build, threads=threads)
         key = self.key(shape)
+        self.built.add(key)
         if key not in self._memory:
             gmap = generate_fs_map(shape, self.gripper, self.quality, self.config, threads=threads)
             self._memory[key] = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # as stored: best first
-            self.built.add(key)
             while len(self._memory) > 8:
                 self._memory.pop(next(iter(self._memory)))
         return self._memory[key]
@@ -215,14 +235,16 @@ def grid_shapes(config) -> list:
 
 def build_grid(db) -> list[str]:
     """Store the maps of :func:`grid_shapes` in ``db`` (those stored already are kept);
-    returns the shapes that have no grasp at all (e.g. a 1.5 mm disc 19 cm wide),
-    which are not stored."""
+    returns the shapes that have no grasp at all (e.g. a 1.5 mm disc 19 cm wide, a
+    sphere wider than the gripper opens), which are not stored."""
     empty = []
     for shape in grid_shapes(db.config):
         if db.contains(shape):
             continue
         try:
             db.add(shape, threads=2)
+        except NoFeasibleGraspError:
+            empty.append(str(shape))
         except MapDatabaseError as err:
             if "no grasps" not in str(err):
                 raise
@@ -237,7 +259,11 @@ def _block(task) -> tuple[list, list, set]:
     said so; the same scene is then skipped in every condition of its kind and size
     that fails the same way."""
     c, cfg, root, first, n = task
-    db = RunDatabase(root, config=map_config(cfg.quick_maps))
+    key = (root, cfg.quick_maps)
+    if key not in _DATABASES:  # one per process: its cache of loaded maps serves every task
+        _DATABASES[key] = RunDatabase(root, config=map_config(cfg.quick_maps))
+    db = _DATABASES[key]
+    db.built = set()
     out, skipped = [], []
     for i in range(first, first + n):
         try:
@@ -247,6 +273,9 @@ def _block(task) -> tuple[list, list, set]:
             log.warning("%s scene %d skipped: %s", c, i, err)
             skipped.append({"scene": i, "reason": str(err)})
     return out, skipped, db.built
+
+
+_DATABASES: dict = {}
 
 
 def _label(c: dict) -> str:

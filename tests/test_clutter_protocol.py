@@ -69,18 +69,29 @@ class _Best:
 @dataclass
 class _Plan:
     perception: _Per
-    best: _Best
+    grasps: tuple
     timing: dict
     memory: tuple = ()
 
 
-def _scripted(monkeypatch, targets):
-    """plan_scene always chooses the segment of the next target in ``targets``."""
+def _at(x: float) -> np.ndarray:
+    T = np.eye(4)
+    T[0, 3] = x
+    return T
+
+
+def _scripted(monkeypatch, targets, poses=None):
+    """plan_scene ranks first a grasp on the segment of the next target in ``targets``
+    (at the next pose of ``poses``, default: a new pose each frame), then a grasp at
+    x = 1 m on the same segment."""
     order = list(targets)
+    where = list(poses) if poses is not None else [0.1 * k for k in range(len(order))]
 
     def plan(points, *, db, rng, config, labels, previous):
         truth = _View.labels
-        return _Plan(_Per(np.arange(150), truth.copy(), 3), _Best(order.pop(0), np.eye(4)), {"total": 0.0})
+        k = order.pop(0)
+        grasps = (_Best(k, _at(where.pop(0))), _Best(k, _at(1.0), score=0.5))
+        return _Plan(_Per(np.arange(150), truth.copy(), 3), grasps, {"total": 0.0})
 
     monkeypatch.setattr(clutter, "plan_scene", plan)
     monkeypatch.setattr(clutter, "backproject", lambda frame: _View())
@@ -108,3 +119,27 @@ def test_another_object_lifted_is_no_failure_in_a_row(monkeypatch):
     r = run_clutter(_Scene([None, 1, None, 0]), db=None, rng=np.random.default_rng(0),
                     config=ClutterConfig(depth_noise=None, max_attempts=4))
     assert len(r.attempts) == 4 and r.successes == 1 and r.other_objects == 1
+
+
+def test_a_failed_grasp_is_not_tried_again(monkeypatch):
+    """The planner ranks the same pose first after it failed (an unchanged scene): the
+    protocol takes the next grasp instead (here at x = 1 m), so one failure does not
+    become two in a row."""
+    _scripted(monkeypatch, [0, 0], poses=[0.0, 0.002])  # the second frame offers a 2 mm twin first
+    r = run_clutter(_Scene([None, 0]), db=None, rng=np.random.default_rng(0),
+                    config=ClutterConfig(depth_noise=None, max_attempts=2, reuse=False))
+    assert [a.cause for a in r.attempts] == ["no_contact", "success"]
+    assert [a.score for a in r.attempts] == [0.9, 0.5]  # the second grasp was the x = 1 m one
+
+
+def test_near_pose_includes_the_jaws_symmetry():
+    from scipy.spatial.transform import Rotation
+
+    from graspsim.perception.scene_reuse import near_pose
+
+    T = _at(0.3)
+    flip = T.copy()
+    flip[:3, :3] = Rotation.from_euler("z", 180, degrees=True).as_matrix()  # jaws swapped: the same grasp
+    tilt = T.copy()
+    tilt[:3, :3] = Rotation.from_euler("x", 30, degrees=True).as_matrix()
+    assert near_pose(T, flip) and near_pose(T, _at(0.305)) and not near_pose(T, _at(0.32)) and not near_pose(T, tilt)

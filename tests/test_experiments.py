@@ -427,3 +427,11 @@ def test_e10_others_cut_only_the_conditions_outside_the_goals():
     assert got[("pile", 5, "none", None)] == got[("packed", 5, "default", None)] == 50
     assert got[("pile", 10, "none", None)] == got[("pile", 5, "none", "ground_truth")] == 20
     assert mod.target(mod.Config(scenes=50), {"objects": 10, "ablation": None}) == 50
+    conds = mod.conditions(cfg)
+    r = mod.rounds(mod.Config(scenes=4, others=2, block=2), conds)
+    goal = {i for i, c in enumerate(conds) if c["objects"] == 5 and c["ablation"] is None}
+    assert [sorted({i for i, _ in x}) == sorted(goal) for x in r] == [True, True, False]  # the goals first
+    assert sorted(p for x in r for p in x) == sorted([(i, j) for i in goal for j in range(4)]
+                                                     + [(i, j) for i in range(len(conds)) if i not in goal
+                                                        for j in range(2)])
+    assert sum(len(x) for x in mod.rounds(mod.Config(scenes=3, block=2), conds)) == 3 * len(conds)

@@ -10,9 +10,10 @@ scored against (points the gripper must clear that the previous check did not ha
 a neighbour that moved or was uncovered). Obstacles that disappeared (the picked
 object) only free space, so the stored robust scores remain valid lower bounds
 (a grasp scored 0 because it hit the picked object stays at 0: the segment is planned
-again when no grasp with a score > 0 is left). A grasp that was executed and failed
-is dropped from what is reused (:func:`drop_grasp`): it is not tried twice on an
-unchanged scene.
+again when no grasp with a score > 0 is left). A grasp that was executed is dropped
+from what is reused, with its near twins (:func:`drop_grasp`): a start collision
+leaves the scene as it was, and the next rows of the same map would collide the same
+way.
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["SegmentMemory", "same_points", "nothing_new", "find_previous", "reused_grasps", "drop_grasp"]
+__all__ = ["SegmentMemory", "same_points", "nothing_new", "find_previous", "reused_grasps", "drop_grasp",
+           "near_pose"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,15 +62,15 @@ def same_points(a: np.ndarray, b: np.ndarray, *, tol: float, share: float = 0.97
     return _near_share(a, b, tol) >= share and _near_share(b, a, tol) >= share
 
 
-def nothing_new(old: np.ndarray | None, new: np.ndarray | None, *, tol: float, allowed: int = 10,
+def nothing_new(old: np.ndarray | None, new: np.ndarray | None, *, tol: float, allowed: int = 3,
                 within: tuple[np.ndarray, np.ndarray] | None = None, own: np.ndarray | None = None) -> bool:
-    """Whether obstacle points ``new`` hold at most ``allowed`` points farther than
-    ``tol`` [m] from every point of ``old`` (None: no obstacles). Only new points inside
-    the box ``within`` (lo, hi) count when given (a segment's reach box jitters with its
-    points: far points at its edge come and go), and none within ``2 tol`` of the
-    segment's ``own`` points (stray points at its fringe that clustering left out). A
-    new object or a moved neighbour shows many more than ``allowed`` new points: at a
-    3 mm grid a 1 cm^2 patch has about 11."""
+    """Whether obstacle points ``new`` show nothing that ``old`` did not (None: no
+    obstacles): at most ``allowed`` new points farther than ``tol`` [m] from every old
+    point that have three or more such points within ``2 tol`` -- a surface, not the
+    sensor's speckle (isolated points, e.g. at the table band's edge, that come and go
+    between frames). Only new points inside the box ``within`` (lo, hi) count when
+    given (a segment's reach box jitters with its points), and none within ``2 tol`` of
+    the segment's ``own`` points (stray points at its fringe that clustering left out)."""
     if new is not None and within is not None:
         new = new[np.all((new >= within[0]) & (new <= within[1]), axis=1)]
     if new is not None and own is not None and len(own) and len(new):
@@ -77,8 +79,11 @@ def nothing_new(old: np.ndarray | None, new: np.ndarray | None, *, tol: float, a
         return True
     if old is None or not len(old):
         return False
-    d, _ = cKDTree(old).query(new, distance_upper_bound=tol)
-    return int(np.sum(~np.isfinite(d))) <= allowed
+    far = new[~np.isfinite(cKDTree(old).query(new, distance_upper_bound=tol)[0])]
+    if len(far) <= allowed:
+        return True
+    crowd = np.array([len(n) - 1 for n in cKDTree(far).query_ball_point(far, 2.0 * tol)])
+    return int(np.sum(crowd >= 3)) <= allowed
 
 
 def find_previous(points: np.ndarray, previous, *, tol: float) -> SegmentMemory | None:
@@ -103,9 +108,25 @@ def reused_grasps(mem: SegmentMemory, k: int) -> list:
     return [replace(g, segment=k) for g in mem.grasps]
 
 
-def drop_grasp(memory, T_world_wrist: np.ndarray, *, tol: float = 1e-9) -> tuple:
-    """``memory`` (segment memories) without the grasp at pose ``T_world_wrist`` (an
-    executed grasp that failed)."""
+_FLIP = np.diag([-1.0, -1.0, 1.0])  # the two-jaw gripper's symmetry: 180 deg about its approach (wrist z)
+
+
+def near_pose(T_a: np.ndarray, T_b: np.ndarray, *, distance: float = 0.01, angle_deg: float = 20.0) -> bool:
+    """Whether wrist poses ``T_a`` and ``T_b`` (4, 4) are the same grasp give or take:
+    wrists within ``distance`` [m] and turned by at most ``angle_deg``, the jaws'
+    180 deg symmetry about the approach axis included."""
+    if np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]) > distance:
+        return False
+    R = T_a[:3, :3].T @ T_b[:3, :3]
+    c = 0.5 * (max(np.trace(R), np.trace(R @ _FLIP)) - 1.0)
+    return c >= np.cos(np.radians(angle_deg))
+
+
+def drop_grasp(memory, T_world_wrist: np.ndarray, *, distance: float = 0.01, angle_deg: float = 20.0) -> tuple:
+    """``memory`` (segment memories) without the grasps near pose ``T_world_wrist`` (an
+    executed grasp; :func:`near_pose`). A failed grasp's near twins (the next rows of
+    the same map) fail the same way on a scene that did not change."""
     T = np.asarray(T_world_wrist, float)
-    return tuple(replace(m, grasps=tuple(g for g in m.grasps if not np.allclose(g.T_world_wrist, T, atol=tol)))
+    return tuple(replace(m, grasps=tuple(g for g in m.grasps
+                                         if not near_pose(T, g.T_world_wrist, distance=distance, angle_deg=angle_deg)))
                  for m in memory)

@@ -132,14 +132,19 @@ def test_a_failed_grasp_is_not_tried_again(monkeypatch):
     assert [a.score for a in r.attempts] == [0.9, 0.5]  # the second grasp was the x = 1 m one
 
 
-def test_near_pose_includes_the_jaws_symmetry():
+def test_near_pose_is_the_same_contacts_whatever_the_approach():
     from scipy.spatial.transform import Rotation
 
     from graspsim.perception.scene_reuse import near_pose
 
+    def pose(axis, deg, x=0.3):
+        T = _at(x)
+        T[:3, :3] = Rotation.from_euler(axis, deg, degrees=True).as_matrix()
+        return T
+
     T = _at(0.3)
-    flip = T.copy()
-    flip[:3, :3] = Rotation.from_euler("z", 180, degrees=True).as_matrix()  # jaws swapped: the same grasp
-    tilt = T.copy()
-    tilt[:3, :3] = Rotation.from_euler("x", 30, degrees=True).as_matrix()
-    assert near_pose(T, flip) and near_pose(T, _at(0.305)) and not near_pose(T, _at(0.32)) and not near_pose(T, tilt)
+    assert near_pose(T, pose("z", 180))  # jaws swapped: the same grasp
+    assert near_pose(T, pose("x", 40))  # the approach turned about the closing axis, wrists at the contacts
+    assert not near_pose(T, pose("x", 40), reach=0.1)  # ... 10 cm out along the approach the points part
+    assert not near_pose(T, pose("z", 60))  # another closing direction
+    assert near_pose(T, _at(0.31)) and not near_pose(T, _at(0.32))

@@ -172,14 +172,15 @@ def _target(per, seg: int, truth: np.ndarray) -> int | None:
     return int(np.bincount(t).argmax()) if len(t) else None
 
 
-def _choose(sp, failed: list[np.ndarray]):
-    """The best grasp of plan ``sp`` with a robust score > 0 that is not near a grasp
-    that failed earlier in the episode (:func:`~graspsim.perception.scene_reuse.near_pose`:
-    its twins, the jaws turned 180 deg included, fail the same way), or None."""
+def _choose(sp, failed: list[np.ndarray], reach: float):
+    """The best grasp of plan ``sp`` with a robust score > 0 that does not close on the
+    contacts of a grasp that failed earlier in the episode
+    (:func:`~graspsim.perception.scene_reuse.near_pose` at the fingertips, ``reach``
+    along the approach: the other approaches of a contact pair fail the same way), or None."""
     for g in sp.grasps:
         if g.score <= 0:
             return None
-        if not any(near_pose(T, g.T_world_wrist) for T in failed):
+        if not any(near_pose(T, g.T_world_wrist, reach=reach) for T in failed):
             return g
     return None
 
@@ -202,6 +203,7 @@ def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | 
     first = previous = None
     failures, stop = 0, "max_attempts"
     failed: list[np.ndarray] = []  # wrist poses of the episode's failed grasps
+    reach = float(db.gripper.fingertip_z) if db is not None else 0.0
     try:
         while len(attempts) < cap:
             if not sim.objects_left():
@@ -211,14 +213,17 @@ def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | 
             t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
             view = backproject(frame)
             truth = view.labels
-            sp = plan_scene(view.world(), db=db, rng=plan_rng, config=cfg.scene,
-                            labels=truth if cfg.ground_truth else None, previous=previous)
+            labels = truth if cfg.ground_truth else None
+            sp = plan_scene(view.world(), db=db, rng=plan_rng, config=cfg.scene, labels=labels, previous=previous)
+            best = _choose(sp, failed, reach)
+            if best is None and previous is not None:  # reused plans kept scores from before: plan afresh
+                sp = plan_scene(view.world(), db=db, rng=plan_rng, config=cfg.scene, labels=labels)
+                best = _choose(sp, failed, reach)
             planning = time.perf_counter() - t1
             per = sp.perception
             seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
             if first is None:
                 first = (seen, one)
-            best = _choose(sp, failed)
             if best is None:
                 stop = "no_grasp"
                 break
@@ -226,7 +231,7 @@ def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | 
             out = sim.execute(best.T_world_wrist, best.opening, target=target, noise=cfg.execution,
                               rng=exec_rng if cfg.execution is not None else None)
             if cfg.reuse:  # the executed grasp is not offered again
-                previous = replace(sp, memory=drop_grasp(sp.memory, best.T_world_wrist))
+                previous = replace(sp, memory=drop_grasp(sp.memory, best.T_world_wrist, reach=reach))
             hit = out.success and out.picked == target  # the target came up (None: unknown target)
             cause = OTHER if out.success and not hit else out.cause
             a = Attempt(target, out.to_dict(), hit, cause, best.score, planning, sp.timing,

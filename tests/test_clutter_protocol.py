@@ -132,14 +132,43 @@ def test_a_failed_grasp_is_not_tried_again(monkeypatch):
     assert [a.score for a in r.attempts] == [0.9, 0.5]  # the second grasp was the x = 1 m one
 
 
-def test_near_pose_includes_the_jaws_symmetry():
+def test_near_pose_is_the_same_contacts_whatever_the_approach():
     from scipy.spatial.transform import Rotation
 
     from graspsim.perception.scene_reuse import near_pose
 
+    def pose(axis, deg, x=0.3):
+        T = _at(x)
+        T[:3, :3] = Rotation.from_euler(axis, deg, degrees=True).as_matrix()
+        return T
+
     T = _at(0.3)
-    flip = T.copy()
-    flip[:3, :3] = Rotation.from_euler("z", 180, degrees=True).as_matrix()  # jaws swapped: the same grasp
-    tilt = T.copy()
-    tilt[:3, :3] = Rotation.from_euler("x", 30, degrees=True).as_matrix()
-    assert near_pose(T, flip) and near_pose(T, _at(0.305)) and not near_pose(T, _at(0.32)) and not near_pose(T, tilt)
+    assert near_pose(T, pose("z", 180))  # jaws swapped: the same grasp
+    assert near_pose(T, pose("x", 40))  # the approach turned about the closing axis, wrists at the contacts
+    assert not near_pose(T, pose("x", 40), reach=0.1)  # ... 10 cm out along the approach the points part
+    assert not near_pose(T, pose("z", 60))  # another closing direction
+    assert near_pose(T, _at(0.31)) and not near_pose(T, _at(0.32))
+
+
+def test_a_frame_whose_reused_plans_offer_nothing_is_planned_afresh(monkeypatch):
+    """Reused plans keep the scores they had (a grasp blocked by an object since lifted
+    stays at 0): when they leave no grasp, the frame is planned again without them
+    before the episode stops for want of a grasp."""
+    calls = []
+
+    def plan(points, *, db, rng, config, labels, previous=None):
+        calls.append(previous is not None)
+        truth = _View.labels
+        k = 3 - len(_View.left)
+        grasps = () if previous is not None else (_Best(k, _at(0.1 * len(calls))),)
+        return _Plan(_Per(np.arange(150), truth.copy(), 3), grasps, {"total": 0.0})
+
+    monkeypatch.setattr(clutter, "plan_scene", plan)
+    monkeypatch.setattr(clutter, "backproject", lambda frame: _View())
+    scene = _Scene([0, 1, 2])
+    sim = scene.sim()
+    _View.left = sim.left
+    scene.sim = lambda: sim
+    r = run_clutter(scene, db=None, rng=np.random.default_rng(0), config=ClutterConfig(depth_noise=None))
+    assert r.successes == 3 and r.stop == "cleared"
+    assert calls == [False, True, False, True, False]  # frames 2 and 3: reused plans first, then afresh

@@ -108,25 +108,24 @@ def reused_grasps(mem: SegmentMemory, k: int) -> list:
     return [replace(g, segment=k) for g in mem.grasps]
 
 
-_FLIP = np.diag([-1.0, -1.0, 1.0])  # the two-jaw gripper's symmetry: 180 deg about its approach (wrist z)
-
-
-def near_pose(T_a: np.ndarray, T_b: np.ndarray, *, distance: float = 0.01, angle_deg: float = 20.0) -> bool:
-    """Whether wrist poses ``T_a`` and ``T_b`` (4, 4) are the same grasp give or take:
-    wrists within ``distance`` [m] and turned by at most ``angle_deg``, the jaws'
-    180 deg symmetry about the approach axis included."""
-    if np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]) > distance:
+def near_pose(T_a: np.ndarray, T_b: np.ndarray, *, reach: float = 0.0, distance: float = 0.015,
+              angle_deg: float = 20.0) -> bool:
+    """Whether wrist poses ``T_a`` and ``T_b`` (4, 4) close on the same contacts, give or
+    take: their points ``reach`` [m] out along the approach (wrist z; the fingertips at
+    the gripper's ``fingertip_z``) within ``distance`` [m] and their closing axes (wrist
+    x, either sign: the jaws are symmetric) within ``angle_deg``, whatever the approach
+    turned about that axis (the map's rows of one contact pair)."""
+    pa = T_a[:3, 3] + reach * T_a[:3, 2]
+    pb = T_b[:3, 3] + reach * T_b[:3, 2]
+    if np.linalg.norm(pa - pb) > distance:
         return False
-    R = T_a[:3, :3].T @ T_b[:3, :3]
-    c = 0.5 * (max(np.trace(R), np.trace(R @ _FLIP)) - 1.0)
-    return c >= np.cos(np.radians(angle_deg))
+    return abs(float(T_a[:3, 0] @ T_b[:3, 0])) >= np.cos(np.radians(angle_deg))
 
 
-def drop_grasp(memory, T_world_wrist: np.ndarray, *, distance: float = 0.01, angle_deg: float = 20.0) -> tuple:
+def drop_grasp(memory, T_world_wrist: np.ndarray, *, reach: float = 0.0) -> tuple:
     """``memory`` (segment memories) without the grasps near pose ``T_world_wrist`` (an
-    executed grasp; :func:`near_pose`). A failed grasp's near twins (the next rows of
-    the same map) fail the same way on a scene that did not change."""
+    executed grasp; :func:`near_pose` with ``reach``). A failed grasp's twins (the
+    other rows of the same contact pair) fail the same way on a scene that did not change."""
     T = np.asarray(T_world_wrist, float)
-    return tuple(replace(m, grasps=tuple(g for g in m.grasps
-                                         if not near_pose(T, g.T_world_wrist, distance=distance, angle_deg=angle_deg)))
+    return tuple(replace(m, grasps=tuple(g for g in m.grasps if not near_pose(T, g.T_world_wrist, reach=reach)))
                  for m in memory)

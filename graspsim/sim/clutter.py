@@ -178,7 +178,7 @@ class ClutterFrame:
     its back-projected ``view``, the :class:`~graspsim.perception.scene.ScenePlan`
     ``plan``, ``planning`` [s] (depth frame to ranked grasps), of the objects seen
     (ground truth) those segmented as one cluster; ``candidates``: the plan's grasps in
-    ranking order less the twins of the episode's failed grasps (not tried again), and
+    ranking order less those closing on a failed grasp's contacts (not tried again), and
     ``best``: the first of them with a robust score > 0 (None: none), what the protocol
     executes."""
 
@@ -224,6 +224,7 @@ class ClutterEpisode:
         self.last: ClutterFrame | None = None  # the latest look, also when it found no grasp
         self._previous = None  # the plan the next look may reuse (ClutterConfig.reuse)
         self.failed: list[np.ndarray] = []  # wrist poses of the episode's failed grasps
+        self.reach = float(db.gripper.fingertip_z) if db is not None else 0.0  # wrist to fingertips [m]
         self.stop: str | None = None if self.sim.objects_left() else "cleared"
 
     def render(self):
@@ -240,22 +241,33 @@ class ClutterEpisode:
         t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
         view = backproject(frame)
         truth = view.labels
-        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene,
-                        labels=truth if cfg.ground_truth else None, previous=self._previous)
+        labels = truth if cfg.ground_truth else None
+        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
+                        previous=self._previous)
+        cands, best = self._candidates(sp)
+        if best is None and self._previous is not None:  # reused plans kept scores from before: plan afresh
+            sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels)
+            cands, best = self._candidates(sp)
         planning = time.perf_counter() - t1
         per = sp.perception
         seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
         if self.first is None:
             self.first = (seen, one)
-        # a grasp that failed is not tried again, nor its twins (near_pose: the jaws turned 180 deg
-        # included): a start collision leaves the scene as it was
-        cands = tuple(g for g in sp.grasps if not any(near_pose(T, g.T_world_wrist) for T in self.failed))
-        best = next((g for g in cands if g.score > 0), None)
         self.last = ClutterFrame(frame, view, sp, planning, seen, one, cands, best)
         if best is None:
             self.stop = "no_grasp"
             return None
         return self.last
+
+    def _candidates(self, sp) -> tuple[tuple, object]:
+        """The grasps of plan ``sp`` still to try, in ranking order, and the first of them
+        with a robust score > 0 (or None). A grasp that failed is not tried again, nor
+        any that closes on its contacts (:func:`~graspsim.perception.scene_reuse.near_pose`
+        at the fingertips: the other approaches of a contact pair fail the same way; a
+        start collision leaves the scene as it was)."""
+        cands = tuple(g for g in sp.grasps
+                      if not any(near_pose(T, g.T_world_wrist, reach=self.reach) for T in self.failed))
+        return cands, next((g for g in cands if g.score > 0), None)
 
     def execute(self, look: ClutterFrame, grasp) -> Attempt:
         """Execute ``grasp`` (a :class:`~graspsim.perception.scene.SceneGrasp` of
@@ -268,7 +280,7 @@ class ClutterEpisode:
         out = self.sim.execute(grasp.T_world_wrist, grasp.opening, target=target, noise=cfg.execution,
                                rng=self._exec_rng if cfg.execution is not None else None)
         if cfg.reuse:  # the executed grasp is not offered again
-            self._previous = replace(sp, memory=drop_grasp(sp.memory, grasp.T_world_wrist))
+            self._previous = replace(sp, memory=drop_grasp(sp.memory, grasp.T_world_wrist, reach=self.reach))
         hit = out.success and out.picked == target  # the target came up (None: unknown target)
         cause = OTHER if out.success and not hit else out.cause
         a = Attempt(target, out.to_dict(), hit, cause, grasp.score, look.planning, sp.timing,

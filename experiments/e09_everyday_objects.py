@@ -23,7 +23,7 @@ shortest edge of its minimum-volume bounding box (the narrowest width a grasp ca
 across) is at most the gripper's opening less the approach clearance on both sides.
 
     python experiments/e09_everyday_objects.py
-    python experiments/e09_everyday_objects.py --quick --objects-dir assets/objects --out results/e09-quick
+    python experiments/e09_everyday_objects.py --quick --objects-dir graspsim/assets/objects --out results/e09-quick
 """
 
 from __future__ import annotations

@@ -69,18 +69,29 @@ class _Best:
 @dataclass
 class _Plan:
     perception: _Per
-    best: _Best
+    grasps: tuple
     timing: dict
     memory: tuple = ()
 
 
-def _scripted(monkeypatch, targets):
-    """plan_scene always chooses the segment of the next target in ``targets``."""
+def _at(x: float) -> np.ndarray:
+    T = np.eye(4)
+    T[0, 3] = x
+    return T
+
+
+def _scripted(monkeypatch, targets, poses=None):
+    """plan_scene ranks first a grasp on the segment of the next target in ``targets``
+    (at the next pose of ``poses``, default: a new pose each frame), then a grasp at
+    x = 1 m on the same segment."""
     order = list(targets)
+    where = list(poses) if poses is not None else [0.1 * k for k in range(len(order))]
 
     def plan(points, *, db, rng, config, labels, previous):
         truth = _View.labels
-        return _Plan(_Per(np.arange(150), truth.copy(), 3), _Best(order.pop(0), np.eye(4)), {"total": 0.0})
+        k = order.pop(0)
+        grasps = (_Best(k, _at(where.pop(0))), _Best(k, _at(1.0), score=0.5))
+        return _Plan(_Per(np.arange(150), truth.copy(), 3), grasps, {"total": 0.0})
 
     monkeypatch.setattr(clutter, "plan_scene", plan)
     monkeypatch.setattr(clutter, "backproject", lambda frame: _View())
@@ -108,3 +119,56 @@ def test_another_object_lifted_is_no_failure_in_a_row(monkeypatch):
     r = run_clutter(_Scene([None, 1, None, 0]), db=None, rng=np.random.default_rng(0),
                     config=ClutterConfig(depth_noise=None, max_attempts=4))
     assert len(r.attempts) == 4 and r.successes == 1 and r.other_objects == 1
+
+
+def test_a_failed_grasp_is_not_tried_again(monkeypatch):
+    """The planner ranks the same pose first after it failed (an unchanged scene): the
+    protocol takes the next grasp instead (here at x = 1 m), so one failure does not
+    become two in a row."""
+    _scripted(monkeypatch, [0, 0], poses=[0.0, 0.002])  # the second frame offers a 2 mm twin first
+    r = run_clutter(_Scene([None, 0]), db=None, rng=np.random.default_rng(0),
+                    config=ClutterConfig(depth_noise=None, max_attempts=2, reuse=False))
+    assert [a.cause for a in r.attempts] == ["no_contact", "success"]
+    assert [a.score for a in r.attempts] == [0.9, 0.5]  # the second grasp was the x = 1 m one
+
+
+def test_near_pose_is_the_same_contacts_whatever_the_approach():
+    from scipy.spatial.transform import Rotation
+
+    from graspsim.perception.scene_reuse import near_pose
+
+    def pose(axis, deg, x=0.3):
+        T = _at(x)
+        T[:3, :3] = Rotation.from_euler(axis, deg, degrees=True).as_matrix()
+        return T
+
+    T = _at(0.3)
+    assert near_pose(T, pose("z", 180))  # jaws swapped: the same grasp
+    assert near_pose(T, pose("x", 40))  # the approach turned about the closing axis, wrists at the contacts
+    assert not near_pose(T, pose("x", 40), reach=0.1)  # ... 10 cm out along the approach the points part
+    assert not near_pose(T, pose("z", 60))  # another closing direction
+    assert near_pose(T, _at(0.31)) and not near_pose(T, _at(0.32))
+
+
+def test_a_frame_whose_reused_plans_offer_nothing_is_planned_afresh(monkeypatch):
+    """Reused plans keep the scores they had (a grasp blocked by an object since lifted
+    stays at 0): when they leave no grasp, the frame is planned again without them
+    before the episode stops for want of a grasp."""
+    calls = []
+
+    def plan(points, *, db, rng, config, labels, previous=None):
+        calls.append(previous is not None)
+        truth = _View.labels
+        k = 3 - len(_View.left)
+        grasps = () if previous is not None else (_Best(k, _at(0.1 * len(calls))),)
+        return _Plan(_Per(np.arange(150), truth.copy(), 3), grasps, {"total": 0.0})
+
+    monkeypatch.setattr(clutter, "plan_scene", plan)
+    monkeypatch.setattr(clutter, "backproject", lambda frame: _View())
+    scene = _Scene([0, 1, 2])
+    sim = scene.sim()
+    _View.left = sim.left
+    scene.sim = lambda: sim
+    r = run_clutter(scene, db=None, rng=np.random.default_rng(0), config=ClutterConfig(depth_noise=None))
+    assert r.successes == 3 and r.stop == "cleared"
+    assert calls == [False, True, False, True, False]  # frames 2 and 3: reused plans first, then afresh

@@ -72,9 +72,9 @@ def test_short_episode_rewards_are_lifts_and_it_ends_by_the_protocols_rules(kw):
 def _fail_next(env):
     """Move every offered grasp 30 cm up: the next step closes on nothing."""
     look = env._look
-    up = [replace(g, T_world_wrist=g.T_world_wrist + np.pad([[0.0], [0.0], [0.3]], ((0, 1), (3, 0))))
-          for g in look.plan.grasps]
-    env._look = replace(look, plan=replace(look.plan, grasps=tuple(up)))
+    up = tuple(replace(g, T_world_wrist=g.T_world_wrist + np.pad([[0.0], [0.0], [0.3]], ((0, 1), (3, 0))))
+               for g in look.candidates)
+    env._look = replace(look, candidates=up, best=up[0])
 
 
 def test_two_failures_in_a_row_terminate_and_a_lift_resets_the_count(kw):

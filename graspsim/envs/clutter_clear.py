@@ -5,7 +5,8 @@ grasp. ``reset`` draws a settled table-top scene (:func:`graspsim.sim.scenes.mak
 ``n_objects`` of ``object_set``, ``"pile"`` or ``"packed"``), renders it with one
 D435-like depth camera and plans it (table, segments, every segment planned, grasps
 checked against the whole scene: :func:`graspsim.perception.scene.plan_scene`); the
-scene's K best grasps are the candidates. ``step(k)`` executes candidate k (close, lift;
+scene's K best grasps are the candidates (less the twins of grasps that failed earlier in
+the episode, which the protocol does not try again). ``step(k)`` executes candidate k (close, lift;
 a lifted object leaves the scene), renders and plans again. Every step of this loop is
 :class:`graspsim.sim.clutter.ClutterEpisode`'s, the same code the ``graspsim scene``
 benchmark runs; only the choice is the policy's.
@@ -170,7 +171,7 @@ class ClutterClearEnv(gym.Env):
             self._stop = "invalid_action"
             info = self._info(outcome="invalid_action", success=False, target=None, picked=None, candidate=a)
             return self._observation(), 0.0, True, False, info
-        attempt = ep.execute(self._look, self._look.plan.grasps[a])
+        attempt = ep.execute(self._look, self._look.candidates[a])
         self._look = ep.observe() if ep.stop is None else None
         self._stop = ep.stop
         self._observe()
@@ -199,7 +200,7 @@ class ClutterClearEnv(gym.Env):
         segment = np.full(n, -1, np.int64)
         cloud[:len(pick)] = np.clip(pts[pick], -CLOUD_BOUND, CLOUD_BOUND)
         segment[:len(pick)] = np.minimum(labels[pick], MAX_SEGMENTS)
-        grasps = look.plan.grasps[:c.n_candidates] if look is not None else ()
+        grasps = look.candidates[:c.n_candidates] if look is not None else ()
         mask = np.zeros(c.n_candidates, np.int8)
         mask[:len(grasps)] = 1
         self._frame = frame

@@ -23,7 +23,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["SegmentMemory", "same_points", "nothing_new", "find_previous", "reused_grasps", "drop_grasp"]
+__all__ = ["SegmentMemory", "same_points", "nothing_new", "find_previous", "reused_grasps", "drop_grasp",
+           "near_pose"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,18 +108,24 @@ def reused_grasps(mem: SegmentMemory, k: int) -> list:
     return [replace(g, segment=k) for g in mem.grasps]
 
 
-def drop_grasp(memory, T_world_wrist: np.ndarray, *, distance: float = 0.01, angle_deg: float = 20.0) -> tuple:
+def near_pose(T_a: np.ndarray, T_b: np.ndarray, *, reach: float = 0.0, distance: float = 0.015,
+              angle_deg: float = 20.0) -> bool:
+    """Whether wrist poses ``T_a`` and ``T_b`` (4, 4) close on the same contacts, give or
+    take: their points ``reach`` [m] out along the approach (wrist z; the fingertips at
+    the gripper's ``fingertip_z``) within ``distance`` [m] and their closing axes (wrist
+    x, either sign: the jaws are symmetric) within ``angle_deg``, whatever the approach
+    turned about that axis (the map's rows of one contact pair)."""
+    pa = T_a[:3, 3] + reach * T_a[:3, 2]
+    pb = T_b[:3, 3] + reach * T_b[:3, 2]
+    if np.linalg.norm(pa - pb) > distance:
+        return False
+    return abs(float(T_a[:3, 0] @ T_b[:3, 0])) >= np.cos(np.radians(angle_deg))
+
+
+def drop_grasp(memory, T_world_wrist: np.ndarray, *, reach: float = 0.0) -> tuple:
     """``memory`` (segment memories) without the grasps near pose ``T_world_wrist`` (an
-    executed grasp): wrist within ``distance`` [m] and rotated by at most ``angle_deg``.
-    A failed grasp's near twins (the next rows of the same map) fail the same way on a
-    scene that did not change; they are not retried."""
+    executed grasp; :func:`near_pose` with ``reach``). A failed grasp's twins (the
+    other rows of the same contact pair) fail the same way on a scene that did not change."""
     T = np.asarray(T_world_wrist, float)
-    cos_max = np.cos(np.radians(angle_deg))
-
-    def near(g) -> bool:
-        if np.linalg.norm(g.T_world_wrist[:3, 3] - T[:3, 3]) > distance:
-            return False
-        c = 0.5 * (np.trace(T[:3, :3].T @ g.T_world_wrist[:3, :3]) - 1.0)
-        return c >= cos_max
-
-    return tuple(replace(m, grasps=tuple(g for g in m.grasps if not near(g))) for m in memory)
+    return tuple(replace(m, grasps=tuple(g for g in m.grasps if not near_pose(T, g.T_world_wrist, reach=reach)))
+                 for m in memory)

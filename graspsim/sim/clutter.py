@@ -29,7 +29,7 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError
 from graspsim.perception.scene import SceneConfig, plan_scene
-from graspsim.perception.scene_reuse import drop_grasp
+from graspsim.perception.scene_reuse import drop_grasp, near_pose
 from graspsim.sim.camera import Camera, DepthNoise, backproject, rig
 from graspsim.sim.noise import ExecutionNoise
 
@@ -176,8 +176,11 @@ def _target(per, seg: int, truth: np.ndarray) -> int | None:
 class ClutterFrame:
     """What one look at the scene gives: the depth ``frame`` (colour too when asked),
     its back-projected ``view``, the :class:`~graspsim.perception.scene.ScenePlan`
-    ``plan``, ``planning`` [s] (depth frame to ranked grasps), and of the objects seen
-    (ground truth), those segmented as one cluster."""
+    ``plan``, ``planning`` [s] (depth frame to ranked grasps), of the objects seen
+    (ground truth) those segmented as one cluster; ``candidates``: the plan's grasps in
+    ranking order less those closing on a failed grasp's contacts (not tried again), and
+    ``best``: the first of them with a robust score > 0 (None: none), what the protocol
+    executes."""
 
     frame: object
     view: object
@@ -185,6 +188,8 @@ class ClutterFrame:
     planning: float
     seen: int
     one_cluster: int
+    candidates: tuple = ()
+    best: object = None
 
 
 class ClutterEpisode:
@@ -197,11 +202,11 @@ class ClutterEpisode:
         while ep.stop is None:
             look = ep.observe()            # None when it ended (cleared, no grasp)
             if look is not None:
-                ep.execute(look, look.plan.best)
+                ep.execute(look, look.best)
         result = ep.result(); ep.close()
 
     ``stop`` is None while it runs, then one of :data:`STOPS`: the table is clear, no
-    grasp with a robust score > 0 was found, ``max_failures`` consecutive grasps
+    grasp with a robust score > 0 was left to try, ``max_failures`` consecutive grasps
     failed, or ``max_attempts`` grasps were executed. Deterministic given ``rng``."""
 
     def __init__(self, scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
@@ -218,6 +223,8 @@ class ClutterEpisode:
         self.first: tuple[int, int] | None = None
         self.last: ClutterFrame | None = None  # the latest look, also when it found no grasp
         self._previous = None  # the plan the next look may reuse (ClutterConfig.reuse)
+        self.failed: list[np.ndarray] = []  # wrist poses of the episode's failed grasps
+        self.reach = float(db.gripper.fingertip_z) if db is not None else 0.0  # wrist to fingertips [m]
         self.stop: str | None = None if self.sim.objects_left() else "cleared"
 
     def render(self):
@@ -225,8 +232,8 @@ class ClutterEpisode:
         return self.sim.render(self.camera, noise=self.config.depth_noise, rng=self._depth_rng, rgb=self.rgb)
 
     def observe(self) -> ClutterFrame | None:
-        """Render and plan the scene; None (and ``stop`` = "no_grasp") when no grasp has
-        a robust score > 0 (``last`` holds that look all the same)."""
+        """Render and plan the scene; None (and ``stop`` = "no_grasp") when no grasp left
+        to try has a robust score > 0 (``last`` holds that look all the same)."""
         if self.stop is not None:
             raise InvalidParameterError(f"the episode has ended ({self.stop}); nothing to observe")
         cfg = self.config
@@ -234,18 +241,33 @@ class ClutterEpisode:
         t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
         view = backproject(frame)
         truth = view.labels
-        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene,
-                        labels=truth if cfg.ground_truth else None, previous=self._previous)
+        labels = truth if cfg.ground_truth else None
+        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
+                        previous=self._previous)
+        cands, best = self._candidates(sp)
+        if best is None and self._previous is not None:  # reused plans kept scores from before: plan afresh
+            sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels)
+            cands, best = self._candidates(sp)
         planning = time.perf_counter() - t1
         per = sp.perception
         seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
         if self.first is None:
             self.first = (seen, one)
-        self.last = ClutterFrame(frame, view, sp, planning, seen, one)
-        if sp.best is None:
+        self.last = ClutterFrame(frame, view, sp, planning, seen, one, cands, best)
+        if best is None:
             self.stop = "no_grasp"
             return None
         return self.last
+
+    def _candidates(self, sp) -> tuple[tuple, object]:
+        """The grasps of plan ``sp`` still to try, in ranking order, and the first of them
+        with a robust score > 0 (or None). A grasp that failed is not tried again, nor
+        any that closes on its contacts (:func:`~graspsim.perception.scene_reuse.near_pose`
+        at the fingertips: the other approaches of a contact pair fail the same way; a
+        start collision leaves the scene as it was)."""
+        cands = tuple(g for g in sp.grasps
+                      if not any(near_pose(T, g.T_world_wrist, reach=self.reach) for T in self.failed))
+        return cands, next((g for g in cands if g.score > 0), None)
 
     def execute(self, look: ClutterFrame, grasp) -> Attempt:
         """Execute ``grasp`` (a :class:`~graspsim.perception.scene.SceneGrasp` of
@@ -258,7 +280,7 @@ class ClutterEpisode:
         out = self.sim.execute(grasp.T_world_wrist, grasp.opening, target=target, noise=cfg.execution,
                                rng=self._exec_rng if cfg.execution is not None else None)
         if cfg.reuse:  # the executed grasp is not offered again
-            self._previous = replace(sp, memory=drop_grasp(sp.memory, grasp.T_world_wrist))
+            self._previous = replace(sp, memory=drop_grasp(sp.memory, grasp.T_world_wrist, reach=self.reach))
         hit = out.success and out.picked == target  # the target came up (None: unknown target)
         cause = OTHER if out.success and not hit else out.cause
         a = Attempt(target, out.to_dict(), hit, cause, grasp.score, look.planning, sp.timing,
@@ -266,6 +288,8 @@ class ClutterEpisode:
         self.attempts.append(a)
         # a grasp that lifted another object is no success, but the scene changed: no failure in a row
         self.failures = 0 if out.success else self.failures + 1
+        if not out.success:
+            self.failed.append(np.asarray(grasp.T_world_wrist, float))
         if self.failures >= cfg.max_failures:
             self.stop = "failures"
         elif not self.sim.objects_left():
@@ -303,7 +327,7 @@ def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | 
             look = ep.observe()
             if look is None:
                 break
-            a = ep.execute(look, look.plan.best)
+            a = ep.execute(look, look.best)
             if on_step is not None:
                 on_step(look.view, look.frame, look.plan, a)
     finally:

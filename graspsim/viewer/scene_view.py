@@ -92,7 +92,7 @@ class SceneViewer:
     # ------------------------------------------------------------------ GUI and grasps
     def _build_gui(self, top_k: int) -> None:
         gui = self.server.gui
-        best = self.plan.best
+        best = self.look.best
         gui.add_markdown(f"**scene** · {self.per.n_segments} segments · {len(self.plan.grasps)} grasps planned · "
                          + ("no grasp with a robust score > 0" if best is None else
                             f"chosen: segment {best.segment}, score {best.score:.2f}"))
@@ -133,7 +133,7 @@ class SceneViewer:
         for name in ("/scene/grasps", "/scene/best", "/scene/chosen"):
             scene.remove_by_name(name)
         self.g_status.content = f"showing {len(grasps)} grasps"
-        best = self.plan.best
+        best = self.look.best
         if best is not None:
             scene.add_line_segments("/scene/chosen", gripper_wireframe(self.gripper, best.T_world_wrist, best.opening),
                                     CHOSEN_COLOUR, thickness=3.0, thickness_units="screen")

@@ -281,7 +281,10 @@ def test_view_without_viser_says_how_to_install_it(tmp_path, monkeypatch, capsys
 @needs_viser
 def test_ctrl_c_stops_the_server_and_leaves_no_process(tmp_path):
     path = _map_file(tmp_path)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([os.getcwd(), os.environ.get("PYTHONPATH", "")])}
+    # PYTHONFAULTHANDLER: a server that does not stop is sent SIGABRT, and every thread's
+    # stack is in the failure message (an unexplained hang was once seen at load 15)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([os.getcwd(), os.environ.get("PYTHONPATH", "")]),
+           "PYTHONFAULTHANDLER": "1"}
     p = subprocess.Popen([sys.executable, "-m", "graspsim", "view", str(path), "--port", "0", "--json"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
@@ -290,7 +293,12 @@ def test_ctrl_c_stops_the_server_and_leaves_no_process(tmp_path):
         url = line.split()[-1]
         assert _get(url) == 200
         p.send_signal(signal.SIGINT)
-        out, err = p.communicate(timeout=300)  # generous: a loaded CI machine
+        try:
+            out, err = p.communicate(timeout=300)  # generous: a loaded CI machine
+        except subprocess.TimeoutExpired:
+            p.send_signal(signal.SIGABRT)
+            pytest.fail("graspsim view did not stop 300 s after Ctrl-C; its threads:\n"
+                        + p.communicate(timeout=60)[1])
     finally:
         if p.poll() is None:
             p.kill()

@@ -18,7 +18,8 @@ full clouds of the first ``--cli`` objects, twice each (first and second run), w
 time including Python's start and imports, beside the plan time the CLI reports.
 
     python experiments/bench_identify.py [--publish]
-    python experiments/bench_identify.py --quick --objects-dir graspsim/assets/objects --out results/bench_identify-quick
+    python experiments/bench_identify.py --quick --objects-dir graspsim/assets/objects \
+        --out results/bench_identify-quick
 """
 
 from __future__ import annotations

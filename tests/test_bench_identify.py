@@ -48,7 +48,8 @@ def test_stage_clock_counts_production_not_consumption():
 def test_bench_identify_quick(tmp_path):
     bench = _load("bench_identify")
     out = tmp_path / "b"
-    assert bench.main(["--quick", "--objects-dir", str(ROOT / "graspsim" / "assets" / "objects"), "--out", str(out)]) == 0
+    objects = ROOT / "graspsim" / "assets" / "objects"
+    assert bench.main(["--quick", "--objects-dir", str(objects), "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     (row,) = s["objects"]
     for view in ("full", "single"):

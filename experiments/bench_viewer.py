@@ -46,12 +46,19 @@ def _cli() -> list[str]:
     return [sys.executable, "-m", "graspsim"]
 
 
+def _sigint_default() -> None:
+    """In the child before exec: SIGINT at its default, so Python turns it into
+    KeyboardInterrupt even where this process was started with SIGINT ignored (a shell
+    starts background jobs that way, and a child inherits an ignored signal)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _fresh_url(path: str) -> dict:
     """Launch -> URL printed (serving), page fetched, SIGINT -> exit status."""
     load0 = load_average()
     t0 = time.perf_counter()
     p = subprocess.Popen([*_cli(), "view", path, "--port", "0", "--json"], stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
+                         stderr=subprocess.PIPE, text=True, preexec_fn=_sigint_default)
     try:
         line = p.stderr.readline()
         url_s = time.perf_counter() - t0

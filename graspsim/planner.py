@@ -281,11 +281,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
-    T_table_obj = table = None
-    if cfg.table is not None:
-        height = table_height(cfg.table, points, prims[0] if compound is None else compound, T_cloud_obj)
-        T_table_obj = table_frame(cfg.table.normal, height) @ T_cloud_obj
-        table = {**cfg.table.to_dict(), "height": height}
+    T_table_obj, table = _table_in_object(cfg, points, prims[0] if compound is None else compound, T_cloud_obj)
     extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
              "identification": ident_info}
     n_below = 0
@@ -357,6 +353,15 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
                   first_robust_cpu=first_robust_cpu, **stage.seconds)
     yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
+
+
+def _table_in_object(cfg: PlannerConfig, points: np.ndarray, shape, T_cloud_obj: np.ndarray):
+    """The table's frame in the object's and its record (height found from the cloud), or
+    (None, None) without a table."""
+    if cfg.table is None:
+        return None, None
+    height = table_height(cfg.table, points, shape, T_cloud_obj)
+    return table_frame(cfg.table.normal, height) @ T_cloud_obj, {**cfg.table.to_dict(), "height": height}
 
 
 def _borne_out(observed: ObservedSurface, part_map: GraspabilityMap, T_cloud_map: np.ndarray, tol: float,

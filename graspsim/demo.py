@@ -77,7 +77,9 @@ def _database(cfg: DemoConfig, step: Callable):
 
 
 def _cloud(cfg: DemoConfig, rng: np.random.Generator):
-    """(points, true shape or None, T_world_true or None, source)."""
+    """(points, true shape or None, T_world_true or None, source, viewpoint or None): the
+    viewpoint is where a cloud file's camera record says it was seen from (the robust
+    score's occlusion term needs it); the synthetic analog is sampled all round (None)."""
     from graspsim.case_study_objects import glue_bottle
     from graspsim.primitives import synthetic_cloud
     from graspsim.transforms import make_transform
@@ -85,13 +87,14 @@ def _cloud(cfg: DemoConfig, rng: np.random.Generator):
     if cfg.cloud is not None:
         from graspsim.perception import read_point_cloud
 
-        return read_point_cloud(cfg.cloud).points, None, None, str(cfg.cloud)
+        loaded = read_point_cloud(cfg.cloud)
+        return loaded.points, None, None, str(cfg.cloud), loaded.viewpoint
     truth = glue_bottle()
     angle = rng.uniform(0, 2 * np.pi)
     R = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
     T = make_transform(R, [0.55, -0.05, -truth.aabb[0, 2]])  # standing on a table at z = 0
     c = synthetic_cloud(truth, rng, resolution=0.002, noise=0.0008, outliers=0.01, T_world_obj=T)
-    return c.points, truth, T, "synthetic glue-bottle analog"
+    return c.points, truth, T, "synthetic glue-bottle analog", None
 
 
 def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -> dict:
@@ -113,11 +116,12 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(cfg.seed)
     db = _database(cfg, step)
-    points, truth, T_world_true, source = _cloud(cfg, rng)
+    points, truth, T_world_true, source, viewpoint = _cloud(cfg, rng)
 
     step(f"identifying {len(points)} points and adapting the map")
     t1 = time.perf_counter()
-    result = plan(points, db=db, rng=np.random.default_rng(cfg.seed), source=source)
+    result = plan(points, db=db, rng=np.random.default_rng(cfg.seed), source=source,
+                  viewpoint=viewpoint)
     t_plan = time.perf_counter() - t1
     gmap = result.map
     if len(gmap):  # a failed run writes no map file (summary.json says why)
@@ -125,6 +129,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
         plot_map(gmap, out / "adapted_map.png", min_grade=0.7,
                  title=f"adapted map: {len(gmap)} grasps ({result.status.value})")
     summary = {"config": asdict(cfg), "source": source, "status": result.status.value,
+               "viewpoint": None if viewpoint is None else np.asarray(viewpoint).tolist(),
                "parts": [p.to_dict() for p in result.parts], "grasps": len(gmap),
                "accepted": int(gmap.accepted.sum()), "plan_seconds": t_plan,
                "time_to_first_0.95": result.timing.get("first"), "trials": []}

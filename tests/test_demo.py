@@ -21,3 +21,34 @@ def test_quick_demo_runs_end_to_end(tmp_path, capsys):
         assert (out / f).stat().st_size > 0
     assert json.loads((out / "summary.json").read_text())["grasps"] == s["grasps"]
     assert (out / "db" / "index.json").exists()  # the quick database, built on first use
+
+
+def test_a_cloud_file_s_camera_record_reaches_the_planner(tmp_path, monkeypatch):
+    """`graspsim demo --cloud F` plans with the viewpoint F's camera record gives, so the
+    robust score's occlusion term sees what the camera could not."""
+    import numpy as np
+
+    import graspsim.demo as demo
+    import graspsim.planner as planner
+    from graspsim.sim.camera import Camera, Intrinsics, look_at
+    from graspsim.sim.cloud_io import save_cloud
+
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-0.03, 0.03, (400, 3))
+    eye = np.array([0.4, -0.2, 0.5])
+    save_cloud(tmp_path / "c.pcd", pts, camera=Camera(Intrinsics.preset("d435"), look_at(eye, np.zeros(3))),
+               frame="world")
+    seen = {}
+
+    class Planned(Exception):
+        pass
+
+    def fake_plan(points, **kw):
+        seen.update(kw)
+        raise Planned
+
+    monkeypatch.setattr(demo, "_database", lambda cfg, step: None)
+    monkeypatch.setattr(planner, "plan", fake_plan)
+    with pytest.raises(Planned):
+        demo.run_demo(demo.DemoConfig(out=str(tmp_path / "out"), cloud=str(tmp_path / "c.pcd")))
+    np.testing.assert_allclose(seen["viewpoint"], eye, atol=1e-9)

@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from graspsim._gl import default_gl
 from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Sphere
+
+# Test modules import mujoco directly; the backend must be chosen before the first of them
+# is collected, or the render tests skip (or GLFW aborts) depending on the order they run in.
+default_gl()
 
 
 @pytest.fixture

@@ -58,3 +58,41 @@ def test_trial_cli_renders_the_first_trials_that_start_clear(gl, tmp_path, capsy
     s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert s["counts"]["start_collision"] == 2
     assert s["renders"] and all("grasp000002" in p for p in s["renders"])
+
+
+def test_every_mujoco_import_goes_through_the_gl_choice():
+    """MuJoCo reads MUJOCO_GL once, at its first import: a module outside graspsim.sim
+    (whose __init__ picks the backend first) that imported mujoco directly made a later
+    offscreen render fail in a fresh process (the Franka hand's measurements did)."""
+    import re
+    from pathlib import Path
+
+    import graspsim
+
+    root = Path(graspsim.__file__).parent
+    direct = [str(p.relative_to(root)) for p in root.rglob("*.py")
+              if p.parent != root / "sim" and p.name != "_gl.py"
+              and re.search(r"^\s*(import mujoco|from mujoco)", p.read_text(), re.M)]
+    assert direct == []
+
+
+def test_the_franka_hand_first_then_the_same_gl_backend():
+    """The order a `--gripper franka_hand --render` run meets: the hand's measurements
+    load mujoco before graspsim.sim does; the backend must be the one graspsim.sim picks
+    (checked in fresh processes with no display and no MUJOCO_GL, on any machine)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
+    show = "import os, sys; print(os.environ.get('MUJOCO_GL', ''), 'mujoco' in sys.modules)"
+
+    def backend(first: str) -> list[str]:
+        r = subprocess.run([sys.executable, "-c", f"{first}\n{show}"], capture_output=True, text=True,
+                           env=env, timeout=120)
+        assert r.returncode == 0, r.stderr[-400:]
+        return r.stdout.split()
+
+    hand = backend("from graspsim.grippers import get_gripper; get_gripper('franka_hand')")
+    assert hand[1] == "True"  # the measurements did load mujoco
+    assert hand[0] == backend("import graspsim.sim")[0]

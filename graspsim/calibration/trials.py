@@ -190,10 +190,11 @@ def simulate_samples(samples: Sequence[CaseSample], condition: SimCondition = Si
     executor: a ``graspsim.executors`` executor to run the cases in parallel (local
     processes or Ray); every case is seeded by its name, so results are the same.
     """
-    import mujoco
-
+    from graspsim._gl import import_mujoco
     from graspsim.executors import SerialExecutor
     from graspsim.sim import LiftPlace
+
+    mujoco = import_mujoco()
 
     protocol = protocol or LiftPlace()
     todo = [smp for smp in samples if len(smp.rows)]

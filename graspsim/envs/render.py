@@ -9,10 +9,9 @@ OSMesa); without one, rendering raises :class:`DependencyNotInstalled`.
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 
-import graspsim.sim  # noqa: F401  (picks the headless GL backend before mujoco loads)
+from graspsim._gl import import_mujoco
 from graspsim.errors import DependencyNotInstalled
 from graspsim.sim.batch import initial_states, pregrasp_opening
 from graspsim.sim.protocols import Protocol
@@ -20,6 +19,7 @@ from graspsim.sim.scene import Scene
 
 __all__ = ["FrameRenderer"]
 
+mujoco = import_mujoco()
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 _MOMENT = {"lift_place": "hold", "tug": "close"}
 

@@ -84,7 +84,9 @@ def clip_z(points: np.ndarray, lo: float, hi: float) -> np.ndarray:
 @functools.lru_cache(maxsize=1)
 def _measure() -> dict:
     """Measurements [m, N, kg] of the vendored model in its hand frame, fingers closed."""
-    import mujoco
+    from graspsim._gl import import_mujoco
+
+    mujoco = import_mujoco()
     from scipy.spatial import ConvexHull
 
     model = mujoco.MjModel.from_xml_path(str(model_folder(NAME) / f"{NAME}.xml"))

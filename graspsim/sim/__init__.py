@@ -12,23 +12,9 @@ or, for a map file, ``simulate_map(path, top=50)``.
 
 from __future__ import annotations
 
-import ctypes.util
-import os
-import sys
+from graspsim._gl import default_gl
 
-
-def _default_gl() -> None:
-    """Pick a headless OpenGL backend for offscreen rendering, before mujoco loads."""
-    if "mujoco" in sys.modules or os.environ.get("MUJOCO_GL"):
-        return
-    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        if ctypes.util.find_library("EGL"):
-            os.environ["MUJOCO_GL"] = "egl"
-        elif ctypes.util.find_library("OSMesa"):
-            os.environ["MUJOCO_GL"] = "osmesa"
-
-
-_default_gl()
+default_gl()  # before any submodule imports mujoco
 
 from graspsim.sim.batch import initial_states, pregrasp_opening, run_trials, start_penetration  # noqa: E402
 from graspsim.sim.camera import Camera, DepthFrame, DepthNoise, Intrinsics, look_at, render_depth  # noqa: E402

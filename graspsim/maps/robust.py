@@ -26,7 +26,7 @@ unscored) and stored as map columns (files: ``grasps/qualities/robust/*``) with 
 provenance in ``meta.extra["robust"]``. :func:`ranking` orders a map by them.
 The compiled kernel (:mod:`graspsim.maps._robust_kernel`) culls, per grasp, the points
 that no perturbation can bring to the gripper, so K perturbations cost little more
-than one.
+than one, and scores every jaw opening from one pass over the points.
 """
 
 from __future__ import annotations

@@ -78,6 +78,7 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     obs, info = env.reset(seed=derived_seed(cfg.seed, split, i))
     reset = c.record()
     feats = grasp_features(obs, env.gripper)
+    feats_map = grasp_features(obs, env.gripper, opening="map")  # as before the robust score
     ablation = ablation_scores(env, cfg) if split == 1 else np.zeros((len(ABLATIONS), cfg.k), np.float32)
     paper = map_opening_choices(env, obs, cfg) if split == 1 else {}
     c = Clock()
@@ -93,7 +94,8 @@ def run_episode(cfg: E06Config, split: int, i: int) -> dict:
     step = c.record()
     return {"split": split, "index": i, "kind": info["object"]["kind"], "pose": info["object"]["pose"],
             "parts": info["parts"], "redraws": info["redraws"], "n_clear": info["n_clear"],
-            "features": feats.astype(np.float32), "candidates": obs["candidates"],
+            "features": feats.astype(np.float32), "features_map": feats_map.astype(np.float32),
+            "candidates": obs["candidates"],
             "mask": obs["action_mask"], "outcome": ev["outcome"], "outcome_exact": exact, "cloud": obs["cloud"],
             "ablation": ablation, "paper": paper,
             "object_pose": obs["object_pose"],

@@ -11,15 +11,18 @@ import math
 import numpy as np
 from _stats import mcnemar
 
-from graspsim.envs.baselines import FEATURE_NAMES, LogisticPolicy, wilson_interval
+from graspsim.envs.baselines import FEATURE_NAMES, PRE_ROBUST_FEATURES, LogisticPolicy, wilson_interval
 from graspsim.envs.candidates import CANDIDATE_FEATURES
 from graspsim.maps.robust import ABLATIONS
 
-__all__ = ["POLICIES", "MAP_ONLY", "OUTCOMES", "stack", "choices", "rate", "evaluate", "costs"]
+__all__ = ["POLICIES", "MAP_ONLY", "PRE_ROBUST", "OUTCOMES", "stack", "choices", "rate", "evaluate", "costs"]
 
-POLICIES = ("random", "highest_grade", "robust", "learned", "learned_map_only", "oracle")
+POLICIES = ("random", "highest_grade", "robust", "learned", "learned_pre_robust", "learned_map_only", "oracle")
 MAP_ONLY = tuple(FEATURE_NAMES.index(n) for n in ("grade", "q_fc", "q_st", "fc_angle",
                                                   "stability_distance", "width"))
+#: The columns of the episodes' ``features_map`` (features at the map's opening) the
+#: learned policy had before the robust score (``PRE_ROBUST_FEATURES``).
+PRE_ROBUST = tuple(FEATURE_NAMES.index(n) for n in PRE_ROBUST_FEATURES)
 OUTCOMES = ("success", "start_collision", "no_contact", "slipped", "dropped", "place_failed",
             "sim_unstable")
 
@@ -28,9 +31,10 @@ def stack(eps: list[dict], key: str) -> np.ndarray:
     return np.stack([e[key] for e in eps])
 
 
-def choices(eps: list[dict], learned: LogisticPolicy, map_only: LogisticPolicy,
+def choices(eps: list[dict], learned: LogisticPolicy, map_only: LogisticPolicy, pre_robust: LogisticPolicy,
             rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """Chosen candidate (E,) per policy; the oracle's is a successful one if any."""
+    """Chosen candidate (E,) per policy; the oracle's is a successful one if any.
+    ``pre_robust``: fitted on the ``PRE_ROBUST`` columns of ``features_map``."""
     X, M, O = stack(eps, "features").astype(float), stack(eps, "mask").astype(bool), stack(eps, "outcome")
     cand = stack(eps, "candidates")
     grade = cand[:, :, CANDIDATE_FEATURES.index("grade")]
@@ -46,9 +50,12 @@ def choices(eps: list[dict], learned: LogisticPolicy, map_only: LogisticPolicy,
 
     p_full = learned.predict_proba(X.reshape(-1, F)).reshape(E, K)
     p_map = map_only.predict_proba(X.reshape(-1, F)[:, MAP_ONLY]).reshape(E, K)
+    X0 = stack(eps, "features_map").astype(float).reshape(-1, F)
+    p_pre = pre_robust.predict_proba(X0[:, PRE_ROBUST]).reshape(E, K)
     rand = np.array([rng.choice(np.flatnonzero(m)) for m in M])
     return {"random": rand, "highest_grade": argmax_valid(grade), "robust": by_robust(robust),
             "learned": argmax_valid(p_full), "learned_map_only": argmax_valid(p_map),
+            "learned_pre_robust": argmax_valid(p_pre),
             "oracle": argmax_valid(np.where(O == 0, 2.0, 0.0) + grade),
             **{f"robust_{a}": by_robust(A[:, j]) for j, a in enumerate(ABLATIONS)}}
 
@@ -86,6 +93,7 @@ def evaluate(eps: list[dict], pick: dict[str, np.ndarray]) -> dict:
            "learned_vs_highest_grade": mcnemar(ok["learned"], ok["highest_grade"]),
            "robust_vs_highest_grade": mcnemar(ok["robust"], ok["highest_grade"]),
            "robust_vs_learned": mcnemar(ok["robust"], ok["learned"]),
+           "robust_vs_learned_pre_robust": mcnemar(ok["robust"], ok["learned_pre_robust"]),
            "map_only_vs_highest_grade": mcnemar(ok["learned_map_only"], ok["highest_grade"]),
            "ablation": {a: {"success": rate(O[rows, pick[f"robust_{a}"]] == 0),
                             "success_exact": rate(OX[rows, pick[f"robust_{a}"]] == 0),

@@ -75,7 +75,7 @@ from _common import (
     write_json,
 )
 from _e06_episodes import collect
-from _e06_evaluation import MAP_ONLY, OUTCOMES, POLICIES, choices, costs, evaluate, stack
+from _e06_evaluation import MAP_ONLY, OUTCOMES, POLICIES, PRE_ROBUST, choices, costs, evaluate, stack
 
 import graspsim  # noqa: F401  (registers the environments)
 from graspsim.envs.baselines import (
@@ -138,7 +138,7 @@ class E06Config:
 # ---------------------------------------------------------------------- outputs
 def write_table(cfg: E06Config, res: dict, cost: dict) -> str:
     names = {"random": "random", "highest_grade": "highest grade", "robust": "robust score",
-             "learned": "learned (all features)",
+             "learned": "learned (all features)", "learned_pre_robust": "learned (features before the robust score)",
              "learned_map_only": "learned (map columns only)", "oracle": "oracle"}
     lines = [f"{res['test_episodes']} test episodes, objects `{cfg.objects}`, K = {cfg.k}, "
              f"execution error {1000 * cfg.position_noise:.0f} mm / {cfg.rotation_noise_deg:.0f} deg; "
@@ -222,7 +222,8 @@ def main(argv=None) -> int:
     Xv, yv = X[M].astype(float), (O[M] == 0).astype(float)
     learned = LogisticPolicy(l2=cfg.l2).fit(Xv, yv)
     map_only = LogisticPolicy(l2=cfg.l2).fit(Xv[:, MAP_ONLY], yv)
-    pick = choices(test, learned, map_only, rng_for(cfg.seed, "choices"))
+    pre_robust = LogisticPolicy(l2=cfg.l2).fit(stack(train, "features_map")[M].astype(float)[:, PRE_ROBUST], yv)
+    pick = choices(test, learned, map_only, pre_robust, rng_for(cfg.seed, "choices"))
     res = evaluate(test, pick)
     res.update(test_episodes=len(test), train_episodes=len(train), train_candidates=int(len(yv)),
                train_success_rate=float(yv.mean()))
@@ -232,11 +233,13 @@ def main(argv=None) -> int:
                                        for k, v in cfg.env_kwargs().items()},
         "results": res, "cost": cost,
         "learned": {"all_features": learned.to_dict(),
-                    "map_only": {**map_only.to_dict(), "features": [FEATURE_NAMES[i] for i in MAP_ONLY]}},
+                    "map_only": {**map_only.to_dict(), "features": [FEATURE_NAMES[i] for i in MAP_ONLY]},
+                    "pre_robust": {**pre_robust.to_dict(), "features": [FEATURE_NAMES[i] for i in PRE_ROBUST],
+                                   "opening": "map"}},
         "wall_s": total.wall, "cpu_s": total.cpu, "load_avg_end": load_average()})
     np.savez_compressed(out / "episodes.npz", **{
         f"{name}_{k}": stack(eps, k) for name, eps in (("train", train), ("test", test))
-        for k in ("features", "candidates", "mask", "outcome", "cloud", "object_pose")},
+        for k in ("features", "features_map", "candidates", "mask", "outcome", "cloud", "object_pose")},
         test_kind=np.array([e["kind"] for e in test]), feature_names=np.array(FEATURE_NAMES))
     run.write(out, {"config": asdict(given), "results": res, "cost": cost,
                     "database": {"start": db_start, "end": database_record(db)}},
@@ -251,6 +254,8 @@ def main(argv=None) -> int:
 NAMES = {"random": "random valid candidate", "highest_grade": "highest paper grade",
          "robust": "highest robust score (the planner's default ranking)",
          "learned": "learned (all features, the robust score included)",
+         "learned_pre_robust": "learned (the features it had before the robust score: without it, "
+                               "at the map's opening)",
          "learned_map_only": "learned (map columns only)",
          "oracle": "oracle (any candidate succeeds)"}
 KIND_NAMES = {"random": "random", "highest_grade": "highest grade", "robust": "robust", "learned": "learned",
@@ -276,6 +281,15 @@ def _map_opening_rows(r: dict, cfg: dict, err: str) -> list[str]:
         L.append(f"| {MAP_OPENING_NAMES[p]}{none} | {rate_ci(x['successes'], x['n'], x['ci95'])} | "
                  f"{x['start_collision']} | {m['only_first']} / {m['only_second']} ({m['p_exact']:.2g}) |")
     return L
+
+
+def _vs_pre_robust(r: dict) -> str:
+    """The robust choice against the learned policy on its features from before the robust score."""
+    m = r.get("robust_vs_learned_pre_robust")
+    if m is None:  # summaries from before this comparison
+        return ""
+    return (f"; vs the learned policy on the features it had before the robust score: {m['only_first']} / "
+            f"{m['only_second']} (p = {m['p_exact']:.2g})")
 
 
 def readme_section(s: dict) -> str:
@@ -329,7 +343,7 @@ def readme_section(s: dict) -> str:
         L += ["", f"Robust score vs highest grade on the same episodes: the robust choice alone succeeds in "
               f"{mr['only_first']}, the highest grade alone in {mr['only_second']} (exact McNemar p = "
               f"{mr['p_exact']:.2g}); vs the learned policy: {ml['only_first']} / {ml['only_second']} "
-              f"(p = {ml['p_exact']:.2g})."]
+              f"(p = {ml['p_exact']:.2g})" + _vs_pre_robust(r) + "."]
     if r.get("map_opening"):
         L += _map_opening_rows(r, cfg, err)
     if r.get("ablation"):

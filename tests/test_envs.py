@@ -341,6 +341,34 @@ def test_baseline_policies_respect_the_mask():
     assert robust_policy(obs) == 1  # the masked 0 and 4 never; a tie of 1 and 3 goes to the higher grade
 
 
+def test_features_before_the_robust_score_ignore_its_opening():
+    """The pre-robust learned policy's features: at the map's opening, nothing of the
+    robust score (its opening, its score) enters; the executed ones see the wider jaws."""
+    from graspsim.envs.baselines import PRE_ROBUST_FEATURES
+
+    rng = np.random.default_rng(5)
+    K = 3
+    cand = np.zeros((K, len(CANDIDATE_FEATURES)), np.float32)
+    cand[:, 3] = 1.0  # identity wrist orientations, the pads' centre at the world's origin
+    cand[:, 2] = -0.05 - (G.fingertip_z - 0.5 * G.pad_length)
+    cand[:, CANDIDATE_FEATURES.index("width")] = 0.03
+    cloud = (rng.uniform(-1, 1, (400, 3)) * [0.04, 0.008, 0.015]).astype(np.float32)
+    obs = {"candidates": cand, "action_mask": np.ones(K, np.int8), "cloud": cloud,
+           "object_pose": np.array([0, 0, 0.05, 1, 0, 0, 0], np.float32)}
+    base = grasp_features(obs, opening="map")
+    np.testing.assert_array_equal(base, grasp_features(obs))  # no extra opening: the same
+    cand[:, CANDIDATE_FEATURES.index("extra_opening")] = 0.01
+    cand[:, CANDIDATE_FEATURES.index("robust")] = 0.7
+    wide = grasp_features(obs)
+    pre = [FEATURE_NAMES.index(n) for n in PRE_ROBUST_FEATURES]
+    np.testing.assert_array_equal(grasp_features(obs, opening="map")[:, pre], base[:, pre])
+    assert "robust" not in PRE_ROBUST_FEATURES and len(PRE_ROBUST_FEATURES) == 14
+    col = FEATURE_NAMES.index("points_between_pads")
+    assert np.all(wide[:, col] > base[:, col])  # the executed, wider jaws hold more points between them
+    with pytest.raises(InvalidParameterError):
+        grasp_features(obs, opening="wide")
+
+
 def test_candidates_carry_the_planners_robust_scores(kw):
     env = _make(GRASP_SELECT_ID, kw, n_candidates=8)
     obs, _ = env.reset(seed=11)
@@ -448,7 +476,8 @@ def test_e06_quick_writes_results(tmp_path):
         assert (out / f).stat().st_size > 0, f
     r = json.loads((out / "results.json").read_text())
     overall = r["results"]["overall"]
-    assert set(overall) == {"random", "highest_grade", "robust", "learned", "learned_map_only", "oracle"}
+    assert set(overall) == {"random", "highest_grade", "robust", "learned", "learned_pre_robust", "learned_map_only",
+                            "oracle"}
     from graspsim.maps.robust import ABLATIONS
 
     assert set(r["results"]["ablation"]) == set(ABLATIONS)

@@ -1,5 +1,7 @@
 """Robust grasp scores: clearance to the observed points, feasibility under pose error."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -175,3 +177,51 @@ def test_wider_openings_are_scored_and_the_best_kept(box_map, cloud):
     assert np.all(huge.robust == 0)
     with pytest.raises(InvalidParameterError, match="openings"):
         RobustConfig(openings=(-0.001,))
+
+
+def _each_opening_alone(gmap, rows, cloud, cfg, **kw):
+    """The robust scores of ``cfg``'s openings scored one at a time, combined as the
+    planner combines them: per row the best score, the narrowest on ties."""
+    alone = [score_rows(gmap, rows, cloud, replace(cfg, openings=(o,)), **kw) for o in cfg.openings]
+    best = np.argmax([s.robust for s in alone], axis=0)
+    pick = {k: np.array([getattr(s, k) for s in alone])[best, np.arange(len(rows))]
+            for k in ("clearance", "feasible", "robust", "flags", "occluded")}
+    return pick, np.asarray(cfg.openings)[best], np.max([s.success for s in alone], axis=0)
+
+
+@pytest.mark.parametrize("case", ["default", "margin", "viewpoint", "table"])
+def test_openings_scored_in_one_pass_equal_each_opening_alone(box_map, cloud, case):
+    # the kernel measures every opening from one pass over the points (the moving boxes
+    # swept over the openings): bit for bit what scoring each opening alone gives
+    rng = np.random.default_rng(11)
+    rows = np.arange(len(box_map))
+    seen = np.concatenate([cloud] + [_handle_points(box_map, int(r)) for r in rng.choice(rows, 8, replace=False)])
+    cfg = RobustConfig(samples=16, margin=0.002 if case == "margin" else 0.0)
+    gmap, kw = box_map, {}
+    if case == "viewpoint":
+        kw = {"viewpoint": np.array([0.3, 0.2, 0.4])}
+    if case == "table":
+        gmap = box_map.with_meta(extra={"T_cloud_obj": np.eye(4).tolist(),
+                                        "table": {"normal": [0, 0, 1], "height": -0.045, "clearance": 0.0}})
+    both = score_rows(gmap, rows, seen, cfg, **kw)
+    pick, extra, success = _each_opening_alone(gmap, rows, seen, cfg, **kw)
+    np.testing.assert_array_equal(both.extra_opening, extra)
+    for k, v in pick.items():
+        np.testing.assert_array_equal(getattr(both, k), v, err_msg=k)
+    np.testing.assert_array_equal(both.success[both.robust > 0], success[both.robust > 0])
+    assert len(set(extra.tolist())) >= 3  # several openings chosen: the case tests something
+
+
+def test_every_opening_matches_brute_force(box_map, cloud):
+    rows = np.arange(0, len(box_map), 10)
+    cfg = RobustConfig(samples=8, seed=4, terms=("cloud",))
+    s = score_rows(box_map, rows, cloud, cfg)
+    g = box_map.meta.gripper_spec
+    D = np.concatenate([np.eye(4)[None], wrist_perturbations(8, np.random.default_rng(4), cfg.position_sigma,
+                                                            cfg.rotation_sigma, g.nominal_tcp)])
+    for k in range(len(D)):
+        hit = _gripper_sdf(box_map, rows, cloud, D[k], extra=s.extra_opening).min(axis=1) < 0
+        np.testing.assert_array_equal(s.flags[:, k] & 1 > 0, hit)
+    np.testing.assert_allclose(s.clearance, _gripper_sdf(box_map, rows, cloud, extra=s.extra_opening).min(axis=1),
+                               atol=1e-6)
+    assert np.any(s.extra_opening > 0)

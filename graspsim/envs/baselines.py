@@ -40,13 +40,17 @@ from graspsim.stats import wilson_interval
 from graspsim.transforms import make_transform, quat_to_matrix
 
 __all__ = ["random_policy", "highest_grade_policy", "robust_policy", "oracle_choice", "planner_pose", "grasp_features",
-           "FEATURE_NAMES", "LogisticPolicy", "wilson_interval"]
+           "FEATURE_NAMES", "PRE_ROBUST_FEATURES", "LogisticPolicy", "wilson_interval"]
 
 _COL = {name: i for i, name in enumerate(CANDIDATE_FEATURES)}
 
 FEATURE_NAMES = ("grade", "q_fc", "q_st", "fc_angle", "stability_distance", "width",
                  "approach_z", "closing_z", "tcp_height", "tcp_height_rel", "table_clearance",
                  "cloud_clearance", "points_in_gripper", "points_between_pads", "robust")
+#: The learned policy's features when issue 16 (robust ranking) was filed: all but the
+#: robust score, computed at the map's pre-grasp opening (``grasp_features(...,
+#: opening="map")``) -- nothing the robust score computes (its score, its opening) enters.
+PRE_ROBUST_FEATURES = FEATURE_NAMES[:-1]
 
 
 def _valid(obs: dict) -> np.ndarray:
@@ -114,9 +118,14 @@ def _box_sdf(p: np.ndarray, centers: np.ndarray, half: np.ndarray) -> np.ndarray
     return out + np.minimum(q.max(axis=-1), 0.0)
 
 
-def grasp_features(obs: dict, gripper: GripperSpec = HGPL_25_60_A) -> np.ndarray:
+def grasp_features(obs: dict, gripper: GripperSpec = HGPL_25_60_A, *, opening: str = "executed") -> np.ndarray:
     """(K, len(FEATURE_NAMES)) float64 features of every candidate of an observation
-    (invalid slots included; mask them yourself). Lengths [m]."""
+    (invalid slots included; mask them yourself). Lengths [m]. ``opening``: the jaw
+    opening the gripper's boxes are placed at, ``"executed"`` (the pre-grasp opening plus
+    the extra the robust score chose, as the env executes it) or ``"map"`` (the map's
+    pre-grasp opening: the features as they were before the robust score)."""
+    if opening not in ("executed", "map"):
+        raise InvalidParameterError(f"opening must be 'executed' or 'map', got {opening!r}")
     cand = np.asarray(obs["candidates"], float)
     cloud = np.asarray(obs["cloud"], float)
     op = np.asarray(obs["object_pose"], float)
@@ -126,7 +135,8 @@ def grasp_features(obs: dict, gripper: GripperSpec = HGPL_25_60_A) -> np.ndarray
     q[np.linalg.norm(q, axis=1) < 1e-6] = (1.0, 0.0, 0.0, 0.0)  # empty slots
     T = T_world_obj @ make_transform(quat_to_matrix(q), cand[:, 0:3])  # (K, 4, 4) world
     width = cand[:, _COL["width"]]
-    opening = gripper.pregrasp_opening(width) + 2.0 * cand[:, _COL["extra_opening"]]  # as executed
+    extra = cand[:, _COL["extra_opening"]] if opening == "executed" else np.zeros(K)
+    opening = gripper.pregrasp_opening(width) + 2.0 * extra
     tcp_z = float(gripper.nominal_tcp[2])
     tcp = T[:, :3, 3] + tcp_z * T[:, :3, 2]
     top = max(float(cloud[:, 2].max()), 1e-3)

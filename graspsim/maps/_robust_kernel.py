@@ -1,10 +1,11 @@
 """Compiled robustness kernel: the gripper's boxes against points, under pose error (numba).
 
-For each grasp i (wrist rotation R_i, position w_i in the object frame, pad gap o_i)
-the kernel takes every obstacle point p into the wrist frame, q = R_i^T (p - w_i),
-and computes its signed distance s(q) to the union of the gripper's boxes (x centres
-moved by x_sign * o_i / 2): negative inside. The grasp's clearance is the smallest
-s over the first ``n_cloud`` points (the observed cloud).
+For each grasp i (wrist rotation R_i, position w_i in the object frame, pad gaps o_ie
+for the jaw openings e) the kernel takes every obstacle point p into the wrist frame,
+q = R_i^T (p - w_i), and computes its signed distance s_e(q) to the union of the
+gripper's boxes (x centres moved by x_sign * o_ie / 2): negative inside. The grasp's
+clearance at opening e is the smallest s_e over the first ``n_cloud`` points (the
+observed cloud).
 
 A perturbed pose is T_i D_k with D_k = (Rk, tk) in the wrist frame, so a point's
 perturbed wrist coordinates are q' = Rk^T (q - tk). With the rotation turning about
@@ -17,11 +18,22 @@ out, against those boxes grown by ``margin`` (exact for margin 0; within margin 
 at the boxes' corners otherwise) -- a few dozen points per grasp instead of thousands.
 The pass over all points runs in float32 (tenths of a micrometre at object scale).
 
-Per grasp and perturbation the kernel writes a bit set (uint8): 1 a cloud point
+The openings share that pass over all points: the points go into the wrist frame once,
+the boxes that do not move with the jaws (the housing) are measured once, and the moving
+boxes once as swept along x over every opening of the grasp. A swept box contains the
+box at each opening and lies within D (the sweep's length) of it, so s_swept <= s_e <=
+s_swept + D: only the points that could lie within reach of a box, or attain the
+cloud's clearance, at some opening are kept, and each opening measures those exactly
+(the same float32 arithmetic as measuring every point: results do not change). The
+openings are scored in order, and a grasp stops at the first opening ``allow`` admits
+where every pose is feasible (nothing wider can score it higher).
+
+Per grasp, opening and perturbation the kernel writes a bit set (uint8): 1 a cloud point
 closer than ``margin`` to a box (cloud collision), 2 the same for a primitive surface
 sample, 4 a box below the table (lower than ``table[4]`` above the plane), 8 a contact
 off its pad (outside the finger's width or the pad's length), 16 the closing axis
-outside either contact's friction cone. 0 means feasible.
+outside either contact's friction cone. 0 means feasible; 255: the opening was not
+scored (the grasp stopped at a narrower one).
 """
 
 from __future__ import annotations
@@ -29,17 +41,196 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["robust_flags", "CLOUD", "PRIMITIVE", "TABLE", "OFF_PAD", "NO_FC"]
+__all__ = ["robust_flags", "CLOUD", "PRIMITIVE", "TABLE", "OFF_PAD", "NO_FC", "NOT_SCORED"]
 
 CLOUD, PRIMITIVE, TABLE, OFF_PAD, NO_FC = 1, 2, 4, 8, 16
+NOT_SCORED = 255
 _BIG = 1e9
+_SLACK = 1e-6  # [m] float32 rounding of the swept boxes' bounds (below 1e-7 at object scale)
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def robust_flags(P, n_cloud, R, w, opening, bc, bh, bs, qc, nq, sign, DR, Dt, theta, tlen, pivot,
+def _wrist_points(P, R, w, i, pivot, th4, pm4, qx, qy, qz, rr, reach):  # pragma: no cover
+    """Points P (M, 3) in grasp i's wrist frame (float32), their distance to the pivot
+    and how far the largest perturbation can move them."""
+    f4 = np.float32
+    r00, r01, r02 = f4(R[i, 0, 0]), f4(R[i, 0, 1]), f4(R[i, 0, 2])
+    r10, r11, r12 = f4(R[i, 1, 0]), f4(R[i, 1, 1]), f4(R[i, 1, 2])
+    r20, r21, r22 = f4(R[i, 2, 0]), f4(R[i, 2, 1]), f4(R[i, 2, 2])
+    wx, wy, wz = f4(w[i, 0]), f4(w[i, 1]), f4(w[i, 2])
+    cx0, cy0, cz0 = f4(pivot[0]), f4(pivot[1]), f4(pivot[2])
+    for m in range(P.shape[0]):
+        dx = P[m, 0] - wx
+        dy = P[m, 1] - wy
+        dz = P[m, 2] - wz
+        x = r00 * dx + r10 * dy + r20 * dz
+        y = r01 * dx + r11 * dy + r21 * dz
+        z = r02 * dx + r12 * dy + r22 * dz
+        qx[m], qy[m], qz[m] = x, y, z
+        r = np.sqrt((x - cx0) * (x - cx0) + (y - cy0) * (y - cy0) + (z - cz0) * (z - cz0))
+        rr[m] = r
+        reach[m] = th4 * r + pm4
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _box(qx, qy, qz, n, cx, cy, cz, hx, hy, hz, reach, bit, sd, bits):  # pragma: no cover
+    """The first n points against one box (float32 centre and half extents): running
+    minimum of the signed distance in sd, ``bit`` set in bits where within reach."""
+    zero = np.float32(0.0)
+    for m in range(n):
+        ex = abs(qx[m] - cx) - hx
+        ey = abs(qy[m] - cy) - hy
+        ez = abs(qz[m] - cz) - hz
+        ox, oy, oz = max(ex, zero), max(ey, zero), max(ez, zero)
+        d = np.sqrt(ox * ox + oy * oy + oz * oz) + min(max(ex, max(ey, ez)), zero)
+        sd[m] = min(sd[m], d)
+        bits[m] |= bit * np.int32(d <= reach[m])
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _shared_pass(qx, qy, qz, M, n_cloud, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, keep):  # pragma: no cover
+    """All M points once per grasp: exact distance and reach bits of the boxes that do
+    not move (sd0, bits0), a lower bound lb of every opening's distance (the moving boxes
+    swept over [ho_lo, ho_hi]); keep: the points any opening needs. Returns their count."""
+    f4 = np.float32
+    sweep = f4(ho_hi - ho_lo)
+    for m in range(M):
+        sd0[m] = f4(_BIG)
+        bits0[m] = 0
+        lb[m] = f4(_BIG)
+    for b in range(bc.shape[0]):
+        cy, cz, hy, hz = f4(bc[b, 1]), f4(bc[b, 2]), f4(bh[b, 1]), f4(bh[b, 2])
+        if bs[b] == 0:
+            _box(qx, qy, qz, M, f4(bc[b, 0]), cy, cz, f4(bh[b, 0]), hy, hz, reach, np.int32(1 << b), sd0, bits0)
+        else:  # bits: scratch (bits0 is rewritten below for the kept points only)
+            _box(qx, qy, qz, M, f4(bc[b, 0] + bs[b] * 0.5 * (ho_lo + ho_hi)), cy, cz,
+                 f4(bh[b, 0] + 0.5 * (ho_hi - ho_lo)), hy, hz, reach, np.int32(0), lb, keep)
+    upper = f4(_BIG)  # the cloud's clearance is at most min(sd0, lb + sweep) at any opening
+    for m in range(n_cloud):
+        upper = min(upper, min(sd0[m], lb[m] + sweep))
+    slack = f4(_SLACK)
+    n = 0
+    for m in range(M):
+        low = min(sd0[m], lb[m])
+        keep[m] = (low <= reach[m] + slack) or (m < n_cloud and low <= upper + slack)
+        n += keep[m]
+    return n
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _contacts(i, qc, nq, sign, DR, Dt, pad, cos_fc, out):  # pragma: no cover
+    """Per perturbation (K,): OFF_PAD and NO_FC bits of grasp i (any opening)."""
+    for k in range(DR.shape[0]):
+        f = 0
+        for c in range(2):
+            ax = qc[i, c, 0] - Dt[k, 0]
+            ay = qc[i, c, 1] - Dt[k, 1]
+            az = qc[i, c, 2] - Dt[k, 2]
+            py = DR[k, 0, 1] * ax + DR[k, 1, 1] * ay + DR[k, 2, 1] * az
+            pz = DR[k, 0, 2] * ax + DR[k, 1, 2] * ay + DR[k, 2, 2] * az
+            if abs(py) > pad[0] or pz < pad[1] or pz > pad[2]:
+                f |= OFF_PAD
+            # closing axis (perturbed wrist x in the nominal frame) against -n (contact 0)
+            # and +n (contact 1), oriented from contact 0 to contact 1
+            d = sign[i] * (DR[k, 0, 0] * nq[i, c, 0] + DR[k, 1, 0] * nq[i, c, 1] + DR[k, 2, 0] * nq[i, c, 2])
+            if (-d if c == 0 else d) < cos_fc:
+                f |= NO_FC
+        out[k] = f
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _table(i, k, table, DR, Dt, bc, bh, bs, ho):  # pragma: no cover
+    """TABLE when a box of grasp i under perturbation k lies lower than required."""
+    nx = DR[k, 0, 0] * table[i, 0] + DR[k, 1, 0] * table[i, 1] + DR[k, 2, 0] * table[i, 2]
+    ny = DR[k, 0, 1] * table[i, 0] + DR[k, 1, 1] * table[i, 1] + DR[k, 2, 1] * table[i, 2]
+    nz = DR[k, 0, 2] * table[i, 0] + DR[k, 1, 2] * table[i, 1] + DR[k, 2, 2] * table[i, 2]
+    base = table[i, 3] + table[i, 0] * Dt[k, 0] + table[i, 1] * Dt[k, 1] + table[i, 2] * Dt[k, 2]
+    for b in range(bc.shape[0]):
+        h = (base + nx * (bc[b, 0] + bs[b] * ho) + ny * bc[b, 1] + nz * bc[b, 2]
+             - bh[b, 0] * abs(nx) - bh[b, 1] * abs(ny) - bh[b, 2] * abs(nz))
+        if h < table[i, 4]:
+            return TABLE
+    return 0
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _points_hit(near, ns, nr, nb, ncl, n, D, theta, tlen, margin, bc, bh, bs, ho, px, py, pz, live, inside,
+                out):  # pragma: no cover
+    """CLOUD / PRIMITIVE bits per perturbation (out (K,)): a near point inside a box it
+    can reach (grown by margin) under perturbation k. The loops over the K
+    perturbations (D (12, K): DR[k] row-major, then Dt[k]) run in SIMD lanes."""
+    K = theta.shape[0]
+    for k in range(K):
+        out[k] = 0
+    for j in range(n):
+        bit = CLOUD if ncl[j] else PRIMITIVE
+        x, y, z, s, r = near[j, 0], near[j, 1], near[j, 2], ns[j], nr[j]
+        alive = 0
+        for k in range(K):  # perturbations that may bring the point to a box and lack its bit
+            live[k] = (s <= theta[k] * r + tlen[k] + margin) & ((out[k] & bit) == 0)
+            alive += live[k]
+        if alive == 0:
+            continue
+        for k in range(K):
+            ax = x - D[9, k]
+            ay = y - D[10, k]
+            az = z - D[11, k]
+            px[k] = D[0, k] * ax + D[3, k] * ay + D[6, k] * az
+            py[k] = D[1, k] * ax + D[4, k] * ay + D[7, k] * az
+            pz[k] = D[2, k] * ax + D[5, k] * ay + D[8, k] * az
+            inside[k] = False
+        for b in range(bc.shape[0]):  # inside a reachable box grown by the margin
+            if (nb[j] >> b) & 1:
+                for k in range(K):
+                    inside[k] |= ((abs(px[k] - bc[b, 0] - bs[b] * ho) < bh[b, 0] + margin)
+                                  & (abs(py[k] - bc[b, 1]) < bh[b, 1] + margin)
+                                  & (abs(pz[k] - bc[b, 2]) < bh[b, 2] + margin))
+        for k in range(K):
+            out[k] |= bit * np.int32(live[k] & inside[k])
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _opening(i, e, ho, cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl, nc, sd, bits, near, ns, nr, nb, ncl, cf,
+             bc, bh, bs, DR, Dt, D, theta, tlen, table, margin, px, py, pz, live, inside, hits, clearance,
+             flags):  # pragma: no cover
+    """Grasp i at opening e (half gap ho): the kept points' exact distances and reach
+    bits with the moving boxes there, the clearance, and the flags of every pose."""
+    f4 = np.float32
+    for j in range(nc):
+        sd[j] = csd0[j]
+        bits[j] = cbits0[j]
+    for b in range(bc.shape[0]):
+        if bs[b] != 0:
+            _box(cqx, cqy, cqz, nc, f4(bc[b, 0] + bs[b] * ho), f4(bc[b, 1]), f4(bc[b, 2]),
+                 f4(bh[b, 0]), f4(bh[b, 1]), f4(bh[b, 2]), creach, np.int32(1 << b), sd, bits)
+    clear = f4(_BIG)
+    n = 0
+    for j in range(nc):
+        if ccl[j]:
+            clear = min(clear, sd[j])
+        if bits[j]:
+            near[n, 0] = cqx[j]
+            near[n, 1] = cqy[j]
+            near[n, 2] = cqz[j]
+            ns[n] = sd[j]
+            nr[n] = cr[j]
+            nb[n] = bits[j]
+            ncl[n] = ccl[j]
+            n += 1
+    clearance[i, e] = clear
+    _points_hit(near, ns, nr, nb, ncl, n, D, theta, tlen, margin, bc, bh, bs, ho, px, py, pz, live, inside, hits)
+    for k in range(DR.shape[0]):
+        flags[i, e, k] = hits[k] | _table(i, k, table, DR, Dt, bc, bh, bs, ho) | cf[k]
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, sign, DR, Dt, theta, tlen, pivot,
                  table, pad, cos_fc, margin, lo, hi, clearance, flags):  # pragma: no cover
-    """Grasps [lo, hi): clearance (N,) to the cloud points P[:n_cloud] and flags (N, K)
-    for perturbations DR (K, 3, 3), Dt (K, 3) (theta, tlen (K,): their bounds).
+    """Grasps [lo, hi): clearance (N, E) to the cloud points P[:n_cloud] and flags
+    (N, E, K) at the pad gaps ``openings`` (N, E) (in order) for perturbations DR
+    (K, 3, 3), Dt (K, 3) (theta, tlen (K,): their bounds). A grasp stops after the
+    first opening e with ``allow[i, e]`` where no flag has a bit of ``mask``; the wider
+    ones get clearance inf and flags NOT_SCORED.
 
     qc, nq: (N, 2, 3) contacts and outward normals in each grasp's nominal wrist frame;
     sign (N,): +1 when contact 1 lies on the +x side of contact 0. table: (nr_x, nr_y,
@@ -48,120 +239,53 @@ def robust_flags(P, n_cloud, R, w, opening, bc, bh, bs, qc, nq, sign, DR, Dt, th
     z_hi) of the pads in the wrist frame."""
     M = P.shape[0]
     K = DR.shape[0]
-    B = bc.shape[0]
+    E = openings.shape[1]
     f4 = np.float32
-    zero = f4(0.0)
-    qx = np.empty(M, f4)
-    qy = np.empty(M, f4)
-    qz = np.empty(M, f4)
-    sd = np.empty(M, f4)
-    rr = np.empty(M, f4)
-    reach = np.empty(M, f4)
-    bits = np.empty(M, np.int32)
-    near = np.empty((M, 3))
-    ns = np.empty(M)
-    nr = np.empty(M)
-    nb = np.empty(M, np.int32)
-    ncl = np.empty(M, np.bool_)
+    qx, qy, qz = np.empty(M, f4), np.empty(M, f4), np.empty(M, f4)
+    rr, reach, sd0, lb = np.empty(M, f4), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4)
+    bits0, keep = np.empty(M, np.int32), np.empty(M, np.int32)
+    cqx, cqy, cqz, cr = np.empty(M, f4), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4)
+    creach, csd0 = np.empty(M, f4), np.empty(M, f4)
+    cbits0, ccl = np.empty(M, np.int32), np.empty(M, np.bool_)
+    sd, bits = np.empty(M, f4), np.empty(M, np.int32)
+    near, ns, nr, nb, ncl = np.empty((M, 3)), np.empty(M), np.empty(M), np.empty(M, np.int32), np.empty(M, np.bool_)
+    cf, hits = np.empty(K, np.int32), np.empty(K, np.int32)
+    px, py, pz, live, inside = np.empty(K), np.empty(K), np.empty(K), np.empty(K, np.bool_), np.empty(K, np.bool_)
+    D = np.empty((12, K))  # the perturbations' rotations (row-major) and translations, one lane each
+    for k in range(K):
+        for r in range(3):
+            for c in range(3):
+                D[3 * r + c, k] = DR[k, r, c]
+            D[9 + r, k] = Dt[k, r]
     thmax = 0.0
     pmax = 0.0
     for k in range(K):
         thmax = max(thmax, theta[k])
         pmax = max(pmax, tlen[k])
     th4, pm4 = f4(thmax), f4(pmax + margin)
-    cx0, cy0, cz0 = f4(pivot[0]), f4(pivot[1]), f4(pivot[2])
     for i in range(lo, hi):
-        ho = 0.5 * opening[i]
-        # branch-free float32 loops over the points (vectorised): wrist coordinates and
-        # how far the largest perturbation can move them, then the signed distance to
-        # each box (running minimum) and which boxes they can reach
-        r00, r01, r02 = f4(R[i, 0, 0]), f4(R[i, 0, 1]), f4(R[i, 0, 2])
-        r10, r11, r12 = f4(R[i, 1, 0]), f4(R[i, 1, 1]), f4(R[i, 1, 2])
-        r20, r21, r22 = f4(R[i, 2, 0]), f4(R[i, 2, 1]), f4(R[i, 2, 2])
-        wx, wy, wz = f4(w[i, 0]), f4(w[i, 1]), f4(w[i, 2])
+        _wrist_points(P, R, w, i, pivot, th4, pm4, qx, qy, qz, rr, reach)
+        ho_lo, ho_hi = 0.5 * openings[i, 0], 0.5 * openings[i, 0]
+        for e in range(E):
+            ho_lo, ho_hi = min(ho_lo, 0.5 * openings[i, e]), max(ho_hi, 0.5 * openings[i, e])
+        _shared_pass(qx, qy, qz, M, n_cloud, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, keep)
+        nc = 0
         for m in range(M):
-            dx = P[m, 0] - wx
-            dy = P[m, 1] - wy
-            dz = P[m, 2] - wz
-            x = r00 * dx + r10 * dy + r20 * dz
-            y = r01 * dx + r11 * dy + r21 * dz
-            z = r02 * dx + r12 * dy + r22 * dz
-            qx[m], qy[m], qz[m] = x, y, z
-            r = np.sqrt((x - cx0) * (x - cx0) + (y - cy0) * (y - cy0) + (z - cz0) * (z - cz0))
-            rr[m] = r
-            reach[m] = th4 * r + pm4
-            sd[m] = f4(_BIG)
-            bits[m] = 0
-        for b in range(B):
-            cx, cy, cz = f4(bc[b, 0] + bs[b] * ho), f4(bc[b, 1]), f4(bc[b, 2])
-            hx, hy, hz = f4(bh[b, 0]), f4(bh[b, 1]), f4(bh[b, 2])
-            bit = np.int32(1 << b)
-            for m in range(M):
-                ex = abs(qx[m] - cx) - hx
-                ey = abs(qy[m] - cy) - hy
-                ez = abs(qz[m] - cz) - hz
-                ox, oy, oz = max(ex, zero), max(ey, zero), max(ez, zero)
-                d = np.sqrt(ox * ox + oy * oy + oz * oz) + min(max(ex, max(ey, ez)), zero)
-                sd[m] = min(sd[m], d)
-                bits[m] |= bit * np.int32(d <= reach[m])
-        clear = f4(_BIG)
-        for m in range(n_cloud):
-            clear = min(clear, sd[m])
-        clearance[i] = clear
-        n = 0
-        for m in range(M):
-            if bits[m]:
-                near[n, 0] = qx[m]
-                near[n, 1] = qy[m]
-                near[n, 2] = qz[m]
-                ns[n] = sd[m]
-                nr[n] = rr[m]
-                nb[n] = bits[m]
-                ncl[n] = m < n_cloud
-                n += 1
-        for k in range(K):
-            f = 0
-            for j in range(n):
-                bit = CLOUD if ncl[j] else PRIMITIVE
-                if f & bit or ns[j] > theta[k] * nr[j] + tlen[k] + margin:
-                    continue
-                ax = near[j, 0] - Dt[k, 0]
-                ay = near[j, 1] - Dt[k, 1]
-                az = near[j, 2] - Dt[k, 2]
-                px = DR[k, 0, 0] * ax + DR[k, 1, 0] * ay + DR[k, 2, 0] * az
-                py = DR[k, 0, 1] * ax + DR[k, 1, 1] * ay + DR[k, 2, 1] * az
-                pz = DR[k, 0, 2] * ax + DR[k, 1, 2] * ay + DR[k, 2, 2] * az
-                for b in range(B):  # inside a reachable box grown by the margin
-                    if (nb[j] >> b) & 1 and (abs(px - bc[b, 0] - bs[b] * ho) < bh[b, 0] + margin
-                                             and abs(py - bc[b, 1]) < bh[b, 1] + margin
-                                             and abs(pz - bc[b, 2]) < bh[b, 2] + margin):
-                        f |= bit
-                        break
-                if f & (CLOUD | PRIMITIVE) == (CLOUD | PRIMITIVE):
-                    break
-            # table: the lowest box corner along the plane's normal
-            nx = DR[k, 0, 0] * table[i, 0] + DR[k, 1, 0] * table[i, 1] + DR[k, 2, 0] * table[i, 2]
-            ny = DR[k, 0, 1] * table[i, 0] + DR[k, 1, 1] * table[i, 1] + DR[k, 2, 1] * table[i, 2]
-            nz = DR[k, 0, 2] * table[i, 0] + DR[k, 1, 2] * table[i, 1] + DR[k, 2, 2] * table[i, 2]
-            base = table[i, 3] + table[i, 0] * Dt[k, 0] + table[i, 1] * Dt[k, 1] + table[i, 2] * Dt[k, 2]
-            for b in range(bc.shape[0]):
-                h = (base + nx * (bc[b, 0] + bs[b] * ho) + ny * bc[b, 1] + nz * bc[b, 2]
-                     - bh[b, 0] * abs(nx) - bh[b, 1] * abs(ny) - bh[b, 2] * abs(nz))
-                if h < table[i, 4]:
-                    f |= TABLE
-                    break
-            # contacts on the pads, closing axis inside both friction cones
-            for c in range(2):
-                ax = qc[i, c, 0] - Dt[k, 0]
-                ay = qc[i, c, 1] - Dt[k, 1]
-                az = qc[i, c, 2] - Dt[k, 2]
-                py = DR[k, 0, 1] * ax + DR[k, 1, 1] * ay + DR[k, 2, 1] * az
-                pz = DR[k, 0, 2] * ax + DR[k, 1, 2] * ay + DR[k, 2, 2] * az
-                if abs(py) > pad[0] or pz < pad[1] or pz > pad[2]:
-                    f |= OFF_PAD
-                # closing axis (perturbed wrist x in the nominal frame) against -n (contact 0)
-                # and +n (contact 1), oriented from contact 0 to contact 1
-                d = sign[i] * (DR[k, 0, 0] * nq[i, c, 0] + DR[k, 1, 0] * nq[i, c, 1] + DR[k, 2, 0] * nq[i, c, 2])
-                if (-d if c == 0 else d) < cos_fc:
-                    f |= NO_FC
-            flags[i, k] = f
+            if keep[m]:
+                cqx[nc], cqy[nc], cqz[nc] = qx[m], qy[m], qz[m]
+                cr[nc], creach[nc], csd0[nc], cbits0[nc], ccl[nc] = rr[m], reach[m], sd0[m], bits0[m], m < n_cloud
+                nc += 1
+        _contacts(i, qc, nq, sign, DR, Dt, pad, cos_fc, cf)
+        done = False
+        for e in range(E):
+            if done:
+                clearance[i, e] = np.inf
+                for k in range(K):
+                    flags[i, e, k] = NOT_SCORED
+                continue
+            _opening(i, e, 0.5 * openings[i, e], cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl, nc, sd, bits, near,
+                     ns, nr, nb, ncl, cf, bc, bh, bs, DR, Dt, D, theta, tlen, table, margin, px, py, pz, live, inside,
+                     hits, clearance, flags)
+            done = allow[i, e]
+            for k in range(K):
+                done = done and (flags[i, e, k] & mask) == 0

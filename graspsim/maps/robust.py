@@ -26,7 +26,7 @@ unscored) and stored as map columns (files: ``grasps/qualities/robust/*``) with 
 provenance in ``meta.extra["robust"]``. :func:`ranking` orders a map by them.
 The compiled kernel (:mod:`graspsim.maps._robust_kernel`) culls, per grasp, the points
 that no perturbation can bring to the gripper, so K perturbations cost little more
-than one.
+than one, and scores every jaw opening from one pass over the points.
 """
 
 from __future__ import annotations
@@ -211,32 +211,28 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
     tlen = np.linalg.norm(Dt - (np.asarray(pivot) - DR @ np.asarray(pivot)), axis=1)
     pad = np.array([0.5 * g.finger_size[1], g.fingertip_z - g.pad_length, g.fingertip_z])
     mask = np.uint8(sum(_BITS[t] for t in cfg.terms))
-    base = g.pregrasp_opening(np.asarray(width, float))
-    results = []
-    todo = np.ones(n, bool)  # rows a wider opening could still improve
-    for extra in cfg.openings:  # the jaws opened wider: each extra gap per side scored
-        opening = base + 2.0 * extra
-        idx = np.flatnonzero(todo)
-        clearance = np.full(n, np.inf)
-        flags = np.full((n, len(D)), 255, np.uint8)  # rows not re-scored: never chosen
-        if len(idx):
-            sub_c = np.full(len(idx), np.inf)
-            sub_f = np.zeros((len(idx), len(D)), np.uint8)
-            args = (P, n_cloud, np.ascontiguousarray(R[idx]), np.ascontiguousarray(w[idx]), opening[idx],
-                    centers, half, x_sign, np.ascontiguousarray(qc[idx]), np.ascontiguousarray(nq[idx]), sign[idx],
-                    DR, Dt, theta, tlen, np.asarray(pivot), np.ascontiguousarray(table[idx]), pad, cos_fc,
-                    float(cfg.margin))
-            threads = default_threads(cfg.threads) if len(idx) >= 256 else 1
-            run_chunks(lambda lo, hi: robust_flags(*args, lo, hi, sub_c, sub_f), len(idx), threads)  # noqa: B023
-            clearance[idx], flags[idx] = sub_c, sub_f
-        ok = (flags & mask) == 0
-        feasible = ok[:, 1:].mean(axis=1)
-        live = ok[:, 0] & (feasible > 0) & (opening <= g.max_opening + 1e-12)
-        occ = np.zeros(n) if view is None or not cfg.occlusion else finger_occlusion(view, R, w, opening, g)
-        results.append((np.where(clearance > 1e8, np.inf, clearance), flags, feasible, live, occ))
-        # exact: a row feasible under every perturbation with no occluded finger volume
-        # already scores its success probability, the most any opening can give it
-        todo &= ~(live & (feasible >= 1.0) & (occ <= 0.0))
+    extras = np.asarray(cfg.openings, float)
+    openings = g.pregrasp_opening(np.asarray(width, float))[:, None] + 2.0 * extras[None]  # (n, E)
+    reachable = openings <= g.max_opening + 1e-12
+    occ = np.zeros((n, len(extras)))
+    if view is not None and cfg.occlusion:
+        occ = np.column_stack([finger_occlusion(view, R, w, openings[:, e], g) for e in range(len(extras))])
+    # a row stops at the first opening where it is feasible under every perturbation with
+    # no occluded finger volume: it already scores its success probability, the most any
+    # opening can give it (exact: ties go to the narrowest)
+    allow = np.ascontiguousarray(reachable & (occ <= 0.0))
+    clearance = np.full((n, len(extras)), np.inf)
+    flags = np.zeros((n, len(extras), len(D)), np.uint8)
+    args = (P, n_cloud, np.ascontiguousarray(R), np.ascontiguousarray(w), np.ascontiguousarray(openings), allow,
+            int(mask), centers, half, x_sign, np.ascontiguousarray(qc), np.ascontiguousarray(nq), sign, DR, Dt,
+            theta, tlen, np.asarray(pivot), np.ascontiguousarray(table), pad, cos_fc, float(cfg.margin))
+    run_chunks(lambda lo, hi: robust_flags(*args, lo, hi, clearance, flags), n,
+               default_threads(cfg.threads) if n >= 256 else 1)
+    ok = (flags & mask) == 0
+    feasible = ok[:, :, 1:].mean(axis=2)
+    live = ok[:, :, 0] & (feasible > 0) & reachable
+    results = [(np.where(clearance[:, e] > 1e8, np.inf, clearance[:, e]), flags[:, e], feasible[:, e], live[:, e],
+                occ[:, e]) for e in range(len(extras))]
     live_any = np.any([r[3] for r in results], axis=0)
     success = np.zeros(n)
     success[live_any] = success_of(live_any)  # only where it can matter

@@ -66,7 +66,9 @@ def _model(part: PartResult):
 
 def _best_single(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> PartResult:
     """The part as the best-scoring single model of its fits that explains at least
-    ``approx_fit_rate`` of its points within the band; else ``part`` (unidentified)."""
+    ``approx_fit_rate`` of its points within the band; else ``part`` (unidentified),
+    also where that model is below the primitive floor (a flat face: a worse model
+    does not stand for it)."""
     pts = ctx.cloud.points[idx]
     ranked = []
     for kind, fit in part.fits.items():
@@ -81,7 +83,7 @@ def _best_single(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> PartResult:
         try:
             prim, T = fit_to_object(fit.kind, fit.R, fit.t, fit.dims)
         except PrimitiveError:
-            continue
+            break  # the best usable model is degenerate (a flat face): no primitive stands for it
         return replace(part, shape=Shape(fit.kind), dims=prim.dims, T_world_obj=T, fit_rate=fit.fit_rate,
                        rms=fit.rms, reason="", approximate=rate < ctx.cfg.min_fit_rate, band_rate=rate,
                        fits={**part.fits, fit.kind: fit})

@@ -23,7 +23,9 @@ back-projected and planned by ``plan_scene`` (E10's scene settings, against a pr
 map database ``OUT/fsdb`` built fresh, or ``--db``), once to warm up (it builds the maps
 parts need) and once timed: per stage (back-projection, table, segmentation,
 identification of every segment, maps + robust scores against the neighbours) and in
-total. Writes summary.json and config.json into ``--out``.
+total. The segments are identified on ``--workers`` processes (0: the scene's default, one
+per core; 1 in this process: the result is the same). Writes summary.json and config.json
+into ``--out``.
 
     python experiments/bench_scene.py
     python experiments/bench_scene.py --quick --out results/bench_scene-quick
@@ -36,7 +38,7 @@ import logging
 import statistics
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import ClassVar
 
@@ -59,14 +61,15 @@ class BenchConfig:
     plans: int = opt(3, "5-object scenes of each kind planned from their first frame (0: none)")
     db: str = opt("", "FS database folder for planning (default: OUT/fsdb, built fresh)")
     coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
+    workers: int = opt(0, "processes planning identifies segments on (0: SceneConfig's default, one per core)")
     QUICK: ClassVar[dict] = {"scenes": 1, "sizes": (5,), "kinds": ("pile",), "renders": 2, "fresh": 2, "plans": 1,
                              "coarse_db": True}
 
     def __post_init__(self) -> None:
         if min(self.scenes, self.renders, self.fresh, *self.sizes) < 1:
             raise ValueError("--scenes, --renders, --fresh and --sizes must be >= 1")
-        if self.plans < 0:
-            raise ValueError("--plans must be >= 0")
+        if self.plans < 0 or self.workers < 0:
+            raise ValueError("--plans and --workers must be >= 0")
 
 
 def _timed(fn):
@@ -131,7 +134,7 @@ def fresh_runs(cfg: BenchConfig) -> dict:
 PLAN_STAGES = ("backproject", "table", "segment", "identify", "plan", "total")
 
 
-def plan_one(kind: str, seed: int, db) -> dict:
+def plan_one(kind: str, seed: int, db, workers: int = 0) -> dict:
     """Planning times [s] of one 5-object scene's first frame (a warm-up plan, then the
     timed one): per stage and in total (back-projection included)."""
     from graspsim.perception.scene import plan_scene
@@ -144,7 +147,7 @@ def plan_one(kind: str, seed: int, db) -> dict:
     sim = make_scene(5, kind, seed).sim()
     frame = sim.render(rig(1)[0], noise=clutter.depth_noise, rng=rng_for(seed, "depth"))
     sim.close()
-    scene_cfg = clutter.scene
+    scene_cfg = clutter.scene if not workers else replace(clutter.scene, workers=workers)
     plan_scene(backproject(frame).world(), db=db, rng=rng_for(seed, "plan"), config=scene_cfg)
     points, bp = _timed(lambda: backproject(frame).world())
     sp, _ = _timed(lambda: plan_scene(points, db=db, rng=rng_for(seed, "plan"), config=scene_cfg))
@@ -158,7 +161,7 @@ def plan_runs(cfg: BenchConfig, out: Path) -> dict:
     if not cfg.plans:
         return {}
     db = experiment_database(cfg.db, out, map_config(cfg.coarse_db))
-    rows = [plan_one(kind, cfg.seed + i, db) for kind in cfg.kinds for i in range(cfg.plans)]
+    rows = [plan_one(kind, cfg.seed + i, db, cfg.workers) for kind in cfg.kinds for i in range(cfg.plans)]
     groups = [{"kind": kind, "scenes": len(g), **{k: statistics.median(r[k] for r in g) for k in PLAN_STAGES},
                "max_total": max(r["total"] for r in g), "within_goal": sum(r["total"] <= 0.5 for r in g)}
               for kind in cfg.kinds for g in [[r for r in rows if r["kind"] == kind]]]

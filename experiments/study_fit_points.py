@@ -116,6 +116,20 @@ def agreement(a: dict, b: dict, cfg: Config) -> tuple[bool, bool, bool]:
     return kinds, dims, rates
 
 
+def _changed(res: dict, cond: str, clouds: dict, cfg: Config) -> dict:
+    """Agreement on the clouds a bound thins (more points than it; the others are
+    identified on the same points from the same stream): the bounded condition's, and
+    the reseeded one's on the same clouds."""
+    if not cond.startswith("fit_points="):
+        return {}
+    limit = int(cond.split("=")[1])
+    sub = [k for k, p in clouds.items() if len(p) > limit]
+    mine = [agreement(res["all"][k], res[cond][k], cfg) for k in sub]
+    ref = [agreement(res["all"][k], res["all, reseeded"][k], cfg) for k in sub]
+    return {"thinned": len(sub), "thinned_kinds": sum(a[0] for a in mine), "thinned_dims": sum(a[1] for a in mine),
+            "reseeded_kinds": sum(a[0] for a in ref), "reseeded_dims": sum(a[1] for a in ref)}
+
+
 def run(cfg: Config) -> dict:
     from graspsim.perception.identify_config import IdentifyConfig
 
@@ -135,7 +149,8 @@ def run(cfg: Config) -> dict:
                           "kinds": sum(a[0] for a in agree), "dims": sum(a[1] for a in agree),
                           "rates": sum(a[2] for a in agree),
                           "cpu_s": float(sum(r["cpu"] for r in res[c].values())),
-                          "median_points": float(np.median([r.get("used", 0) for r in res[c].values()]))})
+                          "median_points": float(np.median([r.get("used", 0) for r in res[c].values()])),
+                          **_changed(res, c, clouds, cfg)})
             log.info("%-15s %-16s kinds %d/%d dims %d rates %d cpu %.2f s", group, c, table[-1]["kinds"],
                      len(clouds), table[-1]["dims"], table[-1]["rates"], table[-1]["cpu_s"])
         rows += [{"cloud": k, "group": group, **{c: res[c][k] for c in conds}} for k in clouds]
@@ -153,6 +168,15 @@ def readme_section(s: dict) -> str:
     for t in s["table"]:
         L.append(f"| {t['clouds']} | {t['condition']} | {t['kinds']}/{t['n']} | {t['dims']}/{t['n']} | "
                  f"{t['rates']}/{t['n']} | {t['median_points']:.0f} | {t['cpu_s']:.2f} |")
+    L += ["", "On the clouds a bound thins (more points than the bound), same status and kinds / and dimensions, "
+          "bounded against every point, beside the reseeded identification on the same clouds:", "",
+          "| clouds | condition | thinned | bounded kinds / + dims | reseeded kinds / + dims |",
+          "|---|---|---|---|---|"]
+    for t in s["table"]:
+        if "thinned" in t:
+            n = t["thinned"]
+            L.append(f"| {t['clouds']} | {t['condition']} | {n} | {t['thinned_kinds']}/{n} / {t['thinned_dims']}/{n} | "
+                     f"{t['reseeded_kinds']}/{n} / {t['reseeded_dims']}/{n} |")
     m = s["machine"]
     L += ["", f"Load average {m['load_avg_start'][0]:.1f} at the start, {m['load_avg_end'][0]:.1f} at the end, "
           f"{m['cpus']} cores."]

@@ -469,3 +469,18 @@ def test_e10_others_cut_only_the_conditions_outside_the_goals():
                                                      + [(i, j) for i in range(len(conds)) if i not in goal
                                                         for j in range(2)])
     assert sum(len(x) for x in mod.rounds(mod.Config(scenes=3, block=2), conds)) == 3 * len(conds)
+
+
+def test_study_fit_points_quick_counts_agreement_against_every_point(tmp_path):
+    study = _load("study_fit_points")
+    assert study.main(["--quick", "--out", str(tmp_path / "s")]) == 0
+    s = _summary(tmp_path / "s")
+    rows = {t["condition"]: t for t in s["table"]}
+    assert set(rows) == {"all", "all, reseeded", "fit_points=600"}
+    n = rows["all"]["n"]
+    assert n >= 3 and rows["all"]["kinds"] == rows["all"]["dims"] == rows["all"]["rates"] == n  # itself
+    bounded = rows["fit_points=600"]
+    assert bounded["rates"] <= bounded["dims"] <= bounded["kinds"] <= n
+    # a cloud the bound leaves alone is identified exactly as on every point
+    assert bounded["kinds"] >= n - bounded["thinned"]
+    assert len(s["clouds"]) == n and s["command"] in study.readme_section(s)

@@ -173,3 +173,8 @@ def test_table_fit_stops_at_the_ransac_bound_with_the_same_plane_and_draws(monke
     assert abs(fits[None].height - fits[0.999].height) < 1e-4
     with pytest.raises(GraspsimError, match="confidence"):
         fit_table(pts, np.random.default_rng(0), confidence=1.0)
+    with pytest.raises(GraspsimError, match="plane_confidence"):
+        SceneConfig(plane_confidence=0.0)
+    calls.clear()  # the scene's setting reaches the fit: None scores every plane
+    perceive_scene(pts, np.random.default_rng(5), SceneConfig(plane_confidence=None, plane_repetitions=200))
+    assert sum(calls) == 200

@@ -66,6 +66,25 @@ def test_segments_identified_on_workers_match_this_process():
         identify_segments(segs, [np.random.default_rng(0)], cfg, 1)
 
 
+def test_workers_forked_after_the_parallel_kernels_ran_still_identify():
+    """The pad-contact grade's kernel runs on numba's OpenMP pool; a child forked after it
+    ran dies if it runs such a kernel too. Identification never does: a pool forked after
+    the kernel ran identifies as one forked before it."""
+    from graspsim.grades._pads import SERIAL_BELOW, run_pad_patches
+    from graspsim.perception.scene_workers import shutdown_workers
+
+    n = 2 * SERIAL_BELOW  # enough grasps for the parallel path
+    R = np.repeat(np.eye(3)[None], n, axis=0)
+    pts = np.random.default_rng(0).normal(size=(50, 3)) * 0.01
+    run_pad_patches(pts, np.tile([0.0, 0.0, 1.0], (50, 1)), np.full(50, 1e-6), R, np.zeros((n, 3)), 0.01, 0.0,
+                    0.02, 0.001)
+    shutdown_workers()  # the next call forks new workers, after the kernel ran
+    segs = [_cloud(Sphere(0.03), 5, 0.004), _cloud(Cylinder(0.02, 0.1), 6, 0.004)]
+    here = identify_segments(segs, np.random.default_rng(1).spawn(2), IdentifyConfig(), 1)
+    there = identify_segments(segs, np.random.default_rng(1).spawn(2), IdentifyConfig(), 2)
+    assert [[p.dims for p in a.parts] for a, _ in here] == [[p.dims for p in b.parts] for b, _ in there]
+
+
 def test_worker_count_is_validated():
     assert scene_workers(1) == 1 and scene_workers(3) == 3 and scene_workers(None) >= 1
     for bad in (0, -1, 1.5, True):

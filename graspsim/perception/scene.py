@@ -65,7 +65,9 @@ class SceneConfig:
     """planner: the per-segment planner settings (its ``table`` is replaced by the
     fitted plane; by default robust identification on at most :data:`SCENE_FIT_POINTS`
     points of a segment, ``IdentifyConfig(fit_points=None)`` for all of them).
-    plane_sigma [m], plane_repetitions: the table fit; table_band [m]:
+    plane_sigma [m], plane_repetitions, plane_confidence: the table fit (its planes are
+    scored until the RANSAC bound at this confidence is met; None: all of them, see
+    :func:`~graspsim.perception.plane.fit_table`); table_band [m]:
     points less than this above the table belong to it; max_height [m]: points higher
     above it are ignored; voxel [m]: the grid the points above the table are thinned
     to; radius [m]: the clustering radius (None: from the spacing, at most max_radius);
@@ -86,6 +88,7 @@ class SceneConfig:
     planner: PlannerConfig = field(default_factory=_scene_planner)
     plane_sigma: float = 0.002
     plane_repetitions: int = 200
+    plane_confidence: float | None = 0.999
     table_band: float = 0.006
     max_height: float = 0.5
     voxel: float = 0.003
@@ -116,6 +119,9 @@ class SceneConfig:
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise InvalidParameterError(f"SceneConfig.{k} must be an integer >= 1, got {v!r}")
         scene_workers(self.workers)  # validates it
+        if self.plane_confidence is not None and not 0 < self.plane_confidence < 1:
+            raise InvalidParameterError(f"SceneConfig.plane_confidence must be in (0, 1) or None, "
+                                        f"got {self.plane_confidence!r}")
         if not isinstance(self.planner, PlannerConfig) or self.planner.rank != "robust":
             raise InvalidParameterError("SceneConfig.planner must be a PlannerConfig ranking by the robust score "
                                         f"(the scene check is part of it), got {self.planner!r}")
@@ -232,7 +238,7 @@ def perceive_scene(points: np.ndarray, rng: np.random.Generator, config: SceneCo
     t0 = time.perf_counter()
     pts, finite = _check_scene(points)
     plane = fit_table(pts[finite], rng, sigma=cfg.plane_sigma, repetitions=cfg.plane_repetitions,
-                      up=None if cfg.up is None else np.asarray(cfg.up, float))
+                      up=None if cfg.up is None else np.asarray(cfg.up, float), confidence=cfg.plane_confidence)
     t1 = time.perf_counter()
     h = plane.heights(pts[finite])
     above = finite[(h > cfg.table_band) & (h < cfg.max_height)]

@@ -10,9 +10,12 @@ The workers are forked once per process and kept: they start with the caller's m
 already imported (milliseconds; ``spawn`` would import graspsim again in each, and
 run a user's unguarded script again), and each scene costs only the transfer of points
 and results. They never touch MuJoCo or the map kernels, whose threads and GL
-contexts the fork does not carry. Where ``fork`` does not exist (Windows), and inside
-a process that is itself a worker (an experiment's executor, this pool), segments are
-identified one after another: there the parallelism is already outside.
+contexts the fork does not carry: a child forked after numba's OpenMP pool ran (the
+pad-contact grade's kernel) is terminated if it runs such a kernel, so the planning
+of segments (maps, robust scores) cannot move into forked children this way. Where
+``fork`` does not exist (Windows), and inside a process that is itself a worker (an
+experiment's executor, this pool), segments are identified one after another: there
+the parallelism is already outside.
 """
 
 from __future__ import annotations

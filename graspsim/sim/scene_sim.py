@@ -31,7 +31,7 @@ from graspsim.sim.scene import SimSettings, _add_object, _add_table, _set_option
 from graspsim.sim.scene_objects import ObjectSpec
 from graspsim.transforms import make_transform, matrix_to_quat, quat_to_matrix
 
-__all__ = ["SceneSim", "SceneOutcome", "HOME", "GRIPPER_GROUP", "TABLE_REGION"]
+__all__ = ["SceneSim", "SceneOutcome", "collision_kind", "HOME", "GRIPPER_GROUP", "TABLE_REGION"]
 
 log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -43,13 +43,28 @@ _PALETTE = np.array([[0.85, 0.55, 0.2], [0.2, 0.55, 0.85], [0.3, 0.75, 0.35], [0
                      [0.6, 0.4, 0.8], [0.9, 0.8, 0.3], [0.3, 0.8, 0.8], [0.55, 0.35, 0.2]])
 
 
+def collision_kind(collided: tuple, target: int | None) -> str:
+    """What a start collision hit (``collided``: object ids and "table"): "target" (the
+    target, maybe the table too), "both" (the target and another object), "neighbour"
+    (other objects only, maybe the table), "table" (the table only), "object" (objects,
+    no target named)."""
+    objects = {c for c in collided if c != "table"}
+    if not objects:
+        return "table"
+    if target is None:
+        return "object"
+    if target in objects:
+        return "both" if len(objects) > 1 else "target"
+    return "neighbour"
+
+
 @dataclass(frozen=True)
 class SceneOutcome:
     """One grasp in a scene. outcome: a :class:`TrialOutcome`; picked: the object lifted
     and held (None: none); target: the object meant (None: not said); cause: the outcome
-    label, START_COLLISION refined to ``start_collision_target | _neighbour | _table``
-    (``_object`` when no target was named), ``success_other_object`` when another object
-    than the target came up;
+    label, START_COLLISION refined by :func:`collision_kind` to ``start_collision_target |
+    _both | _neighbour | _table`` (``_object`` when no target was named),
+    ``success_other_object`` when another object than the target came up;
     collided: what the gripper overlaps at t = 0 beyond ``start_penetration`` (object
     ids, "table"); penetration [m]: the deepest overlap; lift_height [m]: how far the
     picked (else the target) object rose; moved: other objects displaced > 1 cm."""
@@ -304,8 +319,7 @@ class SceneSim:
         state0 = self._start_state(T, opening)
         collided, depth = self._collisions(state0, T)
         if collided:
-            kind = ("table" if collided == ("table",) else "target" if target in collided
-                    else "neighbour" if target is not None else "object")
+            kind = collision_kind(collided, target)
             return SceneOutcome(TrialOutcome.START_COLLISION, None, target, f"start_collision_{kind}",
                                 collided, depth, extra={"T_world_wrist": T.tolist(), "opening": opening})
         out = self._run(T, state0, target, depth, commit)

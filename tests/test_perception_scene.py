@@ -162,3 +162,30 @@ def test_the_camera_viewpoint_scales_down_grasps_reaching_behind_what_it_saw(db)
     assert len(seen) == len(blind) > 50
     assert all(b + 1e-9 >= s for b, s in seen)  # the occluded-space term only takes away
     assert sum(s < b - 0.05 for b, s in seen) >= 5  # some grasps reach behind the box
+
+
+def test_table_fit_stops_at_the_ransac_bound_with_the_same_plane_and_draws(monkeypatch):
+    """A table filling most of the view: the first block of plane hypotheses meets the
+    RANSAC bound, so later blocks are not scored; the plane is the one scoring all of
+    them finds (refined on the same inliers), and the generator is left as it was."""
+    import graspsim.perception.plane as plane
+
+    assert plane.ransac_bound(0.5, 3, 0.99) == pytest.approx(math.log(0.01) / math.log(0.875))
+    assert plane.ransac_bound(1.0, 3, 0.99) == 1.0 and plane.ransac_bound(0.0, 3, 0.99) == math.inf
+    shapes = [Box(0.05, 0.06, 0.1), Cylinder(0.03, 0.12)]
+    pts, _, _ = table_scene_cloud(shapes, _row(shapes, 0.03), np.random.default_rng(4), noise=0.001)
+    calls = []
+    real = plane.mixture_loglik
+    monkeypatch.setattr(plane, "mixture_loglik", lambda r, *a, **k: calls.append(len(r)) or real(r, *a, **k))
+    fits, states = {}, {}
+    for conf in (None, 0.999):
+        calls.clear()
+        rng = np.random.default_rng(5)
+        fits[conf] = fit_table(pts, rng, repetitions=200, confidence=conf)
+        states[conf] = (rng.random(), sum(calls))
+    assert states[None][1] == 200 and states[0.999][1] == plane.PLANE_BLOCK  # one block scored
+    assert states[None][0] == states[0.999][0]  # the same draws
+    assert math.degrees(math.acos(min(1.0, float(fits[None].normal @ fits[0.999].normal)))) < 0.05
+    assert abs(fits[None].height - fits[0.999].height) < 1e-4
+    with pytest.raises(GraspsimError, match="confidence"):
+        fit_table(pts, np.random.default_rng(0), confidence=1.0)

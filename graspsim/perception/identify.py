@@ -292,7 +292,7 @@ def identify(points: np.ndarray, *, rng: np.random.Generator,
     (:func:`~graspsim.perception.decompose.keep_going`)."""
     t0 = time.perf_counter()
     cfg = config or IdentifyConfig()
-    cloud, n_used, voxel, down = _prepare(points, cfg, cfg.max_points)
+    cloud, n_used, voxel, down = _prepare(points, cfg, cfg.point_limit)
     done, failed, n_splits = _hierarchy(cloud, rng, cfg)
     if cfg.is_robust:
         from graspsim.perception.decompose import keep_going, settled

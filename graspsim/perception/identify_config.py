@@ -53,7 +53,13 @@ class IdentifyConfig:
     fraction of its points within the band is not decomposed further; robust_points: when
     the paper's loop leaves something to decompose, a denser cloud is voxel-downsampled
     to at most this many points and identified again (the decomposition fits many
-    candidate clusters; part indices still refer to every input point). Build either with :meth:`preset`."""
+    candidate clusters; part indices still refer to every input point); fit_points: in
+    robust mode a cloud denser than this is voxel-downsampled to at most this many points
+    before anything else (None, the default: only ``max_points`` applies; scene planning
+    sets it, see :class:`~graspsim.perception.scene.SceneConfig`; on a dense cloud with
+    noise above its spacing, thinning loses what the noise estimate and the refinements
+    gain from many points: a weak taper, the end of a side); paper mode never applies
+    it. Build either with :meth:`preset`."""
 
     repetitions: int = 10
     theta: float = 0.5
@@ -81,6 +87,7 @@ class IdentifyConfig:
     min_handle_points: int = 30
     settle_rate: float = 0.97
     robust_points: int = 1200
+    fit_points: int | None = None
 
     def __post_init__(self) -> None:
         finite = math.isfinite
@@ -110,6 +117,7 @@ class IdentifyConfig:
             ("min_handle_points", lambda v: _whole(v) and v >= 10, ">= 10"),
             ("settle_rate", lambda v: self.min_fit_rate <= v <= 1.0, "in [min_fit_rate, 1]"),
             ("robust_points", lambda v: _whole(v) and v >= 500, ">= 500, an integer"),
+            ("fit_points", lambda v: v is None or (_whole(v) and v >= 300), "None or >= 300, an integer"),
         ]
         for name, ok, valid in checks:
             value = getattr(self, name)
@@ -133,6 +141,14 @@ class IdentifyConfig:
     @property
     def is_robust(self) -> bool:
         return self.mode == "robust"
+
+    @property
+    def point_limit(self) -> int:
+        """Most points identification fits on (a denser cloud is downsampled first):
+        ``max_points``, and in robust mode ``fit_points`` where that is lower."""
+        if self.is_robust and self.fit_points is not None:
+            return int(min(self.max_points, self.fit_points))
+        return int(self.max_points)
 
 
 def _whole(v) -> bool:

@@ -28,31 +28,44 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from graspsim.errors import IdentificationError, InvalidParameterError, PointCloudError
+from graspsim.errors import InvalidParameterError, PointCloudError
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.robust import executed_width
 from graspsim.maps.table import TablePlane
-from graspsim.perception.identify import Identification, identify
+from graspsim.perception.identify import Identification
+from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.mvbb import min_volume_box
 from graspsim.perception.plane import PlaneFit, fit_table
 from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
 from graspsim.perception.scene_reuse import SegmentMemory, find_previous, nothing_new, reused_grasps
+from graspsim.perception.scene_workers import identify_segments, scene_workers
 from graspsim.perception.segment import cluster_radius, euclidean_clusters
 from graspsim.planner import PlannerConfig, PlanResult, plan_stream
 from graspsim.primitives import Box
 from graspsim.primitives.base import MIN_DIM
 
 __all__ = ["SceneConfig", "ScenePerception", "SceneGrasp", "SegmentPlan", "ScenePlan", "perceive_scene",
-           "plan_scene", "MAX_SCENE_EXTENT"]
+           "plan_scene", "MAX_SCENE_EXTENT", "SCENE_FIT_POINTS"]
 
 #: Widest plausible table-top scene [m]; wider clouds are taken for millimetres or centimetres.
 MAX_SCENE_EXTENT = 10.0
 
 
+#: Points a scene segment is identified on at most (``IdentifyConfig.fit_points`` of the
+#: scene's default planner): segments are 3 mm grids already, the largest thinned further.
+SCENE_FIT_POINTS = 1000
+
+
+def _scene_planner() -> PlannerConfig:
+    return PlannerConfig(identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS))
+
+
 @dataclass(frozen=True)
 class SceneConfig:
     """planner: the per-segment planner settings (its ``table`` is replaced by the
-    fitted plane). plane_sigma [m], plane_repetitions: the table fit; table_band [m]:
+    fitted plane; by default robust identification on at most :data:`SCENE_FIT_POINTS`
+    points of a segment, ``IdentifyConfig(fit_points=None)`` for all of them).
+    plane_sigma [m], plane_repetitions: the table fit; table_band [m]:
     points less than this above the table belong to it; max_height [m]: points higher
     above it are ignored; voxel [m]: the grid the points above the table are thinned
     to; radius [m]: the clustering radius (None: from the spacing, at most max_radius);
@@ -66,9 +79,11 @@ class SceneConfig:
     scene ranking; clearance [m]: the gripper's clearance above the table; reuse_tol
     [m]: how far points may move between frames for a segment to count as unchanged
     (``plan_scene(previous=...)``); up: the
-    table's upward direction if known (cloud frame)."""
+    table's upward direction if known (cloud frame); workers: processes the segments are
+    identified on (None: one per core; 1: in this process; see
+    :mod:`~graspsim.perception.scene_workers` -- the result does not depend on it)."""
 
-    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    planner: PlannerConfig = field(default_factory=_scene_planner)
     plane_sigma: float = 0.002
     plane_repetitions: int = 200
     table_band: float = 0.006
@@ -86,6 +101,7 @@ class SceneConfig:
     clearance: float = 0.002
     reuse_tol: float = 0.005
     up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
+    workers: int | None = None
 
     def __post_init__(self) -> None:
         for k in ("plane_sigma", "table_band", "max_height", "voxel", "max_radius", "reach", "solid_step",
@@ -99,6 +115,7 @@ class SceneConfig:
             v = getattr(self, k)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise InvalidParameterError(f"SceneConfig.{k} must be an integer >= 1, got {v!r}")
+        scene_workers(self.workers)  # validates it
         if not isinstance(self.planner, PlannerConfig) or self.planner.rank != "robust":
             raise InvalidParameterError("SceneConfig.planner must be a PlannerConfig ranking by the robust score "
                                         f"(the scene check is part of it), got {self.planner!r}")
@@ -297,14 +314,6 @@ def _inner(seg: np.ndarray, cfg: SceneConfig) -> tuple[np.ndarray, np.ndarray]:
     return seg.min(axis=0) - m, seg.max(axis=0) + m
 
 
-def _identify(seg: np.ndarray, rng: np.random.Generator, cfg: SceneConfig) -> tuple[Identification | None, str]:
-    """The segment's identification, or None and why it could not run."""
-    try:
-        return identify(seg, rng=rng, config=cfg.planner.identify), ""
-    except (IdentificationError, PointCloudError) as err:  # e.g. a flat face seen head-on
-        return None, str(err)
-
-
 def _plan_segment(per: ScenePerception, k: int, ident: Identification, obstacles: np.ndarray | None, db,
                   rng: np.random.Generator, cfg: SceneConfig, table: TablePlane,
                   viewpoint: np.ndarray | None = None) -> tuple[SegmentPlan, list[SceneGrasp]]:
@@ -341,6 +350,16 @@ def _plan_segment(per: ScenePerception, k: int, ident: Identification, obstacles
     return SegmentPlan(k, len(seg), "planned", None, prims, scored, time.perf_counter() - t0), grasps
 
 
+def _identify_new(segs: list[np.ndarray], olds: list, rng: np.random.Generator, cfg: SceneConfig) -> list:
+    """(identification or None, why) of every segment: a reused one's, else identified,
+    segment k drawing from the k-th generator spawned from ``rng``."""
+    rngs = rng.spawn(len(segs))
+    new = [k for k, o in enumerate(olds) if o is None]
+    made = dict(zip(new, identify_segments([segs[k] for k in new], [rngs[k] for k in new], cfg.planner.identify,
+                                           cfg.workers)))
+    return [(o.ident, o.why) if o is not None else made[k] for k, o in enumerate(olds)]
+
+
 def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: SceneConfig | None = None,
                labels: np.ndarray | None = None, previous: ScenePlan | None = None,
                viewpoint: np.ndarray | None = None) -> ScenePlan:
@@ -361,7 +380,7 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     segs = [per.segment_points(k) for k in range(per.n_segments)]
     before = previous.memory if previous is not None else ()
     olds = [find_previous(seg, before, tol=cfg.reuse_tol) for seg in segs]
-    idents = [(o.ident, o.why) if o is not None else _identify(seg, rng, cfg) for seg, o in zip(segs, olds)]
+    idents = _identify_new(segs, olds, rng, cfg)
     solids = [o.solids if o is not None and o.solids is not None else _solid_samples(seg, i, per.plane, cfg.solid_step)
               for seg, (i, _), o in zip(segs, idents, olds)] if cfg.neighbours else []
     t2 = time.perf_counter()

@@ -1,0 +1,93 @@
+"""A scene's segments identified side by side, on worker processes.
+
+Identification is many small numpy and scipy calls on a few hundred points: it holds
+the GIL, so threads do not run it side by side, processes do. Each segment draws
+from its own generator (spawned from the scene's), so the identifications do not
+depend on how many workers there are, nor on the order they finish in: one worker or
+several give the same result.
+
+The workers are forked once per process and kept: they start with the caller's modules
+already imported (milliseconds; ``spawn`` would import graspsim again in each, and
+run a user's unguarded script again), and each scene costs only the transfer of points
+and results. They never touch MuJoCo or the map kernels, whose threads and GL
+contexts the fork does not carry. Where ``fork`` does not exist (Windows), and inside
+a process that is itself a worker (an experiment's executor, this pool), segments are
+identified one after another: there the parallelism is already outside.
+"""
+
+from __future__ import annotations
+
+import atexit
+import multiprocessing as mp
+import os
+import threading
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from graspsim.errors import IdentificationError, InvalidParameterError, PointCloudError
+from graspsim.perception.identify import Identification, identify
+from graspsim.perception.identify_config import IdentifyConfig
+
+__all__ = ["identify_segment", "identify_segments", "scene_workers", "shutdown_workers"]
+
+_pools: dict[int, tuple[int, ProcessPoolExecutor]] = {}  # workers -> (pid, pool)
+_lock = threading.Lock()
+
+
+def identify_segment(points: np.ndarray, rng: np.random.Generator, config: IdentifyConfig
+                     ) -> tuple[Identification | None, str]:
+    """The segment's identification, or None and why it could not run (e.g. a flat
+    face seen head-on)."""
+    try:
+        return identify(points, rng=rng, config=config), ""
+    except (IdentificationError, PointCloudError) as err:
+        return None, str(err)
+
+
+def scene_workers(workers: int | None) -> int:
+    """Worker processes to identify segments on: ``workers`` (None: one per core this
+    process may use), 1 (in this process) inside a process that is itself a worker."""
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise InvalidParameterError(f"workers must be an integer >= 1 or None, got {workers!r}")
+    if mp.parent_process() is not None or "fork" not in mp.get_all_start_methods():
+        return 1
+    if workers is None:
+        workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return int(workers)
+
+
+def _pool(workers: int) -> ProcessPoolExecutor:
+    with _lock:
+        pid, ex = _pools.get(workers, (None, None))
+        if ex is None or pid != os.getpid():
+            ex = ProcessPoolExecutor(workers, mp_context=mp.get_context("fork"))
+            _pools[workers] = (os.getpid(), ex)
+        return ex
+
+
+def shutdown_workers() -> None:
+    """Stop this process's segment workers (the next parallel call starts new ones)."""
+    with _lock:
+        pools = [ex for pid, ex in _pools.values() if pid == os.getpid()]
+        _pools.clear()
+    for ex in pools:
+        ex.shutdown(wait=True, cancel_futures=True)
+
+
+atexit.register(shutdown_workers)
+
+
+def identify_segments(segments: list[np.ndarray], rngs: list[np.random.Generator], config: IdentifyConfig,
+                      workers: int | None = 1) -> list[tuple[Identification | None, str]]:
+    """:func:`identify_segment` of every segment (M_i, 3) [m] with its own generator,
+    on ``workers`` processes (see :func:`scene_workers`); results in segment order."""
+    if len(rngs) != len(segments):
+        raise InvalidParameterError(f"one generator per segment needed: {len(segments)} segments, {len(rngs)}")
+    n = min(scene_workers(workers), len(segments))
+    if n <= 1:
+        return [identify_segment(s, r, config) for s, r in zip(segments, rngs)]
+    pool = _pool(n)
+    order = sorted(range(len(segments)), key=lambda i: -len(segments[i]))  # the largest first
+    futures = {i: pool.submit(identify_segment, segments[i], rngs[i], config) for i in order}
+    return [futures[i].result() for i in range(len(segments))]

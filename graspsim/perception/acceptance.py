@@ -12,12 +12,16 @@ s / 2), and:
   surface is at most ``factor`` times that scale;
 * :func:`band_rate`: the fraction of a cluster's points so explained;
 * :func:`decomposition_score`: a BIC-like score of a set of models for a cloud -- minus
-  twice the log-likelihood of the points under the mixture of the models (a Gaussian
-  shell about each surface, sigma the band over ``factor``) and a uniform outlier
-  density, mixing weights by EM, plus ``ln n`` per free parameter. Lower is better; a
-  part is only worth adding when it explains enough more points to pay for its
-  parameters and for its share of the points (a weight of 10 % costs each of its points
-  ln 10).
+  twice the log-likelihood of the points under the mixture of the models and a uniform
+  outlier density over the points' box, mixing weights by EM, plus ``ln n`` per free
+  parameter. Lower is better. Each model is the density of points drawn uniformly over
+  its surface (1 / its area) with a Gaussian shell across it (sigma the band over
+  ``factor``): a proper density, so a part is worth adding when it explains enough
+  more points to pay for its parameters, and a model pays for surface no point lies
+  on (one box across two crossing slabs, a body fitted over the gap beside it). Were
+  the shells not normalised by area, the mixing weights would charge every split
+  (a weight of 10 % costs each of its points ln 10) while nothing charged a large
+  model for its empty surface.
 """
 
 from __future__ import annotations
@@ -28,10 +32,30 @@ import numpy as np
 
 from graspsim.perception.shapes import model_sdf
 
-__all__ = ["N_PARAMS", "data_scale", "inlier_band", "band_rate", "decomposition_score", "model_distance"]
+__all__ = ["N_PARAMS", "surface_area", "data_scale", "inlier_band", "band_rate", "decomposition_score",
+           "model_distance"]
 
 #: free parameters of each model kind (pose up to its symmetry + dims)
 N_PARAMS: dict[str, int] = {"sphere": 4, "cylinder": 7, "box": 9, "cone": 8, "half_toroid": 8}
+
+
+def surface_area(kind: str, dims) -> float:
+    """Surface area [m^2] of a model of ``kind`` with fit dims (see
+    :data:`~graspsim.perception.shapes.DIM_NAMES`), its end faces included; the
+    half-toroid's is half a torus and its two end discs."""
+    d = [float(v) for v in dims]
+    if kind == "sphere":
+        return 4.0 * math.pi * d[0] ** 2
+    if kind == "cylinder":
+        return 2.0 * math.pi * d[0] * (d[0] + d[1])
+    if kind == "box":
+        return 2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+    if kind == "cone":
+        r0, r1, h = d
+        return math.pi * ((r0 + r1) * math.hypot(r0 - r1, h) + r0 * r0 + r1 * r1)
+    if kind == "half_toroid":
+        return 2.0 * math.pi**2 * d[0] * d[1] + 2.0 * math.pi * d[1] ** 2
+    raise ValueError(f"unknown model kind {kind!r}")
 
 
 def data_scale(noise: float, spacing: float) -> float:
@@ -64,16 +88,19 @@ def band_rate(model, points: np.ndarray, band: float) -> float:
 def decomposition_score(models, points: np.ndarray, band: float, factor: float = 3.0, *,
                         em_iters: int = 8) -> float:
     """BIC-like score (lower is better) of the models (fits) for the points (N, 3): the
-    log-likelihood of the points under the mixture of one Gaussian shell per model
-    (sigma = band / factor about its surface) and a uniform outlier density, with the
-    mixing weights estimated by EM; one parameter per weight besides the models'."""
+    log-likelihood of the points under the mixture of one density per model (uniform
+    over its surface, a Gaussian shell of sigma = band / factor across it) and a uniform
+    outlier density over the points' box padded by 5 sigma, with the mixing weights
+    estimated by EM; one parameter per weight besides the models'."""
     n = len(points)
     sigma = band / factor
-    nu = float(np.linalg.norm(np.ptp(points, axis=0))) + 10.0 * sigma
-    comps = [np.full(n, 1.0 / nu)]
+    span = np.ptp(points, axis=0) + 10.0 * sigma
+    comps = [np.full(n, 1.0 / float(np.prod(span)))]
+    far = float(np.linalg.norm(span))
     for m in models:
-        d = np.nan_to_num(np.abs(model_sdf(m.kind, m.R[None], m.t[None], m.dims[None], points)[0]), nan=nu)
-        comps.append(np.exp(-0.5 * (d / sigma) ** 2) / (sigma * math.sqrt(2.0 * math.pi)))
+        d = np.nan_to_num(np.abs(model_sdf(m.kind, m.R[None], m.t[None], m.dims[None], points)[0]), nan=far)
+        area = max(surface_area(m.kind, m.dims), 1e-12)
+        comps.append(np.exp(-0.5 * (d / sigma) ** 2) / (area * sigma * math.sqrt(2.0 * math.pi)))
     like = np.stack(comps)  # (K + 1, N)
     w = np.full(len(comps), 1.0 / len(comps))
     for _ in range(em_iters):

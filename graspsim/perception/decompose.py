@@ -12,14 +12,15 @@ left is decomposed further. Candidate decompositions of the cluster:
   inlier band (a mug's handle) as a part of their own, the rest as the body;
 * **split**: the best MVBB split, at any theta* up to ``max_theta``.
 
-Each piece is identified by the paper's rules first, else as the best-scoring model.
-The candidate with the lowest score -- the BIC-like likelihood of the cluster under
-its parts, with a penalty per parameter -- is kept, and its pieces that are still
-unexplained or approximate are decomposed the same way (to a depth of three). A part whose model explains at
-least ``approx_fit_rate`` of its points within the inlier band is used (flagged
-``approximate`` below ``min_fit_rate``); pieces below that stay unidentified.
-Finally, neighbouring parts whose union one model explains as well as the two did
-are merged.
+Each piece is identified by the paper's rules first, else as the best-scoring model
+that can be used. The candidate with the lowest score -- the BIC-like likelihood of the
+cluster under its parts, each part's points spread over its surface area, with a
+penalty per parameter -- is kept, and its pieces that are still unexplained or
+approximate are decomposed the same way (to a depth of three). A part whose model
+explains at least ``approx_fit_rate`` of its points within the inlier band is used
+(flagged ``approximate`` below ``min_fit_rate``); pieces below that stay unidentified.
+Finally, neighbouring parts whose union one model explains as well as the two did are
+merged, when that one part is also the likelier decomposition by the same score.
 """
 
 from __future__ import annotations
@@ -64,35 +65,38 @@ def _model(part: PartResult):
 
 
 def _best_single(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> PartResult:
-    """The part as the best-scoring single model of its fits, if that explains at least
+    """The part as the best-scoring single model of its fits that explains at least
     ``approx_fit_rate`` of its points within the band; else ``part`` (unidentified)."""
     pts = ctx.cloud.points[idx]
-    best = None
+    ranked = []
     for kind, fit in part.fits.items():
         if fit is None or part.coverage.get(kind, 1.0) < ctx.cfg.min_coverage:
             continue
-        score = decomposition_score([fit], pts, ctx.band, ctx.cfg.band)
-        if best is None or score < best[0]:
-            best = (score, fit)
-    if best is None:
-        return part
-    fit = best[1]
-    # refined with the data's scale as sigma: MLESAC's fit under the sensor sigma can
-    # sit off a surface the primitive only approximates (a rounded box's faces)
+        ranked.append((decomposition_score([fit], pts, ctx.band, ctx.cfg.band), kind, fit))
+    rate = None
+    for score, _, fit in sorted(ranked, key=lambda r: (r[0], r[1])):
+        fit, rate = _widened(ctx, pts, fit, score, part.noise)
+        if rate < ctx.cfg.approx_fit_rate:
+            continue  # a model that cannot be used does not stand for the part: the next
+        try:
+            prim, T = fit_to_object(fit.kind, fit.R, fit.t, fit.dims)
+        except PrimitiveError:
+            continue
+        return replace(part, shape=Shape(fit.kind), dims=prim.dims, T_world_obj=T, fit_rate=fit.fit_rate,
+                       rms=fit.rms, reason="", approximate=rate < ctx.cfg.min_fit_rate, band_rate=rate,
+                       fits={**part.fits, fit.kind: fit})
+    return part if rate is None else replace(part, band_rate=rate)
+
+
+def _widened(ctx: _Ctx, pts: np.ndarray, fit, score: float, noise: float):
+    """(fit, its band rate): ``fit`` refined with the data's scale as sigma when that
+    scores better -- MLESAC's fit under the sensor sigma can sit off a surface the
+    primitive only approximates (a rounded box's faces)."""
     wide = fit_from(fit.kind, pts, fit.R, fit.t, fit.dims, sigma=ctx.band / ctx.cfg.band, refine=ctx.cfg.refine,
                     max_extent_ratio=ctx.cfg.max_extent_ratio)
-    if decomposition_score([wide], pts, ctx.band, ctx.cfg.band) < best[0]:
-        fit = rescore(wide, pts, part.noise)
-        part = replace(part, fits={**part.fits, fit.kind: fit})
-    rate = band_rate(fit, pts, ctx.band)
-    if rate < ctx.cfg.approx_fit_rate:
-        return replace(part, band_rate=rate)
-    try:
-        prim, T = fit_to_object(fit.kind, fit.R, fit.t, fit.dims)
-    except PrimitiveError:
-        return replace(part, band_rate=rate)
-    return replace(part, shape=Shape(fit.kind), dims=prim.dims, T_world_obj=T, fit_rate=fit.fit_rate,
-                   rms=fit.rms, reason="", approximate=rate < ctx.cfg.min_fit_rate, band_rate=rate)
+    if decomposition_score([wide], pts, ctx.band, ctx.cfg.band) < score:
+        fit = rescore(wide, pts, noise)
+    return fit, band_rate(fit, pts, ctx.band)
 
 
 def _leaf(ctx: _Ctx, idx: np.ndarray) -> PartResult:
@@ -286,7 +290,10 @@ def _try_merge(ctx: _Ctx, a: PartResult, b: PartResult) -> PartResult | None:
     union -- two halves of one body each fitted with the whole body's primitive (a
     cylinder split lengthwise) overlap, and the combined map drops every grasp of each
     as colliding with the other, while a fresh fit of the union may draw worse. The
-    union is approximate only where a part was."""
+    union is approximate only where a part was. Of those, the best-scoring, and only
+    when it scores at least as well as the pair: band rates saturate for rough parts
+    (E09's teddy: two blobs, each an approximate sphere, and one approximate cone over
+    both explained as many points, but the cone's map had no grasp)."""
     ia, ib = _local(ctx.cloud, a), _local(ctx.cloud, b)
     pa, pb = ctx.cloud.points[ia], ctx.cloud.points[ib]
     gap = cKDTree(pa).query(pb, k=1, distance_upper_bound=3.0 * ctx.spacing)[0]
@@ -300,7 +307,11 @@ def _try_merge(ctx: _Ctx, a: PartResult, b: PartResult) -> PartResult | None:
     loose = a.approximate or b.approximate
     good = [u for u in cands if u is not None and u.shape is not Shape.UNIDENTIFIED and u.band_rate is not None
             and (loose or not u.approximate) and u.band_rate >= max(pair - 0.01, ctx.cfg.approx_fit_rate)]
-    return max(good, key=lambda u: u.band_rate, default=None)
+    scored = [(_score(ctx, idx, [u]), -u.band_rate, k, u) for k, u in enumerate(good)]
+    best = min(scored, key=lambda s: s[:3], default=None)
+    if best is None or best[0] > _score(ctx, idx, [a, b]):
+        return None  # the pair is the likelier decomposition: two parts, not one
+    return best[3]
 
 
 def _refit(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> PartResult | None:

@@ -469,3 +469,16 @@ def test_e10_others_cut_only_the_conditions_outside_the_goals():
                                                      + [(i, j) for i in range(len(conds)) if i not in goal
                                                         for j in range(2)])
     assert sum(len(x) for x in mod.rounds(mod.Config(scenes=3, block=2), conds)) == 3 * len(conds)
+
+
+@pytest.mark.slow
+def test_study_clutter_failures_quick(tmp_path):
+    out = tmp_path / "scf"
+    assert _load("study_clutter_failures").main(["--quick", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["grasps"] == len(s["rows"]) == sum(s["causes"].values()) >= 1
+    assert s["lifted_target"] <= s["removed"] <= s["placed"] == 2
+    for r in s["rows"]:
+        assert r["segment"] in ("planned", "reused") and 0.0 <= r["score"] <= 1.0
+        assert all(0.0 <= v <= 1.0 for v in r["outside_3_6_10mm"]) and r["parts"]
+        assert bool(r["overlaps_mm"]) <= r["cause"].startswith("start_collision")

@@ -139,6 +139,10 @@ def test_a_start_collision_with_target_and_neighbour_is_labelled_both():
     assert both.cause == "start_collision_both" and set(both.collided) >= {0, 1}
     assert sim.execute(_top_down(_at(0.035, 0)), 0.04, target=1).cause == "start_collision_both"
     assert sim.execute(_top_down(_at(0, 0)), 0.04, target=0).cause == "start_collision_target"
+    # where: one finger in each box (the diagnosis of a start collision; nothing simulated)
+    deep = {k: v for k, v in sim.overlaps(_top_down(_at(0.035, 0)), 0.04).items() if v > 0.001}
+    parts = {what: name for name, what in deep}
+    assert set(parts) == {0, 1} and parts[0] != parts[1] and all("finger" in n for n in parts.values())
 
 
 def test_collision_kind_tells_every_combination_apart():

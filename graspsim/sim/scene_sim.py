@@ -266,23 +266,42 @@ class SceneSim:
         state[0] = 0.0
         return state
 
-    def _collisions(self, state: np.ndarray, T: np.ndarray) -> tuple[tuple, float]:
-        """What the gripper overlaps by more than the tolerance at ``state``, and how deep."""
+    def _gripper_contacts(self, state: np.ndarray) -> list[tuple[int, object, float]]:
+        """(gripper geom id, object id | "table", overlap [m]) of every contact of the
+        gripper at ``state`` (kinematics and collision detection only)."""
         m, d = self.model, mujoco.MjData(self.model)
         mujoco.mj_setState(m, d, state, _FULL)
         mujoco.mj_kinematics(m, d)
         mujoco.mj_collision(m, d)
         grip = np.zeros(m.ngeom, bool)
         grip[self.gripper_geoms] = True
-        hits: dict = {}
-        g, dist = d.contact.geom[:d.ncon], d.contact.dist[:d.ncon]
-        for (g1, g2), gap in zip(g, dist):
+        out = []
+        for (g1, g2), gap in zip(d.contact.geom[:d.ncon], d.contact.dist[:d.ncon]):
             if grip[g1] == grip[g2]:
                 continue
-            other = g2 if grip[g1] else g1
+            mine, other = (g1, g2) if grip[g1] else (g2, g1)
             what = "table" if other == self.table_geom else int(self.geom_object[other])
             if what != -1:
-                hits[what] = max(hits.get(what, 0.0), -float(gap))
+                out.append((int(mine), what, -float(gap)))
+        return out
+
+    def overlaps(self, T_world_wrist: np.ndarray, opening: float) -> dict[tuple[str, object], float]:
+        """Where the gripper at ``T_world_wrist`` with the jaws open to ``opening`` [m]
+        would start: {(gripper part's geom name, object id | "table"): deepest overlap
+        [m]} over its contacts (touching ones included, overlap <= 0). Nothing is
+        simulated or changed (diagnosis of start collisions)."""
+        state = self._start_state(np.asarray(T_world_wrist, float), float(opening))
+        out: dict[tuple[str, object], float] = {}
+        for g, what, depth in self._gripper_contacts(state):
+            key = (self.model.geom(g).name, what)
+            out[key] = max(out.get(key, -np.inf), depth)
+        return out
+
+    def _collisions(self, state: np.ndarray, T: np.ndarray) -> tuple[tuple, float]:
+        """What the gripper overlaps by more than the tolerance at ``state``, and how deep."""
+        hits: dict = {}
+        for _, what, depth in self._gripper_contacts(state):
+            hits[what] = max(hits.get(what, 0.0), depth)
         arm = float(arm_below_table(self.gripper, T[None])[0])
         if arm > 0:
             hits["table"] = max(hits.get("table", 0.0), arm)

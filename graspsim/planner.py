@@ -292,7 +292,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     cloud_obj = cloud_in_object(seen, T_cloud_obj)
     view_obj = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0]
-    observed = ObservedSurface(points) if ident is not None and ident.mode == "robust" else None
+    observed = ObservedSurface(points, viewpoint=viewpoint) if ident is not None and ident.mode == "robust" else None
     stage = StageClock("adapt", "agreement", "combine", "table", "robust")
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):

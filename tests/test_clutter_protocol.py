@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import graspsim.sim.clutter as clutter
+from graspsim.sim.camera import rig
 from graspsim.sim.clutter import OTHER, ClutterConfig, run_clutter, summarize
 from graspsim.sim.outcomes import TrialOutcome
 from graspsim.sim.scene_sim import SceneOutcome
@@ -87,7 +88,7 @@ def _scripted(monkeypatch, targets, poses=None):
     order = list(targets)
     where = list(poses) if poses is not None else [0.1 * k for k in range(len(order))]
 
-    def plan(points, *, db, rng, config, labels, previous):
+    def plan(points, *, db, rng, config, labels, previous, viewpoint):
         truth = _View.labels
         k = order.pop(0)
         grasps = (_Best(k, _at(where.pop(0))), _Best(k, _at(1.0), score=0.5))
@@ -154,10 +155,11 @@ def test_a_frame_whose_reused_plans_offer_nothing_is_planned_afresh(monkeypatch)
     """Reused plans keep the scores they had (a grasp blocked by an object since lifted
     stays at 0): when they leave no grasp, the frame is planned again without them
     before the episode stops for want of a grasp."""
-    calls = []
+    calls, views = [], []
 
-    def plan(points, *, db, rng, config, labels, previous=None):
+    def plan(points, *, db, rng, config, labels, previous=None, viewpoint=None):
         calls.append(previous is not None)
+        views.append(viewpoint)
         truth = _View.labels
         k = 3 - len(_View.left)
         grasps = () if previous is not None else (_Best(k, _at(0.1 * len(calls))),)
@@ -172,3 +174,5 @@ def test_a_frame_whose_reused_plans_offer_nothing_is_planned_afresh(monkeypatch)
     r = run_clutter(scene, db=None, rng=np.random.default_rng(0), config=ClutterConfig(depth_noise=None))
     assert r.successes == 3 and r.stop == "cleared"
     assert calls == [False, True, False, True, False]  # frames 2 and 3: reused plans first, then afresh
+    eye = rig(1)[0].T_world_camera[:3, 3]  # every plan knows where the camera was (the occluded space)
+    assert len(views) == 5 and all(v is not None and np.allclose(v, eye) for v in views)

@@ -484,3 +484,16 @@ def test_study_fit_points_quick_counts_agreement_against_every_point(tmp_path):
     # a cloud the bound leaves alone is identified exactly as on every point
     assert bounded["kinds"] >= n - bounded["thinned"]
     assert len(s["clouds"]) == n and s["command"] in study.readme_section(s)
+
+
+@pytest.mark.slow
+def test_study_clutter_failures_quick(tmp_path):
+    out = tmp_path / "scf"
+    assert _load("study_clutter_failures").main(["--quick", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["grasps"] == len(s["rows"]) == sum(s["causes"].values()) >= 1
+    assert s["lifted_target"] <= s["removed"] <= s["placed"] == 2
+    for r in s["rows"]:
+        assert r["segment"] in ("planned", "reused") and 0.0 <= r["score"] <= 1.0
+        assert all(0.0 <= v <= 1.0 for v in r["outside_3_6_10mm"]) and r["parts"]
+        assert bool(r["overlaps_mm"]) <= r["cause"].startswith("start_collision")

@@ -81,3 +81,22 @@ def test_an_unobserved_contact_is_judged_where_the_closing_finger_meets_the_clou
     assert not _check(ObservedSurface(np.vstack([near, slope])), grasp).any()
     assert _check(ObservedSurface(np.vstack([near, flat])), grasp).all()
     assert _check(ObservedSurface(near), grasp).all()  # not seen at all: the far side of a view
+
+
+def test_with_the_viewpoint_a_touch_on_the_back_of_a_seen_surface_counts_against(box_cloud):
+    """One camera at +x sees the box's +x face. A thin slab fitted to that face alone
+    offers a grasp across its 3 mm: one finger would close on the face from inside the
+    box. Knowing where the camera was, the face's outward normal is known and that touch
+    is evidence against; the grasp across the whole box (its far contact unseen) stays."""
+    _, p = box_cloud
+    eye = np.array([0.5, 0.0, 0.01])
+    face = p[p[:, 0] > 0.019]
+    slab = [[[0.017, 0.0, 0.01], [0.02, 0.0, 0.01]]]  # contact 0 on the slab's hidden back face
+    whole = [[[-0.02, 0.0, 0.01], [0.02, 0.0, 0.01]]]
+    blind, seen = ObservedSurface(face), ObservedSurface(face, viewpoint=eye)
+    assert _check(blind, slab).all() and not _check(seen, slab).any()
+    assert _check(blind, whole).all() and _check(seen, whole).all()
+    flipped = [[[0.02, 0.0, 0.01], [0.017, 0.0, 0.01]]]  # the same with the jaws swapped
+    assert not _check(seen, flipped).any()
+    with pytest.raises(InvalidParameterError, match="viewpoint"):
+        ObservedSurface(face, viewpoint=[0.0, np.nan, 0.0])

@@ -148,6 +148,22 @@ def test_empty_table_has_no_segments(db):
     assert sp.perception.n_segments == 0 and sp.best is None and sp.grasps == ()
 
 
+def test_the_camera_viewpoint_scales_down_grasps_reaching_behind_what_it_saw(db):
+    """One camera sees a box's front and top: with the camera's place given, grasps whose
+    fingers reach into the space behind the box (unseen) score less; none scores more."""
+    camera = np.array([0.0, -0.45, 0.55])
+    pts, _, _ = table_scene_cloud([Box(0.06, 0.06, 0.06)], np.zeros((1, 2)), np.random.default_rng(4),
+                                  noise=0.0005, camera=tuple(camera))
+    cfg = SceneConfig(enough=10**6, per_segment=300, keep=300)
+    runs = {v: plan_scene(pts, db=db, rng=np.random.default_rng(5), config=cfg,
+                          viewpoint=None if v == "blind" else camera) for v in ("blind", "camera")}
+    blind = {g.T_world_wrist.tobytes(): g.score for g in runs["blind"].grasps}
+    seen = [(blind[g.T_world_wrist.tobytes()], g.score) for g in runs["camera"].grasps]
+    assert len(seen) == len(blind) > 50
+    assert all(b + 1e-9 >= s for b, s in seen)  # the occluded-space term only takes away
+    assert sum(s < b - 0.05 for b, s in seen) >= 5  # some grasps reach behind the box
+
+
 def test_table_fit_stops_at_the_ransac_bound_with_the_same_plane_and_draws(monkeypatch):
     """A table filling most of the view: the first block of plane hypotheses meets the
     RANSAC bound, so later blocks are not scored; the plane is the one scoring all of

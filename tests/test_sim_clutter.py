@@ -88,6 +88,23 @@ def test_cli_scene_json_and_renders(tmp_path, capsys, db):
     assert [o.name for o in load_scene(tmp_path / "s" / "scene000.json").objects] == s["details"][0]["objects"]
 
 
+@pytest.mark.slow
+def test_cli_scene_honours_gripper(tmp_path, capsys):
+    from graspsim.grippers import get_gripper
+
+    franka = get_gripper("franka_hand")
+    code = main(["scene", "--objects", "1", "--kind", "packed", "--object-set", "primitives", "--seed", "2",
+                 "--max-attempts", "1", "--db", str(tmp_path / "db"), *FAST_FLAGS, "--gripper", "franka_hand",
+                 "--json"])
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and s["gripper"] == "franka_hand" and s["placed"] == 1 and s["attempts"] >= 1
+    # the maps it planned with are the Franka hand's (the database keys maps by the gripper's spec)
+    mine = MapDatabase(tmp_path / "db", gripper=franka, config=FAST)
+    maps = mine.entries()
+    assert maps and all(mine.load_entry(e).meta.gripper_spec == franka for e in maps)
+    assert not MapDatabase(tmp_path / "db", config=FAST).entries()  # none of the default Festo
+
+
 @pytest.mark.parametrize("args, message", [
     (["--objects", "0"], "--objects"),
     (["--objects", "31"], "at most 30"),

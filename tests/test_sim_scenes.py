@@ -132,6 +132,29 @@ def test_table_and_target_collisions_are_told_apart():
     assert sim.objects_left() == [0]  # commit=False changes nothing
 
 
+def test_a_start_collision_with_target_and_neighbour_is_labelled_both():
+    sim = SceneSim([(BOX, _at(0, 0)), (BOX, _at(0.07, 0))])  # 1 cm apart along x
+    # between the boxes, jaws 4 cm open along x: one finger in each box
+    both = sim.execute(_top_down(_at(0.035, 0)), 0.04, target=0)
+    assert both.cause == "start_collision_both" and set(both.collided) >= {0, 1}
+    assert sim.execute(_top_down(_at(0.035, 0)), 0.04, target=1).cause == "start_collision_both"
+    assert sim.execute(_top_down(_at(0, 0)), 0.04, target=0).cause == "start_collision_target"
+    # where: one finger in each box (the diagnosis of a start collision; nothing simulated)
+    deep = {k: v for k, v in sim.overlaps(_top_down(_at(0.035, 0)), 0.04).items() if v > 0.001}
+    parts = {what: name for name, what in deep}
+    assert set(parts) == {0, 1} and parts[0] != parts[1] and all("finger" in n for n in parts.values())
+
+
+def test_collision_kind_tells_every_combination_apart():
+    from graspsim.sim.scene_sim import collision_kind
+
+    assert collision_kind(("table",), 0) == "table"
+    assert collision_kind((0,), 0) == collision_kind((0, "table"), 0) == "target"
+    assert collision_kind((0, 2), 0) == collision_kind((2, 0, "table"), 0) == "both"
+    assert collision_kind((2,), 0) == collision_kind((2, 3, "table"), 0) == "neighbour"
+    assert collision_kind((2,), None) == "object"
+
+
 def test_execution_is_deterministic():
     outs = []
     for _ in range(2):

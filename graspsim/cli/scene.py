@@ -2,7 +2,8 @@
 
     graspsim scene [--objects N] [--scenes S] [--kind pile|packed] [--object-set SET]
                    [--noise] [--no-neighbours] [--ground-truth] [--max-attempts M]
-                   [--seed S] [--db DIR] [--render DIR] [--save-scenes DIR] [--json]
+                   [--seed S] [--db DIR] [--gripper NAME|SPEC.json] [--render DIR]
+                   [--save-scenes DIR] [--json]
 
 Each scene is drawn and settled in MuJoCo, rendered by one D435-like depth camera, and
 cleared grasp by grasp (:mod:`graspsim.sim.clutter`): segment, plan every object, execute
@@ -14,7 +15,7 @@ per-scene details.
 
 from __future__ import annotations
 
-from graspsim.cli._common import add_json_flag, emit, format_table, whole_number
+from graspsim.cli._common import add_json_flag, emit, format_table, gripper_from_args, whole_number
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -44,7 +45,7 @@ def _cmd_scene(args) -> int:
                         execution=ExecutionNoise() if args.noise else None, ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts)
     map_cfg, quality = _config(args)
-    db = MapDatabase(args.db, quality=quality, config=map_cfg)
+    db = MapDatabase(args.db, gripper=gripper_from_args(args), quality=quality, config=map_cfg)
     on_step = None
     if render is not None:
         render.mkdir(parents=True, exist_ok=True)
@@ -63,6 +64,7 @@ def _cmd_scene(args) -> int:
     results = run_benchmark(args.objects, args.kind, args.scenes, args.seed, db=db, config=cfg,
                             object_set=args.object_set, on_step=on_step, on_scene=on_scene)
     s = {"kind": args.kind, "objects": args.objects, "object_set": args.object_set, "seed": args.seed,
+         "gripper": db.gripper.name,
          "execution_noise": None if cfg.execution is None else cfg.execution.to_dict(),
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth,
          **summarize(results), "render": None if render is None else str(render), "details": details}

@@ -23,6 +23,13 @@ side of a single view, which the camera never saw, is where the second contact o
 grasps lies. A grasp is kept when no contact is evidence against it and at least
 ``min_observed`` contacts are borne out.
 
+With the ``viewpoint`` of a single view, the cloud's normals are oriented: a surface the
+camera saw faces it, so its outward normal points to the camera's side. A finger must
+meet a surface from outside: where the touch it is shown is the back of a seen surface
+-- the finger would close from inside the object, e.g. on the hidden far face of a thin
+slab fitted to one seen face of a box -- the touch is evidence against the grasp.
+Without a viewpoint a normal's sign is unknown and either side counts.
+
 Why the closing path, not the contact's place: in E09 (single views, robust
 identification) a coarse part's contacts lie 20-30 mm out in the air over a rounded
 body, and the fingers, closing on, meet the observed surface and hold; requiring the
@@ -43,10 +50,14 @@ __all__ = ["ObservedSurface"]
 class ObservedSurface:
     """The observed points (N, 3) [m] of one plan, indexed once for every batch."""
 
-    def __init__(self, points: np.ndarray, *, k: int = 16) -> None:
+    def __init__(self, points: np.ndarray, *, k: int = 16, viewpoint: np.ndarray | None = None) -> None:
         p = np.asarray(points, float)
         if p.ndim != 2 or p.shape[1] != 3:
             raise InvalidParameterError(f"points must be (N, 3), got shape {p.shape}")
+        v = None if viewpoint is None else np.asarray(viewpoint, float).reshape(-1)
+        if v is not None and (v.shape != (3,) or not np.all(np.isfinite(v))):
+            raise InvalidParameterError(f"viewpoint must be 3 finite coordinates, got {viewpoint!r}")
+        self.viewpoint = v
         self.points = p[np.all(np.isfinite(p), axis=1)]
         self.k = int(min(k, max(len(self.points) - 1, 1)))
         self.tree = cKDTree(self.points) if len(self.points) else None
@@ -82,8 +93,13 @@ class ObservedSurface:
         flat = np.flatnonzero(shown)
         if len(flat):
             uniq, inv = np.unique(j[flat], return_inverse=True)
-            n = self.normals_at(uniq)[inv.reshape(-1)]
-            cos = np.abs(np.einsum("ij,ij->i", n, np.repeat(u, 2, axis=0)[flat]))
+            n = self.normals_at(uniq)
+            inward = np.repeat(u, 2, axis=0)[flat] * np.where(flat % 2 == 0, 1.0, -1.0)[:, None]
+            if self.viewpoint is None:  # sign unknown: either side of the surface
+                cos = np.abs(np.einsum("ij,ij->i", n[inv.reshape(-1)], inward))
+            else:  # outward = towards the camera; the finger moving inward must meet it head-on
+                n = n * np.where(np.einsum("ij,ij->i", n, self.viewpoint - self.points[uniq]) < 0, -1.0, 1.0)[:, None]
+                cos = -np.einsum("ij,ij->i", n[inv.reshape(-1)], inward)
             agree[flat] = cos >= np.cos(max_angle)
         borne = (shown & agree).reshape(-1, 2).sum(axis=1)
         return np.all(agree.reshape(-1, 2), axis=1) & (borne >= min_observed)

@@ -321,14 +321,15 @@ def _inner(seg: np.ndarray, cfg: SceneConfig) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _plan_segment(per: ScenePerception, k: int, ident: Identification, obstacles: np.ndarray | None, db,
-                  rng: np.random.Generator, cfg: SceneConfig, table: TablePlane
-                  ) -> tuple[SegmentPlan, list[SceneGrasp]]:
+                  rng: np.random.Generator, cfg: SceneConfig, table: TablePlane,
+                  viewpoint: np.ndarray | None = None) -> tuple[SegmentPlan, list[SceneGrasp]]:
     t0 = time.perf_counter()
     seg = per.segment_points(k)
     pcfg = replace(cfg.planner, table=table, robust=replace(cfg.planner.robust, top=cfg.per_segment))
     batches: list[GraspabilityMap] = []
     prims = tuple(p.shape.value for p in ident.parts)
-    stream = plan_stream(seg, db=db, rng=rng, config=pcfg, obstacles=obstacles, identification=ident)
+    stream = plan_stream(seg, db=db, rng=rng, config=pcfg, obstacles=obstacles, identification=ident,
+                         viewpoint=viewpoint)
     try:
         for item in stream:
             if isinstance(item, PlanResult):
@@ -366,13 +367,17 @@ def _identify_new(segs: list[np.ndarray], olds: list, rng: np.random.Generator, 
 
 
 def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: SceneConfig | None = None,
-               labels: np.ndarray | None = None, previous: ScenePlan | None = None) -> ScenePlan:
+               labels: np.ndarray | None = None, previous: ScenePlan | None = None,
+               viewpoint: np.ndarray | None = None) -> ScenePlan:
     """Ranked grasps for every object of a scene cloud (N, 3) [m] (see the module
     docstring); ``db``: the :class:`~graspsim.maps.database.MapDatabase`; ``labels``:
     see :func:`perceive_scene`; ``previous``: the plan of the previous frame of the same
     scene (same frame of reference): segments that did not change keep their
     identification, and their grasps when no new obstacle came near them
-    (:mod:`~graspsim.perception.scene_reuse`; status ``"reused"``)."""
+    (:mod:`~graspsim.perception.scene_reuse`; status ``"reused"``); ``viewpoint`` (3,):
+    where the camera that saw the cloud was (cloud frame): finger volume in the space
+    behind what it saw -- an object's far side, what lies under a neighbour -- scales the
+    robust score down (:mod:`~graspsim.maps.occlusion`); None: no such term."""
     cfg = config or SceneConfig()
     t0 = time.perf_counter()
     per = perceive_scene(points, rng, cfg, labels=labels)
@@ -398,7 +403,7 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
             if g:
                 p = replace(o.plan, segment=k, status="reused", seconds=0.0)
             else:
-                p, g = _plan_segment(per, k, ident, obstacles, db, rng, cfg, table)
+                p, g = _plan_segment(per, k, ident, obstacles, db, rng, cfg, table, viewpoint)
         plans.append(p)
         grasps += g
         memory.append(SegmentMemory(segs[k], ident, why, solids[k] if solids else None, obstacles, p, tuple(g)))

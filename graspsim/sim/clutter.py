@@ -242,11 +242,13 @@ class ClutterEpisode:
         view = backproject(frame)
         truth = view.labels
         labels = truth if cfg.ground_truth else None
+        eye = self.camera.T_world_camera[:3, 3]  # the occluded space behind what the camera saw
         sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
-                        previous=self._previous)
+                        previous=self._previous, viewpoint=eye)
         cands, best = self._candidates(sp)
         if best is None and self._previous is not None:  # reused plans kept scores from before: plan afresh
-            sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels)
+            sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
+                            viewpoint=eye)
             cands, best = self._candidates(sp)
         planning = time.perf_counter() - t1
         per = sp.perception

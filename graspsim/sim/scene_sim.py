@@ -31,7 +31,7 @@ from graspsim.sim.scene import SimSettings, _add_object, _add_table, _set_option
 from graspsim.sim.scene_objects import ObjectSpec
 from graspsim.transforms import make_transform, matrix_to_quat, quat_to_matrix
 
-__all__ = ["SceneSim", "SceneOutcome", "HOME", "GRIPPER_GROUP", "TABLE_REGION"]
+__all__ = ["SceneSim", "SceneOutcome", "collision_kind", "HOME", "GRIPPER_GROUP", "TABLE_REGION"]
 
 log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -43,13 +43,28 @@ _PALETTE = np.array([[0.85, 0.55, 0.2], [0.2, 0.55, 0.85], [0.3, 0.75, 0.35], [0
                      [0.6, 0.4, 0.8], [0.9, 0.8, 0.3], [0.3, 0.8, 0.8], [0.55, 0.35, 0.2]])
 
 
+def collision_kind(collided: tuple, target: int | None) -> str:
+    """What a start collision hit (``collided``: object ids and "table"): "target" (the
+    target, maybe the table too), "both" (the target and another object), "neighbour"
+    (other objects only, maybe the table), "table" (the table only), "object" (objects,
+    no target named)."""
+    objects = {c for c in collided if c != "table"}
+    if not objects:
+        return "table"
+    if target is None:
+        return "object"
+    if target in objects:
+        return "both" if len(objects) > 1 else "target"
+    return "neighbour"
+
+
 @dataclass(frozen=True)
 class SceneOutcome:
     """One grasp in a scene. outcome: a :class:`TrialOutcome`; picked: the object lifted
     and held (None: none); target: the object meant (None: not said); cause: the outcome
-    label, START_COLLISION refined to ``start_collision_target | _neighbour | _table``
-    (``_object`` when no target was named), ``success_other_object`` when another object
-    than the target came up;
+    label, START_COLLISION refined by :func:`collision_kind` to ``start_collision_target |
+    _both | _neighbour | _table`` (``_object`` when no target was named),
+    ``success_other_object`` when another object than the target came up;
     collided: what the gripper overlaps at t = 0 beyond ``start_penetration`` (object
     ids, "table"); penetration [m]: the deepest overlap; lift_height [m]: how far the
     picked (else the target) object rose; moved: other objects displaced > 1 cm."""
@@ -251,23 +266,42 @@ class SceneSim:
         state[0] = 0.0
         return state
 
-    def _collisions(self, state: np.ndarray, T: np.ndarray) -> tuple[tuple, float]:
-        """What the gripper overlaps by more than the tolerance at ``state``, and how deep."""
+    def _gripper_contacts(self, state: np.ndarray) -> list[tuple[int, object, float]]:
+        """(gripper geom id, object id | "table", overlap [m]) of every contact of the
+        gripper at ``state`` (kinematics and collision detection only)."""
         m, d = self.model, mujoco.MjData(self.model)
         mujoco.mj_setState(m, d, state, _FULL)
         mujoco.mj_kinematics(m, d)
         mujoco.mj_collision(m, d)
         grip = np.zeros(m.ngeom, bool)
         grip[self.gripper_geoms] = True
-        hits: dict = {}
-        g, dist = d.contact.geom[:d.ncon], d.contact.dist[:d.ncon]
-        for (g1, g2), gap in zip(g, dist):
+        out = []
+        for (g1, g2), gap in zip(d.contact.geom[:d.ncon], d.contact.dist[:d.ncon]):
             if grip[g1] == grip[g2]:
                 continue
-            other = g2 if grip[g1] else g1
+            mine, other = (g1, g2) if grip[g1] else (g2, g1)
             what = "table" if other == self.table_geom else int(self.geom_object[other])
             if what != -1:
-                hits[what] = max(hits.get(what, 0.0), -float(gap))
+                out.append((int(mine), what, -float(gap)))
+        return out
+
+    def overlaps(self, T_world_wrist: np.ndarray, opening: float) -> dict[tuple[str, object], float]:
+        """Where the gripper at ``T_world_wrist`` with the jaws open to ``opening`` [m]
+        would start: {(gripper part's geom name, object id | "table"): deepest overlap
+        [m]} over its contacts (touching ones included, overlap <= 0). Nothing is
+        simulated or changed (diagnosis of start collisions)."""
+        state = self._start_state(np.asarray(T_world_wrist, float), float(opening))
+        out: dict[tuple[str, object], float] = {}
+        for g, what, depth in self._gripper_contacts(state):
+            key = (self.model.geom(g).name, what)
+            out[key] = max(out.get(key, -np.inf), depth)
+        return out
+
+    def _collisions(self, state: np.ndarray, T: np.ndarray) -> tuple[tuple, float]:
+        """What the gripper overlaps by more than the tolerance at ``state``, and how deep."""
+        hits: dict = {}
+        for _, what, depth in self._gripper_contacts(state):
+            hits[what] = max(hits.get(what, 0.0), depth)
         arm = float(arm_below_table(self.gripper, T[None])[0])
         if arm > 0:
             hits["table"] = max(hits.get("table", 0.0), arm)
@@ -304,8 +338,7 @@ class SceneSim:
         state0 = self._start_state(T, opening)
         collided, depth = self._collisions(state0, T)
         if collided:
-            kind = ("table" if collided == ("table",) else "target" if target in collided
-                    else "neighbour" if target is not None else "object")
+            kind = collision_kind(collided, target)
             return SceneOutcome(TrialOutcome.START_COLLISION, None, target, f"start_collision_{kind}",
                                 collided, depth, extra={"T_world_wrist": T.tolist(), "opening": opening})
         out = self._run(T, state0, target, depth, commit)

@@ -323,7 +323,7 @@ def readme_section(s: dict) -> str:
                  f"{rate_ci(r['successes'], r['attempts'], r['gsr_interval_95'])} | "
                  f"{r.get('other_objects', 'n/a')} | "
                  f"{rate_ci(r['removed'], r['placed'], r['cleared_interval_95'])} | {r['scenes_cleared']} | "
-                 f"{pct(seg['share'], 0)} % ({seg['one_cluster']}/{seg['objects_seen']}) | "
+                 f"{pct(seg['share'], 1)} % ({seg['one_cluster']}/{seg['objects_seen']}) | "
                  f"{_median(p.get('first_frame'))} / {_median(p.get('later_frames'))} | {causes} |")
     lost = [(r, k) for r in rows for k in r.get("skipped", [])]
     if lost:

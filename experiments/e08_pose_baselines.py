@@ -77,6 +77,7 @@ from _common import (
     start,
     write_json,
 )
+from _stats import mcnemar
 
 import graspsim  # noqa: F401  (registers the environments)
 from graspsim.envs.baselines import planner_pose
@@ -262,7 +263,16 @@ def summarise(rows: list[dict], cfg: Config) -> dict:
                        "by_kind": {k: _rates([r for r in rows if r["kind"] == k], name, label)["rate"]
                                    for k in kinds}}
                for label in cfg.noise}}
+    out["paired"] = {label: {other: mcnemar(_successes(rows, "planner_robust", label), _successes(rows, other, label))
+                             for other in PAIRED_WITH} for label in cfg.noise}
     return out
+
+
+PAIRED_WITH = ("top_down", "planner")  # the robust ranking's paired comparisons
+
+
+def _successes(rows: list[dict], name: str, label: str) -> np.ndarray:
+    return np.array([row[name][label]["reward"] > 0 for row in rows])
 
 
 def write_table(summary: dict, cfg: Config) -> str:
@@ -353,6 +363,11 @@ def readme_section(s: dict) -> str:
                  for name, p in r["policies"].items() if name != "random"]
         L += ["", f"On the {n} episodes where the planner found a grasp at every clearance ({err(x)}): "
               + "; ".join(parts) + "."]
+    for x, pairs in r.get("paired", {}).items():  # runs before this comparison have none
+        L += ["", f"The robust ranking vs the other policies on the same episodes, {err(x)}: " + "; ".join(
+            f"vs the {_name(o).removeprefix('planner, ')}: robust alone succeeds in {m['only_first']}, "
+            f"the other alone in {m['only_second']} (exact McNemar p = {m['p_exact']:.2g})"
+            for o, m in pairs.items()) + "."]
     return "\n".join(L) + "\n"
 
 

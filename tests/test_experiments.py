@@ -133,6 +133,16 @@ def test_e08_quick_pose_baselines(tmp_path):
     assert [ep["seed"] for ep in r["episodes"]] == [derived_seed(seed, "episode", k) for k in range(n)]
     assert s["command"].startswith("python experiments/e08_pose_baselines.py --quick")
     assert s["command"] in mod.readme_section(s)
+    # the paired comparison counts the episodes where exactly one of the two succeeded
+    for label in ("default", "none"):
+        for other, m in s["summary"]["paired"][label].items():
+            ok = [(ep["planner_robust"][label]["reward"] > 0, ep[other][label]["reward"] > 0) for ep in r["episodes"]]
+            only = (sum(a and not b for a, b in ok), sum(b and not a for a, b in ok))
+            assert (m["only_first"], m["only_second"]) == only
+            assert 0.0 <= m["p_exact"] <= 1.0
+            robust = pol["planner_robust"][label]["all"]["success"]
+            assert robust - m["only_first"] + m["only_second"] == pol[other][label]["all"]["success"]
+    assert "exact McNemar" in mod.readme_section(s)
 
 
 def test_e08_noise_labels():

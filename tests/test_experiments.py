@@ -496,6 +496,20 @@ def test_study_fit_points_quick_counts_agreement_against_every_point(tmp_path):
     assert len(s["clouds"]) == n and s["command"] in study.readme_section(s)
 
 
+def test_study_segmentation_quick_counts_every_object_once(tmp_path):
+    study = _load("study_segmentation")
+    assert study.main(["--quick", "--out", str(tmp_path / "s")]) == 0
+    s = _summary(tmp_path / "s")
+    rows = {t["radius"]: t for t in s["table"]}
+    assert set(rows) == {"spacing", "7 mm"}
+    for t in rows.values():  # every object seen is one cluster, split or merged
+        assert t["seen"] >= 8 and t["one_cluster"] + t["split"] + t["merged"] == t["seen"]
+        assert t["merged"] == 0  # packed objects stand >= 1 cm apart
+    (c,) = s["closest"]
+    assert c["pairs"] >= 8 and min(c["closest_mm"]) > 7.0  # the 1 cm gaps stay wider than the radius
+    assert s["command"] in study.readme_section(s)
+
+
 @pytest.mark.slow
 def test_study_clutter_failures_quick(tmp_path):
     out = tmp_path / "scf"

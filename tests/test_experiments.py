@@ -501,7 +501,7 @@ def test_study_segmentation_quick_counts_every_object_once(tmp_path):
     assert study.main(["--quick", "--out", str(tmp_path / "s")]) == 0
     s = _summary(tmp_path / "s")
     rows = {t["radius"]: t for t in s["table"]}
-    assert set(rows) == {"spacing", "7 mm"}
+    assert set(rows) == {"default", "7 mm"} and {t["cameras"] for t in s["table"]} == {1}
     for t in rows.values():  # every object seen is one cluster, split or merged
         assert t["seen"] >= 8 and t["one_cluster"] + t["split"] + t["merged"] == t["seen"]
         assert t["merged"] == 0  # packed objects stand >= 1 cm apart

@@ -39,7 +39,7 @@ from graspsim.perception.plane import PlaneFit, fit_table
 from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
 from graspsim.perception.scene_reuse import SegmentMemory, find_previous, nothing_new, reused_grasps
 from graspsim.perception.scene_workers import identify_segments, scene_workers
-from graspsim.perception.segment import DEFAULT_RADIUS, euclidean_clusters
+from graspsim.perception.segment import cluster_radius, euclidean_clusters
 from graspsim.planner import PlannerConfig, PlanResult, plan_stream
 from graspsim.primitives import Box
 from graspsim.primitives.base import MIN_DIM
@@ -70,8 +70,7 @@ class SceneConfig:
     :func:`~graspsim.perception.plane.fit_table`); table_band [m]:
     points less than this above the table belong to it; max_height [m]: points higher
     above it are ignored; voxel [m]: the grid the points above the table are thinned
-    to; radius [m]: the clustering radius (below the smallest gap between objects to
-    keep apart; see :mod:`~graspsim.perception.segment`);
+    to; radius [m]: the clustering radius (None: from the spacing, at most max_radius);
     min_points: smallest object (points after thinning); neighbours: score grasps
     against the whole scene (False: the segment's points only); reach [m]: scene points
     farther than this from a segment's bounding box cannot touch the gripper and are
@@ -93,7 +92,8 @@ class SceneConfig:
     table_band: float = 0.006
     max_height: float = 0.5
     voxel: float = 0.003
-    radius: float = DEFAULT_RADIUS
+    radius: float | None = None
+    max_radius: float = 0.007
     min_points: int = 40
     neighbours: bool = True
     reach: float = 0.15
@@ -107,11 +107,13 @@ class SceneConfig:
     workers: int | None = None
 
     def __post_init__(self) -> None:
-        for k in ("plane_sigma", "table_band", "max_height", "voxel", "radius", "reach", "solid_step",
+        for k in ("plane_sigma", "table_band", "max_height", "voxel", "max_radius", "reach", "solid_step",
                   "reuse_tol"):
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InvalidParameterError(f"SceneConfig.{k} must be > 0 m, got {v!r}")
+        if self.radius is not None and not (np.isfinite(self.radius) and self.radius > 0):
+            raise InvalidParameterError(f"SceneConfig.radius must be > 0 m or None, got {self.radius!r}")
         for k in ("plane_repetitions", "min_points", "per_segment", "enough", "keep"):
             v = getattr(self, k)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
@@ -245,7 +247,7 @@ def perceive_scene(points: np.ndarray, rng: np.random.Generator, config: SceneCo
     if labels is not None:
         seg, radius = _given_segments(labels, idx, len(pts), cfg.min_points), float("nan")
     else:
-        radius = cfg.radius
+        radius = cfg.radius if cfg.radius is not None else cluster_radius(sub, max_radius=cfg.max_radius)
         seg = euclidean_clusters(sub, radius=radius, min_points=cfg.min_points)
     full = np.full(len(pts), -1, np.int64)
     full[idx] = seg

@@ -2,14 +2,12 @@
 
 Two points belong to one object when a chain of points links them with no step longer
 than ``radius``: the connected components of the radius graph (scipy's ``cKDTree``
-pairs, ``connected_components``). The radius is set by the smallest gap between objects
-that must stay apart, less a margin for sensor noise (:data:`DEFAULT_RADIUS`: 7 mm for
-the 1 cm gaps of packed scenes), not by the cloud's spacing: on a dense cloud a radius
-of a few spacings breaks one object wherever a single view shows it with a crevice (a
-tab against a ball) and gains nothing, as objects 1 cm apart stay apart at 7 mm.
-Components with fewer than ``min_points`` points (sensor speckle, slivers of the table's
-edge) are noise (label -1). Labels are numbered by size, largest first; the numbering is
-fixed by the points, not by the order of the scan.
+pairs, ``connected_components``). The radius follows the cloud's spacing (the median
+distance of a point to its nearest neighbour) and is capped below the smallest gap
+between objects that must stay apart (1 cm in the issue's packed scenes). Components
+with fewer than ``min_points`` points (sensor speckle, slivers of the table's edge) are
+noise (label -1). Labels are numbered by size, largest first; the numbering is fixed by
+the points, not by the order of the scan.
 """
 
 from __future__ import annotations
@@ -21,12 +19,28 @@ from scipy.spatial import cKDTree
 
 from graspsim.errors import InvalidParameterError
 
-__all__ = ["DEFAULT_RADIUS", "euclidean_clusters"]
+__all__ = ["point_spacing", "cluster_radius", "euclidean_clusters"]
 
-#: The default linking radius [m]: 3 mm under the 1 cm gap packed scenes keep between
-#: objects (the closest points of two such objects seen by the D435-like camera of E10,
-#: depth noise on, were 9.9 mm apart over 100 scenes; ``experiments/study_segmentation.py``).
-DEFAULT_RADIUS = 0.007
+
+def point_spacing(points: np.ndarray, *, sample: int = 2000) -> float:
+    """Median distance [m] from a point to its nearest neighbour, over at most
+    ``sample`` points spread evenly through the cloud (N, 3); 0 for fewer than two."""
+    pts = np.asarray(points, float)
+    if len(pts) < 2:
+        return 0.0
+    probe = pts[np.linspace(0, len(pts) - 1, min(sample, len(pts))).astype(int)]
+    d, _ = cKDTree(pts).query(probe, k=2)
+    return float(np.median(d[:, 1]))
+
+
+def cluster_radius(points: np.ndarray, *, factor: float = 2.5, min_radius: float = 0.003,
+                   max_radius: float = 0.007) -> float:
+    """The linking radius [m]: ``factor`` x the spacing, within [min_radius, max_radius]
+    (``max_radius`` below the smallest gap to keep: two objects 1 cm apart stay two)."""
+    if not (0 < min_radius <= max_radius and factor > 0):
+        raise InvalidParameterError(f"need factor > 0 and 0 < min_radius <= max_radius, got {factor!r}, "
+                                    f"{min_radius!r}, {max_radius!r}")
+    return float(np.clip(factor * point_spacing(points), min_radius, max_radius))
 
 
 def euclidean_clusters(points: np.ndarray, *, radius: float, min_points: int = 40) -> np.ndarray:

@@ -127,8 +127,11 @@ def db(tmp_path_factory):
     return d
 
 
-def _scene(shapes, seed: int) -> np.ndarray:
-    xy = np.array([[-0.12, 0.0], [0.0, 0.01], [0.12, -0.01]])[:len(shapes)]
+def _scene(shapes, seed: int, gap: float = 0.015) -> np.ndarray:
+    """Shapes standing in a row ``gap`` [m] apart (close enough to block grasps)."""
+    widths = [s.aabb[1, 0] - s.aabb[0, 0] for s in shapes]
+    x = np.cumsum([0.0] + [0.5 * (a + b) + gap for a, b in zip(widths[:-1], widths[1:])])
+    xy = np.column_stack([x - x.mean(), np.zeros(len(x))])
     return table_scene_cloud(shapes, xy, np.random.default_rng(seed), noise=0.0005)[0]
 
 
@@ -155,13 +158,14 @@ def test_segments_planned_on_workers_match_this_process_after_the_parallel_kerne
     workers must then not start), give every grasp as this process does, in the same order."""
     asked = _spy_workers(monkeypatch)
     pts = _scene([Box(0.05, 0.06, 0.07), Cylinder(0.025, 0.12), Sphere(0.03)], 5)
-    cfg = SceneConfig(keep=20)
+    cfg = SceneConfig(enough=10**6, per_segment=400, keep=400)  # batches big enough for the parallel kernel
     here = plan_scene(pts, db=db, rng=np.random.default_rng(9), config=replace(cfg, workers=1))
     _run_parallel_pad_kernel()
     shutdown_workers()  # the next pool is forked after the kernel ran
     there = plan_scene(pts, db=db, rng=np.random.default_rng(9), config=replace(cfg, workers=2))
     assert asked == [1, 2]  # planned here, then on the workers (no map had to be built)
     assert sum(s.status == "planned" for s in here.segments) == 3 and sum(g.score > 0 for g in here.grasps) > 10
+    assert any(g.score == 0 for g in here.grasps)  # some blocked by a neighbour
     assert _plan_record(there) == _plan_record(here)
 
 

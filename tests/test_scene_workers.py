@@ -2,7 +2,10 @@
 (``IdentifyConfig.fit_points``; paper mode never downsamples), and a scene's segments
 identified and planned on worker processes with the same result as in this process."""
 
+import logging
 import math
+import os
+import signal
 from dataclasses import replace
 
 import numpy as np
@@ -152,11 +155,12 @@ def _spy_workers(monkeypatch) -> list:
     return asked
 
 
-def test_segments_planned_on_workers_match_this_process_after_the_parallel_kernel_ran(db, monkeypatch):
+def test_segments_planned_on_workers_match_this_process_after_the_parallel_kernel_ran(db, monkeypatch, caplog):
     """Maps, collision samples and robust scores against the neighbours, computed on two
     forked workers (forked after this process ran numba's OpenMP kernel, which the
     workers must then not start), give every grasp as this process does, in the same order."""
     asked = _spy_workers(monkeypatch)
+    caplog.set_level(logging.WARNING, logger="graspsim.perception.scene_workers")
     pts = _scene([Box(0.05, 0.06, 0.07), Cylinder(0.025, 0.12), Sphere(0.03)], 5)
     cfg = SceneConfig(enough=10**6, per_segment=400, keep=400)  # batches big enough for the parallel kernel
     here = plan_scene(pts, db=db, rng=np.random.default_rng(9), config=replace(cfg, workers=1))
@@ -164,6 +168,7 @@ def test_segments_planned_on_workers_match_this_process_after_the_parallel_kerne
     shutdown_workers()  # the next pool is forked after the kernel ran
     there = plan_scene(pts, db=db, rng=np.random.default_rng(9), config=replace(cfg, workers=2))
     assert asked == [1, 2]  # planned here, then on the workers (no map had to be built)
+    assert not caplog.records  # and the workers lived (none died for running the OpenMP kernel)
     assert sum(s.status == "planned" for s in here.segments) == 3 and sum(g.score > 0 for g in here.grasps) > 10
     assert any(g.score == 0 for g in here.grasps)  # some blocked by a neighbour
     assert _plan_record(there) == _plan_record(here)
@@ -181,3 +186,17 @@ def test_a_scene_whose_plan_builds_a_map_is_planned_in_this_process(tmp_path, mo
     assert asked == [1]
     assert len(small.entries()) > 1  # the box's map was built
     assert [s.status for s in sp.segments] == ["planned", "planned"]
+
+
+def _die_in_a_worker(x):
+    if os.getpid() != x:  # in a worker: killed, as by the kernel's OOM killer
+        os.kill(os.getpid(), signal.SIGKILL)
+    return x
+
+
+def test_a_dead_worker_leaves_the_segments_to_this_process(caplog):
+    caplog.set_level(logging.WARNING, logger="graspsim.perception.scene_workers")
+    me = os.getpid()
+    assert run_segments(_die_in_a_worker, [(me,), (me,), (me,)], [1, 2, 3], 2) == [me, me, me]
+    assert "died" in caplog.text
+    assert run_segments(abs, [(-1,), (-2,)], [1, 1], 2) == [1, 2]  # a new pool serves the next call

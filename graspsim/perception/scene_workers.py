@@ -24,10 +24,12 @@ another: there the parallelism is already outside.
 from __future__ import annotations
 
 import atexit
+import logging
 import multiprocessing as mp
 import os
 import threading
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
@@ -37,6 +39,8 @@ from graspsim.perception.identify_config import IdentifyConfig
 
 __all__ = ["identify_segment", "identify_segments", "run_segments", "resident_database", "scene_workers",
            "shutdown_workers"]
+
+log = logging.getLogger(__name__)
 
 _pools: dict[int, tuple[int, ProcessPoolExecutor]] = {}  # workers -> (pid, pool)
 _lock = threading.Lock()
@@ -125,5 +129,14 @@ def run_segments(fn, tasks: list[tuple], sizes: list[float], workers: int | None
         return [fn(*t) for t in tasks]
     pool = _pool(n)
     order = sorted(range(len(tasks)), key=lambda i: -sizes[i])
-    futures = {i: pool.submit(fn, *tasks[i]) for i in order}
-    return [futures[i].result() for i in range(len(tasks))]
+    try:
+        futures = {i: pool.submit(fn, *tasks[i]) for i in order}
+        return [futures[i].result() for i in range(len(tasks))]
+    except BrokenProcessPool as err:  # a worker was killed (e.g. out of memory): go on without them
+        log.warning("a scene worker process died (%s); its pool is dropped and the segments are handled in "
+                    "this process (the result is the same)", err)
+        with _lock:
+            if _pools.get(n, (None, None))[1] is pool:
+                del _pools[n]
+        pool.shutdown(wait=False, cancel_futures=True)
+        return [fn(*t) for t in tasks]

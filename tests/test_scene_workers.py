@@ -1,19 +1,29 @@
-"""Scene identification speed (issue 17): robust identification on a bounded point
-count (``IdentifyConfig.fit_points``; paper mode never downsamples), and a scene's
-segments identified on worker processes with the same result as in this process."""
+"""Scene planning speed (issue 17): robust identification on a bounded point count
+(``IdentifyConfig.fit_points``; paper mode never downsamples), and a scene's segments
+identified and planned on worker processes with the same result as in this process."""
 
+import logging
 import math
+import os
+import signal
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import MapConfig
+from graspsim.perception import scene as scene_module
 from graspsim.perception.identify import identify
 from graspsim.perception.identify_config import IdentifyConfig
-from graspsim.perception.scene import SCENE_FIT_POINTS, SceneConfig
-from graspsim.perception.scene_workers import identify_segments, scene_workers
+from graspsim.perception.scene import SCENE_FIT_POINTS, SceneConfig, plan_scene
+from graspsim.perception.scene_workers import identify_segments, run_segments, scene_workers, shutdown_workers
 from graspsim.primitives import Box, Cylinder, Sphere, synthetic_cloud
+from graspsim.primitives.clouds import table_scene_cloud
 from graspsim.transforms import make_transform
+
+FAST = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
 
 
 def _cloud(shape, seed: int, resolution: float = 0.0015) -> np.ndarray:
@@ -66,18 +76,21 @@ def test_segments_identified_on_workers_match_this_process():
         identify_segments(segs, [np.random.default_rng(0)], cfg, 1)
 
 
-def test_workers_forked_after_the_parallel_kernels_ran_still_identify():
-    """The pad-contact grade's kernel runs on numba's OpenMP pool; a child forked after it
-    ran dies if it runs such a kernel too. Identification never does: a pool forked after
-    the kernel ran identifies as one forked before it."""
+def _run_parallel_pad_kernel():
     from graspsim.grades._pads import SERIAL_BELOW, run_pad_patches
-    from graspsim.perception.scene_workers import shutdown_workers
 
     n = 2 * SERIAL_BELOW  # enough grasps for the parallel path
     R = np.repeat(np.eye(3)[None], n, axis=0)
     pts = np.random.default_rng(0).normal(size=(50, 3)) * 0.01
     run_pad_patches(pts, np.tile([0.0, 0.0, 1.0], (50, 1)), np.full(50, 1e-6), R, np.zeros((n, 3)), 0.01, 0.0,
                     0.02, 0.001)
+
+
+def test_workers_forked_after_the_parallel_kernels_ran_still_identify():
+    """The pad-contact grade's kernel runs on numba's OpenMP pool; a child forked after it
+    ran dies if it runs such a kernel too. Identification never does: a pool forked after
+    the kernel ran identifies as one forked before it."""
+    _run_parallel_pad_kernel()
     shutdown_workers()  # the next call forks new workers, after the kernel ran
     segs = [_cloud(Sphere(0.03), 5, 0.004), _cloud(Cylinder(0.02, 0.1), 6, 0.004)]
     here = identify_segments(segs, np.random.default_rng(1).spawn(2), IdentifyConfig(), 1)
@@ -92,3 +105,98 @@ def test_worker_count_is_validated():
             scene_workers(bad)
         with pytest.raises(InvalidParameterError, match="workers"):
             SceneConfig(workers=bad)
+
+
+def test_serial_pad_kernel_gives_the_parallel_kernels_results_bit_for_bit():
+    from scipy.spatial.transform import Rotation
+
+    from graspsim.grades._pads import pad_patches, pad_patches_serial
+
+    rng = np.random.default_rng(3)
+    P, N = rng.normal(size=(2000, 3)) * 0.03, rng.normal(size=(2000, 3))
+    A = rng.random(2000) * 1e-5
+    R, p = Rotation.random(300, random_state=4).as_matrix(), rng.normal(size=(300, 3)) * 0.01
+    a, b = np.zeros((300, 2, 7)), np.zeros((300, 2, 7))
+    pad_patches(P, N, A, R, p, 0.01, 0.02, 0.03, 0.002, a)
+    pad_patches_serial(P, N, A, R, p, 0.01, 0.02, 0.03, 0.002, b)
+    assert np.count_nonzero(a[:, :, 6]) > 50  # patches found, not all empty
+    np.testing.assert_array_equal(a, b)
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory):
+    d = MapDatabase(tmp_path_factory.mktemp("db"), config=FAST)
+    d.build([Box(0.06, 0.06, 0.06), Cylinder(0.02, 0.2), Sphere(0.035)])
+    return d
+
+
+def _scene(shapes, seed: int, gap: float = 0.015) -> np.ndarray:
+    """Shapes standing in a row ``gap`` [m] apart (close enough to block grasps)."""
+    widths = [s.aabb[1, 0] - s.aabb[0, 0] for s in shapes]
+    x = np.cumsum([0.0] + [0.5 * (a + b) + gap for a, b in zip(widths[:-1], widths[1:])])
+    xy = np.column_stack([x - x.mean(), np.zeros(len(x))])
+    return table_scene_cloud(shapes, xy, np.random.default_rng(seed), noise=0.0005)[0]
+
+
+def _plan_record(sp) -> list:
+    return [(s.segment, s.status, s.primitives, s.scored) for s in sp.segments] + [
+        (g.segment, g.T_world_wrist.tobytes(), g.opening, g.score, g.grade, g.clearance) for g in sp.grasps]
+
+
+def _spy_workers(monkeypatch) -> list:
+    """The worker counts the scene's segment planning asked for (one per plan_scene)."""
+    asked = []
+
+    def spy(fn, tasks, sizes, workers=1):
+        asked.append(workers)
+        return run_segments(fn, tasks, sizes, workers)
+
+    monkeypatch.setattr(scene_module, "run_segments", spy)
+    return asked
+
+
+def test_segments_planned_on_workers_match_this_process_after_the_parallel_kernel_ran(db, monkeypatch, caplog):
+    """Maps, collision samples and robust scores against the neighbours, computed on two
+    forked workers (forked after this process ran numba's OpenMP kernel, which the
+    workers must then not start), give every grasp as this process does, in the same order."""
+    asked = _spy_workers(monkeypatch)
+    caplog.set_level(logging.WARNING, logger="graspsim.perception.scene_workers")
+    pts = _scene([Box(0.05, 0.06, 0.07), Cylinder(0.025, 0.12), Sphere(0.03)], 5)
+    cfg = SceneConfig(enough=10**6, per_segment=400, keep=400)  # batches big enough for the parallel kernel
+    here = plan_scene(pts, db=db, rng=np.random.default_rng(9), config=replace(cfg, workers=1))
+    _run_parallel_pad_kernel()
+    shutdown_workers()  # the next pool is forked after the kernel ran
+    there = plan_scene(pts, db=db, rng=np.random.default_rng(9), config=replace(cfg, workers=2))
+    assert asked == [1, 2]  # planned here, then on the workers (no map had to be built)
+    assert not caplog.records  # and the workers lived (none died for running the OpenMP kernel)
+    assert sum(s.status == "planned" for s in here.segments) == 3 and sum(g.score > 0 for g in here.grasps) > 10
+    assert any(g.score == 0 for g in here.grasps)  # some blocked by a neighbour
+    assert _plan_record(there) == _plan_record(here)
+
+
+def test_a_scene_whose_plan_builds_a_map_is_planned_in_this_process(tmp_path, monkeypatch):
+    """A part with no stored map in scaling range makes its plan build and store one,
+    which later plans match against: such a scene is planned in this process, segment
+    after segment, as before."""
+    asked = _spy_workers(monkeypatch)
+    small = MapDatabase(tmp_path, config=FAST)
+    small.build([Sphere(0.035)])
+    pts = _scene([Sphere(0.03), Box(0.05, 0.06, 0.07)], 6)
+    sp = plan_scene(pts, db=small, rng=np.random.default_rng(9), config=SceneConfig(workers=2))
+    assert asked == [1]
+    assert len(small.entries()) > 1  # the box's map was built
+    assert [s.status for s in sp.segments] == ["planned", "planned"]
+
+
+def _die_in_a_worker(x):
+    if os.getpid() != x:  # in a worker: killed, as by the kernel's OOM killer
+        os.kill(os.getpid(), signal.SIGKILL)
+    return x
+
+
+def test_a_dead_worker_leaves_the_segments_to_this_process(caplog):
+    caplog.set_level(logging.WARNING, logger="graspsim.perception.scene_workers")
+    me = os.getpid()
+    assert run_segments(_die_in_a_worker, [(me,), (me,), (me,)], [1, 2, 3], 2) == [me, me, me]
+    assert "died" in caplog.text
+    assert run_segments(abs, [(-1,), (-2,)], [1, 1], 2) == [1, 2]  # a new pool serves the next call

@@ -131,6 +131,11 @@ class MapDatabase:
         self._settings = _digest({"gripper": gripper.to_dict(), "quality": self.quality.to_dict(),
                                   "config": self.config.to_dict()})
 
+    def __getstate__(self) -> dict:
+        """Pickled (sent to a worker process) without the maps it has loaded: a database
+        is its folder and settings; the receiver loads what it needs."""
+        return {**self.__dict__, "_cache": OrderedDict()}
+
     # ------------------------------------------------------------------ index
     @property
     def index_path(self) -> Path:

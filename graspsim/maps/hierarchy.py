@@ -28,25 +28,18 @@ def _patches(parents, children, parent_normals, grow, parent=None):
     its children, each grown by the child's own reach ``grow`` (K,) (0 for samples
     that stand only for themselves). Returns the children's order by parent, RT, HN
     (P,) and CSR offsets (P + 1,). ``parent`` (K,): each child's parent if known (the
-    cell holding it), else the nearest parent."""
+    cell holding it), else the nearest parent. Compiled
+    (:func:`~graspsim.maps._hierarchy_kernel.patch_extents`)."""
+    from graspsim.maps._hierarchy_kernel import patch_extents
+
     if parent is None:
         _, parent = cKDTree(parents).query(children)
-    order = np.argsort(parent, kind="stable")
-    parent = parent[order]
-    d = children[order] - parents[parent]
-    n = parent_normals[parent]
-    h = np.sum(d * n, axis=1)
-    rt = np.linalg.norm(d - h[:, None] * n, axis=1)
-    P = len(parents)
-    g = np.broadcast_to(np.asarray(grow, float), (len(children),))[order]
-    counts = np.bincount(parent, minlength=P)
-    RT = np.zeros(P)
-    HN = np.zeros(P)
-    has = counts > 0
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])[has]
-    RT[has] = np.maximum.reduceat(rt + g, first)
-    HN[has] = np.maximum.reduceat(np.abs(h) + g, first)
-    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+    K, P = len(children), len(parents)
+    order, RT, HN = np.empty(K, np.int64), np.zeros(P), np.zeros(P)
+    start = patch_extents(f64(parents), f64(children), f64(parent_normals),
+                          f64(np.broadcast_to(np.asarray(grow, float), (K,))),
+                          np.ascontiguousarray(parent, np.int64), order, RT, HN)
     return order, RT, HN, start
 
 

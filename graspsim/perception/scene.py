@@ -38,9 +38,9 @@ from graspsim.perception.mvbb import min_volume_box
 from graspsim.perception.plane import PlaneFit, fit_table
 from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
 from graspsim.perception.scene_reuse import SegmentMemory, find_previous, nothing_new, reused_grasps
-from graspsim.perception.scene_workers import identify_segments, scene_workers
+from graspsim.perception.scene_workers import identify_segments, resident_database, run_segments, scene_workers
 from graspsim.perception.segment import cluster_radius, euclidean_clusters
-from graspsim.planner import PlannerConfig, PlanResult, plan_stream
+from graspsim.planner import PlannerConfig, PlanResult, builds_maps, plan_stream
 from graspsim.primitives import Box
 from graspsim.primitives.base import MIN_DIM
 
@@ -320,16 +320,18 @@ def _inner(seg: np.ndarray, cfg: SceneConfig) -> tuple[np.ndarray, np.ndarray]:
     return seg.min(axis=0) - m, seg.max(axis=0) + m
 
 
-def _plan_segment(per: ScenePerception, k: int, ident: Identification, obstacles: np.ndarray | None, db,
-                  rng: np.random.Generator, cfg: SceneConfig, table: TablePlane,
-                  viewpoint: np.ndarray | None = None) -> tuple[SegmentPlan, list[SceneGrasp]]:
+def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.ndarray | None, db,
+                  cfg: SceneConfig, table: TablePlane, viewpoint: np.ndarray | None = None
+                  ) -> tuple[SegmentPlan, list[SceneGrasp]]:
+    """Segment ``k`` (its thinned points ``seg`` (M, 3), identified as ``ident``) planned
+    against ``obstacles``: its SegmentPlan and best ``keep`` grasps. It draws nothing at
+    random: the same inputs give the same plan in any process, in any order."""
     t0 = time.perf_counter()
-    seg = per.segment_points(k)
     pcfg = replace(cfg.planner, table=table, robust=replace(cfg.planner.robust, top=cfg.per_segment))
     batches: list[GraspabilityMap] = []
     prims = tuple(p.shape.value for p in ident.parts)
-    stream = plan_stream(seg, db=db, rng=rng, config=pcfg, obstacles=obstacles, identification=ident,
-                         viewpoint=viewpoint)
+    stream = plan_stream(seg, db=db, rng=None, config=pcfg, obstacles=obstacles, identification=ident,
+                         viewpoint=viewpoint)  # identified already: no draws
     try:
         for item in stream:
             if isinstance(item, PlanResult):
@@ -354,6 +356,34 @@ def _plan_segment(per: ScenePerception, k: int, ident: Identification, obstacles
     grasps = [SceneGrasp(k, T[i], float(opening[i]), float(score[i]), float(gmap.grade[i]),
                          float(gmap.clearance[i])) for i in range(len(gmap))]
     return SegmentPlan(k, len(seg), "planned", None, prims, scored, time.perf_counter() - t0), grasps
+
+
+def _without_planning(k: int, seg: np.ndarray, ident: Identification | None, why: str, old, obstacles, cfg: SceneConfig
+                      ) -> tuple[SegmentPlan, list[SceneGrasp]] | None:
+    """Segment ``k``'s plan and grasps when it needs no planning: its identification
+    failed, or the previous frame's grasps stand (:mod:`~graspsim.perception.scene_reuse`);
+    else None."""
+    if ident is None:
+        return SegmentPlan(k, len(seg), "failed", why, (), 0, 0.0), []
+    if old is None or old.plan.status == "failed":
+        return None
+    if not nothing_new(old.obstacles, obstacles, tol=cfg.reuse_tol, within=_inner(seg, cfg), own=seg):
+        return None
+    g = reused_grasps(old, k)
+    return (replace(old.plan, segment=k, status="reused", seconds=0.0), g) if g else None
+
+
+def _plan_segments(tasks: list[tuple], db, cfg: SceneConfig) -> list[tuple[SegmentPlan, list[SceneGrasp]]]:
+    """:func:`_plan_segment` of every task, on the scene's worker processes unless a
+    plan could build (and store) an FS map: then in this process, in segment order, as
+    each plan matches against the maps stored before it."""
+    workers = 1 if any(builds_maps(t[2], db, cfg.planner) for t in tasks) else cfg.workers
+    return run_segments(_plan_segment_there, tasks, [len(t[0]) for t in tasks], workers)
+
+
+def _plan_segment_there(seg, k, ident, obstacles, db, *args):
+    """:func:`_plan_segment` with the worker's own copy of the map database (its loaded maps kept)."""
+    return _plan_segment(seg, k, ident, obstacles, resident_database(db), *args)
 
 
 def _identify_new(segs: list[np.ndarray], olds: list, rng: np.random.Generator, cfg: SceneConfig) -> list:
@@ -390,23 +420,19 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     solids = [o.solids if o is not None and o.solids is not None else _solid_samples(seg, i, per.plane, cfg.solid_step)
               for seg, (i, _), o in zip(segs, idents, olds)] if cfg.neighbours else []
     t2 = time.perf_counter()
+    obstacles = [_obstacles(per, k, solids, cfg.reach) if cfg.neighbours else None for k in range(len(segs))]
+    done = [_without_planning(k, segs[k], ident, why, olds[k], obstacles[k], cfg)
+            for k, (ident, why) in enumerate(idents)]
+    todo = [k for k, d in enumerate(done) if d is None]
+    for k, d in zip(todo, _plan_segments([(segs[k], k, idents[k][0], obstacles[k], db, cfg, table, viewpoint)
+                                          for k in todo], db, cfg)):
+        done[k] = d
     plans, grasps, memory = [], [], []
-    for k, (ident, why) in enumerate(idents):
-        obstacles = _obstacles(per, k, solids, cfg.reach) if cfg.neighbours else None
-        if ident is None:
-            p, g = SegmentPlan(k, len(segs[k]), "failed", why, (), 0, 0.0), []
-        else:
-            o = olds[k]
-            g = reused_grasps(o, k) if o is not None and o.plan.status != "failed" and \
-                nothing_new(o.obstacles, obstacles, tol=cfg.reuse_tol, within=_inner(segs[k], cfg), own=segs[k]) \
-                else []
-            if g:
-                p = replace(o.plan, segment=k, status="reused", seconds=0.0)
-            else:
-                p, g = _plan_segment(per, k, ident, obstacles, db, rng, cfg, table, viewpoint)
+    for k, (p, g) in enumerate(done):
         plans.append(p)
         grasps += g
-        memory.append(SegmentMemory(segs[k], ident, why, solids[k] if solids else None, obstacles, p, tuple(g)))
+        memory.append(SegmentMemory(segs[k], idents[k][0], idents[k][1], solids[k] if solids else None,
+                                    obstacles[k], p, tuple(g)))
     grasps.sort(key=lambda s: (-s.score, -s.grade, s.segment))
     now = time.perf_counter()
     timing = {**per.timing, "identify": t2 - t1, "plan": now - t2, "total": now - t0}

@@ -1,30 +1,35 @@
-"""A scene's segments identified side by side, on worker processes.
+"""A scene's segments identified and planned side by side, on worker processes.
 
-Identification is many small numpy and scipy calls on a few hundred points: it holds
-the GIL, so threads do not run it side by side, processes do. Each segment draws
-from its own generator (spawned from the scene's), so the identifications do not
-depend on how many workers there are, nor on the order they finish in: one worker or
-several give the same result.
+Identification is many small numpy and scipy calls on a few hundred points, and so is
+most of planning (scaling a map, its collision samples, combining): they hold the
+GIL, so threads do not run them side by side, processes do. Each segment draws from
+its own generator (spawned from the scene's) and a segment's planning draws nothing,
+so the results do not depend on how many workers there are, nor on the order they
+finish in: one worker or several give the same result.
 
 The workers are forked once per process and kept: they start with the caller's modules
 already imported (milliseconds; ``spawn`` would import graspsim again in each, and
 run a user's unguarded script again), and each scene costs only the transfer of points
-and results. They never touch MuJoCo or the map kernels, whose threads and GL
-contexts the fork does not carry: a child forked after numba's OpenMP pool ran (the
-pad-contact grade's kernel) is terminated if it runs such a kernel, so the planning
-of segments (maps, robust scores) cannot move into forked children this way. Where
-``fork`` does not exist (Windows), and inside a process that is itself a worker (an
-experiment's executor, this pool), segments are identified one after another: there
-the parallelism is already outside.
+and results. They never touch MuJoCo, whose GL contexts the fork does not carry, nor
+numba's OpenMP pool: a child forked after the parent ran a ``parallel=True`` kernel (the
+pad-contact grade's) is terminated if it runs one, so the workers run that kernel's
+serial twin (:func:`graspsim.grades._pads.serial_only`; the same arithmetic); the map
+kernels' thread pools are the process's own (:mod:`graspsim.maps.kernels`). A map
+database sent to a worker stays there (:func:`resident_database`), with its cache of
+loaded maps. Where ``fork`` does not exist (Windows), and inside a process that is
+itself a worker (an experiment's executor, this pool), segments are handled one after
+another: there the parallelism is already outside.
 """
 
 from __future__ import annotations
 
 import atexit
+import logging
 import multiprocessing as mp
 import os
 import threading
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
@@ -32,10 +37,14 @@ from graspsim.errors import IdentificationError, InvalidParameterError, PointClo
 from graspsim.perception.identify import Identification, identify
 from graspsim.perception.identify_config import IdentifyConfig
 
-__all__ = ["identify_segment", "identify_segments", "scene_workers", "shutdown_workers"]
+__all__ = ["identify_segment", "identify_segments", "run_segments", "resident_database", "scene_workers",
+           "shutdown_workers"]
+
+log = logging.getLogger(__name__)
 
 _pools: dict[int, tuple[int, ProcessPoolExecutor]] = {}  # workers -> (pid, pool)
 _lock = threading.Lock()
+_databases: dict[tuple, object] = {}  # in a worker: the map databases sent to it, by folder and settings
 
 
 def identify_segment(points: np.ndarray, rng: np.random.Generator, config: IdentifyConfig
@@ -64,9 +73,26 @@ def _pool(workers: int) -> ProcessPoolExecutor:
     with _lock:
         pid, ex = _pools.get(workers, (None, None))
         if ex is None or pid != os.getpid():
-            ex = ProcessPoolExecutor(workers, mp_context=mp.get_context("fork"))
+            ex = ProcessPoolExecutor(workers, mp_context=mp.get_context("fork"), initializer=_start_worker)
             _pools[workers] = (os.getpid(), ex)
         return ex
+
+
+def _start_worker() -> None:
+    from graspsim.grades._pads import serial_only
+
+    serial_only()  # the parent may have started numba's OpenMP pool: this child must not
+    _databases.clear()
+
+
+def resident_database(db):
+    """In a worker: the :class:`~graspsim.maps.database.MapDatabase` already here for
+    ``db``'s folder and settings (with the maps it has loaded), else ``db``, kept;
+    elsewhere ``db``."""
+    if mp.parent_process() is None:
+        return db
+    key = (str(db.root), db.settings_digest, db.tol, db.cache_size)
+    return _databases.setdefault(key, db)
 
 
 def shutdown_workers() -> None:
@@ -87,10 +113,30 @@ def identify_segments(segments: list[np.ndarray], rngs: list[np.random.Generator
     on ``workers`` processes (see :func:`scene_workers`); results in segment order."""
     if len(rngs) != len(segments):
         raise InvalidParameterError(f"one generator per segment needed: {len(segments)} segments, {len(rngs)}")
-    n = min(scene_workers(workers), len(segments))
+    return run_segments(identify_segment, [(s, r, config) for s, r in zip(segments, rngs)],
+                        [len(s) for s in segments], workers)
+
+
+def run_segments(fn, tasks: list[tuple], sizes: list[float], workers: int | None = 1) -> list:
+    """``fn(*task)`` of every task (a module-level function, for the workers to find it)
+    on ``workers`` processes (see :func:`scene_workers`), the largest ``sizes`` first
+    (the longest tasks, so that none is left to run alone at the end); results in task
+    order."""
+    if len(sizes) != len(tasks):
+        raise InvalidParameterError(f"one size per task needed: {len(tasks)} tasks, {len(sizes)} sizes")
+    n = min(scene_workers(workers), len(tasks))
     if n <= 1:
-        return [identify_segment(s, r, config) for s, r in zip(segments, rngs)]
+        return [fn(*t) for t in tasks]
     pool = _pool(n)
-    order = sorted(range(len(segments)), key=lambda i: -len(segments[i]))  # the largest first
-    futures = {i: pool.submit(identify_segment, segments[i], rngs[i], config) for i in order}
-    return [futures[i].result() for i in range(len(segments))]
+    order = sorted(range(len(tasks)), key=lambda i: -sizes[i])
+    try:
+        futures = {i: pool.submit(fn, *tasks[i]) for i in order}
+        return [futures[i].result() for i in range(len(tasks))]
+    except BrokenProcessPool as err:  # a worker was killed (e.g. out of memory): go on without them
+        log.warning("a scene worker process died (%s); its pool is dropped and the segments are handled in "
+                    "this process (the result is the same)", err)
+        with _lock:
+            if _pools.get(n, (None, None))[1] is pool:
+                del _pools[n]
+        pool.shutdown(wait=False, cancel_futures=True)
+        return [fn(*t) for t in tasks]

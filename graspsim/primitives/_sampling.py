@@ -43,34 +43,39 @@ def rect_samples(
 def disk_samples(
     center: np.ndarray, u: np.ndarray, v: np.ndarray, radius: float, step: float
 ) -> SurfaceSamples:
-    """Flat disk in the plane spanned by unit ``u``, ``v``; normal u x v; polar rings."""
+    """Flat disk in the plane spanned by unit ``u``, ``v``; normal u x v; polar rings.
+    (The rings' sizes are worked out one by one, their samples in one pass.)"""
     nr = cells(radius, step)
     dr = radius / nr
-    pts, areas, tang, uv, counts, cover = [], [], [], [], [], 0.0
+    rhos, counts, dts, areas, tang, cover = [], [], [], [], [], 0.0
     u, v = np.asarray(u, float), np.asarray(v, float)
     for k in range(nr):
         rho = (k + 0.5) * dr
         # size the cells by their outer arc so no cell side exceeds the step
         nt = max(3, math.ceil(2.0 * math.pi * (rho + dr / 2) / step - 1e-9))
         dt = 2.0 * math.pi / nt
-        th = (np.arange(nt) + 0.5) * dt
-        pts.append(center + rho * (np.cos(th)[:, None] * u + np.sin(th)[:, None] * v))
-        areas.append(np.full(nt, 2.0 * math.pi * rho * dr / nt))
-        uv.append(np.column_stack([np.full(nt, rho), th]))
-        counts.append(nt)
         ring = 0.0
         for rc in (rho - dr / 2, rho + dr / 2):
             for half in (dt / 2, 0.0):
                 d2 = rho**2 + rc**2 - 2.0 * rho * rc * math.cos(half)
                 ring = max(ring, math.sqrt(max(d2, 0.0)))
         ring = max(ring, 2.0 * rho * math.sin(dt / 4) if nt > 1 else rho)
-        tang.append(np.full(nt, ring))
+        rhos.append(rho)
+        counts.append(nt)
+        dts.append(dt)
+        areas.append(2.0 * math.pi * rho * dr / nt)
+        tang.append(ring)
         cover = max(cover, ring)
-    pts = np.concatenate(pts)
+    nts = np.asarray(counts, np.int64)
+    which = np.repeat(np.arange(nr), nts)
+    k = np.arange(len(which)) - np.repeat(np.cumsum(nts) - nts, nts)  # index within its ring
+    th = (k + 0.5) * np.asarray(dts)[which]
+    rho = np.asarray(rhos)[which]
+    pts = center + rho[:, None] * (np.cos(th)[:, None] * u + np.sin(th)[:, None] * v)
     n = np.cross(u, v)
-    return SurfaceSamples(pts, np.broadcast_to(n, pts.shape).copy(), np.concatenate(areas), cover,
-                          tangent_radius=np.concatenate(tang), normal_height=np.zeros(len(pts)),
-                          patch=np.zeros(len(pts), np.int64), uv=np.concatenate(uv),
+    return SurfaceSamples(pts, np.broadcast_to(n, pts.shape).copy(), np.asarray(areas)[which], cover,
+                          tangent_radius=np.asarray(tang)[which], normal_height=np.zeros(len(pts)),
+                          patch=np.zeros(len(pts), np.int64), uv=np.column_stack([rho, th]),
                           grids=(PatchGrid("rings", 0, width=dr, counts=tuple(counts)),))
 
 

@@ -1,0 +1,61 @@
+"""The collision sample hierarchy's patches (:mod:`graspsim.maps.hierarchy`): the
+compiled patch measurement gives numpy's answer to the bit (the hierarchy decides which
+poses collide, and a scene plan must not change with how it is computed), and every
+child lies within its parent's patch."""
+
+import numpy as np
+import pytest
+
+from graspsim.maps.generate import MapConfig
+from graspsim.maps.hierarchy import _patches, build_levels
+from graspsim.primitives import Box, Cone, Cylinder
+
+
+def _numpy_patches(parents, children, parent_normals, grow, parent):
+    """The numpy implementation the compiled one replaced (the reference)."""
+    order = np.argsort(parent, kind="stable")
+    parent = parent[order]
+    d = children[order] - parents[parent]
+    n = parent_normals[parent]
+    h = np.sum(d * n, axis=1)
+    rt = np.linalg.norm(d - h[:, None] * n, axis=1)
+    P = len(parents)
+    g = np.broadcast_to(np.asarray(grow, float), (len(children),))[order]
+    counts = np.bincount(parent, minlength=P)
+    RT, HN = np.zeros(P), np.zeros(P)
+    has = counts > 0
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])[has]
+    RT[has] = np.maximum.reduceat(rt + g, first)
+    HN[has] = np.maximum.reduceat(np.abs(h) + g, first)
+    return order, RT, HN, np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+
+
+@pytest.mark.parametrize("shape", [Cylinder(0.031, 0.093), Box(0.021, 0.047, 0.066), Cone(0.03, 0.018, 0.07)])
+def test_compiled_patches_equal_numpy_bit_for_bit(shape):
+    coarse, mid = shape.surface_samples(0.01), shape.surface_samples(0.004)
+    rng = np.random.default_rng(1)
+    cases = [(coarse.points, mid.points, coarse.normals, 0.0, coarse.locate(mid)),
+             (coarse.points, mid.points, coarse.normals, rng.random(len(mid)) * 1e-3, coarse.locate(mid))]
+    # a parent with no children, and children given out of parent order
+    parent = rng.integers(1, len(coarse), len(mid))
+    cases.append((coarse.points, mid.points, coarse.normals, 0.0, parent))
+    for args in cases:
+        got, want = _patches(*args), _numpy_patches(*args)
+        for a, b in zip(got, want):
+            assert a.dtype == b.dtype
+            np.testing.assert_array_equal(a, b)
+    order, RT, HN, start = _patches(*cases[2])
+    assert RT[0] == HN[0] == 0.0 and start[1] == 0
+    assert np.all(np.diff(parent[order]) >= 0)  # grouped by parent, stable within
+    assert all(np.all(np.diff(order[start[p]:start[p + 1]]) > 0) for p in range(len(coarse)))
+
+
+def test_every_fine_sample_lies_within_its_parents_patch():
+    lv = build_levels(Cylinder(0.02, 0.06), MapConfig())
+    counts = np.diff(lv["fstart"])
+    M, NM = np.repeat(lv["M"], counts, axis=0), np.repeat(lv["NM"], counts, axis=0)
+    d = lv["F"] - M
+    h = np.sum(d * NM, axis=1)
+    tangential = np.linalg.norm(d - h[:, None] * NM, axis=1)
+    assert np.all(tangential <= np.repeat(lv["RTM"], counts) + 1e-12)
+    assert np.all(np.abs(h) <= np.repeat(lv["HNM"], counts) + 1e-12)

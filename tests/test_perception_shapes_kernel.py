@@ -1,0 +1,53 @@
+"""The compiled signed distances of the fitters' models
+(:mod:`graspsim.perception._sdf_kernel`) equal the numpy formulas of
+:mod:`graspsim.perception.shapes` to the bit -- NaN, signed zeros and the points on a
+model's edges included -- so identification does not change with which one runs."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from graspsim.perception import shapes
+from graspsim.perception._sdf_kernel import model_sdf as compiled
+from graspsim.perception.shapes import DIM_NAMES, sdf_local, to_local
+
+DIMS = {"sphere": [0.03], "cylinder": [0.025, 0.1], "box": [0.03, 0.05, 0.08], "cone": [0.04, 0.015, 0.09],
+        "half_toroid": [0.04, 0.012]}
+
+
+def _inputs(kind: str, seed: int):
+    rng = np.random.default_rng(seed)
+    H = 7
+    R = Rotation.random(H, random_state=seed).as_matrix()
+    R[0] = np.eye(3)  # axis-aligned: points exactly on faces, axes and planes of symmetry
+    t = rng.normal(size=(H, 3)) * 0.01
+    t[0] = 0.0
+    dims = np.asarray(DIMS[kind]) * rng.uniform(0.5, 1.5, size=(H, len(DIMS[kind])))
+    dims[1, :] = 0.0  # degenerate models
+    dims[2, -1] = dims[2, 0]  # a cone with equal radii, a ring with r = R
+    pts = rng.normal(size=(400, 3)) * 0.05
+    grid = np.array([-0.05, -0.02, -0.0, 0.0, 0.0125, 0.02, 0.04, 0.045])
+    pts = np.concatenate([pts, np.stack(np.meshgrid(grid, grid, grid), -1).reshape(-1, 3),
+                          [[np.nan, 0.0, 0.0], [np.inf, 0.0, 1.0]]])
+    return R, t, dims, pts
+
+
+@pytest.mark.parametrize("kind", list(DIM_NAMES))
+def test_compiled_distances_equal_numpys_bit_for_bit(kind):
+    for seed in range(3):
+        R, t, dims, pts = _inputs(kind, seed)
+        with np.errstate(invalid="ignore"):
+            want = sdf_local(kind, to_local(R, t, pts), dims)
+            got = compiled(kind, R, t, dims, pts)
+        assert np.isnan(want).any() and np.isfinite(want).sum() > 0.9 * want.size
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))  # signed zeros and NaNs too
+
+
+def test_model_sdf_takes_the_compiled_path_only_for_what_it_fits():
+    R, t, dims, pts = _inputs("box", 0)
+    assert shapes._kernel_fits("box", R, t, dims, pts)
+    assert not shapes._kernel_fits("box", R, t, dims[:, :2], pts)  # wrong dims count: numpy's path
+    assert not shapes._kernel_fits("box", R.astype(np.float32), t, dims, pts)
+    assert not shapes._kernel_fits("blob", R, t, dims, pts)
+    with pytest.raises(ValueError, match="unknown model kind"), np.errstate(invalid="ignore"):
+        shapes.model_sdf("blob", R, t, dims, pts)

@@ -1,0 +1,42 @@
+"""Disk sampling (:func:`graspsim.primitives._sampling.disk_samples`): the samples of
+all rings made in one pass are those of the ring-by-ring construction, to the bit
+(every collision hierarchy, and so every map and scene plan, is built on them), and
+the layout finds each sample's own cell."""
+
+import math
+
+import numpy as np
+import pytest
+
+from graspsim.primitives._sampling import disk_samples
+
+
+def _ring_by_ring(center, u, v, radius, step):
+    """The reference: each ring's samples made on their own (the former implementation)."""
+    nr = math.ceil(radius / step - 1e-9) or 1
+    dr = radius / nr
+    pts, areas, uv = [], [], []
+    for k in range(nr):
+        rho = (k + 0.5) * dr
+        nt = max(3, math.ceil(2.0 * math.pi * (rho + dr / 2) / step - 1e-9))
+        dt = 2.0 * math.pi / nt
+        th = (np.arange(nt) + 0.5) * dt
+        pts.append(center + rho * (np.cos(th)[:, None] * u + np.sin(th)[:, None] * v))
+        areas.append(np.full(nt, 2.0 * math.pi * rho * dr / nt))
+        uv.append(np.column_stack([np.full(nt, rho), th]))
+    return np.concatenate(pts), np.concatenate(areas), np.concatenate(uv)
+
+
+@pytest.mark.parametrize("radius,step", [(0.037, 0.0006), (0.02, 0.0013), (0.051, 0.004), (0.004, 0.011)])
+def test_disk_samples_equal_the_ring_by_ring_construction(radius, step):
+    center = np.array([0.01, -0.02, 0.066])
+    u, v = np.array([0.6, 0.0, 0.8]), np.array([0.0, 1.0, 0.0])  # off the axes: every product counts
+    s = disk_samples(center, u, v, radius, step)
+    pts, areas, uv = _ring_by_ring(center, u, v, radius, step)
+    np.testing.assert_array_equal(s.points, pts)
+    np.testing.assert_array_equal(s.areas, areas)
+    np.testing.assert_array_equal(s.uv, uv)
+    assert math.isclose(s.areas.sum(), math.pi * radius**2, rel_tol=1e-12)
+    assert np.all(np.linalg.norm(s.points - center, axis=1) <= radius)
+    np.testing.assert_array_equal(s.grids[0].locate(s.uv), np.arange(len(s)))  # each sample in its own cell
+    assert np.all(s.tangent_radius <= s.cover_radius) and s.cover_radius <= step

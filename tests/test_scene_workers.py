@@ -200,3 +200,31 @@ def test_a_dead_worker_leaves_the_segments_to_this_process(caplog):
     assert run_segments(_die_in_a_worker, [(me,), (me,), (me,)], [1, 2, 3], 2) == [me, me, me]
     assert "died" in caplog.text
     assert run_segments(abs, [(-1,), (-2,)], [1, 1], 2) == [1, 2]  # a new pool serves the next call
+
+
+class _OwnDatabase(MapDatabase):
+    """A database subclass with state of its own (as E10's maps built in memory)."""
+
+
+def test_a_database_subclass_is_planned_in_this_process(db, monkeypatch):
+    asked = _spy_workers(monkeypatch)
+    own = _OwnDatabase(db.root, config=db.config)
+    pts = _scene([Box(0.05, 0.06, 0.07), Sphere(0.03)], 7)
+    sp = plan_scene(pts, db=own, rng=np.random.default_rng(9), config=SceneConfig(workers=2))
+    assert asked == [1] and [s.status for s in sp.segments] == ["planned", "planned"]
+
+
+def _resident_is_given(db) -> bool:
+    from graspsim.perception.scene_workers import resident_database
+
+    return resident_database(db) is db
+
+
+def test_only_scene_workers_keep_the_database_sent_to_them(db):
+    """An experiment's own child process (not a scene worker) plans against the database
+    it is given, every time -- never one kept from an earlier call."""
+    import multiprocessing as mp
+
+    assert _resident_is_given(db)
+    with mp.get_context("fork").Pool(1) as pool:  # a child process that is no scene worker
+        assert pool.apply(_resident_is_given, (db,)) and pool.apply(_resident_is_given, (db,))

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from graspsim.errors import InvalidParameterError, PointCloudError
+from graspsim.maps.database import MapDatabase
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.robust import executed_width
 from graspsim.maps.table import TablePlane
@@ -375,9 +376,12 @@ def _without_planning(k: int, seg: np.ndarray, ident: Identification | None, why
 
 def _plan_segments(tasks: list[tuple], db, cfg: SceneConfig) -> list[tuple[SegmentPlan, list[SceneGrasp]]]:
     """:func:`_plan_segment` of every task, on the scene's worker processes unless a
-    plan could build (and store) an FS map: then in this process, in segment order, as
-    each plan matches against the maps stored before it."""
-    workers = 1 if any(builds_maps(t[2], db, cfg.planner) for t in tasks) else cfg.workers
+    plan could build (and store) an FS map -- then in this process, in segment order,
+    as each plan matches against the maps stored before it -- or the database is a
+    subclass of :class:`~graspsim.maps.database.MapDatabase` (it may keep state a copy
+    in a worker would not share, e.g. maps built in memory): in this process too."""
+    parallel = type(db) is MapDatabase and not any(builds_maps(t[2], db, cfg.planner) for t in tasks)
+    workers = cfg.workers if parallel else 1
     return run_segments(_plan_segment_there, tasks, [len(t[0]) for t in tasks], workers)
 
 

@@ -45,6 +45,7 @@ log = logging.getLogger(__name__)
 _pools: dict[int, tuple[int, ProcessPoolExecutor]] = {}  # workers -> (pid, pool)
 _lock = threading.Lock()
 _databases: dict[tuple, object] = {}  # in a worker: the map databases sent to it, by folder and settings
+_in_worker = False  # this process is one of the scene's workers
 
 
 def identify_segment(points: np.ndarray, rng: np.random.Generator, config: IdentifyConfig
@@ -79,17 +80,19 @@ def _pool(workers: int) -> ProcessPoolExecutor:
 
 
 def _start_worker() -> None:
+    global _in_worker
     from graspsim.grades._pads import serial_only
 
     serial_only()  # the parent may have started numba's OpenMP pool: this child must not
     _databases.clear()
+    _in_worker = True
 
 
 def resident_database(db):
-    """In a worker: the :class:`~graspsim.maps.database.MapDatabase` already here for
-    ``db``'s folder and settings (with the maps it has loaded), else ``db``, kept;
-    elsewhere ``db``."""
-    if mp.parent_process() is None:
+    """In a scene worker: the :class:`~graspsim.maps.database.MapDatabase` already here
+    for ``db``'s folder and settings (with the maps it has loaded), else ``db``, kept;
+    elsewhere (this process, any other child process) ``db`` itself."""
+    if not _in_worker:
         return db
     key = (str(db.root), db.settings_digest, db.tol, db.cache_size)
     return _databases.setdefault(key, db)

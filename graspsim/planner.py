@@ -43,7 +43,7 @@ from graspsim.stages import StageClock
 from graspsim.transforms import invert_transform
 
 __all__ = ["PlanStatus", "PlannerConfig", "PartPlan", "PlanResult", "GraspBatch", "TablePlane", "plan",
-           "plan_stream", "plan_shape", "plan_shape_stream", "builds_maps"]
+           "plan_stream", "plan_shape", "plan_shape_stream"]
 
 log = logging.getLogger(__name__)
 
@@ -205,16 +205,6 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig,
     fs = db.get(prim)  # sorted best first: the accepted grasps are a prefix
     fs = fs.select(np.arange(int(fs.accepted.sum())))
     return MatchKind.BUILD, fs.meta.object, stream(fs)
-
-
-def builds_maps(ident: Identification, db: MapDatabase, config: PlannerConfig) -> bool:
-    """Whether planning identification ``ident`` could build and store an FS map (a part
-    with no stored map within the scaling range, ``build_missing`` on): such a plan
-    changes the database that later plans match against."""
-    if not config.build_missing:
-        return False
-    return any(db.match(_canonical_box(p.primitive(), p.T_world_obj)[0],
-                        max_ratio=config.scaling.max_ratio).match is MatchKind.BUILD for p in ident.parts)
 
 
 def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,

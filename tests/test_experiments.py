@@ -422,7 +422,9 @@ def test_bench_scene_quick(tmp_path):
     (p,) = s["planning"]["rows"]  # one 5-object pile planned from its first frame
     stages = sum(p[k] for k in ("backproject", "table", "segment", "identify", "plan"))
     assert p["segments"] >= 1 and 0 < stages <= p["total"] + 1e-6
-    assert "| pile, 5 objects | 1 |" in bench.readme_section(s)
+    assert p["cpu"] > 0 and s["planning"]["warmup_scenes"] == bench.WARMUP  # timed cold, after other scenes
+    text = bench.readme_section(s)
+    assert "| pile, 5 objects | 1 |" in text and "as a user meets a new frame" in text
 
 
 @pytest.mark.slow

@@ -14,7 +14,7 @@ import pytest
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
-from graspsim.perception import scene as scene_module
+from graspsim.perception import scene_segments
 from graspsim.perception.identify import identify
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.scene import SCENE_FIT_POINTS, SceneConfig, plan_scene
@@ -151,7 +151,7 @@ def _spy_workers(monkeypatch) -> list:
         asked.append(workers)
         return run_segments(fn, tasks, sizes, workers)
 
-    monkeypatch.setattr(scene_module, "run_segments", spy)
+    monkeypatch.setattr(scene_segments, "run_segments", spy)
     return asked
 
 

@@ -29,19 +29,17 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from graspsim.errors import InvalidParameterError, PointCloudError
-from graspsim.maps.database import MapDatabase
-from graspsim.maps.graspmap import GraspabilityMap
-from graspsim.maps.robust import executed_width
 from graspsim.maps.table import TablePlane
 from graspsim.perception.identify import Identification
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.mvbb import min_volume_box
 from graspsim.perception.plane import PlaneFit, fit_table
 from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
-from graspsim.perception.scene_reuse import SegmentMemory, find_previous, nothing_new, reused_grasps
-from graspsim.perception.scene_workers import identify_segments, resident_database, run_segments, scene_workers
+from graspsim.perception.scene_reuse import SegmentMemory, find_previous
+from graspsim.perception.scene_segments import SceneGrasp, SegmentPlan, plan_segments, settled_plan
+from graspsim.perception.scene_workers import identify_segments, scene_workers
 from graspsim.perception.segment import cluster_radius, euclidean_clusters
-from graspsim.planner import PlannerConfig, PlanResult, builds_maps, plan_stream
+from graspsim.planner import PlannerConfig
 from graspsim.primitives import Box
 from graspsim.primitives.base import MIN_DIM
 
@@ -152,44 +150,6 @@ class ScenePerception:
 
     def segment_points(self, k: int) -> np.ndarray:
         return self.points[self.segment == k]
-
-
-@dataclass(frozen=True, eq=False)
-class SceneGrasp:
-    """segment: which segment it grasps; T_world_wrist (4, 4) in the cloud's frame;
-    opening: the pad gap to open the jaws to before closing [m]; score: the robust score
-    (expected success; 0: colliding with the scene at its pose); grade: the map's grade;
-    clearance: distance of the gripper to the nearest observed point [m]."""
-
-    segment: int
-    T_world_wrist: np.ndarray
-    opening: float
-    score: float
-    grade: float
-    clearance: float
-
-    def to_dict(self) -> dict:
-        return {"segment": self.segment, "T_world_wrist": self.T_world_wrist.tolist(), "opening": self.opening,
-                "score": self.score, "grade": self.grade, "clearance": self.clearance}
-
-
-@dataclass(frozen=True, eq=False)
-class SegmentPlan:
-    """One segment's planning: points (count), status ("planned": grasps found, "reused": the previous frame's,
-    "no_grasp", "failed": identification could not run, with ``reason``), the primitives
-    identified, grasps scored, seconds."""
-
-    segment: int
-    points: int
-    status: str
-    reason: str | None
-    primitives: tuple[str, ...]
-    scored: int
-    seconds: float
-
-    def to_dict(self) -> dict:
-        return {"segment": self.segment, "points": self.points, "status": self.status, "reason": self.reason,
-                "primitives": list(self.primitives), "scored": self.scored, "seconds": self.seconds}
 
 
 @dataclass(frozen=True, eq=False)
@@ -314,82 +274,6 @@ def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray], reach: fl
     return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
 
 
-def _inner(seg: np.ndarray, cfg: SceneConfig) -> tuple[np.ndarray, np.ndarray]:
-    """The box where new obstacles stop a segment's plan from being reused: its reach
-    box (:func:`_obstacles`) less twice the reuse tolerance."""
-    m = cfg.reach - 2.0 * cfg.reuse_tol
-    return seg.min(axis=0) - m, seg.max(axis=0) + m
-
-
-def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.ndarray | None, db,
-                  cfg: SceneConfig, table: TablePlane, viewpoint: np.ndarray | None = None
-                  ) -> tuple[SegmentPlan, list[SceneGrasp]]:
-    """Segment ``k`` (its thinned points ``seg`` (M, 3), identified as ``ident``) planned
-    against ``obstacles``: its SegmentPlan and best ``keep`` grasps. It draws nothing at
-    random: the same inputs give the same plan in any process, in any order."""
-    t0 = time.perf_counter()
-    pcfg = replace(cfg.planner, table=table, robust=replace(cfg.planner.robust, top=cfg.per_segment))
-    batches: list[GraspabilityMap] = []
-    prims = tuple(p.shape.value for p in ident.parts)
-    stream = plan_stream(seg, db=db, rng=None, config=pcfg, obstacles=obstacles, identification=ident,
-                         viewpoint=viewpoint)  # identified already: no draws
-    try:
-        for item in stream:
-            if isinstance(item, PlanResult):
-                break
-            batches.append(item.map)
-            good = sum(int(np.sum(b.robust > 0)) for b in batches)
-            scored = sum(int(np.isfinite(b.robust).sum()) for b in batches)
-            if good >= cfg.enough or scored >= cfg.per_segment * len(ident.parts):
-                break  # enough found, or every part's scoring budget spent: the rest is unscored
-    finally:
-        stream.close()
-    scored = sum(int(np.isfinite(b.robust).sum()) for b in batches)
-    if not batches:
-        return SegmentPlan(k, len(seg), "no_grasp", None, prims, 0, time.perf_counter() - t0), []
-    gmap = GraspabilityMap.concat(batches, meta=batches[0].meta)
-    gmap = gmap.select(np.isfinite(gmap.robust)).top_k(cfg.keep)  # the rows scored against the scene
-    T_world_obj = gmap.meta.placement.T_cloud_obj
-    T = T_world_obj @ gmap.T_obj_wrist
-    g = db.gripper
-    opening = g.pregrasp_opening(executed_width(gmap))
-    score = np.nan_to_num(gmap.robust.astype(float), nan=0.0)
-    grasps = [SceneGrasp(k, T[i], float(opening[i]), float(score[i]), float(gmap.grade[i]),
-                         float(gmap.clearance[i])) for i in range(len(gmap))]
-    return SegmentPlan(k, len(seg), "planned", None, prims, scored, time.perf_counter() - t0), grasps
-
-
-def _without_planning(k: int, seg: np.ndarray, ident: Identification | None, why: str, old, obstacles, cfg: SceneConfig
-                      ) -> tuple[SegmentPlan, list[SceneGrasp]] | None:
-    """Segment ``k``'s plan and grasps when it needs no planning: its identification
-    failed, or the previous frame's grasps stand (:mod:`~graspsim.perception.scene_reuse`);
-    else None."""
-    if ident is None:
-        return SegmentPlan(k, len(seg), "failed", why, (), 0, 0.0), []
-    if old is None or old.plan.status == "failed":
-        return None
-    if not nothing_new(old.obstacles, obstacles, tol=cfg.reuse_tol, within=_inner(seg, cfg), own=seg):
-        return None
-    g = reused_grasps(old, k)
-    return (replace(old.plan, segment=k, status="reused", seconds=0.0), g) if g else None
-
-
-def _plan_segments(tasks: list[tuple], db, cfg: SceneConfig) -> list[tuple[SegmentPlan, list[SceneGrasp]]]:
-    """:func:`_plan_segment` of every task, on the scene's worker processes unless a
-    plan could build (and store) an FS map -- then in this process, in segment order,
-    as each plan matches against the maps stored before it -- or the database is a
-    subclass of :class:`~graspsim.maps.database.MapDatabase` (it may keep state a copy
-    in a worker would not share, e.g. maps built in memory): in this process too."""
-    parallel = type(db) is MapDatabase and not any(builds_maps(t[2], db, cfg.planner) for t in tasks)
-    workers = cfg.workers if parallel else 1
-    return run_segments(_plan_segment_there, tasks, [len(t[0]) for t in tasks], workers)
-
-
-def _plan_segment_there(seg, k, ident, obstacles, db, *args):
-    """:func:`_plan_segment` with the worker's own copy of the map database (its loaded maps kept)."""
-    return _plan_segment(seg, k, ident, obstacles, resident_database(db), *args)
-
-
 def _identify_new(segs: list[np.ndarray], olds: list, rng: np.random.Generator, cfg: SceneConfig) -> list:
     """(identification or None, why) of every segment: a reused one's, else identified,
     segment k drawing from the k-th generator spawned from ``rng``."""
@@ -425,10 +309,10 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
               for seg, (i, _), o in zip(segs, idents, olds)] if cfg.neighbours else []
     t2 = time.perf_counter()
     obstacles = [_obstacles(per, k, solids, cfg.reach) if cfg.neighbours else None for k in range(len(segs))]
-    done = [_without_planning(k, segs[k], ident, why, olds[k], obstacles[k], cfg)
+    done = [settled_plan(k, segs[k], ident, why, olds[k], obstacles[k], cfg)
             for k, (ident, why) in enumerate(idents)]
     todo = [k for k, d in enumerate(done) if d is None]
-    for k, d in zip(todo, _plan_segments([(segs[k], k, idents[k][0], obstacles[k], db, cfg, table, viewpoint)
+    for k, d in zip(todo, plan_segments([(segs[k], k, idents[k][0], obstacles[k], db, cfg, table, viewpoint)
                                           for k in todo], db, cfg)):
         done[k] = d
     plans, grasps, memory = [], [], []

@@ -1,7 +1,8 @@
 """The collision sample hierarchy's patches (:mod:`graspsim.maps.hierarchy`): the
-compiled patch measurement gives numpy's answer to the bit (the hierarchy decides which
-poses collide, and a scene plan must not change with how it is computed), and every
-child lies within its parent's patch."""
+compiled patch measurement gives numpy's answer (the hierarchy decides which poses
+collide, and a scene plan must not change with how it is computed: the same order and
+patch starts exactly, the patch sizes to a few units in the last place, as numpy's SIMD
+paths differ between CPUs), and every child lies within its parent's patch."""
 
 import numpy as np
 import pytest
@@ -31,7 +32,7 @@ def _numpy_patches(parents, children, parent_normals, grow, parent):
 
 
 @pytest.mark.parametrize("shape", [Cylinder(0.031, 0.093), Box(0.021, 0.047, 0.066), Cone(0.03, 0.018, 0.07)])
-def test_compiled_patches_equal_numpy_bit_for_bit(shape):
+def test_compiled_patches_equal_numpy(shape):
     coarse, mid = shape.surface_samples(0.01), shape.surface_samples(0.004)
     rng = np.random.default_rng(1)
     cases = [(coarse.points, mid.points, coarse.normals, 0.0, coarse.locate(mid)),
@@ -43,7 +44,10 @@ def test_compiled_patches_equal_numpy_bit_for_bit(shape):
         got, want = _patches(*args), _numpy_patches(*args)
         for a, b in zip(got, want):
             assert a.dtype == b.dtype
-            np.testing.assert_array_equal(a, b)
+            if a.dtype.kind == "f":
+                np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-16)
+            else:
+                np.testing.assert_array_equal(a, b)
     order, RT, HN, start = _patches(*cases[2])
     assert RT[0] == HN[0] == 0.0 and start[1] == 0
     assert np.all(np.diff(parent[order]) >= 0)  # grouped by parent, stable within

@@ -1,17 +1,20 @@
-"""Segmentation study: the clustering radius against E10's first frames (issue 17: >= 95 %
-of objects one cluster in packed scenes with >= 1 cm gaps).
+"""Segmentation study: the clustering radius and the number of cameras against E10's first
+frames (issue 17: >= 95 % of objects one cluster in packed scenes with >= 1 cm gaps).
 
 E10 measures segmentation on the first frame of each scene. This script renders exactly
 those frames -- scene ``i`` is ``make_scene(n, kind, derived_seed(seed, "scene", i))``,
 its depth noise and table fit draw from ``rng_for(seed, "clutter", i)`` as the episode's
-do -- perceives them with ``SceneConfig()`` (table, points above it on a 3 mm grid), and
-clusters the same points at each ``--radii`` value and by the rule used before this
-study (2.5 x the points' median nearest-neighbour spacing, within 3-7 mm: "spacing").
-Per condition: objects seen (>= 40 points), one cluster (``one_cluster_objects``), and of
-the others those *merged* (their largest segment is mixed: < 90 % theirs) and *split*
-(the rest: spread over segments, or not segmented). And per kind and size the closest observed
-points of two different objects (the gap the radius must stay under) with the objects'
-footprint gap. No planning, no grasps.
+do -- from E10's one camera, and from ``rig(k)`` for each other ``--cameras`` value (the
+views fused into one cloud, each drawing its depth noise in turn from the same stream).
+Each cloud is perceived with ``SceneConfig()`` (table, points above it on a 3 mm grid)
+and the same points are clustered by the library's rule (``cluster_radius``: 2.5 x the
+median nearest-neighbour spacing within 3-7 mm, "default") and at each ``--radii-mm``
+value. Per condition: objects seen (>= 40 points), one cluster (``one_cluster_objects``),
+and of the others those *merged* (their largest segment is mixed: < 90 % theirs) and
+*split* (the rest: spread over segments, or not segmented), and the objects not one
+cluster by name. And per kind and size the closest observed points of two different
+objects in one view (the gap a radius must stay under) with the objects' footprint gap.
+No planning, no grasps.
 
     python experiments/study_segmentation.py
     python experiments/study_segmentation.py --quick --out results/study_segmentation-quick
@@ -22,6 +25,7 @@ from __future__ import annotations
 import json
 import logging
 import sys
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
@@ -52,8 +56,8 @@ class Config:
 
 
 def first_frame(n: int, kind: str, i: int, seed: int, cameras: int = 1):
-    """(perception, per-point object ids, footprint gaps) of E10's first frame of scene i
-    (``cameras`` > 1: that many views around the table, fused)."""
+    """(perception, per-point object ids, footprint gaps, object names) of E10's first frame
+    of scene i (``cameras`` > 1: that many views around the table, fused)."""
     from graspsim.perception.scene import perceive_scene
     from graspsim.sim.camera import fuse, rig
     from graspsim.sim.clutter import ClutterConfig
@@ -67,7 +71,7 @@ def first_frame(n: int, kind: str, i: int, seed: int, cameras: int = 1):
     sim.close()
     points, labels = fuse(frames)
     per = perceive_scene(points, plan_rng, cfg.scene)
-    return per, labels[per.indices], footprint_gaps(scene)
+    return per, labels[per.indices], footprint_gaps(scene), [o.name for o in scene.objects]
 
 
 def merged_objects(truth: np.ndarray, found: np.ndarray, min_seen: int = 40) -> int:
@@ -78,6 +82,18 @@ def merged_objects(truth: np.ndarray, found: np.ndarray, min_seen: int = 40) -> 
         if np.sum(truth == k) >= min_seen and len(segs):
             merged += np.mean(truth[found == np.bincount(segs).argmax()] == k) < 0.9
     return int(merged)
+
+
+def missed_names(truth: np.ndarray, found: np.ndarray, names: list[str]) -> list[str]:
+    """Names of the objects seen that are not one cluster (``one_cluster_objects``' rule,
+    object by object: the others' points count as not this object's)."""
+    from graspsim.sim.clutter import one_cluster_objects
+
+    out = []
+    for k in np.unique(truth[truth >= 0]):
+        seen, one = one_cluster_objects(np.where(truth == k, 0, -1), found)
+        out += [names[k]] * (seen - one)
+    return out
 
 
 def closest_pairs(per, truth: np.ndarray, gaps: np.ndarray) -> list[tuple[float, float]]:
@@ -116,9 +132,10 @@ def _condition(cfg: Config, kind: str, n: int, cameras: int) -> tuple[list[dict]
     scene_cfg = SceneConfig()
     conds = ["default", *(f"{r:g} mm" for r in cfg.radii_mm)]
     counts = {c: np.zeros(4, int) for c in conds}  # seen, one, split, merged
+    missed = {c: Counter() for c in conds}  # objects not one cluster, by name
     pairs = []
     for i in range(cfg.scenes):
-        per, truth, gaps = first_frame(n, kind, i, cfg.seed, cameras)
+        per, truth, gaps, names = first_frame(n, kind, i, cfg.seed, cameras)
         pairs += closest_pairs(per, truth, gaps) if cameras == 1 else []
         for c in conds:
             r = per.radius if c == "default" else float(c.split()[0]) / 1000
@@ -126,11 +143,13 @@ def _condition(cfg: Config, kind: str, n: int, cameras: int) -> tuple[list[dict]
             seen, one = one_cluster_objects(truth, found)
             merged = merged_objects(truth, found)
             counts[c] += (seen, one, seen - one - merged, merged)
+            missed[c].update(missed_names(truth, found, names))
     rows = []
     for c in conds:
         seen, one, split, merged = (int(x) for x in counts[c])
         rows.append({"kind": kind, "objects": n, "cameras": cameras, "radius": c, "seen": seen, "one_cluster": one,
-                     "share": one / seen if seen else None, "split": split, "merged": merged})
+                     "share": one / seen if seen else None, "split": split, "merged": merged,
+                     "not_one_cluster": dict(missed[c].most_common())})
         log.info("%s%d %d camera(s) %-8s one cluster %d/%d, split %d, merged %d", kind, n, cameras, c, one, seen,
                  split, merged)
     return rows, pairs
@@ -149,6 +168,9 @@ def readme_section(s: dict) -> str:
         L.append(f"| {t['kind']} {t['objects']} | {t['cameras']} | {t['radius']} | {share} "
                  f"({t['one_cluster']}/{t['seen']}) | "
                  f"{t['split']} | {t['merged']} |")
+    missed = [f"{t['kind']} {t['objects']}: " + ", ".join(f"{k} {v}" for k, v in t["not_one_cluster"].items())
+              for t in s["table"] if t["cameras"] == 1 and t["radius"] == "default" and t.get("not_one_cluster")]
+    L += ["", f"Objects not one cluster, one camera, the default rule: {'; '.join(missed) or 'none'}."]
     L += ["", "Closest observed points of two different objects in one view (their footprint gap) [mm], the "
           "smallest five pairs:", ""]
     L += [f"- {c['kind']} {c['objects']} ({c['pairs']} pairs): " +

@@ -507,6 +507,7 @@ def test_study_segmentation_quick_counts_every_object_once(tmp_path):
     for t in rows.values():  # every object seen is one cluster, split or merged
         assert t["seen"] >= 8 and t["one_cluster"] + t["split"] + t["merged"] == t["seen"]
         assert t["merged"] == 0  # packed objects stand >= 1 cm apart
+        assert sum(t["not_one_cluster"].values()) == t["seen"] - t["one_cluster"]
     (c,) = s["closest"]
     assert c["pairs"] >= 8 and min(c["closest_mm"]) > 7.0  # the 1 cm gaps stay wider than the radius
     assert s["command"] in study.readme_section(s)

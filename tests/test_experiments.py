@@ -500,14 +500,16 @@ def test_study_fit_points_quick_counts_agreement_against_every_point(tmp_path):
 
 def test_study_segmentation_quick_counts_every_object_once(tmp_path):
     study = _load("study_segmentation")
-    assert study.main(["--quick", "--out", str(tmp_path / "s")]) == 0
+    # 2 mm: under the 3 mm grid's spacing, so objects break into pieces (counted as split)
+    assert study.main(["--quick", "--radii-mm", "2", "7", "--out", str(tmp_path / "s")]) == 0
     s = _summary(tmp_path / "s")
     rows = {t["radius"]: t for t in s["table"]}
-    assert set(rows) == {"default", "7 mm"} and {t["cameras"] for t in s["table"]} == {1}
+    assert set(rows) == {"default", "2 mm", "7 mm"} and {t["cameras"] for t in s["table"]} == {1}
     for t in rows.values():  # every object seen is one cluster, split or merged
         assert t["seen"] >= 8 and t["one_cluster"] + t["split"] + t["merged"] == t["seen"]
         assert t["merged"] == 0  # packed objects stand >= 1 cm apart
         assert sum(t["not_one_cluster"].values()) == t["seen"] - t["one_cluster"]
+    assert rows["2 mm"]["split"] > 0 and rows["2 mm"]["one_cluster"] < rows["7 mm"]["one_cluster"]
     (c,) = s["closest"]
     assert c["pairs"] >= 8 and min(c["closest_mm"]) > 7.0  # the 1 cm gaps stay wider than the radius
     assert s["command"] in study.readme_section(s)

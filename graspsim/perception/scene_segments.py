@@ -101,18 +101,18 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     prims = tuple(p.shape.value for p in ident.parts)
     stream = plan_stream(seg, db=db, rng=None, config=pcfg, obstacles=obstacles, identification=ident,
                          viewpoint=viewpoint)  # identified already: no draws
+    good = scored = 0  # over the batches so far
     try:
         for item in stream:
             if isinstance(item, PlanResult):
                 break
             batches.append(item.map)
-            good = sum(int(np.sum(b.robust > 0)) for b in batches)
-            scored = sum(int(np.isfinite(b.robust).sum()) for b in batches)
+            good += int(np.sum(item.map.robust > 0))
+            scored += int(np.isfinite(item.map.robust).sum())
             if good >= cfg.enough or scored >= cfg.per_segment * len(ident.parts):
                 break  # enough found, or every part's scoring budget spent: the rest is unscored
     finally:
         stream.close()
-    scored = sum(int(np.isfinite(b.robust).sum()) for b in batches)
     if not batches:
         return SegmentPlan(k, len(seg), "no_grasp", None, prims, 0, time.perf_counter() - t0), []
     gmap = GraspabilityMap.concat(batches, meta=batches[0].meta)

@@ -149,14 +149,14 @@ def first_frame(kind: str, seed: int):
     noise), and the scene settings E10 plans it with."""
     from graspsim.seeding import rng_for
     from graspsim.sim.camera import rig
-    from graspsim.sim.clutter import ClutterConfig
+    from graspsim.sim.clutter import ClutterConfig, scene_settings
     from graspsim.sim.scenes import make_scene
 
-    clutter = ClutterConfig()  # E10's settings: its scene planning, its sensor noise
+    clutter = ClutterConfig()  # E10's settings: its sensor noise, its scene planning (the kind's gap)
     sim = make_scene(5, kind, seed).sim()
     frame = sim.render(rig(1)[0], noise=clutter.depth_noise, rng=rng_for(seed, "depth"))
     sim.close()
-    return frame, clutter.scene
+    return frame, scene_settings(kind)
 
 
 def _plan(points, scene_cfg, seed: int, db, workers: int):

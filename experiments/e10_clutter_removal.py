@@ -53,8 +53,7 @@ from _common import (
 from graspsim.errors import MapDatabaseError, NoFeasibleGraspError, SimulationError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import generate_fs_map
-from graspsim.perception.scene import SceneConfig
-from graspsim.sim.clutter import OTHER, ClutterConfig, run_benchmark, summarize
+from graspsim.sim.clutter import OTHER, ClutterConfig, run_benchmark, scene_settings, summarize
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.stats import wilson_interval
 
@@ -96,7 +95,7 @@ def conditions(cfg: Config) -> list[dict]:
 
 
 def _clutter_config(c: dict) -> ClutterConfig:
-    return ClutterConfig(scene=SceneConfig(neighbours=c["ablation"] != "no_neighbours"),
+    return ClutterConfig(scene=scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"),
                          execution=ExecutionNoise() if c["noise"] == "default" else None,
                          ground_truth=c["ablation"] == "ground_truth")
 

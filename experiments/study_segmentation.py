@@ -6,10 +6,13 @@ those frames -- scene ``i`` is ``make_scene(n, kind, derived_seed(seed, "scene",
 its depth noise and table fit draw from ``rng_for(seed, "clutter", i)`` as the episode's
 do -- from E10's one camera, and from ``rig(k)`` for each other ``--cameras`` value (the
 views fused into one cloud, each drawing its depth noise in turn from the same stream).
-Each cloud is perceived with ``SceneConfig()`` (table, points above it on a 3 mm grid)
-and the same points are clustered by the library's rule (``cluster_radius``: 2.5 x the
-median nearest-neighbour spacing within 3-7 mm, "default") and at each ``--radii-mm``
-value. Per condition: objects seen (>= 40 points), one cluster (``one_cluster_objects``),
+Each cloud is perceived with E10's settings for its kind (``scene_settings(kind)``:
+table, points above it on a 3 mm grid, clustered at the library's radius, "default":
+for packed scenes, whose objects stand >= 1 cm apart, ``GAP_LINK`` x 1 cm; for piles the
+spacing rule), and the same points are clustered by the spacing rule alone
+(``cluster_radius`` without a known gap: 2.5 x the median nearest-neighbour spacing
+within 3-7 mm, "spacing"; packed scenes only, as for piles it is the default) and at each
+``--radii-mm`` value. Per condition: objects seen (>= 40 points), one cluster (``one_cluster_objects``),
 and of the others those *merged* (their largest segment is mixed: < 90 % theirs) and
 *split* (the rest: spread over segments, or not segmented), and the objects not one
 cluster by name. And per kind and size the closest observed points of two different
@@ -60,7 +63,7 @@ def first_frame(n: int, kind: str, i: int, seed: int, cameras: int = 1):
     of scene i (``cameras`` > 1: that many views around the table, fused)."""
     from graspsim.perception.scene import perceive_scene
     from graspsim.sim.camera import fuse, rig
-    from graspsim.sim.clutter import ClutterConfig
+    from graspsim.sim.clutter import ClutterConfig, scene_settings
     from graspsim.sim.scenes import footprint_gaps, make_scene
 
     cfg = ClutterConfig()
@@ -70,7 +73,7 @@ def first_frame(n: int, kind: str, i: int, seed: int, cameras: int = 1):
     frames = [sim.render(cam, noise=cfg.depth_noise, rng=depth_rng) for cam in rig(cameras)]
     sim.close()
     points, labels = fuse(frames)
-    per = perceive_scene(points, plan_rng, cfg.scene)
+    per = perceive_scene(points, plan_rng, scene_settings(kind))
     return per, labels[per.indices], footprint_gaps(scene), [o.name for o in scene.objects]
 
 
@@ -125,12 +128,11 @@ def run(cfg: Config) -> dict:
 
 def _condition(cfg: Config, kind: str, n: int, cameras: int) -> tuple[list[dict], list]:
     """The table rows of one kind, size and camera count, and the closest pairs seen."""
-    from graspsim.perception.scene import SceneConfig
-    from graspsim.perception.segment import euclidean_clusters
-    from graspsim.sim.clutter import one_cluster_objects
+    from graspsim.perception.segment import cluster_radius, euclidean_clusters
+    from graspsim.sim.clutter import one_cluster_objects, scene_settings
 
-    scene_cfg = SceneConfig()
-    conds = ["default", *(f"{r:g} mm" for r in cfg.radii_mm)]
+    scene_cfg = scene_settings(kind)
+    conds = ["default", *(["spacing"] if scene_cfg.min_gap is not None else []), *(f"{r:g} mm" for r in cfg.radii_mm)]
     counts = {c: np.zeros(4, int) for c in conds}  # seen, one, split, merged
     missed = {c: Counter() for c in conds}  # objects not one cluster, by name
     pairs = []
@@ -138,7 +140,8 @@ def _condition(cfg: Config, kind: str, n: int, cameras: int) -> tuple[list[dict]
         per, truth, gaps, names = first_frame(n, kind, i, cfg.seed, cameras)
         pairs += closest_pairs(per, truth, gaps) if cameras == 1 else []
         for c in conds:
-            r = per.radius if c == "default" else float(c.split()[0]) / 1000
+            r = (per.radius if c == "default" else cluster_radius(per.points, max_radius=scene_cfg.max_radius)
+                 if c == "spacing" else float(c.split()[0]) / 1000)
             found = euclidean_clusters(per.points, radius=r, min_points=scene_cfg.min_points)
             seen, one = one_cluster_objects(truth, found)
             merged = merged_objects(truth, found)
@@ -159,8 +162,9 @@ def readme_section(s: dict) -> str:
     """One table: objects one cluster / split / merged per scene kind, size and radius."""
     L = [f"`{s['command']}`: the first frame of each of E10's scenes ({s['config']['scenes']} per kind and size, "
          "D435-like cameras, sensor noise on; 1 camera is E10's view, 2 are two views fused), clustered at each "
-         "radius; *default* is the library's rule (2.5 x the median nearest-neighbour spacing, 3-7 mm; 5.7 mm on "
-         "these 3 mm grids). Objects with >= 40 points; *split*: its largest "
+         "radius; *default* is E10's: for packed scenes, whose objects stand >= 1 cm apart, 0.8 x that gap "
+         "(8 mm), for piles the *spacing* rule (2.5 x the median nearest-neighbour spacing, 3-7 mm; 5.7 mm on these "
+         "3 mm grids). Objects with >= 40 points; *split*: its largest "
          "segment is >= 90 % its own but holds < 90 % of it (or none), *merged*: that segment is mixed.", "",
          "| scene | cameras | radius | one cluster | split | merged |", "|---|---|---|---|---|---|"]
     for t in s["table"]:

@@ -504,14 +504,16 @@ def test_study_segmentation_quick_counts_every_object_once(tmp_path):
     assert study.main(["--quick", "--radii-mm", "2", "7", "--out", str(tmp_path / "s")]) == 0
     s = _summary(tmp_path / "s")
     rows = {t["radius"]: t for t in s["table"]}
-    assert set(rows) == {"default", "2 mm", "7 mm"} and {t["cameras"] for t in s["table"]} == {1}
+    # packed scenes: E10's radius from their 1 cm gap ("default") and the spacing rule without it
+    assert set(rows) == {"default", "spacing", "2 mm", "7 mm"} and {t["cameras"] for t in s["table"]} == {1}
     for t in rows.values():  # every object seen is one cluster, split or merged
         assert t["seen"] >= 8 and t["one_cluster"] + t["split"] + t["merged"] == t["seen"]
         assert t["merged"] == 0  # packed objects stand >= 1 cm apart
         assert sum(t["not_one_cluster"].values()) == t["seen"] - t["one_cluster"]
     assert rows["2 mm"]["split"] > 0 and rows["2 mm"]["one_cluster"] < rows["7 mm"]["one_cluster"]
+    assert rows["default"]["one_cluster"] >= rows["spacing"]["one_cluster"]  # a wider radius, nothing merged
     (c,) = s["closest"]
-    assert c["pairs"] >= 8 and min(c["closest_mm"]) > 7.0  # the 1 cm gaps stay wider than the radius
+    assert c["pairs"] >= 8 and min(c["closest_mm"]) > 8.0  # the 1 cm gaps stay wider than E10's 8 mm radius
     assert s["command"] in study.readme_section(s)
 
 

@@ -14,7 +14,7 @@ from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
 from graspsim.perception.plane import fit_table
 from graspsim.perception.scene import SceneConfig, perceive_scene, plan_scene
-from graspsim.perception.segment import cluster_radius, euclidean_clusters
+from graspsim.perception.segment import GAP_LINK, cluster_radius, euclidean_clusters
 from graspsim.primitives import Box, Cylinder, Sphere
 from graspsim.primitives.clouds import table_scene_cloud
 from graspsim.transforms import invert_transform, make_transform
@@ -83,9 +83,39 @@ def test_segmentation_one_cluster_per_object_at_1_cm_gaps(tilt, resolution):
     assert per.n_segments == len(shapes)
     assert all(_one_cluster_each(truth, per.labels))
     assert per.radius <= SceneConfig().max_radius
+    # objects known to stand >= 1 cm apart: the wider radius still keeps them apart
+    known = perceive_scene(pts, np.random.default_rng(0), SceneConfig(up=tuple(_table(tilt)[:3, 2]), min_gap=0.01))
+    assert known.n_segments == len(shapes) and all(_one_cluster_each(truth, known.labels))
     # the ground truth given as labels gives the same objects
     given = perceive_scene(pts, np.random.default_rng(0), SceneConfig(up=tuple(_table(tilt)[:3, 2])), labels=truth)
     assert given.n_segments == len(shapes) and all(_one_cluster_each(truth, given.labels))
+
+
+@pytest.mark.parametrize("tilt", TILTS)
+def test_a_known_gap_joins_an_objects_parts_across_less_and_keeps_objects_that_far_apart(tilt):
+    """Two boxes 6.5 mm apart are one object's parts (a crevice seen from one view); the
+    objects stand 1 cm apart. The spacing rule splits the object; told that objects stand
+    >= 1 cm apart, segmentation links across GAP_LINK x 1 cm and finds each object whole."""
+    shapes = [Box(0.05, 0.06, 0.1), Box(0.03, 0.06, 0.08), Cylinder(0.03, 0.12), Sphere(0.03), Box(0.04, 0.08, 0.05)]
+    widths = [s.aabb[1, 0] - s.aabb[0, 0] for s in shapes]
+    gaps = [0.0065, 0.010, 0.010, 0.010]
+    left = np.concatenate([[0.0], np.cumsum(np.add(widths[:-1], gaps))]) - 0.2
+    xy = np.column_stack([left + 0.5 * np.array(widths), np.zeros(len(shapes))])
+    pts, truth, _ = table_scene_cloud(shapes, xy, np.random.default_rng(5), resolution=0.003, noise=0.001,
+                                      T_world_table=_table(tilt))
+    truth = np.where(truth >= 1, truth - 1, truth)  # boxes 0 and 1 are one object
+    up = tuple(_table(tilt)[:3, 2])
+    spacing = perceive_scene(pts, np.random.default_rng(0), SceneConfig(up=up))
+    assert _one_cluster_each(truth, spacing.labels) == [False, True, True, True]  # the crevice splits it
+    known = perceive_scene(pts, np.random.default_rng(0), SceneConfig(up=up, min_gap=0.01))
+    assert known.radius == pytest.approx(GAP_LINK * 0.01)
+    assert known.n_segments == 4 and all(_one_cluster_each(truth, known.labels))
+    assert SceneConfig(min_gap=0.01, radius=0.004).radius == 0.004  # an explicit radius still rules
+    for bad in (0.0, -0.01, 0.2, float("nan"), True):
+        with pytest.raises(GraspsimError, match="min_gap"):
+            SceneConfig(min_gap=bad)
+        with pytest.raises(GraspsimError, match="min_gap"):
+            cluster_radius(pts, min_gap=bad)
 
 
 def test_euclidean_clusters_by_size_and_noise():

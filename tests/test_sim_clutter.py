@@ -12,8 +12,16 @@ from graspsim.errors import InvalidParameterError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
 from graspsim.primitives import Box, Cylinder, Sphere
-from graspsim.sim.clutter import STOPS, ClutterConfig, one_cluster_objects, run_benchmark, run_clutter, summarize
-from graspsim.sim.scenes import load_scene, make_scene
+from graspsim.sim.clutter import (
+    STOPS,
+    ClutterConfig,
+    one_cluster_objects,
+    run_benchmark,
+    run_clutter,
+    scene_settings,
+    summarize,
+)
+from graspsim.sim.scenes import PACKED_GAP, known_gap, load_scene, make_scene
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
 FAST_FLAGS = ["--surface-step", "0.01", "--rotation-step-deg", "22"]
@@ -35,6 +43,15 @@ def test_one_cluster_objects_counts_merges_and_splits():
     noisy = found.copy()
     noisy[[0, 1]] = -1  # unsegmented points do not count against the object
     assert one_cluster_objects(truth, noisy, min_seen=40) == (3, 2)
+
+
+def test_scene_settings_know_the_gap_of_packed_scenes_only():
+    assert known_gap("packed") == PACKED_GAP == 0.01 and known_gap("pile") is None
+    assert scene_settings("packed").min_gap == PACKED_GAP and scene_settings("pile").min_gap is None
+    assert scene_settings("packed", neighbours=False).neighbours is False
+    assert scene_settings("packed", min_gap=0.02).min_gap == 0.02  # the user's word wins
+    with pytest.raises(InvalidParameterError, match="heap"):
+        known_gap("heap")
 
 
 def test_clutter_episode_is_deterministic_and_its_counts_add_up(db):
@@ -82,6 +99,7 @@ def test_cli_scene_json_and_renders(tmp_path, capsys, db):
                  "--save-scenes", str(tmp_path / "s"), "--json"])
     s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert code == 0 and s["scenes"] == 1 and s["placed"] == 2
+    assert s["min_gap"] == PACKED_GAP  # a packed scene's objects stand apart: segmentation relies on it
     assert s["grasp_success_rate"] == s["successes"] / s["attempts"] and s["cleared_rate"] == s["removed"] / 2
     assert len(s["details"]) == 1 and s["details"][0]["attempts"] == s["attempts"]
     assert len(list((tmp_path / "r").glob("scene000_step*.png"))) == s["attempts"]
@@ -111,6 +129,10 @@ def test_cli_scene_honours_gripper(tmp_path, capsys):
     (["--object-set", "toys"], "unknown"),
     (["--kind", "heap"], "invalid choice"),
     (["--scenes", "x"], "--scenes"),
+    (["--min-gap", "0.5"], "--min-gap"),
+    (["--min-gap", "-0.01"], "--min-gap"),
+    (["--min-gap", "nan"], "--min-gap"),
+    (["--min-gap", "1cm"], "--min-gap"),
 ])
 def test_cli_scene_bad_arguments_are_one_line_errors(args, message, capsys, tmp_path):
     try:

@@ -1,7 +1,7 @@
 """``graspsim scene``: clutter removal on simulated table-top scenes seen by a depth camera.
 
     graspsim scene [--objects N] [--scenes S] [--kind pile|packed] [--object-set SET]
-                   [--noise] [--no-neighbours] [--ground-truth] [--max-attempts M]
+                   [--min-gap M] [--noise] [--no-neighbours] [--ground-truth] [--max-attempts M]
                    [--seed S] [--db DIR] [--gripper NAME|SPEC.json] [--render DIR]
                    [--save-scenes DIR] [--json]
 
@@ -31,7 +31,7 @@ def _cmd_scene(args) -> int:
     from graspsim.sim.clutter import ClutterConfig, run_benchmark, summarize
     from graspsim.sim.noise import ExecutionNoise
     from graspsim.sim.scene_objects import OBJECT_SETS
-    from graspsim.sim.scenes import MAX_OBJECTS
+    from graspsim.sim.scenes import MAX_OBJECTS, known_gap
 
     if args.objects > MAX_OBJECTS:
         raise InvalidParameterError(f"--objects must be at most {MAX_OBJECTS}, got {args.objects}")
@@ -41,7 +41,10 @@ def _cmd_scene(args) -> int:
     saves = check_folder(args.save_scenes, "scene folder") if args.save_scenes else None
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
         raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
-    cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours),
+    gap = known_gap(args.kind) if args.min_gap is None else (args.min_gap or None)
+    if gap is not None and not 0 < gap <= 0.1:
+        raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}")
+    cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours, min_gap=gap),
                         execution=ExecutionNoise() if args.noise else None, ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts)
     map_cfg, quality = _config(args)
@@ -66,7 +69,7 @@ def _cmd_scene(args) -> int:
     s = {"kind": args.kind, "objects": args.objects, "object_set": args.object_set, "seed": args.seed,
          "gripper": db.gripper.name,
          "execution_noise": None if cfg.execution is None else cfg.execution.to_dict(),
-         "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth,
+         "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth, "min_gap": gap,
          **summarize(results), "render": None if render is None else str(render), "details": details}
     rows = [(d["scene"], len(d["objects"]), d["removed"], d["attempts"], d["successes"], d["stop"],
              f"{d['first_one_cluster']}/{d['first_seen']}") for d in details]
@@ -105,6 +108,9 @@ def register(sub) -> None:
     p.add_argument("--scenes", type=whole_number(1), default=1, help="scenes (1)")
     p.add_argument("--kind", choices=["pile", "packed"], default="pile",
                    help="pile: dropped and settled; packed: upright side by side, >= 1 cm apart (pile)")
+    p.add_argument("--min-gap", type=float, default=None, metavar="M",
+                   help="least gap [m] between any two objects, which segmentation may rely on (0: none; default: "
+                   "the kind's: packed 0.01, pile none)")
     p.add_argument("--object-set", default="mixed", help="objects drawn from this set (mixed)")
     p.add_argument("--noise", action="store_true", help="execution error: the arm misses each pose by 3 mm / 2 deg "
                    "(sigma)")

@@ -71,9 +71,8 @@ class ClutterClearEnv(gym.Env):
     def __init__(self, render_mode: str | None = None, *, config: ClutterEnvConfig | None = None, **kwargs):
         from graspsim.grippers import get_gripper
         from graspsim.maps.database import MapDatabase
-        from graspsim.perception.scene import SceneConfig
         from graspsim.sim.camera import rig
-        from graspsim.sim.clutter import ClutterConfig
+        from graspsim.sim.clutter import ClutterConfig, scene_settings
         from graspsim.sim.depth_noise import DepthNoise
         from graspsim.sim.noise import ExecutionNoise
 
@@ -84,7 +83,7 @@ class ClutterClearEnv(gym.Env):
         self.render_mode = render_mode
         self.db = MapDatabase(c.db_root, gripper=get_gripper(c.gripper), config=c.map_config)
         self.clutter_config = ClutterConfig(
-            scene=SceneConfig(neighbours=c.neighbours), depth_noise=DepthNoise() if c.depth_noise else None,
+            scene=scene_settings(c.kind, neighbours=c.neighbours), depth_noise=DepthNoise() if c.depth_noise else None,
             execution=ExecutionNoise() if c.execution_error else None, max_failures=c.max_failures,
             max_attempts=c.max_attempts)
         self.camera = rig(1)[0]

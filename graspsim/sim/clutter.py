@@ -32,14 +32,23 @@ from graspsim.perception.scene import SceneConfig, plan_scene
 from graspsim.perception.scene_reuse import drop_grasp, near_pose
 from graspsim.sim.camera import Camera, DepthNoise, backproject, rig
 from graspsim.sim.noise import ExecutionNoise
+from graspsim.sim.scenes import known_gap
 
-__all__ = ["ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame", "ClutterEpisode", "run_clutter",
-           "run_benchmark", "summarize", "one_cluster_objects", "STOPS", "OTHER"]
+__all__ = ["scene_settings", "ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame", "ClutterEpisode",
+           "run_clutter", "run_benchmark", "summarize", "one_cluster_objects", "STOPS", "OTHER"]
 
 #: Why an episode ended.
 STOPS = ("cleared", "failures", "no_grasp", "max_attempts")
 #: The cause of a grasp that lifted an object other than its target.
 OTHER = "success_other_object"
+
+
+def scene_settings(kind: str, **kw) -> SceneConfig:
+    """``SceneConfig(**kw)`` for planning scenes of ``kind`` made by
+    :func:`~graspsim.sim.scenes.make_scene`, with the least gap such scenes keep between
+    objects as ``min_gap`` (packed: 1 cm; piles: none, :func:`~graspsim.sim.scenes.known_gap`):
+    what a user who placed the objects knows."""
+    return SceneConfig(**{"min_gap": known_gap(kind), **kw})
 
 
 @dataclass(frozen=True)

@@ -34,9 +34,12 @@ from graspsim.sim.scene_sim import SceneOutcome, SceneSim
 from graspsim.transforms import make_transform, quat_to_matrix, random_rotation
 
 __all__ = ["PlacedObject", "TableScene", "make_scene", "save_scene", "load_scene", "footprint_gaps", "object_view",
-           "SceneSim", "SceneOutcome", "KINDS"]
+           "SceneSim", "SceneOutcome", "KINDS", "PACKED_GAP", "known_gap"]
 
 KINDS = ("pile", "packed")
+#: The least footprint gap [m] between the objects of a packed scene (``make_scene``'s
+#: default ``gap``; the issue's packed scenes: >= 1 cm).
+PACKED_GAP = 0.01
 FORMAT = "graspsim.table_scene/1"
 MAX_OBJECTS = 30
 
@@ -201,9 +204,19 @@ def _settled(sim: SceneSim, kind: str, gap: float, specs) -> list[PlacedObject] 
     return placed
 
 
+def known_gap(kind: str) -> float | None:
+    """The least gap [m] known to part any two objects of a scene of ``kind`` made with
+    the default ``gap`` (what whoever placed them knows; segmentation may rely on it,
+    ``SceneConfig.min_gap``): :data:`PACKED_GAP` for packed scenes, None for piles (their
+    objects touch)."""
+    if kind not in KINDS:
+        raise InvalidParameterError(f"scene kind {kind!r} unknown; valid: {list(KINDS)}")
+    return PACKED_GAP if kind == "packed" else None
+
+
 def make_scene(n_objects: int, kind: str = "pile", seed: int = 0, *, object_set: str = "mixed",
                gripper: GripperSpec = HGPL_25_60_A, settings: SimSettings = SimSettings(),
-               area: float = 0.3, gap: float = 0.01, max_attempts: int = 8) -> TableScene:
+               area: float = 0.3, gap: float = PACKED_GAP, max_attempts: int = 8) -> TableScene:
     """A settled scene of ``n_objects`` drawn from ``object_set`` (see the module
     docstring); area [m]: side of the drop square; gap [m]: least footprint gap of packed
     scenes. Deterministic: the stream is ``rng_for(seed, "table_scene", kind, n_objects)``."""

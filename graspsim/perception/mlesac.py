@@ -16,10 +16,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from graspsim.errors import InvalidParameterError
 from graspsim.perception.hypotheses import SAMPLE_SIZE, hypothesise, plausible
+from graspsim.perception.refine import refine_model
 from graspsim.perception.shapes import KINDS, model_sdf
 from graspsim.perception.support import extent_ratio
 
@@ -190,8 +190,8 @@ def _finish(kind, points, best, sigma, nu, refine, max_refine_points, n_hyp, n_v
     """Refine the best hypothesis (kept if more likely) and summarise it."""
     refined = False
     if refine:
-        cand = _refine(kind, best[0], best[1], best[2], points, best[5] > 0.5, sigma,
-                       max_refine_points)
+        cand = refine_model(kind, best[0], best[1], best[2], points, best[5] > 0.5, sigma,
+                             max_refine_points)
         if cand is not None:  # the refinement may have moved an unseen end anywhere
             trim = _trim_to_support(kind, cand[0][0], cand[1][0], cand[2][0], points[best[5] > 0.5], sigma)
             if trim is not None:
@@ -253,52 +253,3 @@ def rescore(fit: ModelFit, points: np.ndarray, sigma: float) -> ModelFit:
     rms = float(np.sqrt(np.mean(res[0][inl] ** 2))) if inl.any() else float("inf")
     return replace(fit, loglik=float(ll[0]), gamma=float(gamma[0]), fit_rate=float(inl.mean()),
                    rms=rms, inliers=inl)
-
-
-def _refine(kind, R0, t0, d0, points, inliers, sigma, max_points, max_nfev=12):
-    """Soft-L1 least squares of the signed distances of (a stride subsample of) the
-    inliers over pose and dims. Returns batched (R, t, dims) with H = 1, or None.
-    The forward-difference Jacobian is one batched SDF call over all perturbations."""
-    sel = np.flatnonzero(inliers)
-    if len(sel) < 2 * (6 + len(d0)):
-        return None
-    if len(sel) > max_points:
-        sel = sel[np.linspace(0, len(sel) - 1, max_points).astype(int)]
-    p = points[sel]
-    scale = max(float(np.max(d0)), 10.0 * sigma)
-    eps = 1e-7
-
-    def unpack(X):  # X (H, 6 + k)
-        R = np.einsum("ij,hjk->hik", R0, _rodrigues(X[:, :3]))
-        return R, t0 + X[:, 3:6] * scale, np.abs(X[:, 6:]) * scale
-
-    def fun(x):
-        return model_sdf(kind, *unpack(x[None]), p)[0] / sigma
-
-    def jac(x):
-        X = np.vstack([x, x + eps * np.eye(len(x))])
-        F = model_sdf(kind, *unpack(X), p) / sigma
-        return ((F[1:] - F[0]) / eps).T
-
-    x0 = np.concatenate([np.zeros(6), d0 / scale])
-    try:
-        sol = least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=2.0, max_nfev=max_nfev,
-                            ftol=1e-3, xtol=1e-3, method="trf")
-    except (ValueError, np.linalg.LinAlgError):
-        return None
-    if not np.all(np.isfinite(sol.x)):
-        return None
-    return unpack(sol.x[None])
-
-
-def _rodrigues(w: np.ndarray) -> np.ndarray:
-    """Rotation matrices (H, 3, 3) of rotation vectors w (H, 3) [rad]."""
-    th = np.linalg.norm(w, axis=1)
-    K = np.zeros((len(w), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
-    small = th < 1e-6
-    ths = np.where(small, 1.0, th)
-    a = np.where(small, 1.0, np.sin(ths) / ths)[:, None, None]
-    b = np.where(small, 0.5, (1.0 - np.cos(ths)) / ths**2)[:, None, None]
-    return np.eye(3) + a * K + b * (K @ K)

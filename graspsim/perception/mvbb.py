@@ -18,6 +18,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from graspsim.errors import PointCloudError
+from graspsim.perception.prepare import first_of_each_row
 from graspsim.transforms import make_transform, normalize
 
 __all__ = ["OrientedBox", "min_volume_box", "pca_box"]
@@ -131,7 +132,7 @@ def _thin_vertices(V: np.ndarray, target: int) -> np.ndarray:
     """About ``target`` of the points V (M, 3), one per voxel, the voxel grown until so."""
     cell = float(np.max(np.ptp(V, axis=0))) / np.sqrt(target / 6.0)
     while True:
-        _, first = np.unique(np.floor(V / cell).astype(np.int64), axis=0, return_index=True)
+        first = first_of_each_row(np.floor(V / cell).astype(np.int64))
         if len(first) <= target:
-            return V[np.sort(first)]
+            return V[first]
         cell *= 1.25

@@ -34,10 +34,13 @@ def rodrigues(w: np.ndarray) -> np.ndarray:
     th = np.sqrt(np.add.reduce(w * w, axis=1))
     K = (np.concatenate([w, np.zeros((len(w), 1))], axis=1)[:, _K_INDEX] * _K_SIGN).reshape(-1, 3, 3)
     small = th < 1e-6
-    ths = np.where(small, 1.0, th)
-    a = np.where(small, 1.0, np.sin(ths) / ths)[:, None, None]
-    b = np.where(small, 0.5, (1.0 - np.cos(ths)) / ths**2)[:, None, None]
-    return _EYE3 + a * K + b * (K @ K)
+    if small.any():  # the series' limits there (np.where: the other values as they are)
+        ths = np.where(small, 1.0, th)
+        a = np.where(small, 1.0, np.sin(ths) / ths)
+        b = np.where(small, 0.5, (1.0 - np.cos(ths)) / ths**2)
+    else:
+        a, b = np.sin(th) / th, (1.0 - np.cos(th)) / th**2
+    return _EYE3 + a[:, None, None] * K + b[:, None, None] * (K @ K)
 
 
 def refine_model(kind: str, R0: np.ndarray, t0: np.ndarray, d0: np.ndarray, points: np.ndarray,

@@ -66,13 +66,14 @@ def mixture_loglik(residuals: np.ndarray, sigma: float, nu: float, *, em_iters: 
     g = np.exp(log_g)
     u = 1.0 / nu
     gamma = np.full(e2.shape[0], 0.5)
-    for _ in range(em_iters):
-        pin = gamma[:, None] * g
-        post = pin / (pin + (1.0 - gamma[:, None]) * u)
-        gamma = np.clip(post.mean(axis=1), 1e-6, 1.0 - 1e-6)
+    pin, post = np.empty_like(g), np.empty_like(g)  # the EM's (H, N) buffers
+    for _ in range(em_iters):  # the mean and clip as numpy's, without their wrappers
+        np.multiply(gamma[:, None], g, out=pin)
+        np.divide(pin, np.add(pin, (1.0 - gamma[:, None]) * u, out=post), out=post)
+        gamma = np.minimum(np.maximum(np.add.reduce(post, axis=1) / e2.shape[1], 1e-6), 1.0 - 1e-6)
     pin = gamma[:, None] * g
     total = pin + (1.0 - gamma[:, None]) * u
-    return np.log(total).sum(axis=1), gamma, pin / total
+    return np.add.reduce(np.log(total), axis=1), gamma, pin / total
 
 
 def fit_model(

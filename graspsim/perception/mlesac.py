@@ -200,18 +200,21 @@ def _finish(kind, points, best, sigma, nu, refine, max_refine_points, n_hyp, n_v
         if cand is not None and plausible(kind, cand[2], nu - 10.0 * sigma)[0] and (
                 max_extent_ratio is None
                 or extent_ratio(kind, *cand, points, sigma)[0] <= max_extent_ratio):
-            r_ll, r_gamma, r_post = mixture_loglik(model_sdf(kind, *cand, points), sigma, nu)
+            res = model_sdf(kind, *cand, points)
+            r_ll, r_gamma, r_post = mixture_loglik(res, sigma, nu)
             if r_ll[0] > best[3]:
-                best = (cand[0][0], cand[1][0], cand[2][0], r_ll[0], r_gamma[0], r_post[0])
+                best = (cand[0][0], cand[1][0], cand[2][0], r_ll[0], r_gamma[0], r_post[0], res[0])
                 refined = True
-    Rb, tb, db, llb, gb, pb = best
+    Rb, tb, db, llb, gb, pb = best[:6]
+    res = best[6] if len(best) > 6 else None  # the residuals of the model, where made already
     trimmed = _trim_to_support(kind, Rb, tb, db, points[pb > 0.5], sigma)
     if trimmed is not None:
-        ll, gamma, post = mixture_loglik(model_sdf(kind, Rb[None], trimmed[0][None], trimmed[1][None], points),
-                                         sigma, nu)
-        tb, db, llb, gb, pb = trimmed[0], trimmed[1], ll[0], gamma[0], post[0]
+        res = model_sdf(kind, Rb[None], trimmed[0][None], trimmed[1][None], points)
+        ll, gamma, post = mixture_loglik(res, sigma, nu)
+        tb, db, llb, gb, pb, res = trimmed[0], trimmed[1], ll[0], gamma[0], post[0], res[0]
     inl = pb > 0.5
-    res = model_sdf(kind, Rb[None], tb[None], db[None], points)[0]
+    if res is None:
+        res = model_sdf(kind, Rb[None], tb[None], db[None], points)[0]
     rms = float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else float("inf")
     return ModelFit(kind, Rb, tb, db, float(llb), float(gb), float(inl.mean()), rms, inl,
                     n_hyp, n_valid, refined)

@@ -82,13 +82,14 @@ def _thin(points: np.ndarray, cell: float) -> np.ndarray:
 def _neighbourhoods(p: np.ndarray, query: np.ndarray, ref: np.ndarray, tree: cKDTree, k: int):
     """Each query point followed by its k nearest reference points other than itself:
     (Q, k + 1, 3); the distances (Q,) [m] to the k-th and to the nearest of them."""
-    d, j = tree.query(p[query], k=k + 1)
+    pq = p[query]
+    d, j = tree.query(pq, k=k + 1)
     j = ref[j]
     own = j[:, 0] == query
     nb = np.where(own[:, None], j[:, 1:], j[:, :k])
     radius = np.where(own, d[:, k], d[:, k - 1])
     nearest = np.where(own, d[:, 1], d[:, 0])
-    return np.concatenate([p[query][:, None, :], p[nb]], axis=1), radius, nearest
+    return np.concatenate([pq[:, None, :], p[nb]], axis=1), radius, nearest
 
 
 def _local_fits(nb: np.ndarray):

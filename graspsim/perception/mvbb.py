@@ -19,7 +19,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from graspsim.errors import PointCloudError
 from graspsim.perception.prepare import first_of_each_row
-from graspsim.transforms import make_transform, normalize
+from graspsim.transforms import cross3, make_transform, normalize
 
 __all__ = ["OrientedBox", "min_volume_box", "pca_box"]
 
@@ -116,7 +116,7 @@ def min_volume_box(points: np.ndarray, *, chunk: int = 4096, max_hull_points: in
         di, ei = d_i[start : start + chunk], e_i[start : start + chunk]
         n = dirs[di]
         u = normalize(edges[ei] - np.sum(edges[ei] * n, axis=1, keepdims=True) * n)
-        w = np.cross(n, u)
+        w = cross3(n, u)
         pu, pw = _dot3(u, V), _dot3(w, V)
         vol = h_ext[di] * (pu.max(1) - pu.min(1)) * (pw.max(1) - pw.min(1))
         vol = np.where(np.linalg.norm(u, axis=1) > 0.5, vol, np.inf)

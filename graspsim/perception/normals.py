@@ -226,9 +226,9 @@ def estimate_local_surface(points: np.ndarray, *, k: int = 16, noise_radius: flo
         radius = float(np.median(wide[1]))
     if len(query) == n and last["cell"] == state[2]:
         (normals, flatness, mean_curv, _), rad = last["fits"], last["rad"]  # already done
-    else:
-        # every point's; the query's already are when the query is every point
-        nb, rad, _ = wide if len(query) == n and wide is not None else _neighbourhoods(p, np.arange(n), *state[:2], k)
+    else:  # every point's neighbourhoods: made above already when the query is every point
+        every = len(query) == n and wide is not None
+        nb, rad, _ = wide if every else _neighbourhoods(p, np.arange(n), state[0], state[1], k)
         normals, flatness, mean_curv, _ = _local_fits(nb)
     sign = np.where(mean_curv > 0.0, -1.0, 1.0)
     return LocalSurface(normals * sign[:, None], np.abs(mean_curv), flatness, noise, spacing,

@@ -21,6 +21,7 @@ __all__ = [
     "random_rotation",
     "angle_between",
     "normalize",
+    "cross3",
     "quat_multiply",
 ]
 
@@ -28,8 +29,17 @@ __all__ = [
 def normalize(v: np.ndarray, axis: int = -1, eps: float = 1e-12) -> np.ndarray:
     """Unit vectors along ``axis``; zero vectors stay zero."""
     v = np.asarray(v, dtype=float)
-    n = np.linalg.norm(v, axis=axis, keepdims=True)
+    n = np.sqrt(np.add.reduce(v * v, axis=axis, keepdims=True))  # np.linalg.norm's sum, without its checks
     return v / np.maximum(n, eps)
+
+
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products (..., 3) of 3-vectors along the last axis (broadcast): ``np.cross``'s
+    products and differences in its order, so its values to the bit, without its
+    Python overhead (tens of microseconds on a small batch)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def quat_to_matrix(q_wxyz: np.ndarray) -> np.ndarray:
@@ -104,7 +114,7 @@ def frame_from_axes(x_axis: np.ndarray, z_axis: np.ndarray) -> np.ndarray:
     z = normalize(z_axis)
     x = np.asarray(x_axis, dtype=float)
     x = normalize(x - np.sum(x * z, axis=-1, keepdims=True) * z)
-    y = np.cross(z, x)
+    y = cross3(z, x)
     return np.stack([x, y, z], axis=-1)
 
 

@@ -4,10 +4,12 @@ from hypothesis import strategies as st
 
 from graspsim.transforms import (
     angle_between,
+    cross3,
     frame_from_axes,
     invert_transform,
     make_transform,
     matrix_to_quat,
+    normalize,
     quat_to_matrix,
     random_rotation,
     transform_points,
@@ -62,3 +64,16 @@ def test_quaternion_product_composes_rotations(rng):
     q = quat_multiply(matrix_to_quat(Ra), matrix_to_quat(Rb))
     np.testing.assert_allclose(quat_to_matrix(q), Ra @ Rb, atol=1e-12)
     assert np.all(q[:, 0] >= 0)
+
+
+def test_cross3_and_normalize_are_numpys_to_the_bit():
+    rng = np.random.default_rng(5)
+    for sa, sb in (((7, 3), (7, 3)), ((4, 5, 1, 3), (4, 5, 6, 3)), ((3,), (9, 3))):
+        a, b = rng.normal(size=sa), rng.normal(size=sb)
+        assert cross3(a, b).tobytes() == np.cross(a, b).tobytes()
+        assert cross3(a, b).shape == np.cross(a, b).shape
+    v = np.concatenate([rng.normal(size=(50, 3)), np.zeros((2, 3))])
+    want = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+    assert normalize(v).tobytes() == want.tobytes()
+    assert normalize(v.T, axis=0).tobytes() == (v.T / np.maximum(np.linalg.norm(v.T, axis=0, keepdims=True),
+                                                                    1e-12)).tobytes()

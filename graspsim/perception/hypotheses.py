@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from graspsim.transforms import frame_from_axes, normalize
+from graspsim.transforms import cross3, frame_from_axes, normalize
 
 __all__ = ["SAMPLE_SIZE", "hypothesise", "plausible"]
 
@@ -66,7 +66,7 @@ def plausible(kind: str, dims: np.ndarray, size: float) -> np.ndarray:
 def _any_perp(a: np.ndarray) -> np.ndarray:
     """Some unit vector perpendicular to each a (H, 3)."""
     ref = np.where(np.abs(a[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    return normalize(np.cross(a, ref))
+    return normalize(cross3(a, ref))
 
 
 def _masked_extremes(z: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -108,7 +108,7 @@ def _cylinder(p, n, cloud, noise):
     i_sel = np.zeros(H, int)
     j_sel = np.zeros(H, int)
     for i, j, k in pairs:
-        cr = np.cross(n[:, i], n[:, j])
+        cr = cross3(n[:, i], n[:, j])
         s = np.linalg.norm(cr, axis=1)
         a = cr / np.maximum(s, 1e-12)[:, None]
         cosk = np.abs(np.sum(n[:, k] * a, axis=1))
@@ -172,7 +172,7 @@ def _cone(p, n, cloud, noise):
     trip = np.zeros((H, 3), int)
     for out in range(4):
         tri = [k for k in range(4) if k != out]
-        cr = np.cross(n[:, tri[1]] - n[:, tri[0]], n[:, tri[2]] - n[:, tri[0]])
+        cr = cross3(n[:, tri[1]] - n[:, tri[0]], n[:, tri[2]] - n[:, tri[0]])
         s = np.linalg.norm(cr, axis=1)
         ax = cr / np.maximum(s, 1e-12)[:, None]
         sin_a = np.mean(np.einsum("hkj,hj->hk", n[:, tri], ax), axis=1)
@@ -219,9 +219,9 @@ def _cone(p, n, cloud, noise):
 def _circle3(q1, q2, q3):
     """Circle through three points (..., 3): centre, radius, plane normal."""
     A, B = q1 - q3, q2 - q3
-    axb = np.cross(A, B)
+    axb = cross3(A, B)
     nn = np.sum(axb * axb, axis=-1)
-    num = np.cross(np.sum(A * A, -1)[..., None] * B - np.sum(B * B, -1)[..., None] * A, axb)
+    num = cross3(np.sum(A * A, -1)[..., None] * B - np.sum(B * B, -1)[..., None] * A, axb)
     c = q3 + num / (2.0 * np.maximum(nn, 1e-300))[..., None]
     return c, np.linalg.norm(q1 - c, axis=-1), normalize(axb), nn
 
@@ -242,7 +242,7 @@ def _half_toroid(p, n, cloud, noise):
         t0, t1, t2 = [k for k in range(4) if k != out]
         c, Rr, a, nn = _circle3(q[:, :, t0], q[:, :, t1], q[:, :, t2])  # (H, G, ...)
         rel = q - c[:, :, None, :]
-        tang = normalize(np.cross(a[:, :, None, :], rel))
+        tang = normalize(cross3(a[:, :, None, :], rel))
         g = np.einsum("hgkj,hkj->hgk", tang, n)
         za = np.einsum("hgkj,hgj->hgk", rel, a)
         rho = np.linalg.norm(rel - za[..., None] * a[:, :, None, :], axis=3)
@@ -263,7 +263,7 @@ def _half_toroid(p, n, cloud, noise):
     near = np.abs(np.hypot(rho - R_major[:, None], z) - r[:, None]) < 3.0 * noise + 0.1 * r[:, None]
     u = inplane / np.maximum(rho, 1e-12)[..., None]
     d = normalize(np.einsum("hn,hnj->hj", near.astype(float), u))
-    R = frame_from_axes(np.cross(d, a), a)  # x = y cross z with y = d, z = a
+    R = frame_from_axes(cross3(d, a), a)  # x = y cross z with y = d, z = a
     valid = np.isfinite(best) & (near.sum(1) >= 4) & (R_major > r)
     return R, c, np.column_stack([R_major, r]), valid
 

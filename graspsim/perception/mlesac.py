@@ -16,10 +16,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from graspsim.errors import InvalidParameterError
 from graspsim.perception.hypotheses import SAMPLE_SIZE, hypothesise, plausible
+from graspsim.perception.refine import refine_model
 from graspsim.perception.shapes import KINDS, model_sdf
 from graspsim.perception.support import extent_ratio
 
@@ -66,13 +66,14 @@ def mixture_loglik(residuals: np.ndarray, sigma: float, nu: float, *, em_iters: 
     g = np.exp(log_g)
     u = 1.0 / nu
     gamma = np.full(e2.shape[0], 0.5)
-    for _ in range(em_iters):
-        pin = gamma[:, None] * g
-        post = pin / (pin + (1.0 - gamma[:, None]) * u)
-        gamma = np.clip(post.mean(axis=1), 1e-6, 1.0 - 1e-6)
+    pin, post = np.empty_like(g), np.empty_like(g)  # the EM's (H, N) buffers
+    for _ in range(em_iters):  # the mean and clip as numpy's, without their wrappers
+        np.multiply(gamma[:, None], g, out=pin)
+        np.divide(pin, np.add(pin, (1.0 - gamma[:, None]) * u, out=post), out=post)
+        gamma = np.minimum(np.maximum(np.add.reduce(post, axis=1) / e2.shape[1], 1e-6), 1.0 - 1e-6)
     pin = gamma[:, None] * g
     total = pin + (1.0 - gamma[:, None]) * u
-    return np.log(total).sum(axis=1), gamma, pin / total
+    return np.add.reduce(np.log(total), axis=1), gamma, pin / total
 
 
 def fit_model(
@@ -190,8 +191,8 @@ def _finish(kind, points, best, sigma, nu, refine, max_refine_points, n_hyp, n_v
     """Refine the best hypothesis (kept if more likely) and summarise it."""
     refined = False
     if refine:
-        cand = _refine(kind, best[0], best[1], best[2], points, best[5] > 0.5, sigma,
-                       max_refine_points)
+        cand = refine_model(kind, best[0], best[1], best[2], points, best[5] > 0.5, sigma,
+                             max_refine_points)
         if cand is not None:  # the refinement may have moved an unseen end anywhere
             trim = _trim_to_support(kind, cand[0][0], cand[1][0], cand[2][0], points[best[5] > 0.5], sigma)
             if trim is not None:
@@ -199,18 +200,21 @@ def _finish(kind, points, best, sigma, nu, refine, max_refine_points, n_hyp, n_v
         if cand is not None and plausible(kind, cand[2], nu - 10.0 * sigma)[0] and (
                 max_extent_ratio is None
                 or extent_ratio(kind, *cand, points, sigma)[0] <= max_extent_ratio):
-            r_ll, r_gamma, r_post = mixture_loglik(model_sdf(kind, *cand, points), sigma, nu)
+            res = model_sdf(kind, *cand, points)
+            r_ll, r_gamma, r_post = mixture_loglik(res, sigma, nu)
             if r_ll[0] > best[3]:
-                best = (cand[0][0], cand[1][0], cand[2][0], r_ll[0], r_gamma[0], r_post[0])
+                best = (cand[0][0], cand[1][0], cand[2][0], r_ll[0], r_gamma[0], r_post[0], res[0])
                 refined = True
-    Rb, tb, db, llb, gb, pb = best
+    Rb, tb, db, llb, gb, pb = best[:6]
+    res = best[6] if len(best) > 6 else None  # the residuals of the model, where made already
     trimmed = _trim_to_support(kind, Rb, tb, db, points[pb > 0.5], sigma)
     if trimmed is not None:
-        ll, gamma, post = mixture_loglik(model_sdf(kind, Rb[None], trimmed[0][None], trimmed[1][None], points),
-                                         sigma, nu)
-        tb, db, llb, gb, pb = trimmed[0], trimmed[1], ll[0], gamma[0], post[0]
+        res = model_sdf(kind, Rb[None], trimmed[0][None], trimmed[1][None], points)
+        ll, gamma, post = mixture_loglik(res, sigma, nu)
+        tb, db, llb, gb, pb, res = trimmed[0], trimmed[1], ll[0], gamma[0], post[0], res[0]
     inl = pb > 0.5
-    res = model_sdf(kind, Rb[None], tb[None], db[None], points)[0]
+    if res is None:
+        res = model_sdf(kind, Rb[None], tb[None], db[None], points)[0]
     rms = float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else float("inf")
     return ModelFit(kind, Rb, tb, db, float(llb), float(gb), float(inl.mean()), rms, inl,
                     n_hyp, n_valid, refined)
@@ -253,52 +257,3 @@ def rescore(fit: ModelFit, points: np.ndarray, sigma: float) -> ModelFit:
     rms = float(np.sqrt(np.mean(res[0][inl] ** 2))) if inl.any() else float("inf")
     return replace(fit, loglik=float(ll[0]), gamma=float(gamma[0]), fit_rate=float(inl.mean()),
                    rms=rms, inliers=inl)
-
-
-def _refine(kind, R0, t0, d0, points, inliers, sigma, max_points, max_nfev=12):
-    """Soft-L1 least squares of the signed distances of (a stride subsample of) the
-    inliers over pose and dims. Returns batched (R, t, dims) with H = 1, or None.
-    The forward-difference Jacobian is one batched SDF call over all perturbations."""
-    sel = np.flatnonzero(inliers)
-    if len(sel) < 2 * (6 + len(d0)):
-        return None
-    if len(sel) > max_points:
-        sel = sel[np.linspace(0, len(sel) - 1, max_points).astype(int)]
-    p = points[sel]
-    scale = max(float(np.max(d0)), 10.0 * sigma)
-    eps = 1e-7
-
-    def unpack(X):  # X (H, 6 + k)
-        R = np.einsum("ij,hjk->hik", R0, _rodrigues(X[:, :3]))
-        return R, t0 + X[:, 3:6] * scale, np.abs(X[:, 6:]) * scale
-
-    def fun(x):
-        return model_sdf(kind, *unpack(x[None]), p)[0] / sigma
-
-    def jac(x):
-        X = np.vstack([x, x + eps * np.eye(len(x))])
-        F = model_sdf(kind, *unpack(X), p) / sigma
-        return ((F[1:] - F[0]) / eps).T
-
-    x0 = np.concatenate([np.zeros(6), d0 / scale])
-    try:
-        sol = least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=2.0, max_nfev=max_nfev,
-                            ftol=1e-3, xtol=1e-3, method="trf")
-    except (ValueError, np.linalg.LinAlgError):
-        return None
-    if not np.all(np.isfinite(sol.x)):
-        return None
-    return unpack(sol.x[None])
-
-
-def _rodrigues(w: np.ndarray) -> np.ndarray:
-    """Rotation matrices (H, 3, 3) of rotation vectors w (H, 3) [rad]."""
-    th = np.linalg.norm(w, axis=1)
-    K = np.zeros((len(w), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
-    small = th < 1e-6
-    ths = np.where(small, 1.0, th)
-    a = np.where(small, 1.0, np.sin(ths) / ths)[:, None, None]
-    b = np.where(small, 0.5, (1.0 - np.cos(ths)) / ths**2)[:, None, None]
-    return np.eye(3) + a * K + b * (K @ K)

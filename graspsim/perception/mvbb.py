@@ -18,7 +18,8 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from graspsim.errors import PointCloudError
-from graspsim.transforms import make_transform, normalize
+from graspsim.perception.prepare import first_of_each_row
+from graspsim.transforms import cross3, make_transform, normalize
 
 __all__ = ["OrientedBox", "min_volume_box", "pca_box"]
 
@@ -115,7 +116,7 @@ def min_volume_box(points: np.ndarray, *, chunk: int = 4096, max_hull_points: in
         di, ei = d_i[start : start + chunk], e_i[start : start + chunk]
         n = dirs[di]
         u = normalize(edges[ei] - np.sum(edges[ei] * n, axis=1, keepdims=True) * n)
-        w = np.cross(n, u)
+        w = cross3(n, u)
         pu, pw = _dot3(u, V), _dot3(w, V)
         vol = h_ext[di] * (pu.max(1) - pu.min(1)) * (pw.max(1) - pw.min(1))
         vol = np.where(np.linalg.norm(u, axis=1) > 0.5, vol, np.inf)
@@ -131,7 +132,7 @@ def _thin_vertices(V: np.ndarray, target: int) -> np.ndarray:
     """About ``target`` of the points V (M, 3), one per voxel, the voxel grown until so."""
     cell = float(np.max(np.ptp(V, axis=0))) / np.sqrt(target / 6.0)
     while True:
-        _, first = np.unique(np.floor(V / cell).astype(np.int64), axis=0, return_index=True)
+        first = first_of_each_row(np.floor(V / cell).astype(np.int64))
         if len(first) <= target:
-            return V[np.sort(first)]
+            return V[first]
         cell *= 1.25

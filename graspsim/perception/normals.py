@@ -27,6 +27,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from graspsim.errors import InvalidParameterError
+from graspsim.perception.prepare import first_of_each_row
 
 __all__ = ["LocalSurface", "estimate_local_surface", "remove_outliers"]
 
@@ -75,21 +76,20 @@ def _thin(points: np.ndarray, cell: float) -> np.ndarray:
     """Indices of one point per occupied voxel of side ``cell`` (the first in input
     order): a deterministic, spatially even subset of real points (not voxel means,
     which would average the noise away)."""
-    keys = np.floor(points / cell).astype(np.int64)
-    _, first = np.unique(keys, axis=0, return_index=True)
-    return np.sort(first)
+    return first_of_each_row(np.floor(points / cell).astype(np.int64))
 
 
 def _neighbourhoods(p: np.ndarray, query: np.ndarray, ref: np.ndarray, tree: cKDTree, k: int):
     """Each query point followed by its k nearest reference points other than itself:
     (Q, k + 1, 3); the distances (Q,) [m] to the k-th and to the nearest of them."""
-    d, j = tree.query(p[query], k=k + 1)
+    pq = p[query]
+    d, j = tree.query(pq, k=k + 1)
     j = ref[j]
     own = j[:, 0] == query
     nb = np.where(own[:, None], j[:, 1:], j[:, :k])
     radius = np.where(own, d[:, k], d[:, k - 1])
     nearest = np.where(own, d[:, 1], d[:, 0])
-    return np.concatenate([p[query][:, None, :], p[nb]], axis=1), radius, nearest
+    return np.concatenate([pq[:, None, :], p[nb]], axis=1), radius, nearest
 
 
 def _local_fits(nb: np.ndarray):
@@ -217,15 +217,18 @@ def estimate_local_surface(points: np.ndarray, *, k: int = 16, noise_radius: flo
     noise, typical, radius = adapt(lambda nb, sd: _noise(sd, 75.0))
     # the normals' radius from the median residual: edges and silhouettes, which lift
     # the upper quantile, do not need wider neighbourhoods
+    wide = None  # the query's neighbourhoods at the normals' radius
     for _ in range(2 if normal_radius > 0 else 0):
         want = min(normal_radius * typical, 0.15 * size)
         if radius >= want or not widen(want / radius):
             break
-        radius = float(np.median(_neighbourhoods(p, query, state[0], state[1], k)[1]))
+        wide = _neighbourhoods(p, query, state[0], state[1], k)
+        radius = float(np.median(wide[1]))
     if len(query) == n and last["cell"] == state[2]:
         (normals, flatness, mean_curv, _), rad = last["fits"], last["rad"]  # already done
-    else:
-        nb, rad, _ = _neighbourhoods(p, np.arange(n), state[0], state[1], k)
+    else:  # every point's neighbourhoods: made above already when the query is every point
+        every = len(query) == n and wide is not None
+        nb, rad, _ = wide if every else _neighbourhoods(p, np.arange(n), state[0], state[1], k)
         normals, flatness, mean_curv, _ = _local_fits(nb)
     sign = np.where(mean_curv > 0.0, -1.0, 1.0)
     return LocalSurface(normals * sign[:, None], np.abs(mean_curv), flatness, noise, spacing,

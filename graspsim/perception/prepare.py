@@ -23,7 +23,7 @@ from graspsim.errors import IdentificationError, InvalidParameterError, PointClo
 from graspsim.primitives.base import MIN_DIM
 
 __all__ = ["UNITS", "MAX_EXTENT", "Downsampling", "median_spacing", "as_coordinates", "to_metres", "check_extent",
-           "check_solid", "voxel_downsample", "voxel_keep"]
+           "check_solid", "voxel_downsample", "voxel_keep", "distinct_rows", "first_of_each_row"]
 
 #: Length of one coordinate unit in metres.
 UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -39,10 +39,33 @@ def median_spacing(points: np.ndarray) -> float:
     do not read as zero spacing. 0 for fewer than two distinct points."""
     from scipy.spatial import cKDTree
 
-    u = np.unique(np.asarray(points, float).reshape(-1, 3), axis=0)
+    u = distinct_rows(np.asarray(points, float).reshape(-1, 3))
     if len(u) < 2:
         return 0.0
     return float(np.median(cKDTree(u).query(u, k=2)[0][:, 1]))
+
+
+def distinct_rows(a: np.ndarray) -> np.ndarray:
+    """The distinct rows of a (N, 3) float array in ascending lexicographic order, rows
+    equal as numbers counted once: ``np.unique(a, axis=0)`` of a finite array, without
+    its sort of structured rows (a few times slower)."""
+    s = a[np.lexsort((a[:, 2], a[:, 1], a[:, 0]))]
+    keep = np.ones(len(s), bool)
+    keep[1:] = np.any(s[1:] != s[:-1], axis=1)
+    return s[keep]
+
+
+def first_of_each_row(keys: np.ndarray) -> np.ndarray:
+    """Ascending indices (M,) of the first occurrence of each distinct row of integer
+    keys (N, 3) (e.g. voxel coordinates): ``np.sort(np.unique(keys, axis=0,
+    return_index=True)[1])``, on one packed integer per row where the ranges allow."""
+    if not len(keys):
+        return np.zeros(0, np.int64)
+    k = keys - keys.min(axis=0)
+    n = k.max(axis=0) + 1
+    if float(n[0]) * float(n[1]) * float(n[2]) >= 2.0**62:  # would not pack: the slow way
+        return np.sort(np.unique(keys, axis=0, return_index=True)[1])
+    return np.sort(np.unique((k[:, 0] * n[1] + k[:, 1]) * n[2] + k[:, 2], return_index=True)[1])
 
 
 def as_coordinates(points) -> np.ndarray:

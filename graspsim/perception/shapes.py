@@ -21,7 +21,8 @@ import numpy as np
 from graspsim.primitives import make_primitive
 from graspsim.transforms import make_transform
 
-__all__ = ["KINDS", "DIM_NAMES", "to_local", "sdf_local", "model_sdf", "model_extents", "fit_to_object"]
+__all__ = ["KINDS", "DIM_NAMES", "to_local", "sdf_local", "model_sdf", "sdf_function", "model_extents",
+           "fit_to_object"]
 
 #: Model kinds in the order of their simplicity (ties go to the earlier one).
 KINDS: tuple[str, ...] = ("sphere", "cylinder", "box", "cone", "half_toroid")
@@ -110,6 +111,28 @@ def model_sdf(kind: str, R: np.ndarray, t: np.ndarray, dims: np.ndarray, points:
 
         return compiled(kind, R, t, dims, points)
     return sdf_local(kind, to_local(R, t, points), dims)
+
+
+def sdf_function(kind: str, points: np.ndarray):
+    """``f(R, t, dims)``: :func:`model_sdf` of ``kind`` to the fixed points (N, 3), for a
+    caller that evaluates many models on the same points (float64 R (H, 3, 3), t (H, 3),
+    dims (H, k)): the path is chosen once, and the compiled one is called directly."""
+    if "numba" in sys.modules and isinstance(points, np.ndarray) and points.dtype == np.float64 \
+            and points.ndim == 2 and points.shape[1] == 3 and kind in DIM_NAMES:
+        from graspsim.perception._sdf_kernel import KIND_IDS, model_sdf_into
+
+        code, n, k, pts = KIND_IDS[kind], len(points), len(DIM_NAMES[kind]), np.ascontiguousarray(points)
+
+        def compiled(R, t, dims):
+            H = len(R)
+            if R.dtype == t.dtype == dims.dtype == np.float64 and R.shape == (H, 3, 3) and t.shape == (H, 3) \
+                    and dims.shape == (H, k):
+                c = np.ascontiguousarray
+                return model_sdf_into(code, c(R), c(t), c(dims), pts, np.empty((len(R), n)))
+            return model_sdf(kind, R, t, dims, points)
+
+        return compiled
+    return lambda R, t, dims: model_sdf(kind, R, t, dims, points)
 
 
 def _kernel_fits(kind: str, R, t, dims, points) -> bool:

@@ -41,3 +41,26 @@ def test_disk_samples_equal_the_ring_by_ring_construction(radius, step):
     assert np.all(np.linalg.norm(s.points - center, axis=1) <= radius)
     np.testing.assert_array_equal(s.grids[0].locate(s.uv), np.arange(len(s)))  # each sample in its own cell
     assert np.all(s.tangent_radius <= s.cover_radius) and s.cover_radius <= step
+
+
+@pytest.mark.parametrize("shape", ["box", "cylinder", "cone", "half_toroid"])
+def test_locate_finds_the_same_cells_in_any_sample_order(shape):
+    """A sampling laid out patch by patch (as the samplers make it) is located on each
+    patch's slice; shuffled, patch by patch with masks: the same cell for every sample,
+    and each cell lies on the sample's own patch."""
+    from dataclasses import replace
+
+    from graspsim.primitives import make_primitive
+
+    dims = {"box": dict(x=0.03, y=0.05, z=0.08), "cylinder": dict(radius=0.02, height=0.07),
+            "cone": dict(bottom_radius=0.03, top_radius=0.01, height=0.06),
+            "half_toroid": dict(major_radius=0.04, minor_radius=0.01)}[shape]
+    prim = make_primitive(shape, **dims)
+    coarse, fine = prim.surface_samples(0.01), prim.surface_samples(0.003)
+    assert fine._patch_spans() is not None  # the samplers' layout: the slice path
+    cells = coarse.locate(fine)
+    perm = np.random.default_rng(0).permutation(len(fine))
+    shuffled = replace(fine, points=fine.points[perm], patch=fine.patch[perm], uv=fine.uv[perm])
+    assert shuffled._patch_spans() is None  # the mask path
+    np.testing.assert_array_equal(coarse.locate(shuffled), cells[perm])
+    np.testing.assert_array_equal(coarse.patch[cells], fine.patch)

@@ -114,21 +114,11 @@ def clusters(points: np.ndarray, reach: np.ndarray, size: int = 16, margin: floa
     cluster c holds samples ``order[start[c]:start[c + 1]]`` (at most ``size``, by
     halving along the widest extent at the median), all within ``radius[c]`` of
     ``centre[c]`` and with ``reach`` (N,) at most ``reach_max[c]``, both grown by
-    ``margin`` [m] (far more than float32 rounding of the coordinates)."""
-    points = np.asarray(points, float)
-    leaves: list[np.ndarray] = []
-    todo = [np.arange(len(points))]
-    while todo:
-        ids = todo.pop()
-        if len(ids) <= size:
-            leaves.append(ids)
-            continue
-        half = np.argsort(points[ids, int(np.argmax(np.ptp(points[ids], axis=0)))], kind="stable")
-        todo += [ids[half[len(ids) // 2:]], ids[half[:len(ids) // 2]]]
-    leaves = [x for x in leaves if len(x)]
-    order = np.concatenate(leaves).astype(np.int64) if leaves else np.zeros(0, np.int64)
-    start = np.concatenate([[0], np.cumsum([len(x) for x in leaves])]).astype(np.int64)
-    centre = np.array([0.5 * (points[x].min(axis=0) + points[x].max(axis=0)) for x in leaves]).reshape(-1, 3)
-    radius = np.array([np.sqrt(np.max(np.sum((points[x] - c) ** 2, axis=1))) for x, c in zip(leaves, centre)])
-    reach_max = np.array([np.max(reach[x]) for x in leaves])
+    ``margin`` [m] (far more than float32 rounding of the coordinates). Compiled
+    (:func:`~graspsim.maps._hierarchy_kernel.cluster_tree`)."""
+    from graspsim.maps._hierarchy_kernel import cluster_tree
+
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    reach = np.ascontiguousarray(np.broadcast_to(np.asarray(reach, float), (len(points),)))
+    order, start, centre, radius, reach_max = cluster_tree(points, reach, int(size))
     return order, start, centre, radius + margin, reach_max + margin

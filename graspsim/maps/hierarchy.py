@@ -94,8 +94,9 @@ def build_levels(shape, cfg) -> dict[str, np.ndarray | float]:
     m_order, RT, HN, mstart = _patches(coarse.points, mid.points, coarse.normals,
                                        np.hypot(RTM, HNM), coarse.locate(mid))
     # reorder the middle level (and its patch data / fine offsets) by coarse parent
-    Mp, NMp = mid.points[m_order], mid.normals[m_order]
-    RTMp, HNMp = RTM[m_order], HNM[m_order]
+    take = lambda a, i: np.take(a, i, axis=0)  # noqa: E731 -- a[i], without fancy indexing's overhead
+    Mp, NMp = take(mid.points, m_order), take(mid.normals, m_order)
+    RTMp, HNMp = take(RTM, m_order), take(HNM, m_order)
     counts = np.diff(fstart)[m_order]
     fstart_new = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     # fine samples, grouped by middle parent in the middle level's new order
@@ -103,8 +104,8 @@ def build_levels(shape, cfg) -> dict[str, np.ndarray | float]:
     fsel = f_order[np.repeat(fstart[:-1][m_order], counts) + within]
     return {"Q": coarse.points, "NQ": coarse.normals, "RT": RT, "HN": HN,
             "M": Mp, "NM": NMp, "RTM": RTMp, "HNM": HNMp, "mstart": mstart,
-            "F": fine.points[fsel], "NF": fine.normals[fsel], "RTF": fine.tangent_radius[fsel],
-            "HNF": fine.normal_height[fsel], "fstart": fstart_new,
+            "F": take(fine.points, fsel), "NF": take(fine.normals, fsel), "RTF": take(fine.tangent_radius, fsel),
+            "HNF": take(fine.normal_height, fsel), "fstart": fstart_new,
             "fine_cover": float(fine.cover_radius)}
 
 

@@ -64,3 +64,27 @@ def test_locate_finds_the_same_cells_in_any_sample_order(shape):
     assert shuffled._patch_spans() is None  # the mask path
     np.testing.assert_array_equal(coarse.locate(shuffled), cells[perm])
     np.testing.assert_array_equal(coarse.patch[cells], fine.patch)
+
+
+def test_assembled_patches_equal_the_concatenation_of_their_own_samples():
+    """assemble() makes several patches' samples straight into one set of arrays: the
+    same arrays, patch indices, cell layouts and cover as concatenating each patch's
+    own samples (every primitive's sampling, and so every collision hierarchy, is made
+    this way)."""
+    from graspsim.primitives._sampling import assemble, disk_part, rect_part, revolution_part
+    from graspsim.primitives.samples import SurfaceSamples
+
+    def profile(s):
+        return 0.02 + 0.1 * s, s, np.full_like(s, 0.99), np.full_like(s, -0.1)
+
+    x, y, z = np.eye(3)
+    parts = [revolution_part(profile, 0.05, 0.002), disk_part(np.array([0.0, 0.0, 0.05]), x, y, 0.025, 0.002),
+             rect_part(np.array([0.01, 0.0, -0.02]), y, z, 0.03, 0.017, 0.002),
+             revolution_part(profile, 0.04, 0.003, sweep=math.pi)]
+    got = assemble(parts)
+    want = SurfaceSamples.concat([assemble([p]) for p in parts])
+    for f in ("points", "normals", "areas", "tangent_radius", "normal_height", "patch", "uv"):
+        a, b = getattr(got, f), getattr(want, f)
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), f
+    assert got.grids == want.grids and got.cover_radius == want.cover_radius
+    assert len({g.offset for g in got.grids}) == 4

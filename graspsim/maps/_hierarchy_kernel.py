@@ -122,3 +122,31 @@ def cluster_tree(points, reach, size):  # pragma: no cover
         radius[c] = np.sqrt(r2)
         reach_max[c] = rm
     return order, start, centre, radius, reach_max
+
+
+@njit(cache=True, nogil=True)
+def regroup(order, start, parent_order, points, normals, tangent, height):  # pragma: no cover
+    """Children grouped by parent (``order`` with CSR offsets ``start``, from
+    :func:`patch_extents`) put in the parents' new order ``parent_order``: their points,
+    normals, tangent radii and normal heights copied out in that order, and the new
+    offsets. Plain copies (the values a gather by the same indices gives)."""
+    P = parent_order.shape[0]
+    new_start = np.zeros(P + 1, np.int64)
+    for q in range(P):
+        m = parent_order[q]
+        new_start[q + 1] = new_start[q] + (start[m + 1] - start[m])
+    K = new_start[P]
+    F, NF = np.empty((K, 3)), np.empty((K, 3))
+    RTF, HNF = np.empty(K), np.empty(K)
+    j = 0
+    for q in range(P):
+        m = parent_order[q]
+        for i in range(start[m], start[m + 1]):
+            src = order[i]
+            for a in range(3):
+                F[j, a] = points[src, a]
+                NF[j, a] = normals[src, a]
+            RTF[j] = tangent[src]
+            HNF[j] = height[src]
+            j += 1
+    return F, NF, RTF, HNF, new_start

@@ -75,6 +75,7 @@ def build_levels(shape, cfg) -> dict[str, np.ndarray | float]:
     parent with CSR offsets. Raises :class:`~graspsim.errors.BudgetExceededError`
     first if the fine samples would not fit the memory budget.
     """
+    from graspsim.maps._hierarchy_kernel import regroup
     from graspsim.maps.preflight import check_collision_samples
 
     check_collision_samples(shape, cfg)
@@ -97,15 +98,14 @@ def build_levels(shape, cfg) -> dict[str, np.ndarray | float]:
     take = lambda a, i: np.take(a, i, axis=0)  # noqa: E731 -- a[i], without fancy indexing's overhead
     Mp, NMp = take(mid.points, m_order), take(mid.normals, m_order)
     RTMp, HNMp = take(RTM, m_order), take(HNM, m_order)
-    counts = np.diff(fstart)[m_order]
-    fstart_new = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    # fine samples, grouped by middle parent in the middle level's new order
-    within = np.arange(fstart_new[-1]) - np.repeat(fstart_new[:-1], counts)
-    fsel = f_order[np.repeat(fstart[:-1][m_order], counts) + within]
+    # fine samples, grouped by middle parent in the middle level's new order (compiled copies)
+    f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+    F, NF, RTF, HNF, fstart_new = regroup(f_order, fstart, np.ascontiguousarray(m_order, np.int64),
+                                          f64(fine.points), f64(fine.normals), f64(fine.tangent_radius),
+                                          f64(fine.normal_height))
     return {"Q": coarse.points, "NQ": coarse.normals, "RT": RT, "HN": HN,
             "M": Mp, "NM": NMp, "RTM": RTMp, "HNM": HNMp, "mstart": mstart,
-            "F": take(fine.points, fsel), "NF": take(fine.normals, fsel), "RTF": take(fine.tangent_radius, fsel),
-            "HNF": take(fine.normal_height, fsel), "fstart": fstart_new,
+            "F": F, "NF": NF, "RTF": RTF, "HNF": HNF, "fstart": fstart_new,
             "fine_cover": float(fine.cover_radius)}
 
 

@@ -114,19 +114,20 @@ def disk_part(center: np.ndarray, u: np.ndarray, v: np.ndarray, radius: float, s
     def fill(out: dict, a0: int) -> None:
         uu, vv = np.asarray(u, float), np.asarray(v, float)
         nts = np.asarray(counts, np.int64)
-        which = np.repeat(np.arange(nr), nts)
-        k = np.arange(len(which)) - np.repeat(np.cumsum(nts) - nts, nts)  # index within its ring
-        th = (k + 0.5) * np.asarray(dts)[which]
-        rho = np.asarray(rhos)[which]
-        rows = slice(a0, a0 + len(which))
+        per_ring = lambda a: np.repeat(np.asarray(a), nts)  # noqa: E731 -- each ring's value on its cells
+        n = int(nts.sum())
+        k = np.arange(n) - per_ring(np.cumsum(nts) - nts)  # index within its ring
+        th = (k + 0.5) * per_ring(dts)
+        rho = per_ring(rhos)
+        rows = slice(a0, a0 + n)
         pts = out["points"][rows]  # center + rho (cos u + sin v)
         np.multiply(np.cos(th)[:, None], uu, out=pts)
         pts += np.sin(th)[:, None] * vv
         pts *= rho[:, None]
         pts += center
         out["normals"][rows] = np.cross(uu, vv)
-        out["areas"][rows] = np.asarray(areas)[which]
-        out["tangent_radius"][rows] = np.asarray(tang)[which]
+        out["areas"][rows] = per_ring(areas)
+        out["tangent_radius"][rows] = per_ring(tang)
         out["normal_height"][rows] = 0.0
         out["uv"][rows, 0] = rho
         out["uv"][rows, 1] = th
@@ -171,23 +172,24 @@ def revolution_part(
     cover = float(np.sqrt(d2).max())
 
     def fill(out: dict, a0: int) -> None:
-        ring = np.repeat(np.arange(ns), nt)
-        k = np.arange(len(ring)) - np.repeat(np.cumsum(nt) - nt, nt)
-        th = (k + 0.5) * dt[ring]
+        n = int(nt.sum())
+        per_ring = lambda a: np.repeat(a, nt)  # noqa: E731 -- each ring's value on its cells
+        k = np.arange(n) - per_ring(np.cumsum(nt) - nt)
+        th = (k + 0.5) * per_ring(dt)
         c, si = np.cos(th), np.sin(th)
-        rows = slice(a0, a0 + len(ring))
+        rows = slice(a0, a0 + n)
         pts, nrm = out["points"][rows], out["normals"][rows]
-        rho_r, nr_r = rho[ring], nr[ring]
+        rho_r, nr_r = per_ring(rho), per_ring(nr)
         np.multiply(rho_r, c, out=pts[:, 0])
         np.multiply(rho_r, si, out=pts[:, 1])
-        pts[:, 2] = z[ring]
+        pts[:, 2] = per_ring(z)
         np.multiply(nr_r, c, out=nrm[:, 0])
         np.multiply(nr_r, si, out=nrm[:, 1])
-        nrm[:, 2] = nz[ring]
-        out["areas"][rows] = (rho * dt * ds)[ring]
-        out["tangent_radius"][rows] = cell_t[ring]
-        out["normal_height"][rows] = cell_h[ring]
-        out["uv"][rows, 0] = s[ring]
+        nrm[:, 2] = per_ring(nz)
+        out["areas"][rows] = per_ring(rho * dt * ds)
+        out["tangent_radius"][rows] = per_ring(cell_t)
+        out["normal_height"][rows] = per_ring(cell_h)
+        out["uv"][rows, 0] = per_ring(s)
         out["uv"][rows, 1] = th
 
     return Part(int(nt.sum()), cover, PatchGrid("rings", 0, width=ds, counts=tuple(int(c) for c in nt), sweep=sweep),

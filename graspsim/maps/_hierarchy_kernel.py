@@ -52,6 +52,17 @@ def patch_extents(parents, children, parent_normals, grow, parent, order, RT, HN
 
 
 @njit(cache=True, nogil=True)
+def _extent(points, order, lo, hi, a):  # pragma: no cover
+    """Least and largest coordinate ``a`` of the points ``order[lo:hi]`` (lo < hi)."""
+    mn, mx = points[order[lo], a], points[order[lo], a]
+    for i in range(lo + 1, hi):
+        v = points[order[i], a]
+        mn = min(mn, v)
+        mx = max(mx, v)
+    return mn, mx
+
+
+@njit(cache=True, nogil=True)
 def cluster_tree(points, reach, size):  # pragma: no cover
     """The spatial clusters of :func:`graspsim.maps.hierarchy.clusters`, compiled: the
     same halving (the widest extent's first axis, a stable sort, the lower half first),
@@ -77,11 +88,7 @@ def cluster_tree(points, reach, size):  # pragma: no cover
             continue
         ax, widest = 0, -1.0
         for a in range(3):
-            mn, mx = points[order[lo], a], points[order[lo], a]
-            for i in range(lo + 1, hi):
-                v = points[order[i], a]
-                mn = min(mn, v)
-                mx = max(mx, v)
+            mn, mx = _extent(points, order, lo, hi, a)
             if a == 0 or mx - mn > widest:
                 ax, widest = a, mx - mn
         key = np.empty(n)
@@ -105,11 +112,7 @@ def cluster_tree(points, reach, size):  # pragma: no cover
     for c in range(n_leaves):
         a0, a1 = start[c], start[c + 1]
         for a in range(3):
-            mn, mx = points[order[a0], a], points[order[a0], a]
-            for i in range(a0 + 1, a1):
-                v = points[order[i], a]
-                mn = min(mn, v)
-                mx = max(mx, v)
+            mn, mx = _extent(points, order, a0, a1, a)
             centre[c, a] = 0.5 * (mn + mx)
         r2, rm = -1.0, reach[order[a0]]
         for i in range(a0, a1):

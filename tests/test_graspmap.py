@@ -22,6 +22,25 @@ def test_filter_top_k_and_select(box_map):
     assert len(m.filter(min_grade=2.0)) == 0
 
 
+def test_select_gives_the_rows_indexing_gives(box_map):
+    """select() takes rows with np.take (a mask turned into indices once): every column
+    as indexing it gives, for masks, index arrays (negative and repeated ones), lists and
+    an empty selection; a mask of the wrong length is refused as indexing refuses it."""
+    m = box_map
+    rng = np.random.default_rng(0)
+    mask = rng.random(len(m)) < 0.3
+    for index in (mask, np.flatnonzero(mask)[::-1], np.array([-1, 0, 0, 5]), [3, 1], np.zeros(0, int),
+                  np.zeros(len(m), bool), np.array([2, 4], np.uint32)):
+        got = m.select(index)
+        for k, v in m.columns().items():
+            want = v[np.asarray(index)]
+            assert getattr(got, k).dtype == want.dtype and getattr(got, k).tobytes() == want.tobytes(), k
+    with pytest.raises(IndexError):
+        m.select(mask[:-1])
+    with pytest.raises(IndexError):
+        m.select(np.array([len(m)]))
+
+
 def test_uniform_surface_sample_spreads_and_is_seeded(box_map):
     a = box_map.sample_uniform_surface(30, np.random.default_rng(1))
     b = box_map.sample_uniform_surface(30, np.random.default_rng(1))

@@ -90,3 +90,27 @@ def test_linked_copy_shares_the_maps_and_keeps_its_own(tmp_path):
     assert len(view.entries()) == 2 and len(base.entries()) == 1
     with pytest.raises(FileExistsError):
         base.linked_copy(tmp_path / "view")
+
+
+def test_entries_follow_every_rewrite_of_the_index(tmp_path):
+    """entries() checks each record once per index content (not once per lookup), so a
+    rewritten index -- a record spoiled in place at the same file size, one added -- is
+    read as it is now, and a caller editing the records it got changes nothing stored."""
+    db = MapDatabase(tmp_path, config=FAST)
+
+    def rec(r):
+        return {"key": f"cyl{r:+.2f}", "file": f"cylinder/c{r:+.2f}.h5", "accepted": 5, "primitive": "cylinder",
+                "dims": {"radius": r, "height": 0.1}, "settings": db.settings_digest}
+
+    def write(radii):
+        db.index_path.write_text(json.dumps({"maps": [rec(r) for r in radii]}))
+        return [e["key"] for e in db.entries()]
+
+    assert write([0.02, 0.03]) == ["cyl+0.02", "cyl+0.03"]
+    size = db.index_path.stat().st_size
+    assert write([0.02, -0.3]) == ["cyl+0.02"]  # an impossible radius: skipped
+    assert db.index_path.stat().st_size == size
+    assert write([0.02, 0.03, 0.04]) == ["cyl+0.02", "cyl+0.03", "cyl+0.04"]
+    db.entries()[0]["accepted"] = -1
+    assert db.entries()[0]["accepted"] == 5
+    assert db.match(Cylinder(0.04, 0.1)).match is MatchKind.KNOWN

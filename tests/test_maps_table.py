@@ -166,3 +166,29 @@ def test_stream_order_yields_every_position_once_preferred_first(n, first, growt
     assert all(np.all(np.diff(b) > 0) for b in batches)
     assert len(batches) == 0 or len(batches[0]) <= max(first, 1)
     assert max(calls, default=0) <= 500  # evaluated lazily, a chunk at a time
+
+
+@pytest.mark.parametrize("n", [0, 1, 300, 1000, 4097, 9000])
+def test_stream_order_batches_do_not_depend_on_the_chunks_and_an_early_stop_asks_little(n):
+    """The preference is asked about chunks that grow from 256 positions: the batches
+    are those of one chunk of everything, and a consumer that stops after its first
+    batches has asked about a few hundred positions, not thousands."""
+    from graspsim.maps.table import _chunks, stream_order
+
+    liked = np.random.default_rng(n).random(n) < 0.5
+    asked = []
+
+    def prefer(pos):
+        asked.append(len(pos))
+        return liked[pos]
+
+    whole = [b.tolist() for b in stream_order(n, 1, 4.0, lambda pos: liked[pos], chunk=max(n, 1))]
+    assert [b.tolist() for b in stream_order(n, 1, 4.0, prefer)] == whole
+    edges = _chunks(n, 4096)
+    assert [a for a, _ in edges[1:]] == [b for _, b in edges[:-1]] and (not n or edges[-1][1] == n)
+    assert all(b - a >= min(256, n) for a, b in edges[:-1]) and all(b - a <= 4096 for a, b in edges)
+    asked.clear()
+    stream = stream_order(n, 1, 4.0, prefer)
+    for _, _ in zip(range(3), stream):  # 1 + 4 + 16 preferred positions
+        pass
+    assert sum(asked) <= 256 or n <= 511

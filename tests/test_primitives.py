@@ -182,3 +182,25 @@ def test_a_compounds_volume_is_integrated_once(monkeypatch):
     d = object_description(c, None, 1000.0)
     assert len(calls) == 1
     assert d["volume"] == c.volume == pytest.approx(real(c.parts, c.poses)[1], rel=1e-12)
+
+
+@pytest.mark.parametrize("kind,dims", [
+    ("box", dict(x=0.03, y=0.05, z=0.08)), ("cylinder", dict(radius=0.02, height=0.07)),
+    ("cone", dict(bottom_radius=0.03, top_radius=0.01, height=0.06)), ("sphere", dict(radius=0.03)),
+    ("half_toroid", dict(major_radius=0.04, minor_radius=0.01))])
+def test_normals_are_the_sdf_gradient_of_six_separate_evaluations(kind, dims):
+    """normals() evaluates the six shifted copies in one SDF call: the same numbers, to
+    the bit, as one call per shifted copy (scaled grasps' contact normals come from it)."""
+    from graspsim.primitives import make_primitive
+
+    prim = make_primitive(kind, **dims)
+    rng = np.random.default_rng(0)
+    for n in (0, 1, 7, 300):
+        pts = prim.surface_samples(0.004).points[:n] + rng.normal(size=(n, 3)) * 1e-4
+        p, eps, g = pts + prim.com_geo, 1e-6, np.empty((n, 3))
+        for k in range(3):
+            e = np.zeros(3)
+            e[k] = eps
+            g[:, k] = prim._sdf_geo(p + e) - prim._sdf_geo(p - e)
+        want = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
+        assert prim.normals(pts).tobytes() == want.tobytes()

@@ -124,6 +124,7 @@ class MapDatabase:
         self.tol = float(tol)
         self.cache_size = int(cache_size)
         self._cache: OrderedDict = OrderedDict()
+        self._valid_of: tuple[bytes, list[int]] | None = None  # the index's bytes, its usable records
         try:
             self.root.mkdir(parents=True, exist_ok=True)
         except (OSError, ValueError) as err:  # ValueError: a NUL byte in the path
@@ -134,7 +135,7 @@ class MapDatabase:
     def __getstate__(self) -> dict:
         """Pickled (sent to a worker process) without the maps it has loaded: a database
         is its folder and settings; the receiver loads what it needs."""
-        return {**self.__dict__, "_cache": OrderedDict()}
+        return {**self.__dict__, "_cache": OrderedDict(), "_valid_of": None}
 
     # ------------------------------------------------------------------ index
     @property
@@ -142,13 +143,18 @@ class MapDatabase:
         return self.root / "index.json"
 
     def _read_index(self) -> list[dict]:
+        return self._read_index_text()[1]
+
+    def _read_index_text(self) -> tuple[bytes, list[dict]]:
+        """The index file's bytes and its records (parsed afresh: callers may edit them)."""
         if not self.index_path.exists():
-            return []
+            return b"", []
         try:
-            data = json.loads(self.index_path.read_text())
+            raw = self.index_path.read_bytes()
+            data = json.loads(raw)
             if not isinstance(data["maps"], list):
                 raise TypeError(f"its maps are a {type(data['maps']).__name__}, not a list")
-            return list(data["maps"])
+            return raw, list(data["maps"])
         except (OSError, ValueError, KeyError, TypeError) as err:
             raise MapDatabaseError(
                 f"database index {self.index_path} is damaged ({err}); delete it and run "
@@ -163,8 +169,11 @@ class MapDatabase:
         """Index records of the maps built with this database's settings (``all_settings``:
         of every map in the folder; their ``"settings"`` digest tells them apart). Records of
         impossible shapes (e.g. a zero radius) are skipped: never a lookup source."""
-        return [e for e in self._read_index()
-                if _valid_record(e) and (all_settings or e.get("settings") == self._settings)]
+        raw, records = self._read_index_text()
+        if self._valid_of is None or self._valid_of[0] != raw:  # checked once per index content
+            self._valid_of = (raw, [i for i, e in enumerate(records) if _valid_record(e)])
+        return [e for e in (records[i] for i in self._valid_of[1])
+                if all_settings or e.get("settings") == self._settings]
 
     @property
     def settings_digest(self) -> str:

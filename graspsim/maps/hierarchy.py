@@ -75,6 +75,7 @@ def build_levels(shape, cfg) -> dict[str, np.ndarray | float]:
     parent with CSR offsets. Raises :class:`~graspsim.errors.BudgetExceededError`
     first if the fine samples would not fit the memory budget.
     """
+    from graspsim.maps._hierarchy_kernel import regroup
     from graspsim.maps.preflight import check_collision_samples
 
     check_collision_samples(shape, cfg)
@@ -94,17 +95,17 @@ def build_levels(shape, cfg) -> dict[str, np.ndarray | float]:
     m_order, RT, HN, mstart = _patches(coarse.points, mid.points, coarse.normals,
                                        np.hypot(RTM, HNM), coarse.locate(mid))
     # reorder the middle level (and its patch data / fine offsets) by coarse parent
-    Mp, NMp = mid.points[m_order], mid.normals[m_order]
-    RTMp, HNMp = RTM[m_order], HNM[m_order]
-    counts = np.diff(fstart)[m_order]
-    fstart_new = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    # fine samples, grouped by middle parent in the middle level's new order
-    within = np.arange(fstart_new[-1]) - np.repeat(fstart_new[:-1], counts)
-    fsel = f_order[np.repeat(fstart[:-1][m_order], counts) + within]
+    take = lambda a, i: np.take(a, i, axis=0)  # noqa: E731 -- a[i], without fancy indexing's overhead
+    Mp, NMp = take(mid.points, m_order), take(mid.normals, m_order)
+    RTMp, HNMp = take(RTM, m_order), take(HNM, m_order)
+    # fine samples, grouped by middle parent in the middle level's new order (compiled copies)
+    f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+    F, NF, RTF, HNF, fstart_new = regroup(f_order, fstart, np.ascontiguousarray(m_order, np.int64),
+                                          f64(fine.points), f64(fine.normals), f64(fine.tangent_radius),
+                                          f64(fine.normal_height))
     return {"Q": coarse.points, "NQ": coarse.normals, "RT": RT, "HN": HN,
             "M": Mp, "NM": NMp, "RTM": RTMp, "HNM": HNMp, "mstart": mstart,
-            "F": fine.points[fsel], "NF": fine.normals[fsel], "RTF": fine.tangent_radius[fsel],
-            "HNF": fine.normal_height[fsel], "fstart": fstart_new,
+            "F": F, "NF": NF, "RTF": RTF, "HNF": HNF, "fstart": fstart_new,
             "fine_cover": float(fine.cover_radius)}
 
 
@@ -114,21 +115,11 @@ def clusters(points: np.ndarray, reach: np.ndarray, size: int = 16, margin: floa
     cluster c holds samples ``order[start[c]:start[c + 1]]`` (at most ``size``, by
     halving along the widest extent at the median), all within ``radius[c]`` of
     ``centre[c]`` and with ``reach`` (N,) at most ``reach_max[c]``, both grown by
-    ``margin`` [m] (far more than float32 rounding of the coordinates)."""
-    points = np.asarray(points, float)
-    leaves: list[np.ndarray] = []
-    todo = [np.arange(len(points))]
-    while todo:
-        ids = todo.pop()
-        if len(ids) <= size:
-            leaves.append(ids)
-            continue
-        half = np.argsort(points[ids, int(np.argmax(np.ptp(points[ids], axis=0)))], kind="stable")
-        todo += [ids[half[len(ids) // 2:]], ids[half[:len(ids) // 2]]]
-    leaves = [x for x in leaves if len(x)]
-    order = np.concatenate(leaves).astype(np.int64) if leaves else np.zeros(0, np.int64)
-    start = np.concatenate([[0], np.cumsum([len(x) for x in leaves])]).astype(np.int64)
-    centre = np.array([0.5 * (points[x].min(axis=0) + points[x].max(axis=0)) for x in leaves]).reshape(-1, 3)
-    radius = np.array([np.sqrt(np.max(np.sum((points[x] - c) ** 2, axis=1))) for x, c in zip(leaves, centre)])
-    reach_max = np.array([np.max(reach[x]) for x in leaves])
+    ``margin`` [m] (far more than float32 rounding of the coordinates). Compiled
+    (:func:`~graspsim.maps._hierarchy_kernel.cluster_tree`)."""
+    from graspsim.maps._hierarchy_kernel import cluster_tree
+
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    reach = np.ascontiguousarray(np.broadcast_to(np.asarray(reach, float), (len(points),)))
+    order, start, centre, radius, reach_max = cluster_tree(points, reach, int(size))
     return order, start, centre, radius + margin, reach_max + margin

@@ -220,7 +220,8 @@ def _check_layout(f, path: Path) -> int:
             kind = "not a graspsim map"
         raise MapFileError(f"{path} is {kind}: missing {', '.join(missing[:4])}"
                            + (" ..." if len(missing) > 4 else ""))
-    not_data = [p for p in _REQUIRED if not isinstance(f[p], h5py.Dataset)]
+    ds = {p: f[p] for p in _REQUIRED}  # each object opened once (h5py opens it on every f[p])
+    not_data = [p for p in _REQUIRED if not isinstance(ds[p], h5py.Dataset)]
     if not_data:
         raise MapFileError(f"{path} is damaged: {', '.join(not_data[:3])} is not a dataset")
     version = 1
@@ -233,17 +234,18 @@ def _check_layout(f, path: Path) -> int:
         raise MapFileError(f"{path} has map schema version {version}; this graspsim reads "
                            f"versions up to {SCHEMA_VERSION} (upgrade graspsim)")
     grasp_data = ("grasps/transforms", *_PATHS.values())
-    lengths = {p: f[p].shape[0] if f[p].ndim else None for p in grasp_data}
+    shapes = {p: ds[p].shape for p in grasp_data}
+    lengths = {p: shapes[p][0] if len(shapes[p]) else None for p in grasp_data}
     if len(set(lengths.values())) != 1 or None in lengths.values():
         raise MapFileError(f"{path} is damaged: datasets have different row counts "
                            + ", ".join(f"{k} {v}" for k, v in list(lengths.items())[:3]) + " ...")
     expected = {"grasps/transforms": (4, 4), **{d: COLUMNS[c][0] for c, d in _PATHS.items()}}
     for p in grasp_data:
-        if f[p].shape[1:] != expected[p]:
+        if shapes[p][1:] != expected[p]:
             want = "(N" + "".join(f", {k}" for k in expected[p]) + ")"
-            raise MapFileError(f"{path} is damaged: {p} has shape {f[p].shape}, expected {want}")
-        if f[p].dtype.kind not in "biuf":
-            raise MapFileError(f"{path} is damaged: {p} holds {f[p].dtype} values, not real numbers")
+            raise MapFileError(f"{path} is damaged: {p} has shape {shapes[p]}, expected {want}")
+        if ds[p].dtype.kind not in "biuf":
+            raise MapFileError(f"{path} is damaged: {p} holds {ds[p].dtype} values, not real numbers")
     return int(lengths["grasps/transforms"])
 
 

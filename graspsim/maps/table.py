@@ -121,10 +121,12 @@ def _in_wrist_frames(q_wxyz: np.ndarray, v: np.ndarray) -> np.ndarray:
 def stream_order(n: int, first: int, growth: float, prefer=None, chunk: int = 4096):
     """Yield the positions 0..n-1 in batches of growing size (``first``, then x
     ``growth``), each ascending. ``prefer``: a function of positions (m,) returning
-    (m,) bool, evaluated lazily a ``chunk`` at a time: the positions it prefers stream
-    first, in order, the others after them (e.g. poses likely to clear a table, so a
-    streaming planner's first batches are not emptied by it). Every position is
-    yielded exactly once."""
+    (m,) bool, evaluated lazily in chunks that double from 256 up to ``chunk`` (a
+    planner that stops after its first batches asks about few positions): the
+    positions it prefers stream first, in order, the others after them (e.g. poses
+    likely to clear a table, so a streaming planner's first batches are not emptied by
+    it). Every position is yielded exactly once; the batches do not depend on the
+    chunks."""
     size, grow = max(1, int(first)), max(float(growth), 1.0)
     if prefer is None:
         start = 0
@@ -133,8 +135,8 @@ def stream_order(n: int, first: int, growth: float, prefer=None, chunk: int = 40
             start, size = start + size, int(size * grow)
         return
     queue, later = np.zeros(0, np.int64), []
-    for a in range(0, n, chunk):
-        pos = np.arange(a, min(n, a + chunk))
+    for a, b in _chunks(n, chunk):
+        pos = np.arange(a, b)
         ok = np.asarray(prefer(pos), bool)
         queue = np.concatenate([queue, pos[ok]])
         later.append(pos[~ok])
@@ -149,6 +151,21 @@ def stream_order(n: int, first: int, growth: float, prefer=None, chunk: int = 40
     while start < len(rest):
         yield rest[start:start + size]
         start, size = start + size, int(size * grow)
+
+
+def _chunks(n: int, chunk: int, least: int = 256) -> list[tuple[int, int]]:
+    """Position ranges covering 0..n-1: within the first ``chunk``, ranges doubling from
+    ``least`` (256, 512, 1024, ...; none shorter than ``least``, the last one included),
+    then whole ``chunk`` s from the multiples of ``chunk`` as before (a preference is
+    asked about a chunk of rows at once, and numpy's matrix products over a chunk give
+    each row the same value wherever a range of at least ``least`` rows starts)."""
+    cuts, c = [], least
+    while c < chunk and chunk - c >= least and n - c >= least:
+        cuts.append(c)
+        c = 2 * c + least
+    cuts += range(chunk, n, chunk)
+    edges = [0, *cuts, n] if n else [0]
+    return list(zip(edges[:-1], edges[1:]))
 
 
 def table_height(table: TablePlane, points: np.ndarray, shape, T_cloud_obj: np.ndarray) -> float:

@@ -175,11 +175,17 @@ class Primitive(ABC):
     def normals(self, points: np.ndarray, eps: float = 1e-6) -> np.ndarray:
         """Outward unit normals (N, 3) at (or near) surface points: the SDF gradient."""
         p = np.asarray(points, dtype=float).reshape(-1, 3) + self.com_geo
-        g = np.empty_like(p)
+        # the six shifted copies in one SDF call (row by row the same arithmetic as six calls)
+        shifted = np.empty((3, 2, len(p), 3))
         for k in range(3):
             e = np.zeros(3)
             e[k] = eps
-            g[:, k] = self._sdf_geo(p + e) - self._sdf_geo(p - e)
+            np.add(p, e, out=shifted[k, 0])
+            np.subtract(p, e, out=shifted[k, 1])
+        d = self._sdf_geo(shifted.reshape(-1, 3)).reshape(3, 2, len(p))
+        g = np.empty_like(p)
+        for k in range(3):
+            g[:, k] = d[k, 0] - d[k, 1]
         n = np.linalg.norm(g, axis=1, keepdims=True)
         return g / np.maximum(n, 1e-300)
 

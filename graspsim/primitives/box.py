@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from graspsim.primitives._sampling import rect_samples
+from graspsim.primitives._sampling import assemble, rect_part
 from graspsim.primitives.base import Primitive
 from graspsim.primitives.samples import SurfaceSamples
 
@@ -75,8 +75,8 @@ class Box(Primitive):
                 # u x v must be the outward normal sgn * e_k
                 u, v = (e[i], e[j]) if sgn > 0 else (e[j], e[i])
                 lu, lv = (L[i], L[j]) if sgn > 0 else (L[j], L[i])
-                parts.append(rect_samples(sgn * h[k] * e[k], u, v, lu, lv, step))
-        return SurfaceSamples.concat(parts)
+                parts.append(rect_part(sgn * h[k] * e[k], u, v, lu, lv, step))
+        return assemble(parts)
 
     def _aabb_geo(self) -> np.ndarray:
         return np.stack([-self.half, self.half])

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.polynomial import Polynomial
 
 from graspsim.errors import PrimitiveError
-from graspsim.primitives._sampling import disk_samples, revolution_samples
+from graspsim.primitives._sampling import assemble, disk_part, revolution_part
 from graspsim.primitives.base import MIN_DIM, Primitive
 from graspsim.primitives.samples import SurfaceSamples
 
@@ -149,12 +149,12 @@ class Cone(Primitive):
             one = np.ones_like(s)
             return r0 + (r1 - r0) * f, h * f, nr * one, nz * one
 
-        parts = [revolution_samples(profile, slant, step)]
+        parts = [revolution_part(profile, slant, step)]
         if r0 > 0.0:
-            parts.append(disk_samples(np.zeros(3), _Y, _X, r0, step))
+            parts.append(disk_part(np.zeros(3), _Y, _X, r0, step))
         if r1 > 0.0:
-            parts.append(disk_samples(np.array([0.0, 0.0, h]), _X, _Y, r1, step))
-        return SurfaceSamples.concat(parts)
+            parts.append(disk_part(np.array([0.0, 0.0, h]), _X, _Y, r1, step))
+        return assemble(parts)
 
     def _aabb_geo(self) -> np.ndarray:
         r = max(self.bottom_radius, self.top_radius)

@@ -8,7 +8,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from graspsim.primitives._sampling import disk_samples, revolution_samples
+from graspsim.primitives._sampling import assemble, disk_part, revolution_part
 from graspsim.primitives.base import Primitive
 from graspsim.primitives.samples import SurfaceSamples
 
@@ -74,10 +74,10 @@ class Cylinder(Primitive):
             one = np.ones_like(s)
             return r * one, s - h / 2, one, 0.0 * one
 
-        side = revolution_samples(profile, h, step)
-        top = disk_samples(np.array([0.0, 0.0, h / 2]), _X, _Y, r, step)
-        bottom = disk_samples(np.array([0.0, 0.0, -h / 2]), _Y, _X, r, step)
-        return SurfaceSamples.concat([side, top, bottom])
+        side = revolution_part(profile, h, step)
+        top = disk_part(np.array([0.0, 0.0, h / 2]), _X, _Y, r, step)
+        bottom = disk_part(np.array([0.0, 0.0, -h / 2]), _Y, _X, r, step)
+        return assemble([side, top, bottom])
 
     def _aabb_geo(self) -> np.ndarray:
         r, h = self.radius, self.height / 2

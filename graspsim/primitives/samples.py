@@ -84,7 +84,10 @@ class SurfaceSamples:
         return len(self.points)
 
     def shifted(self, offset: np.ndarray) -> SurfaceSamples:
-        return replace(self, points=self.points + np.asarray(offset, float))
+        offset = np.asarray(offset, float)
+        if not np.any(offset) and np.all(np.signbit(offset)):
+            return self  # x + (-0.0) is x, bit for bit (a centred shape's -com_geo)
+        return replace(self, points=self.points + offset)
 
     def select(self, mask) -> SurfaceSamples:
         return replace(self, points=self.points[mask], normals=self.normals[mask],
@@ -100,10 +103,27 @@ class SurfaceSamples:
                 a.kind != b.kind for a, b in zip(self.grids, other.grids)):
             return None
         out = np.empty(len(other), np.int64)
+        spans = other._patch_spans()
         for p, g in enumerate(self.grids):
-            m = other.patch == p
-            out[m] = g.locate(other.uv[m])
+            if spans is None:
+                m = other.patch == p
+                out[m] = g.locate(other.uv[m])
+            else:  # the same cells, found on the patch's slice (no mask, no copies)
+                out[spans[p]:spans[p + 1]] = g.locate(other.uv[spans[p]:spans[p + 1]])
         return out
+
+    def _patch_spans(self) -> list[int] | None:
+        """Where each patch's samples start (and the end), when every patch is one
+        contiguous run in patch order starting at its grid's offset (as the samplers and
+        :meth:`concat` lay them out); else None."""
+        n = len(self)
+        spans = [g.offset for g in self.grids] + [n]
+        if spans[0] != 0 or any(b < a for a, b in zip(spans, spans[1:])):
+            return None
+        for p in range(len(self.grids)):
+            if not np.all(self.patch[spans[p]:spans[p + 1]] == p):
+                return None
+        return spans
 
     @staticmethod
     def concat(parts: list[SurfaceSamples]) -> SurfaceSamples:

@@ -15,7 +15,7 @@ from typing import ClassVar
 import numpy as np
 
 from graspsim.errors import PrimitiveError
-from graspsim.primitives._sampling import disk_samples, revolution_samples
+from graspsim.primitives._sampling import assemble, disk_part, revolution_part
 from graspsim.primitives.base import Primitive, orient_outward
 from graspsim.primitives.samples import SurfaceSamples
 
@@ -95,11 +95,11 @@ class HalfToroid(Primitive):
             psi = s / r
             return R + r * np.cos(psi), r * np.sin(psi), np.cos(psi), np.sin(psi)
 
-        tube = revolution_samples(profile, 2.0 * math.pi * r, step, sweep=math.pi)
+        tube = revolution_part(profile, 2.0 * math.pi * r, step, sweep=math.pi)
         ex, ez = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
         # u x v = x x z = -y: both cut faces look towards -y
-        caps = [disk_samples(np.array([c, 0.0, 0.0]), ex, ez, r, step) for c in (R, -R)]
-        return SurfaceSamples.concat([tube, *caps])
+        caps = [disk_part(np.array([c, 0.0, 0.0]), ex, ez, r, step) for c in (R, -R)]
+        return assemble([tube, *caps])
 
     def _aabb_geo(self) -> np.ndarray:
         R, r = self.major_radius, self.minor_radius

@@ -7,12 +7,13 @@ its depth noise and table fit draw from ``rng_for(seed, "clutter", i)`` as the e
 do -- from E10's one camera, and from ``rig(k)`` for each other ``--cameras`` value (the
 views fused into one cloud, each drawing its depth noise in turn from the same stream).
 Each cloud is perceived with E10's settings for its kind (``scene_settings(kind)``:
-table, points above it on a 3 mm grid, clustered at the library's radius, "default":
-for packed scenes, whose objects stand >= 1 cm apart, ``GAP_LINK`` x 1 cm; for piles the
-spacing rule), and the same points are clustered by the spacing rule alone
-(``cluster_radius`` without a known gap: 2.5 x the median nearest-neighbour spacing
-within 3-7 mm, "spacing"; packed scenes only, as for piles it is the default) and at each
-``--radii-mm`` value. Per condition: objects seen (>= 40 points), one cluster (``one_cluster_objects``),
+table, points above it on a 3 mm grid, clustered as E10 clusters them, "default": by the
+spacing rule, and for packed scenes, whose objects stand >= 1 cm apart, those clusters
+closer than ``GAP_LINK`` x 1 cm joined), and the same points are clustered by the spacing
+rule alone (``cluster_radius``: 2.5 x the median nearest-neighbour spacing within 3-7 mm,
+"spacing"; packed scenes only, as for piles it is the default) and at each
+``--radii-mm`` value (one radius, nothing joined). Per condition: objects seen (>= 40
+points), one cluster (``one_cluster_objects``),
 and of the others those *merged* (their largest segment is mixed: < 90 % theirs) and
 *split* (the rest: spread over segments, or not segmented), and the objects not one
 cluster by name. And per kind and size the closest observed points of two different
@@ -140,9 +141,12 @@ def _condition(cfg: Config, kind: str, n: int, cameras: int) -> tuple[list[dict]
         per, truth, gaps, names = first_frame(n, kind, i, cfg.seed, cameras)
         pairs += closest_pairs(per, truth, gaps) if cameras == 1 else []
         for c in conds:
-            r = (per.radius if c == "default" else cluster_radius(per.points, max_radius=scene_cfg.max_radius)
-                 if c == "spacing" else float(c.split()[0]) / 1000)
-            found = euclidean_clusters(per.points, radius=r, min_points=scene_cfg.min_points)
+            if c == "default":  # E10's segments
+                found = per.segment
+            else:
+                r = cluster_radius(per.points, max_radius=scene_cfg.max_radius) if c == "spacing" else (
+                    float(c.split()[0]) / 1000)
+                found = euclidean_clusters(per.points, radius=r, min_points=scene_cfg.min_points)
             seen, one = one_cluster_objects(truth, found)
             merged = merged_objects(truth, found)
             counts[c] += (seen, one, seen - one - merged, merged)
@@ -162,9 +166,9 @@ def readme_section(s: dict) -> str:
     """One table: objects one cluster / split / merged per scene kind, size and radius."""
     L = [f"`{s['command']}`: the first frame of each of E10's scenes ({s['config']['scenes']} per kind and size, "
          "D435-like cameras, sensor noise on; 1 camera is E10's view, 2 are two views fused), clustered at each "
-         "radius; *default* is E10's: for packed scenes, whose objects stand >= 1 cm apart, 0.8 x that gap "
-         "(8 mm), for piles the *spacing* rule (2.5 x the median nearest-neighbour spacing, 3-7 mm; 5.7 mm on these "
-         "3 mm grids). Objects with >= 40 points; *split*: its largest "
+         "radius; *default* is E10's segmentation: the *spacing* rule (2.5 x the median nearest-neighbour spacing, "
+         "3-7 mm; 5.7 mm on these 3 mm grids), and for packed scenes, whose objects stand >= 1 cm apart, its "
+         "clusters closer than 0.8 x that gap (8 mm) joined. Objects with >= 40 points; *split*: its largest "
          "segment is >= 90 % its own but holds < 90 % of it (or none), *merged*: that segment is mixed.", "",
          "| scene | cameras | radius | one cluster | split | merged |", "|---|---|---|---|---|---|"]
     for t in s["table"]:

@@ -14,7 +14,7 @@ from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
 from graspsim.perception.plane import fit_table
 from graspsim.perception.scene import SceneConfig, perceive_scene, plan_scene
-from graspsim.perception.segment import GAP_LINK, cluster_radius, euclidean_clusters
+from graspsim.perception.segment import GAP_LINK, cluster_radius, euclidean_clusters, gap_link
 from graspsim.primitives import Box, Cylinder, Sphere
 from graspsim.primitives.clouds import table_scene_cloud
 from graspsim.transforms import invert_transform, make_transform
@@ -108,14 +108,13 @@ def test_a_known_gap_joins_an_objects_parts_across_less_and_keeps_objects_that_f
     spacing = perceive_scene(pts, np.random.default_rng(0), SceneConfig(up=up))
     assert _one_cluster_each(truth, spacing.labels) == [False, True, True, True]  # the crevice splits it
     known = perceive_scene(pts, np.random.default_rng(0), SceneConfig(up=up, min_gap=0.01))
-    assert known.radius == pytest.approx(GAP_LINK * 0.01)
+    assert known.radius == spacing.radius < GAP_LINK * 0.01  # the chains are the spacing rule's; then joined
     assert known.n_segments == 4 and all(_one_cluster_each(truth, known.labels))
-    assert SceneConfig(min_gap=0.01, radius=0.004).radius == 0.004  # an explicit radius still rules
     for bad in (0.0, -0.01, 0.2, float("nan"), True):
         with pytest.raises(GraspsimError, match="min_gap"):
             SceneConfig(min_gap=bad)
         with pytest.raises(GraspsimError, match="min_gap"):
-            cluster_radius(pts, min_gap=bad)
+            gap_link(bad)
 
 
 def test_euclidean_clusters_by_size_and_noise():
@@ -126,6 +125,23 @@ def test_euclidean_clusters_by_size_and_noise():
     lab = euclidean_clusters(np.concatenate([small, speck, big]), radius=0.02, min_points=20)
     assert set(lab[:150]) == {1} and set(lab[150:155]) == {-1} and set(lab[155:]) == {0}
     assert cluster_radius(big, max_radius=0.004) == 0.004
+
+
+def test_a_link_joins_objects_components_and_leaves_noise_alone():
+    """Two slabs 6 mm apart and a speck 5 mm off one of them, on a 2 mm grid: at a 3 mm
+    radius three components (the speck is noise); a 8 mm link joins the slabs only."""
+    g = np.arange(0, 0.04, 0.002)
+    slab = np.stack(np.meshgrid(g, g, [0.0]), -1).reshape(-1, 3)
+    a, b = slab, slab + (0.046, 0, 0)  # 6 mm between their closest points
+    speck = np.array([[0.0, -0.005, 0.0], [0.002, -0.005, 0.0], [0.004, -0.005, 0.0]])
+    pts = np.concatenate([a, b, speck])
+    plain = euclidean_clusters(pts, radius=0.003, min_points=20)
+    assert len(set(plain[:len(a)])) == 1 and set(plain[len(a):-3]) != set(plain[:len(a)])
+    linked = euclidean_clusters(pts, radius=0.003, min_points=20, link=0.008)
+    assert set(linked[:-3]) == {0} and set(linked[-3:]) == {-1}  # the speck stays noise
+    assert np.array_equal(euclidean_clusters(pts, radius=0.003, min_points=20, link=0.002), plain)  # <= radius
+    with pytest.raises(GraspsimError, match="link"):
+        euclidean_clusters(pts, radius=0.003, link=0.0)
 
 
 def test_a_grasp_colliding_only_with_a_neighbour_is_rejected(db):

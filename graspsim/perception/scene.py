@@ -38,7 +38,7 @@ from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
 from graspsim.perception.scene_reuse import SegmentMemory, find_previous
 from graspsim.perception.scene_segments import SceneGrasp, SegmentPlan, plan_segments, settled_plan
 from graspsim.perception.scene_workers import identify_segments, scene_workers
-from graspsim.perception.segment import cluster_radius, euclidean_clusters
+from graspsim.perception.segment import cluster_radius, euclidean_clusters, gap_link
 from graspsim.planner import PlannerConfig
 from graspsim.primitives import Box
 from graspsim.primitives.base import MIN_DIM
@@ -69,10 +69,10 @@ class SceneConfig:
     :func:`~graspsim.perception.plane.fit_table`); table_band [m]:
     points less than this above the table belong to it; max_height [m]: points higher
     above it are ignored; voxel [m]: the grid the points above the table are thinned
-    to; radius [m]: the clustering radius (None: from the spacing, at most max_radius,
-    or from ``min_gap``); min_gap [m]: the least gap the user knows parts any two
-    objects (objects placed apart; None: they may touch), which sets the radius to
-    :data:`~graspsim.perception.segment.GAP_LINK` x min_gap; min_points: smallest
+    to; radius [m]: the clustering radius (None: from the spacing, at most max_radius);
+    min_gap [m]: the least gap the user knows parts any two objects (objects placed
+    apart; None: they may touch): clusters closer than
+    :data:`~graspsim.perception.segment.GAP_LINK` x min_gap are one object; min_points: smallest
     object (points after thinning); neighbours: score grasps
     against the whole scene (False: the segment's points only); reach [m]: scene points
     farther than this from a segment's bounding box cannot touch the gripper and are
@@ -117,9 +117,10 @@ class SceneConfig:
                 raise InvalidParameterError(f"SceneConfig.{k} must be > 0 m, got {v!r}")
         if self.radius is not None and not (np.isfinite(self.radius) and self.radius > 0):
             raise InvalidParameterError(f"SceneConfig.radius must be > 0 m or None, got {self.radius!r}")
-        g = self.min_gap
-        if g is not None and (isinstance(g, bool) or not isinstance(g, (int, float)) or not 0 < g <= 0.1):
-            raise InvalidParameterError(f"SceneConfig.min_gap must be in (0, 0.1] m or None, got {g!r}")
+        try:
+            gap_link(self.min_gap)
+        except InvalidParameterError as err:
+            raise InvalidParameterError(f"SceneConfig.{err}") from None
         for k in ("plane_repetitions", "min_points", "per_segment", "enough", "keep"):
             v = getattr(self, k)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
@@ -215,10 +216,8 @@ def perceive_scene(points: np.ndarray, rng: np.random.Generator, config: SceneCo
     if labels is not None:
         seg, radius = _given_segments(labels, idx, len(pts), cfg.min_points), float("nan")
     else:
-        radius = cfg.radius
-        if radius is None:
-            radius = cluster_radius(sub, max_radius=cfg.max_radius, min_gap=cfg.min_gap)
-        seg = euclidean_clusters(sub, radius=radius, min_points=cfg.min_points)
+        radius = cfg.radius if cfg.radius is not None else cluster_radius(sub, max_radius=cfg.max_radius)
+        seg = euclidean_clusters(sub, radius=radius, min_points=cfg.min_points, link=gap_link(cfg.min_gap))
     full = np.full(len(pts), -1, np.int64)
     full[idx] = seg
     t2 = time.perf_counter()

@@ -4,15 +4,18 @@ Two points belong to one object when a chain of points links them with no step l
 than ``radius``: the connected components of the radius graph (scipy's ``cKDTree``
 pairs, ``connected_components``). The radius follows the cloud's spacing (the median
 distance of a point to its nearest neighbour) and is capped below the smallest gap
-between objects that must stay apart (1 cm in the issue's packed scenes). Where the user
-knows the least gap between any two objects (objects placed apart: a packed shelf, a
-kitting tray), the radius is :data:`GAP_LINK` x that gap instead: from one view, an
-object's own parts can be parted by more than the spacing rule bridges (the crevice
-between a ball and a tab beside it, the shadow one part casts on another), and anything
-shorter than the known gap, less a margin for depth noise, is within one object. Components
+between objects that must stay apart (1 cm in the issue's packed scenes). Components
 with fewer than ``min_points`` points (sensor speckle, slivers of the table's edge) are
 noise (label -1). Labels are numbered by size, largest first; the numbering is fixed by
 the points, not by the order of the scan.
+
+Where the user knows the least gap between any two objects (objects placed apart: a
+packed shelf, a kitting tray), components closer than :data:`GAP_LINK` x that gap are
+then joined (``link``): from one view, an object's own parts can be parted by more than
+the spacing rule bridges (the crevice between a ball and a tab beside it, the shadow one
+part casts on another), and anything shorter than the known gap, less a margin for depth
+noise, is within one object. Only components that are objects join: noise stays noise,
+and a component's points stay the spacing rule's.
 """
 
 from __future__ import annotations
@@ -24,9 +27,9 @@ from scipy.spatial import cKDTree
 
 from graspsim.errors import InvalidParameterError
 
-__all__ = ["GAP_LINK", "point_spacing", "cluster_radius", "euclidean_clusters"]
+__all__ = ["GAP_LINK", "point_spacing", "cluster_radius", "gap_link", "euclidean_clusters"]
 
-#: With a known least gap g [m] between objects, points are linked across steps up to
+#: With a known least gap g [m] between objects, components are joined across gaps up to
 #: GAP_LINK x g: the margin covers depth noise bringing two objects' surfaces closer (a
 #: D435-like sensor at 0.7 m: sigma ~ 2.3 mm per pixel; in E10's packed scenes, 1 cm
 #: apart, the closest points of two objects seen from one camera are 9.5 mm apart).
@@ -45,37 +48,55 @@ def point_spacing(points: np.ndarray, *, sample: int = 2000) -> float:
 
 
 def cluster_radius(points: np.ndarray, *, factor: float = 2.5, min_radius: float = 0.003,
-                   max_radius: float = 0.007, min_gap: float | None = None) -> float:
+                   max_radius: float = 0.007) -> float:
     """The linking radius [m]: ``factor`` x the spacing, within [min_radius, max_radius]
-    (``max_radius`` below the smallest gap to keep: two objects 1 cm apart stay two); or,
-    with ``min_gap`` [m], the least gap known to part any two objects,
-    :data:`GAP_LINK` x ``min_gap``."""
-    if min_gap is not None:
-        if not (isinstance(min_gap, (int, float)) and 0 < min_gap <= 0.1):
-            raise InvalidParameterError(f"min_gap must be in (0, 0.1] m or None, got {min_gap!r}")
-        return float(GAP_LINK * min_gap)
+    (``max_radius`` below the smallest gap to keep: two objects 1 cm apart stay two)."""
     if not (0 < min_radius <= max_radius and factor > 0):
         raise InvalidParameterError(f"need factor > 0 and 0 < min_radius <= max_radius, got {factor!r}, "
                                     f"{min_radius!r}, {max_radius!r}")
     return float(np.clip(factor * point_spacing(points), min_radius, max_radius))
 
 
-def euclidean_clusters(points: np.ndarray, *, radius: float, min_points: int = 40) -> np.ndarray:
+def gap_link(min_gap: float | None) -> float | None:
+    """The distance [m] across which components join, given ``min_gap`` [m], the least
+    gap known to part any two objects: :data:`GAP_LINK` x ``min_gap`` (None: none)."""
+    if min_gap is None:
+        return None
+    if isinstance(min_gap, bool) or not isinstance(min_gap, (int, float)) or not 0 < min_gap <= 0.1:
+        raise InvalidParameterError(f"min_gap must be in (0, 0.1] m or None, got {min_gap!r}")
+    return float(GAP_LINK * min_gap)
+
+
+def _components(points: np.ndarray, radius: float) -> np.ndarray:
+    n = len(points)
+    pairs = cKDTree(points).query_pairs(radius, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs), np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+def euclidean_clusters(points: np.ndarray, *, radius: float, min_points: int = 40,
+                       link: float | None = None) -> np.ndarray:
     """(N,) int labels of points (N, 3) [m]: 0, 1, ... by component size (largest
     first; ties by the lowest point index), -1 for components smaller than
-    ``min_points``."""
+    ``min_points``. ``link`` [m]: components (of at least ``min_points``) whose closest
+    points are nearer than this are then one object (see the module docstring)."""
     if not (np.isfinite(radius) and radius > 0):
         raise InvalidParameterError(f"radius must be > 0 m, got {radius!r}")
+    if link is not None and not (np.isfinite(link) and link > 0):
+        raise InvalidParameterError(f"link must be > 0 m or None, got {link!r}")
     if isinstance(min_points, bool) or not isinstance(min_points, (int, np.integer)) or min_points < 1:
         raise InvalidParameterError(f"min_points must be an integer >= 1, got {min_points!r}")
     pts = np.asarray(points, float)
     n = len(pts)
-    labels = np.full(n, -1, np.int64)
     if n == 0:
-        return labels
-    pairs = cKDTree(pts).query_pairs(radius, output_type="ndarray")
-    graph = coo_matrix((np.ones(len(pairs), np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, comp = connected_components(graph, directed=False)
+        return np.full(0, -1, np.int64)
+    comp = _components(pts, radius)
+    big = np.bincount(comp)[comp] >= min_points
+    if link is not None and link > radius and big.any():
+        joined = _components(pts[big], link)  # components of objects' points only: noise joins nothing
+        comp = np.where(big, 0, comp)
+        comp[big] = comp.max() + 1 + joined
+        comp = np.unique(comp, return_inverse=True)[1].reshape(-1)
     sizes = np.bincount(comp)
     first = np.full(len(sizes), n)
     np.minimum.at(first, comp, np.arange(n))

@@ -60,14 +60,15 @@ def outside_shares(points: np.ndarray, ident) -> list[float]:
 
 def episode(i: int, cfg: Config, db) -> list[dict]:
     """Scene ``i``'s episode, one row per executed grasp."""
-    from graspsim.sim.clutter import ClutterConfig, ClutterEpisode
+    from graspsim.sim.clutter import ClutterConfig, ClutterEpisode, scene_settings
     from graspsim.sim.noise import ExecutionNoise
     from graspsim.sim.scenes import make_scene
 
     scene = make_scene(cfg.objects, cfg.kind, derived_seed(cfg.seed, "scene", i), object_set=cfg.object_set,
                        gripper=db.gripper)
     ep = ClutterEpisode(scene, db=db, rng=rng_for(cfg.seed, "clutter", i),
-                        config=ClutterConfig(execution=ExecutionNoise() if cfg.noise == "default" else None))
+                        config=ClutterConfig(scene=scene_settings(cfg.kind),
+                                             execution=ExecutionNoise() if cfg.noise == "default" else None))
     rows = []
     try:
         while ep.stop is None:

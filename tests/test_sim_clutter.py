@@ -15,6 +15,7 @@ from graspsim.primitives import Box, Cylinder, Sphere
 from graspsim.sim.clutter import (
     STOPS,
     ClutterConfig,
+    ClutterEpisode,
     one_cluster_objects,
     run_benchmark,
     run_clutter,
@@ -52,6 +53,10 @@ def test_scene_settings_know_the_gap_of_packed_scenes_only():
     assert scene_settings("packed", min_gap=0.02).min_gap == 0.02  # the user's word wins
     with pytest.raises(InvalidParameterError, match="heap"):
         known_gap("heap")
+    for kind, gap in (("packed", PACKED_GAP), ("pile", None)):  # an episode's default settings: its kind's
+        ep = ClutterEpisode(make_scene(2, kind, 0, object_set="primitives"), db=None, rng=np.random.default_rng(0))
+        assert ep.config.scene.min_gap == gap
+        ep.close()
 
 
 def test_clutter_episode_is_deterministic_and_its_counts_add_up(db):

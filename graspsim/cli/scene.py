@@ -28,6 +28,7 @@ def _cmd_scene(args) -> int:
     from graspsim.errors import InvalidParameterError, MapDatabaseError
     from graspsim.maps.database import MapDatabase
     from graspsim.perception.scene import SceneConfig
+    from graspsim.perception.segment import gap_link
     from graspsim.sim.clutter import ClutterConfig, run_benchmark, summarize
     from graspsim.sim.noise import ExecutionNoise
     from graspsim.sim.scene_objects import OBJECT_SETS
@@ -42,8 +43,10 @@ def _cmd_scene(args) -> int:
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
         raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
     gap = known_gap(args.kind) if args.min_gap is None else (args.min_gap or None)
-    if gap is not None and not 0 < gap <= 0.1:
-        raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}")
+    try:
+        gap_link(gap)
+    except InvalidParameterError:
+        raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
     cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours, min_gap=gap),
                         execution=ExecutionNoise() if args.noise else None, ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts)

@@ -216,11 +216,12 @@ class ClutterEpisode:
 
     ``stop`` is None while it runs, then one of :data:`STOPS`: the table is clear, no
     grasp with a robust score > 0 was left to try, ``max_failures`` consecutive grasps
-    failed, or ``max_attempts`` grasps were executed. Deterministic given ``rng``."""
+    failed, or ``max_attempts`` grasps were executed. Deterministic given ``rng``.
+    ``config`` None: the defaults, planned with :func:`scene_settings` of the scene's kind."""
 
     def __init__(self, scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
                  camera: Camera | None = None, rgb: bool = False):
-        self.config = cfg = config or ClutterConfig()
+        self.config = cfg = config or ClutterConfig(scene=scene_settings(scene.kind))
         self.scene, self.db, self.rgb = scene, db, rgb
         self.camera = camera or rig(1)[0]
         self.cap = cfg.max_attempts or 2 * len(scene.objects) + 2

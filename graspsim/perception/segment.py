@@ -94,7 +94,6 @@ def euclidean_clusters(points: np.ndarray, *, radius: float, min_points: int = 4
     big = np.bincount(comp)[comp] >= min_points
     if link is not None and link > radius and big.any():
         joined = _components(pts[big], link)  # components of objects' points only: noise joins nothing
-        comp = np.where(big, 0, comp)
         comp[big] = comp.max() + 1 + joined
         comp = np.unique(comp, return_inverse=True)[1].reshape(-1)
     sizes = np.bincount(comp)

@@ -1,6 +1,7 @@
 """The refinement's residuals and Jacobian are the plain batched formulas to the bit
 (its shortcuts -- cached residuals, the Jacobian's rotations made once -- change no
-number the solver sees), and its rotations are rotations."""
+number the solver sees), its rotations are rotations, and its solver takes scipy's
+soft-L1 trust-region steps (``least_squares(method="trf")``)."""
 
 import numpy as np
 import pytest
@@ -8,7 +9,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 import graspsim.perception.refine as refine_mod
-from graspsim.perception.refine import refine_model, rodrigues
+from graspsim.perception.refine import refine_model, rodrigues, soft_l1_trf
 from graspsim.perception.shapes import DIM_NAMES, KINDS, model_sdf, sdf_function
 
 
@@ -78,7 +79,7 @@ def test_solver_sees_the_plain_batched_residuals_and_jacobian(kind, monkeypatch)
 
     seen = []
 
-    def checked(fun, x0, jac, **kw):
+    def checked(fun, jac, x0, **kw):
         def f(x):
             out = fun(x)
             seen.append(out.tobytes() == reference(x)[0].tobytes())
@@ -88,9 +89,9 @@ def test_solver_sees_the_plain_batched_residuals_and_jacobian(kind, monkeypatch)
             out = jac(x)
             seen.append(out.tobytes() == reference(x)[1].tobytes())
             return out
-        return least_squares(f, x0, jac=j, **kw)
+        return soft_l1_trf(f, j, x0, **kw)
 
-    monkeypatch.setattr(refine_mod, "least_squares", checked)
+    monkeypatch.setattr(refine_mod, "soft_l1_trf", checked)
     out = refine_model(kind, R0, t0, d0, pts, inliers, sigma, 150)
     assert out is not None and len(seen) > 4 and all(seen)
     assert [a.shape for a in out] == [(1, 3, 3), (1, 3), (1, len(DIM_NAMES[kind]))]
@@ -101,3 +102,65 @@ def test_too_few_inliers_are_not_refined():
     inliers = np.zeros(len(pts), bool)
     inliers[:10] = True
     assert refine_model("cylinder", R0, t0, d0, pts, inliers, 0.002, 150) is None
+
+
+def _curve(seed, outliers=0.2):
+    """A smooth nonlinear least-squares problem (m residuals, n unknowns) with a share
+    of gross outliers, its Jacobian and a start."""
+    rng = np.random.default_rng(seed)
+    m, n = int(rng.integers(40, 200)), int(rng.integers(2, 9))
+    A = rng.normal(size=(m, n))
+    x_true = rng.normal(0, 0.3, n)
+    b = np.tanh(A @ x_true) * 3 + 0.1 * (A @ x_true) ** 2
+    bad = rng.random(m) < outliers
+    b[bad] += rng.choice([-1, 1], bad.sum()) * rng.uniform(5, 20, bad.sum())
+
+    def fun(x):
+        return np.tanh(A @ x) * 3 + 0.1 * (A @ x) ** 2 - b
+
+    def jac(x):
+        u = A @ x
+        return (3 * (1 - np.tanh(u) ** 2) + 0.2 * u)[:, None] * A
+    return fun, jac, x_true + rng.normal(0, 0.2, n), x_true, bad
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_solver_follows_scipy_trust_region_reflective(seed):
+    """Where both run to convergence, the solver lands where scipy's does (the same
+    method; to the bit with the scipy it was written against, 1.17), and it stays
+    inside the evaluation budget."""
+    fun, jac, x0, _, _ = _curve(seed)
+    kw = {"f_scale": 2.0, "ftol": 1e-10, "xtol": 1e-10}
+    ref = least_squares(fun, x0, jac=jac, loss="soft_l1", method="trf", max_nfev=200, **kw)
+    calls = []
+    x = soft_l1_trf(lambda v: calls.append(1) or fun(v), jac, x0, max_nfev=200, **kw)
+    assert len(calls) <= 200
+    np.testing.assert_allclose(x, ref.x, rtol=0, atol=1e-7)
+    # within a small budget, as the refinement runs it (12 evaluations, tolerances 1e-3): the
+    # same iterates, step for step; from the start and from near 0 (a small first trust
+    # region, which must grow)
+    near0 = np.full_like(x0, 0.01)
+    for start, budget in [(x0, 3), (x0, 7), (x0, 12), (near0, 7), (near0, 12)]:
+        lim = {"f_scale": 2.0, "ftol": 1e-3, "xtol": 1e-3, "max_nfev": budget}
+        ref = least_squares(fun, start, jac=jac, loss="soft_l1", method="trf", **lim)
+        capped = []
+
+        def counted(v, capped=capped):
+            capped.append(1)
+            return fun(v)
+        x = soft_l1_trf(counted, jac, start, **lim)
+        assert len(capped) == ref.nfev <= budget
+        np.testing.assert_allclose(x, ref.x, rtol=0, atol=1e-12)
+
+
+def test_solver_resists_outliers_and_refuses_bad_starts():
+    fun, jac, x0, x_true, bad = _curve(3, outliers=0.25)
+    assert bad.sum() > 5
+    x = soft_l1_trf(fun, jac, x0, f_scale=0.5, ftol=1e-12, xtol=1e-12, max_nfev=500)
+    assert np.abs(x - x_true).max() < 0.05  # the outliers barely pull the robust fit
+    with pytest.raises(ValueError):
+        soft_l1_trf(lambda v: np.full(10, np.nan), lambda v: np.ones((10, 2)), np.zeros(2), f_scale=1.0,
+                    ftol=1e-3, xtol=1e-3, max_nfev=5)
+    with pytest.raises(ValueError):  # a Jacobian it cannot factor
+        soft_l1_trf(lambda v: np.ones(10) + v.sum(), lambda v: np.full((10, 2), np.nan), np.zeros(2),
+                    f_scale=1.0, ftol=1e-3, xtol=1e-3, max_nfev=5)

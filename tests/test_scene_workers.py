@@ -15,10 +15,17 @@ from graspsim.errors import InvalidParameterError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
 from graspsim.perception import scene_segments
+from graspsim.perception import scene_workers as workers_mod
 from graspsim.perception.identify import identify
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.scene import SCENE_FIT_POINTS, SceneConfig, plan_scene
-from graspsim.perception.scene_workers import identify_segments, run_segments, scene_workers, shutdown_workers
+from graspsim.perception.scene_workers import (
+    identify_segments,
+    run_segments,
+    scene_workers,
+    shutdown_workers,
+    start_workers,
+)
 from graspsim.primitives import Box, Cylinder, Sphere, synthetic_cloud
 from graspsim.primitives.clouds import table_scene_cloud
 from graspsim.transforms import make_transform
@@ -228,3 +235,43 @@ def test_only_scene_workers_keep_the_database_sent_to_them(db):
     assert _resident_is_given(db)
     with mp.get_context("fork").Pool(1) as pool:  # a child process that is no scene worker
         assert pool.apply(_resident_is_given, (db,)) and pool.apply(_resident_is_given, (db,))
+
+
+def _loaded_here(names):
+    import sys
+
+    return [n in sys.modules for n in names], os.getpid()
+
+
+def test_warm_loads_what_planning_uses_in_a_fresh_process():
+    import subprocess
+    import sys
+
+    names = ["numba", "h5py", "graspsim.maps._kernel", "graspsim.maps._robust_kernel",
+             "graspsim.perception._sdf_kernel", "graspsim.maps._hierarchy_kernel", "graspsim.grades.models"]
+    code = ("import sys; from graspsim.perception.scene_workers import _warm; "
+            f"before = [n in sys.modules for n in {names!r}]; _warm(); "
+            f"print(sum(before), all(n in sys.modules for n in {names!r}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)
+    assert out.stdout.split() == ["0", "True"]
+
+
+@pytest.mark.skipif(scene_workers(2) < 2, reason="no fork here: segments are planned in this process")
+def test_started_workers_warm_up_and_are_the_pool_scenes_use(tmp_path, monkeypatch):
+    """start_workers forks the pool that scenes of any segment count then use (one pool
+    per size asked for), and each worker warms up (``_warm``) before its first task."""
+    def mark():  # runs in each forked worker (the fork carries the patch)
+        (tmp_path / str(os.getpid())).touch()
+
+    monkeypatch.setattr(workers_mod, "_warm", mark)
+    shutdown_workers()
+    assert start_workers(1) == 1 and not workers_mod._pools  # one worker: none started
+    assert start_workers(3) == 3
+    pool = workers_mod._pools[3][1]
+    pids = {r[1] for r in run_segments(_loaded_here, [([],)] * 6, [1] * 6, 3)}
+    assert os.getpid() not in pids and {int(p.name) for p in tmp_path.iterdir()} >= pids
+    assert len(list(tmp_path.iterdir())) == 3  # every worker warmed up, once
+    run_segments(_loaded_here, [([],)] * 2, [1, 1], 3)  # fewer segments than workers
+    assert list(workers_mod._pools) == [3] and workers_mod._pools[3][1] is pool  # no pool per task count
+    shutdown_workers()
+    assert not workers_mod._pools

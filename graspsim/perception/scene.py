@@ -37,14 +37,14 @@ from graspsim.perception.plane import PlaneFit, fit_table
 from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
 from graspsim.perception.scene_reuse import SegmentMemory, find_previous
 from graspsim.perception.scene_segments import SceneGrasp, SegmentPlan, plan_segments, settled_plan
-from graspsim.perception.scene_workers import identify_segments, scene_workers
+from graspsim.perception.scene_workers import identify_segments, scene_workers, start_workers
 from graspsim.perception.segment import cluster_radius, euclidean_clusters, gap_link
 from graspsim.planner import PlannerConfig
 from graspsim.primitives import Box
 from graspsim.primitives.base import MIN_DIM
 
 __all__ = ["SceneConfig", "ScenePerception", "SceneGrasp", "SegmentPlan", "ScenePlan", "perceive_scene",
-           "plan_scene", "MAX_SCENE_EXTENT", "SCENE_FIT_POINTS"]
+           "plan_scene", "start_workers", "MAX_SCENE_EXTENT", "SCENE_FIT_POINTS"]
 
 #: Widest plausible table-top scene [m]; wider clouds are taken for millimetres or centimetres.
 MAX_SCENE_EXTENT = 10.0

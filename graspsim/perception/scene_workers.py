@@ -19,6 +19,13 @@ database sent to a worker stays there (:func:`resident_database`), with its cach
 loaded maps. Where ``fork`` does not exist (Windows), and inside a process that is
 itself a worker (an experiment's executor, this pool), segments are handled one after
 another: there the parallelism is already outside.
+
+A new worker loads what planning uses before its first segment (:func:`_warm`: the
+compiled kernels from numba's cache, h5py, the modules planning imports when it first
+needs them; a few tenths of a second, once). The pool starts on the first scene, so
+that first scene waits for it; :func:`start_workers` starts it ahead of time, and the
+workers load in the background while the caller does other work (``graspsim scene``
+starts them before it makes and renders its first scene).
 """
 
 from __future__ import annotations
@@ -38,7 +45,7 @@ from graspsim.perception.identify import Identification, identify
 from graspsim.perception.identify_config import IdentifyConfig
 
 __all__ = ["identify_segment", "identify_segments", "run_segments", "resident_database", "scene_workers",
-           "shutdown_workers"]
+           "start_workers", "shutdown_workers"]
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +93,43 @@ def _start_worker() -> None:
     serial_only()  # the parent may have started numba's OpenMP pool: this child must not
     _databases.clear()
     _in_worker = True
+    _warm()
+
+
+def _warm() -> None:
+    """Load what identifying and planning a segment uses, ahead of the first one: numba
+    and its compiled map kernels (from its on-disk cache), h5py (stored maps), and the
+    modules planning imports on first use with the kernels they compile, so the first
+    segment does not wait for them. Changes no result."""
+    import importlib
+
+    import h5py  # noqa: F401
+
+    from graspsim.maps.kernels import ensure_compiled
+
+    ensure_compiled()
+    for name in ("graspsim.perception._sdf_kernel", "graspsim.perception.decompose", "graspsim.perception.acceptance",
+                 "graspsim.maps._robust_kernel", "graspsim.maps._hierarchy_kernel", "graspsim.maps.occlusion",
+                 "graspsim.grades.models"):
+        importlib.import_module(name)
+
+
+def _nothing() -> None:
+    """A task that only makes the pool start its workers."""
+
+
+def start_workers(workers: int | None = None) -> int:
+    """Start this process's segment workers for ``workers`` (as :attr:`SceneConfig.workers
+    <graspsim.perception.scene.SceneConfig.workers>`; None: one per core) now, without
+    waiting for them: each loads what planning uses in the background (a few tenths
+    of a second) while this process goes on, so the first :func:`plan_scene
+    <graspsim.perception.scene.plan_scene>` does not wait for it. Returns the number of
+    workers (1: none started; segments are planned in this process). Call it once, early
+    (e.g. before a camera's first frame arrives); :func:`shutdown_workers` stops them."""
+    n = scene_workers(workers)
+    if n > 1:
+        _pool(n).submit(_nothing)
+    return n
 
 
 def resident_database(db):
@@ -127,10 +171,10 @@ def run_segments(fn, tasks: list[tuple], sizes: list[float], workers: int | None
     order."""
     if len(sizes) != len(tasks):
         raise InvalidParameterError(f"one size per task needed: {len(tasks)} tasks, {len(sizes)} sizes")
-    n = min(scene_workers(workers), len(tasks))
-    if n <= 1:
+    n = scene_workers(workers)
+    if min(n, len(tasks)) <= 1:
         return [fn(*t) for t in tasks]
-    pool = _pool(n)
+    pool = _pool(n)  # one pool per size asked for (not per scene's segment count): started once
     order = sorted(range(len(tasks)), key=lambda i: -sizes[i])
     try:
         futures = {i: pool.submit(fn, *tasks[i]) for i in order}

@@ -243,6 +243,63 @@ def test_screenshot_in_headless_chromium_shows_the_object(tmp_path):
     assert np.mean(np.all(img > 245, axis=-1)) > 0.3  # and the background around it
 
 
+_HELD_BROWSER = """
+import viser
+from graspsim.viewer.snapshot import browser_render
+server = viser.ViserServer(port=0, verbose=False)
+server.scene.add_box("b", dimensions=(0.1, 0.1, 0.1))
+browser_render(server, size=(100, 100), timeout=120, settle=120)  # holds the browser open
+"""
+
+
+def _procs() -> list[tuple[int, int, int, str]]:
+    """(pid, parent, session, state) of every process (Linux's /proc)."""
+    out = []
+    for d in os.listdir("/proc"):
+        if not d.isdigit():
+            continue
+        try:
+            with open(f"/proc/{d}/stat") as f:
+                rest = f.read().rsplit(")", 1)[1].split()
+            out.append((int(d), int(rest[1]), int(rest[3]), rest[0]))
+        except (OSError, ValueError, IndexError):
+            continue
+    return out
+
+
+@needs_viser
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the tie to the caller is Linux's (prctl)")
+def test_the_browser_ends_with_a_caller_killed_by_sigkill():
+    """A caller killed outright never reaches the finally that ends its browser, and the
+    browser runs in its own session: the kernel ends it with the caller."""
+    _chromium_or_skip()
+    caller = subprocess.Popen([sys.executable, "-c", _HELD_BROWSER], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        browser = []
+        while not browser and time.monotonic() < deadline and caller.poll() is None:
+            time.sleep(0.2)
+            browser = [p for p, parent, _, _ in _procs() if parent == caller.pid]
+        assert browser, "the browser never started"
+        time.sleep(1.0)  # let it start its helpers
+        session = browser[0]  # the browser leads its own session, helpers included
+        assert len([p for p, _, sid, _ in _procs() if sid == session]) > 1
+    finally:
+        caller.kill()
+        caller.wait(30)
+
+    def alive():  # what is left of the browser's session (zombies have ended)
+        return [p for p, _, sid, state in _procs() if sid == session and state != "Z"]
+    deadline = time.monotonic() + 30
+    while alive() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    left = alive()
+    if left:  # do not leave it spinning when the test fails
+        os.killpg(session, signal.SIGKILL)
+    assert not left
+
+
 # ---------------------------------------------------------------- the command
 @needs_viser
 def test_view_refuses_what_info_refuses(tmp_path, capsys):

@@ -74,7 +74,7 @@ def browser_render(server, *, size: tuple[int, int] = (600, 800), camera=None, f
                 "--disable-extensions", "--mute-audio", "--disable-dev-shm-usage", f"--user-data-dir={profile}",
                 f"--window-size={w + 40},{h + 40}", "--remote-debugging-port=0", url]
         proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                start_new_session=True)
+                                start_new_session=True, preexec_fn=_tied_to(os.getpid()))
         t0 = time.monotonic()
         deadline = t0 + timeout
         try:
@@ -116,6 +116,33 @@ def _wait_for_client(server, before: set, proc: subprocess.Popen, deadline: floa
             raise GraspsimError(f"the browser exited ({proc.returncode}) before opening the page")
         time.sleep(0.05)
     raise GraspsimError("the browser did not open the page in time")
+
+
+def _tied_to(parent: int):
+    """What the browser's process runs before it starts (Linux; elsewhere None): the
+    kernel sends it SIGKILL when this process ends, however it ends -- a caller killed
+    by SIGKILL or SIGTERM never reaches the ``finally`` that ends the browser (it runs in
+    its own session, so nothing else would). Its helpers leave with it (they exit when
+    the browser's connection to them closes)."""
+    import signal
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        import ctypes
+
+        prctl = ctypes.CDLL(None, use_errno=True).prctl  # looked up here: the child only calls it
+    except (OSError, AttributeError):
+        return None
+    PR_SET_PDEATHSIG = 1
+
+    def tie() -> None:
+        prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL))
+        if os.getppid() != parent:  # this process ended before the tie was made
+            os._exit(1)
+
+    return tie
 
 
 def _end(proc: subprocess.Popen) -> None:

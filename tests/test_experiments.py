@@ -425,9 +425,12 @@ def test_bench_scene_quick(tmp_path):
     assert p["cpu"] > 0 and s["planning"]["warmup_scenes"] == bench.WARMUP  # timed cold, after other scenes
     text = bench.readme_section(s)
     assert "| pile, 5 objects | 1 |" in text and "as a user meets a new frame" in text
-    f = s["planning"]["fresh"]["pile"]  # a fresh process planned the same kind of frame, maps already built
-    assert f["of"] == 1 and f["first"]["wall_s"] > f["first"]["plan_s"] > 0 and f["first"]["grasps"] >= 1
-    assert "In a fresh process (import, draw and render" in text
+    fresh = s["planning"]["fresh"]  # fresh processes planned the same kind of frame, maps already built
+    assert set(fresh) == {"pile", "pile, started"}  # plain, and with the workers started after the imports
+    for f in fresh.values():
+        assert f["of"] == 1 and f["first"]["wall_s"] > f["first"]["plan_s"] > 0 and f["first"]["grasps"] >= 1
+    assert [r["seed"] for r in fresh["pile"]["runs"]] == [r["seed"] for r in fresh["pile, started"]["runs"]]
+    assert "In a fresh process (import, draw and render" in text and "start_workers()" in text
 
 
 @pytest.mark.slow

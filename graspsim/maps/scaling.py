@@ -24,9 +24,9 @@ kept. :func:`scale_stream` yields the result best-first in growing batches.
 
 from __future__ import annotations
 
-import functools
 import logging
 import time
+import weakref
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from enum import Enum
@@ -166,10 +166,20 @@ class _Source:
     u: np.ndarray  # (L, 3) closing axis of each line
 
 
-@functools.lru_cache(maxsize=2)
+_SOURCES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # map -> {min_grade: _Source}
+
+
 def _source(fs_map: GraspabilityMap, min_grade: float) -> _Source:
-    """Line structure of an FS map's grasps above ``min_grade`` (cached per map object:
-    preparing a stored map for scaling is a-priori work)."""
+    """Line structure of an FS map's grasps above ``min_grade``, kept as long as the map
+    object lives (a database's cached map: scaling it to every new object a scene shows
+    prepares it once; preparing a stored map for scaling is a-priori work)."""
+    per_map = _SOURCES.setdefault(fs_map, {})
+    if min_grade not in per_map:
+        per_map[min_grade] = _line_structure(fs_map, min_grade)
+    return per_map[min_grade]
+
+
+def _line_structure(fs_map: GraspabilityMap, min_grade: float) -> _Source:
     sel = np.flatnonzero(fs_map.grade > min_grade)
     c = np.ascontiguousarray(fs_map.contacts[sel]).reshape(len(sel), 6)
     _, first, line = np.unique(c.view(np.dtype((np.void, 24))).ravel(), return_index=True,

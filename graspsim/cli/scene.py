@@ -27,7 +27,7 @@ def _cmd_scene(args) -> int:
     from graspsim._atomic import check_folder
     from graspsim.errors import InvalidParameterError, MapDatabaseError
     from graspsim.maps.database import MapDatabase
-    from graspsim.perception.scene import SceneConfig, start_workers
+    from graspsim.perception.scene import SceneConfig
     from graspsim.perception.segment import gap_link
     from graspsim.sim.clutter import ClutterConfig, run_benchmark, summarize
     from graspsim.sim.noise import ExecutionNoise
@@ -52,7 +52,6 @@ def _cmd_scene(args) -> int:
                         max_attempts=args.max_attempts)
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, gripper=gripper_from_args(args), quality=quality, config=map_cfg)
-    start_workers(cfg.scene.workers)  # they load what planning uses while the first scene is made and rendered
     on_step = None
     if render is not None:
         render.mkdir(parents=True, exist_ok=True)

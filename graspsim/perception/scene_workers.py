@@ -24,8 +24,10 @@ A new worker loads what planning uses before its first segment (:func:`_warm`: t
 compiled kernels from numba's cache, h5py, the modules planning imports when it first
 needs them; a few tenths of a second, once). The pool starts on the first scene, so
 that first scene waits for it; :func:`start_workers` starts it ahead of time, and the
-workers load in the background while the caller does other work (``graspsim scene``
-starts them before it makes and renders its first scene).
+workers load in the background while the caller waits for something else (a camera's
+first frame). Where the caller is busy meanwhile, on as many cores as there are
+workers, the warm-up only competes with it (``experiments/bench_scene.py`` measures
+both on 2 cores: no faster there).
 """
 
 from __future__ import annotations

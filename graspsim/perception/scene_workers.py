@@ -95,7 +95,10 @@ def _start_worker() -> None:
     serial_only()  # the parent may have started numba's OpenMP pool: this child must not
     _databases.clear()
     _in_worker = True
-    _warm()
+    try:
+        _warm()
+    except Exception as err:  # noqa: BLE001 -- a warm-up that fails is no failure: the first segment loads lazily
+        log.debug("scene worker warm-up failed (%s); loading on first use", err)
 
 
 def _warm() -> None:

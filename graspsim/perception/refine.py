@@ -17,7 +17,10 @@ The solver (:func:`soft_l1_trf`) is the trust-region method of scipy's
 step for step with the same arithmetic, less scipy's general-purpose wrapping (its
 argument checks, memoised function object and result object cost more than the
 residuals of a few hundred points), and without the Jacobian scipy evaluates after the
-last step, whose result it does not use.
+last step, whose result it does not use. It follows scipy's ``trf_no_bounds`` and
+``solve_lsq_trust_region`` (scipy.optimize._lsq, BSD-3-Clause; Branch, Coleman & Li 1999
+and Moré 1978 for the methods), so that identification gives the numbers it gave with
+scipy's solver; ``tests/test_refine.py`` holds it to scipy's iterates.
 """
 
 from __future__ import annotations

@@ -433,6 +433,34 @@ def test_bench_scene_quick(tmp_path):
     assert "In a fresh process (import, draw and render" in text and "start_workers()" in text
 
 
+def test_scene_fingerprint_is_the_same_twice_and_names_what_differs(tmp_path, capsys, monkeypatch):
+    fp = _load("scene_fingerprint")
+    first = ["--scenes", "1", "--kinds", "packed", "--coarse-db", "--out", str(tmp_path / "a")]
+    assert fp.main(first) == 0  # fills the database with the maps the frame needs
+    db = str(tmp_path / "a" / "fsdb")
+    base = ["--scenes", "1", "--kinds", "packed", "--coarse-db", "--db", db]
+    assert fp.main([*base, "--out", str(tmp_path / "b")]) == 0
+    a = _summary(tmp_path / "b")
+    (frame,) = a["frames"]
+    assert frame["n_segments"] == len(frame["segments"]) >= 3 and frame["n_grasps"] > 0
+    assert a["database"]["start"] == a["database"]["end"]  # nothing built: a rerun can compare
+    assert fp.main([*base, "--out", str(tmp_path / "c"), "--compare", str(tmp_path / "b" / "summary.json")]) == 0
+    assert _summary(tmp_path / "c")["differences"] == []
+    a["frames"][0]["segments"][1] = "0" * 64  # as if one segment's plan had changed
+    (tmp_path / "changed.json").write_text(json.dumps(a))
+    capsys.readouterr()
+    assert fp.main([*base, "--out", str(tmp_path / "d"), "--compare", str(tmp_path / "changed.json")]) == 1
+    assert "packed 100: segments" in capsys.readouterr().out
+    from dataclasses import replace
+
+    from graspsim.sim import clutter
+
+    settings = clutter.scene_settings  # a planning change: fewer grasps kept per segment
+    monkeypatch.setattr(clutter, "scene_settings", lambda kind: replace(settings(kind), keep=2))
+    assert fp.main([*base, "--out", str(tmp_path / "e"), "--compare", str(tmp_path / "b" / "summary.json")]) == 1
+    assert "packed 100: grasps" in capsys.readouterr().out
+
+
 @pytest.mark.slow
 def test_e10_quick_clutter_removal_counts_add_up(tmp_path):
     mod = _load("e10_clutter_removal")

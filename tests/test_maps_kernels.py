@@ -3,6 +3,7 @@ on-disk cache, and the thread runner."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -74,7 +75,7 @@ def test_default_threads_clamps_to_numba_threads():
 @pytest.mark.slow
 def test_cold_cache_compiles_once_and_says_so(tmp_path):
     """A fresh cache folder: the CLI prints the notice and per-kernel progress; a second
-    process loads from the cache silently."""
+    process loads every kernel (compile_all) from the cache silently."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
     cli = "import sys; from graspsim.cli import main; sys.exit(main(['warmup', '--json']))"
     first = subprocess.run([sys.executable, "-c", cli], env=env, capture_output=True, text=True,
@@ -82,11 +83,54 @@ def test_cold_cache_compiles_once_and_says_so(tmp_path):
     assert first.returncode == 0, first.stderr
     assert "graspsim: compiling map kernels (first run only" in first.stderr
     assert "[5/5]" in first.stderr and '"compiled": true' in first.stdout
+    assert "compiled the planning kernels" in first.stderr  # the rest too, saying so
     assert any(tmp_path.rglob("*.nbi"))
-    code = ("from graspsim.maps.kernels import ensure_compiled, cache_dir\n"
-            "print(ensure_compiled(), cache_dir())")
+    code = ("from graspsim.maps.kernels import compile_all, cache_dir\n"
+            "print(compile_all(), cache_dir())")
     second = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                             timeout=600)
     assert second.returncode == 0, second.stderr
     assert second.stdout.split()[0] == "False" and second.stdout.split()[1].startswith(str(tmp_path))
-    assert "compiling" not in second.stderr
+    assert "compiling" not in second.stderr and "compiled" not in second.stderr
+
+
+_LIST = ("from graspsim.maps.kernels import compiled_kernels\n"
+         "print(json.dumps({k: sorted(str(s) for s in v.signatures) for k, v in compiled_kernels().items()}))\n")
+_PLAN_A_SCENE = """
+import json, math, sys
+import numpy as np
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import MapConfig
+from graspsim.perception.scene import SceneConfig, plan_scene
+from graspsim.primitives import Box, Sphere
+from graspsim.primitives.clouds import table_scene_cloud
+db = MapDatabase(sys.argv[1], config=MapConfig(surface_step=0.008, rotation_step=math.radians(22)))
+db.build([Box(0.05, 0.05, 0.05), Sphere(0.03)])
+shapes = [Box(0.05, 0.06, 0.07), Sphere(0.03)]
+pts = table_scene_cloud(shapes, np.array([[-0.05, 0.0], [0.05, 0.0]]), np.random.default_rng(0), noise=0.0005)[0]
+sp = plan_scene(pts, db=db, rng=np.random.default_rng(1), config=SceneConfig(workers=1))
+assert sum(s.status == "planned" for s in sp.segments) == 2, sp.segments
+""" + _LIST
+_COMPILE_ALL = "import json\nfrom graspsim.maps.kernels import compile_all\ncompile_all()\n" + _LIST
+
+
+def _signatures(code: str, *args) -> dict:
+    out = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=900)
+    assert out.returncode == 0, out.stderr[-3000:]
+    return {k: set(v) for k, v in json.loads(out.stdout.strip().splitlines()[-1]).items()}
+
+
+@pytest.mark.slow
+def test_compile_all_compiles_every_kernel_for_the_types_a_scene_plan_passes(tmp_path):
+    """``graspsim warmup`` (compile_all) leaves nothing for a machine's first scene plan
+    to compile: every kernel signature planning a scene uses, identification, robust
+    scores against the neighbours, collision samples and the pad-contact grade, is one
+    compile_all compiles."""
+    planned = _signatures(_PLAN_A_SCENE, str(tmp_path / "db"))
+    warmed = _signatures(_COMPILE_ALL)
+    for name in ("maps._robust_kernel.robust_flags", "perception._sdf_kernel.model_sdf_into",
+                 "maps._hierarchy_kernel.regroup", "maps._hierarchy_kernel.cluster_tree"):
+        assert planned[f"graspsim.{name}"], name  # the plan did use them
+    assert any(planned[f"graspsim.grades._pads.{k}"] for k in ("pad_patches", "pad_patches_serial"))
+    missing = {k: sorted(v - warmed[k]) for k, v in planned.items() if v - warmed[k]}
+    assert not missing

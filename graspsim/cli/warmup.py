@@ -1,7 +1,9 @@
-"""``graspsim warmup``: compile the map kernels now, so that no later command waits.
+"""``graspsim warmup``: compile graspsim's kernels now, so that no later command waits.
 
-The first map generation on a machine compiles graspsim's numba kernels (a few seconds;
-cached on disk afterwards). Run this once after installing, e.g. in a container build.
+The first map generation on a machine compiles the map kernels, and the first scene plan
+or adaptation the kernels of identification, the robust score, collision samples and
+the pad-contact grade (numba; tens of seconds together; cached on disk afterwards). Run
+this once after installing, e.g. in a container build.
 """
 
 from __future__ import annotations
@@ -14,21 +16,21 @@ __all__ = ["register"]
 
 
 def _cmd_warmup(args) -> int:
-    from graspsim.maps.kernels import cache_dir, ensure_compiled
+    from graspsim.maps.kernels import cache_dir, compile_all
 
     t0 = time.perf_counter()
-    compiled = ensure_compiled()
+    compiled = compile_all()
     summary = {"compiled": compiled, "seconds": time.perf_counter() - t0, "cache": cache_dir()}
     what = "compiled" if compiled else "loaded from the cache"
-    emit(summary, args.json, f"map kernels {what} in {summary['seconds']:.1f} s "
+    emit(summary, args.json, f"kernels {what} in {summary['seconds']:.1f} s "
                              f"(cache: {summary['cache'] or 'none writable'})")
     return 0
 
 
 def register(sub) -> None:
-    p = sub.add_parser("warmup", help="compile the map kernels now (first run only; cached)",
-                       description="Compile graspsim's numba kernels now (the first map "
-                       "generation on a machine otherwise does it, a few seconds; they are cached "
-                       "on disk). Run once after installing, e.g. in a container build.")
+    p = sub.add_parser("warmup", help="compile graspsim's kernels now (first run only; cached)",
+                       description="Compile graspsim's numba kernels now (the first map generation, "
+                       "scene plan or adaptation on a machine otherwise does it, tens of seconds; they "
+                       "are cached on disk). Run once after installing, e.g. in a container build.")
     add_json_flag(p)
     p.set_defaults(func=_cmd_warmup)

@@ -14,6 +14,12 @@ run on threads.
   process, started on first use): the kernels
   release the GIL, so this is as parallel as numba's ``prange`` without its compile
   cost.
+* :func:`compile_all` compiles (or loads) every other compiled kernel too -- those
+  identification, the robust score, collision samples and the pad-contact grade compile
+  on their first call -- by calling each once on a tiny input through the code that
+  calls it in planning, so that it is compiled for the types planning passes.
+  ``graspsim warmup`` runs it: a machine's first scene plan would otherwise compile them
+  silently (about ten seconds).
 """
 
 from __future__ import annotations
@@ -26,7 +32,8 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, as_completed, wait
 from types import ModuleType
 
-__all__ = ["ensure_compiled", "kernels", "cache_dir", "default_threads", "run_chunks"]
+__all__ = ["ensure_compiled", "compile_all", "compiled_kernels", "kernels", "cache_dir", "default_threads",
+           "run_chunks"]
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +78,67 @@ def ensure_compiled() -> bool:
             log.warning("map kernels compiled in %.1f s", time.perf_counter() - t0)
         _ready = True
         return bool(compiled)
+
+
+#: The modules of graspsim's other compiled kernels (each compiles on its first call).
+KERNEL_MODULES = ("graspsim.maps._kernel", "graspsim.maps._assemble_kernel", "graspsim.maps._hierarchy_kernel",
+                  "graspsim.maps._robust_kernel", "graspsim.perception._sdf_kernel", "graspsim.grades._pads")
+
+
+def compiled_kernels() -> dict:
+    """Every compiled kernel of graspsim by qualified name (numba dispatchers)."""
+    import importlib
+
+    from numba.core.registry import CPUDispatcher
+
+    out = {}
+    for name in KERNEL_MODULES:
+        mod = importlib.import_module(name)
+        out.update({f"{name}.{k}": v for k, v in vars(mod).items() if isinstance(v, CPUDispatcher)})
+    return out
+
+
+def compile_all(*, parallel: bool = True) -> bool:
+    """Compile (first run on a machine) or load from the cache every compiled kernel:
+    the map kernels (:func:`ensure_compiled`), then the others by running each once on
+    a tiny input through the function planning calls it from (so for the argument types
+    planning passes). ``parallel``: also the pad-contact grade's multi-threaded kernel
+    (running it starts numba's thread pool in this process; a process that will fork
+    scene workers can do without). Returns True if anything was compiled."""
+    import numpy as np
+
+    from graspsim.grades._pads import SERIAL_BELOW, run_pad_patches
+    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.maps.generate import MapConfig
+    from graspsim.maps.hierarchy import build_levels, clusters
+    from graspsim.maps.robust import score_poses
+    from graspsim.perception.shapes import DIM_NAMES, KINDS, sdf_function
+    from graspsim.primitives import Box
+
+    compiled = ensure_compiled()
+    before = {k: _misses(v) for k, v in compiled_kernels().items()}
+    t0 = time.perf_counter()
+    pts = np.random.default_rng(0).normal(0.0, 0.02, (40, 3))
+    for kind in KINDS:  # identification's distances
+        k = len(DIM_NAMES[kind])
+        sdf_function(kind, pts)(np.eye(3)[None], np.zeros((1, 3)), np.full((1, k), 0.02))
+    T = np.eye(4)[None].copy()
+    T[0, 2, 3] = 0.1
+    c = np.array([[[-0.02, 0.0, 0.0], [0.02, 0.0, 0.0]]])
+    score_poses(T, np.array([0.04]), c, -c / 0.02, pts, HGPL_25_60_A,  # the robust score's kernel
+                table=(np.array([0.0, 0.0, 1.0]), -0.1))
+    coarse = MapConfig(collision_step=0.01, collision_tolerance=0.004)
+    lv = build_levels(Box(0.03, 0.03, 0.03), coarse)  # collision samples
+    clusters(lv["Q"], lv["RT"] + lv["HN"])
+    for n in ((1, SERIAL_BELOW) if parallel else (1,)):  # the pad-contact grade's, serial and threaded
+        run_pad_patches(pts, np.tile([0.0, 0.0, 1.0], (len(pts), 1)), np.full(len(pts), 1e-6),
+                        np.repeat(np.eye(3)[None], n, axis=0), np.zeros((n, 3)), 0.01, 0.0, 0.02, 0.001)
+    after = {k: _misses(v) for k, v in compiled_kernels().items()}
+    now = sum(after.values()) > sum(before.get(k, 0) for k in after)
+    if now:
+        log.warning("compiled the planning kernels in %.1f s (first run only; cached in %s)",
+                    time.perf_counter() - t0, cache_dir())
+    return compiled or now
 
 
 def cache_dir() -> str | None:

@@ -102,19 +102,19 @@ def _start_worker() -> None:
 
 
 def _warm() -> None:
-    """Load what identifying and planning a segment uses, ahead of the first one: numba
-    and its compiled map kernels (from its on-disk cache), h5py (stored maps), and the
-    modules planning imports on first use with the kernels they compile, so the first
-    segment does not wait for them. Changes no result."""
+    """Load what identifying and planning a segment uses, ahead of the first one: every
+    compiled kernel (:func:`~graspsim.maps.kernels.compile_all`, from numba's on-disk
+    cache; the pad-contact grade's serial twin only), h5py (stored maps) and the modules
+    planning imports on first use, so the first segment does not wait for them. Changes
+    no result."""
     import importlib
 
     import h5py  # noqa: F401
 
-    from graspsim.maps.kernels import ensure_compiled
+    from graspsim.maps.kernels import compile_all
 
-    ensure_compiled()
-    for name in ("graspsim.perception._sdf_kernel", "graspsim.perception.decompose", "graspsim.perception.acceptance",
-                 "graspsim.maps._robust_kernel", "graspsim.maps._hierarchy_kernel", "graspsim.maps.occlusion",
+    compile_all(parallel=False)
+    for name in ("graspsim.perception.decompose", "graspsim.perception.acceptance", "graspsim.maps.occlusion",
                  "graspsim.grades.models"):
         importlib.import_module(name)
 

@@ -11,6 +11,7 @@ import sys
 import time
 import urllib.error
 import urllib.request
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -298,6 +299,31 @@ def test_the_browser_ends_with_a_caller_killed_by_sigkill():
     if left:  # do not leave it spinning when the test fails
         os.killpg(session, signal.SIGKILL)
     assert not left
+    import tempfile
+
+    from graspsim.viewer.snapshot import _sweep_profiles
+
+    profile = f"graspsim-chromium-{caller.pid}-*"
+    assert list(Path(tempfile.gettempdir()).glob(profile))  # the killed caller could not remove it
+    _sweep_profiles()  # the next snapshot's sweep does
+    assert not list(Path(tempfile.gettempdir()).glob(profile))
+
+
+def test_profile_folders_of_callers_that_no_longer_run_are_swept(tmp_path, monkeypatch):
+    import tempfile
+
+    from graspsim.viewer.snapshot import _sweep_profiles
+
+    done = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    dead = int(done.stdout)  # a process that has ended
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    names = [f"graspsim-chromium-{dead}-ab12", f"graspsim-chromium-{os.getpid()}-cd34", "graspsim-chromium-ef56",
+             "something-else"]
+    for n in names:
+        (tmp_path / n).mkdir()
+        (tmp_path / n / "Default").mkdir()
+    _sweep_profiles()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(names[1:])  # only the dead caller's went
 
 
 # ---------------------------------------------------------------- the command

@@ -68,7 +68,8 @@ def browser_render(server, *, size: tuple[int, int] = (600, 800), camera=None, f
                                       "wxyz": camera_wxyz(*camera)}
     url = f"http://127.0.0.1:{server.get_port()}/"
     before = set(server.get_clients())
-    with tempfile.TemporaryDirectory(prefix="graspsim-chromium-") as profile:
+    _sweep_profiles()
+    with tempfile.TemporaryDirectory(prefix=f"{_PROFILE}{os.getpid()}-") as profile:
         argv = [browser, "--headless=new", "--no-sandbox", "--disable-gpu-sandbox", "--use-angle=swiftshader",
                 "--enable-unsafe-swiftshader", "--no-first-run", "--no-default-browser-check",
                 "--disable-extensions", "--mute-audio", "--disable-dev-shm-usage", f"--user-data-dir={profile}",
@@ -116,6 +117,27 @@ def _wait_for_client(server, before: set, proc: subprocess.Popen, deadline: floa
             raise GraspsimError(f"the browser exited ({proc.returncode}) before opening the page")
         time.sleep(0.05)
     raise GraspsimError("the browser did not open the page in time")
+
+
+_PROFILE = "graspsim-chromium-"  # + the calling process's id + "-" + tempfile's suffix
+
+
+def _sweep_profiles() -> None:
+    """Remove the browser profile folders of callers that no longer run: a caller
+    killed outright (SIGKILL) ends its browser (:func:`_tied_to`) but cannot remove its
+    profile folder."""
+    import shutil
+
+    for d in Path(tempfile.gettempdir()).glob(f"{_PROFILE}*-*"):
+        pid = d.name[len(_PROFILE):].split("-", 1)[0]
+        if not pid.isdigit() or not d.is_dir():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            shutil.rmtree(d, ignore_errors=True)
+        except (PermissionError, OverflowError):  # another user's process, or no such id
+            continue
 
 
 def _tied_to(parent: int):

@@ -19,7 +19,7 @@ run on threads.
   on their first call -- by calling each once on a tiny input through the code that
   calls it in planning, so that it is compiled for the types planning passes.
   ``graspsim warmup`` runs it: a machine's first scene plan would otherwise compile them
-  silently (about ten seconds).
+  silently (some fifteen seconds on a 2-core machine).
 """
 
 from __future__ import annotations
@@ -80,7 +80,7 @@ def ensure_compiled() -> bool:
         return bool(compiled)
 
 
-#: The modules of graspsim's other compiled kernels (each compiles on its first call).
+#: The modules of graspsim's compiled kernels: the map kernels' and those compiled on their first call.
 KERNEL_MODULES = ("graspsim.maps._kernel", "graspsim.maps._assemble_kernel", "graspsim.maps._hierarchy_kernel",
                   "graspsim.maps._robust_kernel", "graspsim.perception._sdf_kernel", "graspsim.grades._pads")
 

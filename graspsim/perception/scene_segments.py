@@ -150,6 +150,7 @@ def plan_segments(tasks: list[tuple], db, cfg: SceneConfig) -> list[tuple[Segmen
     in a worker would not share, e.g. maps built in memory): in this process too."""
     parallel = type(db) is MapDatabase and not any(builds_maps(t[2], db, cfg.planner) for t in tasks)
     workers = cfg.workers if parallel else 1
+    # the longest plans first: parts (each streams its own maps), then points
     return run_segments(_plan_segment_there, tasks, [len(t[2].parts) * 1e6 + len(t[0]) for t in tasks], workers)
 
 

@@ -6,6 +6,7 @@ import logging
 import math
 import os
 import signal
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -269,7 +270,10 @@ def test_started_workers_warm_up_and_are_the_pool_scenes_use(tmp_path, monkeypat
     assert start_workers(3) == 3
     pool = workers_mod._pools[3][1]
     pids = {r[1] for r in run_segments(_loaded_here, [([],)] * 6, [1] * 6, 3)}
-    assert os.getpid() not in pids and {int(p.name) for p in tmp_path.iterdir()} >= pids
+    assert os.getpid() not in pids and {int(p.name) for p in tmp_path.iterdir()} >= pids  # warmed, then tasks
+    deadline = time.monotonic() + 60  # a worker that took no task may still be starting
+    while len(list(tmp_path.iterdir())) < 3 and time.monotonic() < deadline:
+        time.sleep(0.05)
     assert len(list(tmp_path.iterdir())) == 3  # every worker warmed up, once
     run_segments(_loaded_here, [([],)] * 2, [1, 1], 3)  # fewer segments than workers
     assert list(workers_mod._pools) == [3] and workers_mod._pools[3][1] is pool  # no pool per task count

@@ -283,8 +283,9 @@ def test_the_browser_ends_with_a_caller_killed_by_sigkill():
             time.sleep(0.2)
             browser = [p for p, parent, _, _ in _procs() if parent == caller.pid]
         assert browser, "the browser never started"
-        time.sleep(1.0)  # let it start its helpers
         session = browser[0]  # the browser leads its own session, helpers included
+        while len([p for p, _, sid, _ in _procs() if sid == session]) < 2 and time.monotonic() < deadline:
+            time.sleep(0.1)  # let it start its helpers
         assert len([p for p, _, sid, _ in _procs() if sid == session]) > 1
     finally:
         caller.kill()

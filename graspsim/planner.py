@@ -210,14 +210,18 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig,
 def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
                 config: PlannerConfig | None = None, source: str = "array",
                 obstacles: np.ndarray | None = None, identification: Identification | None = None,
-                viewpoint: np.ndarray | None = None) -> Iterator[GraspBatch | PlanResult]:
+                viewpoint: np.ndarray | None = None, scored_only: bool = False) -> Iterator[GraspBatch | PlanResult]:
     """Yield :class:`GraspBatch` es as grasps are found, then the :class:`PlanResult`.
     obstacles: (M, 3) further observed points [m, cloud frame] the robust score keeps the
     gripper clear of besides the object's own (a scene's neighbours); None: none.
     identification: the cloud's, when the caller has identified it already (``points``
     must be the cloud it was made from); None: identified here. viewpoint: (3,) where a
     single-view cloud was seen from [m, cloud frame] (the robust score's occlusion term);
-    None: unknown or seen all round."""
+    None: unknown or seen all round. scored_only: with ``rank="robust"``, once a part's
+    robust-scoring budget (``robust.top``) is spent, the rest of that part's maps are
+    skipped instead of streamed unscored (for a caller that keeps only scored grasps,
+    as a scene does: the same scored grasps, sooner; the final map then lacks the
+    skipped ones)."""
     cfg = config or PlannerConfig()
     t0 = time.perf_counter()
     points = np.asarray(points, float)
@@ -243,18 +247,18 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
             "mode": ident.mode, "uncovered": ident.uncovered,
             "approximate": [i for i, p in enumerate(ident.parts) if p.approximate]}
     yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0,
-                           obstacles, viewpoint)
+                           obstacles, viewpoint, scored_only)
 
 
 def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,
-                      config: PlannerConfig | None = None, source: str = "model"
+                      config: PlannerConfig | None = None, source: str = "model", scored_only: bool = False
                       ) -> Iterator[GraspBatch | PlanResult]:
     """:func:`plan_stream` for an object whose primitives are known -- a
     :class:`~graspsim.primitives.Primitive` or :class:`~graspsim.primitives.Compound` at
     pose ``T_world_obj`` (4, 4; identity if None) in the frame the map's
     ``T_cloud_obj`` will refer to -- instead of identified from a cloud: retrieval,
-    scaling and combination as for identified parts (``config.identify`` is unused).
-    The result's ``identification`` is None."""
+    scaling and combination as for identified parts (``config.identify`` is unused;
+    ``scored_only`` as there). The result's ``identification`` is None."""
     cfg = config or PlannerConfig()
     t0 = time.perf_counter()
     T = np.eye(4) if T_world_obj is None else np.asarray(T_world_obj, float)
@@ -268,16 +272,16 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
         raise InvalidParameterError(f"plan_shape needs a Primitive or a Compound, got {type(shape).__name__}")
     prims, T_cloud = zip(*(_canonical_box(p, Tp) for p, Tp in pairs))
     yield from _plan_parts(list(prims), list(T_cloud), PlanStatus.COMPLETE, None, None, np.zeros((0, 3)),
-                           db, cfg, source, t0, {"identify": 0.0}, time.thread_time())
+                           db, cfg, source, t0, {"identify": 0.0}, time.thread_time(), scored_only=scored_only)
 
 
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
                 ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
                 source: str, t0: float, timing: dict, cpu0: float, obstacles: np.ndarray | None = None,
-                viewpoint: np.ndarray | None = None) -> Iterator[GraspBatch | PlanResult]:
+                viewpoint: np.ndarray | None = None, scored_only: bool = False) -> Iterator[GraspBatch | PlanResult]:
     """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
     part frames in the cloud's frame); ``cpu0``: the calling thread's CPU clock when
-    identification ended."""
+    identification ended; ``scored_only``: see :func:`plan_stream`."""
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
@@ -294,6 +298,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     view_obj = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0]
     observed = ObservedSurface(points, viewpoint=viewpoint) if ident is not None and ident.mode == "robust" else None
     stage = StageClock("adapt", "agreement", "combine", "table", "robust")
+    skip_spent = scored_only and cfg.rank == "robust"
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):
         stage.start()
@@ -304,7 +309,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         budget = cfg.robust.top if cfg.rank == "robust" else 0
         # the part map's frame in the cloud's (a part's own frame until it is combined)
         T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
-        for part_map in stage.iterate(stream, "adapt"):
+        for part_map in stage.iterate(() if skip_spent and budget <= 0 else stream, "adapt"):
             if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
                 part_map = _borne_out(observed, part_map, T_cloud_map, cfg.contact_tolerance, db)
             stage.lap("agreement")
@@ -339,6 +344,10 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 tenth = now
             batches.append(batch)
             yield GraspBatch(batch, now)
+            if skip_spent and budget <= 0:
+                break  # this part's budget is spent: its later batches would stream unscored
+        if hasattr(stream, "close"):
+            stream.close()  # a part left early: its maps' generator ends now
     timing["maps"] = time.perf_counter() - t1
     final = {**extra, "parts": [p.to_dict() for p in parts]}
     if table is not None:  # a new dict: the batches already yielded keep theirs

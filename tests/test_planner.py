@@ -279,6 +279,36 @@ def test_robust_ranking_streams_first_and_never_offers_a_pose_into_the_cloud(db)
     assert not p.map.has_robust and p.timing["first_robust"] is None
 
 
+def test_scored_only_skips_a_parts_unscored_batches_and_keeps_every_scored_one(db):
+    """scored_only (a scene's planning): once a part's robust budget is spent, the rest
+    of its maps are skipped -- the batches streamed are exactly the plain stream's
+    batches that hold a scored row, in the same order, each part's included."""
+    from graspsim.maps.robust import RobustConfig
+    from graspsim.planner import plan_shape_stream
+
+    bottle = Compound.from_parts([Cylinder(0.03, 0.08), Cylinder(0.01, 0.12)],
+                                 [make_transform(np.eye(3), [0, 0, 0.04]),
+                                  make_transform(np.eye(3), [0, 0, 0.14])])
+    T = make_transform(random_rotation(np.random.default_rng(5)), [0.3, 0.1, 0.2])
+    cfg = PlannerConfig(robust=RobustConfig(top=40, samples=8))
+    plain = [i.map for i in plan_shape_stream(bottle, T, db=db, config=cfg) if isinstance(i, GraspBatch)]
+    items = list(plan_shape_stream(bottle, T, db=db, config=cfg, scored_only=True))
+    only = [i.map for i in items if isinstance(i, GraspBatch)]
+    scored = [m for m in plain if np.isfinite(m.robust).any()]
+    assert len(scored) < len(plain)  # the plain stream goes on unscored: something to skip
+    assert len(only) == len(scored) and {int(m.part[0]) for m in only} == {0, 1}
+    for a, b in zip(only, scored):
+        np.testing.assert_array_equal(a.robust, b.robust)
+        np.testing.assert_array_equal(a.T_obj_wrist, b.T_obj_wrist)
+    r = items[-1]  # the final map: what streamed, each part's budget scored
+    assert isinstance(r, PlanResult) and len(r.map) == sum(len(m) for m in only)
+    assert np.isfinite(r.map.robust).sum() == 2 * 40
+    # a budget of 0 scores nothing: nothing to stream
+    none = PlannerConfig(robust=RobustConfig(top=0, samples=8))
+    assert not [i for i in plan_shape_stream(bottle, T, db=db, config=none, scored_only=True)
+                if isinstance(i, GraspBatch)]
+
+
 @pytest.mark.parametrize("truth,match", [(Sphere(0.035), "known"), (Cylinder(0.024, 0.16), "familiar")])
 def test_grasps_likely_to_clear_the_table_stream_first(db, monkeypatch, truth, match):
     """An object resting on a table (a sphere; a cylinder lying): many of its best-graded

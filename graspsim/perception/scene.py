@@ -15,7 +15,9 @@ collides at its nominal pose, so its robust score is 0 and it ranks last.
 ``SceneConfig(neighbours=False)`` scores each segment against its own points only (the
 ablation). :func:`graspsim.planner.plan_stream` streams best-first; planning of a
 segment stops once ``enough`` grasps with a positive robust score are found or
-``per_segment`` grasps per part are scored (later batches would not be scored).
+``per_segment`` grasps per part are scored (later batches would not be scored), and
+a part whose ``per_segment`` are scored yields to the next (``scored_only``: its
+unscored batches are not made).
 
 Frames: the cloud's frame is called the world here (``T_world_wrist``); a cloud in the
 camera's frame gives poses in the camera's frame.

@@ -100,7 +100,7 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     batches: list[GraspabilityMap] = []
     prims = tuple(p.shape.value for p in ident.parts)
     stream = plan_stream(seg, db=db, rng=None, config=pcfg, obstacles=obstacles, identification=ident,
-                         viewpoint=viewpoint)  # identified already: no draws
+                         viewpoint=viewpoint, scored_only=True)  # identified already: no draws
     good = scored = 0  # over the batches so far
     try:
         for item in stream:

@@ -80,7 +80,7 @@ class SceneConfig:
     farther than this from a segment's bounding box cannot touch the gripper and are
     left out of its check; solid_step [m]: spacing of the surface samples of the
     neighbours' identified primitives added to the check (their unseen sides);
-    per_segment: grasps scored per segment at most; enough: planning of a segment
+    per_segment: grasps scored per part of a segment at most; enough: planning of a segment
     stops at this many grasps with a robust score > 0; keep: grasps per segment in the
     scene ranking; clearance [m]: the gripper's clearance above the table; reuse_tol
     [m]: how far points may move between frames for a segment to count as unchanged

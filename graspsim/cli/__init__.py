@@ -35,6 +35,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.view",
     "graspsim.cli.design",
     "graspsim.cli.scene",
+    "graspsim.cli.plan_scene",
 )
 
 
@@ -54,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
             "  graspsim trial adapted.h5 --sample 15 --min-grade 0.7\n"
             "  graspsim campaign run maps/*.h5 --out camp --top 100 --executor ray\n"
             "  graspsim scene --objects 5 --scenes 5 --kind packed --json   # clutter removal\n"
+            "  graspsim plan-scene table.pcd --viewpoint 0 0 0 -o grasps.json   # your own scene\n"
             "run 'graspsim COMMAND --help' for a command's options."
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,

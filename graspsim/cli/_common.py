@@ -17,10 +17,11 @@ def add_json_flag(p) -> None:
     )
 
 
-def add_units_flag(p) -> None:
+def add_units_flag(p, widest: str = "wider than 2 m") -> None:
+    """``--units``; a cloud ``widest`` is refused (perception's check)."""
     p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
-                   help="unit of the cloud's coordinates, converted to metres (default m; a cloud "
-                   "wider than 2 m is refused as probably mm or cm)")
+                   help=f"unit of the cloud's coordinates, converted to metres (default m; a cloud "
+                   f"{widest} is refused as probably mm or cm)")
 
 
 GRIPPER_HELP = ("the gripper: festo_hgpl_25_60_a (default), franka_hand, or a JSON file of your own "

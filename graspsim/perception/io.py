@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from graspsim.errors import PointCloudError
-from graspsim.perception.prepare import as_coordinates, check_extent, to_metres
+from graspsim.perception.prepare import MAX_EXTENT, as_coordinates, check_extent, to_metres
 
 __all__ = ["LoadedCloud", "read_point_cloud", "check_cloud", "lzf_decompress", "MIN_POINTS"]
 
@@ -45,7 +45,8 @@ class LoadedCloud:
     of the file's coordinates (converted to metres); viewpoint: (3,) where the cloud was
     seen from, file frame [m], when a camera record (``<file>.json``, written by
     :func:`graspsim.sim.cloud_io.save_cloud`) says so, else None (unknown: the planner's
-    robust score then adds no occlusion term).
+    robust score then adds no occlusion term); rows: (N,) the file row of each point
+    (None: every row, in order).
     """
 
     points: np.ndarray
@@ -55,11 +56,14 @@ class LoadedCloud:
     fmt: str
     units: str = "m"
     viewpoint: np.ndarray | None = None
+    rows: np.ndarray | None = None
 
 
-def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: str = "m") -> LoadedCloud:
+def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: str = "m",
+                     max_extent: float = MAX_EXTENT, what: str = "one graspable object") -> LoadedCloud:
     """Read a cloud file whose coordinates are in ``units`` ("m", "cm", "mm"), drop
-    non-finite points, convert to metres and validate with :func:`check_cloud`."""
+    non-finite points, convert to metres and validate with :func:`check_cloud` (a
+    cloud wider than ``max_extent`` metres is refused as ``what`` in other units)."""
     path = Path(path)
     to_metres(np.zeros((0, 3)), units)  # an unknown unit fails before reading
     try:
@@ -90,11 +94,12 @@ def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: s
         log.info("%s: dropped %d of %d points with NaN/inf coordinates", path.name, n_drop, len(xyz))
     pts = np.ascontiguousarray(to_metres(xyz[finite], units))
     try:
-        check_cloud(pts, min_points=min_points)
+        check_cloud(pts, min_points=min_points, max_extent=max_extent, what=what)
     except PointCloudError as err:
         extra = f" ({n_drop} of {len(xyz)} points were NaN/inf)" if n_drop else ""
         raise PointCloudError(f"{path.name}: {err}{extra}") from None
-    return LoadedCloud(pts, n_drop, len(xyz), str(path), fmt, str(units).lower(), _viewpoint(path))
+    return LoadedCloud(pts, n_drop, len(xyz), str(path), fmt, str(units).lower(), _viewpoint(path),
+                       np.flatnonzero(finite) if n_drop else None)
 
 
 def _viewpoint(path: Path) -> np.ndarray | None:
@@ -109,10 +114,12 @@ def _viewpoint(path: Path) -> np.ndarray | None:
     return np.zeros(3) if frame == "camera" else np.array(camera.T_world_camera[:3, 3], float)
 
 
-def check_cloud(points: np.ndarray, *, min_points: int = MIN_POINTS) -> np.ndarray:
+def check_cloud(points: np.ndarray, *, min_points: int = MIN_POINTS, max_extent: float = MAX_EXTENT,
+                what: str = "one graspable object") -> np.ndarray:
     """Validate a cloud: (N, 3), finite, at least ``min_points`` points, not all identical
-    (spread above 1 µm), plausible in metres (:func:`~graspsim.perception.prepare.check_extent`).
-    Returns it as a float64 array; raises :class:`PointCloudError`."""
+    (spread above 1 µm), plausible in metres for ``what`` (at most ``max_extent`` wide;
+    :func:`~graspsim.perception.prepare.check_extent`). Returns it as a float64 array;
+    raises :class:`PointCloudError`."""
     p = as_coordinates(points)
     if p.ndim != 2 or p.shape[1] != 3:
         raise PointCloudError(f"points must have shape (N, 3), got {p.shape}")
@@ -124,7 +131,7 @@ def check_cloud(points: np.ndarray, *, min_points: int = MIN_POINTS) -> np.ndarr
         raise PointCloudError(f"the cloud has {len(p)} points; at least {min_points} are needed")
     if float(np.max(np.ptp(p, axis=0))) < 1e-6:
         raise PointCloudError(f"all {len(p)} points are identical (spread < 1 µm)")
-    check_extent(p)
+    check_extent(p, max_extent=max_extent, what=what)
     return p
 
 

@@ -1,0 +1,186 @@
+"""``graspsim plan-scene``: grasps for every object of a table-top scene cloud of your own.
+
+    graspsim plan-scene CLOUD -o GRASPS.json [--units m|cm|mm] [--viewpoint X Y Z] [--up NX NY NZ]
+                        [--crop XMIN YMIN ZMIN XMAX YMAX ZMAX] [--min-gap M] [--labels LABELS.npy]
+                        [--seed S] [--db DIR] [--gripper NAME|SPEC.json] [--json]
+
+The cloud a depth camera saw of a table with objects on it (``.pcd``, ``.ply``, ``.npy``,
+``.xyz``; NaN rows for missing depth are dropped) is planned as ``graspsim scene`` plans
+its simulated frames (:func:`~graspsim.perception.scene.plan_scene`): the table plane,
+the objects segmented on it, each identified and given grasps scored against the whole
+scene (its neighbours and the table). GRASPS.json holds the table, every segment (its
+status, primitives, where it is) and the ranked grasps (wrist poses in the cloud's frame,
+the jaw opening to approach with, the robust score). Exit status 1, and no file written
+(an existing one is left as it was), when no grasp scores above 0.
+"""
+
+from __future__ import annotations
+
+from graspsim.cli._common import add_json_flag, emit, format_table, gripper_from_args
+from graspsim.cli.maps import _add_generation, _config
+
+__all__ = ["register"]
+
+
+def _cmd_plan_scene(args) -> int:
+    import json
+    import sys
+    from dataclasses import replace
+    from pathlib import Path
+
+    import numpy as np
+
+    from graspsim import __version__
+    from graspsim._atomic import atomic_paths, check_output
+    from graspsim._jsonable import to_jsonable
+    from graspsim.errors import InvalidParameterError, MapDatabaseError, OutputPathError
+    from graspsim.maps.database import MapDatabase
+    from graspsim.perception import read_point_cloud
+    from graspsim.perception.scene import MAX_SCENE_EXTENT, SceneConfig, plan_scene
+    from graspsim.perception.segment import gap_link
+
+    # every option and output path before the cloud is read or anything computed
+    out = check_output(args.output, "grasps file", OutputPathError, others={"input cloud": args.cloud})
+    labels_out = None
+    if args.labels is not None:
+        labels_out = check_output(args.labels, "labels file", OutputPathError,
+                                  others={"input cloud": args.cloud, "grasps file": args.output})
+        if labels_out.suffix.lower() != ".npy":
+            raise InvalidParameterError(f"--labels writes a .npy file, got {labels_out.name!r}")
+    viewpoint = _finite("--viewpoint", args.viewpoint)
+    up = _finite("--up", args.up)
+    if up is not None and not np.linalg.norm(up) > 0:
+        raise InvalidParameterError("--up must be a nonzero direction, got 0 0 0")
+    crop = _finite("--crop", args.crop)
+    if crop is not None and not np.all(crop[:3] < crop[3:]):
+        raise InvalidParameterError("--crop takes XMIN YMIN ZMIN XMAX YMAX ZMAX with each minimum below its maximum")
+    try:
+        gap_link(args.min_gap or None)
+    except InvalidParameterError:
+        raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
+    if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
+        raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
+    gripper = gripper_from_args(args)
+    map_cfg, quality = _config(args)
+
+    cloud = read_point_cloud(args.cloud, units=args.units, min_points=100, max_extent=MAX_SCENE_EXTENT,
+                             what="a table-top scene")
+    pts = cloud.points
+    rows = np.arange(cloud.n_read) if cloud.rows is None else cloud.rows
+    if crop is not None:
+        inside = np.all((pts >= crop[:3]) & (pts <= crop[3:]), axis=1)
+        pts, rows = pts[inside], rows[inside]
+    if viewpoint is None and cloud.viewpoint is not None:
+        viewpoint = np.asarray(cloud.viewpoint, float)
+    if up is None and viewpoint is not None:  # the camera sees the table from above it
+        up = viewpoint - np.median(pts, axis=0) if len(pts) else None
+    cfg = replace(SceneConfig(), min_gap=args.min_gap or None, up=None if up is None else tuple(map(float, up)))
+    db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
+    plan = plan_scene(pts, db=db, rng=np.random.default_rng(args.seed), config=cfg, viewpoint=viewpoint)
+
+    per = plan.perception
+    segments = []
+    for seg in plan.segments:
+        p = per.segment_points(seg.segment)
+        segments.append({**seg.to_dict(), "centroid": p.mean(axis=0), "lower": p.min(axis=0), "upper": p.max(axis=0)})
+    best = plan.best
+    record = {"graspsim": __version__, "cloud": str(Path(args.cloud).resolve()), "units": cloud.units,
+              "points": int(cloud.n_read), "used": int(len(pts)), "frame": "the cloud's (file coordinates, metres)",
+              "viewpoint": viewpoint, "up": cfg.up, "crop": crop, "min_gap": cfg.min_gap, "seed": args.seed,
+              "gripper": db.gripper.name, "table": per.plane.to_dict(), "segments": segments,
+              "grasps": [g.to_dict() for g in plan.grasps], "best": None if best is None else best.to_dict(),
+              "timing": plan.timing}
+    if best is not None:  # both files or neither
+        with atomic_paths([out] + ([] if labels_out is None else [labels_out]), OutputPathError) as tmps:
+            tmps[0].write_text(json.dumps(to_jsonable(record), indent=1) + "\n")
+            if labels_out is not None:
+                labels = np.full(cloud.n_read, -1, np.int64)  # -1: table, cropped, no depth, noise
+                labels[rows] = _every_point(pts, per, cfg)
+                with open(tmps[1], "wb") as f:
+                    np.save(f, labels)
+    s = {k: record[k] for k in ("cloud", "units", "points", "used", "viewpoint", "up", "min_gap", "seed", "gripper",
+                                "table", "best", "timing")}
+    s.update(segments=plan.summary()["segments"], grasps=len(plan.grasps), file=None if best is None else str(out),
+             labels=None if best is None or labels_out is None else str(labels_out))
+    rows_h = [(d["segment"], d["points"], d["status"], "+".join(d["primitives"]) or "-",
+               max((g.score for g in plan.grasps if g.segment == d["segment"]), default=0.0)) for d in segments]
+    human = (f"table: normal {np.round(per.plane.normal, 3).tolist()}, {per.plane.share * 100:.0f} % of the points\n"
+             + format_table(rows_h, ["segment", "points", "status", "primitives", "best score"])
+             + f"\n{len(segments)} objects, {len(plan.grasps)} grasps in {plan.timing['total']:.2f} s"
+             + ("" if best is None else f"; best: segment {best.segment}, score {best.score:.2f} -> {out}"))
+    emit(s, args.json, human)
+    if best is None:
+        kept = f"{out} left as it was" if out.exists() else f"{out} not written"
+        print(f"graspsim: plan-scene: no grasp written: no grasp scores above 0 ({kept})", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _every_point(points, per, cfg):
+    """Each point's segment (-1: none): the thinned points' own, and for a point thinning
+    left out, above the table as they are, the segment of the thinned point nearest it
+    within a voxel's diagonal."""
+    import math
+
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    labels = per.labels.copy()
+    h = per.plane.heights(points)
+    todo = np.flatnonzero((labels < 0) & (h > cfg.table_band) & (h < cfg.max_height))
+    if len(todo) and len(per.points):
+        d, j = cKDTree(per.points).query(points[todo], distance_upper_bound=math.sqrt(3) * cfg.voxel)
+        near = np.isfinite(d)
+        labels[todo[near]] = per.segment[j[near]]
+    return labels
+
+
+def _finite(flag: str, values):
+    import numpy as np
+
+    from graspsim.errors import InvalidParameterError
+
+    if values is None:
+        return None
+    v = np.asarray(values, float)
+    if not np.all(np.isfinite(v)):
+        raise InvalidParameterError(f"{flag} takes finite numbers, got {' '.join(map(str, values))}")
+    return v
+
+
+def register(sub) -> None:
+    from graspsim.cli._common import add_units_flag, seed_value
+
+    p = sub.add_parser(
+        "plan-scene", help="grasps for every object of a table-top scene cloud (a depth camera's view)",
+        description="Fit the table of a scene cloud, segment the objects standing on it, identify each and "
+        "plan grasps checked against the whole scene (neighbours and table), and write the table, the "
+        "segments and the ranked grasps (poses in the cloud's frame) as JSON. Exit status 1, and nothing "
+        "written (an existing file is left as it was), when no grasp scores above 0.")
+    p.add_argument("cloud", help="scene cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m; see --units]; "
+                   "NaN rows (no depth) are dropped")
+    add_units_flag(p, widest="too wide for a table-top scene")
+    p.add_argument("-o", "--output", required=True, help="grasps file to write (.json)")
+    p.add_argument("--viewpoint", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
+                   help="where the camera was, in the cloud's frame [m] (0 0 0 for a cloud in the camera's "
+                   "frame): the robust score then counts finger volume in the space behind what the camera saw, "
+                   "and the table's up is towards it (default: the camera record beside the cloud, written by "
+                   "graspsim's save_cloud, else unknown)")
+    p.add_argument("--up", type=float, nargs=3, default=None, metavar=("NX", "NY", "NZ"),
+                   help="the table's upward direction in the cloud's frame (default: towards the viewpoint, "
+                   "else the side of the table with more points)")
+    p.add_argument("--crop", type=float, nargs=6, default=None,
+                   metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+                   help="keep only the points in this box of the cloud's frame [m] (e.g. the table and "
+                   "what stands on it, without the floor or the walls)")
+    p.add_argument("--min-gap", type=float, default=0.0, metavar="M",
+                   help="least gap [m] between any two objects, if known (segments closer than 0.8 x it are "
+                   "joined into one object; 0: unknown, default)")
+    p.add_argument("--labels", default=None, metavar="LABELS.npy",
+                   help="also write each file point's segment (-1: table, cropped, no depth or noise) as .npy")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
+    p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
+                   "~/.cache/graspsim/db; maps of new sizes are built on first use)")
+    _add_generation(p)
+    add_json_flag(p)
+    p.set_defaults(func=_cmd_plan_scene)

@@ -1,0 +1,171 @@
+"""``graspsim plan-scene``: a scene cloud of the user's own (here rendered by the simulated
+depth camera and written as a file, as a real camera's driver would) -> table, segments
+and ranked grasps in a JSON file; bad input is a one-line error that writes nothing."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from graspsim.cli import main
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import MapConfig
+from graspsim.perception import read_point_cloud
+from graspsim.perception.scene import SceneConfig, plan_scene
+from graspsim.primitives import Box, Cylinder, Sphere
+
+FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
+FAST_FLAGS = ["--surface-step", "0.01", "--rotation-step-deg", "22"]
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory):
+    d = MapDatabase(tmp_path_factory.mktemp("db"), config=FAST)
+    d.build([Box(0.06, 0.06, 0.06), Cylinder(0.02, 0.2), Sphere(0.035)])
+    return d
+
+
+@pytest.fixture(scope="module")
+def scene_cloud(tmp_path_factory):
+    """A 3-object packed scene seen by the D435-like camera, written in the camera's frame
+    with its camera record (.pcd + .pcd.json), and its ground-truth object per point."""
+    from graspsim.sim.camera import backproject, rig
+    from graspsim.sim.cloud_io import save_view
+    from graspsim.sim.scenes import make_scene
+
+    sim = make_scene(3, "packed", 5, object_set="primitives").sim()
+    view = backproject(sim.render(rig(1)[0]))
+    sim.close()
+    path = tmp_path_factory.mktemp("cloud") / "table.pcd"
+    save_view(path, view)
+    return path, view
+
+
+def _run(capsys, *args):
+    code = main(["plan-scene", *map(str, args), "--json"])
+    out = capsys.readouterr()
+    return code, json.loads(out.out.strip().splitlines()[-1]) if out.out.strip() else None, out.err
+
+
+@pytest.mark.slow
+def test_a_scene_file_gets_the_grasps_the_library_plans(tmp_path, capsys, db, scene_cloud):
+    path, view = scene_cloud
+    out, lab = tmp_path / "grasps.json", tmp_path / "labels.npy"
+    code, s, _ = _run(capsys, path, "-o", out, "--labels", lab, "--min-gap", 0.01, "--db", db.root, *FAST_FLAGS)
+    assert code == 0 and s["file"] == str(out) and s["labels"] == str(lab)
+    r = json.loads(out.read_text())
+    # the camera record beside the cloud: the camera at the origin; the table's up towards it
+    assert r["viewpoint"] == [0.0, 0.0, 0.0] and r["points"] == len(view.points)
+    n = np.array(r["table"]["normal"])
+    assert n @ (np.zeros(3) - np.median(view.points, axis=0)) > 0
+    scores = [g["score"] for g in r["grasps"]]
+    assert scores == sorted(scores, reverse=True) and r["best"] == r["grasps"][0] and scores[0] > 0
+    assert {g["segment"] for g in r["grasps"]} <= {d["segment"] for d in r["segments"]}
+    # exactly what plan_scene gives for the same cloud, settings and seed
+    cloud = read_point_cloud(path, min_points=100, max_extent=10.0, what="a table-top scene")
+    cfg = SceneConfig(min_gap=0.01, up=tuple(float(v) for v in r["up"]))
+    lib = plan_scene(cloud.points, db=db, rng=np.random.default_rng(0), config=cfg, viewpoint=np.zeros(3))
+    assert len(lib.grasps) == len(r["grasps"])
+    for mine, theirs in zip(r["grasps"], lib.grasps):
+        assert mine["segment"] == theirs.segment and mine["score"] == pytest.approx(theirs.score, abs=1e-12)
+        np.testing.assert_allclose(mine["T_world_wrist"], theirs.T_world_wrist, atol=1e-12)
+    # each file point's segment: every object's points fall (almost all) in one segment of their own
+    labels = np.load(lab)
+    assert labels.shape == (len(view.points),)
+    for obj in np.unique(view.labels[view.labels >= 0]):
+        seg, count = np.unique(labels[view.labels == obj], return_counts=True)
+        assert seg[np.argmax(count)] >= 0 and count.max() >= 0.9 * (view.labels == obj).sum()
+    assert np.all(labels[view.labels < 0] < 0) or (labels[view.labels < 0] >= 0).mean() < 0.01
+    # the best grasp's segment is one object's
+    best = labels == r["best"]["segment"]
+    assert np.unique(view.labels[best]).size == 1
+
+
+@pytest.mark.slow
+def test_no_depth_rows_and_a_crop_keep_the_labels_on_the_file_rows(tmp_path, capsys, db, scene_cloud):
+    path, view = scene_cloud
+    pts = view.points.copy()
+    pts[::7] = np.nan  # an organised cloud's missing depth
+    f = tmp_path / "holes.npy"
+    np.save(f, pts)
+    lo, hi = view.points.min(axis=0), view.points.max(axis=0)
+    obj = np.unique(view.labels[view.labels >= 0])[0]  # crop one object out: the box stops before it
+    cut = float(view.points[view.labels == obj, 0].min()) - 0.005
+    crop = [*(lo - 1), cut, *(hi[1:] + 1)] if cut > float(np.median(view.points[:, 0])) else None
+    if crop is None:  # the object is on the low side of x: crop from the other end
+        cut = float(view.points[view.labels == obj, 0].max()) + 0.005
+        crop = [cut, *(lo[1:] - 1), *(hi + 1)]
+    out, lab = tmp_path / "g.json", tmp_path / "l.npy"
+    code, s, _ = _run(capsys, f, "-o", out, "--labels", lab, "--viewpoint", 0, 0, 0, "--crop", *crop,
+                      "--db", db.root, *FAST_FLAGS)
+    assert code == 0
+    labels = np.load(lab)
+    assert labels.shape == (len(pts),) and np.all(labels[::7] == -1)  # one per file row, none where no depth
+    assert np.all(labels[view.labels == obj] == -1)  # cropped away
+    assert s["used"] < s["points"] - len(pts[::7])
+
+
+def test_nothing_to_grasp_exits_1_and_leaves_the_output_as_it_was(tmp_path, capsys, db):
+    rng = np.random.default_rng(0)
+    table = np.c_[rng.uniform(-0.3, 0.3, (5000, 2)), rng.normal(0, 0.0005, 5000)]  # a bare table
+    f = tmp_path / "bare.npy"
+    np.save(f, table)
+    out = tmp_path / "grasps.json"
+    out.write_text("earlier")
+    code, s, err = _run(capsys, f, "-o", out, "--db", db.root, *FAST_FLAGS)
+    assert code == 1 and s["file"] is None and s["segments"] == [] and s["best"] is None
+    assert "no grasp" in err and out.read_text() == "earlier"
+
+
+def test_a_cloud_too_big_for_the_memory_budget_is_refused_before_any_work(tmp_path, capsys, db, monkeypatch):
+    from graspsim.errors import BudgetExceededError
+    from graspsim.perception.scene import SCENE_BYTES_PER_POINT
+
+    rng = np.random.default_rng(2)
+    pts = np.c_[rng.uniform(-0.3, 0.3, (20_000, 2)), rng.normal(0, 0.0005, 20_000)]
+    monkeypatch.setenv("GRASPSIM_MEMORY_BUDGET", str(SCENE_BYTES_PER_POINT * 19_999))
+    with pytest.raises(BudgetExceededError, match="20000 points"):
+        plan_scene(pts, db=db, rng=np.random.default_rng(0))
+    f, out = tmp_path / "big.npy", tmp_path / "g.json"
+    np.save(f, pts)
+    code, _, err = _run(capsys, f, "-o", out, "--db", db.root)
+    assert code == 2 and "GRASPSIM_MEMORY_BUDGET" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+    monkeypatch.setenv("GRASPSIM_MEMORY_BUDGET", str(SCENE_BYTES_PER_POINT * 20_000))  # just enough: planned
+    assert plan_scene(pts, db=db, rng=np.random.default_rng(0)).segments == ()
+
+
+@pytest.mark.parametrize("how, args, message", [
+    ("mm", [], "--units mm"),
+    ("ok", ["--crop", "0", "0", "0", "0", "1", "1"], "--crop"),
+    ("ok", ["--crop", "0", "0", "nan", "1", "1", "1"], "--crop"),
+    ("ok", ["--up", "0", "0", "0"], "--up"),
+    ("ok", ["--viewpoint", "0", "inf", "0"], "--viewpoint"),
+    ("ok", ["--labels", "labels.txt"], "--labels"),
+    ("ok", ["--min-gap", "0.5"], "--min-gap"),
+    ("missing", [], "does not exist"),
+    ("blob", [], "no table plane"),
+    ("ok", ["-o", "."], "directory"),
+])
+def test_bad_input_is_a_one_line_error_and_writes_nothing(how, args, message, tmp_path, capsys, db):
+    rng = np.random.default_rng(1)
+    table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), rng.normal(0, 0.0005, 3000)]
+    box = np.c_[rng.uniform(-0.03, 0.03, (800, 2)), rng.uniform(0, 0.06, 800)]
+    pts = {"ok": np.r_[table, box], "mm": 1000 * np.r_[table, box],
+           "blob": rng.normal(0, 0.05, (2000, 3))}.get(how)
+    f = tmp_path / "cloud.npy"
+    if pts is not None:
+        np.save(f, pts)
+    out = tmp_path / "grasps.json"
+    out.write_text("earlier")
+    argv = ["plan-scene", str(f), *(["-o", str(out)] if "-o" not in args else []), *args,
+            "--db", str(db.root), *FAST_FLAGS]
+    try:
+        code = main(argv)
+    except SystemExit as e:  # argparse's own errors
+        code = e.code
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 or err.startswith("usage")
+    assert out.read_text() == "earlier" and not (tmp_path / "labels.txt").exists()

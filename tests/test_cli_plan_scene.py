@@ -147,6 +147,8 @@ def test_a_cloud_too_big_for_the_memory_budget_is_refused_before_any_work(tmp_pa
     ("missing", [], "does not exist"),
     ("blob", [], "no table plane"),
     ("ok", ["-o", "."], "directory"),
+    ("ok", ["--screenshot", "."], "directory"),
+    ("ok", ["--view", "--port", "70000"], "--port"),
 ])
 def test_bad_input_is_a_one_line_error_and_writes_nothing(how, args, message, tmp_path, capsys, db):
     rng = np.random.default_rng(1)
@@ -169,3 +171,38 @@ def test_bad_input_is_a_one_line_error_and_writes_nothing(how, args, message, tm
     assert code == 2 and message in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1 or err.startswith("usage")
     assert out.read_text() == "earlier" and not (tmp_path / "labels.txt").exists()
+
+
+needs_viser = pytest.mark.skipif(__import__("importlib").util.find_spec("viser") is None,
+                                 reason="viser is not installed (pip install -e '.[viewer]')")
+
+
+@needs_viser
+@pytest.mark.slow
+def test_a_planned_scene_cloud_in_the_viewer(tmp_path, capsys, db, scene_cloud):
+    """show_plan: the plan of a camera-frame cloud, up along the table's normal, seen
+    from the camera's side; plan-scene --screenshot draws it (where Chromium is)."""
+    from graspsim.viewer import show_plan, stop
+
+    path, view = scene_cloud
+    plan = plan_scene(view.points, db=db, rng=np.random.default_rng(0),
+                      config=SceneConfig(min_gap=0.01, up=(0.0, -0.6, -0.8)), viewpoint=np.zeros(3))
+    server = show_plan(plan, view.points, eye=np.zeros(3), port=0)
+    try:
+        v = server.graspsim_viewer
+        assert v.per is plan.perception and v.best is plan.best
+        assert len(v.segments.points) == len(plan.perception.points)
+        position, look_at = v.camera
+        n = plan.perception.plane.normal
+        assert (np.array(position) - look_at) @ n > 0  # looking down at the table from the camera's side
+        assert {g.segment for g in v.drawn} == {g.segment for g in plan.grasps}
+    finally:
+        stop(server)
+    from graspsim.viewer.snapshot import find_browser
+
+    if find_browser() is None:
+        return
+    png, out = tmp_path / "scene.png", tmp_path / "g.json"
+    code, s, _ = _run(capsys, path, "-o", out, "--min-gap", 0.01, "--db", db.root, *FAST_FLAGS, "--screenshot", png,
+                      "--port", 0)
+    assert code == 0 and s["screenshot"] == str(png) and png.stat().st_size > 10_000 and out.exists()

@@ -555,7 +555,7 @@ def test_scene_mode_colours_segments_and_draws_each_objects_top_k_and_the_chosen
         drawn = v.drawn
         assert all(sum(g.segment == k for g in drawn) == min(2, sum(g.segment == k for g in plan.grasps))
                    for k in range(per.n_segments))
-        best = v.look.best
+        best = v.best
         assert best is not None and best in drawn and best.score == max(g.score for g in plan.grasps)
         v.g_top.value = 1  # the slider: one grasp per object, each the object's best
         assert [g.segment for g in v.drawn] == sorted({g.segment for g in plan.grasps}, key=[

@@ -40,7 +40,15 @@ def _cmd_plan_scene(args) -> int:
     from graspsim.perception.segment import gap_link
 
     # every option and output path before the cloud is read or anything computed
+    if args.view or args.screenshot:
+        from graspsim.viewer import require_viser
+
+        require_viser(load=False)
+        if not 0 <= args.port <= 65535:
+            raise InvalidParameterError(f"--port must be in 0..65535, got {args.port}")
     out = check_output(args.output, "grasps file", OutputPathError, others={"input cloud": args.cloud})
+    shot = None if args.screenshot is None else check_output(
+        args.screenshot, "screenshot", OutputPathError, others={"input cloud": args.cloud, "grasps file": args.output})
     labels_out = None
     if args.labels is not None:
         labels_out = check_output(args.labels, "labels file", OutputPathError,
@@ -108,12 +116,38 @@ def _cmd_plan_scene(args) -> int:
              + format_table(rows_h, ["segment", "points", "status", "primitives", "best score"])
              + f"\n{len(segments)} objects, {len(plan.grasps)} grasps in {plan.timing['total']:.2f} s"
              + ("" if best is None else f"; best: segment {best.segment}, score {best.score:.2f} -> {out}"))
+    if args.view or shot is not None:
+        s.update(_show(plan, pts, db.gripper, viewpoint, args, shot))
     emit(s, args.json, human)
     if best is None:
         kept = f"{out} left as it was" if out.exists() else f"{out} not written"
         print(f"graspsim: plan-scene: no grasp written: no grasp scores above 0 ({kept})", file=sys.stderr)
         return 1
     return 0
+
+
+def _show(plan, points, gripper, viewpoint, args, shot) -> dict:
+    """The planned scene in the viewer: a screenshot to ``shot`` (then stop), else
+    served until Ctrl-C. Returns what to add to the summary."""
+    import time
+
+    from graspsim.cli.view import _quiet_server_logs, _serve, _stop_uninterrupted
+    from graspsim.viewer import show_plan
+
+    _quiet_server_logs()
+    server = show_plan(plan, points, gripper=gripper, eye=viewpoint, top_k=3, port=args.port)
+    url = f"http://localhost:{server.get_port()}"
+    try:
+        if shot is not None:
+            from graspsim.viewer.snapshot import browser_render, save_png
+
+            t = time.perf_counter()
+            save_png(browser_render(server, camera=server.graspsim_viewer.camera), shot)
+            return {"screenshot": str(shot), "screenshot_s": time.perf_counter() - t}
+        _serve(url, f"{plan.perception.n_segments} segments, {len(plan.grasps)} grasps", args.json)
+        return {"url": url}
+    finally:
+        _stop_uninterrupted(server)
 
 
 def _every_point(points, per, cfg):
@@ -181,6 +215,12 @@ def register(sub) -> None:
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
     p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
                    "~/.cache/graspsim/db; maps of new sizes are built on first use)")
+    p.add_argument("--view", action="store_true",
+                   help="then show the planned scene in the browser (the viewer extra: the points coloured by "
+                   "segment, the table, each object's best grasps, the chosen one) until Ctrl-C")
+    p.add_argument("--port", type=int, default=8080, help="with --view: first port tried (8080)")
+    p.add_argument("--screenshot", default=None, metavar="PNG",
+                   help="save what headless Chromium draws of the planned scene to PNG (instead of serving)")
     _add_generation(p)
     add_json_flag(p)
     p.set_defaults(func=_cmd_plan_scene)

@@ -124,7 +124,7 @@ def _show_scene(args):
     db = MapDatabase(args.db, gripper=gripper_from_args(args), quality=quality, config=map_cfg)
     server = show_scene(scene, db=db, seed=args.seed, top_k=args.top or 3, host=args.host, port=args.port)
     v = server.graspsim_viewer
-    best = v.look.best
+    best = v.best
     summary = {"scene": args.scene, "objects": len(scene.objects), "segments": v.per.n_segments,
                "grasps": len(v.plan.grasps), "drawn": len(v.drawn), "chosen": None if best is None else
                {"segment": best.segment, "score": best.score, "grade": best.grade}}

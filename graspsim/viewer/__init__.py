@@ -6,6 +6,7 @@
     ...
     graspsim.viewer.stop(server)
     server = graspsim.viewer.show_scene("pile.json")   # a table-top scene, seen and planned
+    server = graspsim.viewer.show_plan(plan_scene(cloud, ...), cloud)   # a scene cloud you planned
 
 viser is an optional dependency (``pip install 'graspsim[viewer]'``); without it
 :func:`show` raises :class:`~graspsim.errors.DependencyNotInstalled` saying so, and the
@@ -19,7 +20,7 @@ from pathlib import Path
 
 from graspsim.errors import DependencyNotInstalled
 
-__all__ = ["show", "show_scene", "stop", "require_viser", "INSTALL_HINT"]
+__all__ = ["show", "show_scene", "show_plan", "stop", "require_viser", "INSTALL_HINT"]
 
 INSTALL_HINT = "pip install 'graspsim[viewer]'"
 
@@ -137,6 +138,24 @@ def show_scene(scene, *, db=None, look=None, seed: int = 0, config=None, top_k: 
         look, gripper = _scene_look(scene, db, seed, config)
     else:
         gripper = db.gripper if db is not None else _default_gripper()
+    return show_plan(look.plan, look.view.world(), gripper=gripper, eye=look.frame.camera.T_world_camera[:3, 3],
+                     best=look.best, top_k=top_k, host=host, port=port, verbose=verbose)
+
+
+def show_plan(plan, cloud, *, gripper=None, eye=None, best=None, top_k: int = 3, host: str = "127.0.0.1",
+              port: int = 8080, verbose: bool = False):
+    """Serve a planned scene -- ``plan``, a :class:`~graspsim.perception.scene.ScenePlan`
+    of the points ``cloud`` (N, 3) (e.g. ``plan_scene``'s of a user's own cloud, as
+    ``graspsim plan-scene --view`` shows it) -- and return the running
+    ``viser.ViserServer`` without blocking (:mod:`graspsim.viewer.scene_view`). gripper:
+    the GripperSpec that planned it (default the Festo); eye (3,): where the camera was
+    (None: unknown); best: the grasp shown as chosen (default the plan's best); top_k:
+    grasps drawn per object at start."""
+    require_viser(load=False)
+    from graspsim.errors import InvalidParameterError
+
+    if isinstance(top_k, bool) or not isinstance(top_k, int) or top_k < 0:
+        raise InvalidParameterError(f"top_k must be a whole number >= 0, got {top_k!r}")
     viser = require_viser()
     from graspsim.viewer.scene_view import SceneViewer
 
@@ -144,7 +163,8 @@ def show_scene(scene, *, db=None, look=None, seed: int = 0, config=None, top_k: 
     server = _quietly(verbose, viser.ViserServer, host=host, port=port, verbose=verbose)
     try:
         server.gui.configure_theme(control_width="large", show_share_button=False)
-        server.graspsim_viewer = SceneViewer(server, look, gripper, top_k=top_k)
+        server.graspsim_viewer = SceneViewer(server, plan, cloud, gripper or _default_gripper(), eye=eye, best=best,
+                                             top_k=top_k)
     except BaseException:
         server.stop()
         raise

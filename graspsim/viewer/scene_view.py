@@ -1,7 +1,9 @@
 """The viewer's scene mode: a table-top scene as the robot's depth camera saw it and planned it.
 
-Draws one look of :class:`~graspsim.sim.clutter.ClutterEpisode` (the clutter-removal
-protocol's render -> plan step) in the world frame (metres, z up): the back-projected
+Draws a :class:`~graspsim.perception.scene.ScenePlan` -- one look of
+:class:`~graspsim.sim.clutter.ClutterEpisode` (the clutter-removal protocol's render ->
+plan step) in the world frame (metres, z up), or a scene cloud of the user's own planned
+by ``graspsim plan-scene --view`` in the cloud's frame (up: the table's normal) -- as the
 depth cloud in grey, the points above the table coloured by segment (one colour per
 segment, :data:`SEGMENT_COLOURS`), the fitted table plane as a translucent plate, and
 the grasps: each segment's ``top K`` as fork glyphs coloured by their robust score
@@ -29,17 +31,23 @@ MAX_CLOUD = 200_000  # raw cloud points sent to the browser at most
 
 
 class SceneViewer:
-    """One look (a :class:`~graspsim.sim.clutter.ClutterFrame`) of a scene on
-    ``server`` (a ``viser.ViserServer``); ``gripper``: the GripperSpec that planned it."""
+    """A scene's ``plan`` (a :class:`~graspsim.perception.scene.ScenePlan`) on ``server``
+    (a ``viser.ViserServer``): ``cloud`` (N, 3) the points it was planned from (the
+    plan's frame); ``gripper``: the GripperSpec that planned it; ``eye`` (3,): where the
+    camera was (new browsers look from its side; None: from above the table); ``best``:
+    the chosen grasp (default the plan's best)."""
 
-    def __init__(self, server, look, gripper, *, top_k: int = 3, glyph_size: float = 0.5) -> None:
-        self.server, self.look, self.gripper = server, look, gripper
-        self.plan = look.plan
+    def __init__(self, server, plan, cloud, gripper, *, eye=None, best=None, top_k: int = 3,
+                 glyph_size: float = 0.5) -> None:
+        self.server, self.plan, self.gripper = server, plan, gripper
+        self.best = plan.best if best is None else best
         self.per = self.plan.perception
+        self.eye = None if eye is None else np.asarray(eye, float)
         self.glyph_size = float(glyph_size)
         scene = server.scene
         self.root = scene.add_frame("/scene", show_axes=False)
-        pts = look.view.world()
+        pts = np.asarray(cloud, float).reshape(-1, 3)
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
         if len(pts) > MAX_CLOUD:  # a seeded subset: the browser needs no more
             pts = pts[np.sort(np.random.default_rng(0).choice(len(pts), MAX_CLOUD, replace=False))]
         self.cloud = scene.add_point_cloud("/scene/cloud", pts.astype(np.float32), CLOUD_COLOUR,
@@ -51,7 +59,7 @@ class SceneViewer:
         self._draw_table()
         self._glyph = fork_glyph()
         self._build_gui(top_k)
-        scene.set_up_direction("+z")
+        scene.set_up_direction(tuple(float(v) for v in self.per.plane.normal))
         scene.configure_default_lights(cast_shadow=False)
         scene.add_light_hemisphere("/light", intensity=0.6)
         self.view = BrowserView(server)
@@ -80,8 +88,14 @@ class SceneViewer:
             wxyz=matrix_to_quat(R), position=foot)
 
     def _aim(self) -> None:
-        """New browsers look at the objects from the depth camera's side, at half its distance."""
-        eye = np.asarray(self.look.frame.camera.T_world_camera, float)[:3, 3]
+        """New browsers look at the objects from the depth camera's side, at half its
+        distance (no camera known: from 40 cm above the table, a little to the side)."""
+        if self.eye is not None:
+            eye = self.eye
+        else:
+            n = np.asarray(self.per.plane.normal, float)
+            side = np.eye(3)[int(np.argmin(np.abs(n)))]
+            eye = self.centre + 0.8 * n + 0.3 * (side - (side @ n) * n)
         self.view.aim(self.centre + 0.5 * (eye - self.centre), self.centre)
 
     @property
@@ -92,7 +106,7 @@ class SceneViewer:
     # ------------------------------------------------------------------ GUI and grasps
     def _build_gui(self, top_k: int) -> None:
         gui = self.server.gui
-        best = self.look.best
+        best = self.best
         gui.add_markdown(f"**scene** · {self.per.n_segments} segments · {len(self.plan.grasps)} grasps planned · "
                          + ("no grasp with a robust score > 0" if best is None else
                             f"chosen: segment {best.segment}, score {best.score:.2f}"))
@@ -133,7 +147,7 @@ class SceneViewer:
         for name in ("/scene/grasps", "/scene/best", "/scene/chosen"):
             scene.remove_by_name(name)
         self.g_status.content = f"showing {len(grasps)} grasps"
-        best = self.look.best
+        best = self.best
         if best is not None:
             scene.add_line_segments("/scene/chosen", gripper_wireframe(self.gripper, best.T_world_wrist, best.opening),
                                     CHOSEN_COLOUR, thickness=3.0, thickness_units="screen")

@@ -35,11 +35,12 @@ def scene_cloud(tmp_path_factory):
     from graspsim.sim.scenes import make_scene
 
     sim = make_scene(3, "packed", 5, object_set="primitives").sim()
-    view = backproject(sim.render(rig(1)[0]))
+    frame = sim.render(rig(1)[0])
     sim.close()
+    view = backproject(frame)
     path = tmp_path_factory.mktemp("cloud") / "table.pcd"
     save_view(path, view)
-    return path, view
+    return path, view, frame
 
 
 def _run(capsys, *args):
@@ -50,7 +51,7 @@ def _run(capsys, *args):
 
 @pytest.mark.slow
 def test_a_scene_file_gets_the_grasps_the_library_plans(tmp_path, capsys, db, scene_cloud):
-    path, view = scene_cloud
+    path, view, _ = scene_cloud
     out, lab = tmp_path / "grasps.json", tmp_path / "labels.npy"
     code, s, _ = _run(capsys, path, "-o", out, "--labels", lab, "--min-gap", 0.01, "--db", db.root, *FAST_FLAGS)
     assert code == 0 and s["file"] == str(out) and s["labels"] == str(lab)
@@ -84,7 +85,7 @@ def test_a_scene_file_gets_the_grasps_the_library_plans(tmp_path, capsys, db, sc
 
 @pytest.mark.slow
 def test_no_depth_rows_and_a_crop_keep_the_labels_on_the_file_rows(tmp_path, capsys, db, scene_cloud):
-    path, view = scene_cloud
+    path, view, _ = scene_cloud
     pts = view.points.copy()
     pts[::7] = np.nan  # an organised cloud's missing depth
     f = tmp_path / "holes.npy"
@@ -104,6 +105,74 @@ def test_no_depth_rows_and_a_crop_keep_the_labels_on_the_file_rows(tmp_path, cap
     assert labels.shape == (len(pts),) and np.all(labels[::7] == -1)  # one per file row, none where no depth
     assert np.all(labels[view.labels == obj] == -1)  # cropped away
     assert s["used"] < s["points"] - len(pts[::7])
+
+
+@pytest.mark.slow
+def test_a_depth_image_is_planned_in_the_cameras_frame(tmp_path, capsys, db, scene_cloud):
+    """A 16-bit PNG in millimetres (a RealSense driver's) with the d435 preset, and a float
+    .npy in metres with explicit intrinsics: each planned as plan_scene plans its pixels
+    back-projected; the labels file is the image's (H, W)."""
+    from PIL import Image
+
+    from graspsim.sim.camera import Camera, DepthFrame, backproject
+
+    _, _, frame = scene_cloud
+    k = frame.camera.intrinsics
+    mm = np.round(frame.depth * 1000).astype(np.uint16)
+    png, npy = tmp_path / "depth.png", tmp_path / "depth.npy"
+    Image.fromarray(mm).save(png)
+    np.save(npy, frame.depth.astype(np.float64))
+    for f, flags, depth in ((png, ["--camera", "d435"], mm * 0.001),
+                            (npy, ["--intrinsics", k.fx, k.fy, k.cx, k.cy], frame.depth.astype(np.float64))):
+        out, lab = tmp_path / f"{f.stem}.json", tmp_path / f"{f.stem}_labels.npy"
+        code, s, _ = _run(capsys, f, *flags, "-o", out, "--labels", lab, "--min-gap", 0.01, "--db", db.root,
+                          *FAST_FLAGS)
+        assert code == 0 and s["input"] == "depth image" and s["viewpoint"] == [0.0, 0.0, 0.0]
+        r = json.loads(out.read_text())
+        assert r["points"] == k.width * k.height and r["intrinsics"]["fx"] == pytest.approx(k.fx)
+        pts = backproject(DepthFrame(depth, Camera(k, np.eye(4)))).points
+        assert r["used"] == len(pts)
+        lib = plan_scene(pts, db=db, rng=np.random.default_rng(0),
+                         config=SceneConfig(min_gap=0.01, up=tuple(r["up"])), viewpoint=np.zeros(3))
+        assert [g["segment"] for g in r["grasps"]] == [g.segment for g in lib.grasps]
+        np.testing.assert_allclose(r["best"]["T_world_wrist"], lib.best.T_world_wrist, atol=1e-12)
+        labels = np.load(lab)
+        assert labels.shape == frame.depth.shape and np.all(labels[frame.depth == 0] == -1)
+        for obj in np.unique(frame.labels[frame.labels >= 0]):  # each object's pixels: one segment
+            seg, count = np.unique(labels[frame.labels == obj], return_counts=True)
+            assert seg[np.argmax(count)] >= 0 and count.max() >= 0.9 * (frame.labels == obj).sum()
+
+
+@pytest.mark.parametrize("image, args, message", [
+    ("rgb", ["--camera", "d435"], "one channel"),
+    ("small", ["--camera", "d435"], "preset is 640 x 480"),
+    ("mm", ["--camera", "d435", "--depth-scale", "1"], "is the depth scale right"),
+    ("mm", ["--camera", "d435", "--depth-scale", "0"], "depth scale"),
+    ("zeros", ["--camera", "d435"], "no pixel has a valid depth"),
+    ("mm", ["--camera", "kinect"], "unknown camera preset"),
+    ("mm", ["--camera", "d435", "--intrinsics", "300", "300", "320", "240"], "not both"),
+    ("mm", ["--camera", "d435", "--units", "mm"], "--units is for point clouds"),
+    ("mm", ["--intrinsics", "300", "300", "9999", "240"], "principal point"),
+    ("cloud", ["--depth-scale", "0.001"], "--depth-scale is for depth images"),
+    ("cloud", ["--camera", "d435"], "depth image"),
+])
+def test_bad_depth_input_is_a_one_line_error_and_writes_nothing(image, args, message, tmp_path, capsys, db):
+    from PIL import Image
+
+    rng = np.random.default_rng(3)
+    mm = rng.integers(500, 800, (480, 640)).astype(np.uint16)
+    f = tmp_path / ("cloud.npy" if image == "cloud" else "depth.png")
+    if image == "rgb":
+        Image.fromarray(np.zeros((480, 640, 3), np.uint8)).save(f)
+    elif image == "cloud":
+        np.save(f, rng.uniform(0, 0.3, (1000, 3)))
+    else:
+        Image.fromarray({"mm": mm, "small": mm[:240, :320], "zeros": 0 * mm}[image]).save(f)
+    out = tmp_path / "g.json"
+    code = main(["plan-scene", str(f), "-o", str(out), *args, "--db", str(db.root), *FAST_FLAGS])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
 
 
 def test_nothing_to_grasp_exits_1_and_leaves_the_output_as_it_was(tmp_path, capsys, db):
@@ -184,7 +253,7 @@ def test_a_planned_scene_cloud_in_the_viewer(tmp_path, capsys, db, scene_cloud):
     from the camera's side; plan-scene --screenshot draws it (where Chromium is)."""
     from graspsim.viewer import show_plan, stop
 
-    path, view = scene_cloud
+    path, view, _ = scene_cloud
     plan = plan_scene(view.points, db=db, rng=np.random.default_rng(0),
                       config=SceneConfig(min_gap=0.01, up=(0.0, -0.6, -0.8)), viewpoint=np.zeros(3))
     server = show_plan(plan, view.points, eye=np.zeros(3), port=0)

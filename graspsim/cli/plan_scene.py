@@ -2,10 +2,12 @@
 
     graspsim plan-scene CLOUD -o GRASPS.json [--units m|cm|mm] [--viewpoint X Y Z] [--up NX NY NZ]
                         [--crop XMIN YMIN ZMIN XMAX YMAX ZMAX] [--min-gap M] [--labels LABELS.npy]
-                        [--seed S] [--db DIR] [--gripper NAME|SPEC.json] [--json]
+                        [--seed S] [--db DIR] [--gripper NAME|SPEC.json] [--view | --screenshot PNG] [--json]
+    graspsim plan-scene DEPTH.png --camera d435 | --intrinsics FX FY CX CY [--depth-scale S] ...
 
 The cloud a depth camera saw of a table with objects on it (``.pcd``, ``.ply``, ``.npy``,
-``.xyz``; NaN rows for missing depth are dropped) is planned as ``graspsim scene`` plans
+``.xyz``; NaN rows for missing depth are dropped), or its depth image back-projected in the
+camera's frame (:func:`~graspsim.perception.io.read_depth_image`), is planned as ``graspsim scene`` plans
 its simulated frames (:func:`~graspsim.perception.scene.plan_scene`): the table plane,
 the objects segmented on it, each identified and given grasps scored against the whole
 scene (its neighbours and the table). GRASPS.json holds the table, every segment (its
@@ -35,8 +37,7 @@ def _cmd_plan_scene(args) -> int:
     from graspsim._jsonable import to_jsonable
     from graspsim.errors import InvalidParameterError, MapDatabaseError, OutputPathError
     from graspsim.maps.database import MapDatabase
-    from graspsim.perception import read_point_cloud
-    from graspsim.perception.scene import MAX_SCENE_EXTENT, SceneConfig, plan_scene
+    from graspsim.perception.scene import SceneConfig, plan_scene
     from graspsim.perception.segment import gap_link
 
     # every option and output path before the cloud is read or anything computed
@@ -71,15 +72,20 @@ def _cmd_plan_scene(args) -> int:
     gripper = gripper_from_args(args)
     map_cfg, quality = _config(args)
 
-    cloud = read_point_cloud(args.cloud, units=args.units, min_points=100, max_extent=MAX_SCENE_EXTENT,
-                             what="a table-top scene")
-    pts = cloud.points
-    rows = np.arange(cloud.n_read) if cloud.rows is None else cloud.rows
+    depth_mode = args.intrinsics is not None or args.camera is not None
+    if depth_mode and args.units != "m":
+        raise InvalidParameterError("--units is for point clouds; a depth image's unit is --depth-scale")
+    if not depth_mode and args.depth_scale is not None:
+        raise InvalidParameterError("--depth-scale is for depth images (given with --intrinsics or --camera)")
+    intrinsics = _finite("--intrinsics", args.intrinsics)
+
+    loaded = _depth_points(args, intrinsics) if depth_mode else _cloud_points(args)
+    pts, rows, n_read, source = loaded["points"], loaded["rows"], loaded["n_read"], loaded["source"]
     if crop is not None:
         inside = np.all((pts >= crop[:3]) & (pts <= crop[3:]), axis=1)
         pts, rows = pts[inside], rows[inside]
-    if viewpoint is None and cloud.viewpoint is not None:
-        viewpoint = np.asarray(cloud.viewpoint, float)
+    if viewpoint is None and loaded["viewpoint"] is not None:
+        viewpoint = np.asarray(loaded["viewpoint"], float)
     if up is None and viewpoint is not None:  # the camera sees the table from above it
         up = viewpoint - np.median(pts, axis=0) if len(pts) else None
     cfg = replace(SceneConfig(), min_gap=args.min_gap or None, up=None if up is None else tuple(map(float, up)))
@@ -92,8 +98,8 @@ def _cmd_plan_scene(args) -> int:
         p = per.segment_points(seg.segment)
         segments.append({**seg.to_dict(), "centroid": p.mean(axis=0), "lower": p.min(axis=0), "upper": p.max(axis=0)})
     best = plan.best
-    record = {"graspsim": __version__, "cloud": str(Path(args.cloud).resolve()), "units": cloud.units,
-              "points": int(cloud.n_read), "used": int(len(pts)), "frame": "the cloud's (file coordinates, metres)",
+    record = {"graspsim": __version__, "cloud": str(Path(args.cloud).resolve()), **source,
+              "points": int(n_read), "used": int(len(pts)),
               "viewpoint": viewpoint, "up": cfg.up, "crop": crop, "min_gap": cfg.min_gap, "seed": args.seed,
               "gripper": db.gripper.name, "table": per.plane.to_dict(), "segments": segments,
               "grasps": [g.to_dict() for g in plan.grasps], "best": None if best is None else best.to_dict(),
@@ -102,11 +108,12 @@ def _cmd_plan_scene(args) -> int:
         with atomic_paths([out] + ([] if labels_out is None else [labels_out]), OutputPathError) as tmps:
             tmps[0].write_text(json.dumps(to_jsonable(record), indent=1) + "\n")
             if labels_out is not None:
-                labels = np.full(cloud.n_read, -1, np.int64)  # -1: table, cropped, no depth, noise
+                labels = np.full(n_read, -1, np.int64)  # -1: table, cropped, no depth, noise
                 labels[rows] = _every_point(pts, per, cfg)
+                labels = labels.reshape(loaded["shape"])  # a depth image's: (H, W)
                 with open(tmps[1], "wb") as f:
                     np.save(f, labels)
-    s = {k: record[k] for k in ("cloud", "units", "points", "used", "viewpoint", "up", "min_gap", "seed", "gripper",
+    s = {k: record[k] for k in ("cloud", "input", "points", "used", "viewpoint", "up", "min_gap", "seed", "gripper",
                                 "table", "best", "timing")}
     s.update(segments=plan.summary()["segments"], grasps=len(plan.grasps), file=None if best is None else str(out),
              labels=None if best is None or labels_out is None else str(labels_out))
@@ -148,6 +155,50 @@ def _show(plan, points, gripper, viewpoint, args, shot) -> dict:
         return {"url": url}
     finally:
         _stop_uninterrupted(server)
+
+
+def _cloud_points(args) -> dict:
+    """The points of a cloud file, each one's file row, where it was seen from (its
+    camera record, if any) and what was read."""
+    import numpy as np
+
+    from graspsim.perception import read_point_cloud
+    from graspsim.perception.scene import MAX_SCENE_EXTENT
+
+    cloud = read_point_cloud(args.cloud, units=args.units, min_points=100, max_extent=MAX_SCENE_EXTENT,
+                             what="a table-top scene")
+    rows = np.arange(cloud.n_read) if cloud.rows is None else cloud.rows
+    return {"points": cloud.points, "rows": rows, "n_read": cloud.n_read, "shape": (cloud.n_read,),
+            "viewpoint": cloud.viewpoint,
+            "source": {"input": "point cloud", "units": cloud.units,
+                       "frame": "the cloud's (file coordinates, metres)"}}
+
+
+def _depth_points(args, intrinsics) -> dict:
+    """The camera-frame points of a depth image's valid pixels (``--intrinsics`` or the
+    ``--camera`` preset), each one's pixel (row-major index), the camera at the origin."""
+    import numpy as np
+
+    from graspsim.errors import InvalidParameterError
+    from graspsim.perception.io import read_depth_image
+    from graspsim.sim.camera import Camera, DepthFrame, Intrinsics, backproject
+
+    if intrinsics is not None and args.camera is not None:
+        raise InvalidParameterError("give --intrinsics or --camera, not both")
+    depth, scale = read_depth_image(args.cloud, scale=args.depth_scale)
+    h, w = depth.shape
+    if args.camera is not None:
+        k = Intrinsics.preset(args.camera)
+        if (k.width, k.height) != (w, h):
+            raise InvalidParameterError(f"the depth image is {w} x {h} pixels; the {args.camera} preset is "
+                                        f"{k.width} x {k.height} (give its --intrinsics FX FY CX CY instead)")
+    else:
+        k = Intrinsics(w, h, *map(float, intrinsics))
+    view = backproject(DepthFrame(depth, Camera(k, np.eye(4))))
+    return {"points": view.points, "rows": view.uv[:, 1] * w + view.uv[:, 0], "n_read": h * w, "shape": (h, w),
+            "viewpoint": np.zeros(3),
+            "source": {"input": "depth image", "intrinsics": k.to_dict(), "depth_scale": scale,
+                       "frame": "the camera's (OpenCV: x right, y down, z forward; metres)"}}
 
 
 def _every_point(points, per, cfg):
@@ -192,9 +243,18 @@ def register(sub) -> None:
         "segments and the ranked grasps (poses in the cloud's frame) as JSON. Exit status 1, and nothing "
         "written (an existing file is left as it was), when no grasp scores above 0.")
     p.add_argument("cloud", help="scene cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m; see --units]; "
-                   "NaN rows (no depth) are dropped")
+                   "NaN rows (no depth) are dropped; or, with --intrinsics or --camera, a depth image: a "
+                   "one-channel 16-bit .png/.tif or an (H, W) .npy")
     add_units_flag(p, widest="too wide for a table-top scene")
     p.add_argument("-o", "--output", required=True, help="grasps file to write (.json)")
+    p.add_argument("--intrinsics", type=float, nargs=4, default=None, metavar=("FX", "FY", "CX", "CY"),
+                   help="the input is a depth image from a camera with these pinhole intrinsics [px] (OpenCV "
+                   "convention); the points are planned in the camera's frame")
+    p.add_argument("--camera", default=None, metavar="NAME",
+                   help="the input is a depth image from this camera preset (d435: 640 x 480, 87 deg)")
+    p.add_argument("--depth-scale", type=float, default=None, metavar="S",
+                   help="metres per depth image unit (default 0.001 for integer images: millimetres; 1 for "
+                   "float arrays)")
     p.add_argument("--viewpoint", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
                    help="where the camera was, in the cloud's frame [m] (0 0 0 for a cloud in the camera's "
                    "frame): the robust score then counts finger volume in the space behind what the camera saw, "

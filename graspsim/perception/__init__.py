@@ -14,7 +14,7 @@ from graspsim.perception.identify import (
     identify,
     identify_cluster,
 )
-from graspsim.perception.io import LoadedCloud, check_cloud, read_point_cloud
+from graspsim.perception.io import LoadedCloud, check_cloud, read_depth_image, read_point_cloud
 from graspsim.perception.match import MatchDecision, MatchKind, classify_match
 from graspsim.perception.mlesac import ModelFit, fit_model, mixture_loglik
 from graspsim.perception.mvbb import OrientedBox, min_volume_box, pca_box
@@ -26,7 +26,7 @@ __all__ = [
     "Shape", "classify", "ShapeFeatures", "shape_features",
     "Identification", "IdentificationStatus", "IdentifyConfig", "PartResult",
     "identify", "identify_cluster",
-    "LoadedCloud", "check_cloud", "read_point_cloud",
+    "LoadedCloud", "check_cloud", "read_point_cloud", "read_depth_image",
     "MatchDecision", "MatchKind", "classify_match",
     "ModelFit", "fit_model", "mixture_loglik",
     "OrientedBox", "min_volume_box", "pca_box",

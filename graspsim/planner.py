@@ -12,7 +12,8 @@ cloud, feasibility under wrist pose error; :mod:`graspsim.maps.robust`), up to
 ``PlannerConfig.robust.top`` per part, and batches and the finished map are ordered by
 them; ``rank="paper"`` keeps the paper's grade order and scores nothing. Every map
 records ``extra["T_cloud_obj"]`` (4x4): the object frame in the cloud's frame, so poses
-can be taken back to the sensor.
+can be taken back to the sensor. What it returns (:class:`PlanResult`, :class:`GraspBatch`,
+...) is defined in :mod:`graspsim.plan_results`.
 """
 
 from __future__ import annotations
@@ -21,7 +22,6 @@ import logging
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
-from enum import Enum
 
 import numpy as np
 
@@ -37,6 +37,7 @@ from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import TablePlane, clears_table, heights_above, stream_order, table_frame, table_height
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
+from graspsim.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
 from graspsim.primitives import Compound, Primitive
 from graspsim.primitives.compound import object_frame
 from graspsim.stages import StageClock
@@ -46,12 +47,6 @@ __all__ = ["PlanStatus", "PlannerConfig", "PartPlan", "PlanResult", "GraspBatch"
            "plan_stream", "plan_shape", "plan_shape_stream"]
 
 log = logging.getLogger(__name__)
-
-
-class PlanStatus(str, Enum):
-    COMPLETE = "complete"  # every cluster identified
-    PARTIAL = "partial"  # clustering failed; map of the identified clusters only
-    FAILED = "failed"  # nothing identified
 
 
 @dataclass(frozen=True)
@@ -89,65 +84,6 @@ class PlannerConfig:
             raise InvalidParameterError(f"PlannerConfig.rank must be one of {list(RANKS)}, got {self.rank!r}")
         if not isinstance(self.robust, RobustConfig):
             raise InvalidParameterError(f"PlannerConfig.robust must be a RobustConfig, got {self.robust!r}")
-
-
-@dataclass(frozen=True)
-class PartPlan:
-    """primitive: as identified (box edges ascending); match: the database's decision
-    (:class:`~graspsim.maps.match.MatchKind`: KNOWN, FAMILIAR, or BUILD: an FS map was
-    built for the part -- or, with ``build_missing`` off, none: ``source`` is empty);
-    source: the FS map's object; T_cloud_part (4, 4); T_obj_part (4, 4) in the map's
-    object frame."""
-
-    primitive: Primitive
-    match: MatchKind
-    source: dict
-    T_cloud_part: np.ndarray
-    T_obj_part: np.ndarray
-
-    def to_dict(self) -> dict:
-        return {"primitive": self.primitive.kind, "dims": self.primitive.dims, "match": self.match.value,
-                "source": self.source, "T_cloud_part": self.T_cloud_part.tolist()}
-
-
-@dataclass(frozen=True)
-class GraspBatch:
-    """Grasps found so far: ``map`` (object frame), seconds since the cloud arrived."""
-
-    map: GraspabilityMap
-    seconds: float
-
-
-@dataclass(frozen=True, eq=False)
-class PlanResult:
-    """status; map: adapted map (object frame; ``extra["T_cloud_obj"]``); parts;
-    identification (None for :func:`plan_shape`); T_cloud_obj (4, 4); timing [s] per
-    stage (``identify``; ``maps``: all that follows, of which ``adapt``: retrieval and
-    scaling, ``agreement``: the cloud-agreement filter, ``combine``, ``table``: the table
-    filter, ``robust``: scoring) plus ``first`` and ``tenth`` (time to the first and tenth grasp with grade
-    > 0.95, None if never), ``first_robust`` (time to the first grasp with a robust
-    score > 0; None if never or ``rank="paper"``), ``first_robust_cpu`` (the calling
-    thread's CPU seconds from the end of identification to that grasp: a measure that
-    other processes' load barely changes) and ``robust`` (seconds spent scoring)."""
-
-    status: PlanStatus
-    map: GraspabilityMap
-    parts: tuple[PartPlan, ...]
-    identification: Identification | None
-    T_cloud_obj: np.ndarray
-    timing: dict
-
-    def summary(self) -> dict:
-        return {"status": self.status.value, "parts": [p.to_dict() for p in self.parts],
-                "grasps": len(self.map), "accepted": int(self.map.accepted.sum()),
-                "seconds": self.timing.get("total"), "time_to_first_0.95": self.timing.get("first"),
-                "time_to_tenth_0.95": self.timing.get("tenth"),
-                "time_to_first_robust": self.timing.get("first_robust"),
-                "T_cloud_obj": self.T_cloud_obj.tolist(),
-                "identification": None if self.identification is None else {
-                    "mode": self.identification.mode, "uncovered": self.identification.uncovered,
-                    "approximate": [p.approximate for p in self.identification.parts]},
-                "table": None if self.map.meta.placement is None else self.map.meta.placement.table}
 
 
 def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarray]:
@@ -349,19 +285,25 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         if hasattr(stream, "close"):
             stream.close()  # a part left early: its maps' generator ends now
     timing["maps"] = time.perf_counter() - t1
+    full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
+    timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
+                  first_robust_cpu=first_robust_cpu, **stage.seconds)
+    yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
+
+
+def _finished(batches: list, parts: list, extra: dict, table: dict | None, n_below: int, obj_meta: MapMeta,
+              combined: bool, cfg: PlannerConfig, T_cloud_obj: np.ndarray) -> GraspabilityMap:
+    """The finished adapted map: every batch streamed, in the ranking's order, with the
+    parts' record, the table's (the poses it dropped) and the robust scores' provenance."""
     final = {**extra, "parts": [p.to_dict() for p in parts]}
     if table is not None:  # a new dict: the batches already yielded keep theirs
         final.update(Placement(T_cloud_obj, {**table, "dropped": n_below}).to_extra())
-    meta = replace(obj_meta, method="adapted/" + ("single" if compound is None else "combined"),
-                   extra=final)
+    meta = replace(obj_meta, method="adapted/" + ("combined" if combined else "single"), extra=final)
     full = GraspabilityMap.concat(batches, meta=meta) if batches else GraspabilityMap.empty(meta)
     if cfg.rank == "robust" and batches:
         prov = {**batches[0].meta.extra["robust"], "scored": int(np.isfinite(full.robust).sum())}
         full = full.with_meta(extra={**final, "robust": prov})
-    full = full.ranked(cfg.rank)
-    timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
-                  first_robust_cpu=first_robust_cpu, **stage.seconds)
-    yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
+    return full.ranked(cfg.rank)
 
 
 def _table_in_object(cfg: PlannerConfig, points: np.ndarray, shape, T_cloud_obj: np.ndarray):

@@ -7,7 +7,7 @@
 
 The cloud a depth camera saw of a table with objects on it (``.pcd``, ``.ply``, ``.npy``,
 ``.xyz``; NaN rows for missing depth are dropped), or its depth image back-projected in the
-camera's frame (:func:`~graspsim.perception.io.read_depth_image`), is planned as ``graspsim scene`` plans
+camera's frame (:func:`~graspsim.perception.depth_image.read_depth_image`), is planned as ``graspsim scene`` plans
 its simulated frames (:func:`~graspsim.perception.scene.plan_scene`): the table plane,
 the objects segmented on it, each identified and given grasps scored against the whole
 scene (its neighbours and the table). GRASPS.json holds the table, every segment (its
@@ -25,62 +25,18 @@ __all__ = ["register"]
 
 
 def _cmd_plan_scene(args) -> int:
-    import json
     import sys
     from dataclasses import replace
-    from pathlib import Path
 
     import numpy as np
 
-    from graspsim import __version__
-    from graspsim._atomic import atomic_paths, check_output
-    from graspsim._jsonable import to_jsonable
-    from graspsim.errors import InvalidParameterError, MapDatabaseError, OutputPathError
     from graspsim.maps.database import MapDatabase
     from graspsim.perception.scene import SceneConfig, plan_scene
-    from graspsim.perception.segment import gap_link
 
-    # every option and output path before the cloud is read or anything computed
-    if args.view or args.screenshot:
-        from graspsim.viewer import require_viser
-
-        require_viser(load=False)
-        if not 0 <= args.port <= 65535:
-            raise InvalidParameterError(f"--port must be in 0..65535, got {args.port}")
-    out = check_output(args.output, "grasps file", OutputPathError, others={"input cloud": args.cloud})
-    shot = None if args.screenshot is None else check_output(
-        args.screenshot, "screenshot", OutputPathError, others={"input cloud": args.cloud, "grasps file": args.output})
-    labels_out = None
-    if args.labels is not None:
-        labels_out = check_output(args.labels, "labels file", OutputPathError,
-                                  others={"input cloud": args.cloud, "grasps file": args.output})
-        if labels_out.suffix.lower() != ".npy":
-            raise InvalidParameterError(f"--labels writes a .npy file, got {labels_out.name!r}")
-    viewpoint = _finite("--viewpoint", args.viewpoint)
-    up = _finite("--up", args.up)
-    if up is not None and not np.linalg.norm(up) > 0:
-        raise InvalidParameterError("--up must be a nonzero direction, got 0 0 0")
-    crop = _finite("--crop", args.crop)
-    if crop is not None and not np.all(crop[:3] < crop[3:]):
-        raise InvalidParameterError("--crop takes XMIN YMIN ZMIN XMAX YMAX ZMAX with each minimum below its maximum")
-    try:
-        gap_link(args.min_gap or None)
-    except InvalidParameterError:
-        raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
-    if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
-        raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
-    gripper = gripper_from_args(args)
-    map_cfg, quality = _config(args)
-
-    depth_mode = args.intrinsics is not None or args.camera is not None
-    if depth_mode and args.units != "m":
-        raise InvalidParameterError("--units is for point clouds; a depth image's unit is --depth-scale")
-    if not depth_mode and args.depth_scale is not None:
-        raise InvalidParameterError("--depth-scale is for depth images (given with --intrinsics or --camera)")
-    intrinsics = _finite("--intrinsics", args.intrinsics)
-
-    loaded = _depth_points(args, intrinsics) if depth_mode else _cloud_points(args)
-    pts, rows, n_read, source = loaded["points"], loaded["rows"], loaded["n_read"], loaded["source"]
+    o = _options(args)  # every option and output path before the input is read or anything computed
+    loaded = _depth_points(args, o["intrinsics"]) if o["depth"] else _cloud_points(args)
+    pts, rows = loaded["points"], loaded["rows"]
+    crop, viewpoint, up = o["crop"], o["viewpoint"], o["up"]
     if crop is not None:
         inside = np.all((pts >= crop[:3]) & (pts <= crop[3:]), axis=1)
         pts, rows = pts[inside], rows[inside]
@@ -89,8 +45,81 @@ def _cmd_plan_scene(args) -> int:
     if up is None and viewpoint is not None:  # the camera sees the table from above it
         up = viewpoint - np.median(pts, axis=0) if len(pts) else None
     cfg = replace(SceneConfig(), min_gap=args.min_gap or None, up=None if up is None else tuple(map(float, up)))
-    db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
+    db = MapDatabase(args.db, gripper=o["gripper"], quality=o["quality"], config=o["map_cfg"])
     plan = plan_scene(pts, db=db, rng=np.random.default_rng(args.seed), config=cfg, viewpoint=viewpoint)
+
+    record = _record(args, plan, loaded, pts, viewpoint, cfg, crop, db.gripper.name)
+    out, labels_out, best = o["out"], o["labels"], plan.best
+    if best is not None:
+        _write(out, labels_out, record, lambda: _file_labels(loaded, rows, pts, plan.perception, cfg))
+    s = {k: record[k] for k in ("cloud", "input", "points", "used", "viewpoint", "up", "min_gap", "seed", "gripper",
+                                "table", "best", "timing")}
+    s.update(segments=plan.summary()["segments"], grasps=len(plan.grasps), file=None if best is None else str(out),
+             labels=None if best is None or labels_out is None else str(labels_out))
+    if args.view or o["shot"] is not None:
+        s.update(_show(plan, pts, db.gripper, viewpoint, args, o["shot"]))
+    emit(s, args.json, _human(plan, record["segments"], out))
+    if best is None:
+        kept = f"{out} left as it was" if out.exists() else f"{out} not written"
+        print(f"graspsim: plan-scene: no grasp written: no grasp scores above 0 ({kept})", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _options(args) -> dict:
+    """The checked options: output paths (writable, none of them the input), the
+    viewpoint, up and crop, the input's kind (a depth image with --intrinsics or
+    --camera), the gripper and the map settings. Raises a one-line error."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from graspsim._atomic import check_output
+    from graspsim.errors import InvalidParameterError, MapDatabaseError, OutputPathError
+    from graspsim.perception.segment import gap_link
+
+    if args.view or args.screenshot:
+        from graspsim.viewer import require_viser
+
+        require_viser(load=False)
+        if not 0 <= args.port <= 65535:
+            raise InvalidParameterError(f"--port must be in 0..65535, got {args.port}")
+    o = {"out": check_output(args.output, "grasps file", OutputPathError, others={"input cloud": args.cloud})}
+    o["shot"] = None if args.screenshot is None else check_output(
+        args.screenshot, "screenshot", OutputPathError, others={"input cloud": args.cloud, "grasps file": args.output})
+    o["labels"] = None if args.labels is None else check_output(
+        args.labels, "labels file", OutputPathError, others={"input cloud": args.cloud, "grasps file": args.output})
+    if o["labels"] is not None and o["labels"].suffix.lower() != ".npy":
+        raise InvalidParameterError(f"--labels writes a .npy file, got {o['labels'].name!r}")
+    o["viewpoint"], o["up"], o["crop"] = (_finite(f, v) for f, v in (("--viewpoint", args.viewpoint),
+                                                                      ("--up", args.up), ("--crop", args.crop)))
+    if o["up"] is not None and not np.linalg.norm(o["up"]) > 0:
+        raise InvalidParameterError("--up must be a nonzero direction, got 0 0 0")
+    if o["crop"] is not None and not np.all(o["crop"][:3] < o["crop"][3:]):
+        raise InvalidParameterError("--crop takes XMIN YMIN ZMIN XMAX YMAX ZMAX with each minimum below its maximum")
+    try:
+        gap_link(args.min_gap or None)
+    except InvalidParameterError:
+        raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
+    if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
+        raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
+    o["depth"] = args.intrinsics is not None or args.camera is not None
+    if o["depth"] and args.units != "m":
+        raise InvalidParameterError("--units is for point clouds; a depth image's unit is --depth-scale")
+    if not o["depth"] and args.depth_scale is not None:
+        raise InvalidParameterError("--depth-scale is for depth images (given with --intrinsics or --camera)")
+    o["intrinsics"] = _finite("--intrinsics", args.intrinsics)
+    o["gripper"] = gripper_from_args(args)
+    o["map_cfg"], o["quality"] = _config(args)
+    return o
+
+
+def _record(args, plan, loaded, pts, viewpoint, cfg, crop, gripper: str) -> dict:
+    """What the grasps file holds: the input, the settings, the table, every segment
+    (where it is) and the ranked grasps."""
+    from pathlib import Path
+
+    from graspsim import __version__
 
     per = plan.perception
     segments = []
@@ -98,39 +127,49 @@ def _cmd_plan_scene(args) -> int:
         p = per.segment_points(seg.segment)
         segments.append({**seg.to_dict(), "centroid": p.mean(axis=0), "lower": p.min(axis=0), "upper": p.max(axis=0)})
     best = plan.best
-    record = {"graspsim": __version__, "cloud": str(Path(args.cloud).resolve()), **source,
-              "points": int(n_read), "used": int(len(pts)),
-              "viewpoint": viewpoint, "up": cfg.up, "crop": crop, "min_gap": cfg.min_gap, "seed": args.seed,
-              "gripper": db.gripper.name, "table": per.plane.to_dict(), "segments": segments,
-              "grasps": [g.to_dict() for g in plan.grasps], "best": None if best is None else best.to_dict(),
-              "timing": plan.timing}
-    if best is not None:  # both files or neither
-        with atomic_paths([out] + ([] if labels_out is None else [labels_out]), OutputPathError) as tmps:
-            tmps[0].write_text(json.dumps(to_jsonable(record), indent=1) + "\n")
-            if labels_out is not None:
-                labels = np.full(n_read, -1, np.int64)  # -1: table, cropped, no depth, noise
-                labels[rows] = _every_point(pts, per, cfg)
-                labels = labels.reshape(loaded["shape"])  # a depth image's: (H, W)
-                with open(tmps[1], "wb") as f:
-                    np.save(f, labels)
-    s = {k: record[k] for k in ("cloud", "input", "points", "used", "viewpoint", "up", "min_gap", "seed", "gripper",
-                                "table", "best", "timing")}
-    s.update(segments=plan.summary()["segments"], grasps=len(plan.grasps), file=None if best is None else str(out),
-             labels=None if best is None or labels_out is None else str(labels_out))
-    rows_h = [(d["segment"], d["points"], d["status"], "+".join(d["primitives"]) or "-",
-               max((g.score for g in plan.grasps if g.segment == d["segment"]), default=0.0)) for d in segments]
-    human = (f"table: normal {np.round(per.plane.normal, 3).tolist()}, {per.plane.share * 100:.0f} % of the points\n"
-             + format_table(rows_h, ["segment", "points", "status", "primitives", "best score"])
-             + f"\n{len(segments)} objects, {len(plan.grasps)} grasps in {plan.timing['total']:.2f} s"
-             + ("" if best is None else f"; best: segment {best.segment}, score {best.score:.2f} -> {out}"))
-    if args.view or shot is not None:
-        s.update(_show(plan, pts, db.gripper, viewpoint, args, shot))
-    emit(s, args.json, human)
-    if best is None:
-        kept = f"{out} left as it was" if out.exists() else f"{out} not written"
-        print(f"graspsim: plan-scene: no grasp written: no grasp scores above 0 ({kept})", file=sys.stderr)
-        return 1
-    return 0
+    return {"graspsim": __version__, "cloud": str(Path(args.cloud).resolve()), **loaded["source"],
+            "points": int(loaded["n_read"]), "used": int(len(pts)), "viewpoint": viewpoint, "up": cfg.up,
+            "crop": crop, "min_gap": cfg.min_gap, "seed": args.seed, "gripper": gripper,
+            "table": per.plane.to_dict(), "segments": segments, "grasps": [g.to_dict() for g in plan.grasps],
+            "best": None if best is None else best.to_dict(), "timing": plan.timing}
+
+
+def _write(out, labels_out, record: dict, labels) -> None:
+    """The grasps file and, if asked, the labels (``labels()``): both or neither."""
+    import json
+
+    import numpy as np
+
+    from graspsim._atomic import atomic_paths
+    from graspsim._jsonable import to_jsonable
+    from graspsim.errors import OutputPathError
+
+    with atomic_paths([out] + ([] if labels_out is None else [labels_out]), OutputPathError) as tmps:
+        tmps[0].write_text(json.dumps(to_jsonable(record), indent=1) + "\n")
+        if labels_out is not None:
+            with open(tmps[1], "wb") as f:
+                np.save(f, labels())
+
+
+def _file_labels(loaded: dict, rows, points, per, cfg):
+    """Each input row's (or pixel's: (H, W)) segment; -1: table, cropped, no depth, noise."""
+    import numpy as np
+
+    labels = np.full(loaded["n_read"], -1, np.int64)
+    labels[rows] = _every_point(points, per, cfg)
+    return labels.reshape(loaded["shape"])
+
+
+def _human(plan, segments: list, out) -> str:
+    import numpy as np
+
+    per, best = plan.perception, plan.best
+    rows = [(d["segment"], d["points"], d["status"], "+".join(d["primitives"]) or "-",
+             max((g.score for g in plan.grasps if g.segment == d["segment"]), default=0.0)) for d in segments]
+    return (f"table: normal {np.round(per.plane.normal, 3).tolist()}, {per.plane.share * 100:.0f} % of the points\n"
+            + format_table(rows, ["segment", "points", "status", "primitives", "best score"])
+            + f"\n{len(segments)} objects, {len(plan.grasps)} grasps in {plan.timing['total']:.2f} s"
+            + ("" if best is None else f"; best: segment {best.segment}, score {best.score:.2f} -> {out}"))
 
 
 def _show(plan, points, gripper, viewpoint, args, shot) -> dict:
@@ -180,7 +219,7 @@ def _depth_points(args, intrinsics) -> dict:
     import numpy as np
 
     from graspsim.errors import InvalidParameterError
-    from graspsim.perception.io import read_depth_image
+    from graspsim.perception.depth_image import read_depth_image
     from graspsim.sim.camera import Camera, DepthFrame, Intrinsics, backproject
 
     if intrinsics is not None and args.camera is not None:

@@ -5,6 +5,7 @@ features, rule-based identification, and the known/familiar decision."""
 from __future__ import annotations
 
 from graspsim.perception.classify import Shape, classify
+from graspsim.perception.depth_image import read_depth_image
 from graspsim.perception.features import ShapeFeatures, shape_features
 from graspsim.perception.identify import (
     Identification,
@@ -14,7 +15,7 @@ from graspsim.perception.identify import (
     identify,
     identify_cluster,
 )
-from graspsim.perception.io import LoadedCloud, check_cloud, read_depth_image, read_point_cloud
+from graspsim.perception.io import LoadedCloud, check_cloud, read_point_cloud
 from graspsim.perception.match import MatchDecision, MatchKind, classify_match
 from graspsim.perception.mlesac import ModelFit, fit_model, mixture_loglik
 from graspsim.perception.mvbb import OrientedBox, min_volume_box, pca_box

@@ -14,7 +14,6 @@ element; elements before it may not contain list properties); ``.npy`` arrays of
 from __future__ import annotations
 
 import logging
-import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,20 +23,12 @@ import numpy as np
 from graspsim.errors import PointCloudError
 from graspsim.perception.prepare import MAX_EXTENT, as_coordinates, check_extent, to_metres
 
-__all__ = ["LoadedCloud", "read_point_cloud", "check_cloud", "read_depth_image", "lzf_decompress", "MIN_POINTS",
-           "DEPTH_SUFFIXES", "MAX_DEPTH"]
+__all__ = ["LoadedCloud", "read_point_cloud", "check_cloud", "lzf_decompress", "MIN_POINTS"]
 
 log = logging.getLogger(__name__)
 
 #: Fewest points any primitive model needs to be fitted and judged.
 MIN_POINTS = 10
-
-#: Depth image files :func:`read_depth_image` reads.
-DEPTH_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
-
-#: The farthest median depth [m] a table-top depth image is taken to have (a wrong
-#: ``scale`` -- millimetres read as metres -- gives hundreds).
-MAX_DEPTH = 10.0
 
 _PCD_TYPES = {("F", 4): "f4", ("F", 8): "f8", ("I", 1): "i1", ("I", 2): "i2", ("I", 4): "i4",
               ("I", 8): "i8", ("U", 1): "u1", ("U", 2): "u2", ("U", 4): "u4", ("U", 8): "u8"}
@@ -109,53 +100,6 @@ def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: s
         raise PointCloudError(f"{path.name}: {err}{extra}") from None
     return LoadedCloud(pts, n_drop, len(xyz), str(path), fmt, str(units).lower(), _viewpoint(path),
                        np.flatnonzero(finite) if n_drop else None)
-
-
-def read_depth_image(path: str | Path, *, scale: float | None = None) -> tuple[np.ndarray, float]:
-    """A depth image file as z-depth (H, W) [m], 0 where nothing valid was seen, and the
-    scale used: a 16-bit (or 32-bit integer or float) one-channel PNG or TIFF, or a
-    ``.npy`` (H, W) array, each value times ``scale`` metres (default: 0.001 for integer
-    images -- millimetres, as RealSense and most RGB-D drivers write them -- and 1 for
-    float arrays). Values that are not finite or not above 0 are invalid. A depth too far
-    for a table-top view (median of the valid pixels beyond :data:`MAX_DEPTH`) is refused
-    as a wrong scale."""
-    path = Path(path)
-    if scale is not None and not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
-        raise PointCloudError(f"the depth scale must be a positive number of metres per unit, got {scale!r}")
-    if not path.is_file():
-        raise PointCloudError(f"depth image {str(path)!r} does not exist or is not a file")
-    suffix = path.suffix.lower()
-    if suffix not in DEPTH_SUFFIXES:
-        raise PointCloudError(f"{path.name}: unknown depth image format {suffix!r}; valid: {list(DEPTH_SUFFIXES)}")
-    try:
-        if suffix == ".npy":
-            raw = np.load(path, allow_pickle=False)
-        else:
-            from PIL import Image
-
-            with Image.open(path) as im:
-                if len(im.getbands()) != 1:
-                    raise PointCloudError(f"a depth image has one channel; this one has {len(im.getbands())} "
-                                          f"({im.mode}): is it the colour image?")
-                raw = np.asarray(im)
-    except PointCloudError as err:
-        raise PointCloudError(f"{path.name}: {err}") from None
-    except (OSError, ValueError, EOFError, SyntaxError) as err:  # SyntaxError: PIL's broken-file error
-        raise PointCloudError(f"{path.name}: cannot read {suffix} depth image: {err}") from err
-    if raw.ndim != 2 or raw.dtype.kind not in "uif" or min(raw.shape) < 2:
-        raise PointCloudError(f"{path.name}: a depth image is an (H, W) array of numbers, got shape {raw.shape} "
-                              f"of {raw.dtype}")
-    used = float(scale) if scale is not None else 1.0 if raw.dtype.kind == "f" else 0.001
-    depth = raw.astype(np.float64) * used
-    valid = np.isfinite(depth) & (depth > 0)
-    depth[~valid] = 0.0
-    if not valid.any():
-        raise PointCloudError(f"{path.name}: no pixel has a valid depth (all 0, negative or NaN)")
-    median = float(np.median(depth[valid]))
-    if median > MAX_DEPTH:
-        raise PointCloudError(f"{path.name}: the median depth is {median:.4g} m at {used:g} m per unit, implausible "
-                              f"for a table-top view (at most {MAX_DEPTH:g} m); is the depth scale right?")
-    return depth, used
 
 
 def _viewpoint(path: Path) -> np.ndarray | None:

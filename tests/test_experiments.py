@@ -433,6 +433,22 @@ def test_bench_scene_quick(tmp_path):
     assert "In a fresh process (import, draw and render" in text and "start_workers()" in text
 
 
+@pytest.mark.slow
+def test_bench_plan_scene_quick_times_fresh_cli_runs_on_cloud_and_depth_files(tmp_path):
+    bench = _load("bench_plan_scene")
+    assert bench.main(["--quick", "--out", str(tmp_path / "b")]) == 0
+    s = _summary(tmp_path / "b")
+    assert [(g["kind"], g["input"]) for g in s["groups"]] == [("packed", "cloud"), ("packed", "depth")]
+    for g in s["groups"]:
+        assert g["of"] == 1 and [r["seed"] for r in g["runs"]] == [300, 301]
+        for r in g["runs"]:  # planned, with grasps written, inside a process that did more
+            assert r["exit"] == 0 and r["grasps"] >= 1 and r["wall_s"] > r["plan_s"] > 0
+            assert (tmp_path / "b" / f"packed{r['seed']}_{g['input']}.json").exists()
+    assert (tmp_path / "b" / "inputs" / "packed300.pcd.json").exists()  # the camera record beside the cloud
+    text = bench.readme_section(s)
+    assert s["command"] in text and "| packed, 5 objects | depth |" in text
+
+
 def test_scene_fingerprint_is_the_same_twice_and_names_what_differs(tmp_path, capsys, monkeypatch):
     fp = _load("scene_fingerprint")
     first = ["--scenes", "1", "--kinds", "packed", "--coarse-db", "--out", str(tmp_path / "a")]

@@ -19,8 +19,9 @@ make a 5-object pile, render one frame; the first run and the median of the next
 
 Planning (issue 17's goal: from a rendered 640 x 480 depth image to a ranked grasp for the
 whole scene <= 0.5 s): for ``--plans`` 5-object scenes of each kind, the first frame
-back-projected and planned by ``plan_scene`` (E10's scene settings, against a private FS
-map database ``OUT/fsdb`` built fresh, or ``--db``), timed per stage (back-projection,
+back-projected and planned by ``plan_scene`` as E10 plans it (its scene settings, the
+camera's position as the viewpoint of the robust score's occlusion term; against a
+private FS map database ``OUT/fsdb`` built fresh, or ``--db``), timed per stage (back-projection,
 table, segmentation, identification of every segment, maps + robust scores against the
 neighbours) and in total, wall and CPU (this process and its segment workers). Each
 frame is timed as a user meets a NEW frame: this process has never seen its objects
@@ -159,19 +160,25 @@ def first_frame(kind: str, seed: int):
     return frame, scene_settings(kind)
 
 
-def _plan(points, scene_cfg, seed: int, db, workers: int):
+def _plan(points, scene_cfg, seed: int, db, workers: int, eye):
+    """``plan_scene`` as E10 calls it: ``eye`` the camera's position (the viewpoint of the
+    robust score's occlusion term)."""
     from graspsim.perception.scene import plan_scene
     from graspsim.seeding import rng_for
 
     cfg = scene_cfg if not workers else replace(scene_cfg, workers=workers)
-    return plan_scene(points, db=db, rng=rng_for(seed, "plan"), config=cfg)
+    return plan_scene(points, db=db, rng=rng_for(seed, "plan"), config=cfg, viewpoint=eye)
+
+
+def _eye(frame):
+    return frame.camera.T_world_camera[:3, 3]
 
 
 def _plan_frame(kind: str, seed: int, db, workers: int):
     from graspsim.sim.camera import backproject
 
     frame, scene_cfg = first_frame(kind, seed)
-    return _plan(backproject(frame).world(), scene_cfg, seed, db, workers)
+    return _plan(backproject(frame).world(), scene_cfg, seed, db, workers, _eye(frame))
 
 
 def _cpu_seconds() -> float:
@@ -199,7 +206,7 @@ def plan_one(kind: str, seed: int, db, workers: int = 0) -> dict:
     frame, scene_cfg = first_frame(kind, seed)
     c0 = _cpu_seconds()
     points, bp = _timed(lambda: backproject(frame).world())
-    sp = _plan(points, scene_cfg, seed, db, workers)
+    sp = _plan(points, scene_cfg, seed, db, workers, _eye(frame))
     cpu = _cpu_seconds() - c0
     t = {k: float(sp.timing.get(k, 0.0)) for k in PLAN_STAGES[1:]}
     t["total"] += bp
@@ -249,7 +256,8 @@ sim = make_scene(5, kind, seed).sim()
 frame = sim.render(rig(1)[0], noise=ClutterConfig().depth_noise, rng=rng_for(seed, "depth"))
 sim.close()
 t = time.perf_counter()
-sp = plan_scene(backproject(frame).world(), db=db, rng=rng_for(seed, "plan"), config=scene_settings(kind))
+sp = plan_scene(backproject(frame).world(), db=db, rng=rng_for(seed, "plan"), config=scene_settings(kind),
+                viewpoint=frame.camera.T_world_camera[:3, 3])
 print(json.dumps({"import_s": imported, "plan_s": time.perf_counter() - t, "grasps": len(sp.grasps)}))
 """
 
@@ -297,7 +305,7 @@ def plan_runs(cfg: BenchConfig, out: Path) -> dict:
                "cpu": statistics.median(r["cpu"] for r in g), "max_total": max(r["total"] for r in g),
                "within_goal": sum(r["total"] <= 0.5 for r in g)}
               for kind in cfg.kinds for g in [[r for r in rows if r["kind"] == kind]]]
-    return {"rows": rows, "groups": groups, "prepare_s": r["wall_s"], "warmup_scenes": WARMUP,
+    return {"rows": rows, "groups": groups, "prepare_s": r["wall_s"], "warmup_scenes": WARMUP, "viewpoint": True,
             "fresh": fresh_plans(cfg, str(db.root), timed)}
 
 
@@ -359,7 +367,10 @@ def readme_section(s: dict) -> str:
                "as a user meets a new frame: this process had not seen the scene's objects (it warmed up on "
                f"{p['warmup_scenes']} other scenes of each kind; the maps the scenes' parts need were built "
                "beforehand in another process)")
-        L += ["", f"Planning a 5-object scene's first frame with `plan_scene` (E10's settings; {how}; medians over "
+        eye = ("E10's settings and, as E10, the camera's position as the viewpoint of the occlusion term"
+               if p.get("viewpoint") else "E10's settings but no viewpoint: without the occlusion term E10 plans "
+               "with")
+        L += ["", f"Planning a 5-object scene's first frame with `plan_scene` ({eye}; {how}; medians over "
               "scenes [s]; goal: <= 0.5 s from depth image to ranked grasps" + (
                   "; CPU: this process and its segment workers" if cpu else "") + "):", "",
               "| scene | scenes | back-projection | table | segmentation | identification | maps + robust | total "

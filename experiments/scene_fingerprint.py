@@ -2,13 +2,13 @@
 faster changes no result.
 
 Plans the first frame of ``--scenes`` 5-object scenes of each kind as E10 renders and
-plans them (its camera, sensor noise and scene settings; ``plan_scene`` in this process,
-``workers=1``) against an FS map database, and writes, per frame, a SHA-256 of every
-result field: the segment labels; per segment its identified parts (kind, pose, every
-dimension), status, why it failed, the grasps scored and its solid samples; the ranked
-grasps (segment, pose, opening, score, grade, clearance), all to the bit. ``--compare``
-names an earlier fingerprint: the fields that differ are listed and the script exits 1
-when any does.
+plans them (its camera, sensor noise and scene settings, the camera's position as the
+viewpoint; ``plan_scene`` in this process, ``workers=1``) against an FS map database,
+and writes, per frame, a SHA-256 of every result field: the segment labels; per segment
+its identified parts (kind, pose, every dimension), status, why it failed, the grasps
+scored and its solid samples; the ranked grasps (segment, pose, opening, score, grade,
+clearance), all to the bit. ``--compare`` names an earlier fingerprint: the fields that
+differ are listed and the script exits 1 when any does.
 
 The database must hold every map the frames need beforehand (a map built during the run
 would make the next run differ): run once to fill it, then fingerprint the code before
@@ -68,11 +68,13 @@ def fingerprint(kind: str, seed: int, db) -> dict:
     from graspsim.sim.clutter import ClutterConfig, scene_settings
     from graspsim.sim.scenes import make_scene
 
+    camera = rig(1)[0]
     sim = make_scene(5, kind, seed).sim()
-    frame = sim.render(rig(1)[0], noise=ClutterConfig().depth_noise, rng=rng_for(seed, "depth"))
+    frame = sim.render(camera, noise=ClutterConfig().depth_noise, rng=rng_for(seed, "depth"))
     sim.close()
     sp = plan_scene(backproject(frame).world(), db=db, rng=rng_for(seed, "plan"),
-                    config=replace(scene_settings(kind), workers=1))
+                    config=replace(scene_settings(kind), workers=1),
+                    viewpoint=camera.T_world_camera[:3, 3])  # as E10 plans: the occluded space counts
     segments = []
     for m in sp.memory:
         parts = [] if m.ident is None else [

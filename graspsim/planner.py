@@ -32,7 +32,7 @@ from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
-from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map
+from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map, view_of
 from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import TablePlane, clears_table, heights_above, stream_order, table_frame, table_height
@@ -232,6 +232,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     cloud_obj = cloud_in_object(seen, T_cloud_obj)
     view_obj = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0]
+    view = None
     observed = ObservedSurface(points, viewpoint=viewpoint) if ident is not None and ident.mode == "robust" else None
     stage = StageClock("adapt", "agreement", "combine", "table", "robust")
     skip_spent = scored_only and cfg.rank == "robust"
@@ -264,8 +265,10 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             if budget > 0:  # robustness of the batch's best-graded grasps, then its order
                 stage.start()
                 rows = np.argsort(-batch.grade, kind="stable")[:budget]
+                if view is None:  # the cloud's depth image from the viewpoint: one for every batch
+                    view = view_of(cloud_obj, view_obj, cfg.robust)
                 batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper,
-                                  viewpoint=view_obj).ranked()
+                                  viewpoint=view_obj, view=view).ranked()
                 budget -= len(rows)
                 stage.lap("robust")
                 if first_robust is None and bool(np.any(batch.robust > 0)):

@@ -225,3 +225,22 @@ def test_every_opening_matches_brute_force(box_map, cloud):
     np.testing.assert_allclose(s.clearance, _gripper_sdf(box_map, rows, cloud, extra=s.extra_opening).min(axis=1),
                                atol=1e-6)
     assert np.any(s.extra_opening > 0)
+
+
+def test_a_depth_view_made_once_scores_as_one_made_per_batch(box_map, cloud):
+    """The planner makes the occlusion term's depth image once per object (view_of) and
+    passes it to every batch: the same scores, to the bit, as making it in each call."""
+    from graspsim.maps.robust import view_of
+
+    cfg, eye = RobustConfig(samples=8), np.array([0.3, 0.2, 0.4])
+    rows = np.arange(len(box_map))
+    view = view_of(cloud, eye, cfg)
+    assert view is not None
+    for half in (rows[::2], rows[1::2]):  # two batches, one view
+        a = score_rows(box_map, half, cloud, cfg, viewpoint=eye)
+        b = score_rows(box_map, half, cloud, cfg, viewpoint=eye, view=view)
+        for k in ("robust", "feasible", "clearance", "occluded", "flags", "extra_opening"):
+            np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=k)
+    assert np.any(score_rows(box_map, rows, cloud, cfg, viewpoint=eye).occluded > 0)  # the term is at work
+    assert view_of(cloud, None, cfg) is None and view_of(cloud, eye, replace(cfg, occlusion=False)) is None
+    assert view_of(cloud[:2], eye, cfg) is None and view_of(None, eye, cfg) is None

@@ -309,6 +309,23 @@ def test_scored_only_skips_a_parts_unscored_batches_and_keeps_every_scored_one(d
                 if isinstance(i, GraspBatch)]
 
 
+def test_the_occlusion_terms_depth_image_is_made_once_per_plan(db, monkeypatch):
+    """Every batch of a plan is scored against the same cloud from the same viewpoint:
+    its depth image (ViewDepth) is made once, not per batch."""
+    from graspsim.maps import occlusion
+    from graspsim.maps.robust import RobustConfig
+
+    made = []
+    real = occlusion.ViewDepth.__init__
+    monkeypatch.setattr(occlusion.ViewDepth, "__init__", lambda self, *a, **k: made.append(1) or real(self, *a, **k))
+    cloud = _cloud(Cylinder(0.024, 0.17), 4)
+    cfg = PlannerConfig(robust=RobustConfig(top=300, samples=8))
+    items = list(plan_stream(cloud.points, db=db, rng=np.random.default_rng(0), config=cfg,
+                             viewpoint=cloud.points.mean(axis=0) + [0, 0, 0.5]))
+    scored = [i for i in items[:-1] if np.isfinite(i.map.robust).any()]
+    assert len(scored) >= 2 and len(made) == 1
+
+
 @pytest.mark.parametrize("truth,match", [(Sphere(0.035), "known"), (Cylinder(0.024, 0.16), "familiar")])
 def test_grasps_likely_to_clear_the_table_stream_first(db, monkeypatch, truth, match):
     """An object resting on a table (a sphere; a cylinder lying): many of its best-graded

@@ -244,22 +244,29 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
                         np.asarray(cfg.openings)[best], pick[3])
 
 
-def _view(cloud: np.ndarray, viewpoint, cfg: RobustConfig):
-    """The depth image of the cloud from ``viewpoint`` (None: no occlusion term)."""
+def view_of(cloud: np.ndarray | None, viewpoint, config: RobustConfig):
+    """The depth image (:class:`~graspsim.maps.occlusion.ViewDepth`) of the observed
+    ``cloud`` (M, 3) from ``viewpoint`` (3,) that the occlusion term measures against,
+    or None (no viewpoint, the term off, fewer than 3 points). A caller scoring several
+    batches against one cloud makes it once and passes it as ``view``."""
     from graspsim.maps.occlusion import ViewDepth
 
-    if viewpoint is None or not cfg.occlusion or len(cloud) < 3:
+    cloud = np.zeros((0, 3)) if cloud is None else np.asarray(cloud, float).reshape(-1, 3)
+    if viewpoint is None or not config.occlusion or len(cloud) < 3:
         return None
     return ViewDepth(cloud, viewpoint)
 
 
 def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: RobustConfig = RobustConfig(),
-               gripper: GripperSpec | None = None, *, viewpoint: np.ndarray | None = None) -> RobustScores:
+               gripper: GripperSpec | None = None, *, viewpoint: np.ndarray | None = None,
+               view=None) -> RobustScores:
     """Robust scores of the map's ``rows`` (indices) against ``cloud_obj`` (M, 3) observed
     points in the object frame (None: the identified shape is all that was seen), the
     map's identified shape and its table (``meta.placement``). ``viewpoint`` (3,): where
     a single-view cloud was seen from, object frame: finger volume in the space behind
-    what it saw scales the score down (the occlusion term); None: no such term."""
+    what it saw scales the score down (the occlusion term); None: no such term.
+    ``view``: :func:`view_of` ``(cloud_obj, viewpoint, config)`` made already (the same
+    numbers; made here when None)."""
     cfg = config
     g = gripper or gmap.meta.gripper_spec
     rows = np.asarray(rows, int).reshape(-1)
@@ -271,7 +278,8 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     cos_fc = math.cos(gmap.meta.quality_model.friction_angle)
     return _score(P, len(cloud), R, w, gmap.width[rows], gmap.contacts[rows].astype(float),
                   gmap.normals[rows].astype(float), table_rows(map_table(gmap), R, w), g, cfg, cos_fc,
-                  lambda live: _success(gmap, rows[live], cfg.success), _view(cloud, viewpoint, cfg))
+                  lambda live: _success(gmap, rows[live], cfg.success),
+                  view if view is not None else view_of(cloud, viewpoint, cfg))
 
 
 def score_poses(T_wrist: np.ndarray, width: np.ndarray, contacts: np.ndarray, normals: np.ndarray,
@@ -291,7 +299,7 @@ def score_poses(T_wrist: np.ndarray, width: np.ndarray, contacts: np.ndarray, no
     return _score(P, len(cloud), R, w, np.asarray(width, float).reshape(-1),
                   np.asarray(contacts, float).reshape(-1, 2, 3), np.asarray(normals, float).reshape(-1, 2, 3),
                   table_rows(table, R, w), gripper, config, math.cos(friction_angle),
-                  lambda live: np.ones(int(live.sum())), _view(cloud, viewpoint, config))
+                  lambda live: np.ones(int(live.sum())), view_of(cloud, viewpoint, config))
 
 
 def _success(gmap, rows: np.ndarray, model: str) -> np.ndarray:
@@ -333,16 +341,16 @@ def _pad_contact(gripper: str):
 
 def score_map(gmap, cloud_obj: np.ndarray | None = None, config: RobustConfig = RobustConfig(), *,
               rows: np.ndarray | None = None, gripper: GripperSpec | None = None,
-              viewpoint: np.ndarray | None = None):
+              viewpoint: np.ndarray | None = None, view=None):
     """The map with its robust columns filled for ``rows`` (default: the
     ``config.top`` best-graded rows), the others kept; provenance in
     ``meta.extra["robust"]``. ``cloud_obj``: observed points (M, 3), object frame;
     ``viewpoint`` (3,): where a single-view cloud was seen from, object frame (the
-    occlusion term; see :func:`score_rows`)."""
+    occlusion term; ``view``: its depth image made already; see :func:`score_rows`)."""
     if rows is None:
         rows = np.argsort(-gmap.grade, kind="stable")[:config.top]
     rows = np.asarray(rows, int)
-    s = score_rows(gmap, rows, cloud_obj, config, gripper, viewpoint=viewpoint)
+    s = score_rows(gmap, rows, cloud_obj, config, gripper, viewpoint=viewpoint, view=view)
     n_cloud = 0 if cloud_obj is None else len(np.asarray(cloud_obj).reshape(-1, 3))
     cols = {k: getattr(gmap, k).copy() for k in ("clearance", "robust_feasible", "robust", "robust_extra_opening")}
     cols["clearance"][rows] = np.clip(s.clearance, -1.0, 1.0) if n_cloud else np.nan

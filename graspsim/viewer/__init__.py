@@ -130,10 +130,7 @@ def show_scene(scene, *, db=None, look=None, seed: int = 0, config=None, top_k: 
     (None: the default folder), unless ``look`` (a ``ClutterFrame`` of it) is given.
     top_k: grasps drawn per object at start."""
     require_viser(load=False)
-    from graspsim.errors import InvalidParameterError
-
-    if isinstance(top_k, bool) or not isinstance(top_k, int) or top_k < 0:
-        raise InvalidParameterError(f"top_k must be a whole number >= 0, got {top_k!r}")
+    _check_top_k(top_k)
     if look is None:
         look, gripper = _scene_look(scene, db, seed, config)
     else:
@@ -152,10 +149,7 @@ def show_plan(plan, cloud, *, gripper=None, eye=None, best=None, top_k: int = 3,
     (None: unknown); best: the grasp shown as chosen (default the plan's best); top_k:
     grasps drawn per object at start."""
     require_viser(load=False)
-    from graspsim.errors import InvalidParameterError
-
-    if isinstance(top_k, bool) or not isinstance(top_k, int) or top_k < 0:
-        raise InvalidParameterError(f"top_k must be a whole number >= 0, got {top_k!r}")
+    _check_top_k(top_k)
     viser = require_viser()
     from graspsim.viewer.scene_view import SceneViewer
 
@@ -169,6 +163,13 @@ def show_plan(plan, cloud, *, gripper=None, eye=None, best=None, top_k: int = 3,
         server.stop()
         raise
     return server
+
+
+def _check_top_k(top_k) -> None:
+    from graspsim.errors import InvalidParameterError
+
+    if isinstance(top_k, bool) or not isinstance(top_k, int) or top_k < 0:
+        raise InvalidParameterError(f"top_k must be a whole number >= 0, got {top_k!r}")
 
 
 def _default_gripper():

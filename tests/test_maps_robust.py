@@ -244,3 +244,56 @@ def test_a_depth_view_made_once_scores_as_one_made_per_batch(box_map, cloud):
     assert np.any(score_rows(box_map, rows, cloud, cfg, viewpoint=eye).occluded > 0)  # the term is at work
     assert view_of(cloud, None, cfg) is None and view_of(cloud, eye, replace(cfg, occlusion=False)) is None
     assert view_of(cloud[:2], eye, cfg) is None and view_of(None, eye, cfg) is None
+
+
+@pytest.mark.parametrize("cell", [1e-4, 0.005, 0.02, 0.05])
+def test_blocks_of_points_passed_over_whole_change_no_score(box_map, cloud, cell, monkeypatch):
+    """The kernel skips blocks of points no perturbation brings near the gripper and no
+    nearer point's clearance could undercut (``_robust_blocks``): every output equals the
+    pass over every point (one block holding the whole cloud), with neighbours near and
+    far and points scattered around the object."""
+    import graspsim.maps._robust_blocks as blocks
+
+    rng = np.random.default_rng(5)
+    d = rng.normal(size=(200, 3))
+    around = d / np.linalg.norm(d, axis=1, keepdims=True) * rng.uniform(0.15, 0.4, (200, 1))
+    neighbour = cloud + np.array([0.0, 0.1, 0.0])  # a second box beside the first
+    scene = np.concatenate([cloud, neighbour, around])
+    rows = np.arange(len(box_map))
+    cfg = RobustConfig(samples=16, seed=1)
+    monkeypatch.setattr(blocks, "BLOCK_CELL", 1e3)
+    whole = score_rows(box_map, rows, scene, cfg)
+    monkeypatch.setattr(blocks, "BLOCK_CELL", cell)
+    culled = score_rows(box_map, rows, scene, cfg)
+    for k in ("clearance", "feasible", "success", "robust", "flags", "extra_opening", "occluded"):
+        np.testing.assert_array_equal(getattr(culled, k), getattr(whole, k), err_msg=k)
+    assert 0 < np.mean(whole.robust > 0) < 1 and np.any(whole.flags & 1)  # the scene tests something
+
+
+@pytest.mark.parametrize("cell", [1e-4, 0.02])
+def test_a_skipped_block_never_holds_the_clearance(cell, monkeypatch):
+    """Sparse random points around one grasp: the clearance is often held by a point no
+    perturbation brings within reach while nearer-reaching points lie farther (a point
+    near the TCP against one far up the housing): the blocks that may hold it are
+    measured too. Clearances and flags equal the pass over every point."""
+    import graspsim.maps._robust_blocks as blocks
+    from graspsim.gripper import HGPL_25_60_A as g
+    from graspsim.maps.robust import score_poses
+
+    rng = np.random.default_rng(11)
+    T = np.eye(4)
+    tcp = g.nominal_tcp
+    contacts = [[tcp - [0.02, 0, 0], tcp + [0.02, 0, 0]]]
+    normals = [[[-1.0, 0, 0], [1.0, 0, 0]]]
+    cfg = RobustConfig(samples=8, seed=3, terms=("cloud",))
+    out = {}
+    for c in (1e3, cell):
+        monkeypatch.setattr(blocks, "BLOCK_CELL", c)
+        r = np.random.default_rng(11)
+        out[c] = [score_poses(T[None], [0.04], contacts, normals,
+                              r.uniform([-0.1, -0.06, -0.05], [0.1, 0.06, 0.25], (int(r.integers(3, 40)), 3)), g,
+                              config=cfg) for _ in range(300)]
+    for a, b in zip(out[1e3], out[cell]):
+        np.testing.assert_array_equal(a.clearance, b.clearance)
+        np.testing.assert_array_equal(a.flags, b.flags)
+    assert rng is not None

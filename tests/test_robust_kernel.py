@@ -27,7 +27,7 @@ def test_the_shared_pass_keeps_every_point_an_opening_needs(seed):
     ho_lo, ho_hi = 0.012, 0.022  # the map's opening and 10 mm wider per side
     sd0, lb = np.empty(M, np.float32), np.empty(M, np.float32)
     bits0, keep = np.empty(M, np.int32), np.empty(M, np.int32)
-    _shared_pass(q[:, 0].copy(), q[:, 1].copy(), q[:, 2].copy(), M, n_cloud, reach, centers, half, sign,
+    _shared_pass(q[:, 0].copy(), q[:, 1].copy(), q[:, 2].copy(), M, np.arange(M) < n_cloud, reach, centers, half, sign,
                  ho_lo, ho_hi, sd0, bits0, lb, keep)
     kept = keep.astype(bool)
     q64 = q.astype(float)
@@ -60,7 +60,7 @@ def test_the_clouds_clearance_survives_when_no_point_is_within_reach():
     reach = np.full(M, 0.001, np.float32)
     sd0, lb = np.empty(M, np.float32), np.empty(M, np.float32)
     bits0, keep = np.empty(M, np.int32), np.empty(M, np.int32)
-    _shared_pass(q[:, 0].copy(), q[:, 1].copy(), q[:, 2].copy(), M, M, reach, centers, half, sign,
+    _shared_pass(q[:, 0].copy(), q[:, 1].copy(), q[:, 2].copy(), M, np.ones(M, bool), reach, centers, half, sign,
                  ho_lo, ho_hi, sd0, bits0, lb, keep)
     kept = keep.astype(bool)
     for ho in np.linspace(ho_lo, ho_hi, 11):

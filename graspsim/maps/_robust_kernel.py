@@ -18,6 +18,13 @@ out, against those boxes grown by ``margin`` (exact for margin 0; within margin 
 at the boxes' corners otherwise) -- a few dozen points per grasp instead of thousands.
 The pass over all points runs in float32 (tenths of a micrometre at object scale).
 
+That pass skips whole blocks of points (the cells of a grid ``cell`` wide, hashed, made
+once per call): a block whose bounding sphere lies farther from every (swept) box than the
+reach of its farthest point, and -- for cloud points -- farther than the clearance the
+nearer blocks already attain, holds no point the pass would keep, by more than float32
+rounding (``BLOCK_SLACK``). The kept points, and so the results, are those of the pass
+over every point.
+
 The openings share that pass over all points: the points go into the wrist frame once,
 the boxes that do not move with the jaws (the housing) are measured once, and the moving
 boxes once as swept along x over every opening of the grasp. A swept box contains the
@@ -41,6 +48,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+# compiled into robust_flags and cached with it: numba does not see edits to another file, so
+# after changing _robust_blocks.py delete this module's cache (__pycache__/_robust_kernel.*.nb*)
+from graspsim.maps._robust_blocks import BLOCK_SLACK, blocks, gather, near_blocks
+
 __all__ = ["robust_flags", "CLOUD", "PRIMITIVE", "TABLE", "OFF_PAD", "NO_FC", "NOT_SCORED"]
 
 CLOUD, PRIMITIVE, TABLE, OFF_PAD, NO_FC = 1, 2, 4, 8, 16
@@ -50,34 +61,37 @@ _SLACK = 1e-6  # [m] float32 rounding of the swept boxes' bounds (below 1e-7 at 
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _wrist_points(P, R, w, i, pivot, th4, pm4, qx, qy, qz, rr, reach):  # pragma: no cover
-    """Points P (M, 3) in grasp i's wrist frame (float32), their distance to the pivot
-    and how far the largest perturbation can move them."""
+def _wrist_points(P, R, w, i, pivot, th4, pm4, idx, a, b, n_cloud, qx, qy, qz, rr, reach, cl):  # pragma: no cover
+    """Points P[idx[a:b]] in grasp i's wrist frame (float32, rows a..b of the outputs),
+    their distance to the pivot, how far the largest perturbation can move them, and
+    whether each is a cloud point (index below ``n_cloud``)."""
     f4 = np.float32
     r00, r01, r02 = f4(R[i, 0, 0]), f4(R[i, 0, 1]), f4(R[i, 0, 2])
     r10, r11, r12 = f4(R[i, 1, 0]), f4(R[i, 1, 1]), f4(R[i, 1, 2])
     r20, r21, r22 = f4(R[i, 2, 0]), f4(R[i, 2, 1]), f4(R[i, 2, 2])
     wx, wy, wz = f4(w[i, 0]), f4(w[i, 1]), f4(w[i, 2])
     cx0, cy0, cz0 = f4(pivot[0]), f4(pivot[1]), f4(pivot[2])
-    for m in range(P.shape[0]):
+    for j in range(a, b):
+        m = idx[j]
         dx = P[m, 0] - wx
         dy = P[m, 1] - wy
         dz = P[m, 2] - wz
         x = r00 * dx + r10 * dy + r20 * dz
         y = r01 * dx + r11 * dy + r21 * dz
         z = r02 * dx + r12 * dy + r22 * dz
-        qx[m], qy[m], qz[m] = x, y, z
+        qx[j], qy[j], qz[j] = x, y, z
         r = np.sqrt((x - cx0) * (x - cx0) + (y - cy0) * (y - cy0) + (z - cz0) * (z - cz0))
-        rr[m] = r
-        reach[m] = th4 * r + pm4
+        rr[j] = r
+        reach[j] = th4 * r + pm4
+        cl[j] = m < n_cloud
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _box(qx, qy, qz, n, cx, cy, cz, hx, hy, hz, reach, bit, sd, bits):  # pragma: no cover
-    """The first n points against one box (float32 centre and half extents): running
-    minimum of the signed distance in sd, ``bit`` set in bits where within reach."""
+def _box(qx, qy, qz, a, n, cx, cy, cz, hx, hy, hz, reach, bit, sd, bits):  # pragma: no cover
+    """Points a..n against one box (float32 centre and half extents): running minimum
+    of the signed distance in sd, ``bit`` set in bits where within reach."""
     zero = np.float32(0.0)
-    for m in range(n):
+    for m in range(a, n):
         ex = abs(qx[m] - cx) - hx
         ey = abs(qy[m] - cy) - hy
         ez = abs(qz[m] - cz) - hz
@@ -88,33 +102,54 @@ def _box(qx, qy, qz, n, cx, cy, cz, hx, hy, hz, reach, bit, sd, bits):  # pragma
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _shared_pass(qx, qy, qz, M, n_cloud, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, keep):  # pragma: no cover
-    """All M points once per grasp: exact distance and reach bits of the boxes that do
-    not move (sd0, bits0), a lower bound lb of every opening's distance (the moving boxes
-    swept over [ho_lo, ho_hi]); keep: the points any opening needs. Returns their count."""
+def _distances(qx, qy, qz, a, b, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, scratch):  # pragma: no cover
+    """Points a..b: exact distance and reach bits of the boxes that do not move (sd0,
+    bits0), a lower bound lb of every opening's distance (the moving boxes swept over
+    [ho_lo, ho_hi])."""
     f4 = np.float32
-    sweep = f4(ho_hi - ho_lo)
-    for m in range(M):
+    for m in range(a, b):
         sd0[m] = f4(_BIG)
         bits0[m] = 0
         lb[m] = f4(_BIG)
-    for b in range(bc.shape[0]):
-        cy, cz, hy, hz = f4(bc[b, 1]), f4(bc[b, 2]), f4(bh[b, 1]), f4(bh[b, 2])
-        if bs[b] == 0:
-            _box(qx, qy, qz, M, f4(bc[b, 0]), cy, cz, f4(bh[b, 0]), hy, hz, reach, np.int32(1 << b), sd0, bits0)
-        else:  # bits: scratch (bits0 is rewritten below for the kept points only)
-            _box(qx, qy, qz, M, f4(bc[b, 0] + bs[b] * 0.5 * (ho_lo + ho_hi)), cy, cz,
-                 f4(bh[b, 0] + 0.5 * (ho_hi - ho_lo)), hy, hz, reach, np.int32(0), lb, keep)
-    upper = f4(_BIG)  # the cloud's clearance is at most min(sd0, lb + sweep) at any opening
-    for m in range(n_cloud):
-        upper = min(upper, min(sd0[m], lb[m] + sweep))
-    slack = f4(_SLACK)
-    n = 0
-    for m in range(M):
+    for k in range(bc.shape[0]):
+        cy, cz, hy, hz = f4(bc[k, 1]), f4(bc[k, 2]), f4(bh[k, 1]), f4(bh[k, 2])
+        if bs[k] == 0:
+            _box(qx, qy, qz, a, b, f4(bc[k, 0]), cy, cz, f4(bh[k, 0]), hy, hz, reach, np.int32(1 << k), sd0, bits0)
+        else:  # no bits (scratch is rewritten afterwards)
+            _box(qx, qy, qz, a, b, f4(bc[k, 0] + bs[k] * 0.5 * (ho_lo + ho_hi)), cy, cz,
+                 f4(bh[k, 0] + 0.5 * (ho_hi - ho_lo)), hy, hz, reach, np.int32(0), lb, scratch)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _upper(cl, sd0, lb, sweep, a, b, upper):  # pragma: no cover
+    """``upper`` lowered to the least bound min(sd0, lb + sweep) of the cloud points
+    a..b: the cloud's clearance at any opening is at most that."""
+    for m in range(a, b):
+        if cl[m]:
+            upper = min(upper, min(sd0[m], lb[m] + sweep))
+    return upper
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _keep(n, cl, reach, sd0, lb, upper, keep):  # pragma: no cover
+    """keep: the points 0..n some opening needs (within reach of a box, or a cloud point
+    that may attain the clearance). Returns their count."""
+    slack = np.float32(_SLACK)
+    k = 0
+    for m in range(n):
         low = min(sd0[m], lb[m])
-        keep[m] = (low <= reach[m] + slack) or (m < n_cloud and low <= upper + slack)
-        n += keep[m]
-    return n
+        keep[m] = (low <= reach[m] + slack) or (cl[m] and low <= upper + slack)
+        k += keep[m]
+    return k
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _shared_pass(qx, qy, qz, M, cl, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, keep):  # pragma: no cover
+    """All M points once per grasp (cl (M,): which are cloud points): sd0, bits0, lb
+    as :func:`_distances`; keep: the points any opening needs. Returns their count."""
+    _distances(qx, qy, qz, 0, M, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, keep)
+    upper = _upper(cl, sd0, lb, np.float32(ho_hi - ho_lo), 0, M, np.float32(_BIG))
+    return _keep(M, cl, reach, sd0, lb, upper, keep)
 
 
 @njit(cache=True, nogil=True, fastmath=True)
@@ -201,7 +236,7 @@ def _opening(i, e, ho, cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl, nc, sd, bit
         bits[j] = cbits0[j]
     for b in range(bc.shape[0]):
         if bs[b] != 0:
-            _box(cqx, cqy, cqz, nc, f4(bc[b, 0] + bs[b] * ho), f4(bc[b, 1]), f4(bc[b, 2]),
+            _box(cqx, cqy, cqz, 0, nc, f4(bc[b, 0] + bs[b] * ho), f4(bc[b, 1]), f4(bc[b, 2]),
                  f4(bh[b, 0]), f4(bh[b, 1]), f4(bh[b, 2]), creach, np.int32(1 << b), sd, bits)
     clear = f4(_BIG)
     n = 0
@@ -224,8 +259,41 @@ def _opening(i, e, ho, cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl, nc, sd, bit
 
 
 @njit(cache=True, nogil=True, fastmath=True)
+def _kept_points(P, n_cloud, R, w, i, pivot, th, pm, ho_lo, ho_hi, bc, bh, bs, blk, work, kept):  # pragma: no cover
+    """Grasp i's pass over the points: the blocks near enough first, then the cloud's
+    blocks that may hold its clearance; the points any opening needs go to ``kept``
+    (wrist coordinates, pivot distance, reach, sd0, bits0, cloud flag). Returns their count."""
+    order, start, centre, radius, cloud, low, near, take = blk
+    idx, qx, qy, qz, rr, reach, cl, sd0, bits0, lb, keep = work
+    cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl = kept
+    f4 = np.float32
+    th4, pm4 = f4(th), f4(pm)
+    near_blocks(R, w, i, pivot, th, pm, bc, bh, bs, ho_lo, ho_hi, centre, radius, low, near)
+    n = gather(order, start, near, idx, 0)
+    _wrist_points(P, R, w, i, pivot, th4, pm4, idx, 0, n, n_cloud, qx, qy, qz, rr, reach, cl)
+    _distances(qx, qy, qz, 0, n, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, keep)
+    sweep = f4(ho_hi - ho_lo)
+    upper = _upper(cl, sd0, lb, sweep, 0, n, f4(_BIG))
+    for j in range(take.shape[0]):  # cloud blocks that may come closer than what the near ones attain
+        take[j] = cloud[j] and not near[j] and low[j] <= upper + BLOCK_SLACK
+    n1 = n
+    n = gather(order, start, take, idx, n1)
+    _wrist_points(P, R, w, i, pivot, th4, pm4, idx, n1, n, n_cloud, qx, qy, qz, rr, reach, cl)
+    _distances(qx, qy, qz, n1, n, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, keep)
+    upper = _upper(cl, sd0, lb, sweep, n1, n, upper)
+    _keep(n, cl, reach, sd0, lb, upper, keep)
+    nc = 0
+    for m in range(n):
+        if keep[m]:
+            cqx[nc], cqy[nc], cqz[nc] = qx[m], qy[m], qz[m]
+            cr[nc], creach[nc], csd0[nc], cbits0[nc], ccl[nc] = rr[m], reach[m], sd0[m], bits0[m], cl[m]
+            nc += 1
+    return nc
+
+
+@njit(cache=True, nogil=True, fastmath=True)
 def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, sign, DR, Dt, theta, tlen, pivot,
-                 table, pad, cos_fc, margin, lo, hi, clearance, flags):  # pragma: no cover
+                 table, pad, cos_fc, margin, cell, lo, hi, clearance, flags):  # pragma: no cover
     """Grasps [lo, hi): clearance (N, E) to the cloud points P[:n_cloud] and flags
     (N, E, K) at the pad gaps ``openings`` (N, E) (in order) for perturbations DR
     (K, 3, 3), Dt (K, 3) (theta, tlen (K,): their bounds). A grasp stops after the
@@ -236,17 +304,21 @@ def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, si
     sign (N,): +1 when contact 1 lies on the +x side of contact 0. table: (nr_x, nr_y,
     nr_z, height of the wrist origin, required height) with nr (N, ...) given per grasp
     as table[i] (a row of zeros and a huge height: no table). pad: (half width, z_lo,
-    z_hi) of the pads in the wrist frame."""
+    z_hi) of the pads in the wrist frame. cell [m]: the points' block size (any size
+    gives the same results; see the module docstring)."""
     M = P.shape[0]
     K = DR.shape[0]
     E = openings.shape[1]
     f4 = np.float32
-    qx, qy, qz = np.empty(M, f4), np.empty(M, f4), np.empty(M, f4)
-    rr, reach, sd0, lb = np.empty(M, f4), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4)
-    bits0, keep = np.empty(M, np.int32), np.empty(M, np.int32)
-    cqx, cqy, cqz, cr = np.empty(M, f4), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4)
-    creach, csd0 = np.empty(M, f4), np.empty(M, f4)
-    cbits0, ccl = np.empty(M, np.int32), np.empty(M, np.bool_)
+    order, start, centre, radius, cloud = blocks(P, n_cloud, cell)
+    B = len(radius)
+    blk = (order, start, centre, radius, cloud, np.empty(B), np.empty(B, np.bool_), np.empty(B, np.bool_))
+    work = (np.empty(M, np.int64), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4),
+            np.empty(M, f4), np.empty(M, np.bool_), np.empty(M, f4), np.empty(M, np.int32), np.empty(M, f4),
+            np.empty(M, np.int32))
+    kept = (np.empty(M, f4), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4),
+            np.empty(M, np.int32), np.empty(M, np.bool_))
+    cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl = kept
     sd, bits = np.empty(M, f4), np.empty(M, np.int32)
     near, ns, nr, nb, ncl = np.empty((M, 3)), np.empty(M), np.empty(M), np.empty(M, np.int32), np.empty(M, np.bool_)
     cf, hits = np.empty(K, np.int32), np.empty(K, np.int32)
@@ -262,19 +334,12 @@ def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, si
     for k in range(K):
         thmax = max(thmax, theta[k])
         pmax = max(pmax, tlen[k])
-    th4, pm4 = f4(thmax), f4(pmax + margin)
     for i in range(lo, hi):
-        _wrist_points(P, R, w, i, pivot, th4, pm4, qx, qy, qz, rr, reach)
         ho_lo, ho_hi = 0.5 * openings[i, 0], 0.5 * openings[i, 0]
         for e in range(E):
             ho_lo, ho_hi = min(ho_lo, 0.5 * openings[i, e]), max(ho_hi, 0.5 * openings[i, e])
-        _shared_pass(qx, qy, qz, M, n_cloud, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, keep)
-        nc = 0
-        for m in range(M):
-            if keep[m]:
-                cqx[nc], cqy[nc], cqz[nc] = qx[m], qy[m], qz[m]
-                cr[nc], creach[nc], csd0[nc], cbits0[nc], ccl[nc] = rr[m], reach[m], sd0[m], bits0[m], m < n_cloud
-                nc += 1
+        nc = _kept_points(P, n_cloud, R, w, i, pivot, thmax, pmax + margin, ho_lo, ho_hi, bc, bh, bs, blk, work,
+                          kept)
         _contacts(i, qc, nq, sign, DR, Dt, pad, cos_fc, cf)
         done = False
         for e in range(E):

@@ -82,7 +82,8 @@ def ensure_compiled() -> bool:
 
 #: The modules of graspsim's compiled kernels: the map kernels' and those compiled on their first call.
 KERNEL_MODULES = ("graspsim.maps._kernel", "graspsim.maps._assemble_kernel", "graspsim.maps._hierarchy_kernel",
-                  "graspsim.maps._robust_kernel", "graspsim.perception._sdf_kernel", "graspsim.grades._pads")
+                  "graspsim.maps._robust_kernel", "graspsim.maps._robust_blocks", "graspsim.perception._sdf_kernel",
+                  "graspsim.perception._spacing_kernel", "graspsim.grades._pads")
 
 
 def compiled_kernels() -> dict:
@@ -112,6 +113,7 @@ def compile_all(*, parallel: bool = True) -> bool:
     from graspsim.maps.generate import MapConfig
     from graspsim.maps.hierarchy import build_levels, clusters
     from graspsim.maps.robust import score_poses
+    from graspsim.perception.prepare import median_spacing
     from graspsim.perception.shapes import DIM_NAMES, KINDS, sdf_function
     from graspsim.primitives import Box
 
@@ -122,6 +124,7 @@ def compile_all(*, parallel: bool = True) -> bool:
     for kind in KINDS:  # identification's distances
         k = len(DIM_NAMES[kind])
         sdf_function(kind, pts)(np.eye(3)[None], np.zeros((1, 3)), np.full((1, k), 0.02))
+    median_spacing(pts)  # point spacing (identification, the occlusion term's depth image)
     T = np.eye(4)[None].copy()
     T[0, 2, 3] = 0.1
     c = np.array([[[-0.02, 0.0, 0.0], [0.02, 0.0, 0.0]]])

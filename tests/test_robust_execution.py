@@ -169,6 +169,25 @@ def test_fingers_in_occluded_space_are_scored_down():
     np.testing.assert_array_equal(off.robust, plain.robust)
 
 
+def test_finger_samples_handed_out_are_the_callers_own():
+    """The occlusion term reuses one set of finger samples per gripper: a caller that
+    changes the samples it was given changes no later score."""
+    from graspsim.gripper import HGPL_25_60_A as g
+    from graspsim.maps.occlusion import finger_occlusion, finger_samples
+
+    _, pts, camera = _box_view()
+    v = ViewDepth(pts, camera)
+    R = np.repeat(np.diag([1.0, -1.0, -1.0])[None], 3, axis=0)  # from above
+    w = np.array([[0.0, 0.0, 0.2], [0.03, 0.0, 0.15], [-0.02, 0.01, 0.16]])
+    before = finger_occlusion(v, R, w, np.full(3, 0.05), g)
+    q, s = finger_samples(g)
+    original = q.copy()
+    q += 0.1
+    s[:] = 0.0
+    np.testing.assert_array_equal(finger_occlusion(v, R, w, np.full(3, 0.05), g), before)
+    np.testing.assert_array_equal(finger_samples(g)[0], original)
+
+
 def test_a_cloud_file_with_a_camera_record_carries_its_viewpoint(tmp_path):
     from graspsim.perception.io import read_point_cloud
     from graspsim.sim.camera import Camera, Intrinsics, look_at

@@ -17,6 +17,8 @@ per wrist pose -- the robust score's occlusion term (:mod:`graspsim.maps.robust`
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.ndimage import minimum_filter
 
@@ -27,6 +29,7 @@ from graspsim.perception.prepare import median_spacing
 __all__ = ["ViewDepth", "finger_samples", "finger_occlusion"]
 
 _MAX_PIXELS = 1024  # per image side (memory bound)
+_PER_AXIS = (2, 3, 8)  # finger samples along the finger box's x, y, z
 
 
 class ViewDepth:
@@ -91,9 +94,17 @@ class ViewDepth:
         return out
 
 
-def finger_samples(gripper: GripperSpec, per_axis: tuple[int, int, int] = (2, 3, 8)) -> tuple[np.ndarray, np.ndarray]:
+def finger_samples(gripper: GripperSpec, per_axis: tuple[int, int, int] = _PER_AXIS) -> tuple[np.ndarray, np.ndarray]:
     """(S, 3) sample points of the fingers' boxes in the wrist frame at zero pad gap, and
     their x signs (S,) (each moves by sign x gap / 2 with the opening)."""
+    q, s = _finger_samples(gripper, tuple(per_axis))
+    return q.copy(), s.copy()
+
+
+@functools.lru_cache(maxsize=16)
+def _finger_samples(gripper: GripperSpec, per_axis: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`finger_samples`, made once per gripper (read-only: the occlusion term asks
+    for them in every scored batch, at every opening)."""
     b = gripper.collision_boxes()
     pts, signs = [], []
     for name, c, h, s in zip(b.names, b.centers, b.half_extents, b.x_sign):
@@ -103,14 +114,17 @@ def finger_samples(gripper: GripperSpec, per_axis: tuple[int, int, int] = (2, 3,
         g = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3) + c
         pts.append(g)
         signs.append(np.full(len(g), float(s)))
-    return np.concatenate(pts), np.concatenate(signs)
+    q, s = np.concatenate(pts), np.concatenate(signs)
+    q.setflags(write=False)
+    s.setflags(write=False)
+    return q, s
 
 
 def finger_occlusion(view: ViewDepth, R: np.ndarray, w: np.ndarray, opening: np.ndarray,
                      gripper: GripperSpec) -> np.ndarray:
     """(n,) the fraction of the finger samples of each wrist pose (R (n, 3, 3), w (n, 3),
     in the view's frame; pad gaps ``opening`` (n,) [m]) in occluded space."""
-    q, s = finger_samples(gripper)
+    q, s = _finger_samples(gripper, _PER_AXIS)
     n = len(R)
     if not n:
         return np.zeros(0)

@@ -96,7 +96,7 @@ def near_blocks(R, w, i, pivot, th, pm, bc, bh, bs, ho_lo, ho_hi, centre, radius
             d = min(d, np.sqrt(ex * ex + ey * ey + ez * ez))
         low[j] = d - radius[j]
         r = np.sqrt((x - pivot[0]) ** 2 + (y - pivot[1]) ** 2 + (z - pivot[2]) ** 2) + radius[j]
-        near[j] = low[j] <= th * r + pm + BLOCK_SLACK
+        near[j] = not (low[j] > th * r + pm + BLOCK_SLACK)  # a block with NaN or inf points: measured
 
 
 @njit(cache=True, nogil=True)

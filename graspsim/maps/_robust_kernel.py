@@ -275,7 +275,7 @@ def _kept_points(P, n_cloud, R, w, i, pivot, th, pm, ho_lo, ho_hi, bc, bh, bs, b
     sweep = f4(ho_hi - ho_lo)
     upper = _upper(cl, sd0, lb, sweep, 0, n, f4(_BIG))
     for j in range(take.shape[0]):  # cloud blocks that may come closer than what the near ones attain
-        take[j] = cloud[j] and not near[j] and low[j] <= upper + BLOCK_SLACK
+        take[j] = cloud[j] and not near[j] and not (low[j] > upper + BLOCK_SLACK)
     n1 = n
     n = gather(order, start, take, idx, n1)
     _wrist_points(P, R, w, i, pivot, th4, pm4, idx, n1, n, n_cloud, qx, qy, qz, rr, reach, cl)

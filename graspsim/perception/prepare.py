@@ -36,7 +36,8 @@ MAX_EXTENT = 2.0
 def median_spacing(points: np.ndarray) -> float:
     """The median distance [m] from each point of (N, 3) to its nearest *other location*:
     repeated points (a fixed-size cloud sampled with replacement) count once, so they
-    do not read as zero spacing. 0 for fewer than two distinct points."""
+    do not read as zero spacing. 0 for fewer than two distinct points; a
+    :class:`~graspsim.errors.PointCloudError` for NaN or inf coordinates."""
     P = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
     if not np.isfinite(P).all():
         raise PointCloudError(f"point spacing needs finite coordinates; {int(np.sum(~np.isfinite(P).all(axis=1)))} "

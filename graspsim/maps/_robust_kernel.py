@@ -18,12 +18,12 @@ out, against those boxes grown by ``margin`` (exact for margin 0; within margin 
 at the boxes' corners otherwise) -- a few dozen points per grasp instead of thousands.
 The pass over all points runs in float32 (tenths of a micrometre at object scale).
 
-That pass skips whole blocks of points (the cells of a grid ``cell`` wide, hashed, made
-once per call): a block whose bounding sphere lies farther from every (swept) box than the
-reach of its farthest point, and -- for cloud points -- farther than the clearance the
-nearer blocks already attain, holds no point the pass would keep, by more than float32
-rounding (``BLOCK_SLACK``). The kept points, and so the results, are those of the pass
-over every point.
+That pass skips whole blocks of points (the cells of a hashed grid, made once per
+scoring call by :func:`graspsim.maps._robust_blocks.blocks`): a block whose bounding
+sphere lies farther from every (swept) box than the reach of its farthest point, and --
+for cloud points -- farther than the clearance the nearer blocks already attain, holds
+no point the pass would keep, by more than float32 rounding (``BLOCK_SLACK``). The kept
+points, and so the results, are those of the pass over every point.
 
 The openings share that pass over all points: the points go into the wrist frame once,
 the boxes that do not move with the jaws (the housing) are measured once, and the moving
@@ -50,7 +50,7 @@ from numba import njit
 
 # compiled into robust_flags and cached with it: numba does not see edits to another file, so
 # after changing _robust_blocks.py delete this module's cache (__pycache__/_robust_kernel.*.nb*)
-from graspsim.maps._robust_blocks import BLOCK_SLACK, blocks, gather, near_blocks
+from graspsim.maps._robust_blocks import BLOCK_SLACK, gather, near_blocks
 
 __all__ = ["robust_flags", "CLOUD", "PRIMITIVE", "TABLE", "OFF_PAD", "NO_FC", "NOT_SCORED"]
 
@@ -293,7 +293,7 @@ def _kept_points(P, n_cloud, R, w, i, pivot, th, pm, ho_lo, ho_hi, bc, bh, bs, b
 
 @njit(cache=True, nogil=True, fastmath=True)
 def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, sign, DR, Dt, theta, tlen, pivot,
-                 table, pad, cos_fc, margin, cell, lo, hi, clearance, flags):  # pragma: no cover
+                 table, pad, cos_fc, margin, point_blocks, lo, hi, clearance, flags):  # pragma: no cover
     """Grasps [lo, hi): clearance (N, E) to the cloud points P[:n_cloud] and flags
     (N, E, K) at the pad gaps ``openings`` (N, E) (in order) for perturbations DR
     (K, 3, 3), Dt (K, 3) (theta, tlen (K,): their bounds). A grasp stops after the
@@ -304,13 +304,14 @@ def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, si
     sign (N,): +1 when contact 1 lies on the +x side of contact 0. table: (nr_x, nr_y,
     nr_z, height of the wrist origin, required height) with nr (N, ...) given per grasp
     as table[i] (a row of zeros and a huge height: no table). pad: (half width, z_lo,
-    z_hi) of the pads in the wrist frame. cell [m]: the points' block size (any size
-    gives the same results; see the module docstring)."""
+    z_hi) of the pads in the wrist frame. point_blocks: P's blocks, :func:`graspsim.maps._robust_blocks.blocks`'s
+    (order, start, centre, radius, cloud) (any block size gives the same results; see
+    the module docstring)."""
     M = P.shape[0]
     K = DR.shape[0]
     E = openings.shape[1]
     f4 = np.float32
-    order, start, centre, radius, cloud = blocks(P, n_cloud, cell)
+    order, start, centre, radius, cloud = point_blocks
     B = len(radius)
     blk = (order, start, centre, radius, cloud, np.empty(B), np.empty(B, np.bool_), np.empty(B, np.bool_))
     work = (np.empty(M, np.int64), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4), np.empty(M, f4),

@@ -194,7 +194,7 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
     table rows of :func:`table_rows`, at every opening of ``cfg``; ``success_of(live)``
     the success probability of the live poses (bool mask); ``view``: a
     :class:`~graspsim.maps.occlusion.ViewDepth` of the cloud, or None."""
-    from graspsim.maps._robust_blocks import BLOCK_CELL
+    from graspsim.maps._robust_blocks import BLOCK_CELL, blocks
     from graspsim.maps._robust_kernel import robust_flags
     from graspsim.maps.kernels import default_threads, run_chunks
     from graspsim.maps.occlusion import finger_occlusion
@@ -226,7 +226,8 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
     flags = np.zeros((n, len(extras), len(D)), np.uint8)
     args = (P, n_cloud, np.ascontiguousarray(R), np.ascontiguousarray(w), np.ascontiguousarray(openings), allow,
             int(mask), centers, half, x_sign, np.ascontiguousarray(qc), np.ascontiguousarray(nq), sign, DR, Dt,
-            theta, tlen, np.asarray(pivot), np.ascontiguousarray(table), pad, cos_fc, float(cfg.margin), BLOCK_CELL)
+            theta, tlen, np.asarray(pivot), np.ascontiguousarray(table), pad, cos_fc, float(cfg.margin),
+            blocks(P, n_cloud, BLOCK_CELL))  # the points' blocks: once, for every thread's chunk
     run_chunks(lambda lo, hi: robust_flags(*args, lo, hi, clearance, flags), n,
                default_threads(cfg.threads) if n >= 256 else 1)
     ok = (flags & mask) == 0

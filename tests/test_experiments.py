@@ -578,3 +578,32 @@ def test_study_clutter_failures_quick(tmp_path):
         assert r["segment"] in ("planned", "reused") and 0.0 <= r["score"] <= 1.0
         assert all(0.0 <= v <= 1.0 for v in r["outside_3_6_10mm"]) and r["parts"]
         assert bool(r["overlaps_mm"]) <= r["cause"].startswith("start_collision")
+
+
+@pytest.mark.slow
+def test_study_scene_budget_quick_pairs_the_budgets(tmp_path):
+    study = _load("study_scene_budget")
+    out = tmp_path / "ssb"
+    assert study.main(["--quick", "--out", str(out)]) == 0
+    s = _summary(out)
+    rows = {r["budget"]: r for r in s["rows"]}
+    assert set(rows) == {"32:200", "4:50"} and len(s["episodes"]) == 2
+    for r in rows.values():
+        assert r["scenes"] == 1 and r["successes"] <= r["attempts"] and r["removed"] <= r["placed"] == 2
+        # one plan_scene call at least per executed grasp, the first frame's among them
+        e = next(e for e in s["episodes"] if e["budget"] == r["budget"])
+        assert len(e["plan_cpu_s"]) == len(e["scored"]) >= e["attempts"] >= 1 and all(c > 0 for c in e["plan_cpu_s"])
+        assert r["first_frame_cpu_s"]["count"] == r["first_frame_scored"]["count"] == 1
+    assert rows["32:200"]["differs_from_reference"] == 0  # the reference is itself
+    # the smaller budget stops each segment sooner: fewer grasps scored in the same first frame
+    assert 0 < rows["4:50"]["first_frame_scored"]["median"] < rows["32:200"]["first_frame_scored"]["median"]
+    assert s["command"] in study.readme_section(s)
+
+
+def test_study_scene_budget_refuses_malformed_budgets():
+    study = _load("study_scene_budget")
+    for bad in ("32", "a:b", "0:10", "8:-1"):
+        with pytest.raises(ValueError, match="budget"):
+            study.parse_budget(bad)
+    with pytest.raises(ValueError, match="distinct"):
+        study.Config(budgets=("8:100", "8:100"))

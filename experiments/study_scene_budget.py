@@ -1,0 +1,238 @@
+"""Planning effort per segment against clutter removal (issue 17): what smaller
+per-segment budgets save in CPU and what they cost in grasps.
+
+A scene plans each segment until ``SceneConfig.enough`` of its grasps score above 0 or
+``SceneConfig.per_segment`` grasps per part have been robust-scored (E10's budget:
+32 and 200). Smaller budgets plan less of each segment's maps, so a first frame costs
+less CPU, but the scene's best grasp is chosen from fewer candidates. For each budget
+(``ENOUGH:PER_SEGMENT``) this runs E10's goal conditions -- ``--objects`` objects, pile
+and packed, no execution error -- with E10's protocol, scenes, seeds, camera, sensor
+noise and database (``e10_clutter_removal.py``; E10's budget therefore reproduces
+E10's rows), and reports per budget: grasp success rate, objects cleared (95 % Wilson
+intervals), scenes whose episode differs from E10's budget's, and the CPU time of
+planning (``plan_scene``) a scene's first frame and per grasp. Scenes run one per task
+on ``--workers`` processes, the budgets interleaved, so every budget meets the same
+load; inside a worker a scene's segments are planned one after another, so the CPU is
+the whole plan's (on 2 cores the wall time of a first frame is at least about half
+of it: ``bench_scene.py`` measures that).
+
+    python experiments/study_scene_budget.py --db results/e10-fsdb --workers 2
+    python experiments/study_scene_budget.py --quick --out results/study_scene_budget-quick
+"""
+
+from __future__ import annotations
+
+import logging
+import statistics
+import sys
+import time
+from dataclasses import dataclass
+from multiprocessing import get_context
+from pathlib import Path
+from typing import ClassVar
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import derived_seed, experiment_database, map_config, opt, rate_ci, rng_for, start
+
+log = logging.getLogger("study_scene_budget")
+
+
+@dataclass(frozen=True)
+class Config:
+    budgets: tuple[str, ...] = opt(("32:200", "16:200", "8:100"),
+                                   "per-segment budgets ENOUGH:PER_SEGMENT (SceneConfig.enough, .per_segment); "
+                                   "the first is the reference the others are compared with")
+    kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
+    objects: int = opt(5, "objects per scene")
+    scenes: int = opt(50, "scenes per kind (E10's scenes 0 .. N-1)")
+    object_set: str = opt("mixed", "objects drawn from this set")
+    seed: int = opt(0, "run seed (E10's)")
+    quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
+    db: str = opt("", "FS database folder, read only during the run (default: OUT/fsdb, built fresh)")
+    grid: bool = opt(True, "store E10's size grid of FS maps in the database before the first scene")
+    workers: int = opt(1, "processes; results do not depend on it")
+    QUICK: ClassVar[dict] = {"budgets": ("32:200", "4:50"), "kinds": ("packed",), "objects": 2, "scenes": 1,
+                             "object_set": "primitives", "quick_maps": True, "grid": False}
+
+    def __post_init__(self) -> None:
+        for b in self.budgets:
+            parse_budget(b)
+        if len(set(self.budgets)) != len(self.budgets) or not self.budgets:
+            raise ValueError(f"--budgets must be distinct and not empty, got {self.budgets}")
+        if self.objects < 1 or self.scenes < 1 or self.workers < 1:
+            raise ValueError("--objects, --scenes and --workers must be >= 1")
+
+
+def parse_budget(text: str) -> tuple[int, int]:
+    """``"ENOUGH:PER_SEGMENT"`` as two integers >= 1."""
+    try:
+        enough, per = (int(v) for v in text.split(":"))
+    except ValueError:
+        raise ValueError(f"a budget is ENOUGH:PER_SEGMENT, two whole numbers, got {text!r}") from None
+    if enough < 1 or per < 1:
+        raise ValueError(f"a budget's numbers must be >= 1, got {text!r}")
+    return enough, per
+
+
+_PLANS: list[tuple[float, int]] = []  # this worker's plan_scene calls in order: (CPU seconds, grasps scored)
+
+
+def _timed_plans() -> None:
+    """Record the CPU time and the grasps robust-scored of every ``plan_scene`` the
+    clutter protocol calls in this process (the protocol's own call, wrapped once;
+    results unchanged)."""
+    import graspsim.sim.clutter as clutter
+
+    if getattr(clutter.plan_scene, "_timed", False):
+        return
+    plan = clutter.plan_scene
+
+    def timed(*args, **kwargs):
+        c0 = time.process_time()
+        sp = plan(*args, **kwargs)
+        _PLANS.append((time.process_time() - c0, sum(p.scored for p in sp.segments)))
+        return sp
+
+    timed._timed = True
+    clutter.plan_scene = timed
+
+
+def _warm_up(kind: str, cfg: Config, db) -> None:
+    """Plan the first frame of a scene no task draws, once per process and kind: the
+    kernels, modules and stored maps are loaded before the first timed plan."""
+    from graspsim.sim.clutter import ClutterEpisode
+    from graspsim.sim.scenes import make_scene
+
+    scene = make_scene(cfg.objects, kind, derived_seed(cfg.seed, "warm-up", 0), object_set=cfg.object_set,
+                       gripper=db.gripper)
+    ep = ClutterEpisode(scene, db=db, rng=rng_for(cfg.seed, "warm-up", 0))
+    try:
+        ep.observe()
+    finally:
+        ep.close()
+
+
+_DATABASES: dict = {}
+_WARM: set = set()
+
+
+def episode(task) -> dict:
+    """Scene ``i`` of ``kind`` cleared with budget ``budget`` (E10's protocol and seeds)."""
+    kind, budget, i, cfg, root = task
+    from e10_clutter_removal import RunDatabase
+
+    from graspsim.sim.clutter import ClutterConfig, run_benchmark, scene_settings
+
+    key = (root, cfg.quick_maps)
+    if key not in _DATABASES:  # one per process: its cache of loaded maps serves every task
+        _DATABASES[key] = RunDatabase(root, config=map_config(cfg.quick_maps))
+    db = _DATABASES[key]
+    if kind not in _WARM:
+        _warm_up(kind, cfg, db)
+        _WARM.add(kind)
+    _timed_plans()
+    enough, per = parse_budget(budget)
+    config = ClutterConfig(scene=scene_settings(kind, enough=enough, per_segment=per))
+    _PLANS.clear()
+    (r,) = run_benchmark(cfg.objects, kind, 1, cfg.seed, db=db, config=config, object_set=cfg.object_set, first=i)
+    return {"kind": kind, "budget": budget, "scene": i, "placed": r.placed, "removed": r.removed,
+            "attempts": len(r.attempts), "successes": r.successes, "stop": r.stop,
+            "causes": [a.cause for a in r.attempts], "scores": [a.score for a in r.attempts],
+            "plan_cpu_s": [c for c, _ in _PLANS], "scored": [n for _, n in _PLANS],
+            "planning_s": [a.planning for a in r.attempts]}
+
+
+def summarize(cfg: Config, episodes: list[dict]) -> list[dict]:
+    """One row per kind and budget: pooled rates, CPU medians, scenes that differ from
+    the reference budget's episode (the attempts' causes in order)."""
+    from graspsim.stats import wilson_interval
+
+    rows = []
+    for kind in cfg.kinds:
+        ref = {e["scene"]: e["causes"] for e in episodes if e["kind"] == kind and e["budget"] == cfg.budgets[0]}
+        for budget in cfg.budgets:
+            eps = sorted((e for e in episodes if e["kind"] == kind and e["budget"] == budget),
+                         key=lambda e: e["scene"])
+            n, ok = sum(e["attempts"] for e in eps), sum(e["successes"] for e in eps)
+            placed, removed = sum(e["placed"] for e in eps), sum(e["removed"] for e in eps)
+            first = [e["plan_cpu_s"][0] for e in eps if e["plan_cpu_s"]]
+            per_grasp = [c / e["attempts"] for e in eps if e["attempts"] for c in [sum(e["plan_cpu_s"])]]
+            scores = [e["scores"][0] for e in eps if e["scores"]]
+            scored = [e["scored"][0] for e in eps if e["scored"]]
+            rows.append({
+                "kind": kind, "budget": budget, "enough": parse_budget(budget)[0],
+                "per_segment": parse_budget(budget)[1], "scenes": len(eps), "attempts": n, "successes": ok,
+                "gsr_interval_95": wilson_interval(ok, n) if n else None, "placed": placed, "removed": removed,
+                "cleared_interval_95": wilson_interval(removed, placed) if placed else None,
+                "scenes_cleared": sum(e["removed"] == e["placed"] for e in eps),
+                "differs_from_reference": sum(e["causes"] != ref.get(e["scene"]) for e in eps),
+                "first_frame_cpu_s": _spread(first), "cpu_per_grasp_s": _spread(per_grasp),
+                "first_frame_scored": _spread(scored),
+                "first_score_median": statistics.median(scores) if scores else None})
+    return rows
+
+
+def _spread(values: list[float]) -> dict:
+    if not values:
+        return {"count": 0, "median": None, "p90": None}
+    v = sorted(values)
+    return {"count": len(v), "median": statistics.median(v), "p90": v[min(len(v) - 1, int(0.9 * len(v)))]}
+
+
+def _s(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.2f}"
+
+
+def readme_section(s: dict) -> str:
+    ref = s["config"]["budgets"][0]
+    L = [f"`{s['command']}`: E10's goal conditions ({s['config']['objects']} objects, no execution error, "
+         "its scenes, seeds, camera, sensor noise and database) cleared with each per-segment budget "
+         "ENOUGH:PER_SEGMENT (`SceneConfig.enough`: a segment's planning stops at this many grasps scoring > 0; "
+         f"`.per_segment`: grasps robust-scored per part at most; E10's is {s['e10_budget']}). "
+         "GSR = grasps that lifted their target / grasps, DR = objects removed / placed (95 % Wilson "
+         f"intervals); *differ*: scenes whose episode (the attempts' outcomes in order) is not {ref}'s; "
+         "CPU: `plan_scene`'s CPU time, a scene's segments planned one after another in one process (on 2 "
+         "cores a first frame's wall time is at least about half its CPU; each process planned one other "
+         "scene of each kind first, untimed); *scored*: grasps robust-scored in a scene's first frame "
+         "(median); best score: the robust score of the first grasp executed (median over scenes); "
+         f"{s['config']['workers']} processes on {s['machine']['cpus']} cores.", "",
+         "| scene | budget | scenes | GSR | DR | cleared scenes | differ | CPU, first frame: median / p90 [s] | "
+         "CPU per grasp: median [s] | scored | best score |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in s["rows"]:
+        f, g = r["first_frame_cpu_s"], r["cpu_per_grasp_s"]
+        L.append(f"| {r['kind']} | {r['budget']} | {r['scenes']} | "
+                 f"{rate_ci(r['successes'], r['attempts'], r['gsr_interval_95'])} | "
+                 f"{rate_ci(r['removed'], r['placed'], r['cleared_interval_95'])} | {r['scenes_cleared']} | "
+                 f"{r['differs_from_reference']} | {_s(f['median'])} / {_s(f['p90'])} | {_s(g['median'])} | "
+                 f"{r['first_frame_scored']['median']} | {_s(r['first_score_median'])} |")
+    return "\n".join(L) + "\n"
+
+
+def main(argv=None) -> int:
+    from e10_clutter_removal import build_grid
+
+    cfg, out, record = start(Config, __file__, argv, __doc__)
+    db = experiment_database(cfg.db, out, map_config(cfg.quick_maps))
+    if cfg.grid:
+        build_grid(db)  # E10's maps, stored before the first scene (kept where stored already)
+    # the budgets interleaved scene by scene: every budget meets the same load
+    tasks = [(kind, b, i, cfg, str(db.root)) for i in range(cfg.scenes) for kind in cfg.kinds for b in cfg.budgets]
+    pool = get_context("spawn").Pool(cfg.workers) if cfg.workers > 1 else None
+    try:
+        episodes = list(pool.imap(episode, tasks) if pool is not None else map(episode, tasks))
+    finally:
+        if pool is not None:
+            pool.close()
+            pool.join()
+    from graspsim.perception.scene import SceneConfig
+
+    e10 = SceneConfig()
+    text = record.write(out, {"config": cfg, "e10_budget": f"{e10.enough}:{e10.per_segment}",
+                              "rows": summarize(cfg, episodes), "episodes": episodes}, readme_section)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -6,15 +6,17 @@ A scene plans each segment until ``SceneConfig.enough`` of its grasps score abov
 32 and 200). Smaller budgets plan less of each segment's maps, so a first frame costs
 less CPU, but the scene's best grasp is chosen from fewer candidates. For each budget
 (``ENOUGH:PER_SEGMENT``) this runs E10's goal conditions -- ``--objects`` objects, pile
-and packed, no execution error -- with E10's protocol, scenes, seeds, camera, sensor
-noise and database (``e10_clutter_removal.py``; E10's budget therefore reproduces
-E10's rows), and reports per budget: grasp success rate, objects cleared (95 % Wilson
-intervals), scenes whose episode differs from E10's budget's, and the CPU time of
-planning (``plan_scene``) a scene's first frame and per grasp. Scenes run one per task
-on ``--workers`` processes, the budgets interleaved, so every budget meets the same
-load; inside a worker a scene's segments are planned one after another, so the CPU is
-the whole plan's (on 2 cores the wall time of a first frame is at least about half
-of it: ``bench_scene.py`` measures that).
+and packed, no execution error -- with E10's protocol, seeds, camera, sensor noise and
+database (``e10_clutter_removal.py``) on scenes ``--first`` onwards: by default E10's
+next 50, so that a budget chosen here is not chosen on the scenes E10 reports
+(``--first 0`` with E10's budget reproduces E10's rows). Per budget it reports the
+grasp success rate and objects cleared (95 % Wilson intervals), the scenes whose
+episode differs from the first budget's, and of a scene's first frame the grasps
+scored and the CPU time of planning it (``plan_scene``), and the CPU per grasp.
+Scenes run one per task on ``--workers`` processes, the budgets interleaved, so every
+budget meets the same load; inside a worker a scene's segments are planned one after
+another, so the CPU is the whole plan's (on 2 cores the wall time of a first frame is
+at least about half of it: ``bench_scene.py`` measures that).
 
     python experiments/study_scene_budget.py --db results/e10-fsdb --workers 2
     python experiments/study_scene_budget.py --quick --out results/study_scene_budget-quick
@@ -44,7 +46,9 @@ class Config:
                                    "the first is the reference the others are compared with")
     kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
     objects: int = opt(5, "objects per scene")
-    scenes: int = opt(50, "scenes per kind (E10's scenes 0 .. N-1)")
+    scenes: int = opt(50, "scenes per kind")
+    first: int = opt(50, "first scene index (E10 runs 0 .. 49: by default a budget is judged on other scenes "
+                     "than the ones E10 reports)")
     object_set: str = opt("mixed", "objects drawn from this set")
     seed: int = opt(0, "run seed (E10's)")
     quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
@@ -59,8 +63,8 @@ class Config:
             parse_budget(b)
         if len(set(self.budgets)) != len(self.budgets) or not self.budgets:
             raise ValueError(f"--budgets must be distinct and not empty, got {self.budgets}")
-        if self.objects < 1 or self.scenes < 1 or self.workers < 1:
-            raise ValueError("--objects, --scenes and --workers must be >= 1")
+        if self.objects < 1 or self.scenes < 1 or self.workers < 1 or self.first < 0:
+            raise ValueError("--objects, --scenes and --workers must be >= 1, --first >= 0")
 
 
 def parse_budget(text: str) -> tuple[int, int]:
@@ -185,8 +189,10 @@ def _s(x: float | None) -> str:
 
 def readme_section(s: dict) -> str:
     ref = s["config"]["budgets"][0]
-    L = [f"`{s['command']}`: E10's goal conditions ({s['config']['objects']} objects, no execution error, "
-         "its scenes, seeds, camera, sensor noise and database) cleared with each per-segment budget "
+    c = s["config"]
+    L = [f"`{s['command']}`: E10's goal conditions ({c['objects']} objects, no execution error, its seeds, "
+         f"camera, sensor noise and database; scenes {c['first']} to {c['first'] + c['scenes'] - 1}"
+         f"; E10 reports scenes 0 to {s['e10_scenes'] - 1}) cleared with each per-segment budget "
          "ENOUGH:PER_SEGMENT (`SceneConfig.enough`: a segment's planning stops at this many grasps scoring > 0; "
          f"`.per_segment`: grasps robust-scored per part at most; E10's is {s['e10_budget']}). "
          "GSR = grasps that lifted their target / grasps, DR = objects removed / placed (95 % Wilson "
@@ -217,7 +223,8 @@ def main(argv=None) -> int:
     if cfg.grid:
         build_grid(db)  # E10's maps, stored before the first scene (kept where stored already)
     # the budgets interleaved scene by scene: every budget meets the same load
-    tasks = [(kind, b, i, cfg, str(db.root)) for i in range(cfg.scenes) for kind in cfg.kinds for b in cfg.budgets]
+    tasks = [(kind, b, i, cfg, str(db.root)) for i in range(cfg.first, cfg.first + cfg.scenes) for kind in cfg.kinds
+             for b in cfg.budgets]
     pool = get_context("spawn").Pool(cfg.workers) if cfg.workers > 1 else None
     try:
         episodes = list(pool.imap(episode, tasks) if pool is not None else map(episode, tasks))
@@ -225,10 +232,13 @@ def main(argv=None) -> int:
         if pool is not None:
             pool.close()
             pool.join()
+    from e10_clutter_removal import Config as E10Config
+
     from graspsim.perception.scene import SceneConfig
 
     e10 = SceneConfig()
     text = record.write(out, {"config": cfg, "e10_budget": f"{e10.enough}:{e10.per_segment}",
+                              "e10_scenes": E10Config().scenes,
                               "rows": summarize(cfg, episodes), "episodes": episodes}, readme_section)
     print(text)
     return 0

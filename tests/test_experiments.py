@@ -594,6 +594,7 @@ def test_study_scene_budget_quick_pairs_the_budgets(tmp_path):
         e = next(e for e in s["episodes"] if e["budget"] == r["budget"])
         assert len(e["plan_cpu_s"]) == len(e["scored"]) >= e["attempts"] >= 1 and all(c > 0 for c in e["plan_cpu_s"])
         assert r["first_frame_cpu_s"]["count"] == r["first_frame_scored"]["count"] == 1
+        assert 0 <= r["scenes_building_maps"] <= r["scenes"]
     assert rows["32:200"]["differs_from_reference"] == 0  # the reference is itself
     # the smaller budget stops each segment sooner: fewer grasps scored in the same first frame
     assert 0 < rows["4:50"]["first_frame_scored"]["median"] < rows["32:200"]["first_frame_scored"]["median"]

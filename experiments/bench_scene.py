@@ -52,7 +52,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import NAMED, experiment_database, machine_load, map_config, opt, run_fresh, start
+from _common import NAMED, experiment_database, machine_load, map_config, opt, run_fresh, scene_budget, start
 
 log = logging.getLogger("bench_scene")
 
@@ -69,6 +69,8 @@ class BenchConfig:
     db: str = opt("", "FS database folder for planning (default: OUT/fsdb, built fresh)")
     coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
     workers: int = opt(0, "processes planning identifies segments on (0: SceneConfig's default, one per core)")
+    budget: str = opt("", "per-segment planning budget ENOUGH:PER_SEGMENT (SceneConfig.enough, .per_segment; "
+                      "empty: E10's, the default; see study_scene_budget.py)")
     QUICK: ClassVar[dict] = {"scenes": 1, "sizes": (5,), "kinds": ("pile",), "renders": 2, "fresh": 2, "plans": 1,
                              "coarse_db": True}
 
@@ -77,6 +79,7 @@ class BenchConfig:
             raise ValueError("--scenes, --renders, --fresh and --sizes must be >= 1")
         if self.plans < 0 or self.workers < 0:
             raise ValueError("--plans and --workers must be >= 0")
+        scene_budget(self.budget)
 
 
 def _timed(fn):
@@ -145,9 +148,10 @@ WARMUP = 2
 WARMUP_SEED = 10**6
 
 
-def first_frame(kind: str, seed: int):
+def first_frame(kind: str, seed: int, budget: str = ""):
     """The first D435-like depth frame of a 5-object scene as E10 renders it (its sensor
-    noise), and the scene settings E10 plans it with."""
+    noise), and the scene settings E10 plans it with (with ``budget``, see
+    :func:`~_scenes.scene_budget`)."""
     from graspsim.seeding import rng_for
     from graspsim.sim.camera import rig
     from graspsim.sim.clutter import ClutterConfig, scene_settings
@@ -157,7 +161,7 @@ def first_frame(kind: str, seed: int):
     sim = make_scene(5, kind, seed).sim()
     frame = sim.render(rig(1)[0], noise=clutter.depth_noise, rng=rng_for(seed, "depth"))
     sim.close()
-    return frame, scene_settings(kind)
+    return frame, scene_settings(kind, **scene_budget(budget))
 
 
 def _plan(points, scene_cfg, seed: int, db, workers: int, eye):
@@ -174,10 +178,10 @@ def _eye(frame):
     return frame.camera.T_world_camera[:3, 3]
 
 
-def _plan_frame(kind: str, seed: int, db, workers: int):
+def _plan_frame(kind: str, seed: int, db, workers: int, budget: str = ""):
     from graspsim.sim.camera import backproject
 
-    frame, scene_cfg = first_frame(kind, seed)
+    frame, scene_cfg = first_frame(kind, seed, budget)
     return _plan(backproject(frame).world(), scene_cfg, seed, db, workers, _eye(frame))
 
 
@@ -198,12 +202,12 @@ def _cpu_seconds() -> float:
     return total
 
 
-def plan_one(kind: str, seed: int, db, workers: int = 0) -> dict:
+def plan_one(kind: str, seed: int, db, workers: int = 0, budget: str = "") -> dict:
     """Planning times [s] of one 5-object scene's first frame, per stage and in total
     (back-projection included), wall and CPU."""
     from graspsim.sim.camera import backproject
 
-    frame, scene_cfg = first_frame(kind, seed)
+    frame, scene_cfg = first_frame(kind, seed, budget)
     c0 = _cpu_seconds()
     points, bp = _timed(lambda: backproject(frame).world())
     sp = _plan(points, scene_cfg, seed, db, workers, _eye(frame))
@@ -211,7 +215,8 @@ def plan_one(kind: str, seed: int, db, workers: int = 0) -> dict:
     t = {k: float(sp.timing.get(k, 0.0)) for k in PLAN_STAGES[1:]}
     t["total"] += bp
     return {"kind": kind, "seed": seed, "points": len(points), "segments": len(sp.segments),
-            "grasps": len(sp.grasps), "backproject": bp, **{k: t[k] for k in PLAN_STAGES[1:]}, "cpu": cpu}
+            "grasps": len(sp.grasps), "scored": [[p.scored, len(p.primitives)] for p in sp.segments],
+            "backproject": bp, **{k: t[k] for k in PLAN_STAGES[1:]}, "cpu": cpu}
 
 
 _PREPARE = """
@@ -222,7 +227,7 @@ bench_scene.prepare_maps(**json.loads(sys.argv[2]))
 """
 
 
-def prepare_maps(root: str, coarse: bool, scenes: list, workers: int) -> None:
+def prepare_maps(root: str, coarse: bool, scenes: list, workers: int, budget: str = "") -> None:
     """Plan ``scenes`` ([kind, seed] pairs) once against the database at ``root``: the
     FS maps their parts need are built and stored (run in a separate process, so the
     timing process never sees these scenes' objects)."""
@@ -230,7 +235,7 @@ def prepare_maps(root: str, coarse: bool, scenes: list, workers: int) -> None:
 
     db = MapDatabase(root, config=map_config(coarse))
     for kind, seed in scenes:
-        _plan_frame(kind, seed, db, workers)
+        _plan_frame(kind, seed, db, workers, budget)
 
 
 # a fresh process plans a new frame as a user's script does: import, draw and render the scene,
@@ -250,13 +255,14 @@ kind, seed, root, coarse = sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[
 if sys.argv[6] == "started":
     start_workers()
 sys.path.insert(0, sys.argv[1])
-from _common import map_config
+from _common import map_config, scene_budget
 db = MapDatabase(root, config=map_config(coarse))
 sim = make_scene(5, kind, seed).sim()
 frame = sim.render(rig(1)[0], noise=ClutterConfig().depth_noise, rng=rng_for(seed, "depth"))
 sim.close()
 t = time.perf_counter()
-sp = plan_scene(backproject(frame).world(), db=db, rng=rng_for(seed, "plan"), config=scene_settings(kind),
+config = scene_settings(kind, **scene_budget(sys.argv[7]))
+sp = plan_scene(backproject(frame).world(), db=db, rng=rng_for(seed, "plan"), config=config,
                 viewpoint=frame.camera.T_world_camera[:3, 3])
 print(json.dumps({"import_s": imported, "plan_s": time.perf_counter() - t, "grasps": len(sp.grasps)}))
 """
@@ -275,7 +281,7 @@ def fresh_plans(cfg: BenchConfig, root: str, scenes: list) -> dict:
         for _, seed in [sc for sc in scenes if sc[0] == kind][:cfg.fresh]:
             for way in FRESH_WAYS:
                 r = run_fresh([sys.executable, "-c", _FRESH_PLAN, str(Path(__file__).resolve().parent), kind,
-                               str(seed), root, str(int(cfg.coarse_db)), way])
+                               str(seed), root, str(int(cfg.coarse_db)), way, cfg.budget])
                 if r["exit"] != 0:
                     raise SystemExit(f"fresh planning run failed: {r['stderr'][-2000:]}")
                 runs[way].append({**json.loads(r["stdout"].strip().splitlines()[-1]), "seed": seed,
@@ -293,14 +299,15 @@ def plan_runs(cfg: BenchConfig, out: Path) -> dict:
         return {}
     db = experiment_database(cfg.db, out, map_config(cfg.coarse_db))
     timed = [(kind, cfg.seed + i) for kind in cfg.kinds for i in range(cfg.plans)]
-    spec = {"root": str(db.root), "coarse": cfg.coarse_db, "scenes": timed, "workers": cfg.workers}
+    spec = {"root": str(db.root), "coarse": cfg.coarse_db, "scenes": timed, "workers": cfg.workers,
+            "budget": cfg.budget}
     r = run_fresh([sys.executable, "-c", _PREPARE, str(Path(__file__).resolve().parent), json.dumps(spec)])
     if r["exit"] != 0:
         raise SystemExit(f"building the timed scenes' maps failed: {r['stderr'][-2000:]}")
     for kind in cfg.kinds:
         for i in range(WARMUP):
-            _plan_frame(kind, WARMUP_SEED + i, db, cfg.workers)
-    rows = [plan_one(kind, seed, db, cfg.workers) for kind, seed in timed]
+            _plan_frame(kind, WARMUP_SEED + i, db, cfg.workers, cfg.budget)
+    rows = [plan_one(kind, seed, db, cfg.workers, cfg.budget) for kind, seed in timed]
     groups = [{"kind": kind, "scenes": len(g), **{k: statistics.median(r[k] for r in g) for k in PLAN_STAGES},
                "cpu": statistics.median(r["cpu"] for r in g), "max_total": max(r["total"] for r in g),
                "within_goal": sum(r["total"] <= 0.5 for r in g)}
@@ -367,8 +374,12 @@ def readme_section(s: dict) -> str:
                "as a user meets a new frame: this process had not seen the scene's objects (it warmed up on "
                f"{p['warmup_scenes']} other scenes of each kind; the maps the scenes' parts need were built "
                "beforehand in another process)")
-        eye = ("E10's settings and, as E10, the camera's position as the viewpoint of the occlusion term"
-               if p.get("viewpoint") else "E10's settings but no viewpoint: without the occlusion term E10 plans "
+        budget = s["config"].get("budget", "")
+        settings = "E10's settings" if not budget else (
+            f"E10's settings but the per-segment budget {budget} (`SceneConfig.enough`:`.per_segment`; "
+            "`study_scene_budget.py` shows what it costs in grasps)")
+        eye = (f"{settings} and, as E10, the camera's position as the viewpoint of the occlusion term"
+               if p.get("viewpoint") else f"{settings} but no viewpoint: without the occlusion term E10 plans "
                "with")
         L += ["", f"Planning a 5-object scene's first frame with `plan_scene` ({eye}; {how}; medians over "
               "scenes [s]; goal: <= 0.5 s from depth image to ranked grasps" + (

@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import derived_seed, experiment_database, map_config, opt, rate_ci, rng_for, start
+from _common import derived_seed, experiment_database, map_config, opt, rate_ci, rng_for, scene_budget, start
 
 log = logging.getLogger("study_scene_budget")
 
@@ -61,23 +61,14 @@ class Config:
                              "object_set": "primitives", "quick_maps": True, "grid": False}
 
     def __post_init__(self) -> None:
+        if "" in self.budgets:
+            raise ValueError("--budgets: each is ENOUGH:PER_SEGMENT")
         for b in self.budgets:
-            parse_budget(b)
+            scene_budget(b)
         if len(set(self.budgets)) != len(self.budgets) or not self.budgets:
             raise ValueError(f"--budgets must be distinct and not empty, got {self.budgets}")
         if self.objects < 1 or self.scenes < 1 or self.workers < 1 or self.first < 0:
             raise ValueError("--objects, --scenes and --workers must be >= 1, --first >= 0")
-
-
-def parse_budget(text: str) -> tuple[int, int]:
-    """``"ENOUGH:PER_SEGMENT"`` as two integers >= 1."""
-    try:
-        enough, per = (int(v) for v in text.split(":"))
-    except ValueError:
-        raise ValueError(f"a budget is ENOUGH:PER_SEGMENT, two whole numbers, got {text!r}") from None
-    if enough < 1 or per < 1:
-        raise ValueError(f"a budget's numbers must be >= 1, got {text!r}")
-    return enough, per
 
 
 _PLANS: list[tuple[float, int]] = []  # this worker's plan_scene calls in order: (CPU seconds, grasps scored)
@@ -150,8 +141,7 @@ def episode(task) -> dict:
         _warm_up(kind, cfg, db)
         _WARM.add(kind)
     _timed_plans()
-    enough, per = parse_budget(budget)
-    config = ClutterConfig(scene=scene_settings(kind, enough=enough, per_segment=per))
+    config = ClutterConfig(scene=scene_settings(kind, **scene_budget(budget)))
     _forget_objects()
     _PLANS.clear()
     db.built = set()
@@ -181,8 +171,8 @@ def summarize(cfg: Config, episodes: list[dict]) -> list[dict]:
             scores = [e["scores"][0] for e in eps if e["scores"]]
             scored = [e["scored"][0] for e in eps if e["scored"]]
             rows.append({
-                "kind": kind, "budget": budget, "enough": parse_budget(budget)[0],
-                "per_segment": parse_budget(budget)[1], "scenes": len(eps), "attempts": n, "successes": ok,
+                "kind": kind, "budget": budget, **scene_budget(budget), "scenes": len(eps), "attempts": n,
+                "successes": ok,
                 "gsr_interval_95": wilson_interval(ok, n) if n else None, "placed": placed, "removed": removed,
                 "cleared_interval_95": wilson_interval(removed, placed) if placed else None,
                 "scenes_cleared": sum(e["removed"] == e["placed"] for e in eps),

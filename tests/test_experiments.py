@@ -412,8 +412,10 @@ def test_e13_draws_the_grasps_the_grippers_own_calibrated_grade_accepts(tmp_path
 
 def test_bench_scene_quick(tmp_path):
     bench = _load("bench_scene")
-    assert bench.main(["--quick", "--out", str(tmp_path / "b")]) == 0
+    # a smaller per-segment budget than E10's, through every path a plan takes (maps prepared, timed, fresh)
+    assert bench.main(["--quick", "--budget", "4:50", "--out", str(tmp_path / "b")]) == 0
     s = _summary(tmp_path / "b")
+    assert s["config"]["budget"] == "4:50" and "per-segment budget 4:50" in bench.readme_section(s)
     (row,) = s["rows"]
     assert row["objects_seen"] == row["objects"] == 5 and 0 < row["valid_pixels"] <= 1
     assert row["total_s"] >= row["settle_s"] > 0 and row["warm_render_s"] > 0
@@ -422,6 +424,8 @@ def test_bench_scene_quick(tmp_path):
     (p,) = s["planning"]["rows"]  # one 5-object pile planned from its first frame
     stages = sum(p[k] for k in ("backproject", "table", "segment", "identify", "plan"))
     assert p["segments"] >= 1 and 0 < stages <= p["total"] + 1e-6
+    # the budget held: at most 50 grasps robust-scored per identified part (E10's budget scores up to 200)
+    assert any(n for n, _ in p["scored"]) and all(n <= 50 * parts for n, parts in p["scored"])
     assert p["cpu"] > 0 and s["planning"]["warmup_scenes"] == bench.WARMUP  # timed cold, after other scenes
     text = bench.readme_section(s)
     assert "| pile, 5 objects | 1 |" in text and "as a user meets a new frame" in text
@@ -601,10 +605,14 @@ def test_study_scene_budget_quick_pairs_the_budgets(tmp_path):
     assert s["command"] in study.readme_section(s)
 
 
-def test_study_scene_budget_refuses_malformed_budgets():
-    study = _load("study_scene_budget")
-    for bad in ("32", "a:b", "0:10", "8:-1"):
+def test_scene_budgets_parse_or_are_refused():
+    common = _load("_common")
+    assert common.scene_budget("") == {} and common.scene_budget("8:100") == {"enough": 8, "per_segment": 100}
+    for bad in ("32", "a:b", "0:10", "8:-1", "8:100:1"):
         with pytest.raises(ValueError, match="budget"):
-            study.parse_budget(bad)
+            common.scene_budget(bad)
+    study = _load("study_scene_budget")
     with pytest.raises(ValueError, match="distinct"):
         study.Config(budgets=("8:100", "8:100"))
+    with pytest.raises(ValueError, match="budget"):
+        study.Config(budgets=("32:200", ""))

@@ -81,19 +81,12 @@ def noise_sigmas(label: str) -> tuple[float, float]:
 
 
 def scene_budget(label: str) -> dict[str, int]:
-    """A scene's per-segment planning budget ``ENOUGH:PER_SEGMENT`` as the
-    ``SceneConfig`` fields it sets (``enough``: a segment's planning stops at this many
-    grasps scoring > 0; ``per_segment``: grasps robust-scored per part at most); "" for
-    none (the scene's defaults, E10's)."""
-    if label == "":
-        return {}
-    try:
-        enough, per = (int(v) for v in label.split(":"))
-    except ValueError:
-        raise ValueError(f"a budget is ENOUGH:PER_SEGMENT, two whole numbers (e.g. 8:100), got {label!r}") from None
-    if enough < 1 or per < 1:
-        raise ValueError(f"a budget's numbers must be >= 1, got {label!r}")
-    return {"enough": enough, "per_segment": per}
+    """A ``--budget`` label, a scene's per-segment planning budget ENOUGH:PER_SEGMENT, as
+    the ``SceneConfig`` fields it sets (:func:`graspsim.perception.scene.budget_fields`);
+    "" for none (the scene's defaults, E10's)."""
+    from graspsim.perception.scene import budget_fields
+
+    return budget_fields(label)
 
 
 def experiment_database(db: str | os.PathLike | None, out: str | os.PathLike, config, *, threads: int | None = None):

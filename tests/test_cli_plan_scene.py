@@ -84,6 +84,24 @@ def test_a_scene_file_gets_the_grasps_the_library_plans(tmp_path, capsys, db, sc
 
 
 @pytest.mark.slow
+def test_a_smaller_planning_budget_scores_fewer_grasps_per_object(tmp_path, capsys, db, scene_cloud):
+    path, _, _ = scene_cloud
+    runs = {}
+    for budget in ("", "2:20"):
+        out = tmp_path / f"grasps{budget.replace(':', '_')}.json"
+        code, _, _ = _run(capsys, path, "-o", out, "--min-gap", 0.01, "--db", db.root, *FAST_FLAGS,
+                          *(["--budget", budget] if budget else []))
+        assert code == 0
+        runs[budget] = json.loads(out.read_text())
+    assert runs[""]["budget"] == "32:200" and runs["2:20"]["budget"] == "2:20"
+    small = {d["segment"]: d for d in runs["2:20"]["segments"]}
+    for d in runs[""]["segments"]:  # the same segments, each scoring at most 20 grasps per part
+        s = small[d["segment"]]
+        assert s["primitives"] == d["primitives"] and s["scored"] <= 20 * len(s["primitives"])
+    assert sum(d["scored"] for d in runs[""]["segments"]) > sum(s["scored"] for s in small.values())
+
+
+@pytest.mark.slow
 def test_no_depth_rows_and_a_crop_keep_the_labels_on_the_file_rows(tmp_path, capsys, db, scene_cloud):
     path, view, _ = scene_cloud
     pts = view.points.copy()
@@ -213,6 +231,8 @@ def test_a_cloud_too_big_for_the_memory_budget_is_refused_before_any_work(tmp_pa
     ("ok", ["--viewpoint", "0", "inf", "0"], "--viewpoint"),
     ("ok", ["--labels", "labels.txt"], "--labels"),
     ("ok", ["--min-gap", "0.5"], "--min-gap"),
+    ("ok", ["--budget", "8"], "--budget"),
+    ("ok", ["--budget", "0:100"], "--budget"),
     ("missing", [], "does not exist"),
     ("blob", [], "no table plane"),
     ("ok", ["-o", "."], "directory"),

@@ -105,6 +105,7 @@ def test_cli_scene_json_and_renders(tmp_path, capsys, db):
     s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert code == 0 and s["scenes"] == 1 and s["placed"] == 2
     assert s["min_gap"] == PACKED_GAP  # a packed scene's objects stand apart: segmentation relies on it
+    assert s["budget"] == "32:200"  # SceneConfig's planning budget (no --budget)
     assert s["grasp_success_rate"] == s["successes"] / s["attempts"] and s["cleared_rate"] == s["removed"] / 2
     assert len(s["details"]) == 1 and s["details"][0]["attempts"] == s["attempts"]
     assert len(list((tmp_path / "r").glob("scene000_step*.png"))) == s["attempts"]
@@ -138,6 +139,8 @@ def test_cli_scene_honours_gripper(tmp_path, capsys):
     (["--min-gap", "-0.01"], "--min-gap"),
     (["--min-gap", "nan"], "--min-gap"),
     (["--min-gap", "1cm"], "--min-gap"),
+    (["--budget", "8:"], "--budget"),
+    (["--budget", "8:0"], "--budget"),
 ])
 def test_cli_scene_bad_arguments_are_one_line_errors(args, message, capsys, tmp_path):
     try:

@@ -27,7 +27,7 @@ def _cmd_scene(args) -> int:
     from graspsim._atomic import check_folder
     from graspsim.errors import InvalidParameterError, MapDatabaseError
     from graspsim.maps.database import MapDatabase
-    from graspsim.perception.scene import SceneConfig
+    from graspsim.perception.scene import SceneConfig, budget_fields
     from graspsim.perception.segment import gap_link
     from graspsim.sim.clutter import ClutterConfig, run_benchmark, summarize
     from graspsim.sim.noise import ExecutionNoise
@@ -47,7 +47,11 @@ def _cmd_scene(args) -> int:
         gap_link(gap)
     except InvalidParameterError:
         raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
-    cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours, min_gap=gap),
+    try:
+        budget = budget_fields(args.budget)
+    except InvalidParameterError as err:
+        raise InvalidParameterError(f"--budget: {err}") from None
+    cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours, min_gap=gap, **budget),
                         execution=ExecutionNoise() if args.noise else None, ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts)
     map_cfg, quality = _config(args)
@@ -73,6 +77,7 @@ def _cmd_scene(args) -> int:
          "gripper": db.gripper.name,
          "execution_noise": None if cfg.execution is None else cfg.execution.to_dict(),
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth, "min_gap": gap,
+         "budget": f"{cfg.scene.enough}:{cfg.scene.per_segment}",
          **summarize(results), "render": None if render is None else str(render), "details": details}
     rows = [(d["scene"], len(d["objects"]), d["removed"], d["attempts"], d["successes"], d["stop"],
              f"{d['first_one_cluster']}/{d['first_seen']}") for d in details]
@@ -123,6 +128,10 @@ def register(sub) -> None:
                    help="ablation: segment by the simulator's object labels instead of clustering")
     p.add_argument("--max-attempts", type=whole_number(1), default=None,
                    help="grasps per scene at most (default 2 x objects + 2)")
+    p.add_argument("--budget", default="", metavar="ENOUGH:PER_SEGMENT",
+                   help="planning effort per object: its planning stops once ENOUGH grasps score above 0 or "
+                   "PER_SEGMENT grasps per part are scored (default: SceneConfig's, 32:200); a smaller budget plans "
+                   "faster and chooses from fewer grasps (the README's planning-effort study measures both)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
     p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
                    "~/.cache/graspsim/db)")

@@ -46,7 +46,7 @@ from graspsim.primitives import Box
 from graspsim.primitives.base import MIN_DIM
 
 __all__ = ["SceneConfig", "ScenePerception", "SceneGrasp", "SegmentPlan", "ScenePlan", "perceive_scene",
-           "plan_scene", "start_workers", "MAX_SCENE_EXTENT", "SCENE_FIT_POINTS"]
+           "plan_scene", "start_workers", "budget_fields", "MAX_SCENE_EXTENT", "SCENE_FIT_POINTS"]
 
 #: Widest plausible table-top scene [m]; wider clouds are taken for millimetres or centimetres.
 MAX_SCENE_EXTENT = 10.0
@@ -142,6 +142,23 @@ class SceneConfig:
 
     def to_dict(self) -> dict:
         return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "planner"}
+
+
+def budget_fields(label: str) -> dict[str, int]:
+    """A segment's planning budget ``"ENOUGH:PER_SEGMENT"`` as the :class:`SceneConfig`
+    fields it sets (``enough``, ``per_segment``); "" for none (the defaults, E10's).
+    Smaller budgets plan a new frame with less CPU and choose from fewer grasps
+    (``experiments/study_scene_budget.py`` measures both)."""
+    if label == "":
+        return {}
+    try:
+        enough, per = (int(v) for v in str(label).split(":"))
+    except ValueError:
+        raise InvalidParameterError(f"a planning budget is ENOUGH:PER_SEGMENT, two whole numbers (e.g. 8:100), "
+                                    f"got {label!r}") from None
+    if enough < 1 or per < 1:
+        raise InvalidParameterError(f"a planning budget's numbers must be >= 1, got {label!r}")
+    return {"enough": enough, "per_segment": per}
 
 
 @dataclass(frozen=True, eq=False)

@@ -24,6 +24,27 @@ def add_units_flag(p, widest: str = "wider than 2 m") -> None:
                    f"{widest} is refused as probably mm or cm)")
 
 
+def add_budget_flag(p) -> None:
+    """``--budget ENOUGH:PER_SEGMENT``, a scene's planning effort per object (read with
+    :func:`budget_from_args`)."""
+    p.add_argument("--budget", default="", metavar="ENOUGH:PER_SEGMENT",
+                   help="planning effort per object: its planning stops once ENOUGH grasps score above 0 or "
+                   "PER_SEGMENT grasps per part are scored (default: SceneConfig's, 32:200); a smaller budget plans "
+                   "faster and chooses from fewer grasps (the README's planning-effort study measures both)")
+
+
+def budget_from_args(args) -> dict:
+    """The ``SceneConfig`` fields ``--budget`` sets ({}: the defaults); a malformed budget
+    is an :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
+    from graspsim.errors import InvalidParameterError
+    from graspsim.perception.scene import budget_fields
+
+    try:
+        return budget_fields(args.budget)
+    except InvalidParameterError as err:
+        raise InvalidParameterError(f"--budget: {err}") from None
+
+
 GRIPPER_HELP = ("the gripper: festo_hgpl_25_60_a (default), franka_hand, or a JSON file of your own "
                 "parallel gripper's GripperSpec fields (see docs/grippers.md)")
 

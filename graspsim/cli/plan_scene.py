@@ -18,7 +18,7 @@ the jaw opening to approach with, the robust score). Exit status 1, and no file 
 
 from __future__ import annotations
 
-from graspsim.cli._common import add_json_flag, emit, format_table, gripper_from_args
+from graspsim.cli._common import add_budget_flag, add_json_flag, budget_from_args, emit, format_table, gripper_from_args
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -31,7 +31,7 @@ def _cmd_plan_scene(args) -> int:
     import numpy as np
 
     from graspsim.maps.database import MapDatabase
-    from graspsim.perception.scene import SceneConfig, budget_fields, plan_scene
+    from graspsim.perception.scene import SceneConfig, plan_scene
 
     o = _options(args)  # every option and output path before the input is read or anything computed
     loaded = _depth_points(args, o["intrinsics"]) if o["depth"] else _cloud_points(args)
@@ -45,7 +45,7 @@ def _cmd_plan_scene(args) -> int:
     if up is None and viewpoint is not None:  # the camera sees the table from above it
         up = viewpoint - np.median(pts, axis=0) if len(pts) else None
     cfg = replace(SceneConfig(), min_gap=args.min_gap or None, up=None if up is None else tuple(map(float, up)),
-                  **budget_fields(args.budget))
+                  **o["budget"])
     db = MapDatabase(args.db, gripper=o["gripper"], quality=o["quality"], config=o["map_cfg"])
     plan = plan_scene(pts, db=db, rng=np.random.default_rng(args.seed), config=cfg, viewpoint=viewpoint)
 
@@ -77,7 +77,6 @@ def _options(args) -> dict:
 
     from graspsim._atomic import check_output
     from graspsim.errors import InvalidParameterError, MapDatabaseError, OutputPathError
-    from graspsim.perception.scene import budget_fields
     from graspsim.perception.segment import gap_link
 
     if args.view or args.screenshot:
@@ -103,10 +102,7 @@ def _options(args) -> dict:
         gap_link(args.min_gap or None)
     except InvalidParameterError:
         raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
-    try:
-        budget_fields(args.budget)
-    except InvalidParameterError as err:
-        raise InvalidParameterError(f"--budget: {err}") from None
+    o["budget"] = budget_from_args(args)
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
         raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
     o["depth"] = args.intrinsics is not None or args.camera is not None
@@ -318,10 +314,7 @@ def register(sub) -> None:
                    "joined into one object; 0: unknown, default)")
     p.add_argument("--labels", default=None, metavar="LABELS.npy",
                    help="also write each file point's segment (-1: table, cropped, no depth or noise) as .npy")
-    p.add_argument("--budget", default="", metavar="ENOUGH:PER_SEGMENT",
-                   help="planning effort per object: its planning stops once ENOUGH grasps score above 0 or "
-                   "PER_SEGMENT grasps per part are scored (default: SceneConfig's, 32:200); a smaller budget plans "
-                   "faster and chooses from fewer grasps (the README's planning-effort study measures both)")
+    add_budget_flag(p)
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
     p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
                    "~/.cache/graspsim/db; maps of new sizes are built on first use)")

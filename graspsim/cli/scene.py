@@ -15,7 +15,15 @@ per-scene details.
 
 from __future__ import annotations
 
-from graspsim.cli._common import add_json_flag, emit, format_table, gripper_from_args, whole_number
+from graspsim.cli._common import (
+    add_budget_flag,
+    add_json_flag,
+    budget_from_args,
+    emit,
+    format_table,
+    gripper_from_args,
+    whole_number,
+)
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -27,7 +35,7 @@ def _cmd_scene(args) -> int:
     from graspsim._atomic import check_folder
     from graspsim.errors import InvalidParameterError, MapDatabaseError
     from graspsim.maps.database import MapDatabase
-    from graspsim.perception.scene import SceneConfig, budget_fields
+    from graspsim.perception.scene import SceneConfig
     from graspsim.perception.segment import gap_link
     from graspsim.sim.clutter import ClutterConfig, run_benchmark, summarize
     from graspsim.sim.noise import ExecutionNoise
@@ -47,10 +55,7 @@ def _cmd_scene(args) -> int:
         gap_link(gap)
     except InvalidParameterError:
         raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
-    try:
-        budget = budget_fields(args.budget)
-    except InvalidParameterError as err:
-        raise InvalidParameterError(f"--budget: {err}") from None
+    budget = budget_from_args(args)
     cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours, min_gap=gap, **budget),
                         execution=ExecutionNoise() if args.noise else None, ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts)
@@ -128,10 +133,7 @@ def register(sub) -> None:
                    help="ablation: segment by the simulator's object labels instead of clustering")
     p.add_argument("--max-attempts", type=whole_number(1), default=None,
                    help="grasps per scene at most (default 2 x objects + 2)")
-    p.add_argument("--budget", default="", metavar="ENOUGH:PER_SEGMENT",
-                   help="planning effort per object: its planning stops once ENOUGH grasps score above 0 or "
-                   "PER_SEGMENT grasps per part are scored (default: SceneConfig's, 32:200); a smaller budget plans "
-                   "faster and chooses from fewer grasps (the README's planning-effort study measures both)")
+    add_budget_flag(p)
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
     p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
                    "~/.cache/graspsim/db)")

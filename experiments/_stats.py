@@ -156,3 +156,23 @@ def cluster_bootstrap_interval(k, n, rng: np.random.Generator, *, reps: int = 40
     a = 50.0 * (1.0 - confidence)
     lo, hi = np.nanpercentile(rate, [a, 100.0 - a])
     return float(lo), float(hi)
+
+
+def paired_cluster_difference_interval(k1, n1, k0, n0, rng: np.random.Generator, *, reps: int = 4000,
+                                       confidence: float = 0.95) -> tuple[float, float]:
+    """Percentile interval of the difference of two pooled rates, sum(k1) / sum(n1) -
+    sum(k0) / sum(n0), measured on the same clusters (e.g. the same scenes under two
+    settings: k, n per cluster, aligned), when whole clusters are resampled with
+    replacement, the same draw for both: the pairing and the correlation within a
+    cluster are both kept."""
+    k1, n1, k0, n0 = (np.asarray(a, float) for a in (k1, n1, k0, n0))
+    if not (k1.shape == n1.shape == k0.shape == n0.shape) or k1.ndim != 1:
+        raise ValueError("paired clusters: k1, n1, k0, n0 must be aligned 1-D arrays")
+    idx = rng.integers(0, len(k1), (reps, len(k1)))
+    t1, t0 = n1[idx].sum(axis=1), n0[idx].sum(axis=1)
+    ok = (t1 > 0) & (t0 > 0)
+    d = np.full(reps, np.nan)
+    d[ok] = k1[idx].sum(axis=1)[ok] / t1[ok] - k0[idx].sum(axis=1)[ok] / t0[ok]
+    a = 50.0 * (1.0 - confidence)
+    lo, hi = np.nanpercentile(d, [a, 100.0 - a])
+    return float(lo), float(hi)

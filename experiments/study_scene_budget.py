@@ -10,7 +10,8 @@ and packed, no execution error -- with E10's protocol, seeds, camera, sensor noi
 database (``e10_clutter_removal.py``) on scenes ``--first`` onwards: by default E10's
 next 50, so that a budget chosen here is not chosen on the scenes E10 reports
 (``--first 0`` with E10's budget reproduces E10's rows). Per budget it reports the
-grasp success rate and objects cleared (95 % Wilson intervals), the scenes whose
+grasp success rate and objects cleared (95 % Wilson intervals; against the first
+budget, paired scene-bootstrap intervals of the differences), the scenes whose
 episode differs from the first budget's, and of a scene's first frame the grasps
 scored and the CPU time of planning it (``plan_scene``), and the CPU per grasp.
 Scenes run one per task on ``--workers`` processes, the budgets interleaved, so every
@@ -204,7 +205,8 @@ def readme_section(s: dict) -> str:
          "ENOUGH:PER_SEGMENT (`SceneConfig.enough`: a segment's planning stops at this many grasps scoring > 0; "
          f"`.per_segment`: grasps robust-scored per part at most; E10's is {s['e10_budget']}). "
          "GSR = grasps that lifted their target / grasps, DR = objects removed / placed (95 % Wilson "
-         f"intervals); *differ*: scenes whose episode (the attempts' outcomes in order) is not {ref}'s; "
+         "intervals; the differences below the table: 95 % intervals from resampling whole scenes, the same "
+         f"draw for both budgets); *differ*: scenes whose episode (the attempts' outcomes in order) is not {ref}'s; "
          "CPU: `plan_scene`'s CPU time, a scene's segments planned one after another in one process (on 2 "
          "cores a first frame's wall time is at least about half its CPU); each process planned one other "
          "scene of each kind first, untimed, and forgot the objects it had seen before each scene (a new "
@@ -222,21 +224,42 @@ def readme_section(s: dict) -> str:
                  f"{rate_ci(r['removed'], r['placed'], r['cleared_interval_95'])} | {r['scenes_cleared']} | "
                  f"{r['differs_from_reference']} | {_s(f['median'])} / {_s(f['p90'])} | {_s(g['median'])} | "
                  f"{r['scenes_building_maps']} | {r['first_frame_scored']['median']} | {_s(r['first_score_median'])} |")
-    return "\n".join(L + [""] + comparison(s["rows"], ref, goals=c["objects"] == 5)) + "\n"
+    return "\n".join(L + [""] + comparison(s["rows"], ref, s["episodes"], goals=c["objects"] == 5)) + "\n"
 
 
 #: issue 17's goals for 5-object scenes, per kind: (GSR, DR) at least
 GOALS = {"pile": (0.90, 0.90), "packed": (0.90, 0.95)}
 
 
+def _paired(episodes: list[dict], kind: str, budget: str, ref: str) -> list[tuple[dict, dict]]:
+    """(budget's episode, reference's episode) of every scene of ``kind`` both ran."""
+    ref_of = {e["scene"]: e for e in episodes if e["kind"] == kind and e["budget"] == ref}
+    return [(e, ref_of[e["scene"]]) for e in sorted(episodes, key=lambda e: e["scene"])
+            if e["kind"] == kind and e["budget"] == budget and e["scene"] in ref_of]
+
+
+def _interval(pair: list[tuple[dict, dict]], k: str, n: str) -> str:
+    """`` [lo, hi]`` in points: the paired scene-bootstrap interval of the difference."""
+    if len(pair) < 2:
+        return ""
+    import numpy as np
+    from _stats import paired_cluster_difference_interval
+
+    lo, hi = paired_cluster_difference_interval([a[k] for a, _ in pair], [a[n] for a, _ in pair],
+                                                [b[k] for _, b in pair], [b[n] for _, b in pair],
+                                                np.random.default_rng(0))
+    return f" [{100 * lo:+.1f}, {100 * hi:+.1f}]"
+
+
 def _rate(r: dict, k: str, n: str) -> float | None:
     return r[k] / r[n] if r[n] else None
 
 
-def comparison(rows: list[dict], ref: str, goals: bool = True) -> list[str]:
-    """Each budget against the reference, per kind (points of GSR and DR, first-frame
-    CPU in %), and with ``goals`` (5-object scenes) which budgets meet :data:`GOALS`
-    (point estimates)."""
+def comparison(rows: list[dict], ref: str, episodes: list[dict] = (), goals: bool = True) -> list[str]:
+    """Each budget against the reference, per kind: the difference in points of GSR and DR,
+    with a 95 % interval from resampling the scenes both ran (paired, whole scenes:
+    grasps of one scene are correlated), and of first-frame CPU in %; with ``goals``
+    (5-object scenes) which budgets meet :data:`GOALS` (point estimates)."""
     out, met = [], {}
     for kind in dict.fromkeys(r["kind"] for r in rows):
         mine = [r for r in rows if r["kind"] == kind]
@@ -250,9 +273,12 @@ def comparison(rows: list[dict], ref: str, goals: bool = True) -> list[str]:
                 continue
             c, c0 = r["first_frame_cpu_s"]["median"], base["first_frame_cpu_s"]["median"]
             cpu = "n/a" if not c or not c0 else f"{100 * (c / c0 - 1):+.0f} %"
+            pair = _paired(episodes, kind, r["budget"], ref)
             out.append(f"- {kind}, {r['budget']} against {ref}: GSR "
-                       f"{100 * (gsr - _rate(base, 'successes', 'attempts')):+.1f} points, DR "
-                       f"{100 * (dr - _rate(base, 'removed', 'placed')):+.1f} points, first-frame CPU {cpu}.")
+                       f"{100 * (gsr - _rate(base, 'successes', 'attempts')):+.1f} points"
+                       f"{_interval(pair, 'successes', 'attempts')}, DR "
+                       f"{100 * (dr - _rate(base, 'removed', 'placed')):+.1f} points"
+                       f"{_interval(pair, 'removed', 'placed')}, first-frame CPU {cpu}.")
     met_text = "; ".join(f"{kind} (GSR >= {100 * g[0]:.0f} %, DR >= {100 * g[1]:.0f} %): "
                          + (", ".join(met.get(kind, [])) or "none")
                          for kind, g in GOALS.items() if any(r["kind"] == kind for r in rows))

@@ -55,6 +55,23 @@ def test_cluster_bootstrap_widens_the_interval_only_when_clusters_differ():
     assert st.mcnemar(np.array([1, 1, 0, 0], bool), np.array([0, 1, 1, 1], bool))["only_first"] == 1
 
 
+
+def test_paired_cluster_difference_keeps_the_pairing():
+    st = _load("_stats")
+    rng = np.random.default_rng(0)
+    k0, n = np.array([10, 2, 9, 5, 8, 1, 10, 7]), np.full(8, 10)
+    # the same outcomes in every scene: no difference in any resample
+    assert st.paired_cluster_difference_interval(k0, n, k0, n, rng) == (0.0, 0.0)
+    # one more success in every scene: exactly +10 points in every resample, however hard the scenes differ
+    assert st.paired_cluster_difference_interval(k0 + 1, n, k0, n, rng) == pytest.approx((0.1, 0.1))
+    # the loss of one scene's successes: the interval covers it and reaches 0 (that scene may not be drawn)
+    k1 = k0.copy()
+    k1[0] = 0
+    lo, hi = st.paired_cluster_difference_interval(k1, n, k0, n, rng)
+    assert lo < -10 / 80 < hi and hi == pytest.approx(0.0)
+    with pytest.raises(ValueError, match="aligned"):
+        st.paired_cluster_difference_interval(k0[:3], n, k0, n, rng)
+
 @pytest.mark.slow
 def test_e02_quick_writes_table_json_figure(tmp_path):
     out = tmp_path / "e02"

@@ -132,6 +132,7 @@ def episode(task) -> dict:
     kind, budget, i, cfg, root = task
     from e10_clutter_removal import RunDatabase
 
+    from graspsim.errors import SimulationError
     from graspsim.sim.clutter import ClutterConfig, run_benchmark, scene_settings
 
     key = (root, cfg.quick_maps)
@@ -146,8 +147,13 @@ def episode(task) -> dict:
     _forget_objects()
     _PLANS.clear()
     db.built = set()
-    (r,) = run_benchmark(cfg.objects, kind, 1, cfg.seed, db=db, config=config, object_set=cfg.object_set, first=i)
-    return {"kind": kind, "budget": budget, "scene": i, "placed": r.placed, "removed": r.removed,
+    try:
+        (r,) = run_benchmark(cfg.objects, kind, 1, cfg.seed, db=db, config=config, object_set=cfg.object_set,
+                             first=i)
+    except SimulationError as err:  # a scene that does not settle: skipped for every budget, as E10 does
+        log.warning("%s scene %d skipped: %s", kind, i, err)
+        return {"kind": kind, "budget": budget, "scene": i, "skipped": str(err)}
+    return {"kind": kind, "budget": budget, "scene": i, "skipped": None, "placed": r.placed, "removed": r.removed,
             "attempts": len(r.attempts), "successes": r.successes, "stop": r.stop,
             "causes": [a.cause for a in r.attempts], "scores": [a.score for a in r.attempts],
             "plan_cpu_s": [c for c, _ in _PLANS], "scored": [n for _, n in _PLANS],
@@ -161,18 +167,21 @@ def summarize(cfg: Config, episodes: list[dict]) -> list[dict]:
 
     rows = []
     for kind in cfg.kinds:
-        ref = {e["scene"]: e["causes"] for e in episodes if e["kind"] == kind and e["budget"] == cfg.budgets[0]}
+        # a scene skipped under any budget (it did not settle) is left out of every budget's row
+        skipped = {e["scene"] for e in episodes if e["kind"] == kind and e.get("skipped")}
+        ran = [e for e in episodes if e["kind"] == kind and e["scene"] not in skipped]
+        ref = {e["scene"]: e["causes"] for e in ran if e["budget"] == cfg.budgets[0]}
         for budget in cfg.budgets:
-            eps = sorted((e for e in episodes if e["kind"] == kind and e["budget"] == budget),
-                         key=lambda e: e["scene"])
+            eps = sorted((e for e in ran if e["budget"] == budget), key=lambda e: e["scene"])
             n, ok = sum(e["attempts"] for e in eps), sum(e["successes"] for e in eps)
             placed, removed = sum(e["placed"] for e in eps), sum(e["removed"] for e in eps)
             first = [e["plan_cpu_s"][0] for e in eps if e["plan_cpu_s"]]
-            per_grasp = [c / e["attempts"] for e in eps if e["attempts"] for c in [sum(e["plan_cpu_s"])]]
+            per_grasp = [sum(e["plan_cpu_s"]) / e["attempts"] for e in eps if e["attempts"]]
             scores = [e["scores"][0] for e in eps if e["scores"]]
             scored = [e["scored"][0] for e in eps if e["scored"]]
             rows.append({
-                "kind": kind, "budget": budget, **scene_budget(budget), "scenes": len(eps), "attempts": n,
+                "kind": kind, "budget": budget, **scene_budget(budget), "scenes": len(eps),
+                "skipped_scenes": sorted(skipped), "attempts": n,
                 "successes": ok,
                 "gsr_interval_95": wilson_interval(ok, n) if n else None, "placed": placed, "removed": removed,
                 "cleared_interval_95": wilson_interval(removed, placed) if placed else None,
@@ -224,6 +233,10 @@ def readme_section(s: dict) -> str:
                  f"{rate_ci(r['removed'], r['placed'], r['cleared_interval_95'])} | {r['scenes_cleared']} | "
                  f"{r['differs_from_reference']} | {_s(f['median'])} / {_s(f['p90'])} | {_s(g['median'])} | "
                  f"{r['scenes_building_maps']} | {r['first_frame_scored']['median']} | {_s(r['first_score_median'])} |")
+    lost = {r["kind"]: r["skipped_scenes"] for r in s["rows"] if r.get("skipped_scenes")}
+    if lost:
+        L += ["", "Skipped (a simulation failed; left out of every budget's row): " + "; ".join(
+            f"{kind} scenes {', '.join(map(str, sc))}" for kind, sc in lost.items()) + "."]
     return "\n".join(L + [""] + comparison(s["rows"], ref, s["episodes"], goals=c["objects"] == 5)) + "\n"
 
 
@@ -232,10 +245,12 @@ GOALS = {"pile": (0.90, 0.90), "packed": (0.90, 0.95)}
 
 
 def _paired(episodes: list[dict], kind: str, budget: str, ref: str) -> list[tuple[dict, dict]]:
-    """(budget's episode, reference's episode) of every scene of ``kind`` both ran."""
-    ref_of = {e["scene"]: e for e in episodes if e["kind"] == kind and e["budget"] == ref}
-    return [(e, ref_of[e["scene"]]) for e in sorted(episodes, key=lambda e: e["scene"])
-            if e["kind"] == kind and e["budget"] == budget and e["scene"] in ref_of]
+    """(budget's episode, reference's episode) of every scene of ``kind`` no budget skipped."""
+    mine = [e for e in episodes if e["kind"] == kind]
+    skipped = {e["scene"] for e in mine if e.get("skipped")}
+    ref_of = {e["scene"]: e for e in mine if e["budget"] == ref and e["scene"] not in skipped}
+    return [(e, ref_of[e["scene"]]) for e in sorted(mine, key=lambda e: e["scene"])
+            if e["budget"] == budget and e["scene"] in ref_of]
 
 
 def _interval(pair: list[tuple[dict, dict]], k: str, n: str) -> str:

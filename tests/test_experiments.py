@@ -622,6 +622,29 @@ def test_study_scene_budget_quick_pairs_the_budgets(tmp_path):
     assert s["command"] in study.readme_section(s)
 
 
+def test_study_scene_budget_leaves_a_skipped_scene_out_of_every_budget():
+    study = _load("study_scene_budget")
+    cfg = study.Config(budgets=("32:200", "8:100"), kinds=("pile",), scenes=3)
+
+    def ep(budget, scene, ok, skipped=None):
+        if skipped:
+            return {"kind": "pile", "budget": budget, "scene": scene, "skipped": skipped}
+        return {"kind": "pile", "budget": budget, "scene": scene, "skipped": None, "placed": 2, "removed": ok,
+                "attempts": 2, "successes": ok, "stop": "cleared", "causes": ["success"] * ok + ["dropped"] * (2 - ok),
+                "scores": [0.9, 0.8], "plan_cpu_s": [0.5, 0.2], "scored": [100, 40], "planning_s": [0.3, 0.1],
+                "built_in_memory": []}
+
+    # scene 1 failed under 8:100 only: it leaves both rows, and the pairing
+    eps = [ep("32:200", 0, 2), ep("32:200", 1, 2), ep("32:200", 2, 1),
+           ep("8:100", 0, 1), ep("8:100", 1, 0, skipped="did not settle"), ep("8:100", 2, 1)]
+    rows = {r["budget"]: r for r in study.summarize(cfg, eps)}
+    for r in rows.values():
+        assert r["scenes"] == 2 and r["skipped_scenes"] == [1] and r["attempts"] == 4
+    assert (rows["32:200"]["successes"], rows["8:100"]["successes"]) == (3, 2)
+    assert rows["8:100"]["differs_from_reference"] == 1 and rows["32:200"]["differs_from_reference"] == 0
+    assert [a["scene"] for a, _ in study._paired(eps, "pile", "8:100", "32:200")] == [0, 2]
+
+
 def test_scene_budgets_parse_or_are_refused():
     common = _load("_common")
     assert common.scene_budget("") == {} and common.scene_budget("8:100") == {"enough": 8, "per_segment": 100}

@@ -74,7 +74,6 @@ from _scenes import (
     experiment_database,
     map_config,
     noise_sigmas,
-    scene_budget,
     standing_cloud,
 )
 from _timing import Clock, load_average, run_cli_fresh, run_fresh, stopwatch
@@ -88,7 +87,7 @@ __all__ = ["start", "opt", "parse_config", "RunRecord", "machine_load", "provena
            "rng_for", "derived_seed", "seed_sequence", "map_config", "standing_cloud",
            "Clock", "stopwatch", "load_average", "run_fresh", "run_cli_fresh",
            "write_json", "write_text", "write_config", "fmt", "md_table", "mean_sd_text", "pct", "rate_ci",
-           "noise_sigmas", "scene_budget", "experiment_database", "database_record", "database_note"]
+           "noise_sigmas", "experiment_database", "database_record", "database_note"]
 
 EXPERIMENTS = Path(__file__).resolve().parent
 

@@ -4,7 +4,6 @@
 * :func:`standing_cloud`: an object standing on the table at a random yaw, seen as a
   (single-view) cloud; :func:`camera_position` (distance, elevation, azimuth);
 * :func:`noise_sigmas`: a ``--noise`` label (default, none, MM:DEG) as sigmas;
-* :func:`scene_budget`: a ``--budget`` label (ENOUGH:PER_SEGMENT) as ``SceneConfig`` fields;
 * :func:`experiment_database`: the FS map database a run plans against (a private
   ``<out>/fsdb`` built fresh unless ``--db``), :func:`database_record`,
   :func:`database_note`.
@@ -21,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["map_config", "camera_position", "standing_cloud", "noise_sigmas", "scene_budget", "experiment_database",
-           "database_record", "database_note"]
+__all__ = ["map_config", "camera_position", "standing_cloud", "noise_sigmas", "experiment_database", "database_record",
+           "database_note"]
 
 
 def map_config(quick: bool = False, **kw):
@@ -78,15 +77,6 @@ def noise_sigmas(label: str) -> tuple[float, float]:
     if not (mm >= 0 and deg >= 0 and math.isfinite(mm + deg)):
         raise ValueError(f"--noise sigmas must be finite and >= 0, got {label!r}")
     return mm / 1000.0, deg
-
-
-def scene_budget(label: str) -> dict[str, int]:
-    """A ``--budget`` label, a scene's per-segment planning budget ENOUGH:PER_SEGMENT, as
-    the ``SceneConfig`` fields it sets (:func:`graspsim.perception.scene.budget_fields`);
-    "" for none (the scene's defaults, E10's)."""
-    from graspsim.perception.scene import budget_fields
-
-    return budget_fields(label)
 
 
 def experiment_database(db: str | os.PathLike | None, out: str | os.PathLike, config, *, threads: int | None = None):

@@ -52,7 +52,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import NAMED, experiment_database, machine_load, map_config, opt, run_fresh, scene_budget, start
+from _common import NAMED, experiment_database, machine_load, map_config, opt, run_fresh, start
 
 log = logging.getLogger("bench_scene")
 
@@ -79,7 +79,9 @@ class BenchConfig:
             raise ValueError("--scenes, --renders, --fresh and --sizes must be >= 1")
         if self.plans < 0 or self.workers < 0:
             raise ValueError("--plans and --workers must be >= 0")
-        scene_budget(self.budget)
+        from graspsim.perception.scene import budget_fields
+
+        budget_fields(self.budget)
 
 
 def _timed(fn):
@@ -151,7 +153,8 @@ WARMUP_SEED = 10**6
 def first_frame(kind: str, seed: int, budget: str = ""):
     """The first D435-like depth frame of a 5-object scene as E10 renders it (its sensor
     noise), and the scene settings E10 plans it with (with ``budget``, see
-    :func:`~_scenes.scene_budget`)."""
+    :func:`graspsim.perception.scene.budget_fields`)."""
+    from graspsim.perception.scene import budget_fields
     from graspsim.seeding import rng_for
     from graspsim.sim.camera import rig
     from graspsim.sim.clutter import ClutterConfig, scene_settings
@@ -161,7 +164,7 @@ def first_frame(kind: str, seed: int, budget: str = ""):
     sim = make_scene(5, kind, seed).sim()
     frame = sim.render(rig(1)[0], noise=clutter.depth_noise, rng=rng_for(seed, "depth"))
     sim.close()
-    return frame, scene_settings(kind, **scene_budget(budget))
+    return frame, scene_settings(kind, **budget_fields(budget))
 
 
 def _plan(points, scene_cfg, seed: int, db, workers: int, eye):
@@ -245,7 +248,7 @@ _FRESH_PLAN = """
 import json, sys, time
 t0 = time.perf_counter()
 from graspsim.maps.database import MapDatabase
-from graspsim.perception.scene import plan_scene, start_workers
+from graspsim.perception.scene import budget_fields, plan_scene, start_workers
 from graspsim.seeding import rng_for
 from graspsim.sim.camera import backproject, rig
 from graspsim.sim.clutter import ClutterConfig, scene_settings
@@ -255,13 +258,13 @@ kind, seed, root, coarse = sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[
 if sys.argv[6] == "started":
     start_workers()
 sys.path.insert(0, sys.argv[1])
-from _common import map_config, scene_budget
+from _common import map_config
 db = MapDatabase(root, config=map_config(coarse))
 sim = make_scene(5, kind, seed).sim()
 frame = sim.render(rig(1)[0], noise=ClutterConfig().depth_noise, rng=rng_for(seed, "depth"))
 sim.close()
 t = time.perf_counter()
-config = scene_settings(kind, **scene_budget(sys.argv[7]))
+config = scene_settings(kind, **budget_fields(sys.argv[7]))
 sp = plan_scene(backproject(frame).world(), db=db, rng=rng_for(seed, "plan"), config=config,
                 viewpoint=frame.camera.T_world_camera[:3, 3])
 print(json.dumps({"import_s": imported, "plan_s": time.perf_counter() - t, "grasps": len(sp.grasps)}))

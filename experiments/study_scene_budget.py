@@ -37,7 +37,9 @@ from pathlib import Path
 from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import derived_seed, experiment_database, map_config, opt, rate_ci, rng_for, scene_budget, start
+from _common import derived_seed, experiment_database, map_config, opt, rate_ci, rng_for, start
+
+from graspsim.perception.scene import budget_fields
 
 log = logging.getLogger("study_scene_budget")
 
@@ -65,7 +67,7 @@ class Config:
         if "" in self.budgets:
             raise ValueError("--budgets: each is ENOUGH:PER_SEGMENT")
         for b in self.budgets:
-            scene_budget(b)
+            budget_fields(b)
         if len(set(self.budgets)) != len(self.budgets) or not self.budgets:
             raise ValueError(f"--budgets must be distinct and not empty, got {self.budgets}")
         if self.objects < 1 or self.scenes < 1 or self.workers < 1 or self.first < 0:
@@ -143,7 +145,7 @@ def episode(task) -> dict:
         _warm_up(kind, cfg, db)
         _WARM.add(kind)
     _timed_plans()
-    config = ClutterConfig(scene=scene_settings(kind, **scene_budget(budget)))
+    config = ClutterConfig(scene=scene_settings(kind, **budget_fields(budget)))
     _forget_objects()
     _PLANS.clear()
     db.built = set()
@@ -180,7 +182,7 @@ def summarize(cfg: Config, episodes: list[dict]) -> list[dict]:
             scores = [e["scores"][0] for e in eps if e["scores"]]
             scored = [e["scored"][0] for e in eps if e["scored"]]
             rows.append({
-                "kind": kind, "budget": budget, **scene_budget(budget), "scenes": len(eps),
+                "kind": kind, "budget": budget, **budget_fields(budget), "scenes": len(eps),
                 "skipped_scenes": sorted(skipped), "attempts": n,
                 "successes": ok,
                 "gsr_interval_95": wilson_interval(ok, n) if n else None, "placed": placed, "removed": removed,

@@ -646,11 +646,12 @@ def test_study_scene_budget_leaves_a_skipped_scene_out_of_every_budget():
 
 
 def test_scene_budgets_parse_or_are_refused():
-    common = _load("_common")
-    assert common.scene_budget("") == {} and common.scene_budget("8:100") == {"enough": 8, "per_segment": 100}
+    from graspsim.perception.scene import budget_fields
+
+    assert budget_fields("") == {} and budget_fields("8:100") == {"enough": 8, "per_segment": 100}
     for bad in ("32", "a:b", "0:10", "8:-1", "8:100:1"):
         with pytest.raises(ValueError, match="budget"):
-            common.scene_budget(bad)
+            budget_fields(bad)
     study = _load("study_scene_budget")
     with pytest.raises(ValueError, match="distinct"):
         study.Config(budgets=("8:100", "8:100"))

@@ -68,6 +68,15 @@ class PlannerConfig:
     rank: ``"robust"`` (default): score the best-graded grasps for robustness
         (``robust``) and order by the robust score; ``"paper"``: the paper's grade.
     robust: the robustness settings (pose error, perturbations, grasps scored per part).
+    collision_tolerance: the run-time collision check of adapted grasps -- a stored map
+        scaled to the identified primitive, a part's grasps against the other parts of
+        its compound -- counts poses within this distance [m] of touching as colliding;
+        None (default, the paper's check): the tolerance the FS maps were generated with
+        (``MapDatabase.config``). A larger one is more conservative -- a grasp that comes
+        that close is dropped, or kept at another contact depth that clears it -- and
+        costs less: the check's finest collision samples number about 1 / tolerance^2
+        per unit area (scene planning uses 1 mm,
+        :data:`~graspsim.perception.scene.SCENE_COLLISION_TOLERANCE`).
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -78,12 +87,26 @@ class PlannerConfig:
     contact_tolerance: float = 0.004
     rank: str = "robust"
     robust: RobustConfig = field(default_factory=RobustConfig)
+    collision_tolerance: float | None = None
 
     def __post_init__(self) -> None:
+        tol = self.collision_tolerance
+        if tol is not None and (isinstance(tol, bool) or not isinstance(tol, (int, float))
+                                or not (np.isfinite(tol) and tol > 0)):
+            raise InvalidParameterError(f"PlannerConfig.collision_tolerance must be > 0 m or None (the maps' "
+                                        f"own), got {tol!r}")
         if self.rank not in RANKS:
             raise InvalidParameterError(f"PlannerConfig.rank must be one of {list(RANKS)}, got {self.rank!r}")
         if not isinstance(self.robust, RobustConfig):
             raise InvalidParameterError(f"PlannerConfig.robust must be a RobustConfig, got {self.robust!r}")
+
+
+def check_config(db: MapDatabase, cfg: PlannerConfig):
+    """The :class:`~graspsim.maps.generate.MapConfig` the run-time collision checks of
+    adapted grasps use: the database's, at ``cfg.collision_tolerance`` when it is set."""
+    if cfg.collision_tolerance is None:
+        return db.config
+    return replace(db.config, collision_tolerance=float(cfg.collision_tolerance))
 
 
 def _canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarray]:
@@ -117,9 +140,10 @@ def _batches(gmap: GraspabilityMap, first: int, growth: float, prefer=None) -> I
 _TABLE_TOLERANCE = 0.005
 
 
-def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig,
+def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig, checks,
                  T_table_part: np.ndarray | None = None) -> tuple[MatchKind, dict, Iterator]:
-    """(match, source object, iterator of map batches in the part's frame); with the
+    """(match, source object, iterator of map batches in the part's frame; a scaled
+    map's grasps checked for collisions at ``checks``, :func:`check_config`); with the
     table's frame ``T_table_part`` in the part's frame, the grasps likely to clear it
     stream first (the table filter would empty the first batches otherwise)."""
     m = db.match(prim, max_ratio=cfg.scaling.max_ratio)
@@ -134,7 +158,7 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig,
     if m.match is MatchKind.FAMILIAR:
         fs = db.load_entry(m.entry, accepted_only=True)
         return m.match, fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling, gripper=db.gripper,
-                                                        quality=db.quality, config=db.config, prefer=prefer)
+                                                        quality=db.quality, config=checks, prefer=prefer)
     if not cfg.build_missing:
         return MatchKind.BUILD, {}, iter(())
     # no map of this primitive within the scaling range: add one to the database
@@ -236,10 +260,11 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     observed = ObservedSurface(points, viewpoint=viewpoint) if ident is not None and ident.mode == "robust" else None
     stage = StageClock("adapt", "agreement", "combine", "table", "robust")
     skip_spent = scored_only and cfg.rank == "robust"
+    checks = check_config(db, cfg)
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):
         stage.start()
-        match, src, stream = _part_stream(prim, db, cfg,
+        match, src, stream = _part_stream(prim, db, cfg, checks,
                                           None if T_table_obj is None else T_table_obj @ T_obj_part[i])
         stage.lap("adapt")
         parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i]))
@@ -252,7 +277,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             stage.lap("agreement")
             if compound is not None:
                 part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
-                                        d_ref=obj_meta.quality["d_ref"], config=db.config, meta=obj_meta)
+                                        d_ref=obj_meta.quality["d_ref"], config=checks, meta=obj_meta)
             stage.lap("combine")
             if T_table_obj is not None:
                 clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)

@@ -1,4 +1,5 @@
-"""Shared fixtures: seeded generators and the paper's reference primitives."""
+"""Shared fixtures: seeded generators, the paper's reference primitives, a spy on the
+planner's collision checks."""
 
 from __future__ import annotations
 
@@ -30,3 +31,20 @@ PAPER_SHAPES = {
 @pytest.fixture(params=sorted(PAPER_SHAPES))
 def shape(request):
     return PAPER_SHAPES[request.param]
+
+
+@pytest.fixture
+def collision_checks(monkeypatch) -> list:
+    """(module, tolerance [m]) of every collision check of adapted grasps made in this
+    process from now on: the scaled maps' ("scaling") and a compound's combination's
+    ("combine")."""
+    import graspsim.maps.combine as combine
+    import graspsim.maps.scaling as scaling
+
+    seen = []
+    for mod in (scaling, combine):
+        def spy(*args, _real=mod.grasps_collision_free, _name=mod.__name__.rsplit(".", 1)[1], **kw):
+            seen.append((_name, args[6].collision_tolerance))
+            return _real(*args, **kw)
+        monkeypatch.setattr(mod, "grasps_collision_free", spy)
+    return seen

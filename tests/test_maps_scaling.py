@@ -93,6 +93,18 @@ def test_stream_is_best_first_and_matches_the_whole(cyl_fs):
     assert batches[0].grade.max() >= whole.grade.max() - 1e-6
 
 
+def test_a_scaled_map_records_the_collision_tolerance_it_was_checked_to(cyl_fs):
+    """The map's own generation tolerance unless the caller's config says otherwise (the
+    planner's PlannerConfig.collision_tolerance; tests/test_planner.py)."""
+    from dataclasses import replace
+
+    t = Cylinder(0.022, 0.13)
+    own = scale_map(cyl_fs, t)
+    coarse = scale_map(cyl_fs, t, config=replace(cyl_fs.meta.map_config, collision_tolerance=0.003))
+    assert own.meta.extra["collision_tolerance"] == cyl_fs.meta.map_config.collision_tolerance
+    assert coarse.meta.extra["collision_tolerance"] == 0.003 and len(coarse) > 0
+
+
 def test_limits_and_wrong_primitive(cyl_fs):
     with pytest.raises(InvalidParameterError, match="factor"):
         scale_map(cyl_fs, Cylinder(0.08, 0.12))

@@ -13,7 +13,7 @@ from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import MapConfig
 from graspsim.perception.plane import fit_table
-from graspsim.perception.scene import SceneConfig, perceive_scene, plan_scene
+from graspsim.perception.scene import SCENE_COLLISION_TOLERANCE, SceneConfig, perceive_scene, plan_scene
 from graspsim.perception.segment import GAP_LINK, cluster_radius, euclidean_clusters, gap_link
 from graspsim.primitives import Box, Cylinder, Sphere
 from graspsim.primitives.clouds import table_scene_cloud
@@ -170,6 +170,17 @@ def test_a_grasp_colliding_only_with_a_neighbour_is_rejected(db):
         assert same and all(h.score == 0 for h in same)
     clear = [g for g in checked if g.score > 0]
     assert clear and checked.index(clear[-1]) < min(checked.index(h) for h in checked if h.score == 0)
+
+
+def test_scene_planning_checks_adapted_grasps_to_the_scene_tolerance(db, collision_checks):
+    """A segment's scaled map is checked for collisions to SCENE_COLLISION_TOLERANCE (1 mm:
+    the identified primitive is not known better), not the FS maps' own 0.25 mm."""
+    shapes = [Box(0.05, 0.07, 0.09), Cylinder(0.025, 0.15)]
+    pts, _, _ = table_scene_cloud(shapes, _row(shapes, 0.03), np.random.default_rng(2), noise=0.0005)
+    sp = plan_scene(pts, db=db, rng=np.random.default_rng(7), config=SceneConfig(workers=1))
+    assert len(sp.segments) == 2 and sp.grasps
+    assert SCENE_COLLISION_TOLERANCE == 0.001 != FAST.collision_tolerance
+    assert collision_checks and {t for _, t in collision_checks} == {SCENE_COLLISION_TOLERANCE}
 
 
 def test_bad_scene_input_is_a_clear_error():

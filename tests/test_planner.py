@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from graspsim.errors import InvalidParameterError
 from graspsim.gripper import HGPL_25_60_A as G
 from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.database import MapDatabase
@@ -23,6 +24,12 @@ def db(tmp_path_factory):
     d = MapDatabase(tmp_path_factory.mktemp("db"), config=FAST)
     d.build([Cylinder(0.02, 0.2), Cylinder(0.01, 0.12), Sphere(0.03), Box(0.02, 0.12, 0.12)])
     return d
+
+
+def _bottle() -> Compound:
+    """A body and a neck: two cylinders stacked."""
+    return Compound.from_parts([Cylinder(0.03, 0.08), Cylinder(0.01, 0.12)],
+                               [make_transform(np.eye(3), [0, 0, 0.04]), make_transform(np.eye(3), [0, 0, 0.14])])
 
 
 def _cloud(shape, seed, **kw):
@@ -64,9 +71,7 @@ def test_known_cylinder_uses_the_stored_map(db):
 
 
 def test_compound_is_combined_without_collisions(db):
-    bottle = Compound.from_parts([Cylinder(0.03, 0.08), Cylinder(0.01, 0.12)],
-                                 [make_transform(np.eye(3), [0, 0, 0.04]),
-                                  make_transform(np.eye(3), [0, 0, 0.14])])
+    bottle = _bottle()
     cloud = _cloud(bottle, 3, resolution=0.003)
     r = plan(cloud.points, db=db, rng=np.random.default_rng(0))
     assert r.status is PlanStatus.COMPLETE and len(r.parts) == 2
@@ -78,6 +83,30 @@ def test_compound_is_combined_without_collisions(db):
     # collision-free against the true compound (up to the identification error)
     assert boxes_clear_sdf(bottle, G, poses, r.map.width[idx] + 2 * G.approach_clearance,
                            tolerance=0.002).mean() > 0.9
+
+
+def test_adapted_grasps_are_checked_at_the_planners_collision_tolerance(db, collision_checks):
+    """A scaled part and the combination of a compound's parts check collisions at
+    PlannerConfig.collision_tolerance, None: the stored maps' own; a larger tolerance
+    keeps fewer grasps (here: a part's fingers come near the other part)."""
+    bottle = _bottle()
+    cloud = _cloud(bottle, 3, resolution=0.003)
+    seen = collision_checks
+    kept = {}
+    for tol, want in ((None, FAST.collision_tolerance), (0.003, 0.003)):
+        seen.clear()
+        r = plan(cloud.points, db=db, rng=np.random.default_rng(0), config=PlannerConfig(collision_tolerance=tol))
+        assert r.status is PlanStatus.COMPLETE and "familiar" in [p.match for p in r.parts]
+        assert {name for name, _ in seen} == {"scaling", "combine"}
+        assert {t for _, t in seen} == {want}
+        kept[tol] = len(r.map)
+    assert 0 < kept[0.003] < kept[None]
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.001, float("nan"), float("inf"), True, "1mm"])
+def test_collision_tolerance_is_a_positive_length_or_none(bad):
+    with pytest.raises(InvalidParameterError, match="collision_tolerance"):
+        PlannerConfig(collision_tolerance=bad)
 
 
 def test_stream_yields_grasps_before_the_result(db):
@@ -143,9 +172,7 @@ def test_known_shapes_are_planned_without_a_cloud(db):
     assert r.identification is None and [p.match for p in r.parts] == ["known"]
     assert len(r.map) == db.lookup("cylinder", {"radius": 0.02, "height": 0.2}).entry["accepted"]
     np.testing.assert_allclose(r.T_cloud_obj, T)
-    bottle = Compound.from_parts([Cylinder(0.03, 0.08), Cylinder(0.01, 0.12)],
-                                 [make_transform(np.eye(3), [0, 0, 0.04]),
-                                  make_transform(np.eye(3), [0, 0, 0.14])])
+    bottle = _bottle()
     items = list(plan_shape_stream(bottle, T, db=db))
     res = items[-1]
     assert isinstance(res, PlanResult) and res.status is PlanStatus.COMPLETE and len(res.parts) == 2
@@ -286,9 +313,7 @@ def test_scored_only_skips_a_parts_unscored_batches_and_keeps_every_scored_one(d
     from graspsim.maps.robust import RobustConfig
     from graspsim.planner import plan_shape_stream
 
-    bottle = Compound.from_parts([Cylinder(0.03, 0.08), Cylinder(0.01, 0.12)],
-                                 [make_transform(np.eye(3), [0, 0, 0.04]),
-                                  make_transform(np.eye(3), [0, 0, 0.14])])
+    bottle = _bottle()
     T = make_transform(random_rotation(np.random.default_rng(5)), [0.3, 0.1, 0.2])
     cfg = PlannerConfig(robust=RobustConfig(top=40, samples=8))
     plain = [i.map for i in plan_shape_stream(bottle, T, db=db, config=cfg) if isinstance(i, GraspBatch)]

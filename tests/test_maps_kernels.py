@@ -108,7 +108,8 @@ db = MapDatabase(sys.argv[1], config=MapConfig(surface_step=0.008, rotation_step
 db.build([Box(0.05, 0.05, 0.05), Sphere(0.03)])
 shapes = [Box(0.05, 0.06, 0.07), Sphere(0.03)]
 pts = table_scene_cloud(shapes, np.array([[-0.05, 0.0], [0.05, 0.0]]), np.random.default_rng(0), noise=0.0005)[0]
-sp = plan_scene(pts, db=db, rng=np.random.default_rng(1), config=SceneConfig(workers=1))
+sp = plan_scene(pts, db=db, rng=np.random.default_rng(1), config=SceneConfig(workers=1),
+                viewpoint=np.array([0.0, -0.4, 0.5]))
 assert sum(s.status == "planned" for s in sp.segments) == 2, sp.segments
 """ + _LIST
 _COMPILE_ALL = "import json\nfrom graspsim.maps.kernels import compile_all\ncompile_all()\n" + _LIST
@@ -124,12 +125,13 @@ def _signatures(code: str, *args) -> dict:
 def test_compile_all_compiles_every_kernel_for_the_types_a_scene_plan_passes(tmp_path):
     """``graspsim warmup`` (compile_all) leaves nothing for a machine's first scene plan
     to compile: every kernel signature planning a scene uses, identification, robust
-    scores against the neighbours, collision samples and the pad-contact grade, is one
-    compile_all compiles."""
+    scores against the neighbours and their occlusion term, collision samples and the
+    pad-contact grade, is one compile_all compiles."""
     planned = _signatures(_PLAN_A_SCENE, str(tmp_path / "db"))
     warmed = _signatures(_COMPILE_ALL)
     for name in ("maps._robust_kernel.robust_flags", "perception._sdf_kernel.model_sdf_into",
-                 "maps._hierarchy_kernel.regroup", "maps._hierarchy_kernel.cluster_tree"):
+                 "maps._hierarchy_kernel.regroup", "maps._hierarchy_kernel.cluster_tree",
+                 "maps._occlusion_kernel.occluded_fraction"):
         assert planned[f"graspsim.{name}"], name  # the plan did use them
     assert any(planned[f"graspsim.grades._pads.{k}"] for k in ("pad_patches", "pad_patches_serial"))
     missing = {k: sorted(v - warmed[k]) for k, v in planned.items() if v - warmed[k]}

@@ -150,6 +150,28 @@ def test_the_depth_image_tells_seen_from_occluded_space():
     assert not v.occluded(np.array([[0.0, 0.08, 0.0], [0.0, 0.0, 0.2]])).any()  # beside, above: seen free
 
 
+def test_the_compiled_occlusion_term_agrees_with_numpy_sample_by_sample():
+    """finger_occlusion (compiled) against its numpy reference for grasps all around a
+    seen box, at two openings: the same fraction per pose (the kernel sums in a fixed
+    order where numpy's matrix products may not, so one sample at a pixel's edge may
+    fall the other way; no more), over poses occluded to many degrees."""
+    from graspsim.gripper import HGPL_25_60_A as g
+    from graspsim.maps.occlusion import finger_occlusion, finger_occlusion_numpy, finger_samples
+
+    box, pts, camera = _box_view()
+    v = ViewDepth(pts, camera)
+    T = generate_fs_map(box, config=MapConfig(surface_step=0.01)).wrist_transforms()
+    T = T[np.random.default_rng(3).choice(len(T), 400, replace=False)]
+    S = len(finger_samples(g)[0])
+    for gap in (0.05, 0.08):
+        got = finger_occlusion(v, T[:, :3, :3], T[:, :3, 3], np.full(len(T), gap), g)
+        want = finger_occlusion_numpy(v, T[:, :3, :3], T[:, :3, 3], np.full(len(T), gap), g)
+        assert got.shape == want.shape == (len(T),)
+        assert np.abs(got - want).max() <= 1.0 / S + 1e-12 and np.sum(got != want) <= 1
+        assert len(np.unique(got)) > 10 and got.max() > 0.3  # occluded in many degrees
+    assert finger_occlusion(v, np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0), g).shape == (0,)
+
+
 def test_fingers_in_occluded_space_are_scored_down():
     box, pts, camera = _box_view()
     m = generate_fs_map(box, config=MapConfig(surface_step=0.01)).filter(accepted=True)

@@ -82,7 +82,8 @@ def ensure_compiled() -> bool:
 
 #: The modules of graspsim's compiled kernels: the map kernels' and those compiled on their first call.
 KERNEL_MODULES = ("graspsim.maps._kernel", "graspsim.maps._assemble_kernel", "graspsim.maps._hierarchy_kernel",
-                  "graspsim.maps._robust_kernel", "graspsim.maps._robust_blocks", "graspsim.perception._sdf_kernel",
+                  "graspsim.maps._robust_kernel", "graspsim.maps._robust_blocks", "graspsim.maps._occlusion_kernel",
+                  "graspsim.perception._sdf_kernel",
                   "graspsim.perception._spacing_kernel", "graspsim.grades._pads")
 
 
@@ -128,8 +129,8 @@ def compile_all(*, parallel: bool = True) -> bool:
     T = np.eye(4)[None].copy()
     T[0, 2, 3] = 0.1
     c = np.array([[[-0.02, 0.0, 0.0], [0.02, 0.0, 0.0]]])
-    score_poses(T, np.array([0.04]), c, -c / 0.02, pts, HGPL_25_60_A,  # the robust score's kernel
-                table=(np.array([0.0, 0.0, 1.0]), -0.1))
+    score_poses(T, np.array([0.04]), c, -c / 0.02, pts, HGPL_25_60_A,  # the robust score's kernels
+                table=(np.array([0.0, 0.0, 1.0]), -0.1), viewpoint=np.array([0.0, 0.0, 0.5]))
     coarse = MapConfig(collision_step=0.01, collision_tolerance=0.004)
     lv = build_levels(Box(0.03, 0.03, 0.03), coarse)  # collision samples
     clusters(lv["Q"], lv["RT"] + lv["HN"])

@@ -123,7 +123,25 @@ def _finger_samples(gripper: GripperSpec, per_axis: tuple[int, int, int]) -> tup
 def finger_occlusion(view: ViewDepth, R: np.ndarray, w: np.ndarray, opening: np.ndarray,
                      gripper: GripperSpec) -> np.ndarray:
     """(n,) the fraction of the finger samples of each wrist pose (R (n, 3, 3), w (n, 3),
-    in the view's frame; pad gaps ``opening`` (n,) [m]) in occluded space."""
+    in the view's frame; pad gaps ``opening`` (n,) [m]) in occluded space (compiled:
+    :mod:`graspsim.maps._occlusion_kernel`; :func:`finger_occlusion_numpy` is its reference)."""
+    from graspsim.maps._occlusion_kernel import occluded_fraction
+
+    q, s = _finger_samples(gripper, _PER_AXIS)
+    n = len(R)
+    out = np.zeros(n)
+    if n:
+        f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+        occluded_fraction(f64(R).reshape(n, 3, 3), f64(w).reshape(n, 3),
+                          0.5 * f64(opening).reshape(-1), f64(q), f64(s), f64(view.viewpoint), f64(view.basis),
+                          f64(view.origin), float(view.pixel), f64(view.depth), float(view.tolerance), out)
+    return out
+
+
+def finger_occlusion_numpy(view: ViewDepth, R: np.ndarray, w: np.ndarray, opening: np.ndarray,
+                           gripper: GripperSpec) -> np.ndarray:
+    """:func:`finger_occlusion` with numpy over every sample at once through
+    :meth:`ViewDepth.occluded`: the reference the compiled kernel is tested against."""
     q, s = _finger_samples(gripper, _PER_AXIS)
     n = len(R)
     if not n:

@@ -229,9 +229,8 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
     meta = MapMeta(object=object_description(target, None, cfg.density), gripper=fs_map.meta.gripper,
                    quality={**quality.to_dict(), "d_ref": d_ref}, resolution=fs_map.meta.resolution,
                    method=f"scaled/{sc.method.value}", version=__version__,
-                   extra={"source": fs_map.meta.object, "scaling": sc.to_dict(),
-                          "factors": ratios, "source_grasps": int(len(src.rows)),
-                          "collision_tolerance": float(cfg.collision_tolerance)})
+                   extra={"source": fs_map.meta.object, "scaling": sc.to_dict(), "factors": ratios,
+                          "source_grasps": int(len(src.rows)), "collision_tolerance": float(cfg.collision_tolerance)})
     lo = gripper.contact_depth_margin - 1e-6
     hi = gripper.pad_length - gripper.contact_depth_margin + 1e-6
     predicted = None

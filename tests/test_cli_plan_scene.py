@@ -83,6 +83,19 @@ def test_a_scene_file_gets_the_grasps_the_library_plans(tmp_path, capsys, db, sc
     assert np.unique(view.labels[best]).size == 1
 
 
+def test_the_budget_flags_help_names_the_default_scene_config_holds():
+    """--budget's help spells out the default budget (it is written there so that --help
+    imports no planning code): it must be SceneConfig's."""
+    import argparse
+
+    from graspsim.cli._common import add_budget_flag
+
+    p = argparse.ArgumentParser()
+    add_budget_flag(p)
+    cfg = SceneConfig()
+    assert f"SceneConfig's, {cfg.enough}:{cfg.per_segment})" in " ".join(p.format_help().split())
+
+
 @pytest.mark.slow
 def test_a_smaller_planning_budget_scores_fewer_grasps_per_object(tmp_path, capsys, db, scene_cloud):
     path, _, _ = scene_cloud

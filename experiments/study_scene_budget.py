@@ -326,7 +326,7 @@ def main(argv=None) -> int:
     from graspsim.perception.scene import SceneConfig
 
     e10 = SceneConfig()
-    text = record.write(out, {"config": cfg, "e10_budget": f"{e10.enough}:{e10.per_segment}",
+    text = record.write(out, {"config": cfg, "e10_budget": e10.budget,
                               "e10_scenes": E10Config().scenes,
                               "rows": summarize(cfg, episodes), "episodes": episodes}, readme_section)
     print(text)

@@ -131,8 +131,7 @@ def _record(args, plan, loaded, pts, viewpoint, cfg, crop, gripper: str) -> dict
     best = plan.best
     return {"graspsim": __version__, "cloud": str(Path(args.cloud).resolve()), **loaded["source"],
             "points": int(loaded["n_read"]), "used": int(len(pts)), "viewpoint": viewpoint, "up": cfg.up,
-            "crop": crop, "min_gap": cfg.min_gap, "budget": f"{cfg.enough}:{cfg.per_segment}", "seed": args.seed,
-            "gripper": gripper,
+            "crop": crop, "min_gap": cfg.min_gap, "budget": cfg.budget, "seed": args.seed, "gripper": gripper,
             "table": per.plane.to_dict(), "segments": segments, "grasps": [g.to_dict() for g in plan.grasps],
             "best": None if best is None else best.to_dict(), "timing": plan.timing}
 

@@ -82,7 +82,7 @@ def _cmd_scene(args) -> int:
          "gripper": db.gripper.name,
          "execution_noise": None if cfg.execution is None else cfg.execution.to_dict(),
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth, "min_gap": gap,
-         "budget": f"{cfg.scene.enough}:{cfg.scene.per_segment}",
+         "budget": cfg.scene.budget,
          **summarize(results), "render": None if render is None else str(render), "details": details}
     rows = [(d["scene"], len(d["objects"]), d["removed"], d["attempts"], d["successes"], d["stop"],
              f"{d['first_one_cluster']}/{d['first_seen']}") for d in details]

@@ -152,6 +152,11 @@ class SceneConfig:
     def to_dict(self) -> dict:
         return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "planner"}
 
+    @property
+    def budget(self) -> str:
+        """The planning budget as its label ``"ENOUGH:PER_SEGMENT"`` (read back by :func:`budget_fields`)."""
+        return f"{self.enough}:{self.per_segment}"
+
 
 def budget_fields(label: str) -> dict[str, int]:
     """A segment's planning budget ``"ENOUGH:PER_SEGMENT"`` as the :class:`SceneConfig`

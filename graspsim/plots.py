@@ -170,7 +170,7 @@ def _design_series(rows: list[dict], obj: str, key: str) -> tuple[np.ndarray, np
 
 def plot_design(rows: list[dict], path: str | os.PathLike, *, param: str, base_value: float | None = None,
                 title: str | None = None) -> None:
-    """A design sweep (rows of :func:`graspsim.design.sweep` with ``kind`` set to the
+    """A design sweep (rows of :func:`graspsim.apps.design.sweep` with ``kind`` set to the
     primitive): one panel per metric against the parameter [mm], a line per primitive
     (mean over its sizes, band from the smallest to the largest; success pooled over
     the sizes), the base gripper's value marked. Written atomically."""

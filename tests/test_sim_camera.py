@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from graspsim.errors import GraspsimError, InvalidParameterError, OutputPathError
-from graspsim.perception.io import read_point_cloud
-from graspsim.sim.camera import (
+from graspsim.perception.io import read_camera, read_point_cloud
+from graspsim.tabletop.camera import (
     Camera,
     DepthFrame,
     DepthNoise,
@@ -17,7 +17,6 @@ from graspsim.sim.camera import (
     backproject,
     fuse,
     look_at,
-    read_camera,
     render_depth,
     save_cloud,
     save_view,
@@ -207,7 +206,7 @@ def test_fuse_two_views_covers_more_and_agrees(world, tmp_path):
 
 
 def test_orbit_and_rig_look_at_the_target():
-    from graspsim.sim.camera import orbit, rig
+    from graspsim.tabletop.camera import orbit, rig
 
     T = orbit([0.1, 0.0, 0.03], distance=0.7, elevation=55.0, azimuth=-90.0)
     assert np.isclose(np.linalg.norm(T[:3, 3] - [0.1, 0, 0.03]), 0.7) and T[1, 3] < 0 and T[2, 3] > 0.5

@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
+from hand_made import grasp_pose
 
 from graspsim.primitives import Box
 from graspsim.sim import LiftPlace, build_scene, object_from_shape
-from graspsim.sim.testing import grasp_pose
 
 
 @pytest.fixture(scope="module")
@@ -44,10 +44,11 @@ def test_render_writes_key_moments_and_a_gif(gl, tmp_path):
 def test_trial_cli_renders_the_first_trials_that_start_clear(gl, tmp_path, capsys):
     import json
 
+    from hand_made import hand_made_map
+
     from graspsim.cli import main
     from graspsim.maps import save_map
     from graspsim.primitives import Cylinder
-    from graspsim.sim.testing import hand_made_map
 
     # the two best poses come from under the table (START_COLLISION); the third is fine
     T = np.stack([grasp_pose([0, 0, -0.04], [0, 0, 1], [1, 0, 0]), grasp_pose([0, 0, -0.045], [0, 0, 1], [0, 1, 0]),

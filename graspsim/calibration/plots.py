@@ -7,7 +7,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from graspsim.calibration import stats
+from graspsim import stats
 
 __all__ = ["plot_reliability", "plot_roc", "plot_threshold_sweep"]
 

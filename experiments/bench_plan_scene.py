@@ -52,8 +52,8 @@ def write_inputs(kind: str, seed: int, folder: Path) -> dict[str, Path]:
     frame, with its camera record) and a 16-bit PNG depth image in millimetres."""
     from PIL import Image
 
+    from graspsim.geometry.camera import backproject, rig
     from graspsim.seeding import rng_for
-    from graspsim.tabletop.camera import backproject, rig
     from graspsim.tabletop.cloud_io import save_view
     from graspsim.tabletop.clutter import ClutterConfig
     from graspsim.tabletop.table_scene import make_scene

@@ -92,7 +92,8 @@ def _timed(fn):
 
 def one_scene(kind: str, n: int, seed: int, renders: int) -> dict:
     """Timings [s] of one scene: settle, first render, warm renders."""
-    from graspsim.tabletop.camera import DepthNoise, rig
+    from graspsim.geometry.camera import rig
+    from graspsim.tabletop.depth_noise import DepthNoise
     from graspsim.tabletop.table_scene import make_scene
 
     cam = rig(1)[0]
@@ -117,7 +118,7 @@ def one_scene(kind: str, n: int, seed: int, renders: int) -> dict:
 _FRESH = """
 import json, sys, time
 t0 = time.perf_counter()
-from graspsim.tabletop.camera import rig
+from graspsim.geometry.camera import rig
 from graspsim.tabletop.table_scene import make_scene
 imported = time.perf_counter() - t0
 t = time.perf_counter()
@@ -154,9 +155,9 @@ def first_frame(kind: str, seed: int, budget: str = ""):
     """The first D435-like depth frame of a 5-object scene as E10 renders it (its sensor
     noise), and the scene settings E10 plans it with (with ``budget``, see
     :func:`graspsim.planning.scene.budget_fields`)."""
+    from graspsim.geometry.camera import rig
     from graspsim.planning.scene_config import budget_fields
     from graspsim.seeding import rng_for
-    from graspsim.tabletop.camera import rig
     from graspsim.tabletop.clutter import ClutterConfig, scene_settings
     from graspsim.tabletop.table_scene import make_scene
 
@@ -182,7 +183,7 @@ def _eye(frame):
 
 
 def _plan_frame(kind: str, seed: int, db, workers: int, budget: str = ""):
-    from graspsim.tabletop.camera import backproject
+    from graspsim.geometry.camera import backproject
 
     frame, scene_cfg = first_frame(kind, seed, budget)
     return _plan(backproject(frame).world(), scene_cfg, seed, db, workers, _eye(frame))
@@ -208,7 +209,7 @@ def _cpu_seconds() -> float:
 def plan_one(kind: str, seed: int, db, workers: int = 0, budget: str = "") -> dict:
     """Planning times [s] of one 5-object scene's first frame, per stage and in total
     (back-projection included), wall and CPU."""
-    from graspsim.tabletop.camera import backproject
+    from graspsim.geometry.camera import backproject
 
     frame, scene_cfg = first_frame(kind, seed, budget)
     c0 = _cpu_seconds()
@@ -251,7 +252,7 @@ from graspsim.maps.database import MapDatabase
 from graspsim.planning.scene_config import budget_fields
 from graspsim.planning.scene import plan_scene, start_workers
 from graspsim.seeding import rng_for
-from graspsim.tabletop.camera import backproject, rig
+from graspsim.geometry.camera import backproject, rig
 from graspsim.tabletop.clutter import ClutterConfig, scene_settings
 from graspsim.tabletop.table_scene import make_scene
 imported = time.perf_counter() - t0

@@ -63,8 +63,8 @@ def fingerprint(kind: str, seed: int, db) -> dict:
     """The hashes of one frame's planning results."""
     from dataclasses import replace
 
+    from graspsim.geometry.camera import backproject, rig
     from graspsim.planning.scene import plan_scene
-    from graspsim.tabletop.camera import backproject, rig
     from graspsim.tabletop.clutter import ClutterConfig, scene_settings
     from graspsim.tabletop.table_scene import make_scene
 

@@ -58,8 +58,8 @@ class Config:
 
 def scene_segments(cfg: Config) -> dict[str, np.ndarray]:
     """The segments (M, 3) [m] of each scene's first frame, as E10 perceives them."""
+    from graspsim.geometry.camera import backproject, rig
     from graspsim.planning.scene import perceive_scene
-    from graspsim.tabletop.camera import backproject, rig
     from graspsim.tabletop.clutter import ClutterConfig
     from graspsim.tabletop.table_scene import make_scene
 

@@ -62,8 +62,8 @@ class Config:
 def first_frame(n: int, kind: str, i: int, seed: int, cameras: int = 1):
     """(perception, per-point object ids, footprint gaps, object names) of E10's first frame
     of scene i (``cameras`` > 1: that many views around the table, fused)."""
+    from graspsim.geometry.camera import fuse, rig
     from graspsim.planning.scene import perceive_scene
-    from graspsim.tabletop.camera import fuse, rig
     from graspsim.tabletop.clutter import ClutterConfig, scene_settings
     from graspsim.tabletop.table_scene import footprint_gaps, make_scene
 

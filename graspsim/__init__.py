@@ -97,7 +97,8 @@ _LAZY: dict[str, str] = {
             "LiftPlace", "Tug", "ExecutionNoise", "SimObject", "Scene", "object_from_shape",
             "object_from_mesh", "build_scene", "run_trials", "simulate_map", "render_trial"),
     # table-top scenes and the simulated depth camera
-    **_from("graspsim.tabletop", "Camera", "Intrinsics", "DepthNoise", "render_depth", "TableScene", "SceneSim",
+    **_from("graspsim.geometry.camera", "Camera", "Intrinsics"),
+    **_from("graspsim.tabletop", "DepthNoise", "render_depth", "TableScene", "SceneSim",
             "make_scene", "load_scene", "save_scene"),
 }
 

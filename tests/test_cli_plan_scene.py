@@ -31,7 +31,7 @@ def db(tmp_path_factory):
 def scene_cloud(tmp_path_factory):
     """A 3-object packed scene seen by the D435-like camera, written in the camera's frame
     with its camera record (.pcd + .pcd.json), and its ground-truth object per point."""
-    from graspsim.tabletop.camera import backproject, rig
+    from graspsim.geometry.camera import backproject, rig
     from graspsim.tabletop.cloud_io import save_view
     from graspsim.tabletop.table_scene import make_scene
 
@@ -146,7 +146,7 @@ def test_a_depth_image_is_planned_in_the_cameras_frame(tmp_path, capsys, db, sce
     back-projected; the labels file is the image's (H, W)."""
     from PIL import Image
 
-    from graspsim.tabletop.camera import Camera, DepthFrame, backproject
+    from graspsim.geometry.camera import Camera, DepthFrame, backproject
 
     _, _, frame = scene_cloud
     k = frame.camera.intrinsics

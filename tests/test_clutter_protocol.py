@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 import graspsim.tabletop.clutter as clutter
+from graspsim.geometry.camera import rig
 from graspsim.sim.outcomes import TrialOutcome
-from graspsim.tabletop.camera import rig
 from graspsim.tabletop.clutter import OTHER, ClutterConfig, run_clutter, summarize
 from graspsim.tabletop.scene_sim import SceneOutcome
 

@@ -30,7 +30,7 @@ def test_a_cloud_file_s_camera_record_reaches_the_planner(tmp_path, monkeypatch)
 
     import graspsim.apps.demo as demo
     import graspsim.planning.planner as planner
-    from graspsim.tabletop.camera import Camera, Intrinsics, look_at
+    from graspsim.geometry.camera import Camera, Intrinsics, look_at
     from graspsim.tabletop.cloud_io import save_cloud
 
     rng = np.random.default_rng(0)

@@ -212,8 +212,8 @@ def test_finger_samples_handed_out_are_the_callers_own():
 
 
 def test_a_cloud_file_with_a_camera_record_carries_its_viewpoint(tmp_path):
+    from graspsim.geometry.camera import Camera, Intrinsics, look_at
     from graspsim.perception.io import read_point_cloud
-    from graspsim.tabletop.camera import Camera, Intrinsics, look_at
     from graspsim.tabletop.cloud_io import save_cloud
 
     _, pts, eye = _box_view()

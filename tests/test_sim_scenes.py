@@ -8,10 +8,11 @@ import pytest
 from hand_made import grasp_pose
 
 from graspsim.errors import GraspsimError, InvalidParameterError
+from graspsim.geometry.camera import Camera, Intrinsics, backproject, look_at
 from graspsim.grippers.spec import HGPL_25_60_A
 from graspsim.primitives import Box
 from graspsim.sim import TrialOutcome
-from graspsim.tabletop.camera import Camera, DepthNoise, Intrinsics, backproject, look_at
+from graspsim.tabletop.depth_noise import DepthNoise
 from graspsim.tabletop.scene_objects import ObjectSpec, draw_object, narrowest_extent
 from graspsim.tabletop.scene_sim import SceneSim
 from graspsim.tabletop.table_scene import footprint_gaps, load_scene, make_scene, save_scene
@@ -269,7 +270,7 @@ def test_every_object_of_a_packed_scene_can_be_lifted_from_above():
 
 
 def test_object_view_sees_the_object_where_it_stands(gl):
-    from graspsim.tabletop.camera import rig
+    from graspsim.geometry.camera import rig
     from graspsim.tabletop.table_scene import object_view
 
     cam = rig(1, Intrinsics(320, 240, 170.0, 170.0, 159.5, 119.5), distance=0.5)[0]

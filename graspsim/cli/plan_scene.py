@@ -222,8 +222,8 @@ def _depth_points(args, intrinsics) -> dict:
     import numpy as np
 
     from graspsim.errors import InvalidParameterError
+    from graspsim.geometry.camera import Camera, DepthFrame, Intrinsics, backproject
     from graspsim.perception.depth_image import read_depth_image
-    from graspsim.tabletop.camera import Camera, DepthFrame, Intrinsics, backproject
 
     if intrinsics is not None and args.camera is not None:
         raise InvalidParameterError("give --intrinsics or --camera, not both")

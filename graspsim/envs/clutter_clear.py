@@ -69,10 +69,10 @@ class ClutterClearEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 2}
 
     def __init__(self, render_mode: str | None = None, *, config: ClutterEnvConfig | None = None, **kwargs):
+        from graspsim.geometry.camera import rig
         from graspsim.grippers import get_gripper
         from graspsim.maps.database import MapDatabase
         from graspsim.sim.noise import ExecutionNoise
-        from graspsim.tabletop.camera import rig
         from graspsim.tabletop.clutter import ClutterConfig, scene_settings
         from graspsim.tabletop.depth_noise import DepthNoise
 
@@ -212,8 +212,8 @@ class ClutterClearEnv(gym.Env):
         """A fresh frame of the ended episode and its table and segments (None when the
         camera sees too little for a table fit)."""
         from graspsim.errors import PointCloudError
+        from graspsim.geometry.camera import backproject
         from graspsim.planning.scene import perceive_scene
-        from graspsim.tabletop.camera import backproject
 
         frame = self.episode.render()
         try:

@@ -1,6 +1,6 @@
 """The pinhole depth-camera model: intrinsics, a pose, back-projection of a depth frame to
 points and fusion of several views. Rendering the frames (MuJoCo) is
-:mod:`graspsim.tabletop.camera`.
+:mod:`graspsim.tabletop.depth_render`.
 
 Frames. The camera frame is OpenCV's: x right, y down, z forward (the viewing
 direction); a pixel (u, v) (column, row; pixel centres at integer coordinates) sees the

@@ -13,7 +13,7 @@ cloud, feasibility under wrist pose error; :mod:`graspsim.maps.robust`), up to
 them; ``rank="paper"`` keeps the paper's grade order and scores nothing. Every map
 records ``extra["T_cloud_obj"]`` (4x4): the object frame in the cloud's frame, so poses
 can be taken back to the sensor. What it returns (:class:`PlanResult`, :class:`GraspBatch`,
-...) is defined in :mod:`graspsim.planning.results`.
+...) is defined in :mod:`graspsim.planning.plan_results`.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import clears_table, heights_above, stream_order, table_height
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
-from graspsim.planning.results import GraspBatch, PartPlan, PlanResult, PlanStatus
+from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
 from graspsim.planning.stages import StageClock
 from graspsim.primitives import Compound, Primitive
 from graspsim.primitives.compound import object_frame

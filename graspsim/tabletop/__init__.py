@@ -17,7 +17,9 @@ from graspsim._gl import default_gl
 
 default_gl()  # before any submodule imports mujoco
 
-from graspsim.tabletop.camera import Camera, DepthFrame, DepthNoise, Intrinsics, look_at, render_depth  # noqa: E402
+from graspsim.geometry.camera import Camera, DepthFrame, Intrinsics, look_at  # noqa: E402
+from graspsim.tabletop.depth_noise import DepthNoise  # noqa: E402
+from graspsim.tabletop.depth_render import render_depth  # noqa: E402
 from graspsim.tabletop.table_scene import (  # noqa: E402
     SceneOutcome,
     SceneSim,

@@ -60,7 +60,7 @@ def _ply(points: np.ndarray, labels: np.ndarray | None, comment: str) -> bytes:
 def save_cloud(path: str | os.PathLike, points: np.ndarray, *, camera=None, frame: str = "camera",
                labels: np.ndarray | None = None) -> list[Path]:
     """Write ``points`` (N, 3) [m] (in ``frame``: "camera" or "world") to ``path``
-    (.pcd/.ply/.npy) and, when ``camera`` (a :class:`~graspsim.tabletop.camera.Camera`) is
+    (.pcd/.ply/.npy) and, when ``camera`` (a :class:`~graspsim.geometry.camera.Camera`) is
     given, its record to ``<path>.json``. labels: (N,) int per point. Returns the paths."""
     path = Path(path)
     pts = np.asarray(points, float)
@@ -100,7 +100,7 @@ def save_cloud(path: str | os.PathLike, points: np.ndarray, *, camera=None, fram
 
 
 def save_view(path: str | os.PathLike, view, *, frame: str = "camera") -> list[Path]:
-    """Write a :class:`~graspsim.tabletop.camera.CloudView` (its labels, else its geom ids)."""
+    """Write a :class:`~graspsim.geometry.camera.CloudView` (its labels, else its geom ids)."""
     pts = view.points if frame == "camera" else view.world()
     labels = view.labels if view.labels is not None else view.segmentation
     return save_cloud(path, pts, camera=view.camera, frame=frame, labels=labels)

@@ -28,11 +28,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
+from graspsim.geometry.camera import Camera, backproject, rig
 from graspsim.planning.scene import plan_scene
 from graspsim.planning.scene_config import SceneConfig
 from graspsim.planning.scene_reuse import drop_grasp, near_pose
 from graspsim.sim.noise import ExecutionNoise
-from graspsim.tabletop.camera import Camera, DepthNoise, backproject, rig
+from graspsim.tabletop.depth_noise import DepthNoise
 from graspsim.tabletop.table_scene import known_gap
 
 __all__ = ["scene_settings", "ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame", "ClutterEpisode",

@@ -69,9 +69,9 @@ def save_step_figure(path: str | Path, frame, plan, uv: np.ndarray, gripper, *, 
     """Write the three-panel picture of a step to ``path`` (.png): ``frame`` (a
     DepthFrame, RGB rendered), ``plan`` (its ScenePlan), ``uv`` (N, 2) the pixel of each
     point given to the planner, ``grasp`` (a SceneGrasp; default the plan's best)."""
-    from graspsim.plots import _pyplot
+    from graspsim.plots import pyplot
 
-    plt = _pyplot()
+    plt = pyplot()
     grasp = grasp if grasp is not None else plan.best
     lines = None if grasp is None else grasp_pixels(frame.camera, gripper, grasp.T_world_wrist, grasp.opening)
     box = _view_box(frame.depth.shape, uv[plan.perception.labels >= 0], lines)

@@ -20,6 +20,7 @@ import mujoco
 import numpy as np
 
 from graspsim.errors import InvalidParameterError, SimulationError
+from graspsim.geometry.camera import Camera, DepthFrame, Intrinsics
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.batch import arm_below_table, simulate
 from graspsim.sim.model import NAMES, build_gripper_spec
@@ -27,7 +28,7 @@ from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.outcomes import TrialOutcome
 from graspsim.sim.protocols import LiftPlace
 from graspsim.sim.scene import SimSettings, _add_object, _add_table, _set_options
-from graspsim.tabletop.camera import Camera, DepthFrame, DepthRenderer, Intrinsics
+from graspsim.tabletop.depth_render import DepthRenderer
 from graspsim.tabletop.scene_objects import ObjectSpec
 from graspsim.transforms import make_transform, matrix_to_quat, quat_to_matrix
 

@@ -247,7 +247,7 @@ def object_view(obj, camera, *, T_world_obj: np.ndarray | None = None, noise=Non
     (points (N, 3), world frame [m], T_world_obj (4, 4)). The object rests upright at the
     origin (``resting_pose``) unless ``T_world_obj`` is given; noise: a ``DepthNoise``
     drawn from ``rng``. The one camera model for single views and table scenes."""
-    from graspsim.tabletop.camera import backproject
+    from graspsim.geometry.camera import backproject
 
     body = obj.sim_object() if isinstance(obj, ObjectSpec) else obj
     T = resting_pose(body) if T_world_obj is None else np.asarray(T_world_obj, float)

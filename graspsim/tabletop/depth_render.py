@@ -1,6 +1,7 @@
-"""A simulated depth camera: MuJoCo rendering of depth frames (:class:`DepthRenderer`,
-:func:`render_depth`) for the pinhole model of :mod:`graspsim.geometry.camera` (whose names
-are importable from here too: intrinsics, pose, back-projection).
+"""The simulated depth camera's rendering: MuJoCo depth frames (:class:`DepthRenderer`,
+:func:`render_depth`) of the pinhole model of :mod:`graspsim.geometry.camera`
+(intrinsics, pose, back-projection), with the sensor's noise of
+:mod:`graspsim.tabletop.depth_noise`.
 
 Frames. The camera frame is OpenCV's: x right, y down, z forward (the viewing
 direction); a pixel (u, v) (column, row; pixel centres at integer coordinates) sees the
@@ -27,24 +28,13 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError
 from graspsim.geometry.camera import (
-    PRESETS,
     Camera,
-    CloudView,
     DepthFrame,
     Intrinsics,
-    backproject,
-    fuse,
-    look_at,
-    orbit,
-    rig,
-    to_world,
 )
-from graspsim.tabletop.cloud_io import save_cloud, save_view
 from graspsim.tabletop.depth_noise import DepthNoise
 
-__all__ = ["Intrinsics", "Camera", "DepthFrame", "CloudView", "DepthNoise", "DepthRenderer", "look_at", "orbit", "rig",
-           "render_depth", "backproject", "to_world", "fuse", "save_cloud", "save_view",
-           "PRESETS"]
+__all__ = ["DepthRenderer", "render_depth"]
 
 _GL_FROM_CV = np.diag([1.0, -1.0, -1.0])  # camera-frame axes: OpenCV -> OpenGL/MuJoCo
 
@@ -56,10 +46,10 @@ class DepthRenderer:
 
     def __init__(self, model: mujoco.MjModel, intrinsics: Intrinsics, *,
                  scene_option: mujoco.MjvOption | None = None) -> None:
-        from graspsim.sim.render import _renderer
+        from graspsim.sim.render import offscreen_renderer
 
         self.model, self.intrinsics, self.scene_option = model, intrinsics, scene_option
-        self._r = _renderer(model, intrinsics.height, intrinsics.width)
+        self._r = offscreen_renderer(model, intrinsics.height, intrinsics.width)
         self._rays = intrinsics.rays()
 
     def close(self) -> None:

@@ -125,3 +125,23 @@ def test_readme_is_short_with_contents():
     assert "<!-- report:" not in text, "full result blocks belong in docs/results.md"
     for link in re.findall(r"\]\((docs/[^)#]+)", text):
         assert (README.parent / link).is_file(), link
+
+
+def test_docs_the_code_cites_exist():
+    """Every ``docs/NAME.md`` the package, tests or experiments cite exists, and every
+    ``docs/design.md §N`` names a section of it."""
+    root = README.parent
+    heads = {int(n) for n in re.findall(r"^## (\d+)\. ", (root / "docs" / "design.md").read_text(), re.M)}
+    cited = 0
+    for folder in ("graspsim", "tests", "experiments"):
+        for path in (root / folder).rglob("*.py"):
+            if path == Path(__file__).resolve():
+                continue
+            text = path.read_text()
+            for doc in re.findall(r"\bdocs/([\w-]+\.md)", text):
+                assert (root / "docs" / doc).is_file(), f"{path.relative_to(root)} cites docs/{doc}"
+            for n in re.findall(r"docs/design\.md\s+§(\d+)", text):
+                assert int(n) in heads, f"{path.relative_to(root)} cites docs/design.md §{n}"
+                cited += 1
+            assert "DESIGN.md" not in text, f"{path.relative_to(root)} cites DESIGN.md (now docs/design.md)"
+    assert cited >= 10

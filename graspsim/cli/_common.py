@@ -45,14 +45,15 @@ def budget_from_args(args) -> dict:
         raise InvalidParameterError(f"--budget: {err}") from None
 
 
-GRIPPER_HELP = ("the gripper: festo_hgpl_25_60_a (default), franka_hand, or a JSON file of your own "
-                "parallel gripper's GripperSpec fields (see docs/grippers.md)")
+GRIPPER_HELP = ("the gripper: festo_hgpl_25_60_a (default), franka_hand, robotiq_2f85, rethink_gripper, "
+                "your gripper's model file (MJCF .xml or .urdf: measured and simulated as authored; options in "
+                "a <model>.gripper.json beside it), or a JSON file of GripperSpec fields (see docs/grippers.md)")
 
 
 def add_gripper_flag(p, help: str = GRIPPER_HELP) -> None:
-    """``--gripper NAME|SPEC.json`` (resolved by :func:`gripper_from_args`: a bad name or
-    spec file is a one-line error, exit 2)."""
-    p.add_argument("--gripper", default=None, metavar="NAME|SPEC.json", help=help)
+    """``--gripper NAME|MODEL.xml|MODEL.urdf|SPEC.json`` (resolved by
+    :func:`gripper_from_args`: a bad name or file is a one-line error, exit 2)."""
+    p.add_argument("--gripper", default=None, metavar="NAME|MODEL.xml|SPEC.json", help=help)
 
 
 def gripper_from_args(args):

@@ -11,7 +11,8 @@ from graspsim.cli._common import add_json_flag, emit, format_table, seed_value
 
 __all__ = ["register"]
 
-_GRIPPER_HELP = ("a registered gripper (festo_hgpl_25_60_a, franka_hand), a spec .json, or "
+_GRIPPER_HELP = ("a registered gripper (festo_hgpl_25_60_a, franka_hand, robotiq_2f85, rethink_gripper), a model "
+                 "file (MJCF .xml or .urdf), a spec .json, or "
                  "param=value [m] varying the base gripper (e.g. finger_length=0.05)")
 
 

@@ -55,6 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
+from graspsim._gl import import_mujoco
 from graspsim.errors import GripperError
 from graspsim.gripper import GripperSpec
 
@@ -62,9 +63,12 @@ __all__ = ["measure_model", "model_report", "pad_arc", "sidecar_path", "model_di
            "SIDECAR_KEYS", "MEASURE_VERSION", "ROWS"]
 
 MEASURE_VERSION = 1  # bump when the measurement changes: old cache entries are ignored
-ROWS = 33            # rows of the opening table
+ROWS = 33            # rows of the opening table (a linkage: stepped rows)
+DENSE = 4            # a linkage's table: each stepped interval split in this many (interpolated poses)
 TIP_CLEARANCE = 2e-3  # [m] planned contacts stay this far inside a pad's lower end (where the finger goes on)
 PAD_TOL = 2.5e-4     # [m] hull vertices this close to a pad's innermost plane form its flat face
+REST_SPEED = 1e-3    # [rad/s, m/s] a stepped linkage is at rest below this joint speed
+LINK_CLEARANCE = 1e-3  # [m] see _measure: linkage parts this close to the pad planes count as inside
 GRID = 1e-5          # [m] measured lengths are rounded outwards to this
 PREFIX = "g/"
 SIDECAR_KEYS = ("name", "root_body", "pad_geoms", "grip_force", "opening_from_joints", "angle")
@@ -105,8 +109,6 @@ def _options(path: Path, options: dict | None) -> dict:
 
 def _load_spec(path: Path, opts: dict):
     """The model's MjSpec with absolute mesh paths (it is attached into another spec)."""
-    from graspsim._gl import import_mujoco
-
     mujoco = import_mujoco()
     try:
         child = mujoco.MjSpec.from_file(str(path))
@@ -121,12 +123,47 @@ def _load_spec(path: Path, opts: dict):
         if opts["angle"] not in ("radian", "degree"):
             raise _error(path, f"angle must be 'radian' or 'degree', got {opts['angle']!r}")
         child.compiler.degree = opts["angle"] == "degree"
+    if path.suffix.lower() == ".urdf" and not child.actuators:
+        _add_urdf_drive(path, child, opts)
+    taken = {g.name for g in child.geoms}
+    for i, g in enumerate(child.geoms):  # the harness names pads (contact settings, sensors)
+        if not g.name and f"geom{i}" not in taken:
+            g.name = f"geom{i}"
     return child
 
 
+def _add_urdf_drive(path: Path, child, opts: dict) -> None:
+    """A URDF names no actuator: for prismatic fingers (slide joints, coupled by the
+    URDF's ``<mimic>``, which MuJoCo imports as an equality) add a fixed tendon over the
+    slides and a force actuator on it (control in [-1, 1] x the grip force: the sidecar's
+    ``grip_force`` or the joints' URDF effort limit)."""
+    mujoco = import_mujoco()
+
+    slides = [j for j in child.joints if j.type == mujoco.mjtJoint.mjJNT_SLIDE]
+    if len(slides) != 2 or len(slides) != len([j for j in child.joints if j.type != mujoco.mjtJoint.mjJNT_FREE]):
+        raise _error(path, "a URDF names no actuator: graspsim adds one for two prismatic fingers only; "
+                           "give an MJCF with its actuator")
+    force = opts.get("grip_force")
+    if force is None:
+        efforts = [j.actfrcrange[1] for j in slides if j.actfrcrange[1] > 0]
+        if not efforts:
+            raise _error(path, "cannot determine the grip force: the URDF's finger joints have no effort "
+                               "limit; give it in the sidecar key 'grip_force' [N per finger]")
+        force = min(efforts)
+    tendon = child.add_tendon(name="graspsim_opening")
+    for j in slides:
+        tendon.wrap_joint(j.name, 1.0)
+    act = child.add_actuator(name="graspsim_grip", target=tendon.name, trntype=mujoco.mjtTrn.mjTRN_TENDON)
+    act.set_to_motor()
+    act.gainprm[0] = float(force)
+    act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    act.ctrlrange = [-1.0, 1.0]
+
+
 def model_digest(path: Path, opts: dict) -> str:
-    """sha256 of the model file, every mesh it names, the options and MEASURE_VERSION."""
+    """sha256 of the model file, every mesh it names, the options and the measuring code."""
     h = hashlib.sha256(f"graspsim-gripper-model-v{MEASURE_VERSION}".encode())
+    h.update(Path(__file__).read_bytes())  # the measurement's own code: a change re-measures
     h.update(path.read_bytes())
     h.update(json.dumps(opts, sort_keys=True).encode())
     for mesh in sorted({m.file for m in _load_spec(path, opts).meshes if m.file}):
@@ -142,7 +179,7 @@ def _harness(child, *, block=None):
     contacts are filtered as under the trial harness's wrist), gravity off, the
     harness's solver settings; ``block`` = (centre, half sizes) in the root frame adds a
     box fixed to the root to squeeze."""
-    import mujoco
+    mujoco = import_mujoco()
 
     spec = mujoco.MjSpec()
     spec.compiler.degree = False
@@ -164,7 +201,7 @@ def _harness(child, *, block=None):
 def _hull(model, data, g: int, R_root: np.ndarray, p_root: np.ndarray) -> np.ndarray:
     """(V, 3) vertices of geom ``g``'s collision hull in the root frame (a mesh: its
     convex hull, as MuJoCo collides; a primitive: its bounding box corners)."""
-    import mujoco
+    mujoco = import_mujoco()
     from scipy.spatial import ConvexHull
 
     t = int(model.geom_type[g])
@@ -185,6 +222,19 @@ def _hull(model, data, g: int, R_root: np.ndarray, p_root: np.ndarray) -> np.nda
         v = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T * np.asarray(half)[:3]
     w = data.geom_xpos[g] + v @ data.geom_xmat[g].reshape(3, 3).T
     return (w - p_root) @ R_root
+
+
+def _top_inside(v: np.ndarray, u: np.ndarray, c: float) -> float:
+    """The highest z of the convex hull of ``v`` (V, 3) where ``u`` (V,, linear in the
+    points) < c: the vertices there and where the segments between vertices (the hull's
+    edges among them) cross u = c."""
+    z = [v[u < c, 2].max()]
+    i, j = np.triu_indices(len(v), 1)
+    cross = (u[i] - c) * (u[j] - c) < 0
+    if np.any(cross):
+        t = (c - u[i[cross]]) / (u[j[cross]] - u[i[cross]])
+        z.append((v[i[cross], 2] + t * (v[j[cross], 2] - v[i[cross], 2])).max())
+    return float(max(z))
 
 
 def _clip_z(points: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -223,7 +273,7 @@ class _Parts:
 
 
 def _identify(path: Path, child, opts: dict) -> _Parts:
-    import mujoco
+    mujoco = import_mujoco()
 
     try:
         model = _harness(child).compile()
@@ -262,9 +312,9 @@ def _identify(path: Path, child, opts: dict) -> _Parts:
     wroot = model.body_weldid[root]
     static = {g for g in geoms if model.body_weldid[model.geom_bodyid[g]] == wroot}
     moving = [g for g in geoms if g not in static]
-    if not moving:
-        raise _error(path, "no fingers found: no collision geometry moves with the joints; "
-                           "name the two pad geoms in the sidecar key 'pad_geoms'")
+    if len({int(model.geom_bodyid[g]) for g in moving}) < 2:
+        raise _error(path, "no fingers found: fewer than two bodies with collision geometry move with the "
+                           "joints; name the two pad geoms in the sidecar key 'pad_geoms'")
     if opts.get("pad_geoms") is not None:
         names = opts["pad_geoms"]
         if not (isinstance(names, list) and len(names) == 2):
@@ -286,7 +336,7 @@ def _frame(data, root: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _settle(model, data, ctrl_to: np.ndarray, *, ramp: float = 0.2, hold: float = 0.4) -> None:
     """Ramp the controls to ``ctrl_to`` over ``ramp`` s and hold them ``hold`` s."""
-    import mujoco
+    mujoco = import_mujoco()
 
     c0 = data.ctrl.copy()
     n1, n2 = int(round(ramp / model.opt.timestep)), int(round(hold / model.opt.timestep))
@@ -298,7 +348,7 @@ def _settle(model, data, ctrl_to: np.ndarray, *, ramp: float = 0.2, hold: float 
 
 
 def _is_position(model, a: int) -> bool:
-    import mujoco
+    mujoco = import_mujoco()
 
     return (model.actuator_biastype[a] == int(mujoco.mjtBias.mjBIAS_AFFINE)
             and model.actuator_biasprm[a, 1] < 0)
@@ -316,7 +366,7 @@ def _spread(model, data, geoms) -> float:
 def _ends(path: Path, parts: _Parts) -> tuple[np.ndarray, np.ndarray]:
     """(ctrl_open, ctrl_close) (nu,): for each actuator the end of its control range that
     opens / closes the fingers, found by stepping the model with it at either end."""
-    import mujoco
+    mujoco = import_mujoco()
 
     m = parts.model
     if not np.all(m.actuator_ctrllimited.astype(bool)):
@@ -338,7 +388,7 @@ def _ends(path: Path, parts: _Parts) -> tuple[np.ndarray, np.ndarray]:
             _settle(m, d, c, ramp=0.1, hold=0.3)
             spread.append(_spread(m, d, geoms))
         if abs(spread[0] - spread[1]) < 1e-4:
-            raise _error(path, f"actuator {m.actuator(a).name[len(PREFIX):]!r} does not move the fingers "
+            raise _error(path, f"actuator {m.actuator(a).name[len(PREFIX):] or a!r} does not move the fingers "
                                "(their spread changes < 0.1 mm between its control limits)")
         close[a] = lo[a] if spread[0] < spread[1] else hi[a]
     return np.where(close == lo, hi, lo), close
@@ -347,7 +397,7 @@ def _ends(path: Path, parts: _Parts) -> tuple[np.ndarray, np.ndarray]:
 def _find_pads(path: Path, parts: _Parts, q_open: np.ndarray, q_closed: np.ndarray) -> list[int]:
     """The two moving collision geoms on different bodies whose gap shrinks most from
     open to closed (the inner faces that close towards each other)."""
-    import mujoco
+    mujoco = import_mujoco()
 
     m = parts.model
     d = mujoco.MjData(m)
@@ -374,6 +424,7 @@ class _Table:
     qpos: np.ndarray        # (K, nq) of the measuring model
     ctrl: np.ndarray        # (K, nu) controls holding each row
     prismatic: bool
+    contacts: np.ndarray | None = None  # (K,) the gripper's contacts with itself at rest (linkage)
 
 
 def _jaw_joint(m, parts: _Parts, pad: int) -> int:
@@ -390,7 +441,7 @@ def _jaw_joint(m, parts: _Parts, pad: int) -> int:
 
 
 def _table(path: Path, parts: _Parts, ctrl_open, ctrl_close) -> _Table:
-    import mujoco
+    mujoco = import_mujoco()
 
     m = parts.model
     d = mujoco.MjData(m)
@@ -431,20 +482,32 @@ def _table(path: Path, parts: _Parts, ctrl_open, ctrl_close) -> _Table:
     mujoco.mj_resetData(m, d)
     d.ctrl[:] = ctrl_open
     _settle(m, d, ctrl_open, ramp=0.1, hold=0.5)
-    q, c = [], []
+    q, c, n = [], [], []
+    dofs = [m.jnt_dofadr[j] for j in parts.joints]
     for tk in t:
         ck = ctrl_open + tk * (ctrl_close - ctrl_open)
-        _settle(m, d, ck, ramp=0.1, hold=0.4)
+        _settle(m, d, ck, ramp=0.1, hold=0.2)
+        for _ in range(30):  # to rest: a linkage's passive joints may follow slowly (soft couplings)
+            if np.abs(d.qvel[dofs]).max() < REST_SPEED:
+                break
+            mujoco.mj_step(m, d, nstep=50)
         if not np.all(np.isfinite(d.qpos)):
             raise _error(path, "the model diverges when its actuators are stepped (check its joint damping)")
         q.append(d.qpos.copy())
         c.append(ck)
-    return _Table(np.array(q), np.array(c), False)
+        n.append(d.ncon)
+    q0, c0, n0 = np.array(q), np.array(c), np.array(n)
+    # the harness interpolates the joints between rows: the spec is measured at those poses too
+    f = np.linspace(0.0, 1.0, DENSE + 1)[:-1, None]
+    q = np.concatenate([(q0[:-1, None] + f * (q0[1:] - q0[:-1])[:, None]).reshape(-1, q0.shape[1]), q0[-1:]])
+    c = np.concatenate([(c0[:-1, None] + f * (c0[1:] - c0[:-1])[:, None]).reshape(-1, c0.shape[1]), c0[-1:]])
+    n = np.concatenate([np.repeat(np.maximum(n0[:-1], n0[1:]), DENSE), n0[-1:]])
+    return _Table(q, c, False, n)
 
 
 def _measure(path: Path, opts: dict) -> tuple[dict, dict]:
     """(spec fields, mount fields) of the model at ``path``."""
-    import mujoco
+    mujoco = import_mujoco()
     from scipy.spatial import ConvexHull
 
     child = _load_spec(path, opts)
@@ -517,6 +580,9 @@ def _measure(path: Path, opts: dict) -> tuple[dict, dict]:
     if len(keep) < 2:
         raise _error(path, "the pad gap does not change with the actuators")
     keep = np.array([k for k in keep if gaps[k] >= -1e-9])  # pads pressed into each other: not an opening
+    if table.contacts is not None:  # a linkage closing on its own parts (pads on knuckles) is past its range
+        free = table.contacts <= table.contacts[0]
+        keep = keep[np.array([free[:k + 1].all() for k in keep], bool)] if len(keep) else keep
     if len(keep) < 2:
         raise _error(path, "the pads never stand apart")
     gaps, W = gaps[keep], [W[k] for k in keep]
@@ -538,8 +604,12 @@ def _measure(path: Path, opts: dict) -> tuple[dict, dict]:
                 continue
             tip = max(tip, v[:, 2].max())
             u = u_of(w, g, k)
-            if np.any(u < -PAD_TOL):
-                inward.append(v[u < -PAD_TOL, 2].max())
+            # the pads' bodies define the pad planes (to the meshes' precision); the other
+            # moving parts must keep LINK_CLEARANCE outside them (they swing between the
+            # table's rows), or the housing box takes them in
+            tol = PAD_TOL if m.geom_bodyid[g] in (m.geom_bodyid[pa], m.geom_bodyid[pb]) else -LINK_CLEARANCE
+            if np.any(u < -tol):  # (a linkage part also rises between the rows: by less than its clearance)
+                inward.append(_top_inside(v, u, -tol) + (0.0 if tol > 0 else LINK_CLEARANCE))
         for pd in (pa, pb):  # a named pad geom is all pad; a finger found geometrically: its flat face
             u = u_of(w, pd, k)
             face = w[pd] if named else w[pd][u <= u.min() + PAD_TOL]
@@ -647,7 +717,7 @@ def _under(m, b: int, root: int) -> bool:
 
 def _quat(R_w: np.ndarray) -> list[float]:
     """(w, x, y, z) of the root frame in the wrist frame (R_W_root = R_w)."""
-    import mujoco
+    mujoco = import_mujoco()
 
     q = np.empty(4)
     mujoco.mju_mat2Quat(q, np.ascontiguousarray(R_w).ravel())
@@ -665,7 +735,7 @@ def _name(path: Path, child) -> str:
 
 def _force_and_speed(path, parts, opts, table, ctrl_open, ctrl_close, gaps, pa, pb, W, qtab, to_base):
     """The grip force per finger [N] and the closing speed per jaw [m/s] (see the module doc)."""
-    import mujoco
+    mujoco = import_mujoco()
 
     m = parts.model
     force = opts.get("grip_force")
@@ -734,7 +804,7 @@ def _squeeze(path, opts, parts, ctrl_close, qtab, gaps, W, pa, pb, to_base) -> f
     """The smallest pad force [N] when the model closes on a block fixed between its pads
     at 1/4, 1/2 and 3/4 of the opening range (no force range to read: a position servo
     on a linkage pushes with what its gain and the linkage give)."""
-    import mujoco
+    mujoco = import_mujoco()
 
     forces = []
     for frac in (0.25, 0.5, 0.75):

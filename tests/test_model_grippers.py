@@ -212,3 +212,26 @@ def test_a_copied_model_file_loads_with_its_sidecar_and_gives_the_same_spec(tmp_
     (tmp_path / "rethink" / "rethink_gripper.gripper.json").write_text(json.dumps({"grip_force": 15.0, "name": "mine"}))
     g2 = get_gripper(str(path))
     assert g2.grip_force == 15.0 and g2.name == "mine"
+
+
+def test_gripper_model_file_through_the_cli_on_a_tiny_map(tmp_path, capsys):
+    from graspsim.cli import main
+    from graspsim.maps import load_map
+
+    shutil.copytree(model_folder("rethink_gripper"), tmp_path / "g")
+    model = str(tmp_path / "g" / "rethink_gripper.xml")
+    f = tmp_path / "box.h5"
+    assert main(["map", "box", "--x", "0.04", "--y", "0.04", "--z", "0.04", "-o", str(f), "--surface-step", "0.01",
+                 "--rotation-step-deg", "22", "--gripper", model, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["gripper"] == "rethink_gripper"
+    gmap = load_map(f)
+    assert gmap.meta.gripper_spec.model == str((tmp_path / "g" / "rethink_gripper.xml").resolve())
+    assert main(["trial", str(f), "--sample", "6", "--min-grade", "0.7", "--threads", "1", "--no-write",
+                 "--json"]) == 0  # simulates the map's own gripper: the model file, as authored
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert s["trials"] == 6 and s["counts"]["success"] == s["feasible"] >= 1
+    (tmp_path / "g" / "rethink_gripper.xml").write_text("<mujoco><worldbody><body/></worldbody></mujoco>")
+    assert main(["map", "box", "--x", "0.04", "--y", "0.04", "--z", "0.04", "-o", str(tmp_path / "b2.h5"),
+                 "--gripper", model]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "no fingers found" in err and not (tmp_path / "b2.h5").exists()

@@ -29,7 +29,7 @@ FRANKA_BEFORE = {
     "arm_length": 0.1, "rated_force": 70.0, "model": "franka_hand"}
 
 
-def _surface(p: np.ndarray, n: int = 1500) -> np.ndarray:
+def _surface(p: np.ndarray, n: int = 600) -> np.ndarray:
     """A hull's vertices and seeded samples on its faces (a union of boxes is not convex)."""
     hull = ConvexHull(p)
     rng = np.random.default_rng(37)
@@ -38,19 +38,33 @@ def _surface(p: np.ndarray, n: int = 1500) -> np.ndarray:
     return np.concatenate([p[hull.vertices], np.einsum("nk,nkj->nj", w, tri)])
 
 
-def _hulls(m, d, geoms, wrist) -> dict[str, np.ndarray]:
-    """Collision hulls (mesh: convex hull; box: its corners) in the wrist frame."""
+_SURFACES: dict = {}
+
+
+def _local(m, g: int) -> np.ndarray:
+    """A collision geom's hull points in its own frame (mesh: its vertices; box: corners;
+    the Rethink base's cylinder: its bounding box)."""
+    corners = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T
+    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
+        mid = m.geom_dataid[g]
+        return m.mesh_vert[m.mesh_vertadr[mid]:m.mesh_vertadr[mid] + m.mesh_vertnum[mid]].astype(float)
+    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+        return corners * m.geom_size[g]
+    r, h = m.geom_size[g][:2]
+    return corners * [r, r, h]
+
+
+def _hulls(m, d, geoms, wrist, surface: bool = False) -> dict[str, np.ndarray]:
+    """Collision hull points in the wrist frame (``surface``: with samples on its faces)."""
     R, p = d.xmat[wrist].reshape(3, 3), d.xpos[wrist]
     out = {}
     for g in geoms:
-        if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
-            mid = m.geom_dataid[g]
-            v = m.mesh_vert[m.mesh_vertadr[mid]:m.mesh_vertadr[mid] + m.mesh_vertnum[mid]]
-        elif m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
-            v = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T * m.geom_size[g]
-        else:  # the Rethink base's cylinder: its bounding box
-            r, h = m.geom_size[g][:2]
-            v = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T * [r, r, h]
+        if surface:
+            v = _SURFACES.get((id(m), g))
+            if v is None:
+                v = _SURFACES[id(m), g] = _surface(_local(m, g))
+        else:
+            v = _local(m, g)
         w = d.geom_xpos[g] + v @ d.geom_xmat[g].reshape(3, 3).T
         out[m.geom(g).name] = (w - p) @ R
     return out
@@ -90,8 +104,7 @@ def test_the_measured_spec_encloses_the_collision_hulls_at_every_opening(mounted
             d.qpos[m.joint(PREFIX + n).qposadr[0]] = q
         mujoco.mj_kinematics(m, d)
         c, h = g.boxes_at(float(np.clip(w, g.min_opening, g.max_opening)))
-        for name, p in _hulls(m, d, geoms, wrist).items():
-            p = _surface(p)
+        for name, p in _hulls(m, d, geoms, wrist, surface=True).items():
             inside = np.all(np.abs(p[:, None, :] - c[None]) <= h[None] + TOL, axis=-1).any(axis=1)
             assert inside.all(), (g.name, w, name, p[~inside][:3])
 
@@ -214,6 +227,7 @@ def test_a_copied_model_file_loads_with_its_sidecar_and_gives_the_same_spec(tmp_
     assert g2.grip_force == 15.0 and g2.name == "mine"
 
 
+@pytest.mark.slow
 def test_gripper_model_file_through_the_cli_on_a_tiny_map(tmp_path, capsys):
     from graspsim.cli import main
     from graspsim.maps import load_map

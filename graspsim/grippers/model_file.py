@@ -464,6 +464,13 @@ def _table(path: Path, parts: _Parts, ctrl_open, ctrl_close) -> _Table:
         qa = [m.jnt_qposadr[j] for j in jaws]
         closed = [m.jnt_range[j][int(np.argmin(np.abs(m.jnt_range[j] - d.qpos[a])))] for j, a in zip(jaws, qa)]
         opened = [m.jnt_range[j][1] if c == m.jnt_range[j][0] else m.jnt_range[j][0] for j, c in zip(jaws, closed)]
+        for a in range(m.nu):  # a position servo opens its joint only as far as its control range reaches
+            if _is_position(m, a) and m.actuator_trntype[a] == int(mujoco.mjtTrn.mjTRN_JOINT) \
+                    and int(m.actuator_trnid[a, 0]) in jaws:
+                i = jaws.index(int(m.actuator_trnid[a, 0]))
+                reach = ctrl_open[a] / m.actuator_gear[a, 0]
+                if abs(reach - closed[i]) < abs(opened[i] - closed[i]):
+                    opened[i] = reach
         stroke = min(abs(o - c) for o, c in zip(opened, closed))  # equal strokes keep the centre
         q = np.repeat(m.qpos0[None], ROWS, axis=0)
         for a, c, o in zip(qa, closed, opened):

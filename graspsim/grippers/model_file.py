@@ -63,8 +63,8 @@ __all__ = ["measure_model", "model_report", "pad_arc", "sidecar_path", "model_di
            "SIDECAR_KEYS", "MEASURE_VERSION", "ROWS"]
 
 MEASURE_VERSION = 1  # bump when the measurement changes: old cache entries are ignored
-ROWS = 33            # rows of the opening table (a linkage: stepped rows)
-DENSE = 4            # a linkage's table: each stepped interval split in this many (interpolated poses)
+ROWS = 17            # rows of the opening table (a linkage: stepped rows)
+DENSE = 8            # a linkage's table: each stepped interval split in this many (interpolated poses)
 TIP_CLEARANCE = 2e-3  # [m] planned contacts stay this far inside a pad's lower end (where the finger goes on)
 PAD_TOL = 2.5e-4     # [m] hull vertices this close to a pad's innermost plane form its flat face
 REST_SPEED = 1e-3    # [rad/s, m/s] a stepped linkage is at rest below this joint speed
@@ -198,9 +198,15 @@ def _harness(child, *, block=None):
 
 
 # ----------------------------------------------------------------------------- geometry
-def _hull(model, data, g: int, R_root: np.ndarray, p_root: np.ndarray) -> np.ndarray:
-    """(V, 3) vertices of geom ``g``'s collision hull in the root frame (a mesh: its
-    convex hull, as MuJoCo collides; a primitive: its bounding box corners)."""
+_HULLS: dict = {}
+
+
+def _local_hull(model, g: int) -> tuple[np.ndarray, np.ndarray]:
+    """(V, 3) vertices of geom ``g``'s collision hull in its own frame (a mesh: its convex
+    hull, as MuJoCo collides; a primitive: its bounding box) and (E, 2) the hull's edges."""
+    key = (id(model), g)
+    if key in _HULLS:
+        return _HULLS[key]
     mujoco = import_mujoco()
     from scipy.spatial import ConvexHull
 
@@ -209,7 +215,6 @@ def _hull(model, data, g: int, R_root: np.ndarray, p_root: np.ndarray) -> np.nda
         mid = int(model.geom_dataid[g])
         a, n = model.mesh_vertadr[mid], model.mesh_vertnum[mid]
         v = model.mesh_vert[a:a + n].astype(float)
-        v = v[ConvexHull(v).vertices]
     else:
         s = model.geom_size[g]
         G = mujoco.mjtGeom
@@ -220,16 +225,28 @@ def _hull(model, data, g: int, R_root: np.ndarray, p_root: np.ndarray) -> np.nda
             raise GripperError(f"collision geom {model.geom(g).name!r} of type {int(t)} is not supported "
                                "(mesh, box, sphere, capsule, cylinder, ellipsoid)")
         v = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T * np.asarray(half)[:3]
+    hull = ConvexHull(v)
+    keep = hull.vertices
+    index = np.full(len(v), -1)
+    index[keep] = np.arange(len(keep))
+    tri = index[hull.simplices]
+    edges = np.unique(np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [0, 2]]]), axis=1), axis=0)
+    _HULLS[key] = (v[keep], edges)
+    return _HULLS[key]
+
+
+def _hull(model, data, g: int, R_root: np.ndarray, p_root: np.ndarray) -> np.ndarray:
+    """(V, 3) vertices of geom ``g``'s collision hull in the root frame (see _local_hull)."""
+    v = _local_hull(model, g)[0]
     w = data.geom_xpos[g] + v @ data.geom_xmat[g].reshape(3, 3).T
     return (w - p_root) @ R_root
 
 
-def _top_inside(v: np.ndarray, u: np.ndarray, c: float) -> float:
-    """The highest z of the convex hull of ``v`` (V, 3) where ``u`` (V,, linear in the
-    points) < c: the vertices there and where the segments between vertices (the hull's
-    edges among them) cross u = c."""
+def _top_inside(v: np.ndarray, edges: np.ndarray, u: np.ndarray, c: float) -> float:
+    """The highest z of the convex hull of ``v`` (V, 3; ``edges`` (E, 2)) where ``u`` (V,,
+    linear in the points) < c: the vertices there and where the hull's edges cross u = c."""
     z = [v[u < c, 2].max()]
-    i, j = np.triu_indices(len(v), 1)
+    i, j = edges[:, 0], edges[:, 1]
     cross = (u[i] - c) * (u[j] - c) < 0
     if np.any(cross):
         t = (c - u[i[cross]]) / (u[j[cross]] - u[i[cross]])
@@ -237,19 +254,19 @@ def _top_inside(v: np.ndarray, u: np.ndarray, c: float) -> float:
     return float(max(z))
 
 
-def _clip_z(points: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """Vertices of the convex hull of ``points`` cut to lo <= z <= hi (empty if none)."""
-    from scipy.spatial import QhullError
-
-    from graspsim.grippers.franka import clip_z
-
-    if points[:, 2].max() < lo or points[:, 2].min() > hi:
-        return np.zeros((0, 3))
-    try:
-        return clip_z(points, lo, hi)
-    except (QhullError, ValueError):  # a flat slice: its points are enough
-        p = points[(points[:, 2] >= lo) & (points[:, 2] <= hi)]
-        return p
+def _clip_z(v: np.ndarray, edges: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Points spanning the convex hull of ``v`` (V, 3; ``edges`` (E, 2)) cut to lo <= z <= hi:
+    its vertices inside and where its edges cross the two planes (empty if none)."""
+    z = v[:, 2]
+    out = [v[(z >= lo) & (z <= hi)]]
+    i, j = edges[:, 0], edges[:, 1]
+    for plane in (lo, hi):
+        if not np.isfinite(plane):
+            continue
+        cross = (z[i] - plane) * (z[j] - plane) < 0
+        t = (plane - z[i[cross]]) / (z[j[cross]] - z[i[cross]])
+        out.append(v[i[cross]] + t[:, None] * (v[j[cross]] - v[i[cross]]))
+    return np.concatenate(out)
 
 
 def _grid(v: float, rnd=np.ceil) -> float:
@@ -517,6 +534,7 @@ def _measure(path: Path, opts: dict) -> tuple[dict, dict]:
     mujoco = import_mujoco()
     from scipy.spatial import ConvexHull
 
+    _HULLS.clear()  # keyed by the model's id: valid within one measurement
     child = _load_spec(path, opts)
     parts = _identify(path, child, opts)
     m = parts.model
@@ -616,7 +634,7 @@ def _measure(path: Path, opts: dict) -> tuple[dict, dict]:
             # table's rows), or the housing box takes them in
             tol = PAD_TOL if m.geom_bodyid[g] in (m.geom_bodyid[pa], m.geom_bodyid[pb]) else -LINK_CLEARANCE
             if np.any(u < -tol):  # (a linkage part also rises between the rows: by less than its clearance)
-                inward.append(_top_inside(v, u, -tol) + (0.0 if tol > 0 else LINK_CLEARANCE))
+                inward.append(_top_inside(v, _local_hull(m, g)[1], u, -tol) + (0.0 if tol > 0 else LINK_CLEARANCE))
         for pd in (pa, pb):  # a named pad geom is all pad; a finger found geometrically: its flat face
             u = u_of(w, pd, k)
             face = w[pd] if named else w[pd][u <= u.min() + PAD_TOL]
@@ -639,7 +657,7 @@ def _measure(path: Path, opts: dict) -> tuple[dict, dict]:
             if g in parts.static:
                 continue
             for lo_z, hi_z, box in ((-np.inf, palmg, "h"), (palmg, topg, "j"), (topg, np.inf, "f")):
-                c = _clip_z(v, lo_z, hi_z)
+                c = _clip_z(v, _local_hull(m, g)[1], lo_z, hi_z)
                 if not len(c):
                     continue
                 if box == "h":
@@ -670,7 +688,7 @@ def _measure(path: Path, opts: dict) -> tuple[dict, dict]:
     for g, v in W[0].items():
         if side.get(g) == 1:
             vol_all += ConvexHull(v).volume
-            c = _clip_z(v, pad_top, np.inf)
+            c = _clip_z(v, _local_hull(m, g)[1], pad_top, np.inf)
             if len(c) >= 4:
                 try:
                     vol_f += ConvexHull(c).volume

@@ -13,9 +13,11 @@ attached model, as it does on the box model:
   and solimp of :class:`~graspsim.sim.model.GripperPhysics` (contact settings are the
   scene's choice, for every gripper alike);
 * a grip force other than the model's own (``SimSettings.grip_force``): a force
-  actuator's gain and its jaw joints' damping scaled by force / the model's force (the
-  fingers keep their speed), a position servo's force range scaled likewise; a servo
-  with no force range cannot be asked for another force.
+  actuator's gain scaled by force / the model's force, a position servo's force range
+  likewise (a servo with no force range cannot be asked for another force); with a
+  force actuator, the damped jaw joints' damping = force / the spec's closing speed
+  (the model's own speed unless a spec changes it, e.g. the Franka hand with slow
+  fingers; a servo's speed is the model's).
 
 :func:`model_drive` says how the harness poses its joints at an opening and turns the
 jaw command (-1 close, 0 hold, +1 open) into the model's actuator controls.
@@ -105,10 +107,11 @@ def build_vendored_gripper_spec(
                 raise InvalidParameterError(
                     f"grip_force {force} N exceeds the {gripper.model} model's limit {act.forcerange[1]} N")
             act.gainprm[0] = act.gainprm[0] * force / mnt.model_force
-    if abs(scale - 1.0) > 1e-9:
-        for name in mnt.jaw_joints:
+    if not any(_is_servo(spec.actuator(PREFIX + n)) for n in mnt.actuators):
+        for name in mnt.jaw_joints:  # a force actuator on damped jaws: they close at the spec's speed
             j = spec.joint(PREFIX + name)
-            j.damping[0] = j.damping[0] * scale
+            if j.damping[0] > 0:
+                j.damping[0] = force / gripper.closing_speed
     names = GripperNames(
         sync="", tendon="", actuator=PREFIX + mnt.actuators[0],
         jaw_neg=PREFIX + mnt.jaw_joints[0], jaw_pos=PREFIX + mnt.jaw_joints[1],

@@ -249,3 +249,19 @@ def test_gripper_model_file_through_the_cli_on_a_tiny_map(tmp_path, capsys):
                  "--gripper", model]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "no fingers found" in err and not (tmp_path / "b2.h5").exists()
+
+
+def test_a_urdf_gets_a_drive_from_its_effort_limit_and_lifts(tmp_path):
+    # the Franka hand's URDF as shipped (pybullet's): no actuator, <mimic> couples the fingers
+    shutil.copytree(model_folder("franka_hand"), tmp_path / "hand")
+    (tmp_path / "hand" / "franka_hand.gripper.json").unlink()  # the sidecar is the MJCF's
+    g = get_gripper(str(tmp_path / "hand" / "hand.urdf"))
+    franka = get_gripper("franka_hand")
+    assert g.grip_force == 20.0  # the URDF's effort limit (the MJCF's 70 N is the maker's)
+    assert g.housing_size == franka.housing_size and g.finger_size[2] == franka.finger_size[2]
+    assert g.max_opening == pytest.approx(0.08, abs=1e-3)  # the joints' 0-0.04 m, as pad gap
+    scene = build_scene(object_from_shape(__import__("graspsim").Box(0.04, 0.04, 0.04)), g)
+    T = grasp_pose(depth=g.nominal_depth, gripper=g, grasp_point=[0, 0, 0], approach=[0, 0, -1], closing=[1, 0, 0])
+    r = run_trials(scene, T[None], [0.04], LiftPlace(), threads=1)
+    assert TrialOutcome(int(r.outcome[0])) is TrialOutcome.SUCCESS
+    assert r.metrics["pad_force_neg"][0] == pytest.approx(20.0, rel=0.05)

@@ -6,13 +6,13 @@ import shutil
 import mujoco
 import numpy as np
 import pytest
+from hand_made import grasp_pose
 from scipy.spatial import ConvexHull
 
 from graspsim.errors import GripperError
 from graspsim.grippers import get_gripper, load_model_gripper, model_folder, mount
 from graspsim.grippers.model_file import pad_arc
 from graspsim.sim import LiftPlace, TrialOutcome, build_scene, object_from_shape, run_trials
-from graspsim.sim.testing import grasp_pose
 from graspsim.sim.vendored import PREFIX, build_vendored_gripper_spec
 
 MODELS = ("franka_hand", "rethink_gripper", "robotiq_2f85")

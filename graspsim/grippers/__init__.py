@@ -2,12 +2,17 @@
 
 ``get_gripper("festo_hgpl_25_60_a" | "franka_hand" | "robotiq_2f85" | "rethink_gripper" |
 "path/to/model.xml" | "path/to/model.urdf" | "path/to/spec.json")`` returns a
-:class:`~graspsim.gripper.GripperSpec`. A model file (MJCF or URDF) is measured
+:class:`~graspsim.grippers.spec.GripperSpec`. A model file (MJCF or URDF) is measured
 (:mod:`graspsim.grippers.model_file`) and simulated as authored; the vendored models are
 model files too. A JSON file holds ``GripperSpec.to_dict()``'s fields (any subset;
 missing ones take the defaults); it is validated on loading and a bad one is a one-line
 :class:`~graspsim.errors.GripperError`. Specs without a ``model`` are simulated with the
 box model generated from the spec.
+
+Holds the spec (:mod:`~graspsim.grippers.spec`: ``GripperSpec``, ``HGPL_25_60_A``), the
+registry (here), the model-file measurement, the Franka hand's measured spec, the
+vendored models' mounts and the gripper's wireframe. May use: the base modules and
+geometry only.
 """
 
 from __future__ import annotations
@@ -16,9 +21,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 from graspsim.errors import GripperError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.grippers.franka import franka_hand_spec
-from graspsim.grippers.model_file import is_model_path, measure_model
+from graspsim.grippers.model_file import is_model_path, measure_model, vendored_gripper
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.grippers.vendored import Mount, mjcf_root, model_folder
 
 __all__ = ["GRIPPERS", "DEFAULT_GRIPPER", "get_gripper", "gripper_names", "load_gripper_json", "mount",
@@ -27,18 +32,13 @@ __all__ = ["GRIPPERS", "DEFAULT_GRIPPER", "get_gripper", "gripper_names", "load_
 
 DEFAULT_GRIPPER = HGPL_25_60_A.name
 MAX_SPEC_BYTES = 1 << 20
-#: the vendored models (``graspsim/mjcf/<name>/<name>.xml``), measured like any model file
+#: the vendored models (``mjcf/<name>/<name>.xml``), measured like any model file
 VENDORED = ("franka_hand", "robotiq_2f85", "rethink_gripper")
 GRIPPERS: dict[str, Callable[[], GripperSpec]] = {
     HGPL_25_60_A.name: lambda: HGPL_25_60_A,
     "franka_hand": franka_hand_spec,
     **{n: (lambda n=n: vendored_gripper(n)[0]) for n in VENDORED[1:]},
 }
-
-
-def vendored_gripper(name: str) -> tuple[GripperSpec, Mount]:
-    """(spec, mount) of the vendored model ``name``, measured from its file."""
-    return measure_model(model_folder(name) / f"{name}.xml", {"name": name}, model=name)
 
 
 def load_model_gripper(path: str | Path, **options) -> GripperSpec:

@@ -1,7 +1,7 @@
 """The Franka Emika hand: its :class:`GripperSpec` measured from the vendored model.
 
 Nothing here is typed in from a data sheet: the boxes, the stroke, the force and the
-closing speed are read from ``graspsim/mjcf/franka_hand/franka_hand.xml`` (converted from the
+closing speed are read from ``mjcf/franka_hand/franka_hand.xml`` (converted from the
 maker's URDF) and from its collision meshes (MuJoCo collides with their convex hulls).
 
 Frame mapping. The hand frame H of the URDF has z = approach and the fingers closing
@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.model_file import vendored_gripper
+from graspsim.grippers.spec import GripperSpec
 from graspsim.grippers.vendored import Mount
 
 __all__ = ["franka_hand_spec", "franka_hand_mount", "hand_to_wrist", "hull_points", "clip_z", "PAD_TOL"]
@@ -86,13 +87,9 @@ def franka_hand_spec() -> GripperSpec:
     joints (the URDF's convention: each joint is half the gap; the finger meshes' inner
     faces lie 0.1 mm past the joints' zero). Stroke and closed gap: the joints' range;
     grip force: the actuator's gain (70 N); closing speed: force / joint damping."""
-    from graspsim.grippers import vendored_gripper
-
     return vendored_gripper(NAME)[0]
 
 
 def franka_hand_mount() -> Mount:
     """The hand frame in the wrist frame: origin at (0, 0, -z0), turned Rz(-90 deg)."""
-    from graspsim.grippers import vendored_gripper
-
     return vendored_gripper(NAME)[1]

@@ -1,7 +1,7 @@
 """A gripper from its model file (MJCF, or URDF): what the harness drives and a measured spec.
 
 ``measure_model(path)`` reads a two-finger gripper's MuJoCo model (``.xml``) or URDF
-(``.urdf``, MuJoCo's importer) and returns the :class:`~graspsim.gripper.GripperSpec` the
+(``.urdf``, MuJoCo's importer) and returns the :class:`~graspsim.grippers.spec.GripperSpec` the
 planner uses and the :class:`~graspsim.grippers.vendored.Mount` the trial harness
 attaches, both measured from the model in MuJoCo, nothing typed in:
 
@@ -57,9 +57,9 @@ import numpy as np
 
 from graspsim._gl import import_mujoco
 from graspsim.errors import GripperError
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 
-__all__ = ["measure_model", "model_report", "pad_arc", "sidecar_path", "model_digest",
+__all__ = ["measure_model", "vendored_gripper", "model_report", "pad_arc", "sidecar_path", "model_digest",
            "SIDECAR_KEYS", "MEASURE_VERSION", "ROWS"]
 
 MEASURE_VERSION = 1  # bump when the measurement changes: old cache entries are ignored
@@ -883,6 +883,14 @@ def measure_model(path: str | Path, options: dict | None = None, *, model: str |
     opts = _options(p, options)
     digest = model_digest(p, opts)
     return _measured(str(p), digest, json.dumps(opts, sort_keys=True), model)
+
+
+def vendored_gripper(name: str):
+    """(GripperSpec, Mount) of the vendored model ``name`` (``mjcf/<name>/<name>.xml``),
+    measured from its file like any model file."""
+    from graspsim.grippers.vendored import model_folder
+
+    return measure_model(model_folder(name) / f"{name}.xml", {"name": name}, model=name)
 
 
 @functools.lru_cache(maxsize=16)

@@ -1,7 +1,7 @@
 """Gripper models simulated as authored: where the vendored ones live, how a model mounts.
 
-A gripper with a ``model`` (a vendored folder name such as ``franka_hand``, or a model
-file's path) is simulated from its model file as it is:
+A gripper with a ``model`` (a vendored folder name such as ``franka_hand``, in
+``mjcf/<name>/<name>.xml``, or a model file's path) is simulated from its model file as it is:
 :func:`graspsim.sim.vendored.build_vendored_gripper_spec` attaches the file's root body
 under the harness's wrist body at the pose its :class:`Mount` gives. The mount is
 measured from the file (:mod:`graspsim.grippers.model_file`): the gripper's joints and
@@ -69,7 +69,7 @@ class Mount:
 
 
 def mjcf_root() -> Path:
-    """``graspsim/mjcf``: the model folders, installed with the package (package data)."""
+    """``mjcf``: the model folders, installed with the package (package data)."""
     from graspsim._resources import package_path
 
     return package_path("mjcf")

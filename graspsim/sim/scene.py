@@ -22,13 +22,12 @@ import mujoco
 import numpy as np
 
 from graspsim.errors import InvalidParameterError, SimulationError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, box_drive, build_gripper_spec
 from graspsim.sim.objects import SimObject
 from graspsim.sim.vendored import build_vendored_gripper_spec, model_drive
 
-__all__ = ["SimSettings", "Scene", "build_scene", "resting_pose", "state_slice", "add_gripper", "gripper_drive",
-           "gripper_geoms"]
+__all__ = ["SimSettings", "Scene", "build_scene", "resting_pose", "add_gripper", "gripper_drive", "gripper_geoms"]
 
 log = logging.getLogger(__name__)
 
@@ -144,13 +143,6 @@ class Scene:
                 "settings": self.settings.to_dict(), "table": self.table,
                 "gravity": self.gravity, "T_world_obj": self.T_world_obj.tolist(),
                 "mujoco_version": mujoco.__version__}
-
-
-def state_slice(model: mujoco.MjModel, part: int,
-                spec: int = mujoco.mjtState.mjSTATE_FULLPHYSICS) -> slice:
-    """Where the state component ``part`` (an mjtState bit) lies in a ``spec`` state."""
-    start = mujoco.mj_stateSize(model, int(spec) & (int(part) - 1))
-    return slice(start, start + mujoco.mj_stateSize(model, int(part)))
 
 
 def _inside(poly: np.ndarray, point: np.ndarray, margin: float = 1e-4) -> bool:

@@ -1,6 +1,6 @@
 """A gripper model file in the trial harness, simulated as authored.
 
-The model (a vendored ``graspsim/mjcf/<model>/<model>.xml`` or any model file a spec's
+The model (a vendored ``mjcf/<model>/<model>.xml`` or any model file a spec's
 ``model`` names) is attached as it is under the harness's wrist body (the same mocap
 target, free wrist and weld as the generated box model, see :mod:`graspsim.sim.model`),
 at the pose its :class:`~graspsim.grippers.Mount` gives (measured from the file, see
@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 
 from graspsim.errors import InvalidParameterError, SimulationError
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, add_weld, add_wrist, drive_force
 
 __all__ = ["build_vendored_gripper_spec", "model_drive", "PREFIX"]

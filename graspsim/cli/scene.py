@@ -2,7 +2,7 @@
 
     graspsim scene [--objects N] [--scenes S] [--kind pile|packed] [--object-set SET]
                    [--min-gap M] [--noise] [--no-neighbours] [--ground-truth] [--max-attempts M]
-                   [--seed S] [--db DIR] [--gripper NAME|SPEC.json] [--render DIR]
+                   [--seed S] [--db DIR] [--gripper NAME|MODEL.xml|SPEC.json] [--render DIR]
                    [--save-scenes DIR] [--json]
 
 Each scene is drawn and settled in MuJoCo, rendered by one D435-like depth camera, and

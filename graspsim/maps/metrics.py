@@ -77,7 +77,7 @@ def map_rates(gmap: GraspabilityMap, *, shape=None, min_grade: float = 0.0,
 def wrist_box(shape, gripper: GripperSpec) -> tuple[np.ndarray, np.ndarray]:
     """Box that can hold a wrist: the object's bounds grown by the longest grasp point
     to wrist distance (the TCP offset at the smallest contact depth) [m]."""
-    reach = float(gripper.tcp_offset(gripper.contact_depth_margin))
+    reach = float(gripper.tcp_offset(gripper.depth_lo))
     b = shape.aabb
     return b[0] - reach, b[1] + reach
 

@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from graspsim.errors import MeshError
-from graspsim.sim import CoacdParams, convex_parts, load_mesh, object_from_mesh
+from graspsim.sim import CoacdParams, convex_parts, load_mesh, object_from_mesh, prepare_mesh
 
 BREAD = Path(__file__).resolve().parents[1] / "assets/objects/robosuite/bread.stl"
 
@@ -34,8 +34,9 @@ def test_unreadable_or_missing_meshes_raise_mesh_error(tmp_path):
 
 def test_convex_meshes_skip_coacd(tmp_path):
     box = trimesh.creation.box([0.04, 0.05, 0.06])
-    parts = convex_parts(box, cache_dir=tmp_path)
-    assert len(parts) == 1 and not any(tmp_path.iterdir())
+    prepared = prepare_mesh(box, cache_dir=tmp_path, params=CoacdParams(time_limit=0.0))
+    assert prepared.method == "convex" and len(prepared.parts) == 1 and prepared.warning is None
+    assert prepared.mass_from == "mesh" and prepared.volume == pytest.approx(0.04 * 0.05 * 0.06)
 
 
 @pytest.mark.slow

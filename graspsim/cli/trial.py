@@ -1,7 +1,8 @@
 """``graspsim trial``: simulate a map's grasps in MuJoCo and store the outcomes in the map.
 
     graspsim trial MAP.h5 [--protocol lift_place|tug] [--top N [--rank robust|paper] |
-                   --sample N --min-grade G] [--threads T] [--render DIR] [--mesh FILE]
+                   --sample N --min-grade G] [--threads T] [--render DIR]
+                   [--mesh FILE [--mesh-scale S]]
                    [--seed S] [--noise] [--all] [--json]
 
 A selection that holds no grasp is an error (nonzero exit), not an empty table. Before
@@ -53,7 +54,10 @@ def register(subparsers) -> None:
     p.add_argument("--mesh", metavar="FILE",
                    help="simulate against this mesh (the real object) instead of the map's "
                         "primitives, placed by the map's cloud->object transform")
-    p.add_argument("--mesh-scale", type=float, default=1.0, help="scale of the mesh file's units")
+    p.add_argument("--mesh-scale", type=float, default=1.0, metavar="S",
+                   help="multiplies the mesh file's coordinates to give metres (0.001 for millimetres, "
+                        "0.01 for centimetres; default 1). A mesh wider than 2 m or smaller than 5 mm is "
+                        "refused: its units are probably not metres")
     p.add_argument("--mass", type=float, help="object mass [kg] (default: the map's, or density)")
     p.add_argument("--friction", type=float,
                    help="pad-object friction (default: the map's quality model mu)")
@@ -103,10 +107,7 @@ def run(args) -> int:
         args.grip_force is not None and args.friction is None) else None
     if args.gripper is not None:
         _check_gripper(gripper_from_args(args), header.gripper_spec)
-    if args.mesh is not None:
-        from graspsim.sim.meshes import check_mesh_path
-
-        check_mesh_path(args.mesh)
+    mesh = _prepared_mesh(args) if args.mesh is not None else None
     settings = None
     if args.friction is not None or args.grip_force is not None:
         mu = args.friction
@@ -125,7 +126,7 @@ def run(args) -> int:
         out = simulate_map(
             args.map, protocol=protocol, top=args.top, sample=args.sample,
             min_grade=args.min_grade, threads=args.threads, seed=args.seed,
-            noise=ExecutionNoise() if args.noise else None, mesh=args.mesh,
+            noise=ExecutionNoise() if args.noise else None, mesh=mesh,
             mesh_scale=args.mesh_scale, mass=args.mass, settings=settings,
             write=not args.no_write, on_progress=tick, on_selected=_selection_check(args, bar),
             on_record=recorder, rank=args.rank)
@@ -141,7 +142,8 @@ def run(args) -> int:
         "feasible": res.feasible, "counts": counts, "success_rate": res.success_rate,
         "trials_per_second": res.trials_per_second, "wall_time_s": res.wall_time,
         "threads": res.threads, "seed": args.seed, "noise": res.noise, "rank": args.rank,
-        "mesh": args.mesh, "written_to": out.group, "renders": renders, "record": args.record,
+        "mesh": args.mesh, "mesh_model": None if mesh is None else mesh.describe(),
+        "written_to": out.group, "renders": renders, "record": args.record,
     }
     n = max(1, len(res))
     rows = [(o.label, counts[o.label], 100.0 * counts[o.label] / n) for o in TrialOutcome]
@@ -149,8 +151,27 @@ def run(args) -> int:
     human = (format_table(rows, ["outcome", "trials", "%"]) + "\n\n"
              f"success rate (feasible poses): {rate}; {res.trials_per_second:.1f} trials/s "
              f"on {res.threads} thread(s)" + (f"; results in {out.group}" if out.group else ""))
+    if mesh is not None:
+        m = mesh.describe()
+        human += (f"\nmesh {args.mesh}: {m['parts']} convex part(s) ({m['method']}), mass from the "
+                  f"{'closed mesh' if m['mass_from'] == 'mesh' else 'convex parts (the mesh is open)'}"
+                  f"{', from the cache' if m['from_cache'] else ''}")
     emit(summary, args.json, human)
     return 0
+
+
+def _prepared_mesh(args):
+    """``--mesh`` prepared for simulation (checked, decomposed within its time limit or
+    read from the cache), with a progress bar on a terminal once it takes over 2 s."""
+    from graspsim.cli._common import progress
+    from graspsim.sim.meshes import prepare_mesh
+
+    with progress(100, "preparing the mesh", enabled=not args.json, unit="%", delay=2.0) as bar:
+        def report(stage: str, fraction: float) -> None:
+            bar.set_description(f"{stage} the mesh (time limit)", refresh=False)
+            bar.update(int(100 * fraction) - bar.n)
+
+        return prepare_mesh(args.mesh, scale=args.mesh_scale, progress=report)
 
 
 def _render(args, out, protocol) -> list[str]:

@@ -28,14 +28,21 @@ def _stage(name: str) -> None:
     print(f"stage {name}", flush=True)
 
 
+def decimate(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh with at most about ``max_faces`` faces (quadric decimation; unchanged if
+    it has no more)."""
+    if len(faces) <= max_faces:
+        return vertices, faces
+    import fast_simplification
+
+    return fast_simplification.simplify(np.ascontiguousarray(vertices, np.float64),
+                                        np.ascontiguousarray(faces, np.int64), target_count=int(max_faces))
+
+
 def run(vertices: np.ndarray, faces: np.ndarray, params: dict) -> tuple[list[np.ndarray], int]:
     if len(faces) > params["max_faces"]:
         _stage("decimating")
-        import fast_simplification
-
-        vertices, faces = fast_simplification.simplify(
-            np.ascontiguousarray(vertices, np.float64), np.ascontiguousarray(faces, np.int64),
-            target_count=int(params["max_faces"]))
+        vertices, faces = decimate(vertices, faces, params["max_faces"])
     _stage("decomposing")
     import coacd
 

@@ -111,7 +111,8 @@ class PreparedMesh:
     [m], unit_inertia (3, 3) [m^2] (inertia about the COM per kg); mass_from: "mesh"
     (closed mesh) or "parts" (the union of the parts stands in); surface: the mesh
     (trimesh); faces: the file's face count; watertight; warning: the fallback's reason,
-    or None; key: the cache key; from_cache; seconds: the time preparation took."""
+    or None; key: the cache key; from_cache; seconds: the time preparation took; source:
+    the file (or "<trimesh>"); scale: the scale applied to the file's coordinates."""
 
     parts: tuple[np.ndarray, ...]
     method: str
@@ -127,10 +128,11 @@ class PreparedMesh:
     from_cache: bool = False
     seconds: float = 0.0
     source: str = ""
+    scale: float = 1.0
 
     def describe(self) -> dict:
         """What was simulated, for results and ``--json``."""
-        return {"file": self.source, "faces": self.faces, "watertight": self.watertight,
+        return {"file": self.source, "scale": self.scale, "faces": self.faces, "watertight": self.watertight,
                 "method": self.method, "parts": len(self.parts), "mass_from": self.mass_from,
                 "volume_cm3": round(self.volume * 1e6, 4), "from_cache": self.from_cache,
                 "seconds": round(self.seconds, 3), "warning": self.warning}
@@ -257,20 +259,28 @@ def _key(vertices: np.ndarray, faces: np.ndarray, scale: float, params: CoacdPar
     return h.hexdigest()[:32]
 
 
+def _grid_first(points: np.ndarray, cells: int) -> np.ndarray:
+    """One point per cell of a grid of ``cells`` across the widest extent (the first in order)."""
+    pitch = float(np.ptp(points, axis=0).max()) / cells
+    keys = np.floor((points - points.min(axis=0)) / pitch).astype(np.int64)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    return points[np.sort(first)]
+
+
 def _thin(points: np.ndarray, max_vertices: int) -> np.ndarray:
     """The hull vertices of ``points``, thinned on a grid (one per cell, the first in
-    file order) until at most ``max_vertices`` remain; deterministic."""
+    order; 256 cells across, then halved) until at most ``max_vertices`` remain;
+    deterministic. The grid goes first: Qhull is slow on 100k co-circular points."""
     from scipy.spatial import ConvexHull
 
-    hull = points[ConvexHull(points).vertices]
     cells = 256
-    while len(hull) > max_vertices and cells >= 4:
-        pitch = float(np.ptp(hull, axis=0).max()) / cells
-        keys = np.floor((hull - hull.min(axis=0)) / pitch).astype(np.int64)
-        _, first = np.unique(keys, axis=0, return_index=True)
-        kept = hull[np.sort(first)]
-        hull = kept[ConvexHull(kept).vertices]
+    if len(points) > max_vertices:
+        points = _grid_first(points, cells)
+    hull = points[ConvexHull(points).vertices]
+    while len(hull) > max_vertices and cells >= 8:
         cells //= 2
+        kept = _grid_first(hull, cells)
+        hull = kept[ConvexHull(kept).vertices]
     return np.ascontiguousarray(hull, dtype=np.float64)
 
 
@@ -449,13 +459,14 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
     if cached is not None:
         out = PreparedMesh(cached["parts"], cached["method"], float(cached["volume"]), np.asarray(cached["com"]),
                            np.asarray(cached["unit_inertia"]), cached["mass_from"], cached["surface"], len(faces),
-                           bool(cached["watertight"]), cached["warning"], key, True, time.perf_counter() - t0, label)
+                           bool(cached["watertight"]), cached["warning"], key, True, time.perf_counter() - t0, label,
+                           scale)
     else:
         mesh = _clean(vertices, faces, scale, name)
         parts, method, warning = _build(mesh, params, name, progress)
         volume, com, unit, mass_from = _mass_properties(mesh, parts)
         out = PreparedMesh(tuple(parts), method, volume, com, unit, mass_from, mesh, len(faces),
-                           bool(mesh.is_watertight), warning, key, False, time.perf_counter() - t0, label)
+                           bool(mesh.is_watertight), warning, key, False, time.perf_counter() - t0, label, scale)
         _cache_write(file, out)
         log.info("prepared %s: %d convex parts (%s) in %.1f s", name, len(parts), method, out.seconds)
     if out.warning:

@@ -156,7 +156,7 @@ def object_from_mesh(path, *, T_obj_mesh: np.ndarray | None = None,
     if T_obj_mesh is not None:
         surface.apply_transform(T)
     m = _mass(prepared.volume, mass, density)
-    desc = {"primitive": "mesh", "file": prepared.source, "scale": scale, "parts": len(prepared.parts),
+    desc = {"primitive": "mesh", "file": prepared.source, "scale": prepared.scale, "parts": len(prepared.parts),
             "model": prepared.describe()}
     return SimObject(tuple(GeomPart("mesh", vertices=transform_points(T, p)) for p in prepared.parts), m,
                      R @ prepared.com + T[:3, 3], m * (R @ prepared.unit_inertia @ R.T), surface, desc)

@@ -20,7 +20,8 @@ convex parts first. :func:`prepare_mesh` is the one entry point (``graspsim tria
    remaining component, with a one-line warning (:attr:`PreparedMesh.warning`);
 5. caches the result under :func:`default_cache_dir`, keyed by a hash of the file's
    vertex and face arrays, the scale and the settings, written atomically: a second
-   run of the same mesh loads it (no decomposition, no decimation).
+   run of the same mesh loads it (no decomposition, no decimation). A complete model
+   serves every time limit; a fallback is kept apart, for the time limit that gave it.
 
 Mass properties: a closed mesh's own volume, centre of mass and inertia; an open or
 non-manifold mesh has no meaningful volume, so those of the union of its convex parts
@@ -29,7 +30,9 @@ non-manifold mesh has no meaningful volume, so those of the union of its convex 
 The decomposition is deterministic (CoACD's seed) for a given mesh, scale and settings,
 except where the time limit decides between CoACD's parts and the hull fallback: a mesh
 whose decomposition takes about ``time_limit`` may fall either way on a loaded machine.
-The cache then pins the first result; :attr:`PreparedMesh.method` records it.
+The cache then pins the first result; :attr:`PreparedMesh.method` records it. Callers
+that need the same model everywhere (the meshes shipped for scenes) pass
+``time_limit=math.inf``.
 """
 
 from __future__ import annotations
@@ -93,8 +96,8 @@ class CoacdParams:
             raise InvalidParameterError(f"CoACD threshold must be in [0.01, 1], got {self.threshold!r}")
         if self.max_parts == 0 or self.max_parts < -1:
             raise InvalidParameterError(f"max_parts must be -1 or >= 1, got {self.max_parts!r}")
-        if not (np.isfinite(self.time_limit) and self.time_limit >= 0):
-            raise InvalidParameterError(f"time_limit must be >= 0 s, got {self.time_limit!r}")
+        if not self.time_limit >= 0:  # inf: no limit (the shipped scene meshes)
+            raise InvalidParameterError(f"time_limit must be >= 0 s (inf: none), got {self.time_limit!r}")
         for name in ("max_faces", "max_hull_vertices", "resolution", "preprocess_resolution",
                      "mcts_iterations", "mcts_nodes", "mcts_max_depth"):
             if int(getattr(self, name)) < 1:
@@ -454,8 +457,10 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
         vertices, faces = _read_arrays(path)
     check_mesh_arrays(vertices, faces, scale=scale, name=name)
     key = _key(vertices, faces, scale, params)
-    file = (Path(cache_dir) if cache_dir is not None else default_cache_dir()) / f"{key}.npz"
-    cached = _cache_read(file)
+    # a complete model serves any time limit; a fallback only the limit that gave it
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    file, fallback = folder / f"{key}.npz", folder / f"{key}.hull-{params.time_limit:g}s.npz"
+    cached = _cache_read(file) or _cache_read(fallback)
     if cached is not None:
         out = PreparedMesh(cached["parts"], cached["method"], float(cached["volume"]), np.asarray(cached["com"]),
                            np.asarray(cached["unit_inertia"]), cached["mass_from"], cached["surface"], len(faces),
@@ -467,7 +472,7 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
         volume, com, unit, mass_from = _mass_properties(mesh, parts)
         out = PreparedMesh(tuple(parts), method, volume, com, unit, mass_from, mesh, len(faces),
                            bool(mesh.is_watertight), warning, key, False, time.perf_counter() - t0, label, scale)
-        _cache_write(file, out)
+        _cache_write(fallback if method == "hull" else file, out)
         log.info("prepared %s: %d convex parts (%s) in %.1f s", name, len(parts), method, out.seconds)
     if out.warning:
         log.warning("%s%s", out.warning, " (cached)" if out.from_cache else "")

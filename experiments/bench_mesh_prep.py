@@ -11,7 +11,8 @@ given), each step in a fresh Python process, as a user runs it:
   time (the goal's number; reading the file included), and apart from it the import of
   ``graspsim.sim`` (mujoco, trimesh, scipy: the same for every mesh) and the process's wall time;
 * ``cached``: the same call again in a new process (a cache hit), timed the same way;
-* ``trial`` (the generated cases, and every ``--trial-every``-th file of the folder):
+* ``trial`` (the generated cases, every ``--trial-every``-th file of the folder and
+  those named by ``--trial-names``, the Lego brick by default):
   ``graspsim trial MAP --top 10 --mesh MESH --json --no-write`` with another empty cache,
   wall time of the whole command. MAP holds 10 horizontal grasps through the mesh's
   centre (a hand-made map, the mesh in its frame): the trial's outcomes measure the time
@@ -57,6 +58,7 @@ print(json.dumps({**p.describe(), "import_s": t1 - t0, "call_s": time.perf_count
 class Config:
     folder: str = opt("", "a folder of mesh files (searched recursively: .stl .obj .ply); none by default")
     trial_every: int = opt(4, "trial every N-th mesh of --folder (1: all)")
+    trial_names: tuple[str, ...] = opt(("lego",), "meshes of --folder always trialled (file stems)")
     tube_sections: int = opt(256, "sections of the open cylinder")
     big_sections: int = opt(81_920, "sections of the big cylinder (4 x sections faces)")
     torus_faces: int = opt(500_000, "faces of the torus")
@@ -132,7 +134,8 @@ def run(cfg: Config) -> list[dict]:
         cases = [(n, p, cfg.trials) for n, p in generated(cfg, work)]
         if cfg.folder:
             files = sorted(p for p in Path(cfg.folder).rglob("*") if p.suffix.lower() in (".stl", ".obj", ".ply"))
-            cases += [(f"{p.parent.name}/{p.stem}", p, cfg.trials and i % max(1, cfg.trial_every) == 0)
+            cases += [(f"{p.parent.name}/{p.stem}", p,
+                       cfg.trials and (i % max(1, cfg.trial_every) == 0 or p.stem in cfg.trial_names))
                       for i, p in enumerate(files)]
         rows = [measure(name, path, trial, work) for name, path, trial in cases]
     return rows

@@ -10,6 +10,8 @@ given), each step in a fresh Python process, as a user runs it:
 * ``first``: :func:`graspsim.prepare_mesh` with an empty cache folder: the call's own
   time (the goal's number; reading the file included), and apart from it the import of
   ``graspsim.sim`` (mujoco, trimesh, scipy: the same for every mesh) and the process's wall time;
+  the call's CPU time (its worker process's included) says how much of a slow call was
+  the machine's load;
 * ``cached``: the same call again in a new process (a cache hit), timed the same way;
 * ``trial`` (the generated cases, every ``--trial-every``-th file of the folder and
   those named by ``--trial-names``, the Lego brick by default):
@@ -45,12 +47,14 @@ log = logging.getLogger("bench_mesh_prep")
 GOAL_FIRST_S, GOAL_CACHED_S, GOAL_TRIAL_S = 20.0, 1.0, 60.0
 
 _PREPARE = """
-import json, sys, time
+import json, resource, sys, time
+def cpu():
+    return time.process_time() + sum(resource.getrusage(resource.RUSAGE_CHILDREN)[:2])
 t0 = time.perf_counter()
 from graspsim.sim import prepare_mesh
-t1 = time.perf_counter()
+t1, c1 = time.perf_counter(), cpu()
 p = prepare_mesh(sys.argv[1])
-print(json.dumps({**p.describe(), "import_s": t1 - t0, "call_s": time.perf_counter() - t1}))
+print(json.dumps({**p.describe(), "import_s": t1 - t0, "call_s": time.perf_counter() - t1, "call_cpu_s": cpu() - c1}))
 """
 
 
@@ -115,6 +119,7 @@ def measure(name: str, path: Path, trial: bool, work: Path) -> dict:
             return row
         d = json.loads(r["stdout"].strip().splitlines()[-1])
         row[step] = {"wall_s": r["wall_s"], "import_s": d["import_s"], "call_s": d["call_s"],
+                     "call_cpu_s": d["call_cpu_s"],
                      "load_before": r["load_before"]}
         row.update({k: d[k] for k in ("faces", "watertight", "method", "parts", "mass_from", "warning")})
     if trial:
@@ -153,13 +158,14 @@ def goals(rows: list[dict]) -> dict:
 
 
 def table(rows: list[dict]) -> str:
-    f = lambda r, s, k: f"{r[s][k]:.1f}" if s in r and k in r[s] else "–"  # noqa: E731
-    out = ["| mesh | faces | closed | model | parts | mass from | first [s] | cached [s] | import [s] | "
-           "trial 10 [s] |", "|---|---:|---|---|---:|---|---:|---:|---:|---:|"]
+    f = lambda r, s, k: f"{r[s][k]:.2f}" if s in r and k in r[s] else "–"  # noqa: E731
+    out = ["| mesh | faces | closed | model | parts | mass from | first [s] | first CPU [s] | cached [s] | "
+           "cached CPU [s] | import [s] | trial 10 [s] |", "|---|---:|---|---|---:|---|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         out.append(f"| {r['mesh']} | {r.get('faces', '–')} | {'yes' if r.get('watertight') else 'no'} | "
                    f"{r.get('method', 'error')} | {r.get('parts', '–')} | {r.get('mass_from', '–')} | "
-                   f"{f(r, 'first', 'call_s')} | {f(r, 'cached', 'call_s')} | {f(r, 'cached', 'import_s')} | "
+                   f"{f(r, 'first', 'call_s')} | {f(r, 'first', 'call_cpu_s')} | {f(r, 'cached', 'call_s')} | "
+                   f"{f(r, 'cached', 'call_cpu_s')} | {f(r, 'cached', 'import_s')} | "
                    f"{f(r, 'trial', 'wall_s')} |")
     return "\n".join(out)
 

@@ -23,18 +23,19 @@ def _open_cylinder(radius=0.03, height=0.1, sections=64) -> trimesh.Trimesh:
 
 
 def test_an_open_mesh_past_its_time_bound_gets_the_hull_model_with_a_warning(tmp_path, caplog):
-    """The decomposition's worker is killed at the bound (0.2 s: it cannot even start
-    CoACD), and the model falls back to the tube's hull: one line of warning, a model
-    with a volume, mass properties from the parts (the tube itself encloses nothing)."""
+    """The decomposition's worker is killed at the bound (0.2 s from the start: it cannot
+    even start CoACD; under load the bound may pass before it starts), and the model
+    falls back to the tube's hull: one line of warning, a model with a volume, mass
+    properties from the parts (the tube itself encloses nothing)."""
     tube = _open_cylinder()
     assert not tube.is_watertight
     seen = []
     with caplog.at_level(logging.WARNING, logger="graspsim.sim.meshes"):
         prepared = prepare_mesh(tube, params=CoacdParams(time_limit=0.2), cache_dir=tmp_path,
                                 progress=lambda stage, f: seen.append((stage, f)))
-    assert seen and all(stage == "decomposing" and 0.0 <= f <= 1.0 for stage, f in seen)
+    assert all(stage == "decomposing" and 0.0 <= f <= 1.0 for stage, f in seen)
     assert prepared.method == "hull" and prepared.mass_from == "parts"
-    assert "did not finish in 0.2 s" in prepared.warning and "\n" not in prepared.warning
+    assert "time limit of 0.2 s" in prepared.warning and "\n" not in prepared.warning
     assert [r for r in caplog.records if r.levelno == logging.WARNING and "convex hull" in r.getMessage()]
     assert len(prepared.parts) == 1
     hull = trimesh.convex.convex_hull(prepared.parts[0])

@@ -13,9 +13,9 @@ convex parts first. :func:`prepare_mesh` is the one entry point (``graspsim tria
 2. splits the mesh into connected components: a convex, closed component is its own
    hull (the multi-body meshes of primitives need nothing more);
 3. decomposes the rest with CoACD (Wei et al. 2022) after decimating it to at most
-   ``max_faces`` faces (fast-simplification), in a separate process killed after
-   ``time_limit`` seconds (CoACD has no limit of its own: an open mesh or one of a few
-   thousand faces can take many minutes);
+   ``max_faces`` faces (fast-simplification), in a separate process killed when
+   ``time_limit`` seconds have passed since the preparation began (CoACD has no limit of
+   its own: an open mesh or one of a few thousand faces can take many minutes);
 4. if that process fails or runs out of time, falls back to the convex hull of each
    remaining component, with a one-line warning (:attr:`PreparedMesh.warning`);
 5. caches the result under :func:`default_cache_dir`, keyed by a hash of the file's
@@ -74,8 +74,9 @@ class CoacdParams:
     """Mesh preparation settings. threshold: CoACD's concavity tolerance (smaller = more
     parts); max_parts: cap on CoACD's convex hulls (-1 = none); preprocess_resolution,
     resolution, mcts_*: CoACD's manifold remeshing, sampling and tree search; seed:
-    CoACD's seed (reproducible parts); time_limit [s]: wall-clock bound on decimation and
-    decomposition together, after which the hull fallback is taken; max_faces: meshes
+    CoACD's seed (reproducible parts); time_limit [s]: wall-clock bound on the whole
+    preparation (reading, checks, decimation, decomposition), after which the hull
+    fallback is taken (inf: none); max_faces: meshes
     with more faces are decimated to this many before CoACD; max_hull_vertices: a convex
     part with more vertices is thinned on a grid (MuJoCo hulls of 100k vertices are slow)."""
 
@@ -87,7 +88,7 @@ class CoacdParams:
     mcts_iterations: int = 150
     mcts_nodes: int = 20
     mcts_max_depth: int = 3
-    time_limit: float = 12.0
+    time_limit: float = 15.0
     max_faces: int = 20_000
     max_hull_vertices: int = 1024
 
@@ -316,14 +317,14 @@ def _components(mesh):
     return list(comps) if len(comps) > 1 else [mesh]
 
 
-def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | None, str | None]:
+def _decompose(mesh, params: CoacdParams, progress, deadline: float) -> tuple[list[np.ndarray] | None, str | None]:
     """CoACD's parts of ``mesh`` from the bounded worker, or (None, why it gave none)."""
     try:
         import coacd  # noqa: F401
     except ImportError as err:
         raise DependencyNotInstalled("convex decomposition of meshes needs CoACD: pip install coacd") from err
-    if params.time_limit <= 0:
-        return None, "the time limit is 0 s"
+    if time.monotonic() >= deadline:
+        return None, f"the time limit of {params.time_limit:g} s was spent before decomposition"
     worker = {k: getattr(params, k) for k in ("threshold", "max_parts", "preprocess_resolution", "resolution",
                                               "mcts_iterations", "mcts_nodes", "mcts_max_depth", "seed",
                                               "max_faces")}
@@ -331,7 +332,6 @@ def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | 
         src, dst = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
         np.savez(src, vertices=np.asarray(mesh.vertices, np.float64), faces=np.asarray(mesh.faces, np.int64),
                  params=json.dumps(worker))
-        t0 = time.monotonic()
         with open(Path(tmp) / "err.txt", "w+b") as err_file:
             proc = subprocess.Popen([sys.executable, str(_WORKER), str(src), str(dst)], stdout=subprocess.PIPE,
                                     stderr=err_file, env={**os.environ, "PYTHONWARNINGS": "ignore"})
@@ -339,9 +339,8 @@ def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | 
             stage, said = "decomposing", b""
             try:
                 while proc.poll() is None:
-                    elapsed = time.monotonic() - t0
-                    if elapsed > params.time_limit:
-                        return None, f"decomposition did not finish in {params.time_limit:g} s"
+                    if time.monotonic() > deadline:
+                        return None, f"decomposition did not finish within the time limit of {params.time_limit:g} s"
                     try:
                         said += os.read(proc.stdout.fileno(), 65536)
                     except BlockingIOError:
@@ -349,7 +348,8 @@ def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | 
                     stages = [ln[6:] for ln in said.decode(errors="replace").splitlines() if ln.startswith("stage ")]
                     stage = stages[-1] if stages else stage
                     if progress is not None:
-                        progress(stage, min(1.0, elapsed / params.time_limit))
+                        spent = 1.0 - (deadline - time.monotonic()) / params.time_limit
+                        progress(stage, min(1.0, max(0.0, spent)) if np.isfinite(params.time_limit) else 0.0)
                     time.sleep(0.05)
             finally:
                 if proc.poll() is None:
@@ -386,7 +386,8 @@ def _mass_properties(mesh, parts: list[np.ndarray]) -> tuple[float, np.ndarray, 
     return volume, np.asarray(com, float), unit / volume, "parts"
 
 
-def _build(mesh, params: CoacdParams, name: str, progress) -> tuple[list[np.ndarray], str, str | None]:
+def _build(mesh, params: CoacdParams, name: str, progress, deadline: float
+           ) -> tuple[list[np.ndarray], str, str | None]:
     """(parts, method, warning) for the cleaned mesh (steps 2-4 of the module docstring)."""
     if mesh.is_convex:
         return [_thin(np.asarray(mesh.vertices, float), params.max_hull_vertices)], "convex", None
@@ -399,7 +400,7 @@ def _build(mesh, params: CoacdParams, name: str, progress) -> tuple[list[np.ndar
     import trimesh
 
     remainder = rest[0] if len(rest) == 1 else trimesh.util.concatenate(rest)
-    decomposed, why = _decompose(remainder, params, progress)
+    decomposed, why = _decompose(remainder, params, progress, deadline)
     if decomposed is not None:
         return parts + decomposed, "coacd", None
     hulls = [p for p in (_hull_part(c.vertices, params.max_hull_vertices) for c in rest) if p is not None]
@@ -456,7 +457,7 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
     """
     import trimesh
 
-    t0 = time.perf_counter()
+    t0, t_limit = time.perf_counter(), time.monotonic() + params.time_limit
     scale = _check_scale(scale)
     if isinstance(source, trimesh.Trimesh):
         name, label = "the mesh", "<trimesh>"
@@ -478,7 +479,7 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
                            scale)
     else:
         mesh = _clean(vertices, faces, scale, name)
-        parts, method, warning = _build(mesh, params, name, progress)
+        parts, method, warning = _build(mesh, params, name, progress, t_limit)
         volume, com, unit, mass_from = _mass_properties(mesh, parts)
         out = PreparedMesh(tuple(parts), method, volume, com, unit, mass_from, mesh, len(faces),
                            bool(mesh.is_watertight), warning, key, False, time.perf_counter() - t0, label, scale)

@@ -671,3 +671,13 @@ def test_bench_mesh_prep_quick_times_first_cached_and_trial_in_fresh_processes(t
     assert s["goals"]["first"]["of"] == s["goals"]["cached"]["of"] == s["goals"]["trial"]["of"] == 1
     md = bench.readme_section(s)
     assert s["command"] in md and "| open_cylinder_128f | 128 | no |" in md
+
+
+def test_bench_mesh_prep_reported_summary_renders():
+    """The committed numbers the README quotes come with their command, load and goals."""
+    bench = _load("bench_mesh_prep")
+    s = json.loads((EXPERIMENTS / "reported" / "bench_mesh_prep.json").read_text())
+    md = bench.readme_section(s)
+    assert s["command"].startswith("python experiments/bench_mesh_prep.py") and s["command"] in md
+    assert {"open_cylinder_512f", "cylinder_327680f", "torus_500000f", "pybullet/lego"} <= {r["mesh"] for r in s["rows"]}
+    assert s["goals"]["meshes"] == len(s["rows"]) and "from the cache" in md

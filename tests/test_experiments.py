@@ -679,5 +679,6 @@ def test_bench_mesh_prep_reported_summary_renders():
     s = json.loads((EXPERIMENTS / "reported" / "bench_mesh_prep.json").read_text())
     md = bench.readme_section(s)
     assert s["command"].startswith("python experiments/bench_mesh_prep.py") and s["command"] in md
-    assert {"open_cylinder_512f", "cylinder_327680f", "torus_500000f", "pybullet/lego"} <= {r["mesh"] for r in s["rows"]}
+    names = {r["mesh"] for r in s["rows"]}
+    assert {"open_cylinder_512f", "cylinder_327680f", "torus_500000f", "pybullet/lego"} <= names
     assert s["goals"]["meshes"] == len(s["rows"]) and "from the cache" in md

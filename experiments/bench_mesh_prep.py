@@ -41,6 +41,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # hand_made
 from _common import machine_load, opt, run_cli_fresh, run_fresh, start
 
 log = logging.getLogger("bench_mesh_prep")
@@ -94,10 +95,11 @@ def generated(cfg: Config, folder: Path) -> list[tuple[str, Path]]:
 
 def hand_made_map(mesh_path: Path, out: Path) -> Path:
     """10 horizontal grasps through the mesh's bounding-box centre (mesh frame)."""
+    from hand_made import grasp_pose, hand_made_map  # the tests' hand-made grasps, as bench_sim uses them
+
     from graspsim.maps import save_map
     from graspsim.primitives import Cylinder
     from graspsim.sim.meshes import load_mesh
-    from graspsim.sim.testing import grasp_pose, hand_made_map
 
     mesh = load_mesh(mesh_path)
     c = mesh.bounds.mean(axis=0)

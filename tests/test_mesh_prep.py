@@ -113,9 +113,10 @@ def test_a_327k_face_mesh_is_decimated_and_its_hull_thinned(tmp_path):
 
 
 def _map(tmp_path):
+    from hand_made import grasp_pose, hand_made_map
+
     from graspsim.maps import save_map
     from graspsim.primitives import Cylinder
-    from graspsim.sim.testing import grasp_pose, hand_made_map
 
     T = grasp_pose([0, 0, 0], [-1, 0, 0], [0, 1, 0])[None]
     m = hand_made_map(Cylinder(0.02, 0.20), T, np.full(1, 0.04), grades=np.full(1, 0.8))

@@ -149,9 +149,10 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it"):
-    """A tqdm progress bar on stderr (disabled when not wanted or not a terminal)."""
+def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it", delay: float = 0.0):
+    """A tqdm progress bar on stderr (disabled when not wanted or not a terminal; shown
+    only after ``delay`` seconds)."""
     from tqdm.auto import tqdm
 
     on = enabled and sys.stderr.isatty()
-    return tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False)
+    return tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False, delay=delay)

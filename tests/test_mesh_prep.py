@@ -3,6 +3,8 @@ open meshes, NaN vertices, units, huge meshes -- and `graspsim trial --mesh` on 
 
 import json
 import logging
+import os
+import time
 
 import numpy as np
 import pytest
@@ -23,8 +25,8 @@ def _open_cylinder(radius=0.03, height=0.1, sections=64) -> trimesh.Trimesh:
 
 
 def test_an_open_mesh_past_its_time_bound_gets_the_hull_model_with_a_warning(tmp_path, caplog):
-    """The decomposition's worker is killed at the bound (0.2 s from the start: it cannot
-    even start CoACD; under load the bound may pass before it starts), and the model
+    """The decomposition's worker is killed at the bound (0.2 s of its CPU time: it cannot
+    even import CoACD in that), and the model
     falls back to the tube's hull: one line of warning, a model with a volume, mass
     properties from the parts (the tube itself encloses nothing)."""
     tube = _open_cylinder()
@@ -35,7 +37,7 @@ def test_an_open_mesh_past_its_time_bound_gets_the_hull_model_with_a_warning(tmp
                                 progress=lambda stage, f: seen.append((stage, f)))
     assert all(stage == "decomposing" and 0.0 <= f <= 1.0 for stage, f in seen)
     assert prepared.method == "hull" and prepared.mass_from == "parts"
-    assert "time limit of 0.2 s" in prepared.warning and "\n" not in prepared.warning
+    assert "limit of 0.2 s of CPU time" in prepared.warning and "\n" not in prepared.warning
     assert [r for r in caplog.records if r.levelno == logging.WARNING and "convex hull" in r.getMessage()]
     assert len(prepared.parts) == 1
     hull = trimesh.convex.convex_hull(prepared.parts[0])
@@ -43,6 +45,25 @@ def test_an_open_mesh_past_its_time_bound_gets_the_hull_model_with_a_warning(tmp
     assert prepared.volume == pytest.approx(hull.volume)
     np.testing.assert_allclose(prepared.com, 0.0, atol=1e-9)
     assert np.all(np.linalg.eigvalsh(prepared.unit_inertia) > 0)
+
+
+def test_the_limit_counts_the_workers_cpu_time_and_a_starved_worker_is_not_cached(tmp_path, monkeypatch):
+    """The limit is the worker's CPU time (the same model on an idle and a loaded
+    machine); a worker the machine's load starves past the wall-clock backstop falls back
+    to hulls with a warning saying so, and that model is not cached (a later run on a
+    quieter machine decomposes it). Mutation: caching every fallback fails the last line."""
+    from graspsim.sim import meshes
+
+    cpu = meshes._cpu_seconds(os.getpid())
+    if cpu is None:
+        pytest.skip("no /proc: the limit is wall-clock time here")
+    assert 0.0 < cpu <= time.process_time() + 0.05
+    monkeypatch.setattr(meshes, "_cpu_seconds", lambda pid: 0.0)  # a worker that never runs
+    monkeypatch.setattr(meshes, "WALL_FACTOR", 0.0)
+    monkeypatch.setattr(meshes, "WALL_SLACK", 0.3)
+    prepared = prepare_mesh(_open_cylinder(), params=CoacdParams(time_limit=5.0), cache_dir=tmp_path)
+    assert prepared.method == "hull" and "starved of CPU" in prepared.warning
+    assert not list(tmp_path.rglob("*.npz"))
 
 
 def test_a_cache_hit_gives_the_identical_model(tmp_path):

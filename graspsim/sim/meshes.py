@@ -13,9 +13,12 @@ convex parts first. :func:`prepare_mesh` is the one entry point (``graspsim tria
 2. splits the mesh into connected components: a convex, closed component is its own
    hull (the multi-body meshes of primitives need nothing more);
 3. decomposes the rest with CoACD (Wei et al. 2022) after decimating it to at most
-   ``max_faces`` faces (fast-simplification), in a separate process killed when
-   ``time_limit`` seconds have passed since the preparation began (CoACD has no limit of
-   its own: an open mesh or one of a few thousand faces can take many minutes);
+   ``max_faces`` faces (fast-simplification), in a separate process killed once it has
+   used ``time_limit`` seconds of CPU (CoACD has no limit of its own: an open mesh or one
+   of a few thousand faces can take many minutes). CPU time, not wall time, so that the
+   same mesh gets the same model on an idle and on a loaded machine; a wall-clock
+   backstop (:data:`WALL_FACTOR` x the limit + :data:`WALL_SLACK`) ends a worker that a
+   loaded machine starves, and that result is not cached;
 4. if that process fails or runs out of time, falls back to the convex hull of each
    remaining component, with a one-line warning (:attr:`PreparedMesh.warning`);
 5. caches the result under :func:`default_cache_dir`, keyed by a hash of the file's
@@ -27,12 +30,14 @@ Mass properties: a closed mesh's own volume, centre of mass and inertia; an open
 non-manifold mesh has no meaningful volume, so those of the union of its convex parts
 (overlaps counted twice) stand in; :attr:`PreparedMesh.mass_from` says which.
 
-The decomposition is deterministic (CoACD's seed) for a given mesh, scale and settings,
-except where the time limit decides between CoACD's parts and the hull fallback: a mesh
-whose decomposition takes about ``time_limit`` may fall either way on a loaded machine.
-The cache then pins the first result; :attr:`PreparedMesh.method` records it. Callers
-that need the same model everywhere (the meshes shipped for scenes) pass
-``time_limit=math.inf``.
+The decomposition is deterministic (CoACD's seed, and a limit on CPU time, which load
+does not change) for a given mesh, scale and settings; only a mesh whose decomposition
+needs within a few per cent of ``time_limit`` CPU seconds could fall either way, and
+only a machine so loaded that the wall-clock backstop ends the worker gives another
+model (with a warning saying so, and not cached). :attr:`PreparedMesh.method` records
+which model was made. On systems without ``/proc`` the worker's CPU time cannot be read
+and the limit is wall-clock time. Callers that need CoACD's parts whatever they cost
+(the meshes shipped for scenes) pass ``time_limit=math.inf``.
 """
 
 from __future__ import annotations
@@ -69,14 +74,32 @@ PREP_VERSION = 2
 _WORKER = Path(__file__).with_name("_coacd_worker.py")
 
 
+#: the wall-clock backstop of the decomposition worker: WALL_FACTOR x its CPU limit +
+#: WALL_SLACK seconds (a starved worker on a loaded machine; the result is not cached)
+WALL_FACTOR = 4.0
+WALL_SLACK = 10.0
+_TICK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+def _cpu_seconds(pid: int) -> float | None:
+    """User + system CPU time [s] of process ``pid`` (all its threads), from /proc; None
+    where /proc is not there (the caller then counts wall time)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / _TICK  # utime, stime (fields 14, 15)
+
+
 @dataclass(frozen=True)
 class CoacdParams:
     """Mesh preparation settings. threshold: CoACD's concavity tolerance (smaller = more
     parts); max_parts: cap on CoACD's convex hulls (-1 = none); preprocess_resolution,
     resolution, mcts_*: CoACD's manifold remeshing, sampling and tree search; seed:
-    CoACD's seed (reproducible parts); time_limit [s]: wall-clock bound on the whole
-    preparation (reading, checks, decimation, decomposition), after which the hull
-    fallback is taken (inf: none); max_faces: meshes
+    CoACD's seed (reproducible parts); time_limit [s]: CPU seconds the decimation and
+    decomposition worker may use before the hull fallback is taken (inf: none; see the
+    module docstring for the wall-clock backstop); max_faces: meshes
     with more faces are decimated to this many before CoACD; max_hull_vertices: a convex
     part with more vertices is thinned on a grid (MuJoCo hulls of 100k vertices are slow)."""
 
@@ -317,14 +340,13 @@ def _components(mesh):
     return list(comps) if len(comps) > 1 else [mesh]
 
 
-def _decompose(mesh, params: CoacdParams, progress, deadline: float) -> tuple[list[np.ndarray] | None, str | None]:
-    """CoACD's parts of ``mesh`` from the bounded worker, or (None, why it gave none)."""
+def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | None, str | None, bool]:
+    """(CoACD's parts of ``mesh`` from the bounded worker, or None; why it gave none;
+    whether the outcome depended on the machine's load: the wall-clock backstop ended it)."""
     try:
         import coacd  # noqa: F401
     except ImportError as err:
         raise DependencyNotInstalled("convex decomposition of meshes needs CoACD: pip install coacd") from err
-    if time.monotonic() >= deadline:
-        return None, f"the time limit of {params.time_limit:g} s was spent before decomposition"
     worker = {k: getattr(params, k) for k in ("threshold", "max_parts", "preprocess_resolution", "resolution",
                                               "mcts_iterations", "mcts_nodes", "mcts_max_depth", "seed",
                                               "max_faces")}
@@ -337,10 +359,18 @@ def _decompose(mesh, params: CoacdParams, progress, deadline: float) -> tuple[li
                                     stderr=err_file, env={**os.environ, "PYTHONWARNINGS": "ignore"})
             os.set_blocking(proc.stdout.fileno(), False)
             stage, said = "decomposing", b""
+            started = time.monotonic()
+            backstop = started + WALL_FACTOR * params.time_limit + WALL_SLACK
             try:
                 while proc.poll() is None:
-                    if time.monotonic() > deadline:
-                        return None, f"decomposition did not finish within the time limit of {params.time_limit:g} s"
+                    cpu = _cpu_seconds(proc.pid)
+                    spent = time.monotonic() - started if cpu is None else cpu
+                    if spent > params.time_limit:
+                        return None, (f"decomposition did not finish within its limit of {params.time_limit:g} s"
+                                      f" of {'wall' if cpu is None else 'CPU'} time"), False
+                    if time.monotonic() > backstop:
+                        return None, (f"decomposition was starved of CPU (machine load) past "
+                                      f"{backstop - started:g} s of wall time; not cached: run it again"), True
                     try:
                         said += os.read(proc.stdout.fileno(), 65536)
                     except BlockingIOError:
@@ -348,8 +378,8 @@ def _decompose(mesh, params: CoacdParams, progress, deadline: float) -> tuple[li
                     stages = [ln[6:] for ln in said.decode(errors="replace").splitlines() if ln.startswith("stage ")]
                     stage = stages[-1] if stages else stage
                     if progress is not None:
-                        spent = 1.0 - (deadline - time.monotonic()) / params.time_limit
-                        progress(stage, min(1.0, max(0.0, spent)) if np.isfinite(params.time_limit) else 0.0)
+                        fraction = spent / params.time_limit if np.isfinite(params.time_limit) else 0.0
+                        progress(stage, min(1.0, max(0.0, fraction)))
                     time.sleep(0.05)
             finally:
                 if proc.poll() is None:
@@ -360,11 +390,11 @@ def _decompose(mesh, params: CoacdParams, progress, deadline: float) -> tuple[li
             err = err_file.read().decode(errors="replace")
         if proc.returncode != 0 or not dst.is_file():
             last = (err.strip().splitlines() or [f"exit status {proc.returncode}"])[-1]
-            return None, f"CoACD failed ({last[:200]})"
+            return None, f"CoACD failed ({last[:200]})", False
         with np.load(dst) as z:
             parts = [z[f"part{i}"] for i in range(int(z["count"]))]
     parts = [p for p in (_hull_part(p, params.max_hull_vertices) for p in parts) if p is not None]
-    return (parts, None) if parts else (None, "CoACD returned no convex part with a volume")
+    return (parts, None, False) if parts else (None, "CoACD returned no convex part with a volume", False)
 
 
 def _mass_properties(mesh, parts: list[np.ndarray]) -> tuple[float, np.ndarray, np.ndarray, str]:
@@ -386,30 +416,30 @@ def _mass_properties(mesh, parts: list[np.ndarray]) -> tuple[float, np.ndarray, 
     return volume, np.asarray(com, float), unit / volume, "parts"
 
 
-def _build(mesh, params: CoacdParams, name: str, progress, deadline: float
-           ) -> tuple[list[np.ndarray], str, str | None]:
-    """(parts, method, warning) for the cleaned mesh (steps 2-4 of the module docstring)."""
+def _build(mesh, params: CoacdParams, name: str, progress) -> tuple[list[np.ndarray], str, str | None, bool]:
+    """(parts, method, warning, cacheable) for the cleaned mesh (steps 2-4 of the module
+    docstring); not cacheable: the machine's load decided the model."""
     if mesh.is_convex:
-        return [_thin(np.asarray(mesh.vertices, float), params.max_hull_vertices)], "convex", None
+        return [_thin(np.asarray(mesh.vertices, float), params.max_hull_vertices)], "convex", None, True
     comps = _components(mesh)
     convex = [c for c in comps if c.is_watertight and c.is_convex]
     rest = [c for c in comps if not (c.is_watertight and c.is_convex)]
     parts = [p for p in (_hull_part(c.vertices, params.max_hull_vertices) for c in convex) if p is not None]
     if not rest:
-        return parts, "components", None
+        return parts, "components", None, True
     import trimesh
 
     remainder = rest[0] if len(rest) == 1 else trimesh.util.concatenate(rest)
-    decomposed, why = _decompose(remainder, params, progress, deadline)
+    decomposed, why, by_load = _decompose(remainder, params, progress)
     if decomposed is not None:
-        return parts + decomposed, "coacd", None
+        return parts + decomposed, "coacd", None, True
     hulls = [p for p in (_hull_part(c.vertices, params.max_hull_vertices) for c in rest) if p is not None]
     if not parts + hulls:
         raise MeshError(f"{name} has no part with a volume (flat or degenerate)")
     what = "its convex hull" if len(comps) == 1 else f"the convex hulls of its {len(comps)} components"
     warning = (f"{name}: {why}; simulating {what} instead (concave regions are filled; raise "
                "CoacdParams.time_limit for a finer model)")
-    return parts + hulls, "hull", warning
+    return parts + hulls, "hull", warning, not by_load
 
 
 def _cache_read(file: Path) -> dict | None:
@@ -457,7 +487,7 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
     """
     import trimesh
 
-    t0, t_limit = time.perf_counter(), time.monotonic() + params.time_limit
+    t0 = time.perf_counter()
     scale = _check_scale(scale)
     if isinstance(source, trimesh.Trimesh):
         name, label = "the mesh", "<trimesh>"
@@ -479,11 +509,12 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
                            scale)
     else:
         mesh = _clean(vertices, faces, scale, name)
-        parts, method, warning = _build(mesh, params, name, progress, t_limit)
+        parts, method, warning, cacheable = _build(mesh, params, name, progress)
         volume, com, unit, mass_from = _mass_properties(mesh, parts)
         out = PreparedMesh(tuple(parts), method, volume, com, unit, mass_from, mesh, len(faces),
                            bool(mesh.is_watertight), warning, key, False, time.perf_counter() - t0, label, scale)
-        _cache_write(fallback if method == "hull" else file, out)
+        if cacheable:  # a fallback the machine's load made is not pinned
+            _cache_write(fallback if method == "hull" else file, out)
         log.info("prepared %s: %d convex parts (%s) in %.1f s", name, len(parts), method, out.seconds)
     if out.warning:
         log.warning("%s%s", out.warning, " (cached)" if out.from_cache else "")

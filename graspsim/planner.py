@@ -29,10 +29,11 @@ from graspsim.errors import InvalidParameterError
 from graspsim.maps.agreement import ObservedSurface
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.features import FeatureConfig, feature_columns
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
-from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map, view_of
+from graspsim.maps.robust import RANKS, RobustConfig, clear_of_cloud, cloud_in_object, score_map, view_of
 from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import TablePlane, clears_table, heights_above, stream_order, table_frame, table_height
@@ -77,6 +78,23 @@ class PlannerConfig:
         costs less: the check's finest collision samples number about 1 / tolerance^2
         per unit area (scene planning uses 1 mm,
         :data:`~graspsim.perception.scene.SCENE_COLLISION_TOLERANCE`).
+    clear_observed: robust identification: no grasp is offered whose gripper, at the
+        opening it is executed with, holds an observed point (the object's cloud and
+        ``obstacles``) at its nominal pose -- the primitives are not the object, and
+        where they miss it (a bowl's rim, a tool's handle, a rounded box's bulge) the
+        fingers would start inside it. A robust-scored grasp keeps the opening its score
+        chose and is dropped when that still holds points; an unscored one takes the
+        narrowest of ``robust.openings`` that clears (recorded as its extra opening, so
+        every executor opens that wide), else is dropped
+        (:func:`~graspsim.maps.robust.clear_of_cloud`). The number dropped is recorded
+        in the map (``extra["observed"]``). Paper mode never drops.
+    features: robust identification: where the identified parts explain the cloud
+        poorly (fit score below ``features.min_fit``, see
+        :class:`~graspsim.perception.acceptance.FitQuality`) or give no grasp, grasps
+        fitted to the cloud's own graspable features -- a rim, a wall, a bar
+        (:mod:`~graspsim.maps.features`) -- are added (as part ``len(parts)``), through the same checks
+        as the parts' (agreement, table, clear of the cloud, robust score without the
+        primitives term, the grade as success term). None: never. Paper mode never adds.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -88,6 +106,8 @@ class PlannerConfig:
     rank: str = "robust"
     robust: RobustConfig = field(default_factory=RobustConfig)
     collision_tolerance: float | None = None
+    clear_observed: bool = True
+    features: FeatureConfig | None = field(default_factory=FeatureConfig)
 
     def __post_init__(self) -> None:
         tol = self.collision_tolerance
@@ -205,7 +225,8 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
     info = {"status": ident.status.value, "n_points": ident.n_points, "n_splits": ident.n_splits,
             "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict(),
             "mode": ident.mode, "uncovered": ident.uncovered,
-            "approximate": [i for i, p in enumerate(ident.parts) if p.approximate]}
+            "approximate": [i for i, p in enumerate(ident.parts) if p.approximate],
+            "fit": ident.fit_quality(points, cfg.identify.band, viewpoint).to_dict()}
     yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0,
                            obstacles, viewpoint, scored_only)
 
@@ -258,7 +279,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     view_obj = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0]
     view = None
     observed = ObservedSurface(points, viewpoint=viewpoint) if ident is not None and ident.mode == "robust" else None
-    stage = StageClock("adapt", "agreement", "combine", "table", "robust")
+    stage = StageClock("adapt", "agreement", "combine", "table", "robust", "observed", "features")
+    n_in_cloud = n_features = 0
     skip_spent = scored_only and cfg.rank == "robust"
     checks = check_config(db, cfg)
     t1 = time.perf_counter()
@@ -299,6 +321,13 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 if first_robust is None and bool(np.any(batch.robust > 0)):
                     first_robust = time.perf_counter() - t0
                     first_robust_cpu = time.thread_time() - cpu0
+            if observed is not None and cfg.clear_observed and cloud_obj is not None:
+                stage.start()
+                batch, dropped = _clear_observed(batch, cloud_obj, cfg.robust, db.gripper)
+                n_in_cloud += dropped
+                stage.lap("observed")
+                if not len(batch):
+                    continue
             now = time.perf_counter() - t0
             hi = int((batch.grade > 0.95).sum())
             if hi and first is None:
@@ -312,7 +341,25 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 break  # this part's budget is spent: its later batches would stream unscored
         if hasattr(stream, "close"):
             stream.close()  # a part left early: its maps' generator ends now
+    fit = ((ident_info or {}).get("fit") or {}).get("score", 1.0)
+    if observed is not None and cfg.features is not None and (not batches or fit < cfg.features.min_fit):
+        stage.start()
+        batch = _feature_batch(points, ident, observed, T_cloud_obj, T_table_obj, cloud_obj, view_obj, view, db, cfg,
+                               replace(obj_meta, extra=extra))
+        stage.lap("features")
+        if cfg.clear_observed and len(batch):
+            batch, dropped = _clear_observed(batch, cloud_obj, cfg.robust, db.gripper)
+            n_in_cloud += dropped
+        n_features = len(batch)
+        if n_features:
+            batches.append(batch)
+            yield GraspBatch(batch, time.perf_counter() - t0)
     timing["maps"] = time.perf_counter() - t1
+    if observed is not None:
+        extra = {**extra, "features": None if cfg.features is None else {
+            **cfg.features.to_dict(), "grasps": n_features, "part": len(parts)}}
+    if observed is not None:
+        extra = {**extra, "observed": {"clear_observed": bool(cfg.clear_observed), "dropped": n_in_cloud}}
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
                   first_robust_cpu=first_robust_cpu, **stage.seconds)
@@ -341,6 +388,47 @@ def _table_in_object(cfg: PlannerConfig, points: np.ndarray, shape, T_cloud_obj:
         return None, None
     height = table_height(cfg.table, points, shape, T_cloud_obj)
     return table_frame(cfg.table.normal, height) @ T_cloud_obj, {**cfg.table.to_dict(), "height": height}
+
+
+def _feature_batch(points, ident, observed, T_cloud_obj, T_table_obj, cloud_obj, view_obj, view, db, cfg,
+                   meta: MapMeta) -> GraspabilityMap:
+    """The grasps on the cloud's own features (``PlannerConfig.features``), borne out by
+    the cloud, clear of the table, the best robust-scored against the cloud (no
+    primitives term: the parts are what these grasps do without)."""
+    from graspsim.perception.prepare import median_spacing
+
+    obj = cloud_in_object(points, T_cloud_obj)
+    gap = 3.0 * median_spacing(points) + 4.0 * float(ident.noise)
+    fmap = GraspabilityMap(**feature_columns(obj, db.gripper, db.quality, gap=gap, config=cfg.features,
+                                                  part=len(ident.parts)), meta=meta)
+    if not len(fmap):
+        return fmap
+    fmap = _borne_out(observed, fmap, T_cloud_obj, cfg.contact_tolerance, db)
+    if T_table_obj is not None:
+        fmap = fmap.select(clears_table(fmap, T_table_obj, db.gripper, cfg.table.clearance))
+    if cfg.rank == "robust" and len(fmap):
+        rcfg = replace(cfg.robust, terms=tuple(t for t in cfg.robust.terms if t != "primitives"), success="grade")
+        rows = np.argsort(-fmap.grade, kind="stable")[:cfg.robust.top]
+        fmap = score_map(fmap, cloud_obj, rcfg, rows=rows, gripper=db.gripper, viewpoint=view_obj,
+                         view=view if view is not None else view_of(cloud_obj, view_obj, rcfg)).ranked()
+    return fmap
+
+
+def _clear_observed(batch: GraspabilityMap, cloud_obj: np.ndarray, rcfg: RobustConfig, gripper
+                    ) -> tuple[GraspabilityMap, int]:
+    """The batch's grasps whose gripper holds no observed point at the opening each is
+    executed with (``PlannerConfig.clear_observed``), and how many were dropped."""
+    scored = np.isfinite(batch.robust)
+    keep = np.ones(len(batch), bool)
+    keep[scored] = np.nan_to_num(batch.clearance[scored], nan=-1.0) >= rcfg.margin
+    rest = np.flatnonzero(~scored)
+    if len(rest):
+        ok, extra = clear_of_cloud(batch, rest, cloud_obj, rcfg, gripper)
+        keep[rest] = ok
+        col = batch.robust_extra_opening.copy()
+        col[rest] = np.where(ok, extra, np.nan)
+        batch = replace(batch, robust_extra_opening=col)
+    return batch.select(keep), int(len(keep) - keep.sum())
 
 
 def _borne_out(observed: ObservedSurface, part_map: GraspabilityMap, T_cloud_map: np.ndarray, tol: float,

@@ -59,7 +59,7 @@ class Config:
     seed: int = opt(33, "run seed (poses, clouds, the CLI's --seed)")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
     coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
-    QUICK: ClassVar[dict] = {"meshes": ("robosuite/lemon.stl",), "procedural": ("bowl", "clamp"), "top": 3,
+    QUICK: ClassVar[dict] = {"meshes": (), "procedural": ("bowl", "clamp"), "top": 3,
                              "points": 3000, "coarse_db": True}
 
 

@@ -346,6 +346,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         stage.start()
         batch = _feature_batch(points, ident, observed, T_cloud_obj, T_table_obj, cloud_obj, view_obj, view, db, cfg,
                                replace(obj_meta, extra=extra))
+        if skip_spent:  # a caller that keeps only scored grasps (a scene): the rest would cost their check
+            batch = batch.select(np.isfinite(batch.robust))
         stage.lap("features")
         if cfg.clear_observed and len(batch):
             batch, dropped = _clear_observed(batch, cloud_obj, cfg.robust, db.gripper)
@@ -399,8 +401,9 @@ def _feature_batch(points, ident, observed, T_cloud_obj, T_table_obj, cloud_obj,
 
     obj = cloud_in_object(points, T_cloud_obj)
     gap = 3.0 * median_spacing(points) + 4.0 * float(ident.noise)
+    up = None if T_table_obj is None else T_table_obj[2, :3]  # the table's normal in the object frame
     fmap = GraspabilityMap(**feature_columns(obj, db.gripper, db.quality, gap=gap, config=cfg.features,
-                                                  part=len(ident.parts)), meta=meta)
+                                             part=len(ident.parts), up=up), meta=meta)
     if not len(fmap):
         return fmap
     fmap = _borne_out(observed, fmap, T_cloud_obj, cfg.contact_tolerance, db)

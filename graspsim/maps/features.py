@@ -11,13 +11,17 @@ directly, as the FS map fits it to a primitive's surface:
 * seeds: one observed point per ``seed_step`` voxel (the first in input order);
 * at each seed, the local axes of its neighbourhood (PCA within ``radius``): the
   surface normal and the across-width direction are the closing axes tried (a wall is
-  pinched across its thickness, a bar across its width), each with ``approaches``
-  approach directions perpendicular to it and the contact ``depths`` along the pad;
+  pinched across its thickness, a bar across its width), and on a table the horizontal
+  direction across the neighbourhood's length; each with ``approaches`` approach
+  directions perpendicular to it (the first nearest straight down) and the contact
+  ``depths`` along the pad;
 * the chord the pads would close on: the observed points inside the pads' footprint
   (finger width x pad length about the closing line), the contiguous run of them along
   the closing axis through the seed (gaps up to ``gap``); its two ends are the contacts,
-  the closing axis their (outward) normals, the run's length the contact width; a chord
-  wider than the gripper's opening less its approach clearance is dropped;
+  the closing axis their (outward) normals, the run's length the contact width, at the
+  middle height along the approach of the points at the run's ends (a bar's sides, not
+  its top corners); a chord wider than the gripper's opening less its approach clearance
+  is dropped;
 * the paper's grade of each (force closure angle and stability distance, the quality
   model of the map; the cloud's centroid stands in for the centre of mass).
 
@@ -57,7 +61,7 @@ class FeatureConfig:
     seed_step: float = 0.015
     radius: float = 0.01
     approaches: int = 8
-    depths: tuple[float, ...] = (0.008, 0.02)
+    depths: tuple[float, ...] = (0.006, 0.014, 0.022)
     gap: float | None = None
 
     def __post_init__(self) -> None:
@@ -84,9 +88,11 @@ def _seeds(points: np.ndarray, step: float) -> np.ndarray:
     return np.sort(first)
 
 
-def _axes(points, tree, seeds, radius: float):
-    """Per seed with enough neighbours: (seed index, closing axes (2, 3)) -- the least-
-    and middle-variance axes of the points within ``radius``, each with a fixed sign."""
+def _axes(points, tree, seeds, radius: float, up: np.ndarray | None):
+    """Per seed with enough neighbours: (seed index, closing axes (k, 3)) -- the least-
+    and middle-variance axes of the points within ``radius``, and with a table (``up``,
+    its unit normal) the horizontal axis across the neighbourhood's longest one (a bar
+    lying flat is pinched across its width from above); each with a fixed sign."""
     out = []
     for s in seeds:
         nb = tree.query_ball_point(points[s], radius)
@@ -94,8 +100,13 @@ def _axes(points, tree, seeds, radius: float):
             continue
         q = points[nb] - points[nb].mean(axis=0)
         _, vecs = np.linalg.eigh(q.T @ q)
-        axes = vecs[:, :2].T
-        axes *= np.where(axes[np.arange(2), np.argmax(np.abs(axes), axis=1)] > 0, 1.0, -1.0)[:, None]
+        axes = [vecs[:, 0], vecs[:, 1]]
+        if up is not None:
+            across = np.cross(up, vecs[:, 2])
+            if np.linalg.norm(across) > 0.5:  # the longest axis not near the vertical
+                axes.append(across / np.linalg.norm(across))
+        axes = np.array(axes)
+        axes *= np.where(axes[np.arange(len(axes)), np.argmax(np.abs(axes), axis=1)] > 0, 1.0, -1.0)[:, None]
         out.append((s, axes))
     return out
 
@@ -113,11 +124,14 @@ def _chord(xs: np.ndarray, gap: float) -> tuple[float, float] | None:
 
 
 def feature_columns(points: np.ndarray, gripper: GripperSpec, quality: QualityModel, *, gap: float,
-                    config: FeatureConfig = FeatureConfig(), part: int = 0) -> dict[str, np.ndarray]:
+                    config: FeatureConfig = FeatureConfig(), part: int = 0,
+                    up: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The map columns (:data:`~graspsim.maps.graspmap.COLUMNS`, ``part`` as given) of the
     feature grasps of the observed ``points`` (N, 3) [m, the map's object frame]; see
     the module docstring. ``gap`` [m]: the largest gap inside one chord (the caller's
-    spacing and noise; ``config.gap`` overrides it). Deterministic: no draw."""
+    spacing and noise; ``config.gap`` overrides it); ``up`` (3,): the table's normal
+    in the same frame, if there is one (horizontal closing axes and straight-down
+    approaches are then among the candidates). Deterministic: no draw."""
     P = np.asarray(points, float).reshape(-1, 3)
     P = P[np.all(np.isfinite(P), axis=1)]
     gap = float(config.gap if config.gap is not None else gap)
@@ -134,11 +148,16 @@ def feature_columns(points: np.ndarray, gripper: GripperSpec, quality: QualityMo
     depths = [d for d in config.depths
               if gripper.contact_depth_margin <= d <= gripper.pad_length - gripper.contact_depth_margin]
     ang = 2.0 * math.pi * np.arange(config.approaches) / config.approaches
+    end_band = 0.5 * gap
     rows = []
-    for s, axes in _axes(P, tree, _seeds(P, config.seed_step), config.radius):
+    down = None if up is None else -np.asarray(up, float) / np.linalg.norm(up)
+    for s, axes in _axes(P, tree, _seeds(P, config.seed_step), config.radius, None if up is None else -down):
         near = P[tree.query_ball_point(P[s], reach)] - P[s]
         for c in axes:
-            u = np.cross(c, [1.0, 0.0, 0.0] if abs(c[0]) < 0.9 else [0.0, 1.0, 0.0])
+            # the approaches about c start from the one nearest straight down (with a table)
+            u = down - (down @ c) * c if down is not None else np.zeros(3)
+            if np.linalg.norm(u) < 0.3:
+                u = np.cross(c, [1.0, 0.0, 0.0] if abs(c[0]) < 0.9 else [0.0, 1.0, 0.0])
             u /= np.linalg.norm(u)
             v = np.cross(c, u)
             A = np.cos(ang)[:, None] * u + np.sin(ang)[:, None] * v  # approaches about c
@@ -153,7 +172,11 @@ def feature_columns(points: np.ndarray, gripper: GripperSpec, quality: QualityMo
                     run = _chord(np.sort(x[foot]), gap)
                     if run is None or not run[1] - run[0] <= widest:
                         continue
-                    rows.append((P[s] + 0.5 * (run[0] + run[1]) * c, c, A[j], run[1] - run[0], d))
+                    # the contacts at the middle height (along the approach) of the points at the
+                    # chord's two ends -- a bar's sides, not its top corners -- the fingertips kept
+                    ends = foot & ((np.abs(x - run[0]) <= end_band) | (np.abs(x - run[1]) <= end_band))
+                    zc = min(float(np.median(Z[ends, j])), d - gripper.contact_depth_margin)
+                    rows.append((P[s] + 0.5 * (run[0] + run[1]) * c + zc * A[j], c, A[j], run[1] - run[0], d - zc))
     if not rows:
         return empty
     gp = np.array([r[0] for r in rows])

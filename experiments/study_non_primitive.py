@@ -13,7 +13,8 @@ each in a fresh process:
     graspsim adapt CLOUD.npy -o MAP.h5 --table auto --db OUT/fsdb --json
     graspsim trial MAP.h5 --top 10 --mesh OBJECT.stl --json
 
-Recorded per object: a usable map (adapt wrote one with an accepted grasp), the parts
+Recorded per object: a usable map (adapt wrote one: it has a grasp), its grasps (and how
+many have a grade > 0.7), the parts
 identified, how well they explain the cloud (the map's ``fit`` record where the planner
 writes one), the outcome of each of the ten best (START_COLLISION counts as a failed
 attempt, never a smaller denominator), and how many of the ten best have fingers that
@@ -122,8 +123,9 @@ def run_object(name: str, cfg: Config, out: Path, db_root: Path, gen_flags: list
     if s is not None:
         row["parts"] = [f"{p['primitive']}" + ("~" if p.get("approximate") else "") for p in s.get("parts", [])]
         row["accepted"] = s.get("accepted", 0)
+        row["grasps"] = f"{s.get('grasps', 0)} ({row['accepted']})"
         row["fit"] = s.get("fit")
-    row["usable"] = bool(code == 0 and map_path.exists() and row.get("accepted", 0) > 0)
+    row["usable"] = bool(code == 0 and map_path.exists())
     if not row["usable"]:
         log.info("%-22s no usable map (%s)", name, err)
         return row
@@ -163,7 +165,9 @@ def run(cfg: Config, out: Path) -> dict:
     sims = [r for r in rows if "trials" in r]
     n = sum(r["trials"] for r in sims)
     pooled = {"objects": len(rows), "usable": sum(r["usable"] for r in rows), "trials": n,
-              "placed": sum(r["placed"] for r in sims), "start_collision": sum(r["start_collision"] for r in sims),
+              "placed": sum(r["placed"] for r in sims),
+              "held": sum(r["placed"] + r["counts"].get("place_failed", 0) for r in sims),
+              "start_collision": sum(r["start_collision"] for r in sims),
               "fingers_in_cloud": sum(r["fingers"]["in_cloud"] for r in sims),
               "objects_with_a_placed_grasp": sum(r["placed"] > 0 for r in sims)}
     return {"rows": rows, "pooled": pooled, "database": {"start": start_maps, "end": database_record(db)}}
@@ -172,17 +176,21 @@ def run(cfg: Config, out: Path) -> dict:
 def readme_section(summary: dict) -> str:
     rows = []
     for r in summary["rows"]:
-        sim = (f"{r['placed']}/{r['trials']}", f"{r['start_collision']}/{r['trials']}",
-               f"{r['fingers']['in_cloud']}/{r['fingers']['of']}") if "trials" in r else ("-", "-", "-")
-        rows.append((r["object"], "yes" if r["usable"] else "no", "+".join(r.get("parts", [])) or "-",
-                     _fit_text(r.get("fit")), *sim))
+        held = r["placed"] + r["counts"].get("place_failed", 0) if "trials" in r else 0
+        sim = (f"{r['placed']}/{r['trials']}", f"{held}/{r['trials']}", f"{r['start_collision']}/{r['trials']}",
+               f"{r['fingers']['in_cloud']}/{r['fingers']['of']}") if "trials" in r else ("-",) * 4
+        rows.append((r["object"], "yes" if r["usable"] else "no", r.get("grasps", "-"),
+                     "+".join(r.get("parts", [])) or "-", _fit_text(r.get("fit")), *sim))
     p = summary["pooled"]
+    sims = [r for r in summary["rows"] if "trials" in r]
+    p.setdefault("held", sum(r["placed"] + r["counts"].get("place_failed", 0) for r in sims))
     head = (f"`{summary['command']}`: {p['objects']} objects, full clouds; usable maps {p['usable']}/{p['objects']}; "
-            f"the ten best placed {p['placed']}/{p['trials']}, START_COLLISION {p['start_collision']}/{p['trials']}, "
+            f"the ten best placed {p['placed']}/{p['trials']} (held {p['held']}), "
+            f"START_COLLISION {p['start_collision']}/{p['trials']}, "
             f"fingers containing observed points {p['fingers_in_cloud']}/{p['trials']}; "
             f"{p['objects_with_a_placed_grasp']} objects with a placed grasp. (`~`: an approximate part.)\n\n")
-    return head + md_table(["object", "usable", "parts", "fit", "placed", "start collision", "fingers in cloud"],
-                           rows)
+    return head + md_table(["object", "usable", "grasps (> 0.7)", "parts", "fit", "placed", "held", "start collision",
+                            "fingers in cloud"], rows)
 
 
 def main(argv=None) -> int:

@@ -85,12 +85,15 @@ class PlannerConfig:
         fingers would start inside it. A robust-scored grasp keeps the opening its score
         chose and is dropped when that still holds points; an unscored one takes the
         narrowest of ``robust.openings`` that clears (recorded as its extra opening, so
-        every executor opens that wide), else is dropped
+        every executor opens that wide; likewise a scored one whose chosen opening holds
+        points), else is dropped
         (:func:`~graspsim.maps.robust.clear_of_cloud`). The number dropped is recorded
-        in the map (``extra["observed"]``). Paper mode never drops.
-    features: robust identification: where the identified parts explain the cloud
-        poorly (fit score below ``features.min_fit``, see
-        :class:`~graspsim.perception.acceptance.FitQuality`) or give no grasp, grasps
+        in the map (``extra["observed"]``); a grasp is dropped exactly when no opening
+        clears, whether it was scored or not. Paper mode never drops.
+    features: robust identification: where the identified parts give fewer than
+        ``features.min_grasps`` grasps expected to succeed (robust score > 0; any grasp
+        with ``rank="paper"``) -- a bowl identified as one sphere wider than the
+        gripper, a tool lying flat fitted as one box -- grasps
         fitted to the cloud's own graspable features -- a rim, a wall, a bar
         (:mod:`~graspsim.maps.features`) -- are added (as part ``len(parts)``), through the same checks
         as the parts' (agreement, table, clear of the cloud, robust score without the
@@ -341,8 +344,9 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 break  # this part's budget is spent: its later batches would stream unscored
         if hasattr(stream, "close"):
             stream.close()  # a part left early: its maps' generator ends now
-    fit = ((ident_info or {}).get("fit") or {}).get("score", 1.0)
-    if observed is not None and cfg.features is not None and (not batches or fit < cfg.features.min_fit):
+    # grasps the parts offer that are expected to succeed (robust > 0; every grasp when unscored)
+    usable = sum(int(np.sum(b.robust > 0)) if cfg.rank == "robust" else len(b) for b in batches)
+    if observed is not None and cfg.features is not None and usable < cfg.features.min_grasps:
         stage.start()
         batch = _feature_batch(points, ident, observed, T_cloud_obj, T_table_obj, cloud_obj, view_obj, view, db, cfg,
                                replace(obj_meta, extra=extra))
@@ -421,10 +425,11 @@ def _clear_observed(batch: GraspabilityMap, cloud_obj: np.ndarray, rcfg: RobustC
                     ) -> tuple[GraspabilityMap, int]:
     """The batch's grasps whose gripper holds no observed point at the opening each is
     executed with (``PlannerConfig.clear_observed``), and how many were dropped."""
-    scored = np.isfinite(batch.robust)
+    # a scored grasp clear at the opening its score chose stays as it is; the others (unscored,
+    # or scored 0 at an opening that holds points) are checked at every opening
+    clear = np.isfinite(batch.robust) & (np.nan_to_num(batch.clearance, nan=-1.0) >= rcfg.margin)
     keep = np.ones(len(batch), bool)
-    keep[scored] = np.nan_to_num(batch.clearance[scored], nan=-1.0) >= rcfg.margin
-    rest = np.flatnonzero(~scored)
+    rest = np.flatnonzero(~clear)
     if len(rest):
         ok, extra = clear_of_cloud(batch, rest, cloud_obj, rcfg, gripper)
         keep[rest] = ok

@@ -49,15 +49,15 @@ __all__ = ["FeatureConfig", "feature_columns"]
 
 @dataclass(frozen=True)
 class FeatureConfig:
-    """min_fit: feature grasps are added when the primitives' fit score
-    (:attr:`~graspsim.perception.acceptance.FitQuality.score`) is below this, or when
-    the parts gave no grasp; seed_step [m]: one seed per voxel of this edge; radius [m]:
+    """min_grasps: feature grasps are added when the identified parts give fewer grasps
+    expected to succeed than this (the planner's rule, ``PlannerConfig.features``);
+    seed_step [m]: one seed per voxel of this edge; radius [m]:
     the neighbourhood whose axes give the closing directions; approaches: approach
     directions per closing axis (evenly about it); depths [m]: contact depths from the
     fingertips; gap [m]: the largest gap along the closing axis inside one chord
     (None: 3 x the cloud's spacing + 4 x its noise, given by the caller)."""
 
-    min_fit: float = 0.8
+    min_grasps: int = 10
     seed_step: float = 0.015
     radius: float = 0.01
     approaches: int = 8
@@ -69,8 +69,8 @@ class FeatureConfig:
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise InvalidParameterError(f"FeatureConfig.{k} must be > 0 m, got {v!r}")
-        if not (0.0 <= self.min_fit <= 1.0):
-            raise InvalidParameterError(f"FeatureConfig.min_fit must be in [0, 1], got {self.min_fit!r}")
+        if isinstance(self.min_grasps, bool) or not isinstance(self.min_grasps, int) or self.min_grasps < 0:
+            raise InvalidParameterError(f"FeatureConfig.min_grasps must be an integer >= 0, got {self.min_grasps!r}")
         if isinstance(self.approaches, bool) or not isinstance(self.approaches, int) or self.approaches < 1:
             raise InvalidParameterError(f"FeatureConfig.approaches must be an integer >= 1, got {self.approaches!r}")
         depths = tuple(float(d) for d in np.atleast_1d(self.depths))

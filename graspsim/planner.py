@@ -26,15 +26,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.agreement import ObservedSurface
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.features import FeatureConfig, feature_columns
+from graspsim.maps.features import FeatureConfig
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
-from graspsim.maps.robust import RANKS, RobustConfig, clear_of_cloud, cloud_in_object, score_map, view_of
-from graspsim.maps.rowids import first_rows, row_ids
+from graspsim.maps.observed import ObservedChecks
+from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map, view_of
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import TablePlane, clears_table, heights_above, stream_order, table_frame, table_height
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
@@ -78,26 +77,16 @@ class PlannerConfig:
         costs less: the check's finest collision samples number about 1 / tolerance^2
         per unit area (scene planning uses 1 mm,
         :data:`~graspsim.perception.scene.SCENE_COLLISION_TOLERANCE`).
-    clear_observed: robust identification: no grasp is offered whose gripper, at the
-        opening it is executed with, holds an observed point (the object's cloud and
-        ``obstacles``) at its nominal pose -- the primitives are not the object, and
-        where they miss it (a bowl's rim, a tool's handle, a rounded box's bulge) the
-        fingers would start inside it. A robust-scored grasp keeps the opening its score
-        chose and is dropped when that still holds points; an unscored one takes the
-        narrowest of ``robust.openings`` that clears (recorded as its extra opening, so
-        every executor opens that wide; likewise a scored one whose chosen opening holds
-        points), else is dropped
-        (:func:`~graspsim.maps.robust.clear_of_cloud`). The number dropped is recorded
-        in the map (``extra["observed"]``); a grasp is dropped exactly when no opening
-        clears, whether it was scored or not. Paper mode never drops.
-    features: robust identification: where the identified parts give fewer than
-        ``features.min_grasps`` grasps expected to succeed (robust score > 0; any grasp
-        with ``rank="paper"``) -- a bowl identified as one sphere wider than the
-        gripper, a tool lying flat fitted as one box -- grasps
-        fitted to the cloud's own graspable features -- a rim, a wall, a bar
-        (:mod:`~graspsim.maps.features`) -- are added (as part ``len(parts)``), through the same checks
-        as the parts' (agreement, table, clear of the cloud, robust score without the
-        primitives term, the grade as success term). None: never. Paper mode never adds.
+    clear_observed: robust identification: no grasp is offered whose gripper holds an
+        observed point (the cloud and ``obstacles``) at its nominal pose at the opening
+        it is executed with; a grasp is dropped exactly when no opening of
+        ``robust.openings`` clears (:mod:`~graspsim.maps.observed`; the count in
+        ``extra["observed"]``). Paper mode never drops.
+    features: robust identification: where the parts give fewer than
+        ``features.min_grasps`` grasps with a robust score > 0 (a bowl as one sphere wider
+        than the gripper), grasps on the cloud's own features (a rim, a bar;
+        :mod:`~graspsim.maps.features`) are added as part ``len(parts)``, through the same
+        checks. None: never. Paper mode never adds.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -272,18 +261,15 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     T_table_obj, table = _table_in_object(cfg, points, prims[0] if compound is None else compound, T_cloud_obj)
     extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
              "identification": ident_info}
-    n_below = 0
+    n_below = n_hi = 0
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
     first = tenth = first_robust = first_robust_cpu = None
-    n_hi = 0
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     cloud_obj = cloud_in_object(seen, T_cloud_obj)
-    view_obj = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0]
-    view = None
-    observed = ObservedSurface(points, viewpoint=viewpoint) if ident is not None and ident.mode == "robust" else None
+    view_obj, view = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0], None
+    observed = ObservedChecks.of_plan(ident, points, cloud_obj, T_cloud_obj, viewpoint, db, cfg)
     stage = StageClock("adapt", "agreement", "combine", "table", "robust", "observed", "features")
-    n_in_cloud = n_features = 0
     skip_spent = scored_only and cfg.rank == "robust"
     checks = check_config(db, cfg)
     t1 = time.perf_counter()
@@ -298,7 +284,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
         for part_map in stage.iterate(() if skip_spent and budget <= 0 else stream, "adapt"):
             if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
-                part_map = _borne_out(observed, part_map, T_cloud_map, cfg.contact_tolerance, db)
+                part_map = observed.borne_out(part_map, T_cloud_map)
             stage.lap("agreement")
             if compound is not None:
                 part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
@@ -310,6 +296,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 part_map = part_map.select(clear)
             stage.lap("table")
             batch = replace(part_map, meta=replace(obj_meta, extra=extra), part=np.full(len(part_map), i, np.int16))
+            batch = batch if observed is None else observed.clear(batch)  # none holding observed points
+            stage.lap("observed")
             if not len(batch):
                 continue
             if budget > 0:  # robustness of the batch's best-graded grasps, then its order
@@ -324,13 +312,6 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 if first_robust is None and bool(np.any(batch.robust > 0)):
                     first_robust = time.perf_counter() - t0
                     first_robust_cpu = time.thread_time() - cpu0
-            if observed is not None and cfg.clear_observed and cloud_obj is not None:
-                stage.start()
-                batch, dropped = _clear_observed(batch, cloud_obj, cfg.robust, db.gripper)
-                n_in_cloud += dropped
-                stage.lap("observed")
-                if not len(batch):
-                    continue
             now = time.perf_counter() - t0
             hi = int((batch.grade > 0.95).sum())
             if hi and first is None:
@@ -344,28 +325,10 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 break  # this part's budget is spent: its later batches would stream unscored
         if hasattr(stream, "close"):
             stream.close()  # a part left early: its maps' generator ends now
-    # grasps the parts offer that are expected to succeed (robust > 0; every grasp when unscored)
-    usable = sum(int(np.sum(b.robust > 0)) if cfg.rank == "robust" else len(b) for b in batches)
-    if observed is not None and cfg.features is not None and usable < cfg.features.min_grasps:
-        stage.start()
-        batch = _feature_batch(points, ident, observed, T_cloud_obj, T_table_obj, cloud_obj, view_obj, view, db, cfg,
-                               replace(obj_meta, extra=extra))
-        if skip_spent:  # a caller that keeps only scored grasps (a scene): the rest would cost their check
-            batch = batch.select(np.isfinite(batch.robust))
-        stage.lap("features")
-        if cfg.clear_observed and len(batch):
-            batch, dropped = _clear_observed(batch, cloud_obj, cfg.robust, db.gripper)
-            n_in_cloud += dropped
-        n_features = len(batch)
-        if n_features:
-            batches.append(batch)
-            yield GraspBatch(batch, time.perf_counter() - t0)
+    if observed is not None:  # too few grasps from the parts: the cloud's own features
+        extra = yield from observed.stream_features(batches, replace(obj_meta, extra=extra), len(parts),
+                                                    T_table_obj, view_obj, view, skip_spent, stage, t0)
     timing["maps"] = time.perf_counter() - t1
-    if observed is not None:
-        extra = {**extra, "features": None if cfg.features is None else {
-            **cfg.features.to_dict(), "grasps": n_features, "part": len(parts)}}
-    if observed is not None:
-        extra = {**extra, "observed": {"clear_observed": bool(cfg.clear_observed), "dropped": n_in_cloud}}
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
                   first_robust_cpu=first_robust_cpu, **stage.seconds)
@@ -394,60 +357,6 @@ def _table_in_object(cfg: PlannerConfig, points: np.ndarray, shape, T_cloud_obj:
         return None, None
     height = table_height(cfg.table, points, shape, T_cloud_obj)
     return table_frame(cfg.table.normal, height) @ T_cloud_obj, {**cfg.table.to_dict(), "height": height}
-
-
-def _feature_batch(points, ident, observed, T_cloud_obj, T_table_obj, cloud_obj, view_obj, view, db, cfg,
-                   meta: MapMeta) -> GraspabilityMap:
-    """The grasps on the cloud's own features (``PlannerConfig.features``), borne out by
-    the cloud, clear of the table, the best robust-scored against the cloud (no
-    primitives term: the parts are what these grasps do without)."""
-    from graspsim.perception.prepare import median_spacing
-
-    obj = cloud_in_object(points, T_cloud_obj)
-    gap = 3.0 * median_spacing(points) + 4.0 * float(ident.noise)
-    up = None if T_table_obj is None else T_table_obj[2, :3]  # the table's normal in the object frame
-    fmap = GraspabilityMap(**feature_columns(obj, db.gripper, db.quality, gap=gap, config=cfg.features,
-                                             part=len(ident.parts), up=up), meta=meta)
-    if not len(fmap):
-        return fmap
-    fmap = _borne_out(observed, fmap, T_cloud_obj, cfg.contact_tolerance, db)
-    if T_table_obj is not None:
-        fmap = fmap.select(clears_table(fmap, T_table_obj, db.gripper, cfg.table.clearance))
-    if cfg.rank == "robust" and len(fmap):
-        rcfg = replace(cfg.robust, terms=tuple(t for t in cfg.robust.terms if t != "primitives"), success="grade")
-        rows = np.argsort(-fmap.grade, kind="stable")[:cfg.robust.top]
-        fmap = score_map(fmap, cloud_obj, rcfg, rows=rows, gripper=db.gripper, viewpoint=view_obj,
-                         view=view if view is not None else view_of(cloud_obj, view_obj, rcfg)).ranked()
-    return fmap
-
-
-def _clear_observed(batch: GraspabilityMap, cloud_obj: np.ndarray, rcfg: RobustConfig, gripper
-                    ) -> tuple[GraspabilityMap, int]:
-    """The batch's grasps whose gripper holds no observed point at the opening each is
-    executed with (``PlannerConfig.clear_observed``), and how many were dropped."""
-    # a scored grasp clear at the opening its score chose stays as it is; the others (unscored,
-    # or scored 0 at an opening that holds points) are checked at every opening
-    clear = np.isfinite(batch.robust) & (np.nan_to_num(batch.clearance, nan=-1.0) >= rcfg.margin)
-    keep = np.ones(len(batch), bool)
-    rest = np.flatnonzero(~clear)
-    if len(rest):
-        ok, extra = clear_of_cloud(batch, rest, cloud_obj, rcfg, gripper)
-        keep[rest] = ok
-        col = batch.robust_extra_opening.copy()
-        col[rest] = np.where(ok, extra, np.nan)
-        batch = replace(batch, robust_extra_opening=col)
-    return batch.select(keep), int(len(keep) - keep.sum())
-
-
-def _borne_out(observed: ObservedSurface, part_map: GraspabilityMap, T_cloud_map: np.ndarray, tol: float,
-               db: MapDatabase) -> GraspabilityMap:
-    """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) the observed cloud
-    bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`); the answer
-    depends on a grasp's contacts alone, so it is found once per closing line."""
-    line = row_ids(part_map.contacts)
-    c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
-    return part_map.select(observed.borne_out(c, tol=tol, max_angle=db.quality.friction_angle,
-                                              min_observed=1)[line])
 
 
 def plan(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,

@@ -178,7 +178,8 @@ def test_segments_planned_on_workers_match_this_process_after_the_parallel_kerne
     assert asked == [1, 2]  # planned here, then on the workers (no map had to be built)
     assert not caplog.records  # and the workers lived (none died for running the OpenMP kernel)
     assert sum(s.status == "planned" for s in here.segments) == 3 and sum(g.score > 0 for g in here.grasps) > 10
-    assert any(g.score == 0 for g in here.grasps)  # some blocked by a neighbour
+    # (grasps a neighbour blocks at their nominal pose are no longer offered at all:
+    # PlannerConfig.clear_observed; the neighbours still enter every robust score)
     assert _plan_record(there) == _plan_record(here)
 
 

@@ -28,7 +28,7 @@ directly, as the FS map fits it to a primitive's surface:
 Nothing here checks collisions: the planner offers these grasps only through the same
 checks as every other -- the cloud bears the contacts out
 (:mod:`~graspsim.maps.agreement`), the table, the gripper clear of every observed point
-(:func:`~graspsim.maps.robust.clear_of_cloud`) and the robust score against the cloud.
+(:func:`~graspsim.maps.observed.clear_of_cloud`) and the robust score against the cloud.
 """
 
 from __future__ import annotations

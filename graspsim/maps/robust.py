@@ -48,7 +48,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["RobustConfig", "RobustScores", "TERMS", "RANKS", "ABLATIONS", "ABLATION_LABELS",
            "POSITION_SIGMA", "ROTATION_SIGMA", "DEFAULT_OPENINGS", "wrist_perturbations", "score_rows", "score_map",
-           "ranking", "cloud_in_object", "extra_openings", "executed_width", "score_poses", "clear_of_cloud"]
+           "ranking", "cloud_in_object", "extra_openings", "executed_width", "score_poses"]
 
 #: The default wrist pose error at the TCP, one place for the planner's robustness model
 #: (:class:`RobustConfig`), the simulated execution error (``graspsim.sim.ExecutionNoise``)
@@ -282,22 +282,6 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
                   gmap.normals[rows].astype(float), table_rows(map_table(gmap), R, w), g, cfg, cos_fc,
                   lambda live: _success(gmap, rows[live], cfg.success),
                   view if view is not None else view_of(cloud, viewpoint, cfg))
-
-
-def clear_of_cloud(gmap, rows: np.ndarray, cloud_obj: np.ndarray, config: RobustConfig = RobustConfig(),
-                   gripper: GripperSpec | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Whether the map's ``rows`` hold no observed point in the gripper at their nominal
-    pose: (keep (n,) bool, extra opening per side (n,) [m]), the narrowest of
-    ``config.openings`` at which the gripper's volume (fingers, jaws, housing, arm
-    keep-out, as the robust score models it) holds none of ``cloud_obj`` (M, 3, object
-    frame) closer than ``config.margin``; keep False where no opening clears. The
-    robust score's own kernel and gripper model at no pose error: no draw, no
-    success term, the table and the primitives not asked."""
-    nominal = replace(config, position_sigma=0.0, rotation_sigma=0.0, samples=1, terms=("cloud",),
-                      success="none", occlusion=False)
-    s = score_rows(gmap, rows, cloud_obj, nominal, gripper)
-    keep = s.robust > 0
-    return keep, np.where(keep, s.extra_opening, 0.0)
 
 
 def score_poses(T_wrist: np.ndarray, width: np.ndarray, contacts: np.ndarray, normals: np.ndarray,

@@ -150,7 +150,8 @@ def run_object(name: str, cfg: Config, out: Path, db_root: Path, gen_flags: list
 def _fit_text(fit: dict | None) -> str:
     if not fit:
         return "n/a"
-    return f"{100 * fit['explained']:.0f} % explained, p95 {1e3 * fit['p95']:.1f} mm"
+    return (f"{fit['score']:.2f} ({100 * fit['explained']:.0f} % of points explained, {100 * fit['covered']:.0f} % of "
+            f"the parts covered, p95 {1e3 * fit['p95']:.1f} mm)")
 
 
 def run(cfg: Config, out: Path) -> dict:

@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from graspsim.geometry.table import TablePlane
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
 from graspsim.maps.robust import cloud_in_object, executed_width
 from graspsim.perception.acceptance import fit_quality
-from graspsim.planner import PlannerConfig, TablePlane, plan
+from graspsim.planning.planner import PlannerConfig, plan
 from graspsim.primitives import Box, Sphere
 from graspsim.transforms import make_transform, quat_to_matrix
 
@@ -144,3 +145,14 @@ def test_clear_observed_off_keeps_colliding_grasps(db):
     obj = cloud_in_object(cloud, res.T_cloud_obj)
     rows = np.linspace(0, len(m) - 1, min(len(m), 300)).astype(int)
     assert np.any(_holding_points(m, rows, obj))
+
+
+def test_scene_planning_keeps_neither_the_cloud_filter_nor_feature_grasps():
+    """Scene planning's published behaviour (its clutter results and times were measured
+    without them): the per-segment planner neither drops grasps holding observed points
+    nor adds feature grasps; a one-object plan does both by default."""
+    from graspsim.planning.scene_config import SceneConfig
+
+    scene = SceneConfig().planner
+    assert scene.clear_observed is False and scene.features is None
+    assert PlannerConfig().clear_observed is True and PlannerConfig().features is not None

@@ -28,7 +28,7 @@ directly, as the FS map fits it to a primitive's surface:
 Nothing here checks collisions: the planner offers these grasps only through the same
 checks as every other -- the cloud bears the contacts out
 (:mod:`~graspsim.maps.agreement`), the table, the gripper clear of every observed point
-(:func:`~graspsim.maps.observed.clear_of_cloud`) and the robust score against the cloud.
+(:func:`~graspsim.planning.observed.clear_of_cloud`) and the robust score against the cloud.
 """
 
 from __future__ import annotations
@@ -40,8 +40,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
-from graspsim.quality import QualityModel
+from graspsim.grades.paper import QualityModel
+from graspsim.grippers.spec import GripperSpec
 from graspsim.transforms import matrix_to_quat
 
 __all__ = ["FeatureConfig", "feature_columns"]

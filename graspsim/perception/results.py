@@ -105,8 +105,8 @@ class Identification:
         scale of this cloud's noise and spacing (robust mode's band: ``IdentifyConfig.band``);
         ``viewpoint`` (3,): where a single view was seen from (only the parts' surface
         facing it counts as coverable), None: seen all round."""
+        from graspsim.geometry.spacing import median_spacing
         from graspsim.perception.acceptance import fit_quality, inlier_band
-        from graspsim.perception.prepare import median_spacing
 
         P = np.asarray(points, float).reshape(-1, 3)
         spacing = median_spacing(P) if len(P) > 1 else 0.0

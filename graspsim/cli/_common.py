@@ -30,7 +30,7 @@ def add_budget_flag(p) -> None:
     p.add_argument("--budget", default="", metavar="ENOUGH:PER_SEGMENT",
                    help="planning effort per object: its planning stops once ENOUGH grasps score above 0 or "
                    "PER_SEGMENT grasps per part are scored (default: SceneConfig's, 32:200); a smaller budget plans "
-                   "faster and chooses from fewer grasps (the README's planning-effort study measures both)")
+                   "faster and chooses from fewer grasps (the planning-effort study in docs/results.md measures both)")
 
 
 def budget_from_args(args) -> dict:

@@ -11,7 +11,7 @@ The JSON summary (``--json``, last stdout line)::
 (:class:`~graspsim.perception.acceptance.FitQuality`): the share of points within the
 inlier band of some part, the share outside every part, and the residuals [m].
 
-``pose`` is ``T_world_obj`` (4x4, object frame of DESIGN.md §3), ``dims`` in metres,
+``pose`` is ``T_world_obj`` (4x4, object frame of docs/design.md §3), ``dims`` in metres,
 ``match`` is "known" / "familiar" / null from the FS map database given with ``--db``,
 else the default one (``$GRASPSIM_DB`` or ``~/.cache/graspsim/db``, the database
 ``adapt`` uses) when it exists -- identify never builds one; ``database`` says which.

@@ -20,7 +20,7 @@ __all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD"]
 
 MAX_TRIALS = 10_000  # more than this many trials need --all
 # Throughput of two-second lift_place trials that start clear, per thread, measured with
-# `python experiments/bench_sim.py` on an idle machine (README: about 80 per second per core).
+# `python experiments/bench_sim.py` on an idle machine (docs/results.md, bench_sim).
 # Start collisions cost ~nothing; a busy machine is slower (62 trials/s on 2 threads at load 7).
 TRIALS_PER_SECOND_PER_THREAD = 80.0
 

@@ -3,7 +3,7 @@
 One :class:`GripperSpec` drives both the planner's collision geometry and the MuJoCo
 model, so the two can never disagree about the gripper.
 
-Wrist frame (DESIGN.md §3): origin at the centre of the housing's mounting face (the
+Wrist frame (docs/design.md §3): origin at the centre of the housing's mounting face (the
 flange), z = approach direction (towards the fingertips), x = jaw closing axis,
 y = z × x. All parts are boxes aligned with the wrist frame:
 

@@ -1,4 +1,4 @@
-"""The graspability map: one row per grasp, columnar arrays plus metadata (DESIGN.md §6).
+"""The graspability map: one row per grasp, columnar arrays plus metadata (docs/design.md §6).
 
 Poses are wrist poses in the object frame (origin at the centre of mass). Geometry is
 stored as float32 (sub-micrometre at object scale), which halves the memory of the

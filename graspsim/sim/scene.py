@@ -3,7 +3,7 @@
 Frames: the world has z up and the table top at z = 0 (a plane: everything below it is
 inside the table, so a pose under the table penetrates it). The object rests on the
 table in a stable pose ``T_world_obj`` (its object frame's +z up when that is stable,
-DESIGN.md §3), its centre of mass above the world origin. Map poses become world poses
+docs/design.md §3), its centre of mass above the world origin. Map poses become world poses
 as ``T_world_wrist = T_world_obj @ T_obj_wrist``.
 
 Contact and solver settings are pinned in :class:`SimSettings` with documented defaults:
@@ -199,7 +199,7 @@ def resting_pose(obj: SimObject, *, support_tol: float = 0.002,
     """T_world_obj (4, 4): the object on the table (z = 0), centre of mass over the origin.
 
     ``up`` (3,), object frame: the direction that should point up (default +z: the
-    object frame of DESIGN.md stands upright). It is kept when the centre of mass lies
+    object frame of docs/design.md §3 stands upright). It is kept when the centre of mass lies
     over the support polygon (points within ``support_tol`` of the lowest); otherwise
     the object rests on the hull face nearest its centre of mass that it can stand on.
     """

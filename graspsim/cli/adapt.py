@@ -20,6 +20,7 @@ def _cmd_adapt(args) -> int:
     from graspsim.maps.io import save_map
     from graspsim.maps.scaling import ScalingConfig
     from graspsim.perception import IdentifyConfig, read_point_cloud
+    from graspsim.perception.acceptance import FitQuality
     from graspsim.planning.planner import PlannerConfig, plan
 
     # every option and the output path before the cloud is read or anything computed
@@ -58,7 +59,8 @@ def _cmd_adapt(args) -> int:
              + (f"; first grasp > 0.95 after {first * 1e3:.1f} ms" if first is not None else "")
              + (f"; {s['table']['dropped']} grasps below the table (height "
                 f"{s['table']['height']:.4f} m) dropped" if s.get("table") and "dropped" in s["table"] else "")
-             + (f" -> {out}" if why is None else ""))
+             + (f" -> {out}" if why is None else "")
+             + (f"\n{FitQuality.from_dict(s['fit']).text()}" if s.get("fit") else ""))
     emit(s, args.json, human)
     if why is not None:
         kept = f"{out} left as it was" if out.exists() else f"{out} not written"

@@ -4,7 +4,12 @@ The JSON summary (``--json``, last stdout line)::
 
     {"status": "identified" | "partial" | "failed", "mode": "robust" | "paper",
      "parts": [{"primitive", "dims", "pose", "match", "fit_rate", "points", "approximate",
-     "band_rate"}], "unidentified": [...], "uncovered": [{"points", "reason"}], "seconds", ...}
+     "band_rate"}], "unidentified": [...], "uncovered": [{"points", "reason"}],
+     "fit": {"explained", "outside", "mean", "p95", "max", "points", "band"}, "seconds", ...}
+
+``fit`` says how well the parts explain the whole cloud
+(:class:`~graspsim.perception.acceptance.FitQuality`): the share of points within the
+inlier band of some part, the share outside every part, and the residuals [m].
 
 ``pose`` is ``T_world_obj`` (4x4, object frame of docs/design.md §3), ``dims`` in metres,
 ``match`` is "known" / "familiar" / null from the FS map database given with ``--db``,
@@ -99,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
     cloud = read_point_cloud(args.cloud, units=args.units)
     lookup, db_root = _lookup(args.db, gripper_from_args(args))
     res = identify(cloud.points, rng=np.random.default_rng(args.seed), config=config)
+    fit = res.fit_quality(cloud.points, config.band, cloud.viewpoint)
     parts = []
     for p in res.parts:
         parts.append({"primitive": p.shape.value, "dims": p.dims, "pose": p.T_world_obj,
@@ -112,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
                           "reason": p.reason}
                          for p in res.unidentified],
         "uncovered": res.uncovered,
+        "fit": fit.to_dict(),
         "seconds": res.seconds,
         "points": cloud.n_read,
         "units": cloud.units,
@@ -134,6 +141,7 @@ def run(args: argparse.Namespace) -> int:
              + (f"{d.used_points} used ({d.voxel * 1000:.2g} mm voxels), " if d else "") +
              f"{res.n_removed} outliers removed, noise {res.noise * 1000:.2f} mm)\n"
              + format_table(rows, ["part", "primitive", "dims", "fit rate", "points", "match"])
+             + (f"\n{fit.text()}" if res.parts else "")
              + ("" if db_root else "\n(match: no map database yet -- `graspsim db build` or the "
                                    "first `graspsim adapt` makes one)"))
     emit(summary, args.json, human)

@@ -27,13 +27,14 @@ s / 2), and:
 from __future__ import annotations
 
 import math
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from graspsim.primitives.sdf import model_sdf
 
 __all__ = ["N_PARAMS", "surface_area", "data_scale", "inlier_band", "band_rate", "decomposition_score",
-           "model_distance"]
+           "model_distance", "FitQuality", "fit_quality"]
 
 #: free parameters of each model kind (pose up to its symmetry + dims)
 N_PARAMS: dict[str, int] = {"sphere": 4, "cylinder": 7, "box": 9, "cone": 8, "half_toroid": 8}
@@ -111,3 +112,89 @@ def decomposition_score(models, points: np.ndarray, band: float, factor: float =
     ll = float(np.sum(np.log(np.maximum((w[:, None] * like).sum(axis=0), 1e-300))))
     k = sum(N_PARAMS[m.kind] + 1 for m in models)
     return -2.0 * ll + k * math.log(max(n, 2))
+
+
+@dataclass(frozen=True)
+class FitQuality:
+    """How well a set of posed primitives explains a whole cloud (every point, not one
+    part's cluster). explained: share of the points within ``band`` [m] of some part's
+    surface; outside: share lying farther than ``band`` outside every part (shape the
+    primitives miss: where a finger sized for them meets the object); mean, p95, max:
+    the points' distances [m] to the nearest part surface; covered: share of the parts'
+    outer surface (area; surface inside another part left out) with a point within
+    ``band`` + the point spacing -- a full cloud covers a primitive that is the object
+    almost wholly, and a part claiming matter where none was seen (a sphere over a
+    bowl's opening, a box over a flat tool's gaps) lowers it; with a viewpoint only the
+    surface facing it counts; points: how many were measured; band: the inlier band
+    (:func:`inlier_band`) of the cloud's noise and spacing. :attr:`score`, explained x
+    covered, is the one number: near 1 where the primitives are the object, low where
+    they miss it either way."""
+
+    explained: float
+    outside: float
+    mean: float
+    p95: float
+    max: float
+    covered: float
+    points: int
+    band: float
+
+    @property
+    def score(self) -> float:
+        """explained x covered: how well the primitives explain the cloud, in [0, 1]."""
+        return self.explained * self.covered
+
+    def to_dict(self) -> dict:
+        return {**asdict(self), "score": self.score}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> FitQuality:
+        """Back from :meth:`to_dict` (NaN residuals may have been written as null)."""
+        return cls(**{k: math.nan if d.get(k) is None else d[k] for k in cls.__dataclass_fields__})
+
+    def text(self) -> str:
+        """One line for a terminal."""
+        return (f"fit {self.score:.2f}: {100 * self.explained:.1f} % of {self.points} points within "
+                f"{1e3 * self.band:.1f} mm of a part, {100 * self.outside:.1f} % outside every part "
+                f"(residual mean {1e3 * self.mean:.1f} mm, "
+                f"95th percentile {1e3 * self.p95:.1f} mm); {100 * self.covered:.0f} % of the parts' surface "
+                "has points on it")
+
+
+def fit_quality(points: np.ndarray, shapes, poses, band: float, spacing: float = 0.0,
+                viewpoint: np.ndarray | None = None) -> FitQuality:
+    """:class:`FitQuality` of ``points`` (N, 3) [m] for the primitives ``shapes`` (each
+    with ``sdf`` and ``surface_samples`` in its own frame) posed at ``poses`` (4x4, their
+    frames in the points' frame), with the inlier band ``band`` [m] and the cloud's
+    point ``spacing`` [m]; ``viewpoint`` (3,): where a single view was seen from (None:
+    all round). No shape: nothing is explained or covered."""
+    from scipy.spatial import cKDTree
+
+    P = np.asarray(points, float).reshape(-1, 3)
+    poses = [np.asarray(T, float) for T in poses]
+    if not len(P) or not len(shapes):
+        return FitQuality(0.0, 1.0 if len(P) else 0.0, math.nan, math.nan, math.nan, 0.0, len(P), float(band))
+
+    def union_sdf(Q, skip=-1):
+        d = np.full(len(Q), np.inf)
+        for k, (shape, T) in enumerate(zip(shapes, poses)):
+            if k != skip:
+                d = np.minimum(d, shape.sdf((Q - T[:3, 3]) @ T[:3, :3]))
+        return d
+
+    d = union_sdf(P)  # signed distance to the union of the parts
+    r = np.abs(d)
+    reach = band + spacing
+    tree, area, seen = cKDTree(P), 0.0, 0.0
+    for k, (shape, T) in enumerate(zip(shapes, poses)):
+        s = shape.surface_samples(max(reach, 0.002))
+        q = s.points @ T[:3, :3].T + T[:3, 3]
+        outer = union_sdf(q, skip=k) > -band  # surface buried in another part is never seen
+        if viewpoint is not None:  # one view: the surface facing the camera
+            outer &= np.einsum("ij,ij->i", s.normals @ T[:3, :3].T, np.asarray(viewpoint, float) - q) > 0
+        near = tree.query(q[outer], k=1, distance_upper_bound=reach)[0] <= reach
+        area += float(s.areas[outer].sum())
+        seen += float(s.areas[outer][near].sum())
+    return FitQuality(float(np.mean(r <= band)), float(np.mean(d > band)), float(r.mean()),
+                      float(np.quantile(r, 0.95)), float(r.max()), seen / area if area > 0 else 0.0, len(P),
+                      float(band))

@@ -98,6 +98,21 @@ class Identification:
                  f"{100 * (p.band_rate or 0.0):.0f} % within the inlier band"} for p in self.parts if p.approximate]
         return out
 
+    def fit_quality(self, points: np.ndarray, factor: float = 3.0, viewpoint: np.ndarray | None = None):
+        """How well the identified parts explain the whole cloud ``points`` (N, 3) the
+        identification was made from (:class:`~graspsim.perception.acceptance.FitQuality`):
+        every point's distance to the nearest part, with the inlier band ``factor`` x the
+        scale of this cloud's noise and spacing (robust mode's band: ``IdentifyConfig.band``);
+        ``viewpoint`` (3,): where a single view was seen from (only the parts' surface
+        facing it counts as coverable), None: seen all round."""
+        from graspsim.geometry.spacing import median_spacing
+        from graspsim.perception.acceptance import fit_quality, inlier_band
+
+        P = np.asarray(points, float).reshape(-1, 3)
+        spacing = median_spacing(P) if len(P) > 1 else 0.0
+        return fit_quality(P, [p.primitive() for p in self.parts], [p.T_world_obj for p in self.parts],
+                           inlier_band(self.noise, spacing, factor), spacing, viewpoint)
+
     def to_dict(self) -> dict:
         return {"status": self.status.value, "parts": [p.to_dict() for p in self.parts],
                 "unidentified": [p.to_dict() for p in self.unidentified],

@@ -3,7 +3,9 @@
 * :mod:`~graspsim.planning.planner`: one object's cloud -> identification -> stored,
   scaled or combined maps -> grasps ranked by the robust score (``plan``, ``plan_shape``,
   ``plan_stream``, ``PlannerConfig``); its results in :mod:`~graspsim.planning.plan_results`
-  and its stage timings in :mod:`~graspsim.planning.stages`;
+  and its stage timings in :mod:`~graspsim.planning.stages`; what the observed cloud
+  rules out of and adds to one plan's grasps (robust mode) in
+  :mod:`~graspsim.planning.observed`;
 * a table-top scene of several objects: :mod:`~graspsim.planning.scene` (``plan_scene``,
   ``perceive_scene``), its settings in :mod:`~graspsim.planning.scene_config`
   (``SceneConfig``), one segment planned in :mod:`~graspsim.planning.scene_segments`, the

@@ -80,4 +80,5 @@ class PlanResult:
                 "identification": None if self.identification is None else {
                     "mode": self.identification.mode, "uncovered": self.identification.uncovered,
                     "approximate": [p.approximate for p in self.identification.parts]},
+                "fit": (self.map.meta.extra.get("identification") or {}).get("fit"),
                 "table": None if self.map.meta.placement is None else self.map.meta.placement.table}

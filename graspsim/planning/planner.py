@@ -27,17 +27,17 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError
 from graspsim.geometry.table import TablePlane, table_frame
-from graspsim.maps.agreement import ObservedSurface
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.features import FeatureConfig
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map, view_of
-from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table import clears_table, heights_above, stream_order, table_height
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
+from graspsim.planning.observed import ObservedChecks
 from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
 from graspsim.planning.stages import StageClock
 from graspsim.primitives import Compound, Primitive
@@ -78,6 +78,16 @@ class PlannerConfig:
         costs less: the check's finest collision samples number about 1 / tolerance^2
         per unit area (scene planning uses 1 mm,
         :data:`~graspsim.planning.scene.SCENE_COLLISION_TOLERANCE`).
+    clear_observed: robust identification: no grasp is offered whose gripper holds an
+        observed point (the cloud and ``obstacles``) at its nominal pose at the opening
+        it is executed with; a grasp is dropped exactly when no opening of
+        ``robust.openings`` clears (:mod:`~graspsim.planning.observed`; the count in
+        ``extra["observed"]``). Paper mode never drops.
+    features: robust identification: where the parts give fewer than
+        ``features.min_grasps`` grasps with a robust score > 0 (a bowl as one sphere wider
+        than the gripper), grasps on the cloud's own features (a rim, a bar;
+        :mod:`~graspsim.maps.features`) are added as part ``len(parts)``, through the same
+        checks. None: never. Paper mode never adds.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -89,6 +99,8 @@ class PlannerConfig:
     rank: str = "robust"
     robust: RobustConfig = field(default_factory=RobustConfig)
     collision_tolerance: float | None = None
+    clear_observed: bool = True
+    features: FeatureConfig | None = field(default_factory=FeatureConfig)
 
     def __post_init__(self) -> None:
         tol = self.collision_tolerance
@@ -206,7 +218,8 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
     info = {"status": ident.status.value, "n_points": ident.n_points, "n_splits": ident.n_splits,
             "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict(),
             "mode": ident.mode, "uncovered": ident.uncovered,
-            "approximate": [i for i, p in enumerate(ident.parts) if p.approximate]}
+            "approximate": [i for i, p in enumerate(ident.parts) if p.approximate],
+            "fit": ident.fit_quality(points, cfg.identify.band, viewpoint).to_dict()}
     yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0,
                            obstacles, viewpoint, scored_only)
 
@@ -249,17 +262,15 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     T_table_obj, table = _table_in_object(cfg, points, prims[0] if compound is None else compound, T_cloud_obj)
     extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
              "identification": ident_info}
-    n_below = 0
+    n_below = n_hi = 0
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
     first = tenth = first_robust = first_robust_cpu = None
-    n_hi = 0
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     cloud_obj = cloud_in_object(seen, T_cloud_obj)
-    view_obj = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0]
-    view = None
-    observed = ObservedSurface(points, viewpoint=viewpoint) if ident is not None and ident.mode == "robust" else None
-    stage = StageClock("adapt", "agreement", "combine", "table", "robust")
+    view_obj, view = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0], None
+    observed = ObservedChecks.of_plan(ident, points, cloud_obj, T_cloud_obj, viewpoint, db, cfg)
+    stage = StageClock("adapt", "agreement", "combine", "table", "robust", "observed", "features")
     skip_spent = scored_only and cfg.rank == "robust"
     checks = check_config(db, cfg)
     t1 = time.perf_counter()
@@ -274,7 +285,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
         for part_map in stage.iterate(() if skip_spent and budget <= 0 else stream, "adapt"):
             if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
-                part_map = _borne_out(observed, part_map, T_cloud_map, cfg.contact_tolerance, db)
+                part_map = observed.borne_out(part_map, T_cloud_map)
             stage.lap("agreement")
             if compound is not None:
                 part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
@@ -286,6 +297,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 part_map = part_map.select(clear)
             stage.lap("table")
             batch = replace(part_map, meta=replace(obj_meta, extra=extra), part=np.full(len(part_map), i, np.int16))
+            batch = batch if observed is None else observed.clear(batch)  # none holding observed points
+            stage.lap("observed")
             if not len(batch):
                 continue
             if budget > 0:  # robustness of the batch's best-graded grasps, then its order
@@ -313,6 +326,9 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 break  # this part's budget is spent: its later batches would stream unscored
         if hasattr(stream, "close"):
             stream.close()  # a part left early: its maps' generator ends now
+    if observed is not None:  # too few grasps from the parts: the cloud's own features
+        extra = yield from observed.stream_features(batches, replace(obj_meta, extra=extra), len(parts),
+                                                    T_table_obj, view_obj, view, skip_spent, stage, t0)
     timing["maps"] = time.perf_counter() - t1
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
@@ -342,17 +358,6 @@ def _table_in_object(cfg: PlannerConfig, points: np.ndarray, shape, T_cloud_obj:
         return None, None
     height = table_height(cfg.table, points, shape, T_cloud_obj)
     return table_frame(cfg.table.normal, height) @ T_cloud_obj, {**cfg.table.to_dict(), "height": height}
-
-
-def _borne_out(observed: ObservedSurface, part_map: GraspabilityMap, T_cloud_map: np.ndarray, tol: float,
-               db: MapDatabase) -> GraspabilityMap:
-    """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) the observed cloud
-    bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`); the answer
-    depends on a grasp's contacts alone, so it is found once per closing line."""
-    line = row_ids(part_map.contacts)
-    c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
-    return part_map.select(observed.borne_out(c, tol=tol, max_angle=db.quality.friction_angle,
-                                              min_observed=1)[line])
 
 
 def plan(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,

@@ -39,15 +39,17 @@ SCENE_COLLISION_TOLERANCE = 0.001
 
 
 def _scene_planner() -> PlannerConfig:
+    # no cloud filter, no feature grasps: the clutter results and scene-planning times were measured without them
     return PlannerConfig(identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS),
-                         collision_tolerance=SCENE_COLLISION_TOLERANCE)
+                         collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=None)
 
 
 @dataclass(frozen=True)
 class SceneConfig:
     """planner: the per-segment planner settings (its ``table`` is replaced by the
     fitted plane; by default robust identification on at most :data:`SCENE_FIT_POINTS`
-    points of a segment, ``IdentifyConfig(fit_points=None)`` for all of them).
+    points of a segment, ``IdentifyConfig(fit_points=None)`` for all of them; neither
+    ``clear_observed`` nor ``features``).
     plane_sigma [m], plane_repetitions, plane_confidence: the table fit (its planes are
     scored until the RANSAC bound at this confidence is met; None: all of them, see
     :func:`~graspsim.perception.plane.fit_table`); table_band [m]:

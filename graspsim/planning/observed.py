@@ -1,0 +1,166 @@
+"""What the observed cloud rules out of -- and adds to -- one plan's grasps (robust mode).
+
+The adapted map's grasps are made on the identified primitives; the observed points are
+the object. For each plan made from a cloud in robust identification mode,
+:class:`ObservedChecks` holds the cloud once and applies, batch by batch:
+
+* :meth:`~ObservedChecks.borne_out`: the cloud bears each grasp's contacts out
+  (:mod:`graspsim.maps.agreement`);
+* :meth:`~ObservedChecks.clear`: no grasp is offered whose gripper (fingers, jaws,
+  housing, arm keep-out, as the robust score models it) holds an observed point at its
+  nominal pose, at the opening it is executed with (``PlannerConfig.clear_observed``;
+  :func:`clear_of_cloud`): where the primitives miss the object -- a bowl's rim, a
+  tool's handle, a rounded box's bulge -- the fingers would start inside it;
+* :meth:`~ObservedChecks.feature_batch`: where the parts give too few grasps expected to
+  succeed, grasps fitted to the cloud's own features (:mod:`graspsim.maps.features`),
+  through the same checks and the robust score without its primitives term.
+
+:meth:`~ObservedChecks.record` is what the map records of them (``extra["observed"]``,
+``extra["features"]``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from graspsim.geometry.spacing import median_spacing
+from graspsim.grippers.spec import GripperSpec
+from graspsim.maps.agreement import ObservedSurface
+from graspsim.maps.features import feature_columns
+from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.maps.robust import RobustConfig, cloud_in_object, score_map, score_rows, view_of
+from graspsim.maps.rowids import first_rows, row_ids
+from graspsim.maps.table import clears_table
+from graspsim.planning.plan_results import GraspBatch
+
+__all__ = ["ObservedChecks", "clear_of_cloud"]
+
+
+def clear_of_cloud(gmap, rows: np.ndarray, cloud_obj: np.ndarray, config: RobustConfig = RobustConfig(),
+                   gripper: GripperSpec | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Whether the map's ``rows`` hold no observed point in the gripper at their nominal
+    pose: (keep (n,) bool, extra opening per side (n,) [m]), the narrowest of
+    ``config.openings`` at which the gripper's volume (fingers, jaws, housing, arm
+    keep-out, as the robust score models it) holds none of ``cloud_obj`` (M, 3, object
+    frame) closer than ``config.margin``; keep False where no opening clears. The
+    robust score's own kernel and gripper model at no pose error: no draw, no
+    success term, the table and the primitives not asked."""
+    nominal = replace(config, position_sigma=0.0, rotation_sigma=0.0, samples=1, terms=("cloud",),
+                      success="none", occlusion=False)
+    s = score_rows(gmap, rows, cloud_obj, nominal, gripper)
+    keep = s.robust > 0
+    return keep, np.where(keep, s.extra_opening, 0.0)
+
+
+class ObservedChecks:
+    """The observed ``points`` (N, 3, cloud frame) of one plan and ``cloud_obj`` (the
+    points the gripper must keep clear of -- the object's and any obstacles' -- in the
+    object frame at ``T_cloud_obj``); ``noise`` [m]: the cloud's sigma estimate;
+    ``gripper``, ``quality``: the database's; ``cfg``: the
+    :class:`~graspsim.planning.planner.PlannerConfig`."""
+
+    def __init__(self, points: np.ndarray, cloud_obj: np.ndarray | None, T_cloud_obj: np.ndarray, *,
+                 viewpoint: np.ndarray | None, noise: float, gripper: GripperSpec, quality, cfg) -> None:
+        self.points, self.cloud_obj, self.T_cloud_obj = points, cloud_obj, T_cloud_obj
+        self.surface = ObservedSurface(points, viewpoint=viewpoint)
+        self.noise, self.gripper, self.quality, self.cfg = float(noise), gripper, quality, cfg
+        self.dropped = 0
+        self.features: int | None = None
+
+    @classmethod
+    def of_plan(cls, ident, points, cloud_obj, T_cloud_obj, viewpoint, db, cfg) -> ObservedChecks | None:
+        """The checks of a plan whose identification ``ident`` is in robust mode, else
+        None (paper mode: the paper's grasps as they are); ``db``: its database."""
+        if ident is None or ident.mode != "robust":
+            return None
+        return cls(points, cloud_obj, T_cloud_obj, viewpoint=viewpoint, noise=ident.noise, gripper=db.gripper,
+                   quality=db.quality, cfg=cfg)
+
+    def borne_out(self, part_map: GraspabilityMap, T_cloud_map: np.ndarray) -> GraspabilityMap:
+        """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) the observed
+        cloud bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`); the
+        answer depends on a grasp's contacts alone, so it is found once per closing line."""
+        line = row_ids(part_map.contacts)
+        c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
+        return part_map.select(self.surface.borne_out(c, tol=self.cfg.contact_tolerance,
+                                                      max_angle=self.quality.friction_angle,
+                                                      min_observed=1)[line])
+
+    def clear(self, batch: GraspabilityMap) -> GraspabilityMap:
+        """The batch's grasps whose gripper holds no observed point at the opening each is
+        executed with (``PlannerConfig.clear_observed``; unchanged when it is off)."""
+        if not self.cfg.clear_observed or self.cloud_obj is None or not len(batch):
+            return batch
+        # a scored grasp clear at the opening its score chose stays as it is; the others (unscored,
+        # or scored 0 at an opening that holds points) are checked at every opening
+        clear = np.isfinite(batch.robust) & (np.nan_to_num(batch.clearance, nan=-1.0) >= self.cfg.robust.margin)
+        keep = np.ones(len(batch), bool)
+        rest = np.flatnonzero(~clear)
+        if len(rest):
+            ok, extra = clear_of_cloud(batch, rest, self.cloud_obj, self.cfg.robust, self.gripper)
+            keep[rest] = ok
+            col = batch.robust_extra_opening.copy()
+            col[rest] = np.where(ok, extra, np.nan)
+            batch = replace(batch, robust_extra_opening=col)
+        self.dropped += int(len(keep) - keep.sum())
+        return batch.select(keep)
+
+    def wants_features(self, batches: list[GraspabilityMap]) -> bool:
+        """Whether the parts' ``batches`` give fewer grasps expected to succeed (robust
+        score > 0; any grasp when unscored) than ``features.min_grasps``."""
+        f = self.cfg.features
+        usable = sum(int(np.sum(b.robust > 0)) if self.cfg.rank == "robust" else len(b) for b in batches)
+        return f is not None and usable < f.min_grasps
+
+    def feature_batch(self, meta: MapMeta, part: int, T_table_obj: np.ndarray | None, view_obj, view,
+                      scored_only: bool = False) -> GraspabilityMap:
+        """The grasps on the cloud's own features as part ``part`` of a map with ``meta``:
+        borne out by the cloud, clear of the table, the best robust-scored against the
+        cloud (no primitives term: the parts are what these grasps do without), clear of
+        the cloud; ``scored_only``: the scored ones alone."""
+        cfg = self.cfg
+        gap = 3.0 * median_spacing(self.points) + 4.0 * self.noise
+        up = None if T_table_obj is None else T_table_obj[2, :3]  # the table's normal in the object frame
+        fmap = GraspabilityMap(**feature_columns(cloud_in_object(self.points, self.T_cloud_obj), self.gripper,
+                                                 self.quality, gap=gap, config=cfg.features, part=part, up=up),
+                               meta=meta)
+        if len(fmap):
+            fmap = self.borne_out(fmap, self.T_cloud_obj)
+        if T_table_obj is not None and len(fmap):
+            fmap = fmap.select(clears_table(fmap, T_table_obj, self.gripper, cfg.table.clearance))
+        if cfg.rank == "robust" and len(fmap):
+            rcfg = replace(cfg.robust, terms=tuple(t for t in cfg.robust.terms if t != "primitives"),
+                           success="grade")
+            rows = np.argsort(-fmap.grade, kind="stable")[:cfg.robust.top]
+            fmap = score_map(fmap, self.cloud_obj, rcfg, rows=rows, gripper=self.gripper, viewpoint=view_obj,
+                             view=view if view is not None else view_of(self.cloud_obj, view_obj, rcfg)).ranked()
+            if scored_only:  # a caller that keeps only scored grasps (a scene): the rest would cost their check
+                fmap = fmap.select(np.isfinite(fmap.robust))
+        fmap = self.clear(fmap)
+        self.features = len(fmap)
+        return fmap
+
+    def stream_features(self, batches: list, meta: MapMeta, part: int, T_table_obj, view_obj, view,
+                        scored_only: bool, stage, t0: float):
+        """The planner's step after the parts: yield the feature grasps' batch
+        (:class:`~graspsim.planning.plan_results.GraspBatch`, appended to ``batches``) where the
+        parts gave too few grasps; return ``meta.extra`` with :meth:`record` added.
+        ``stage``: the plan's :class:`~graspsim.planning.stages.StageClock`; ``t0``: its start."""
+        if self.wants_features(batches):
+            stage.start()
+            batch = self.feature_batch(meta, part, T_table_obj, view_obj, view, scored_only)
+            stage.lap("features")
+            if len(batch):
+                batches.append(batch)
+                yield GraspBatch(batch, time.perf_counter() - t0)
+        return {**meta.extra, **self.record(part)}
+
+    def record(self, parts: int) -> dict:
+        """The map's record of these checks (``extra`` entries); ``parts``: the parts
+        planned (the feature grasps' part index)."""
+        f = self.cfg.features
+        return {"observed": {"clear_observed": bool(self.cfg.clear_observed), "dropped": self.dropped},
+                "features": None if f is None else {**f.to_dict(), "grasps": self.features or 0, "part": parts}}

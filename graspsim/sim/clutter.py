@@ -35,7 +35,8 @@ from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.scenes import known_gap
 
 __all__ = ["scene_settings", "ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame", "ClutterEpisode",
-           "run_clutter", "run_benchmark", "summarize", "one_cluster_objects", "STOPS", "OTHER"]
+           "run_clutter", "run_benchmark", "summarize", "one_cluster_objects", "object_segmentation",
+           "per_object", "failure_rows", "FAILURE_COLUMNS", "STOPS", "OTHER", "LEFT"]
 
 #: Why an episode ended.
 STOPS = ("cleared", "failures", "no_grasp", "max_attempts")
@@ -111,10 +112,17 @@ class Attempt:
         return dict(self.__dict__)
 
 
+#: Why an object was left on the table, judged on the episode's last look
+#: (:meth:`ClutterEpisode.left_reasons`).
+LEFT = ("not_seen", "merged", "split", "no_grasp", "not_tried", "off_table")
+
+
 @dataclass(frozen=True)
 class ClutterResult:
     """One episode: placed objects, attempts in order, removed objects, why it stopped
-    (:data:`STOPS`), the first frame's segmentation quality (objects seen, one cluster)."""
+    (:data:`STOPS`), the first frame's segmentation quality (objects seen, one cluster);
+    names: the placed objects' names (by id); left: object id -> why it is still on the
+    table (:data:`LEFT`)."""
 
     placed: int
     attempts: tuple[Attempt, ...]
@@ -123,6 +131,8 @@ class ClutterResult:
     first_seen: int
     first_one_cluster: int
     seconds: float
+    names: tuple[str, ...] = ()
+    left: dict = field(default_factory=dict)
 
     @property
     def successes(self) -> int:
@@ -147,7 +157,28 @@ class ClutterResult:
                 "grasp_success_rate": self.grasp_success_rate,
                 "declutter_rate": self.declutter_rate, "stop": self.stop, "first_seen": self.first_seen,
                 "first_one_cluster": self.first_one_cluster, "seconds": self.seconds,
+                "objects": list(self.names), "left": {str(k): v for k, v in self.left.items()},
                 "steps": [a.to_dict() for a in self.attempts]}
+
+
+def object_segmentation(truth: np.ndarray, found: np.ndarray, k: int, *, min_seen: int = 40,
+                        share: float = 0.9) -> tuple[str, int | None]:
+    """How object ``k`` is segmented: ("not_seen" | "one" | "merged" | "split", its
+    segment when "one") by :func:`one_cluster_objects`' rule; merged: the segment holding
+    most of its points is less than ``share`` its own (it shares it with another object);
+    split: spread over segments, or not segmented."""
+    mine = truth == k
+    if mine.sum() < min_seen:
+        return "not_seen", None
+    segs = found[mine & (found >= 0)]
+    if not len(segs):
+        return "split", None
+    ids, counts = np.unique(segs, return_counts=True)
+    best = int(ids[np.argmax(counts)])
+    pure = np.mean(truth[found == best] == k) >= share
+    if not pure:
+        return "merged", None
+    return ("one", best) if counts.max() >= share * len(segs) else ("split", None)
 
 
 def one_cluster_objects(truth: np.ndarray, found: np.ndarray, *, min_seen: int = 40,
@@ -314,10 +345,37 @@ class ClutterEpisode:
     def removed(self) -> int:
         return len(self.scene.objects) - len(self.sim.objects_left())
 
+    def left_reasons(self) -> dict[int, str]:
+        """Why each object left on the table is there, judged on the last look
+        (:data:`LEFT`): off the table (knocked beyond it), not seen (fewer than
+        ``min_seen`` points), merged with another object or split (by
+        :func:`object_segmentation`), one cluster but no grasp with a robust score > 0
+        left to try on its segment (no_grasp), or one that was not tried before the
+        episode stopped (not_tried)."""
+        look, out = self.last, {}
+        off = set(self.sim.outside())
+        for k in self.sim.objects_left():
+            if k in off:
+                out[k] = "off_table"
+                continue
+            if look is None:
+                out[k] = "not_seen"
+                continue
+            per = look.plan.perception
+            how, seg = object_segmentation(look.view.labels[per.indices], per.segment, k,
+                                           min_seen=self.config.min_seen)
+            if how != "one":
+                out[k] = how
+            else:
+                out[k] = "not_tried" if any(g.segment == seg and g.score > 0 for g in look.candidates) \
+                    else "no_grasp"
+        return out
+
     def result(self) -> ClutterResult:
         first = self.first or (0, 0)
         return ClutterResult(len(self.scene.objects), tuple(self.attempts), self.removed, self.stop or "max_attempts",
-                             first[0], first[1], time.perf_counter() - self._t0)
+                             first[0], first[1], time.perf_counter() - self._t0,
+                             tuple(o.name for o in self.scene.objects), self.left_reasons())
 
     def close(self) -> None:
         """Free the renderer (the simulation stays readable)."""
@@ -379,6 +437,52 @@ def _spread(values: list[float]) -> dict:
     return {"count": len(v), "mean": float(v.mean()), "median": float(np.median(v)), "max": float(v.max())}
 
 
+def per_object(results: list[ClutterResult]) -> dict:
+    """The failure table per object name, over episodes: placed, removed, grasps aimed
+    at it (the target: the object most of the chosen segment's points show), those that
+    lifted it, the failed ones by cause (start collisions by what they hit, slips,
+    drops, another object lifted, ...), and the copies left on the table by why
+    (:data:`LEFT`). Sorted by objects left, then failed grasps, most first."""
+    rows: dict[str, dict] = {}
+    for r in results:
+        names = r.names or tuple(str(k) for k in range(r.placed))
+        for k, name in enumerate(names):
+            row = rows.setdefault(name, {"placed": 0, "removed": 0, "grasps": 0, "lifted": 0, "failed": {},
+                                         "left": {}})
+            row["placed"] += 1
+            row["removed"] += k not in r.left
+        for k, why in r.left.items():
+            d = rows[names[k]]["left"]
+            d[why] = d.get(why, 0) + 1
+        for a in r.attempts:
+            if a.target is None:
+                continue
+            row = rows[names[a.target]]
+            row["grasps"] += 1
+            row["lifted"] += a.success
+            if not a.success:
+                row["failed"][a.cause] = row["failed"].get(a.cause, 0) + 1
+    for row in rows.values():
+        row["failed"] = dict(sorted(row["failed"].items()))
+        row["left"] = dict(sorted(row["left"].items()))
+    return dict(sorted(rows.items(), key=lambda kv: (-(kv[1]["placed"] - kv[1]["removed"]),
+                                                     -(kv[1]["grasps"] - kv[1]["lifted"]), kv[0])))
+
+
+#: The columns of :func:`failure_rows`.
+FAILURE_COLUMNS = ("object", "placed", "removed", "grasps", "lifted", "failed grasps", "left on the table")
+
+
+def failure_rows(table: dict) -> list[tuple]:
+    """Rows of :data:`FAILURE_COLUMNS` from a :func:`per_object` table (what the CLI and
+    E10 print)."""
+    def causes(d: dict) -> str:
+        return ", ".join(f"{k} {v}" for k, v in d.items()) or "-"
+
+    return [(name, r["placed"], r["removed"], r["grasps"], r["lifted"], causes(r["failed"]), causes(r["left"]))
+            for name, r in table.items()]
+
+
 def summarize(results: list[ClutterResult]) -> dict:
     """Pooled metrics of episodes: grasp success rate (successes / attempts), cleared
     rate (objects removed / placed), grasps that lifted another object than their
@@ -386,7 +490,8 @@ def summarize(results: list[ClutterResult]) -> dict:
     planning seconds per grasp (count, mean, median, max; of the episodes' first frames
     and of later frames, which may reuse plans, apart; median per stage of
     ``plan_scene``), segmentation quality of the first frames
-    (objects seen, segmented as one cluster)."""
+    (objects seen, segmented as one cluster), and the failure table per object
+    (:func:`per_object`)."""
     attempts = [a for r in results for a in r.attempts]
     ok = sum(a.success for a in attempts)
     placed, removed = sum(r.placed for r in results), sum(r.removed for r in results)
@@ -409,4 +514,5 @@ def summarize(results: list[ClutterResult]) -> dict:
             "planning_s": {**_spread([a.planning for a in attempts]), "stages_median": medians,
                            "first_frame": _spread(first), "later_frames": _spread(later)},
             "segmentation": {"objects_seen": seen, "one_cluster": one,
-                             "share": one / seen if seen else None}}
+                             "share": one / seen if seen else None},
+            "per_object": per_object(results)}

@@ -155,3 +155,22 @@ def test_the_shipped_split_is_the_documented_rule():
         assert {e.name for e in shipped_set(f"{name}-tuning").entries} == {e.name for e in tuning}
     held = {e.name for e in shipped_set("household-heldout").entries}
     assert held == {"bread", "can", "cereal", "teddy"}  # as the assets README's table says
+
+
+def test_the_failure_table_counts_each_object_by_name():
+    from graspsim.sim.clutter import Attempt, ClutterResult, failure_rows, per_object, summarize
+
+    def a(target, ok, cause):
+        return Attempt(target, {}, ok, cause, 1.0, 0.1, {}, 2, 2, 2)
+
+    r1 = ClutterResult(3, (a(0, True, "success"), a(1, False, "start_collision_target"), a(1, False, "slipped")),
+                       1, "failures", 3, 2, 1.0, ("mug", "can", "lemon"), {1: "no_grasp", 2: "merged"})
+    r2 = ClutterResult(2, (a(0, True, "success"), a(1, True, "success")), 2, "cleared", 2, 2, 1.0, ("can", "mug"))
+    t = per_object([r1, r2])
+    assert list(t) == ["can", "lemon", "mug"]  # most left first
+    assert t["can"] == {"placed": 2, "removed": 1, "grasps": 3, "lifted": 1,
+                        "failed": {"slipped": 1, "start_collision_target": 1}, "left": {"no_grasp": 1}}
+    assert t["lemon"]["left"] == {"merged": 1} and t["lemon"]["grasps"] == 0
+    assert t["mug"]["placed"] == t["mug"]["removed"] == t["mug"]["lifted"] == 2
+    assert summarize([r1, r2])["per_object"] == t
+    assert failure_rows(t)[0] == ("can", 2, 1, 3, 1, "slipped 1, start_collision_target 1", "no_grasp 1")

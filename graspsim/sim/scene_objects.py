@@ -38,7 +38,7 @@ from graspsim.sim.mesh_objects import (
     mesh_set,
     shipped_names,
 )
-from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape
+from graspsim.sim.objects import GeomPart, SimObject, object_from_mesh, object_from_shape
 
 __all__ = ["ObjectSpec", "OBJECT_SETS", "draw_object", "narrowest_extent", "MESHES", "ASSETS", "check_object_set",
            "object_set_names", "prepare_objects", "mesh_spec"]
@@ -139,17 +139,20 @@ def _sim_object(key: str) -> SimObject:
     if spec.sha256 is not None and file_sha256(path) != spec.sha256:
         raise InvalidParameterError(f"mesh {path} changed since the scene was written (its content hash is not the "
                                     f"recorded {spec.sha256[:12]}...); restore that file or draw the scene again")
-    mesh = load_mesh(path, scale=spec.scale)
-    T_obj_file = make_transform(np.eye(3), -mesh_centre(mesh))
     mass, model = spec.mass, "given"
     if mass is None and spec.density is None:
-        mass, model = default_mass(mesh)
+        mass, model = default_mass(load_mesh(path, scale=spec.scale))
     elif mass is None:
         model = "density"
-    obj = object_from_mesh(path, T_obj_mesh=T_obj_file, scale=spec.scale, mass=mass,
-                           density=spec.density or 1000.0, friction=spec.friction)
-    obj.description.update(name=spec.name, sha256=spec.sha256, mass_model=model, T_obj_file=T_obj_file.tolist())
-    return obj
+    # decomposed in the file's frame (the convex parts' cache is shared with `graspsim trial --mesh`), then moved
+    obj = object_from_mesh(path, scale=spec.scale, mass=mass, density=spec.density or 1000.0, friction=spec.friction)
+    c = mesh_centre(obj.surface)
+    surface = obj.surface.copy()
+    surface.apply_translation(-c)
+    desc = {**obj.description, "name": spec.name, "sha256": spec.sha256, "mass_model": model,
+            "T_obj_file": make_transform(np.eye(3), -c).tolist()}
+    return SimObject(tuple(GeomPart("mesh", vertices=g.vertices - c) for g in obj.geoms), obj.mass, obj.com - c,
+                     obj.inertia, surface, desc, obj.friction)
 
 
 def _primitive(rng: np.random.Generator) -> ObjectSpec:

@@ -88,7 +88,10 @@ class SceneConfig:
     to; radius [m]: the clustering radius (None: from the spacing, at most max_radius);
     min_gap [m]: the least gap the user knows parts any two objects (objects placed
     apart; None: they may touch): clusters closer than
-    :data:`~graspsim.perception.segment.GAP_LINK` x min_gap are one object; min_points: smallest
+    :data:`~graspsim.perception.segment.GAP_LINK` x min_gap are one object; crease_angle [deg]:
+    where objects may touch (no ``min_gap``) and the camera's viewpoint is known, the
+    points along concave creases sharper than this are taken out before clustering, so
+    touching objects come apart (None: off; :mod:`~graspsim.perception.segment`); min_points: smallest
     object (points after thinning); neighbours: score grasps
     against the whole scene (False: the segment's points only); reach [m]: scene points
     farther than this from a segment's bounding box cannot touch the gripper and are
@@ -113,6 +116,7 @@ class SceneConfig:
     radius: float | None = None
     max_radius: float = 0.007
     min_gap: float | None = None
+    crease_angle: float | None = 15.0
     min_points: int = 40
     neighbours: bool = True
     reach: float = 0.15
@@ -131,6 +135,10 @@ class SceneConfig:
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InvalidParameterError(f"SceneConfig.{k} must be > 0 m, got {v!r}")
+        if self.crease_angle is not None and not (isinstance(self.crease_angle, (int, float))
+                                                  and 0 < self.crease_angle < 180):
+            raise InvalidParameterError(f"SceneConfig.crease_angle must be in (0, 180) deg or None, "
+                                        f"got {self.crease_angle!r}")
         if self.radius is not None and not (np.isfinite(self.radius) and self.radius > 0):
             raise InvalidParameterError(f"SceneConfig.radius must be > 0 m or None, got {self.radius!r}")
         try:
@@ -252,10 +260,13 @@ def _check_memory(n: int) -> None:
 
 
 def perceive_scene(points: np.ndarray, rng: np.random.Generator, config: SceneConfig | None = None, *,
-                   labels: np.ndarray | None = None) -> ScenePerception:
+                   labels: np.ndarray | None = None, viewpoint=None) -> ScenePerception:
     """The table and the objects of a scene cloud (N, 3) [m] (NaN rows: no depth).
     ``labels`` (N,): given segment ids (>= 0 objects, < 0 none; e.g. the simulator's
-    ground truth) replace the clustering."""
+    ground truth) replace the clustering. ``viewpoint`` (3,): the camera that saw the
+    cloud (one view): surface normals point towards it, and with
+    ``SceneConfig.crease_angle`` the clustering parts touching objects along the
+    concave creases between them (:func:`~graspsim.perception.segment.euclidean_clusters`)."""
     cfg = config or SceneConfig()
     t0 = time.perf_counter()
     pts, finite = _check_scene(points)
@@ -270,7 +281,9 @@ def perceive_scene(points: np.ndarray, rng: np.random.Generator, config: SceneCo
         seg, radius = _given_segments(labels, idx, len(pts), cfg.min_points), float("nan")
     else:
         radius = cfg.radius if cfg.radius is not None else cluster_radius(sub, max_radius=cfg.max_radius)
-        seg = euclidean_clusters(sub, radius=radius, min_points=cfg.min_points, link=gap_link(cfg.min_gap))
+        crease = None if viewpoint is None or cfg.min_gap is not None else cfg.crease_angle  # apart: no creases
+        seg = euclidean_clusters(sub, radius=radius, min_points=cfg.min_points, link=gap_link(cfg.min_gap),
+                                 viewpoint=viewpoint, crease_angle=crease)
     full = np.full(len(pts), -1, np.int64)
     full[idx] = seg
     t2 = time.perf_counter()
@@ -359,7 +372,7 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     robust score down (:mod:`~graspsim.maps.occlusion`); None: no such term."""
     cfg = config or SceneConfig()
     t0 = time.perf_counter()
-    per = perceive_scene(points, rng, cfg, labels=labels)
+    per = perceive_scene(points, rng, cfg, labels=labels, viewpoint=viewpoint)
     table = per.plane.table(cfg.clearance)
     t1 = time.perf_counter()
     segs = [per.segment_points(k) for k in range(per.n_segments)]

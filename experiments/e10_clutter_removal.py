@@ -33,7 +33,7 @@ of FS maps is stored in it before the first scene, so the first scene plans like
 last; a part no stored map serves gets a map built in memory, not stored.
 
     python experiments/e10_clutter_removal.py                 # 5 seeds x 20 scenes per condition
-    python experiments/e10_clutter_removal.py --seeds 2 --scenes 5 --objects 5 --noise none --ablations
+    python experiments/e10_clutter_removal.py --seeds 2 --scenes 5 --objects 5 --noise none --ablations none
     python experiments/e10_clutter_removal.py --quick --out results/e10-quick
 """
 
@@ -96,7 +96,8 @@ class Config:
     kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
     noise: tuple[str, ...] = opt(("none", "default"), "execution error: none, default (3 mm / 2 deg)",
                                  choices=("none", "default"))
-    ablations: tuple[str, ...] = opt(ABLATIONS, "ablations (without execution error)", choices=ABLATIONS)
+    ablations: tuple[str, ...] = opt(ABLATIONS, "ablations (without execution error; none: no ablation)",
+                                     choices=(*ABLATIONS, "none"))
     ablation_objects: tuple[int, ...] = opt((5,), "objects per scene of the ablations")
     seed: int = opt(0, "run seed")
     quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
@@ -123,7 +124,7 @@ def conditions(cfg: Config) -> list[dict]:
         out += [{"object_set": o, "kind": k, "objects": n, "noise": z, "ablation": None}
                 for k in cfg.kinds for n in cfg.objects for z in cfg.noise]
         out += [{"object_set": o, "kind": k, "objects": n, "noise": "none", "ablation": a}
-                for a in cfg.ablations for k in cfg.kinds for n in cfg.ablation_objects]
+                for a in cfg.ablations if a != "none" for k in cfg.kinds for n in cfg.ablation_objects]
     return out
 
 

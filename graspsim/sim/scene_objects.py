@@ -244,7 +244,9 @@ def prepare_objects(object_set: str, gripper: GripperSpec = HGPL_25_60_A, *, pro
     _, entries = _fitting(object_set, gripper.max_opening - 2 * gripper.approach_clearance)
     from tqdm import tqdm
 
-    for e in tqdm(entries, desc="preparing meshes", unit="mesh", disable=not progress):
+    bar = tqdm(entries, desc="preparing meshes", unit="mesh", disable=not progress)
+    for e in bar:
+        bar.set_postfix_str(e.name)  # the mesh being decomposed (a first decomposition can take minutes)
         mesh_spec(e).sim_object()
     return [e.name for e in entries]
 

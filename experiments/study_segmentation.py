@@ -139,8 +139,9 @@ def _condition(cfg: Config, kind: str, n: int, cameras: int) -> tuple[list[dict]
     from graspsim.sim.clutter import one_cluster_objects, scene_settings
 
     scene_cfg = scene_settings(kind)
-    creases = [f"crease {a:g}" for a in cfg.crease_angles] if cameras == 1 else []
-    conds = ["default", "no crease", *creases, *(["spacing"] if scene_cfg.min_gap is not None else []),
+    touching = scene_cfg.min_gap is None and cameras == 1  # where E10 cuts creases (piles, one camera)
+    creases = ["no crease", *(f"crease {a:g}" for a in cfg.crease_angles)] if touching else []
+    conds = ["default", *creases, *(["spacing"] if scene_cfg.min_gap is not None else []),
              *(f"{r:g} mm" for r in cfg.radii_mm)]
     counts = {c: np.zeros(4, int) for c in conds}  # seen, one, split, merged
     missed = {c: Counter() for c in conds}  # objects not one cluster, by name

@@ -574,7 +574,9 @@ def test_e10_reports_per_seed_and_mean_std_over_seeds():
     assert [s["gsr"] for s in row["per_seed"]] == [1.0, 0.5] and [s["dr"] for s in row["per_seed"]] == [0.8, 0.4]
     assert row["gsr_over_seeds"]["mean"] == pytest.approx(0.75)
     assert row["gsr_over_seeds"]["std"] == pytest.approx(np.std([1.0, 0.5], ddof=1))
-    text = "\n".join(mod.literature_lines([row]))
+    import sys
+
+    text = "\n".join(sys.modules["_e10_report"].literature_lines([row]))
     assert "75.0 ± 35.4 (2)" in text and "GIGA" in text and "EdgeGraspNet" in text
 
 

@@ -174,3 +174,13 @@ def test_the_failure_table_counts_each_object_by_name():
     assert t["mug"]["placed"] == t["mug"]["removed"] == t["mug"]["lifted"] == 2
     assert summarize([r1, r2])["per_object"] == t
     assert failure_rows(t)[0] == ("can", 2, 1, 3, 1, "slipped 1, start_collision_target 1", "no_grasp 1")
+
+
+def test_the_clutter_env_takes_a_folder_or_a_named_mesh_set(tmp_path):
+    from graspsim.envs.clutter_config import ClutterEnvConfig
+
+    d = _folder(tmp_path)
+    assert ClutterEnvConfig(object_set=str(d)).object_set == str(d)
+    assert ClutterEnvConfig(object_set="household-heldout").object_set == "household-heldout"
+    with pytest.raises(InvalidParameterError, match="object_set"):
+        ClutterEnvConfig(object_set=str(tmp_path / "nowhere"))

@@ -105,7 +105,7 @@ def _median(spread: dict | None) -> str:
 
 def readme_section(s: dict) -> str:
     """The README's E10 block (see ``experiments/report.py``)."""
-    rows = s["conditions"]
+    rows = [{"object_set": s["config"].get("object_set", "-"), **r} for r in s["conditions"]]  # older: one set
     short = [r for r in rows if not r.get("complete", s.get("complete"))]
     sets = ", ".join(f'"{o}"' for o in s["config"].get("object_sets", [s["config"].get("object_set", "mixed")]))
     L = [f"`{s['command']}`: the scenes per condition are in the table"
@@ -132,8 +132,10 @@ def readme_section(s: dict) -> str:
                  f"{rate_ci(r['removed'], r['placed'], r['cleared_interval_95'])} | {r['scenes_cleared']} | "
                  f"{pct(seg['share'], 1)} % ({seg['one_cluster']}/{seg['objects_seen']}) | "
                  f"{_median(p.get('first_frame'))} / {_median(p.get('later_frames'))} | {causes} |")
-    L += ["", "In the field's form (GSR and DR per seed, mean ± sample std over the seeds):", "",
-          *literature_lines(rows), *failure_lines(rows)]
+    if any(r.get("per_seed") for r in rows):  # summaries written before seeds were reported have none
+        L += ["", "In the field's form (GSR and DR per seed, mean ± sample std over the seeds):", "",
+              *literature_lines(rows)]
+    L += failure_lines(rows)
     lost = [(r, k) for r in rows for k in r.get("skipped", [])]
     if lost:
         L += ["", "Skipped (not counted above): " + "; ".join(

@@ -181,10 +181,11 @@ def readme_section(s: dict) -> str:
          "D435-like cameras, sensor noise on; 1 camera is E10's view, 2 are two views fused), clustered at each "
          "radius; *default* is E10's segmentation: the *spacing* rule (2.5 x the median nearest-neighbour spacing, "
          "3-7 mm; 5.7 mm on these 3 mm grids), and for packed scenes, whose objects stand >= 1 cm apart, its "
-         "clusters closer than 0.8 x that gap (8 mm) joined; in piles (objects may touch), from one camera, the "
-         "points along concave creases sharper than SceneConfig.crease_angle taken out first (*no crease*: "
-         "without that; *crease A*: at A deg). Objects from the "
-         f"\"{s['config'].get('object_set', 'mixed')}\" set. Objects with >= 40 points; *split*: its largest "
+         "clusters closer than 0.8 x that gap (8 mm) joined" + (
+             "; in piles (objects may touch), from one camera, the points along concave creases sharper than "
+             "SceneConfig.crease_angle taken out first (*no crease*: without that; *crease A*: at A deg). Objects "
+             f"from the \"{s['config'].get('object_set', 'mixed')}\" set" if "crease_angles" in s["config"] else "")
+         + ". Objects with >= 40 points; *split*: its largest "
          "segment is >= 90 % its own but holds < 90 % of it (or none), *merged*: that segment is mixed.", "",
          "| scene | cameras | radius | one cluster | split | merged |", "|---|---|---|---|---|---|"]
     for t in s["table"]:

@@ -25,8 +25,8 @@ link across which the surface folds inwards by more than that angle -- the two n
 turn towards each other, ``(n_i - n_j) . (p_i - p_j) / |p_i - p_j| < -2 sin(angle / 2)``,
 the local convexity test of LCCP (Stein et al. 2014) -- marks both its points as crease
 points; the components of the other points are the objects, and each crease point joins
-the component of its nearest kept point (a cut removes a band of points, not single
-links, which depth noise would bridge). Normals are the local PCA planes of the
+the component of its nearest linked kept point, ring by ring (a cut removes a band of
+points, not single links, which depth noise would bridge). Normals are the local PCA planes of the
 :data:`NORMAL_K` nearest points. A piece under ``min_points`` rejoins the neighbour it
 shares most links with. An object whose own surface folds inwards that sharply (a duck's
 neck, a mug's handle) is split there: the price of parting touching objects.
@@ -124,8 +124,9 @@ def crease_cuts(points: np.ndarray, normals: np.ndarray, pairs: np.ndarray, angl
 def _cut_components(pts: np.ndarray, radius: float, min_points: int, viewpoint, angle: float) -> np.ndarray:
     """Components of the radius graph with the crease points taken out (both ends of
     every link across a concave crease sharper than ``angle``), each point taken out
-    then given to the component of its nearest kept point (within 3 radii); a component
-    under ``min_points`` rejoins the neighbour it shares most links with."""
+    then given to the component of its nearest kept point within ``radius`` (repeated
+    outwards); a component under ``min_points`` rejoins the neighbour it shares most
+    links with."""
     n = len(pts)
     pairs = cKDTree(pts).query_pairs(radius, output_type="ndarray")
     if not len(pairs):
@@ -136,9 +137,17 @@ def _cut_components(pts: np.ndarray, radius: float, min_points: int, viewpoint, 
     crease[a[cut]] = crease[b[cut]] = True
     comp = _components(pts, radius, pairs[~crease[a] & ~crease[b]])
     core = ~crease & (np.bincount(comp, weights=~crease)[comp] >= CORE_POINTS)
-    if core.any() and not core.all():
-        d, j = cKDTree(pts[core]).query(pts[~core])
-        comp[~core] = np.where(d < 3 * radius, comp[core][j], n + comp[~core])  # far ones: their own piece
+    for _ in range(8):  # the others join the piece of their nearest linked core point, ring by ring
+        if not core.any() or core.all():
+            break
+        d, j = cKDTree(pts[core]).query(pts[~core], distance_upper_bound=radius)
+        reach = np.isfinite(d)
+        if not reach.any():
+            break
+        rest = np.flatnonzero(~core)
+        comp[rest[reach]] = comp[np.flatnonzero(core)[j[reach]]]
+        core[rest[reach]] = True
+    comp[~core] += n  # unreached: pieces of their own
     comp = np.unique(comp, return_inverse=True)[1].reshape(-1)
     for _ in range(4):  # small pieces rejoin (a piece may need its neighbour to rejoin first)
         size = np.bincount(comp)

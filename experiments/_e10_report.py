@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from _common import database_note, pct, rate_ci
 
-from graspsim.sim.clutter import FAILURE_COLUMNS, OTHER, failure_rows
+from graspsim.tabletop.clutter import FAILURE_COLUMNS, OTHER, failure_rows
 
 __all__ = ["readme_section", "literature_lines", "failure_lines", "PUBLISHED"]
 

@@ -23,7 +23,7 @@ shortest edge of its minimum-volume bounding box (the narrowest width a grasp ca
 across) is at most the gripper's opening less the approach clearance on both sides.
 
     python experiments/e09_everyday_objects.py
-    python experiments/e09_everyday_objects.py --quick --objects-dir graspsim/assets/objects --out results/e09-quick
+    python experiments/e09_everyday_objects.py --quick --objects-dir assets/objects --out results/e09-quick
 """
 
 from __future__ import annotations
@@ -55,13 +55,14 @@ from _common import (
 )
 from _mesh_views import clouds, rest_on_table
 
+from graspsim.geometry.table import TablePlane
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS, executed_width
 from graspsim.maps.separation import separated_rows
 from graspsim.perception import IdentifyConfig
 from graspsim.perception.mvbb import min_volume_box
-from graspsim.planner import PlannerConfig, TablePlane, plan
+from graspsim.planning.planner import PlannerConfig, plan
 from graspsim.sim import LiftPlace, SimSettings, TrialOutcome, build_scene, run_trials
 from graspsim.sim.meshes import load_mesh
 from graspsim.sim.objects import object_from_mesh

@@ -2,11 +2,11 @@
 
 For each condition -- object set, scene kind (pile: dropped and settled; packed: upright
 side by side, >= 1 cm apart), objects per scene, execution error (none, or 3 mm / 2 deg) --
-the script draws scenes (``graspsim.sim.scenes.make_scene``; by default the shipped real
+the script draws scenes (``graspsim.tabletop.table_scene.make_scene``; by default the shipped real
 household meshes, their tuning part and their held-out third reported apart: see
-``graspsim/assets/objects/README.md``), renders each
+``assets/objects/README.md``), renders each
 with one D435-like depth camera (sensor noise on) and clears it grasp by grasp
-(``graspsim.sim.clutter``): segment, plan every object, check grasps against the whole
+(``graspsim.tabletop.clutter``): segment, plan every object, check grasps against the whole
 scene, execute the best, remove the lifted object, render again; until the table is
 clear, two grasps in a row failed or no grasp is found. Ablations (without execution
 error): no neighbour check; the render's ground-truth segmentation instead of clustering.
@@ -62,10 +62,10 @@ from _e10_report import readme_section
 from graspsim.errors import MapDatabaseError, NoFeasibleGraspError, SimulationError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import generate_fs_map
-from graspsim.sim.clutter import ClutterConfig, run_benchmark, scene_settings, summarize
 from graspsim.sim.noise import ExecutionNoise
-from graspsim.sim.scene_objects import prepare_objects
 from graspsim.stats import wilson_interval
+from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings, summarize
+from graspsim.tabletop.scene_objects import prepare_objects
 
 log = logging.getLogger("e10")
 ABLATIONS = ("no_neighbours", "ground_truth")
@@ -99,7 +99,7 @@ class Config:
                              "quick_maps": True, "grid": False, "object_sets": ("primitives",)}
 
     def __post_init__(self) -> None:
-        from graspsim.sim.scene_objects import check_object_set
+        from graspsim.tabletop.scene_objects import check_object_set
 
         if self.scenes < 1 or self.seeds < 1 or not self.object_sets:
             raise ValueError("--scenes and --seeds must be >= 1 and --object-sets not empty")

@@ -42,7 +42,7 @@ def test_mixed_anova_matches_one_way_identities():
 
 
 def test_cluster_bootstrap_widens_the_interval_only_when_clusters_differ():
-    st = _load("_stats")
+    from graspsim import stats as st
     from graspsim.stats import wilson_interval
 
     rng = np.random.default_rng(0)
@@ -57,7 +57,7 @@ def test_cluster_bootstrap_widens_the_interval_only_when_clusters_differ():
 
 
 def test_paired_cluster_difference_keeps_the_pairing():
-    st = _load("_stats")
+    from graspsim import stats as st
     rng = np.random.default_rng(0)
     k0, n = np.array([10, 2, 9, 5, 8, 1, 10, 7]), np.full(8, 10)
     # the same outcomes in every scene: no difference in any resample
@@ -490,7 +490,7 @@ def test_scene_fingerprint_is_the_same_twice_and_names_what_differs(tmp_path, ca
     assert "packed 100: segments" in capsys.readouterr().out
     from dataclasses import replace
 
-    from graspsim.sim import clutter
+    from graspsim.tabletop import clutter
 
     settings = clutter.scene_settings  # a planning change: fewer grasps kept per segment
     monkeypatch.setattr(clutter, "scene_settings", lambda kind: replace(settings(kind), keep=2))
@@ -558,7 +558,7 @@ def test_e10_others_cut_only_the_conditions_outside_the_goals():
 def test_e10_reports_per_seed_and_mean_std_over_seeds():
     """Seeds are the field's unit: GSR and DR per seed, mean +- sample std over them, each
     object set apart, every seed's scenes from its own derived seed."""
-    from graspsim.sim.clutter import Attempt, ClutterResult
+    from graspsim.tabletop.clutter import Attempt, ClutterResult
 
     mod = _load("e10_clutter_removal")
     cfg = mod.Config(seeds=3, scenes=2, object_sets=("household-tuning", "household-heldout"))
@@ -672,7 +672,7 @@ def test_study_scene_budget_leaves_a_skipped_scene_out_of_every_budget():
 
 
 def test_scene_budgets_parse_or_are_refused():
-    from graspsim.perception.scene import budget_fields
+    from graspsim.planning.scene_config import budget_fields
 
     assert budget_fields("") == {} and budget_fields("8:100") == {"enough": 8, "per_segment": 100}
     for bad in ("32", "a:b", "0:10", "8:-1", "8:100:1"):

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
-from graspsim.sim.mesh_objects import SHIPPED, default_mass, file_sha256, heldout_split, read_folder, shipped_set
-from graspsim.sim.scene_objects import draw_object, prepare_objects
-from graspsim.sim.scenes import load_scene, make_scene, save_scene
+from graspsim.tabletop.mesh_objects import SHIPPED, default_mass, file_sha256, heldout_split, read_folder, shipped_set
+from graspsim.tabletop.scene_objects import draw_object, prepare_objects
+from graspsim.tabletop.table_scene import load_scene, make_scene, save_scene
 
 BOX_OFFSET = np.array([0.2, 0.1, 0.3])  # the box file's frame is far from the box
 
@@ -47,7 +47,7 @@ def test_a_scene_from_a_folder_of_three_meshes(tmp_path):
 def test_the_mesh_frame_is_its_centre_of_mass_and_the_file_frame_is_kept(tmp_path):
     d = _folder(tmp_path)
     entry = next(e for e in read_folder(d).entries if e.name == "box")
-    from graspsim.sim.scene_objects import mesh_spec
+    from graspsim.tabletop.scene_objects import mesh_spec
 
     spec = mesh_spec(entry)
     obj = spec.sim_object()
@@ -111,7 +111,7 @@ def test_a_saved_scene_of_user_meshes_reloads_and_refuses_a_changed_mesh(tmp_pat
     import trimesh
 
     trimesh.creation.box([0.03, 0.03, 0.03]).export(victim)  # the user edits the mesh
-    from graspsim.sim import scene_objects
+    from graspsim.tabletop import scene_objects
 
     scene_objects._sim_object.cache_clear()
     with pytest.raises(InvalidParameterError, match="changed since the scene was written"):
@@ -158,7 +158,7 @@ def test_the_shipped_split_is_the_documented_rule():
 
 
 def test_the_failure_table_counts_each_object_by_name():
-    from graspsim.sim.clutter import Attempt, ClutterResult, failure_rows, per_object, summarize
+    from graspsim.tabletop.clutter import Attempt, ClutterResult, failure_rows, per_object, summarize
 
     def a(target, ok, cause):
         return Attempt(target, {}, ok, cause, 1.0, 0.1, {}, 2, 2, 2)

@@ -8,12 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from graspsim.perception.scene import SceneConfig, perceive_scene
+from graspsim.geometry.camera import backproject, rig
+from graspsim.planning.scene import perceive_scene
+from graspsim.planning.scene_config import SceneConfig
 from graspsim.primitives import Box, Cylinder
-from graspsim.sim.camera import DepthNoise, backproject, rig
-from graspsim.sim.clutter import one_cluster_objects
-from graspsim.sim.scene_objects import ObjectSpec
-from graspsim.sim.scene_sim import SceneSim
+from graspsim.tabletop.clutter import one_cluster_objects
+from graspsim.tabletop.depth_noise import DepthNoise
+from graspsim.tabletop.scene_objects import ObjectSpec
+from graspsim.tabletop.scene_sim import SceneSim
 from graspsim.transforms import make_transform
 
 

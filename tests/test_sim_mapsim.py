@@ -4,12 +4,12 @@ import h5py
 import numpy as np
 import pytest
 import trimesh
+from hand_made import grasp_pose, hand_made_map
 
 from graspsim.errors import GraspsimError, MapFileError, SimulationError
 from graspsim.maps import load_map, read_sim_results, save_map
 from graspsim.primitives import Box, Cylinder
 from graspsim.sim import TrialOutcome, select_grasps, simulate_map
-from graspsim.sim.testing import grasp_pose, hand_made_map
 from graspsim.transforms import make_transform
 
 

@@ -20,14 +20,14 @@ def _cmd_adapt(args) -> int:
     from graspsim.maps.io import save_map
     from graspsim.maps.scaling import ScalingConfig
     from graspsim.perception import IdentifyConfig, read_point_cloud
-    from graspsim.planner import PlannerConfig, plan
+    from graspsim.planning.planner import PlannerConfig, plan
 
     # every option and the output path before the cloud is read or anything computed
     out = check_output(args.output, "map", others={"input cloud": args.cloud})
     gripper = gripper_from_args(args)
     table = None
     if args.table is not None:
-        from graspsim.maps.table import TablePlane
+        from graspsim.geometry.table import TablePlane
 
         table = TablePlane(normal=tuple(args.table_normal), clearance=args.table_clearance,
                            height=None if args.table == "auto" else _height(args.table))

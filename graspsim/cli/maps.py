@@ -56,8 +56,8 @@ def _add_generation(p) -> None:
 
 def _config(args):
     from graspsim.errors import InvalidParameterError
-    from graspsim.maps.generate import MapConfig
-    from graspsim.quality import QualityModel
+    from graspsim.grades.paper import QualityModel
+    from graspsim.maps.config import MapConfig
 
     if args.threads is not None and args.threads < 1:
         raise InvalidParameterError(f"--threads must be >= 1, got {args.threads}")
@@ -188,11 +188,11 @@ def _cmd_info(args) -> int:
              f"{s['grade_mean']:.3f} / {s['grade_max']:.3f}"),
             ("parts", s["parts"]), ("SR / VR", f"{rates.sr:.3f} / {rates.vr:.3f}")]
     rows += _settings_rows(gmap.meta)
-    extra = gmap.meta.extra
-    if "T_cloud_obj" in extra:  # an adapted map: where it came from and what it assumed
-        s.update(source=extra.get("source"), T_cloud_obj=extra["T_cloud_obj"], table=extra.get("table"))
+    extra, placement = gmap.meta.extra, gmap.meta.placement
+    if placement is not None:  # an adapted map: where it came from and what it assumed
+        s.update(source=extra.get("source"), T_cloud_obj=placement.T_cloud_obj.tolist(), table=placement.table)
         rows += [("source", extra.get("source")), ("status", extra.get("status"))]
-        t = extra.get("table")
+        t = placement.table
         rows.append(("table", "none (the map ignores it)" if not t else
                      f"normal {t['normal']}, height {t['height']:.4f} m, {t.get('dropped', 0)} poses dropped"))
     if "simulated" in sim:

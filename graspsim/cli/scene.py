@@ -6,7 +6,7 @@
                    [--save-scenes DIR] [--json]
 
 Each scene is drawn and settled in MuJoCo, rendered by one D435-like depth camera, and
-cleared grasp by grasp (:mod:`graspsim.sim.clutter`): segment, plan every object, execute
+cleared grasp by grasp (:mod:`graspsim.tabletop.clutter`): segment, plan every object, execute
 the best grasp, remove what was lifted, render again; until the table is clear, two
 grasps in a row failed or no grasp is found. The JSON summary carries
 ``grasp_success_rate`` (lifts / grasps), ``cleared_rate`` (objects removed / placed),
@@ -17,7 +17,7 @@ Objects: a named set (``household``, the default: the shipped real meshes; ``ran
 their ``-tuning`` / ``-heldout`` parts; ``primitives``, ``analogs``, ``mixed``) or any
 folder of the user's mesh files (``--objects-dir DIR``, with an optional manifest
 ``objects.json`` / ``objects.toml`` for scale, mass or density, friction:
-:mod:`graspsim.sim.mesh_objects`). Meshes are prepared (convex parts, cached) before the
+:mod:`graspsim.tabletop.mesh_objects`). Meshes are prepared (convex parts, cached) before the
 first scene, with a progress bar.
 """
 
@@ -43,12 +43,12 @@ def _cmd_scene(args) -> int:
     from graspsim._atomic import check_folder
     from graspsim.errors import InvalidParameterError, MapDatabaseError
     from graspsim.maps.database import MapDatabase
-    from graspsim.perception.scene import SceneConfig
     from graspsim.perception.segment import gap_link
-    from graspsim.sim.clutter import FAILURE_COLUMNS, ClutterConfig, failure_rows, run_benchmark, summarize
+    from graspsim.planning.scene_config import SceneConfig
     from graspsim.sim.noise import ExecutionNoise
-    from graspsim.sim.scene_objects import OBJECT_SETS, object_set_names, prepare_objects
-    from graspsim.sim.scenes import MAX_OBJECTS, known_gap
+    from graspsim.tabletop.clutter import FAILURE_COLUMNS, ClutterConfig, failure_rows, run_benchmark, summarize
+    from graspsim.tabletop.scene_objects import OBJECT_SETS, object_set_names, prepare_objects
+    from graspsim.tabletop.table_scene import MAX_OBJECTS, known_gap
 
     if args.objects > MAX_OBJECTS:
         raise InvalidParameterError(f"--objects must be at most {MAX_OBJECTS}, got {args.objects}")
@@ -88,7 +88,7 @@ def _cmd_scene(args) -> int:
 
     def on_scene(i, scene, result):
         if saves is not None:  # for 'graspsim view --scene'
-            from graspsim.sim.scenes import save_scene
+            from graspsim.tabletop.table_scene import save_scene
 
             saves.mkdir(parents=True, exist_ok=True)
             save_scene(scene, saves / f"scene{i:03d}.json")
@@ -129,7 +129,7 @@ def _pose(placed) -> dict:
 
 
 def _figure_writer(folder, gripper):
-    from graspsim.sim.clutter_figure import save_step_figure
+    from graspsim.tabletop.clutter_figure import save_step_figure
 
     def write(i, view, frame, plan, attempt):
         k = len(list(folder.glob(f"scene{i:03d}_step*.png")))

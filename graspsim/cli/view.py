@@ -116,7 +116,7 @@ def _show_scene(args):
     from graspsim.cli._common import gripper_from_args
     from graspsim.cli.maps import _config
     from graspsim.maps.database import MapDatabase
-    from graspsim.sim.scenes import load_scene
+    from graspsim.tabletop.table_scene import load_scene
     from graspsim.viewer import show_scene
 
     scene = load_scene(args.scene)  # a bad file fails before the database is touched

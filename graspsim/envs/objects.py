@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graspsim.errors import GripperError, InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.primitives import Box, Compound, Cone, Cylinder, HalfToroid, Primitive, Sphere
 from graspsim.transforms import make_transform
 

@@ -7,19 +7,19 @@ million-grasp maps the surface-to-voxel method produces.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from graspsim.errors import InvalidMapError, InvalidParameterError
-from graspsim.gripper import GripperSpec
-from graspsim.quality import QualityModel
+from graspsim.grades.paper import QualityModel
+from graspsim.grippers.spec import GripperSpec
 from graspsim.transforms import quat_to_matrix
 
 if TYPE_CHECKING:
-    from graspsim.maps.generate import MapConfig
+    from graspsim.maps.config import MapConfig
 
 __all__ = ["GraspabilityMap", "MapMeta", "Placement", "COLUMNS", "OPTIONAL_COLUMNS"]
 
@@ -89,7 +89,7 @@ class MapMeta:
     @cached_property
     def map_config(self) -> MapConfig:
         """The generation settings recorded in ``resolution`` (defaults for missing ones)."""
-        from graspsim.maps.generate import MapConfig
+        from graspsim.maps.config import MapConfig
 
         return MapConfig(**{k: v for k, v in self.resolution.items() if k in MapConfig.__dataclass_fields__})
 
@@ -109,14 +109,14 @@ class MapMeta:
     @property
     def surface_step(self) -> float:
         """[m] (the map settings' default if unrecorded)."""
-        from graspsim.maps.generate import MapConfig
+        from graspsim.maps.config import MapConfig
 
         return float(self.resolution.get("surface_step", MapConfig.surface_step))
 
     @property
     def rotation_step(self) -> float:
         """[rad] (the map settings' default if unrecorded)."""
-        from graspsim.maps.generate import MapConfig
+        from graspsim.maps.config import MapConfig
 
         return float(self.resolution.get("rotation_step", MapConfig.rotation_step))
 
@@ -124,6 +124,11 @@ class MapMeta:
     def placement(self) -> Placement | None:
         """Where an adapted map's object was seen (None for other maps)."""
         return Placement.from_extra(self.extra)
+
+    @cached_property
+    def gripper_adaptation(self) -> GripperAdaptation | None:
+        """How a map carried to another gripper was made (None for other maps)."""
+        return GripperAdaptation.from_extra(self.extra)
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,6 +161,34 @@ class Placement:
         if self.table is None:
             return None
         return self.T_cloud_obj[:3, :3].T @ np.asarray(self.table["normal"], float)
+
+
+@dataclass(frozen=True)
+class GripperAdaptation:
+    """A map carried to another gripper (:func:`graspsim.maps.regrip.adapt_to_gripper`):
+    source_grasps: the source map's grasps above ``source_min_grade``; fit_opening: those
+    the new gripper's opening spans; quality_pose: carried at the same pad place;
+    feasibility_pose: carried with the wrist kept. Stored in ``MapMeta.extra``."""
+
+    source_grasps: int
+    fit_opening: int
+    quality_pose: int
+    feasibility_pose: int
+    source_min_grade: float
+
+    def to_dict(self) -> dict:
+        return {"source_grasps": self.source_grasps, "fit_opening": self.fit_opening,
+                "quality_pose": self.quality_pose, "feasibility_pose": self.feasibility_pose,
+                "source_min_grade": self.source_min_grade}
+
+    def to_extra(self) -> dict:
+        """The ``MapMeta.extra`` entry that records it."""
+        return {"gripper_adaptation": self.to_dict()}
+
+    @classmethod
+    def from_extra(cls, extra: dict) -> GripperAdaptation | None:
+        d = extra.get("gripper_adaptation")
+        return None if d is None else cls(**{k: d[k] for k in cls.__dataclass_fields__})
 
 
 @dataclass(frozen=True, eq=False)
@@ -347,7 +380,3 @@ class GraspabilityMap:
     def __repr__(self) -> str:
         return (f"GraspabilityMap({len(self)} grasps, {int(self.accepted.sum())} accepted, "
                 f"method={self.meta.method!r}, object={self.meta.object.get('primitive')})")
-
-
-def meta_fields() -> list[str]:
-    return [f.name for f in fields(MapMeta)]

@@ -40,8 +40,9 @@ from enum import Enum
 from typing import Any
 
 from graspsim.errors import InvalidParameterError
+from graspsim.primitives import make_primitive
 
-__all__ = ["MatchKind", "MatchDecision", "match_entries", "covers"]
+__all__ = ["MatchKind", "MatchDecision", "match_entries", "classify_match", "covers"]
 
 
 class MatchKind(str, Enum):
@@ -148,3 +149,11 @@ def match_entries(kind: str, dims: dict[str, float], entries: Iterable[dict], *,
         return MatchDecision(MatchKind.BUILD, None, math.inf, math.inf)
     r, d, e = best
     return MatchDecision(MatchKind.FAMILIAR if r <= max_ratio else MatchKind.BUILD, e, d, r)
+
+
+def classify_match(kind: str, dims: dict[str, float], stored: list[dict], *,
+                   tol: float = 0.01) -> MatchDecision:
+    """:func:`match_entries` for primitive ``kind`` with ``dims`` [m] (validated) against
+    index records ``stored``, with no scaling limit: FAMILIAR whenever a map of the kind
+    is stored, BUILD when none is."""
+    return match_entries(make_primitive(kind, **dims).kind, dims, stored, tol=tol)

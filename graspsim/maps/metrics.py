@@ -20,7 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
 
 __all__ = ["MapRates", "map_rates", "relative_rates", "voxel_keys", "orientation_bins"]

@@ -5,7 +5,7 @@ in [0, 1], force-closure angles in [0, pi], stability distances and part ids >= 
 widths > 0), the wrist quaternions are unit, its object is a valid shape (dimensions
 at or above the primitive floor, :data:`graspsim.primitives.base.MIN_DIM`), and its
 gripper, quality model and metadata can be used (the scaler and the simulator build
-a :class:`~graspsim.gripper.GripperSpec` and a quality model from them).
+a :class:`~graspsim.grippers.spec.GripperSpec` and a quality model from them).
 
 :func:`~graspsim.maps.io.load_map` refuses a file whose map breaks them (file layout
 checks are its own), the map database refuses to store such a map, and ``graspsim db
@@ -78,8 +78,8 @@ def _column_problems(gmap: GraspabilityMap) -> list[str]:
 
 
 def _meta_problems(meta) -> list[str]:
-    from graspsim.gripper import GripperSpec
-    from graspsim.quality import QualityModel
+    from graspsim.grades.paper import QualityModel
+    from graspsim.grippers.spec import GripperSpec
 
     bad = [f"{k} is {type(getattr(meta, k)).__name__}, not {t.__name__}" for k, t in _META_KINDS.items()
            if not isinstance(getattr(meta, k), t)]

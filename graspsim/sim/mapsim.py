@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from graspsim.errors import GraspsimError, InvalidParameterError, MapFileError, SimulationError
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.maps import GraspabilityMap, load_map, read_sim_results, write_sim_results
 from graspsim.maps.robust import executed_width
 from graspsim.sim.batch import run_trials

@@ -22,12 +22,12 @@ import mujoco
 import numpy as np
 
 from graspsim.errors import InvalidParameterError, SimulationError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.model import NAMES, GripperPhysics, build_gripper_spec
 from graspsim.sim.objects import SimObject
 from graspsim.sim.vendored import build_vendored_gripper_spec
 
-__all__ = ["SimSettings", "Scene", "build_scene", "resting_pose", "state_slice"]
+__all__ = ["SimSettings", "Scene", "build_scene", "resting_pose"]
 
 log = logging.getLogger(__name__)
 
@@ -141,13 +141,6 @@ class Scene:
                 "settings": self.settings.to_dict(), "table": self.table,
                 "gravity": self.gravity, "T_world_obj": self.T_world_obj.tolist(),
                 "mujoco_version": mujoco.__version__}
-
-
-def state_slice(model: mujoco.MjModel, part: int,
-                spec: int = mujoco.mjtState.mjSTATE_FULLPHYSICS) -> slice:
-    """Where the state component ``part`` (an mjtState bit) lies in a ``spec`` state."""
-    start = mujoco.mj_stateSize(model, int(spec) & (int(part) - 1))
-    return slice(start, start + mujoco.mj_stateSize(model, int(part)))
 
 
 def _inside(poly: np.ndarray, point: np.ndarray, margin: float = 1e-4) -> bool:
@@ -294,7 +287,7 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
     if gripper.model is None:  # the box model generated from the spec
         spec, names = build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
                                          condim=s.condim, home_pos=home), NAMES
-    else:  # the vendored model (e.g. graspsim/mjcf/franka_hand), attached as it is
+    else:  # the vendored model (e.g. mjcf/franka_hand), attached as it is
         spec, names = build_vendored_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
                                                   condim=s.condim, home_pos=home)
     spec.modelname = f"trial_{gripper.name}"

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graspsim.errors import InvalidParameterError
+from graspsim.errors import InvalidParameterError, MeshError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.primitives import Box, Cylinder, Sphere, shape_from_dict
 from graspsim.primitives.case_study import ANALOGS
@@ -220,15 +220,23 @@ def _fit_entries(ms: MeshSet, limit: float) -> tuple[MeshEntry, ...]:
     name = ms.label
     fits, out = [], []
     for e in ms.entries:
-        w = narrowest_extent(load_mesh(e.path, scale=e.scale).vertices)
+        try:
+            w = narrowest_extent(load_mesh(e.path, scale=e.scale).vertices)
+        except MeshError as err:  # e.g. wider than 2 m or under 5 mm: its units are not metres
+            log.warning("%s: %s: not drawn (the manifest's scale converts a file to metres)", e.file, err)
+            out.append((e, None))
+            continue
         (fits if w <= limit else out).append((e, w))
     for e, w in out:
-        log.warning("%s is %.0f mm across at its narrowest, wider than the gripper spans (%.0f mm)%s: not drawn",
-                    e.file, w * 1000, limit * 1000, "; a file in millimetres needs scale 0.001 in the manifest"
-                    if w > 2.0 else "")
+        if w is not None:
+            log.warning("%s is %.0f mm across at its narrowest, wider than the gripper spans (%.0f mm)%s: not drawn",
+                        e.file, w * 1000, limit * 1000, "; a file in millimetres needs scale 0.001 in the manifest"
+                        if w > 2.0 else "")
     if not fits:
+        widths = ", ".join(f"{e.name} {w * 1000:.0f} mm" if w is not None else f"{e.name} implausible in metres"
+                           for e, w in out)
         raise InvalidParameterError(f"no mesh of {name} fits a {limit * 1000:.0f} mm grasp (narrowest widths "
-                                    f"{', '.join(f'{e.name} {w * 1000:.0f} mm' for e, w in out)}); scale them "
+                                    f"{widths}); scale them "
                                     "in the manifest (objects.json: {\"defaults\": {\"scale\": 0.001}} for mm)")
     return tuple(e for e, _ in fits)
 

@@ -608,6 +608,26 @@ def test_e10_reports_per_seed_and_mean_std_over_seeds():
     assert "75.0 ± 35.4 (2)" in text and "GIGA" in text and "EdgeGraspNet" in text
 
 
+def test_e10_seeds_are_graspsim_scenes_and_old_summaries_say_their_set_and_seed():
+    """One seed rule (clutter_stats.benchmark_seeds, as ``graspsim scene --seeds``), and the
+    published summary written before object sets and seeds renders as the "mixed" set and
+    one seed, never a placeholder, in the README headline and the results block."""
+    from graspsim.tabletop.clutter_stats import benchmark_seeds
+
+    mod = _load("e10_clutter_removal")
+    for seeds in (1, 3):
+        cfg = mod.Config(seeds=seeds, seed=7, object_sets=("primitives",))
+        assert [mod.seed_of(cfg, k) for k in range(seeds)] == benchmark_seeds(7, seeds)
+    assert mod.seed_of(mod.Config(seeds=1, seed=7, object_sets=("primitives",)), 0) == 7
+    s = json.loads((EXPERIMENTS / "reported" / "e10_clutter_removal.json").read_text())
+    assert "object_sets" not in s["config"] and not any("per_seed" in r for r in s["conditions"])
+    head = mod.headline(s)
+    n = sum(r["noise"] == "default" and not r["ablation"] for r in s["conditions"])
+    assert head.count("mixed ") == n and head.count(f"(1 x {s['conditions'][0]['scenes']})") == n
+    block = mod.readme_section(s)
+    assert "| - |" not in block and "n/a (" not in block and "| 1 x 50 |" in block
+
+
 def test_study_fit_points_quick_counts_agreement_against_every_point(tmp_path):
     study = _load("study_fit_points")
     assert study.main(["--quick", "--out", str(tmp_path / "s")]) == 0

@@ -504,9 +504,11 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
         vertices, faces = _read_arrays(path)
     check_mesh_arrays(vertices, faces, scale=scale, name=name)
     key = _key(vertices, faces, scale, params)
-    # a complete model serves any time limit; a fallback only the limit that gave it
+    # a complete model serves any time limit; a fallback only the (CPU-time) limit that gave it.
+    # "cpu" in its name: fallbacks cached while the limit was wall-clock time (a loaded machine's:
+    # the shipped bread fell back there, CoACD parts it in 3 s of CPU) are not reused
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    file, fallback = folder / f"{key}.npz", folder / f"{key}.hull-{params.time_limit:g}s.npz"
+    file, fallback = folder / f"{key}.npz", folder / f"{key}.hull-cpu{params.time_limit:g}s.npz"
     cached = _cache_read(file) or _cache_read(fallback)
     if cached is not None:
         out = PreparedMesh(cached["parts"], cached["method"], float(cached["volume"]), np.asarray(cached["com"]),

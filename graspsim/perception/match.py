@@ -7,15 +7,15 @@ types and offers :func:`classify_match` over plain index records.
 
 from __future__ import annotations
 
-from graspsim.maps.match import MatchDecision, MatchKind, match_entries
+from graspsim.maps.match import KNOWN_TOL, MatchDecision, MatchKind, match_entries
 from graspsim.primitives import make_primitive
 
 __all__ = ["MatchKind", "MatchDecision", "classify_match"]
 
 
 def classify_match(kind: str, dims: dict[str, float], stored: list[dict], *,
-                   tol: float = 0.01) -> MatchDecision:
+                   tol: float = KNOWN_TOL) -> MatchDecision:
     """:func:`graspsim.maps.match.match_entries` for primitive ``kind`` with ``dims``
-    [m] (validated) against index records ``stored``, with no scaling limit: FAMILIAR
+    [m] (validated) against index records ``stored`` (``tol`` relative), with no scaling limit: FAMILIAR
     whenever a map of the kind is stored, BUILD when none is."""
     return match_entries(make_primitive(kind, **dims).kind, dims, stored, tol=tol)

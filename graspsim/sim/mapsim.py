@@ -34,7 +34,7 @@ from graspsim.sim.results import RESULT_GROUPS, TrialResults
 from graspsim.sim.scene import Scene, SimSettings, build_scene
 from graspsim.transforms import invert_transform
 
-__all__ = ["MapTrials", "select_grasps", "map_object", "map_gripper", "simulate_map",
+__all__ = ["MapTrials", "select_grasps", "map_object", "map_gripper", "observed_placement", "simulate_map",
            "write_results"]
 
 log = logging.getLogger(__name__)
@@ -155,19 +155,22 @@ def write_results(path: str | os.PathLike, n_rows: int, index: np.ndarray,
     return group
 
 
-def _cloud_up(gmap: GraspabilityMap, has_mesh: bool) -> np.ndarray | None:
-    """The object-frame direction to stand upright, for maps planned from a cloud: the
-    normal of the table the planner was told about (its map then holds only poses
-    above that table), else for a mesh (the real object) the cloud's +z -- the planner's
-    object frame may be flipped (a cylinder's axis sign is arbitrary). None: the
-    object's own stable resting pose."""
+def observed_placement(gmap: GraspabilityMap, obj: SimObject, has_mesh: bool) -> np.ndarray | None:
+    """T_world_obj (4, 4) for a map planned from a cloud: the object stands on the table
+    as the cloud saw it (:func:`~graspsim.sim.scene.observed_pose`), up along the normal
+    of the table the planner was told about (its map then holds only poses above that
+    table), or for a mesh (the real object, in the cloud's frame) without one, along the
+    cloud's +z. None: the object's own stable resting pose (a map not planned from a
+    cloud, or primitives planned without a table)."""
+    from graspsim.sim.scene import observed_pose
+
     placement = gmap.meta.placement
     if placement is None:
         return None
     if placement.table is not None:
-        return placement.up
+        return observed_pose(obj, placement.T_cloud_obj, placement.table["normal"])
     if has_mesh:
-        return placement.T_cloud_obj[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+        return observed_pose(obj, placement.T_cloud_obj)
     return None
 
 
@@ -199,8 +202,8 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
         on_selected(gmap, index)
     obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,
                      map_dir=path.parent, cache_dir=cache_dir)
-    up = _cloud_up(gmap, mesh is not None)
-    scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity, up=up)
+    scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity,
+                        T_world_obj=observed_placement(gmap, obj, mesh is not None))
     chosen = gmap.select(index)  # transforms of the chosen rows only (all of a 10 M-grasp map: 1.2 GB)
     width = executed_width(chosen)
     results = run_trials(scene, chosen.T_obj_wrist, width, protocol,

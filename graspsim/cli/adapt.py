@@ -4,8 +4,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from graspsim.cli._common import (add_json_flag, add_mode_flag, add_units_flag, add_viewpoint_flag, emit, format_table,
-                                  gripper_from_args, stored_text, viewpoint_from_args)
+from graspsim.cli._common import (
+    add_json_flag,
+    add_mode_flag,
+    add_units_flag,
+    add_viewpoint_flag,
+    emit,
+    format_table,
+    gripper_from_args,
+    stored_text,
+    viewpoint_from_args,
+)
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -13,8 +22,6 @@ __all__ = ["register"]
 
 def _cmd_adapt(args) -> int:
     import sys
-
-    import numpy as np
 
     from graspsim._atomic import check_output
     from graspsim.adapt import adapt_cloud, adapt_config
@@ -56,7 +63,8 @@ def _cmd_adapt(args) -> int:
              + (f"; first grasp > 0.95 after {first * 1e3:.1f} ms" if first is not None else "")
              + (f"; {s['table']['dropped']} grasps below the table (height "
                 f"{s['table']['height']:.4f} m) dropped" if s.get("table") and "dropped" in s["table"] else "")
-             + (f"; viewpoint {' '.join(f'{v:g}' for v in vp)}" if vp is not None else "; seen all round (no viewpoint)")
+             + (f"; viewpoint {' '.join(f'{v:g}' for v in vp)}" if vp is not None
+                else "; seen all round (no viewpoint)")
              + (f" -> {out}" if why is None else ""))
     emit(s, args.json, human)
     if why is not None:
@@ -102,8 +110,8 @@ def register(sub) -> None:
                    help="drop grasps that would take the gripper below the table the object "
                    "stands on: 'auto' puts the table at the object's lowest point along "
                    "--table-normal (the cloud's; for a single view, with --viewpoint, the "
-                   "identified shape's where that is lower), a number is its height along the normal [m] in the cloud's "
-                   "frame (default: no table, as the paper's maps)")
+                   "identified shape's where that is lower), a number is its height along the "
+                   "normal [m] in the cloud's frame (default: no table, as the paper's maps)")
     p.add_argument("--table-normal", type=float, nargs=3, default=(0.0, 0.0, 1.0),
                    metavar=("NX", "NY", "NZ"), help="the table's upward normal in the cloud's frame (0 0 1)")
     p.add_argument("--table-clearance", type=float, default=0.002,

@@ -143,7 +143,8 @@ def run(args: argparse.Namespace) -> int:
              f"({cloud.n_read} points, {cloud.n_dropped} NaN/inf dropped, "
              + (f"{d.used_points} used ({d.voxel * 1000:.2g} mm voxels), " if d else "") +
              f"{res.n_removed} outliers removed, noise {res.noise * 1000:.2f} mm)\n"
-             + format_table(rows, ["part", "primitive", "dims", "fit rate", "points", "match", "stored map (size ratio)"])
+             + format_table(rows, ["part", "primitive", "dims", "fit rate", "points", "match",
+                                   "stored map (size ratio)"])
              + ("" if viewpoint is None else f"\nviewpoint {' '.join(f'{v:g}' for v in viewpoint)} (recorded; "
                 "identification does not use it)")
              + ("" if db_root else "\n(match: no map database yet -- `graspsim db build` or the "

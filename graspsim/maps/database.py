@@ -190,7 +190,8 @@ class MapDatabase:
     # ------------------------------------------------------------------ queries
     def match(self, shape: Primitive, *, max_ratio: float = float("inf")) -> MatchDecision:
         """Which stored map serves ``shape``: KNOWN (a map within the relative tolerance
-        ``self.tol``, :data:`~graspsim.maps.match.KNOWN_TOL`, on every dimension), FAMILIAR (the nearest map, at most ``max_ratio`` times larger or
+        ``self.tol``, :data:`~graspsim.maps.match.KNOWN_TOL`, on every dimension),
+        FAMILIAR (the nearest map, at most ``max_ratio`` times larger or
         smaller on every dimension: the scaling range, that can be grasped from every
         direction the shape can) or BUILD (see :mod:`graspsim.maps.match`); ``entry`` is
         the serving index record."""

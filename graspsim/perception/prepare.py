@@ -24,7 +24,8 @@ import numpy as np
 from graspsim.errors import IdentificationError, InvalidParameterError, PointCloudError
 from graspsim.primitives.base import MIN_DIM
 
-__all__ = ["UNITS", "MAX_EXTENT", "QUANTUM", "canonical_points", "Downsampling", "median_spacing", "as_coordinates", "to_metres", "check_extent",
+__all__ = ["UNITS", "MAX_EXTENT", "QUANTUM", "canonical_points", "Downsampling", "median_spacing", "as_coordinates",
+           "to_metres", "check_extent",
            "check_solid", "voxel_downsample", "voxel_keep", "distinct_rows", "first_of_each_row"]
 
 #: Length of one coordinate unit in metres.

@@ -45,22 +45,26 @@ class MapTrials:
     """Results of simulating some rows of a map: ``index`` (n,) the map rows, in the
     order of ``results``; ``scene`` the compiled scene; ``group`` where they were
     written (None if not written); ``width`` (n,) the widths the jaws opened to [m],
-    :func:`~graspsim.maps.robust.executed_width` (the map need not be read again to draw them)."""
+    :func:`~graspsim.maps.robust.executed_width` (the map need not be read again to draw them);
+    ``viewpoint`` the map's recorded viewpoint (a single view's camera; None: seen all round)."""
 
     index: np.ndarray
     results: TrialResults
     scene: Scene
     group: str | None
     width: np.ndarray | None = None
+    viewpoint: list | None = None
 
 
 def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int | None = None,
                   min_grade: float | None = None, rng: np.random.Generator | None = None,
-                  rank: str = "robust") -> np.ndarray:
+                  rank: str = "robust", separation: tuple[float, float] | None = None) -> np.ndarray:
     """Map row indices to simulate: the ``top`` best by ``rank`` (``"robust"``: the
     map's robust scores where it has them, else the grade; ``"paper"``: the grade; see
-    :func:`graspsim.maps.robust.ranking`), or ``sample`` grasps spread uniformly over the
-    surface among those with grade > ``min_grade``, or all."""
+    :func:`graspsim.maps.robust.ranking`) -- with ``separation`` = (distance [m], angle
+    [rad]) the ``top`` best at least that far apart (:func:`~graspsim.maps.separation.separated_rows`)
+    --, or ``sample`` grasps spread uniformly over the surface among those with grade >
+    ``min_grade``, or all."""
     if top is not None and sample is not None:
         raise InvalidParameterError("give top or sample, not both")
     rows = np.arange(len(gmap))
@@ -71,7 +75,14 @@ def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int 
             raise InvalidParameterError(f"top must be >= 0, got {top}")
         from graspsim.maps.robust import ranking
 
-        return rows[ranking(gmap.select(rows), rank)[:top]]
+        order = ranking(gmap.select(rows), rank)
+        if separation is None:
+            return rows[order[:top]]
+        from graspsim.maps.separation import separated_rows
+
+        sub = gmap.select(rows)
+        return rows[separated_rows(sub.grasp_point, sub.wrist_quat, order, top, distance=float(separation[0]),
+                                   angle=float(separation[1]))]
     if sample is not None:
         if sample < 0:
             raise InvalidParameterError(f"sample must be >= 0, got {sample}")
@@ -180,12 +191,13 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                  mesh: str | os.PathLike | None = None, mesh_scale: float = 1.0,
                  mass: float | None = None, settings: SimSettings | None = None,
                  write: bool = True, cache_dir=None, on_progress=None,
-                 on_selected=None, on_record=None, rank: str = "robust") -> MapTrials:
+                 on_selected=None, on_record=None, rank: str = "robust",
+                 separation: tuple[float, float] | None = None) -> MapTrials:
     """Simulate grasps of the map file ``path`` and (``write``) store the results in it.
 
     settings: defaults to :class:`SimSettings` with the pad friction of the map's quality
     model (the planner's mu). Selection: see :func:`select_grasps` (``seed`` also draws
-    the uniform sample; ``rank`` orders ``top``). ``on_selected(gmap, index)`` is called once the rows are chosen
+    the uniform sample; ``rank`` orders ``top``, ``separation`` spreads it). ``on_selected(gmap, index)`` is called once the rows are chosen
     and before anything is simulated (it may raise to stop, e.g. on an empty or huge
     selection). ``on_record``: see :func:`~graspsim.sim.batch.run_trials` (trial numbers
     are positions in ``MapTrials.index``).
@@ -197,7 +209,8 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
         mu = gmap.meta.quality.get("friction")
         settings = SimSettings(friction=float(mu)) if mu else SimSettings()
     rng = np.random.default_rng(seed)
-    index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng, rank=rank)
+    index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng, rank=rank,
+                          separation=separation)
     if on_selected is not None:
         on_selected(gmap, index)
     obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,
@@ -212,4 +225,5 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     results = replace(results, extra={"map_file": str(path),
                                       "mesh": None if mesh is None else str(mesh)})
     group = write_results(path, len(gmap), index, results) if write and len(index) else None
-    return MapTrials(index=index, results=results, scene=scene, group=group, width=width)
+    return MapTrials(index=index, results=results, scene=scene, group=group, width=width,
+                     viewpoint=gmap.meta.extra.get("viewpoint"))

@@ -56,7 +56,7 @@ def test_the_simulated_mesh_stands_where_the_cloud_was(tmp_path, normal):
     from graspsim.sim.mapsim import map_object, observed_placement
     from graspsim.transforms import invert_transform
 
-    mesh = _standing_mesh()
+    mesh = _standing_mesh().convex_hull  # convex: no decomposition (seconds); the placement is the same
     n = np.asarray(normal) / np.linalg.norm(normal)
     R_tilt = Rotation.align_vectors([n], [[0.0, 0.0, 1.0]])[0].as_matrix()  # the cloud's table along n
     mesh.apply_transform(np.block([[R_tilt, np.zeros((3, 1))], [np.zeros((1, 3)), np.ones((1, 1))]]))
@@ -124,12 +124,13 @@ def _cloud(mesh, n: int = 3000) -> np.ndarray:
 
 
 @pytest.mark.slow
-def test_the_cli_and_e09_give_the_same_map_and_outcomes(tmp_path, capsys):
+def test_the_cli_and_e09_give_the_same_map_and_outcomes(tmp_path, capsys, monkeypatch):
     from graspsim.cli import main
     from graspsim.maps import load_map, read_sim_results
     from graspsim.maps.database import MapDatabase
     from graspsim.maps.generate import MapConfig
 
+    monkeypatch.setenv("GRASPSIM_CACHE_DIR", str(tmp_path / "cache"))  # CoACD's parts: not the user's cache
     mesh = _standing_mesh()
     mesh_path = tmp_path / "object.stl"
     mesh.export(mesh_path)
@@ -165,3 +166,95 @@ def test_the_cli_and_e09_give_the_same_map_and_outcomes(tmp_path, capsys):
     # the multi-part map's best grasps are placed on the real mesh: none starts in collision
     # with the table or the object (the disagreement issue 33 found)
     assert trial_out["counts"]["start_collision"] == 0, trial_out["counts"]
+
+
+# ------------------------------------------------------------------ reproducible planning
+def _flipping_cloud() -> np.ndarray:
+    """random_003 sampled so that, before clouds were made canonical, the float64 points
+    and their float32 copy identified differently (cylinder + cone against box + cylinder)."""
+    import trimesh
+
+    m = trimesh.load(MESH, force="mesh")
+    pts, _ = trimesh.sample.sample_surface(m, 3000, seed=1)
+    return pts + np.random.default_rng(1).normal(0, 0.001, pts.shape) + [0.4, -0.1, 0.3]
+
+
+def _write_ply_float32(path: Path, pts: np.ndarray) -> None:
+    head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(pts)}\n"
+            "property float x\nproperty float y\nproperty float z\nend_header\n")
+    path.write_bytes(head.encode() + np.ascontiguousarray(pts, "<f4").tobytes())
+
+
+def test_float32_ply_and_float64_npy_of_the_same_points_identify_the_same(tmp_path):
+    from graspsim.perception import IdentifyConfig, identify, read_point_cloud
+
+    pts = _flipping_cloud()
+    np.save(tmp_path / "c.npy", pts)
+    _write_ply_float32(tmp_path / "c.ply", pts)
+    a, b = read_point_cloud(tmp_path / "c.npy"), read_point_cloud(tmp_path / "c.ply")
+    np.testing.assert_array_equal(a.points, b.points)  # canonical: float32, then the 1 um grid
+    assert np.max(np.abs(a.points - pts)) < 1e-6
+    cfg = IdentifyConfig.preset("robust")
+    pa = identify(a.points, rng=np.random.default_rng(0), config=cfg)
+    pb = identify(b.points, rng=np.random.default_rng(0), config=cfg)
+    assert [(p.shape, p.n_points) for p in pa.parts] == [(p.shape, p.n_points) for p in pb.parts]
+
+
+def _cylinder_cloud(radius=0.03, height=0.09) -> np.ndarray:
+    from graspsim.primitives import Cylinder, synthetic_cloud
+
+    return synthetic_cloud(Cylinder(radius, height), np.random.default_rng(2), resolution=0.004, noise=0.0005).points
+
+
+@pytest.mark.slow
+def test_a_grown_database_changes_no_part_and_names_the_map_it_used(tmp_path):
+    from graspsim.adapt import adapt_cloud, adapt_config
+    from graspsim.maps.database import MapDatabase
+    from graspsim.maps.generate import MapConfig
+    from graspsim.primitives import Cylinder
+
+    fast = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
+    pts = _cylinder_cloud()
+    cfg = adapt_config(table="auto")
+    db = MapDatabase(tmp_path / "db", config=fast)
+    far = Cylinder(0.036, 0.09)  # x 1.2 on the radius: familiar, scaled
+    db.add(far)
+    first = adapt_cloud(pts, db=db, config=cfg, seed=1)
+    (part,) = first.parts
+    assert part.match.value == "familiar" and part.stored["key"] == db.key(far)
+    r = part.primitive.dims["radius"]
+    assert part.stored["ratio"] == pytest.approx(0.036 / r, rel=1e-9) and part.stored["ratio"] > 1.1
+    # the map's own record names it too
+    assert first.map.meta.extra["parts"][0]["stored"]["key"] == db.key(far)
+    # the database grows by a map within 3 % of the part: now known, and the output says so
+    near = Cylinder(round(r * 1.02, 5), round(part.primitive.dims["height"], 5))
+    db.add(near)
+    second = adapt_cloud(pts, db=db, config=cfg, seed=1)
+    assert second.parts[0].match.value == "known" and second.parts[0].stored["key"] == db.key(near)
+    # ... but the identification, and so the parts and the frame, did not change
+    assert [p.primitive.to_dict() for p in second.parts] == [p.primitive.to_dict() for p in first.parts]
+    np.testing.assert_array_equal(second.T_cloud_obj, first.T_cloud_obj)
+    assert second.map.meta.extra["table"]["height"] == first.map.meta.extra["table"]["height"]
+    # a fresh database gives the same map every time
+    maps = []
+    for k in range(2):
+        fresh = MapDatabase(tmp_path / f"fresh{k}", config=fast)
+        maps.append(adapt_cloud(pts, db=fresh, config=cfg, seed=1).map)
+    assert len(maps[0]) == len(maps[1]) > 0
+    np.testing.assert_array_equal(maps[0].wrist_position, maps[1].wrist_position)
+    np.testing.assert_array_equal(maps[0].robust, maps[1].robust)
+
+
+def test_table_auto_lies_at_the_cloud_for_a_full_cloud_and_may_go_under_the_shape_for_a_single_view():
+    from graspsim.maps.table import TablePlane, table_height
+    from graspsim.primitives import Box
+
+    rng = np.random.default_rng(0)
+    pts = np.column_stack([rng.uniform(-0.02, 0.02, 2000), rng.uniform(-0.02, 0.02, 2000), rng.uniform(0, 0.05, 2000)])
+    box = Box(0.05, 0.05, 0.07)  # fitted over the object, 1 cm below the cloud's bottom
+    T = np.eye(4)
+    T[2, 3] = 0.025
+    auto = TablePlane()
+    assert table_height(auto, pts, box, T) == pytest.approx(np.quantile(pts[:, 2], 0.005))
+    assert table_height(auto, pts, box, T, single_view=True) == pytest.approx(-0.01)
+    assert table_height(TablePlane(height=0.003), pts, box, T) == 0.003

@@ -100,8 +100,9 @@ def test_a_partial_map_is_not_turned_onto_another_face():
     T_cloud_obj = np.eye(4)
     T_cloud_obj[:3, :3] = R
     box = Box(0.01, 0.02, 0.12)
+    table = {"normal": [0, 0, 1], "height": 0.0, "clearance": 0.002}
     meta = MapMeta(object=box.to_dict(), gripper=_map_with(np.eye(4), None).meta.gripper, quality={},
-                   resolution={}, method="adapted", extra=Placement(T_cloud_obj, {"normal": [0, 0, 1], "height": 0.0, "clearance": 0.002}).to_extra())
+                   resolution={}, method="adapted", extra=Placement(T_cloud_obj, table).to_extra())
     gmap = GraspabilityMap.empty(meta)
     T = observed_placement(gmap, map_object(gmap), False)
     np.testing.assert_allclose(T[:3, :3], R, atol=1e-9)
@@ -109,7 +110,8 @@ def test_a_partial_map_is_not_turned_onto_another_face():
 
 def _e09():
     sys.path.insert(0, str(ROOT / "experiments"))
-    spec = importlib.util.spec_from_file_location("e09_everyday_objects", ROOT / "experiments" / "e09_everyday_objects.py")
+    path = ROOT / "experiments" / "e09_everyday_objects.py"
+    spec = importlib.util.spec_from_file_location("e09_everyday_objects", path)
     mod = importlib.util.module_from_spec(spec)
     sys.modules["e09_everyday_objects"] = mod
     spec.loader.exec_module(mod)
@@ -258,3 +260,72 @@ def test_table_auto_lies_at_the_cloud_for_a_full_cloud_and_may_go_under_the_shap
     assert table_height(auto, pts, box, T) == pytest.approx(np.quantile(pts[:, 2], 0.005))
     assert table_height(auto, pts, box, T, single_view=True) == pytest.approx(-0.01)
     assert table_height(TablePlane(height=0.003), pts, box, T) == 0.003
+
+
+# ------------------------------------------------------------------ the viewpoint
+def _write_pcd(path: Path, pts: np.ndarray, viewpoint: str | None) -> None:
+    head = ["# .PCD v0.7", "VERSION 0.7", "FIELDS x y z", "SIZE 4 4 4", "TYPE F F F", "COUNT 1 1 1",
+            f"WIDTH {len(pts)}", "HEIGHT 1"] + ([f"VIEWPOINT {viewpoint}"] if viewpoint else []) + \
+        [f"POINTS {len(pts)}", "DATA ascii"]
+    path.write_text("\n".join(head) + "\n" + "\n".join(" ".join(f"{v:.6f}" for v in p) for p in pts) + "\n")
+
+
+def test_the_pcd_viewpoint_header_is_read(tmp_path):
+    from graspsim.errors import PointCloudError
+    from graspsim.perception import read_point_cloud
+
+    pts = _cylinder_cloud()
+    _write_pcd(tmp_path / "a.pcd", pts, "0.1 -0.2 0.5 1 0 0 0")
+    np.testing.assert_allclose(read_point_cloud(tmp_path / "a.pcd").viewpoint, [0.1, -0.2, 0.5])
+    _write_pcd(tmp_path / "mm.pcd", 1000 * pts, "100 -200 500 1 0 0 0")
+    np.testing.assert_allclose(read_point_cloud(tmp_path / "mm.pcd", units="mm").viewpoint, [0.1, -0.2, 0.5])
+    # PCL writes the identity for every cloud, merged ones too: it says nothing
+    _write_pcd(tmp_path / "b.pcd", pts, "0 0 0 1 0 0 0")
+    assert read_point_cloud(tmp_path / "b.pcd").viewpoint is None
+    _write_pcd(tmp_path / "c.pcd", pts, None)
+    assert read_point_cloud(tmp_path / "c.pcd").viewpoint is None
+    _write_pcd(tmp_path / "d.pcd", pts, "0 0 nan 1 0 0 0")
+    with pytest.raises(PointCloudError, match="VIEWPOINT"):
+        read_point_cloud(tmp_path / "d.pcd")
+
+
+def test_identify_records_the_viewpoint(tmp_path, capsys):
+    from graspsim.cli import main
+
+    pts = _cylinder_cloud()
+    _write_pcd(tmp_path / "a.pcd", pts, "0.1 -0.2 0.5 1 0 0 0")
+    main(["identify", str(tmp_path / "a.pcd"), "--db", str(tmp_path / "db"), "--json"])
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["viewpoint"] == pytest.approx([0.1, -0.2, 0.5])
+    main(["identify", str(tmp_path / "a.pcd"), "--db", str(tmp_path / "db"), "--json", "--viewpoint", "0", "0", "1"])
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["viewpoint"] == [0.0, 0.0, 1.0]
+    assert main(["identify", str(tmp_path / "a.pcd"), "--viewpoint", "0", "nan", "1"]) != 0
+    assert "--viewpoint" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_adapt_takes_the_viewpoint_into_the_robust_score_and_records_it(tmp_path, capsys):
+    from graspsim.cli import main
+    from graspsim.maps import load_map
+    from graspsim.primitives import Cylinder, synthetic_cloud
+
+    T = np.eye(4)
+    T[:3, 3] = [0.5, 0.0, 0.045]
+    cam = np.array([0.5 + 0.45, 0.1, 0.4])
+    pts = synthetic_cloud(Cylinder(0.03, 0.09), np.random.default_rng(3), resolution=0.003, noise=0.0005,
+                          camera=cam, T_world_obj=T).points
+    _write_pcd(tmp_path / "view.pcd", pts, " ".join(map(str, cam)) + " 1 0 0 0")
+    args = ["--db", str(tmp_path / "db"), "--json", "--table", "auto", *COARSE]
+    assert main(["adapt", str(tmp_path / "view.pcd"), "-o", str(tmp_path / "a.h5"), *args]) == 0
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert s["viewpoint"] == pytest.approx(cam.tolist())
+    m = load_map(tmp_path / "a.h5")
+    assert m.meta.extra["viewpoint"] == pytest.approx(cam.tolist()) and m.meta.extra["robust"]["viewpoint"] is True
+    assert s["parts"][0]["stored"]["key"]  # the stored map used, with its size ratio
+    assert main(["trial", str(tmp_path / "a.h5"), "--top", "2", "--json", "--no-write"]) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["viewpoint"] == pytest.approx(cam.tolist())
+    # --viewpoint wins over the file's; none at all: seen all round, no occlusion term
+    np.save(tmp_path / "view.npy", pts)
+    assert main(["adapt", str(tmp_path / "view.npy"), "-o", str(tmp_path / "b.h5"), *args]) == 0
+    capsys.readouterr()
+    b = load_map(tmp_path / "b.h5")
+    assert b.meta.extra["viewpoint"] is None and b.meta.extra["robust"]["viewpoint"] is False

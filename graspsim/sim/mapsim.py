@@ -197,7 +197,8 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
 
     settings: defaults to :class:`SimSettings` with the pad friction of the map's quality
     model (the planner's mu). Selection: see :func:`select_grasps` (``seed`` also draws
-    the uniform sample; ``rank`` orders ``top``, ``separation`` spreads it). ``on_selected(gmap, index)`` is called once the rows are chosen
+    the uniform sample; ``rank`` orders ``top``, ``separation`` spreads it).
+    ``on_selected(gmap, index)`` is called once the rows are chosen
     and before anything is simulated (it may raise to stop, e.g. on an empty or huge
     selection). ``on_record``: see :func:`~graspsim.sim.batch.run_trials` (trial numbers
     are positions in ``MapTrials.index``).

@@ -427,16 +427,22 @@ def readme_section(s: dict) -> str:
     fit = [o for o in objs if o["fits"]]
     g = s["gripper"]
     load = s["machine"]["load_avg_start"], s["machine"]["load_avg_end"]
-    L = [f"`{s['command']}`: {len(objs)} meshes, each resting on a table as the simulator rests it, at a random yaw; "
+    public = "table" in cfg  # runs through the public path (issue 33) record their table
+    rest = "on its most probable stable face (trimesh's stable poses)" if cfg.get("rest") == "stable" else \
+        "as the simulator rests it"
+    path = (", through the public path (`graspsim adapt` -> map file -> `graspsim trial --mesh`: "
+            "`graspsim.adapt.adapt_cloud`, `graspsim.sim.mapsim.simulate_map`)") if public else ""
+    best = (f"The adapted map's {cfg['top']} best grasps (`trial --top {cfg['top']} --rank {cfg['rank']}`: "
+            f"{_RANK_TEXT[cfg['rank']]}) lifted and placed in MuJoCo against the true mesh standing where the "
+            "cloud was; ") if public else (
+        f"The adapted map's {cfg['top']} best accepted grasps by the planner's ranking "
+        f"({_RANK_TEXT[cfg.get('rank', 'robust')]}) lifted and placed in MuJoCo against the true mesh; ")
+    L = [f"`{s['command']}`: {len(objs)} meshes, each resting on a table {rest}, at a random yaw; "
          f"a full cloud ({1000 * cfg['resolution']:g} mm spacing) and a single view, both with "
-         f"{1000 * cfg['noise']:g} mm noise, {_table_text(cfg)}, in paper and robust mode, through the "
-         "public path (`graspsim adapt` -> map file -> `graspsim trial --mesh`: `graspsim.adapt.adapt_cloud`, "
-         "`graspsim.sim.mapsim.simulate_map`). "
+         f"{1000 * cfg['noise']:g} mm noise, {_table_text(cfg)}, in paper and robust mode{path}. "
          f"{len(fit)} of {len(objs)} fit the gripper (rule: the shortest edge of the mesh's minimum-volume box is "
          f"at most the opening less the clearance, {1000 * (g['max_opening'] - 2 * g['approach_clearance']):.0f} mm). "
-         f"The adapted map's {cfg['top']} best grasps (`trial --top {cfg['top']} --rank {cfg.get('rank', 'robust')}`: "
-         f"{_RANK_TEXT[cfg.get('rank', 'robust')]}) lifted and placed in MuJoCo against the true mesh standing "
-         "where the cloud was; "
+         + best +
          "START_COLLISION counts as a failure; *held*: lifted and carried (success or PLACE_FAILED: a round "
          "object may roll off after release), *placed*: success. Median s: identification + adaptation per "
          "object, runs that built a new FS map left out.",

@@ -171,12 +171,13 @@ def _plan_entry(points, db, mode: str, cfg: Config, viewpoint=None) -> tuple[dic
 
 
 def object_views(name: str, cfg: Config):
-    """(simulated object in the mesh's frame, mesh resting on the table (world frame,
+    """(simulated object in the mesh's frame -- None with ``--rest stable`` --, mesh resting on the table (world frame,
     the clouds' frame), T_world_mesh, {"full": cloud, "single": cloud}) of one mesh,
     drawn from ``rng_for(cfg.seed, name)``."""
     rng = rng_for(cfg.seed, name)
     path = Path(cfg.objects_dir) / name
-    obj = object_from_mesh(path)
+    # the simulator's rule needs the simulated object (a convex decomposition); trimesh's does not
+    obj = object_from_mesh(path) if cfg.rest == "simulator" else None
     rest = rest_on_table if cfg.rest == "simulator" else rest_stable
     mesh, T_world_mesh = rest(load_mesh(path), obj, rng)
     return obj, mesh, T_world_mesh, clouds(mesh, cfg, rng)

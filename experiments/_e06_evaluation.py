@@ -9,11 +9,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from _stats import mcnemar
 
 from graspsim.envs.baselines import FEATURE_NAMES, PRE_ROBUST_FEATURES, LogisticPolicy, wilson_interval
 from graspsim.envs.candidates import CANDIDATE_FEATURES
 from graspsim.maps.robust import ABLATIONS
+from graspsim.stats import mcnemar
 
 __all__ = ["POLICIES", "MAP_ONLY", "PRE_ROBUST", "OUTCOMES", "stack", "choices", "rate", "evaluate", "costs"]
 

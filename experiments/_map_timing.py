@@ -10,12 +10,13 @@ import statistics
 import numpy as np
 from _common import Clock
 
-from graspsim.gripper import HGPL_25_60_A
+from graspsim.grades.paper import QualityModel
+from graspsim.grippers.spec import HGPL_25_60_A
 from graspsim.maps import generate as _generate
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.scaling import ScalingConfig, scale_stream
-from graspsim.quality import QualityModel
 
 __all__ = ["time_fs", "time_scaled"]
 

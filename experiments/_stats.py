@@ -1,8 +1,8 @@
 """The statistics of the paper's table 2 for the experiment scripts: mean and SD,
 split-plot (mixed) ANOVA with the Greenhouse-Geisser correction, Bonferroni-adjusted
-paired post-hoc tests; the exact McNemar test of paired successes (E06); a rate's
-interval resampling whole clusters (E04). Not part of the library (``import _stats``
-from a script)."""
+paired post-hoc tests, and their markdown. Not part of the library (``import _stats``
+from a script); the library's statistics (McNemar, cluster-bootstrap intervals, Wilson)
+are :mod:`graspsim.stats`."""
 
 from __future__ import annotations
 
@@ -133,46 +133,3 @@ def tests_markdown(tests: dict, metrics: list[tuple[str, str]], within: str = "a
             L.append(f"| {lbl} | {ph['a']} - {ph['b']} | {ph['mean_diff']:.2f} | "
                      f"{ph['t']:.2f} ({ph['df']}) | {p_text(ph['p_bonferroni'])} |")
     return L
-
-
-def mcnemar(a: np.ndarray, b: np.ndarray) -> dict:
-    """Exact McNemar test of paired successes a, b (E,) bool."""
-    from scipy.stats import binomtest
-
-    only_a, only_b = int(np.sum(a & ~b)), int(np.sum(~a & b))
-    p = binomtest(only_a, only_a + only_b, 0.5).pvalue if only_a + only_b else 1.0
-    return {"only_first": only_a, "only_second": only_b, "p_exact": float(p)}
-
-
-def cluster_bootstrap_interval(k, n, rng: np.random.Generator, *, reps: int = 4000,
-                               confidence: float = 0.95) -> tuple[float, float]:
-    """Percentile interval of a pooled rate sum(k) / sum(n) when whole clusters (k, n:
-    successes and trials per cluster, e.g. per map) are resampled with replacement:
-    trials within a cluster are not taken as independent."""
-    k, n = np.asarray(k, float), np.asarray(n, float)
-    idx = rng.integers(0, len(k), (reps, len(k)))
-    tot = n[idx].sum(axis=1)
-    rate = np.divide(k[idx].sum(axis=1), tot, out=np.full(reps, np.nan), where=tot > 0)
-    a = 50.0 * (1.0 - confidence)
-    lo, hi = np.nanpercentile(rate, [a, 100.0 - a])
-    return float(lo), float(hi)
-
-
-def paired_cluster_difference_interval(k1, n1, k0, n0, rng: np.random.Generator, *, reps: int = 4000,
-                                       confidence: float = 0.95) -> tuple[float, float]:
-    """Percentile interval of the difference of two pooled rates, sum(k1) / sum(n1) -
-    sum(k0) / sum(n0), measured on the same clusters (e.g. the same scenes under two
-    settings: k, n per cluster, aligned), when whole clusters are resampled with
-    replacement, the same draw for both: the pairing and the correlation within a
-    cluster are both kept."""
-    k1, n1, k0, n0 = (np.asarray(a, float) for a in (k1, n1, k0, n0))
-    if not (k1.shape == n1.shape == k0.shape == n0.shape) or k1.ndim != 1:
-        raise ValueError("paired clusters: k1, n1, k0, n0 must be aligned 1-D arrays")
-    idx = rng.integers(0, len(k1), (reps, len(k1)))
-    t1, t0 = n1[idx].sum(axis=1), n0[idx].sum(axis=1)
-    ok = (t1 > 0) & (t0 > 0)
-    d = np.full(reps, np.nan)
-    d[ok] = k1[idx].sum(axis=1)[ok] / t1[ok] - k0[idx].sum(axis=1)[ok] / t0[ok]
-    a = 50.0 * (1.0 - confidence)
-    lo, hi = np.nanpercentile(d, [a, 100.0 - a])
-    return float(lo), float(hi)

@@ -112,8 +112,9 @@ def _in_process(name: str, threads: int, repeat: int, quick: bool, queue) -> Non
     """Spawned worker: in-process generation times (kernels loaded beforehand)."""
     import resource
 
+    from graspsim.maps.config import MapConfig
     from graspsim.maps.database import PAPER_SHAPES
-    from graspsim.maps.generate import MapConfig, clear_caches, generate_fs_map
+    from graspsim.maps.generate import clear_caches, generate_fs_map
     from graspsim.maps.kernels import default_threads, ensure_compiled
     from graspsim.primitives import Cylinder
 
@@ -289,6 +290,13 @@ def readme_section(summary: dict) -> str:
                       "serially on a machine's first run (kernels compiling)."]
     return "\n".join(lines)
 
+
+def headline(summary: dict) -> str:
+    """The README's headline line (see ``experiments/report.py``)."""
+    h = summary["headline"]
+    return (f"An FS map of the paper's {h['primitive']} in {h['in_process_generation_s']:.1f} s of generation "
+            f"in a warm process, {h['fresh_wall_s']:.1f} s wall for `graspsim map` in a fresh one "
+            f"({h['threads']} threads); the paper's five-map database in {h['db_build_serial_s']:.0f} s on first use.")
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -18,7 +18,7 @@ full clouds of the first ``--cli`` objects, twice each (first and second run), w
 time including Python's start and imports, beside the plan time the CLI reports.
 
     python experiments/bench_identify.py [--publish]
-    python experiments/bench_identify.py --quick --objects-dir graspsim/assets/objects \
+    python experiments/bench_identify.py --quick --objects-dir assets/objects \
         --out results/bench_identify-quick
 """
 
@@ -74,9 +74,10 @@ def _stages(res, wall: float, cpu: float) -> dict:
 
 def time_cloud(points: np.ndarray, db, cfg: Config) -> dict:
     """The warm-up plan's record and the median stage times of ``cfg.repeat`` more."""
+    from graspsim.geometry.table import TablePlane
     from graspsim.maps.match import MatchKind
     from graspsim.perception import IdentifyConfig
-    from graspsim.planner import PlannerConfig, TablePlane, plan
+    from graspsim.planning.planner import PlannerConfig, plan
 
     pc = PlannerConfig(identify=IdentifyConfig.preset("robust"), table=TablePlane(height=0.0))
     runs = []

@@ -52,11 +52,11 @@ def write_inputs(kind: str, seed: int, folder: Path) -> dict[str, Path]:
     frame, with its camera record) and a 16-bit PNG depth image in millimetres."""
     from PIL import Image
 
+    from graspsim.geometry.camera import backproject, rig
     from graspsim.seeding import rng_for
-    from graspsim.sim.camera import backproject, rig
-    from graspsim.sim.cloud_io import save_view
-    from graspsim.sim.clutter import ClutterConfig
-    from graspsim.sim.scenes import make_scene
+    from graspsim.tabletop.cloud_io import save_view
+    from graspsim.tabletop.clutter import ClutterConfig
+    from graspsim.tabletop.table_scene import make_scene
 
     sim = make_scene(5, kind, seed).sim()
     frame = sim.render(rig(1)[0], noise=ClutterConfig().depth_noise, rng=rng_for(seed, "depth"))
@@ -68,7 +68,7 @@ def write_inputs(kind: str, seed: int, folder: Path) -> dict[str, Path]:
 
 
 def _argv(kind: str, source: str, path: Path, out: Path, db: str, coarse: bool) -> list[str]:
-    from graspsim.sim.scenes import known_gap
+    from graspsim.tabletop.table_scene import known_gap
 
     flags = ["--surface-step", "0.01", "--rotation-step-deg", "22"] if coarse else []
     return ["plan-scene", str(path), *(["--camera", "d435"] if source == "depth" else []), "-o", str(out),

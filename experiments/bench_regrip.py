@@ -51,7 +51,7 @@ def _timed(fn):
 
 
 def measure(kind: str, target, cfg: Config) -> dict:
-    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.grippers.spec import HGPL_25_60_A
     from graspsim.maps.database import PAPER_SHAPES
     from graspsim.maps.generate import generate_fs_map
     from graspsim.maps.hierarchy import clear_caches

@@ -60,9 +60,10 @@ def _scenes(seed: int, kinds: tuple[str, ...]):
 
 def measure(seed: int, kinds: list[str], repeat: int, db_root: str) -> dict:
     """In this process: per object, the first call and the medians of ``repeat`` more."""
+    from graspsim.geometry.table import TablePlane
     from graspsim.maps.database import MapDatabase
     from graspsim.maps.robust import RobustConfig, cloud_in_object, score_map
-    from graspsim.planner import PlannerConfig, TablePlane, plan
+    from graspsim.planning.planner import PlannerConfig, plan
     from graspsim.seeding import rng_for
 
     db = MapDatabase(db_root)

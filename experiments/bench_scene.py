@@ -79,7 +79,7 @@ class BenchConfig:
             raise ValueError("--scenes, --renders, --fresh and --sizes must be >= 1")
         if self.plans < 0 or self.workers < 0:
             raise ValueError("--plans and --workers must be >= 0")
-        from graspsim.perception.scene import budget_fields
+        from graspsim.planning.scene_config import budget_fields
 
         budget_fields(self.budget)
 
@@ -92,8 +92,9 @@ def _timed(fn):
 
 def one_scene(kind: str, n: int, seed: int, renders: int) -> dict:
     """Timings [s] of one scene: settle, first render, warm renders."""
-    from graspsim.sim.camera import DepthNoise, rig
-    from graspsim.sim.scenes import make_scene
+    from graspsim.geometry.camera import rig
+    from graspsim.tabletop.depth_noise import DepthNoise
+    from graspsim.tabletop.table_scene import make_scene
 
     cam = rig(1)[0]
     scene, settle = _timed(lambda: make_scene(n, kind, seed))
@@ -117,8 +118,8 @@ def one_scene(kind: str, n: int, seed: int, renders: int) -> dict:
 _FRESH = """
 import json, sys, time
 t0 = time.perf_counter()
-from graspsim.sim.camera import rig
-from graspsim.sim.scenes import make_scene
+from graspsim.geometry.camera import rig
+from graspsim.tabletop.table_scene import make_scene
 imported = time.perf_counter() - t0
 t = time.perf_counter()
 scene = make_scene(5, "pile", int(sys.argv[1]))
@@ -153,12 +154,12 @@ WARMUP_SEED = 10**6
 def first_frame(kind: str, seed: int, budget: str = ""):
     """The first D435-like depth frame of a 5-object scene as E10 renders it (its sensor
     noise), and the scene settings E10 plans it with (with ``budget``, see
-    :func:`graspsim.perception.scene.budget_fields`)."""
-    from graspsim.perception.scene import budget_fields
+    :func:`graspsim.planning.scene.budget_fields`)."""
+    from graspsim.geometry.camera import rig
+    from graspsim.planning.scene_config import budget_fields
     from graspsim.seeding import rng_for
-    from graspsim.sim.camera import rig
-    from graspsim.sim.clutter import ClutterConfig, scene_settings
-    from graspsim.sim.scenes import make_scene
+    from graspsim.tabletop.clutter import ClutterConfig, scene_settings
+    from graspsim.tabletop.table_scene import make_scene
 
     clutter = ClutterConfig()  # E10's settings: its sensor noise, its scene planning (the kind's gap)
     sim = make_scene(5, kind, seed).sim()
@@ -170,7 +171,7 @@ def first_frame(kind: str, seed: int, budget: str = ""):
 def _plan(points, scene_cfg, seed: int, db, workers: int, eye):
     """``plan_scene`` as E10 calls it: ``eye`` the camera's position (the viewpoint of the
     robust score's occlusion term)."""
-    from graspsim.perception.scene import plan_scene
+    from graspsim.planning.scene import plan_scene
     from graspsim.seeding import rng_for
 
     cfg = scene_cfg if not workers else replace(scene_cfg, workers=workers)
@@ -182,7 +183,7 @@ def _eye(frame):
 
 
 def _plan_frame(kind: str, seed: int, db, workers: int, budget: str = ""):
-    from graspsim.sim.camera import backproject
+    from graspsim.geometry.camera import backproject
 
     frame, scene_cfg = first_frame(kind, seed, budget)
     return _plan(backproject(frame).world(), scene_cfg, seed, db, workers, _eye(frame))
@@ -208,7 +209,7 @@ def _cpu_seconds() -> float:
 def plan_one(kind: str, seed: int, db, workers: int = 0, budget: str = "") -> dict:
     """Planning times [s] of one 5-object scene's first frame, per stage and in total
     (back-projection included), wall and CPU."""
-    from graspsim.sim.camera import backproject
+    from graspsim.geometry.camera import backproject
 
     frame, scene_cfg = first_frame(kind, seed, budget)
     c0 = _cpu_seconds()
@@ -248,11 +249,12 @@ _FRESH_PLAN = """
 import json, sys, time
 t0 = time.perf_counter()
 from graspsim.maps.database import MapDatabase
-from graspsim.perception.scene import budget_fields, plan_scene, start_workers
+from graspsim.planning.scene_config import budget_fields
+from graspsim.planning.scene import plan_scene, start_workers
 from graspsim.seeding import rng_for
-from graspsim.sim.camera import backproject, rig
-from graspsim.sim.clutter import ClutterConfig, scene_settings
-from graspsim.sim.scenes import make_scene
+from graspsim.geometry.camera import backproject, rig
+from graspsim.tabletop.clutter import ClutterConfig, scene_settings
+from graspsim.tabletop.table_scene import make_scene
 imported = time.perf_counter() - t0
 kind, seed, root, coarse = sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5] == "1"
 if sys.argv[6] == "started":

@@ -35,15 +35,16 @@ import mujoco
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # hand_made: the tests' hand-made grasps
 from _common import NAMED, machine_load, opt, rng_for, start
+from hand_made import grasp_pose
 
 from graspsim.primitives import Cylinder
 from graspsim.sim import LiftPlace, build_scene, object_from_mesh, object_from_shape, run_trials
 from graspsim.sim.batch import initial_states, pregrasp_opening, simulate
-from graspsim.sim.testing import grasp_pose
 
 log = logging.getLogger("bench_sim")
-BREAD = Path(__file__).resolve().parents[1] / "graspsim/assets/objects/robosuite/bread.stl"
+BREAD = Path(__file__).resolve().parents[1] / "assets/objects/robosuite/bread.stl"
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 

@@ -33,9 +33,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import Clock, opt, seed_sequence, start, write_json
+from _identification_trials import SIZE_VARIANTS, CloudSpec, TrialResult, run_trial, trial_cloud
 
 from graspsim.errors import PointCloudError
-from graspsim.perception.benchmark import SIZE_VARIANTS, CloudSpec, TrialResult, run_trial, trial_cloud
 
 log = logging.getLogger("e01")
 FULL_REPS = (1, 5, 10, 20, 30, 40, 60, 100, 400)

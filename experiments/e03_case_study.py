@@ -1,6 +1,6 @@
 """Experiment E03 (paper 3.4 / 4.3, table 3, figures 6-7): case study, cloud -> adapted map.
 
-The library's synthetic analogs of the paper's five RGB-D objects (``graspsim.case_study_objects``),
+The library's synthetic analogs of the paper's five RGB-D objects (``graspsim.primitives.case_study``),
 seen by one depth camera (single view: the far side and the bottom are missing) at 1 mm
 resolution with depth noise along the viewing ray and a few outliers:
 
@@ -53,20 +53,20 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import Clock, experiment_database, fmt, machine_load, map_config, opt, rng_for, start, write_json
 
-from graspsim import case_study_objects as analogs
 from graspsim.maps import generate as _generate
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
 from graspsim.maps.io import save_map
 from graspsim.perception import IdentifyConfig
-from graspsim.planner import PlannerConfig, plan
+from graspsim.planning.planner import PlannerConfig, plan
 from graspsim.plots import plot_clouds, plot_maps
 from graspsim.primitives import Cylinder, synthetic_cloud
+from graspsim.primitives import case_study as analogs
 from graspsim.transforms import make_transform
 
 log = logging.getLogger("e03")
 
-# name -> (shape, paper's outcome, what the analog is); the shapes are graspsim.case_study_objects'.
+# name -> (shape, paper's outcome, what the analog is); the shapes are graspsim.primitives.case_study'.
 OBJECTS = {
     "pencil_cup": (analogs.pencil_cup(), "familiar cone", "frustum r 3.6 cm (bottom) / 4.4 cm (top), h 11 cm (solid)"),
     "glue_bottle": (analogs.glue_bottle(), "unknown: two cylinders, combined",

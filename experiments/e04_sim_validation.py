@@ -1,7 +1,7 @@
 """Experiment E04: the paper's physical validation (section 3.4) replaced by simulation.
 
 A. The paper's test: 15 grasps with grade > 0.7 drawn uniformly about the adapted map
-   of the glue-bottle analog (``graspsim.case_study_objects``: cloud -> identification -> combined
+   of the glue-bottle analog (``graspsim.primitives.case_study``: cloud -> identification -> combined
    map of two cylinders), lift-and-place, simulated against the analog's true geometry
    standing as it stood in the cloud -- not against the identified primitives. Drawn
    among the poses that clear the table (a robot would not be sent into it), repeated
@@ -52,17 +52,18 @@ from _common import (
     write_text,
 )
 from _paired_trials import rate_rows, rates, simulate_paired
-from _stats import cluster_bootstrap_interval
 
 from graspsim.calibration import CalibrationCase, SimCondition, TrialTable
 from graspsim.calibration.trials import CaseSample, case_clears_table
-from graspsim.case_study_objects import ANALOGS
 from graspsim.grades import get_grade
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import PAPER_SHAPES, size_grid
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.scaling import scale_map
-from graspsim.planner import plan
+from graspsim.planning.planner import plan
+from graspsim.primitives.case_study import ANALOGS
 from graspsim.sim import ExecutionNoise, object_from_shape, select_grasps
+from graspsim.stats import cluster_bootstrap_interval
 from graspsim.transforms import invert_transform
 
 log = logging.getLogger("e04")
@@ -129,7 +130,7 @@ def analog_cloud(name: str, seed: int):
 
 
 def analog_cases(cfg: Config, out: Path) -> tuple[list[CalibrationCase], dict]:
-    """Adapted maps of the case-study analogs (``graspsim.case_study_objects``) from their clouds,
+    """Adapted maps of the case-study analogs (``graspsim.primitives.case_study``) from their clouds,
     simulated against the true shapes standing as in the cloud."""
     db = experiment_database(cfg.db, out, cfg.map_config, threads=cfg.threads)
     cases, info = [], {}
@@ -373,6 +374,22 @@ def readme_section(s: dict) -> str:
               f"{rate_ci(b['exact']['success'], b['exact']['of'], b['exact']['ci'])}, with noise {_noisy(b)}."]
     return "\n".join(L) + "\n"
 
+
+def headline(s: dict) -> str:
+    """The README's headline line (see ``experiments/report.py``)."""
+    by = {r["selected_by"]: r for r in s["pooled"]}
+    nz = s["noise"]
+    cell = {k: (by[k]["exact"], by[k]["noise"]["of_feasible"]) for k in ("paper", "all") if k in by}
+    e, z = cell["paper"]
+    line = (f"Grasps > 0.7 drawn from {s['cases']['all']} maps, lifted and placed in MuJoCo: "
+            f"{rate_ci(e['success'], e['of'], e['ci'])} of the feasible poses succeed, "
+            f"{rate_ci(z['success'], z['of'])} with {1000 * nz['position_m']:g} mm / {nz['rotation_deg']:g}° "
+            f"execution error")
+    if "all" in cell:
+        e, z = cell["all"]
+        line += (f" (the same maps' grasps of any grade: {rate_ci(e['success'], e['of'])}, "
+                 f"{rate_ci(z['success'], z['of'])})")
+    return line + "."
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -47,7 +47,7 @@ from graspsim.calibration.objects import CALIBRATION_CONE, HELD_OUT_SHAPES, pape
 from graspsim.calibration.plots import plot_reliability, plot_roc, plot_threshold_sweep
 from graspsim.calibration.trials import fs_cases
 from graspsim.grades import get_grade
-from graspsim.maps.generate import MapConfig
+from graspsim.maps.config import MapConfig
 from graspsim.sim import ExecutionNoise
 
 log = logging.getLogger("e05")

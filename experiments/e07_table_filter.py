@@ -45,10 +45,11 @@ from _common import (
     start,
 )
 
-from graspsim.case_study_objects import ANALOGS
+from graspsim.geometry.table import TablePlane
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase
-from graspsim.maps.generate import MapConfig
-from graspsim.planner import PlannerConfig, TablePlane, plan
+from graspsim.planning.planner import PlannerConfig, plan
+from graspsim.primitives.case_study import ANALOGS
 from graspsim.sim import (
     ExecutionNoise,
     LiftPlace,

@@ -77,16 +77,16 @@ from _common import (
     start,
     write_json,
 )
-from _stats import mcnemar
 
 import graspsim  # noqa: F401  (registers the environments)
 from graspsim.envs.baselines import planner_pose
 from graspsim.envs.top_down import robust_top_down, top_down_pose
+from graspsim.geometry.table import TablePlane
 from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.robust import ABLATION_LABELS, ABLATIONS, RobustConfig, cloud_in_object, score_map
-from graspsim.planner import PlannerConfig, TablePlane, plan
-from graspsim.stats import wilson_interval
+from graspsim.planning.planner import PlannerConfig, plan
+from graspsim.stats import mcnemar, wilson_interval
 from graspsim.transforms import invert_transform
 
 log = logging.getLogger("e08")

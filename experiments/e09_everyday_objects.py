@@ -8,7 +8,7 @@ Two clouds per object, both with 1 mm noise: a *full* cloud (uniform surface sam
 azimuth; the points it sees, noise along the ray; planned with that camera as its
 viewpoint: the robust score's occluded-space term). Everything goes through the public
 path a user runs, the functions ``graspsim adapt`` and ``graspsim trial`` are layers
-over: each cloud is adapted (:func:`graspsim.adapt.adapt_cloud`, ``graspsim adapt CLOUD
+over: each cloud is adapted (:func:`graspsim.planning.adapt.adapt_cloud`, ``graspsim adapt CLOUD
 --table auto --mode MODE [--viewpoint X Y Z]``; ``--table`` a height instead, e.g. 0 for
 the table known) in paper and in robust mode against a private FS database
 (``_common.experiment_database``): status, parts, fit rates, time for identification +
@@ -34,7 +34,7 @@ shortest edge of its minimum-volume bounding box (the narrowest width a grasp ca
 across) is at most the gripper's opening less the approach clearance on both sides.
 
     python experiments/e09_everyday_objects.py
-    python experiments/e09_everyday_objects.py --quick --objects-dir graspsim/assets/objects --out results/e09-quick
+    python experiments/e09_everyday_objects.py --quick --objects-dir assets/objects --out results/e09-quick
 """
 
 from __future__ import annotations
@@ -67,13 +67,13 @@ from _common import (
 )
 from _mesh_views import clouds, rest_on_table, rest_stable
 
-from graspsim.adapt import adapt_cloud, adapt_config
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.io import save_map
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS
 from graspsim.perception.mvbb import min_volume_box
+from graspsim.planning.adapt import adapt_cloud, adapt_config
 from graspsim.sim import TrialOutcome
 from graspsim.sim.mapsim import simulate_map
 from graspsim.sim.meshes import load_mesh
@@ -153,7 +153,7 @@ def _sim(map_path: Path, mesh_path: Path, cfg: Config, seed: int, separated: boo
 
 def _plan_entry(points, db, mode: str, cfg: Config, viewpoint=None) -> tuple[dict, object]:
     """``graspsim adapt CLOUD --mode MODE --table TABLE --seed S [--viewpoint X Y Z]``,
-    through the functions the command is a layer over (:mod:`graspsim.adapt`)."""
+    through the functions the command is a layer over (:mod:`graspsim.planning.adapt`)."""
     pc = adapt_config(mode=mode, table=cfg.table)
     t0 = time.perf_counter()
     res = adapt_cloud(points, db=db, config=pc, seed=cfg.seed, viewpoint=viewpoint)
@@ -432,7 +432,7 @@ def readme_section(s: dict) -> str:
     rest = "on its most probable stable face (trimesh's stable poses)" if cfg.get("rest") == "stable" else \
         "as the simulator rests it"
     path = (", through the public path (`graspsim adapt` -> map file -> `graspsim trial --mesh`: "
-            "`graspsim.adapt.adapt_cloud`, `graspsim.sim.mapsim.simulate_map`)") if public else ""
+            "`graspsim.planning.adapt.adapt_cloud`, `graspsim.sim.mapsim.simulate_map`)") if public else ""
     best = (f"The adapted map's {cfg['top']} best grasps (`trial --top {cfg['top']} --rank {cfg['rank']}`: "
             f"{_RANK_TEXT[cfg['rank']]}) lifted and placed in MuJoCo against the true mesh standing where the "
             "cloud was; ") if public else (

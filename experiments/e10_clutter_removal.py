@@ -2,9 +2,9 @@
 
 For each condition -- scene kind (pile: dropped and settled; packed: upright side by side,
 >= 1 cm apart), objects per scene, execution error (none, or 3 mm / 2 deg) -- the script
-draws scenes (``graspsim.sim.scenes.make_scene``, the "mixed" object set), renders each
+draws scenes (``graspsim.tabletop.table_scene.make_scene``, the "mixed" object set), renders each
 with one D435-like depth camera (sensor noise on) and clears it grasp by grasp
-(``graspsim.sim.clutter``): segment, plan every object, check grasps against the whole
+(``graspsim.tabletop.clutter``): segment, plan every object, check grasps against the whole
 scene, execute the best, remove the lifted object, render again; until the table is
 clear, two grasps in a row failed or no grasp is found. Ablations (without execution
 error): no neighbour check; the render's ground-truth segmentation instead of clustering.
@@ -53,9 +53,9 @@ from _common import (
 from graspsim.errors import MapDatabaseError, NoFeasibleGraspError, SimulationError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import generate_fs_map
-from graspsim.sim.clutter import OTHER, ClutterConfig, run_benchmark, scene_settings, summarize
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.stats import wilson_interval
+from graspsim.tabletop.clutter import OTHER, ClutterConfig, run_benchmark, scene_settings, summarize
 
 log = logging.getLogger("e10")
 ABLATIONS = ("no_neighbours", "ground_truth")
@@ -347,6 +347,15 @@ def readme_section(s: dict) -> str:
           + database_note(s) + _memory_note(rows)]
     return "\n".join(L) + "\n"
 
+
+def headline(s: dict) -> str:
+    """The README's headline line (see ``experiments/report.py``): clutter removal with
+    execution error and the full method, per scene kind and size."""
+    rows = [r for r in s["conditions"] if r["noise"] == "default" and not r["ablation"]]
+    return ("Clutter removal with execution error (GSR: grasps that lifted their target; DR: objects "
+            "removed): " + "; ".join(
+                f"{r['kind']} of {r['objects']}: GSR {rate_ci(r['successes'], r['attempts'])}, "
+                f"DR {rate_ci(r['removed'], r['placed'])}" for r in rows) + ".")
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -2,7 +2,7 @@
 adapted to a new gripper (paper section 5).
 
 A. **Design sweeps.** Finger length, pad length and stroke are varied one at a time
-   around the Festo HGPL-25-60-A defaults (``graspsim.design.vary``: a longer stroke
+   around the Festo HGPL-25-60-A defaults (``graspsim.apps.design.vary``: a longer stroke
    lengthens the housing just enough to carry it). Each design gets an FS map of the
    paper's five primitives at several sizes (scale factors of ``PAPER_SHAPES``) at the
    design resolution, and per map: SR and VR of the grasps with grade > 0.7 (VR over
@@ -44,11 +44,20 @@ from _common import (
     write_json,
 )
 
-from graspsim.design import DesignConfig, adapted_vs_own, common_reach, evaluate, param_value, resolve_design, sweep
+from graspsim.apps.design import (
+    DesignConfig,
+    adapted_vs_own,
+    common_reach,
+    evaluate,
+    param_value,
+    resolve_design,
+    sweep,
+)
 from graspsim.errors import GraspsimError
-from graspsim.gripper import HGPL_25_60_A
+from graspsim.grippers.spec import HGPL_25_60_A
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import PAPER_SHAPES, size_grid
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.generate import generate_fs_map
 from graspsim.plots import plot_design
 from graspsim.stats import wilson_interval
 

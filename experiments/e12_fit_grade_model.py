@@ -38,7 +38,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import NAMED, fmt, map_config, md_table, opt, start, write_text
 
-from graspsim.calibration import SimCondition, TrialTable, draw_samples, simulate_samples, stats
+from graspsim import stats
+from graspsim.calibration import SimCondition, TrialTable, draw_samples, simulate_samples
 from graspsim.calibration.objects import CALIBRATION_CONE, TRAIN_SHAPES
 from graspsim.calibration.plots import plot_roc
 from graspsim.calibration.trials import fs_cases, table_features
@@ -47,7 +48,7 @@ from graspsim.grades.features import FEATURES
 from graspsim.grades.fit import fit_grade
 from graspsim.grades.models import FESTO, gripper_identity, model_path
 from graspsim.grippers import get_gripper
-from graspsim.maps.generate import MapConfig
+from graspsim.maps.config import MapConfig
 
 log = logging.getLogger("e12_fit")
 

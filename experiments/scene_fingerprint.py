@@ -63,10 +63,10 @@ def fingerprint(kind: str, seed: int, db) -> dict:
     """The hashes of one frame's planning results."""
     from dataclasses import replace
 
-    from graspsim.perception.scene import plan_scene
-    from graspsim.sim.camera import backproject, rig
-    from graspsim.sim.clutter import ClutterConfig, scene_settings
-    from graspsim.sim.scenes import make_scene
+    from graspsim.geometry.camera import backproject, rig
+    from graspsim.planning.scene import plan_scene
+    from graspsim.tabletop.clutter import ClutterConfig, scene_settings
+    from graspsim.tabletop.table_scene import make_scene
 
     camera = rig(1)[0]
     sim = make_scene(5, kind, seed).sim()

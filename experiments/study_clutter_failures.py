@@ -1,7 +1,7 @@
 """Diagnosis of clutter-removal failures (issue 17): what each grasp was planned on, and
 where the gripper started in collision.
 
-Runs E10's protocol (``graspsim.sim.clutter.ClutterEpisode``: the same scenes, seeds,
+Runs E10's protocol (``graspsim.tabletop.clutter.ClutterEpisode``: the same scenes, seeds,
 camera, sensor noise and database as ``e10_clutter_removal.py``, scene ``i`` of a
 condition) on the scenes listed, executing the best grasp each time, and records per
 grasp: the object the chosen segment mostly shows (ground truth), whether the segment
@@ -60,9 +60,9 @@ def outside_shares(points: np.ndarray, ident) -> list[float]:
 
 def episode(i: int, cfg: Config, db) -> list[dict]:
     """Scene ``i``'s episode, one row per executed grasp."""
-    from graspsim.sim.clutter import ClutterConfig, ClutterEpisode, scene_settings
     from graspsim.sim.noise import ExecutionNoise
-    from graspsim.sim.scenes import make_scene
+    from graspsim.tabletop.clutter import ClutterConfig, ClutterEpisode, scene_settings
+    from graspsim.tabletop.table_scene import make_scene
 
     scene = make_scene(cfg.objects, cfg.kind, derived_seed(cfg.seed, "scene", i), object_set=cfg.object_set,
                        gripper=db.gripper)

@@ -58,10 +58,10 @@ class Config:
 
 def scene_segments(cfg: Config) -> dict[str, np.ndarray]:
     """The segments (M, 3) [m] of each scene's first frame, as E10 perceives them."""
-    from graspsim.perception.scene import perceive_scene
-    from graspsim.sim.camera import backproject, rig
-    from graspsim.sim.clutter import ClutterConfig
-    from graspsim.sim.scenes import make_scene
+    from graspsim.geometry.camera import backproject, rig
+    from graspsim.planning.scene import perceive_scene
+    from graspsim.tabletop.clutter import ClutterConfig
+    from graspsim.tabletop.table_scene import make_scene
 
     clutter, out = ClutterConfig(), {}
     for kind in ("pile", "packed"):

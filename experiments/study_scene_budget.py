@@ -39,7 +39,7 @@ from typing import ClassVar
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import derived_seed, experiment_database, map_config, opt, rate_ci, rng_for, start
 
-from graspsim.perception.scene import budget_fields
+from graspsim.planning.scene_config import budget_fields
 
 log = logging.getLogger("study_scene_budget")
 
@@ -81,7 +81,7 @@ def _timed_plans() -> None:
     """Record the CPU time and the grasps robust-scored of every ``plan_scene`` the
     clutter protocol calls in this process (the protocol's own call, wrapped once;
     results unchanged)."""
-    import graspsim.sim.clutter as clutter
+    import graspsim.tabletop.clutter as clutter
 
     if getattr(clutter.plan_scene, "_timed", False):
         return
@@ -100,8 +100,8 @@ def _timed_plans() -> None:
 def _warm_up(kind: str, cfg: Config, db) -> None:
     """Plan the first frame of a scene no task draws, once per process and kind: the
     kernels, modules and stored maps are loaded before the first timed plan."""
-    from graspsim.sim.clutter import ClutterEpisode
-    from graspsim.sim.scenes import make_scene
+    from graspsim.tabletop.clutter import ClutterEpisode
+    from graspsim.tabletop.table_scene import make_scene
 
     scene = make_scene(cfg.objects, kind, derived_seed(cfg.seed, "warm-up", 0), object_set=cfg.object_set,
                        gripper=db.gripper)
@@ -135,7 +135,7 @@ def episode(task) -> dict:
     from e10_clutter_removal import RunDatabase
 
     from graspsim.errors import SimulationError
-    from graspsim.sim.clutter import ClutterConfig, run_benchmark, scene_settings
+    from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings
 
     key = (root, cfg.quick_maps)
     if key not in _DATABASES:  # one per process: its cache of loaded maps serves every task
@@ -260,7 +260,8 @@ def _interval(pair: list[tuple[dict, dict]], k: str, n: str) -> str:
     if len(pair) < 2:
         return ""
     import numpy as np
-    from _stats import paired_cluster_difference_interval
+
+    from graspsim.stats import paired_cluster_difference_interval
 
     lo, hi = paired_cluster_difference_interval([a[k] for a, _ in pair], [a[n] for a, _ in pair],
                                                 [b[k] for _, b in pair], [b[n] for _, b in pair],
@@ -323,7 +324,7 @@ def main(argv=None) -> int:
             pool.join()
     from e10_clutter_removal import Config as E10Config
 
-    from graspsim.perception.scene import SceneConfig
+    from graspsim.planning.scene_config import SceneConfig
 
     e10 = SceneConfig()
     text = record.write(out, {"config": cfg, "e10_budget": e10.budget,

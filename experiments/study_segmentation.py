@@ -62,10 +62,10 @@ class Config:
 def first_frame(n: int, kind: str, i: int, seed: int, cameras: int = 1):
     """(perception, per-point object ids, footprint gaps, object names) of E10's first frame
     of scene i (``cameras`` > 1: that many views around the table, fused)."""
-    from graspsim.perception.scene import perceive_scene
-    from graspsim.sim.camera import fuse, rig
-    from graspsim.sim.clutter import ClutterConfig, scene_settings
-    from graspsim.sim.scenes import footprint_gaps, make_scene
+    from graspsim.geometry.camera import fuse, rig
+    from graspsim.planning.scene import perceive_scene
+    from graspsim.tabletop.clutter import ClutterConfig, scene_settings
+    from graspsim.tabletop.table_scene import footprint_gaps, make_scene
 
     cfg = ClutterConfig()
     scene = make_scene(n, kind, derived_seed(seed, "scene", i))
@@ -91,7 +91,7 @@ def merged_objects(truth: np.ndarray, found: np.ndarray, min_seen: int = 40) -> 
 def missed_names(truth: np.ndarray, found: np.ndarray, names: list[str]) -> list[str]:
     """Names of the objects seen that are not one cluster (``one_cluster_objects``' rule,
     object by object: the others' points count as not this object's)."""
-    from graspsim.sim.clutter import one_cluster_objects
+    from graspsim.tabletop.clutter import one_cluster_objects
 
     out = []
     for k in np.unique(truth[truth >= 0]):
@@ -130,7 +130,7 @@ def run(cfg: Config) -> dict:
 def _condition(cfg: Config, kind: str, n: int, cameras: int) -> tuple[list[dict], list]:
     """The table rows of one kind, size and camera count, and the closest pairs seen."""
     from graspsim.perception.segment import cluster_radius, euclidean_clusters
-    from graspsim.sim.clutter import one_cluster_objects, scene_settings
+    from graspsim.tabletop.clutter import one_cluster_objects, scene_settings
 
     scene_cfg = scene_settings(kind)
     conds = ["default", *(["spacing"] if scene_cfg.min_gap is not None else []), *(f"{r:g} mm" for r in cfg.radii_mm)]

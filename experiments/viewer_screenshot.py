@@ -36,9 +36,9 @@ from _common import default_out, experiment_database, map_config
 
 def _bottle_map(path: Path, db) -> Path:
     import graspsim as gs
+    from graspsim.geometry.table import TablePlane
     from graspsim.maps.io import save_map
-    from graspsim.maps.table import TablePlane
-    from graspsim.planner import PlannerConfig, plan_shape
+    from graspsim.planning.planner import PlannerConfig, plan_shape
     from graspsim.transforms import make_transform
 
     bottle = gs.Compound.from_parts([gs.Cylinder(0.03, 0.08), gs.Cylinder(0.01, 0.12)],
@@ -88,7 +88,7 @@ def _palette(path: str, colours: int = 64) -> None:
 
 
 def _scene_picture(out: str, db) -> int:
-    from graspsim.sim.scenes import make_scene, save_scene
+    from graspsim.tabletop.table_scene import make_scene, save_scene
 
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "scene000.json"

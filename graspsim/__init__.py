@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import importlib
 
+from graspsim._version import __version__  # noqa: E402
 from graspsim.envs import register_when_imported as _register_envs
 from graspsim.errors import (
     DependencyNotInstalled,
@@ -54,8 +55,6 @@ from graspsim.errors import (
     SimulationError,
 )
 
-__version__ = "0.1.0"
-
 
 def _from(module: str, *names: str) -> dict[str, str]:
     return dict.fromkeys(names, module)
@@ -67,12 +66,13 @@ _LAZY: dict[str, str] = {
     **_from("graspsim.primitives", "Primitive", "Box", "Cylinder", "Sphere", "Cone", "HalfToroid",
             "Compound", "make_primitive", "synthetic_cloud"),
     # gripper and grades
-    **_from("graspsim.gripper", "GripperSpec", "HGPL_25_60_A"),
+    **_from("graspsim.grippers.spec", "GripperSpec", "HGPL_25_60_A"),
     **_from("graspsim.grippers", "get_gripper", "gripper_names"),
-    **_from("graspsim.quality", "QualityModel"),
+    **_from("graspsim.grades.paper", "QualityModel"),
     **_from("graspsim.grades", "get_grade", "regrade", "PaperGrade", "LogisticGrade"),
     # maps: generation, files, metrics, the full-scale database
-    **_from("graspsim.maps.generate", "generate_fs_map", "MapConfig"),
+    **_from("graspsim.maps.generate", "generate_fs_map"),
+    **_from("graspsim.maps.config", "MapConfig"),
     **_from("graspsim.maps.graspmap", "GraspabilityMap", "MapMeta"),
     **_from("graspsim.maps.io", "load_map", "save_map"),
     **_from("graspsim.maps.metrics", "map_rates"),
@@ -80,14 +80,16 @@ _LAZY: dict[str, str] = {
     **_from("graspsim.maps.robust", "RobustConfig", "score_map"),
     **_from("graspsim.maps.regrip", "adapt_to_gripper"),
     # run-time planning: point cloud (or known shape) -> adapted map
-    **_from("graspsim.planner", "plan", "plan_shape", "PlannerConfig", "PlanResult", "PlanStatus",
-            "TablePlane"),
+    **_from("graspsim.planning.planner", "plan", "plan_shape", "PlannerConfig", "PlanResult", "PlanStatus"),
+    **_from("graspsim.geometry.table", "TablePlane"),
     # perception: point-cloud input and primitive identification (paper 2.2-2.3)
     **_from("graspsim.perception", "identify", "IdentifyConfig", "Identification",
             "IdentificationStatus", "PartResult", "Shape", "read_point_cloud", "LoadedCloud",
-            "min_volume_box", "OrientedBox", "classify_match", "MatchKind", "MatchDecision"),
-    # scenes: a table with several objects -> ranked grasps (issue 17)
-    **_from("graspsim.perception.scene", "plan_scene", "perceive_scene", "SceneConfig", "ScenePlan", "SceneGrasp"),
+            "min_volume_box", "OrientedBox"),
+    **_from("graspsim.maps.match", "classify_match", "MatchKind", "MatchDecision"),
+    # scenes: a table with several objects -> ranked grasps
+    **_from("graspsim.planning.scene", "plan_scene", "perceive_scene", "ScenePlan", "SceneGrasp"),
+    **_from("graspsim.planning.scene_config", "SceneConfig"),
     # grade-vs-success calibration
     **_from("graspsim.calibration", "calibrate", "TrialTable"),
     # MuJoCo validation
@@ -95,7 +97,8 @@ _LAZY: dict[str, str] = {
             "LiftPlace", "Tug", "ExecutionNoise", "SimObject", "Scene", "object_from_shape",
             "object_from_mesh", "build_scene", "run_trials", "simulate_map", "render_trial"),
     # table-top scenes and the simulated depth camera
-    **_from("graspsim.sim", "Camera", "Intrinsics", "DepthNoise", "render_depth", "TableScene", "SceneSim",
+    **_from("graspsim.geometry.camera", "Camera", "Intrinsics"),
+    **_from("graspsim.tabletop", "DepthNoise", "render_depth", "TableScene", "SceneSim",
             "make_scene", "load_scene", "save_scene"),
 }
 

@@ -88,7 +88,7 @@ class SimulationError(GraspsimError):
 
 class CampaignError(SimulationError):
     """A simulation campaign folder that does not match the requested campaign, or is
-    damaged (:mod:`graspsim.campaign`)."""
+    damaged (:mod:`graspsim.apps.campaign`)."""
 
 
 class DependencyNotInstalled(GraspsimError, ImportError):

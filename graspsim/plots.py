@@ -11,7 +11,7 @@ import numpy as np
 
 from graspsim.maps.graspmap import GraspabilityMap
 
-__all__ = ["plot_map", "plot_maps", "plot_clouds", "map_figure", "image_format", "plot_design"]
+__all__ = ["plot_map", "plot_maps", "plot_clouds", "map_figure", "image_format", "plot_design", "pyplot"]
 
 _FORMATS = ("png", "pdf", "svg", "jpg", "jpeg", "tif", "tiff", "webp", "eps", "ps")
 
@@ -33,7 +33,9 @@ def image_format(path: str | os.PathLike) -> str:
     return ext
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib.pyplot on the headless Agg backend (imported on first use: matplotlib is
+    heavy and only figures need it)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -97,7 +99,7 @@ def plot_maps(maps: list[GraspabilityMap], path: str | os.PathLike, *, what: str
         with atomic_path(path, OutputPathError) as tmp:
             fig.savefig(tmp, dpi=130, format=format)
     finally:
-        _pyplot().close(fig)
+        pyplot().close(fig)
 
 
 def map_figure(maps: list[GraspabilityMap], *, what: str = "grasp_point", min_grade: float = 0.0,
@@ -107,7 +109,7 @@ def map_figure(maps: list[GraspabilityMap], *, what: str = "grasp_point", min_gr
         from graspsim.errors import InvalidParameterError
 
         raise InvalidParameterError(f"what must be 'grasp_point' or 'wrist', got {what!r}")
-    plt = _pyplot()
+    plt = pyplot()
     fig = plt.figure(figsize=(4.5 * len(maps) + 1, 4.5))
     sc = None
     for i, m in enumerate(maps):
@@ -127,7 +129,7 @@ def plot_clouds(clouds: dict[str, np.ndarray], path: str | os.PathLike, rng: np.
     from graspsim.errors import OutputPathError
 
     fmt = image_format(path)
-    plt = _pyplot()
+    plt = pyplot()
     fig = plt.figure(figsize=(3.6 * len(clouds), 3.8))
     for i, (name, pts) in enumerate(clouds.items()):
         ax = fig.add_subplot(1, len(clouds), i + 1, projection="3d")
@@ -170,14 +172,14 @@ def _design_series(rows: list[dict], obj: str, key: str) -> tuple[np.ndarray, np
 
 def plot_design(rows: list[dict], path: str | os.PathLike, *, param: str, base_value: float | None = None,
                 title: str | None = None) -> None:
-    """A design sweep (rows of :func:`graspsim.design.sweep` with ``kind`` set to the
+    """A design sweep (rows of :func:`graspsim.apps.design.sweep` with ``kind`` set to the
     primitive): one panel per metric against the parameter [mm], a line per primitive
     (mean over its sizes, band from the smallest to the largest; success pooled over
     the sizes), the base gripper's value marked. Written atomically."""
     from graspsim._atomic import atomic_path
     from graspsim.errors import OutputPathError
 
-    plt = _pyplot()
+    plt = pyplot()
     kinds = list(dict.fromkeys(r["kind"] for r in rows))
     fig, axes = plt.subplots(1, len(DESIGN_METRICS), figsize=(4.2 * len(DESIGN_METRICS), 3.8))
     for ax, (key, label) in zip(axes, DESIGN_METRICS):

@@ -12,6 +12,7 @@ import warnings
 import h5py
 import numpy as np
 import pytest
+from hand_made import grasp_pose, hand_made_map
 
 from graspsim.cli import main
 from graspsim.errors import MapFileError
@@ -19,7 +20,6 @@ from graspsim.maps import load_map, read_sim_results, save_map
 from graspsim.maps.io import SCHEMA_VERSION
 from graspsim.maps.validate import map_problems
 from graspsim.primitives import Cylinder
-from graspsim.sim.testing import grasp_pose, hand_made_map
 
 
 def _small_map(n: int = 4):
@@ -170,7 +170,7 @@ def test_demo_output_that_is_a_file_fails_before_the_work(tmp_path, capsys, monk
     def boom(*a, **k):
         raise AssertionError("built the database before checking --out")
 
-    monkeypatch.setattr("graspsim.demo._database", boom)
+    monkeypatch.setattr("graspsim.apps.demo._database", boom)
     (tmp_path / "demo").write_text("a file")
     assert "not a folder" in _fails(capsys, ["demo", "--out", tmp_path / "demo"])
 
@@ -524,7 +524,7 @@ def test_npy_header_claiming_a_billion_points_is_refused_before_allocating(tmp_p
 
 def test_min_grade_beyond_float32_and_huge_table_normals_leak_no_warning(tmp_path, map_file, capsys):
     # a float32 grade compared with 1e308, the norm of (1e300, 0, 0): RuntimeWarning: overflow
-    from graspsim.maps.table import TablePlane
+    from graspsim.geometry.table import TablePlane
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")

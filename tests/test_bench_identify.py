@@ -10,7 +10,7 @@ import numpy as np
 from test_experiments import _load  # the experiment scripts' loader
 
 from graspsim.maps.rowids import first_rows, row_ids
-from graspsim.stages import StageClock
+from graspsim.planning.stages import StageClock
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -48,7 +48,7 @@ def test_stage_clock_counts_production_not_consumption():
 def test_bench_identify_quick(tmp_path):
     bench = _load("bench_identify")
     out = tmp_path / "b"
-    objects = ROOT / "graspsim" / "assets" / "objects"
+    objects = ROOT / "assets" / "objects"
     assert bench.main(["--quick", "--objects-dir", str(objects), "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     (row,) = s["objects"]

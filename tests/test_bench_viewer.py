@@ -29,9 +29,10 @@ def test_bench_viewer_times_a_served_map_and_its_first_frame(tmp_path):
     pytest.importorskip("viser")
     if find_browser() is None:
         pytest.skip("no Chromium on this machine (Debian: apt-get install chromium)")
+    from hand_made import grasp_pose, hand_made_map
+
     from graspsim.maps import save_map
     from graspsim.primitives import Cylinder
-    from graspsim.sim.testing import grasp_pose, hand_made_map
 
     T = np.stack([grasp_pose([0, 0, z], [-1, 0, 0], [0, 1, 0]) for z in np.linspace(-0.05, 0.05, 20)])
     path = save_map(hand_made_map(Cylinder(0.02, 0.2), T, np.full(20, 0.04)), tmp_path / "m.h5")

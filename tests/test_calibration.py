@@ -19,9 +19,9 @@ from graspsim.calibration import (
     wilson_interval,
     youden_threshold,
 )
-from graspsim.calibration.stats import bootstrap
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.grippers.spec import HGPL_25_60_A as G
+from graspsim.stats import bootstrap
 
 
 def _synthetic(rng, n=4000):

@@ -1,4 +1,4 @@
-"""The case-study analogs (graspsim.case_study_objects) as the identification sees them: what
+"""The case-study analogs (graspsim.primitives.case_study) as the identification sees them: what
 the demo and E03 rely on, and the criterion mismatch E03 reports."""
 
 from __future__ import annotations
@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from graspsim.case_study_objects import ANALOGS, bottle_brush, bottle_brush_cloud, glue_bottle, glue_bottle_capped
 from graspsim.perception import IdentificationStatus, IdentifyConfig, identify
 from graspsim.primitives import Compound, synthetic_cloud
+from graspsim.primitives.case_study import ANALOGS, bottle_brush, bottle_brush_cloud, glue_bottle, glue_bottle_capped
 from graspsim.transforms import make_transform
 
 

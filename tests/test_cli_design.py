@@ -2,9 +2,9 @@
 
 import json
 
+from graspsim.apps.design import PARAMS
 from graspsim.cli import design as cli_design
 from graspsim.cli import main
-from graspsim.design import PARAMS
 from graspsim.maps.io import load_map
 
 

@@ -6,7 +6,7 @@ import json
 import pytest
 
 from graspsim.cli import main
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.maps import load_map
 
 COARSE = ["--surface-step", "0.01", "--rotation-step-deg", "22"]

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from graspsim.cli import main
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
 from graspsim.perception import read_point_cloud
-from graspsim.perception.scene import SceneConfig, plan_scene
+from graspsim.planning.scene import plan_scene
+from graspsim.planning.scene_config import SceneConfig
 from graspsim.primitives import Box, Cylinder, Sphere
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
@@ -30,9 +31,9 @@ def db(tmp_path_factory):
 def scene_cloud(tmp_path_factory):
     """A 3-object packed scene seen by the D435-like camera, written in the camera's frame
     with its camera record (.pcd + .pcd.json), and its ground-truth object per point."""
-    from graspsim.sim.camera import backproject, rig
-    from graspsim.sim.cloud_io import save_view
-    from graspsim.sim.scenes import make_scene
+    from graspsim.geometry.camera import backproject, rig
+    from graspsim.tabletop.cloud_io import save_view
+    from graspsim.tabletop.table_scene import make_scene
 
     sim = make_scene(3, "packed", 5, object_set="primitives").sim()
     frame = sim.render(rig(1)[0])
@@ -145,7 +146,7 @@ def test_a_depth_image_is_planned_in_the_cameras_frame(tmp_path, capsys, db, sce
     back-projected; the labels file is the image's (H, W)."""
     from PIL import Image
 
-    from graspsim.sim.camera import Camera, DepthFrame, backproject
+    from graspsim.geometry.camera import Camera, DepthFrame, backproject
 
     _, _, frame = scene_cloud
     k = frame.camera.intrinsics
@@ -220,7 +221,7 @@ def test_nothing_to_grasp_exits_1_and_leaves_the_output_as_it_was(tmp_path, caps
 
 def test_a_cloud_too_big_for_the_memory_budget_is_refused_before_any_work(tmp_path, capsys, db, monkeypatch):
     from graspsim.errors import BudgetExceededError
-    from graspsim.perception.scene import SCENE_BYTES_PER_POINT
+    from graspsim.planning.scene_config import SCENE_BYTES_PER_POINT
 
     rng = np.random.default_rng(2)
     pts = np.c_[rng.uniform(-0.3, 0.3, (20_000, 2)), rng.normal(0, 0.0005, 20_000)]

@@ -3,11 +3,11 @@
 import json
 
 import numpy as np
+from hand_made import grasp_pose, hand_made_map
 
 from graspsim.cli import main
 from graspsim.maps import read_sim_results, save_map
 from graspsim.primitives import Cylinder
-from graspsim.sim.testing import grasp_pose, hand_made_map
 
 
 def _map(tmp_path, n=4):

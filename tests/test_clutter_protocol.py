@@ -6,11 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-import graspsim.sim.clutter as clutter
-from graspsim.sim.camera import rig
-from graspsim.sim.clutter import OTHER, ClutterConfig, run_clutter, summarize
+import graspsim.tabletop.clutter as clutter
+from graspsim.geometry.camera import rig
 from graspsim.sim.outcomes import TrialOutcome
-from graspsim.sim.scene_sim import SceneOutcome
+from graspsim.tabletop.clutter import OTHER, ClutterConfig, run_clutter, summarize
+from graspsim.tabletop.scene_sim import SceneOutcome
 
 
 @dataclass
@@ -136,7 +136,7 @@ def test_a_failed_grasp_is_not_tried_again(monkeypatch):
 def test_near_pose_is_the_same_contacts_whatever_the_approach():
     from scipy.spatial.transform import Rotation
 
-    from graspsim.perception.scene_reuse import near_pose
+    from graspsim.planning.scene_reuse import near_pose
 
     def pose(axis, deg, x=0.3):
         T = _at(x)

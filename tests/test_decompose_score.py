@@ -23,7 +23,7 @@ _I = np.eye(3)
 @pytest.mark.parametrize("shape", [Sphere(0.03), Cylinder(0.02, 0.1), Box(0.03, 0.05, 0.09),
                                    Cone(0.04, 0.015, 0.08), HalfToroid(0.03, 0.008)])
 def test_the_surface_area_is_the_primitives_mesh_area(shape):
-    from graspsim.perception.shapes import DIM_NAMES
+    from graspsim.primitives.sdf import DIM_NAMES
 
     dims = [shape.dims[k] for k in DIM_NAMES[shape.kind]]
     assert surface_area(shape.kind, dims) == pytest.approx(shape.mesh(sections=256).area, rel=0.01)

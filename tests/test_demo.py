@@ -28,10 +28,10 @@ def test_a_cloud_file_s_camera_record_reaches_the_planner(tmp_path, monkeypatch)
     robust score's occlusion term sees what the camera could not."""
     import numpy as np
 
-    import graspsim.demo as demo
-    import graspsim.planner as planner
-    from graspsim.sim.camera import Camera, Intrinsics, look_at
-    from graspsim.sim.cloud_io import save_cloud
+    import graspsim.apps.demo as demo
+    import graspsim.planning.planner as planner
+    from graspsim.geometry.camera import Camera, Intrinsics, look_at
+    from graspsim.tabletop.cloud_io import save_cloud
 
     rng = np.random.default_rng(0)
     pts = rng.uniform(-0.03, 0.03, (400, 3))

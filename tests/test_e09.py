@@ -25,7 +25,7 @@ def _e09():
 def test_the_fits_rule_is_the_narrowest_width_against_the_opening():
     import trimesh
 
-    from graspsim.gripper import HGPL_25_60_A as G
+    from graspsim.grippers.spec import HGPL_25_60_A as G
 
     e09 = _e09()
     ok, width, limit = e09.fits_gripper(trimesh.creation.box(extents=(0.05, 0.2, 0.3)), G)
@@ -53,7 +53,7 @@ def test_the_single_view_sees_the_near_side_only():
 def test_e09_quick_on_the_vendored_mesh(tmp_path):
     e09 = _e09()
     out = tmp_path / "e09"
-    assert e09.main(["--quick", "--objects-dir", str(ROOT / "graspsim" / "assets" / "objects"), "--out", str(out),
+    assert e09.main(["--quick", "--objects-dir", str(ROOT / "assets" / "objects"), "--out", str(out),
                      "--objects", "robosuite/bread.stl"]) == 0
     s = json.loads((out / "summary.json").read_text())
     (row,) = s["objects"]

@@ -32,9 +32,9 @@ from graspsim.envs.config import RewardMode
 from graspsim.envs.objects import COMPOUND_KINDS, PRIMITIVE_KINDS, draw_object, resolve_object_set
 from graspsim.envs.rewards import trial_reward
 from graspsim.errors import GraspsimError, InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.grippers.spec import HGPL_25_60_A as G
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import PAPER_SHAPES
-from graspsim.maps.generate import MapConfig
 from graspsim.primitives import Cylinder
 from graspsim.transforms import make_transform, quat_to_matrix
 

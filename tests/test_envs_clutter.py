@@ -16,10 +16,10 @@ import graspsim  # noqa: F401  (registers the environments)
 from graspsim.envs import CLUTTER_CLEAR_ID
 from graspsim.envs.clutter_clear import CLUTTER_FEATURES
 from graspsim.errors import GraspsimError, InvalidParameterError
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
 from graspsim.primitives import Box, Cylinder, Sphere
-from graspsim.sim.scenes import make_scene
+from graspsim.tabletop.table_scene import make_scene
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
 

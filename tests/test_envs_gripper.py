@@ -11,7 +11,7 @@ from graspsim.envs import GRASP_SELECT_ID
 from graspsim.envs.baselines import highest_grade_policy
 from graspsim.envs.config import EnvConfig
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.generate import MapConfig
+from graspsim.maps.config import MapConfig
 
 FAST = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
 
@@ -52,8 +52,8 @@ def _widths(d):
 
 def test_object_sizes_follow_the_grippers_stroke():
     from graspsim.envs.objects import COMPOUND_KINDS, PRIMITIVE_KINDS, draw_object, size_limits
-    from graspsim.gripper import HGPL_25_60_A
     from graspsim.grippers import get_gripper
+    from graspsim.grippers.spec import HGPL_25_60_A
     from graspsim.maps.database import PAPER_SHAPES
 
     franka = get_gripper("franka_hand")
@@ -98,7 +98,7 @@ def test_a_gripper_too_small_for_an_object_set_is_one_clear_error():
 
     from graspsim.envs.objects import draw_object
     from graspsim.errors import GripperError
-    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.grippers.spec import HGPL_25_60_A
 
     tiny = replace(HGPL_25_60_A, name="tiny", stroke_per_jaw=0.015)  # opens 30 mm: 20 mm chords
     with pytest.raises(GripperError, match="no sphere diameter of the object set fits"):

@@ -8,8 +8,8 @@ import pytest
 
 from graspsim.errors import DependencyNotInstalled, InvalidParameterError
 from graspsim.executors import ProcessExecutor, SerialExecutor, make_executor
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
 from graspsim.maps.io import load_map
 from graspsim.primitives import Cylinder, Sphere
 

@@ -42,7 +42,7 @@ def test_mixed_anova_matches_one_way_identities():
 
 
 def test_cluster_bootstrap_widens_the_interval_only_when_clusters_differ():
-    st = _load("_stats")
+    from graspsim import stats as st
     from graspsim.stats import wilson_interval
 
     rng = np.random.default_rng(0)
@@ -57,7 +57,7 @@ def test_cluster_bootstrap_widens_the_interval_only_when_clusters_differ():
 
 
 def test_paired_cluster_difference_keeps_the_pairing():
-    st = _load("_stats")
+    from graspsim import stats as st
     rng = np.random.default_rng(0)
     k0, n = np.array([10, 2, 9, 5, 8, 1, 10, 7]), np.full(8, 10)
     # the same outcomes in every scene: no difference in any resample
@@ -244,6 +244,34 @@ def test_bench_fsmap_reported_summary_renders():
 
 def _summary(out):
     return json.loads((out / "summary.json").read_text())
+
+
+@pytest.mark.slow
+def test_e15_quick_same_scenes_for_both_planners(tmp_path):
+    mod = _load("e15_planner_comparison")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    by = {r["planner"]: r for r in s["results"]}
+    assert set(by) == {"graspsim", "antipodal"}
+    for r in by.values():
+        assert [x["seed"] for x in r["per_seed"]] == [x["seed"] for x in by["graspsim"]["per_seed"]]
+        assert [x["placed"] for x in r["per_seed"]] == [x["placed"] for x in by["graspsim"]["per_seed"]]
+        assert r["gsr"]["seeds"] <= 2
+
+
+@pytest.mark.slow
+def test_e14_quick_compares_dataset_labels_with_mujoco(tmp_path):
+    mod = _load("e14_cross_simulator")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    assert s["input"]["format"] == "acronym" and s["input"]["grasps"] == 8
+    assert s["input"]["label_source"].startswith("hand-made") and s["input"]["dataset_held"] == 4
+    for name in ("tug", "lift_place"):
+        r = s["protocols"][name]
+        cells = [v for row in r["confusion"].values() for v in row.values()]
+        assert sum(cells) == 8 and r["executable"] == r["agreement"]["n"]
+        assert sum(t["grasps"] for t in r["by_type"].values()) == 8
+    assert (tmp_path / "imported.graspsim.h5").is_file() and "tug" in (tmp_path / "README.md").read_text()
 
 
 @pytest.mark.slow
@@ -490,7 +518,7 @@ def test_scene_fingerprint_is_the_same_twice_and_names_what_differs(tmp_path, ca
     assert "packed 100: segments" in capsys.readouterr().out
     from dataclasses import replace
 
-    from graspsim.sim import clutter
+    from graspsim.tabletop import clutter
 
     settings = clutter.scene_settings  # a planning change: fewer grasps kept per segment
     monkeypatch.setattr(clutter, "scene_settings", lambda kind: replace(settings(kind), keep=2))
@@ -646,7 +674,7 @@ def test_study_scene_budget_leaves_a_skipped_scene_out_of_every_budget():
 
 
 def test_scene_budgets_parse_or_are_refused():
-    from graspsim.perception.scene import budget_fields
+    from graspsim.planning.scene_config import budget_fields
 
     assert budget_fields("") == {} and budget_fields("8:100") == {"enough": 8, "per_segment": 100}
     for bad in ("32", "a:b", "0:10", "8:-1", "8:100:1"):

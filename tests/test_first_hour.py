@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hand_made import grasp_pose, hand_made_map
 
 from graspsim.cli import build_parser, main
 from graspsim.maps import save_map
 from graspsim.primitives import Cylinder
-from graspsim.sim.testing import grasp_pose, hand_made_map
 
 REPO = Path(__file__).resolve().parents[1]
 

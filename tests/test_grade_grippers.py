@@ -11,9 +11,10 @@ import pytest
 from graspsim.errors import GripperError
 from graspsim.grades import LogisticGrade, get_grade, regrade
 from graspsim.grades.models import FESTO, check_gripper, gripper_identity, model_path
-from graspsim.gripper import HGPL_25_60_A
 from graspsim.grippers import get_gripper
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.grippers.spec import HGPL_25_60_A
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
 from graspsim.primitives import Box
 
 COARSE = MapConfig(surface_step=0.012, rotation_step=math.radians(30.0), closing_cone=math.radians(30.0))

@@ -3,7 +3,8 @@ import pytest
 
 from graspsim.errors import InvalidParameterError
 from graspsim.maps import GraspabilityMap, MapMeta
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
 from graspsim.primitives import Box
 
 
@@ -74,8 +75,8 @@ def test_empty_map():
 
 def test_meta_typed_views_parse_once_and_round_trip(box_map):
     from graspsim.errors import InvalidMapError
-    from graspsim.gripper import HGPL_25_60_A
-    from graspsim.quality import QualityModel
+    from graspsim.grades.paper import QualityModel
+    from graspsim.grippers.spec import HGPL_25_60_A
 
     meta = box_map.meta
     assert meta.gripper_spec == HGPL_25_60_A and meta.gripper_spec is meta.gripper_spec

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from graspsim.errors import GripperError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 
 
 def test_defaults_follow_the_type_code():

@@ -10,9 +10,9 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from graspsim.errors import GripperError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.grippers import get_gripper, gripper_names, model_folder, mount
 from graspsim.grippers.franka import hand_to_wrist, hull_points
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 
 FRANKA = model_folder("franka_hand")
 TOL = 1.5e-4  # [m] the finger mesh's inner face lies 0.1 mm past its joint's zero

@@ -7,14 +7,13 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError, PointCloudError
+from graspsim.maps.match import MatchKind, classify_match
 from graspsim.perception import (
     IdentificationStatus,
     IdentifyConfig,
-    MatchKind,
     Shape,
     ShapeFeatures,
     classify,
-    classify_match,
     identify,
 )
 from graspsim.primitives import Cone, Cylinder, synthetic_cloud

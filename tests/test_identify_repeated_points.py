@@ -5,9 +5,9 @@ continuous surface'."""
 
 import numpy as np
 
+from graspsim.geometry.spacing import median_spacing
 from graspsim.perception import IdentifyConfig, identify
 from graspsim.perception.identify import IdentificationStatus
-from graspsim.perception.prepare import median_spacing
 from graspsim.primitives import Sphere, synthetic_cloud
 
 

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide_fcl import FclChecker
 from graspsim.maps.combine import combine_maps
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
 from graspsim.primitives import Box, Compound, Cylinder, Sphere
 from graspsim.transforms import make_transform
 
@@ -49,8 +50,8 @@ def test_one_map_per_part():
 
 
 def test_empty_part_batch(ball_tab):
+    from graspsim.grades.paper import QualityModel
     from graspsim.maps.combine import combine_part
-    from graspsim.quality import QualityModel
 
     c, maps, _ = ball_tab
     out = combine_part(maps[0].select(np.zeros(0, int)), 0, c, gripper=G, quality=QualityModel(), d_ref=0.05)
@@ -60,8 +61,8 @@ def test_empty_part_batch(ball_tab):
 def test_batch_with_every_contact_buried_in_another_part():
     """A batch none of whose contacts lies on the compound's surface gives an empty map
     (it failed in the line grouping's reshape once; the envs redrew such objects)."""
+    from graspsim.grades.paper import QualityModel
     from graspsim.maps.combine import combine_part
-    from graspsim.quality import QualityModel
 
     c = Compound((Sphere(0.02), Box(0.03, 0.03, 0.2)), np.stack([np.eye(4), make_transform(np.eye(3), [0.01, 0, 0])]))
     m = generate_fs_map(Sphere(0.02), config=FAST).filter(accepted=True)

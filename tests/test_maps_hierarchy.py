@@ -7,7 +7,7 @@ paths differ between CPUs), and every child lies within its parent's patch."""
 import numpy as np
 import pytest
 
-from graspsim.maps.generate import MapConfig
+from graspsim.maps.config import MapConfig
 from graspsim.maps.hierarchy import _patches, build_levels, clusters
 from graspsim.primitives import Box, Cone, Cylinder
 

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from graspsim.maps import kernels as K
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
 from graspsim.primitives import Cylinder
 
 COARSE = MapConfig(surface_step=0.02, rotation_step=np.radians(30), depth_step=0.02)
@@ -85,7 +86,7 @@ def test_cold_cache_compiles_once_and_says_so(tmp_path):
     assert "[5/5]" in first.stderr and '"compiled": true' in first.stdout
     assert "compiled the planning kernels" in first.stderr  # the rest too, saying so
     assert any(tmp_path.rglob("*.nbi"))
-    code = ("from graspsim.maps.kernels import compile_all, cache_dir\n"
+    code = ("from graspsim.maps.kernels import cache_dir\nfrom graspsim.maps.warmup import compile_all\n"
             "print(compile_all(), cache_dir())")
     second = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                             timeout=600)
@@ -94,14 +95,15 @@ def test_cold_cache_compiles_once_and_says_so(tmp_path):
     assert "compiling" not in second.stderr and "compiled" not in second.stderr
 
 
-_LIST = ("from graspsim.maps.kernels import compiled_kernels\n"
+_LIST = ("from graspsim.maps.warmup import compiled_kernels\n"
          "print(json.dumps({k: sorted(str(s) for s in v.signatures) for k, v in compiled_kernels().items()}))\n")
 _PLAN_A_SCENE = """
 import json, math, sys
 import numpy as np
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
-from graspsim.perception.scene import SceneConfig, plan_scene
+from graspsim.maps.config import MapConfig
+from graspsim.planning.scene_config import SceneConfig
+from graspsim.planning.scene import plan_scene
 from graspsim.primitives import Box, Sphere
 from graspsim.primitives.clouds import table_scene_cloud
 db = MapDatabase(sys.argv[1], config=MapConfig(surface_step=0.008, rotation_step=math.radians(22)))
@@ -112,7 +114,7 @@ sp = plan_scene(pts, db=db, rng=np.random.default_rng(1), config=SceneConfig(wor
                 viewpoint=np.array([0.0, -0.4, 0.5]))
 assert sum(s.status == "planned" for s in sp.segments) == 2, sp.segments
 """ + _LIST
-_COMPILE_ALL = "import json\nfrom graspsim.maps.kernels import compile_all\ncompile_all()\n" + _LIST
+_COMPILE_ALL = "import json\nfrom graspsim.maps.warmup import compile_all\ncompile_all()\n" + _LIST
 
 
 def _signatures(code: str, *args) -> dict:

@@ -10,9 +10,10 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A as A
+from graspsim.grippers.spec import HGPL_25_60_A as A
 from graspsim.maps.collide import boxes_clear_sdf
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.regrip import adapt_to_gripper, pad_depth
 from graspsim.primitives import Cylinder
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.io import load_map, save_map
 from graspsim.maps.robust import RobustConfig, ranking, score_map, score_rows, wrist_perturbations
 from graspsim.primitives import Box, synthetic_cloud
@@ -277,7 +278,7 @@ def test_a_skipped_block_never_holds_the_clearance(cell, monkeypatch):
     near the TCP against one far up the housing): the blocks that may hold it are
     measured too. Clearances and flags equal the pass over every point."""
     import graspsim.maps._robust_blocks as blocks
-    from graspsim.gripper import HGPL_25_60_A as g
+    from graspsim.grippers.spec import HGPL_25_60_A as g
     from graspsim.maps.robust import score_poses
 
     rng = np.random.default_rng(11)

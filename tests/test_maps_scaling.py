@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.grades.paper import QualityModel
+from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide import boxes_clear_sdf
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.scaling import ScalingConfig, ScalingMethod, scale_map, scale_stream
 from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Sphere
-from graspsim.quality import QualityModel
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
 

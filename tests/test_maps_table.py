@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 
 from graspsim.errors import GraspsimError
-from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.geometry.table import TablePlane, table_frame
+from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide_fcl import FclChecker
-from graspsim.maps.generate import MapConfig, generate_fs_map
-from graspsim.maps.table import TablePlane, clears_table, table_frame
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.table import clears_table
 from graspsim.primitives import Box, Cylinder
 from graspsim.transforms import make_transform, matrix_to_quat
 

@@ -9,8 +9,8 @@ from graspsim.errors import InvalidParameterError
 from graspsim.perception.hypotheses import SAMPLE_SIZE, hypothesise
 from graspsim.perception.mlesac import fit_model, mixture_loglik
 from graspsim.perception.normals import estimate_local_surface
-from graspsim.perception.shapes import KINDS, fit_to_object, model_sdf
 from graspsim.primitives import synthetic_cloud
+from graspsim.primitives.sdf import KINDS, fit_to_object, model_sdf
 from graspsim.transforms import invert_transform, make_transform, random_rotation, transform_points
 from tests.conftest import PAPER_SHAPES
 

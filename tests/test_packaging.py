@@ -1,7 +1,8 @@
 """The installed package carries its data: a wheel built from the source holds the
-vendored MuJoCo models (graspsim/mjcf) and the mesh objects scenes draw
-(graspsim/assets), licences and attributions included, and the code finds them through
-importlib.resources where the package is installed, not relative to a checkout."""
+vendored MuJoCo models (top-level mjcf/) and the mesh objects scenes draw (top-level
+assets/) inside the package (graspsim/mjcf, graspsim/assets), licences and attributions
+included, and the code finds them where the package is installed (a wheel) or beside it
+(a checkout, an editable install), never relative to the working directory."""
 
 from __future__ import annotations
 
@@ -21,9 +22,8 @@ OFFLINE = ("Could not find a version", "No matching distribution", "Temporary fa
 
 
 def _shipped() -> set[str]:
-    """Files under graspsim/mjcf and graspsim/assets in the source, as wheel names."""
-    pkg = ROOT / "graspsim"
-    return {f"graspsim/{p.relative_to(pkg).as_posix()}" for d in DATA for p in (pkg / d).rglob("*")
+    """Files under the top-level mjcf/ and assets/ of the source, as wheel names."""
+    return {f"graspsim/{p.relative_to(ROOT).as_posix()}" for d in DATA for p in (ROOT / d).rglob("*")
             if p.is_file() and "__pycache__" not in p.parts}
 
 
@@ -34,7 +34,8 @@ def wheel(tmp_path_factory) -> Path:
     src = tmp_path_factory.mktemp("src")
     for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy(ROOT / name, src / name)
-    shutil.copytree(ROOT / "graspsim", src / "graspsim", ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    for name in ("graspsim", *DATA):
+        shutil.copytree(ROOT / name, src / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
     out = tmp_path_factory.mktemp("wheel")
     r = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(out), str(src)],
                        capture_output=True, text=True, timeout=600)
@@ -45,14 +46,23 @@ def wheel(tmp_path_factory) -> Path:
     return whl
 
 
-def test_the_code_looks_for_its_data_inside_the_package():
+def test_every_package_is_listed_for_the_wheel():
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "graspsim").rglob("__init__.py")}
+    assert listed == found | {f"graspsim.{d}" for d in DATA}
+
+
+def test_a_checkout_finds_its_data_at_the_top_level():
     from graspsim.grippers import mjcf_root, model_folder
     from graspsim.sim.export import default_folder
-    from graspsim.sim.scene_objects import ASSETS, MESHES
+    from graspsim.tabletop.scene_objects import ASSETS, MESHES
 
     pkg = Path(str(resources.files("graspsim")))
-    assert mjcf_root() == pkg / "mjcf" and default_folder().parent == pkg / "mjcf"
-    assert ASSETS == pkg / "assets" / "objects"
+    assert pkg == ROOT / "graspsim"  # the tests run on the checkout
+    assert mjcf_root() == ROOT / "mjcf" and default_folder().parent == ROOT / "mjcf"
+    assert ASSETS == ROOT / "assets" / "objects"
     assert (model_folder("franka_hand") / "LICENSE").is_file()
     assert all((ASSETS / f).is_file() and (ASSETS / f).with_name("LICENSE").is_file() for f, _ in MESHES.values())
 
@@ -78,7 +88,7 @@ def test_an_installed_wheel_finds_and_loads_its_models_and_meshes(wheel, tmp_pat
                     str(target), str(wheel)], check=True, capture_output=True, timeout=300)
     code = ("import graspsim, mujoco\n"
             "from graspsim.grippers import model_folder\n"
-            "from graspsim.sim.scene_objects import ASSETS, MESHES\n"
+            "from graspsim.tabletop.scene_objects import ASSETS, MESHES\n"
             "from graspsim.sim import load_mesh\n"
             "m = mujoco.MjModel.from_xml_path(str(model_folder('franka_hand') / 'franka_hand.xml'))\n"
             "mesh = load_mesh(ASSETS / MESHES['bread'][0])\n"

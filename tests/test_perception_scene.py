@@ -8,13 +8,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from graspsim.errors import GraspsimError, PointCloudError
-from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide import boxes_clear_sdf
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
 from graspsim.perception.plane import fit_table
-from graspsim.perception.scene import SCENE_COLLISION_TOLERANCE, SceneConfig, perceive_scene, plan_scene
 from graspsim.perception.segment import GAP_LINK, cluster_radius, euclidean_clusters, gap_link
+from graspsim.planning.scene import perceive_scene, plan_scene
+from graspsim.planning.scene_config import SCENE_COLLISION_TOLERANCE, SceneConfig
 from graspsim.primitives import Box, Cylinder, Sphere
 from graspsim.primitives.clouds import table_scene_cloud
 from graspsim.transforms import invert_transform, make_transform

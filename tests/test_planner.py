@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A as G
+from graspsim.geometry.table import TablePlane
+from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide import boxes_clear_sdf
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
 from graspsim.maps.match import MatchKind
 from graspsim.perception import IdentifyConfig
-from graspsim.planner import GraspBatch, PlannerConfig, PlanResult, PlanStatus, TablePlane, plan, plan_stream
+from graspsim.planning.planner import GraspBatch, PlannerConfig, PlanResult, PlanStatus, plan, plan_stream
 from graspsim.primitives import Box, Compound, Cylinder, Sphere, synthetic_cloud
 from graspsim.transforms import invert_transform, make_transform, random_rotation
 
@@ -139,7 +140,8 @@ def test_table_plane_drops_exactly_the_poses_below_the_table(db):
     """An object standing on a table (z = 0), seen from one side: with the table given,
     no kept pose takes the gripper below it; the dropped poses are the difference to the
     table-free plan, and the estimated table height is where the table is."""
-    from graspsim.planner import PlannerConfig, TablePlane
+    from graspsim.geometry.table import TablePlane
+    from graspsim.planning.planner import PlannerConfig
 
     truth = Cylinder(0.024, 0.16)
     T = make_transform(np.eye(3), [0.45, 0.05, 0.08])
@@ -165,7 +167,7 @@ def test_known_shapes_are_planned_without_a_cloud(db):
     compound; a known cylinder gives the stored map, a compound a combined map whose
     poses are collision-free against it exactly."""
     from graspsim.errors import GraspsimError
-    from graspsim.planner import plan_shape, plan_shape_stream
+    from graspsim.planning.planner import plan_shape, plan_shape_stream
 
     T = make_transform(random_rotation(np.random.default_rng(3)), [0.3, 0.1, 0.2])
     r = plan_shape(Cylinder(0.02, 0.2), T, db=db)
@@ -208,7 +210,7 @@ def test_a_stored_box_in_another_edge_order_is_matched_as_it_is_scaled(tmp_path)
     4 x 6 x 10 cm query -- matching compared sorted edges -- and served as is, in its own
     frame; a 3 x 6 x 10 cm query was called familiar and scaling, which pairs edges by
     name, raised. Both now plan, with every contact on the queried box."""
-    from graspsim.planner import plan_shape
+    from graspsim.planning.planner import plan_shape
 
     db = MapDatabase(tmp_path / "db", config=FAST)
     db.build([Box(0.10, 0.06, 0.04)])
@@ -223,7 +225,7 @@ def test_an_approximate_parts_grasps_are_kept_only_where_the_cloud_agrees(db):
     from scipy.spatial import cKDTree
 
     from graspsim.maps.agreement import ObservedSurface
-    from graspsim.planner import plan_shape
+    from graspsim.planning.planner import plan_shape
 
     box = Box(0.02, 0.12, 0.12)  # edges ascending: the map's frame is the box's
     gmap = plan_shape(box, db=db).map
@@ -276,7 +278,7 @@ def test_the_summary_and_the_map_record_the_identification_mode(db):
 
 def test_robust_ranking_streams_first_and_never_offers_a_pose_into_the_cloud(db):
     from graspsim.maps.robust import RobustConfig, ranking
-    from graspsim.planner import PlannerConfig
+    from graspsim.planning.planner import PlannerConfig
 
     cloud = _cloud(Cylinder(0.024, 0.17), 4)
     cfg = PlannerConfig(robust=RobustConfig(top=300, samples=8))
@@ -311,7 +313,7 @@ def test_scored_only_skips_a_parts_unscored_batches_and_keeps_every_scored_one(d
     of its maps are skipped -- the batches streamed are exactly the plain stream's
     batches that hold a scored row, in the same order, each part's included."""
     from graspsim.maps.robust import RobustConfig
-    from graspsim.planner import plan_shape_stream
+    from graspsim.planning.planner import plan_shape_stream
 
     bottle = _bottle()
     T = make_transform(random_rotation(np.random.default_rng(5)), [0.3, 0.1, 0.2])
@@ -358,7 +360,7 @@ def test_grasps_likely_to_clear_the_table_stream_first(db, monkeypatch, truth, m
     first (stored poses as they are, scaled ones predicted), so its first batch is the
     first (one-grasp) batch, not one found after thousands of dropped poses; the
     finished map holds the same grasps as without that order."""
-    import graspsim.planner as planner
+    import graspsim.planning.planner as planner
 
     R = np.eye(3) if isinstance(truth, Sphere) else np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]], float)
     T = make_transform(R, [0.4, 0.0, 0.035 if isinstance(truth, Sphere) else 0.024])

@@ -3,7 +3,8 @@ rows in the same order (median spacing, voxel thinning and the MVBB depend on th
 
 import numpy as np
 
-from graspsim.perception.prepare import distinct_rows, first_of_each_row, median_spacing
+from graspsim.geometry.spacing import median_spacing
+from graspsim.perception.prepare import distinct_rows, first_of_each_row
 
 
 def test_distinct_rows_is_numpys_unique_rows():

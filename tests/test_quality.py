@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from graspsim.errors import InvalidParameterError
-from graspsim.quality import QualityModel, force_closure_angle, stability_distance
+from graspsim.grades.paper import QualityModel, force_closure_angle, stability_distance
 from graspsim.transforms import random_rotation
 
 

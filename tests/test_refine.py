@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 import graspsim.perception.refine as refine_mod
 from graspsim.perception.refine import refine_model, rodrigues, soft_l1_trf
-from graspsim.perception.shapes import DIM_NAMES, KINDS, model_sdf, sdf_function
+from graspsim.primitives.sdf import DIM_NAMES, KINDS, model_sdf, sdf_function
 
 
 def _rodrigues_reference(w):

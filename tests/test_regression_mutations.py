@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-import graspsim.quality
+import graspsim.grades.paper
 import graspsim.sim
 import graspsim.sim.scene
 from graspsim.calibration.mutations import MUTATIONS, mutated
@@ -72,11 +72,11 @@ def test_every_mutation_trips_a_band_in_the_full_run():
 
 
 def test_mutations_restore_the_library():
-    before = (graspsim.quality.force_closure_angle, graspsim.quality.QualityModel.combine,
+    before = (graspsim.grades.paper.force_closure_angle, graspsim.grades.paper.QualityModel.combine,
               graspsim.sim.build_scene, graspsim.sim.scene.build_gripper_spec)
     for name in MUTATIONS:
         with pytest.raises(RuntimeError):
             with mutated(name):
                 raise RuntimeError("leave the block early")
-    assert before == (graspsim.quality.force_closure_angle, graspsim.quality.QualityModel.combine,
+    assert before == (graspsim.grades.paper.force_closure_angle, graspsim.grades.paper.QualityModel.combine,
                       graspsim.sim.build_scene, graspsim.sim.scene.build_gripper_spec)

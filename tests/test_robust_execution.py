@@ -6,10 +6,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hand_made import grasp_pose, hand_made_map
 
 from graspsim.cli import main
 from graspsim.maps import load_map, save_map
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.occlusion import ViewDepth
 from graspsim.maps.robust import (
     DEFAULT_OPENINGS,
@@ -19,7 +21,6 @@ from graspsim.maps.robust import (
     score_rows,
 )
 from graspsim.primitives import Box, Cylinder, HalfToroid, synthetic_cloud
-from graspsim.sim.testing import grasp_pose, hand_made_map
 
 
 def _cyl_map(n=4):
@@ -29,7 +30,7 @@ def _cyl_map(n=4):
 
 
 def test_the_scored_openings_are_the_default_and_exact():
-    from graspsim.planner import PlannerConfig
+    from graspsim.planning.planner import PlannerConfig
 
     assert RobustConfig().openings == DEFAULT_OPENINGS and len(DEFAULT_OPENINGS) > 1 and DEFAULT_OPENINGS[0] == 0
     assert PlannerConfig().robust.openings == DEFAULT_OPENINGS
@@ -121,7 +122,7 @@ def _clear_fraction(cloud, gripper, T, width):
 
 def test_the_stand_in_keeps_clear_of_what_was_seen_under_pose_error():
     from graspsim.envs.top_down import robust_top_down, top_down_pose
-    from graspsim.gripper import HGPL_25_60_A as g
+    from graspsim.grippers.spec import HGPL_25_60_A as g
 
     cloud = _lying_arch_cloud()
     heuristic, _ = _clear_fraction(cloud, g, *top_down_pose(cloud, g))
@@ -155,7 +156,7 @@ def test_the_compiled_occlusion_term_agrees_with_numpy_sample_by_sample():
     seen box, at two openings: the same fraction per pose (the kernel sums in a fixed
     order where numpy's matrix products may not, so one sample at a pixel's edge may
     fall the other way; no more), over poses occluded to many degrees."""
-    from graspsim.gripper import HGPL_25_60_A as g
+    from graspsim.grippers.spec import HGPL_25_60_A as g
     from graspsim.maps.occlusion import finger_occlusion, finger_occlusion_numpy, finger_samples
 
     box, pts, camera = _box_view()
@@ -194,7 +195,7 @@ def test_fingers_in_occluded_space_are_scored_down():
 def test_finger_samples_handed_out_are_the_callers_own():
     """The occlusion term reuses one set of finger samples per gripper: a caller that
     changes the samples it was given changes no later score."""
-    from graspsim.gripper import HGPL_25_60_A as g
+    from graspsim.grippers.spec import HGPL_25_60_A as g
     from graspsim.maps.occlusion import finger_occlusion, finger_samples
 
     _, pts, camera = _box_view()
@@ -211,9 +212,9 @@ def test_finger_samples_handed_out_are_the_callers_own():
 
 
 def test_a_cloud_file_with_a_camera_record_carries_its_viewpoint(tmp_path):
+    from graspsim.geometry.camera import Camera, Intrinsics, look_at
     from graspsim.perception.io import read_point_cloud
-    from graspsim.sim.camera import Camera, Intrinsics, look_at
-    from graspsim.sim.cloud_io import save_cloud
+    from graspsim.tabletop.cloud_io import save_cloud
 
     _, pts, eye = _box_view()
     cam = Camera(Intrinsics.preset("d435"), look_at(eye, np.zeros(3)))

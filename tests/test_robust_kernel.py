@@ -4,7 +4,7 @@ the points it keeps for the openings are every point some opening needs."""
 import numpy as np
 import pytest
 
-from graspsim.gripper import HGPL_25_60_A
+from graspsim.grippers.spec import HGPL_25_60_A
 from graspsim.maps._robust_geometry import merged_boxes
 from graspsim.maps._robust_kernel import _shared_pass
 

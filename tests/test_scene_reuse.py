@@ -8,10 +8,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
-from graspsim.perception.scene import SceneConfig, plan_scene
-from graspsim.perception.scene_reuse import drop_grasp, near_pose, nothing_new, same_points
+from graspsim.planning.scene import plan_scene
+from graspsim.planning.scene_config import SceneConfig
+from graspsim.planning.scene_reuse import drop_grasp, near_pose, nothing_new, same_points
 from graspsim.primitives import Box, Cylinder, Sphere
 from graspsim.primitives.clouds import table_scene_cloud
 
@@ -73,8 +74,8 @@ def test_unchanged_segments_keep_their_plan_moved_ones_are_planned_again(db):
 def test_drop_grasp_removes_the_executed_pose_and_its_near_twins():
     from scipy.spatial.transform import Rotation
 
-    from graspsim.perception.scene import SceneGrasp
-    from graspsim.perception.scene_reuse import SegmentMemory
+    from graspsim.planning.scene import SceneGrasp
+    from graspsim.planning.scene_reuse import SegmentMemory
     from graspsim.transforms import make_transform
 
     def g(dx, deg):

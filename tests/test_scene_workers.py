@@ -13,14 +13,15 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
-from graspsim.perception import scene_segments
-from graspsim.perception import scene_workers as workers_mod
 from graspsim.perception.identify import identify
 from graspsim.perception.identify_config import IdentifyConfig
-from graspsim.perception.scene import SCENE_FIT_POINTS, SceneConfig, plan_scene
-from graspsim.perception.scene_workers import (
+from graspsim.planning import scene_segments
+from graspsim.planning import scene_workers as workers_mod
+from graspsim.planning.scene import plan_scene
+from graspsim.planning.scene_config import SCENE_FIT_POINTS, SceneConfig
+from graspsim.planning.scene_workers import (
     identify_segments,
     run_segments,
     scene_workers,
@@ -168,7 +169,7 @@ def test_segments_planned_on_workers_match_this_process_after_the_parallel_kerne
     forked workers (forked after this process ran numba's OpenMP kernel, which the
     workers must then not start), give every grasp as this process does, in the same order."""
     asked = _spy_workers(monkeypatch)
-    caplog.set_level(logging.WARNING, logger="graspsim.perception.scene_workers")
+    caplog.set_level(logging.WARNING, logger="graspsim.planning.scene_workers")
     pts = _scene([Box(0.05, 0.06, 0.07), Cylinder(0.025, 0.12), Sphere(0.03)], 5)
     cfg = SceneConfig(enough=10**6, per_segment=400, keep=400)  # batches big enough for the parallel kernel
     here = plan_scene(pts, db=db, rng=np.random.default_rng(9), config=replace(cfg, workers=1))
@@ -203,7 +204,7 @@ def _die_in_a_worker(x):
 
 
 def test_a_dead_worker_leaves_the_segments_to_this_process(caplog):
-    caplog.set_level(logging.WARNING, logger="graspsim.perception.scene_workers")
+    caplog.set_level(logging.WARNING, logger="graspsim.planning.scene_workers")
     me = os.getpid()
     assert run_segments(_die_in_a_worker, [(me,), (me,), (me,)], [1, 2, 3], 2) == [me, me, me]
     assert "died" in caplog.text
@@ -223,7 +224,7 @@ def test_a_database_subclass_is_planned_in_this_process(db, monkeypatch):
 
 
 def _resident_is_given(db) -> bool:
-    from graspsim.perception.scene_workers import resident_database
+    from graspsim.planning.scene_workers import resident_database
 
     return resident_database(db) is db
 
@@ -249,8 +250,8 @@ def test_warm_loads_what_planning_uses_in_a_fresh_process():
     import sys
 
     names = ["numba", "h5py", "graspsim.maps._kernel", "graspsim.maps._robust_kernel",
-             "graspsim.perception._sdf_kernel", "graspsim.maps._hierarchy_kernel", "graspsim.grades.models"]
-    code = ("import sys; from graspsim.perception.scene_workers import _warm; "
+             "graspsim.primitives._sdf_kernel", "graspsim.maps._hierarchy_kernel", "graspsim.grades.models"]
+    code = ("import sys; from graspsim.planning.scene_workers import _warm; "
             f"before = [n in sys.modules for n in {names!r}]; _warm(); "
             f"print(sum(before), all(n in sys.modules for n in {names!r}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)

@@ -2,9 +2,10 @@
 
 import numpy as np
 import pytest
+from hand_made import grasp_pose
 
 from graspsim.errors import InvalidParameterError, SimulationError
-from graspsim.gripper import HGPL_25_60_A
+from graspsim.grippers.spec import HGPL_25_60_A
 from graspsim.primitives import Box, Cylinder, Sphere
 from graspsim.sim import (
     ExecutionNoise,
@@ -17,7 +18,6 @@ from graspsim.sim import (
     object_from_shape,
     run_trials,
 )
-from graspsim.sim.testing import grasp_pose
 
 BOX = Box(0.06, 0.06, 0.06)
 PAPER_CYLINDER = Cylinder(0.02, 0.20)
@@ -170,7 +170,7 @@ def test_bad_inputs_are_rejected(box_scene):
 def test_a_coacd_decomposed_mesh_object_can_be_grasped(mesh_cache):
     from pathlib import Path
 
-    bread = Path(__file__).resolve().parents[1] / "graspsim/assets/objects/robosuite/bread.stl"
+    bread = Path(__file__).resolve().parents[1] / "assets/objects/robosuite/bread.stl"
     obj = object_from_mesh(bread, cache_dir=mesh_cache)
     assert len(obj.geoms) >= 2  # really decomposed
     scene = build_scene(obj)

@@ -8,21 +8,11 @@ import numpy as np
 import pytest
 
 from graspsim.errors import GraspsimError, InvalidParameterError, OutputPathError
-from graspsim.perception.io import read_point_cloud
-from graspsim.sim.camera import (
-    Camera,
-    DepthFrame,
-    DepthNoise,
-    Intrinsics,
-    backproject,
-    fuse,
-    look_at,
-    read_camera,
-    render_depth,
-    save_cloud,
-    save_view,
-    to_world,
-)
+from graspsim.geometry.camera import Camera, DepthFrame, Intrinsics, backproject, fuse, look_at, to_world
+from graspsim.perception.io import read_camera, read_point_cloud
+from graspsim.tabletop.cloud_io import save_cloud, save_view
+from graspsim.tabletop.depth_noise import DepthNoise
+from graspsim.tabletop.depth_render import render_depth
 
 XML = """<mujoco><visual><global offwidth="640" offheight="480"/></visual><worldbody>
 <geom name="box" type="box" size="0.05 0.04 0.05" pos="0.02 -0.01 0.05"/>
@@ -207,7 +197,7 @@ def test_fuse_two_views_covers_more_and_agrees(world, tmp_path):
 
 
 def test_orbit_and_rig_look_at_the_target():
-    from graspsim.sim.camera import orbit, rig
+    from graspsim.geometry.camera import orbit, rig
 
     T = orbit([0.1, 0.0, 0.03], distance=0.7, elevation=55.0, azimuth=-90.0)
     assert np.isclose(np.linalg.norm(T[:3, 3] - [0.1, 0, 0.03]), 0.7) and T[1, 3] < 0 and T[2, 3] > 0.5

@@ -9,10 +9,10 @@ import pytest
 
 from graspsim.cli import main
 from graspsim.errors import InvalidParameterError
+from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import MapConfig
 from graspsim.primitives import Box, Cylinder, Sphere
-from graspsim.sim.clutter import (
+from graspsim.tabletop.clutter import (
     STOPS,
     ClutterConfig,
     ClutterEpisode,
@@ -22,7 +22,7 @@ from graspsim.sim.clutter import (
     scene_settings,
     summarize,
 )
-from graspsim.sim.scenes import PACKED_GAP, known_gap, load_scene, make_scene
+from graspsim.tabletop.table_scene import PACKED_GAP, known_gap, load_scene, make_scene
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
 FAST_FLAGS = ["--surface-step", "0.01", "--rotation-step-deg", "22"]

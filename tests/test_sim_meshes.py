@@ -10,7 +10,7 @@ import trimesh
 from graspsim.errors import MeshError
 from graspsim.sim import CoacdParams, convex_parts, load_mesh, object_from_mesh
 
-BREAD = Path(__file__).resolve().parents[1] / "graspsim/assets/objects/robosuite/bread.stl"
+BREAD = Path(__file__).resolve().parents[1] / "assets/objects/robosuite/bread.stl"
 
 
 @pytest.fixture(scope="module")

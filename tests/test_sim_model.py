@@ -1,5 +1,5 @@
 """The gripper model: generated from the spec, agrees with the planner's boxes, and the
-static model folder in graspsim/mjcf/ is what the spec generates."""
+static model folder in mjcf/ is what the spec generates."""
 
 from pathlib import Path
 
@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.export import default_folder, model_files
 from graspsim.sim.model import NAMES, GripperPhysics, build_gripper_spec
 
-MJCF = Path(__file__).resolve().parents[1] / "graspsim" / "mjcf"
+MJCF = Path(__file__).resolve().parents[1] / "mjcf"
 
 
 def _step_warning_free(model: mujoco.MjModel, seconds: float = 1.0, ctrl: float = 0.0) -> mujoco.MjData:

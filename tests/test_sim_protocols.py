@@ -4,12 +4,12 @@ import math
 
 import numpy as np
 import pytest
+from hand_made import grasp_pose
 
 from graspsim.errors import InvalidParameterError
 from graspsim.primitives import Box
 from graspsim.sim import LiftPlace, Tug, build_scene, make_protocol, object_from_shape
 from graspsim.sim.protocols import min_jerk
-from graspsim.sim.testing import grasp_pose
 
 
 @pytest.fixture(scope="module")

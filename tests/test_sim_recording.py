@@ -6,13 +6,13 @@ import json
 
 import numpy as np
 import pytest
+from hand_made import grasp_pose, hand_made_map
 
 from graspsim.cli import main
 from graspsim.errors import MapFileError
 from graspsim.maps import read_sim_results, save_map
 from graspsim.primitives import Cylinder
 from graspsim.sim.recording import load_recording
-from graspsim.sim.testing import grasp_pose, hand_made_map
 
 
 def _map(tmp_path, n=3):

@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
+from hand_made import grasp_pose
 
 from graspsim.primitives import Box
 from graspsim.sim import LiftPlace, build_scene, object_from_shape
-from graspsim.sim.testing import grasp_pose
 
 
 @pytest.fixture(scope="module")
@@ -44,10 +44,11 @@ def test_render_writes_key_moments_and_a_gif(gl, tmp_path):
 def test_trial_cli_renders_the_first_trials_that_start_clear(gl, tmp_path, capsys):
     import json
 
+    from hand_made import hand_made_map
+
     from graspsim.cli import main
     from graspsim.maps import save_map
     from graspsim.primitives import Cylinder
-    from graspsim.sim.testing import hand_made_map
 
     # the two best poses come from under the table (START_COLLISION); the third is fine
     T = np.stack([grasp_pose([0, 0, -0.04], [0, 0, 1], [1, 0, 0]), grasp_pose([0, 0, -0.045], [0, 0, 1], [0, 1, 0]),
@@ -62,8 +63,9 @@ def test_trial_cli_renders_the_first_trials_that_start_clear(gl, tmp_path, capsy
 
 def test_every_mujoco_import_goes_through_the_gl_choice():
     """MuJoCo reads MUJOCO_GL once, at its first import: a module outside graspsim.sim
-    (whose __init__ picks the backend first) that imported mujoco directly made a later
-    offscreen render fail in a fresh process (the Franka hand's measurements did)."""
+    and graspsim.tabletop (whose __init__ files pick the backend first) that imported
+    mujoco directly made a later offscreen render fail in a fresh process (the Franka
+    hand's measurements did)."""
     import re
     from pathlib import Path
 
@@ -71,7 +73,7 @@ def test_every_mujoco_import_goes_through_the_gl_choice():
 
     root = Path(graspsim.__file__).parent
     direct = [str(p.relative_to(root)) for p in root.rglob("*.py")
-              if p.parent != root / "sim" and p.name != "_gl.py"
+              if p.parent not in (root / "sim", root / "tabletop") and p.name != "_gl.py"
               and re.search(r"^\s*(import mujoco|from mujoco)", p.read_text(), re.M)]
     assert direct == []
 

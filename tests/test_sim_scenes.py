@@ -5,16 +5,17 @@ import json
 
 import numpy as np
 import pytest
+from hand_made import grasp_pose
 
 from graspsim.errors import GraspsimError, InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A
+from graspsim.geometry.camera import Camera, Intrinsics, backproject, look_at
+from graspsim.grippers.spec import HGPL_25_60_A
 from graspsim.primitives import Box
 from graspsim.sim import TrialOutcome
-from graspsim.sim.camera import Camera, DepthNoise, Intrinsics, backproject, look_at
-from graspsim.sim.scene_objects import ObjectSpec, draw_object, narrowest_extent
-from graspsim.sim.scene_sim import SceneSim
-from graspsim.sim.scenes import footprint_gaps, load_scene, make_scene, save_scene
-from graspsim.sim.testing import grasp_pose
+from graspsim.tabletop.depth_noise import DepthNoise
+from graspsim.tabletop.scene_objects import ObjectSpec, draw_object, narrowest_extent
+from graspsim.tabletop.scene_sim import SceneSim
+from graspsim.tabletop.table_scene import footprint_gaps, load_scene, make_scene, save_scene
 from graspsim.transforms import make_transform
 
 BOX = ObjectSpec("primitive", "box", Box(0.06, 0.06, 0.06).to_dict())
@@ -146,7 +147,7 @@ def test_a_start_collision_with_target_and_neighbour_is_labelled_both():
 
 
 def test_collision_kind_tells_every_combination_apart():
-    from graspsim.sim.scene_sim import collision_kind
+    from graspsim.tabletop.scene_sim import collision_kind
 
     assert collision_kind(("table",), 0) == "table"
     assert collision_kind((0,), 0) == collision_kind((0, "table"), 0) == "target"
@@ -269,8 +270,8 @@ def test_every_object_of_a_packed_scene_can_be_lifted_from_above():
 
 
 def test_object_view_sees_the_object_where_it_stands(gl):
-    from graspsim.sim.camera import rig
-    from graspsim.sim.scenes import object_view
+    from graspsim.geometry.camera import rig
+    from graspsim.tabletop.table_scene import object_view
 
     cam = rig(1, Intrinsics(320, 240, 170.0, 170.0, 159.5, 119.5), distance=0.5)[0]
     pts, T = object_view(BOX, cam)

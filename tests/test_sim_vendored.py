@@ -3,13 +3,13 @@
 import mujoco
 import numpy as np
 import pytest
+from hand_made import grasp_pose
 
 from graspsim.errors import InvalidParameterError
 from graspsim.grippers import get_gripper
 from graspsim.grippers.franka import hull_points
 from graspsim.primitives import Box
 from graspsim.sim import LiftPlace, SimSettings, TrialOutcome, build_scene, object_from_shape, run_trials
-from graspsim.sim.testing import grasp_pose
 from graspsim.sim.vendored import PREFIX, build_vendored_gripper_spec
 
 FRANKA = get_gripper("franka_hand")

@@ -210,9 +210,9 @@ def _cylinder_cloud(radius=0.03, height=0.09) -> np.ndarray:
 
 @pytest.mark.slow
 def test_a_grown_database_changes_no_part_and_names_the_map_it_used(tmp_path):
-    from graspsim.adapt import adapt_cloud, adapt_config
     from graspsim.maps.database import MapDatabase
     from graspsim.maps.generate import MapConfig
+    from graspsim.planning.adapt import adapt_cloud, adapt_config
     from graspsim.primitives import Cylinder
 
     fast = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
@@ -248,7 +248,8 @@ def test_a_grown_database_changes_no_part_and_names_the_map_it_used(tmp_path):
 
 
 def test_table_auto_lies_at_the_cloud_for_a_full_cloud_and_may_go_under_the_shape_for_a_single_view():
-    from graspsim.maps.table import TablePlane, table_height
+    from graspsim.geometry.table import TablePlane
+    from graspsim.maps.table import table_height
     from graspsim.primitives import Box
 
     rng = np.random.default_rng(0)

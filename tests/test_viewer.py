@@ -15,16 +15,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hand_made import grasp_pose, hand_made_map
 
 from graspsim.cli import main
-from graspsim.gripper import HGPL_25_60_A
+from graspsim.grippers.spec import HGPL_25_60_A
+from graspsim.grippers.wireframe import gripper_wireframe
 from graspsim.maps import load_map, save_map, write_sim_results
 from graspsim.primitives import Cylinder
-from graspsim.sim.testing import grasp_pose, hand_made_map
 from graspsim.viewer import show, stop
 from graspsim.viewer.app import OBJECT_COLOUR
 from graspsim.viewer.columns import OUTCOME_PREFIX, Selection, ViewData
-from graspsim.viewer.glyphs import colormap, gripper_wireframe
+from graspsim.viewer.glyphs import colormap
 
 ROBUST = "grasps/qualities/robust"
 
@@ -515,8 +516,8 @@ def test_clicking_a_glyph_in_chromium_picks_that_grasp(tmp_path):
 def scene_db(tmp_path_factory):
     import math
 
+    from graspsim.maps.config import MapConfig
     from graspsim.maps.database import MapDatabase
-    from graspsim.maps.generate import MapConfig
     from graspsim.primitives import Box, Sphere
 
     db = MapDatabase(tmp_path_factory.mktemp("scenedb"),
@@ -527,7 +528,7 @@ def scene_db(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def scene_file(tmp_path_factory):
-    from graspsim.sim.scenes import make_scene, save_scene
+    from graspsim.tabletop.table_scene import make_scene, save_scene
 
     path = tmp_path_factory.mktemp("scene") / "packed.json"
     save_scene(make_scene(3, "packed", 1, object_set="primitives"), path)

@@ -1,16 +1,20 @@
 """Grade-vs-success calibration: trials, statistics, reports, figures.
 
-Pure statistics live in :mod:`graspsim.calibration.stats`; the trials (which need
+Pure statistics live in :mod:`graspsim.stats`; the trials (which need
 mujoco) in :mod:`graspsim.calibration.trials`, imported on first use; simulation
 conditions and their presets in :mod:`graspsim.calibration.conditions`; the success-rate
 regression in :mod:`graspsim.calibration.regression`.
+
+May use: the base modules, geometry, primitives, grippers, grades, maps, plots, perception,
+planning and sim (never tabletop, the viewer, the envs, the apps or the CLI).
 """
 
 from __future__ import annotations
 
 from graspsim.calibration.report import CalibrationReport, ScoreReport, calibrate, score_report
 from graspsim.calibration.sampling import stratified_rows
-from graspsim.calibration.stats import (
+from graspsim.calibration.trial_table import TrialTable
+from graspsim.stats import (
     Reliability,
     bootstrap,
     fit_logistic,
@@ -23,7 +27,6 @@ from graspsim.calibration.stats import (
     wilson_interval,
     youden_threshold,
 )
-from graspsim.calibration.trial_table import TrialTable
 
 _CAMPAIGN = ("CalibrationCase", "SimCondition", "FRICTION_LIMITED", "CONDITIONS", "CaseSample",
              "draw_samples", "simulate_samples", "case_seed")

@@ -8,14 +8,15 @@ object mass and execution noise. Two presets are named (:data:`CONDITIONS`):
   Success here says little about the grade: 2 x 0.5 x 250 N of friction holds any of
   these objects a hundred times over, so almost every feasible grasp that touches the
   object with both pads lifts it, whatever its grade.
-* ``friction_limited``: 8 N per jaw on a 0.5 kg object (as measured in issue 12). Two pads
+* ``friction_limited``: 8 N per jaw on a 0.5 kg object (success against mass at this
+  force: ``experiments/golden_regression.py --scan-masses``). Two pads
   at mu 0.5 give 8 N of friction against 4.9 N of weight, and the min-jerk lift adds up
   to 0.44 g, so only a grasp close to antipodal and close to the centre of mass (small
   torque about the grasp axis) holds: the two terms of the paper's grade. This is the
   condition the success-rate regression and the calibration run where grades must
   matter. Its reach is bounded by the simulator: MuJoCo's soft contacts on edges and
   corners decide the marginal grasps, and an independent engine (PyBullet, same
-  geometry, masses, forces and friction) was reported in issue 12 to agree on nearly all
+  geometry, masses, forces and friction; a one-off cross-check, not in this repository) agreed on nearly all
   high-grade grasps but on far fewer low-grade ones (MuJoCo the stricter on edge and
   corner contacts) -- the low-grade rates are MuJoCo's, not ground truth.
 """

@@ -68,7 +68,7 @@ def _scene_settings(change: Callable):
     """build_scene whose settings are ``change(settings, obj, gripper)``."""
     def wrap(orig):
         def build(obj, gripper=None, settings=None, **kwargs):
-            from graspsim.gripper import HGPL_25_60_A
+            from graspsim.grippers.spec import HGPL_25_60_A
             from graspsim.sim.scene import SimSettings
 
             gripper = gripper or HGPL_25_60_A
@@ -100,9 +100,10 @@ MUTATIONS: dict[str, Mutation] = {m.name: m for m in (
     Mutation("wrist_frame_+5mm", "gripper 5 mm forward along the approach (contacts nearer the palm)",
              (("graspsim.sim.scene", "build_gripper_spec", _shift_gripper(0.005)),), ("half_toroid/hi",)),
     Mutation("normals_flipped", "the grade's force-closure angle with inward contact normals",
-             (("graspsim.quality", "force_closure_angle", _flip_normals),), ("cylinder/hi", "box/lo"), regrade=True),
+             (("graspsim.grades.paper", "force_closure_angle", _flip_normals),), ("cylinder/hi", "box/lo"),
+             regrade=True),
     Mutation("stability_dropped", "the grade is force closure alone (no stability term)",
-             (("graspsim.quality", "QualityModel.combine", _force_closure_only),), ("cone/hi", "sphere/lo"),
+             (("graspsim.grades.paper", "QualityModel.combine", _force_closure_only),), ("cone/hi", "sphere/lo"),
              regrade=True),
     Mutation("grip_below_weight", "grip force per jaw 0.6 m g / (2 mu): friction cannot hold the weight",
              (_SCENE + (_scene_settings(lambda s, obj, g: replace(

@@ -2,7 +2,7 @@
 
 The calibrated grade is fitted on ``TRAIN_SHAPES`` only; ``HELD_OUT_SHAPES`` -- other
 sizes and proportions of the five primitives and two compounds (a bottle and the
-case study's ball with a tab, ``graspsim.case_study_objects.ball_with_tab``) -- are never used in
+case study's ball with a tab, ``graspsim.primitives.case_study.ball_with_tab``) -- are never used in
 fitting, so scores on them are scores on unseen objects. Sizes are chosen so that most
 chords fit the HGPL-25-60 (opening <= 120 mm).
 """
@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 
-from graspsim.case_study_objects import ball_with_tab
 from graspsim.maps.database import PAPER_SHAPES, size_grid
 from graspsim.primitives import Box, Compound, Cone, Cylinder, HalfToroid, Sphere
+from graspsim.primitives.case_study import ball_with_tab
 from graspsim.transforms import make_transform
 
 __all__ = ["TRAIN_SHAPES", "HELD_OUT_SHAPES", "SIZE_SCALES", "paper_size_grid", "bottle", "CALIBRATION_CONE"]

@@ -7,24 +7,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from graspsim.calibration import stats
+from graspsim import stats
+from graspsim.plots import pyplot
 
 __all__ = ["plot_reliability", "plot_roc", "plot_threshold_sweep"]
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def plot_reliability(reports: dict, path: str | os.PathLike, title: str = "") -> None:
     """Binned success rate (Wilson bars) and the fitted logistic curve per score;
     ``reports``: {label: ScoreReport}."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4.5))
     x = np.linspace(0, 1, 201)
     for i, (label, r) in enumerate(reports.items()):
@@ -50,7 +42,7 @@ def plot_reliability(reports: dict, path: str | os.PathLike, title: str = "") ->
 
 def plot_roc(curves: dict, path: str | os.PathLike, title: str = "") -> None:
     """ROC curves; ``curves``: {label: (scores, success, weights or None)}."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(5, 5))
     for label, (s, y, w) in curves.items():
         fpr, tpr, _ = stats.roc_curve(s, y, w)
@@ -69,7 +61,7 @@ def plot_threshold_sweep(x: Sequence[float], series: dict, path: str | os.PathLi
                          xlabel: str, title: str = "") -> None:
     """Thresholds (with intervals) against a swept parameter; ``series``:
     {label: (values (K,), lo (K,), hi (K,))}."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4))
     for i, (label, (v, lo, hi)) in enumerate(series.items()):
         v, lo, hi = (np.asarray(a, float) for a in (v, lo, hi))

@@ -49,7 +49,7 @@ code gives the same counts every run. Every floor must be > 0 and every ceiling 
 tests/data/regression_mutations.json has every mutation on every case).
 
 **Limits.** The rates are MuJoCo's. An independent engine (PyBullet, same geometry,
-masses, forces and friction) was reported in issue 12 to agree with MuJoCo on nearly all
+masses, forces and friction; a one-off cross-check, not in this repository) agreed with MuJoCo on nearly all
 high-grade grasps in a friction-limited condition but on far fewer low-grade ones (MuJoCo
 the stricter on edge and corner contacts): the ceilings pin MuJoCo's behaviour, not the
 world's. There is no AUC check: the calibrated ``pad_contact`` grade was fitted on these
@@ -72,10 +72,10 @@ from scipy.stats import betabinom
 from graspsim.calibration.conditions import SimCondition, condition
 from graspsim.calibration.trial_table import TrialTable
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.generate import MapConfig
+from graspsim.grades.paper import QualityModel
+from graspsim.maps.config import MapConfig
 from graspsim.maps.scaling import ScalingConfig
 from graspsim.primitives import Box, Cylinder
-from graspsim.quality import QualityModel
 
 __all__ = ["REGRESSION_MAPS", "REGRESSION_SCALED", "RegressionSpec", "SPECS", "RegressionSizes",
            "FAMILY_ALPHA", "CATCHES", "regression_cases", "regression_condition", "pools", "surface_draws",
@@ -320,16 +320,16 @@ def check_bands(measured: dict, bands: dict) -> list[dict]:
 
 
 def adapted_glue_case(db_root, *, seed: int = 3):
-    """The glue-bottle analog (``graspsim.case_study_objects``) seen as a cloud, planned by the
+    """The glue-bottle analog (``graspsim.primitives.case_study``) seen as a cloud, planned by the
     run-time planner against a coarse FS database in ``db_root`` that accepts every
     graded grasp, as a case simulated against the true compound standing as it stood in
     the cloud."""
     from graspsim.calibration.trials import CalibrationCase
-    from graspsim.case_study_objects import glue_bottle
     from graspsim.errors import IdentificationError
     from graspsim.maps.database import MapDatabase
-    from graspsim.planner import PlannerConfig, plan
+    from graspsim.planning.planner import PlannerConfig, plan
     from graspsim.primitives import synthetic_cloud
+    from graspsim.primitives.case_study import glue_bottle
     from graspsim.seeding import rng_for
     from graspsim.sim import object_from_shape
     from graspsim.transforms import invert_transform, make_transform

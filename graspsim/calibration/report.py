@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from graspsim.calibration import stats
+from graspsim import stats
 from graspsim.calibration.trial_table import TrialTable
 from graspsim.errors import InvalidParameterError
 

@@ -1,6 +1,6 @@
 """Calibration trials: grasps drawn from maps, simulated under chosen conditions.
 
-(Simulating many map *files* resumably on an executor is :mod:`graspsim.campaign`.)
+(Simulating many map *files* resumably on an executor is :mod:`graspsim.apps.campaign`.)
 
 Build once, run many: :func:`draw_samples` picks the grasps of each case (stratified
 over the grade among the poses that clear the table), :func:`simulate_samples` runs
@@ -25,7 +25,7 @@ from graspsim.calibration.sampling import stratified_rows
 from graspsim.calibration.trial_table import TrialTable
 from graspsim.errors import InvalidParameterError
 from graspsim.grades.features import FEATURES, map_features
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.seeding import derived_seed
 from graspsim.transforms import angle_between
@@ -242,7 +242,7 @@ def fs_cases(shapes: dict, *, config=None, quality=None, gripper=None, kind: str
              threads: int | None = None) -> list:
     """One :class:`CalibrationCase` per named shape with its FS map (a compound gets
     the combined map of its parts' FS maps, as the planner builds it)."""
-    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.grippers.spec import HGPL_25_60_A
     from graspsim.maps.combine import combine_maps
     from graspsim.maps.generate import generate_fs_map
     from graspsim.primitives import Compound

@@ -7,6 +7,9 @@ with status 2; interrupted runs exit with 130.
 Subcommand modules import nothing heavy at module level (numpy, scipy, numba, h5py,
 mujoco load inside the command functions), so ``graspsim --help`` and
 ``graspsim COMMAND --help`` answer at once.
+
+May use: every other part of graspsim (the top of the layer map); each command imports
+its work only when it runs, so that ``graspsim --help`` stays light.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import importlib
 import logging
 import sys
 
-from graspsim import __version__
+from graspsim._version import __version__
 from graspsim.errors import GraspsimError
 
 __all__ = ["main", "build_parser"]
@@ -29,6 +32,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.identify",
     "graspsim.cli.adapt",
     "graspsim.cli.trial",
+    "graspsim.cli.export",
     "graspsim.cli.campaign",
     "graspsim.cli.calibrate",
     "graspsim.cli.warmup",

@@ -8,7 +8,7 @@ from collections.abc import Iterable
 from typing import Any
 
 __all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value", "whole_number",
-           "executor_from_args", "format_table", "progress", "add_gripper_flag", "gripper_from_args"]
+           "executor_from_args", "format_table", "progress", "add_gripper_flag", "gripper_from_args", "VARIANT_HELP"]
 
 
 def add_json_flag(p) -> None:
@@ -30,14 +30,14 @@ def add_budget_flag(p) -> None:
     p.add_argument("--budget", default="", metavar="ENOUGH:PER_SEGMENT",
                    help="planning effort per object: its planning stops once ENOUGH grasps score above 0 or "
                    "PER_SEGMENT grasps per part are scored (default: SceneConfig's, 32:200); a smaller budget plans "
-                   "faster and chooses from fewer grasps (the README's planning-effort study measures both)")
+                   "faster and chooses from fewer grasps (the planning-effort study in docs/results.md measures both)")
 
 
 def budget_from_args(args) -> dict:
     """The ``SceneConfig`` fields ``--budget`` sets ({}: the defaults); a malformed budget
     is an :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
     from graspsim.errors import InvalidParameterError
-    from graspsim.perception.scene import budget_fields
+    from graspsim.planning.scene_config import budget_fields
 
     try:
         return budget_fields(args.budget)
@@ -49,17 +49,33 @@ GRIPPER_HELP = ("the gripper: festo_hgpl_25_60_a (default), franka_hand, or a JS
                 "parallel gripper's GripperSpec fields (see docs/grippers.md)")
 
 
-def add_gripper_flag(p, help: str = GRIPPER_HELP) -> None:
-    """``--gripper NAME|SPEC.json`` (resolved by :func:`gripper_from_args`: a bad name or
-    spec file is a one-line error, exit 2)."""
-    p.add_argument("--gripper", default=None, metavar="NAME|SPEC.json", help=help)
+#: The help of a gripper flag that also takes a variant of a base design.
+VARIANT_HELP = ("a registered gripper (festo_hgpl_25_60_a, franka_hand), a spec .json, or "
+                "param=value [m] varying the base gripper (e.g. finger_length=0.05)")
 
 
-def gripper_from_args(args):
-    """The :class:`~graspsim.gripper.GripperSpec` of ``--gripper`` (default: the Festo)."""
+def add_gripper_flag(p, help: str = GRIPPER_HELP, *, flag: str = "--gripper", required: bool = False,
+                     variants: bool = False) -> None:
+    """The one gripper flag of every command: ``--gripper NAME|SPEC.json`` (or ``flag``, e.g.
+    ``--to-gripper``), resolved by :func:`gripper_from_args` (a bad name or spec file is a
+    one-line error, exit 2). ``variants``: it also takes ``param=value``, a variant of the
+    base design that :func:`gripper_from_args` is given."""
+    p.add_argument(flag, default=None, required=required, help=help,
+                   metavar="NAME|SPEC.json|PARAM=M" if variants else "NAME|SPEC.json")
+
+
+def gripper_from_args(args, *, flag: str = "gripper", base=None):
+    """The :class:`~graspsim.grippers.spec.GripperSpec` of the gripper flag ``flag`` (the
+    argparse dest; default: the Festo), resolved once. ``base``: the spec a ``param=value``
+    varies (flags added with ``variants=True``; :func:`graspsim.apps.design.resolve_design`)."""
+    text = getattr(args, flag, None)
+    if base is not None and text is not None:
+        from graspsim.apps.design import resolve_design
+
+        return resolve_design(text, base)
     from graspsim.grippers import get_gripper
 
-    return get_gripper(getattr(args, "gripper", None))
+    return get_gripper(text)
 
 
 def whole_number(minimum: int):

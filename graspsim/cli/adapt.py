@@ -24,10 +24,10 @@ def _cmd_adapt(args) -> int:
     import sys
 
     from graspsim._atomic import check_output
-    from graspsim.adapt import adapt_cloud, adapt_config
     from graspsim.maps.database import MapDatabase
     from graspsim.maps.io import save_map
     from graspsim.perception import read_point_cloud
+    from graspsim.planning.adapt import adapt_cloud, adapt_config
 
     # every option and the output path before the cloud is read or anything computed
     out = check_output(args.output, "map", others={"input cloud": args.cloud})

@@ -13,7 +13,7 @@ def _cmd_run(args) -> int:
     import sys
 
     from graspsim._atomic import check_folder
-    from graspsim.campaign import campaign_tasks, run_campaign
+    from graspsim.apps.campaign import campaign_tasks, run_campaign
     from graspsim.errors import InvalidParameterError
 
     for flag in ("top", "sample", "seeds"):
@@ -45,7 +45,7 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_status(args) -> int:
-    from graspsim.campaign import load_campaign
+    from graspsim.apps.campaign import load_campaign
 
     tasks, done = load_campaign(args.out)
     emit({"out": args.out, "tasks": len(tasks), "done": len(done),

@@ -10,7 +10,7 @@ __all__ = ["register"]
 
 
 def _cmd_demo(args) -> int:
-    from graspsim.demo import DemoConfig, run_demo
+    from graspsim.apps.demo import DemoConfig, run_demo
 
     cfg = DemoConfig(out=args.out, cloud=args.cloud, db=args.db, quick=args.quick,
                      trials=args.trials, renders=args.renders, noise=args.noise, seed=args.seed,

@@ -1,36 +1,39 @@
 """Subcommands for other grippers: ``adapt-gripper`` (a map made for one gripper
 adapted to another, paper section 5) and ``design`` (a design parameter swept over the
-paper's primitives, :mod:`graspsim.design`)."""
+paper's primitives, :mod:`graspsim.apps.design`)."""
 
 from __future__ import annotations
 
 import math
 import time
 
-from graspsim.cli._common import add_json_flag, emit, format_table, seed_value
+from graspsim.cli._common import (
+    VARIANT_HELP,
+    add_gripper_flag,
+    add_json_flag,
+    emit,
+    format_table,
+    gripper_from_args,
+    seed_value,
+)
 
 __all__ = ["register"]
 
-_GRIPPER_HELP = ("a registered gripper (festo_hgpl_25_60_a, franka_hand), a spec .json, or "
-                 "param=value [m] varying the base gripper (e.g. finger_length=0.05)")
-
-
 def _cmd_adapt_gripper(args) -> int:
     from graspsim._atomic import atomic_path, check_output
-    from graspsim.design import resolve_design
     from graspsim.errors import MapFileError
     from graspsim.maps.io import load_map, save_map
     from graspsim.maps.regrip import adapt_to_gripper
 
     out = check_output(args.output, "map", others={"map": args.file})  # before the work
     gmap = load_map(args.file)
-    target = resolve_design(args.to_gripper, gmap.meta.gripper_spec)
+    target = gripper_from_args(args, flag="to_gripper", base=gmap.meta.gripper_spec)
     t0 = time.perf_counter()
     adapted = adapt_to_gripper(gmap, target, source_min_grade=args.source_min_grade)
     seconds = time.perf_counter() - t0
     with atomic_path(out, MapFileError) as tmp:
         save_map(adapted, tmp)
-    info = adapted.meta.extra["gripper_adaptation"]
+    info = adapted.meta.gripper_adaptation.to_dict()
     summary = {"file": str(out), "source": args.file, "source_gripper": gmap.meta.gripper_spec.name,
                "gripper": target.name, "grasps": len(adapted), "accepted": int(adapted.accepted.sum()),
                **info, "seconds": seconds}
@@ -44,12 +47,12 @@ def _cmd_adapt_gripper(args) -> int:
 
 def _cmd_design(args) -> int:
     from graspsim._atomic import check_output
+    from graspsim.apps.design import DesignConfig, param_value, sweep
     from graspsim.calibration.outputs import write_json
-    from graspsim.design import DesignConfig, param_value, resolve_design, sweep
     from graspsim.errors import InvalidParameterError
-    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.grippers.spec import HGPL_25_60_A
+    from graspsim.maps.config import MapConfig
     from graspsim.maps.database import PAPER_SHAPES, size_grid
-    from graspsim.maps.generate import MapConfig
 
     out = check_output(args.output, "results") if args.output else None
     plot = check_output(args.plot, "plot", others={"results (-o)": out} if out else None) if args.plot else None
@@ -57,7 +60,7 @@ def _cmd_design(args) -> int:
         from graspsim.plots import image_format
 
         image_format(plot)
-    base = resolve_design(args.gripper, HGPL_25_60_A)
+    base = gripper_from_args(args, base=HGPL_25_60_A)
     bad = sorted(set(args.primitives) - set(PAPER_SHAPES))
     if bad or any(not s > 0 for s in args.sizes):
         raise InvalidParameterError(f"--primitives from {sorted(PAPER_SHAPES)} and --sizes > 0, got "
@@ -90,7 +93,7 @@ def _cmd_design(args) -> int:
     return 0
 
 
-#: graspsim.design.PARAMS, spelt out here so that ``graspsim --help`` imports nothing heavy
+#: graspsim.apps.design.PARAMS, spelt out here so that ``graspsim --help`` imports nothing heavy
 #: (a test checks they agree)
 PARAMS = {
     "finger_length": "the finger's length below the jaw",
@@ -107,7 +110,7 @@ def register(sub) -> None:
                        "the rest re-checked for collision with the new gripper. The map records "
                        "the new gripper and its source gripper.")
     p.add_argument("file", help="map file (.h5) of a primitive or compound")
-    p.add_argument("--to-gripper", required=True, metavar="GRIPPER", help=_GRIPPER_HELP)
+    add_gripper_flag(p, VARIANT_HELP, flag="--to-gripper", required=True, variants=True)
     p.add_argument("-o", "--output", required=True, help="adapted map to write (.h5)")
     p.add_argument("--source-min-grade", type=float, default=None,
                    help="carry grasps above this grade (default: the map's threshold, 0.7)")
@@ -121,7 +124,7 @@ def register(sub) -> None:
                        "accepted grasps. " + "; ".join(f"{k}: {v}" for k, v in PARAMS.items()) + ".")
     p.add_argument("--param", required=True, choices=sorted(PARAMS), help="the parameter to vary")
     p.add_argument("--values", required=True, type=float, nargs="+", metavar="M", help="its values [m]")
-    p.add_argument("--gripper", default="festo_hgpl_25_60_a", help="the base design: " + _GRIPPER_HELP)
+    add_gripper_flag(p, "the base design (default: festo_hgpl_25_60_a): " + VARIANT_HELP, variants=True)
     p.add_argument("--primitives", nargs="+", default=["box", "cylinder", "sphere", "cone", "half_toroid"],
                    help="which of the paper's primitives (default: all five)")
     p.add_argument("--sizes", type=float, nargs="+", default=[1.0], help="scale factors of their sizes (1)")

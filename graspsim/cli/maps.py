@@ -56,8 +56,8 @@ def _add_generation(p) -> None:
 
 def _config(args):
     from graspsim.errors import InvalidParameterError
-    from graspsim.maps.generate import MapConfig
-    from graspsim.quality import QualityModel
+    from graspsim.grades.paper import QualityModel
+    from graspsim.maps.config import MapConfig
 
     if args.threads is not None and args.threads < 1:
         raise InvalidParameterError(f"--threads must be >= 1, got {args.threads}")
@@ -117,8 +117,13 @@ def _cmd_show(args) -> int:
 
     check_output(args.output, "image", others={"map": args.file})
     fmt = image_format(args.output)
-    gmap = load_map(args.file)
+    from graspsim.maps.imported import load_any
+
+    gmap = load_any(args.file) if args.file.lower().endswith((".json", ".npy")) else load_map(args.file)
     shown = int(gmap.above(args.min_grade).sum())
+    if not shown and len(gmap) and not (gmap.grade == gmap.grade).any():
+        raise InvalidParameterError(f"nothing to plot: {args.file}'s {len(gmap)} grasps have no grades (a "
+                                    "third-party grasp file); 'graspsim view' shows them by their own labels")
     if not shown:
         raise InvalidParameterError(f"nothing to plot: none of the map's {len(gmap)} grasps has "
                                     f"grade > {args.min_grade:g} (max {_max_grade(gmap)})")
@@ -172,11 +177,20 @@ def _settings_rows(meta) -> list[tuple[str, str]]:
 
 
 def _cmd_info(args) -> int:
+    from graspsim.maps.formats import is_foreign
     from graspsim.maps.io import load_map, read_sim_results
     from graspsim.maps.metrics import map_rates
 
+    if is_foreign(args.file):
+        from graspsim.cli.export import info_dataset
+
+        return info_dataset(args, _describe_object)
     gmap = load_map(args.file)
     s = gmap.summary()
+    if not s["graded"]:  # an imported third-party file's map: no grades, no contacts
+        from graspsim.cli.export import info_imported
+
+        return info_imported(args, gmap, s, _describe_object)
     rates = map_rates(gmap)
     sim = read_sim_results(args.file)
     s.update(file=args.file, SR=rates.sr, VR=rates.vr, quality=gmap.meta.quality,
@@ -188,11 +202,11 @@ def _cmd_info(args) -> int:
              f"{s['grade_mean']:.3f} / {s['grade_max']:.3f}"),
             ("parts", s["parts"]), ("SR / VR", f"{rates.sr:.3f} / {rates.vr:.3f}")]
     rows += _settings_rows(gmap.meta)
-    extra = gmap.meta.extra
-    if "T_cloud_obj" in extra:  # an adapted map: where it came from and what it assumed
-        s.update(source=extra.get("source"), T_cloud_obj=extra["T_cloud_obj"], table=extra.get("table"))
+    extra, placement = gmap.meta.extra, gmap.meta.placement
+    if placement is not None:  # an adapted map: where it came from and what it assumed
+        s.update(source=extra.get("source"), T_cloud_obj=placement.T_cloud_obj.tolist(), table=placement.table)
         rows += [("source", extra.get("source")), ("status", extra.get("status"))]
-        t = extra.get("table")
+        t = placement.table
         rows.append(("table", "none (the map ignores it)" if not t else
                      f"normal {t['normal']}, height {t['height']:.4f} m, {t.get('dropped', 0)} poses dropped"))
     if "simulated" in sim:

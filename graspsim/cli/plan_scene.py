@@ -8,7 +8,7 @@
 The cloud a depth camera saw of a table with objects on it (``.pcd``, ``.ply``, ``.npy``,
 ``.xyz``; NaN rows for missing depth are dropped), or its depth image back-projected in the
 camera's frame (:func:`~graspsim.perception.depth_image.read_depth_image`), is planned as ``graspsim scene`` plans
-its simulated frames (:func:`~graspsim.perception.scene.plan_scene`): the table plane,
+its simulated frames (:func:`~graspsim.planning.scene.plan_scene`): the table plane,
 the objects segmented on it, each identified and given grasps scored against the whole
 scene (its neighbours and the table). GRASPS.json holds the table, every segment (its
 status, primitives, where it is) and the ranked grasps (wrist poses in the cloud's frame,
@@ -31,7 +31,8 @@ def _cmd_plan_scene(args) -> int:
     import numpy as np
 
     from graspsim.maps.database import MapDatabase
-    from graspsim.perception.scene import SceneConfig, plan_scene
+    from graspsim.planning.scene import plan_scene
+    from graspsim.planning.scene_config import SceneConfig
 
     o = _options(args)  # every option and output path before the input is read or anything computed
     loaded = _depth_points(args, o["intrinsics"]) if o["depth"] else _cloud_points(args)
@@ -121,7 +122,7 @@ def _record(args, plan, loaded, pts, viewpoint, cfg, crop, gripper: str) -> dict
     (where it is) and the ranked grasps."""
     from pathlib import Path
 
-    from graspsim import __version__
+    from graspsim._version import __version__
 
     per = plan.perception
     segments = []
@@ -204,7 +205,7 @@ def _cloud_points(args) -> dict:
     import numpy as np
 
     from graspsim.perception import read_point_cloud
-    from graspsim.perception.scene import MAX_SCENE_EXTENT
+    from graspsim.planning.scene_config import MAX_SCENE_EXTENT
 
     cloud = read_point_cloud(args.cloud, units=args.units, min_points=100, max_extent=MAX_SCENE_EXTENT,
                              what="a table-top scene")
@@ -221,8 +222,8 @@ def _depth_points(args, intrinsics) -> dict:
     import numpy as np
 
     from graspsim.errors import InvalidParameterError
+    from graspsim.geometry.camera import Camera, DepthFrame, Intrinsics, backproject
     from graspsim.perception.depth_image import read_depth_image
-    from graspsim.sim.camera import Camera, DepthFrame, Intrinsics, backproject
 
     if intrinsics is not None and args.camera is not None:
         raise InvalidParameterError("give --intrinsics or --camera, not both")

@@ -16,7 +16,8 @@ __all__ = ["register"]
 
 
 def _cmd_warmup(args) -> int:
-    from graspsim.maps.kernels import cache_dir, compile_all
+    from graspsim.maps.kernels import cache_dir
+    from graspsim.maps.warmup import compile_all
 
     t0 = time.perf_counter()
     compiled = compile_all()

@@ -7,7 +7,7 @@
   wrist pose (continuous action) for the same task.
 * ``graspsim/ClutterClear-v0`` (:class:`~graspsim.envs.clutter_clear.ClutterClearEnv`):
   clear a table-top scene of several objects seen by a depth camera, one chosen grasp
-  per step (the clutter-removal protocol of :mod:`graspsim.sim.clutter`).
+  per step (the clutter-removal protocol of :mod:`graspsim.tabletop.clutter`).
 
 All are registered by ``import graspsim`` (Gymnasium 1.x loads no plugin entry points),
 by entry-point strings, so importing graspsim does not import mujoco. Nor does it import
@@ -19,6 +19,9 @@ graspsim first.
 Keyword arguments of ``gymnasium.make`` are :class:`~graspsim.envs.config.EnvConfig`
 fields. For ``make_vec`` use ``autoreset_mode=SAME_STEP`` (one-step episodes; see
 :mod:`graspsim.envs.grasp_select`).
+
+May use: the base modules, geometry, primitives, grippers, grades, maps, plots, perception,
+planning, sim and tabletop (never calibration, the viewer, the apps or the CLI).
 """
 
 from __future__ import annotations

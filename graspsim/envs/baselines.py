@@ -28,15 +28,15 @@ Pure numpy: no mujoco here.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from graspsim.envs.candidates import CANDIDATE_FEATURES
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.maps.robust import executed_width
-from graspsim.stats import wilson_interval
+from graspsim.stats import fit_logistic, wilson_interval
 from graspsim.transforms import make_transform, quat_to_matrix
 
 __all__ = ["random_policy", "highest_grade_policy", "robust_policy", "oracle_choice", "planner_pose", "grasp_features",
@@ -47,9 +47,10 @@ _COL = {name: i for i, name in enumerate(CANDIDATE_FEATURES)}
 FEATURE_NAMES = ("grade", "q_fc", "q_st", "fc_angle", "stability_distance", "width",
                  "approach_z", "closing_z", "tcp_height", "tcp_height_rel", "table_clearance",
                  "cloud_clearance", "points_in_gripper", "points_between_pads", "robust")
-#: The learned policy's features when issue 16 (robust ranking) was filed: all but the
-#: robust score, computed at the map's pre-grasp opening (``grasp_features(...,
-#: opening="map")``) -- nothing the robust score computes (its score, its opening) enters.
+#: The learned policy's features as they were before the robust ranking existed (the
+#: baseline E06 compares the robust score against): all but the robust score, computed at
+#: the map's pre-grasp opening (``grasp_features(..., opening="map")``) -- nothing the
+#: robust score computes (its score, its opening) enters.
 PRE_ROBUST_FEATURES = FEATURE_NAMES[:-1]
 
 
@@ -96,7 +97,7 @@ def oracle_choice(obs: dict, rewards: np.ndarray) -> int:
 def planner_pose(result, rank: str = "robust") -> tuple[np.ndarray, float] | None:
     """(T_world_wrist (4, 4), width [m]) of a plan's best grasp by ``rank`` (the contact
     width, plus twice the extra opening per side its robust score assumed, if any)
-    (``graspsim.planner.plan`` of a world-frame cloud, e.g. with the table known:
+    (``graspsim.planning.planner.plan`` of a world-frame cloud, e.g. with the table known:
     ``PlannerConfig(table=TablePlane(height=0.0))``), or None when the map is empty or,
     ranked robustly, its best grasp scored 0 (it collides with the cloud at its pose
     or no perturbation stays feasible)."""
@@ -171,29 +172,17 @@ class LogisticPolicy:
     mean: np.ndarray | None = None
     scale: np.ndarray | None = None
     weights: np.ndarray | None = None  # (F + 1,), intercept last
-    history: list = field(default_factory=list)
 
     def fit(self, X: np.ndarray, y: np.ndarray, *, iterations: int = 50, tol: float = 1e-8) -> LogisticPolicy:
-        """Fit on features X (M, F) and 0/1 labels y (M,)."""
+        """Fit on features X (M, F) and 0/1 labels y (M,): :func:`graspsim.stats.fit_logistic`
+        on the standardised features (its penalty is per mean log-loss, so ``l2 / 2M``)."""
         X, y = np.asarray(X, float), np.asarray(y, float).reshape(-1)
         if X.ndim != 2 or len(X) != len(y) or len(X) == 0:
             raise InvalidParameterError(f"need X (M, F) and y (M,) with M > 0; got {X.shape}, {y.shape}")
         self.mean = X.mean(axis=0)
         self.scale = np.where(X.std(axis=0) > 1e-12, X.std(axis=0), 1.0)
-        Z = np.column_stack([(X - self.mean) / self.scale, np.ones(len(X))])
-        w = np.zeros(Z.shape[1])
-        reg = self.l2 * np.ones(Z.shape[1])
-        reg[-1] = 0.0  # no penalty on the intercept
-        for _ in range(iterations):
-            p = 1.0 / (1.0 + np.exp(-np.clip(Z @ w, -30, 30)))
-            g = Z.T @ (p - y) + reg * w
-            H = (Z * (p * (1 - p))[:, None]).T @ Z + np.diag(reg) + 1e-9 * np.eye(len(w))
-            step = np.linalg.solve(H, g)
-            w -= step
-            self.history.append(float(np.abs(step).max()))
-            if np.abs(step).max() < tol:
-                break
-        self.weights = w
+        b = fit_logistic((X - self.mean) / self.scale, y, l2=self.l2 / (2 * len(X)), max_iter=iterations, tol=tol)
+        self.weights = np.concatenate([b[1:], b[:1]])  # intercept last
         return self
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:

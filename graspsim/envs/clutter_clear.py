@@ -1,14 +1,14 @@
 """``graspsim/ClutterClear-v0``: clear a table of several objects, one chosen grasp a step.
 
-The clutter-removal protocol of :mod:`graspsim.sim.clutter` with a policy choosing the
-grasp. ``reset`` draws a settled table-top scene (:func:`graspsim.sim.scenes.make_scene`:
+The clutter-removal protocol of :mod:`graspsim.tabletop.clutter` with a policy choosing the
+grasp. ``reset`` draws a settled table-top scene (:func:`graspsim.tabletop.table_scene.make_scene`:
 ``n_objects`` of ``object_set``, ``"pile"`` or ``"packed"``), renders it with one
 D435-like depth camera and plans it (table, segments, every segment planned, grasps
-checked against the whole scene: :func:`graspsim.perception.scene.plan_scene`); the
+checked against the whole scene: :func:`graspsim.planning.scene.plan_scene`); the
 scene's K best grasps are the candidates (less the twins of grasps that failed earlier in
 the episode, which the protocol does not try again). ``step(k)`` executes candidate k (close, lift;
 a lifted object leaves the scene), renders and plans again. Every step of this loop is
-:class:`graspsim.sim.clutter.ClutterEpisode`'s, the same code the ``graspsim scene``
+:class:`graspsim.tabletop.clutter.ClutterEpisode`'s, the same code the ``graspsim scene``
 benchmark runs; only the choice is the policy's.
 
 Observation (``Dict``):
@@ -34,7 +34,7 @@ Termination: the table is clear, ``max_failures`` (2) consecutive grasps failed,
 grasp with a robust score > 0 is left; also a masked (invalid) choice, which ends the
 episode with reward 0 and ``info["outcome"] == "invalid_action"`` without a grasp.
 Truncation: ``max_attempts`` grasps (default 2 x objects + 2) were executed. ``info``
-has ``stop`` (None while running; else :data:`graspsim.sim.clutter.STOPS` or
+has ``stop`` (None while running; else :data:`graspsim.tabletop.clutter.STOPS` or
 ``"invalid_action"``), ``removed``, ``attempts``, ``objects_left`` and, after a grasp, its
 ``outcome`` (the cause: ``success``, ``start_collision_neighbour``, ...), ``success``,
 ``target`` and ``picked``. ``reset(options={"scene": TableScene})`` plays a given scene.
@@ -69,12 +69,12 @@ class ClutterClearEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 2}
 
     def __init__(self, render_mode: str | None = None, *, config: ClutterEnvConfig | None = None, **kwargs):
+        from graspsim.geometry.camera import rig
         from graspsim.grippers import get_gripper
         from graspsim.maps.database import MapDatabase
-        from graspsim.sim.camera import rig
-        from graspsim.sim.clutter import ClutterConfig, scene_settings
-        from graspsim.sim.depth_noise import DepthNoise
         from graspsim.sim.noise import ExecutionNoise
+        from graspsim.tabletop.clutter import ClutterConfig, scene_settings
+        from graspsim.tabletop.depth_noise import DepthNoise
 
         self.config = c = make_clutter_config(config, **kwargs)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -130,7 +130,7 @@ class ClutterClearEnv(gym.Env):
         return self._observation(), self._info()
 
     def _draw_scene(self):
-        from graspsim.sim.scenes import make_scene
+        from graspsim.tabletop.table_scene import make_scene
 
         c = self.config
         seed = int(self.np_random.integers(0, 2**31))
@@ -142,8 +142,8 @@ class ClutterClearEnv(gym.Env):
         return self._scenes[seed]
 
     def _start(self, scene, ep_rng: np.random.Generator, sample_rng: np.random.Generator) -> None:
-        from graspsim.sim.clutter import ClutterEpisode
-        from graspsim.sim.scenes import TableScene
+        from graspsim.tabletop.clutter import ClutterEpisode
+        from graspsim.tabletop.table_scene import TableScene
 
         if not isinstance(scene, TableScene):
             raise InvalidParameterError(f"options['scene'] must be a TableScene, got {type(scene).__name__}")
@@ -212,8 +212,8 @@ class ClutterClearEnv(gym.Env):
         """A fresh frame of the ended episode and its table and segments (None when the
         camera sees too little for a table fit)."""
         from graspsim.errors import PointCloudError
-        from graspsim.perception.scene import perceive_scene
-        from graspsim.sim.camera import backproject
+        from graspsim.geometry.camera import backproject
+        from graspsim.planning.scene import perceive_scene
 
         frame = self.episode.render()
         try:

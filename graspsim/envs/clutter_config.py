@@ -10,12 +10,12 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.generate import MapConfig
+from graspsim.maps.config import MapConfig
 
 __all__ = ["ClutterEnvConfig", "make_clutter_config"]
 
-_KINDS = ("pile", "packed")  # graspsim.sim.scenes.KINDS (not imported: it loads mujoco)
-_MAX_OBJECTS = 30  # graspsim.sim.scenes.MAX_OBJECTS
+_KINDS = ("pile", "packed")  # graspsim.tabletop.table_scene.KINDS (not imported: it loads mujoco)
+_MAX_OBJECTS = 30  # graspsim.tabletop.table_scene.MAX_OBJECTS
 
 
 @dataclass(frozen=True)
@@ -23,7 +23,7 @@ class ClutterEnvConfig:
     """Environment settings.
 
     n_objects, kind (``"pile"`` | ``"packed"``), object_set: the scenes drawn at reset
-        (:func:`graspsim.sim.scenes.make_scene`; sets of :mod:`graspsim.sim.scene_objects`).
+        (:func:`graspsim.tabletop.table_scene.make_scene`; sets of :mod:`graspsim.tabletop.scene_objects`).
     n_candidates: K, candidate grasps offered per step (the scene's ranking, best first).
     cloud_size: N, points of the observed depth cloud (a fixed-size sample of the frame's
         back-projected points, with repeats when it has fewer).
@@ -67,7 +67,7 @@ class ClutterEnvConfig:
             raise InvalidParameterError(f"max_attempts must be an integer >= 1 or None, got {m!r}")
         if self.kind not in _KINDS:
             raise InvalidParameterError(f"kind {self.kind!r} unknown; valid: {list(_KINDS)}")
-        from graspsim.sim.scene_objects import OBJECT_SETS
+        from graspsim.tabletop.scene_objects import OBJECT_SETS
 
         if self.object_set not in OBJECT_SETS:
             raise InvalidParameterError(f"object_set {self.object_set!r} unknown; valid: {sorted(OBJECT_SETS)}")

@@ -15,7 +15,7 @@ import numpy as np
 
 from graspsim.envs.objects import resolve_object_set
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.generate import MapConfig
+from graspsim.maps.config import MapConfig
 from graspsim.maps.robust import DEFAULT_OPENINGS, POSITION_SIGMA, ROTATION_SIGMA
 
 __all__ = ["EnvConfig", "Perception", "RewardMode", "View", "make_config"]
@@ -65,7 +65,7 @@ class EnvConfig:
     identify_repetitions: MLESAC repetitions of the identification (paper: 10).
     perception: ``"cloud"`` (default): the planner identifies the object in the sensor
         cloud, as the paper's run-time stage; ``"model"``: it is given the true
-        primitives and pose (:func:`graspsim.planner.plan_shape`) -- no identification
+        primitives and pose (:func:`graspsim.planning.planner.plan_shape`) -- no identification
         error, and a reset costs little more than the map's retrieval (GraspSelect).
     max_redraws: objects drawn per reset before giving up when none offers a valid
         candidate (GraspSelect).
@@ -76,7 +76,7 @@ class EnvConfig:
         ``extra_opening`` candidate column). ``(0.0,)``: the map's opening, as the
         paper.
     gripper: the gripper: a registered name (``"festo_hgpl_25_60_a"``, ``"franka_hand"``),
-        a spec .json or a :class:`~graspsim.gripper.GripperSpec`; its own FS maps (the
+        a spec .json or a :class:`~graspsim.grippers.spec.GripperSpec`; its own FS maps (the
         database keys maps by the gripper) and its own simulated model. The objects' widths
         are drawn within what it spans (:func:`graspsim.envs.objects.size_limits`: its
         stroke; the Festo takes the sets' full ranges).

@@ -58,10 +58,11 @@ from graspsim.envs.base import WORLD_BOUND, TableTask, pose_vector
 from graspsim.envs.candidates import CANDIDATE_FEATURES, candidate_features, feature_bounds
 from graspsim.envs.config import EnvConfig, Perception
 from graspsim.errors import GraspsimError, InvalidParameterError, NoFeasibleGraspError
+from graspsim.geometry.table import TablePlane
 from graspsim.maps.robust import RobustConfig, executed_width
 from graspsim.maps.scaling import ScalingConfig
 from graspsim.perception import IdentifyConfig
-from graspsim.planner import PlannerConfig, PlanResult, TablePlane, plan, plan_shape
+from graspsim.planning.planner import PlannerConfig, PlanResult, plan, plan_shape
 
 __all__ = ["GraspSelectEnv"]
 

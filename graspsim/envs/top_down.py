@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.robust import RobustConfig, score_poses
 from graspsim.transforms import frame_from_axes, make_transform
 

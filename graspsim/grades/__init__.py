@@ -1,5 +1,9 @@
 """Grade models for graspability maps: the paper's grade (default) and a calibrated
-flat-pad contact grade, with the cheap per-grasp features they use."""
+flat-pad contact grade, with the cheap per-grasp features they use.
+
+May use: the base modules, geometry, primitives and grippers (never maps or anything
+above: maps are graded with these).
+"""
 
 from __future__ import annotations
 
@@ -16,7 +20,6 @@ from graspsim.grades.models import (
     GRADE_NAMES,
     LogisticGrade,
     PaperGrade,
-    default_model_path,
     get_grade,
     regrade,
 )

@@ -108,7 +108,7 @@ _serial_only = False
 def serial_only() -> None:
     """Run the kernel on the calling thread only from now on, in this process: for a
     child forked after the parent ran the parallel kernel, where GNU OpenMP would
-    terminate it (the scene's worker processes, :mod:`graspsim.perception.scene_workers`)."""
+    terminate it (the scene's worker processes, :mod:`graspsim.planning.scene_workers`)."""
     global _serial_only
     _serial_only = True
 

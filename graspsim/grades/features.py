@@ -42,7 +42,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.primitives import shape_from_dict
 from graspsim.transforms import angle_between, normalize, quat_to_matrix
 

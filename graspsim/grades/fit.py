@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graspsim.calibration import stats
+from graspsim import stats
 from graspsim.errors import InvalidParameterError
 from graspsim.grades.features import FeatureConfig
 from graspsim.grades.models import LogisticGrade

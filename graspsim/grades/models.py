@@ -35,10 +35,10 @@ from scipy.special import expit
 
 from graspsim.errors import GripperError, InvalidParameterError
 from graspsim.grades.features import FEATURES, FeatureConfig, map_features
-from graspsim.quality import QualityModel
+from graspsim.grades.paper import QualityModel
 
 __all__ = ["PaperGrade", "LogisticGrade", "get_grade", "regrade", "GRADE_NAMES",
-           "default_model_path", "model_path", "gripper_identity", "check_gripper"]
+           "model_path", "gripper_identity", "check_gripper"]
 
 GRADE_NAMES = ("paper", "pad_contact")
 log = logging.getLogger(__name__)
@@ -54,11 +54,6 @@ def model_path(gripper: str = FESTO) -> Path:
         raise GripperError(f"a grade model's gripper is a gripper name, got {gripper!r}")
     name = "grade_model.json" if gripper == FESTO else f"grade_model.{gripper}.json"
     return Path(str(resources.files("graspsim") / "data" / name))
-
-
-def default_model_path() -> Path:
-    """The shipped calibrated model of the default (Festo) gripper."""
-    return model_path(FESTO)
 
 
 def gripper_identity(spec) -> dict:
@@ -94,7 +89,7 @@ def _rows(gmap, rows):
 
 @dataclass(frozen=True)
 class PaperGrade:
-    """The paper's grade, w q_fc + (1 - w) q_st, of the map's contacts (DESIGN.md §5)."""
+    """The paper's grade, w q_fc + (1 - w) q_st, of the map's contacts (docs/design.md §5)."""
 
     quality: QualityModel = QualityModel()
 

@@ -1,10 +1,14 @@
 """Named grippers: the registry behind every ``gripper=`` argument and ``--gripper``.
 
 ``get_gripper("festo_hgpl_25_60_a" | "franka_hand" | "path/to/spec.json")`` returns a
-:class:`~graspsim.gripper.GripperSpec`. A JSON file holds ``GripperSpec.to_dict()``'s
+:class:`~graspsim.grippers.spec.GripperSpec`. A JSON file holds ``GripperSpec.to_dict()``'s
 fields (any subset; missing ones take the defaults); it is validated on loading and a
 bad one is a one-line :class:`~graspsim.errors.GripperError`. Specs without a vendored
 ``model`` are simulated with the box model generated from the spec.
+
+Holds the spec (:mod:`~graspsim.grippers.spec`: ``GripperSpec``, ``HGPL_25_60_A``), the
+registry (here), the Franka hand's measured spec, the vendored models' mounts and the
+gripper's wireframe. May use: the base modules and geometry only.
 """
 
 from __future__ import annotations
@@ -13,8 +17,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from graspsim.errors import GripperError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
 from graspsim.grippers.franka import franka_hand_mount, franka_hand_spec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.grippers.vendored import Mount, mjcf_root, model_folder
 
 __all__ = ["GRIPPERS", "DEFAULT_GRIPPER", "get_gripper", "gripper_names", "load_gripper_json", "mount",

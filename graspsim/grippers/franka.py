@@ -1,7 +1,7 @@
 """The Franka Emika hand: its :class:`GripperSpec` measured from the vendored model.
 
 Nothing here is typed in from a data sheet: the boxes, the stroke, the force and the
-closing speed are read from ``graspsim/mjcf/franka_hand/franka_hand.xml`` (converted from the
+closing speed are read from ``mjcf/franka_hand/franka_hand.xml`` (converted from the
 maker's URDF) and from its collision meshes (MuJoCo collides with their convex hulls).
 
 Frame mapping. The hand frame H of the URDF has z = approach and the fingers closing
@@ -27,7 +27,7 @@ import functools
 
 import numpy as np
 
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.grippers.vendored import Mount, model_folder
 
 __all__ = ["franka_hand_spec", "franka_hand_mount", "hand_to_wrist", "PAD_TOL"]

@@ -1,6 +1,6 @@
 """Vendored MuJoCo gripper models: where they live and how they mount on the wrist.
 
-A vendored model (``graspsim/mjcf/<name>/<name>.xml``, authored outside graspsim) is simulated
+A vendored model (``mjcf/<name>/<name>.xml``, authored outside graspsim) is simulated
 as it is: :func:`graspsim.sim.vendored.build_vendored_gripper_spec` attaches its root
 body under the harness's wrist body at ``T_wrist_root``. A :class:`Mount` names the
 elements the trial harness needs: the two jaw joints (value = half the pad gap [m]),
@@ -37,7 +37,7 @@ class Mount:
 
 
 def mjcf_root() -> Path:
-    """``graspsim/mjcf``: the model folders, installed with the package (package data)."""
+    """``mjcf``: the model folders, installed with the package (package data)."""
     from graspsim._resources import package_path
 
     return package_path("mjcf")

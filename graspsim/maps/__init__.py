@@ -1,8 +1,13 @@
-"""Graspability maps: data structure, FS generation, metrics, storage, database."""
+"""Graspability maps: data structure, FS generation, metrics, storage, database.
+
+May use: the base modules, geometry, primitives, grippers and grades (never perception,
+planning, sim or anything above).
+"""
 
 from __future__ import annotations
 
-from graspsim.maps.generate import MapConfig, generate_fs_map
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
 from graspsim.maps.io import load_map, read_sim_results, save_map, write_sim_results
 from graspsim.maps.preflight import estimate_map_memory, memory_budget

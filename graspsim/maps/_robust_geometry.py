@@ -9,7 +9,7 @@ import json
 
 import numpy as np
 
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 
 __all__ = ["object_points", "cloud_in_object", "map_table", "table_rows", "merged_boxes"]
 

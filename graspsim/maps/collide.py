@@ -19,10 +19,11 @@ from __future__ import annotations
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
-from graspsim.maps.generate import ClosingLines, MapConfig, sweep_collisions
+from graspsim.grippers.spec import GripperSpec
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import ClosingLines, sweep_collisions
 
-__all__ = ["boxes_clear_sdf", "collision_free", "poses_collision_free", "grasps_collision_free"]
+__all__ = ["boxes_clear_sdf", "collision_free", "grasps_collision_free"]
 
 
 def _check_openings(gripper: GripperSpec, opening: np.ndarray) -> None:
@@ -99,16 +100,6 @@ def collision_free(shape, gripper: GripperSpec, T_obj_wrist: np.ndarray, opening
     free, _ = sweep_collisions(shape, lines, gripper, cfg, threads, rolls=np.zeros(1),
                                depths=np.array([d0]))
     return free[:, 0, 0].astype(bool)
-
-
-def poses_collision_free(shape, gripper: GripperSpec, T_obj_wrist: np.ndarray, opening: np.ndarray,
-                         config: MapConfig | None = None, *, small: int = 48) -> np.ndarray:
-    """Either implementation, by batch size: branch and bound for up to ``small`` poses
-    (no set-up), the compiled sweep beyond."""
-    cfg = config or MapConfig()
-    if len(np.asarray(T_obj_wrist).reshape(-1, 4, 4)) <= small:
-        return boxes_clear_sdf(shape, gripper, T_obj_wrist, opening, cfg.collision_tolerance)
-    return collision_free(shape, gripper, T_obj_wrist, opening, cfg)
 
 
 def grasps_collision_free(shape, gripper: GripperSpec, gp: np.ndarray, R: np.ndarray,

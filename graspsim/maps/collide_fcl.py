@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from graspsim.errors import DependencyNotInstalled
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 
 __all__ = ["FclChecker", "penetration_depth"]
 

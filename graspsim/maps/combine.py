@@ -15,15 +15,16 @@ import time
 
 import numpy as np
 
-from graspsim import __version__
+from graspsim._version import __version__
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
+from graspsim.grades.paper import QualityModel, stability_distance
+from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.collide import grasps_collision_free
-from graspsim.maps.generate import MapConfig, object_description
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
 from graspsim.maps.rowids import row_ids
 from graspsim.primitives import Compound
-from graspsim.quality import QualityModel, stability_distance
 from graspsim.transforms import invert_transform, matrix_to_quat, quat_multiply, quat_to_matrix
 
 __all__ = ["combine_maps", "combine_part"]

@@ -1,4 +1,4 @@
-"""The graspability map: one row per grasp, columnar arrays plus metadata (DESIGN.md §6).
+"""The graspability map: one row per grasp, columnar arrays plus metadata (docs/design.md §6).
 
 Poses are wrist poses in the object frame (origin at the centre of mass). Geometry is
 stored as float32 (sub-micrometre at object scale), which halves the memory of the
@@ -7,19 +7,19 @@ million-grasp maps the surface-to-voxel method produces.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from graspsim.errors import InvalidMapError, InvalidParameterError
-from graspsim.gripper import GripperSpec
-from graspsim.quality import QualityModel
+from graspsim.grades.paper import QualityModel
+from graspsim.grippers.spec import GripperSpec
 from graspsim.transforms import quat_to_matrix
 
 if TYPE_CHECKING:
-    from graspsim.maps.generate import MapConfig
+    from graspsim.maps.config import MapConfig
 
 __all__ = ["GraspabilityMap", "MapMeta", "Placement", "COLUMNS", "OPTIONAL_COLUMNS"]
 
@@ -89,7 +89,7 @@ class MapMeta:
     @cached_property
     def map_config(self) -> MapConfig:
         """The generation settings recorded in ``resolution`` (defaults for missing ones)."""
-        from graspsim.maps.generate import MapConfig
+        from graspsim.maps.config import MapConfig
 
         return MapConfig(**{k: v for k, v in self.resolution.items() if k in MapConfig.__dataclass_fields__})
 
@@ -109,14 +109,14 @@ class MapMeta:
     @property
     def surface_step(self) -> float:
         """[m] (the map settings' default if unrecorded)."""
-        from graspsim.maps.generate import MapConfig
+        from graspsim.maps.config import MapConfig
 
         return float(self.resolution.get("surface_step", MapConfig.surface_step))
 
     @property
     def rotation_step(self) -> float:
         """[rad] (the map settings' default if unrecorded)."""
-        from graspsim.maps.generate import MapConfig
+        from graspsim.maps.config import MapConfig
 
         return float(self.resolution.get("rotation_step", MapConfig.rotation_step))
 
@@ -124,6 +124,11 @@ class MapMeta:
     def placement(self) -> Placement | None:
         """Where an adapted map's object was seen (None for other maps)."""
         return Placement.from_extra(self.extra)
+
+    @cached_property
+    def gripper_adaptation(self) -> GripperAdaptation | None:
+        """How a map carried to another gripper was made (None for other maps)."""
+        return GripperAdaptation.from_extra(self.extra)
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,6 +161,34 @@ class Placement:
         if self.table is None:
             return None
         return self.T_cloud_obj[:3, :3].T @ np.asarray(self.table["normal"], float)
+
+
+@dataclass(frozen=True)
+class GripperAdaptation:
+    """A map carried to another gripper (:func:`graspsim.maps.regrip.adapt_to_gripper`):
+    source_grasps: the source map's grasps above ``source_min_grade``; fit_opening: those
+    the new gripper's opening spans; quality_pose: carried at the same pad place;
+    feasibility_pose: carried with the wrist kept. Stored in ``MapMeta.extra``."""
+
+    source_grasps: int
+    fit_opening: int
+    quality_pose: int
+    feasibility_pose: int
+    source_min_grade: float
+
+    def to_dict(self) -> dict:
+        return {"source_grasps": self.source_grasps, "fit_opening": self.fit_opening,
+                "quality_pose": self.quality_pose, "feasibility_pose": self.feasibility_pose,
+                "source_min_grade": self.source_min_grade}
+
+    def to_extra(self) -> dict:
+        """The ``MapMeta.extra`` entry that records it."""
+        return {"gripper_adaptation": self.to_dict()}
+
+    @classmethod
+    def from_extra(cls, extra: dict) -> GripperAdaptation | None:
+        d = extra.get("gripper_adaptation")
+        return None if d is None else cls(**{k: d[k] for k in cls.__dataclass_fields__})
 
 
 @dataclass(frozen=True, eq=False)
@@ -306,7 +339,9 @@ class GraspabilityMap:
         if n <= 0 or len(self) == 0:
             return np.zeros(0, int)
         cell = float(cell or self.meta.surface_step)
-        key = np.floor(self.contacts[:, 0] / cell).astype(np.int64)
+        c = self.contacts[:, 0]
+        where = np.where(np.isfinite(c).all(axis=1)[:, None], c, self.grasp_point)  # no contacts: the TCP
+        key = np.floor(where / cell).astype(np.int64)
         _, inverse = np.unique(key, axis=0, return_inverse=True)
         inverse = inverse.ravel()
         n_cells = inverse.max() + 1
@@ -332,22 +367,21 @@ class GraspabilityMap:
         return replace(self, meta=replace(self.meta, **changes))
 
     def summary(self) -> dict:
-        g = self.grade
+        """Counts and grade statistics; a map without grades (imported from a third-party
+        grasp file: NaN grades) has ``graded`` 0 and no grade mean / max."""
+        g = self.grade[np.isfinite(self.grade)]
         return {
             "object": self.meta.object,
             "method": self.meta.method,
             "grasps": int(len(self)),
+            "graded": int(len(g)),
             "accepted": int(self.accepted.sum()),
             "threshold": self.threshold,
             "grade_mean": float(g.mean()) if len(g) else None,
             "grade_max": float(g.max()) if len(g) else None,
-            "parts": int(self.part.max() + 1) if len(g) else 0,
+            "parts": int(self.part.max() + 1) if len(self) else 0,
         }
 
     def __repr__(self) -> str:
         return (f"GraspabilityMap({len(self)} grasps, {int(self.accepted.sum())} accepted, "
                 f"method={self.meta.method!r}, object={self.meta.object.get('primitive')})")
-
-
-def meta_fields() -> list[str]:
-    return [f.name for f in fields(MapMeta)]

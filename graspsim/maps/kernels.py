@@ -14,7 +14,7 @@ run on threads.
   process, started on first use): the kernels
   release the GIL, so this is as parallel as numba's ``prange`` without its compile
   cost.
-* :func:`compile_all` compiles (or loads) every other compiled kernel too -- those
+* :func:`graspsim.maps.warmup.compile_all` compiles (or loads) every other compiled kernel too -- those
   identification, the robust score, collision samples and the pad-contact grade compile
   on their first call -- by calling each once on a tiny input through the code that
   calls it in planning, so that it is compiled for the types planning passes.
@@ -32,7 +32,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, as_completed, wait
 from types import ModuleType
 
-__all__ = ["ensure_compiled", "compile_all", "compiled_kernels", "kernels", "cache_dir", "default_threads",
+__all__ = ["ensure_compiled", "cache_misses", "kernels", "cache_dir", "default_threads",
            "run_chunks"]
 
 log = logging.getLogger(__name__)
@@ -60,7 +60,7 @@ def ensure_compiled() -> bool:
             return False
         k = _import_kernel()
         k.probe.compile(())
-        cold = _misses(k.probe) > 0
+        cold = cache_misses(k.probe) > 0
         if cold:
             log.warning("compiling map kernels (first run only; cached in %s) ...", cache_dir())
         t0 = time.perf_counter()
@@ -71,7 +71,7 @@ def ensure_compiled() -> bool:
             fn = getattr(k, name)
             fn.compile(sig)
             fn.disable_compile()  # calls with other types fail instead of compiling again
-            compiled += _misses(fn) > 0
+            compiled += cache_misses(fn) > 0
             if cold:
                 log.info("  [%d/%d] %s %.1f s", i + 1, n, name.strip("_"), time.perf_counter() - t)
         if compiled:
@@ -80,78 +80,14 @@ def ensure_compiled() -> bool:
         return bool(compiled)
 
 
-#: The modules of graspsim's compiled kernels: the map kernels' and those compiled on their first call.
-KERNEL_MODULES = ("graspsim.maps._kernel", "graspsim.maps._assemble_kernel", "graspsim.maps._hierarchy_kernel",
-                  "graspsim.maps._robust_kernel", "graspsim.maps._robust_blocks", "graspsim.maps._occlusion_kernel",
-                  "graspsim.perception._sdf_kernel",
-                  "graspsim.perception._spacing_kernel", "graspsim.grades._pads")
-
-
-def compiled_kernels() -> dict:
-    """Every compiled kernel of graspsim by qualified name (numba dispatchers)."""
-    import importlib
-
-    from numba.core.registry import CPUDispatcher
-
-    out = {}
-    for name in KERNEL_MODULES:
-        mod = importlib.import_module(name)
-        out.update({f"{name}.{k}": v for k, v in vars(mod).items() if isinstance(v, CPUDispatcher)})
-    return out
-
-
-def compile_all(*, parallel: bool = True) -> bool:
-    """Compile (first run on a machine) or load from the cache every compiled kernel:
-    the map kernels (:func:`ensure_compiled`), then the others by running each once on
-    a tiny input through the function planning calls it from (so for the argument types
-    planning passes). ``parallel``: also the pad-contact grade's multi-threaded kernel
-    (running it starts numba's thread pool in this process; a process that will fork
-    scene workers can do without). Returns True if anything was compiled."""
-    import numpy as np
-
-    from graspsim.grades._pads import SERIAL_BELOW, run_pad_patches
-    from graspsim.gripper import HGPL_25_60_A
-    from graspsim.maps.generate import MapConfig
-    from graspsim.maps.hierarchy import build_levels, clusters
-    from graspsim.maps.robust import score_poses
-    from graspsim.perception.prepare import median_spacing
-    from graspsim.perception.shapes import DIM_NAMES, KINDS, sdf_function
-    from graspsim.primitives import Box
-
-    compiled = ensure_compiled()
-    before = {k: _misses(v) for k, v in compiled_kernels().items()}
-    t0 = time.perf_counter()
-    pts = np.random.default_rng(0).normal(0.0, 0.02, (40, 3))
-    for kind in KINDS:  # identification's distances
-        k = len(DIM_NAMES[kind])
-        sdf_function(kind, pts)(np.eye(3)[None], np.zeros((1, 3)), np.full((1, k), 0.02))
-    median_spacing(pts)  # point spacing (identification, the occlusion term's depth image)
-    T = np.eye(4)[None].copy()
-    T[0, 2, 3] = 0.1
-    c = np.array([[[-0.02, 0.0, 0.0], [0.02, 0.0, 0.0]]])
-    score_poses(T, np.array([0.04]), c, -c / 0.02, pts, HGPL_25_60_A,  # the robust score's kernels
-                table=(np.array([0.0, 0.0, 1.0]), -0.1), viewpoint=np.array([0.0, 0.0, 0.5]))
-    coarse = MapConfig(collision_step=0.01, collision_tolerance=0.004)
-    lv = build_levels(Box(0.03, 0.03, 0.03), coarse)  # collision samples
-    clusters(lv["Q"], lv["RT"] + lv["HN"])
-    for n in ((1, SERIAL_BELOW) if parallel else (1,)):  # the pad-contact grade's, serial and threaded
-        run_pad_patches(pts, np.tile([0.0, 0.0, 1.0], (len(pts), 1)), np.full(len(pts), 1e-6),
-                        np.repeat(np.eye(3)[None], n, axis=0), np.zeros((n, 3)), 0.01, 0.0, 0.02, 0.001)
-    after = {k: _misses(v) for k, v in compiled_kernels().items()}
-    now = sum(after.values()) > sum(before.get(k, 0) for k in after)
-    if now:
-        log.warning("compiled the planning kernels in %.1f s (first run only; cached in %s)",
-                    time.perf_counter() - t0, cache_dir())
-    return compiled or now
-
-
 def cache_dir() -> str | None:
     """Folder of the kernels' on-disk cache."""
     k = _import_kernel()
     return k.probe.stats.cache_path
 
 
-def _misses(fn) -> int:
+def cache_misses(fn) -> int:
+    """Compilations a numba dispatcher did not find in its on-disk cache."""
     return sum(fn.stats.cache_misses.values())
 
 

@@ -44,8 +44,9 @@ from enum import Enum
 from typing import Any
 
 from graspsim.errors import InvalidParameterError
+from graspsim.primitives import make_primitive
 
-__all__ = ["MatchKind", "MatchDecision", "match_entries", "covers", "KNOWN_TOL"]
+__all__ = ["MatchKind", "MatchDecision", "match_entries", "classify_match", "covers", "KNOWN_TOL"]
 
 #: The relative tolerance of *known* (3 %): a stored map serves a primitive unscaled
 #: only when no dimension differs by more than this fraction. Its bound is what scaling
@@ -166,3 +167,11 @@ def match_entries(kind: str, dims: dict[str, float], entries: Iterable[dict], *,
         return MatchDecision(MatchKind.BUILD, None, math.inf, math.inf)
     r, d, e = best
     return MatchDecision(MatchKind.FAMILIAR if r <= max_ratio else MatchKind.BUILD, e, d, r)
+
+
+def classify_match(kind: str, dims: dict[str, float], stored: list[dict], *,
+                   tol: float = KNOWN_TOL) -> MatchDecision:
+    """:func:`match_entries` for primitive ``kind`` with ``dims`` [m] (validated) against
+    index records ``stored``, with no scaling limit: FAMILIAR whenever a map of the kind
+    is stored, BUILD when none is."""
+    return match_entries(make_primitive(kind, **dims).kind, dims, stored, tol=tol)

@@ -1,5 +1,5 @@
 """Map quality metrics: surface rate SR and volume rate VR (paper eqs. 7-8), and the
-voxel view of a map (DESIGN.md §6).
+voxel view of a map (docs/design.md §6).
 
 * SR: the object's surface is divided into pixels (the surface samples at the map's
   surface step); SR = share of pixels holding a contact of at least one grasp whose
@@ -20,7 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
 
 __all__ = ["MapRates", "map_rates", "relative_rates", "voxel_keys", "orientation_bins"]

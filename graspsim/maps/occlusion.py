@@ -23,8 +23,8 @@ import numpy as np
 from scipy.ndimage import minimum_filter
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
-from graspsim.perception.prepare import median_spacing
+from graspsim.geometry.spacing import median_spacing
+from graspsim.grippers.spec import GripperSpec
 
 __all__ = ["ViewDepth", "finger_samples", "finger_occlusion"]
 

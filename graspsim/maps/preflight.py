@@ -38,7 +38,8 @@ __all__ = ["MapEstimate", "estimate_map_memory", "collision_sample_count", "chec
 #: ("4GiB", "512M") or a percentage of the machine's memory ("50%").
 BUDGET_ENV = "GRASPSIM_MEMORY_BUDGET"
 #: Default budget: half the machine's memory, at most DEFAULT_CAP. The cap keeps any one
-#: command's peak resident memory under 4 GiB (issue 13): the budget bounds the map
+#: command's peak resident memory under 4 GiB, so that every command runs on a machine with
+#: 4 GiB to spare (a small CI runner, a laptop): the budget bounds the map
 #: (its estimate exceeds the measured growth by 1.2-1.5x, bench_map_preflight), and the
 #: process itself -- interpreter, numpy/scipy/numba and the compiled kernels -- holds
 #: another ~0.25 GiB. The paper's largest FS map needs 0.5 GiB: seven times below it.
@@ -161,7 +162,7 @@ def estimate_map_memory(shape, gripper, config) -> MapEstimate:
     """Counts of what :func:`~graspsim.maps.generate.generate_fs_map` allocates for
     ``shape`` (Primitive or Compound), from its surface area and the sampling steps
     (a few hundred coarse samples; nothing the size of the map)."""
-    from graspsim.maps.generate import closing_direction_count, roll_count
+    from graspsim.maps.config import closing_direction_count, roll_count
 
     parts = getattr(shape, "parts", (shape,))
     # sampling grids fit whole cells into each patch: up to ~15 % more samples than

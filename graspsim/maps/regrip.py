@@ -33,10 +33,10 @@ from dataclasses import replace
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.collide import grasps_collision_free
-from graspsim.maps.generate import MapConfig
-from graspsim.maps.graspmap import OPTIONAL_COLUMNS, GraspabilityMap
+from graspsim.maps.config import MapConfig
+from graspsim.maps.graspmap import OPTIONAL_COLUMNS, GraspabilityMap, GripperAdaptation
 from graspsim.maps.rowids import row_ids
 from graspsim.transforms import quat_to_matrix
 
@@ -145,9 +145,9 @@ def adapt_to_gripper(gmap: GraspabilityMap, gripper: GripperSpec, *, config: Map
     out = replace(gmap.select(rows[keep]), **{k: None for k in OPTIONAL_COLUMNS},
                   wrist_position=gripper.wrist_from_grasp_point(gp[keep], z[keep], depth))
     extra = {**gmap.meta.extra, "source_gripper": source.to_dict(), "source_method": gmap.meta.method,
-             "gripper_adaptation": {"source_grasps": int(len(rows)), "fit_opening": int(fits.sum()),
-                                    "quality_pose": int(len(kept)), "feasibility_pose": int(free_f.sum()),
-                                    "source_min_grade": src_min}}
+             **GripperAdaptation(source_grasps=int(len(rows)), fit_opening=int(fits.sum()),
+                                 quality_pose=int(len(kept)), feasibility_pose=int(free_f.sum()),
+                                 source_min_grade=src_min).to_extra()}
     out = _regraded(out.with_meta(gripper=gripper.to_dict(), method="gripper/combined", extra=extra,
                                   resolution={**gmap.meta.resolution, "n_depth": n_grid}))
     keep_min = out.threshold if keep_min_grade is None else float(keep_min_grade)
@@ -166,7 +166,7 @@ def _regraded(gmap: GraspabilityMap) -> GraspabilityMap:
         return gmap
     from graspsim.errors import GripperError
     from graspsim.grades.models import FESTO, LogisticGrade, PaperGrade, get_grade
-    from graspsim.quality import QualityModel
+    from graspsim.grades.paper import QualityModel
 
     name = str(gmap.meta.gripper.get("name"))
     model = LogisticGrade.from_dict(spec)

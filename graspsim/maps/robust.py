@@ -40,7 +40,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.maps._robust_geometry import cloud_in_object, map_table, merged_boxes, object_points, table_rows
 from graspsim.transforms import make_transform, quat_to_matrix
 

@@ -33,15 +33,16 @@ from enum import Enum
 
 import numpy as np
 
-from graspsim import __version__
+from graspsim._version import __version__
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import GripperSpec
+from graspsim.grades.paper import QualityModel
+from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.collide import grasps_collision_free
-from graspsim.maps.generate import MapConfig, object_description
+from graspsim.maps.config import MapConfig
+from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
 from graspsim.maps.table import stream_order
 from graspsim.primitives import Primitive
-from graspsim.quality import QualityModel
 from graspsim.transforms import quat_to_matrix
 
 __all__ = ["ScalingMethod", "ScalingConfig", "scale_map", "scale_stream", "scale_factors"]

@@ -1,6 +1,10 @@
 """Run-time perception (paper 2.2-2.3): point-cloud input, minimum-volume bounding
 boxes and the hierarchical fit-and-split, MLESAC primitive fitting, the four shape
-features, rule-based identification, and the known/familiar decision."""
+features, rule-based identification, and the known/familiar decision.
+
+May use: the base modules, geometry and primitives only (never maps, planning or
+anything above): it turns clouds into identified primitives and nothing else.
+"""
 
 from __future__ import annotations
 
@@ -16,7 +20,6 @@ from graspsim.perception.identify import (
     identify_cluster,
 )
 from graspsim.perception.io import LoadedCloud, check_cloud, read_point_cloud
-from graspsim.perception.match import MatchDecision, MatchKind, classify_match
 from graspsim.perception.mlesac import ModelFit, fit_model, mixture_loglik
 from graspsim.perception.mvbb import OrientedBox, min_volume_box, pca_box
 from graspsim.perception.normals import LocalSurface, estimate_local_surface, remove_outliers
@@ -28,7 +31,6 @@ __all__ = [
     "Identification", "IdentificationStatus", "IdentifyConfig", "PartResult",
     "identify", "identify_cluster",
     "LoadedCloud", "check_cloud", "read_point_cloud", "read_depth_image",
-    "MatchDecision", "MatchKind", "classify_match",
     "ModelFit", "fit_model", "mixture_loglik",
     "OrientedBox", "min_volume_box", "pca_box",
     "LocalSurface", "estimate_local_surface", "remove_outliers",

@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from graspsim.perception.shapes import model_sdf
+from graspsim.primitives.sdf import model_sdf
 
 __all__ = ["N_PARAMS", "surface_area", "data_scale", "inlier_band", "band_rate", "decomposition_score",
            "model_distance"]
@@ -41,7 +41,7 @@ N_PARAMS: dict[str, int] = {"sphere": 4, "cylinder": 7, "box": 9, "cone": 8, "ha
 
 def surface_area(kind: str, dims) -> float:
     """Surface area [m^2] of a model of ``kind`` with fit dims (see
-    :data:`~graspsim.perception.shapes.DIM_NAMES`), its end faces included; the
+    :data:`~graspsim.primitives.sdf.DIM_NAMES`), its end faces included; the
     half-toroid's is half a torus and its two end discs."""
     d = [float(v) for v in dims]
     if kind == "sphere":

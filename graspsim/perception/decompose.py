@@ -31,16 +31,17 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from graspsim.errors import PrimitiveError
+from graspsim.geometry.spacing import median_spacing
 from graspsim.perception.acceptance import band_rate, data_scale, decomposition_score, inlier_band, model_distance
 from graspsim.perception.classify import Shape
-from graspsim.perception.identify import Cloud, PartResult
+from graspsim.perception.cluster import Cloud
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.mlesac import fit_from, rescore
 from graspsim.perception.mvbb import min_volume_box
-from graspsim.perception.prepare import median_spacing
 from graspsim.perception.profile import profile_segments
-from graspsim.perception.shapes import fit_to_object
+from graspsim.perception.results import PartResult
 from graspsim.perception.split import best_split, theta_star
+from graspsim.primitives.sdf import fit_to_object
 
 __all__ = ["keep_going", "settled"]
 
@@ -133,7 +134,7 @@ def _peel(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> list[PartResult] | No
     body = _axis_fit(part)
     if body is None:
         return None
-    from graspsim.perception.shapes import model_sdf
+    from graspsim.primitives.sdf import model_sdf
 
     sd = model_sdf(body.kind, body.R[None], body.t[None], body.dims[None], ctx.cloud.points[idx])[0]
     out = np.nan_to_num(sd, nan=0.0) > ctx.band

@@ -2,7 +2,7 @@
 
 A one-channel PNG or TIFF (16-bit millimetres, as RealSense and most RGB-D drivers write
 them; 32-bit integer or float too) or a ``.npy`` (H, W) array. Back-projection with the
-camera's intrinsics is :func:`graspsim.sim.camera.backproject`'s (``graspsim plan-scene
+camera's intrinsics is :func:`graspsim.geometry.camera.backproject`'s (``graspsim plan-scene
 DEPTH --camera d435``).
 """
 

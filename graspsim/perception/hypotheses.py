@@ -2,7 +2,7 @@
 Schnabel et al. 2007), vectorised over H samples.
 
 Each solver takes the cloud, its normals and sample indices (H, m) and returns poses
-and dims in the fit frames of :mod:`graspsim.perception.shapes`, plus a validity mask.
+and dims in the fit frames of :mod:`graspsim.primitives.sdf`, plus a validity mask.
 Extents a minimal sample cannot see (a cylinder's height, a box's edges, a cone's cut
 heights, which half of a torus is kept) are completed from the cloud: robust extremes
 of the points consistent with the hypothesised surface.

@@ -56,7 +56,7 @@ class IdentifyConfig:
     candidate clusters; part indices still refer to every input point); fit_points: in
     robust mode a cloud denser than this is voxel-downsampled to at most this many points
     before anything else (None, the default: only ``max_points`` applies; scene planning
-    sets it, see :class:`~graspsim.perception.scene.SceneConfig`; on a dense cloud with
+    sets it, see :class:`~graspsim.planning.scene.SceneConfig`; on a dense cloud with
     noise above its spacing, thinning loses what the noise estimate and the refinements
     gain from many points: a weak taper, the end of a side); paper mode never applies
     it. Build either with :meth:`preset`."""

@@ -13,7 +13,9 @@ element; elements before it may not contain list properties); ``.npy`` arrays of
 
 from __future__ import annotations
 
+import json
 import logging
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,9 +23,10 @@ from pathlib import Path
 import numpy as np
 
 from graspsim.errors import PointCloudError
+from graspsim.geometry.camera import Camera
 from graspsim.perception.prepare import MAX_EXTENT, as_coordinates, canonical_points, check_extent, to_metres
 
-__all__ = ["LoadedCloud", "read_point_cloud", "check_cloud", "lzf_decompress", "MIN_POINTS"]
+__all__ = ["LoadedCloud", "read_point_cloud", "read_camera", "check_cloud", "lzf_decompress", "MIN_POINTS"]
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +48,7 @@ class LoadedCloud:
     NaN/inf coordinate; n_read: points in the file; fmt: e.g. ``pcd/binary``; units:
     of the file's coordinates (converted to metres); viewpoint: (3,) where the cloud was
     seen from, file frame [m], when a camera record (``<file>.json``, written by
-    :func:`graspsim.sim.cloud_io.save_cloud`) or a PCD file's ``VIEWPOINT`` header
+    :func:`graspsim.tabletop.cloud_io.save_cloud`) or a PCD file's ``VIEWPOINT`` header
     (its translation; the default ``0 0 0 1 0 0 0`` that PCL writes for every cloud,
     merged ones too, says nothing) says so, else None (unknown: the planner's
     robust score then adds no occlusion term); rows: (N,) the file row of each point
@@ -114,10 +117,20 @@ def _viewpoint(path: Path) -> np.ndarray | None:
     position for world points."""
     if not Path(str(path) + ".json").is_file():
         return None
-    from graspsim.sim.cloud_io import read_camera
-
     camera, frame = read_camera(path)
     return np.zeros(3) if frame == "camera" else np.array(camera.T_world_camera[:3, 3], float)
+
+
+def read_camera(path: str | os.PathLike):
+    """(camera, points frame) recorded beside the cloud at ``path`` (its ``<path>.json``)."""
+    side = Path(str(path) + ".json")
+    try:
+        record = json.loads(side.read_text())
+        return Camera.from_dict(record["camera"]), record["points_frame"]
+    except FileNotFoundError:
+        raise PointCloudError(f"no camera record {side} beside the cloud") from None
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise PointCloudError(f"unreadable camera record {side}: {err}") from err
 
 
 def check_cloud(points: np.ndarray, *, min_points: int = MIN_POINTS, max_extent: float = MAX_EXTENT,

@@ -20,8 +20,8 @@ import numpy as np
 from graspsim.errors import InvalidParameterError
 from graspsim.perception.hypotheses import SAMPLE_SIZE, hypothesise, plausible
 from graspsim.perception.refine import refine_model
-from graspsim.perception.shapes import KINDS, model_sdf
 from graspsim.perception.support import extent_ratio
+from graspsim.primitives.sdf import KINDS, model_sdf
 
 __all__ = ["ModelFit", "mixture_loglik", "fit_model", "fit_from", "rescore", "residual_sigma"]
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graspsim.errors import InvalidParameterError, PointCloudError
-from graspsim.maps.table import TablePlane
+from graspsim.geometry.table import TablePlane
 from graspsim.perception.mlesac import mixture_loglik
 
 __all__ = ["PlaneFit", "fit_table", "ransac_bound"]

@@ -24,8 +24,8 @@ import numpy as np
 from graspsim.errors import IdentificationError, InvalidParameterError, PointCloudError
 from graspsim.primitives.base import MIN_DIM
 
-__all__ = ["UNITS", "MAX_EXTENT", "QUANTUM", "canonical_points", "Downsampling", "median_spacing", "as_coordinates",
-           "to_metres", "check_extent",
+__all__ = ["UNITS", "MAX_EXTENT", "QUANTUM", "canonical_points", "Downsampling", "as_coordinates", "to_metres",
+           "check_extent",
            "check_solid", "voxel_downsample", "voxel_keep", "distinct_rows", "first_of_each_row"]
 
 #: Length of one coordinate unit in metres.
@@ -50,21 +50,6 @@ def canonical_points(points: np.ndarray) -> np.ndarray:
     change is at most 0.5 µm + float32 rounding per coordinate."""
     p = np.asarray(points)
     return np.round(p.astype(np.float32).astype(np.float64) / QUANTUM) * QUANTUM
-
-
-def median_spacing(points: np.ndarray) -> float:
-    """The median distance [m] from each point of (N, 3) to its nearest *other location*:
-    repeated points (a fixed-size cloud sampled with replacement) count once, so they
-    do not read as zero spacing. 0 for fewer than two distinct points; a
-    :class:`~graspsim.errors.PointCloudError` for NaN or inf coordinates."""
-    P = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
-    if not np.isfinite(P).all():
-        raise PointCloudError(f"point spacing needs finite coordinates; {int(np.sum(~np.isfinite(P).all(axis=1)))} "
-                              f"of {len(P)} points have NaN or inf ones")
-    from graspsim.perception._spacing_kernel import nearest_other  # compiled: a few times faster than a KD-tree
-
-    d = nearest_other(P) if len(P) else P[:, 0]
-    return float(np.median(d)) if len(d) >= 2 else 0.0
 
 
 def distinct_rows(a: np.ndarray) -> np.ndarray:

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from scipy.linalg import LinAlgError, get_lapack_funcs
 
-from graspsim.perception.shapes import sdf_function
+from graspsim.primitives.sdf import sdf_function
 
 __all__ = ["refine_model", "rodrigues", "soft_l1_trf"]
 

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from graspsim.errors import GraspsimError
-from graspsim.perception.shapes import fit_to_object, model_extents, to_local
+from graspsim.primitives.sdf import fit_to_object, model_extents, to_local
 
 __all__ = ["extent_ratio", "surface_coverage"]
 

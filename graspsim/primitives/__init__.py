@@ -1,4 +1,7 @@
-"""Shape primitives: Box, Cylinder, Sphere, Cone (frustum), HalfToroid, and compounds."""
+"""Shape primitives: Box, Cylinder, Sphere, Cone (frustum), HalfToroid, and compounds.
+
+May use: the base modules and geometry only.
+"""
 
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from graspsim.primitives.samples import PatchGrid, SurfaceSamples, cells, grid_cover_radius
 
-__all__ = ["rect_samples", "disk_samples", "revolution_samples", "rect_part", "disk_part", "revolution_part",
+__all__ = ["disk_samples", "revolution_samples", "rect_part", "disk_part", "revolution_part",
            "assemble"]
 
 
@@ -78,13 +78,6 @@ def rect_part(center: np.ndarray, u: np.ndarray, v: np.ndarray, lu: float, lv: f
         out["uv"][rows, 1] = B.ravel()
 
     return Part(nu * nv, cover, PatchGrid("rect", 0, nu=nu, nv=nv, lu=lu, lv=lv), fill)
-
-
-def rect_samples(
-    center: np.ndarray, u: np.ndarray, v: np.ndarray, lu: float, lv: float, step: float
-) -> SurfaceSamples:
-    """Flat rectangle ``center + a u + b v``, |a| <= lu/2, |b| <= lv/2; normal u x v."""
-    return assemble([rect_part(center, u, v, lu, lv, step)])
 
 
 def disk_part(center: np.ndarray, u: np.ndarray, v: np.ndarray, radius: float, step: float) -> Part:

@@ -1,6 +1,11 @@
-"""MuJoCo validation of grasps: gripper model, scenes, trial protocols, batched runs.
+"""MuJoCo validation of grasps on one object: gripper model, trial scenes, trial protocols,
+batched runs, map simulation and recordings. Table-top scenes of several objects (the
+depth camera, clutter removal) are :mod:`graspsim.tabletop`, which builds on this package.
 
-The only package (besides the environments) that imports mujoco. Build once, run many::
+May use: the base modules, primitives, grippers, grades, maps and plots (never
+perception, planning, tabletop or anything above).
+
+With :mod:`graspsim.tabletop` (and the environments), the only package that imports mujoco. Build once, run many::
 
     obj = object_from_shape(Cylinder(0.02, 0.20))
     scene = build_scene(obj, HGPL_25_60_A, SimSettings())
@@ -17,7 +22,6 @@ from graspsim._gl import default_gl
 default_gl()  # before any submodule imports mujoco
 
 from graspsim.sim.batch import initial_states, pregrasp_opening, run_trials, start_penetration  # noqa: E402
-from graspsim.sim.camera import Camera, DepthFrame, DepthNoise, Intrinsics, look_at, render_depth  # noqa: E402
 from graspsim.sim.mapsim import MapTrials, map_object, select_grasps, simulate_map, write_results  # noqa: E402
 from graspsim.sim.meshes import CoacdParams, convex_parts, load_mesh  # noqa: E402
 from graspsim.sim.model import GripperPhysics, build_gripper_spec, gripper_xml  # noqa: E402
@@ -27,7 +31,6 @@ from graspsim.sim.outcomes import TrialOutcome  # noqa: E402
 from graspsim.sim.protocols import PROTOCOLS, LiftPlace, Protocol, Tug, make_protocol  # noqa: E402
 from graspsim.sim.results import RESULT_GROUPS, TrialResults  # noqa: E402
 from graspsim.sim.scene import Scene, SimSettings, build_scene, resting_pose  # noqa: E402
-from graspsim.sim.scenes import SceneOutcome, SceneSim, TableScene, load_scene, make_scene, save_scene  # noqa: E402
 from graspsim.sim.vendored import build_vendored_gripper_spec  # noqa: E402
 
 __all__ = [
@@ -39,8 +42,6 @@ __all__ = [
     "run_trials", "start_penetration", "initial_states", "pregrasp_opening",
     "MapTrials", "simulate_map", "select_grasps", "map_object", "write_results",
     "render_trial",
-    "Camera", "Intrinsics", "DepthNoise", "DepthFrame", "look_at", "render_depth",
-    "TableScene", "SceneSim", "SceneOutcome", "make_scene", "save_scene", "load_scene",
 ]
 
 

@@ -1,11 +1,11 @@
-"""Write the menagerie-style model folder ``graspsim/mjcf/<gripper name>/`` from a GripperSpec.
+"""Write the menagerie-style model folder ``mjcf/<gripper name>/`` from a GripperSpec.
 
 The folder holds the gripper MJCF, a ``scene.xml`` that includes it above a table, and a
 README with the dimensions and assumptions; the LICENSE file is kept as it is. The files
 are generated, never edited by hand: a test regenerates them and compares. Regenerate
 after changing the spec or the model with::
 
-    python -m graspsim.sim.export            # writes graspsim/mjcf/festo_hgpl_25_60_a/
+    python -m graspsim.sim.export            # writes mjcf/festo_hgpl_25_60_a/
     python -m graspsim.sim.export OUT_DIR
 """
 
@@ -15,14 +15,14 @@ import argparse
 import sys
 from pathlib import Path
 
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.model import GripperPhysics, gripper_xml
 
 __all__ = ["scene_xml", "readme_text", "model_files", "write_model_folder", "default_folder"]
 
 
 def default_folder(gripper: GripperSpec = HGPL_25_60_A) -> Path:
-    """``graspsim/mjcf/<gripper name>`` (package data)."""
+    """``mjcf/<gripper name>`` (package data)."""
     from graspsim._resources import package_path
 
     return package_path("mjcf", gripper.name)
@@ -61,7 +61,7 @@ def readme_text(gripper: GripperSpec = HGPL_25_60_A,
     box = lambda s: " x ".join(f"{1000 * v:g}" for v in s) + " mm"  # noqa: E731
     return f"""# Festo HGPL-25-60-A style parallel gripper (MuJoCo model)
 
-Generated from `graspsim.gripper.GripperSpec` (name `{g.name}`) by
+Generated from `graspsim.grippers.spec.GripperSpec` (name `{g.name}`) by
 `python -m graspsim.sim.export`; do not edit by hand (a test regenerates the files and
 compares). The planner's collision boxes come from the same spec, so planner and
 simulator agree on the gripper's geometry.
@@ -135,7 +135,7 @@ def write_model_folder(folder: str | Path | None = None, gripper: GripperSpec = 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m graspsim.sim.export", description=__doc__.split("\n")[0])
-    ap.add_argument("folder", nargs="?", help="output folder (default: graspsim/mjcf/<gripper name>)")
+    ap.add_argument("folder", nargs="?", help="output folder (default: mjcf/<gripper name>)")
     args = ap.parse_args(argv)
     for p in write_model_folder(args.folder):
         sys.stdout.write(f"wrote {p}\n")

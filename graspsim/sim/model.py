@@ -1,4 +1,4 @@
-"""The gripper as a MuJoCo model, generated from a :class:`~graspsim.gripper.GripperSpec`.
+"""The gripper as a MuJoCo model, generated from a :class:`~graspsim.grippers.spec.GripperSpec`.
 
 One spec drives the planner's boxes and this model, so the pad faces of the model at an
 opening ``w`` coincide with ``GripperSpec.boxes_at(w)`` (tests prove it). Structure::
@@ -35,10 +35,10 @@ import mujoco
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 
 __all__ = ["GripperPhysics", "GripperNames", "NAMES", "build_gripper_spec", "gripper_xml",
-           "opening_to_qpos", "add_wrist", "add_weld", "drive_force"]
+           "add_wrist", "add_weld", "drive_force"]
 
 
 @dataclass(frozen=True)
@@ -100,12 +100,6 @@ class GripperPhysics:
 
     def to_dict(self) -> dict:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
-
-
-def opening_to_qpos(opening: float | np.ndarray) -> np.ndarray:
-    """Jaw joint positions (..., 2) [m] (neg, pos) for a pad gap ``opening`` [m]."""
-    half = 0.5 * np.asarray(opening, dtype=float)
-    return np.stack([half, half], axis=-1)
 
 
 _BOX = mujoco.mjtGeom.mjGEOM_BOX
@@ -214,7 +208,7 @@ def add_weld(spec: mujoco.MjSpec, physics: GripperPhysics) -> None:
 
 def gripper_xml(gripper: GripperSpec = HGPL_25_60_A,
                 physics: GripperPhysics = GripperPhysics()) -> str:
-    """MJCF text of the stand-alone gripper (what ``graspsim/mjcf/<name>/<name>.xml`` holds)."""
+    """MJCF text of the stand-alone gripper (what ``mjcf/<name>/<name>.xml`` holds)."""
     spec = build_gripper_spec(gripper, physics)
     spec.option.timestep = 0.002
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC

@@ -60,7 +60,7 @@ class TrialRecording:
 
     @property
     def gripper_spec(self):
-        from graspsim.gripper import GripperSpec
+        from graspsim.grippers.spec import GripperSpec
 
         return GripperSpec.from_dict(self.gripper)
 

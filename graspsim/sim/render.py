@@ -26,7 +26,7 @@ from graspsim.sim.batch import initial_states, pregrasp_opening
 from graspsim.sim.protocols import LiftPlace, Protocol
 from graspsim.sim.scene import Scene
 
-__all__ = ["render_trial", "gl_backend", "KEY_MOMENTS"]
+__all__ = ["render_trial", "gl_backend", "offscreen_renderer", "KEY_MOMENTS"]
 
 log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -40,7 +40,9 @@ def gl_backend() -> str:
     return os.environ.get("MUJOCO_GL", "")
 
 
-def _renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
+def offscreen_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
+    """A MuJoCo offscreen renderer of ``model`` at height x width pixels: a bad size or a
+    GL backend that cannot render is a one-line error."""
     if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
         raise InvalidParameterError(
             f"image size {height}x{width} exceeds the scene's offscreen buffer "
@@ -93,7 +95,7 @@ def render_trial(scene: Scene, T_obj_wrist: np.ndarray, width: float, out_dir: s
     every = max(1, int(round(1.0 / (gif_fps * dt))))
     d = mujoco.MjData(m)
     mujoco.mj_setState(m, d, state0, _FULL)
-    renderer = _renderer(m, *size)
+    renderer = offscreen_renderer(m, *size)
     cam = _camera(scene, protocol)
     paths, frames = [], []
     try:

@@ -3,7 +3,7 @@
 Frames: the world has z up and the table top at z = 0 (a plane: everything below it is
 inside the table, so a pose under the table penetrates it). The object rests on the
 table in a stable pose ``T_world_obj`` (its object frame's +z up when that is stable,
-DESIGN.md §3), its centre of mass above the world origin. Map poses become world poses
+docs/design.md §3), its centre of mass above the world origin. Map poses become world poses
 as ``T_world_wrist = T_world_obj @ T_obj_wrist``.
 
 Contact and solver settings are pinned in :class:`SimSettings` with documented defaults:
@@ -22,12 +22,12 @@ import mujoco
 import numpy as np
 
 from graspsim.errors import InvalidParameterError, SimulationError
-from graspsim.gripper import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.model import NAMES, GripperPhysics, build_gripper_spec
 from graspsim.sim.objects import SimObject
 from graspsim.sim.vendored import build_vendored_gripper_spec
 
-__all__ = ["SimSettings", "Scene", "build_scene", "observed_pose", "resting_pose", "state_slice"]
+__all__ = ["SimSettings", "Scene", "build_scene", "observed_pose", "resting_pose"]
 
 log = logging.getLogger(__name__)
 
@@ -143,13 +143,6 @@ class Scene:
                 "mujoco_version": mujoco.__version__}
 
 
-def state_slice(model: mujoco.MjModel, part: int,
-                spec: int = mujoco.mjtState.mjSTATE_FULLPHYSICS) -> slice:
-    """Where the state component ``part`` (an mjtState bit) lies in a ``spec`` state."""
-    start = mujoco.mj_stateSize(model, int(spec) & (int(part) - 1))
-    return slice(start, start + mujoco.mj_stateSize(model, int(part)))
-
-
 def _inside(poly: np.ndarray, point: np.ndarray, margin: float = 1e-4) -> bool:
     """Is the 2D ``point`` inside the convex hull of ``poly`` (K, 2) by ``margin``?"""
     from scipy.spatial import ConvexHull, QhullError
@@ -206,7 +199,7 @@ def resting_pose(obj: SimObject, *, support_tol: float = 0.002,
     """T_world_obj (4, 4): the object on the table (z = 0), centre of mass over the origin.
 
     ``up`` (3,), object frame: the direction that should point up (default +z: the
-    object frame of DESIGN.md stands upright). It is kept when the centre of mass lies
+    object frame of docs/design.md §3 stands upright). It is kept when the centre of mass lies
     over the support polygon (points within ``support_tol`` of the lowest); otherwise
     the object rests on the hull face nearest its centre of mass that it can stand on.
     """
@@ -320,7 +313,7 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
     if gripper.model is None:  # the box model generated from the spec
         spec, names = build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
                                          condim=s.condim, home_pos=home), NAMES
-    else:  # the vendored model (e.g. graspsim/mjcf/franka_hand), attached as it is
+    else:  # the vendored model (e.g. mjcf/franka_hand), attached as it is
         spec, names = build_vendored_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
                                                   condim=s.condim, home_pos=home)
     spec.modelname = f"trial_{gripper.name}"

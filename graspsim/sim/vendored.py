@@ -1,6 +1,6 @@
 """A vendored (externally authored) gripper model in the trial harness.
 
-The model file ``graspsim/mjcf/<model>/<model>.xml`` is attached as it is under the harness's
+The model file ``mjcf/<model>/<model>.xml`` is attached as it is under the harness's
 wrist body (the same mocap target, free wrist and weld as the generated box model, see
 :mod:`graspsim.sim.model`), at the pose its :class:`~graspsim.grippers.Mount` gives.
 What the harness sets on the attached model, as it does on the box model:
@@ -21,7 +21,7 @@ from __future__ import annotations
 import mujoco
 
 from graspsim.errors import InvalidParameterError, SimulationError
-from graspsim.gripper import GripperSpec
+from graspsim.grippers.spec import GripperSpec
 from graspsim.sim.model import NAMES, GripperNames, GripperPhysics, add_weld, add_wrist, drive_force
 
 __all__ = ["build_vendored_gripper_spec", "PREFIX"]

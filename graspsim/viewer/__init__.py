@@ -11,6 +11,9 @@
 viser is an optional dependency (``pip install 'graspsim[viewer]'``); without it
 :func:`show` raises :class:`~graspsim.errors.DependencyNotInstalled` saying so, and the
 rest of graspsim is unaffected (nothing here is imported by ``import graspsim``).
+
+May use: the base modules, geometry, primitives, grippers, grades, maps, plots,
+perception, planning, sim and tabletop (never calibration, the envs, the apps or the CLI).
 """
 
 from __future__ import annotations
@@ -64,7 +67,8 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
     """Serve a map in the browser and return the running ``viser.ViserServer``
     (``server.get_port()``; :func:`stop` ends it). Does not block.
 
-    map: a map file (its simulation and robust-score columns are shown too) or a
+    map: a map file (its simulation and robust-score columns are shown too), a
+    third-party grasp file (ACRONYM, GraspGen, GraspNet: its own labels shown) or a
     :class:`~graspsim.maps.GraspabilityMap`. cloud: (N, 3) points or a cloud file, in
     the cloud's frame; mesh: a ``trimesh.Trimesh`` or a mesh file, in the cloud's
     frame (both placed by the map's ``T_cloud_obj``). recording: a
@@ -84,9 +88,14 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
     if isinstance(map, GraspabilityMap):
         data = ViewData.from_map(map)
     else:
-        from graspsim.maps.io import load_map
+        from graspsim.maps.formats import is_foreign
 
-        data = ViewData.from_map(load_map(map), map)
+        if is_foreign(map):  # a third-party grasp file: read, never written; its labels as columns
+            data = ViewData.from_grasp_file(map)
+        else:
+            from graspsim.maps.io import load_map
+
+            data = ViewData.from_map(load_map(map), map)
     warm.join()
     viser = require_viser()
     from graspsim.viewer.app import MapViewer
@@ -123,9 +132,9 @@ def show_scene(scene, *, db=None, look=None, seed: int = 0, config=None, top_k: 
     cloud coloured by segment, the table plane, each object's top-K grasps and the chosen
     one). Does not block.
 
-    scene: a :class:`~graspsim.sim.scenes.TableScene` or its JSON file
+    scene: a :class:`~graspsim.tabletop.table_scene.TableScene` or its JSON file
     (``save_scene``); it is rendered and planned once, as the clutter-removal protocol's
-    first look (:class:`~graspsim.sim.clutter.ClutterEpisode`, ``config`` a
+    first look (:class:`~graspsim.tabletop.clutter.ClutterEpisode`, ``config`` a
     ``ClutterConfig``, draws from ``rng_for(seed)``) against the map database ``db``
     (None: the default folder), unless ``look`` (a ``ClutterFrame`` of it) is given.
     top_k: grasps drawn per object at start."""
@@ -141,7 +150,7 @@ def show_scene(scene, *, db=None, look=None, seed: int = 0, config=None, top_k: 
 
 def show_plan(plan, cloud, *, gripper=None, eye=None, best=None, top_k: int = 3, host: str = "127.0.0.1",
               port: int = 8080, verbose: bool = False):
-    """Serve a planned scene -- ``plan``, a :class:`~graspsim.perception.scene.ScenePlan`
+    """Serve a planned scene -- ``plan``, a :class:`~graspsim.planning.scene.ScenePlan`
     of the points ``cloud`` (N, 3) (e.g. ``plan_scene``'s of a user's own cloud, as
     ``graspsim plan-scene --view`` shows it) -- and return the running
     ``viser.ViserServer`` without blocking (:mod:`graspsim.viewer.scene_view`). gripper:
@@ -173,7 +182,7 @@ def _check_top_k(top_k) -> None:
 
 
 def _default_gripper():
-    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.grippers.spec import HGPL_25_60_A
 
     return HGPL_25_60_A
 
@@ -182,8 +191,8 @@ def _scene_look(scene, db, seed: int, config):
     """The first look of ``scene`` (a TableScene or its file): render and plan once."""
     from graspsim.maps.database import MapDatabase
     from graspsim.seeding import rng_for
-    from graspsim.sim.clutter import ClutterEpisode
-    from graspsim.sim.scenes import load_scene
+    from graspsim.tabletop.clutter import ClutterEpisode
+    from graspsim.tabletop.table_scene import load_scene
 
     if isinstance(scene, (str, os.PathLike)):
         scene = load_scene(scene)

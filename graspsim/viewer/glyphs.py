@@ -5,7 +5,7 @@ wireframes, colours.
   whose origin is the grasp point and whose axes are the wrist's (x closing, z
   approach). It is drawn once per grasp as an instance scaled in x by the grasp's
   opening, so thousands of grasps cost one mesh.
-* :func:`gripper_wireframe`: the edges of a :class:`~graspsim.gripper.GripperSpec`'s
+* :func:`gripper_wireframe`: the edges of a :class:`~graspsim.grippers.spec.GripperSpec`'s
   collision boxes at a pose and opening (the full gripper of a chosen grasp).
 * :func:`colormap`: values -> RGB (viridis), :data:`OUTCOME_COLOURS`: one colour per
   trial outcome.
@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["fork_glyph", "box_mesh", "gripper_wireframe", "colormap", "OUTCOME_COLOURS",
+from graspsim.geometry.boxes import box_mesh
+
+__all__ = ["fork_glyph", "colormap", "OUTCOME_COLOURS",
            "NOT_SIMULATED_COLOUR", "PART_COLOURS"]
 
 # viridis at 0, 1/8, ..., 1 (matplotlib's table), interpolated linearly: close enough
@@ -46,18 +48,6 @@ def colormap(values: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return rgb.round().astype(np.uint8)
 
 
-def box_mesh(centers: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Axis-aligned boxes (B, 3) centres and half extents as one triangle mesh:
-    vertices (8B, 3), faces (12B, 3), outward winding."""
-    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
-    verts = (np.asarray(centers, float)[:, None] + np.asarray(half, float)[:, None] * signs).reshape(-1, 3)
-    quads = np.array([[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4],
-                      [1, 5, 7, 3]])
-    tri = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-    faces = (tri[None] + 8 * np.arange(len(centers))[:, None, None]).reshape(-1, 3)
-    return verts.astype(np.float32), faces.astype(np.int32)
-
-
 def fork_glyph(prong: float = 0.02, thickness: float = 0.0015) -> tuple[np.ndarray, np.ndarray]:
     """The fork glyph for a unit opening: prongs at x = +-0.5 reaching ``prong`` [m]
     past the grasp point (the origin) towards the approach (+z) and as far back, a
@@ -67,27 +57,3 @@ def fork_glyph(prong: float = 0.02, thickness: float = 0.0015) -> tuple[np.ndarr
     centers = np.array([[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, 0.0, -p], [0.0, 0.0, -2 * p]])
     half = np.array([[0.02, t, p], [0.02, t, p], [0.5, t, t], [0.02, t, p]])
     return box_mesh(centers, half)
-
-
-_EDGES = np.array([[0, 1], [2, 3], [4, 5], [6, 7], [0, 2], [1, 3], [4, 6], [5, 7], [0, 4], [1, 5],
-                   [2, 6], [3, 7]])
-
-
-def gripper_wireframe(gripper, T_obj_wrist: np.ndarray, opening) -> np.ndarray:
-    """Edge segments [m] of the gripper's collision boxes (arm keep-out included) at
-    wrist poses ``T_obj_wrist`` (4, 4) or (N, 4, 4) with pad gaps ``opening`` (scalar or
-    (N,)) [m]: (12B, 2, 3) for one pose, (N * 12B, 2, 3) for N."""
-    T = np.asarray(T_obj_wrist, float)
-    single = T.ndim == 2
-    T = T.reshape(-1, 4, 4)
-    opening = np.clip(np.broadcast_to(np.asarray(opening, float), (len(T),)), gripper.min_opening,
-                      gripper.max_opening)
-    b = gripper.collision_boxes()
-    verts, _ = box_mesh(b.centers, b.half_extents)  # (8B, 3) at opening 0
-    shift = np.repeat(b.x_sign, 8) * 0.5  # each vertex's x moves with its box
-    local = np.repeat(verts[None].astype(float), len(T), axis=0)
-    local[:, :, 0] += shift[None] * opening[:, None]
-    world = np.einsum("nij,nvj->nvi", T[:, :3, :3], local) + T[:, None, :3, 3]
-    idx = (_EDGES[None] + 8 * np.arange(len(b.names))[:, None, None]).reshape(-1, 2)
-    seg = world[:, idx].reshape(-1, 2, 3).astype(np.float32)
-    return seg if not single else seg.reshape(-1, 2, 3)

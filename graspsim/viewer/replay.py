@@ -14,8 +14,9 @@ import threading
 
 import numpy as np
 
+from graspsim.geometry.boxes import box_mesh
 from graspsim.transforms import invert_transform, make_transform, matrix_to_quat, quat_to_matrix
-from graspsim.viewer.glyphs import OUTCOME_COLOURS, box_mesh
+from graspsim.viewer.glyphs import OUTCOME_COLOURS
 
 __all__ = ["Replay", "gripper_mesh_at"]
 

@@ -1,7 +1,7 @@
 """The viewer's scene mode: a table-top scene as the robot's depth camera saw it and planned it.
 
-Draws a :class:`~graspsim.perception.scene.ScenePlan` -- one look of
-:class:`~graspsim.sim.clutter.ClutterEpisode` (the clutter-removal protocol's render ->
+Draws a :class:`~graspsim.planning.scene.ScenePlan` -- one look of
+:class:`~graspsim.tabletop.clutter.ClutterEpisode` (the clutter-removal protocol's render ->
 plan step) in the world frame (metres, z up), or a scene cloud of the user's own planned
 by ``graspsim plan-scene --view`` in the cloud's frame (up: the table's normal) -- as the
 depth cloud in grey, the points above the table coloured by segment (one colour per
@@ -17,9 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from graspsim.geometry.boxes import box_mesh
+from graspsim.grippers.wireframe import gripper_wireframe
 from graspsim.transforms import frame_from_axes, matrix_to_quat
 from graspsim.viewer.camera import BrowserView
-from graspsim.viewer.glyphs import PART_COLOURS, box_mesh, colormap, fork_glyph, gripper_wireframe
+from graspsim.viewer.glyphs import PART_COLOURS, colormap, fork_glyph
 
 __all__ = ["SceneViewer", "SEGMENT_COLOURS", "CLOUD_COLOUR"]
 
@@ -31,7 +33,7 @@ MAX_CLOUD = 200_000  # raw cloud points sent to the browser at most
 
 
 class SceneViewer:
-    """A scene's ``plan`` (a :class:`~graspsim.perception.scene.ScenePlan`) on ``server``
+    """A scene's ``plan`` (a :class:`~graspsim.planning.scene.ScenePlan`) on ``server``
     (a ``viser.ViserServer``): ``cloud`` (N, 3) the points it was planned from (the
     plan's frame); ``gripper``: the GripperSpec that planned it; ``eye`` (3,): where the
     camera was (new browsers look from its side; None: from above the table); ``best``:

@@ -34,8 +34,9 @@ class Assets:
 
 
 def _hand_map():
+    from hand_made import grasp_pose, hand_made_map
+
     from graspsim.primitives import Cylinder
-    from graspsim.sim.testing import grasp_pose, hand_made_map
 
     ang = np.linspace(0.0, np.pi, 6)
     T = np.stack([grasp_pose([0, 0, 0.02 * k], [-np.cos(a), -np.sin(a), 0], [-np.sin(a), np.cos(a), 0])

@@ -15,7 +15,7 @@ import math
 import numpy as np
 from hypothesis import strategies as st
 
-from graspsim.gripper import HGPL_25_60_A
+from graspsim.grippers.spec import HGPL_25_60_A
 
 OPENING = HGPL_25_60_A.max_opening
 NAN, INF = float("nan"), float("inf")

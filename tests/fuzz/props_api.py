@@ -15,7 +15,7 @@ import shutil
 import numpy as np
 from hypothesis import strategies as st
 
-from graspsim.gripper import HGPL_25_60_A
+from graspsim.grippers.spec import HGPL_25_60_A
 from graspsim.primitives.base import MIN_DIM
 
 from . import cases, corrupt
@@ -104,7 +104,8 @@ def check_primitive_spec(case: dict) -> str:
     """make_primitive(), the preflight (gripper fit, memory estimate against the budget)
     and, when the estimate is small, a coarse generate_fs_map(): a GraspsimError or a
     valid primitive and map."""
-    from graspsim.maps.generate import MapConfig, generate_fs_map
+    from graspsim.maps.config import MapConfig
+    from graspsim.maps.generate import generate_fs_map
     from graspsim.maps.validate import map_problems
     from graspsim.primitives import make_primitive
 

@@ -1,0 +1,403 @@
+"""The run-time planner (paper 2.2-2.5): point cloud -> adapted graspability map.
+
+    cloud -> hierarchical MVBB + MLESAC identification -> for every part: the FS map of
+    a known primitive as is, or the nearest FS map scaled to a familiar one -> one part:
+    that map; several parts: the combined map of the compound -> adapted map
+
+:func:`plan_stream` yields grasps as soon as they exist (best-first within each part),
+so a caller can act on the first grasps before the whole map is built; :func:`plan`
+returns the finished map. With ``PlannerConfig.rank="robust"`` (the default) every
+batch's best-graded grasps get robust scores as they stream (clearance to the observed
+cloud, feasibility under wrist pose error; :mod:`graspsim.maps.robust`), up to
+``PlannerConfig.robust.top`` per part, and batches and the finished map are ordered by
+them; ``rank="paper"`` keeps the paper's grade order and scores nothing. Every map
+records ``extra["T_cloud_obj"]`` (4x4): the object frame in the cloud's frame, so poses
+can be taken back to the sensor. What it returns (:class:`PlanResult`, :class:`GraspBatch`,
+...) is defined in :mod:`graspsim.planning.plan_results`.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from graspsim.errors import InvalidParameterError
+from graspsim.geometry.table import TablePlane, table_frame
+from graspsim.maps.agreement import ObservedSurface
+from graspsim.maps.combine import combine_part
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import object_description
+from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
+from graspsim.maps.match import MatchKind
+from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map, view_of
+from graspsim.maps.rowids import first_rows, row_ids
+from graspsim.maps.scaling import ScalingConfig, scale_stream
+from graspsim.maps.table import clears_table, heights_above, stream_order, table_height
+from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
+from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
+from graspsim.planning.stages import StageClock
+from graspsim.primitives import Compound, Primitive
+from graspsim.primitives.compound import object_frame
+from graspsim.transforms import invert_transform
+
+__all__ = ["PlanStatus", "PlannerConfig", "PartPlan", "PlanResult", "GraspBatch", "plan",
+           "plan_stream", "plan_shape", "plan_shape_stream"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """identify: perception settings (paper case study: 10 repetitions, theta 0.5).
+    scaling: the map scaling settings (Combined by default).
+    partial: when clustering fails, still build the map of the identified parts.
+    build_missing: when no stored map of the primitive lies within the scaling range,
+        build (and store) an FS map of it, as the paper suggests; else skip the part.
+    table: the plane the object stands on (cloud frame); poses that would take the
+        gripper below it are dropped from every batch. None (default, as the paper):
+        the map ignores the table.
+    contact_tolerance: robust identification: a grasp is kept only where the cloud bears
+        it out (:mod:`~graspsim.maps.agreement`): at least one contact where the cloud
+        shows the finger's touch -- a cloud point within this distance [m] of the
+        contact or of its closing path further in -- and the cloud's normal at every
+        touch it shows within the friction cone about the closing line; a contact
+        whose path meets no observed point (the far side of a view) is no evidence.
+    rank: ``"robust"`` (default): score the best-graded grasps for robustness
+        (``robust``) and order by the robust score; ``"paper"``: the paper's grade.
+    robust: the robustness settings (pose error, perturbations, grasps scored per part).
+    collision_tolerance: the run-time collision check of adapted grasps -- a stored map
+        scaled to the identified primitive, a part's grasps against the other parts of
+        its compound -- counts poses within this distance [m] of touching as colliding;
+        None (default, the paper's check): the tolerance the FS maps were generated with
+        (``MapDatabase.config``). A larger one is more conservative -- a grasp that comes
+        that close is dropped, or kept at another contact depth that clears it -- and
+        costs less: the check's finest collision samples number about 1 / tolerance^2
+        per unit area (scene planning uses 1 mm,
+        :data:`~graspsim.planning.scene.SCENE_COLLISION_TOLERANCE`).
+    """
+
+    identify: IdentifyConfig = field(default_factory=IdentifyConfig)
+    scaling: ScalingConfig = field(default_factory=ScalingConfig)
+    partial: bool = True
+    build_missing: bool = True
+    table: TablePlane | None = None
+    contact_tolerance: float = 0.004
+    rank: str = "robust"
+    robust: RobustConfig = field(default_factory=RobustConfig)
+    collision_tolerance: float | None = None
+
+    def __post_init__(self) -> None:
+        tol = self.collision_tolerance
+        if tol is not None and (isinstance(tol, bool) or not isinstance(tol, (int, float))
+                                or not (np.isfinite(tol) and tol > 0)):
+            raise InvalidParameterError(f"PlannerConfig.collision_tolerance must be > 0 m or None (the maps' "
+                                        f"own), got {tol!r}")
+        if self.rank not in RANKS:
+            raise InvalidParameterError(f"PlannerConfig.rank must be one of {list(RANKS)}, got {self.rank!r}")
+        if not isinstance(self.robust, RobustConfig):
+            raise InvalidParameterError(f"PlannerConfig.robust must be a RobustConfig, got {self.robust!r}")
+
+
+def check_config(db: MapDatabase, cfg: PlannerConfig):
+    """The :class:`~graspsim.maps.generate.MapConfig` the run-time collision checks of
+    adapted grasps use: the database's, at ``cfg.collision_tolerance`` when it is set."""
+    if cfg.collision_tolerance is None:
+        return db.config
+    return replace(db.config, collision_tolerance=float(cfg.collision_tolerance))
+
+
+def canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarray]:
+    """A box with its edges in ascending order (x <= y <= z, z the longest as docs/design.md
+    §3 says), re-expressing its frame by the matching proper axis permutation."""
+    if prim.kind != "box":
+        return prim, T
+    d = np.array([prim.x, prim.y, prim.z])
+    order = np.argsort(d, kind="stable")
+    if np.array_equal(order, [0, 1, 2]):
+        return prim, T
+    P = np.eye(3)[:, order]  # new axis k = old axis order[k]
+    if np.linalg.det(P) < 0:
+        P[:, 0] *= -1.0
+    T2 = T.copy()
+    T2[:3, :3] = T[:3, :3] @ P
+    return prim.with_dims(x=d[order[0]], y=d[order[1]], z=d[order[2]]), T2
+
+
+def _batches(gmap: GraspabilityMap, first: int, growth: float, prefer=None) -> Iterator[GraspabilityMap]:
+    """A best-first map in growing slices (for streaming a stored map); the rows
+    ``prefer`` (as in :func:`graspsim.maps.scaling.scale_stream`) accepts first."""
+    pick = None if prefer is None else (
+        lambda pos: prefer(gmap.wrist_quat[pos], gmap.wrist_position[pos], gmap.width[pos]))
+    for rows in stream_order(len(gmap), first, growth, pick):
+        yield gmap.select(rows)
+
+
+# only predicted poses this far above the table's clearance stream first: the
+# prediction of a scaled pose (before its exact chord) is off by a few millimetres
+_TABLE_TOLERANCE = 0.005
+
+
+def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig, checks,
+                 T_table_part: np.ndarray | None = None) -> tuple[MatchKind, dict, Iterator, dict | None]:
+    """(match, source object, iterator of map batches in the part's frame, the stored
+    map used -- :attr:`PartPlan.stored <graspsim.plan_results.PartPlan.stored>`; a scaled
+    map's grasps checked for collisions at ``checks``, :func:`check_config`); with the
+    table's frame ``T_table_part`` in the part's frame, the grasps likely to clear it
+    stream first (the table filter would empty the first batches otherwise)."""
+    m = db.match(prim, max_ratio=cfg.scaling.max_ratio)
+    prefer = None
+    if T_table_part is not None:
+        least = cfg.table.clearance + _TABLE_TOLERANCE
+        prefer = lambda q, p, w: heights_above(db.gripper, T_table_part, q, p, w) >= least  # noqa: E731
+    stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth, prefer)  # noqa: E731
+    used = None if m.entry is None else {"key": m.entry.get("key"), "ratio": m.ratio, "max_diff": m.max_diff}
+    if m.match is MatchKind.KNOWN:  # the stored map as is (paper 2.2)
+        fs = db.load_entry(m.entry, accepted_only=True)
+        return m.match, fs.meta.object, stream(fs), used
+    if m.match is MatchKind.FAMILIAR:
+        fs = db.load_entry(m.entry, accepted_only=True)
+        return m.match, fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling, gripper=db.gripper,
+                                                        quality=db.quality, config=checks, prefer=prefer), used
+    if not cfg.build_missing:
+        return MatchKind.BUILD, {}, iter(()), None
+    # no map of this primitive within the scaling range: add one to the database
+    fs = db.get(prim)  # sorted best first: the accepted grasps are a prefix
+    fs = fs.select(np.arange(int(fs.accepted.sum())))
+    return MatchKind.BUILD, fs.meta.object, stream(fs), {"key": db.key(prim), "ratio": 1.0, "max_diff": 0.0}
+
+
+def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
+                config: PlannerConfig | None = None, source: str = "array",
+                obstacles: np.ndarray | None = None, identification: Identification | None = None,
+                viewpoint: np.ndarray | None = None, scored_only: bool = False) -> Iterator[GraspBatch | PlanResult]:
+    """Yield :class:`GraspBatch` es as grasps are found, then the :class:`PlanResult`.
+    obstacles: (M, 3) further observed points [m, cloud frame] the robust score keeps the
+    gripper clear of besides the object's own (a scene's neighbours); None: none.
+    identification: the cloud's, when the caller has identified it already (``points``
+    must be the cloud it was made from); None: identified here. viewpoint: (3,) where a
+    single-view cloud was seen from [m, cloud frame] (the robust score's occlusion term);
+    None: unknown or seen all round. scored_only: with ``rank="robust"``, once a part's
+    robust-scoring budget (``robust.top``) is spent, the rest of that part's maps are
+    skipped instead of streamed unscored (for a caller that keeps only scored grasps,
+    as a scene does: the same scored grasps, sooner; the final map then lacks the
+    skipped ones)."""
+    cfg = config or PlannerConfig()
+    t0 = time.perf_counter()
+    points = np.asarray(points, float)
+    ident = identification if identification is not None else identify(points, rng=rng, config=cfg.identify)
+    timing = {"identify": time.perf_counter() - t0}
+    cpu0 = time.thread_time()
+    prims, T_cloud = [], []
+    for part in ident.parts:
+        p, T = canonical_box(part.primitive(), part.T_world_obj)
+        prims.append(p)
+        T_cloud.append(T)
+    status = PlanStatus.COMPLETE if ident.status is IdentificationStatus.IDENTIFIED else PlanStatus.PARTIAL
+    if not prims or (status is PlanStatus.PARTIAL and not cfg.partial):
+        status = PlanStatus.FAILED
+        prims, T_cloud = [], []
+    if not prims:
+        yield PlanResult(status, GraspabilityMap.empty(_empty_meta(db, ident)), (), ident, np.eye(4),
+                         {**timing, "total": time.perf_counter() - t0, "first": None, "tenth": None,
+                          "first_robust": None, "robust": 0.0})
+        return
+    info = {"status": ident.status.value, "n_points": ident.n_points, "n_splits": ident.n_splits,
+            "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict(),
+            "mode": ident.mode, "uncovered": ident.uncovered,
+            "approximate": [i for i, p in enumerate(ident.parts) if p.approximate]}
+    yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0,
+                           obstacles, viewpoint, scored_only)
+
+
+def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,
+                      config: PlannerConfig | None = None, source: str = "model", scored_only: bool = False
+                      ) -> Iterator[GraspBatch | PlanResult]:
+    """:func:`plan_stream` for an object whose primitives are known -- a
+    :class:`~graspsim.primitives.Primitive` or :class:`~graspsim.primitives.Compound` at
+    pose ``T_world_obj`` (4, 4; identity if None) in the frame the map's
+    ``T_cloud_obj`` will refer to -- instead of identified from a cloud: retrieval,
+    scaling and combination as for identified parts (``config.identify`` is unused;
+    ``scored_only`` as there). The result's ``identification`` is None."""
+    cfg = config or PlannerConfig()
+    t0 = time.perf_counter()
+    T = np.eye(4) if T_world_obj is None else np.asarray(T_world_obj, float)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise InvalidParameterError(f"T_world_obj must be a finite 4x4 transform, got shape {T.shape}")
+    if isinstance(shape, Compound):
+        pairs = [(p, T @ pose) for p, pose in zip(shape.parts, shape.poses)]
+    elif isinstance(shape, Primitive):
+        pairs = [(shape, T)]
+    else:
+        raise InvalidParameterError(f"plan_shape needs a Primitive or a Compound, got {type(shape).__name__}")
+    prims, T_cloud = zip(*(canonical_box(p, Tp) for p, Tp in pairs))
+    yield from _plan_parts(list(prims), list(T_cloud), PlanStatus.COMPLETE, None, None, np.zeros((0, 3)),
+                           db, cfg, source, t0, {"identify": 0.0}, time.thread_time(), scored_only=scored_only)
+
+
+def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
+                ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
+                source: str, t0: float, timing: dict, cpu0: float, obstacles: np.ndarray | None = None,
+                viewpoint: np.ndarray | None = None, scored_only: bool = False) -> Iterator[GraspBatch | PlanResult]:
+    """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
+    part frames in the cloud's frame); ``cpu0``: the calling thread's CPU clock when
+    identification ended; ``scored_only``: see :func:`plan_stream`."""
+    T_cloud_obj, compound = object_frame(prims, T_cloud)
+    T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
+    obj_meta = _object_meta(prims[0] if compound is None else compound, db)
+    T_table_obj, table = _table_in_object(cfg, points, prims[0] if compound is None else compound, T_cloud_obj,
+                                          single_view=viewpoint is not None)
+    extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
+             "identification": ident_info,
+             "viewpoint": None if viewpoint is None else np.asarray(viewpoint, float).tolist()}
+    n_below = 0
+    batches: list[GraspabilityMap] = []
+    parts: list[PartPlan] = []
+    first = tenth = first_robust = first_robust_cpu = None
+    n_hi = 0
+    seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
+    cloud_obj = cloud_in_object(seen, T_cloud_obj)
+    view_obj = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0]
+    view = None
+    observed = ObservedSurface(points, viewpoint=viewpoint) if ident is not None and ident.mode == "robust" else None
+    stage = StageClock("adapt", "agreement", "combine", "table", "robust")
+    skip_spent = scored_only and cfg.rank == "robust"
+    checks = check_config(db, cfg)
+    t1 = time.perf_counter()
+    for i, prim in enumerate(prims):
+        stage.start()
+        match, src, stream, used = _part_stream(prim, db, cfg, checks,
+                                                None if T_table_obj is None else T_table_obj @ T_obj_part[i])
+        stage.lap("adapt")
+        parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i], used))
+        budget = cfg.robust.top if cfg.rank == "robust" else 0
+        # the part map's frame in the cloud's (a part's own frame until it is combined)
+        T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
+        for part_map in stage.iterate(() if skip_spent and budget <= 0 else stream, "adapt"):
+            if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
+                part_map = _borne_out(observed, part_map, T_cloud_map, cfg.contact_tolerance, db)
+            stage.lap("agreement")
+            if compound is not None:
+                part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
+                                        d_ref=obj_meta.quality["d_ref"], config=checks, meta=obj_meta)
+            stage.lap("combine")
+            if T_table_obj is not None:
+                clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)
+                n_below += int(len(clear) - clear.sum())
+                part_map = part_map.select(clear)
+            stage.lap("table")
+            batch = replace(part_map, meta=replace(obj_meta, extra=extra), part=np.full(len(part_map), i, np.int16))
+            if not len(batch):
+                continue
+            if budget > 0:  # robustness of the batch's best-graded grasps, then its order
+                stage.start()
+                rows = np.argsort(-batch.grade, kind="stable")[:budget]
+                if view is None:  # the cloud's depth image from the viewpoint: one for every batch
+                    view = view_of(cloud_obj, view_obj, cfg.robust)
+                batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper,
+                                  viewpoint=view_obj, view=view).ranked()
+                budget -= len(rows)
+                stage.lap("robust")
+                if first_robust is None and bool(np.any(batch.robust > 0)):
+                    first_robust = time.perf_counter() - t0
+                    first_robust_cpu = time.thread_time() - cpu0
+            now = time.perf_counter() - t0
+            hi = int((batch.grade > 0.95).sum())
+            if hi and first is None:
+                first = now
+            n_hi += hi
+            if n_hi >= 10 and tenth is None:
+                tenth = now
+            batches.append(batch)
+            yield GraspBatch(batch, now)
+            if skip_spent and budget <= 0:
+                break  # this part's budget is spent: its later batches would stream unscored
+        if hasattr(stream, "close"):
+            stream.close()  # a part left early: its maps' generator ends now
+    timing["maps"] = time.perf_counter() - t1
+    full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
+    timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
+                  first_robust_cpu=first_robust_cpu, **stage.seconds)
+    yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
+
+
+def _finished(batches: list, parts: list, extra: dict, table: dict | None, n_below: int, obj_meta: MapMeta,
+              combined: bool, cfg: PlannerConfig, T_cloud_obj: np.ndarray) -> GraspabilityMap:
+    """The finished adapted map: every batch streamed, in the ranking's order, with the
+    parts' record, the table's (the poses it dropped) and the robust scores' provenance."""
+    final = {**extra, "parts": [p.to_dict() for p in parts]}
+    if table is not None:  # a new dict: the batches already yielded keep theirs
+        final.update(Placement(T_cloud_obj, {**table, "dropped": n_below}).to_extra())
+    meta = replace(obj_meta, method="adapted/" + ("combined" if combined else "single"), extra=final)
+    full = GraspabilityMap.concat(batches, meta=meta) if batches else GraspabilityMap.empty(meta)
+    if cfg.rank == "robust" and batches:
+        prov = {**batches[0].meta.extra["robust"], "scored": int(np.isfinite(full.robust).sum())}
+        full = full.with_meta(extra={**final, "robust": prov})
+    return full.ranked(cfg.rank)
+
+
+def _table_in_object(cfg: PlannerConfig, points: np.ndarray, shape, T_cloud_obj: np.ndarray, *,
+                     single_view: bool = False):
+    """The table's frame in the object's and its record (height found from the cloud:
+    ``single_view``, a cloud with a viewpoint, see :func:`table_height`), or (None,
+    None) without a table."""
+    if cfg.table is None:
+        return None, None
+    height = table_height(cfg.table, points, shape, T_cloud_obj, single_view=single_view)
+    return table_frame(cfg.table.normal, height) @ T_cloud_obj, {**cfg.table.to_dict(), "height": height}
+
+
+def _borne_out(observed: ObservedSurface, part_map: GraspabilityMap, T_cloud_map: np.ndarray, tol: float,
+               db: MapDatabase) -> GraspabilityMap:
+    """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) the observed cloud
+    bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`); the answer
+    depends on a grasp's contacts alone, so it is found once per closing line."""
+    line = row_ids(part_map.contacts)
+    c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
+    return part_map.select(observed.borne_out(c, tol=tol, max_angle=db.quality.friction_angle,
+                                              min_observed=1)[line])
+
+
+def plan(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
+         config: PlannerConfig | None = None, source: str = "array",
+         obstacles: np.ndarray | None = None, viewpoint: np.ndarray | None = None) -> PlanResult:
+    """The adapted map of an object cloud (N, 3) [m] (see :func:`plan_stream`)."""
+    return _last(plan_stream(points, db=db, rng=rng, config=config, source=source, obstacles=obstacles,
+                             viewpoint=viewpoint))
+
+
+def plan_shape(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,
+               config: PlannerConfig | None = None, source: str = "model") -> PlanResult:
+    """The adapted map of a known primitive or compound (see :func:`plan_shape_stream`)."""
+    return _last(plan_shape_stream(shape, T_world_obj, db=db, config=config, source=source))
+
+
+def _last(stream) -> PlanResult:
+    result = None
+    for item in stream:
+        result = item
+    if not isinstance(result, PlanResult):  # pragma: no cover - the stream always ends so
+        raise InvalidParameterError("planner produced no result")
+    return result
+
+
+def _object_meta(shape, db: MapDatabase) -> MapMeta:
+    from graspsim._version import __version__
+
+    q = db.quality
+    return MapMeta(object=object_description(shape, None, db.config.density), gripper=db.gripper.to_dict(),
+                   quality={**q.to_dict(), "d_ref": q.reference_distance(shape.circumradius)},
+                   resolution={**db.config.to_dict()}, method="adapted", version=__version__)
+
+
+def _empty_meta(db: MapDatabase, ident: Identification) -> MapMeta:
+    from graspsim._version import __version__
+
+    return MapMeta(object={"primitive": "unidentified"}, gripper=db.gripper.to_dict(),
+                   quality=db.quality.to_dict(), resolution=db.config.to_dict(), method="adapted",
+                   version=__version__, extra={"status": "failed", **Placement(np.eye(4)).to_extra(),
+                                               "identification": ident.to_dict()})
+

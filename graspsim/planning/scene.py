@@ -1,0 +1,260 @@
+"""Scene perception: a table with several objects seen as one cloud -> ranked grasps.
+
+    scene cloud -> table plane (MLESAC, :mod:`~graspsim.perception.plane`) -> the points
+    above it, thinned to a voxel grid -> objects by Euclidean clustering
+    (:mod:`~graspsim.perception.segment`) -> every segment identified -> every segment
+    planned by the run-time planner (stored/scaled/combined maps, the table as its
+    ``TablePlane``) with the robust score computed against the WHOLE scene near it, not
+    the segment's points alone -> one ranking of every segment's best grasps
+
+The whole scene is the observed points of the other segments plus surface samples of
+their identified primitives (one camera sees a neighbour's front; the primitive stands
+for its back; a cluster left unidentified stands as its bounding box down to the
+table), and the table as a plane. A grasp whose fingers would close on a neighbour
+collides at its nominal pose, so its robust score is 0 and it ranks last.
+``SceneConfig(neighbours=False)`` scores each segment against its own points only (the
+ablation). :func:`graspsim.planning.planner.plan_stream` streams best-first; planning of a
+segment stops once ``enough`` grasps with a positive robust score are found or
+``per_segment`` grasps per part are scored (later batches would not be scored), and
+a part whose ``per_segment`` are scored yields to the next (``scored_only``: its
+unscored batches are not made).
+
+Frames: the cloud's frame is called the world here (``T_world_wrist``); a cloud in the
+camera's frame gives poses in the camera's frame.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from graspsim.errors import InvalidParameterError, PointCloudError
+from graspsim.geometry.table import TablePlane
+from graspsim.perception.identify import Identification
+from graspsim.perception.mvbb import min_volume_box
+from graspsim.perception.plane import PlaneFit, fit_table
+from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
+from graspsim.perception.segment import cluster_radius, euclidean_clusters, gap_link
+from graspsim.planning.scene_config import MAX_SCENE_EXTENT, SCENE_BYTES_PER_POINT, SceneConfig
+from graspsim.planning.scene_reuse import SegmentMemory, find_previous
+from graspsim.planning.scene_segments import SceneGrasp, SegmentPlan, plan_segments, settled_plan
+from graspsim.planning.scene_workers import identify_segments, start_workers
+from graspsim.primitives import Box
+from graspsim.primitives.base import MIN_DIM
+
+__all__ = ["ScenePerception", "SceneGrasp", "SegmentPlan", "ScenePlan", "perceive_scene", "plan_scene",
+           "start_workers"]
+
+@dataclass(frozen=True, eq=False)
+class ScenePerception:
+    """plane: the table's fit; labels (N,) per input point: segment id >= 0, -1 table,
+    below it, too high, non-finite, thinned away or noise; points (M, 3) and
+    indices (M,) into the input: the thinned points above the table; segment (M,) their
+    labels; radius [m]: the clustering radius used; timing [s]."""
+
+    plane: PlaneFit
+    labels: np.ndarray
+    points: np.ndarray
+    indices: np.ndarray
+    segment: np.ndarray
+    radius: float
+    timing: dict
+
+    @property
+    def n_segments(self) -> int:
+        return int(self.segment.max()) + 1 if len(self.segment) and self.segment.max() >= 0 else 0
+
+    def segment_points(self, k: int) -> np.ndarray:
+        return self.points[self.segment == k]
+
+
+@dataclass(frozen=True, eq=False)
+class ScenePlan:
+    """perception; table: the fitted plane as the planner used it; segments:
+    per-segment planning; grasps: every segment's best ``keep`` grasps, best first
+    (score, then grade); timing [s]: ``table``, ``segment``, ``identify`` (every
+    segment), ``plan`` (maps and scores) and ``total``; memory: what the next frame
+    may reuse (``plan_scene(previous=...)``)."""
+
+    perception: ScenePerception
+    table: TablePlane
+    segments: tuple[SegmentPlan, ...]
+    grasps: tuple[SceneGrasp, ...]
+    timing: dict
+    memory: tuple[SegmentMemory, ...] = ()
+
+    @property
+    def best(self) -> SceneGrasp | None:
+        """The best grasp of the scene with a robust score > 0, or None."""
+        return self.grasps[0] if self.grasps and self.grasps[0].score > 0 else None
+
+    def summary(self) -> dict:
+        return {"table": self.perception.plane.to_dict(), "segments": [s.to_dict() for s in self.segments],
+                "radius": self.perception.radius, "grasps": len(self.grasps),
+                "best": None if self.best is None else self.best.to_dict(), "timing": self.timing}
+
+
+def _check_scene(points) -> tuple[np.ndarray, np.ndarray]:
+    pts = as_coordinates(points)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise PointCloudError(f"a scene cloud must be an (N, 3) array, got shape {pts.shape}")
+    _check_memory(len(pts))
+    finite = np.flatnonzero(np.all(np.isfinite(pts), axis=1))
+    if len(finite) < 100:
+        raise PointCloudError(f"the scene cloud has {len(finite)} finite points; a table with objects needs "
+                              "at least 100 (is the camera looking at the table?)")
+    check_extent(pts[finite], max_extent=MAX_SCENE_EXTENT, what="a table-top scene")
+    return pts, finite
+
+
+def _check_memory(n: int) -> None:
+    """Refuse a cloud whose planning would need more memory than the budget
+    (:func:`~graspsim.maps.preflight.memory_budget`), before any work."""
+    from graspsim.errors import BudgetExceededError
+    from graspsim.maps.preflight import BUDGET_ENV, memory_budget
+
+    need, budget = n * SCENE_BYTES_PER_POINT, memory_budget()
+    if need > budget:
+        raise BudgetExceededError(
+            f"a scene cloud of {n} points needs about {need / 2**30:.1f} GiB to plan, over the memory budget of "
+            f"{budget / 2**30:.1f} GiB (${BUDGET_ENV}); crop it to the table and what stands on it, or "
+            "voxel-downsample it (planning thins it to a 3 mm grid anyway)")
+
+
+def perceive_scene(points: np.ndarray, rng: np.random.Generator, config: SceneConfig | None = None, *,
+                   labels: np.ndarray | None = None) -> ScenePerception:
+    """The table and the objects of a scene cloud (N, 3) [m] (NaN rows: no depth).
+    ``labels`` (N,): given segment ids (>= 0 objects, < 0 none; e.g. the simulator's
+    ground truth) replace the clustering."""
+    cfg = config or SceneConfig()
+    t0 = time.perf_counter()
+    pts, finite = _check_scene(points)
+    plane = fit_table(pts[finite], rng, sigma=cfg.plane_sigma, repetitions=cfg.plane_repetitions,
+                      up=None if cfg.up is None else np.asarray(cfg.up, float), confidence=cfg.plane_confidence)
+    t1 = time.perf_counter()
+    h = plane.heights(pts[finite])
+    above = finite[(h > cfg.table_band) & (h < cfg.max_height)]
+    idx = above[voxel_keep(pts[above], cfg.voxel)] if len(above) else above
+    sub = pts[idx]
+    if labels is not None:
+        seg, radius = _given_segments(labels, idx, len(pts), cfg.min_points), float("nan")
+    else:
+        radius = cfg.radius if cfg.radius is not None else cluster_radius(sub, max_radius=cfg.max_radius)
+        seg = euclidean_clusters(sub, radius=radius, min_points=cfg.min_points, link=gap_link(cfg.min_gap))
+    full = np.full(len(pts), -1, np.int64)
+    full[idx] = seg
+    t2 = time.perf_counter()
+    return ScenePerception(replace(plane, inliers=_spread(plane.inliers, finite, len(pts))), full, sub, idx, seg,
+                           radius, {"table": t1 - t0, "segment": t2 - t1})
+
+
+def _given_segments(labels, idx: np.ndarray, n: int, min_points: int) -> np.ndarray:
+    """Segment ids 0, 1, ... (ascending given id) of the thinned points from given
+    labels (n,) (< 0: none); ids with fewer than ``min_points`` thinned points: -1."""
+    given = np.asarray(labels).reshape(-1)
+    if given.shape != (n,):
+        raise InvalidParameterError(f"labels must have one entry per point ({n}), got shape {given.shape}")
+    g = given[idx].astype(np.int64)
+    ids, counts = np.unique(g[g >= 0], return_counts=True)
+    ids = ids[counts >= min_points]
+    keep = np.isin(g, ids)
+    seg = np.full(len(g), -1, np.int64)
+    seg[keep] = np.searchsorted(ids, g[keep])
+    return seg
+
+
+def _spread(mask: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
+    out = np.zeros(n, bool)
+    out[rows] = mask
+    return out
+
+
+def _box_samples(points: np.ndarray, plane: PlaneFit, step: float) -> np.ndarray:
+    """Surface samples (M, 3) of the smallest box around ``points`` (N, 3) and their
+    footprint on the table: the room an object the planner could not identify takes."""
+    foot = points - np.outer(plane.heights(points), plane.normal)
+    box = min_volume_box(np.concatenate([points, foot]))
+    ext = np.maximum(box.extents, 2.0 * MIN_DIM)
+    s = Box(*ext).surface_samples(min(step, 0.5 * float(ext.min()))).points
+    return s @ box.axes.T + box.center
+
+
+def _solid_samples(seg: np.ndarray, ident: Identification | None, plane: PlaneFit, step: float) -> np.ndarray:
+    """Surface samples (M, 3) [m, cloud frame] of what segment points ``seg`` stand
+    for: its identified primitives, and a box around each cluster it left unidentified
+    (the whole segment when identification could not run) -- the sides of a neighbour
+    the camera does not see."""
+    if ident is None:
+        return _box_samples(seg, plane, step)
+    out = [np.zeros((0, 3))]
+    for part in ident.parts:
+        prim = part.primitive()
+        s = prim.surface_samples(min(step, 0.5 * prim.size_scale)).points
+        out.append(s @ part.T_world_obj[:3, :3].T + part.T_world_obj[:3, 3])
+    out += [_box_samples(seg[p.indices], plane, step) for p in ident.unidentified if p.n_points >= 4]
+    return np.concatenate(out)
+
+
+def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray], reach: float) -> np.ndarray:
+    """What the gripper must clear besides segment ``k``: the scene's points above the
+    table outside it (noise points included: they were seen) and the surface samples
+    of the other segments' identified primitives, within ``reach`` of its bounding box."""
+    own = per.segment == k
+    lo, hi = per.points[own].min(axis=0) - reach, per.points[own].max(axis=0) + reach
+    pts = np.concatenate([per.points[~own], *(s for j, s in enumerate(solids) if j != k)])
+    return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+
+
+def _identify_new(segs: list[np.ndarray], olds: list, rng: np.random.Generator, cfg: SceneConfig) -> list:
+    """(identification or None, why) of every segment: a reused one's, else identified,
+    segment k drawing from the k-th generator spawned from ``rng``."""
+    rngs = rng.spawn(len(segs))
+    new = [k for k, o in enumerate(olds) if o is None]
+    made = dict(zip(new, identify_segments([segs[k] for k in new], [rngs[k] for k in new], cfg.planner.identify,
+                                           cfg.workers)))
+    return [(o.ident, o.why) if o is not None else made[k] for k, o in enumerate(olds)]
+
+
+def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: SceneConfig | None = None,
+               labels: np.ndarray | None = None, previous: ScenePlan | None = None,
+               viewpoint: np.ndarray | None = None) -> ScenePlan:
+    """Ranked grasps for every object of a scene cloud (N, 3) [m] (see the module
+    docstring); ``db``: the :class:`~graspsim.maps.database.MapDatabase`; ``labels``:
+    see :func:`perceive_scene`; ``previous``: the plan of the previous frame of the same
+    scene (same frame of reference): segments that did not change keep their
+    identification, and their grasps when no new obstacle came near them
+    (:mod:`~graspsim.planning.scene_reuse`; status ``"reused"``); ``viewpoint`` (3,):
+    where the camera that saw the cloud was (cloud frame): finger volume in the space
+    behind what it saw -- an object's far side, what lies under a neighbour -- scales the
+    robust score down (:mod:`~graspsim.maps.occlusion`); None: no such term."""
+    cfg = config or SceneConfig()
+    t0 = time.perf_counter()
+    per = perceive_scene(points, rng, cfg, labels=labels)
+    table = per.plane.table(cfg.clearance)
+    t1 = time.perf_counter()
+    segs = [per.segment_points(k) for k in range(per.n_segments)]
+    before = previous.memory if previous is not None else ()
+    olds = [find_previous(seg, before, tol=cfg.reuse_tol) for seg in segs]
+    idents = _identify_new(segs, olds, rng, cfg)
+    solids = [o.solids if o is not None and o.solids is not None else _solid_samples(seg, i, per.plane, cfg.solid_step)
+              for seg, (i, _), o in zip(segs, idents, olds)] if cfg.neighbours else []
+    t2 = time.perf_counter()
+    obstacles = [_obstacles(per, k, solids, cfg.reach) if cfg.neighbours else None for k in range(len(segs))]
+    done = [settled_plan(k, segs[k], ident, why, olds[k], obstacles[k], cfg)
+            for k, (ident, why) in enumerate(idents)]
+    todo = [k for k, d in enumerate(done) if d is None]
+    for k, d in zip(todo, plan_segments([(segs[k], k, idents[k][0], obstacles[k], db, cfg, table, viewpoint)
+                                          for k in todo], db, cfg)):
+        done[k] = d
+    plans, grasps, memory = [], [], []
+    for k, (p, g) in enumerate(done):
+        plans.append(p)
+        grasps += g
+        memory.append(SegmentMemory(segs[k], idents[k][0], idents[k][1], solids[k] if solids else None,
+                                    obstacles[k], p, tuple(g)))
+    grasps.sort(key=lambda s: (-s.score, -s.grade, s.segment))
+    now = time.perf_counter()
+    timing = {**per.timing, "identify": t2 - t1, "plan": now - t2, "total": now - t0}
+    return ScenePlan(per, table, tuple(plans), tuple(grasps), timing, tuple(memory))

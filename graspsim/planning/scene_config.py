@@ -1,0 +1,143 @@
+"""A table-top scene's planning settings (:class:`SceneConfig`), its planning budget label
+(:func:`budget_fields`) and the scene planner's fixed constants; the planning itself is
+:mod:`graspsim.planning.scene`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from graspsim.errors import InvalidParameterError
+from graspsim.perception.identify_config import IdentifyConfig
+from graspsim.perception.segment import gap_link
+from graspsim.planning.planner import PlannerConfig
+from graspsim.planning.scene_workers import scene_workers
+
+__all__ = ["SceneConfig", "budget_fields", "MAX_SCENE_EXTENT", "SCENE_BYTES_PER_POINT", "SCENE_FIT_POINTS",
+           "SCENE_COLLISION_TOLERANCE"]
+
+#: Widest plausible table-top scene [m]; wider clouds are taken for millimetres or centimetres.
+MAX_SCENE_EXTENT = 10.0
+
+
+#: Memory planning a scene takes per cloud point [bytes], with a margin: ``graspsim
+#: plan-scene``'s peak resident memory grew by about 110 bytes a point from an E10 packed
+#: frame (0.14 M points) to the same frame tiled ten times (1.4 M).
+SCENE_BYTES_PER_POINT = 160
+
+#: Points a scene segment is identified on at most (``IdentifyConfig.fit_points`` of the
+#: scene's default planner): segments are 3 mm grids already, the largest thinned further.
+SCENE_FIT_POINTS = 1000
+#: [m] the scene planner's run-time collision tolerance (:attr:`PlannerConfig.collision_tolerance
+#: <graspsim.planning.planner.PlannerConfig.collision_tolerance>`): a grasp adapted to a segment's
+#: identified primitive is rejected when it comes this close to touching it. The primitive
+#: is fitted to a depth camera's points -- the default sensor's noise is 1.8-2.8 mm at the
+#: camera's 0.6-0.8 m, its depth step 1 mm -- so it is not known to the FS maps' 0.25 mm;
+#: checking to 1 mm takes about a sixteenth of their finest collision samples.
+SCENE_COLLISION_TOLERANCE = 0.001
+
+
+def _scene_planner() -> PlannerConfig:
+    return PlannerConfig(identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS),
+                         collision_tolerance=SCENE_COLLISION_TOLERANCE)
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """planner: the per-segment planner settings (its ``table`` is replaced by the
+    fitted plane; by default robust identification on at most :data:`SCENE_FIT_POINTS`
+    points of a segment, ``IdentifyConfig(fit_points=None)`` for all of them).
+    plane_sigma [m], plane_repetitions, plane_confidence: the table fit (its planes are
+    scored until the RANSAC bound at this confidence is met; None: all of them, see
+    :func:`~graspsim.perception.plane.fit_table`); table_band [m]:
+    points less than this above the table belong to it; max_height [m]: points higher
+    above it are ignored; voxel [m]: the grid the points above the table are thinned
+    to; radius [m]: the clustering radius (None: from the spacing, at most max_radius);
+    min_gap [m]: the least gap the user knows parts any two objects (objects placed
+    apart; None: they may touch): clusters closer than
+    :data:`~graspsim.perception.segment.GAP_LINK` x min_gap are one object; min_points: smallest
+    object (points after thinning); neighbours: score grasps
+    against the whole scene (False: the segment's points only); reach [m]: scene points
+    farther than this from a segment's bounding box cannot touch the gripper and are
+    left out of its check; solid_step [m]: spacing of the surface samples of the
+    neighbours' identified primitives added to the check (their unseen sides);
+    per_segment: grasps scored per part of a segment at most; enough: planning of a segment
+    stops at this many grasps with a robust score > 0; keep: grasps per segment in the
+    scene ranking; clearance [m]: the gripper's clearance above the table; reuse_tol
+    [m]: how far points may move between frames for a segment to count as unchanged
+    (``plan_scene(previous=...)``); up: the
+    table's upward direction if known (cloud frame); workers: processes the segments are
+    identified on (None: one per core; 1: in this process; see
+    :mod:`~graspsim.planning.scene_workers` -- the result does not depend on it)."""
+
+    planner: PlannerConfig = field(default_factory=_scene_planner)
+    plane_sigma: float = 0.002
+    plane_repetitions: int = 200
+    plane_confidence: float | None = 0.999
+    table_band: float = 0.006
+    max_height: float = 0.5
+    voxel: float = 0.003
+    radius: float | None = None
+    max_radius: float = 0.007
+    min_gap: float | None = None
+    min_points: int = 40
+    neighbours: bool = True
+    reach: float = 0.15
+    solid_step: float = 0.004
+    per_segment: int = 200
+    enough: int = 32
+    keep: int = 10
+    clearance: float = 0.002
+    reuse_tol: float = 0.005
+    up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
+    workers: int | None = None
+
+    def __post_init__(self) -> None:
+        for k in ("plane_sigma", "table_band", "max_height", "voxel", "max_radius", "reach", "solid_step",
+                  "reuse_tol"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise InvalidParameterError(f"SceneConfig.{k} must be > 0 m, got {v!r}")
+        if self.radius is not None and not (np.isfinite(self.radius) and self.radius > 0):
+            raise InvalidParameterError(f"SceneConfig.radius must be > 0 m or None, got {self.radius!r}")
+        try:
+            gap_link(self.min_gap)
+        except InvalidParameterError as err:
+            raise InvalidParameterError(f"SceneConfig.{err}") from None
+        for k in ("plane_repetitions", "min_points", "per_segment", "enough", "keep"):
+            v = getattr(self, k)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise InvalidParameterError(f"SceneConfig.{k} must be an integer >= 1, got {v!r}")
+        scene_workers(self.workers)  # validates it
+        if self.plane_confidence is not None and not 0 < self.plane_confidence < 1:
+            raise InvalidParameterError(f"SceneConfig.plane_confidence must be in (0, 1) or None, "
+                                        f"got {self.plane_confidence!r}")
+        if not isinstance(self.planner, PlannerConfig) or self.planner.rank != "robust":
+            raise InvalidParameterError("SceneConfig.planner must be a PlannerConfig ranking by the robust score "
+                                        f"(the scene check is part of it), got {self.planner!r}")
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "planner"}
+
+    @property
+    def budget(self) -> str:
+        """The planning budget as its label ``"ENOUGH:PER_SEGMENT"`` (read back by :func:`budget_fields`)."""
+        return f"{self.enough}:{self.per_segment}"
+
+
+def budget_fields(label: str) -> dict[str, int]:
+    """A segment's planning budget ``"ENOUGH:PER_SEGMENT"`` as the :class:`SceneConfig`
+    fields it sets (``enough``, ``per_segment``); "" for none (the defaults, E10's).
+    Smaller budgets plan a new frame with less CPU and choose from fewer grasps
+    (``experiments/study_scene_budget.py`` measures both)."""
+    if label == "":
+        return {}
+    try:
+        enough, per = (int(v) for v in str(label).split(":"))
+    except ValueError:
+        raise InvalidParameterError(f"a planning budget is ENOUGH:PER_SEGMENT, two whole numbers (e.g. 8:100), "
+                                    f"got {label!r}") from None
+    if enough < 1 or per < 1:
+        raise InvalidParameterError(f"a planning budget's numbers must be >= 1, got {label!r}")
+    return {"enough": enough, "per_segment": per}

@@ -1,0 +1,158 @@
+"""One segment of a scene planned (:func:`~graspsim.planning.scene.plan_scene`): its
+ranked grasps (:class:`SceneGrasp`) and its record (:class:`SegmentPlan`); settled
+without planning when its identification failed or the previous frame's grasps stand
+(:mod:`~graspsim.planning.scene_reuse`), else planned by the run-time planner against
+the scene around it -- the segments side by side on the scene's worker processes
+(:mod:`~graspsim.planning.scene_workers`; a segment's planning draws nothing at random,
+so the result does not depend on where or in which order), or in this process, in
+segment order, when a plan could store a new FS map (later plans match against it) or
+the database is a subclass with state of its own.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from graspsim.geometry.table import TablePlane
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.maps.match import MatchKind
+from graspsim.maps.robust import executed_width
+from graspsim.perception.identify import Identification
+from graspsim.planning.planner import PlannerConfig, PlanResult, canonical_box, plan_stream
+from graspsim.planning.scene_reuse import nothing_new, reused_grasps
+from graspsim.planning.scene_workers import resident_database, run_segments
+
+if TYPE_CHECKING:  # the scene's settings (scene.py imports this module)
+    from graspsim.planning.scene_config import SceneConfig
+
+__all__ = ["SceneGrasp", "SegmentPlan", "builds_maps", "settled_plan", "plan_segments"]
+
+
+@dataclass(frozen=True, eq=False)
+class SceneGrasp:
+    """segment: which segment it grasps; T_world_wrist (4, 4) in the cloud's frame;
+    opening: the pad gap to open the jaws to before closing [m]; score: the robust score
+    (expected success; 0: colliding with the scene at its pose); grade: the map's grade;
+    clearance: distance of the gripper to the nearest observed point [m]."""
+
+    segment: int
+    T_world_wrist: np.ndarray
+    opening: float
+    score: float
+    grade: float
+    clearance: float
+
+    def to_dict(self) -> dict:
+        return {"segment": self.segment, "T_world_wrist": self.T_world_wrist.tolist(), "opening": self.opening,
+                "score": self.score, "grade": self.grade, "clearance": self.clearance}
+
+
+@dataclass(frozen=True, eq=False)
+class SegmentPlan:
+    """One segment's planning: points (count), status ("planned": grasps found, "reused": the previous frame's,
+    "no_grasp", "failed": identification could not run, with ``reason``), the primitives
+    identified, grasps scored, seconds."""
+
+    segment: int
+    points: int
+    status: str
+    reason: str | None
+    primitives: tuple[str, ...]
+    scored: int
+    seconds: float
+
+    def to_dict(self) -> dict:
+        return {"segment": self.segment, "points": self.points, "status": self.status, "reason": self.reason,
+                "primitives": list(self.primitives), "scored": self.scored, "seconds": self.seconds}
+
+
+def builds_maps(ident: Identification, db: MapDatabase, config: PlannerConfig) -> bool:
+    """Whether planning identification ``ident`` could build and store an FS map (a part
+    with no stored map within the scaling range, ``build_missing`` on): such a plan
+    changes the database that later plans match against."""
+    if not config.build_missing:
+        return False
+    return any(db.match(canonical_box(p.primitive(), p.T_world_obj)[0],
+                        max_ratio=config.scaling.max_ratio).match is MatchKind.BUILD for p in ident.parts)
+
+
+def _inner(seg: np.ndarray, cfg: SceneConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The box where new obstacles stop a segment's plan from being reused: its reach
+    box (``scene._obstacles``) less twice the reuse tolerance."""
+    m = cfg.reach - 2.0 * cfg.reuse_tol
+    return seg.min(axis=0) - m, seg.max(axis=0) + m
+
+
+def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.ndarray | None, db,
+                  cfg: SceneConfig, table: TablePlane, viewpoint: np.ndarray | None = None
+                  ) -> tuple[SegmentPlan, list[SceneGrasp]]:
+    """Segment ``k`` (its thinned points ``seg`` (M, 3), identified as ``ident``) planned
+    against ``obstacles``: its SegmentPlan and best ``keep`` grasps. It draws nothing at
+    random: the same inputs give the same plan in any process, in any order."""
+    t0 = time.perf_counter()
+    pcfg = replace(cfg.planner, table=table, robust=replace(cfg.planner.robust, top=cfg.per_segment))
+    batches: list[GraspabilityMap] = []
+    prims = tuple(p.shape.value for p in ident.parts)
+    stream = plan_stream(seg, db=db, rng=None, config=pcfg, obstacles=obstacles, identification=ident,
+                         viewpoint=viewpoint, scored_only=True)  # identified already: no draws
+    good = scored = 0  # over the batches so far
+    try:
+        for item in stream:
+            if isinstance(item, PlanResult):
+                break
+            batches.append(item.map)
+            good += int(np.sum(item.map.robust > 0))
+            scored += int(np.isfinite(item.map.robust).sum())
+            if good >= cfg.enough or scored >= cfg.per_segment * len(ident.parts):
+                break  # enough found, or every part's scoring budget spent: the rest is unscored
+    finally:
+        stream.close()
+    if not batches:
+        return SegmentPlan(k, len(seg), "no_grasp", None, prims, 0, time.perf_counter() - t0), []
+    gmap = GraspabilityMap.concat(batches, meta=batches[0].meta)
+    gmap = gmap.select(np.isfinite(gmap.robust)).top_k(cfg.keep)  # the rows scored against the scene
+    T_world_obj = gmap.meta.placement.T_cloud_obj
+    T = T_world_obj @ gmap.T_obj_wrist
+    g = db.gripper
+    opening = g.pregrasp_opening(executed_width(gmap))
+    score = np.nan_to_num(gmap.robust.astype(float), nan=0.0)
+    grasps = [SceneGrasp(k, T[i], float(opening[i]), float(score[i]), float(gmap.grade[i]),
+                         float(gmap.clearance[i])) for i in range(len(gmap))]
+    return SegmentPlan(k, len(seg), "planned", None, prims, scored, time.perf_counter() - t0), grasps
+
+
+def settled_plan(k: int, seg: np.ndarray, ident: Identification | None, why: str, old, obstacles, cfg: SceneConfig
+                      ) -> tuple[SegmentPlan, list[SceneGrasp]] | None:
+    """Segment ``k``'s plan and grasps when it needs no planning: its identification
+    failed, or the previous frame's grasps stand (:mod:`~graspsim.planning.scene_reuse`);
+    else None."""
+    if ident is None:
+        return SegmentPlan(k, len(seg), "failed", why, (), 0, 0.0), []
+    if old is None or old.plan.status == "failed":
+        return None
+    if not nothing_new(old.obstacles, obstacles, tol=cfg.reuse_tol, within=_inner(seg, cfg), own=seg):
+        return None
+    g = reused_grasps(old, k)
+    return (replace(old.plan, segment=k, status="reused", seconds=0.0), g) if g else None
+
+
+def plan_segments(tasks: list[tuple], db, cfg: SceneConfig) -> list[tuple[SegmentPlan, list[SceneGrasp]]]:
+    """:func:`_plan_segment` of every task, on the scene's worker processes unless a
+    plan could build (and store) an FS map -- then in this process, in segment order,
+    as each plan matches against the maps stored before it -- or the database is a
+    subclass of :class:`~graspsim.maps.database.MapDatabase` (it may keep state a copy
+    in a worker would not share, e.g. maps built in memory): in this process too."""
+    parallel = type(db) is MapDatabase and not any(builds_maps(t[2], db, cfg.planner) for t in tasks)
+    workers = cfg.workers if parallel else 1
+    # the longest plans first: parts (each streams its own maps), then points
+    return run_segments(_plan_segment_there, tasks, [len(t[2].parts) * 1e6 + len(t[0]) for t in tasks], workers)
+
+
+def _plan_segment_there(seg, k, ident, obstacles, db, *args):
+    """:func:`_plan_segment` with the worker's own copy of the map database (its loaded maps kept)."""
+    return _plan_segment(seg, k, ident, obstacles, resident_database(db), *args)

@@ -1,0 +1,422 @@
+"""Clutter removal: clear a table of several objects, one grasp at a time.
+
+The benchmark of VGN, GPD and their successors, on a :class:`~graspsim.tabletop.table_scene.TableScene`:
+
+    render a depth frame (one D435-like camera, sensor noise) -> back-project to the world
+    -> :func:`~graspsim.planning.scene.plan_scene` (table, segments, every segment
+    planned, grasps checked against the whole scene) -> execute the best grasp on any
+    object (execution error optional) -> a lifted object leaves the scene -> render again
+
+until the table is clear, two consecutive grasps failed, no grasp is found, or
+``max_attempts`` grasps were tried. Metrics (:class:`ClutterResult`): grasp success rate
+(GSR = grasps that lifted their target / grasps executed; a grasp that lifted another
+object than its target is no success: it is counted apart (cause ``success_other_object``), and the
+object it lifted leaves the scene), declutter rate (objects removed / objects placed),
+planning seconds per grasp (from the depth image, back-projection included,
+to the ranked grasps), each failure's cause, and segmentation quality
+against MuJoCo's segmentation render: of the objects seen in a frame, the share whose
+points form exactly one cluster (:func:`one_cluster_objects`).
+Ablations: ``SceneConfig(neighbours=False)`` (no neighbour check) and
+``ClutterConfig(ground_truth=True)`` (the render's object labels as the segments).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from graspsim.errors import InvalidParameterError
+from graspsim.geometry.camera import Camera, backproject, rig
+from graspsim.planning.scene import plan_scene
+from graspsim.planning.scene_config import SceneConfig
+from graspsim.planning.scene_reuse import drop_grasp, near_pose
+from graspsim.sim.noise import ExecutionNoise
+from graspsim.tabletop.depth_noise import DepthNoise
+from graspsim.tabletop.planners import grasp_target
+from graspsim.tabletop.table_scene import known_gap
+
+__all__ = ["scene_settings", "ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame", "ClutterEpisode",
+           "run_clutter", "run_benchmark", "summarize", "one_cluster_objects", "STOPS", "OTHER"]
+
+#: Why an episode ended.
+STOPS = ("cleared", "failures", "no_grasp", "max_attempts")
+#: The cause of a grasp that lifted an object other than its target.
+OTHER = "success_other_object"
+
+
+def scene_settings(kind: str, **kw) -> SceneConfig:
+    """``SceneConfig(**kw)`` for planning scenes of ``kind`` made by
+    :func:`~graspsim.tabletop.table_scene.make_scene`, with the least gap such scenes keep between
+    objects as ``min_gap`` (packed: 1 cm; piles: none, :func:`~graspsim.tabletop.table_scene.known_gap`):
+    what a user who placed the objects knows."""
+    return SceneConfig(**{"min_gap": known_gap(kind), **kw})
+
+
+@dataclass(frozen=True)
+class ClutterConfig:
+    """scene: the perception and planning settings; depth_noise: the sensor's (None: a
+    perfect sensor); execution: the arm's pose error (None: none); ground_truth: segment
+    by the render's object labels instead of clustering (ablation); max_failures:
+    consecutive failed grasps that end an episode; max_attempts: grasps per episode at
+    most (None: 2 x objects + 2); min_seen: points (after thinning) an object needs in
+    a frame to count in the segmentation quality; reuse: a segment that did not change
+    since the previous frame keeps its plan (``plan_scene(previous=...)``), less the
+    grasp that was executed; planner: one of :mod:`graspsim.tabletop.planners` (its name in ``planner_name``)."""
+
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    depth_noise: DepthNoise | None = field(default_factory=DepthNoise)
+    execution: ExecutionNoise | None = None
+    ground_truth: bool = False
+    max_failures: int = 2
+    max_attempts: int | None = None
+    min_seen: int = 40
+    reuse: bool = True
+    planner: object = None  # a planner of graspsim.tabletop.planners' interface; None: plan_scene (with reuse)
+    planner_name: str = "graspsim"
+
+    def __post_init__(self) -> None:
+        for k in ("max_failures", "min_seen"):
+            v = getattr(self, k)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise InvalidParameterError(f"ClutterConfig.{k} must be an integer >= 1, got {v!r}")
+        m = self.max_attempts
+        if m is not None and (isinstance(m, bool) or not isinstance(m, int) or m < 1):
+            raise InvalidParameterError(f"ClutterConfig.max_attempts must be an integer >= 1 or None, got {m!r}")
+
+    def to_dict(self) -> dict:
+        return {"scene": self.scene.to_dict(), "depth_noise": None if self.depth_noise is None
+                else self.depth_noise.to_dict(), "execution": None if self.execution is None
+                else self.execution.to_dict(), "ground_truth": self.ground_truth,
+                "max_failures": self.max_failures, "max_attempts": self.max_attempts, "min_seen": self.min_seen,
+                "reuse": self.reuse, "planner": self.planner_name}
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """One executed grasp: target (the object the chosen segment is mostly of, ground
+    truth), outcome (:meth:`SceneOutcome.to_dict`), success (the target lifted), cause
+    (``success_other_object``: another object came up; not a success), score (robust),
+    planning [s] (depth frame to ranked grasps; ``timing`` per stage), segments found,
+    objects seen, and of those segmented as one cluster."""
+
+    target: int | None
+    outcome: dict
+    success: bool
+    cause: str
+    score: float
+    planning: float
+    timing: dict
+    segments: int
+    seen: int
+    one_cluster: int
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class ClutterResult:
+    """One episode: placed objects, attempts in order, removed objects, why it stopped
+    (:data:`STOPS`), the first frame's segmentation quality (objects seen, one cluster)."""
+
+    placed: int
+    attempts: tuple[Attempt, ...]
+    removed: int
+    stop: str
+    first_seen: int
+    first_one_cluster: int
+    seconds: float
+
+    @property
+    def successes(self) -> int:
+        return sum(a.success for a in self.attempts)
+
+    @property
+    def other_objects(self) -> int:
+        """Grasps that lifted an object other than their target (not successes)."""
+        return sum(a.cause == OTHER for a in self.attempts)
+
+    @property
+    def grasp_success_rate(self) -> float:
+        return self.successes / len(self.attempts) if self.attempts else float("nan")
+
+    @property
+    def declutter_rate(self) -> float:
+        return self.removed / self.placed
+
+    def to_dict(self) -> dict:
+        return {"placed": self.placed, "removed": self.removed, "attempts": len(self.attempts),
+                "successes": self.successes, "other_objects": self.other_objects,
+                "grasp_success_rate": self.grasp_success_rate,
+                "declutter_rate": self.declutter_rate, "stop": self.stop, "first_seen": self.first_seen,
+                "first_one_cluster": self.first_one_cluster, "seconds": self.seconds,
+                "steps": [a.to_dict() for a in self.attempts]}
+
+
+def one_cluster_objects(truth: np.ndarray, found: np.ndarray, *, min_seen: int = 40,
+                        share: float = 0.9) -> tuple[int, int]:
+    """(objects seen, objects segmented as one cluster) from per-point ground-truth
+    object ids ``truth`` (N,) (< 0: none) and found segment ids ``found`` (N,) (< 0:
+    none) of the same points. An object is seen with ``min_seen`` points or more; it is
+    one cluster when one segment holds at least ``share`` of its segmented points and at
+    least ``share`` of that segment's points are the object's."""
+    truth, found = np.asarray(truth), np.asarray(found)
+    seen = one = 0
+    for k in np.unique(truth[truth >= 0]):
+        mine = truth == k
+        if mine.sum() < min_seen:
+            continue
+        seen += 1
+        segs = found[mine & (found >= 0)]
+        if not len(segs):
+            continue
+        ids, counts = np.unique(segs, return_counts=True)
+        best = ids[np.argmax(counts)]
+        if counts.max() >= share * len(segs) and np.mean(truth[found == best] == k) >= share:
+            one += 1
+    return seen, one
+
+
+@dataclass(frozen=True, eq=False)
+class ClutterFrame:
+    """What one look at the scene gives: the depth ``frame`` (colour too when asked),
+    its back-projected ``view``, the :class:`~graspsim.planning.scene.ScenePlan`
+    ``plan``, ``planning`` [s] (depth frame to ranked grasps), of the objects seen
+    (ground truth) those segmented as one cluster; ``candidates``: the plan's grasps in
+    ranking order less those closing on a failed grasp's contacts (not tried again), and
+    ``best``: the first of them with a robust score > 0 (None: none), what the protocol
+    executes."""
+
+    frame: object
+    view: object
+    plan: object
+    planning: float
+    seen: int
+    one_cluster: int
+    candidates: tuple = ()
+    best: object = None
+
+
+class ClutterEpisode:
+    """One clutter-removal episode, stepped by its caller: the one implementation of
+    the protocol's render -> plan -> execute step and of its stopping rules, shared by
+    :func:`run_clutter` (which always executes the best grasp) and the Gymnasium env
+    ``graspsim/ClutterClear-v0`` (where a policy chooses).
+
+        ep = ClutterEpisode(scene, db=db, rng=rng)
+        while ep.stop is None:
+            look = ep.observe()            # None when it ended (cleared, no grasp)
+            if look is not None:
+                ep.execute(look, look.best)
+        result = ep.result(); ep.close()
+
+    ``stop`` is None while it runs, then one of :data:`STOPS`: the table is clear, no
+    grasp with a robust score > 0 was left to try, ``max_failures`` consecutive grasps
+    failed, or ``max_attempts`` grasps were executed. Deterministic given ``rng``.
+    ``config`` None: the defaults, planned with :func:`scene_settings` of the scene's kind."""
+
+    def __init__(self, scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
+                 camera: Camera | None = None, rgb: bool = False):
+        self.config = cfg = config or ClutterConfig(scene=scene_settings(scene.kind))
+        self.scene, self.db, self.rgb = scene, db, rgb
+        self.camera = camera or rig(1)[0]
+        self.cap = cfg.max_attempts or 2 * len(scene.objects) + 2
+        self._t0 = time.perf_counter()
+        self.sim = scene.sim()
+        self._depth_rng, self._plan_rng, self._exec_rng = rng.spawn(3)
+        self.attempts: list[Attempt] = []
+        self.failures = 0
+        self.first: tuple[int, int] | None = None
+        self.last: ClutterFrame | None = None  # the latest look, also when it found no grasp
+        self._previous = None  # the plan the next look may reuse (ClutterConfig.reuse)
+        self.failed: list[np.ndarray] = []  # wrist poses of the episode's failed grasps
+        self.reach = float(db.gripper.fingertip_z) if db is not None else 0.0  # wrist to fingertips [m]
+        self.stop: str | None = None if self.sim.objects_left() else "cleared"
+
+    def render(self):
+        """A depth frame of the scene now (the sensor's noise drawn from the episode)."""
+        return self.sim.render(self.camera, noise=self.config.depth_noise, rng=self._depth_rng, rgb=self.rgb)
+
+    def observe(self) -> ClutterFrame | None:
+        """Render and plan the scene; None (and ``stop`` = "no_grasp") when no grasp left
+        to try has a robust score > 0 (``last`` holds that look all the same). With a planner
+        of :mod:`graspsim.tabletop.planners`: its first proposal left to try (no segments)."""
+        if self.stop is not None:
+            raise InvalidParameterError(f"the episode has ended ({self.stop}); nothing to observe")
+        cfg = self.config
+        frame = self.render()
+        if cfg.planner is not None:
+            from graspsim.tabletop.planners import plan_frame
+
+            view, sp, grasps, planning = plan_frame(cfg.planner, frame, self.db.gripper, self._plan_rng)
+            cands, best = self._candidates(grasps, positive=False)
+            seen, one = one_cluster_objects(view.labels, np.full(len(view.labels), -1), min_seen=cfg.min_seen)
+        else:
+            view, sp, cands, best, planning = self._plan(frame)
+            per = sp.perception
+            seen, one = one_cluster_objects(view.labels[per.indices], per.segment, min_seen=cfg.min_seen)
+        if self.first is None:
+            self.first = (seen, one)
+        self.last = ClutterFrame(frame, view, sp, planning, seen, one, cands, best)
+        if best is None:
+            self.stop = "no_grasp"
+            return None
+        return self.last
+
+    def _plan(self, frame):
+        """graspsim's scene planner on ``frame``: (view, plan, candidates, best, seconds)."""
+        cfg = self.config
+        t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
+        view = backproject(frame)
+        labels = view.labels if cfg.ground_truth else None
+        eye = self.camera.T_world_camera[:3, 3]  # the occluded space behind what the camera saw
+        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
+                        previous=self._previous, viewpoint=eye)
+        cands, best = self._candidates(sp.grasps)
+        if best is None and self._previous is not None:  # reused plans kept scores from before: plan afresh
+            sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
+                            viewpoint=eye)
+            cands, best = self._candidates(sp.grasps)
+        return view, sp, cands, best, time.perf_counter() - t1
+
+    def _candidates(self, grasps, positive: bool = True) -> tuple[tuple, object]:
+        """The ``grasps`` (a plan's) still to try, in ranking order, and the first of them
+        with a robust score > 0 (``positive``; else the first) or None. A grasp that failed
+        is not tried again, nor any that closes on its contacts (:func:`~graspsim.planning.
+        scene_reuse.near_pose` at the fingertips: the other approaches of a contact pair
+        fail the same way; a start collision leaves the scene as it was)."""
+        cands = tuple(g for g in grasps
+                      if not any(near_pose(T, g.T_world_wrist, reach=self.reach) for T in self.failed))
+        return cands, next((g for g in cands if g.score > 0 or not positive), None)
+
+    def execute(self, look: ClutterFrame, grasp) -> Attempt:
+        """Execute ``grasp`` (a :class:`~graspsim.planning.scene.SceneGrasp` of
+        ``look.plan``) with the configured execution error, then apply the stopping rules."""
+        if self.stop is not None:
+            raise InvalidParameterError(f"the episode has ended ({self.stop}); no more grasps")
+        cfg = self.config
+        sp, external = look.plan, cfg.planner is not None
+        target = grasp_target(look, grasp, self.db.gripper if self.db is not None else None)
+        out = self.sim.execute(grasp.T_world_wrist, grasp.opening, target=target, noise=cfg.execution,
+                               rng=self._exec_rng if cfg.execution is not None else None)
+        if cfg.reuse and not external:  # the executed grasp is not offered again
+            self._previous = replace(sp, memory=drop_grasp(sp.memory, grasp.T_world_wrist, reach=self.reach))
+        hit = out.success and out.picked == target  # the target came up (None: unknown target)
+        cause = OTHER if out.success and not hit else out.cause
+        a = Attempt(target, out.to_dict(), hit, cause, grasp.score, look.planning, {} if external else sp.timing,
+                    0 if external else sp.perception.n_segments, look.seen, look.one_cluster)
+        self.attempts.append(a)
+        # a grasp that lifted another object is no success, but the scene changed: no failure in a row
+        self.failures = 0 if out.success else self.failures + 1
+        if not out.success:
+            self.failed.append(np.asarray(grasp.T_world_wrist, float))
+        if self.failures >= cfg.max_failures:
+            self.stop = "failures"
+        elif not self.sim.objects_left():
+            self.stop = "cleared"
+        elif len(self.attempts) >= self.cap:
+            self.stop = "max_attempts"
+        return a
+
+    @property
+    def removed(self) -> int:
+        return len(self.scene.objects) - len(self.sim.objects_left())
+
+    def result(self) -> ClutterResult:
+        first = self.first or (0, 0)
+        return ClutterResult(len(self.scene.objects), tuple(self.attempts), self.removed, self.stop or "max_attempts",
+                             first[0], first[1], time.perf_counter() - self._t0)
+
+    def close(self) -> None:
+        """Free the renderer (the simulation stays readable)."""
+        self.sim.close()
+
+
+def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
+                camera: Camera | None = None, on_step=None) -> ClutterResult:
+    """One clutter-removal episode on ``scene`` (a :class:`~graspsim.tabletop.table_scene.TableScene`)
+    seen by ``camera`` (default: one D435-like camera, ``rig(1)``), planning against the
+    :class:`~graspsim.maps.database.MapDatabase` ``db``, executing the best grasp each
+    time (:class:`ClutterEpisode`). Deterministic given ``rng``.
+    on_step(view, frame, plan, attempt): called after each executed grasp with the
+    back-projected view, the depth frame (colour rendered too), the ScenePlan and the
+    Attempt (e.g. to draw it: :func:`~graspsim.tabletop.clutter_figure.save_step_figure`)."""
+    ep = ClutterEpisode(scene, db=db, rng=rng, config=config, camera=camera, rgb=on_step is not None)
+    try:
+        while ep.stop is None:
+            look = ep.observe()
+            if look is None:
+                break
+            a = ep.execute(look, look.best)
+            if on_step is not None:
+                on_step(look.view, look.frame, look.plan, a)
+    finally:
+        ep.close()
+    return ep.result()
+
+
+def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, config: ClutterConfig | None = None,
+                  object_set: str = "mixed", first: int = 0, on_step=None, on_scene=None) -> list[ClutterResult]:
+    """``scenes`` episodes on scenes ``first``, ``first + 1``, ... of ``n_objects`` of
+    ``kind`` ("pile" | "packed"). Scene ``i`` is ``make_scene(n_objects, kind, derived_seed(seed, "scene", i))`` and its
+    episode draws from ``rng_for(seed, "clutter", i)``: every condition (noise,
+    ablation) meets the same scenes and the same draws. on_step(i, view, frame, plan,
+    attempt) as :func:`run_clutter`'s; on_scene(i, scene, result) after each episode."""
+    from graspsim.seeding import derived_seed, rng_for
+    from graspsim.tabletop.table_scene import make_scene
+
+    if isinstance(scenes, bool) or not isinstance(scenes, int) or scenes < 1:
+        raise InvalidParameterError(f"scenes must be a whole number >= 1, got {scenes!r}")
+    out = []
+    for i in range(first, first + scenes):
+        scene = make_scene(n_objects, kind, derived_seed(seed, "scene", i), object_set=object_set,
+                           gripper=db.gripper)
+        step = None if on_step is None else (lambda *a, i=i: on_step(i, *a))
+        r = run_clutter(scene, db=db, rng=rng_for(seed, "clutter", i), config=config, on_step=step)
+        out.append(r)
+        if on_scene is not None:
+            on_scene(i, scene, r)
+    return out
+
+
+def _spread(values: list[float]) -> dict:
+    """count, mean, median and max of seconds (None when there are none)."""
+    v = np.asarray(values, float)
+    if not len(v):
+        return {"count": 0, "mean": None, "median": None, "max": None}
+    return {"count": len(v), "mean": float(v.mean()), "median": float(np.median(v)), "max": float(v.max())}
+
+
+def summarize(results: list[ClutterResult]) -> dict:
+    """Pooled metrics of episodes: grasp success rate (successes / attempts), cleared
+    rate (objects removed / placed), grasps that lifted another object than their
+    target (``other_objects``, not successes), scenes cleared, stops, failure causes,
+    planning seconds per grasp (count, mean, median, max; of the episodes' first frames
+    and of later frames, which may reuse plans, apart; median per stage of
+    ``plan_scene``), segmentation quality of the first frames
+    (objects seen, segmented as one cluster)."""
+    attempts = [a for r in results for a in r.attempts]
+    ok = sum(a.success for a in attempts)
+    placed, removed = sum(r.placed for r in results), sum(r.removed for r in results)
+    causes: dict[str, int] = {}
+    for a in attempts:
+        if not a.success:
+            causes[a.cause] = causes.get(a.cause, 0) + 1
+    seen, one = sum(r.first_seen for r in results), sum(r.first_one_cluster for r in results)
+    stages = sorted({k for a in attempts for k in a.timing})
+    medians = {k: float(np.median([a.timing.get(k, 0.0) for a in attempts])) for k in stages}
+    first = [r.attempts[0].planning for r in results if r.attempts]
+    later = [a.planning for r in results for a in r.attempts[1:]]
+    return {"scenes": len(results), "attempts": len(attempts), "successes": ok,
+            "other_objects": sum(a.cause == OTHER for a in attempts),
+            "grasp_success_rate": ok / len(attempts) if attempts else None,
+            "placed": placed, "removed": removed, "cleared_rate": removed / placed if placed else None,
+            "scenes_cleared": sum(r.removed == r.placed for r in results),
+            "stops": {s: sum(r.stop == s for r in results) for s in STOPS},
+            "failure_causes": dict(sorted(causes.items())),
+            "planning_s": {**_spread([a.planning for a in attempts]), "stages_median": medians,
+                           "first_frame": _spread(first), "later_frames": _spread(later)},
+            "segmentation": {"objects_seen": seen, "one_cluster": one,
+                             "share": one / seen if seen else None}}

@@ -42,7 +42,7 @@ def _standing_mesh(table_z: float = 0.03):
 
 
 def _map_with(T_cloud_obj: np.ndarray, table: dict | None) -> GraspabilityMap:
-    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.grippers import HGPL_25_60_A
 
     meta = MapMeta(object={"primitive": "box", "x": 0.03, "y": 0.09, "z": 0.09}, gripper=HGPL_25_60_A.to_dict(),
                    quality={}, resolution={}, method="adapted", extra=Placement(T_cloud_obj, table).to_extra())

@@ -156,3 +156,34 @@ def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it
 
     on = enabled and sys.stderr.isatty()
     return tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False, delay=delay)
+
+
+def add_viewpoint_flag(p) -> None:
+    p.add_argument("--viewpoint", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
+                   help="where a single-view cloud was seen from, in the cloud's frame [m] (the robust "
+                        "score's occluded-space term; default: the cloud's own record -- a PCD VIEWPOINT "
+                        "header or a camera record beside the file -- else seen all round)")
+
+
+def viewpoint_from_args(args):
+    """``--viewpoint`` as a (3,) array, None when not given."""
+    import math
+
+    import numpy as np
+
+    from graspsim.errors import InvalidParameterError
+
+    v = getattr(args, "viewpoint", None)
+    if v is None:
+        return None
+    if not all(math.isfinite(x) for x in v):
+        raise InvalidParameterError(f"--viewpoint takes three finite numbers [m], got {' '.join(map(str, v))}")
+    return np.asarray(v, float)
+
+
+def stored_text(part: dict) -> str:
+    """A plan part's stored FS map and its size ratio (``PartPlan.to_dict()``), for tables."""
+    s = part.get("stored")
+    if not s:
+        return "-"
+    return f"{s['key']} (x{s['ratio']:.3f})"

@@ -51,6 +51,9 @@ def register(subparsers) -> None:
                    help="order of --top: robust (default): the map's robust scores (expected success "
                         "under wrist pose error, clearance to the observed cloud; maps planned from a "
                         "cloud have them), then the grade; paper: the paper's grade")
+    p.add_argument("--separation", type=float, nargs=2, metavar=("MM", "DEG"),
+                   help="with --top: the N best at least MM mm apart (grasp points) or DEG deg "
+                        "(wrist orientation, jaws swapped counted the same): non-maximum suppression")
     p.add_argument("--min-grade", type=float, metavar="G", help="only grasps with grade > G")
     p.add_argument("--threads", type=int, metavar="T", help="native threads (default: all cores)")
     p.add_argument("--seed", type=seed_value, default=0, help="seed of sampling and noise (default 0)")
@@ -100,6 +103,12 @@ def run(args) -> int:
         if n is not None and n < 1:
             raise InvalidParameterError(f"nothing to simulate: --{flag} {n} selects no grasp "
                                         "(give N >= 1)")
+    separation = None
+    if args.separation is not None:
+        mm, deg = args.separation
+        if args.top is None or not (math.isfinite(mm) and mm >= 0 and math.isfinite(deg) and deg >= 0):
+            raise InvalidParameterError(f"--separation {mm:g} {deg:g}: two numbers >= 0 (mm, deg), with --top")
+        separation = (1e-3 * mm, math.radians(deg))
     if args.render:
         from graspsim._atomic import check_folder
 
@@ -144,7 +153,7 @@ def run(args) -> int:
             mesh_scale=1.0 if args.mesh_scale is None else args.mesh_scale,
             mass=args.mass, settings=settings,
             write=not args.no_write, on_progress=tick, on_selected=_selection_check(args, bar),
-            on_record=recorder, rank=args.rank)
+            on_record=recorder, rank=args.rank, separation=separation)
     finally:
         bar.close()
     res = out.results
@@ -159,6 +168,8 @@ def run(args) -> int:
         "threads": res.threads, "seed": args.seed, "noise": res.noise, "rank": args.rank,
         "mesh": args.mesh, "mesh_model": None if mesh is None else mesh.describe(),
         "written_to": out.group, "renders": renders, "record": args.record,
+        "separation": args.separation, "T_world_obj": out.scene.T_world_obj.tolist(),
+        "viewpoint": out.viewpoint,
     }
     n = max(1, len(res))
     rows = [(o.label, counts[o.label], 100.0 * counts[o.label] / n) for o in TrialOutcome]

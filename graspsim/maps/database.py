@@ -3,7 +3,7 @@
 Maps are keyed by primitive, dimensions, gripper and generation settings; missing
 entries are built on demand. :meth:`MapDatabase.match` answers the paper's
 known / familiar question (section 2.4) with the one rule of :mod:`graspsim.maps.match`
-and the database's one tolerance ``tol`` (1 cm).
+and the database's one tolerance ``tol`` (relative: 3 %, ``match.KNOWN_TOL``).
 
 Layout::
 
@@ -37,7 +37,7 @@ from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.io import load_map, save_map
-from graspsim.maps.match import MatchDecision, match_entries
+from graspsim.maps.match import KNOWN_TOL, MatchDecision, match_entries
 from graspsim.maps.validate import validate_map
 from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Primitive, Sphere, make_primitive, primitive_from_dict
 
@@ -117,7 +117,7 @@ class MapDatabase:
 
     def __init__(self, root: str | os.PathLike | None = None, *,
                  gripper: GripperSpec = HGPL_25_60_A, quality: QualityModel | None = None,
-                 config: MapConfig | None = None, tol: float = 0.01, cache_size: int = 8):
+                 config: MapConfig | None = None, tol: float = KNOWN_TOL, cache_size: int = 8):
         self.root = Path(root) if root is not None else default_root()
         self.gripper = gripper
         self.quality = quality or QualityModel()
@@ -190,8 +190,9 @@ class MapDatabase:
 
     # ------------------------------------------------------------------ queries
     def match(self, shape: Primitive, *, max_ratio: float = float("inf")) -> MatchDecision:
-        """Which stored map serves ``shape``: KNOWN (a map within ``self.tol`` on every
-        dimension), FAMILIAR (the nearest map, at most ``max_ratio`` times larger or
+        """Which stored map serves ``shape``: KNOWN (a map within the relative tolerance
+        ``self.tol``, :data:`~graspsim.maps.match.KNOWN_TOL`, on every dimension),
+        FAMILIAR (the nearest map, at most ``max_ratio`` times larger or
         smaller on every dimension: the scaling range, that can be grasped from every
         direction the shape can) or BUILD (see :mod:`graspsim.maps.match`); ``entry`` is
         the serving index record."""

@@ -476,7 +476,7 @@ def test_paths_with_nul_bytes_long_names_or_link_loops_are_one_line_errors(tmp_p
 
 def test_inputs_with_nul_bytes_or_names_too_long_are_one_line_errors(tmp_path, map_file, capsys, no_work):
     assert "does not exist" in _fails(capsys, ["show", str(tmp_path / "a\0b.h5"), "-o", tmp_path / "x.png"])
-    assert "cannot create map database folder" in _fails(capsys, ["db", "check", "--root", "a\0b"])
+    assert "cannot read map database folder" in _fails(capsys, ["db", "check", "--db", "a\0b"])
     mesh = tmp_path / ("a" * 300 + ".obj")
     assert "File name too long" in _fails(capsys, ["trial", map_file, "--top", "1", "--mesh", mesh])
 

@@ -37,7 +37,7 @@ def test_db_list_offers_only_the_options_it_uses(capsys):
     with pytest.raises(SystemExit):
         main(["db", "list", "--help"])
     text = capsys.readouterr().out
-    assert "--root" in text and "--json" in text
+    assert "--db" in text and "--json" in text
     assert "--surface-step" not in text and "--mu" not in text
 
 

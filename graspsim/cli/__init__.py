@@ -81,6 +81,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     _show_compile_progress()
     try:
+        if not getattr(args, "json", False):
+            _show_build_progress()
         return int(args.func(args) or 0)
     except GraspsimError as err:
         print(f"graspsim: error: {err}", file=sys.stderr)
@@ -88,6 +90,26 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("graspsim: interrupted", file=sys.stderr)
         return 130
+
+
+def _show_build_progress() -> None:
+    """A progress bar (on a terminal) for FS maps the database builds on demand (the
+    planner's build case, e.g. the demo's sixth map): ``BUILD_PROGRESS``."""
+    import contextlib
+
+    from graspsim.cli._common import progress
+    from graspsim.maps.database import BUILD_PROGRESS
+
+    @contextlib.contextmanager
+    def bar(shape):
+        with progress(100, f"building the FS map of {shape} (stored for next time)", unit="%") as b:
+            def report(frac: float) -> None:
+                b.n = int(100 * frac)
+                b.refresh()
+
+            yield report
+
+    BUILD_PROGRESS.set(bar)
 
 
 class _ProgressLineHandler(logging.StreamHandler):

@@ -8,7 +8,8 @@ from collections.abc import Iterable
 from typing import Any
 
 __all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value", "whole_number",
-           "executor_from_args", "format_table", "progress", "add_gripper_flag", "gripper_from_args", "VARIANT_HELP"]
+           "executor_from_args", "format_table", "dims_text", "add_db_flag", "progress", "add_gripper_flag",
+           "gripper_from_args", "VARIANT_HELP"]
 
 
 def add_json_flag(p) -> None:
@@ -43,6 +44,30 @@ def budget_from_args(args) -> dict:
         return budget_fields(args.budget)
     except InvalidParameterError as err:
         raise InvalidParameterError(f"--budget: {err}") from None
+
+
+class _DeprecatedAlias:
+    """argparse action of an old flag name kept working: stores like the new one and says
+    once on stderr that the new name is the one to use."""
+
+    def __new__(cls, new: str):
+        import argparse
+
+        class Action(argparse.Action):
+            def __call__(self, parser, namespace, values, option_string=None):
+                print(f"graspsim: note: {option_string} is deprecated (it still works); use {new}", file=sys.stderr)
+                setattr(namespace, self.dest, values)
+
+        return Action
+
+
+def add_db_flag(p, help: str = "FS map database folder (default $GRASPSIM_DB or ~/.cache/graspsim/db)") -> None:
+    """``--db DIR``, the database folder as every command names it (``args.db``); the
+    ``db`` subcommands' old ``--root`` still works, with a deprecation note."""
+    import argparse
+
+    p.add_argument("--db", metavar="DIR", default=None, help=help)
+    p.add_argument("--root", dest="db", metavar="DIR", action=_DeprecatedAlias("--db"), help=argparse.SUPPRESS)
 
 
 GRIPPER_HELP = ("the gripper: festo_hgpl_25_60_a (default), franka_hand, or a JSON file of your own "
@@ -138,7 +163,12 @@ def format_table(rows: Iterable[Iterable[Any]], header: Iterable[str]) -> str:
     line = "  ".join(str(h).ljust(w) for h, w in zip(header, widths))
     out = [line, "  ".join("-" * w for w in widths)]
     out += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
-    return "\n".join(out)
+    return "\n".join(ln.rstrip() for ln in out)
+
+
+def dims_text(dims: dict) -> str:
+    """A primitive's dimensions as every command prints them: ``radius=3.49 cm, height=10 cm``."""
+    return ", ".join(f"{k}={v * 100:.3g} cm" for k, v in dims.items())
 
 
 def _fmt(v: Any) -> str:

@@ -4,7 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from graspsim.cli._common import add_json_flag, add_mode_flag, add_units_flag, emit, format_table, gripper_from_args
+from graspsim.cli._common import (
+    add_json_flag,
+    add_mode_flag,
+    add_units_flag,
+    dims_text,
+    emit,
+    format_table,
+    gripper_from_args,
+)
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -51,9 +59,9 @@ def _cmd_adapt(args) -> int:
     s = result.summary()
     s.update(file=str(out) if why is None else None, cloud=args.cloud, points=len(cloud.points),
              units=cloud.units, dropped=cloud.n_dropped, timing=result.timing)
-    rows = [(p["primitive"], {k: round(v, 4) for k, v in p["dims"].items()}, p["match"]) for p in s["parts"]]
+    rows = [(p["primitive"], dims_text(p["dims"]), p["match"]) for p in s["parts"]]
     first = s["time_to_first_0.95"]
-    human = (format_table(rows, ["part", "dims [m]", "match"]) +
+    human = (format_table(rows, ["part", "dims", "match"]) +
              f"\n{s['status']}: {s['grasps']} grasps, {s['accepted']} > 0.7 in {s['seconds']:.3f} s"
              + (f"; first grasp > 0.95 after {first * 1e3:.1f} ms" if first is not None else "")
              + (f"; {s['table']['dropped']} grasps below the table (height "

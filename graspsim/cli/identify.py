@@ -22,6 +22,7 @@ from graspsim.cli._common import (
     add_json_flag,
     add_mode_flag,
     add_units_flag,
+    dims_text,
     emit,
     format_table,
     gripper_from_args,
@@ -124,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "database": db_root,
     }
-    rows = [[i, p["primitive"], ", ".join(f"{k}={v * 100:.2f} cm" for k, v in p["dims"].items()),
+    rows = [[i, p["primitive"], dims_text(p["dims"]),
              f"{p['fit_rate']:.3f}", p["points"], p["match"] or "-"] for i, p in enumerate(parts)]
     rows += [[f"u{i}", "unidentified", "", f"{p.fit_rate:.3f}", p.n_points, "-"]
              for i, p in enumerate(res.unidentified)]

@@ -6,9 +6,11 @@ import math
 import time
 
 from graspsim.cli._common import (
+    add_db_flag,
     add_executor_flags,
     add_gripper_flag,
     add_json_flag,
+    dims_text,
     emit,
     executor_from_args,
     format_table,
@@ -203,18 +205,14 @@ def _cmd_info(args) -> int:
     return 0
 
 
-def _dims_text(dims: dict) -> str:
-    return ", ".join(f"{k} {100 * v:.3g} cm" for k, v in dims.items())
-
-
 def _cmd_db(args) -> int:
     from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid
 
     gripper = gripper_from_args(args)  # the maps of one gripper (its spec keys them)
     if args.db_command == "list":  # every stored map, whatever its settings
-        db = MapDatabase(args.root, gripper=gripper)
+        db = MapDatabase(args.db, gripper=gripper, create=False)
         ents = db.entries(all_settings=True)
-        rows = [(e["primitive"], _dims_text(e["dims"]), e["grasps"], e.get("gripper", "?"), e.get("settings", "?")
+        rows = [(e["primitive"], dims_text(e["dims"]), e["grasps"], e.get("gripper", "?"), e.get("settings", "?")
                  + (" (default)" if e.get("settings") == db.settings_digest else ""), e["file"])
                 for e in ents]
         emit({"root": str(db.root), "maps": ents, "default_settings": db.settings_digest}, args.json,
@@ -222,9 +220,9 @@ def _cmd_db(args) -> int:
              + f"\n{len(ents)} maps in {db.root}")
         return 0
     if args.db_command == "check":  # every stored map, whatever its settings
-        return _db_check(MapDatabase(args.root), args)
+        return _db_check(MapDatabase(args.db, create=False), args)
     cfg, quality = _config(args)
-    db = MapDatabase(args.root, gripper=gripper, quality=quality, config=cfg)
+    db = MapDatabase(args.db, gripper=gripper, quality=quality, config=cfg)
     if args.db_command == "build":
         from graspsim._atomic import check_folder
 
@@ -243,7 +241,7 @@ def _cmd_db(args) -> int:
                 executor_from_args(args) as ex:
             records = db.build(shapes, threads=args.threads, executor=ex,
                                progress=lambda i, n, s: bar.update(1))
-        rows = [(e["primitive"], _dims_text(e["dims"]), e["grasps"], e["accepted"], e["seconds"])
+        rows = [(e["primitive"], dims_text(e["dims"]), e["grasps"], e["accepted"], e["seconds"])
                 for e in records]
         emit({"root": str(db.root), "maps": records, "seconds": time.perf_counter() - t0}, args.json,
              format_table(rows, ["primitive", "dims", "grasps", "accepted", "build s"]))
@@ -254,7 +252,7 @@ def _cmd_db(args) -> int:
         emit({"primitive": shape.kind, "dims": shape.dims, "match": match,
               "nearest": m.entry, "max_diff": m.max_diff}, args.json,
              f"{shape}: {match or 'no map of this primitive'}"
-             + (f" (nearest stored: {_dims_text(m.entry['dims'])}, {m.max_diff * 100:.2f} cm off)"
+             + (f" (nearest stored: {dims_text(m.entry['dims'])}, {m.max_diff * 100:.2f} cm off)"
                 if m.entry else ""))
     return 0
 
@@ -263,12 +261,18 @@ def _db_check(db, args) -> int:
     from graspsim.maps.dbcheck import check_database
 
     rep = check_database(db, repair=args.repair)
-    state = ("all repaired" if rep.repaired else "NOT repaired (run with --repair)") if rep.problems else "no problems"
+    n = len(rep.problems)
+    state = ("no problems" if not n else f"{_count(n, 'problem')} found, "
+             + ("all repaired" if rep.repaired else "NOT repaired (run with --repair)"))
     human = (format_table(rep.problems, ["file", "problem"]) + "\n" if rep.problems else "") + (
-        f"{db.root}: {rep.maps} maps listed, {rep.valid} valid; {len(rep.problems)} problems, {state}"
-        + (f"; removed {len(rep.removed)} files, indexed {len(rep.reindexed)}" if rep.repaired else ""))
+        f"{db.root}: {_count(rep.maps, 'map')} listed, {rep.valid} valid; {state}"
+        + (f"; removed {_count(len(rep.removed), 'file')}, indexed {len(rep.reindexed)}" if rep.repaired else ""))
     emit(rep.to_dict(), args.json, human)
     return 0 if rep.ok else 1
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" + ("" if n == 1 else "s")
 
 
 def register(sub) -> None:
@@ -329,8 +333,8 @@ def register(sub) -> None:
              "invalid files and records and indexes valid unlisted maps. Exit status 1 on "
              "problems left unrepaired.")):
         q = dbs.add_parser(name, help=text, description=desc)
-        q.add_argument("--root", default=None, help="database folder (default $GRASPSIM_DB or "
-                       "~/.cache/graspsim/db)")
+        add_db_flag(q, help="database folder (default $GRASPSIM_DB or ~/.cache/graspsim/db; --root, "
+                    "its old name, still works)")
         if name not in ("list", "check"):
             _add_generation(q)
         elif name == "list":

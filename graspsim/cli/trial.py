@@ -31,7 +31,11 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "trial", help="simulate a map's grasps (lift-and-place or tug) and store the outcomes",
         description="Simulate grasps of a graspability map in MuJoCo; results go back into "
-                    "the file under grasps/qualities/mujoco (lift_place) or mujoco_tug (tug).")
+                    "the file under grasps/qualities/mujoco (lift_place) or mujoco_tug (tug), beside the "
+                    "results of earlier runs of other grasps with the same settings; a run that would "
+                    "overwrite stored results (the same grasps again, or other settings) needs --replace. "
+                    "The success rate counts feasible poses: a pose whose gripper starts in collision "
+                    "(with the object, or blocked by the table) is excluded and counted apart.")
     p.add_argument("map", metavar="FILE.h5", help="graspability map file")
     p.add_argument("--protocol", choices=("lift_place", "tug"), default="lift_place",
                    help="lift_place: the paper's lift-and-place test (default); tug: "
@@ -65,6 +69,11 @@ def register(subparsers) -> None:
                    help="also save the trials' trajectories (25 frames/s, the first 2000 trials "
                         "that start clear) to FILE (.npz), for 'graspsim view MAP --replay FILE'")
     p.add_argument("--no-write", action="store_true", help="do not store results in the map")
+    p.add_argument("--replace", action="store_true",
+                   help="replace results the map already holds that these would overwrite (an earlier run "
+                        "of the same grasps, or one with other settings: protocol, object, friction, noise); "
+                        "without it such a run is refused before simulating. Results of other grasps made "
+                        "with the same settings are always kept beside the new ones")
     p.add_argument("--all", action="store_true",
                    help=f"run the selection however large (without it, more than {MAX_TRIALS:,} "
                         "trials are refused with an estimate of their duration)")
@@ -78,7 +87,7 @@ def run(args) -> int:
     # mujoco loads only when the command runs (keeps `graspsim --help` fast)
     from graspsim.errors import InvalidParameterError
     from graspsim.maps import load_map
-    from graspsim.sim import ExecutionNoise, SimSettings, TrialOutcome, make_protocol, simulate_map
+    from graspsim.sim import ExecutionNoise, SimSettings, make_protocol, simulate_map
 
     if args.threads is not None and args.threads < 1:
         raise InvalidParameterError(f"--threads must be >= 1, got {args.threads}")
@@ -127,7 +136,8 @@ def run(args) -> int:
             min_grade=args.min_grade, threads=args.threads, seed=args.seed,
             noise=ExecutionNoise() if args.noise else None, mesh=args.mesh,
             mesh_scale=args.mesh_scale, mass=args.mass, settings=settings,
-            write=not args.no_write, on_progress=tick, on_selected=_selection_check(args, bar),
+            write=not args.no_write, replace_stored=args.replace, on_progress=tick,
+            on_selected=_selection_check(args, bar),
             on_record=recorder, rank=args.rank)
     finally:
         bar.close()
@@ -136,21 +146,58 @@ def run(args) -> int:
     if recorder is not None:
         recorder.recording(out.scene, out.index, res.outcome, res.protocol).save(args.record)
     counts = res.counts()
+    blocked = res.start_collisions()
     summary = {
         "file": str(args.map), "protocol": protocol.name, "trials": len(res),
-        "feasible": res.feasible, "counts": counts, "success_rate": res.success_rate,
+        "feasible": res.feasible, "counts": counts, "start_collisions": blocked,
+        "success": counts["success"], "success_rate": res.success_rate,
+        "success_rate_all": counts["success"] / len(res) if len(res) else math.nan,
         "trials_per_second": res.trials_per_second, "wall_time_s": res.wall_time,
         "threads": res.threads, "seed": args.seed, "noise": res.noise, "rank": args.rank,
-        "mesh": args.mesh, "written_to": out.group, "renders": renders, "record": args.record,
+        "mesh": args.mesh, "written_to": out.group, "kept_stored": out.kept, "replaced_stored": out.replaced,
+        "renders": renders, "record": args.record,
     }
-    n = max(1, len(res))
-    rows = [(o.label, counts[o.label], 100.0 * counts[o.label] / n) for o in TrialOutcome]
-    rate = "n/a" if math.isnan(res.success_rate) else f"{100 * res.success_rate:.1f} %"
-    human = (format_table(rows, ["outcome", "trials", "%"]) + "\n\n"
-             f"success rate (feasible poses): {rate}; {res.trials_per_second:.1f} trials/s "
-             f"on {res.threads} thread(s)" + (f"; results in {out.group}" if out.group else ""))
-    emit(summary, args.json, human)
+    emit(summary, args.json, _report(res, counts, blocked, out))
     return 0
+
+
+def _percent(k: int, n: int) -> str:
+    return f"{100 * k / n:5.1f} %" if n else "    - "
+
+
+def _report(res, counts: dict, blocked: dict, out) -> str:
+    """The outcome table and the headline: every rate with its counts, the attempts and
+    what was excluded from the feasible ones and why."""
+    from graspsim.sim import TrialOutcome
+    from graspsim.stats import wilson_interval
+
+    n = len(res)
+    rows = []
+    for o in TrialOutcome:
+        if o is TrialOutcome.START_COLLISION:
+            rows.append(("start_collision (object)", blocked["object"], _percent(blocked["object"], n)))
+            rows.append(("start_collision (table only)", blocked["table"], _percent(blocked["table"], n)))
+        else:
+            rows.append((o.label, counts[o.label], _percent(counts[o.label], n)))
+    ok, feasible = counts["success"], res.feasible
+    excluded = n - feasible
+    why = " and ".join(f"{k} {w}" for k, w in ((blocked["object"], "in collision with the object"),
+                                                (blocked["table"], "blocked by the table")) if k)
+    if feasible:
+        lo, hi = wilson_interval(ok, feasible)
+        head = (f"success rate: {ok} of {feasible} feasible poses = {100 * ok / feasible:.1f} % "
+                f"(95 % CI {100 * lo:.0f}-{100 * hi:.0f} %)")
+    else:
+        head = "success rate: n/a (no feasible pose)"
+    head += (f"; {n} attempts, {excluded} excluded as infeasible (the gripper starts in collision: {why})"
+             if excluded else f"; {n} attempts, none excluded")
+    head += f"; of all {n} attempts {ok} succeeded ({100 * ok / n:.1f} %)" if excluded and n else ""
+    stored = ""
+    if out.group:
+        stored = (f"\nresults stored in {out.group}" + (f" beside the {out.kept} stored before" if out.kept else "")
+                  + (f", replacing the {out.replaced} stored before (--replace)" if out.replaced else ""))
+    return (format_table(rows, ["outcome", "trials", "%"]) + "\n\n" + head
+            + f"\n{res.trials_per_second:.1f} trials/s on {res.threads} thread(s)" + stored)
 
 
 def _render(args, out, protocol) -> list[str]:

@@ -62,7 +62,7 @@ def assets() -> Assets:
     folder = Path(tempfile.mkdtemp(prefix="graspsim-fuzz-"))
     atexit.register(shutil.rmtree, folder, True)
     db = folder / "db"
-    assert main(["db", "build", "--primitives", "cylinder", "--root", str(db), *FAST_FLAGS, "--json"]) == 0
+    assert main(["db", "build", "--primitives", "cylinder", "--db", str(db), *FAST_FLAGS, "--json"]) == 0
     real = folder / "real.h5"
     shutil.copyfile(next(db.glob("cylinder/*.h5")), real)
     hand = save_map(_hand_map(), folder / "hand.h5")

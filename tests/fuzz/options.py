@@ -55,13 +55,13 @@ COMMANDS: dict[str, tuple[list[str], dict]] = {
                "--render": ["{dir}/r", "{out}"], "--gripper": _GRIPPERS}),
     "show": (["show", "{map}", "-o", "{png}"],
              {"--min-grade": _GRADES, "--what": ["grasp_point", "wrist", "both"]}),
-    "db lookup": (["db", "lookup", "cylinder", "--radius", "0.02", "--height", "0.2", "--root", "{db}"],
+    "db lookup": (["db", "lookup", "cylinder", "--radius", "0.02", "--height", "0.2", "--db", "{db}"],
                   {"--radius": _LENGTHS, "--height": _LENGTHS, **_GENERATION}),
     "campaign run": (["campaign", "run", "{map}", "--out", "{dir}/camp", "--top", "1", "--executor", "serial"],
                      {"--top": _COUNTS, "--sample": _COUNTS, "--seeds": _COUNTS, "--min-grade": _GRADES,
                       "--noise-pos": _LENGTHS, "--noise-rot-deg": _ANGLES, "--threads": _COUNTS, "--max-tasks": _COUNTS,
                       "--noise": None, "--protocol": ["tug", "shake"], "--out": ["{out}", "{map}", "{dir}"]}),
-    "db build": (["db", "build", "--root", "{db}", "--primitives", "cylinder", "--executor", "serial",
+    "db build": (["db", "build", "--db", "{db}", "--primitives", "cylinder", "--executor", "serial",
                   "--threads", "1", *FAST_FLAGS],
                  {"--grid": ["1", "0.9", "0", "-1", "nan", "1e3", "1e-3", "abc"], "--primitives":
                   ["cylinder", "torus", "box", ""], "--workers": _COUNTS}),
@@ -119,7 +119,7 @@ INPUT_COMMANDS = {
     "trial": ["trial", "{path}", "--top", "1"],
     "trial --mesh": ["trial", "{map}", "--top", "1", "--threads", "1", "--mesh", "{path}"],
     "adapt": ["adapt", "{path}", "-o", "{out}", "--db", "{db}"],
-    "db check": ["db", "check", "--root", "{path}"],
+    "db check": ["db", "check", "--db", "{path}"],
 }
 
 

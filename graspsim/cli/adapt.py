@@ -23,15 +23,14 @@ def _cmd_adapt(args) -> int:
 
     import numpy as np
 
-    from graspsim._atomic import check_output
     from graspsim.maps.database import MapDatabase
-    from graspsim.maps.io import save_map
+    from graspsim.maps.io import check_map_output, save_map
     from graspsim.maps.scaling import ScalingConfig
     from graspsim.perception import IdentifyConfig, read_point_cloud
     from graspsim.planning.planner import PlannerConfig, plan
 
     # every option and the output path before the cloud is read or anything computed
-    out = check_output(args.output, "map", others={"input cloud": args.cloud})
+    out = check_map_output(args.output, others={"input cloud": args.cloud})
     gripper = gripper_from_args(args)
     table = None
     if args.table is not None:

@@ -20,20 +20,29 @@ from graspsim.cli._common import (
 __all__ = ["register"]
 
 def _cmd_adapt_gripper(args) -> int:
-    from graspsim._atomic import atomic_path, check_output
+    from graspsim._atomic import atomic_path
     from graspsim.errors import MapFileError
-    from graspsim.maps.io import load_map, save_map
+    from graspsim.maps.io import check_map_output, load_map, save_map
     from graspsim.maps.regrip import adapt_to_gripper
 
-    out = check_output(args.output, "map", others={"map": args.file})  # before the work
+    out = check_map_output(args.output, others={"map": args.file})  # before the work
     gmap = load_map(args.file)
     target = gripper_from_args(args, flag="to_gripper", base=gmap.meta.gripper_spec)
     t0 = time.perf_counter()
     adapted = adapt_to_gripper(gmap, target, source_min_grade=args.source_min_grade)
     seconds = time.perf_counter() - t0
+    info = adapted.meta.gripper_adaptation.to_dict()
+    if not len(adapted):  # an empty map is no result: an existing -o is left as it was
+        from graspsim.errors import NoFeasibleGraspError
+
+        kept = f"{out} left as it was" if out.exists() else f"{out} not written"
+        raise NoFeasibleGraspError(
+            f"no grasp of the {gmap.meta.gripper_spec.name} map carried to {target.name}: of its "
+            f"{info['source_grasps']} grasps with grade > {info['source_min_grade']:g}, {info['fit_opening']} fit "
+            f"the new gripper's opening and none of them is left collision-free with a grade above the map's "
+            f"threshold; nothing written ({kept})")
     with atomic_path(out, MapFileError) as tmp:
         save_map(adapted, tmp)
-    info = adapted.meta.gripper_adaptation.to_dict()
     summary = {"file": str(out), "source": args.file, "source_gripper": gmap.meta.gripper_spec.name,
                "gripper": target.name, "grasps": len(adapted), "accepted": int(adapted.accepted.sum()),
                **info, "seconds": seconds}

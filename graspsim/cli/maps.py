@@ -73,13 +73,13 @@ def _cmd_map(args) -> int:
     from graspsim._atomic import atomic_paths, check_output
     from graspsim.errors import MapFileError
     from graspsim.maps.generate import generate_fs_map
-    from graspsim.maps.io import save_map
+    from graspsim.maps.io import check_map_output, save_map
     from graspsim.maps.metrics import map_rates
 
     gripper = gripper_from_args(args)
     shape = _shape_from_args(args)
     cfg, quality = _config(args)
-    out = check_output(args.output, "map")  # before the work, not after it
+    out = check_map_output(args.output)  # before the work, not after it
     plot = fmt = None
     if args.plot:
         from graspsim.plots import image_format

@@ -177,9 +177,30 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it"):
-    """A tqdm progress bar on stderr (disabled when not wanted or not a terminal)."""
+def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it", *, tick: float | None = None):
+    """A tqdm progress bar on stderr (disabled when not wanted or not a terminal). With
+    ``tick`` [s] the bar is redrawn that often even when nothing finished (its elapsed
+    time runs: steps that take long, such as maps built in worker processes, do not look
+    stuck); the redrawing stops when the bar is closed."""
+    import threading
+
     from tqdm.auto import tqdm
 
     on = enabled and sys.stderr.isatty()
-    return tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False)
+    bar = tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False)
+    if on and tick:
+        stop = threading.Event()
+
+        def redraw() -> None:
+            while not stop.wait(tick):
+                bar.refresh()
+
+        threading.Thread(target=redraw, name="graspsim-progress", daemon=True).start()
+        close = bar.close
+
+        def closing() -> None:
+            stop.set()
+            close()
+
+        bar.close = closing
+    return bar

@@ -237,7 +237,7 @@ def _cmd_db(args) -> int:
                 raise MapDatabaseError(f"unknown primitive {k!r}; valid: {sorted(PAPER_SHAPES)}")
             shapes += size_grid(base, args.grid) if args.grid else [base]
         t0 = time.perf_counter()
-        with progress(len(shapes), "FS database", enabled=not args.json, unit="map") as bar, \
+        with progress(len(shapes), "FS database", enabled=not args.json, unit="map", tick=1.0) as bar, \
                 executor_from_args(args) as ex:
             records = db.build(shapes, threads=args.threads, executor=ex,
                                progress=lambda i, n, s: bar.update(1))

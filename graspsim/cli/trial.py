@@ -16,13 +16,18 @@ import sys
 
 from graspsim.cli._common import add_gripper_flag, add_json_flag, emit, format_table, gripper_from_args, progress
 
-__all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD"]
+__all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD", "RENDER_SECONDS_PER_TRIAL"]
 
 MAX_TRIALS = 10_000  # more than this many trials need --all
 # Throughput of two-second lift_place trials that start clear, per thread, measured with
 # `python experiments/bench_sim.py` on an idle machine (README: about 80 per second per core).
 # Start collisions cost ~nothing; a busy machine is slower (62 trials/s on 2 threads at load 7).
 TRIALS_PER_SECOND_PER_THREAD = 80.0
+# --render: one rendered trial (offscreen 640 x 480, the key moments and a 25 frames/s GIF,
+# ~100 frames; rendering runs on one core) took 5 s of CPU, measured by timing
+# graspsim.sim.render.render_trial on a cylinder map's trials (15 s of wall time each at
+# load 10 on 2 cores): the estimate says "at least" and the bar shows the measured pace.
+RENDER_SECONDS_PER_TRIAL = 5.0
 
 
 def register(subparsers) -> None:
@@ -207,17 +212,15 @@ def _render(args, out, protocol) -> list[str]:
     from graspsim.sim.render import render_trial
 
     res = out.results
-    renders, shown = [], 0
-    for j in range(len(out.index)):
-        if shown == args.render_count:
-            break
-        i = int(out.index[j])
-        if res.outcome[j] == TrialOutcome.START_COLLISION:
-            continue
-        shown += 1
-        paths = render_trial(out.scene, None, float(out.width[j]), args.render, protocol,
-                             name=f"grasp{i:06d}", gif=True, T_world_wrist=res.T_world_wrist[j])
-        renders += [str(p) for p in paths]
+    clear = [j for j in range(len(out.index)) if res.outcome[j] != TrialOutcome.START_COLLISION]
+    renders = []
+    with progress(min(len(clear), args.render_count), "rendering", enabled=not args.json, unit="trial") as bar:
+        for j in clear[:args.render_count]:
+            i = int(out.index[j])
+            paths = render_trial(out.scene, None, float(out.width[j]), args.render, protocol,
+                                 name=f"grasp{i:06d}", gif=True, T_world_wrist=res.T_world_wrist[j])
+            renders += [str(p) for p in paths]
+            bar.update(1)
     return renders
 
 
@@ -268,8 +271,11 @@ def _selection_check(args, bar):
         if not args.json:
             short = (f" (the map holds only {n} {among})" if (args.sample or args.top or 0) > n
                      else "")
+            shots = min(n, args.render_count) if args.render else 0
+            render = (f"; then rendering up to {shots} of them: at least {_duration(shots * RENDER_SECONDS_PER_TRIAL)}"
+                      f" (~{RENDER_SECONDS_PER_TRIAL:g} s each on one core)" if shots else "")
             print(f"[graspsim] simulating {n:,} trials{short}: about {eta} on {threads} "
-                  f"thread(s) at ~{TRIALS_PER_SECOND_PER_THREAD:g} trials/s each", file=sys.stderr,
+                  f"thread(s) at ~{TRIALS_PER_SECOND_PER_THREAD:g} trials/s each{render}", file=sys.stderr,
                   flush=True)
         bar.total = n  # the bar's time left comes from the measured rate
         bar.refresh()

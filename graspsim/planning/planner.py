@@ -188,7 +188,8 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
 
     cfg = config or PlannerConfig()
     t0 = time.perf_counter()
-    check_rng(rng)
+    if identification is None or rng is not None:  # given the identification, nothing is drawn
+        check_rng(rng)
     viewpoint = check_viewpoint(viewpoint)  # a bad one fails now, not after the identification
     points = np.asarray(points, float)
     ident = identification if identification is not None else identify(points, rng=rng, config=cfg.identify)

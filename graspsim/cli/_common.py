@@ -55,7 +55,7 @@ class _DeprecatedAlias:
 
         class Action(argparse.Action):
             def __call__(self, parser, namespace, values, option_string=None):
-                print(f"graspsim: note: {option_string} is deprecated (it still works); use {new}", file=sys.stderr)
+                print(f"[graspsim] note: {option_string} is deprecated (it still works); use {new}", file=sys.stderr)
                 setattr(namespace, self.dest, values)
 
         return Action

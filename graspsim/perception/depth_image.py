@@ -63,24 +63,25 @@ def read_depth_image(path: str | Path, *, scale: float | None = None) -> tuple[n
 
             from PIL import Image
 
-            with warnings.catch_warnings():  # PIL's own size warning: the size is checked here
-                warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with warnings.catch_warnings():  # PIL warns of damaged files (corrupt EXIF ...): an error here
+                warnings.simplefilter("error")
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # the size is checked here
                 try:
                     im = Image.open(path)
                 except Image.DecompressionBombError as err:
                     raise PointCloudError(f"{path.name}: not a depth camera's image (at most {MAX_PIXELS:,} "
                                           f"pixels): {err}") from None
-            with im:
-                if im.size[0] * im.size[1] > MAX_PIXELS:
-                    raise _too_big(path, im.size[::-1])
-                if len(im.getbands()) != 1:
-                    raise PointCloudError(f"a depth image has one channel; this one has {len(im.getbands())} "
-                                          f"({im.mode}): is it the colour image?")
-                raw = np.asarray(im)
+                with im:
+                    if im.size[0] * im.size[1] > MAX_PIXELS:
+                        raise _too_big(path, im.size[::-1])
+                    if len(im.getbands()) != 1:
+                        raise PointCloudError(f"a depth image has one channel; this one has {len(im.getbands())} "
+                                              f"({im.mode}): is it the colour image?")
+                    raw = np.asarray(im)
     except PointCloudError as err:
         msg = str(err)
         raise PointCloudError(msg if msg.startswith(path.name) else f"{path.name}: {msg}") from None
-    except (OSError, ValueError, EOFError, SyntaxError) as err:  # SyntaxError: PIL's broken-file error
+    except (OSError, ValueError, EOFError, SyntaxError, Warning) as err:  # SyntaxError: PIL's broken-file error
         raise PointCloudError(f"{path.name}: cannot read {suffix} depth image: {err}") from err
     if raw.ndim != 2 or raw.dtype.kind not in "uif" or min(raw.shape) < 2:
         raise PointCloudError(f"{path.name}: a depth image is an (H, W) array of numbers, got shape {raw.shape} "

@@ -40,15 +40,10 @@ def gripper_names() -> tuple[str, ...]:
 
 def load_gripper_json(path: str | Path) -> GripperSpec:
     """A spec from a JSON file; every problem is one GripperError line naming the file."""
+    from graspsim._files import read_small_text
+
     p = Path(path)
-    try:
-        if not p.is_file():  # a folder, a FIFO, a device
-            raise OSError("not a regular file")
-        if p.stat().st_size > MAX_SPEC_BYTES:
-            raise OSError(f"{p.stat().st_size} bytes; a gripper spec is a small JSON file (<= {MAX_SPEC_BYTES})")
-        text = p.read_text()
-    except (OSError, UnicodeDecodeError, ValueError) as err:  # ValueError: a NUL byte in the path
-        raise GripperError(f"cannot read gripper spec {str(p)!r}: {err}") from err
+    text = read_small_text(p, "gripper spec", GripperError, MAX_SPEC_BYTES)
     try:
         spec = GripperSpec.from_json(text)
         name = json.loads(text).get("name")

@@ -199,3 +199,16 @@ def test_gripper_spec_without_a_name_or_with_a_registered_name_is_refused(tmp_pa
                         tmp_path / name], why)
     assert load_gripper_json(tmp_path / "mine.json").name == "mine"
     assert not (tmp_path / "s.h5").exists()
+
+
+def test_small_json_inputs_from_a_fifo_or_a_device_fail_at_once(tmp_path):
+    from graspsim.grippers import get_gripper
+    from graspsim.sim.scenes import load_scene
+
+    os.mkfifo(tmp_path / "fifo.json")  # reading it would block for ever
+    os.symlink("/dev/zero", tmp_path / "zero.json")  # reading it would never end
+    for name in ("fifo.json", "zero.json"):
+        with pytest.raises(InvalidParameterError, match="not a regular file"):
+            load_scene(tmp_path / name)
+        with pytest.raises(GripperError, match="not a regular file"):
+            get_gripper(str(tmp_path / name))

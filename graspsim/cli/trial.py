@@ -194,8 +194,9 @@ def _report(res, counts: dict, blocked: dict, out) -> str:
                 f"(95 % CI {100 * lo:.0f}-{100 * hi:.0f} %)")
     else:
         head = "success rate: n/a (no feasible pose)"
-    head += (f"; {n} attempts, {excluded} excluded as infeasible (the gripper starts in collision: {why})"
-             if excluded else f"; {n} attempts, none excluded")
+    attempts = f"{n} attempt" + ("" if n == 1 else "s")
+    head += (f"; {attempts}, {excluded} excluded as infeasible (the gripper starts in collision: {why})"
+             if excluded else f"; {attempts}, none excluded")
     head += f"; of all {n} attempts {ok} succeeded ({100 * ok / n:.1f} %)" if excluded and n else ""
     stored = ""
     if out.group:

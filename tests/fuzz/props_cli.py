@@ -205,7 +205,7 @@ def _output_path(kind: str, folder: Path, suffix: str, same_as: str | None) -> s
             "trailing_slash": str(folder / ("out" + suffix)) + "/", "same_as_input": same_as}[kind]
 
 
-@register("output_paths", "output paths (CLI)", options.output_paths, 60)
+@register("output_paths", "output paths (CLI)", options.output_paths, 80)
 def check_output_path(case: dict) -> str:
     """An output path that cannot be written fails before the work with one line; a
     failure leaves every file (an existing map or image included) as it was; inputs
@@ -251,7 +251,7 @@ def _input_path(kind: str, folder: Path, suffix: str) -> str:
             "nul_byte": str(folder / ("a\x00b" + suffix)), "empty": "", "proc": "/proc/graspsim" + suffix}[kind]
 
 
-@register("input_paths", "input paths (CLI)", options.input_paths, 40)
+@register("input_paths", "input paths (CLI)", options.input_paths, 60)
 def check_input_path(case: dict) -> str:
     """An input that is missing, a folder, a FIFO, a device, a loop of links, a NUL byte
     or a name too long: one error line, nothing written, never a hang."""

@@ -262,7 +262,7 @@ def _db_check(db, args) -> int:
 
     rep = check_database(db, repair=args.repair)
     n = len(rep.problems)
-    state = ("no problems" if not n else f"{_count(n, 'problem')} found, "
+    state = ("no problems" if not n else f"{_count(n, 'problem')}, "
              + ("all repaired" if rep.repaired else "NOT repaired (run with --repair)"))
     human = (format_table(rep.problems, ["file", "problem"]) + "\n" if rep.problems else "") + (
         f"{db.root}: {_count(rep.maps, 'map')} listed, {rep.valid} valid; {state}"

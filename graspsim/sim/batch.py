@@ -195,12 +195,7 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     state0 = initial_states(scene, T_world, openings)
     on_object, on_table = start_overlaps(scene, state0, T_world)
     depth = np.maximum(on_object, on_table)
-    tol = scene.settings.start_penetration
-    collide = depth > tol
-    # what each start collision hit: the table alone, or the object (the table maybe too)
-    start_kind = np.array(["" if not c else collision_kind(((0,) if o > tol else ()) + (("table",) if t > tol
-                                                                                         else ()), None)
-                           for c, o, t in zip(collide, on_object, on_table)], dtype="<U6")
+    collide = depth > scene.settings.start_penetration
 
     outcome = np.full(n, TrialOutcome.START_COLLISION, np.int8)
     metrics = {k: np.full(n, np.nan) for k in protocol.metric_names}
@@ -237,5 +232,13 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
         outcome=outcome, metrics=metrics, object_in_gripper=protocol.held(outcome).astype(np.int8),
         start_penetration=depth, T_world_wrist=T_world, protocol=protocol.to_dict(),
         scene=scene.info(), seed=int(seed), noise=None if noise is None else noise.to_dict(),
-        threads=threads, wall_time=wall, simulated_seconds=sim_seconds, start_kind=start_kind,
+        threads=threads, wall_time=wall, simulated_seconds=sim_seconds,
+        start_kind=_start_kinds(on_object, on_table, scene.settings.start_penetration),
     )
+
+
+def _start_kinds(on_object: np.ndarray, on_table: np.ndarray, tol: float) -> np.ndarray:
+    """(N,) what each start collision hit (:func:`collision_kind`): "table" alone, or the
+    "object" (the table maybe too); "" where the trial started clear."""
+    hits = [((0,) if o > tol else ()) + (("table",) if t > tol else ()) for o, t in zip(on_object, on_table)]
+    return np.array([collision_kind(h, None) if h else "" for h in hits], dtype="<U6")

@@ -266,3 +266,22 @@ def test_map_output_needs_a_map_file_extension(tmp_path, capsys):
     with pytest.raises(MapFileError, match=r"\.h5"):
         save_map(load_map(_map(tmp_path)), tmp_path / "m.png")
     assert not (tmp_path / "m.png").exists()
+
+
+def test_glossary_terms_are_defined_in_the_readme_and_the_help_of_commands_printing_them(capsys):
+    from graspsim.cli._common import GLOSSARY
+
+    readme = (REPO / "README.md").read_text()
+    top = readme[:readme.index("## A quick tour")]
+    for term in GLOSSARY:
+        assert f"**{term}**" in top, f"the README's set-up does not define {term!r}"
+    uses = {"info": ("grade", "SR / VR"), "map": ("FS map", "SR / VR"), "trial": ("feasible", "robust score"),
+            "adapt": ("known / familiar / build", "robust score"), "identify": ("known / familiar / build",),
+            "demo": ("FS map", "known / familiar / build", "robust score"), "design": ("SR / VR",)}
+    for command, terms in uses.items():
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        for term in terms:
+            assert f"{term}: " + " ".join(GLOSSARY[term].split())[:40] in text, (command, term)
+    assert 'python -m pytest -m "not slow"' in top and "graspsim demo" in top

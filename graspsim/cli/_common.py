@@ -9,7 +9,56 @@ from typing import Any
 
 __all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value", "whole_number",
            "executor_from_args", "format_table", "dims_text", "add_db_flag", "progress", "add_gripper_flag",
-           "gripper_from_args", "VARIANT_HELP"]
+           "gripper_from_args", "VARIANT_HELP", "GLOSSARY", "glossary", "with_glossary"]
+
+
+#: The words the commands print, defined once: the README's glossary says the same (a
+#: test checks that every term is there), and the --help of each command that prints a
+#: term ends with its definition (:func:`glossary`).
+GLOSSARY = {
+    "grade": "the paper's quality of a grasp, 0 to 1 (force closure and stability of its two contacts); "
+             "'accepted' grasps have grade > 0.7",
+    "FS map": "full-scale map: every collision-free grasp of the gripper on one shape primitive (a box, "
+              "cylinder, sphere, cone or half-toroid of given size), graded; the FS map database stores them",
+    "SR / VR": "surface rate / volume rate (the paper's eqs. 7-8): the share of the object's surface patches "
+               "touched by some grasp, and of the voxels that can hold the wrist holding some grasp's wrist",
+    "known / familiar / build": "how a primitive found in a cloud gets its map: known = a stored FS map of the "
+                                "same size (within 1 cm), used as is; familiar = the nearest stored map of the "
+                                "same primitive, scaled to its size; build = none near enough, so an FS map is "
+                                "built (and stored)",
+    "robust score": "the chance a grasp succeeds when the arm misses the pose by a typical error (3 mm / 2 deg): "
+                    "the share of perturbed poses that stay clear of the observed points, the object and the "
+                    "table with both contacts on the pads, times the calibrated success of the contacts; 0 when "
+                    "the gripper touches the cloud; the default ranking",
+    "feasible": "a pose whose gripper does not start in collision (with the object, or blocked by the table); "
+                "success rates count feasible poses, start collisions are counted apart",
+}
+
+
+def glossary(*terms: str) -> str:
+    """An epilog defining ``terms`` (keys of :data:`GLOSSARY`) for a command's --help."""
+    import textwrap
+
+    return "terms:\n" + "\n".join(textwrap.fill(f"{t}: {GLOSSARY[t]}", 88, initial_indent="  ",
+                                                 subsequent_indent="      ") for t in terms)
+
+
+def _help_formatter():
+    import argparse
+
+    class Formatter(argparse.HelpFormatter):
+        """argparse's formatter, but a glossary epilog keeps its lines (one term a paragraph)."""
+
+        def _fill_text(self, text, width, indent):
+            return text if text.startswith("terms:\n") else super()._fill_text(text, width, indent)
+
+    return Formatter
+
+
+def with_glossary(p, *terms: str) -> None:
+    """End ``p``'s --help with the definitions of ``terms`` (the words its output uses)."""
+    p.epilog = glossary(*terms)
+    p.formatter_class = _help_formatter()
 
 
 def add_json_flag(p) -> None:

@@ -12,6 +12,7 @@ from graspsim.cli._common import (
     emit,
     format_table,
     gripper_from_args,
+    with_glossary,
 )
 from graspsim.cli.maps import _add_generation, _config
 
@@ -117,4 +118,5 @@ def register(sub) -> None:
                    help="gripper clearance above the table [m] (0.002)")
     _add_generation(p)
     add_json_flag(p)
+    with_glossary(p, "known / familiar / build", "FS map", "grade", "robust score")
     p.set_defaults(func=_cmd_adapt)

@@ -15,6 +15,7 @@ from graspsim.cli._common import (
     format_table,
     gripper_from_args,
     seed_value,
+    with_glossary,
 )
 
 __all__ = ["register"]
@@ -124,6 +125,7 @@ def register(sub) -> None:
     p.add_argument("--source-min-grade", type=float, default=None,
                    help="carry grasps above this grade (default: the map's threshold, 0.7)")
     add_json_flag(p)
+    with_glossary(p, "grade")
     p.set_defaults(func=_cmd_adapt_gripper)
 
     p = sub.add_parser("design", help="sweep a gripper design parameter over the paper's primitives",
@@ -145,4 +147,5 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", default=None, help="write every number to this .json")
     p.add_argument("--plot", default=None, help="write the design plot (VR, SR, share, success) here")
     add_json_flag(p)
+    with_glossary(p, "FS map", "SR / VR", "grade", "feasible")
     p.set_defaults(func=_cmd_design)

@@ -26,6 +26,7 @@ from graspsim.cli._common import (
     emit,
     format_table,
     gripper_from_args,
+    with_glossary,
 )
 from graspsim.errors import DependencyNotInstalled
 
@@ -63,6 +64,7 @@ def register(subparsers) -> None:
     add_gripper_flag(p, help="whose maps --db's known / familiar decision reads: festo_hgpl_25_60_a "
                      "(default), franka_hand or a gripper spec .json")
     add_json_flag(p)
+    with_glossary(p, "known / familiar / build", "FS map")
     p.set_defaults(func=run)
 
 

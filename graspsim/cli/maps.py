@@ -16,6 +16,7 @@ from graspsim.cli._common import (
     format_table,
     gripper_from_args,
     progress,
+    with_glossary,
 )
 
 __all__ = ["register"]
@@ -286,6 +287,7 @@ def register(sub) -> None:
     p.add_argument("--plot", default=None, help="also save a PNG of the map")
     _add_generation(p)
     add_json_flag(p)
+    with_glossary(p, "FS map", "grade", "SR / VR")
     p.set_defaults(func=_cmd_map)
 
     p = sub.add_parser("show", help="plot a map file as a 3-D scatter coloured by grade",
@@ -298,6 +300,7 @@ def register(sub) -> None:
                    help="plot grasp points (default) or wrist positions")
     p.add_argument("--min-grade", type=float, default=0.0, help="plot grasps above this grade")
     add_json_flag(p)
+    with_glossary(p, "grade")
     p.set_defaults(func=_cmd_show)
 
     p = sub.add_parser("info", help="summarise a map file",
@@ -307,6 +310,7 @@ def register(sub) -> None:
                        "grasps were simulated.")
     p.add_argument("file", help="map file (.h5)")
     add_json_flag(p)
+    with_glossary(p, "grade", "SR / VR", "robust score")
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("db", help="the full-scale map database (build, list, lookup, check)",
@@ -333,6 +337,8 @@ def register(sub) -> None:
              "invalid files and records and indexes valid unlisted maps. Exit status 1 on "
              "problems left unrepaired.")):
         q = dbs.add_parser(name, help=text, description=desc)
+        with_glossary(q, *{"build": ("FS map", "grade"), "lookup": ("FS map", "known / familiar / build")}.get(
+            name, ("FS map",)))
         add_db_flag(q, help="database folder (default $GRASPSIM_DB or ~/.cache/graspsim/db; --root, "
                     "its old name, still works)")
         if name not in ("list", "check"):

@@ -18,7 +18,15 @@ the jaw opening to approach with, the robust score). Exit status 1, and no file 
 
 from __future__ import annotations
 
-from graspsim.cli._common import add_budget_flag, add_json_flag, budget_from_args, emit, format_table, gripper_from_args
+from graspsim.cli._common import (
+    add_budget_flag,
+    add_json_flag,
+    budget_from_args,
+    emit,
+    format_table,
+    gripper_from_args,
+    with_glossary,
+)
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -333,4 +341,5 @@ def register(sub) -> None:
                    help="save what headless Chromium draws of the planned scene to PNG (instead of serving)")
     _add_generation(p)
     add_json_flag(p)
+    with_glossary(p, "robust score", "grade", "known / familiar / build")
     p.set_defaults(func=_cmd_plan_scene)

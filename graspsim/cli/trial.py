@@ -14,7 +14,15 @@ from __future__ import annotations
 import math
 import sys
 
-from graspsim.cli._common import add_gripper_flag, add_json_flag, emit, format_table, gripper_from_args, progress
+from graspsim.cli._common import (
+    add_gripper_flag,
+    add_json_flag,
+    emit,
+    format_table,
+    gripper_from_args,
+    progress,
+    with_glossary,
+)
 
 __all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD", "RENDER_SECONDS_PER_TRIAL"]
 
@@ -85,6 +93,7 @@ def register(subparsers) -> None:
     add_gripper_flag(p, help="the gripper the map was made for (default: the one it records; a "
                      "name or spec .json that differs from it is an error: the map's poses are that gripper's)")
     add_json_flag(p)
+    with_glossary(p, "feasible", "robust score", "grade")
     p.set_defaults(func=run)
 
 

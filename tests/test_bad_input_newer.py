@@ -5,6 +5,7 @@ traceback or a hang, and no existing output replaced."""
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import shutil
@@ -110,13 +111,26 @@ def test_view_min_grade_outside_0_1_is_refused(cyl_map, capsys):
 
 
 # ---------------------------------------------------------------- plan-scene and its API
+def _claiming(png: bytes, w: int, h: int) -> bytes:
+    """The PNG ``png`` with a header claiming ``w`` x ``h`` pixels (IHDR and its CRC rewritten):
+    a decompression bomb's size at no cost to make."""
+    import struct
+    import zlib
+
+    ihdr = bytearray(png[12:29])
+    ihdr[4:12] = struct.pack(">II", w, h)
+    return png[:12] + bytes(ihdr) + struct.pack(">I", zlib.crc32(bytes(ihdr))) + png[33:]
+
+
 def test_depth_image_too_large_is_refused_before_its_pixels_are_read(tmp_path, capsys):
     from PIL import Image
 
     from graspsim.perception.depth_image import MAX_PIXELS, read_depth_image
 
-    Image.new("I;16", (20000, 20000)).save(tmp_path / "bomb.png")  # 0.8 MB on disk, 400 M pixels
-    Image.new("I;16", (5000, 4000)).save(tmp_path / "big.png")  # under PIL's limit, over ours
+    small = io.BytesIO()
+    Image.new("I;16", (2, 2)).save(small, format="PNG")
+    (tmp_path / "bomb.png").write_bytes(_claiming(small.getvalue(), 20000, 20000))  # 400 M pixels, says its header
+    (tmp_path / "big.png").write_bytes(_claiming(small.getvalue(), 5000, 4000))  # under PIL's limit, over ours
     for name in ("bomb.png", "big.png"):
         with pytest.raises(PointCloudError, match="depth camera"):
             read_depth_image(tmp_path / name)

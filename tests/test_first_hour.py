@@ -285,3 +285,44 @@ def test_glossary_terms_are_defined_in_the_readme_and_the_help_of_commands_print
         for term in terms:
             assert f"{term}: " + " ".join(GLOSSARY[term].split())[:40] in text, (command, term)
     assert 'python -m pytest -m "not slow"' in top and "graspsim demo" in top
+
+
+def test_a_map_built_on_demand_reports_its_progress(tmp_path):
+    """The planner's build case (the demo's sixth map) goes through BUILD_PROGRESS, which
+    the command line turns into a progress bar on a terminal."""
+    import contextlib
+    import math
+
+    from graspsim.maps.database import BUILD_PROGRESS, MapDatabase
+    from graspsim.maps.generate import MapConfig
+    from graspsim.primitives import Sphere
+
+    seen = []
+
+    @contextlib.contextmanager
+    def hook(shape):
+        seen.append(str(shape))
+        yield lambda frac: seen.append(frac)
+
+    db = MapDatabase(tmp_path / "db", config=MapConfig(surface_step=0.01, rotation_step=math.radians(22)))
+    token = BUILD_PROGRESS.set(hook)
+    try:
+        db.get(Sphere(0.03))
+    finally:
+        BUILD_PROGRESS.reset(token)
+    assert seen[0] == str(Sphere(0.03)) and len(seen) > 2 and seen[-1] == 1.0
+
+
+def test_trial_render_estimate_counts_the_rendering(capsys):
+    import argparse
+
+    from graspsim.cli._common import progress
+    from graspsim.cli.trial import RENDER_SECONDS_PER_TRIAL, _selection_check
+
+    args = argparse.Namespace(threads=2, min_grade=None, sample=10, top=None, all=False, json=False,
+                              render="out", render_count=3)
+    ten_grasps = type("Map", (), {"__len__": lambda self: 10})()  # all the check reads of a map
+    with progress(None, "x", enabled=False) as bar:
+        _selection_check(args, bar)(ten_grasps, np.arange(10))
+    err = capsys.readouterr().err
+    assert f"rendering up to 3 of them: at least {3 * RENDER_SECONDS_PER_TRIAL:.0f} s" in err, err

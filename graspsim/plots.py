@@ -11,7 +11,11 @@ import numpy as np
 
 from graspsim.maps.graspmap import GraspabilityMap
 
-__all__ = ["plot_map", "plot_maps", "plot_clouds", "map_figure", "image_format", "plot_design", "pyplot"]
+__all__ = ["PLOT_POINTS", "plot_map", "plot_maps", "plot_clouds", "map_figure", "image_format", "plot_design",
+           "pyplot"]
+
+#: The most grasps a map plot draws (a uniform sample of the rest; the plot says so).
+PLOT_POINTS = 30000
 
 _FORMATS = ("png", "pdf", "svg", "jpg", "jpeg", "tif", "tiff", "webp", "eps", "ps")
 
@@ -93,7 +97,7 @@ def _draw(ax, gmap: GraspabilityMap, what: str, max_points: int, min_grade: floa
 
 
 def plot_map(gmap: GraspabilityMap, path: str | os.PathLike, *, what: str = "grasp_point",
-             min_grade: float = 0.0, max_points: int = 30000, title: str | None = None,
+             min_grade: float = 0.0, max_points: int = PLOT_POINTS, title: str | None = None,
              format: str | None = None) -> None:
     """Save a 3-D scatter of grasp points (or ``what="wrist"`` positions) coloured by
     grade, over a translucent mesh of the object."""
@@ -102,7 +106,7 @@ def plot_map(gmap: GraspabilityMap, path: str | os.PathLike, *, what: str = "gra
 
 
 def plot_maps(maps: list[GraspabilityMap], path: str | os.PathLike, *, what: str = "grasp_point",
-              min_grade: float = 0.0, max_points: int = 30000, titles: list[str] | None = None,
+              min_grade: float = 0.0, max_points: int = PLOT_POINTS, titles: list[str] | None = None,
               format: str | None = None) -> None:
     """Several maps side by side with one colour bar (e.g. FS vs adapted, paper fig. 5).
 
@@ -121,7 +125,7 @@ def plot_maps(maps: list[GraspabilityMap], path: str | os.PathLike, *, what: str
 
 
 def map_figure(maps: list[GraspabilityMap], *, what: str = "grasp_point", min_grade: float = 0.0,
-               max_points: int = 30000, titles: list[str] | None = None):
+               max_points: int = PLOT_POINTS, titles: list[str] | None = None):
     """The matplotlib figure :func:`plot_maps` saves (the caller closes it)."""
     if what not in ("grasp_point", "wrist"):
         from graspsim.errors import InvalidParameterError

@@ -116,7 +116,7 @@ def _cmd_show(args) -> int:
     from graspsim._atomic import check_output
     from graspsim.errors import InvalidParameterError
     from graspsim.maps.io import load_map
-    from graspsim.plots import image_format, plot_map
+    from graspsim.plots import PLOT_POINTS, image_format, plot_map
 
     check_output(args.output, "image", others={"map": args.file})
     fmt = image_format(args.output)
@@ -126,9 +126,11 @@ def _cmd_show(args) -> int:
         raise InvalidParameterError(f"nothing to plot: none of the map's {len(gmap)} grasps has "
                                     f"grade > {args.min_grade:g} (max {_max_grade(gmap)})")
     plot_map(gmap, args.output, what=args.what, min_grade=args.min_grade, format=fmt)
-    emit({"file": args.file, "image": args.output, "grasps": len(gmap), "plotted": shown,
+    drawn = min(shown, PLOT_POINTS)
+    emit({"file": args.file, "image": args.output, "grasps": len(gmap), "plotted": shown, "drawn": drawn,
           "plotted_min_grade": args.min_grade}, args.json,
-         f"wrote {args.output} ({shown} of {len(gmap)} grasps with grade > {args.min_grade:g})")
+         f"wrote {args.output} ({shown} of {len(gmap)} grasps with grade > {args.min_grade:g}"
+         + (f"; a uniform sample of {drawn} of them drawn" if drawn < shown else "") + ")")
     return 0
 
 

@@ -13,13 +13,13 @@ import socket
 
 import numpy as np
 import pytest
+from hand_made import grasp_pose, hand_made_map
 
 from graspsim.cli import main
 from graspsim.errors import GripperError, InvalidParameterError, PointCloudError
-from graspsim.gripper import HGPL_25_60_A
+from graspsim.grippers.spec import HGPL_25_60_A
 from graspsim.maps import save_map
 from graspsim.primitives import Cylinder
-from graspsim.sim.testing import grasp_pose, hand_made_map
 
 FAST_FLAGS = ["--surface-step", "0.01", "--rotation-step-deg", "22"]
 
@@ -154,8 +154,8 @@ def test_plan_scene_viewpoint_far_away_is_one_error_without_warnings(tmp_path, c
                                 {"viewpoint": "abc"}, {"viewpoint": [1e300, 0, 0]}], ids=str)
 def test_plan_scene_api_bad_rng_or_viewpoint_is_a_graspsim_error(tmp_path, kw):
     from graspsim.maps.database import MapDatabase
-    from graspsim.perception.scene import plan_scene
-    from graspsim.planner import plan
+    from graspsim.planning.planner import plan
+    from graspsim.planning.scene import plan_scene
 
     pts = np.random.default_rng(0).uniform(-0.2, 0.2, (500, 3)) * [1, 1, 0.01]
     db = MapDatabase(tmp_path / "db")
@@ -217,7 +217,7 @@ def test_gripper_spec_without_a_name_or_with_a_registered_name_is_refused(tmp_pa
 
 def test_small_json_inputs_from_a_fifo_or_a_device_fail_at_once(tmp_path):
     from graspsim.grippers import get_gripper
-    from graspsim.sim.scenes import load_scene
+    from graspsim.tabletop.table_scene import load_scene
 
     os.mkfifo(tmp_path / "fifo.json")  # reading it would block for ever
     os.symlink("/dev/zero", tmp_path / "zero.json")  # reading it would never end

@@ -99,7 +99,7 @@ FAST_FLAGS = ["--surface-step", "0.01", "--rotation-step-deg", "22"]
 def _bottle_map(tmp_path):
     """A hand-made map on the glue bottle (a compound of two cylinders) whose few grasps
     all lie on its wide lower part."""
-    from graspsim.case_study_objects import glue_bottle
+    from graspsim.primitives.case_study import glue_bottle
 
     ang = np.linspace(0.0, np.pi, 8)
     z = float(glue_bottle().aabb[0, 2]) + 0.02

@@ -75,7 +75,7 @@ def gripper_spec(kind: str) -> dict:
     """A gripper spec file's content: ``spec`` a valid one of its own name, ``nameless``
     without a name, ``impostor`` named like the Festo with other numbers, ``tiny`` one
     whose 1 mm stroke fits no grasp of the fuzz maps."""
-    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.grippers.spec import HGPL_25_60_A
 
     d = {**HGPL_25_60_A.to_dict(), "name": "fuzz_gripper", "stroke_per_jaw": 0.04}
     if kind == "nameless":

@@ -54,7 +54,7 @@ def gripper_specs(draw) -> dict:
     """A spec file's text: the Festo's fields with one to three of them changed (a value
     at the edge, of the wrong kind, removed, or a field unknown), the name missing or a
     registered one, or text that is not a spec at all."""
-    from graspsim.gripper import HGPL_25_60_A
+    from graspsim.grippers.spec import HGPL_25_60_A
 
     kind = draw(st.sampled_from(["fields", "fields", "fields", "name", "text"]))
     d = {**HGPL_25_60_A.to_dict(), "name": "fuzz_gripper"}
@@ -226,7 +226,8 @@ def check_scene_call(case: dict) -> str:
 
     from graspsim.maps.database import MapDatabase
     from graspsim.maps.generate import MapConfig
-    from graspsim.perception.scene import SceneConfig, budget_fields, plan_scene
+    from graspsim.planning.scene import plan_scene
+    from graspsim.planning.scene_config import SceneConfig, budget_fields
 
     count("scene planning calls (API: plan_scene)")
     folder = assets().fresh()
@@ -265,8 +266,8 @@ def regrip_calls(draw) -> dict:
 def check_regrip_call(case: dict) -> str:
     """adapt_to_gripper() to a registered, user or varied gripper at a drawn source
     grade: a valid map of the target gripper (maybe empty), or a GraspsimError."""
-    from graspsim.design import resolve_design
-    from graspsim.gripper import GripperSpec
+    from graspsim.apps.design import resolve_design
+    from graspsim.grippers.spec import GripperSpec
     from graspsim.maps.io import load_map
     from graspsim.maps.regrip import adapt_to_gripper
     from graspsim.maps.validate import map_problems

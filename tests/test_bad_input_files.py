@@ -376,6 +376,7 @@ def test_map_text_is_stored_without_the_global_heap(map_file):
     assert len(load_map(map_file)) == 4
 
 
+@pytest.mark.slow
 def test_single_byte_flips_of_a_map_are_refused_or_valid(tmp_path, map_file):
     # flipped bytes in the HDF5 metadata surfaced as RuntimeError / KeyError tracebacks
     data = map_file.read_bytes()

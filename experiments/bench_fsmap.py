@@ -291,5 +291,12 @@ def readme_section(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def headline(summary: dict) -> str:
+    """The README's headline line (see ``experiments/report.py``)."""
+    h = summary["headline"]
+    return (f"An FS map of the paper's {h['primitive']} in {h['in_process_generation_s']:.1f} s of generation "
+            f"in a warm process, {h['fresh_wall_s']:.1f} s wall for `graspsim map` in a fresh one "
+            f"({h['threads']} threads); the paper's five-map database in {h['db_build_serial_s']:.0f} s on first use.")
+
 if __name__ == "__main__":
     sys.exit(main())

@@ -77,7 +77,8 @@ def _workload(scene, T, w):
     """(initial states, controls) of the trials, as the harness builds them."""
     p = LiftPlace()
     T_world = scene.T_world_obj @ T
-    return initial_states(scene, T_world, pregrasp_opening(scene, w)), p.controls(scene, T_world)
+    return (initial_states(scene, T_world, pregrasp_opening(scene, w)),
+            p.controls(scene, T_world, pregrasp_opening(scene, w)))
 
 
 def _rollout_rate(scene, state0, control) -> float:

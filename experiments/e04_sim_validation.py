@@ -375,5 +375,21 @@ def readme_section(s: dict) -> str:
     return "\n".join(L) + "\n"
 
 
+def headline(s: dict) -> str:
+    """The README's headline line (see ``experiments/report.py``)."""
+    by = {r["selected_by"]: r for r in s["pooled"]}
+    nz = s["noise"]
+    cell = {k: (by[k]["exact"], by[k]["noise"]["of_feasible"]) for k in ("paper", "all") if k in by}
+    e, z = cell["paper"]
+    line = (f"Grasps > 0.7 drawn from {s['cases']['all']} maps, lifted and placed in MuJoCo: "
+            f"{rate_ci(e['success'], e['of'], e['ci'])} of the feasible poses succeed, "
+            f"{rate_ci(z['success'], z['of'])} with {1000 * nz['position_m']:g} mm / {nz['rotation_deg']:g}° "
+            f"execution error")
+    if "all" in cell:
+        e, z = cell["all"]
+        line += (f" (the same maps' grasps of any grade: {rate_ci(e['success'], e['of'])}, "
+                 f"{rate_ci(z['success'], z['of'])})")
+    return line + "."
+
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -348,5 +348,14 @@ def readme_section(s: dict) -> str:
     return "\n".join(L) + "\n"
 
 
+def headline(s: dict) -> str:
+    """The README's headline line (see ``experiments/report.py``): clutter removal with
+    execution error and the full method, per scene kind and size."""
+    rows = [r for r in s["conditions"] if r["noise"] == "default" and not r["ablation"]]
+    return ("Clutter removal with execution error (GSR: grasps that lifted their target; DR: objects "
+            "removed): " + "; ".join(
+                f"{r['kind']} of {r['objects']}: GSR {rate_ci(r['successes'], r['attempts'])}, "
+                f"DR {rate_ci(r['removed'], r['placed'])}" for r in rows) + ".")
+
 if __name__ == "__main__":
     raise SystemExit(main())

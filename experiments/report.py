@@ -1,6 +1,7 @@
-"""Regenerate the README's result blocks from the experiments' committed summaries.
+"""Regenerate the result blocks of the README and docs/results.md from the experiments'
+committed summaries.
 
-Every README block
+Every block (in ``README.md`` or ``docs/results.md``, the files of ``DOCUMENTS``)
 
     <!-- report:KEY -->
     ...generated markdown...
@@ -11,15 +12,22 @@ is the output of ``readme_section(summary)``, a function of the script
 ``results/KEY/summary.json`` the script wrote). KEY is the script's stem, or
 ``STEM.VARIANT`` for a second configuration of the same script (its results folder is
 then ``results/STEM.VARIANT``, given to the script with ``--out``). Scripts are
-imported by path and must not run anything at import.
+imported by path and must not run anything at import. A headline block
 
-Outside the blocks the README's result sections may hold prose, but no measured number:
+    <!-- headline:KEY -->
+    ...
+    <!-- /headline:KEY -->
+
+is the same, from the script's ``headline(summary)``: the one or two lines the README's
+*Headline results* quote, the full block being in docs/results.md.
+
+Outside the blocks the documents' result sections may hold prose, but no measured number:
 :func:`loose_numbers` flags percentages, durations, ``k/n`` and ``k of n`` counts
 there (settings of the method, listed in ``SETTINGS``, excepted). A region the lead
 has yet to wire is fenced by ``<!-- TODO report:KEY -->`` ... ``<!-- /TODO -->``; it is
 listed as pending, not checked.
 
-    python experiments/report.py             # rewrite README.md's blocks
+    python experiments/report.py             # rewrite the blocks of README.md and docs/results.md
     python experiments/report.py --check     # exit 1 listing stale blocks / loose numbers
     python experiments/report.py --collect   # first copy results/KEY/summary.json
 """
@@ -37,10 +45,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-BLOCK = re.compile(r"<!-- report:(?P<key>[\w.-]+) -->\n(?P<body>.*?)<!-- /report:(?P=key) -->", re.S)
+BLOCK = re.compile(r"<!-- (?P<kind>report|headline):(?P<key>[\w.-]+) -->\n(?P<body>.*?)"
+                   r"<!-- /(?P=kind):(?P=key) -->", re.S)
 TODO = re.compile(r"<!-- TODO report:(?P<key>[\w.-]+) -->.*?<!-- /TODO -->", re.S)
-#: README sections (level-2 headings) that report results: no loose numbers there
-RESULT_SECTIONS = ("The method and what we measured", "Gymnasium environments")
+#: the documents whose blocks are generated (README.md: the headlines; docs/results.md: the rest)
+DOCUMENTS = ("README.md", "docs/results.md")
+#: sections (level-2 headings) of those documents that report results: no loose numbers there
+RESULT_SECTIONS = ("Headline results", "The method and what we measured", "Gymnasium environments",
+                   "Scale-out")
 #: a measured-looking number: a percentage, a duration, a ratio "x", "k/n", "k of n"
 NUMBER = re.compile(r"(?<![\w.])\d+(?:[.,]\d+)*\s*(?:%|ms\b|s\b|min\b|minutes\b|×)"
                     r"|(?<![\w.])\d+\s*/\s*\d+(?!\w|\.\d)|(?<![\w.])\d+ of \d+(?!\w|\.\d)")
@@ -56,21 +68,22 @@ class ReportError(Exception):
 @dataclass(frozen=True)
 class Block:
     key: str
+    kind: str  # "report" (readme_section) or "headline" (headline)
     start: int  # offsets of the body in the README text
     end: int
     body: str
 
 
 def blocks(text: str) -> list[Block]:
-    out = [Block(m["key"], m.start("body"), m.end("body"), m["body"]) for m in BLOCK.finditer(text)]
-    keys = [b.key for b in out]
+    out = [Block(m["key"], m["kind"], m.start("body"), m.end("body"), m["body"]) for m in BLOCK.finditer(text)]
+    keys = [f"{b.kind}:{b.key}" for b in out]
     dup = sorted({k for k in keys if keys.count(k) > 1})
     if dup:
-        raise ReportError(f"README blocks appear twice: {', '.join(dup)}")
+        raise ReportError(f"blocks appear twice: {', '.join(dup)}")
     return out
 
 
-def _module(stem: str, root: Path):
+def _module(stem: str, root: Path, function: str = "readme_section"):
     path = root / "experiments" / f"{stem}.py"
     if not path.is_file():
         raise ReportError(f"report:{stem}: no script {path.relative_to(root)}")
@@ -84,18 +97,21 @@ def _module(stem: str, root: Path):
         sys.modules[name] = mod  # dataclasses look their module up while the class is built
         spec.loader.exec_module(mod)
     mod = sys.modules[name]
-    if not callable(getattr(mod, "readme_section", None)):
-        raise ReportError(f"report:{stem}: experiments/{stem}.py defines no readme_section(summary)")
+    if not callable(getattr(mod, function, None)):
+        raise ReportError(f"report:{stem}: experiments/{stem}.py defines no {function}(summary)")
     return mod
 
 
-def section(key: str, root: Path = ROOT) -> str:
-    """The generated markdown of block ``key`` (ends with a newline)."""
+def section(key: str, root: Path = ROOT, kind: str = "report") -> str:
+    """The generated markdown of block ``key`` (ends with a newline); ``kind``
+    ``"headline"``: the script's ``headline(summary)``."""
     path = root / "experiments" / "reported" / f"{key}.json"
     if not path.is_file():
         raise ReportError(f"report:{key}: no summary {path.relative_to(root)} "
                           f"(run the script, then `python experiments/report.py --collect`)")
     summary = json.loads(path.read_text())
+    if kind == "headline":
+        return _module(key.split(".")[0], root, "headline").headline(summary).strip("\n") + "\n"
     text = _module(key.split(".")[0], root).readme_section(summary).strip("\n")
     return text + measured_at(summary) + "\n"
 
@@ -114,18 +130,18 @@ def measured_at(summary: dict) -> str:
 
 
 def render(text: str, root: Path = ROOT) -> tuple[str, list[str], list[str]]:
-    """(the README with every block that can be generated regenerated, keys of the
+    """(the document with every block that can be generated regenerated, keys of the
     blocks that changed, errors of the blocks that cannot be generated -- left as they
     are)."""
     out, stale, errors, pos = [], [], [], 0
     for b in blocks(text):
         try:
-            new = section(b.key, root)
+            new = section(b.key, root, b.kind)
         except ReportError as e:
             errors.append(str(e))
             new = b.body
         if new != b.body:
-            stale.append(b.key)
+            stale.append(b.key if b.kind == "report" else f"{b.kind}:{b.key}")
         out += [text[pos:b.start], new]
         pos = b.end
     out.append(text[pos:])
@@ -161,58 +177,75 @@ def pending(text: str) -> list[str]:
     return [m["key"] for m in TODO.finditer(text)]
 
 
-def check(readme: Path = ROOT / "README.md", root: Path = ROOT) -> list[str]:
-    """Problems with the README: stale blocks, blocks that cannot be generated, loose
-    numbers in the result sections. Empty when the README matches the summaries."""
-    text = readme.read_text()
+def documents(root: Path = ROOT) -> list[Path]:
+    """The generated documents present under ``root`` (``DOCUMENTS``)."""
+    return [root / d for d in DOCUMENTS if (root / d).is_file()]
+
+
+def check(doc: Path | None = None, root: Path = ROOT) -> list[str]:
+    """Problems with ``doc`` (default: every document of ``DOCUMENTS``): stale blocks,
+    blocks that cannot be generated, loose numbers in the result sections. Empty when
+    the documents match the summaries."""
+    if doc is None:
+        return [f"{d.relative_to(root)}: {p}" for d in documents(root) for p in check(d, root)]
+    text = doc.read_text()
     try:
         _, stale, problems = render(text, root)
     except ReportError as e:  # duplicate blocks
         return [str(e)]
-    problems += [f"stale block report:{k} (run python experiments/report.py)" for k in stale]
+    problems += [f"stale block {k if ':' in k else 'report:' + k} (run python experiments/report.py)"
+                 for k in stale]
     problems += [f"number outside a generated block, {s}" for s in loose_numbers(text)]
     return problems
 
 
-def collect(readme: Path = ROOT / "README.md", root: Path = ROOT) -> list[str]:
+def collect(doc: Path | None = None, root: Path = ROOT) -> list[str]:
     """Copy ``results/KEY/summary.json`` to ``experiments/reported/KEY.json`` for every
-    README block whose results are present; returns the keys copied."""
+    block of ``doc`` (default: every document) whose results are present; returns the
+    keys copied."""
+    keys = {b.key for d in ([doc] if doc else documents(root)) for b in blocks(d.read_text())}
     done = []
-    for b in blocks(readme.read_text()):
-        src = root / "results" / b.key / "summary.json"
+    for key in sorted(keys):
+        src = root / "results" / key / "summary.json"
         if src.is_file():
             json.loads(src.read_text())  # a broken file stops here, before it is committed
-            dst = root / "experiments" / "reported" / f"{b.key}.json"
+            dst = root / "experiments" / "reported" / f"{key}.json"
             dst.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(src, dst)
-            done.append(b.key)
+            done.append(key)
     return done
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--check", action="store_true", help="exit 1 if the README is stale (writes nothing)")
+    p.add_argument("--check", action="store_true", help="exit 1 if a document is stale (writes nothing)")
     p.add_argument("--collect", action="store_true", help="first copy results/KEY/summary.json files")
-    p.add_argument("--readme", default=str(ROOT / "README.md"))
+    p.add_argument("--doc", action="append", default=None,
+                   help=f"a document to regenerate or check (repeatable; default: {', '.join(DOCUMENTS)})")
     a = p.parse_args(argv)
-    readme = Path(a.readme)
+    docs = [Path(d) for d in a.doc] if a.doc else documents()
     try:
         if a.collect:
-            print("collected: " + (", ".join(collect(readme)) or "nothing"))
+            print("collected: " + (", ".join(k for d in docs for k in collect(d)) or "nothing"))
         if a.check:
-            problems = check(readme)
-            for k in pending(readme.read_text()):
-                print(f"pending (not checked): TODO report:{k}")
+            problems = []
+            for d in docs:
+                for k in pending(d.read_text()):
+                    print(f"{d.name}: pending (not checked): TODO report:{k}")
+                problems += [f"{d.name}: {s}" for s in check(d)]
             for s in problems:
                 print(s)
             return 1 if problems else 0
-        text = readme.read_text()
-        new, stale, errors = render(text)
-        if stale:
-            readme.write_text(new)
-        print("regenerated: " + (", ".join(stale) or "nothing (up to date)"))
-        for s in loose_numbers(new):
-            print(f"warning: number outside a generated block, {s}")
+        errors = []
+        for d in docs:
+            text = d.read_text()
+            new, stale, errs = render(text)
+            if stale:
+                d.write_text(new)
+            print(f"{d.name}: regenerated: " + (", ".join(stale) or "nothing (up to date)"))
+            for s in loose_numbers(new):
+                print(f"warning: {d.name}: number outside a generated block, {s}")
+            errors += [f"{d.name}: {e}" for e in errs]
         for e in errors:
             print(f"error: {e}", file=sys.stderr)
         return 2 if errors else 0

@@ -1,6 +1,6 @@
 """SE(3) helpers on batches of poses.
 
-Conventions (DESIGN.md §3): quaternions are ``w, x, y, z`` (MuJoCo's order); a transform
+Conventions (docs/design.md §3): quaternions are ``w, x, y, z`` (MuJoCo's order); a transform
 ``T_a_b`` is the pose of frame ``b`` expressed in frame ``a`` as a 4x4 homogeneous
 matrix, so ``p_a = T_a_b @ p_b``. All functions accept batches with leading dimensions.
 """

@@ -40,8 +40,9 @@ def test_bad_designs_are_one_line_errors():
         vary(A, "pad_length", 0.09)
     with pytest.raises(InvalidParameterError, match="metres"):
         resolve_design("stroke=wide", A)
-    with pytest.raises(GripperError, match="robotiq_2f85"):
-        resolve_design("robotiq_2f85", A)
+    with pytest.raises(GripperError, match="robotiq_2f140"):
+        resolve_design("robotiq_2f140", A)
+    assert resolve_design("robotiq_2f85", A).model == "robotiq_2f85"  # a model file gripper is a design too
     assert resolve_design("franka_hand", A).name == "franka_hand"
     assert vary(resolve_design("franka_hand", A), "stroke", 0.03).model is None  # the spec-built model
     assert resolve_design("finger_length=0.05", A) == vary(A, "finger_length", 0.05)

@@ -249,6 +249,34 @@ def _summary(out):
 
 
 @pytest.mark.slow
+def test_e15_quick_same_scenes_for_both_planners(tmp_path):
+    mod = _load("e15_planner_comparison")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    by = {r["planner"]: r for r in s["results"]}
+    assert set(by) == {"graspsim", "antipodal"}
+    for r in by.values():
+        assert [x["seed"] for x in r["per_seed"]] == [x["seed"] for x in by["graspsim"]["per_seed"]]
+        assert [x["placed"] for x in r["per_seed"]] == [x["placed"] for x in by["graspsim"]["per_seed"]]
+        assert r["gsr"]["seeds"] <= 2
+
+
+@pytest.mark.slow
+def test_e14_quick_compares_dataset_labels_with_mujoco(tmp_path):
+    mod = _load("e14_cross_simulator")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    assert s["input"]["format"] == "acronym" and s["input"]["grasps"] == 8
+    assert s["input"]["label_source"].startswith("hand-made") and s["input"]["dataset_held"] == 4
+    for name in ("tug", "lift_place"):
+        r = s["protocols"][name]
+        cells = [v for row in r["confusion"].values() for v in row.values()]
+        assert sum(cells) == 8 and r["executable"] == r["agreement"]["n"]
+        assert sum(t["grasps"] for t in r["by_type"].values()) == 8
+    assert (tmp_path / "imported.graspsim.h5").is_file() and "tug" in (tmp_path / "README.md").read_text()
+
+
+@pytest.mark.slow
 def test_bench_identify_large_quick(tmp_path):
     mod = _load("bench_identify_large")
     assert mod.main(["--quick", "--out", str(tmp_path)]) == 0

@@ -84,7 +84,7 @@ def test_franka_stroke_force_and_speed_come_from_the_model():
 
 
 def test_registry_names_files_and_specs(tmp_path):
-    assert set(gripper_names()) == {"festo_hgpl_25_60_a", "franka_hand"}
+    assert set(gripper_names()) == {"festo_hgpl_25_60_a", "franka_hand", "robotiq_2f85", "rethink_gripper"}
     assert get_gripper("festo_hgpl_25_60_a") is HGPL_25_60_A and get_gripper(None) is HGPL_25_60_A
     custom = GripperSpec(name="my_gripper", finger_size=(0.008, 0.02, 0.06), stroke_per_jaw=0.03)
     path = tmp_path / "my.json"
@@ -118,8 +118,8 @@ def test_unknown_names_and_missing_files_are_errors(tmp_path):
         get_gripper("robotiq")
     with pytest.raises(GripperError, match="cannot read"):
         get_gripper(str(tmp_path / "missing.json"))
-    with pytest.raises(GripperError, match="no vendored gripper model"):
-        mount("robotiq_2f85")
+    with pytest.raises(GripperError, match="no gripper model 'robotiq_2f140'"):
+        mount("robotiq_2f140")
     for odd in ("a\0b.json", str(tmp_path)):  # a NUL byte, a folder
         with pytest.raises(GripperError):
             get_gripper(odd)

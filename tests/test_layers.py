@@ -11,16 +11,17 @@ this map, made here on purpose.
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
 
 PKG = Path(__file__).resolve().parents[1] / "graspsim"
 
-#: The base: small modules every part may use (errors, version, atomic writes, JSON,
-#: installed files, the GL backend, seeds, frames, executors, statistics).
-BASE = frozenset({"errors", "_version", "_atomic", "_jsonable", "_resources", "_gl", "seeding", "transforms",
-                  "executors", "stats"})
+#: The base: small modules every part may use (errors, version, atomic writes, small
+#: input files, JSON, installed files, the GL backend, seeds, frames, executors, statistics).
+BASE = frozenset({"errors", "_version", "_atomic", "_files", "_jsonable", "_resources", "_gl", "seeding",
+                  "transforms", "executors", "stats"})
 
 
 def _above(*parts: str) -> frozenset[str]:
@@ -188,3 +189,19 @@ def test_every_package_says_what_it_holds_and_may_use():
             continue
         doc = ast.get_docstring(ast.parse(init.read_text())) or ""
         assert "May use" in doc, f"{init.relative_to(PKG.parent)}: its docstring must say what it may use"
+
+
+def test_docs_architecture_states_this_map():
+    """docs/architecture.md's layer table says what LAYERS says: one row per part, its
+    last cell the parts it may import besides the base (and the base's own list)."""
+    text = (PKG.parent / "docs" / "architecture.md").read_text()
+    layers = text[text.index("## The layers"):text.index("## Where is X decided?")]
+    rows = {}
+    for line in layers.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if line.startswith("| `") and len(cells) == 3:
+            rows[cells[0].strip("`")] = set(re.findall(r"`(\w+)`", cells[2]))
+    base_line = layers[layers.index("**The base**"):layers.index("Lowest first")]
+    assert set(re.findall(r"`(\w+)`", base_line)) == BASE
+    higher = {p: allowed - BASE - {p} for p, allowed in LAYERS.items() if p not in BASE}
+    assert rows == higher

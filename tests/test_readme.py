@@ -92,3 +92,56 @@ def test_report_collect_copies_present_results(tmp_path):
     (tmp_path / "results" / "exp_x" / "summary.json").write_text('{"command": "c", "k": 1, "n": 1}')
     assert report.collect(readme, tmp_path) == ["exp_x"]
     assert json.loads((tmp_path / "experiments" / "reported" / "exp_x.json").read_text())["k"] == 1
+
+
+def test_report_checks_headlines_and_every_document(tmp_path):
+    """README headline blocks come from the script's headline(); check() with no file
+    reads every document of DOCUMENTS (README.md and docs/results.md)."""
+    report = _report()
+    readme = _fake_repo(tmp_path, "")
+    with open(tmp_path / "experiments" / "exp_x.py", "a") as f:
+        f.write("def headline(s):\n    return f\"{s['k']} of {s['n']} succeed\"\n")
+    readme.write_text("# t\n\n## Headline results\n\n<!-- headline:exp_x -->\nold\n<!-- /headline:exp_x -->\n")
+    (tmp_path / "docs").mkdir()
+    results = tmp_path / "docs" / "results.md"
+    results.write_text("# r\n\n## The method and what we measured\n\n"
+                       "<!-- report:exp_x -->\nold\n<!-- /report:exp_x -->\n")
+    problems = report.check(root=tmp_path)
+    assert any(p.startswith("README.md: stale block headline:exp_x") for p in problems), problems
+    assert any(p.startswith("docs/results.md: stale block report:exp_x") for p in problems), problems
+    for doc in (readme, results):
+        doc.write_text(report.render(doc.read_text(), tmp_path)[0])
+    assert "<!-- headline:exp_x -->\n3 of 4 succeed\n<!-- /headline:exp_x -->" in readme.read_text()
+    assert report.check(root=tmp_path) == []
+    results.write_text(results.read_text() + "\nAnd 12 of 40 loose.\n")
+    assert [p.split(",")[0] for p in report.check(root=tmp_path)] == [
+        "docs/results.md: number outside a generated block"]
+
+
+def test_readme_is_short_with_contents():
+    """The README stays a front page (the results live in docs/results.md)."""
+    text = README.read_text()
+    assert len(text.splitlines()) <= 350 and "## Contents" in text
+    assert "<!-- report:" not in text, "full result blocks belong in docs/results.md"
+    for link in re.findall(r"\]\((docs/[^)#]+)", text):
+        assert (README.parent / link).is_file(), link
+
+
+def test_docs_the_code_cites_exist():
+    """Every ``docs/NAME.md`` the package, tests or experiments cite exists, and every
+    ``docs/design.md §N`` names a section of it."""
+    root = README.parent
+    heads = {int(n) for n in re.findall(r"^## (\d+)\. ", (root / "docs" / "design.md").read_text(), re.M)}
+    cited = 0
+    for folder in ("graspsim", "tests", "experiments"):
+        for path in (root / folder).rglob("*.py"):
+            if path == Path(__file__).resolve():
+                continue
+            text = path.read_text()
+            for doc in re.findall(r"\bdocs/([\w-]+\.md)", text):
+                assert (root / "docs" / doc).is_file(), f"{path.relative_to(root)} cites docs/{doc}"
+            for n in re.findall(r"docs/design\.md\s+§(\d+)", text):
+                assert int(n) in heads, f"{path.relative_to(root)} cites docs/design.md §{n}"
+                cited += 1
+            assert "DESIGN.md" not in text, f"{path.relative_to(root)} cites DESIGN.md (now docs/design.md)"
+    assert cited >= 10

@@ -79,8 +79,8 @@ def test_closing_line_far_outside_the_friction_cone_fails():
 class _Exploding(LiftPlace):
     """Sends the arm target to 1e12 m mid-lift: the simulation must blow up."""
 
-    def controls(self, scene, T_world_wrist):
-        c = super().controls(scene, T_world_wrist)
+    def controls(self, scene, T_world_wrist, openings=None):
+        c = super().controls(scene, T_world_wrist, openings)
         c[:, 300:, 1:4] = 1e12
         return c
 

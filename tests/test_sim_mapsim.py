@@ -60,11 +60,12 @@ def test_select_grasps():
 
 
 def test_map_without_needed_keys_is_a_clear_error(tmp_path):
-    path = tmp_path / "acronym_only.h5"
+    path = tmp_path / "acronym_only.h5"  # an ACRONYM-style file (graspsim.maps.formats) without its object
     with h5py.File(path, "w") as f:
         f["grasps/transforms"] = np.repeat(np.eye(4)[None], 3, axis=0)
-    with pytest.raises(MapFileError, match="missing"):
+    with pytest.raises(MapFileError, match="names no object mesh"):
         simulate_map(path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["acronym_only.h5"]  # nothing written
     with pytest.raises(MapFileError):
         simulate_map(tmp_path / "nope.h5")
 

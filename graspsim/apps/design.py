@@ -100,7 +100,7 @@ class DesignConfig:
 def common_reach(grippers: Iterable[GripperSpec]) -> GripperSpec:
     """The gripper whose grasp-point-to-wrist reach is longest: its voxel box holds the
     wrists of every gripper given (see :func:`graspsim.maps.metrics.wrist_box`)."""
-    return max(grippers, key=lambda g: float(g.tcp_offset(g.contact_depth_margin)))
+    return max(grippers, key=lambda g: float(g.tcp_offset(g.depth_lo)))
 
 
 def evaluate(gripper: GripperSpec, name: str, shape, cfg: DesignConfig, *,

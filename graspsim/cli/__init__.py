@@ -32,6 +32,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.identify",
     "graspsim.cli.adapt",
     "graspsim.cli.trial",
+    "graspsim.cli.export",
     "graspsim.cli.campaign",
     "graspsim.cli.calibrate",
     "graspsim.cli.warmup",

@@ -80,7 +80,7 @@ def add_budget_flag(p) -> None:
     p.add_argument("--budget", default="", metavar="ENOUGH:PER_SEGMENT",
                    help="planning effort per object: its planning stops once ENOUGH grasps score above 0 or "
                    "PER_SEGMENT grasps per part are scored (default: SceneConfig's, 32:200); a smaller budget plans "
-                   "faster and chooses from fewer grasps (the README's planning-effort study measures both)")
+                   "faster and chooses from fewer grasps (the planning-effort study in docs/results.md measures both)")
 
 
 def budget_from_args(args) -> dict:
@@ -119,23 +119,25 @@ def add_db_flag(p, help: str = "FS map database folder (default $GRASPSIM_DB or 
     p.add_argument("--root", dest="db", metavar="DIR", action=_DeprecatedAlias("--db"), help=argparse.SUPPRESS)
 
 
-GRIPPER_HELP = ("the gripper: festo_hgpl_25_60_a (default), franka_hand, or a JSON file of your own "
-                "parallel gripper's GripperSpec fields (see docs/grippers.md)")
+GRIPPER_HELP = ("the gripper: festo_hgpl_25_60_a (default), franka_hand, robotiq_2f85, rethink_gripper, "
+                "your gripper's model file (MJCF .xml or .urdf: measured and simulated as authored; options in "
+                "a <model>.gripper.json beside it), or a JSON file of GripperSpec fields (see docs/grippers.md)")
 
 
 #: The help of a gripper flag that also takes a variant of a base design.
-VARIANT_HELP = ("a registered gripper (festo_hgpl_25_60_a, franka_hand), a spec .json, or "
+VARIANT_HELP = ("a registered gripper (festo_hgpl_25_60_a, franka_hand, robotiq_2f85, rethink_gripper), a model "
+                "file (MJCF .xml or .urdf), a spec .json, or "
                 "param=value [m] varying the base gripper (e.g. finger_length=0.05)")
 
 
 def add_gripper_flag(p, help: str = GRIPPER_HELP, *, flag: str = "--gripper", required: bool = False,
                      variants: bool = False) -> None:
-    """The one gripper flag of every command: ``--gripper NAME|SPEC.json`` (or ``flag``, e.g.
-    ``--to-gripper``), resolved by :func:`gripper_from_args` (a bad name or spec file is a
-    one-line error, exit 2). ``variants``: it also takes ``param=value``, a variant of the
-    base design that :func:`gripper_from_args` is given."""
+    """The one gripper flag of every command: ``--gripper NAME|MODEL.xml|MODEL.urdf|SPEC.json``
+    (or ``flag``, e.g. ``--to-gripper``), resolved by :func:`gripper_from_args` (a bad name
+    or file is a one-line error, exit 2). ``variants``: it also takes ``param=value``, a
+    variant of the base design that :func:`gripper_from_args` is given."""
     p.add_argument(flag, default=None, required=required, help=help,
-                   metavar="NAME|SPEC.json|PARAM=M" if variants else "NAME|SPEC.json")
+                   metavar="NAME|MODEL.xml|SPEC.json|PARAM=M" if variants else "NAME|MODEL.xml|SPEC.json")
 
 
 def gripper_from_args(args, *, flag: str = "gripper", base=None):

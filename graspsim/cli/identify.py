@@ -6,7 +6,7 @@ The JSON summary (``--json``, last stdout line)::
      "parts": [{"primitive", "dims", "pose", "match", "fit_rate", "points", "approximate",
      "band_rate"}], "unidentified": [...], "uncovered": [{"points", "reason"}], "seconds", ...}
 
-``pose`` is ``T_world_obj`` (4x4, object frame of DESIGN.md §3), ``dims`` in metres,
+``pose`` is ``T_world_obj`` (4x4, object frame of docs/design.md §3), ``dims`` in metres,
 ``match`` is "known" / "familiar" / null from the FS map database given with ``--db``,
 else the default one (``$GRASPSIM_DB`` or ``~/.cache/graspsim/db``, the database
 ``adapt`` uses) when it exists -- identify never builds one; ``database`` says which.

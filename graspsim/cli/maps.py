@@ -120,8 +120,13 @@ def _cmd_show(args) -> int:
 
     check_output(args.output, "image", others={"map": args.file})
     fmt = image_format(args.output)
-    gmap = load_map(args.file)
+    from graspsim.maps.imported import load_any
+
+    gmap = load_any(args.file) if args.file.lower().endswith((".json", ".npy")) else load_map(args.file)
     shown = int(gmap.above(args.min_grade).sum())
+    if not shown and len(gmap) and not (gmap.grade == gmap.grade).any():
+        raise InvalidParameterError(f"nothing to plot: {args.file}'s {len(gmap)} grasps have no grades (a "
+                                    "third-party grasp file); 'graspsim view' shows them by their own labels")
     if not shown:
         raise InvalidParameterError(f"nothing to plot: none of the map's {len(gmap)} grasps has "
                                     f"grade > {args.min_grade:g} (max {_max_grade(gmap)})")
@@ -177,11 +182,20 @@ def _settings_rows(meta) -> list[tuple[str, str]]:
 
 
 def _cmd_info(args) -> int:
+    from graspsim.maps.formats import is_foreign
     from graspsim.maps.io import load_map, read_sim_results
     from graspsim.maps.metrics import map_rates
 
+    if is_foreign(args.file):
+        from graspsim.cli.export import info_dataset
+
+        return info_dataset(args, _describe_object)
     gmap = load_map(args.file)
     s = gmap.summary()
+    if not s["graded"]:  # an imported third-party file's map: no grades, no contacts
+        from graspsim.cli.export import info_imported
+
+        return info_imported(args, gmap, s, _describe_object)
     rates = map_rates(gmap)
     sim = read_sim_results(args.file)
     s.update(file=args.file, SR=rates.sr, VR=rates.vr, quality=gmap.meta.quality,

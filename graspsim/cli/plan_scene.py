@@ -2,7 +2,7 @@
 
     graspsim plan-scene CLOUD -o GRASPS.json [--units m|cm|mm] [--viewpoint X Y Z] [--up NX NY NZ]
                         [--crop XMIN YMIN ZMIN XMAX YMAX ZMAX] [--min-gap M] [--labels LABELS.npy]
-                        [--seed S] [--db DIR] [--gripper NAME|SPEC.json] [--view | --screenshot PNG] [--json]
+                        [--seed S] [--db DIR] [--gripper NAME|MODEL.xml|SPEC.json] [--view | --screenshot PNG] [--json]
     graspsim plan-scene DEPTH.png --camera d435 | --intrinsics FX FY CX CY [--depth-scale S] ...
 
 The cloud a depth camera saw of a table with objects on it (``.pcd``, ``.ply``, ``.npy``,

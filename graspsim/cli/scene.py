@@ -2,7 +2,7 @@
 
     graspsim scene [--objects N] [--scenes S] [--kind pile|packed] [--object-set SET]
                    [--min-gap M] [--noise] [--no-neighbours] [--ground-truth] [--max-attempts M]
-                   [--seed S] [--db DIR] [--gripper NAME|SPEC.json] [--render DIR]
+                   [--seed S] [--db DIR] [--gripper NAME|MODEL.xml|SPEC.json] [--render DIR]
                    [--save-scenes DIR] [--json]
 
 Each scene is drawn and settled in MuJoCo, rendered by one D435-like depth camera, and
@@ -57,9 +57,14 @@ def _cmd_scene(args) -> int:
     except InvalidParameterError:
         raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
     budget = budget_from_args(args)
+    planner = None
+    if args.planner != "graspsim":
+        from graspsim.tabletop.planners import load_planner
+
+        planner = load_planner(args.planner)
     cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours, min_gap=gap, **budget),
                         execution=ExecutionNoise() if args.noise else None, ground_truth=args.ground_truth,
-                        max_attempts=args.max_attempts)
+                        max_attempts=args.max_attempts, planner=planner, planner_name=args.planner)
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, gripper=gripper_from_args(args), quality=quality, config=map_cfg)
     on_step = None
@@ -77,10 +82,16 @@ def _cmd_scene(args) -> int:
         details.append({"scene": i, "seed": scene.seed, "objects": [o.name for o in scene.objects],
                         **result.to_dict()})
 
-    results = run_benchmark(args.objects, args.kind, args.scenes, args.seed, db=db, config=cfg,
-                            object_set=args.object_set, on_step=on_step, on_scene=on_scene)
+    from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
+
+    seeds = benchmark_seeds(args.seed, args.seeds)
+    by_seed = {}
+    for sd in seeds:
+        by_seed[sd] = run_benchmark(args.objects, args.kind, args.scenes, sd, db=db, config=cfg,
+                                    object_set=args.object_set, on_step=on_step, on_scene=on_scene)
+    results = [r for rs in by_seed.values() for r in rs]
     s = {"kind": args.kind, "objects": args.objects, "object_set": args.object_set, "seed": args.seed,
-         "gripper": db.gripper.name,
+         "planner": args.planner, "seeds": per_seed(by_seed), "gripper": db.gripper.name,
          "execution_noise": None if cfg.execution is None else cfg.execution.to_dict(),
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth, "min_gap": gap,
          "budget": cfg.scene.budget,
@@ -92,6 +103,8 @@ def _cmd_scene(args) -> int:
              + f"\ngrasp success {s['successes']}/{s['attempts']}"
              + ("" if gsr is None else f" ({100 * gsr:.1f} %)")
              + f", cleared {s['removed']}/{s['placed']} objects ({100 * s['cleared_rate']:.1f} %)"
+             + (f"; over {len(seeds)} seeds GSR {s['seeds']['gsr_text']}, DR {s['seeds']['dr_text']}"
+                if len(seeds) > 1 else "")
              + (f", planning {s['planning_s']['median']:.2f} s per grasp (median)"
                 if s["planning_s"]["median"] is not None else ""))
     emit(s, args.json, human)
@@ -136,6 +149,13 @@ def register(sub) -> None:
                    help="grasps per scene at most (default 2 x objects + 2)")
     add_budget_flag(p)
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
+    p.add_argument("--seeds", type=whole_number(1), default=1,
+                   help="repeat the benchmark over this many seeds (derived from --seed; 1: --seed itself) and "
+                   "report GSR / DR per seed and their mean and std (the field's way)")
+    p.add_argument("--planner", default="graspsim", metavar="NAME|module:function",
+                   help="the grasp planner: graspsim (default: its scene planner, plans reused between "
+                   "frames), graspsim-interface (the same through the planner interface), antipodal (a "
+                   "geometric baseline), or module:function of your own (graspsim.tabletop.planners)")
     p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
                    "~/.cache/graspsim/db)")
     p.add_argument("--render", default=None, metavar="DIR",

@@ -4,6 +4,10 @@
                    --sample N --min-grade G] [--threads T] [--render DIR] [--mesh FILE]
                    [--seed S] [--noise] [--all] [--json]
 
+MAP may also be a third-party grasp file -- ACRONYM (.h5), GraspGen (.json), GraspNet-1Billion
+(GraspGroup .npy, with --mesh and --camera-pose) -- which is read into a graspsim map beside it
+(``<stem>.graspsim.h5``, never touching the dataset file) that takes the results.
+
 A selection that holds no grasp is an error (nonzero exit), not an empty table. Before
 simulating, the command says how many trials will run and about how long they take;
 more than :data:`MAX_TRIALS` need ``--all`` (an FS map holds up to ~1.7 M grasps: hours).
@@ -28,7 +32,7 @@ __all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD", "REN
 
 MAX_TRIALS = 10_000  # more than this many trials need --all
 # Throughput of two-second lift_place trials that start clear, per thread, measured with
-# `python experiments/bench_sim.py` on an idle machine (README: about 80 per second per core).
+# `python experiments/bench_sim.py` on an idle machine (docs/results.md, bench_sim).
 # Start collisions cost ~nothing; a busy machine is slower (62 trials/s on 2 threads at load 7).
 TRIALS_PER_SECOND_PER_THREAD = 80.0
 # --render: one rendered trial (offscreen 640 x 480, the key moments and a 25 frames/s GIF,
@@ -49,7 +53,8 @@ def register(subparsers) -> None:
                     "overwrite stored results (the same grasps again, or other settings) needs --replace. "
                     "The success rate counts feasible poses: a pose whose gripper starts in collision "
                     "(with the object, or blocked by the table) is excluded and counted apart.")
-    p.add_argument("map", metavar="FILE.h5", help="graspability map file")
+    p.add_argument("map", metavar="FILE", help="graspability map file, or an ACRONYM .h5 / GraspGen "
+                   ".json / GraspNet .npy grasp file (results go to <stem>.graspsim.h5 beside it)")
     p.add_argument("--protocol", choices=("lift_place", "tug"), default="lift_place",
                    help="lift_place: the paper's lift-and-place test (default); tug: "
                         "table-free pulls of 1 g x mass in six gripper directions")
@@ -70,7 +75,12 @@ def register(subparsers) -> None:
     p.add_argument("--mesh", metavar="FILE",
                    help="simulate against this mesh (the real object) instead of the map's "
                         "primitives, placed by the map's cloud->object transform")
-    p.add_argument("--mesh-scale", type=float, default=1.0, help="scale of the mesh file's units")
+    p.add_argument("--mesh-scale", type=float, default=None,
+                   help="scale of the mesh file's units (default 1; a grasp file's own object/scale "
+                        "for its own mesh)")
+    p.add_argument("--camera-pose", metavar="FILE.npy",
+                   help="GraspNet files: the object's 4x4 pose in the camera frame (.npy or text)")
+    p.add_argument("--object-id", type=int, help="GraspNet files: simulate this object's grasps only")
     p.add_argument("--mass", type=float, help="object mass [kg] (default: the map's, or density)")
     p.add_argument("--friction", type=float,
                    help="pad-object friction (default: the map's quality model mu)")
@@ -121,15 +131,16 @@ def run(args) -> int:
 
         check_output(args.record, "trial recording")
         recorder = Recorder()
+    if args.mesh is not None:
+        from graspsim.sim.meshes import check_mesh_path
+
+        check_mesh_path(args.mesh)
+    dataset = _import_dataset(args)  # a third-party grasp file: args.map is its map now
     # the map's header (no rows) for the checks; simulate_map reads the map once in full
     header = load_map(args.map, rows=slice(0, 0)).meta if args.gripper is not None or (
         args.grip_force is not None and args.friction is None) else None
     if args.gripper is not None:
         _check_gripper(gripper_from_args(args), header.gripper_spec)
-    if args.mesh is not None:
-        from graspsim.sim.meshes import check_mesh_path
-
-        check_mesh_path(args.mesh)
     settings = None
     if args.friction is not None or args.grip_force is not None:
         mu = args.friction
@@ -149,7 +160,8 @@ def run(args) -> int:
             args.map, protocol=protocol, top=args.top, sample=args.sample,
             min_grade=args.min_grade, threads=args.threads, seed=args.seed,
             noise=ExecutionNoise() if args.noise else None, mesh=args.mesh,
-            mesh_scale=args.mesh_scale, mass=args.mass, settings=settings,
+            mesh_scale=1.0 if args.mesh_scale is None else args.mesh_scale,
+            mass=args.mass, settings=settings,
             write=not args.no_write, replace_stored=args.replace, on_progress=tick,
             on_selected=_selection_check(args, bar),
             on_record=recorder, rank=args.rank)
@@ -162,7 +174,7 @@ def run(args) -> int:
     counts = res.counts()
     blocked = res.start_collisions()
     summary = {
-        "file": str(args.map), "protocol": protocol.name, "trials": len(res),
+        "file": str(out.file), "dataset": dataset, "protocol": protocol.name, "trials": len(res),
         "feasible": res.feasible, "counts": counts, "start_collisions": blocked,
         "success": counts["success"], "success_rate": res.success_rate,
         "success_rate_all": counts["success"] / len(res) if len(res) else math.nan,
@@ -171,7 +183,7 @@ def run(args) -> int:
         "mesh": args.mesh, "written_to": out.group, "kept_stored": out.kept, "replaced_stored": out.replaced,
         "renders": renders, "record": args.record,
     }
-    emit(summary, args.json, _report(res, counts, blocked, out))
+    emit(summary, args.json, _report(res, counts, blocked, out, foreign=dataset is not None))
     return 0
 
 
@@ -179,7 +191,7 @@ def _percent(k: int, n: int) -> str:
     return f"{100 * k / n:5.1f} %" if n else "    - "
 
 
-def _report(res, counts: dict, blocked: dict, out) -> str:
+def _report(res, counts: dict, blocked: dict, out, foreign: bool = False) -> str:
     """The outcome table and the headline: every rate with its counts, the attempts and
     what was excluded from the feasible ones and why."""
     from graspsim.sim import TrialOutcome
@@ -209,7 +221,8 @@ def _report(res, counts: dict, blocked: dict, out) -> str:
     head += f"; of all {n} attempts {ok} succeeded ({100 * ok / n:.1f} %)" if excluded and n else ""
     stored = ""
     if out.group:
-        stored = (f"\nresults stored in {out.group}" + (f" beside the {out.kept} stored before" if out.kept else "")
+        stored = (f"\nresults stored in {out.group}" + (f" of {out.file}" if foreign else "")
+                  + (f" beside the {out.kept} stored before" if out.kept else "")
                   + (f", replacing the {out.replaced} stored before (--replace)" if out.replaced else ""))
     return (format_table(rows, ["outcome", "trials", "%"]) + "\n\n" + head
             + f"\n{res.trials_per_second:.1f} trials/s on {res.threads} thread(s)" + stored)
@@ -232,6 +245,48 @@ def _render(args, out, protocol) -> list[str]:
             renders += [str(p) for p in paths]
             bar.update(1)
     return renders
+
+
+def _import_dataset(args) -> str | None:
+    """For a third-party grasp file: import it beside itself (graspsim.maps.formats),
+    point ``args.map`` at that map and hand it the mesh, gripper, camera pose and object
+    id; returns the dataset file (None for a graspsim map)."""
+    from graspsim.errors import InvalidParameterError
+    from graspsim.maps.formats import is_foreign
+    from graspsim.maps.imported import import_beside
+
+    if not is_foreign(args.map):
+        if args.camera_pose is not None or args.object_id is not None:
+            raise InvalidParameterError("--camera-pose and --object-id apply to GraspNet grasp files only")
+        return None
+    kw = _dataset_args(args)
+    if args.mesh is not None:
+        kw.update(mesh=args.mesh, mesh_scale=args.mesh_scale)
+    dataset, args.map = args.map, str(import_beside(args.map, **kw))
+    args.mesh = args.gripper = None
+    args.mesh_scale = None
+    return dataset
+
+
+def _dataset_args(args) -> dict:
+    """read_grasp_file's arguments from the command line (gripper, camera pose, object id)."""
+    import numpy as np
+
+    from graspsim.errors import InvalidParameterError
+
+    out = {}
+    if args.gripper is not None:
+        out["gripper"] = gripper_from_args(args)
+    if args.object_id is not None:
+        out["object_id"] = args.object_id
+    if args.camera_pose is not None:
+        try:
+            T = (np.load(args.camera_pose) if args.camera_pose.endswith(".npy")
+                 else np.loadtxt(args.camera_pose))
+        except (OSError, ValueError) as err:
+            raise InvalidParameterError(f"cannot read --camera-pose {args.camera_pose}: {err}") from err
+        out["T_camera_obj"] = np.asarray(T, float).reshape(-1)[:16].reshape(4, 4) if np.size(T) == 16 else T
+    return out
 
 
 def _check_gripper(asked, recorded) -> None:
@@ -258,6 +313,8 @@ def _selection_check(args, bar):
     the benchmark's rate; the progress bar then shows the time left at the measured one)."""
     import os
 
+    import numpy as np
+
     from graspsim.errors import InvalidParameterError
 
     threads = args.threads or os.cpu_count() or 1
@@ -267,7 +324,9 @@ def _selection_check(args, bar):
         among = (f"grasps with grade > {args.min_grade:g}" if args.min_grade is not None
                  else "grasps")
         if n == 0:
-            best = f"; its best grade is {float(gmap.grade.max()):.3f}" if len(gmap) else ""
+            graded = np.isfinite(gmap.grade)
+            best = (f"; its best grade is {float(gmap.grade[graded].max()):.3f}" if graded.any()
+                    else "; it has no grades (a third-party grasp file)" if len(gmap) else "")
             raise InvalidParameterError(f"nothing to simulate: the map ({len(gmap)} grasps) holds "
                                         f"no {among}{best}")
         eta = _duration(n / (TRIALS_PER_SECOND_PER_THREAD * threads))

@@ -32,7 +32,8 @@ def register(subparsers) -> None:
                     "grade, robust score or simulated outcome, with filters; click a grasp for its "
                     "numbers and the full gripper. Ctrl-C stops it. Needs the 'viewer' extra: "
                     "pip install 'graspsim[viewer]'.")
-    p.add_argument("map", metavar="MAP.h5", nargs="?", help="graspability map file (or --scene)")
+    p.add_argument("map", metavar="MAP.h5", nargs="?", help="graspability map file, or an ACRONYM .h5 / "
+                   "GraspGen .json / GraspNet .npy grasp file (its labels as colour columns) (or --scene)")
     p.add_argument("--scene", metavar="SCENE.json", help="show a table-top scene instead: rendered, "
                    "segmented and planned once (its top K grasps per object, default 3)")
     p.add_argument("--db", default=None, help="with --scene: the FS map database folder (default $GRASPSIM_DB or "

@@ -14,7 +14,7 @@ draws are the same; a smaller gripper (the Franka hand: 70 mm) gets the same obj
 to what it can span.
 
 The object frame of the drawn shape is the one the simulator rests on the table:
-its +z stays up when that is stable (DESIGN.md §3). A cylinder is stood upright or,
+its +z stays up when that is stable (docs/design.md §3). A cylinder is stood upright or,
 with probability ``lying``, laid on its side (a one-part :class:`Compound` whose part
 is turned by 90 deg) -- the planner only ever sees the cloud, so that costs nothing.
 

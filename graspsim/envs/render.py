@@ -73,7 +73,7 @@ class FrameRenderer:
         m = scene.model
         T = np.asarray(T_world_wrist, float).reshape(1, 4, 4)
         state0 = initial_states(scene, T, pregrasp_opening(scene, [width]))[0]
-        control = protocol.controls(scene, T)[0]
+        control = protocol.controls(scene, T, pregrasp_opening(scene, [width]))[0]
         phases = protocol.steps(m.opt.timestep)
         last = phases.get(_MOMENT.get(protocol.name, ""), (0, len(control) - 1))[1]
         d = mujoco.MjData(m)

@@ -89,7 +89,7 @@ def _rows(gmap, rows):
 
 @dataclass(frozen=True)
 class PaperGrade:
-    """The paper's grade, w q_fc + (1 - w) q_st, of the map's contacts (DESIGN.md §5)."""
+    """The paper's grade, w q_fc + (1 - w) q_st, of the map's contacts (docs/design.md §5)."""
 
     quality: QualityModel = QualityModel()
 

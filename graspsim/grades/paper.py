@@ -1,6 +1,6 @@
 """Grasp quality of two-contact grasps: force-closure angle, stability distance, grade.
 
-Paper section 2.1 and its ref. [9]; DESIGN.md §5. For contacts p1, p2 with outward
+Paper section 2.1 and its ref. [9]; docs/design.md §5. For contacts p1, p2 with outward
 normals n1, n2 and closing line u = (p2 - p1) / |p2 - p1|:
 
 * force-closure angle alpha = max(angle(-n1, u), angle(-n2, -u)); the grasp is in force

@@ -1,14 +1,18 @@
 """Named grippers: the registry behind every ``gripper=`` argument and ``--gripper``.
 
-``get_gripper("festo_hgpl_25_60_a" | "franka_hand" | "path/to/spec.json")`` returns a
-:class:`~graspsim.grippers.spec.GripperSpec`. A JSON file holds ``GripperSpec.to_dict()``'s
-fields (any subset; missing ones take the defaults); it is validated on loading and a
-bad one is a one-line :class:`~graspsim.errors.GripperError`. Specs without a vendored
-``model`` are simulated with the box model generated from the spec.
+``get_gripper("festo_hgpl_25_60_a" | "franka_hand" | "robotiq_2f85" | "rethink_gripper" |
+"path/to/model.xml" | "path/to/model.urdf" | "path/to/spec.json")`` returns a
+:class:`~graspsim.grippers.spec.GripperSpec`. A model file (MJCF or URDF) is measured
+(:mod:`graspsim.grippers.model_file`) and simulated as authored; the vendored models are
+model files too. A JSON file holds ``GripperSpec.to_dict()``'s fields (any subset;
+missing ones take the defaults); it is validated on loading and a bad one is a one-line
+:class:`~graspsim.errors.GripperError`. Specs without a ``model`` are simulated with the
+box model generated from the spec.
 
 Holds the spec (:mod:`~graspsim.grippers.spec`: ``GripperSpec``, ``HGPL_25_60_A``), the
-registry (here), the Franka hand's measured spec, the vendored models' mounts and the
-gripper's wireframe. May use: the base modules and geometry only.
+registry (here), the model-file measurement, the Franka hand's measured spec, the
+vendored models' mounts and the gripper's wireframe. May use: the base modules and
+geometry only.
 """
 
 from __future__ import annotations
@@ -18,20 +22,31 @@ from collections.abc import Callable
 from pathlib import Path
 
 from graspsim.errors import GripperError
-from graspsim.grippers.franka import franka_hand_mount, franka_hand_spec
+from graspsim.grippers.franka import franka_hand_spec
+from graspsim.grippers.model_file import is_model_path, measure_model, vendored_gripper
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.grippers.vendored import Mount, mjcf_root, model_folder
 
 __all__ = ["GRIPPERS", "DEFAULT_GRIPPER", "get_gripper", "gripper_names", "load_gripper_json", "mount",
-           "Mount", "mjcf_root", "model_folder", "franka_hand_spec"]
+           "Mount", "mjcf_root", "model_folder", "franka_hand_spec", "load_model_gripper", "vendored_gripper",
+           "VENDORED"]
 
 DEFAULT_GRIPPER = HGPL_25_60_A.name
 MAX_SPEC_BYTES = 1 << 20
+#: the vendored models (``mjcf/<name>/<name>.xml``), measured like any model file
+VENDORED = ("franka_hand", "robotiq_2f85", "rethink_gripper")
 GRIPPERS: dict[str, Callable[[], GripperSpec]] = {
     HGPL_25_60_A.name: lambda: HGPL_25_60_A,
     "franka_hand": franka_hand_spec,
+    **{n: (lambda n=n: vendored_gripper(n)[0]) for n in VENDORED[1:]},
 }
-_MOUNTS: dict[str, Callable[[], Mount]] = {"franka_hand": franka_hand_mount}
+
+
+def load_model_gripper(path: str | Path, **options) -> GripperSpec:
+    """The spec of the gripper model file at ``path`` (MJCF ``.xml`` or ``.urdf``),
+    measured from it; ``options``: the sidecar's keys (``grip_force``, ``pad_geoms``,
+    ...; see :mod:`graspsim.grippers.model_file`)."""
+    return measure_model(path, options or None)[0]
 
 
 def gripper_names() -> tuple[str, ...]:
@@ -63,8 +78,9 @@ def load_gripper_json(path: str | Path) -> GripperSpec:
 
 
 def get_gripper(gripper: str | Path | GripperSpec | None = None) -> GripperSpec:
-    """A registered name, a JSON spec file (a name ending in .json or an existing
-    file), or a spec (returned as it is); None: the default (Festo) gripper."""
+    """A registered name, a gripper model file (MJCF .xml or .urdf: measured, simulated as
+    authored), a JSON spec file (a name ending in .json or an existing file), or a spec
+    (returned as it is); None: the default (Festo) gripper."""
     if gripper is None:
         return HGPL_25_60_A
     if isinstance(gripper, GripperSpec):
@@ -74,9 +90,12 @@ def get_gripper(gripper: str | Path | GripperSpec | None = None) -> GripperSpec:
     key = str(gripper)
     if key in GRIPPERS:
         return GRIPPERS[key]()
+    if is_model_path(key):
+        return load_model_gripper(key)
     if key.endswith(".json") or _is_file(key):
         return load_gripper_json(key)
-    raise GripperError(f"unknown gripper {key!r}; valid: {list(GRIPPERS)} or a spec .json file")
+    raise GripperError(f"unknown gripper {key!r}; valid: {list(GRIPPERS)}, a model file (.xml, .urdf) "
+                       "or a spec .json file")
 
 
 def _is_file(key: str) -> bool:
@@ -87,7 +106,10 @@ def _is_file(key: str) -> bool:
 
 
 def mount(model: str) -> Mount:
-    """How the vendored ``model`` mounts on the wrist (for the simulator)."""
-    if model not in _MOUNTS:
-        raise GripperError(f"no vendored gripper model {model!r}; available: {sorted(_MOUNTS)}")
-    return _MOUNTS[model]()
+    """How the gripper model ``model`` (a spec's ``model``: a vendored name or a model
+    file's path) mounts on the wrist and is driven (for the simulator)."""
+    if model in VENDORED:
+        return vendored_gripper(model)[1]
+    if is_model_path(model):
+        return measure_model(model)[1]
+    raise GripperError(f"no gripper model {model!r}; vendored: {list(VENDORED)}, or a model file path")

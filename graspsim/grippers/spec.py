@@ -3,7 +3,7 @@
 One :class:`GripperSpec` drives both the planner's collision geometry and the MuJoCo
 model, so the two can never disagree about the gripper.
 
-Wrist frame (DESIGN.md §3): origin at the centre of the housing's mounting face (the
+Wrist frame (docs/design.md §3): origin at the centre of the housing's mounting face (the
 flange), z = approach direction (towards the fingertips), x = jaw closing axis,
 y = z × x. All parts are boxes aligned with the wrist frame:
 
@@ -86,19 +86,29 @@ class GripperSpec:
     # pneumatic efficiency x pressure x piston area above. Left out of ``to_dict`` when
     # None, so the digests of specs without it do not change.
     rated_force: float | None = None
-    # The vendored MuJoCo model that simulates this gripper (folder ``mjcf/<model>/``,
-    # see graspsim.grippers); None: the box model generated from this spec. Left out of
-    # ``to_dict`` when None.
+    # The MuJoCo model that simulates this gripper as authored: a vendored folder
+    # (``mjcf/<model>/``) or a model file's path (see graspsim.grippers); None: the box
+    # model generated from this spec. Left out of ``to_dict`` when None.
     model: str | None = None
+    # Contacts closer than this to the fingertip are not planned [m]; None: the
+    # contact_depth_margin. For fingers that reach past their pads, or pads that move on
+    # an arc (a linkage): the pad region is where the flat face lies at every opening
+    # (measured from a model file, graspsim.grippers.model_file). Left out of ``to_dict``
+    # when None.
+    tip_margin: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise GripperError(f"gripper name must be a non-empty string, got {self.name!r}")
         for f in fields(self)[1:]:
             v = getattr(self, f.name)
-            if f.name == "model":
-                if v is not None and not (isinstance(v, str) and v.isidentifier()):
-                    raise GripperError(f"model must be a model folder name like 'franka_hand' or null, got {v!r}")
+            if f.name == "tip_margin" and v is not None:
+                object.__setattr__(self, f.name, _checked(f.name, v, False))
+            elif f.name == "model":
+                if v is not None and not (isinstance(v, str) and (v.isidentifier() or (
+                        v.lower().endswith((".xml", ".mjcf", ".urdf")) and ".." not in v.split("/")))):
+                    raise GripperError(f"model must be a vendored model name like 'franka_hand', a model file "
+                                       f"path (.xml, .urdf) or null, got {v!r}")
             elif not (f.name in _OPTIONAL and v is None):
                 object.__setattr__(self, f.name, _checked(f.name, v, isinstance(f.default, tuple)))
         if not 0 < self.efficiency <= 1:
@@ -112,6 +122,10 @@ class GripperSpec:
                 f"contact_depth_margin {self.contact_depth_margin} m leaves no pad: must be < "
                 f"pad_length / 2 = {self.pad_length / 2} m"
             )
+        if self.depth_lo >= self.depth_hi:
+            raise GripperError(
+                f"tip_margin {self.tip_margin} m and contact_depth_margin {self.contact_depth_margin} m leave "
+                f"no pad of pad_length {self.pad_length} m")
         if self.finger_size[0] > self.jaw_size[0] or self.finger_size[1] > self.jaw_size[1]:
             raise GripperError("fingers must not be thicker or wider than the jaws they sit on")
         reach = self.max_opening / 2 + self.jaw_size[0]
@@ -150,16 +164,26 @@ class GripperSpec:
         """z of the fingertips in the wrist frame [m]."""
         return self.jaw_base_z + self.finger_size[2]
 
+    @property
+    def depth_lo(self) -> float:
+        """Smallest planned contact depth from the fingertip [m] (the tip-side margin)."""
+        return self.contact_depth_margin if self.tip_margin is None else self.tip_margin
+
+    @property
+    def depth_hi(self) -> float:
+        """Largest planned contact depth from the fingertip [m]."""
+        return self.pad_length - self.contact_depth_margin
+
     def contact_depth_count(self, step: float) -> int:
         """How many contact depths :meth:`contact_depths` samples at ``step`` [m]."""
         if not step > 0:
             raise GripperError(f"depth step must be > 0 m, got {step!r}")
-        span = self.pad_length - 2 * self.contact_depth_margin
+        span = self.depth_hi - self.depth_lo
         return int(min(math.floor(span / step + 1e-9), 2.0**62)) + 1
 
     def contact_depths(self, step: float) -> np.ndarray:
         """Contact distances from the fingertip sampled along the pad [m]."""
-        return self.contact_depth_margin + step * np.arange(self.contact_depth_count(step))
+        return self.depth_lo + step * np.arange(self.contact_depth_count(step))
 
     # ------------------------------------------------------------------ wrist <-> TCP
     # The TCP (grasp point) lies on the wrist z axis at every opening (symmetric jaws),
@@ -171,8 +195,9 @@ class GripperSpec:
 
     @property
     def nominal_depth(self) -> float:
-        """Contact depth of the nominal TCP: mid-pad [m]."""
-        return 0.5 * self.pad_length
+        """Contact depth of the nominal TCP: mid-pad [m] (with a ``tip_margin``: the middle
+        of the planned depths)."""
+        return 0.5 * self.pad_length if self.tip_margin is None else 0.5 * (self.depth_lo + self.depth_hi)
 
     @property
     def nominal_tcp(self) -> np.ndarray:
@@ -318,6 +343,6 @@ def _checked(name: str, v, triple: bool):
     return fv
 
 
-_OPTIONAL = ("rated_force", "model")
+_OPTIONAL = ("rated_force", "model", "tip_margin")
 
 HGPL_25_60_A = GripperSpec()

@@ -91,7 +91,7 @@ def collision_free(shape, gripper: GripperSpec, T_obj_wrist: np.ndarray, opening
     if len(T) == 0:
         return np.zeros(0, bool)
     x, z = T[:, :3, 0], T[:, :3, 2]
-    d0 = gripper.contact_depth_margin
+    d0 = gripper.depth_lo
     gp = gripper.grasp_point_from_wrist(T[:, :3, 3], z, d0)
     # one line per pose, its roll 0 the pose's own approach axis: e1 = z, e2 = x X z
     lines = ClosingLines(p1=gp, p2=gp, n1=z, n2=z, u=x, width=opening - 2 * gripper.approach_clearance,

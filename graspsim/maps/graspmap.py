@@ -1,4 +1,4 @@
-"""The graspability map: one row per grasp, columnar arrays plus metadata (DESIGN.md §6).
+"""The graspability map: one row per grasp, columnar arrays plus metadata (docs/design.md §6).
 
 Poses are wrist poses in the object frame (origin at the centre of mass). Geometry is
 stored as float32 (sub-micrometre at object scale), which halves the memory of the
@@ -339,7 +339,9 @@ class GraspabilityMap:
         if n <= 0 or len(self) == 0:
             return np.zeros(0, int)
         cell = float(cell or self.meta.surface_step)
-        key = np.floor(self.contacts[:, 0] / cell).astype(np.int64)
+        c = self.contacts[:, 0]
+        where = np.where(np.isfinite(c).all(axis=1)[:, None], c, self.grasp_point)  # no contacts: the TCP
+        key = np.floor(where / cell).astype(np.int64)
         _, inverse = np.unique(key, axis=0, return_inverse=True)
         inverse = inverse.ravel()
         n_cells = inverse.max() + 1
@@ -365,16 +367,19 @@ class GraspabilityMap:
         return replace(self, meta=replace(self.meta, **changes))
 
     def summary(self) -> dict:
-        g = self.grade
+        """Counts and grade statistics; a map without grades (imported from a third-party
+        grasp file: NaN grades) has ``graded`` 0 and no grade mean / max."""
+        g = self.grade[np.isfinite(self.grade)]
         return {
             "object": self.meta.object,
             "method": self.meta.method,
             "grasps": int(len(self)),
+            "graded": int(len(g)),
             "accepted": int(self.accepted.sum()),
             "threshold": self.threshold,
             "grade_mean": float(g.mean()) if len(g) else None,
             "grade_max": float(g.max()) if len(g) else None,
-            "parts": int(self.part.max() + 1) if len(g) else 0,
+            "parts": int(self.part.max() + 1) if len(self) else 0,
         }
 
     def __repr__(self) -> str:

@@ -1,4 +1,4 @@
-"""Map files: HDF5, ACRONYM-compatible (DESIGN.md §6), written atomically.
+"""Map files: HDF5, ACRONYM-compatible (docs/design.md §6), written atomically.
 
 Layout (datasets, not attributes; N grasps)::
 

@@ -1,5 +1,5 @@
 """Map quality metrics: surface rate SR and volume rate VR (paper eqs. 7-8), and the
-voxel view of a map (DESIGN.md §6).
+voxel view of a map (docs/design.md §6).
 
 * SR: the object's surface is divided into pixels (the surface samples at the map's
   surface step); SR = share of pixels holding a contact of at least one grasp whose
@@ -77,7 +77,7 @@ def map_rates(gmap: GraspabilityMap, *, shape=None, min_grade: float = 0.0,
 def wrist_box(shape, gripper: GripperSpec) -> tuple[np.ndarray, np.ndarray]:
     """Box that can hold a wrist: the object's bounds grown by the longest grasp point
     to wrist distance (the TCP offset at the smallest contact depth) [m]."""
-    reach = float(gripper.tcp_offset(gripper.contact_depth_margin))
+    reach = float(gripper.tcp_offset(gripper.depth_lo))
     b = shape.aabb
     return b[0] - reach, b[1] + reach
 

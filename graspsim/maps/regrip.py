@@ -48,12 +48,12 @@ def pad_depth(depth: np.ndarray, source: GripperSpec, target: GripperSpec) -> np
     """Contact depths (N,) [m] on ``source``'s pad carried to ``target``'s pad in
     pad-normalised coordinates: the same fraction of the usable pad (between the
     contact-depth margins)."""
-    s = (np.asarray(depth, float) - source.contact_depth_margin) / _span(source)
-    return target.contact_depth_margin + np.clip(s, 0.0, 1.0) * _span(target)
+    s = (np.asarray(depth, float) - source.depth_lo) / _span(source)
+    return target.depth_lo + np.clip(s, 0.0, 1.0) * _span(target)
 
 
 def _span(g: GripperSpec) -> float:
-    return g.pad_length - 2.0 * g.contact_depth_margin
+    return g.depth_hi - g.depth_lo
 
 
 def _approach(q: np.ndarray) -> np.ndarray:
@@ -70,7 +70,7 @@ def _approach(q: np.ndarray) -> np.ndarray:
 def _grid_index(depth: np.ndarray, gripper: GripperSpec, step: float) -> np.ndarray:
     """(N,) index of the nearest of ``gripper``'s sampled contact depths."""
     n = gripper.contact_depth_count(step)
-    return np.clip(np.rint((depth - gripper.contact_depth_margin) / step), 0, n - 1).astype(np.int64)
+    return np.clip(np.rint((depth - gripper.depth_lo) / step), 0, n - 1).astype(np.int64)
 
 
 def _first_of_each(rows: np.ndarray, key: np.ndarray) -> np.ndarray:

@@ -232,8 +232,8 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
                    method=f"scaled/{sc.method.value}", version=__version__,
                    extra={"source": fs_map.meta.object, "scaling": sc.to_dict(), "factors": ratios,
                           "source_grasps": int(len(src.rows)), "collision_tolerance": float(cfg.collision_tolerance)})
-    lo = gripper.contact_depth_margin - 1e-6
-    hi = gripper.pad_length - gripper.contact_depth_margin + 1e-6
+    lo = gripper.depth_lo - 1e-6
+    hi = gripper.depth_hi + 1e-6
     predicted = None
     if prefer is not None:
         def predicted(pos: np.ndarray) -> np.ndarray:

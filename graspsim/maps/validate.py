@@ -1,7 +1,9 @@
 """Invariants every usable graspability map keeps: the one home of map validation.
 
 A map is usable when it has grasps, every column is finite and in its range (grades
-in [0, 1], force-closure angles in [0, pi], stability distances and part ids >= 0,
+in [0, 1]; a map read from a third-party grasp file, ``meta.method`` "imported:...",
+may lack the analytic columns and the contacts: NaN there means missing), force-closure
+angles in [0, pi], stability distances and part ids >= 0,
 widths > 0), the wrist quaternions are unit, its object is a valid shape (dimensions
 at or above the primitive floor, :data:`graspsim.primitives.base.MIN_DIM`), and its
 gripper, quality model and metadata can be used (the scaler and the simulator build
@@ -27,6 +29,8 @@ _NON_SHAPES = ("mesh",)  # objects described by a file, not by dimensions
 _RANGES = {"grade": (0.0, 1.0), "q_fc": (0.0, 1.0), "q_st": (0.0, 1.0), "fc_angle": (0.0, math.pi),
            "stability_distance": (0.0, math.inf), "part": (0, math.inf)}
 _TOL = 1e-5  # float32 columns: rounding at the range's ends
+#: columns a third-party grasp file does not give (NaN: missing; see graspsim.maps.formats)
+MISSING_WHEN_IMPORTED = ("grade", "fc_angle", "q_fc", "q_st", "stability_distance", "contacts", "normals")
 _META_KINDS = {"object": dict, "gripper": dict, "quality": dict, "resolution": dict, "method": str,
                "timing": dict, "version": str, "extra": dict}
 
@@ -45,13 +49,24 @@ def _columns_pass(gmap: GraspabilityMap) -> bool:
         return True
     bounds = {name: (-np.inf, np.inf) for name, (_, dtype) in COLUMNS.items() if np.issubdtype(dtype, np.floating)}
     bounds.update(_RANGES)
+    may_miss = _may_miss(gmap)
     for name, (lo, hi) in bounds.items():
         a = getattr(gmap, name)
-        a_min, a_max = float(a.min()), float(a.max())
+        if name in may_miss:
+            if np.isnan(a).all():
+                continue
+            a_min, a_max = float(np.nanmin(a)), float(np.nanmax(a))
+        else:
+            a_min, a_max = float(a.min()), float(a.max())
         if not (math.isfinite(a_min) and math.isfinite(a_max) and lo - _TOL <= a_min and a_max <= hi + _TOL):
             return False
     q = gmap.wrist_quat
     return float(gmap.width.min()) > 0 and float(np.abs(np.einsum("ij,ij->i", q, q) - 1.0).max()) <= 2e-3
+
+
+def _may_miss(gmap: GraspabilityMap) -> tuple[str, ...]:
+    """The columns ``gmap`` may hold NaN in (missing): those of an imported map."""
+    return MISSING_WHEN_IMPORTED if str(gmap.meta.method).startswith("imported:") else ()
 
 
 def _column_problems(gmap: GraspabilityMap) -> list[str]:
@@ -59,11 +74,14 @@ def _column_problems(gmap: GraspabilityMap) -> list[str]:
         return []
     out = []
     finite = {}
+    may_miss = _may_miss(gmap)
     for name, (_, dtype) in COLUMNS.items():
         a = getattr(gmap, name)
         if np.issubdtype(dtype, np.floating):
             ok = np.isfinite(a).reshape(len(a), int(np.prod(a.shape[1:]))).all(axis=1)
             finite[name] = ok
+            if name in may_miss:  # NaN: missing; infinities are still wrong
+                ok = ok | np.isnan(a).reshape(len(a), -1).all(axis=1)
             out.append(_rows(~ok, f"{name} has non-finite values"))
     for name, (lo, hi) in _RANGES.items():
         a = getattr(gmap, name)

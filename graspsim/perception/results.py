@@ -26,7 +26,7 @@ class IdentificationStatus(str, Enum):
 @dataclass(frozen=True, eq=False)
 class PartResult:
     """One cluster. shape: the class; dims: named dims [m] ({} if unidentified);
-    T_world_obj (4, 4): object frame of DESIGN.md §3 (the cluster's MVBB frame if
+    T_world_obj (4, 4): object frame of docs/design.md §3 (the cluster's MVBB frame if
     unidentified); fit_rate, rms [m]: of the chosen model (best model if unidentified);
     indices: (n,) indices of the cluster's points in the input cloud; noise: the sigma
     [m] the final fit rates were scored with; reason: why a cluster is unidentified

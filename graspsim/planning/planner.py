@@ -111,8 +111,8 @@ def check_config(db: MapDatabase, cfg: PlannerConfig):
 
 
 def canonical_box(prim: Primitive, T: np.ndarray) -> tuple[Primitive, np.ndarray]:
-    """A box with its edges in ascending order (x <= y <= z, z the longest as DESIGN.md
-    says), re-expressing its frame by the matching proper axis permutation."""
+    """A box with its edges in ascending order (x <= y <= z, z the longest as docs/design.md
+    §3 says), re-expressing its frame by the matching proper axis permutation."""
     if prim.kind != "box":
         return prim, T
     d = np.array([prim.x, prim.y, prim.z])

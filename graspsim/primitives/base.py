@@ -4,7 +4,7 @@ Every primitive is described in two frames:
 
 * its *geometric* frame, where the formulas are simplest (a cone's base at z = 0, a
   half-toroid's ring centred on the origin), and
-* the *object* frame of DESIGN.md §3: origin at the centre of mass, z along the main
+* the *object* frame of docs/design.md §3: origin at the centre of mass, z along the main
   axis. Object = geometric - ``com_geo``; no rotation between them.
 
 Every public method takes and returns object-frame quantities in metres.

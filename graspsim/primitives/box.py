@@ -16,7 +16,7 @@ __all__ = ["Box"]
 
 @dataclass(frozen=True)
 class Box(Primitive):
-    """Box with full edge lengths ``x``, ``y``, ``z`` [m]. By convention (DESIGN.md §3)
+    """Box with full edge lengths ``x``, ``y``, ``z`` [m]. By convention (docs/design.md §3)
     ``z`` is the longest edge when the box comes from identification."""
 
     x: float

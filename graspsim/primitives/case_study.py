@@ -2,7 +2,7 @@
 
 The paper tested five real objects; we have no scans of them, so the demo, the case
 study experiment (E03) and the validation build stand-ins from primitives with the same
-structure and a plausible size. Object frames follow DESIGN.md (origin at the centre
+structure and a plausible size. Object frames follow docs/design.md §3 (origin at the centre
 of mass, +z up when standing).
 
 How the paper's split criterion (eq. (1), theta_th = 0.5) treats them is a property of

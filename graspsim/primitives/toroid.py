@@ -3,7 +3,7 @@
 Geometric frame: ring centred on the origin in the x-y plane, symmetry axis z, the
 kept half is y >= 0 (ring angle 0..pi from +x). The two cut faces are disks in the
 plane y = 0 centred at (+R, 0, 0) and (-R, 0, 0), facing -y. Object frame: shifted so
-the centre of mass (on +y) is the origin; z stays the symmetry axis (DESIGN.md §3).
+the centre of mass (on +y) is the origin; z stays the symmetry axis (docs/design.md §3).
 """
 
 from __future__ import annotations

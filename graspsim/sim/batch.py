@@ -50,7 +50,7 @@ def initial_states(scene: Scene, T_world_wrist: np.ndarray, openings: np.ndarray
     q0 = 1 + scene.qadr_wrist
     out[:, q0:q0 + 3] = T_world_wrist[:, :3, 3]
     out[:, q0 + 3:q0 + 7] = matrix_to_quat(T_world_wrist[:, :3, :3])
-    out[:, 1 + scene.qadr_jaws] = 0.5 * np.asarray(openings)[:, None]
+    out[:, 1 + scene.drive.qadr] = scene.drive.joint_positions(openings)
     return out
 
 
@@ -148,8 +148,8 @@ def _record(scene: Scene, states: np.ndarray, sens: np.ndarray) -> Record:
     pads = np.stack([sens[..., a:a + 4] for a in scene.pad_sensors], axis=-2)
     return Record(time=states[..., 0], wrist_pos=qp[..., w:w + 3], wrist_quat=qp[..., w + 3:w + 7],
                   obj_pos=qp[..., o:o + 3], obj_quat=qp[..., o + 3:o + 7],
-                  obj_vel=qv[..., scene.dadr_obj:scene.dadr_obj + 6], jaws=qp[..., scene.qadr_jaws],
-                  pads=pads)
+                  obj_vel=qv[..., scene.dadr_obj:scene.dadr_obj + 6],
+                  jaws=scene.drive.half_openings(qp[..., scene.qadr_jaws]), pads=pads)
 
 
 def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
@@ -209,7 +209,7 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     try:
         for a in range(0, len(todo), chunk):
             idx = todo[a:a + chunk]
-            control = protocol.controls(scene, T_world[idx])
+            control = protocol.controls(scene, T_world[idx], openings[idx])
             states, sens = simulate(scene, protocol, state0[idx], control, pool=pool,
                                     datas=datas, backend=backend)
             rec = _record(scene, states, sens)

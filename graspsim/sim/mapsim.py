@@ -10,6 +10,11 @@ Results go to ``grasps/qualities/mujoco`` (``lift_place``) or
 simulated hold outcome -1, object_in_gripper -1 and NaN metrics, and ``simulated`` says
 which rows were. Simulating more rows later with the same protocol, scene and noise
 merges; anything else replaces the group.
+
+A third-party grasp file (ACRONYM, GraspGen, GraspNet: :mod:`graspsim.maps.formats`) is
+never written: it is read once into a graspsim map beside it (``<stem>.graspsim.h5``,
+its own labels under ``grasps/qualities/source``), and the results go there
+(``MapTrials.file``).
 """
 
 from __future__ import annotations
@@ -56,6 +61,7 @@ class MapTrials:
     kept: int = 0
     #: results of earlier runs this run replaced (``replace=True``; rows)
     replaced: int = 0
+    file: Path | None = None
 
 
 def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int | None = None,
@@ -220,7 +226,8 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                  mesh: str | os.PathLike | None = None, mesh_scale: float = 1.0,
                  mass: float | None = None, settings: SimSettings | None = None,
                  write: bool = True, replace_stored: bool = False, cache_dir=None, on_progress=None,
-                 on_selected=None, on_record=None, rank: str = "robust") -> MapTrials:
+                 on_selected=None, on_record=None, rank: str = "robust",
+                 dataset: dict | None = None) -> MapTrials:
     """Simulate grasps of the map file ``path`` and (``write``) store the results in it.
 
     settings: defaults to :class:`SimSettings` with the pad friction of the map's quality
@@ -228,7 +235,10 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     the uniform sample; ``rank`` orders ``top``). ``on_selected(gmap, index)`` is called once the rows are chosen
     and before anything is simulated (it may raise to stop, e.g. on an empty or huge
     selection). ``on_record``: see :func:`~graspsim.sim.batch.run_trials` (trial numbers
-    are positions in ``MapTrials.index``).
+    are positions in ``MapTrials.index``). A third-party grasp file is imported
+    beside itself first (see the module doc; ``mesh`` / ``mesh_scale`` then name its
+    object's mesh, ``dataset`` holds the other arguments of
+    :func:`~graspsim.maps.formats.read_grasp_file`) and the results go to that map.
 
     Results the file already holds are kept: the new rows are stored beside them when
     they were made with the same protocol, scene and noise and simulate other grasps;
@@ -236,7 +246,7 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     :class:`~graspsim.errors.InvalidParameterError` before anything is simulated;
     ``write=False`` stores nothing). ``MapTrials.kept`` / ``.replaced`` say which.
     """
-    path = Path(path)
+    path, mesh = _simulated_file(Path(path), mesh, mesh_scale, dataset)
     gmap = load_map(path)
     gripper = map_gripper(gmap)
     if settings is None:
@@ -266,5 +276,22 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     results = replace(results, extra={"map_file": str(path),
                                       "mesh": None if mesh is None else str(mesh)})
     group = write_results(path, len(gmap), index, results) if write and len(index) else None
-    return MapTrials(index=index, results=results, scene=scene, group=group, width=width,
+    return MapTrials(index=index, results=results, scene=scene, group=group, width=width, file=path,
                      kept=held if group and why is None else 0, replaced=held if group and why else 0)
+
+
+def _simulated_file(path: Path, mesh, mesh_scale: float, dataset: dict | None):
+    """(the map file to simulate and write, the mesh override left for map_object): a
+    third-party file's imported map beside it, its mesh given to the import."""
+    from graspsim.maps.formats import is_foreign
+    from graspsim.maps.imported import import_beside
+
+    if not is_foreign(path):
+        if dataset:
+            raise InvalidParameterError(f"{path} is a graspsim map: {sorted(dataset)} apply to "
+                                        "third-party grasp files only")
+        return path, mesh
+    kw = dict(dataset or {})
+    if mesh is not None:
+        kw.update(mesh=mesh, mesh_scale=mesh_scale)
+    return import_beside(path, **kw), None

@@ -38,7 +38,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 
 __all__ = ["GripperPhysics", "GripperNames", "NAMES", "build_gripper_spec", "gripper_xml",
-           "add_wrist", "add_weld", "drive_force"]
+           "add_wrist", "add_weld", "drive_force", "GripDrive", "box_drive"]
 
 
 @dataclass(frozen=True)
@@ -59,6 +59,70 @@ class GripperNames:
 
 
 NAMES = GripperNames()
+
+
+@dataclass(frozen=True, eq=False)
+class GripDrive:
+    """How the harness poses and commands a gripper in a compiled model.
+
+    qadr / dadr (J,): qpos / qvel addresses of the gripper's joints; openings (K,) [m]
+    and qpos (K, J): the joints at each pad gap of the opening table (interpolated
+    between rows); jaws (2,): which of the J joints are the (neg, pos) jaws, and
+    jaw_half (K, 2): their half pad gap at each row (None: the jaw joint's value is the
+    half gap, as on the box model). The jaw command (-1 close, 0 hold, +1 open, the
+    harness's valve convention) becomes the actuators' controls: ctrl_close,
+    ctrl_open (nu,), and ctrl_hold (K, nu) the controls that hold each row (None: 0)."""
+
+    qadr: np.ndarray
+    dadr: np.ndarray
+    openings: np.ndarray
+    qpos: np.ndarray
+    jaws: np.ndarray
+    ctrl_close: np.ndarray
+    ctrl_open: np.ndarray
+    ctrl_hold: np.ndarray | None = None
+    jaw_half: np.ndarray | None = None
+
+    @property
+    def qadr_jaws(self) -> np.ndarray:
+        return self.qadr[self.jaws]
+
+    def joint_positions(self, openings) -> np.ndarray:
+        """(N, J) joint positions at pad gaps ``openings`` (N,) [m]."""
+        w = np.atleast_1d(np.asarray(openings, float))
+        return np.stack([np.interp(w, self.openings, self.qpos[:, j]) for j in range(self.qpos.shape[1])], -1)
+
+    def controls(self, command: np.ndarray, openings=None) -> np.ndarray:
+        """(N, S, nu) controls of jaw commands (N, S) in [-1, 1], for trials started at pad
+        gaps ``openings`` (N,) (what 0 holds; None: the widest)."""
+        c = np.asarray(command, float)[..., None]
+        if self.ctrl_hold is None:
+            hold = np.zeros((1, 1, len(self.ctrl_close)))
+        else:
+            w = np.full(c.shape[0], self.openings[-1]) if openings is None else np.asarray(openings, float)
+            hold = np.stack([np.interp(w, self.openings, self.ctrl_hold[:, a])
+                             for a in range(self.ctrl_hold.shape[1])], -1)[:, None]
+        return np.where(c < 0, hold - c * (self.ctrl_close - hold), hold + c * (self.ctrl_open - hold))
+
+    def half_openings(self, q_jaws: np.ndarray) -> np.ndarray:
+        """(..., 2) half pad gaps [m] of jaw joint positions (..., 2)."""
+        if self.jaw_half is None:
+            return q_jaws
+        out = np.empty_like(np.asarray(q_jaws, float))
+        for s in range(2):
+            x = self.qpos[:, self.jaws[s]]
+            o = np.argsort(x)
+            out[..., s] = np.interp(q_jaws[..., s], x[o], self.jaw_half[o, s])
+        return out
+
+
+def box_drive(model: mujoco.MjModel, gripper: GripperSpec) -> GripDrive:
+    """The drive of the box model generated from ``gripper`` (jaw value = half gap)."""
+    j = [model.joint(n).id for n in (NAMES.jaw_neg, NAMES.jaw_pos)]
+    w = np.array([gripper.min_opening, gripper.max_opening])
+    return GripDrive(qadr=model.jnt_qposadr[j].copy(), dadr=model.jnt_dofadr[j].copy(), openings=w,
+                     qpos=np.column_stack([w / 2, w / 2]), jaws=np.array([0, 1]),
+                     ctrl_close=np.array([-1.0]), ctrl_open=np.array([1.0]))
 
 
 @dataclass(frozen=True)

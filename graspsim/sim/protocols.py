@@ -146,8 +146,9 @@ class LiftPlace(Protocol):
                 ("lift", self.lift_time), ("hold", self.hold_time), ("lower", self.lower_time),
                 ("open", self.open_time), ("retract", self.retract_time), ("rest", self.rest_time)]
 
-    def controls(self, scene: Scene, T_world_wrist: np.ndarray) -> np.ndarray:
-        """(N, S, ncontrol) controls: jaw valve (-1 close, +1 open), mocap pos, quat."""
+    def controls(self, scene: Scene, T_world_wrist: np.ndarray, openings: np.ndarray | None = None) -> np.ndarray:
+        """(N, S, ncontrol) controls: the actuators' (the jaw valve: -1 close, +1 open, 0
+        hold the start ``openings`` (N,) [m]), mocap pos, quat."""
         dt = scene.model.opt.timestep
         ph, S = self.steps(dt), self.nstep(dt)
         ctrl, pos, quat = self._jaw_and_mocap(scene, T_world_wrist, S)
@@ -168,7 +169,7 @@ class LiftPlace(Protocol):
         back[s1 + 1:] = self.retract_distance
         approach = T_world_wrist[:, :3, 2]
         pos = pos + up[None, :, None] * np.array([0.0, 0.0, 1.0]) - back[None, :, None] * approach[:, None]
-        return np.concatenate([ctrl[..., None], pos, quat], axis=-1)
+        return np.concatenate([scene.drive.controls(ctrl, openings), pos, quat], axis=-1)
 
     def judge(self, scene: Scene, rec: Record, obj0: np.ndarray) -> tuple[np.ndarray, dict]:
         """Outcomes (n,) and metrics {name: (n,)} from a record; obj0 (n, 7) the
@@ -253,8 +254,9 @@ class Tug(Protocol):
             out.append((f"pull{i}", 2 * self.ramp_time + self.pull_time))
         return out
 
-    def controls(self, scene: Scene, T_world_wrist: np.ndarray) -> np.ndarray:
-        """(N, S, ncontrol): jaw valve, applied wrenches (nbody x 6), mocap pos, quat."""
+    def controls(self, scene: Scene, T_world_wrist: np.ndarray, openings: np.ndarray | None = None) -> np.ndarray:
+        """(N, S, ncontrol): actuators (the jaw valve), applied wrenches (nbody x 6),
+        mocap pos, quat."""
         dt = scene.model.opt.timestep
         ph, S = self.steps(dt), self.nstep(dt)
         ctrl, pos, quat = self._jaw_and_mocap(scene, T_world_wrist, S)
@@ -270,7 +272,8 @@ class Tug(Protocol):
                                       (2 * self.ramp_time + self.pull_time - tt) / self.ramp_time), 0, 1)
             f_world = T_world_wrist[:, :3, :3] @ np.asarray(d)  # (n, 3)
             xfrc[:, s0:s1 + 1, scene.obj_body, :3] = weight * prof[None, :, None] * f_world[:, None]
-        return np.concatenate([ctrl[..., None], xfrc.reshape(n, S, nb * 6), pos, quat], axis=-1)
+        return np.concatenate([scene.drive.controls(ctrl, openings), xfrc.reshape(n, S, nb * 6), pos, quat],
+                              axis=-1)
 
     def judge(self, scene: Scene, rec: Record, obj0: np.ndarray) -> tuple[np.ndarray, dict]:
         ph = self.steps(scene.model.opt.timestep)

@@ -88,7 +88,7 @@ def render_trial(scene: Scene, T_obj_wrist: np.ndarray, width: float, out_dir: s
     m = scene.model
     dt = m.opt.timestep
     state0 = initial_states(scene, T_world_wrist, pregrasp_opening(scene, [width]))[0]
-    control = protocol.controls(scene, T_world_wrist)[0]
+    control = protocol.controls(scene, T_world_wrist, pregrasp_opening(scene, [width]))[0]
     phases = protocol.steps(dt)
     last = max(b for _, b in phases.values())
     moments = {k: (phases[v][1] if v else last) for k, v in KEY_MOMENTS[protocol.name].items()}

@@ -3,7 +3,7 @@
 Frames: the world has z up and the table top at z = 0 (a plane: everything below it is
 inside the table, so a pose under the table penetrates it). The object rests on the
 table in a stable pose ``T_world_obj`` (its object frame's +z up when that is stable,
-DESIGN.md §3), its centre of mass above the world origin. Map poses become world poses
+docs/design.md §3), its centre of mass above the world origin. Map poses become world poses
 as ``T_world_wrist = T_world_obj @ T_obj_wrist``.
 
 Contact and solver settings are pinned in :class:`SimSettings` with documented defaults:
@@ -23,11 +23,11 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
-from graspsim.sim.model import NAMES, GripperPhysics, build_gripper_spec
+from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, box_drive, build_gripper_spec
 from graspsim.sim.objects import SimObject
-from graspsim.sim.vendored import build_vendored_gripper_spec
+from graspsim.sim.vendored import build_vendored_gripper_spec, model_drive
 
-__all__ = ["SimSettings", "Scene", "build_scene", "resting_pose"]
+__all__ = ["SimSettings", "Scene", "build_scene", "resting_pose", "add_gripper", "gripper_drive", "gripper_geoms"]
 
 log = logging.getLogger(__name__)
 
@@ -110,7 +110,8 @@ class Scene:
 
     T_world_obj: (4, 4) resting pose of the object. grip_force: per jaw [N].
     qadr_* / dadr_*: qpos / qvel addresses; pad_sensors: sensordata addresses of the
-    two pad-object contact sensors (found, force xyz in the world frame).
+    two pad-object contact sensors (found, force xyz in the world frame). drive: how the
+    gripper's joints are posed at an opening and its actuators commanded.
     """
 
     model: mujoco.MjModel
@@ -129,6 +130,7 @@ class Scene:
     pad_sensors: np.ndarray
     gripper_geoms: np.ndarray
     contact_geoms: np.ndarray
+    drive: GripDrive
 
     @property
     def nstate(self) -> int:
@@ -199,7 +201,7 @@ def resting_pose(obj: SimObject, *, support_tol: float = 0.002,
     """T_world_obj (4, 4): the object on the table (z = 0), centre of mass over the origin.
 
     ``up`` (3,), object frame: the direction that should point up (default +z: the
-    object frame of DESIGN.md stands upright). It is kept when the centre of mass lies
+    object frame of docs/design.md §3 stands upright). It is kept when the centre of mass lies
     over the support polygon (points within ``support_tol`` of the lowest); otherwise
     the object rests on the hull face nearest its centre of mass that it can stand on.
     """
@@ -278,35 +280,24 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
     """Compile the trial scene for ``obj`` (build once, run many trials); ``up``: the
     object-frame direction to stand upright (see :func:`resting_pose`)."""
     s = settings
-    fric = (s.friction, s.torsional_friction, s.rolling_friction)
     force = float(gripper.grip_force if s.grip_force is None else s.grip_force)
     T_world_obj = resting_pose(obj, up=up) if table else np.eye(4)
     top = float((obj.surface.vertices @ T_world_obj[:3, :3].T)[:, 2].max() + T_world_obj[2, 3])
     home = (0.0, 0.0, top + gripper.fingertip_z + 0.1)  # qpos0: hanging clear above the object
-    if gripper.model is None:  # the box model generated from the spec
-        spec, names = build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
-                                         condim=s.condim, home_pos=home), NAMES
-    else:  # the vendored model (e.g. mjcf/franka_hand), attached as it is
-        spec, names = build_vendored_gripper_spec(gripper, s.physics, grip_force=force, friction=fric,
-                                                  condim=s.condim, home_pos=home)
+    spec, names = add_gripper(gripper, s, force, home)
     spec.modelname = f"trial_{gripper.name}"
     _set_options(spec, s, gravity=gravity)
     if table:
         _add_table(spec, s)
     _add_object(spec, obj, T_world_obj, s)
-    for side in ("neg", "pos"):
-        sens = spec.add_sensor(name=f"pad_{side}", type=mujoco.mjtSensor.mjSENS_CONTACT,
-                               objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=getattr(names, f"finger_{side}"),
-                               reftype=mujoco.mjtObj.mjOBJ_BODY, refname=OBJECT)
-        sens.intprm[:3] = [3, 3, 1]  # data: found | force; reduce: net force; one slot
+    add_pad_sensors(spec, gripper, names, OBJECT, "")
     try:
         model = spec.compile()
     except ValueError as err:
         raise SimulationError(f"the trial scene does not compile: {' '.join(str(err).split())}") from err
     jid = lambda n: model.joint(n).id  # noqa: E731
-    wrist = model.body(NAMES.wrist).id  # the gripper: every colliding geom on the wrist's subtree
-    gids = [i for i in range(model.ngeom) if model.body_rootid[model.geom_bodyid[i]] == wrist
-            and (model.geom_contype[i] or model.geom_conaffinity[i])]
+    drive = gripper_drive(model, gripper)
+    gids = gripper_geoms(model)
     others = [i for i in range(model.ngeom) if model.geom_bodyid[i] == model.body(OBJECT).id]
     if table:
         others.append(model.geom(TABLE).id)
@@ -314,9 +305,48 @@ def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
         model=model, gripper=gripper, obj=obj, settings=s, T_world_obj=T_world_obj,
         table=table, gravity=gravity, grip_force=force,
         qadr_wrist=int(model.jnt_qposadr[jid(NAMES.wrist)]),
-        qadr_jaws=np.array([model.jnt_qposadr[jid(names.jaw_neg)], model.jnt_qposadr[jid(names.jaw_pos)]]),
+        qadr_jaws=drive.qadr_jaws,
         qadr_obj=int(model.jnt_qposadr[jid(OBJECT)]), dadr_obj=int(model.jnt_dofadr[jid(OBJECT)]),
         obj_body=int(model.body(OBJECT).id),
         pad_sensors=np.array([model.sensor_adr[model.sensor(f"pad_{k}").id] for k in ("neg", "pos")]),
-        gripper_geoms=np.array(gids), contact_geoms=np.array(others),
+        gripper_geoms=np.array(gids), contact_geoms=np.array(others), drive=drive,
     )
+
+
+def add_gripper(gripper: GripperSpec, s: SimSettings, force: float,
+                home: tuple[float, float, float]) -> tuple[mujoco.MjSpec, GripperNames]:
+    """A new spec holding the gripper on the harness's wrist: the box model generated from
+    the spec, or the gripper's model file as authored (``gripper.model``)."""
+    fric = (s.friction, s.torsional_friction, s.rolling_friction)
+    if gripper.model is None:
+        return build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric, condim=s.condim,
+                                  home_pos=home), NAMES
+    return build_vendored_gripper_spec(gripper, s.physics, grip_force=force, friction=fric, condim=s.condim,
+                                       home_pos=home)
+
+
+def add_pad_sensors(spec: mujoco.MjSpec, gripper: GripperSpec, names: GripperNames, body: str, suffix: str) -> None:
+    """Contact sensors ``pad_neg<suffix>``, ``pad_pos<suffix>``: each pad's contacts with
+    ``body`` (found, net force). A model file's pad counts with its finger body (every
+    geom the finger carries: a tilting linkage finger may touch with its tip first)."""
+    for side in ("neg", "pos"):
+        pad = getattr(names, f"finger_{side}")
+        if gripper.model is None:
+            kind, obj = mujoco.mjtObj.mjOBJ_GEOM, pad
+        else:
+            kind, obj = mujoco.mjtObj.mjOBJ_BODY, spec.geom(pad).parent.name
+        sens = spec.add_sensor(name=f"pad_{side}{suffix}", type=mujoco.mjtSensor.mjSENS_CONTACT,
+                               objtype=kind, objname=obj, reftype=mujoco.mjtObj.mjOBJ_BODY, refname=body)
+        sens.intprm[:3] = [3, 3, 1]  # data: found | force; reduce: net force; one slot
+
+
+def gripper_drive(model: mujoco.MjModel, gripper: GripperSpec) -> GripDrive:
+    """How the harness poses and commands ``gripper`` in the compiled ``model``."""
+    return box_drive(model, gripper) if gripper.model is None else model_drive(model, gripper)
+
+
+def gripper_geoms(model: mujoco.MjModel) -> np.ndarray:
+    """Ids of the gripper's colliding geoms: every one on the wrist body's subtree."""
+    wrist = model.body(NAMES.wrist).id
+    return np.array([i for i in range(model.ngeom) if model.body_rootid[model.geom_bodyid[i]] == wrist
+                     and (model.geom_contype[i] or model.geom_conaffinity[i])], int)

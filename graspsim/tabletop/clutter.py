@@ -34,6 +34,7 @@ from graspsim.planning.scene_config import SceneConfig
 from graspsim.planning.scene_reuse import drop_grasp, near_pose
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.tabletop.depth_noise import DepthNoise
+from graspsim.tabletop.planners import grasp_target
 from graspsim.tabletop.table_scene import known_gap
 
 __all__ = ["scene_settings", "ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame", "ClutterEpisode",
@@ -62,7 +63,7 @@ class ClutterConfig:
     most (None: 2 x objects + 2); min_seen: points (after thinning) an object needs in
     a frame to count in the segmentation quality; reuse: a segment that did not change
     since the previous frame keeps its plan (``plan_scene(previous=...)``), less the
-    grasp that was executed."""
+    grasp that was executed; planner: one of :mod:`graspsim.tabletop.planners` (its name in ``planner_name``)."""
 
     scene: SceneConfig = field(default_factory=SceneConfig)
     depth_noise: DepthNoise | None = field(default_factory=DepthNoise)
@@ -72,6 +73,8 @@ class ClutterConfig:
     max_attempts: int | None = None
     min_seen: int = 40
     reuse: bool = True
+    planner: object = None  # a planner of graspsim.tabletop.planners' interface; None: plan_scene (with reuse)
+    planner_name: str = "graspsim"
 
     def __post_init__(self) -> None:
         for k in ("max_failures", "min_seen"):
@@ -87,7 +90,7 @@ class ClutterConfig:
                 else self.depth_noise.to_dict(), "execution": None if self.execution is None
                 else self.execution.to_dict(), "ground_truth": self.ground_truth,
                 "max_failures": self.max_failures, "max_attempts": self.max_attempts, "min_seen": self.min_seen,
-                "reuse": self.reuse}
+                "reuse": self.reuse, "planner": self.planner_name}
 
 
 @dataclass(frozen=True)
@@ -176,13 +179,6 @@ def one_cluster_objects(truth: np.ndarray, found: np.ndarray, *, min_seen: int =
     return seen, one
 
 
-def _target(per, seg: int, truth: np.ndarray) -> int | None:
-    """The object most of segment ``seg``'s points show (ground truth), or None."""
-    t = truth[per.indices[per.segment == seg]]
-    t = t[t >= 0]
-    return int(np.bincount(t).argmax()) if len(t) else None
-
-
 @dataclass(frozen=True, eq=False)
 class ClutterFrame:
     """What one look at the scene gives: the depth ``frame`` (colour too when asked),
@@ -245,26 +241,22 @@ class ClutterEpisode:
 
     def observe(self) -> ClutterFrame | None:
         """Render and plan the scene; None (and ``stop`` = "no_grasp") when no grasp left
-        to try has a robust score > 0 (``last`` holds that look all the same)."""
+        to try has a robust score > 0 (``last`` holds that look all the same). With a planner
+        of :mod:`graspsim.tabletop.planners`: its first proposal left to try (no segments)."""
         if self.stop is not None:
             raise InvalidParameterError(f"the episode has ended ({self.stop}); nothing to observe")
         cfg = self.config
         frame = self.render()
-        t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
-        view = backproject(frame)
-        truth = view.labels
-        labels = truth if cfg.ground_truth else None
-        eye = self.camera.T_world_camera[:3, 3]  # the occluded space behind what the camera saw
-        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
-                        previous=self._previous, viewpoint=eye)
-        cands, best = self._candidates(sp)
-        if best is None and self._previous is not None:  # reused plans kept scores from before: plan afresh
-            sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
-                            viewpoint=eye)
-            cands, best = self._candidates(sp)
-        planning = time.perf_counter() - t1
-        per = sp.perception
-        seen, one = one_cluster_objects(truth[per.indices], per.segment, min_seen=cfg.min_seen)
+        if cfg.planner is not None:
+            from graspsim.tabletop.planners import plan_frame
+
+            view, sp, grasps, planning = plan_frame(cfg.planner, frame, self.db.gripper, self._plan_rng)
+            cands, best = self._candidates(grasps, positive=False)
+            seen, one = one_cluster_objects(view.labels, np.full(len(view.labels), -1), min_seen=cfg.min_seen)
+        else:
+            view, sp, cands, best, planning = self._plan(frame)
+            per = sp.perception
+            seen, one = one_cluster_objects(view.labels[per.indices], per.segment, min_seen=cfg.min_seen)
         if self.first is None:
             self.first = (seen, one)
         self.last = ClutterFrame(frame, view, sp, planning, seen, one, cands, best)
@@ -273,15 +265,31 @@ class ClutterEpisode:
             return None
         return self.last
 
-    def _candidates(self, sp) -> tuple[tuple, object]:
-        """The grasps of plan ``sp`` still to try, in ranking order, and the first of them
-        with a robust score > 0 (or None). A grasp that failed is not tried again, nor
-        any that closes on its contacts (:func:`~graspsim.planning.scene_reuse.near_pose`
-        at the fingertips: the other approaches of a contact pair fail the same way; a
-        start collision leaves the scene as it was)."""
-        cands = tuple(g for g in sp.grasps
+    def _plan(self, frame):
+        """graspsim's scene planner on ``frame``: (view, plan, candidates, best, seconds)."""
+        cfg = self.config
+        t1 = time.perf_counter()  # planning: from the depth image to ranked grasps
+        view = backproject(frame)
+        labels = view.labels if cfg.ground_truth else None
+        eye = self.camera.T_world_camera[:3, 3]  # the occluded space behind what the camera saw
+        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
+                        previous=self._previous, viewpoint=eye)
+        cands, best = self._candidates(sp.grasps)
+        if best is None and self._previous is not None:  # reused plans kept scores from before: plan afresh
+            sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
+                            viewpoint=eye)
+            cands, best = self._candidates(sp.grasps)
+        return view, sp, cands, best, time.perf_counter() - t1
+
+    def _candidates(self, grasps, positive: bool = True) -> tuple[tuple, object]:
+        """The ``grasps`` (a plan's) still to try, in ranking order, and the first of them
+        with a robust score > 0 (``positive``; else the first) or None. A grasp that failed
+        is not tried again, nor any that closes on its contacts (:func:`~graspsim.planning.
+        scene_reuse.near_pose` at the fingertips: the other approaches of a contact pair
+        fail the same way; a start collision leaves the scene as it was)."""
+        cands = tuple(g for g in grasps
                       if not any(near_pose(T, g.T_world_wrist, reach=self.reach) for T in self.failed))
-        return cands, next((g for g in cands if g.score > 0), None)
+        return cands, next((g for g in cands if g.score > 0 or not positive), None)
 
     def execute(self, look: ClutterFrame, grasp) -> Attempt:
         """Execute ``grasp`` (a :class:`~graspsim.planning.scene.SceneGrasp` of
@@ -289,16 +297,16 @@ class ClutterEpisode:
         if self.stop is not None:
             raise InvalidParameterError(f"the episode has ended ({self.stop}); no more grasps")
         cfg = self.config
-        sp, truth = look.plan, look.view.labels
-        target = _target(sp.perception, grasp.segment, truth)
+        sp, external = look.plan, cfg.planner is not None
+        target = grasp_target(look, grasp, self.db.gripper if self.db is not None else None)
         out = self.sim.execute(grasp.T_world_wrist, grasp.opening, target=target, noise=cfg.execution,
                                rng=self._exec_rng if cfg.execution is not None else None)
-        if cfg.reuse:  # the executed grasp is not offered again
+        if cfg.reuse and not external:  # the executed grasp is not offered again
             self._previous = replace(sp, memory=drop_grasp(sp.memory, grasp.T_world_wrist, reach=self.reach))
         hit = out.success and out.picked == target  # the target came up (None: unknown target)
         cause = OTHER if out.success and not hit else out.cause
-        a = Attempt(target, out.to_dict(), hit, cause, grasp.score, look.planning, sp.timing,
-                    sp.perception.n_segments, look.seen, look.one_cluster)
+        a = Attempt(target, out.to_dict(), hit, cause, grasp.score, look.planning, {} if external else sp.timing,
+                    0 if external else sp.perception.n_segments, look.seen, look.one_cluster)
         self.attempts.append(a)
         # a grasp that lifted another object is no success, but the scene changed: no failure in a row
         self.failures = 0 if out.success else self.failures + 1

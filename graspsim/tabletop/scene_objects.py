@@ -67,7 +67,7 @@ class ObjectSpec:
             raise InvalidParameterError(f"not an object description: {d!r}") from err
 
     def sim_object(self) -> SimObject:
-        """The simulation body (object frame: DESIGN.md's, centre of mass at the origin for
+        """The simulation body (object frame of docs/design.md §3, centre of mass at the origin for
         shapes; the file's frame for meshes)."""
         return _sim_object(json.dumps(self.to_dict(), sort_keys=True))
 

@@ -23,11 +23,20 @@ from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.geometry.camera import Camera, DepthFrame, Intrinsics
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.batch import arm_below_table, simulate
-from graspsim.sim.model import NAMES, build_gripper_spec
+from graspsim.sim.model import NAMES
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.outcomes import TrialOutcome, collision_kind
 from graspsim.sim.protocols import LiftPlace
-from graspsim.sim.scene import SimSettings, _add_object, _add_table, _set_options
+from graspsim.sim.scene import (
+    SimSettings,
+    _add_object,
+    _add_table,
+    _set_options,
+    add_gripper,
+    add_pad_sensors,
+    gripper_drive,
+    gripper_geoms,
+)
 from graspsim.tabletop.depth_render import DepthRenderer
 from graspsim.tabletop.scene_objects import ObjectSpec
 from graspsim.transforms import make_transform, matrix_to_quat, quat_to_matrix
@@ -91,9 +100,7 @@ class SceneSim:
         self.specs = [o for o, _ in objects]
         self.sim_objects = [o.sim_object() if isinstance(o, ObjectSpec) else o for o in self.specs]
         s = settings
-        fric = (s.friction, s.torsional_friction, s.rolling_friction)
-        spec = build_gripper_spec(gripper, s.physics, grip_force=gripper.grip_force if s.grip_force is None
-                                  else s.grip_force, friction=fric, condim=s.condim, home_pos=HOME)
+        spec, names = add_gripper(gripper, s, gripper.grip_force if s.grip_force is None else s.grip_force, HOME)
         for g in spec.geoms:
             g.group = GRIPPER_GROUP
         spec.modelname = f"table_scene_{gripper.name}"
@@ -110,11 +117,7 @@ class SceneSim:
             if T.shape != (4, 4) or not np.all(np.isfinite(T)):
                 raise InvalidParameterError(f"object {k}'s pose must be a finite 4x4 transform")
             _add_object(spec, self.sim_objects[k], T, s, name=f"obj{k}", rgba=(*_PALETTE[k % len(_PALETTE)], 1.0))
-            for side in ("neg", "pos"):
-                sens = spec.add_sensor(name=f"pad_{side}_{k}", type=mujoco.mjtSensor.mjSENS_CONTACT,
-                                       objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=f"finger_{side}",
-                                       reftype=mujoco.mjtObj.mjOBJ_BODY, refname=f"obj{k}")
-                sens.intprm[:3] = [3, 3, 1]  # found | force; net force; one slot
+            add_pad_sensors(spec, gripper, names, f"obj{k}", f"_{k}")
         try:
             self.model = m = spec.compile()
         except ValueError as err:
@@ -128,14 +131,13 @@ class SceneSim:
             self.geom_object[m.geom_bodyid == b] = k
         self.table_geom = m.geom("table").id
         self.bin_geoms = np.array([m.geom(f"bin_{i}").id for i in range(4)] if bin is not None else [], int)
-        self.gripper_geoms = np.array([m.geom(g).id for g in (NAMES.housing, NAMES.jaw_neg, NAMES.jaw_pos,
-                                                               NAMES.finger_neg, NAMES.finger_pos)])
+        self.gripper_geoms = gripper_geoms(m)
+        self.drive = gripper_drive(m, gripper)
         self.pad_adr = np.array([[m.sensor_adr[m.sensor(f"pad_{side}_{k}").id] for side in ("neg", "pos")]
                                  for k in range(n)])
         self.qadr_wrist = int(m.jnt_qposadr[m.joint(NAMES.wrist).id])
         self.dadr_wrist = int(m.jnt_dofadr[m.joint(NAMES.wrist).id])
-        self.qadr_jaws = np.array([m.jnt_qposadr[m.joint(j).id] for j in (NAMES.jaw_neg, NAMES.jaw_pos)])
-        self.dadr_jaws = np.array([m.jnt_dofadr[m.joint(j).id] for j in (NAMES.jaw_neg, NAMES.jaw_pos)])
+        self.qadr_jaws = self.drive.qadr_jaws
         self.data = mujoco.MjData(m)
         mujoco.mj_forward(m, self.data)
         self._left = list(range(n))
@@ -246,7 +248,7 @@ class SceneSim:
         mujoco.mj_getState(self.model, self.data, state, _FULL)
         q = 1 + self.qadr_wrist
         state[q:q + 3], state[q + 3:q + 7] = T[:3, 3], matrix_to_quat(T[:3, :3])
-        state[1 + self.qadr_jaws] = 0.5 * opening
+        state[1 + self.drive.qadr] = self.drive.joint_positions([opening])[0]
         v = 1 + self.model.nq
         state[v:v + self.model.nv] = 0.0
         state[0] = 0.0
@@ -327,15 +329,15 @@ class SceneSim:
             kind = collision_kind(collided, target)
             return SceneOutcome(TrialOutcome.START_COLLISION, None, target, f"start_collision_{kind}",
                                 collided, depth, extra={"T_world_wrist": T.tolist(), "opening": opening})
-        out = self._run(T, state0, target, depth, commit)
+        out = self._run(T, state0, target, depth, commit, opening)
         out.extra.update(T_world_wrist=T.tolist(), opening=opening)
         return out
 
-    def _run(self, T, state0, target, depth, commit) -> SceneOutcome:
+    def _run(self, T, state0, target, depth, commit, opening) -> SceneOutcome:
         p, m = self.protocol, self.model
         ph = p.steps(m.opt.timestep)
         c1, h1 = ph["close"][1], ph["hold"][1]
-        control = p.controls(self, T[None])[:, :h1 + 1]
+        control = p.controls(self, T[None], np.array([opening]))[:, :h1 + 1]
         states, sens = simulate(self, p, state0[None], np.ascontiguousarray(control))
         states, sens = states[0], sens[0]
         qpos = states[:, 1:1 + m.nq]
@@ -373,9 +375,9 @@ class SceneSim:
         mujoco.mj_setState(m, d, state, _FULL)
         q, v = self.qadr_wrist, self.dadr_wrist
         d.qpos[q:q + 7] = [*HOME, 0.0, 1.0, 0.0, 0.0]
-        d.qpos[self.qadr_jaws] = 0.5 * self.gripper.max_opening
+        d.qpos[self.drive.qadr] = self.drive.joint_positions([self.gripper.max_opening])[0]
         d.qvel[v:v + 6] = 0.0
-        d.qvel[self.dadr_jaws] = 0.0
+        d.qvel[self.drive.dadr] = 0.0
         if picked is not None:
             self.remove(picked)
         mujoco.mj_forward(m, d)

@@ -67,7 +67,8 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
     """Serve a map in the browser and return the running ``viser.ViserServer``
     (``server.get_port()``; :func:`stop` ends it). Does not block.
 
-    map: a map file (its simulation and robust-score columns are shown too) or a
+    map: a map file (its simulation and robust-score columns are shown too), a
+    third-party grasp file (ACRONYM, GraspGen, GraspNet: its own labels shown) or a
     :class:`~graspsim.maps.GraspabilityMap`. cloud: (N, 3) points or a cloud file, in
     the cloud's frame; mesh: a ``trimesh.Trimesh`` or a mesh file, in the cloud's
     frame (both placed by the map's ``T_cloud_obj``). recording: a
@@ -87,9 +88,14 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
     if isinstance(map, GraspabilityMap):
         data = ViewData.from_map(map)
     else:
-        from graspsim.maps.io import load_map
+        from graspsim.maps.formats import is_foreign
 
-        data = ViewData.from_map(load_map(map), map)
+        if is_foreign(map):  # a third-party grasp file: read, never written; its labels as columns
+            data = ViewData.from_grasp_file(map)
+        else:
+            from graspsim.maps.io import load_map
+
+            data = ViewData.from_map(load_map(map), map)
     warm.join()
     viser = require_viser()
     from graspsim.viewer.app import MapViewer

@@ -71,11 +71,25 @@ class ViewData:
                         numbers[f"{group}/{k}"] = v.astype(np.float64)
         return cls(gmap, numbers, outcomes, info, path=None if path is None else Path(path))
 
+    @classmethod
+    def from_grasp_file(cls, path: str | os.PathLike) -> ViewData:
+        """A third-party grasp file (:func:`graspsim.maps.formats.read_grasp_file`): its
+        poses, and its own labels as colour columns ``source/<label>``."""
+        from graspsim.maps.formats import read_grasp_file
+
+        gf = read_grasp_file(path)
+        data = cls.from_map(gf.gmap)
+        for k, v in gf.labels.items():
+            if np.asarray(v).ndim == 1:
+                data.numbers[f"source/{k}"] = np.asarray(v, np.float64)
+        return data
+
     # ------------------------------------------------------------------ names
     def colour_names(self) -> list[str]:
         """Grade first, robust scores next, then outcomes, then the rest."""
         robust = [k for k in self.numbers if k.startswith(f"{_QUALITIES}/robust/")]
-        return (["grade"] + robust + [OUTCOME_PREFIX + g for g in self.outcomes]
+        source = [k for k in self.numbers if k.startswith(("source/", f"{_QUALITIES}/source/"))]
+        return (["grade"] + robust + source + [OUTCOME_PREFIX + g for g in self.outcomes]
                 + [k for k in ("q_fc", "q_st", "width") if k in self.numbers])
 
     def outcome_labels(self, group: str) -> dict[int, str]:
@@ -106,7 +120,7 @@ class ViewData:
     def selected(self, sel: Selection) -> np.ndarray:
         """Rows (all N considered) passing the filters, best first when ``top_k``."""
         self._check(sel)
-        mask = self.gmap.grade > sel.min_grade
+        mask = (self.gmap.grade > sel.min_grade) | np.isnan(self.gmap.grade)  # no grade: not filtered by one
         group = self.outcome_group(sel.colour)
         if sel.outcome != "any" and group is not None:
             codes = {v: k for k, v in self.outcome_labels(group).items()}

@@ -1,0 +1,215 @@
+"""Experiment E14: a grasp dataset's own labels against MuJoCo (cross-simulator agreement).
+
+Input: an ACRONYM ``.h5`` (or GraspGen ``.json``) grasp file whose object mesh lies where
+the file says (ACRONYM's layout: ``grasps/`` and ``meshes/`` side by side), or ``--mesh``.
+The published run uses ACRONYM's example grasp file
+``data/examples/grasps/Mug_10f6e09036350e92b3f21f1137c3c347_0.0002682457830986903.h5``
+with ``data/examples/meshes/Mug/10f6e09036350e92b3f21f1137c3c347.obj`` from
+https://github.com/NVlabs/acronym (2000 Franka "panda" grasps labelled in FleX). Neither is
+committed here: the grasps are CC BY-NC 4.0 and the mug is a ShapeNetSem mesh, which may
+not be redistributed; clone that repository and pass ``--grasps``.
+
+Every grasp is read through :func:`graspsim.maps.imported.import_beside` into the output
+folder (the dataset file is only read): ACRONYM's Franka frame turned into graspsim's
+wrist frame (``graspsim.maps.formats``), the dataset's object mass, friction and pre-grasp
+opening kept (ACRONYM: 13 g, mu 1.0, fingers fully open). Each is simulated without
+execution error with the vendored Franka hand (70 N per finger) through ``simulate_map``
+-- what ``graspsim trial FILE --protocol P`` runs -- in two protocols:
+
+* ``tug``, the ACRONYM-style one: no table, no gravity; the hand closes, then pulls of
+  1 g x mass in six directions (graspsim's ``Tug``); held = the object is still between
+  the pads (ACRONYM's FleX test closes and then shakes the gripper);
+* ``lift_place``, graspsim's own: the object resting on a table, lifted, held, placed.
+
+Denominators: every grasp of the file is a trial; a grasp whose start pose is in
+collision (with the object or, in lift_place, the table) is *not executable* in MuJoCo
+and has its own column. Reported per protocol: the confusion table (dataset label x
+MuJoCo held / not held / not executable), agreement and Cohen's kappa on the executable
+grasps, and the goal figure: of the grasps that held in the dataset and are executable
+in MuJoCo, the share that hold in MuJoCo (95 % Wilson interval), overall and by grasp
+type (approach direction in the mesh frame: from +z, from the side, from -z).
+
+    git clone https://github.com/NVlabs/acronym ~/acronym
+    python experiments/e14_cross_simulator.py --publish \
+        --grasps ~/acronym/data/examples/grasps/Mug_10f6e09036350e92b3f21f1137c3c347_0.0002682457830986903.h5
+    python experiments/e14_cross_simulator.py --quick     # a generated ACRONYM-layout file
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import NAMED, md_table, opt, rate_ci, start, write_text
+
+from graspsim.maps import load_map, read_sim_results
+from graspsim.maps.imported import SOURCE_GROUP, import_beside
+from graspsim.sim import TrialOutcome, make_protocol, simulate_map
+from graspsim.stats import wilson_interval
+
+log = logging.getLogger("e14")
+TYPES = {"from +z": (-np.inf, -0.5), "side": (-0.5, 0.5), "from -z": (0.5, np.inf)}  # approach . z ranges
+
+
+@dataclass(frozen=True)
+class Config:
+    grasps: str = opt("", "ACRONYM .h5 / GraspGen .json grasp file (empty with --quick: a generated one)")
+    mesh: str = opt("", "the object's mesh (default: the file's object/file, found beside it)")
+    protocols: tuple[str, ...] = opt(("tug", "lift_place"), "protocols", choices=("tug", "lift_place"))
+    seed: int = opt(0, "run seed (no draw: every grasp is simulated without noise)")
+    threads: int = opt(2, "simulation threads")
+    quick: bool = opt(False, "generated input", cli=False)
+    QUICK: ClassVar[dict] = {"quick": True}
+
+    def __post_init__(self) -> None:
+        if self.grasps and not Path(self.grasps).expanduser().is_file():
+            raise ValueError(f"--grasps {self.grasps}: no such file")
+
+
+def quick_input(folder: Path) -> Path:
+    """A grasp file in ACRONYM's layout, as the dataset's are (``acronym_tools.load_grasps``
+    reads it): eight Franka grasps from above across the 5 cm faces of a 5 x 6 x 8 cm box,
+    turned 0-49 deg about the vertical, every other one labelled held (a smoke test of the
+    pipeline; the file says so in its ``graspsim`` attribute)."""
+    import json
+
+    import h5py
+    import trimesh
+
+    (folder / "meshes").mkdir(parents=True, exist_ok=True)
+    trimesh.creation.box(extents=(0.05, 0.06, 0.08)).export(folder / "meshes" / "box.obj")
+    T = np.tile(np.eye(4), (8, 1, 1))
+    for k in range(8):  # base link A: z down, fingers (x_A) turned 7k deg; the pads 1.2 cm below the top
+        t = np.radians(7.0 * k)
+        x, z = np.array([np.cos(t), np.sin(t), 0.0]), np.array([0.0, 0.0, -1.0])
+        T[k, :3, :3] = np.stack([x, np.cross(z, x), z], axis=1)
+        T[k, :3, 3] = [0.0, 0.0, 0.04 - 0.012 + 0.1034]
+    out = folder / "Box_quick.h5"
+    with h5py.File(out, "w") as f:
+        f["grasps/transforms"] = T
+        f["grasps/qualities/flex/object_in_gripper"] = np.arange(8) % 2
+        f["object/file"], f["object/scale"] = np.bytes_(b"meshes/box.obj"), 1.0
+        f["object/mass"], f["object/friction"] = 0.1, 1.0
+        f["gripper/type"], f["gripper/configuration"] = np.bytes_(b"panda"), np.array([0.04])
+        f.attrs["graspsim"] = json.dumps({"label_source": "hand-made labels (E14 --quick smoke test)"})
+    return out
+
+
+#: bins [m] of how far the object moved while the jaws closed (MuJoCo's ``close_lin``)
+CLOSING_BINS = ((0.0, 0.01), (0.01, 0.03), (0.03, np.inf))
+
+
+def compare(dataset: np.ndarray, held: np.ndarray, outcome: np.ndarray, approach_z: np.ndarray,
+            close_lin: np.ndarray) -> dict:
+    """The confusion table and agreement of dataset labels (1 held) with MuJoCo's; the
+    goal figure by grasp type and by the object's motion while the jaws closed."""
+    execu = outcome != TrialOutcome.START_COLLISION
+    ds = dataset == 1
+    mj = held == 1
+    table = {f"dataset {'held' if d else 'not held'}": {
+        "mujoco held": int(np.sum((ds == d) & execu & mj)), "mujoco not held": int(np.sum((ds == d) & execu & ~mj)),
+        "not executable": int(np.sum((ds == d) & ~execu))} for d in (True, False)}
+    n = int(execu.sum())
+    agree = int(np.sum(execu & (ds == mj)))
+    p_o = agree / n if n else float("nan")
+    p_e = ((ds[execu].mean() * mj[execu].mean() + (1 - ds[execu].mean()) * (1 - mj[execu].mean()))
+           if n else float("nan"))
+    kappa = (p_o - p_e) / (1 - p_e) if n and p_e < 1 else float("nan")
+    goal = _rate(int(np.sum(ds & execu & mj)), int(np.sum(ds & execu)))
+    by_type = {}
+    for name, (lo, hi) in TYPES.items():
+        m = (approach_z >= lo) & (approach_z <= hi) if name != "side" else (approach_z > lo) & (approach_z < hi)
+        by_type[name] = {"grasps": int(m.sum()), "dataset_held": int(np.sum(m & ds)),
+                         "executable": int(np.sum(m & execu)),
+                         "held_of_dataset_held_executable": _rate(int(np.sum(m & ds & execu & mj)),
+                                                                  int(np.sum(m & ds & execu))),
+                         "agreement": _rate(int(np.sum(m & execu & (ds == mj))), int(np.sum(m & execu)))}
+    moved = {}
+    for lo, hi in CLOSING_BINS:
+        m = ds & execu & (close_lin >= lo) & (close_lin < hi)
+        moved[f"{lo * 100:g}-{hi * 100:g} cm" if np.isfinite(hi) else f">= {lo * 100:g} cm"] = \
+            _rate(int(np.sum(m & mj)), int(m.sum()))
+    fails = {o.label: int(np.sum(ds & execu & (outcome == o))) for o in TrialOutcome
+             if o not in (TrialOutcome.SUCCESS, TrialOutcome.START_COLLISION)}
+    return {"grasps": len(ds), "executable": n, "confusion": table, "agreement": _rate(agree, n),
+            "kappa": kappa, "goal": goal, "by_type": by_type, "by_closing_motion": moved,
+            "dataset_held_outcomes": fails}
+
+
+def _rate(k: int, n: int) -> dict:
+    lo, hi = wilson_interval(k, n)
+    return {"k": k, "n": n, "rate": k / n if n else None, "ci": [float(lo), float(hi)]}
+
+
+def main(argv=None) -> int:
+    cfg, out, run = start(Config, __file__, argv, __doc__, log_format=NAMED, quiet=("graspsim.sim.batch",))
+    if not (cfg.quick or cfg.grasps):
+        print("e14_cross_simulator.py: --grasps FILE is required (ACRONYM's example: see the script's doc), "
+              "or --quick", file=sys.stderr)
+        return 2
+    src = quick_input(out) if cfg.quick and not cfg.grasps else Path(cfg.grasps).expanduser()
+    kw = {"mesh": cfg.mesh} if cfg.mesh else {}
+    imported = import_beside(src, out / "imported.graspsim.h5", **kw)
+    gmap = load_map(imported)
+    labels = read_sim_results(imported, SOURCE_GROUP)
+    dataset = np.asarray(labels["object_in_gripper"]).astype(int)
+    approach_z = gmap.approach[:, 2].astype(float)
+    per = {}
+    for name in cfg.protocols:
+        log.info("%s: %d grasps", name, len(gmap))
+        res = simulate_map(imported, protocol=make_protocol(name), threads=cfg.threads, seed=cfg.seed).results
+        per[name] = compare(dataset, res.object_in_gripper, res.outcome, approach_z,
+                            np.nan_to_num(res.metrics["close_lin"], nan=np.inf))
+        per[name]["trials_per_second"] = res.trials_per_second
+    rec = gmap.meta.extra["import"]
+    data = {"config": cfg, "input": {"file": src.name, "format": rec["format"], "grasps": len(gmap),
+                                     "label_source": rec["label_source"], "dataset_held": int(np.sum(dataset == 1)),
+                                     "object": {k: gmap.meta.object.get(k) for k in ("scale", "mass")},
+                                     "friction": gmap.meta.quality["friction"],
+                                     "opening": float(gmap.meta.gripper_spec.pregrasp_opening(gmap.width[:1])[0]),
+                                     "T_grasp_wrist": rec["T_grasp_wrist"]},
+            "gripper": gmap.meta.gripper["name"], "protocols": per}
+    md = run.write(out, data, readme_section)
+    write_text(out / "summary.md", md)
+    print(md)
+    return 0
+
+
+def readme_section(s: dict) -> str:
+    """The README's E14 paragraph and tables (see ``experiments/report.py``)."""
+    i = s["input"]
+    L = [f"`{s['command']}` ({i['file']}: {i['grasps']} grasps, {i['dataset_held']} labelled held by "
+         f"{i['label_source']}; the gripper `{s['gripper']}`, opened to {1000 * i['opening']:.0f} mm as in the "
+         f"dataset; object mass {1000 * (i['object']['mass'] or float('nan')):.1f} g, friction {i['friction']:g} "
+         "from the file; no execution error. Not executable: the start pose collides in MuJoCo):", ""]
+    for name, r in s["protocols"].items():
+        g = r["goal"]
+        L += [f"**{name}**: of the grasps that held in the dataset and are executable in MuJoCo, "
+              f"{rate_ci(g['k'], g['n'], g['ci'])} hold in MuJoCo; agreement on the executable grasps "
+              f"{rate_ci(r['agreement']['k'], r['agreement']['n'], r['agreement']['ci'])}, Cohen's kappa "
+              f"{'n/a' if r['kappa'] is None else format(r['kappa'], '.2f')}; the dataset-held grasps MuJoCo lost: "
+              + (", ".join(f"{k} {v}" for k, v in r["dataset_held_outcomes"].items() if v) or "none") + ".", ""]
+        rows = [[k, v["mujoco held"], v["mujoco not held"], v["not executable"]] for k, v in r["confusion"].items()]
+        L += [md_table(["", "MuJoCo held", "MuJoCo not held", "not executable"], rows), ""]
+        rows = [[t, v["grasps"], v["dataset_held"], v["executable"],
+                 rate_ci(v["held_of_dataset_held_executable"]["k"], v["held_of_dataset_held_executable"]["n"],
+                         v["held_of_dataset_held_executable"]["ci"]),
+                 rate_ci(v["agreement"]["k"], v["agreement"]["n"], v["agreement"]["ci"])]
+                for t, v in r["by_type"].items()]
+        L += [md_table(["approach (mesh frame)", "grasps", "dataset held", "executable",
+                        "held in MuJoCo of dataset-held executable", "agreement (executable)"], rows), ""]
+        rows = [[k, rate_ci(v["k"], v["n"], v["ci"])] for k, v in r.get("by_closing_motion", {}).items()]
+        if rows:
+            L += [md_table(["object moved while the jaws closed (MuJoCo)", "held in MuJoCo of dataset-held "
+                            "executable"], rows), ""]
+    return "\n".join(L)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

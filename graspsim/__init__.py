@@ -95,7 +95,7 @@ _LAZY: dict[str, str] = {
     # MuJoCo validation
     **_from("graspsim.sim", "TrialOutcome", "TrialResults", "SimSettings", "GripperPhysics",
             "LiftPlace", "Tug", "ExecutionNoise", "SimObject", "Scene", "object_from_shape",
-            "object_from_mesh", "build_scene", "run_trials", "simulate_map", "render_trial"),
+            "object_from_mesh", "prepare_mesh", "build_scene", "run_trials", "simulate_map", "render_trial"),
     # table-top scenes and the simulated depth camera
     **_from("graspsim.geometry.camera", "Camera", "Intrinsics"),
     **_from("graspsim.tabletop", "DepthNoise", "render_depth", "TableScene", "SceneSim",

@@ -691,3 +691,28 @@ def test_scene_budgets_parse_or_are_refused():
         study.Config(budgets=("8:100", "8:100"))
     with pytest.raises(ValueError, match="budget"):
         study.Config(budgets=("32:200", ""))
+
+
+@pytest.mark.slow
+def test_bench_mesh_prep_quick_times_first_cached_and_trial_in_fresh_processes(tmp_path):
+    bench = _load("bench_mesh_prep")
+    assert bench.main(["--quick", "--out", str(tmp_path / "b")]) == 0
+    s = _summary(tmp_path / "b")
+    (row,) = s["rows"]
+    assert row["mesh"] == "open_cylinder_128f" and not row["watertight"] and row["mass_from"] == "parts"
+    assert row["first"]["wall_s"] > row["first"]["call_s"] > 0 and row["cached"]["import_s"] > 0
+    assert row["trial"]["exit"] == 0 and row["trial"]["trials"] == 10
+    assert s["goals"]["first"]["of"] == s["goals"]["cached"]["of"] == s["goals"]["trial"]["of"] == 1
+    md = bench.readme_section(s)
+    assert s["command"] in md and "| open_cylinder_128f | 128 | no |" in md
+
+
+def test_bench_mesh_prep_reported_summary_renders():
+    """The committed numbers the README quotes come with their command, load and goals."""
+    bench = _load("bench_mesh_prep")
+    s = json.loads((EXPERIMENTS / "reported" / "bench_mesh_prep.json").read_text())
+    md = bench.readme_section(s)
+    assert s["command"].startswith("python experiments/bench_mesh_prep.py") and s["command"] in md
+    names = {r["mesh"] for r in s["rows"]}
+    assert {"open_cylinder_512f", "cylinder_327680f", "torus_500000f", "pybullet/lego"} <= names
+    assert s["goals"]["meshes"] == len(s["rows"]) and "from the cache" in md

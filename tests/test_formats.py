@@ -79,14 +79,15 @@ def test_franka_frame_matches_acronym_gripper_mesh():
     """The vendored hand's hull, carried into ACRONYM's frame by T_grasp_wrist, spans
     ACRONYM's own gripper mesh (asymmetric in x by 3.6 mm: a wrong turn about z shows)."""
     from graspsim._gl import import_mujoco
-    from graspsim.grippers.franka import _measure, hand_to_wrist, hull_points
+    from graspsim.grippers.franka import franka_hand_mount, hand_to_wrist, hull_points
     from graspsim.grippers.vendored import model_folder
 
     mujoco = import_mujoco()
     model = mujoco.MjModel.from_xml_path(str(model_folder("franka_hand") / "franka_hand.xml"))
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
-    hull_W = hand_to_wrist(hull_points(model, data, "hand_collision"), _measure()["z0"])
+    z0 = -float(franka_hand_mount().pos[2])  # the hand frame sits at (0, 0, -z0) in the wrist frame
+    hull_W = hand_to_wrist(hull_points(model, data, "hand_collision"), z0)
     T = grasp_frame(FRANKA)
     hull_A = hull_W @ T[:3, :3].T + T[:3, 3]
     assert np.allclose(hull_A.min(0), ACRONYM_HAND_BOUNDS[0], atol=2e-4)

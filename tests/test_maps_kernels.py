@@ -131,7 +131,7 @@ def test_compile_all_compiles_every_kernel_for_the_types_a_scene_plan_passes(tmp
     pad-contact grade, is one compile_all compiles."""
     planned = _signatures(_PLAN_A_SCENE, str(tmp_path / "db"))
     warmed = _signatures(_COMPILE_ALL)
-    for name in ("maps._robust_kernel.robust_flags", "perception._sdf_kernel.model_sdf_into",
+    for name in ("maps._robust_kernel.robust_flags", "primitives._sdf_kernel.model_sdf_into",
                  "maps._hierarchy_kernel.regroup", "maps._hierarchy_kernel.cluster_tree",
                  "maps._occlusion_kernel.occluded_fraction"):
         assert planned[f"graspsim.{name}"], name  # the plan did use them

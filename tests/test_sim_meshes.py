@@ -1,5 +1,6 @@
 """Meshes: reading, CoACD decomposition and its on-disk cache, mesh objects."""
 
+import math
 import time
 from pathlib import Path
 
@@ -8,9 +9,10 @@ import pytest
 import trimesh
 
 from graspsim.errors import MeshError
-from graspsim.sim import CoacdParams, convex_parts, load_mesh, object_from_mesh
+from graspsim.sim import CoacdParams, convex_parts, load_mesh, object_from_mesh, prepare_mesh
 
 BREAD = Path(__file__).resolve().parents[1] / "assets/objects/robosuite/bread.stl"
+UNBOUNDED = CoacdParams(time_limit=math.inf)  # CoACD's parts whatever the machine's load
 
 
 @pytest.fixture(scope="module")
@@ -34,17 +36,18 @@ def test_unreadable_or_missing_meshes_raise_mesh_error(tmp_path):
 
 def test_convex_meshes_skip_coacd(tmp_path):
     box = trimesh.creation.box([0.04, 0.05, 0.06])
-    parts = convex_parts(box, cache_dir=tmp_path)
-    assert len(parts) == 1 and not any(tmp_path.iterdir())
+    prepared = prepare_mesh(box, cache_dir=tmp_path, params=CoacdParams(time_limit=0.0))
+    assert prepared.method == "convex" and len(prepared.parts) == 1 and prepared.warning is None
+    assert prepared.mass_from == "mesh" and prepared.volume == pytest.approx(0.04 * 0.05 * 0.06)
 
 
 @pytest.mark.slow
 def test_coacd_parts_are_cached_on_disk(mesh_cache):
     mesh = load_mesh(BREAD)
-    first = convex_parts(mesh, cache_dir=mesh_cache)
+    first = convex_parts(mesh, UNBOUNDED, cache_dir=mesh_cache)
     assert len(first) >= 2 and list(mesh_cache.glob("*.npz"))
     t = time.perf_counter()
-    again = convex_parts(mesh, cache_dir=mesh_cache)
+    again = convex_parts(mesh, UNBOUNDED, cache_dir=mesh_cache)
     assert time.perf_counter() - t < 0.5
     assert all(np.array_equal(a, b) for a, b in zip(first, again))
     # other parameters, other cache entry
@@ -54,10 +57,10 @@ def test_coacd_parts_are_cached_on_disk(mesh_cache):
 @pytest.mark.slow
 def test_mesh_objects_take_mass_from_density_or_given(mesh_cache):
     mesh = load_mesh(BREAD)
-    obj = object_from_mesh(BREAD, density=500.0, cache_dir=mesh_cache)
+    obj = object_from_mesh(BREAD, density=500.0, coacd=UNBOUNDED, cache_dir=mesh_cache)
     assert obj.mass == pytest.approx(500.0 * mesh.volume)
     np.testing.assert_allclose(obj.com, mesh.center_mass, atol=1e-12)
-    heavy = object_from_mesh(BREAD, mass=1.0, cache_dir=mesh_cache)
+    heavy = object_from_mesh(BREAD, mass=1.0, coacd=UNBOUNDED, cache_dir=mesh_cache)
     np.testing.assert_allclose(heavy.inertia, obj.inertia / obj.mass, rtol=1e-9)
     assert heavy.mass == pytest.approx(1.0)
 
@@ -67,19 +70,19 @@ def test_mesh_objects_are_placed_by_T_obj_mesh(mesh_cache):
     """A mesh posed by T_obj_mesh (a quarter turn about z and a 5 cm shift) is the same
     solid moved: mass kept, centre of mass and inertia moved and turned with it, its
     collision parts and surface where the moved mesh is."""
-    obj = object_from_mesh(BREAD, density=500.0, cache_dir=mesh_cache)
+    obj = object_from_mesh(BREAD, density=500.0, coacd=UNBOUNDED, cache_dir=mesh_cache)
     R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     t = np.array([0.03, -0.02, 0.05])
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, t
-    moved = object_from_mesh(BREAD, density=500.0, T_obj_mesh=T, cache_dir=mesh_cache)
+    moved = object_from_mesh(BREAD, density=500.0, T_obj_mesh=T, coacd=UNBOUNDED, cache_dir=mesh_cache)
     assert moved.mass == pytest.approx(obj.mass, rel=1e-9)
     np.testing.assert_allclose(moved.com, R @ obj.com + t, atol=1e-9)
     np.testing.assert_allclose(moved.inertia, R @ obj.inertia @ R.T, atol=1e-12 * obj.inertia.max() + 1e-15)
     np.testing.assert_allclose(np.sort(moved.surface.vertices, axis=0),
                                np.sort(obj.surface.vertices @ R.T + t, axis=0), atol=1e-9)
-    # CoACD may cut the turned mesh differently, but every part lies on the moved solid
-    lo, hi = moved.surface.bounds
-    parts = np.concatenate([g.vertices for g in moved.geoms])
-    assert np.all(parts >= lo - 1e-3) and np.all(parts <= hi + 1e-3)
+    # the model is prepared in the mesh's frame and moved: the same parts, moved
+    assert len(moved.geoms) == len(obj.geoms)
+    for g, h in zip(obj.geoms, moved.geoms):
+        np.testing.assert_allclose(h.vertices, g.vertices @ R.T + t, atol=1e-12)
     assert moved.description["file"].endswith("bread.stl")

@@ -228,8 +228,10 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it", *, tick: float | None = None):
-    """A tqdm progress bar on stderr (disabled when not wanted or not a terminal). With
+def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it", delay: float = 0.0, *,
+             tick: float | None = None):
+    """A tqdm progress bar on stderr (disabled when not wanted or not a terminal; shown
+    only after ``delay`` seconds). With
     ``tick`` [s] the bar is redrawn that often even when nothing finished (its elapsed
     time runs: steps that take long, such as maps built in worker processes, do not look
     stuck); the redrawing stops when the bar is closed."""
@@ -238,7 +240,7 @@ def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it
     from tqdm.auto import tqdm
 
     on = enabled and sys.stderr.isatty()
-    bar = tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False)
+    bar = tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False, delay=delay)
     if on and tick:
         stop = threading.Event()
 

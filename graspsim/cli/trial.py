@@ -1,7 +1,8 @@
 """``graspsim trial``: simulate a map's grasps in MuJoCo and store the outcomes in the map.
 
     graspsim trial MAP.h5 [--protocol lift_place|tug] [--top N [--rank robust|paper] |
-                   --sample N --min-grade G] [--threads T] [--render DIR] [--mesh FILE]
+                   --sample N --min-grade G] [--threads T] [--render DIR]
+                   [--mesh FILE [--mesh-scale S]]
                    [--seed S] [--noise] [--all] [--json]
 
 MAP may also be a third-party grasp file -- ACRONYM (.h5), GraspGen (.json), GraspNet-1Billion
@@ -75,9 +76,11 @@ def register(subparsers) -> None:
     p.add_argument("--mesh", metavar="FILE",
                    help="simulate against this mesh (the real object) instead of the map's "
                         "primitives, placed by the map's cloud->object transform")
-    p.add_argument("--mesh-scale", type=float, default=None,
-                   help="scale of the mesh file's units (default 1; a grasp file's own object/scale "
-                        "for its own mesh)")
+    p.add_argument("--mesh-scale", type=float, default=None, metavar="S",
+                   help="multiplies the mesh file's coordinates to give metres (0.001 for millimetres, "
+                        "0.01 for centimetres; default 1, or a grasp file's own object/scale for its own "
+                        "mesh). A mesh wider than 2 m or smaller than 5 mm is refused: its units are "
+                        "probably not metres")
     p.add_argument("--camera-pose", metavar="FILE.npy",
                    help="GraspNet files: the object's 4x4 pose in the camera frame (.npy or text)")
     p.add_argument("--object-id", type=int, help="GraspNet files: simulate this object's grasps only")
@@ -141,6 +144,7 @@ def run(args) -> int:
         args.grip_force is not None and args.friction is None) else None
     if args.gripper is not None:
         _check_gripper(gripper_from_args(args), header.gripper_spec)
+    mesh = _prepared_mesh(args) if args.mesh is not None else None
     settings = None
     if args.friction is not None or args.grip_force is not None:
         mu = args.friction
@@ -159,7 +163,7 @@ def run(args) -> int:
         out = simulate_map(
             args.map, protocol=protocol, top=args.top, sample=args.sample,
             min_grade=args.min_grade, threads=args.threads, seed=args.seed,
-            noise=ExecutionNoise() if args.noise else None, mesh=args.mesh,
+            noise=ExecutionNoise() if args.noise else None, mesh=mesh,
             mesh_scale=1.0 if args.mesh_scale is None else args.mesh_scale,
             mass=args.mass, settings=settings,
             write=not args.no_write, replace_stored=args.replace, on_progress=tick,
@@ -180,10 +184,17 @@ def run(args) -> int:
         "success_rate_all": counts["success"] / len(res) if len(res) else math.nan,
         "trials_per_second": res.trials_per_second, "wall_time_s": res.wall_time,
         "threads": res.threads, "seed": args.seed, "noise": res.noise, "rank": args.rank,
-        "mesh": args.mesh, "written_to": out.group, "kept_stored": out.kept, "replaced_stored": out.replaced,
+        "mesh": args.mesh, "mesh_model": None if mesh is None else mesh.describe(),
+        "written_to": out.group, "kept_stored": out.kept, "replaced_stored": out.replaced,
         "renders": renders, "record": args.record,
     }
-    emit(summary, args.json, _report(res, counts, blocked, out, foreign=dataset is not None))
+    human = _report(res, counts, blocked, out, foreign=dataset is not None)
+    if mesh is not None:
+        m = mesh.describe()
+        human += (f"\nmesh {args.mesh}: {m['parts']} convex part(s) ({m['method']}), mass from the "
+                  f"{'closed mesh' if m['mass_from'] == 'mesh' else 'convex parts (the mesh is open)'}"
+                  f"{', from the cache' if m['from_cache'] else ''}")
+    emit(summary, args.json, human)
     return 0
 
 
@@ -226,6 +237,21 @@ def _report(res, counts: dict, blocked: dict, out, foreign: bool = False) -> str
                   + (f", replacing the {out.replaced} stored before (--replace)" if out.replaced else ""))
     return (format_table(rows, ["outcome", "trials", "%"]) + "\n\n" + head
             + f"\n{res.trials_per_second:.1f} trials/s on {res.threads} thread(s)" + stored)
+
+
+def _prepared_mesh(args):
+    """``--mesh`` prepared for simulation (checked, decomposed within its time limit or
+    read from the cache), with a progress bar on a terminal once it takes over 2 s."""
+    from graspsim.cli._common import progress
+    from graspsim.sim.meshes import prepare_mesh
+
+    with progress(100, "preparing the mesh", enabled=not args.json, unit="%", delay=2.0) as bar:
+        def report(stage: str, fraction: float) -> None:
+            bar.set_description(f"{stage} the mesh (time limit)", refresh=False)
+            bar.update(int(100 * fraction) - bar.n)
+
+        return prepare_mesh(args.mesh, scale=1.0 if args.mesh_scale is None else args.mesh_scale,
+                            progress=report)
 
 
 def _render(args, out, protocol) -> list[str]:

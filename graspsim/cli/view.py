@@ -1,6 +1,6 @@
 """``graspsim view``: the interactive 3D viewer in the browser (viser).
 
-    graspsim view MAP.h5 [--cloud CLOUD] [--mesh MESH] [--replay TRIALS.npz]
+    graspsim view MAP.h5 [--cloud CLOUD] [--mesh MESH [--mesh-scale S]] [--replay TRIALS.npz]
                   [--port P] [--host H] [--max-drawn N] [--screenshot PNG]
     graspsim view --scene SCENE.json [--db DIR] [--seed S] [--top K] [generation flags]
 
@@ -42,6 +42,8 @@ def register(subparsers) -> None:
                    "and the planning (0)")
     p.add_argument("--cloud", metavar="CLOUD", help="the observed cloud (.pcd/.ply/.npy/.xyz), cloud frame")
     p.add_argument("--mesh", metavar="MESH", help="the true mesh (.obj/.stl/.ply ...), cloud frame")
+    p.add_argument("--mesh-scale", type=float, default=1.0, metavar="S",
+                   help="multiplies the mesh file's coordinates to give metres (0.001 for millimetres; default 1)")
     p.add_argument("--replay", metavar="TRIALS.npz",
                    help="trials recorded by 'graspsim trial MAP --record TRIALS.npz', on a timeline")
     p.add_argument("--host", default="127.0.0.1",
@@ -81,11 +83,16 @@ def run(args) -> int:
         from graspsim._atomic import check_output
 
         check_output(args.screenshot, "screenshot")
+    mesh = args.mesh
+    if mesh is not None:
+        from graspsim.sim.meshes import load_mesh
+
+        mesh = load_mesh(mesh, scale=args.mesh_scale)  # checked before the server starts
     _quiet_server_logs()
     if args.scene is not None:
         server, summary, banner = _show_scene(args)
     else:
-        server = show(args.map, cloud=args.cloud, mesh=args.mesh, recording=args.replay, host=args.host,
+        server = show(args.map, cloud=args.cloud, mesh=mesh, recording=args.replay, host=args.host,
                       port=args.port, max_drawn=args.max_drawn, min_grade=args.min_grade, colour=args.colour,
                       top_k=args.top, pick=args.pick)
         viewer = server.graspsim_viewer

@@ -32,6 +32,7 @@ from graspsim.grippers.spec import GripperSpec
 from graspsim.maps import GraspabilityMap, load_map, read_sim_results, write_sim_results
 from graspsim.maps.robust import executed_width
 from graspsim.sim.batch import run_trials
+from graspsim.sim.meshes import PreparedMesh
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape
 from graspsim.sim.protocols import LiftPlace, Protocol
@@ -105,11 +106,13 @@ def _given_mass(obj: dict) -> float | None:
     return m
 
 
-def map_object(gmap: GraspabilityMap, *, mesh: str | os.PathLike | None = None,
+def map_object(gmap: GraspabilityMap, *, mesh: str | os.PathLike | PreparedMesh | None = None,
                mesh_scale: float = 1.0, mass: float | None = None, density: float = 1000.0,
                map_dir: str | os.PathLike | None = None, cache_dir=None) -> SimObject:
-    """The object to simulate for a map (see the module docstring). ``mass`` overrides
-    the map's; otherwise the map's mass, or ``density`` x volume if it has none."""
+    """The object to simulate for a map (see the module docstring). ``mesh``: a mesh file
+    (prepared by :func:`~graspsim.sim.meshes.prepare_mesh` at ``mesh_scale``) or a
+    :class:`~graspsim.sim.meshes.PreparedMesh`. ``mass`` overrides the map's; otherwise
+    the map's mass, or ``density`` x volume if it has none."""
     obj = gmap.meta.object or {}
     mass = mass if mass is not None else _given_mass(obj)
     if mesh is not None:
@@ -223,7 +226,7 @@ def _cloud_up(gmap: GraspabilityMap, has_mesh: bool) -> np.ndarray | None:
 def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                  top: int | None = None, sample: int | None = None, min_grade: float | None = None,
                  threads: int | None = None, seed: int = 0, noise: ExecutionNoise | None = None,
-                 mesh: str | os.PathLike | None = None, mesh_scale: float = 1.0,
+                 mesh: str | os.PathLike | PreparedMesh | None = None, mesh_scale: float = 1.0,
                  mass: float | None = None, settings: SimSettings | None = None,
                  write: bool = True, replace_stored: bool = False, cache_dir=None, on_progress=None,
                  on_selected=None, on_record=None, rank: str = "robust",
@@ -274,7 +277,7 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                          threads=threads, seed=seed, noise=noise, on_progress=on_progress,
                          on_record=on_record)
     results = replace(results, extra={"map_file": str(path),
-                                      "mesh": None if mesh is None else str(mesh)})
+                                      "mesh": None if mesh is None else str(getattr(mesh, "source", mesh))})
     group = write_results(path, len(gmap), index, results) if write and len(index) else None
     return MapTrials(index=index, results=results, scene=scene, group=group, width=width, file=path,
                      kept=held if group and why is None else 0, replaced=held if group and why else 0)

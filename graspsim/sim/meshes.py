@@ -1,11 +1,43 @@
-"""Arbitrary meshes for simulation: reading OBJ/STL/PLY and CoACD convex decomposition,
-cached on disk.
+"""Arbitrary meshes for simulation: reading OBJ/STL/PLY, checking them, and preparing
+their collision model (convex parts and mass properties), bounded in time and cached.
 
 MuJoCo collides meshes as their convex hulls, so a non-convex object must be split into
-convex parts first (CoACD, Wei et al. 2022). Decomposition takes seconds to minutes, so
-the parts are cached under ``cache_dir`` (default ``$GRASPSIM_CACHE_DIR/coacd`` or
-``~/.cache/graspsim/coacd``), keyed by a hash of the mesh's vertices and faces and of the
-CoACD parameters: the same mesh and parameters always give the same parts.
+convex parts first. :func:`prepare_mesh` is the one entry point (``graspsim trial
+--mesh``, mesh objects of scenes, the experiments); it
+
+1. reads the file's raw arrays and refuses what cannot be simulated, one line each
+   (:func:`check_mesh_arrays`): no triangles, NaN/inf or out-of-range vertices (trimesh
+   would silently drop them), no extent, and sizes implausible in metres: wider than
+   :data:`MAX_MESH_EXTENT` (millimetres or centimetres read as metres; ``--mesh-scale``)
+   or smaller than :data:`MIN_MESH_EXTENT`;
+2. splits the mesh into connected components: a convex, closed component is its own
+   hull (the multi-body meshes of primitives need nothing more);
+3. decomposes the rest with CoACD (Wei et al. 2022) after decimating it to at most
+   ``max_faces`` faces (fast-simplification), in a separate process killed once it has
+   used ``time_limit`` seconds of CPU (CoACD has no limit of its own: an open mesh or one
+   of a few thousand faces can take many minutes). CPU time, not wall time, so that the
+   same mesh gets the same model on an idle and on a loaded machine; a wall-clock
+   backstop (:data:`WALL_FACTOR` x the limit + :data:`WALL_SLACK`) ends a worker that a
+   loaded machine starves, and that result is not cached;
+4. if that process fails or runs out of time, falls back to the convex hull of each
+   remaining component, with a one-line warning (:attr:`PreparedMesh.warning`);
+5. caches the result under :func:`default_cache_dir`, keyed by a hash of the file's
+   vertex and face arrays, the scale and the settings, written atomically: a second
+   run of the same mesh loads it (no decomposition, no decimation). A complete model
+   serves every time limit; a fallback is kept apart, for the time limit that gave it.
+
+Mass properties: a closed mesh's own volume, centre of mass and inertia; an open or
+non-manifold mesh has no meaningful volume, so those of the union of its convex parts
+(overlaps counted twice) stand in; :attr:`PreparedMesh.mass_from` says which.
+
+The decomposition is deterministic (CoACD's seed, and a limit on CPU time, which load
+does not change) for a given mesh, scale and settings; only a mesh whose decomposition
+needs within a few per cent of ``time_limit`` CPU seconds could fall either way, and
+only a machine so loaded that the wall-clock backstop ends the worker gives another
+model (with a warning saying so, and not cached). :attr:`PreparedMesh.method` records
+which model was made. On systems without ``/proc`` the worker's CPU time cannot be read
+and the limit is wall-clock time. Callers that need CoACD's parts whatever they cost
+(the meshes shipped for scenes) pass ``time_limit=math.inf``.
 """
 
 from __future__ import annotations
@@ -14,7 +46,12 @@ import hashlib
 import json
 import logging
 import os
-from dataclasses import asdict, dataclass
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -22,35 +59,121 @@ import numpy as np
 from graspsim._atomic import atomic_path
 from graspsim.errors import DependencyNotInstalled, InvalidParameterError, MeshError
 
-__all__ = ["CoacdParams", "check_mesh_path", "load_mesh", "convex_parts", "default_cache_dir"]
+__all__ = ["CoacdParams", "PreparedMesh", "prepare_mesh", "check_mesh_path", "check_mesh_arrays",
+           "load_mesh", "convex_parts", "default_cache_dir", "MAX_MESH_EXTENT", "MIN_MESH_EXTENT"]
 
 log = logging.getLogger(__name__)
 
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")
+#: The widest mesh accepted in metres (the clouds' limit, ``perception.prepare.MAX_EXTENT``).
+MAX_MESH_EXTENT = 2.0
+#: The smallest graspable object [m]: a mesh smaller than this is probably not in metres.
+MIN_MESH_EXTENT = 0.005
+#: Bumped when the preparation changes, so older cache entries are not reused.
+PREP_VERSION = 2
+_WORKER = Path(__file__).with_name("_coacd_worker.py")
+
+
+#: the wall-clock backstop of the decomposition worker: WALL_FACTOR x its CPU limit +
+#: WALL_SLACK seconds (a starved worker on a loaded machine; the result is not cached)
+WALL_FACTOR = 4.0
+WALL_SLACK = 10.0
+_TICK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+def _cpu_seconds(pid: int) -> float | None:
+    """User + system CPU time [s] of process ``pid`` (all its threads), from /proc; None
+    where /proc is not there (the caller then counts wall time)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / _TICK  # utime, stime (fields 14, 15)
 
 
 @dataclass(frozen=True)
 class CoacdParams:
-    """CoACD settings. threshold: concavity tolerance (smaller = more parts);
-    max_parts: cap on the number of convex hulls (-1 = none); seed: CoACD's seed, so the
-    decomposition is reproducible."""
+    """Mesh preparation settings. threshold: CoACD's concavity tolerance (smaller = more
+    parts); max_parts: cap on CoACD's convex hulls (-1 = none); preprocess_resolution,
+    resolution, mcts_*: CoACD's manifold remeshing, sampling and tree search; seed:
+    CoACD's seed (reproducible parts); time_limit [s]: CPU seconds the decimation and
+    decomposition worker may use before the hull fallback is taken (inf: none; see the
+    module docstring for the wall-clock backstop); max_faces: meshes
+    with more faces are decimated to this many before CoACD; max_hull_vertices: a convex
+    part with more vertices is thinned on a grid (MuJoCo hulls of 100k vertices are slow)."""
 
     threshold: float = 0.05
     max_parts: int = 16
     preprocess_resolution: int = 50
     seed: int = 0
+    resolution: int = 2000
+    mcts_iterations: int = 150
+    mcts_nodes: int = 20
+    mcts_max_depth: int = 3
+    time_limit: float = 15.0
+    max_faces: int = 20_000
+    max_hull_vertices: int = 1024
 
     def __post_init__(self) -> None:
         if not 0.01 <= self.threshold <= 1.0:
             raise InvalidParameterError(f"CoACD threshold must be in [0.01, 1], got {self.threshold!r}")
         if self.max_parts == 0 or self.max_parts < -1:
             raise InvalidParameterError(f"max_parts must be -1 or >= 1, got {self.max_parts!r}")
+        if not self.time_limit >= 0:  # inf: no limit (the shipped scene meshes)
+            raise InvalidParameterError(f"time_limit must be >= 0 s (inf: none), got {self.time_limit!r}")
+        for name in ("max_faces", "max_hull_vertices", "resolution", "preprocess_resolution",
+                     "mcts_iterations", "mcts_nodes", "mcts_max_depth"):
+            if int(getattr(self, name)) < 1:
+                raise InvalidParameterError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedMesh:
+    """A mesh ready for simulation, in the mesh file's frame (scaled to metres).
+
+    parts: convex vertex arrays (V_i, 3) [m]; method: "convex" (one hull), "components"
+    (each component convex: its hulls), "coacd" (CoACD's parts for the non-convex
+    components) or "hull" (the fallback: one hull per component); volume [m^3], com (3,)
+    [m], unit_inertia (3, 3) [m^2] (inertia about the COM per kg); mass_from: "mesh"
+    (closed mesh) or "parts" (the union of the parts stands in); surface: the mesh
+    (trimesh); faces: the file's face count; watertight; warning: the fallback's reason,
+    or None; key: the cache key; from_cache; seconds: the time preparation took; source:
+    the file (or "<trimesh>"); scale: the scale applied to the file's coordinates."""
+
+    parts: tuple[np.ndarray, ...]
+    method: str
+    volume: float
+    com: np.ndarray
+    unit_inertia: np.ndarray
+    mass_from: str
+    surface: object = field(repr=False)
+    faces: int = 0
+    watertight: bool = False
+    warning: str | None = None
+    key: str = ""
+    from_cache: bool = False
+    seconds: float = 0.0
+    source: str = ""
+    scale: float = 1.0
+
+    def describe(self) -> dict:
+        """What was simulated, for results and ``--json``."""
+        return {"file": self.source, "scale": self.scale, "faces": self.faces, "watertight": self.watertight,
+                "method": self.method, "parts": len(self.parts), "mass_from": self.mass_from,
+                "volume_cm3": round(self.volume * 1e6, 4), "from_cache": self.from_cache,
+                "seconds": round(self.seconds, 3), "warning": self.warning}
 
 
 def default_cache_dir() -> Path:
+    """``$GRASPSIM_CACHE_DIR/coacd``, else ``$XDG_CACHE_HOME/graspsim/coacd``, else
+    ``~/.cache/graspsim/coacd``."""
     root = os.environ.get("GRASPSIM_CACHE_DIR")
-    base = Path(root) if root else Path.home() / ".cache" / "graspsim"
-    return base / "coacd"
+    if root:
+        return Path(root) / "coacd"
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    base = Path(xdg) if xdg and Path(xdg).is_absolute() else Path.home() / ".cache"
+    return base / "graspsim" / "coacd"
 
 
 def check_mesh_path(path: str | os.PathLike) -> Path:
@@ -68,80 +191,338 @@ def check_mesh_path(path: str | os.PathLike) -> Path:
     return path
 
 
-def load_mesh(path: str | os.PathLike, *, scale: float = 1.0):
-    """Read a triangle mesh (OBJ, STL, PLY, ...) as one ``trimesh.Trimesh`` [m].
+def _check_scale(scale: float) -> float:
+    try:
+        s = float(scale)
+    except (TypeError, ValueError):
+        s = float("nan")
+    if not (np.isfinite(s) and s > 0):
+        raise MeshError(f"mesh scale must be a finite number > 0 (e.g. --mesh-scale 0.001 for millimetres), "
+                        f"got {scale!r}")
+    return s
 
-    Raises :class:`MeshError` if the file is missing, unreadable or has no triangles.
-    """
+
+def check_mesh_arrays(vertices, faces, *, scale: float = 1.0, name: str = "the mesh") -> None:
+    """Raise :class:`MeshError` (one line: what is wrong, what is valid) unless the raw
+    arrays (V, 3) and (F, 3), times ``scale``, are a mesh that can be simulated: at least
+    one triangle, finite vertices, face indices in range, some extent in every
+    direction, and between :data:`MIN_MESH_EXTENT` and :data:`MAX_MESH_EXTENT` across."""
+    v = np.asarray(vertices)
+    f = np.asarray(faces)
+    if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0 or v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+        raise MeshError(f"{name} holds no triangles")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise MeshError(f"{name} has {int(bad.sum())} vertices with NaN/inf coordinates (the first is vertex "
+                        f"{int(np.flatnonzero(bad)[0])}); every coordinate must be a finite number")
+    if f.min() < 0 or f.max() >= len(v):
+        raise MeshError(f"{name} has faces that name vertices outside 0..{len(v) - 1}")
+    mask = np.zeros(len(v), bool)
+    mask[f.ravel()] = True  # the vertices faces use (np.unique of 1 M indices takes seconds)
+    used = v[mask].astype(np.float64) * scale
+    width = np.ptp(used, axis=0)
+    big = float(width.max())
+    if big > MAX_MESH_EXTENT:
+        hints = [f"{u} ({big / k:.4g} m with --mesh-scale {k:g})"
+                 for u, k in (("millimetres", 1000.0), ("centimetres", 100.0)) if big / k <= MAX_MESH_EXTENT]
+        hint = ("is it in " + " or ".join(hints) + "?") if hints else "convert it to metres with --mesh-scale S"
+        raise MeshError(f"{name} is {big:.4g} m across, implausible for a graspable object (at most "
+                        f"{MAX_MESH_EXTENT:g} m); {hint}")
+    if big < MIN_MESH_EXTENT:
+        raise MeshError(f"{name} is only {big * 1000:.3g} mm across, smaller than any graspable object (at least "
+                        f"{MIN_MESH_EXTENT * 1000:g} mm); is it in another unit? scale it with --mesh-scale S "
+                        "(e.g. 10 for decimetres, 1000 for kilometres)")
+    if float(width.min()) < 1e-6 * big or not _some_area(v, f, 1e-12 * big * big / scale**2):
+        raise MeshError(f"{name} is flat or degenerate (its extents are {np.round(width * 1000, 3).tolist()} mm); "
+                        "a solid needs some thickness in every direction")
+
+
+def _some_area(v: np.ndarray, f: np.ndarray, floor: float) -> bool:
+    """Whether some triangle has an area above ``floor`` (looked for a block at a time:
+    a usable mesh answers in its first block)."""
+    for i in range(0, len(f), 4096):
+        c = v[f[i:i + 4096]].astype(np.float64)
+        if (np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1) > 2 * floor).any():
+            return True
+    return False
+
+
+def _read_arrays(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The file's vertices and faces as stored (``process=False``: trimesh would drop
+    NaN vertices and merge duplicates)."""
     import trimesh
 
-    path = check_mesh_path(path)
-    if not (np.isfinite(scale) and scale > 0):
-        raise MeshError(f"mesh scale must be > 0, got {scale!r}")
     try:
-        mesh = trimesh.load(path, force="mesh", process=True)
+        mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as err:  # trimesh raises many kinds of errors on bad files
         raise MeshError(f"cannot read mesh {path}: {err}") from err
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise MeshError(f"mesh file {path} holds no triangles")
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise MeshError(f"mesh file {path} has non-finite vertices")
-    if scale != 1.0:
-        mesh.apply_scale(scale)
+    return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+
+
+def _clean(vertices: np.ndarray, faces: np.ndarray, scale: float, name: str):
+    """The checked raw arrays as a processed trimesh [m] (vertices merged, degenerate
+    and duplicate faces dropped)."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices * scale if scale != 1.0 else vertices, faces, process=True)
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.remove_unreferenced_vertices()
+    if len(mesh.faces) == 0:
+        raise MeshError(f"{name} holds only degenerate triangles (no triangle has an area)")
     return mesh
 
 
-def _key(vertices: np.ndarray, faces: np.ndarray, params: CoacdParams) -> str:
+def load_mesh(path: str | os.PathLike, *, scale: float = 1.0):
+    """Read a triangle mesh (OBJ, STL, PLY, ...) as one ``trimesh.Trimesh`` [m].
+
+    Raises :class:`MeshError` if the file is missing or unreadable, or fails
+    :func:`check_mesh_arrays` (no triangles, NaN vertices, implausible size in metres).
+    """
+    path = check_mesh_path(path)
+    scale = _check_scale(scale)
+    vertices, faces = _read_arrays(path)
+    check_mesh_arrays(vertices, faces, scale=scale, name=f"mesh {path.name}")
+    return _clean(vertices, faces, scale, f"mesh {path.name}")
+
+
+def _key(vertices: np.ndarray, faces: np.ndarray, scale: float, params: CoacdParams) -> str:
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(vertices, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(faces, dtype=np.int64).tobytes())
-    h.update(json.dumps(asdict(params), sort_keys=True).encode())
+    settings = {k: v for k, v in asdict(params).items() if k != "time_limit"}
+    h.update(json.dumps({"v": PREP_VERSION, "scale": scale, "params": settings}, sort_keys=True).encode())
     return h.hexdigest()[:32]
+
+
+def _grid_first(points: np.ndarray, cells: int) -> np.ndarray:
+    """One point per cell of a grid of ``cells`` across the widest extent (the first in order)."""
+    pitch = float(np.ptp(points, axis=0).max()) / cells
+    keys = np.floor((points - points.min(axis=0)) / pitch).astype(np.int64)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    return points[np.sort(first)]
+
+
+def _thin(points: np.ndarray, max_vertices: int) -> np.ndarray:
+    """The hull vertices of ``points``, thinned on a grid (one per cell, the first in
+    order; 256 cells across, then halved) until at most ``max_vertices`` remain;
+    deterministic. The grid goes first: Qhull is slow on 100k co-circular points."""
+    from scipy.spatial import ConvexHull
+
+    cells = 256
+    if len(points) > max_vertices:
+        points = _grid_first(points, cells)
+    hull = points[ConvexHull(points).vertices]
+    while len(hull) > max_vertices and cells >= 8:
+        cells //= 2
+        kept = _grid_first(hull, cells)
+        hull = kept[ConvexHull(kept).vertices]
+    return np.ascontiguousarray(hull, dtype=np.float64)
+
+
+def _hull_part(points: np.ndarray, max_vertices: int) -> np.ndarray | None:
+    """One convex part: the thinned hull vertices of ``points``, None when they span no volume."""
+    from scipy.spatial import QhullError
+
+    v = np.asarray(points, np.float64)
+    if len(v) < 4:
+        return None
+    try:
+        return _thin(v, max_vertices)
+    except (QhullError, ValueError):  # flat or collinear: no volume
+        return None
+
+
+def _components(mesh):
+    """The mesh's connected components, each a trimesh (only one: the mesh itself)."""
+    comps = mesh.split(only_watertight=False)
+    return list(comps) if len(comps) > 1 else [mesh]
+
+
+def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | None, str | None, bool]:
+    """(CoACD's parts of ``mesh`` from the bounded worker, or None; why it gave none;
+    whether the outcome depended on the machine's load: the wall-clock backstop ended it)."""
+    try:
+        import coacd  # noqa: F401
+    except ImportError as err:
+        raise DependencyNotInstalled("convex decomposition of meshes needs CoACD: pip install coacd") from err
+    worker = {k: getattr(params, k) for k in ("threshold", "max_parts", "preprocess_resolution", "resolution",
+                                              "mcts_iterations", "mcts_nodes", "mcts_max_depth", "seed",
+                                              "max_faces")}
+    with tempfile.TemporaryDirectory(prefix="graspsim-coacd-") as tmp:
+        src, dst = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
+        np.savez(src, vertices=np.asarray(mesh.vertices, np.float64), faces=np.asarray(mesh.faces, np.int64),
+                 params=json.dumps(worker))
+        with open(Path(tmp) / "err.txt", "w+b") as err_file:
+            proc = subprocess.Popen([sys.executable, str(_WORKER), str(src), str(dst)], stdout=subprocess.PIPE,
+                                    stderr=err_file, env={**os.environ, "PYTHONWARNINGS": "ignore"})
+            os.set_blocking(proc.stdout.fileno(), False)
+            stage, said = "decomposing", b""
+            started = time.monotonic()
+            backstop = started + WALL_FACTOR * params.time_limit + WALL_SLACK
+            try:
+                while proc.poll() is None:
+                    cpu = _cpu_seconds(proc.pid)
+                    spent = time.monotonic() - started if cpu is None else cpu
+                    if spent > params.time_limit:
+                        return None, (f"decomposition did not finish within its limit of {params.time_limit:g} s"
+                                      f" of {'wall' if cpu is None else 'CPU'} time"), False
+                    if time.monotonic() > backstop:
+                        return None, (f"decomposition was starved of CPU (machine load) past "
+                                      f"{backstop - started:g} s of wall time; not cached: run it again"), True
+                    try:
+                        said += os.read(proc.stdout.fileno(), 65536)
+                    except BlockingIOError:
+                        pass
+                    stages = [ln[6:] for ln in said.decode(errors="replace").splitlines() if ln.startswith("stage ")]
+                    stage = stages[-1] if stages else stage
+                    if progress is not None:
+                        fraction = spent / params.time_limit if np.isfinite(params.time_limit) else 0.0
+                        progress(stage, min(1.0, max(0.0, fraction)))
+                    time.sleep(0.05)
+            finally:
+                if proc.poll() is None:
+                    proc.kill()
+                proc.wait()
+                proc.stdout.close()
+            err_file.seek(0)
+            err = err_file.read().decode(errors="replace")
+        if proc.returncode != 0 or not dst.is_file():
+            last = (err.strip().splitlines() or [f"exit status {proc.returncode}"])[-1]
+            return None, f"CoACD failed ({last[:200]})", False
+        with np.load(dst) as z:
+            parts = [z[f"part{i}"] for i in range(int(z["count"]))]
+    parts = [p for p in (_hull_part(p, params.max_hull_vertices) for p in parts) if p is not None]
+    return (parts, None, False) if parts else (None, "CoACD returned no convex part with a volume", False)
+
+
+def _mass_properties(mesh, parts: list[np.ndarray]) -> tuple[float, np.ndarray, np.ndarray, str]:
+    """(volume, com, inertia per unit mass, "mesh" | "parts") of the prepared model."""
+    import trimesh
+
+    if mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0:
+        return float(mesh.volume), np.asarray(mesh.center_mass, float), mesh.moment_inertia / mesh.volume, "mesh"
+    hulls = [trimesh.convex.convex_hull(p) for p in parts]
+    vols = np.array([h.volume for h in hulls])
+    if not vols.sum() > 0:
+        raise MeshError("the mesh encloses no volume")
+    volume = float(vols.sum())
+    com = sum(v * h.center_mass for v, h in zip(vols, hulls)) / volume
+    unit = np.zeros((3, 3))
+    for v, h in zip(vols, hulls):
+        d = h.center_mass - com
+        unit += h.moment_inertia + v * (d @ d * np.eye(3) - np.outer(d, d))
+    return volume, np.asarray(com, float), unit / volume, "parts"
+
+
+def _build(mesh, params: CoacdParams, name: str, progress) -> tuple[list[np.ndarray], str, str | None, bool]:
+    """(parts, method, warning, cacheable) for the cleaned mesh (steps 2-4 of the module
+    docstring); not cacheable: the machine's load decided the model."""
+    if mesh.is_convex:
+        return [_thin(np.asarray(mesh.vertices, float), params.max_hull_vertices)], "convex", None, True
+    comps = _components(mesh)
+    convex = [c for c in comps if c.is_watertight and c.is_convex]
+    rest = [c for c in comps if not (c.is_watertight and c.is_convex)]
+    parts = [p for p in (_hull_part(c.vertices, params.max_hull_vertices) for c in convex) if p is not None]
+    if not rest:
+        return parts, "components", None, True
+    import trimesh
+
+    remainder = rest[0] if len(rest) == 1 else trimesh.util.concatenate(rest)
+    decomposed, why, by_load = _decompose(remainder, params, progress)
+    if decomposed is not None:
+        return parts + decomposed, "coacd", None, True
+    hulls = [p for p in (_hull_part(c.vertices, params.max_hull_vertices) for c in rest) if p is not None]
+    if not parts + hulls:
+        raise MeshError(f"{name} has no part with a volume (flat or degenerate)")
+    what = "its convex hull" if len(comps) == 1 else f"the convex hulls of its {len(comps)} components"
+    warning = (f"{name}: {why}; simulating {what} instead (concave regions are filled; raise "
+               "CoacdParams.time_limit for a finer model)")
+    return parts + hulls, "hull", warning, not by_load
+
+
+def _cache_read(file: Path) -> dict | None:
+    import trimesh
+
+    if not file.is_file():
+        return None
+    try:
+        with np.load(file) as z:
+            info = json.loads(str(z["info"]))
+            parts = tuple(z[f"part{i}"] for i in range(int(z["count"])))
+            surface = trimesh.Trimesh(z["surface_vertices"], z["surface_faces"], process=False)
+            return {"parts": parts, "com": z["com"], "unit_inertia": z["unit_inertia"], "surface": surface, **info}
+    except (OSError, KeyError, ValueError) as err:
+        log.warning("ignoring unreadable mesh cache file %s: %s", file, err)
+        return None
+
+
+def _cache_write(file: Path, prepared: PreparedMesh) -> None:
+    info = {"method": prepared.method, "volume": prepared.volume, "mass_from": prepared.mass_from,
+            "warning": prepared.warning, "watertight": prepared.watertight}
+    try:
+        file.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(file, error=MeshError) as tmp:
+            with open(tmp, "wb") as f:
+                np.savez(f, count=len(prepared.parts), com=prepared.com, unit_inertia=prepared.unit_inertia,
+                         surface_vertices=np.asarray(prepared.surface.vertices, np.float64),
+                         surface_faces=np.asarray(prepared.surface.faces, np.int64),
+                         info=json.dumps(info), **{f"part{i}": p for i, p in enumerate(prepared.parts)})
+    except (OSError, MeshError) as err:
+        log.warning("cannot cache the prepared mesh in %s: %s", file.parent, err)
+
+
+def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParams(),
+                 cache_dir: str | os.PathLike | None = None,
+                 progress: Callable[[str, float], None] | None = None) -> PreparedMesh:
+    """The collision model of a mesh: convex parts and mass properties (module docstring).
+
+    source: a mesh file (OBJ, STL, PLY, OFF, GLB) or a ``trimesh.Trimesh`` (its arrays as
+    they are); scale: multiplies the coordinates (0.001 for a file in millimetres);
+    cache_dir: where prepared models are kept (default :func:`default_cache_dir`);
+    progress(stage, fraction): called while decimation/decomposition runs (fraction of
+    the time limit spent). Raises :class:`MeshError` on a mesh that cannot be simulated.
+    The fallback's warning is logged once per call and kept in ``warning``.
+    """
+    import trimesh
+
+    t0 = time.perf_counter()
+    scale = _check_scale(scale)
+    if isinstance(source, trimesh.Trimesh):
+        name, label = "the mesh", "<trimesh>"
+        vertices, faces = np.asarray(source.vertices, np.float64), np.asarray(source.faces, np.int64)
+    else:
+        path = check_mesh_path(source)
+        name, label = f"mesh {path.name}", str(path)
+        vertices, faces = _read_arrays(path)
+    check_mesh_arrays(vertices, faces, scale=scale, name=name)
+    key = _key(vertices, faces, scale, params)
+    # a complete model serves any time limit; a fallback only the limit that gave it
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    file, fallback = folder / f"{key}.npz", folder / f"{key}.hull-{params.time_limit:g}s.npz"
+    cached = _cache_read(file) or _cache_read(fallback)
+    if cached is not None:
+        out = PreparedMesh(cached["parts"], cached["method"], float(cached["volume"]), np.asarray(cached["com"]),
+                           np.asarray(cached["unit_inertia"]), cached["mass_from"], cached["surface"], len(faces),
+                           bool(cached["watertight"]), cached["warning"], key, True, time.perf_counter() - t0, label,
+                           scale)
+    else:
+        mesh = _clean(vertices, faces, scale, name)
+        parts, method, warning, cacheable = _build(mesh, params, name, progress)
+        volume, com, unit, mass_from = _mass_properties(mesh, parts)
+        out = PreparedMesh(tuple(parts), method, volume, com, unit, mass_from, mesh, len(faces),
+                           bool(mesh.is_watertight), warning, key, False, time.perf_counter() - t0, label, scale)
+        if cacheable:  # a fallback the machine's load made is not pinned
+            _cache_write(fallback if method == "hull" else file, out)
+        log.info("prepared %s: %d convex parts (%s) in %.1f s", name, len(parts), method, out.seconds)
+    if out.warning:
+        log.warning("%s%s", out.warning, " (cached)" if out.from_cache else "")
+    return out
 
 
 def convex_parts(mesh, params: CoacdParams = CoacdParams(), *,
                  cache_dir: str | os.PathLike | None = None) -> list[np.ndarray]:
-    """Convex parts of ``mesh`` as a list of vertex arrays (V_i, 3) in the mesh's frame.
-
-    A convex mesh is returned as its own hull without running CoACD. Results are cached
-    in ``cache_dir`` (see the module docstring); pass the same folder to reuse them.
-    """
-    if mesh.is_convex:
-        return [np.asarray(mesh.convex_hull.vertices, dtype=float)]
-    cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    key = _key(mesh.vertices, mesh.faces, params)
-    file = cache / f"{key}.npz"
-    if file.is_file():
-        try:
-            with np.load(file) as z:
-                parts = [z[f"part{i}"] for i in range(int(z["count"]))]
-            log.debug("CoACD cache hit %s (%d parts)", file, len(parts))
-            return parts
-        except (OSError, KeyError, ValueError) as err:
-            log.warning("ignoring unreadable CoACD cache file %s: %s", file, err)
-    try:
-        import coacd
-    except ImportError as err:
-        raise DependencyNotInstalled(
-            "convex decomposition of meshes needs CoACD: pip install coacd") from err
-    coacd.set_log_level("error")
-    try:
-        result = coacd.run_coacd(
-            coacd.Mesh(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32)),
-            threshold=params.threshold, max_convex_hull=params.max_parts,
-            preprocess_resolution=params.preprocess_resolution, seed=params.seed,
-        )
-    except Exception as err:
-        raise MeshError(f"CoACD failed to decompose the mesh: {err}") from err
-    parts = [np.asarray(v, dtype=float) for v, _ in result if len(v) >= 4]
-    if not parts:
-        raise MeshError("CoACD returned no convex part with a volume")
-    log.info("CoACD split a %d-face mesh into %d convex parts", len(mesh.faces), len(parts))
-    try:
-        cache.mkdir(parents=True, exist_ok=True)
-        with atomic_path(file, error=MeshError) as tmp:
-            with open(tmp, "wb") as f:
-                np.savez(f, count=len(parts), **{f"part{i}": p for i, p in enumerate(parts)})
-    except (OSError, MeshError) as err:
-        log.warning("cannot cache CoACD parts in %s: %s", cache, err)
-    return parts
+    """Convex parts of the trimesh ``mesh`` as a list of vertex arrays (V_i, 3) in the
+    mesh's frame: ``prepare_mesh(mesh, ...).parts``."""
+    return list(prepare_mesh(mesh, params=params, cache_dir=cache_dir).parts)

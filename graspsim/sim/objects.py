@@ -5,7 +5,7 @@
 * A half-toroid is cut into ``pieces`` tube segments, each the convex hull of its two
   end circles (12 pieces of 15 deg leave the surface within 0.9 % of the ring radius).
 * A compound is the union of its parts' geoms, each placed by the part's pose.
-* Arbitrary meshes are split into convex parts with CoACD (:mod:`graspsim.sim.meshes`).
+* Arbitrary meshes are prepared by :func:`graspsim.sim.meshes.prepare_mesh` (convex parts).
 
 The body frame of the simulated object is the object frame of the map. Mass comes from
 a density or is given; inertia is analytic for primitives, summed over parts (overlaps
@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from graspsim.errors import MeshError, SimulationError
+from graspsim.errors import SimulationError
 from graspsim.primitives import Box, Compound, Cone, Cylinder, HalfToroid, Primitive, Sphere
-from graspsim.sim.meshes import CoacdParams, convex_parts, load_mesh
+from graspsim.sim.meshes import CoacdParams, PreparedMesh, prepare_mesh
 from graspsim.transforms import matrix_to_quat, quat_to_matrix, transform_points
 
 __all__ = ["GeomPart", "SimObject", "object_from_shape", "object_from_mesh"]
@@ -129,40 +129,34 @@ def object_from_shape(shape: Primitive | Compound, *, mass: float | None = None,
                      shape.mesh(32), shape.to_dict())
 
 
-def object_from_mesh(path: str | os.PathLike, *, T_obj_mesh: np.ndarray | None = None,
+def object_from_mesh(path, *, T_obj_mesh: np.ndarray | None = None,
                      scale: float = 1.0, mass: float | None = None, density: float = 1000.0,
                      coacd: CoacdParams = CoacdParams(),
-                     cache_dir: str | os.PathLike | None = None) -> SimObject:
-    """A mesh file as a simulation object, split into convex parts by CoACD (cached).
+                     cache_dir: str | os.PathLike | None = None, progress=None) -> SimObject:
+    """A mesh file as a simulation object: its collision model from
+    :func:`~graspsim.sim.meshes.prepare_mesh` (convex parts, bounded and cached; mass
+    properties of the closed mesh, else of its parts), placed in the object frame.
 
+    path: a mesh file, or a :class:`~graspsim.sim.meshes.PreparedMesh` already prepared
+    (then ``scale``, ``coacd``, ``cache_dir`` and ``progress`` are not used).
     T_obj_mesh: 4x4 pose of the mesh's frame in the object frame (default identity);
     for a map adapted from a point cloud, ``inv(T_cloud_obj)`` when mesh and cloud
-    share a frame. scale: multiplies the file's coordinates (e.g. 0.001 for mm files).
+    share a frame. The model is prepared in the mesh's own frame, so one cache entry
+    serves every placement. scale: multiplies the file's coordinates (e.g. 0.001 for mm files).
     """
-    import trimesh
-
-    mesh = load_mesh(path, scale=scale)
+    prepared = path if isinstance(path, PreparedMesh) else prepare_mesh(
+        path, scale=scale, params=coacd, cache_dir=cache_dir, progress=progress)
+    T = np.eye(4)
     if T_obj_mesh is not None:
         T = np.asarray(T_obj_mesh, dtype=float)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise SimulationError(f"T_obj_mesh must be a finite 4x4 transform, got shape {T.shape}")
-        mesh.apply_transform(T)
-    parts = convex_parts(mesh, coacd, cache_dir=cache_dir)
-    hulls = [trimesh.convex.convex_hull(p) for p in parts]
-    if mesh.is_watertight and mesh.volume > 0:
-        volume, com, unit = mesh.volume, mesh.center_mass, mesh.moment_inertia / mesh.volume
-    else:  # the union of the convex parts stands in for the solid
-        vols = np.array([h.volume for h in hulls])
-        if not vols.sum() > 0:
-            raise MeshError(f"mesh {path} encloses no volume")
-        volume = float(vols.sum())
-        com = sum(v * h.center_mass for v, h in zip(vols, hulls)) / volume
-        unit = np.zeros((3, 3))
-        for v, h in zip(vols, hulls):
-            d = h.center_mass - com
-            unit += h.moment_inertia + v * (d @ d * np.eye(3) - np.outer(d, d))
-        unit /= volume
-    m = _mass(volume, mass, density)
-    desc = {"primitive": "mesh", "file": str(path), "scale": scale, "parts": len(parts)}
-    return SimObject(tuple(GeomPart("mesh", vertices=p) for p in parts), m,
-                     np.asarray(com, float), m * unit, mesh, desc)
+    R = T[:3, :3]
+    surface = prepared.surface.copy()
+    if T_obj_mesh is not None:
+        surface.apply_transform(T)
+    m = _mass(prepared.volume, mass, density)
+    desc = {"primitive": "mesh", "file": prepared.source, "scale": prepared.scale, "parts": len(prepared.parts),
+            "model": prepared.describe()}
+    return SimObject(tuple(GeomPart("mesh", vertices=transform_points(T, p)) for p in prepared.parts), m,
+                     R @ prepared.com + T[:3, 3], m * (R @ prepared.unit_inertia @ R.T), surface, desc)

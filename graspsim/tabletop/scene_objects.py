@@ -22,6 +22,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.primitives import Box, Cylinder, Sphere, shape_from_dict
 from graspsim.primitives.case_study import ANALOGS
+from graspsim.sim.meshes import CoacdParams
 from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape
 
 __all__ = ["ObjectSpec", "OBJECT_SETS", "draw_object", "narrowest_extent", "MESHES", "ASSETS"]
@@ -30,6 +31,9 @@ __all__ = ["ObjectSpec", "OBJECT_SETS", "draw_object", "narrowest_extent", "MESH
 ASSETS = package_path("assets", "objects")
 #: Mesh objects by name: (file under ASSETS, scale).
 MESHES = {"bread": ("robosuite/bread.stl", 1.0)}
+#: How the shipped meshes are prepared: CoACD without a time limit (the same parts on
+#: every machine, however loaded; they are small and cached after the first use).
+SHIPPED = CoacdParams(time_limit=math.inf)
 #: The object sets a scene draws from.
 OBJECT_SETS = ("primitives", "analogs", "meshes", "mixed")
 DENSITY = 500.0  # kg/m^3: household objects are hollow or light (water would be 1000)
@@ -81,7 +85,8 @@ def _sim_object(key: str) -> SimObject:
     spec = ObjectSpec.from_dict(json.loads(key))
     if spec.source == "mesh":
         file, scale = MESHES[spec.name]
-        return object_from_mesh(ASSETS / file, scale=scale, density=spec.density)
+        # no time limit: a scene's objects must not depend on the machine's load
+        return object_from_mesh(ASSETS / file, scale=scale, density=spec.density, coacd=SHIPPED)
     return object_from_shape(shape_from_dict(spec.shape), density=spec.density)
 
 

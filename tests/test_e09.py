@@ -50,6 +50,7 @@ def test_the_single_view_sees_the_near_side_only():
     assert seen[~near].mean() < 0.05
 
 
+@pytest.mark.slow
 def test_e09_quick_on_the_vendored_mesh(tmp_path):
     e09 = _e09()
     out = tmp_path / "e09"

@@ -60,6 +60,7 @@ def test_index_is_json(tmp_path):
     assert data["format"] == "graspsim-db-1" and data["maps"][0]["primitive"] == "sphere"
 
 
+@pytest.mark.slow
 def test_concurrent_builders_lose_no_index_record(tmp_path):
     from graspsim.executors import ProcessExecutor
 

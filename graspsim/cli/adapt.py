@@ -9,11 +9,13 @@ from graspsim.cli._common import (
     add_mode_flag,
     add_units_flag,
     add_viewpoint_flag,
+    dims_text,
     emit,
     format_table,
     gripper_from_args,
     stored_text,
     viewpoint_from_args,
+    with_glossary,
 )
 from graspsim.cli.maps import _add_generation, _config
 
@@ -23,15 +25,14 @@ __all__ = ["register"]
 def _cmd_adapt(args) -> int:
     import sys
 
-    from graspsim._atomic import check_output
     from graspsim.maps.database import MapDatabase
-    from graspsim.maps.io import save_map
+    from graspsim.maps.io import check_map_output, save_map
     from graspsim.perception import read_point_cloud
     from graspsim.perception.acceptance import FitQuality
     from graspsim.planning.adapt import adapt_cloud, adapt_config
 
     # every option and the output path before the cloud is read or anything computed
-    out = check_output(args.output, "map", others={"input cloud": args.cloud})
+    out = check_map_output(args.output, others={"input cloud": args.cloud})
     gripper = gripper_from_args(args)
     cfg = adapt_config(mode=args.mode, table=None if args.table is None else (
         "auto" if args.table == "auto" else _height(args.table)), table_normal=args.table_normal,
@@ -56,10 +57,9 @@ def _cmd_adapt(args) -> int:
     vp = result.map.meta.extra.get("viewpoint")
     s.update(file=str(out) if why is None else None, cloud=args.cloud, points=len(cloud.points),
              units=cloud.units, dropped=cloud.n_dropped, timing=result.timing, viewpoint=vp, seed=args.seed)
-    rows = [(p["primitive"], {k: round(v, 4) for k, v in p["dims"].items()}, p["match"], stored_text(p))
-            for p in s["parts"]]
+    rows = [(p["primitive"], dims_text(p["dims"]), p["match"], stored_text(p)) for p in s["parts"]]
     first = s["time_to_first_0.95"]
-    human = (format_table(rows, ["part", "dims [m]", "match", "stored map (size ratio)"]) +
+    human = (format_table(rows, ["part", "dims", "match", "stored map (size ratio)"]) +
              f"\n{s['status']}: {s['grasps']} grasps, {s['accepted']} > 0.7 in {s['seconds']:.3f} s"
              + (f"; first grasp > 0.95 after {first * 1e3:.1f} ms" if first is not None else "")
              + (f"; {s['table']['dropped']} grasps below the table (height "
@@ -121,4 +121,5 @@ def register(sub) -> None:
     add_viewpoint_flag(p)
     _add_generation(p)
     add_json_flag(p)
+    with_glossary(p, "known / familiar / build", "FS map", "grade", "robust score")
     p.set_defaults(func=_cmd_adapt)

@@ -28,11 +28,13 @@ from graspsim.cli._common import (
     add_mode_flag,
     add_units_flag,
     add_viewpoint_flag,
+    dims_text,
     emit,
     format_table,
     gripper_from_args,
     stored_text,
     viewpoint_from_args,
+    with_glossary,
 )
 from graspsim.errors import DependencyNotInstalled
 
@@ -71,6 +73,7 @@ def register(subparsers) -> None:
                      "(default), franka_hand or a gripper spec .json")
     add_viewpoint_flag(p)
     add_json_flag(p)
+    with_glossary(p, "known / familiar / build", "FS map")
     p.set_defaults(func=run)
 
 
@@ -141,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
         "database": db_root,
         "viewpoint": None if viewpoint is None else [float(v) for v in viewpoint],
     }
-    rows = [[i, p["primitive"], ", ".join(f"{k}={v * 100:.2f} cm" for k, v in p["dims"].items()),
+    rows = [[i, p["primitive"], dims_text(p["dims"]),
              f"{p['fit_rate']:.3f}", p["points"], p["match"] or "-", stored_text(p)] for i, p in enumerate(parts)]
     rows += [[f"u{i}", "unidentified", "", f"{p.fit_rate:.3f}", p.n_points, "-", "-"]
              for i, p in enumerate(res.unidentified)]

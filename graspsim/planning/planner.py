@@ -197,8 +197,14 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
     skipped instead of streamed unscored (for a caller that keeps only scored grasps,
     as a scene does: the same scored grasps, sooner; the final map then lacks the
     skipped ones)."""
+    from graspsim.maps.occlusion import check_viewpoint
+    from graspsim.seeding import check_rng
+
     cfg = config or PlannerConfig()
     t0 = time.perf_counter()
+    if identification is None or rng is not None:  # given the identification, nothing is drawn
+        check_rng(rng)
+    viewpoint = check_viewpoint(viewpoint)  # a bad one fails now, not after the identification
     points = np.asarray(points, float)
     ident = identification if identification is not None else identify(points, rng=rng, config=cfg.identify)
     timing = {"identify": time.perf_counter() - t0}

@@ -59,6 +59,10 @@ class MapTrials:
     scene: Scene
     group: str | None
     width: np.ndarray | None = None
+    #: results of earlier runs the map file held in ``group`` and kept beside these (rows)
+    kept: int = 0
+    #: results of earlier runs this run replaced (``replace=True``; rows)
+    replaced: int = 0
     file: Path | None = None
     viewpoint: list | None = None
 
@@ -147,11 +151,50 @@ def map_object(gmap: GraspabilityMap, *, mesh: str | os.PathLike | PreparedMesh 
     return object_from_shape(shape, mass=mass, density=density)
 
 
+def _group(results: TrialResults) -> str:
+    return RESULT_GROUPS.get(results.protocol["name"], "grasps/qualities/mujoco_" + results.protocol["name"])
+
+
+def stored_results(path: str | os.PathLike, protocol: Protocol, scene: Scene, noise: ExecutionNoise | None,
+                   index: np.ndarray) -> tuple[str, int, str | None]:
+    """What storing trials of map rows ``index`` (with this protocol, scene and noise)
+    would do to the results the file already holds: (group, rows held, None when the new
+    rows can be stored beside them, else why they would be replaced)."""
+    group = RESULT_GROUPS.get(protocol.name, "grasps/qualities/mujoco_" + protocol.name)
+    try:
+        old = read_sim_results(path, group)
+    except MapFileError:  # unreadable: write_sim_results saves the new results aside
+        return group, 0, None
+    held = np.asarray(old.get("simulated", ()), bool)
+    if not held.any():
+        return group, 0, None
+    info = old.get("info", {})
+    new = {"protocol": protocol.to_dict(), "scene": scene.info(),
+           "noise": None if noise is None else noise.to_dict()}
+    other = [k for k in ("protocol", "scene", "noise") if info.get(k) != _jsonish(new[k])]
+    if other:
+        return group, int(held.sum()), f"made with another {' and '.join(other)}"
+    again = int(held[np.asarray(index)[np.asarray(index) < len(held)]].sum())
+    if again:
+        return group, int(held.sum()), f"{again} of the grasps selected now among them"
+    return group, int(held.sum()), None
+
+
+def _jsonish(value):
+    """``value`` as it reads back from the file's JSON record (tuples as lists ...)."""
+    import json
+
+    from graspsim._jsonable import to_jsonable
+
+    return json.loads(json.dumps(to_jsonable(value)))
+
+
 def write_results(path: str | os.PathLike, n_rows: int, index: np.ndarray,
                   results: TrialResults) -> str:
     """Store results for map rows ``index`` in the map file (merging earlier rows of the
-    same protocol and scene); returns the group written."""
-    group = RESULT_GROUPS.get(results.protocol["name"], "grasps/qualities/mujoco_" + results.protocol["name"])
+    same protocol and scene; results of other settings are replaced: see
+    :func:`stored_results`); returns the group written."""
+    group = _group(results)
     info = results.info()
     arrays = {"simulated": np.zeros(n_rows, bool)}
     for k, v in results.arrays().items():
@@ -162,7 +205,7 @@ def write_results(path: str | os.PathLike, n_rows: int, index: np.ndarray,
     except MapFileError as err:  # the file went bad during the run: write_sim_results saves aside
         log.warning("cannot read earlier results of %s: %s", path, err)
         old = {}
-    same = all(old.get("info", {}).get(k) == info[k] for k in ("protocol", "scene", "noise"))
+    same = all(old.get("info", {}).get(k) == _jsonish(info[k]) for k in ("protocol", "scene", "noise"))
     if old and same and "simulated" in old:
         keep = np.asarray(old["simulated"], bool)
         for k in arrays:
@@ -199,7 +242,7 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                  threads: int | None = None, seed: int = 0, noise: ExecutionNoise | None = None,
                  mesh: str | os.PathLike | PreparedMesh | None = None, mesh_scale: float = 1.0,
                  mass: float | None = None, settings: SimSettings | None = None,
-                 write: bool = True, cache_dir=None, on_progress=None,
+                 write: bool = True, replace_stored: bool = False, cache_dir=None, on_progress=None,
                  on_selected=None, on_record=None, rank: str = "robust",
                  separation: tuple[float, float] | None = None,
                  dataset: dict | None = None) -> MapTrials:
@@ -215,6 +258,12 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     beside itself first (see the module doc; ``mesh`` / ``mesh_scale`` then name its
     object's mesh, ``dataset`` holds the other arguments of
     :func:`~graspsim.maps.formats.read_grasp_file`) and the results go to that map.
+
+    Results the file already holds are kept: the new rows are stored beside them when
+    they were made with the same protocol, scene and noise and simulate other grasps;
+    otherwise storing would replace them, which needs ``replace_stored=True`` (else an
+    :class:`~graspsim.errors.InvalidParameterError` before anything is simulated;
+    ``write=False`` stores nothing). ``MapTrials.kept`` / ``.replaced`` say which.
     """
     path, mesh = _simulated_file(Path(path), mesh, mesh_scale, dataset)
     gmap = load_map(path)
@@ -231,6 +280,14 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                      map_dir=path.parent, cache_dir=cache_dir)
     scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity,
                         T_world_obj=observed_placement(gmap, obj, mesh is not None))
+    held, why = 0, None
+    if write and len(index):
+        group, held, why = stored_results(path, protocol, scene, noise, index)
+        if why is not None and not replace_stored:
+            raise InvalidParameterError(
+                f"{path.name} already holds the results of {held} trials in {group} ({why}): storing "
+                "these would replace them; pass --replace (replace_stored=True) to replace them, or "
+                "--no-write (write=False) to keep them and store nothing")
     chosen = gmap.select(index)  # transforms of the chosen rows only (all of a 10 M-grasp map: 1.2 GB)
     width = executed_width(chosen)
     results = run_trials(scene, chosen.T_obj_wrist, width, protocol,
@@ -240,7 +297,8 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                                       "mesh": None if mesh is None else str(getattr(mesh, "source", mesh))})
     group = write_results(path, len(gmap), index, results) if write and len(index) else None
     return MapTrials(index=index, results=results, scene=scene, group=group, width=width, file=path,
-                     viewpoint=gmap.meta.extra.get("viewpoint"))
+                     viewpoint=gmap.meta.extra.get("viewpoint"),
+                     kept=held if group and why is None else 0, replaced=held if group and why else 0)
 
 
 def _simulated_file(path: Path, mesh, mesh_scale: float, dataset: dict | None):

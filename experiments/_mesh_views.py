@@ -12,7 +12,7 @@ from _scenes import camera_position
 from graspsim.sim.scene import resting_pose
 from graspsim.transforms import make_transform
 
-__all__ = ["rest_on_table", "surface_points", "visible", "clouds"]
+__all__ = ["rest_on_table", "rest_stable", "surface_points", "visible", "clouds"]
 
 
 def rest_on_table(mesh, obj, rng: np.random.Generator):
@@ -82,3 +82,22 @@ def clouds(mesh, cfg, rng: np.random.Generator) -> dict[str, np.ndarray]:
     ray = (p - cam) / np.linalg.norm(p - cam, axis=1, keepdims=True)
     single = p + rng.normal(0.0, cfg.noise, len(p))[:, None] * ray
     return {"full": full, "single": single, "camera": cam}
+
+
+def rest_stable(mesh, obj, rng: np.random.Generator):
+    """The mesh (a copy) on its most probable stable face (trimesh's
+    ``compute_stable_poses``: the quasi-static topple graph over the hull's faces),
+    lowest point at z = 0, turned by a random yaw about the vertical through its centre
+    of mass; and T_world_mesh. ``obj`` is unused (the signature of :func:`rest_on_table`)."""
+    import trimesh
+
+    poses, prob = trimesh.poses.compute_stable_poses(mesh)
+    T = poses[int(np.argmax(prob))]
+    a = rng.uniform(0.0, 2.0 * math.pi)
+    Rz = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    out = mesh.copy()
+    out.apply_transform(T)
+    c = np.asarray(out.center_mass if out.is_watertight else out.bounds.mean(axis=0), float)
+    T2 = make_transform(Rz, np.zeros(3)) @ make_transform(np.eye(3), [-c[0], -c[1], -out.bounds[0, 2]])
+    out.apply_transform(T2)
+    return out, T2 @ T

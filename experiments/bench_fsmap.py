@@ -196,7 +196,7 @@ def bench_db(tmp: Path) -> dict:
     for case, executor, cache in (("serial", "serial", None), ("local", "local", None),
                                   ("serial_cold_cache", "serial", tempfile.mkdtemp(dir=tmp))):
         root = tmp / f"db_{case}"
-        r = _child(_graspsim_cmd() + ["db", "build", "--root", str(root), "--executor", executor,
+        r = _child(_graspsim_cmd() + ["db", "build", "--db", str(root), "--executor", executor,
                                       "--json"], _cache_env(cache))
         maps = json.loads(r.pop("stdout").strip().splitlines()[-1])["maps"]
         r.pop("stderr")

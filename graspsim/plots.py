@@ -11,7 +11,11 @@ import numpy as np
 
 from graspsim.maps.graspmap import GraspabilityMap
 
-__all__ = ["plot_map", "plot_maps", "plot_clouds", "map_figure", "image_format", "plot_design", "pyplot"]
+__all__ = ["PLOT_POINTS", "plot_map", "plot_maps", "plot_clouds", "map_figure", "image_format", "plot_design",
+           "pyplot"]
+
+#: The most grasps a map plot draws (a uniform sample of the rest; the plot says so).
+PLOT_POINTS = 30000
 
 _FORMATS = ("png", "pdf", "svg", "jpg", "jpeg", "tif", "tiff", "webp", "eps", "ps")
 
@@ -44,38 +48,56 @@ def pyplot():
     return plt
 
 
+#: what one dot of a map plot is, by ``what``
+_DOT = {"grasp_point": "a grasp's grasp point (midway between its contacts)", "wrist": "a grasp's wrist position"}
+
+
 def _draw(ax, gmap: GraspabilityMap, what: str, max_points: int, min_grade: float, title: str):
+    """One map on ``ax``; returns the scatter and the note of what was drawn."""
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
+
     from graspsim.primitives import shape_from_dict
 
     sel = np.flatnonzero(gmap.above(min_grade))
-    if len(sel) > max_points:  # deterministic thinning, keeps the best grasps visible
+    shown = len(sel)
+    if len(sel) > max_points:  # a uniform sample, deterministic (drawn best last: on top)
         sel = np.sort(np.random.default_rng(0).choice(sel, max_points, replace=False))
     pts = (gmap.grasp_point if what == "grasp_point" else gmap.wrist_position)[sel]
     g = gmap.grade[sel]
     order = np.argsort(g)
     sc = ax.scatter(*pts[order].T, c=g[order], cmap="viridis", vmin=0.0, vmax=1.0, s=2, depthshade=False)
+    extent = [pts] if len(pts) else []
     try:
         mesh = shape_from_dict(gmap.meta.object).mesh(sections=32)
         ax.plot_trisurf(*mesh.vertices.T, triangles=mesh.faces, color=(0.7, 0.7, 0.7, 0.25),
                         edgecolor="none")
+        extent.append(mesh.vertices)  # the axes hold the whole object, whatever is drawn
     except Exception:  # noqa: BLE001 - a mesh-referenced object: draw the grasps only
         pass
-    allp = pts if len(pts) else np.zeros((1, 3))
+    allp = np.concatenate(extent) if extent else np.zeros((1, 3))
     c = 0.5 * (allp.max(0) + allp.min(0))
-    r = 0.5 * float(np.max(allp.max(0) - allp.min(0))) or 0.05
+    r = 0.5 * float(np.max(allp.max(0) - allp.min(0))) * 1.05 or 0.05
     ax.set_xlim(c[0] - r, c[0] + r)
     ax.set_ylim(c[1] - r, c[1] + r)
     ax.set_zlim(c[2] - r, c[2] + r)
-    ax.set_xlabel("x [m]", labelpad=8)
-    ax.set_ylabel("y [m]", labelpad=8)
-    ax.set_zlabel("z [m]", labelpad=8)
+    cm = FuncFormatter(lambda v, _: f"{100 * v:.3g}")
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(4))  # few ticks: no labels run into each other
+        axis.set_major_formatter(cm)
+    ax.tick_params(labelsize=7, pad=1)
+    ax.set_xlabel("x [cm]", labelpad=2)
+    ax.set_ylabel("y [cm]", labelpad=2)
+    ax.set_zlabel("z [cm]", labelpad=2)
     ax.set_box_aspect(None, zoom=0.82)  # room inside the axes for the z label
-    ax.set_title(title, fontsize=9)
+    among = f"grasps with grade > {min_grade:g}" if min_grade > 0 else "grasps"
+    drawn = (f"all {shown:,} {among} drawn" if len(sel) == shown
+             else f"a uniform sample of {len(sel):,} of the {shown:,} {among} drawn")
+    ax.set_title(f"{title}\n{drawn}", fontsize=8)
     return sc
 
 
 def plot_map(gmap: GraspabilityMap, path: str | os.PathLike, *, what: str = "grasp_point",
-             min_grade: float = 0.0, max_points: int = 30000, title: str | None = None,
+             min_grade: float = 0.0, max_points: int = PLOT_POINTS, title: str | None = None,
              format: str | None = None) -> None:
     """Save a 3-D scatter of grasp points (or ``what="wrist"`` positions) coloured by
     grade, over a translucent mesh of the object."""
@@ -84,7 +106,7 @@ def plot_map(gmap: GraspabilityMap, path: str | os.PathLike, *, what: str = "gra
 
 
 def plot_maps(maps: list[GraspabilityMap], path: str | os.PathLike, *, what: str = "grasp_point",
-              min_grade: float = 0.0, max_points: int = 30000, titles: list[str] | None = None,
+              min_grade: float = 0.0, max_points: int = PLOT_POINTS, titles: list[str] | None = None,
               format: str | None = None) -> None:
     """Several maps side by side with one colour bar (e.g. FS vs adapted, paper fig. 5).
 
@@ -103,7 +125,7 @@ def plot_maps(maps: list[GraspabilityMap], path: str | os.PathLike, *, what: str
 
 
 def map_figure(maps: list[GraspabilityMap], *, what: str = "grasp_point", min_grade: float = 0.0,
-               max_points: int = 30000, titles: list[str] | None = None):
+               max_points: int = PLOT_POINTS, titles: list[str] | None = None):
     """The matplotlib figure :func:`plot_maps` saves (the caller closes it)."""
     if what not in ("grasp_point", "wrist"):
         from graspsim.errors import InvalidParameterError
@@ -118,6 +140,8 @@ def map_figure(maps: list[GraspabilityMap], *, what: str = "grasp_point", min_gr
         default = f"{obj.get('primitive', 'object')}: {len(m)} grasps, {int(m.accepted.sum())} > {m.threshold:g}"
         sc = _draw(ax, m, what, max_points, min_grade, titles[i] if titles else default)
     fig.colorbar(sc, ax=fig.axes, shrink=0.6, pad=0.06, label="grade")
+    fig.text(0.5, 0.03, f"each dot: {_DOT[what]}, coloured by its grade; grey: the object", fontsize=7,
+             ha="center")
     return fig
 
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError
 
-__all__ = ["name_key", "seed_sequence", "rng_for", "derived_seed"]
+__all__ = ["name_key", "seed_sequence", "rng_for", "derived_seed", "check_rng"]
 
 
 def name_key(name: str) -> int:
@@ -46,3 +46,15 @@ def derived_seed(seed: int, *keys: int | str) -> int:
     """An integer seed (< 2**32) drawn from :func:`seed_sequence` ``(seed, *keys)``,
     for APIs that take an int (``run_trials(seed=)``, ``env.reset(seed=)``)."""
     return int(seed_sequence(seed, *keys).generate_state(1)[0])
+
+
+def check_rng(rng, name: str = "rng") -> np.random.Generator:
+    """``rng`` if it is a numpy Generator, else an InvalidParameterError saying what to
+    pass (library functions draw from the Generator they are given; they never seed
+    themselves)."""
+    if not isinstance(rng, np.random.Generator):
+        from graspsim.errors import InvalidParameterError
+
+        raise InvalidParameterError(f"{name} must be a numpy Generator (e.g. numpy.random.default_rng(seed) or "
+                                    f"graspsim.seeding.rng_for(seed)), got {type(rng).__name__} {rng!r}")
+    return rng

@@ -217,7 +217,7 @@ def test_mm_cloud_is_caught_by_identify_and_units_mm_converts(tmp_path, capsys):
 @pytest.fixture(scope="module")
 def fast_db(tmp_path_factory):
     root = tmp_path_factory.mktemp("db")
-    assert main(["db", "build", "--primitives", "cylinder", "--root", str(root), *FAST_FLAGS, "--json"]) == 0
+    assert main(["db", "build", "--primitives", "cylinder", "--db", str(root), *FAST_FLAGS, "--json"]) == 0
     return root
 
 
@@ -422,18 +422,18 @@ def test_db_check_reports_and_repairs_a_corrupted_and_a_zero_radius_map(fast_db,
     # the zero-radius record is never a lookup source, even before the repair
     assert good["key"] in [e["key"] for e in db.entries()]
     assert not any(e["key"].startswith("zero") for e in db.entries())
-    assert main(["db", "check", "--root", str(root), "--json"]) == 1
+    assert main(["db", "check", "--db", str(root), "--json"]) == 1
     rep = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert rep["maps"] == 4 and rep["valid"] == 1 and not rep["ok"]
     why = {p["file"]: p["problem"] for p in rep["problems"]}
     assert "unreadable" in why[f"cylinder/corrupt_{good['settings']}.h5"]
     assert "radius must be >= 0.001 m" in why[f"cylinder/zero_{good['settings']}.h5"]
     assert "missing" in why["cylinder/gone.h5"] and "stale temporary" in why["cylinder/.x.h5.abcd.tmp"]
-    assert main(["db", "check", "--root", str(root), "--repair"]) == 0
+    assert main(["db", "check", "--db", str(root), "--repair"]) == 0
     text = capsys.readouterr().out
     assert "4 problems, all repaired" in text
     assert sorted(p.name for p in (root / "cylinder").iterdir()) == [good["file"].split("/")[1]]
-    assert main(["db", "check", "--root", str(root)]) == 0
+    assert main(["db", "check", "--db", str(root)]) == 0
     assert "no problems" in capsys.readouterr().out
     assert [e["key"] for e in json.loads((root / "index.json").read_text())["maps"]] == [good["key"]]
 

@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from test_experiments import _load  # the experiment scripts' loader
 
 from graspsim.maps.rowids import first_rows, row_ids
@@ -45,6 +46,7 @@ def test_stage_clock_counts_production_not_consumption():
     assert 0.06 <= clock.seconds["make"] < clock.seconds["use"] and clock.seconds["use"] >= 0.15
 
 
+@pytest.mark.slow
 def test_bench_identify_quick(tmp_path):
     bench = _load("bench_identify")
     out = tmp_path / "b"

@@ -17,7 +17,7 @@ def test_adapt_writes_map_with_cloud_transform(tmp_path, capsys):
     db = tmp_path / "db"
     db.mkdir()
     # a coarse database so the first-use build stays quick
-    assert main(["db", "build", "--primitives", "cylinder", "--root", str(db), "--surface-step", "0.01",
+    assert main(["db", "build", "--primitives", "cylinder", "--db", str(db), "--surface-step", "0.01",
                  "--rotation-step-deg", "22", "--json"]) == 0
     capsys.readouterr()
     out = tmp_path / "a.h5"

@@ -58,22 +58,22 @@ def test_a_bad_spec_is_one_line_and_exit_2_before_any_output(tmp_path, capsys, t
     err = capsys.readouterr().err
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert not out.exists()
-    assert main(["db", "list", "--root", str(tmp_path / "db"), "--gripper", "robotiq"]) == 2
+    assert main(["db", "list", "--db", str(tmp_path / "db"), "--gripper", "robotiq"]) == 2
     assert "unknown gripper 'robotiq'" in capsys.readouterr().err
 
 
 def test_one_database_keeps_each_grippers_maps_apart(tmp_path, spec_file, capsys):
     root = str(tmp_path / "db")
     for g in ([], ["--gripper", str(spec_file)]):
-        assert main(["db", "build", "--primitives", "cylinder", "--root", root, *COARSE, *g, "--json",
+        assert main(["db", "build", "--primitives", "cylinder", "--db", root, *COARSE, *g, "--json",
                      "--executor", "serial"]) == 0
         capsys.readouterr()
-    assert main(["db", "list", "--root", root, "--json"]) == 0
+    assert main(["db", "list", "--db", root, "--json"]) == 0
     maps = _last_json(capsys)["maps"]
     assert sorted(m["gripper"] for m in maps) == sorted([HGPL_25_60_A.name, "my_gripper"])
     assert len({m["settings"] for m in maps}) == 2 and len({m["file"] for m in maps}) == 2
     for g, name in (([], HGPL_25_60_A.name), (["--gripper", str(spec_file)], "my_gripper")):
-        assert main(["db", "lookup", "cylinder", "--radius", "0.02", "--height", "0.2", "--root", root,
+        assert main(["db", "lookup", "cylinder", "--radius", "0.02", "--height", "0.2", "--db", root,
                      *COARSE, *g, "--json"]) == 0
         s = _last_json(capsys)
         assert s["match"] == "known" and s["nearest"]["gripper"] == name

@@ -35,7 +35,8 @@ def test_json_summary(cylinder_file, capsys, tmp_path, monkeypatch):
     out = _json(capsys)
     assert out["status"] == "identified" and out["dropped_nonfinite"] == 5
     (part,) = out["parts"]
-    assert set(part) == {"primitive", "dims", "pose", "match", "fit_rate", "points", "approximate", "band_rate"}
+    assert set(part) == {"primitive", "dims", "pose", "match", "stored", "fit_rate", "points", "approximate",
+                         "band_rate"}
     assert out["mode"] == "robust" and out["uncovered"] == [] and part["approximate"] is False
     assert part["primitive"] == "cylinder" and part["match"] is None
     assert out["database"] is None and not nodb.exists()
@@ -85,7 +86,7 @@ def test_match_column_uses_the_default_database_like_adapt(cylinder_file, tmp_pa
     monkeypatch.setenv("GRASPSIM_DB", str(root))
     assert main(["identify", str(cylinder_file), "--seed", "3"]) == 0
     rows = [r.split() for r in capsys.readouterr().out.splitlines() if "cylinder" in r.split()[1:2]]
-    assert rows and rows[0][-1] == "known"
+    assert rows and rows[0][-3] == "known" and rows[0][-1].startswith("(x1.0")  # match, stored map (ratio)
     assert main(["identify", str(cylinder_file), "--seed", "3", "--json"]) == 0
     out = _json(capsys)
     assert out["parts"][0]["match"] == "known" and out["database"] == str(root)

@@ -36,14 +36,17 @@ def test_bad_dimensions_exit_2_with_message(tmp_path, capsys):
 
 def test_db_build_and_lookup(tmp_path, capsys):
     root = str(tmp_path / "db")
-    args = ["--root", root, "--surface-step", "0.01", "--rotation-step-deg", "22", "--json"]
+    args = ["--db", root, "--surface-step", "0.01", "--rotation-step-deg", "22", "--json"]
     assert main(["db", "build", "--primitives", "sphere", *args]) == 0
     assert len(_last_json(capsys)["maps"]) == 1
-    assert main(["db", "lookup", "sphere", "--radius", "0.04", *args]) == 0
+    # the stored sphere is the paper's, r 3.5 cm: known within 3 % of each dimension, else scaled
+    assert main(["db", "lookup", "sphere", "--radius", "0.0355", *args]) == 0
     assert _last_json(capsys)["match"] == "known"
+    assert main(["db", "lookup", "sphere", "--radius", "0.04", *args]) == 0  # 14 % larger (within 1 cm)
+    assert _last_json(capsys)["match"] == "familiar"
     assert main(["db", "lookup", "sphere", "--radius", "0.06", *args]) == 0
     assert _last_json(capsys)["match"] == "familiar"
-    assert main(["db", "list", "--root", root, "--json"]) == 0
+    assert main(["db", "list", "--db", root, "--json"]) == 0
     assert len(_last_json(capsys)["maps"]) == 1
 
 

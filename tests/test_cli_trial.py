@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import pytest
 from hand_made import grasp_pose, hand_made_map
 
 from graspsim.cli import main
@@ -72,6 +73,7 @@ def test_top_executes_the_best_by_the_chosen_ranking(tmp_path, capsys):
     assert select_grasps(load_map(path), top=4, rank="paper").tolist() == [3, 2, 1, 0]
 
 
+@pytest.mark.slow
 def test_trial_reads_the_map_once_in_full(tmp_path, capsys, monkeypatch):
     """--grip-force (the friction from the map's header), --gripper and --render read the
     header or nothing more: the grasps are read once, by the simulation."""

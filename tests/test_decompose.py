@@ -139,6 +139,7 @@ def test_a_bottle_with_a_short_neck_is_two_or_three_cylinders(seed):
     assert radii[0] == pytest.approx(0.012, abs=0.003) and radii[-1] == pytest.approx(0.03, abs=0.003)
 
 
+@pytest.mark.slow
 def test_a_mug_is_a_cylinder_and_a_half_toroid():
     """Over eight poses: the paper accepts the body and forgets the handle; robust mode
     peels the handle off every time, as a half-toroid at least six times in eight (its

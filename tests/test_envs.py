@@ -80,6 +80,7 @@ def test_import_registers_both_envs_without_loading_mujoco():
 
 
 @pytest.mark.parametrize("env_id", [GRASP_SELECT_ID, GRASP_POSE_ID])
+@pytest.mark.slow
 def test_check_env(env_id, kw, gl):
     env = gym.make(env_id, render_mode="rgb_array" if gl else None, **kw)
     check_env(env.unwrapped, skip_render_check=not gl)

@@ -50,6 +50,7 @@ def _widths(d):
     return []
 
 
+@pytest.mark.slow
 def test_object_sizes_follow_the_grippers_stroke():
     from graspsim.envs.objects import COMPOUND_KINDS, PRIMITIVE_KINDS, draw_object, size_limits
     from graspsim.grippers import get_gripper

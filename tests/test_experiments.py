@@ -106,6 +106,7 @@ def test_e03_quick_writes_table_json_figures_maps(tmp_path):
     assert list((out / "maps").glob("*.h5"))
 
 
+@pytest.mark.slow
 def test_e07_quick_table_filter_removes_start_collisions(tmp_path):
     out = tmp_path / "e07"
     mod = _load("e07_table_filter")
@@ -121,6 +122,7 @@ def test_e07_quick_table_filter_removes_start_collisions(tmp_path):
     assert r["command"] in mod.readme_section(r) == (out / "README.md").read_text().rstrip("\n") + "\n"
 
 
+@pytest.mark.slow
 def test_e08_quick_pose_baselines(tmp_path):
     out = tmp_path / "e08"
     mod = _load("e08_pose_baselines")
@@ -316,6 +318,7 @@ def test_bench_robust_quick(tmp_path):
     assert s["command"] in mod.readme_section(s)
 
 
+@pytest.mark.slow
 def test_e05_threshold_calibration_quick(tmp_path):
     mod = _load("e05_threshold_calibration")
     assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
@@ -455,6 +458,7 @@ def test_e13_draws_the_grasps_the_grippers_own_calibrated_grade_accepts(tmp_path
     assert "no pad_contact grade model was fitted for gripper 'mine'" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_bench_scene_quick(tmp_path):
     bench = _load("bench_scene")
     # a smaller per-segment budget than E10's, through every path a plan takes (maps prepared, timed, fresh)
@@ -498,6 +502,7 @@ def test_bench_plan_scene_quick_times_fresh_cli_runs_on_cloud_and_depth_files(tm
     assert s["command"] in text and "| packed, 5 objects | depth |" in text
 
 
+@pytest.mark.slow
 def test_scene_fingerprint_is_the_same_twice_and_names_what_differs(tmp_path, capsys, monkeypatch):
     fp = _load("scene_fingerprint")
     first = ["--scenes", "1", "--kinds", "packed", "--coarse-db", "--out", str(tmp_path / "a")]
@@ -628,6 +633,7 @@ def test_e10_seeds_are_graspsim_scenes_and_old_summaries_say_their_set_and_seed(
     assert "| - |" not in block and "n/a (" not in block and "| 1 x 50 |" in block
 
 
+@pytest.mark.slow
 def test_study_fit_points_quick_counts_agreement_against_every_point(tmp_path):
     study = _load("study_fit_points")
     assert study.main(["--quick", "--out", str(tmp_path / "s")]) == 0

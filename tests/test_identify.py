@@ -256,8 +256,10 @@ def test_known_familiar_decision():
     stored = [{"primitive": "cylinder", "dims": {"radius": 0.02, "height": 0.20}, "key": "c1"},
               {"primitive": "cylinder", "dims": {"radius": 0.04, "height": 0.10}, "key": "c2"},
               {"primitive": "box", "dims": {"x": 0.06, "y": 0.04, "z": 0.10}, "key": "b1"}]
-    d = classify_match("cylinder", {"radius": 0.025, "height": 0.205}, stored)
+    d = classify_match("cylinder", {"radius": 0.0203, "height": 0.205}, stored)  # within 3 %: known
     assert d.match is MatchKind.KNOWN and d.match == "known" and d.entry["key"] == "c1"
+    d = classify_match("cylinder", {"radius": 0.025, "height": 0.205}, stored)  # within 1 cm, 25 % wider
+    assert d.match is MatchKind.FAMILIAR and d.entry["key"] == "c1"
     d = classify_match("cylinder", {"radius": 0.02, "height": 0.22}, stored)
     assert d.match is MatchKind.FAMILIAR and d.entry["key"] == "c1"
     assert d.max_diff == pytest.approx(0.02)

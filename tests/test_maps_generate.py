@@ -66,6 +66,7 @@ def test_grades_are_the_quality_model(shape, fast_maps):
     assert np.all(m.grade[m.accepted] > 0.7)
 
 
+@pytest.mark.slow
 def test_stored_poses_do_not_penetrate_the_object(shape, fast_maps, rng):
     """Independent check: dense points on every gripper box stay outside the object."""
     m = fast_maps[[k for k, v in PAPER_SHAPES.items() if v == shape][0]]

@@ -3,7 +3,7 @@ import math
 import pytest
 
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.match import MatchKind, match_entries
+from graspsim.maps.match import KNOWN_TOL, MatchKind, match_entries
 
 STORED = [{"primitive": "cylinder", "dims": {"radius": 0.02, "height": 0.20}, "key": "c1"},
           {"primitive": "cylinder", "dims": {"radius": 0.04, "height": 0.10}, "key": "c2"},
@@ -12,16 +12,32 @@ STORED = [{"primitive": "cylinder", "dims": {"radius": 0.02, "height": 0.20}, "k
           {"primitive": "box", "dims": {"x": 0.04, "y": 0.06, "z": 0.10}, "key": "b1"}]
 
 
-def _m(kind, max_ratio=math.inf, tol=0.01, **dims):
+def _m(kind, max_ratio=math.inf, tol=KNOWN_TOL, **dims):
     return match_entries(kind, dims, STORED, tol=tol, max_ratio=max_ratio)
 
 
-def test_known_within_tol_on_every_dimension():
-    d = _m("cylinder", radius=0.025, height=0.205)
+def test_known_within_the_relative_tol_on_every_dimension():
+    d = _m("cylinder", radius=0.0205, height=0.205)  # 2.5 % on both
     assert d.match is MatchKind.KNOWN and d.entry["key"] == "c1"
-    assert d.max_diff == pytest.approx(0.005) and d.ratio == pytest.approx(1.25)
-    # 1.1 cm off on one dimension: not known
-    assert _m("cylinder", radius=0.02, height=0.211).match is MatchKind.FAMILIAR
+    assert d.max_diff == pytest.approx(0.005) and d.ratio == pytest.approx(1.025)
+    # 5 mm more radius (x 1.25) was known under the paper's 1 cm: now scaled
+    d = _m("cylinder", radius=0.025, height=0.205)
+    assert d.match is MatchKind.FAMILIAR and d.ratio == pytest.approx(1.25)
+    # 3.5 % off on one dimension only: not known
+    assert _m("cylinder", radius=0.02, height=0.207).match is MatchKind.FAMILIAR
+    # a known map is never beyond the scaling range either
+    assert _m("cylinder", max_ratio=1.01, radius=0.0205, height=0.2).match is MatchKind.BUILD
+
+
+def test_a_can_one_size_step_from_a_stored_map_is_scaled_not_known():
+    # issue 33: a can identified as r 32.9 / h 92.7 mm, a stored r 24 / h 96 mm cylinder --
+    # within 1 cm on every dimension, so the paper's rule gave it the 48 mm chord's grasps
+    stored = [{"primitive": "cylinder", "dims": {"radius": 0.024, "height": 0.096}, "key": "can"}]
+    d = match_entries("cylinder", {"radius": 0.0329, "height": 0.0927}, stored, tol=KNOWN_TOL, max_ratio=3.0)
+    assert d.match is MatchKind.FAMILIAR and d.entry["key"] == "can"
+    assert d.ratio == pytest.approx(32.9 / 24) and d.max_diff == pytest.approx(0.0089)
+    # the paper's absolute 1 cm would have called it known
+    assert d.max_diff <= 0.01
 
 
 def test_nearest_is_the_smallest_size_ratio_not_the_smallest_difference():
@@ -60,6 +76,8 @@ def test_boxes_compare_edges_by_name_as_scaling_pairs_them_and_bad_input():
         _m("cylinder", radius=0.02)
     with pytest.raises(InvalidParameterError, match="tol"):
         _m("cylinder", tol=-1, radius=0.02, height=0.2)
+    with pytest.raises(InvalidParameterError, match="relative"):
+        _m("cylinder", tol=1.5, radius=0.02, height=0.2)
 
 
 PLATES = [{"primitive": "box", "dims": {"x": 0.02, "y": 0.12, "z": 0.12}, "key": "plate"},

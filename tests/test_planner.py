@@ -62,7 +62,7 @@ def test_familiar_cylinder_is_scaled_and_fits_the_real_object(db):
 def test_known_cylinder_uses_the_stored_map(db):
     """As is in paper mode; in robust mode less any grasps the cloud does not bear out
     (here none or few: the cylinder fits the cloud)."""
-    cloud = _cloud(Cylinder(0.021, 0.195), 2)
+    cloud = _cloud(Cylinder(0.0202, 0.198), 2)  # within known's 3 % of the stored one
     stored = db.lookup("cylinder", {"radius": 0.02, "height": 0.2}).entry["accepted"]
     paper = plan(cloud.points, db=db, rng=np.random.default_rng(0),
                  config=PlannerConfig(identify=IdentifyConfig.preset("paper")))
@@ -357,7 +357,7 @@ def test_the_occlusion_terms_depth_image_is_made_once_per_plan(db, monkeypatch):
     assert len(scored) >= 2 and len(made) == 1
 
 
-@pytest.mark.parametrize("truth,match", [(Sphere(0.035), "known"), (Cylinder(0.024, 0.16), "familiar")])
+@pytest.mark.parametrize("truth,match", [(Sphere(0.0305), "known"), (Cylinder(0.024, 0.16), "familiar")])
 def test_grasps_likely_to_clear_the_table_stream_first(db, monkeypatch, truth, match):
     """An object resting on a table (a sphere; a cylinder lying): many of its best-graded
     grasps reach below the table. The planner streams the poses predicted to clear it

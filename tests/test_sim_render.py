@@ -41,6 +41,7 @@ def test_render_writes_key_moments_and_a_gif(gl, tmp_path):
     assert Image.open(tmp_path / "trial.gif").n_frames > 5
 
 
+@pytest.mark.slow
 def test_trial_cli_renders_the_first_trials_that_start_clear(gl, tmp_path, capsys):
     import json
 

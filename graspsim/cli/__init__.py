@@ -70,18 +70,40 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(sub)
+    _mark_subparsers(parser)
     return parser
+
+
+def _mark_subparsers(parser: argparse.ArgumentParser) -> None:
+    """Each subcommand's parser records itself in the namespace (``_parser``: the
+    innermost one parsed), so that an unknown option is reported with its usage."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                sub.set_defaults(_parser=sub)
+                _mark_subparsers(sub)
+
+
+def _parse(parser: argparse.ArgumentParser, argv: list[str] | None) -> argparse.Namespace:
+    """``parser.parse_args``, but an unknown option (a typo) is reported by the
+    subcommand it was given to: its usage, not the top-level one."""
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        (getattr(args, "_parser", None) or parser).error(f"unrecognized arguments: {' '.join(extra)}")
+    return args
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = _parse(parser, argv)
     logging.basicConfig(
         level=logging.WARNING - 10 * min(args.verbose, 2),
         format="%(levelname)s %(name)s: %(message)s",
     )
     _show_compile_progress()
     try:
+        if not getattr(args, "json", False):
+            _show_build_progress()
         return int(args.func(args) or 0)
     except GraspsimError as err:
         print(f"graspsim: error: {err}", file=sys.stderr)
@@ -89,6 +111,26 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("graspsim: interrupted", file=sys.stderr)
         return 130
+
+
+def _show_build_progress() -> None:
+    """A progress bar (on a terminal) for FS maps the database builds on demand (the
+    planner's build case, e.g. the demo's sixth map): ``BUILD_PROGRESS``."""
+    import contextlib
+
+    from graspsim.cli._common import progress
+    from graspsim.maps.database import BUILD_PROGRESS
+
+    @contextlib.contextmanager
+    def bar(shape):
+        with progress(100, f"building the FS map of {shape} (stored for next time)", unit="%") as b:
+            def report(frac: float) -> None:
+                b.n = int(100 * frac)
+                b.refresh()
+
+            yield report
+
+    BUILD_PROGRESS.set(bar)
 
 
 class _ProgressLineHandler(logging.StreamHandler):

@@ -8,7 +8,57 @@ from collections.abc import Iterable
 from typing import Any
 
 __all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value", "whole_number",
-           "executor_from_args", "format_table", "progress", "add_gripper_flag", "gripper_from_args", "VARIANT_HELP"]
+           "executor_from_args", "format_table", "dims_text", "add_db_flag", "progress", "add_gripper_flag",
+           "gripper_from_args", "VARIANT_HELP", "GLOSSARY", "glossary", "with_glossary"]
+
+
+#: The words the commands print, defined once: the README's glossary says the same (a
+#: test checks that every term is there), and the --help of each command that prints a
+#: term ends with its definition (:func:`glossary`).
+GLOSSARY = {
+    "grade": "the paper's quality of a grasp, 0 to 1 (force closure and stability of its two contacts); "
+             "'accepted' grasps have grade > 0.7",
+    "FS map": "full-scale map: every collision-free grasp of the gripper on one shape primitive (a box, "
+              "cylinder, sphere, cone or half-toroid of given size), graded; the FS map database stores them",
+    "SR / VR": "surface rate / volume rate (the paper's eqs. 7-8): the share of the object's surface patches "
+               "touched by some grasp, and of the voxels that can hold the wrist holding some grasp's wrist",
+    "known / familiar / build": "how a primitive found in a cloud gets its map: known = a stored FS map of the "
+                                "same size (within 1 cm), used as is; familiar = the nearest stored map of the "
+                                "same primitive, scaled to its size; build = none near enough, so an FS map is "
+                                "built (and stored)",
+    "robust score": "the chance a grasp succeeds when the arm misses the pose by a typical error (3 mm / 2 deg): "
+                    "the share of perturbed poses that stay clear of the observed points, the object and the "
+                    "table with both contacts on the pads, times the calibrated success of the contacts; 0 when "
+                    "the gripper touches the cloud; the default ranking",
+    "feasible": "a pose whose gripper does not start in collision (with the object, or blocked by the table); "
+                "success rates count feasible poses, start collisions are counted apart",
+}
+
+
+def glossary(*terms: str) -> str:
+    """An epilog defining ``terms`` (keys of :data:`GLOSSARY`) for a command's --help."""
+    import textwrap
+
+    return "terms:\n" + "\n".join(textwrap.fill(f"{t}: {GLOSSARY[t]}", 88, initial_indent="  ",
+                                                 subsequent_indent="      ") for t in terms)
+
+
+def _help_formatter():
+    import argparse
+
+    class Formatter(argparse.HelpFormatter):
+        """argparse's formatter, but a glossary epilog keeps its lines (one term a paragraph)."""
+
+        def _fill_text(self, text, width, indent):
+            return text if text.startswith("terms:\n") else super()._fill_text(text, width, indent)
+
+    return Formatter
+
+
+def with_glossary(p, *terms: str) -> None:
+    """End ``p``'s --help with the definitions of ``terms`` (the words its output uses)."""
+    p.epilog = glossary(*terms)
+    p.formatter_class = _help_formatter()
 
 
 def add_json_flag(p) -> None:
@@ -43,6 +93,30 @@ def budget_from_args(args) -> dict:
         return budget_fields(args.budget)
     except InvalidParameterError as err:
         raise InvalidParameterError(f"--budget: {err}") from None
+
+
+class _DeprecatedAlias:
+    """argparse action of an old flag name kept working: stores like the new one and says
+    once on stderr that the new name is the one to use."""
+
+    def __new__(cls, new: str):
+        import argparse
+
+        class Action(argparse.Action):
+            def __call__(self, parser, namespace, values, option_string=None):
+                print(f"[graspsim] note: {option_string} is deprecated (it still works); use {new}", file=sys.stderr)
+                setattr(namespace, self.dest, values)
+
+        return Action
+
+
+def add_db_flag(p, help: str = "FS map database folder (default $GRASPSIM_DB or ~/.cache/graspsim/db)") -> None:
+    """``--db DIR``, the database folder as every command names it (``args.db``); the
+    ``db`` subcommands' old ``--root`` still works, with a deprecation note."""
+    import argparse
+
+    p.add_argument("--db", metavar="DIR", default=None, help=help)
+    p.add_argument("--root", dest="db", metavar="DIR", action=_DeprecatedAlias("--db"), help=argparse.SUPPRESS)
 
 
 GRIPPER_HELP = ("the gripper: festo_hgpl_25_60_a (default), franka_hand, robotiq_2f85, rethink_gripper, "
@@ -140,7 +214,12 @@ def format_table(rows: Iterable[Iterable[Any]], header: Iterable[str]) -> str:
     line = "  ".join(str(h).ljust(w) for h, w in zip(header, widths))
     out = [line, "  ".join("-" * w for w in widths)]
     out += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
-    return "\n".join(out)
+    return "\n".join(ln.rstrip() for ln in out)
+
+
+def dims_text(dims: dict) -> str:
+    """A primitive's dimensions as every command prints them: ``radius=3.49 cm, height=10 cm``."""
+    return ", ".join(f"{k}={v * 100:.3g} cm" for k, v in dims.items())
 
 
 def _fmt(v: Any) -> str:
@@ -149,10 +228,63 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it", delay: float = 0.0):
+def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it", delay: float = 0.0, *,
+             tick: float | None = None):
     """A tqdm progress bar on stderr (disabled when not wanted or not a terminal; shown
-    only after ``delay`` seconds)."""
+    only after ``delay`` seconds). With
+    ``tick`` [s] the bar is redrawn that often even when nothing finished (its elapsed
+    time runs: steps that take long, such as maps built in worker processes, do not look
+    stuck); the redrawing stops when the bar is closed."""
+    import threading
+
     from tqdm.auto import tqdm
 
     on = enabled and sys.stderr.isatty()
-    return tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False, delay=delay)
+    bar = tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False, delay=delay)
+    if on and tick:
+        stop = threading.Event()
+
+        def redraw() -> None:
+            while not stop.wait(tick):
+                bar.refresh()
+
+        threading.Thread(target=redraw, name="graspsim-progress", daemon=True).start()
+        close = bar.close
+
+        def closing() -> None:
+            stop.set()
+            close()
+
+        bar.close = closing
+    return bar
+
+
+def add_viewpoint_flag(p) -> None:
+    p.add_argument("--viewpoint", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
+                   help="where a single-view cloud was seen from, in the cloud's frame [m] (the robust "
+                        "score's occluded-space term; default: the cloud's own record -- a PCD VIEWPOINT "
+                        "header or a camera record beside the file -- else seen all round)")
+
+
+def viewpoint_from_args(args):
+    """``--viewpoint`` as a (3,) array, None when not given."""
+    import math
+
+    import numpy as np
+
+    from graspsim.errors import InvalidParameterError
+
+    v = getattr(args, "viewpoint", None)
+    if v is None:
+        return None
+    if not all(math.isfinite(x) for x in v):
+        raise InvalidParameterError(f"--viewpoint takes three finite numbers [m], got {' '.join(map(str, v))}")
+    return np.asarray(v, float)
+
+
+def stored_text(part: dict) -> str:
+    """A plan part's stored FS map and its size ratio (``PartPlan.to_dict()``), for tables."""
+    s = part.get("stored")
+    if not s:
+        return "-"
+    return f"{s['key']} (x{s['ratio']:.3f})"

@@ -4,7 +4,19 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from graspsim.cli._common import add_json_flag, add_mode_flag, add_units_flag, emit, format_table, gripper_from_args
+from graspsim.cli._common import (
+    add_json_flag,
+    add_mode_flag,
+    add_units_flag,
+    add_viewpoint_flag,
+    dims_text,
+    emit,
+    format_table,
+    gripper_from_args,
+    stored_text,
+    viewpoint_from_args,
+    with_glossary,
+)
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -13,28 +25,20 @@ __all__ = ["register"]
 def _cmd_adapt(args) -> int:
     import sys
 
-    import numpy as np
-
-    from graspsim._atomic import check_output
     from graspsim.maps.database import MapDatabase
-    from graspsim.maps.io import save_map
-    from graspsim.maps.scaling import ScalingConfig
-    from graspsim.perception import IdentifyConfig, read_point_cloud
+    from graspsim.maps.io import check_map_output, save_map
+    from graspsim.perception import read_point_cloud
     from graspsim.perception.acceptance import FitQuality
-    from graspsim.planning.planner import PlannerConfig, plan
+    from graspsim.planning.adapt import adapt_cloud, adapt_config
 
     # every option and the output path before the cloud is read or anything computed
-    out = check_output(args.output, "map", others={"input cloud": args.cloud})
+    out = check_map_output(args.output, others={"input cloud": args.cloud})
     gripper = gripper_from_args(args)
-    table = None
-    if args.table is not None:
-        from graspsim.geometry.table import TablePlane
-
-        table = TablePlane(normal=tuple(args.table_normal), clearance=args.table_clearance,
-                           height=None if args.table == "auto" else _height(args.table))
-    cfg = PlannerConfig(identify=IdentifyConfig.preset(args.mode, repetitions=args.repetitions, theta=args.theta),
-                        scaling=ScalingConfig(method=args.scaling), partial=not args.no_partial,
-                        table=table)
+    cfg = adapt_config(mode=args.mode, table=None if args.table is None else (
+        "auto" if args.table == "auto" else _height(args.table)), table_normal=args.table_normal,
+        table_clearance=args.table_clearance, repetitions=args.repetitions, theta=args.theta,
+        scaling=args.scaling, partial=not args.no_partial)
+    viewpoint = viewpoint_from_args(args)
     map_cfg, quality = _config(args)
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
         from graspsim.errors import MapDatabaseError
@@ -42,23 +46,26 @@ def _cmd_adapt(args) -> int:
         raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
     cloud = read_point_cloud(args.cloud, units=args.units)
     db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
-    result = plan(cloud.points, db=db, rng=np.random.default_rng(args.seed), config=cfg,
-                  source=str(Path(args.cloud).resolve()), viewpoint=cloud.viewpoint)
+    result = adapt_cloud(cloud, db=db, config=cfg, seed=args.seed, source=str(Path(args.cloud).resolve()),
+                         viewpoint=viewpoint)
     # only a map with grasps is written: a failed run leaves an existing file as it was
     why = ("nothing was identified" if result.status.value == "failed"
            else "the identified parts have no collision-free grasp" if not len(result.map) else None)
     if why is None:
         save_map(result.map, out)
     s = result.summary()
+    vp = result.map.meta.extra.get("viewpoint")
     s.update(file=str(out) if why is None else None, cloud=args.cloud, points=len(cloud.points),
-             units=cloud.units, dropped=cloud.n_dropped, timing=result.timing)
-    rows = [(p["primitive"], {k: round(v, 4) for k, v in p["dims"].items()}, p["match"]) for p in s["parts"]]
+             units=cloud.units, dropped=cloud.n_dropped, timing=result.timing, viewpoint=vp, seed=args.seed)
+    rows = [(p["primitive"], dims_text(p["dims"]), p["match"], stored_text(p)) for p in s["parts"]]
     first = s["time_to_first_0.95"]
-    human = (format_table(rows, ["part", "dims [m]", "match"]) +
+    human = (format_table(rows, ["part", "dims", "match", "stored map (size ratio)"]) +
              f"\n{s['status']}: {s['grasps']} grasps, {s['accepted']} > 0.7 in {s['seconds']:.3f} s"
              + (f"; first grasp > 0.95 after {first * 1e3:.1f} ms" if first is not None else "")
              + (f"; {s['table']['dropped']} grasps below the table (height "
                 f"{s['table']['height']:.4f} m) dropped" if s.get("table") and "dropped" in s["table"] else "")
+             + (f"; viewpoint {' '.join(f'{v:g}' for v in vp)}" if vp is not None
+                else "; seen all round (no viewpoint)")
              + (f" -> {out}" if why is None else "")
              + (f"\n{FitQuality.from_dict(s['fit']).text()}" if s.get("fit") else ""))
     emit(s, args.json, human)
@@ -104,12 +111,15 @@ def register(sub) -> None:
     p.add_argument("--table", default=None, metavar="auto|HEIGHT",
                    help="drop grasps that would take the gripper below the table the object "
                    "stands on: 'auto' puts the table at the object's lowest point along "
-                   "--table-normal, a number is its height along the normal [m] in the cloud's "
-                   "frame (default: no table, as the paper's maps)")
+                   "--table-normal (the cloud's; for a single view, with --viewpoint, the "
+                   "identified shape's where that is lower), a number is its height along the "
+                   "normal [m] in the cloud's frame (default: no table, as the paper's maps)")
     p.add_argument("--table-normal", type=float, nargs=3, default=(0.0, 0.0, 1.0),
                    metavar=("NX", "NY", "NZ"), help="the table's upward normal in the cloud's frame (0 0 1)")
     p.add_argument("--table-clearance", type=float, default=0.002,
                    help="gripper clearance above the table [m] (0.002)")
+    add_viewpoint_flag(p)
     _add_generation(p)
     add_json_flag(p)
+    with_glossary(p, "known / familiar / build", "FS map", "grade", "robust score")
     p.set_defaults(func=_cmd_adapt)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from graspsim.cli._common import add_gripper_flag, add_json_flag, emit, format_table
+from graspsim.cli._common import add_gripper_flag, add_json_flag, emit, format_table, with_glossary
 
 __all__ = ["register"]
 
@@ -63,4 +63,5 @@ def register(sub) -> None:
                    help="coarse database in OUT/db and fewer trials: a fast smoke run (CI)")
     add_gripper_flag(p)
     add_json_flag(p)
+    with_glossary(p, "FS map", "known / familiar / build", "grade", "robust score", "feasible")
     p.set_defaults(func=_cmd_demo)

@@ -15,25 +15,35 @@ from graspsim.cli._common import (
     format_table,
     gripper_from_args,
     seed_value,
+    with_glossary,
 )
 
 __all__ = ["register"]
 
 def _cmd_adapt_gripper(args) -> int:
-    from graspsim._atomic import atomic_path, check_output
+    from graspsim._atomic import atomic_path
     from graspsim.errors import MapFileError
-    from graspsim.maps.io import load_map, save_map
+    from graspsim.maps.io import check_map_output, load_map, save_map
     from graspsim.maps.regrip import adapt_to_gripper
 
-    out = check_output(args.output, "map", others={"map": args.file})  # before the work
+    out = check_map_output(args.output, others={"map": args.file})  # before the work
     gmap = load_map(args.file)
     target = gripper_from_args(args, flag="to_gripper", base=gmap.meta.gripper_spec)
     t0 = time.perf_counter()
     adapted = adapt_to_gripper(gmap, target, source_min_grade=args.source_min_grade)
     seconds = time.perf_counter() - t0
+    info = adapted.meta.gripper_adaptation.to_dict()
+    if not len(adapted):  # an empty map is no result: an existing -o is left as it was
+        from graspsim.errors import NoFeasibleGraspError
+
+        kept = f"{out} left as it was" if out.exists() else f"{out} not written"
+        raise NoFeasibleGraspError(
+            f"no grasp of the {gmap.meta.gripper_spec.name} map carried to {target.name}: of its "
+            f"{info['source_grasps']} grasps with grade > {info['source_min_grade']:g}, {info['fit_opening']} fit "
+            f"the new gripper's opening and none of them is left collision-free with a grade above the map's "
+            f"threshold; nothing written ({kept})")
     with atomic_path(out, MapFileError) as tmp:
         save_map(adapted, tmp)
-    info = adapted.meta.gripper_adaptation.to_dict()
     summary = {"file": str(out), "source": args.file, "source_gripper": gmap.meta.gripper_spec.name,
                "gripper": target.name, "grasps": len(adapted), "accepted": int(adapted.accepted.sum()),
                **info, "seconds": seconds}
@@ -115,6 +125,7 @@ def register(sub) -> None:
     p.add_argument("--source-min-grade", type=float, default=None,
                    help="carry grasps above this grade (default: the map's threshold, 0.7)")
     add_json_flag(p)
+    with_glossary(p, "grade")
     p.set_defaults(func=_cmd_adapt_gripper)
 
     p = sub.add_parser("design", help="sweep a gripper design parameter over the paper's primitives",
@@ -136,4 +147,5 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", default=None, help="write every number to this .json")
     p.add_argument("--plot", default=None, help="write the design plot (VR, SR, share, success) here")
     add_json_flag(p)
+    with_glossary(p, "FS map", "SR / VR", "grade", "feasible")
     p.set_defaults(func=_cmd_design)

@@ -27,9 +27,14 @@ from graspsim.cli._common import (
     add_json_flag,
     add_mode_flag,
     add_units_flag,
+    add_viewpoint_flag,
+    dims_text,
     emit,
     format_table,
     gripper_from_args,
+    stored_text,
+    viewpoint_from_args,
+    with_glossary,
 )
 from graspsim.errors import DependencyNotInstalled
 
@@ -66,7 +71,9 @@ def register(subparsers) -> None:
                    "$GRASPSIM_DB or ~/.cache/graspsim/db when it exists; never built here)")
     add_gripper_flag(p, help="whose maps --db's known / familiar decision reads: festo_hgpl_25_60_a "
                      "(default), franka_hand or a gripper spec .json")
+    add_viewpoint_flag(p)
     add_json_flag(p)
+    with_glossary(p, "known / familiar / build", "FS map")
     p.set_defaults(func=run)
 
 
@@ -83,13 +90,15 @@ def _lookup(db_dir: str | None, gripper=None):
     if db_dir is None:
         root = default_root()
         if not (root / "index.json").is_file():  # nothing to ask; do not create it
-            return (lambda kind, dims: None), None
+            return (lambda kind, dims: (None, None)), None
         db_dir = root
     db = MapDatabase(db_dir, **({} if gripper is None else {"gripper": gripper}))
 
-    def lookup(kind: str, dims: dict) -> str | None:
+    def lookup(kind: str, dims: dict) -> tuple[str | None, dict | None]:
         m = db.lookup(kind, dims)
-        return None if m.entry is None else m.match.value  # BUILD: no map of the kind
+        if m.entry is None:  # BUILD: no map of the kind
+            return None, None
+        return m.match.value, {"key": m.entry.get("key"), "ratio": m.ratio, "max_diff": m.max_diff}
 
     return lookup, str(db.root)
 
@@ -102,13 +111,16 @@ def run(args: argparse.Namespace) -> int:
 
     config = IdentifyConfig.preset(args.mode, repetitions=args.repetitions, theta=args.theta, noise=args.noise)
     cloud = read_point_cloud(args.cloud, units=args.units)
+    viewpoint = viewpoint_from_args(args)
+    viewpoint = cloud.viewpoint if viewpoint is None else viewpoint
     lookup, db_root = _lookup(args.db, gripper_from_args(args))
     res = identify(cloud.points, rng=np.random.default_rng(args.seed), config=config)
     fit = res.fit_quality(cloud.points, config.band, cloud.viewpoint)
     parts = []
     for p in res.parts:
+        match, stored = lookup(p.shape.value, p.dims)
         parts.append({"primitive": p.shape.value, "dims": p.dims, "pose": p.T_world_obj,
-                      "match": lookup(p.shape.value, p.dims), "fit_rate": p.fit_rate,
+                      "match": match, "stored": stored, "fit_rate": p.fit_rate,
                       "points": p.n_points, "approximate": p.approximate, "band_rate": p.band_rate})
     summary = {
         "status": res.status.value,
@@ -130,18 +142,22 @@ def run(args: argparse.Namespace) -> int:
         "theta": args.theta,
         "seed": args.seed,
         "database": db_root,
+        "viewpoint": None if viewpoint is None else [float(v) for v in viewpoint],
     }
-    rows = [[i, p["primitive"], ", ".join(f"{k}={v * 100:.2f} cm" for k, v in p["dims"].items()),
-             f"{p['fit_rate']:.3f}", p["points"], p["match"] or "-"] for i, p in enumerate(parts)]
-    rows += [[f"u{i}", "unidentified", "", f"{p.fit_rate:.3f}", p.n_points, "-"]
+    rows = [[i, p["primitive"], dims_text(p["dims"]),
+             f"{p['fit_rate']:.3f}", p["points"], p["match"] or "-", stored_text(p)] for i, p in enumerate(parts)]
+    rows += [[f"u{i}", "unidentified", "", f"{p.fit_rate:.3f}", p.n_points, "-", "-"]
              for i, p in enumerate(res.unidentified)]
     d = res.downsampling
     human = (f"{args.cloud}: {res.status.value} ({res.mode} mode) in {res.seconds * 1000:.0f} ms "
              f"({cloud.n_read} points, {cloud.n_dropped} NaN/inf dropped, "
              + (f"{d.used_points} used ({d.voxel * 1000:.2g} mm voxels), " if d else "") +
              f"{res.n_removed} outliers removed, noise {res.noise * 1000:.2f} mm)\n"
-             + format_table(rows, ["part", "primitive", "dims", "fit rate", "points", "match"])
+             + format_table(rows, ["part", "primitive", "dims", "fit rate", "points", "match",
+                                   "stored map (size ratio)"])
              + (f"\n{fit.text()}" if res.parts else "")
+             + ("" if viewpoint is None else f"\nviewpoint {' '.join(f'{v:g}' for v in viewpoint)} (recorded; "
+                "identification does not use it)")
              + ("" if db_root else "\n(match: no map database yet -- `graspsim db build` or the "
                                    "first `graspsim adapt` makes one)"))
     emit(summary, args.json, human)

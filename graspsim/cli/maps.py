@@ -6,14 +6,17 @@ import math
 import time
 
 from graspsim.cli._common import (
+    add_db_flag,
     add_executor_flags,
     add_gripper_flag,
     add_json_flag,
+    dims_text,
     emit,
     executor_from_args,
     format_table,
     gripper_from_args,
     progress,
+    with_glossary,
 )
 
 __all__ = ["register"]
@@ -71,13 +74,13 @@ def _cmd_map(args) -> int:
     from graspsim._atomic import atomic_paths, check_output
     from graspsim.errors import MapFileError
     from graspsim.maps.generate import generate_fs_map
-    from graspsim.maps.io import save_map
+    from graspsim.maps.io import check_map_output, save_map
     from graspsim.maps.metrics import map_rates
 
     gripper = gripper_from_args(args)
     shape = _shape_from_args(args)
     cfg, quality = _config(args)
-    out = check_output(args.output, "map")  # before the work, not after it
+    out = check_map_output(args.output)  # before the work, not after it
     plot = fmt = None
     if args.plot:
         from graspsim.plots import image_format
@@ -113,7 +116,7 @@ def _cmd_show(args) -> int:
     from graspsim._atomic import check_output
     from graspsim.errors import InvalidParameterError
     from graspsim.maps.io import load_map
-    from graspsim.plots import image_format, plot_map
+    from graspsim.plots import PLOT_POINTS, image_format, plot_map
 
     check_output(args.output, "image", others={"map": args.file})
     fmt = image_format(args.output)
@@ -128,9 +131,11 @@ def _cmd_show(args) -> int:
         raise InvalidParameterError(f"nothing to plot: none of the map's {len(gmap)} grasps has "
                                     f"grade > {args.min_grade:g} (max {_max_grade(gmap)})")
     plot_map(gmap, args.output, what=args.what, min_grade=args.min_grade, format=fmt)
-    emit({"file": args.file, "image": args.output, "grasps": len(gmap), "plotted": shown,
+    drawn = min(shown, PLOT_POINTS)
+    emit({"file": args.file, "image": args.output, "grasps": len(gmap), "plotted": shown, "drawn": drawn,
           "plotted_min_grade": args.min_grade}, args.json,
-         f"wrote {args.output} ({shown} of {len(gmap)} grasps with grade > {args.min_grade:g})")
+         f"wrote {args.output} ({shown} of {len(gmap)} grasps with grade > {args.min_grade:g}"
+         + (f"; a uniform sample of {drawn} of them drawn" if drawn < shown else "") + ")")
     return 0
 
 
@@ -217,18 +222,14 @@ def _cmd_info(args) -> int:
     return 0
 
 
-def _dims_text(dims: dict) -> str:
-    return ", ".join(f"{k} {100 * v:.3g} cm" for k, v in dims.items())
-
-
 def _cmd_db(args) -> int:
     from graspsim.maps.database import PAPER_SHAPES, MapDatabase, size_grid
 
     gripper = gripper_from_args(args)  # the maps of one gripper (its spec keys them)
     if args.db_command == "list":  # every stored map, whatever its settings
-        db = MapDatabase(args.root, gripper=gripper)
+        db = MapDatabase(args.db, gripper=gripper, create=False)
         ents = db.entries(all_settings=True)
-        rows = [(e["primitive"], _dims_text(e["dims"]), e["grasps"], e.get("gripper", "?"), e.get("settings", "?")
+        rows = [(e["primitive"], dims_text(e["dims"]), e["grasps"], e.get("gripper", "?"), e.get("settings", "?")
                  + (" (default)" if e.get("settings") == db.settings_digest else ""), e["file"])
                 for e in ents]
         emit({"root": str(db.root), "maps": ents, "default_settings": db.settings_digest}, args.json,
@@ -236,9 +237,9 @@ def _cmd_db(args) -> int:
              + f"\n{len(ents)} maps in {db.root}")
         return 0
     if args.db_command == "check":  # every stored map, whatever its settings
-        return _db_check(MapDatabase(args.root), args)
+        return _db_check(MapDatabase(args.db, create=False), args)
     cfg, quality = _config(args)
-    db = MapDatabase(args.root, gripper=gripper, quality=quality, config=cfg)
+    db = MapDatabase(args.db, gripper=gripper, quality=quality, config=cfg)
     if args.db_command == "build":
         from graspsim._atomic import check_folder
 
@@ -253,11 +254,11 @@ def _cmd_db(args) -> int:
                 raise MapDatabaseError(f"unknown primitive {k!r}; valid: {sorted(PAPER_SHAPES)}")
             shapes += size_grid(base, args.grid) if args.grid else [base]
         t0 = time.perf_counter()
-        with progress(len(shapes), "FS database", enabled=not args.json, unit="map") as bar, \
+        with progress(len(shapes), "FS database", enabled=not args.json, unit="map", tick=1.0) as bar, \
                 executor_from_args(args) as ex:
             records = db.build(shapes, threads=args.threads, executor=ex,
                                progress=lambda i, n, s: bar.update(1))
-        rows = [(e["primitive"], _dims_text(e["dims"]), e["grasps"], e["accepted"], e["seconds"])
+        rows = [(e["primitive"], dims_text(e["dims"]), e["grasps"], e["accepted"], e["seconds"])
                 for e in records]
         emit({"root": str(db.root), "maps": records, "seconds": time.perf_counter() - t0}, args.json,
              format_table(rows, ["primitive", "dims", "grasps", "accepted", "build s"]))
@@ -268,7 +269,7 @@ def _cmd_db(args) -> int:
         emit({"primitive": shape.kind, "dims": shape.dims, "match": match,
               "nearest": m.entry, "max_diff": m.max_diff}, args.json,
              f"{shape}: {match or 'no map of this primitive'}"
-             + (f" (nearest stored: {_dims_text(m.entry['dims'])}, {m.max_diff * 100:.2f} cm off)"
+             + (f" (nearest stored: {dims_text(m.entry['dims'])}, {m.max_diff * 100:.2f} cm off)"
                 if m.entry else ""))
     return 0
 
@@ -277,12 +278,18 @@ def _db_check(db, args) -> int:
     from graspsim.maps.dbcheck import check_database
 
     rep = check_database(db, repair=args.repair)
-    state = ("all repaired" if rep.repaired else "NOT repaired (run with --repair)") if rep.problems else "no problems"
+    n = len(rep.problems)
+    state = ("no problems" if not n else f"{_count(n, 'problem')}, "
+             + ("all repaired" if rep.repaired else "NOT repaired (run with --repair)"))
     human = (format_table(rep.problems, ["file", "problem"]) + "\n" if rep.problems else "") + (
-        f"{db.root}: {rep.maps} maps listed, {rep.valid} valid; {len(rep.problems)} problems, {state}"
-        + (f"; removed {len(rep.removed)} files, indexed {len(rep.reindexed)}" if rep.repaired else ""))
+        f"{db.root}: {_count(rep.maps, 'map')} listed, {rep.valid} valid; {state}"
+        + (f"; removed {_count(len(rep.removed), 'file')}, indexed {len(rep.reindexed)}" if rep.repaired else ""))
     emit(rep.to_dict(), args.json, human)
     return 0 if rep.ok else 1
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" + ("" if n == 1 else "s")
 
 
 def register(sub) -> None:
@@ -296,6 +303,7 @@ def register(sub) -> None:
     p.add_argument("--plot", default=None, help="also save a PNG of the map")
     _add_generation(p)
     add_json_flag(p)
+    with_glossary(p, "FS map", "grade", "SR / VR")
     p.set_defaults(func=_cmd_map)
 
     p = sub.add_parser("show", help="plot a map file as a 3-D scatter coloured by grade",
@@ -308,6 +316,7 @@ def register(sub) -> None:
                    help="plot grasp points (default) or wrist positions")
     p.add_argument("--min-grade", type=float, default=0.0, help="plot grasps above this grade")
     add_json_flag(p)
+    with_glossary(p, "grade")
     p.set_defaults(func=_cmd_show)
 
     p = sub.add_parser("info", help="summarise a map file",
@@ -317,6 +326,7 @@ def register(sub) -> None:
                        "grasps were simulated.")
     p.add_argument("file", help="map file (.h5)")
     add_json_flag(p)
+    with_glossary(p, "grade", "SR / VR", "robust score")
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("db", help="the full-scale map database (build, list, lookup, check)",
@@ -343,8 +353,10 @@ def register(sub) -> None:
              "invalid files and records and indexes valid unlisted maps. Exit status 1 on "
              "problems left unrepaired.")):
         q = dbs.add_parser(name, help=text, description=desc)
-        q.add_argument("--root", default=None, help="database folder (default $GRASPSIM_DB or "
-                       "~/.cache/graspsim/db)")
+        with_glossary(q, *{"build": ("FS map", "grade"), "lookup": ("FS map", "known / familiar / build")}.get(
+            name, ("FS map",)))
+        add_db_flag(q, help="database folder (default $GRASPSIM_DB or ~/.cache/graspsim/db; --root, "
+                    "its old name, still works)")
         if name not in ("list", "check"):
             _add_generation(q)
         elif name == "list":

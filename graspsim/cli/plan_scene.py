@@ -18,7 +18,15 @@ the jaw opening to approach with, the robust score). Exit status 1, and no file 
 
 from __future__ import annotations
 
-from graspsim.cli._common import add_budget_flag, add_json_flag, budget_from_args, emit, format_table, gripper_from_args
+from graspsim.cli._common import (
+    add_budget_flag,
+    add_json_flag,
+    budget_from_args,
+    emit,
+    format_table,
+    gripper_from_args,
+    with_glossary,
+)
 from graspsim.cli.maps import _add_generation, _config
 
 __all__ = ["register"]
@@ -42,7 +50,9 @@ def _cmd_plan_scene(args) -> int:
         inside = np.all((pts >= crop[:3]) & (pts <= crop[3:]), axis=1)
         pts, rows = pts[inside], rows[inside]
     if viewpoint is None and loaded["viewpoint"] is not None:
-        viewpoint = np.asarray(loaded["viewpoint"], float)
+        from graspsim.maps.occlusion import check_viewpoint
+
+        viewpoint = check_viewpoint(loaded["viewpoint"])  # a file's camera record: checked as --viewpoint is
     if up is None and viewpoint is not None:  # the camera sees the table from above it
         up = viewpoint - np.median(pts, axis=0) if len(pts) else None
     cfg = replace(SceneConfig(), min_gap=args.min_gap or None, up=None if up is None else tuple(map(float, up)),
@@ -78,6 +88,7 @@ def _options(args) -> dict:
 
     from graspsim._atomic import check_output
     from graspsim.errors import InvalidParameterError, MapDatabaseError, OutputPathError
+    from graspsim.maps.occlusion import check_viewpoint
     from graspsim.perception.segment import gap_link
 
     if args.view or args.screenshot:
@@ -95,6 +106,10 @@ def _options(args) -> dict:
         raise InvalidParameterError(f"--labels writes a .npy file, got {o['labels'].name!r}")
     o["viewpoint"], o["up"], o["crop"] = (_finite(f, v) for f, v in (("--viewpoint", args.viewpoint),
                                                                       ("--up", args.up), ("--crop", args.crop)))
+    try:
+        check_viewpoint(o["viewpoint"])
+    except InvalidParameterError as err:
+        raise InvalidParameterError(f"--viewpoint: {err}") from None
     if o["up"] is not None and not np.linalg.norm(o["up"]) > 0:
         raise InvalidParameterError("--up must be a nonzero direction, got 0 0 0")
     if o["crop"] is not None and not np.all(o["crop"][:3] < o["crop"][3:]):
@@ -326,4 +341,5 @@ def register(sub) -> None:
                    help="save what headless Chromium draws of the planned scene to PNG (instead of serving)")
     _add_generation(p)
     add_json_flag(p)
+    with_glossary(p, "robust score", "grade", "known / familiar / build")
     p.set_defaults(func=_cmd_plan_scene)

@@ -33,6 +33,7 @@ from graspsim.cli._common import (
     format_table,
     gripper_from_args,
     whole_number,
+    with_glossary,
 )
 from graspsim.cli.maps import _add_generation, _config
 
@@ -202,4 +203,5 @@ def register(sub) -> None:
                    help="write every scene as DIR/sceneNNN.json (for 'graspsim view --scene')")
     _add_generation(p)
     add_json_flag(p)
+    with_glossary(p, "robust score", "known / familiar / build")
     p.set_defaults(func=_cmd_scene)

@@ -19,15 +19,28 @@ from __future__ import annotations
 import math
 import sys
 
-from graspsim.cli._common import add_gripper_flag, add_json_flag, emit, format_table, gripper_from_args, progress
+from graspsim.cli._common import (
+    add_gripper_flag,
+    add_json_flag,
+    emit,
+    format_table,
+    gripper_from_args,
+    progress,
+    with_glossary,
+)
 
-__all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD"]
+__all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD", "RENDER_SECONDS_PER_TRIAL"]
 
 MAX_TRIALS = 10_000  # more than this many trials need --all
 # Throughput of two-second lift_place trials that start clear, per thread, measured with
 # `python experiments/bench_sim.py` on an idle machine (docs/results.md, bench_sim).
 # Start collisions cost ~nothing; a busy machine is slower (62 trials/s on 2 threads at load 7).
 TRIALS_PER_SECOND_PER_THREAD = 80.0
+# --render: one rendered trial (offscreen 640 x 480, the key moments and a 25 frames/s GIF,
+# ~100 frames; rendering runs on one core) took 5 s of CPU, measured by timing
+# graspsim.sim.render.render_trial on a cylinder map's trials (15 s of wall time each at
+# load 10 on 2 cores): the estimate says "at least" and the bar shows the measured pace.
+RENDER_SECONDS_PER_TRIAL = 5.0
 
 
 def register(subparsers) -> None:
@@ -36,7 +49,11 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "trial", help="simulate a map's grasps (lift-and-place or tug) and store the outcomes",
         description="Simulate grasps of a graspability map in MuJoCo; results go back into "
-                    "the file under grasps/qualities/mujoco (lift_place) or mujoco_tug (tug).")
+                    "the file under grasps/qualities/mujoco (lift_place) or mujoco_tug (tug), beside the "
+                    "results of earlier runs of other grasps with the same settings; a run that would "
+                    "overwrite stored results (the same grasps again, or other settings) needs --replace. "
+                    "The success rate counts feasible poses: a pose whose gripper starts in collision "
+                    "(with the object, or blocked by the table) is excluded and counted apart.")
     p.add_argument("map", metavar="FILE", help="graspability map file, or an ACRONYM .h5 / GraspGen "
                    ".json / GraspNet .npy grasp file (results go to <stem>.graspsim.h5 beside it)")
     p.add_argument("--protocol", choices=("lift_place", "tug"), default="lift_place",
@@ -51,6 +68,9 @@ def register(subparsers) -> None:
                    help="order of --top: robust (default): the map's robust scores (expected success "
                         "under wrist pose error, clearance to the observed cloud; maps planned from a "
                         "cloud have them), then the grade; paper: the paper's grade")
+    p.add_argument("--separation", type=float, nargs=2, metavar=("MM", "DEG"),
+                   help="with --top: the N best at least MM mm apart (grasp points) or DEG deg "
+                        "(wrist orientation, jaws swapped counted the same): non-maximum suppression")
     p.add_argument("--min-grade", type=float, metavar="G", help="only grasps with grade > G")
     p.add_argument("--threads", type=int, metavar="T", help="native threads (default: all cores)")
     p.add_argument("--seed", type=seed_value, default=0, help="seed of sampling and noise (default 0)")
@@ -78,12 +98,18 @@ def register(subparsers) -> None:
                    help="also save the trials' trajectories (25 frames/s, the first 2000 trials "
                         "that start clear) to FILE (.npz), for 'graspsim view MAP --replay FILE'")
     p.add_argument("--no-write", action="store_true", help="do not store results in the map")
+    p.add_argument("--replace", action="store_true",
+                   help="replace results the map already holds that these would overwrite (an earlier run "
+                        "of the same grasps, or one with other settings: protocol, object, friction, noise); "
+                        "without it such a run is refused before simulating. Results of other grasps made "
+                        "with the same settings are always kept beside the new ones")
     p.add_argument("--all", action="store_true",
                    help=f"run the selection however large (without it, more than {MAX_TRIALS:,} "
                         "trials are refused with an estimate of their duration)")
     add_gripper_flag(p, help="the gripper the map was made for (default: the one it records; a "
                      "name or spec .json that differs from it is an error: the map's poses are that gripper's)")
     add_json_flag(p)
+    with_glossary(p, "feasible", "robust score", "grade")
     p.set_defaults(func=run)
 
 
@@ -91,7 +117,7 @@ def run(args) -> int:
     # mujoco loads only when the command runs (keeps `graspsim --help` fast)
     from graspsim.errors import InvalidParameterError
     from graspsim.maps import load_map
-    from graspsim.sim import ExecutionNoise, SimSettings, TrialOutcome, make_protocol, simulate_map
+    from graspsim.sim import ExecutionNoise, SimSettings, make_protocol, simulate_map
 
     if args.threads is not None and args.threads < 1:
         raise InvalidParameterError(f"--threads must be >= 1, got {args.threads}")
@@ -100,6 +126,12 @@ def run(args) -> int:
         if n is not None and n < 1:
             raise InvalidParameterError(f"nothing to simulate: --{flag} {n} selects no grasp "
                                         "(give N >= 1)")
+    separation = None
+    if args.separation is not None:
+        mm, deg = args.separation
+        if args.top is None or not (math.isfinite(mm) and mm >= 0 and math.isfinite(deg) and deg >= 0):
+            raise InvalidParameterError(f"--separation {mm:g} {deg:g}: two numbers >= 0 (mm, deg), with --top")
+        separation = (1e-3 * mm, math.radians(deg))
     if args.render:
         from graspsim._atomic import check_folder
 
@@ -143,8 +175,9 @@ def run(args) -> int:
             noise=ExecutionNoise() if args.noise else None, mesh=mesh,
             mesh_scale=1.0 if args.mesh_scale is None else args.mesh_scale,
             mass=args.mass, settings=settings,
-            write=not args.no_write, on_progress=tick, on_selected=_selection_check(args, bar),
-            on_record=recorder, rank=args.rank)
+            write=not args.no_write, replace_stored=args.replace, on_progress=tick,
+            on_selected=_selection_check(args, bar),
+            on_record=recorder, rank=args.rank, separation=separation)
     finally:
         bar.close()
     res = out.results
@@ -152,21 +185,21 @@ def run(args) -> int:
     if recorder is not None:
         recorder.recording(out.scene, out.index, res.outcome, res.protocol).save(args.record)
     counts = res.counts()
+    blocked = res.start_collisions()
     summary = {
         "file": str(out.file), "dataset": dataset, "protocol": protocol.name, "trials": len(res),
-        "feasible": res.feasible, "counts": counts, "success_rate": res.success_rate,
+        "feasible": res.feasible, "counts": counts, "start_collisions": blocked,
+        "success": counts["success"], "success_rate": res.success_rate,
+        "success_rate_all": counts["success"] / len(res) if len(res) else math.nan,
         "trials_per_second": res.trials_per_second, "wall_time_s": res.wall_time,
         "threads": res.threads, "seed": args.seed, "noise": res.noise, "rank": args.rank,
         "mesh": args.mesh, "mesh_model": None if mesh is None else mesh.describe(),
-        "written_to": out.group, "renders": renders, "record": args.record,
+        "written_to": out.group, "kept_stored": out.kept, "replaced_stored": out.replaced,
+        "renders": renders, "record": args.record,
+        "separation": args.separation, "T_world_obj": out.scene.T_world_obj.tolist(),
+        "viewpoint": out.viewpoint,
     }
-    n = max(1, len(res))
-    rows = [(o.label, counts[o.label], 100.0 * counts[o.label] / n) for o in TrialOutcome]
-    rate = "n/a" if math.isnan(res.success_rate) else f"{100 * res.success_rate:.1f} %"
-    human = (format_table(rows, ["outcome", "trials", "%"]) + "\n\n"
-             f"success rate (feasible poses): {rate}; {res.trials_per_second:.1f} trials/s "
-             f"on {res.threads} thread(s)" + (f"; results in {out.group}" if out.group else "")
-             + (f" of {out.file}" if dataset is not None else ""))
+    human = _report(res, counts, blocked, out, foreign=dataset is not None)
     if mesh is not None:
         m = mesh.describe()
         human += (f"\nmesh {args.mesh}: {m['parts']} convex part(s) ({m['method']}), mass from the "
@@ -174,6 +207,47 @@ def run(args) -> int:
                   f"{', from the cache' if m['from_cache'] else ''}")
     emit(summary, args.json, human)
     return 0
+
+
+def _percent(k: int, n: int) -> str:
+    return f"{100 * k / n:5.1f} %" if n else "    - "
+
+
+def _report(res, counts: dict, blocked: dict, out, foreign: bool = False) -> str:
+    """The outcome table and the headline: every rate with its counts, the attempts and
+    what was excluded from the feasible ones and why."""
+    from graspsim.sim import TrialOutcome
+    from graspsim.stats import wilson_interval
+
+    n = len(res)
+    rows = []
+    for o in TrialOutcome:
+        if o is TrialOutcome.START_COLLISION:
+            rows.append(("start_collision (object)", blocked["object"], _percent(blocked["object"], n)))
+            rows.append(("start_collision (table only)", blocked["table"], _percent(blocked["table"], n)))
+        else:
+            rows.append((o.label, counts[o.label], _percent(counts[o.label], n)))
+    ok, feasible = counts["success"], res.feasible
+    excluded = n - feasible
+    why = " and ".join(f"{k} {w}" for k, w in ((blocked["object"], "in collision with the object"),
+                                                (blocked["table"], "blocked by the table")) if k)
+    if feasible:
+        lo, hi = wilson_interval(ok, feasible)
+        head = (f"success rate: {ok} of {feasible} feasible poses = {100 * ok / feasible:.1f} % "
+                f"(95 % CI {100 * lo:.0f}-{100 * hi:.0f} %)")
+    else:
+        head = "success rate: n/a (no feasible pose)"
+    attempts = f"{n} attempt" + ("" if n == 1 else "s")
+    head += (f"; {attempts}, {excluded} excluded as infeasible (the gripper starts in collision: {why})"
+             if excluded else f"; {attempts}, none excluded")
+    head += f"; of all {n} attempts {ok} succeeded ({100 * ok / n:.1f} %)" if excluded and n else ""
+    stored = ""
+    if out.group:
+        stored = (f"\nresults stored in {out.group}" + (f" of {out.file}" if foreign else "")
+                  + (f" beside the {out.kept} stored before" if out.kept else "")
+                  + (f", replacing the {out.replaced} stored before (--replace)" if out.replaced else ""))
+    return (format_table(rows, ["outcome", "trials", "%"]) + "\n\n" + head
+            + f"\n{res.trials_per_second:.1f} trials/s on {res.threads} thread(s)" + stored)
 
 
 def _prepared_mesh(args):
@@ -198,17 +272,15 @@ def _render(args, out, protocol) -> list[str]:
     from graspsim.sim.render import render_trial
 
     res = out.results
-    renders, shown = [], 0
-    for j in range(len(out.index)):
-        if shown == args.render_count:
-            break
-        i = int(out.index[j])
-        if res.outcome[j] == TrialOutcome.START_COLLISION:
-            continue
-        shown += 1
-        paths = render_trial(out.scene, None, float(out.width[j]), args.render, protocol,
-                             name=f"grasp{i:06d}", gif=True, T_world_wrist=res.T_world_wrist[j])
-        renders += [str(p) for p in paths]
+    clear = [j for j in range(len(out.index)) if res.outcome[j] != TrialOutcome.START_COLLISION]
+    renders = []
+    with progress(min(len(clear), args.render_count), "rendering", enabled=not args.json, unit="trial") as bar:
+        for j in clear[:args.render_count]:
+            i = int(out.index[j])
+            paths = render_trial(out.scene, None, float(out.width[j]), args.render, protocol,
+                                 name=f"grasp{i:06d}", gif=True, T_world_wrist=res.T_world_wrist[j])
+            renders += [str(p) for p in paths]
+            bar.update(1)
     return renders
 
 
@@ -305,8 +377,11 @@ def _selection_check(args, bar):
         if not args.json:
             short = (f" (the map holds only {n} {among})" if (args.sample or args.top or 0) > n
                      else "")
+            shots = min(n, args.render_count) if args.render else 0
+            render = (f"; then rendering up to {shots} of them: at least {_duration(shots * RENDER_SECONDS_PER_TRIAL)}"
+                      f" (~{RENDER_SECONDS_PER_TRIAL:g} s each on one core)" if shots else "")
             print(f"[graspsim] simulating {n:,} trials{short}: about {eta} on {threads} "
-                  f"thread(s) at ~{TRIALS_PER_SECOND_PER_THREAD:g} trials/s each", file=sys.stderr,
+                  f"thread(s) at ~{TRIALS_PER_SECOND_PER_THREAD:g} trials/s each{render}", file=sys.stderr,
                   flush=True)
         bar.total = n  # the bar's time left comes from the measured rate
         bar.refresh()

@@ -87,12 +87,15 @@ class GraspSelectEnv(TableTask):
         self.action_space = spaces.Discrete(K)
         # small scaling batches go to the branch-and-bound collision check, which needs
         # no per-object set-up: the fastest for pools of a few hundred grasps; the table
-        # (world z = 0) is known, so robust scores count perturbations into it
+        # (world z = 0) is known, so robust scores count perturbations into it; no
+        # observed-points filter and no feature grasps: the candidates are the planner's
+        # scored grasps as the environments' baselines (E06, E08) were measured with, and
+        # a feature grasp's score leaves out the primitives term the others include
         self.planner_config = PlannerConfig(
             identify=IdentifyConfig(repetitions=c.identify_repetitions),
             scaling=ScalingConfig(first_batch=48, growth=1.0), build_missing=False,
             table=TablePlane(height=0.0, clearance=c.table_margin),
-            robust=RobustConfig(openings=c.openings))
+            robust=RobustConfig(openings=c.openings), clear_observed=False, features=None)
         self.plan_result: PlanResult | None = None
         self._obs: dict | None = None
         self._cand: dict | None = None

@@ -23,8 +23,9 @@ class TablePlane:
     normal: the plane's upward normal (away from the table; normalised here).
     height: signed offset of the plane along the normal [m] (points p on it have
         normal . p = height); None: the object rests on it, so the planner puts it at
-        the object's lowest point along the normal (the identified shape's, or the
-        cloud's where that is lower: unidentified parts, noise).
+        the object's lowest point along the normal (``maps.table.table_height``: the
+        cloud's for a cloud seen all round; for a single view, whose camera rarely sees
+        the base, the identified shape's where that is lower).
     clearance: the gripper must stay this far above the plane [m].
     """
 

@@ -17,6 +17,7 @@ geometry only.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -54,21 +55,26 @@ def gripper_names() -> tuple[str, ...]:
 
 def load_gripper_json(path: str | Path) -> GripperSpec:
     """A spec from a JSON file; every problem is one GripperError line naming the file."""
+    from graspsim._files import read_small_text
+
     p = Path(path)
+    text = read_small_text(p, "gripper spec", GripperError, MAX_SPEC_BYTES)
     try:
-        if not p.is_file():  # a folder, a FIFO, a device
-            raise OSError("not a regular file")
-        if p.stat().st_size > MAX_SPEC_BYTES:
-            raise OSError(f"{p.stat().st_size} bytes; a gripper spec is a small JSON file (<= {MAX_SPEC_BYTES})")
-        text = p.read_text()
-    except (OSError, UnicodeDecodeError, ValueError) as err:  # ValueError: a NUL byte in the path
-        raise GripperError(f"cannot read gripper spec {str(p)!r}: {err}") from err
-    try:
-        return GripperSpec.from_json(text)
+        spec = GripperSpec.from_json(text)
+        name = json.loads(text).get("name")
     except GripperError as err:
         raise GripperError(f"gripper spec {str(p)!r}: {err}") from err
-    except (TypeError, ValueError) as err:
+    except (TypeError, ValueError, AttributeError) as err:
         raise GripperError(f"gripper spec {str(p)!r}: {err}") from err
+    # a map records its gripper by name (and the spec): a nameless spec would take the
+    # default's name, and a registered name on other numbers would pass for that gripper
+    if not isinstance(name, str) or not name.strip():
+        raise GripperError(f"gripper spec {str(p)!r} has no \"name\": give your gripper a name of its own "
+                           f"(the maps made with it record it; registered: {list(GRIPPERS)})")
+    if name in GRIPPERS and GRIPPERS[name]() != spec:
+        raise GripperError(f"gripper spec {str(p)!r} is named {name!r}, a registered gripper, but its numbers "
+                           "differ from that gripper's: give your gripper a name of its own")
+    return spec
 
 
 def get_gripper(gripper: str | Path | GripperSpec | None = None) -> GripperSpec:

@@ -54,10 +54,9 @@ class ObservedSurface:
         p = np.asarray(points, float)
         if p.ndim != 2 or p.shape[1] != 3:
             raise InvalidParameterError(f"points must be (N, 3), got shape {p.shape}")
-        v = None if viewpoint is None else np.asarray(viewpoint, float).reshape(-1)
-        if v is not None and (v.shape != (3,) or not np.all(np.isfinite(v))):
-            raise InvalidParameterError(f"viewpoint must be 3 finite coordinates, got {viewpoint!r}")
-        self.viewpoint = v
+        from graspsim.maps.occlusion import check_viewpoint
+
+        self.viewpoint = check_viewpoint(viewpoint)
         self.points = p[np.all(np.isfinite(p), axis=1)]
         self.k = int(min(k, max(len(self.points) - 1, 1)))
         self.tree = cKDTree(self.points) if len(self.points) else None

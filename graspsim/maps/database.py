@@ -3,7 +3,7 @@
 Maps are keyed by primitive, dimensions, gripper and generation settings; missing
 entries are built on demand. :meth:`MapDatabase.match` answers the paper's
 known / familiar question (section 2.4) with the one rule of :mod:`graspsim.maps.match`
-and the database's one tolerance ``tol`` (1 cm).
+and the database's one tolerance ``tol`` (relative: 3 %, ``match.KNOWN_TOL``).
 
 Layout::
 
@@ -23,7 +23,8 @@ import os
 import shutil
 import time
 from collections import OrderedDict
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,13 +38,20 @@ from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.io import load_map, save_map
-from graspsim.maps.match import MatchDecision, match_entries
+from graspsim.maps.match import KNOWN_TOL, MatchDecision, match_entries
 from graspsim.maps.validate import validate_map
 from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Primitive, Sphere, make_primitive, primitive_from_dict
 
-__all__ = ["MapDatabase", "PAPER_SHAPES", "default_root", "size_grid", "index_record"]
+__all__ = ["MapDatabase", "PAPER_SHAPES", "default_root", "size_grid", "index_record", "BUILD_PROGRESS"]
 
 log = logging.getLogger(__name__)
+
+#: How a map the database builds without being given a ``progress`` callback (a
+#: primitive the planner found no stored map for; ``build`` in this process) reports
+#: progress: a callable ``(shape) -> context manager`` yielding a fraction callback
+#: ``(float in [0, 1]) -> None``; None: silently. The command line sets one that draws a
+#: progress bar on a terminal (quiet with --json); the library itself draws nothing.
+BUILD_PROGRESS: ContextVar[Callable | None] = ContextVar("graspsim_build_progress", default=None)
 
 # The five primitives of the paper's database (section 3.1). The paper gives only the
 # cylinder's size (r = 2 cm, h = 20 cm); the others are chosen to be graspable by the
@@ -113,11 +121,14 @@ def _digest(obj) -> str:
 
 
 class MapDatabase:
-    """FS maps on disk for one gripper, quality model and generation config."""
+    """FS maps on disk for one gripper, quality model and generation config. The folder
+    is made if missing; with ``create=False`` (reading or checking a database) a missing
+    folder is a :class:`~graspsim.errors.MapDatabaseError` instead."""
 
     def __init__(self, root: str | os.PathLike | None = None, *,
                  gripper: GripperSpec = HGPL_25_60_A, quality: QualityModel | None = None,
-                 config: MapConfig | None = None, tol: float = 0.01, cache_size: int = 8):
+                 config: MapConfig | None = None, tol: float = KNOWN_TOL, cache_size: int = 8,
+                 create: bool = True):
         self.root = Path(root) if root is not None else default_root()
         self.gripper = gripper
         self.quality = quality or QualityModel()
@@ -126,6 +137,16 @@ class MapDatabase:
         self.cache_size = int(cache_size)
         self._cache: OrderedDict = OrderedDict()
         self._valid_of: tuple[bytes, list[int]] | None = None  # the index's bytes, its usable records
+        if not create:  # read or check a database: one that is not there is an error, not made
+            try:
+                there = self.root.is_dir()
+            except (OSError, ValueError) as err:  # ValueError: a NUL byte in the path
+                raise MapDatabaseError(f"cannot read map database folder {self.root}: {err}") from err
+            if not there:
+                raise MapDatabaseError(
+                    f"no map database at {self.root}: " + ("it is not a folder" if self.root.exists() else
+                                                            "the folder does not exist")
+                    + " (valid: a folder made by 'graspsim db build'; default $GRASPSIM_DB or ~/.cache/graspsim/db)")
         try:
             self.root.mkdir(parents=True, exist_ok=True)
         except (OSError, ValueError) as err:  # ValueError: a NUL byte in the path
@@ -190,8 +211,9 @@ class MapDatabase:
 
     # ------------------------------------------------------------------ queries
     def match(self, shape: Primitive, *, max_ratio: float = float("inf")) -> MatchDecision:
-        """Which stored map serves ``shape``: KNOWN (a map within ``self.tol`` on every
-        dimension), FAMILIAR (the nearest map, at most ``max_ratio`` times larger or
+        """Which stored map serves ``shape``: KNOWN (a map within the relative tolerance
+        ``self.tol``, :data:`~graspsim.maps.match.KNOWN_TOL`, on every dimension),
+        FAMILIAR (the nearest map, at most ``max_ratio`` times larger or
         smaller on every dimension: the scaling range, that can be grasped from every
         direction the shape can) or BUILD (see :mod:`graspsim.maps.match`); ``entry`` is
         the serving index record."""
@@ -354,8 +376,10 @@ def index_record(root: Path, path: Path, gmap: GraspabilityMap, seconds: float |
 def _build_one(db: MapDatabase, shape: Primitive, *, threads=None, progress=None):
     """Generate, sort best first and store one FS map; returns it and its index record."""
     t0 = time.perf_counter()
-    gmap = generate_fs_map(shape, db.gripper, db.quality, db.config, threads=threads,
-                           progress=progress)
+    show = BUILD_PROGRESS.get() if progress is None else None
+    with (show(shape) if show is not None else contextlib.nullcontext(progress)) as report:
+        gmap = generate_fs_map(shape, db.gripper, db.quality, db.config, threads=threads,
+                               progress=report)
     gmap = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # accepted grasps first
     validate_map(gmap, error=MapDatabaseError, what=f"the FS map of {shape} (not stored)")
     p = db.path(shape)

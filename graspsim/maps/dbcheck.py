@@ -84,13 +84,28 @@ def _record_problem(rec: dict, gmap) -> str | None:
 
 
 def _file_of(root: Path, rec: dict) -> Path | None:
-    """The record's map file, if it names one inside the database folder."""
+    """The record's map file, if it names one inside the database folder (a loop of
+    symbolic links: the link itself, which the check then finds unreadable)."""
     try:
-        path = (root / rec["file"]).resolve()
+        name = root / rec["file"]
+        try:
+            path = name.resolve()
+        except (RuntimeError, OSError):  # a loop of symbolic links (RuntimeError before Python 3.13)
+            path = name.parent.resolve() / name.name
         path.relative_to(root.resolve())
-    except (KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError, OSError, RuntimeError):
         return None
     return path
+
+
+def _unreadable(path: Path) -> str | None:
+    """Why ``path`` cannot be read as a file at all (a loop of symbolic links, a
+    dangling link, a folder), or None."""
+    try:
+        path.stat()
+    except OSError as err:
+        return f"not a readable file: {err.strerror or err}"
+    return None if path.is_file() else "not a regular file"
 
 
 def check_database(db: MapDatabase, *, repair: bool = False, stale_after: float = 600.0) -> DatabaseReport:
@@ -116,8 +131,13 @@ def check_database(db: MapDatabase, *, repair: bool = False, stale_after: float 
         if rel in keep or path in doomed:
             problems.append((name, "listed twice in the index"))
             continue
-        if not path.is_file():
+        if not path.is_file() and not path.is_symlink():
             problems.append((name, "listed in the index but the file is missing"))
+            continue
+        why = _unreadable(path)
+        if why:
+            problems.append((name, why))
+            doomed.add(path)
             continue
         gmap, why = _read(path)
         if gmap is None:
@@ -134,7 +154,14 @@ def check_database(db: MapDatabase, *, repair: bool = False, stale_after: float 
     reindexed: list[str] = []
     for path in sorted(root.glob("*/*.h5")):
         rel = str(path.relative_to(root))
-        if rel in keep or path in doomed or _age(path, now) < stale_after:
+        if rel in keep or path in doomed:
+            continue
+        why = _unreadable(path)
+        if why:
+            problems.append((rel, f"not listed in the index and {why}"))
+            doomed.add(path)
+            continue
+        if _age(path, now) < stale_after:
             continue
         gmap, why = _read(path)
         problems.append((rel, "not listed in the index" + (f" and invalid: {why}" if why else "")))
@@ -170,6 +197,8 @@ def _age(path: Path, now: float) -> float:
         return now - path.stat().st_mtime
     except FileNotFoundError:
         return -float("inf")
+    except OSError:  # a loop of links: not a fresh write of anyone's
+        return float("inf")
 
 
 def _identity(record) -> str:

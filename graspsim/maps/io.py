@@ -83,16 +83,43 @@ def _h5py():
     return h5py
 
 
+#: The extensions a map file may have (HDF5).
+MAP_SUFFIXES = (".h5", ".hdf5")
+
+
+def check_map_suffix(path: str | os.PathLike, error=None) -> Path:
+    """``path`` as a Path, unless its extension is not a map file's (:data:`MAP_SUFFIXES`):
+    then ``error`` (default :class:`~graspsim.errors.OutputPathError`) -- an HDF5 map
+    written to ``cyl.txt`` or ``cyl.png`` is a mistake caught before the work."""
+    from graspsim.errors import OutputPathError
+
+    path = Path(path)
+    if path.suffix.lower() not in MAP_SUFFIXES:
+        raise (error or OutputPathError)(
+            f"cannot write a map to {path}: a map file is HDF5, its name ends in "
+            f"{' or '.join(MAP_SUFFIXES)} (got {path.suffix or 'no extension'!r})")
+    return path
+
+
+def check_map_output(path: str | os.PathLike, *, others: dict | None = None) -> Path:
+    """The checks before a command writes a map to ``path``: a writable file
+    (:func:`~graspsim._atomic.check_output`) with a map file's extension."""
+    from graspsim._atomic import check_output
+
+    return check_map_suffix(check_output(path, "map", others=others))
+
+
 def save_map(gmap: GraspabilityMap, path: str | os.PathLike, *, compression: str | None = "lzf") -> Path:
     """Write ``gmap`` to ``path`` atomically (temp file + rename). Returns the path.
 
+    The name must end in .h5 or .hdf5 (:func:`check_map_suffix`).
     compression: HDF5 filter for the grasp arrays: "lzf" (default; maps repeat each
     closing line's data over rolls and depths, so files shrink ~5x), "gzip", or None.
     Readers need nothing special: h5py decompresses transparently. (No byte shuffling:
     it made files 6 % smaller but writing 35 % and reading 30 % slower.)
     """
     h5py = _h5py()
-    path = Path(path)
+    path = check_map_suffix(path, MapFileError)
     m = gmap.meta
     opts = {"compression": compression} if compression and len(gmap) else {}
     with atomic_path(path) as tmp:

@@ -5,8 +5,12 @@ and through it by the planner and the CLI:
 
 * the stored maps of the same primitive kind are ranked by the size change scaling would
   need -- the largest per-dimension ratio ``max(v / w, w / v)`` (1 for equal dims);
-* *known*: a stored map lies within ``tol`` (1 cm in the paper) on every dimension; the
-  nearest of those (by the ratio) serves the primitive as is;
+* *known*: a stored map lies within the relative tolerance ``tol`` (:data:`KNOWN_TOL`,
+  3 %) on every dimension -- its ratio is at most ``1 + tol`` -- and the nearest of those
+  (by the ratio) serves the primitive as is. The paper's 1 cm on every dimension took a
+  can of r 32.9 mm as a stored r 24 mm one and gave it grasps sized for a 48 mm chord,
+  every one of them failing; a relative tolerance cannot: see :data:`KNOWN_TOL` for its
+  bound;
 * *familiar*: otherwise the nearest map, if its ratio is at most ``max_ratio`` (the
   scaling range), is scaled to the primitive;
 * *build*: no stored map of that kind within the scaling range.
@@ -42,7 +46,19 @@ from typing import Any
 from graspsim.errors import InvalidParameterError
 from graspsim.primitives import make_primitive
 
-__all__ = ["MatchKind", "MatchDecision", "match_entries", "classify_match", "covers"]
+__all__ = ["MatchKind", "MatchDecision", "match_entries", "classify_match", "covers", "KNOWN_TOL"]
+
+#: The relative tolerance of *known* (3 %): a stored map serves a primitive unscaled
+#: only when no dimension differs by more than this fraction. Its bound is what scaling
+#: would correct that an unscaled map cannot absorb: scaling recentres every grasp on
+#: the new chord, the unscaled map keeps the old contacts, so a chord larger by d
+#: eats d / 2 of the jaws' approach clearance on each side (5 mm on the HGPL-25:
+#: ``GripperSpec.approach_clearance``) -- and a smaller one leaves the contacts d / 2
+#: off the surface. At 3 % the widest chord the gripper closes across (110 mm) moves
+#: each contact by at most 1.65 mm, a third of that clearance and of the FS maps'
+#: 5 mm surface step; the bound ``approach_clearance / widest chord`` is 4.5 %.
+#: Anything further is *familiar*: scaled.
+KNOWN_TOL = 0.03
 
 
 class MatchKind(str, Enum):
@@ -120,12 +136,14 @@ def covers(kind: str, dims: dict[str, float], stored: dict[str, float], max_widt
 def match_entries(kind: str, dims: dict[str, float], entries: Iterable[dict], *, tol: float,
                   max_ratio: float = math.inf, max_width: float | None = None) -> MatchDecision:
     """The decision for a primitive ``kind`` (normalised name, e.g. ``"half_toroid"``)
-    with ``dims`` [m] against index ``entries`` (``{"primitive": kind, "dims": {...}}``;
+    with ``dims`` [m] against index ``entries``; ``tol``: the relative tolerance of
+    *known* (a fraction, :data:`KNOWN_TOL`; a known map is never further than
+    ``max_ratio`` either) (``{"primitive": kind, "dims": {...}}``;
     other keys are kept in the returned entry). ``max_width`` [m]: the gripper's widest
     chord; stored maps that do not :func:`cover <covers>` the query are passed over
     (None: no check)."""
-    if not tol >= 0:
-        raise InvalidParameterError(f"tol must be >= 0 m, got {tol!r}")
+    if not 0 <= tol < 1:
+        raise InvalidParameterError(f"tol is a relative tolerance in [0, 1), got {tol!r}")
     if not max_ratio >= 1:
         raise InvalidParameterError(f"max_ratio must be >= 1, got {max_ratio!r}")
     best = best_known = None  # (ratio, max_diff, entry)
@@ -140,7 +158,7 @@ def match_entries(kind: str, dims: dict[str, float], entries: Iterable[dict], *,
         d = max(abs(v - w) for v, w in pairs)
         if best is None or r < best[0]:
             best = (r, d, e)
-        if d <= tol and (best_known is None or r < best_known[0]):
+        if r <= min(1.0 + tol, max_ratio) and (best_known is None or r < best_known[0]):
             best_known = (r, d, e)
     if best_known is not None:
         r, d, e = best_known
@@ -152,7 +170,7 @@ def match_entries(kind: str, dims: dict[str, float], entries: Iterable[dict], *,
 
 
 def classify_match(kind: str, dims: dict[str, float], stored: list[dict], *,
-                   tol: float = 0.01) -> MatchDecision:
+                   tol: float = KNOWN_TOL) -> MatchDecision:
     """:func:`match_entries` for primitive ``kind`` with ``dims`` [m] (validated) against
     index records ``stored``, with no scaling limit: FAMILIAR whenever a map of the kind
     is stored, BUILD when none is."""

@@ -26,10 +26,34 @@ from graspsim.errors import InvalidParameterError
 from graspsim.geometry.spacing import median_spacing
 from graspsim.grippers.spec import GripperSpec
 
-__all__ = ["ViewDepth", "finger_samples", "finger_occlusion"]
+__all__ = ["ViewDepth", "finger_samples", "finger_occlusion", "check_viewpoint", "MAX_VIEWPOINT"]
 
 _MAX_PIXELS = 1024  # per image side (memory bound)
 _PER_AXIS = (2, 3, 8)  # finger samples along the finger box's x, y, z
+
+
+#: Farthest a viewpoint may lie from the cloud frame's origin [m]: a table-top camera is
+#: within a few metres; beyond this the coordinates are not metres (or not a position).
+MAX_VIEWPOINT = 100.0
+
+
+def check_viewpoint(viewpoint) -> np.ndarray | None:
+    """``viewpoint`` as a (3,) float array (None stays None), or an
+    :class:`InvalidParameterError` naming what is valid: 3 finite coordinates [m] within
+    :data:`MAX_VIEWPOINT` of the origin."""
+    if viewpoint is None:
+        return None
+    try:
+        v = np.asarray(viewpoint, float).reshape(-1)
+    except (TypeError, ValueError):
+        v = None
+    if v is None or v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise InvalidParameterError(f"viewpoint must be 3 finite coordinates [m] (x, y, z of the camera), "
+                                    f"got {viewpoint!r}")
+    if float(np.max(np.abs(v))) > MAX_VIEWPOINT:
+        raise InvalidParameterError(f"viewpoint {v.tolist()} lies more than {MAX_VIEWPOINT:g} m from the cloud's "
+                                    "origin: give the camera's position in metres, in the cloud's frame")
+    return v
 
 
 class ViewDepth:
@@ -41,9 +65,9 @@ class ViewDepth:
     def __init__(self, points: np.ndarray, viewpoint: np.ndarray, tolerance: float | None = None):
         P = np.asarray(points, float).reshape(-1, 3)
         P = P[np.all(np.isfinite(P), axis=1)]
-        v = np.asarray(viewpoint, float).reshape(-1)
-        if v.shape != (3,) or not np.all(np.isfinite(v)):
-            raise InvalidParameterError(f"viewpoint must be 3 finite coordinates, got {viewpoint!r}")
+        v = check_viewpoint(viewpoint)
+        if v is None:
+            raise InvalidParameterError("a depth image needs a viewpoint")
         if len(P) < 3:
             raise InvalidParameterError(f"need >= 3 observed points for a depth image, got {len(P)}")
         self.viewpoint = v

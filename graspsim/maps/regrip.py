@@ -109,6 +109,10 @@ def adapt_to_gripper(gmap: GraspabilityMap, gripper: GripperSpec, *, config: Map
             f"compound); this map's object is {obj.get('file') or 'not recorded'}")
     source, shape = gmap.meta.gripper_spec, gmap.meta.shape
     cfg = config or gmap.meta.map_config
+    for name, value in (("source_min_grade", source_min_grade), ("keep_min_grade", keep_min_grade)):
+        if value is not None and not (isinstance(value, (int, float, np.number)) and 0 <= float(value) < 1):
+            raise InvalidParameterError(f"{name} must be a grade in [0, 1) (grasps above it are carried; None: "
+                                        f"the map's threshold {gmap.threshold:g}), got {value!r}")
     src_min = gmap.threshold if source_min_grade is None else float(source_min_grade)
     rows = np.flatnonzero(gmap.above(src_min))
     quat = gmap.wrist_quat[rows]

@@ -110,16 +110,25 @@ def _chunks(n: int, chunk: int, least: int = 256) -> list[tuple[int, int]]:
     return list(zip(edges[:-1], edges[1:]))
 
 
-def table_height(table: TablePlane, points: np.ndarray, shape, T_cloud_obj: np.ndarray) -> float:
-    """The table's offset along its normal: given, or the object's lowest point (the
-    identified shape's -- a camera rarely sees the base -- or the cloud's 0.5 % quantile
-    where that is lower: unidentified parts)."""
+def table_height(table: TablePlane, points: np.ndarray, shape, T_cloud_obj: np.ndarray, *,
+                 single_view: bool = False) -> float:
+    """The table's offset along its normal: given, or the object's lowest point. For a
+    cloud seen all round that is the cloud's 0.5 % quantile along the normal: the
+    points reach the table, and a fitted shape that reaches lower (a box fitted over a
+    multi-part object overshoots by a centimetre) would put the table under the real
+    one and let grasps through into it. For a ``single_view`` (a camera rarely sees the
+    base), or without points, the identified shape's lowest point where that is lower.
+    Without a viewpoint a single view is taken as seen all round: its table lies at its
+    lowest visible point, too high if anything -- grasps are dropped, none let into the
+    table."""
     if table.height is not None:
         return table.height
     n = np.asarray(table.normal)
-    v = np.asarray(shape.mesh().vertices, float)
-    low_shape = float(np.min((v @ T_cloud_obj[:3, :3].T + T_cloud_obj[:3, 3]) @ n))
     pts = np.asarray(points, float)
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     low_cloud = float(np.quantile(pts @ n, 0.005)) if len(pts) else np.inf
+    if len(pts) and not single_view:
+        return low_cloud
+    v = np.asarray(shape.mesh().vertices, float)
+    low_shape = float(np.min((v @ T_cloud_obj[:3, :3].T + T_cloud_obj[:3, 3]) @ n))
     return min(low_shape, low_cloud)

@@ -15,7 +15,7 @@ import numpy as np
 
 from graspsim.errors import PointCloudError
 
-__all__ = ["read_depth_image", "DEPTH_SUFFIXES", "MAX_DEPTH"]
+__all__ = ["read_depth_image", "DEPTH_SUFFIXES", "MAX_DEPTH", "MAX_PIXELS"]
 
 #: Depth image files :func:`read_depth_image` reads.
 DEPTH_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
@@ -23,6 +23,16 @@ DEPTH_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
 #: The farthest median depth [m] a table-top depth image is taken to have (a wrong
 #: ``scale`` -- millimetres read as metres -- gives hundreds).
 MAX_DEPTH = 10.0
+
+#: The most pixels a depth image may have (4096 x 4096): a depth camera gives at most a
+#: few million; a larger file is refused before its pixels are read (a 20000 x 20000
+#: image would take GBs once back-projected).
+MAX_PIXELS = 4096 * 4096
+
+
+def _too_big(path: Path, shape) -> PointCloudError:
+    return PointCloudError(f"{path.name}: {shape[1]} x {shape[0]} pixels is not a depth camera's image (at most "
+                           f"{MAX_PIXELS:,} pixels, e.g. 4096 x 4096)")
 
 
 def read_depth_image(path: str | Path, *, scale: float | None = None) -> tuple[np.ndarray, float]:
@@ -43,18 +53,35 @@ def read_depth_image(path: str | Path, *, scale: float | None = None) -> tuple[n
         raise PointCloudError(f"{path.name}: unknown depth image format {suffix!r}; valid: {list(DEPTH_SUFFIXES)}")
     try:
         if suffix == ".npy":
-            raw = np.load(path, allow_pickle=False)
+            lazy = np.load(path, allow_pickle=False, mmap_mode="r")  # the header first: its size
+            if lazy.ndim == 2 and lazy.shape[0] * lazy.shape[1] > MAX_PIXELS:
+                raise _too_big(path, lazy.shape)
+            raw = np.array(lazy)
+            del lazy
         else:
+            import warnings
+
             from PIL import Image
 
-            with Image.open(path) as im:
-                if len(im.getbands()) != 1:
-                    raise PointCloudError(f"a depth image has one channel; this one has {len(im.getbands())} "
-                                          f"({im.mode}): is it the colour image?")
-                raw = np.asarray(im)
+            with warnings.catch_warnings():  # PIL warns of damaged files (corrupt EXIF ...): an error here
+                warnings.simplefilter("error")
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # the size is checked here
+                try:
+                    im = Image.open(path)
+                except Image.DecompressionBombError as err:
+                    raise PointCloudError(f"{path.name}: not a depth camera's image (at most {MAX_PIXELS:,} "
+                                          f"pixels): {err}") from None
+                with im:
+                    if im.size[0] * im.size[1] > MAX_PIXELS:
+                        raise _too_big(path, im.size[::-1])
+                    if len(im.getbands()) != 1:
+                        raise PointCloudError(f"a depth image has one channel; this one has {len(im.getbands())} "
+                                              f"({im.mode}): is it the colour image?")
+                    raw = np.asarray(im)
     except PointCloudError as err:
-        raise PointCloudError(f"{path.name}: {err}") from None
-    except (OSError, ValueError, EOFError, SyntaxError) as err:  # SyntaxError: PIL's broken-file error
+        msg = str(err)
+        raise PointCloudError(msg if msg.startswith(path.name) else f"{path.name}: {msg}") from None
+    except (OSError, ValueError, EOFError, SyntaxError, Warning) as err:  # SyntaxError: PIL's broken-file error
         raise PointCloudError(f"{path.name}: cannot read {suffix} depth image: {err}") from err
     if raw.ndim != 2 or raw.dtype.kind not in "uif" or min(raw.shape) < 2:
         raise PointCloudError(f"{path.name}: a depth image is an (H, W) array of numbers, got shape {raw.shape} "

@@ -24,7 +24,7 @@ import numpy as np
 
 from graspsim.errors import PointCloudError
 from graspsim.geometry.camera import Camera
-from graspsim.perception.prepare import MAX_EXTENT, as_coordinates, check_extent, to_metres
+from graspsim.perception.prepare import MAX_EXTENT, as_coordinates, canonical_points, check_extent, to_metres
 
 __all__ = ["LoadedCloud", "read_point_cloud", "read_camera", "check_cloud", "lzf_decompress", "MIN_POINTS"]
 
@@ -43,11 +43,14 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
 
 @dataclass(frozen=True)
 class LoadedCloud:
-    """points: (N, 3) float64, finite, file frame [m]; n_dropped: points removed for a
+    """points: (N, 3) float64, finite, file frame [m], canonical
+    (:func:`~graspsim.perception.prepare.canonical_points`: float32, 1 µm grid); n_dropped: points removed for a
     NaN/inf coordinate; n_read: points in the file; fmt: e.g. ``pcd/binary``; units:
     of the file's coordinates (converted to metres); viewpoint: (3,) where the cloud was
     seen from, file frame [m], when a camera record (``<file>.json``, written by
-    :func:`graspsim.tabletop.cloud_io.save_cloud`) says so, else None (unknown: the planner's
+    :func:`graspsim.tabletop.cloud_io.save_cloud`) or a PCD file's ``VIEWPOINT`` header
+    (its translation; the default ``0 0 0 1 0 0 0`` that PCL writes for every cloud,
+    merged ones too, says nothing) says so, else None (unknown: the planner's
     robust score then adds no occlusion term); rows: (N,) the file row of each point
     (None: every row, in order).
     """
@@ -83,7 +86,7 @@ def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: s
             f"{path.name}: unknown point cloud format {suffix!r}; valid: {sorted(readers)}"
         )
     try:
-        xyz, fmt = readers[suffix](path)
+        xyz, fmt, *header_view = readers[suffix](path)
     except PointCloudError as err:
         raise PointCloudError(f"{path.name}: {err}") from None
     except (OSError, ValueError, EOFError, UnicodeDecodeError) as err:  # EOFError: np.load of an empty file
@@ -95,13 +98,16 @@ def read_point_cloud(path: str | Path, *, min_points: int = MIN_POINTS, units: s
     n_drop = int(len(xyz) - finite.sum())
     if n_drop:
         log.info("%s: dropped %d of %d points with NaN/inf coordinates", path.name, n_drop, len(xyz))
-    pts = np.ascontiguousarray(to_metres(xyz[finite], units))
+    pts = np.ascontiguousarray(canonical_points(to_metres(xyz[finite], units)))
     try:
         check_cloud(pts, min_points=min_points, max_extent=max_extent, what=what)
     except PointCloudError as err:
         extra = f" ({n_drop} of {len(xyz)} points were NaN/inf)" if n_drop else ""
         raise PointCloudError(f"{path.name}: {err}{extra}") from None
-    return LoadedCloud(pts, n_drop, len(xyz), str(path), fmt, str(units).lower(), _viewpoint(path),
+    view = _viewpoint(path)
+    if view is None and header_view and header_view[0] is not None:
+        view = to_metres(header_view[0][None], units)[0]
+    return LoadedCloud(pts, n_drop, len(xyz), str(path), fmt, str(units).lower(), view,
                        np.flatnonzero(finite) if n_drop else None)
 
 
@@ -149,7 +155,26 @@ def check_cloud(points: np.ndarray, *, min_points: int = MIN_POINTS, max_extent:
 
 
 # ---------------------------------------------------------------------------- PCD
-def _read_pcd(path: Path) -> tuple[np.ndarray, str]:
+def _pcd_viewpoint(vals: list[str] | None) -> np.ndarray | None:
+    """The translation of a PCD ``VIEWPOINT tx ty tz qw qx qy qz`` line (the sensor's
+    position in the cloud's frame), None for none or PCL's default (the origin with no
+    rotation: written for every cloud, so it says nothing)."""
+    if not vals:
+        return None
+    try:
+        v = np.array([float(x) for x in vals], float)
+    except ValueError:
+        raise PointCloudError(f"bad PCD VIEWPOINT line {' '.join(vals)!r}: 7 numbers tx ty tz qw qx qy qz "
+                              "expected") from None
+    if v.shape != (7,) or not np.all(np.isfinite(v)):
+        raise PointCloudError(f"bad PCD VIEWPOINT line {' '.join(vals)!r}: 7 finite numbers tx ty tz qw qx qy qz "
+                              "expected")
+    if np.array_equal(v, [0, 0, 0, 1, 0, 0, 0]):
+        return None
+    return v[:3]
+
+
+def _read_pcd(path: Path) -> tuple[np.ndarray, str, np.ndarray | None]:
     raw = path.read_bytes()
     header: dict[str, list[str]] = {}
     pos = 0
@@ -188,12 +213,13 @@ def _read_pcd(path: Path) -> tuple[np.ndarray, str]:
             fields.append((nm, code, int(ct)))
     except (KeyError, ValueError, IndexError) as err:
         raise PointCloudError(f"bad PCD header (POINTS/SIZE/TYPE/COUNT): {err}") from None
+    view = _pcd_viewpoint(header.get("VIEWPOINT"))
     mode = header["DATA"][0].lower() if header["DATA"] else ""
     body = raw[pos:]
     if mode == "ascii":
         cols = sum(c for _, _, c in fields)
         xyz = _text_columns(body.decode("ascii", errors="replace"), cols, n, _column_index(fields))
-        return xyz, "pcd/ascii"
+        return xyz, "pcd/ascii", view
     if mode == "binary":
         dt = np.dtype([(f"f{i}", "<" + c, (k,) if k > 1 else ()) for i, (_, c, k) in enumerate(fields)])
         if len(body) < n * dt.itemsize:
@@ -202,7 +228,7 @@ def _read_pcd(path: Path) -> tuple[np.ndarray, str]:
                 f"{dt.itemsize} bytes (need {n * dt.itemsize})"
             )
         rec = np.frombuffer(body, dtype=dt, count=n)
-        return _xyz_from_records(rec, names), "pcd/binary"
+        return _xyz_from_records(rec, names), "pcd/binary", view
     if mode == "binary_compressed":
         if len(body) < 8:
             raise PointCloudError("truncated binary_compressed PCD: no size words")
@@ -219,7 +245,7 @@ def _read_pcd(path: Path) -> tuple[np.ndarray, str]:
                 raise PointCloudError("binary_compressed PCD data are shorter than the header says")
             cols[nm] = np.frombuffer(data, "<" + c, count=n * k, offset=off).reshape(n, k)[:, 0]
             off += nbytes
-        return np.column_stack([cols["x"], cols["y"], cols["z"]]), "pcd/binary_compressed"
+        return np.column_stack([cols["x"], cols["y"], cols["z"]]), "pcd/binary_compressed", view
     raise PointCloudError(f"unsupported PCD DATA {mode!r}; valid: ascii, binary, binary_compressed")
 
 

@@ -30,17 +30,21 @@ class PartPlan:
     (:class:`~graspsim.maps.match.MatchKind`: KNOWN, FAMILIAR, or BUILD: an FS map was
     built for the part -- or, with ``build_missing`` off, none: ``source`` is empty);
     source: the FS map's object; T_cloud_part (4, 4); T_obj_part (4, 4) in the map's
-    object frame."""
+    object frame; stored: which stored map served the part -- ``{"key": its database
+    key, "ratio": the largest per-dimension size ratio between it and the part (1: the
+    same size), "max_diff": the largest per-dimension difference [m]}`` (for a BUILD the
+    map built, ratio 1), None when no map served it."""
 
     primitive: Primitive
     match: MatchKind
     source: dict
     T_cloud_part: np.ndarray
     T_obj_part: np.ndarray
+    stored: dict | None = None
 
     def to_dict(self) -> dict:
         return {"primitive": self.primitive.kind, "dims": self.primitive.dims, "match": self.match.value,
-                "source": self.source, "T_cloud_part": self.T_cloud_part.tolist()}
+                "source": self.source, "stored": self.stored, "T_cloud_part": self.T_cloud_part.tolist()}
 
 
 @dataclass(frozen=True)

@@ -154,8 +154,9 @@ _TABLE_TOLERANCE = 0.005
 
 
 def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig, checks,
-                 T_table_part: np.ndarray | None = None) -> tuple[MatchKind, dict, Iterator]:
-    """(match, source object, iterator of map batches in the part's frame; a scaled
+                 T_table_part: np.ndarray | None = None) -> tuple[MatchKind, dict, Iterator, dict | None]:
+    """(match, source object, iterator of map batches in the part's frame, the stored
+    map used -- :attr:`PartPlan.stored <graspsim.plan_results.PartPlan.stored>`; a scaled
     map's grasps checked for collisions at ``checks``, :func:`check_config`); with the
     table's frame ``T_table_part`` in the part's frame, the grasps likely to clear it
     stream first (the table filter would empty the first batches otherwise)."""
@@ -165,19 +166,20 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig, checks,
         least = cfg.table.clearance + _TABLE_TOLERANCE
         prefer = lambda q, p, w: heights_above(db.gripper, T_table_part, q, p, w) >= least  # noqa: E731
     stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth, prefer)  # noqa: E731
+    used = None if m.entry is None else {"key": m.entry.get("key"), "ratio": m.ratio, "max_diff": m.max_diff}
     if m.match is MatchKind.KNOWN:  # the stored map as is (paper 2.2)
         fs = db.load_entry(m.entry, accepted_only=True)
-        return m.match, fs.meta.object, stream(fs)
+        return m.match, fs.meta.object, stream(fs), used
     if m.match is MatchKind.FAMILIAR:
         fs = db.load_entry(m.entry, accepted_only=True)
         return m.match, fs.meta.object, scale_stream(fs, prim, scaling=cfg.scaling, gripper=db.gripper,
-                                                        quality=db.quality, config=checks, prefer=prefer)
+                                                        quality=db.quality, config=checks, prefer=prefer), used
     if not cfg.build_missing:
-        return MatchKind.BUILD, {}, iter(())
+        return MatchKind.BUILD, {}, iter(()), None
     # no map of this primitive within the scaling range: add one to the database
     fs = db.get(prim)  # sorted best first: the accepted grasps are a prefix
     fs = fs.select(np.arange(int(fs.accepted.sum())))
-    return MatchKind.BUILD, fs.meta.object, stream(fs)
+    return MatchKind.BUILD, fs.meta.object, stream(fs), {"key": db.key(prim), "ratio": 1.0, "max_diff": 0.0}
 
 
 def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
@@ -195,8 +197,14 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
     skipped instead of streamed unscored (for a caller that keeps only scored grasps,
     as a scene does: the same scored grasps, sooner; the final map then lacks the
     skipped ones)."""
+    from graspsim.maps.occlusion import check_viewpoint
+    from graspsim.seeding import check_rng
+
     cfg = config or PlannerConfig()
     t0 = time.perf_counter()
+    if identification is None or rng is not None:  # given the identification, nothing is drawn
+        check_rng(rng)
+    viewpoint = check_viewpoint(viewpoint)  # a bad one fails now, not after the identification
     points = np.asarray(points, float)
     ident = identification if identification is not None else identify(points, rng=rng, config=cfg.identify)
     timing = {"identify": time.perf_counter() - t0}
@@ -259,9 +267,11 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
-    T_table_obj, table = _table_in_object(cfg, points, prims[0] if compound is None else compound, T_cloud_obj)
+    T_table_obj, table = _table_in_object(cfg, points, prims[0] if compound is None else compound, T_cloud_obj,
+                                          single_view=viewpoint is not None)
     extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
-             "identification": ident_info}
+             "identification": ident_info,
+             "viewpoint": None if viewpoint is None else np.asarray(viewpoint, float).tolist()}
     n_below = n_hi = 0
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
@@ -276,10 +286,10 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     t1 = time.perf_counter()
     for i, prim in enumerate(prims):
         stage.start()
-        match, src, stream = _part_stream(prim, db, cfg, checks,
-                                          None if T_table_obj is None else T_table_obj @ T_obj_part[i])
+        match, src, stream, used = _part_stream(prim, db, cfg, checks,
+                                                None if T_table_obj is None else T_table_obj @ T_obj_part[i])
         stage.lap("adapt")
-        parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i]))
+        parts.append(PartPlan(prim, match, src, T_cloud[i], T_obj_part[i], used))
         budget = cfg.robust.top if cfg.rank == "robust" else 0
         # the part map's frame in the cloud's (a part's own frame until it is combined)
         T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
@@ -351,12 +361,14 @@ def _finished(batches: list, parts: list, extra: dict, table: dict | None, n_bel
     return full.ranked(cfg.rank)
 
 
-def _table_in_object(cfg: PlannerConfig, points: np.ndarray, shape, T_cloud_obj: np.ndarray):
-    """The table's frame in the object's and its record (height found from the cloud), or
-    (None, None) without a table."""
+def _table_in_object(cfg: PlannerConfig, points: np.ndarray, shape, T_cloud_obj: np.ndarray, *,
+                     single_view: bool = False):
+    """The table's frame in the object's and its record (height found from the cloud:
+    ``single_view``, a cloud with a viewpoint, see :func:`table_height`), or (None,
+    None) without a table."""
     if cfg.table is None:
         return None, None
-    height = table_height(cfg.table, points, shape, T_cloud_obj)
+    height = table_height(cfg.table, points, shape, T_cloud_obj, single_view=single_view)
     return table_frame(cfg.table.normal, height) @ T_cloud_obj, {**cfg.table.to_dict(), "height": height}
 
 

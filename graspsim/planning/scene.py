@@ -131,6 +131,9 @@ def perceive_scene(points: np.ndarray, rng: np.random.Generator, config: SceneCo
     cloud (one view): surface normals point towards it, and with
     ``SceneConfig.crease_angle`` the clustering parts touching objects along the
     concave creases between them (:func:`~graspsim.perception.segment.euclidean_clusters`)."""
+    from graspsim.seeding import check_rng
+
+    check_rng(rng)
     cfg = config or SceneConfig()
     t0 = time.perf_counter()
     pts, finite = _check_scene(points)
@@ -234,8 +237,13 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     where the camera that saw the cloud was (cloud frame): finger volume in the space
     behind what it saw -- an object's far side, what lies under a neighbour -- scales the
     robust score down (:mod:`~graspsim.maps.occlusion`); None: no such term."""
+    from graspsim.maps.occlusion import check_viewpoint
+    from graspsim.seeding import check_rng
+
     cfg = config or SceneConfig()
     t0 = time.perf_counter()
+    viewpoint = check_viewpoint(viewpoint)  # before the work: a bad one fails now, in one line
+    check_rng(rng)
     per = perceive_scene(points, rng, cfg, labels=labels, viewpoint=viewpoint)
     table = per.plane.table(cfg.clearance)
     t1 = time.perf_counter()

@@ -46,6 +46,13 @@ class Compound:
         out.__dict__["volume"] = volume  # a shift keeps the volume: no second integration
         return out
 
+    def __str__(self) -> str:
+        """The parts in words (a map's object row, logs): ``compound of 2 parts:
+        cylinder(radius=3.49 cm, height=10.2 cm) + cylinder(...)``, with the overall size."""
+        size = np.ptp(self.aabb, axis=0) * 100
+        return (f"compound of {len(self.parts)} parts: " + " + ".join(str(p) for p in self.parts)
+                + f"; {size[0]:.3g} x {size[1]:.3g} x {size[2]:.3g} cm overall")
+
     # ------------------------------------------------------------------ geometry
     def _part_points(self, i: int, p: np.ndarray) -> np.ndarray:
         return transform_points(invert_transform(self.poses[i]), p)

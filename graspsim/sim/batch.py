@@ -22,7 +22,7 @@ from mujoco import rollout
 
 from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.sim.noise import ExecutionNoise
-from graspsim.sim.outcomes import Record, TrialOutcome
+from graspsim.sim.outcomes import Record, TrialOutcome, collision_kind
 from graspsim.sim.protocols import LiftPlace, Protocol
 from graspsim.sim.results import TrialResults
 from graspsim.sim.scene import Scene
@@ -57,24 +57,41 @@ def initial_states(scene: Scene, T_world_wrist: np.ndarray, openings: np.ndarray
 def start_penetration(scene: Scene, state0: np.ndarray, T_world_wrist: np.ndarray) -> np.ndarray:
     """Deepest overlap (N,) [m] at t = 0 of the gripper with the object or the table
     (0 where they do not touch); the arm keep-out box counts against the table."""
+    return np.maximum(*start_overlaps(scene, state0, T_world_wrist))
+
+
+def start_overlaps(scene: Scene, state0: np.ndarray, T_world_wrist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Deepest overlap at t = 0 of the gripper with the object and with the table, apart:
+    ((N,), (N,)) [m], 0 where they do not touch (the arm keep-out box counts against the
+    table; a scene without a table: zeros)."""
     m, d = scene.model, mujoco.MjData(scene.model)
-    depth = np.zeros(len(state0))
+    obj, table = np.zeros(len(state0)), np.zeros(len(state0))
     grip = np.zeros(m.ngeom, bool)
     grip[scene.gripper_geoms] = True
     other = np.zeros(m.ngeom, bool)
     other[scene.contact_geoms] = True
+    table_geom = np.zeros(m.ngeom, bool)
+    if scene.table:
+        gid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "table")
+        if gid >= 0:
+            table_geom[gid] = True
     for i, s in enumerate(state0):
         mujoco.mj_setState(m, d, s, _FULL)
         mujoco.mj_kinematics(m, d)
         mujoco.mj_collision(m, d)
         if d.ncon:
             g = d.contact.geom[: d.ncon]
+            mine = grip[g[:, 0]] | grip[g[:, 1]]
             hit = (grip[g[:, 0]] & other[g[:, 1]]) | (grip[g[:, 1]] & other[g[:, 0]])
-            if np.any(hit):
-                depth[i] = max(0.0, -float(d.contact.dist[: d.ncon][hit].min()))
+            on_table = mine & (table_geom[g[:, 0]] | table_geom[g[:, 1]])
+            dist = d.contact.dist[: d.ncon]
+            if np.any(hit & ~on_table):
+                obj[i] = max(0.0, -float(dist[hit & ~on_table].min()))
+            if np.any(hit & on_table):
+                table[i] = max(0.0, -float(dist[hit & on_table].min()))
     if scene.table:
-        depth = np.maximum(depth, arm_below_table(scene.gripper, T_world_wrist))
-    return depth
+        table = np.maximum(table, arm_below_table(scene.gripper, T_world_wrist))
+    return obj, table
 
 
 def arm_below_table(gripper, T_world_wrist: np.ndarray) -> np.ndarray:
@@ -176,7 +193,8 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
         T_world = T_world @ noise.sample(n, np.random.default_rng(seed), pivot=g.nominal_tcp)
     openings = pregrasp_opening(scene, widths)
     state0 = initial_states(scene, T_world, openings)
-    depth = start_penetration(scene, state0, T_world)
+    on_object, on_table = start_overlaps(scene, state0, T_world)
+    depth = np.maximum(on_object, on_table)
     collide = depth > scene.settings.start_penetration
 
     outcome = np.full(n, TrialOutcome.START_COLLISION, np.int8)
@@ -215,4 +233,12 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
         start_penetration=depth, T_world_wrist=T_world, protocol=protocol.to_dict(),
         scene=scene.info(), seed=int(seed), noise=None if noise is None else noise.to_dict(),
         threads=threads, wall_time=wall, simulated_seconds=sim_seconds,
+        start_kind=_start_kinds(on_object, on_table, scene.settings.start_penetration),
     )
+
+
+def _start_kinds(on_object: np.ndarray, on_table: np.ndarray, tol: float) -> np.ndarray:
+    """(N,) what each start collision hit (:func:`collision_kind`): "table" alone, or the
+    "object" (the table maybe too); "" where the trial started clear."""
+    hits = [((0,) if o > tol else ()) + (("table",) if t > tol else ()) for o, t in zip(on_object, on_table)]
+    return np.array([collision_kind(h, None) if h else "" for h in hits], dtype="<U6")

@@ -40,7 +40,7 @@ from graspsim.sim.results import RESULT_GROUPS, TrialResults
 from graspsim.sim.scene import Scene, SimSettings, build_scene
 from graspsim.transforms import invert_transform
 
-__all__ = ["MapTrials", "select_grasps", "map_object", "map_gripper", "simulate_map",
+__all__ = ["MapTrials", "select_grasps", "map_object", "map_gripper", "observed_placement", "simulate_map",
            "write_results"]
 
 log = logging.getLogger(__name__)
@@ -51,23 +51,31 @@ class MapTrials:
     """Results of simulating some rows of a map: ``index`` (n,) the map rows, in the
     order of ``results``; ``scene`` the compiled scene; ``group`` where they were
     written (None if not written); ``width`` (n,) the widths the jaws opened to [m],
-    :func:`~graspsim.maps.robust.executed_width` (the map need not be read again to draw them)."""
+    :func:`~graspsim.maps.robust.executed_width` (the map need not be read again to draw them);
+    ``viewpoint`` the map's recorded viewpoint (a single view's camera; None: seen all round)."""
 
     index: np.ndarray
     results: TrialResults
     scene: Scene
     group: str | None
     width: np.ndarray | None = None
+    #: results of earlier runs the map file held in ``group`` and kept beside these (rows)
+    kept: int = 0
+    #: results of earlier runs this run replaced (``replace=True``; rows)
+    replaced: int = 0
     file: Path | None = None
+    viewpoint: list | None = None
 
 
 def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int | None = None,
                   min_grade: float | None = None, rng: np.random.Generator | None = None,
-                  rank: str = "robust") -> np.ndarray:
+                  rank: str = "robust", separation: tuple[float, float] | None = None) -> np.ndarray:
     """Map row indices to simulate: the ``top`` best by ``rank`` (``"robust"``: the
     map's robust scores where it has them, else the grade; ``"paper"``: the grade; see
-    :func:`graspsim.maps.robust.ranking`), or ``sample`` grasps spread uniformly over the
-    surface among those with grade > ``min_grade``, or all."""
+    :func:`graspsim.maps.robust.ranking`) -- with ``separation`` = (distance [m], angle
+    [rad]) the ``top`` best at least that far apart (:func:`~graspsim.maps.separation.separated_rows`)
+    --, or ``sample`` grasps spread uniformly over the surface among those with grade >
+    ``min_grade``, or all."""
     if top is not None and sample is not None:
         raise InvalidParameterError("give top or sample, not both")
     rows = np.arange(len(gmap))
@@ -78,7 +86,14 @@ def select_grasps(gmap: GraspabilityMap, *, top: int | None = None, sample: int 
             raise InvalidParameterError(f"top must be >= 0, got {top}")
         from graspsim.maps.robust import ranking
 
-        return rows[ranking(gmap.select(rows), rank)[:top]]
+        order = ranking(gmap.select(rows), rank)
+        if separation is None:
+            return rows[order[:top]]
+        from graspsim.maps.separation import separated_rows
+
+        sub = gmap.select(rows)
+        return rows[separated_rows(sub.grasp_point, sub.wrist_quat, order, top, distance=float(separation[0]),
+                                   angle=float(separation[1]))]
     if sample is not None:
         if sample < 0:
             raise InvalidParameterError(f"sample must be >= 0, got {sample}")
@@ -136,11 +151,50 @@ def map_object(gmap: GraspabilityMap, *, mesh: str | os.PathLike | PreparedMesh 
     return object_from_shape(shape, mass=mass, density=density)
 
 
+def _group(results: TrialResults) -> str:
+    return RESULT_GROUPS.get(results.protocol["name"], "grasps/qualities/mujoco_" + results.protocol["name"])
+
+
+def stored_results(path: str | os.PathLike, protocol: Protocol, scene: Scene, noise: ExecutionNoise | None,
+                   index: np.ndarray) -> tuple[str, int, str | None]:
+    """What storing trials of map rows ``index`` (with this protocol, scene and noise)
+    would do to the results the file already holds: (group, rows held, None when the new
+    rows can be stored beside them, else why they would be replaced)."""
+    group = RESULT_GROUPS.get(protocol.name, "grasps/qualities/mujoco_" + protocol.name)
+    try:
+        old = read_sim_results(path, group)
+    except MapFileError:  # unreadable: write_sim_results saves the new results aside
+        return group, 0, None
+    held = np.asarray(old.get("simulated", ()), bool)
+    if not held.any():
+        return group, 0, None
+    info = old.get("info", {})
+    new = {"protocol": protocol.to_dict(), "scene": scene.info(),
+           "noise": None if noise is None else noise.to_dict()}
+    other = [k for k in ("protocol", "scene", "noise") if info.get(k) != _jsonish(new[k])]
+    if other:
+        return group, int(held.sum()), f"made with another {' and '.join(other)}"
+    again = int(held[np.asarray(index)[np.asarray(index) < len(held)]].sum())
+    if again:
+        return group, int(held.sum()), f"{again} of the grasps selected now among them"
+    return group, int(held.sum()), None
+
+
+def _jsonish(value):
+    """``value`` as it reads back from the file's JSON record (tuples as lists ...)."""
+    import json
+
+    from graspsim._jsonable import to_jsonable
+
+    return json.loads(json.dumps(to_jsonable(value)))
+
+
 def write_results(path: str | os.PathLike, n_rows: int, index: np.ndarray,
                   results: TrialResults) -> str:
     """Store results for map rows ``index`` in the map file (merging earlier rows of the
-    same protocol and scene); returns the group written."""
-    group = RESULT_GROUPS.get(results.protocol["name"], "grasps/qualities/mujoco_" + results.protocol["name"])
+    same protocol and scene; results of other settings are replaced: see
+    :func:`stored_results`); returns the group written."""
+    group = _group(results)
     info = results.info()
     arrays = {"simulated": np.zeros(n_rows, bool)}
     for k, v in results.arrays().items():
@@ -151,7 +205,7 @@ def write_results(path: str | os.PathLike, n_rows: int, index: np.ndarray,
     except MapFileError as err:  # the file went bad during the run: write_sim_results saves aside
         log.warning("cannot read earlier results of %s: %s", path, err)
         old = {}
-    same = all(old.get("info", {}).get(k) == info[k] for k in ("protocol", "scene", "noise"))
+    same = all(old.get("info", {}).get(k) == _jsonish(info[k]) for k in ("protocol", "scene", "noise"))
     if old and same and "simulated" in old:
         keep = np.asarray(old["simulated"], bool)
         for k in arrays:
@@ -164,19 +218,22 @@ def write_results(path: str | os.PathLike, n_rows: int, index: np.ndarray,
     return group
 
 
-def _cloud_up(gmap: GraspabilityMap, has_mesh: bool) -> np.ndarray | None:
-    """The object-frame direction to stand upright, for maps planned from a cloud: the
-    normal of the table the planner was told about (its map then holds only poses
-    above that table), else for a mesh (the real object) the cloud's +z -- the planner's
-    object frame may be flipped (a cylinder's axis sign is arbitrary). None: the
-    object's own stable resting pose."""
+def observed_placement(gmap: GraspabilityMap, obj: SimObject, has_mesh: bool) -> np.ndarray | None:
+    """T_world_obj (4, 4) for a map planned from a cloud: the object stands on the table
+    as the cloud saw it (:func:`~graspsim.sim.scene.observed_pose`), up along the normal
+    of the table the planner was told about (its map then holds only poses above that
+    table), or for a mesh (the real object, in the cloud's frame) without one, along the
+    cloud's +z. None: the object's own stable resting pose (a map not planned from a
+    cloud, or primitives planned without a table)."""
+    from graspsim.sim.scene import observed_pose
+
     placement = gmap.meta.placement
     if placement is None:
         return None
     if placement.table is not None:
-        return placement.up
+        return observed_pose(obj, placement.T_cloud_obj, placement.table["normal"])
     if has_mesh:
-        return placement.T_cloud_obj[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+        return observed_pose(obj, placement.T_cloud_obj)
     return None
 
 
@@ -185,20 +242,28 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                  threads: int | None = None, seed: int = 0, noise: ExecutionNoise | None = None,
                  mesh: str | os.PathLike | PreparedMesh | None = None, mesh_scale: float = 1.0,
                  mass: float | None = None, settings: SimSettings | None = None,
-                 write: bool = True, cache_dir=None, on_progress=None,
+                 write: bool = True, replace_stored: bool = False, cache_dir=None, on_progress=None,
                  on_selected=None, on_record=None, rank: str = "robust",
+                 separation: tuple[float, float] | None = None,
                  dataset: dict | None = None) -> MapTrials:
     """Simulate grasps of the map file ``path`` and (``write``) store the results in it.
 
     settings: defaults to :class:`SimSettings` with the pad friction of the map's quality
     model (the planner's mu). Selection: see :func:`select_grasps` (``seed`` also draws
-    the uniform sample; ``rank`` orders ``top``). ``on_selected(gmap, index)`` is called once the rows are chosen
+    the uniform sample; ``rank`` orders ``top``, ``separation`` spreads it).
+    ``on_selected(gmap, index)`` is called once the rows are chosen
     and before anything is simulated (it may raise to stop, e.g. on an empty or huge
     selection). ``on_record``: see :func:`~graspsim.sim.batch.run_trials` (trial numbers
     are positions in ``MapTrials.index``). A third-party grasp file is imported
     beside itself first (see the module doc; ``mesh`` / ``mesh_scale`` then name its
     object's mesh, ``dataset`` holds the other arguments of
     :func:`~graspsim.maps.formats.read_grasp_file`) and the results go to that map.
+
+    Results the file already holds are kept: the new rows are stored beside them when
+    they were made with the same protocol, scene and noise and simulate other grasps;
+    otherwise storing would replace them, which needs ``replace_stored=True`` (else an
+    :class:`~graspsim.errors.InvalidParameterError` before anything is simulated;
+    ``write=False`` stores nothing). ``MapTrials.kept`` / ``.replaced`` say which.
     """
     path, mesh = _simulated_file(Path(path), mesh, mesh_scale, dataset)
     gmap = load_map(path)
@@ -207,13 +272,22 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
         mu = gmap.meta.quality.get("friction")
         settings = SimSettings(friction=float(mu)) if mu else SimSettings()
     rng = np.random.default_rng(seed)
-    index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng, rank=rank)
+    index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng, rank=rank,
+                          separation=separation)
     if on_selected is not None:
         on_selected(gmap, index)
     obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,
                      map_dir=path.parent, cache_dir=cache_dir)
-    up = _cloud_up(gmap, mesh is not None)
-    scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity, up=up)
+    scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity,
+                        T_world_obj=observed_placement(gmap, obj, mesh is not None))
+    held, why = 0, None
+    if write and len(index):
+        group, held, why = stored_results(path, protocol, scene, noise, index)
+        if why is not None and not replace_stored:
+            raise InvalidParameterError(
+                f"{path.name} already holds the results of {held} trials in {group} ({why}): storing "
+                "these would replace them; pass --replace (replace_stored=True) to replace them, or "
+                "--no-write (write=False) to keep them and store nothing")
     chosen = gmap.select(index)  # transforms of the chosen rows only (all of a 10 M-grasp map: 1.2 GB)
     width = executed_width(chosen)
     results = run_trials(scene, chosen.T_obj_wrist, width, protocol,
@@ -222,7 +296,9 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     results = replace(results, extra={"map_file": str(path),
                                       "mesh": None if mesh is None else str(getattr(mesh, "source", mesh))})
     group = write_results(path, len(gmap), index, results) if write and len(index) else None
-    return MapTrials(index=index, results=results, scene=scene, group=group, width=width, file=path)
+    return MapTrials(index=index, results=results, scene=scene, group=group, width=width, file=path,
+                     viewpoint=gmap.meta.extra.get("viewpoint"),
+                     kept=held if group and why is None else 0, replaced=held if group and why else 0)
 
 
 def _simulated_file(path: Path, mesh, mesh_scale: float, dataset: dict | None):

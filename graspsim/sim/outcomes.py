@@ -15,7 +15,7 @@ import numpy as np
 
 from graspsim.transforms import angle_between, quat_to_matrix
 
-__all__ = ["TrialOutcome", "Record", "relative_motion", "unstable", "pads_touching"]
+__all__ = ["TrialOutcome", "collision_kind", "Record", "relative_motion", "unstable", "pads_touching"]
 
 
 class TrialOutcome(enum.IntEnum):
@@ -33,6 +33,21 @@ class TrialOutcome(enum.IntEnum):
     @property
     def label(self) -> str:
         return self.name.lower()
+
+
+def collision_kind(collided: tuple, target: int | None) -> str:
+    """What a start collision hit (``collided``: object ids and "table"): "target" (the
+    target, maybe the table too), "both" (the target and another object), "neighbour"
+    (other objects only, maybe the table), "table" (the table only), "object" (objects,
+    no target named)."""
+    objects = {c for c in collided if c != "table"}
+    if not objects:
+        return "table"
+    if target is None:
+        return "object"
+    if target in objects:
+        return "both" if len(objects) > 1 else "target"
+    return "neighbour"
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,10 @@ class TrialResults:
     wall_time: float
     simulated_seconds: float
     extra: dict = field(default_factory=dict)
+    #: (N,) what each START_COLLISION hit (:func:`~graspsim.sim.outcomes.collision_kind`):
+    #: "table" (the table or the arm's keep-out box below it, not the object) or "object"
+    #: (the object, the table maybe too); "" for the other trials. None: not recorded.
+    start_kind: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.outcome)
@@ -51,6 +55,15 @@ class TrialResults:
     def counts(self) -> dict[str, int]:
         """Number of trials per outcome label (all labels present, zeros included)."""
         return {o.label: int(np.sum(self.outcome == o)) for o in TrialOutcome}
+
+    def start_collisions(self) -> dict[str, int]:
+        """START_COLLISION trials by what they hit: {"object": n, "table": n} (all counted
+        as "object" when not recorded)."""
+        n = int(np.sum(self.outcome == TrialOutcome.START_COLLISION))
+        if self.start_kind is None:
+            return {"object": n, "table": 0}
+        table = int(np.sum(self.start_kind == "table"))
+        return {"object": n - table, "table": table}
 
     @property
     def feasible(self) -> int:
@@ -74,7 +87,8 @@ class TrialResults:
         return {"protocol": self.protocol, "scene": self.scene, "seed": self.seed,
                 "noise": self.noise, "threads": self.threads,
                 "mujoco_version": mujoco.__version__,
-                "outcome_codes": {o.label: int(o) for o in TrialOutcome}, **self.extra}
+                "outcome_codes": {o.label: int(o) for o in TrialOutcome},
+                "start_collisions": self.start_collisions(), **self.extra}
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Per-grasp datasets: object_in_gripper, outcome, start_penetration, metrics."""

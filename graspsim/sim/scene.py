@@ -27,7 +27,8 @@ from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, b
 from graspsim.sim.objects import SimObject
 from graspsim.sim.vendored import build_vendored_gripper_spec, model_drive
 
-__all__ = ["SimSettings", "Scene", "build_scene", "resting_pose", "add_gripper", "gripper_drive", "gripper_geoms"]
+__all__ = ["SimSettings", "Scene", "build_scene", "observed_pose", "resting_pose", "add_gripper",
+           "gripper_drive", "gripper_geoms"]
 
 log = logging.getLogger(__name__)
 
@@ -220,6 +221,25 @@ def resting_pose(obj: SimObject, *, support_tol: float = 0.002,
     return T
 
 
+def observed_pose(obj: SimObject, T_cloud_obj: np.ndarray, normal=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """T_world_obj (4, 4): the object standing on the table as it was seen -- its pose
+    in the cloud's frame ``T_cloud_obj`` turned so that the table's ``normal`` (cloud
+    frame) points up, its lowest point on the table (z = 0) and its centre of mass over
+    the origin (a shift along the table, which changes nothing physical).
+
+    No stability rule moves it: a map adapted from a cloud holds grasps for the object
+    as it stood (above the table it stood on), so any other resting face would put them
+    elsewhere -- into the object or the table. A mesh in the cloud's frame (the real
+    object) thus stands where the cloud was, on the plane under its lowest point."""
+    from graspsim.transforms import make_transform
+
+    T = np.asarray(T_cloud_obj, float)
+    R = _align_to_z(np.asarray(normal, float)) @ T[:3, :3]
+    v = np.asarray(obj.surface.vertices, float) @ R.T
+    c = R @ obj.com
+    return make_transform(R, np.array([-c[0], -c[1], -v[:, 2].min()]))
+
+
 def _add_object(spec: mujoco.MjSpec, obj: SimObject, T_world_obj: np.ndarray,
                 s: SimSettings, *, name: str = OBJECT,
                 rgba: tuple[float, float, float, float] = (0.85, 0.55, 0.2, 1.0)) -> None:
@@ -277,12 +297,20 @@ def _add_table(spec: mujoco.MjSpec, s: SimSettings, *, rolling: float | None = N
 
 def build_scene(obj: SimObject, gripper: GripperSpec = HGPL_25_60_A,
                 settings: SimSettings = SimSettings(), *, table: bool = True,
-                gravity: bool = True, up: np.ndarray | None = None) -> Scene:
+                gravity: bool = True, up: np.ndarray | None = None,
+                T_world_obj: np.ndarray | None = None) -> Scene:
     """Compile the trial scene for ``obj`` (build once, run many trials); ``up``: the
-    object-frame direction to stand upright (see :func:`resting_pose`)."""
+    object-frame direction to stand upright (see :func:`resting_pose`); ``T_world_obj``:
+    the object's pose on the table when it is known (e.g. :func:`observed_pose`: as a
+    cloud saw it), instead of a resting pose (ignored without a table)."""
     s = settings
     force = float(gripper.grip_force if s.grip_force is None else s.grip_force)
-    T_world_obj = resting_pose(obj, up=up) if table else np.eye(4)
+    if not table:
+        T_world_obj = np.eye(4)
+    elif T_world_obj is None:
+        T_world_obj = resting_pose(obj, up=up)
+    else:
+        T_world_obj = np.asarray(T_world_obj, float)
     top = float((obj.surface.vertices @ T_world_obj[:3, :3].T)[:, 2].max() + T_world_obj[2, 3])
     home = (0.0, 0.0, top + gripper.fingertip_z + 0.1)  # qpos0: hanging clear above the object
     spec, names = add_gripper(gripper, s, force, home)

@@ -25,7 +25,7 @@ from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.batch import arm_below_table, simulate
 from graspsim.sim.model import NAMES
 from graspsim.sim.noise import ExecutionNoise
-from graspsim.sim.outcomes import TrialOutcome
+from graspsim.sim.outcomes import TrialOutcome, collision_kind
 from graspsim.sim.protocols import LiftPlace
 from graspsim.sim.scene import (
     SimSettings,
@@ -51,21 +51,6 @@ BIN_GROUP = 3
 TABLE_REGION = 0.35  # [m]: objects rest within +-this in x and y (the drawn table: +-0.4)
 _PALETTE = np.array([[0.85, 0.55, 0.2], [0.2, 0.55, 0.85], [0.3, 0.75, 0.35], [0.85, 0.3, 0.35],
                      [0.6, 0.4, 0.8], [0.9, 0.8, 0.3], [0.3, 0.8, 0.8], [0.55, 0.35, 0.2]])
-
-
-def collision_kind(collided: tuple, target: int | None) -> str:
-    """What a start collision hit (``collided``: object ids and "table"): "target" (the
-    target, maybe the table too), "both" (the target and another object), "neighbour"
-    (other objects only, maybe the table), "table" (the table only), "object" (objects,
-    no target named)."""
-    objects = {c for c in collided if c != "table"}
-    if not objects:
-        return "table"
-    if target is None:
-        return "object"
-    if target in objects:
-        return "both" if len(objects) > 1 else "target"
-    return "neighbour"
 
 
 @dataclass(frozen=True)

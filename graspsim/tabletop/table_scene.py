@@ -117,10 +117,12 @@ def save_scene(scene: TableScene, path: str | os.PathLike) -> None:
 
 def load_scene(path: str | os.PathLike) -> TableScene:
     """Read a scene written by :func:`save_scene`."""
+    from graspsim._files import read_small_text
+
+    text = read_small_text(path, "table scene", InvalidParameterError)
     try:
-        with open(path) as f:
-            d = json.load(f)
-    except (OSError, ValueError) as err:
+        d = json.loads(text)
+    except ValueError as err:
         raise InvalidParameterError(f"cannot read table scene {path}: {err}") from err
     return TableScene.from_dict(d)
 

@@ -101,13 +101,14 @@ def show(map, cloud=None, mesh=None, *, recording=None, host: str = "127.0.0.1",
     from graspsim.viewer.app import MapViewer
 
     cloud, mesh, recording = _read_inputs(cloud, mesh, recording)
+    _check_min_grade(min_grade)
     sel = Selection(colour=colour, min_grade=min_grade, max_drawn=max_drawn, top_k=top_k)
     data.selected(sel)  # a bad colour name or limit fails before the server starts
     if pick is not None and not 0 <= pick < len(data.gmap):
         from graspsim.errors import InvalidParameterError
 
         raise InvalidParameterError(f"pick must be a row of the map (0..{len(data.gmap) - 1}), got {pick}")
-    _check_host(host)
+    port = _check_host(host, port)
     server = _quietly(verbose, viser.ViserServer, host=host, port=port, verbose=verbose)
     try:
         server.gui.configure_theme(control_width="large", show_share_button=False)
@@ -162,7 +163,7 @@ def show_plan(plan, cloud, *, gripper=None, eye=None, best=None, top_k: int = 3,
     viser = require_viser()
     from graspsim.viewer.scene_view import SceneViewer
 
-    _check_host(host)
+    port = _check_host(host, port)
     server = _quietly(verbose, viser.ViserServer, host=host, port=port, verbose=verbose)
     try:
         server.gui.configure_theme(control_width="large", show_share_button=False)
@@ -231,13 +232,17 @@ def _read_inputs(cloud, mesh, recording):
     return cloud, mesh, recording
 
 
-def _check_host(host: str) -> None:
-    """An address this machine cannot serve on is an error now (viser would wait on it
-    forever)."""
+def _check_host(host: str, port: int = 0) -> int:
+    """The port to serve on: ``port`` if free on ``host``, else the next free one above it
+    (0: any, chosen by the server). An address this machine cannot serve on, a port
+    outside 0..65535 or no free port up to 65535 is an error now (viser would wait on it
+    for ever: its server thread fails past 65535)."""
     import socket
 
     from graspsim.errors import InvalidParameterError
 
+    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+        raise InvalidParameterError(f"port must be a whole number in 0..65535 (0: any free one), got {port!r}")
     try:
         infos = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)
         with socket.socket(infos[0][0], socket.SOCK_STREAM) as sock:
@@ -245,6 +250,25 @@ def _check_host(host: str) -> None:
     except OSError as err:
         raise InvalidParameterError(f"cannot serve on host {host!r}: {err.strerror or err} (use 127.0.0.1 for this "
                                     "machine, 0.0.0.0 for all its addresses)") from err
+    if port == 0:
+        return 0
+    last = min(65535, port + 999)
+    for p in range(port, last + 1):
+        with socket.socket(infos[0][0], socket.SOCK_STREAM) as sock:
+            try:
+                sock.bind((infos[0][4][0], p))
+            except OSError:
+                continue
+        return p
+    raise InvalidParameterError(f"no free port on {host} from {port} to {last}; give another port (--port), "
+                                "or 0 for any free one")
+
+
+def _check_min_grade(min_grade) -> None:
+    from graspsim.errors import InvalidParameterError
+
+    if isinstance(min_grade, bool) or not isinstance(min_grade, (int, float)) or not 0 <= min_grade <= 1:
+        raise InvalidParameterError(f"min_grade (--min-grade) must be a grade in [0, 1], got {min_grade!r}")
 
 
 def _quietly(loud: bool, fn, *args, **kwargs):

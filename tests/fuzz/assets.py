@@ -27,6 +27,8 @@ class Assets:
     hand_map: Path  # a hand-made map of 6 grasps on the same cylinder
     known_cloud: Path  # (N, 3) .npy cloud of the stored cylinder, posed
     familiar_cloud: Path  # (N, 3) .npy cloud of a 2.5 x 15 cm cylinder
+    scene_cloud: Path  # (N, 3) .npy table-top scene: the stored cylinder standing on a table, seen from above
+    mesh: Path  # the stored cylinder as a mesh (.obj), in its object frame
 
     def fresh(self) -> Path:
         """A new empty folder for one case (removed with the assets)."""
@@ -42,6 +44,18 @@ def _hand_map():
     T = np.stack([grasp_pose([0, 0, 0.02 * k], [-np.cos(a), -np.sin(a), 0], [-np.sin(a), np.cos(a), 0])
                   for k, a in enumerate(ang)])
     return hand_made_map(Cylinder(0.02, 0.20), T, np.full(6, 0.04), grades=np.linspace(0.5, 0.95, 6))
+
+
+def _scene(seed: int) -> np.ndarray:
+    """The stored cylinder standing on a 50 cm table, as a camera at (0.5, 0, 0.6) sees it."""
+    from graspsim.primitives import Cylinder, synthetic_cloud
+    from graspsim.transforms import make_transform
+
+    rng = np.random.default_rng(seed)
+    obj = synthetic_cloud(Cylinder(0.02, 0.20), rng, resolution=0.006, noise=0.0003, camera=np.array([0.5, 0, 0.6]),
+                          T_world_obj=make_transform(np.eye(3), [0.0, 0.0, 0.1])).points
+    grid = np.mgrid[-0.25:0.25:0.008, -0.25:0.25:0.008].reshape(2, -1).T
+    return np.concatenate([obj, np.column_stack([grid, rng.normal(0.0, 5e-4, len(grid))])])
 
 
 def _cloud(shape, seed: int) -> np.ndarray:
@@ -62,11 +76,14 @@ def assets() -> Assets:
     folder = Path(tempfile.mkdtemp(prefix="graspsim-fuzz-"))
     atexit.register(shutil.rmtree, folder, True)
     db = folder / "db"
-    assert main(["db", "build", "--primitives", "cylinder", "--root", str(db), *FAST_FLAGS, "--json"]) == 0
+    assert main(["db", "build", "--primitives", "cylinder", "--db", str(db), *FAST_FLAGS, "--json"]) == 0
     real = folder / "real.h5"
     shutil.copyfile(next(db.glob("cylinder/*.h5")), real)
     hand = save_map(_hand_map(), folder / "hand.h5")
     known, familiar = folder / "known.npy", folder / "familiar.npy"
     np.save(known, _cloud(Cylinder(0.02, 0.20), 1))
     np.save(familiar, _cloud(Cylinder(0.025, 0.15), 2))
-    return Assets(folder, db, real, hand, known, familiar)
+    scene, mesh = folder / "scene.npy", folder / "cyl.obj"
+    np.save(scene, _scene(3))
+    Cylinder(0.02, 0.20).mesh(sections=24).export(mesh)
+    return Assets(folder, db, real, hand, known, familiar, scene, mesh)

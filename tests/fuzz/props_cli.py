@@ -41,8 +41,14 @@ def materialise(tokens: list[str], folder: Path) -> list[str]:
     def get(name: str) -> str:
         if name not in made:
             path = folder / {"cloud": "cloud.npy", "blob": "blob.npy", "map": "map.h5", "out": "out.h5",
-                             "png": "out.png", "db": "db", "dir": "adir"}[name]
-            if name == "cloud":
+                             "png": "out.png", "db": "db", "dir": "adir", "scene": "scene.npy", "json": "out.json",
+                             "spec": "spec.json", "nameless": "nameless.json", "impostor": "impostor.json",
+                             "tiny": "tiny.json", "mesh": "cyl.obj", "npyout": "labels.npy"}[name]
+            if name in ("scene", "mesh"):
+                shutil.copyfile(a.scene_cloud if name == "scene" else a.mesh, path)
+            elif name in ("spec", "nameless", "impostor", "tiny"):
+                path.write_text(json.dumps(gripper_spec(name)))
+            elif name == "cloud":
                 shutil.copyfile(a.known_cloud, path)
             elif name == "blob":  # a Gaussian blob: nothing is identified in it
                 np.save(path, np.random.default_rng(0).normal(size=(500, 3)) * 0.03)
@@ -57,11 +63,28 @@ def materialise(tokens: list[str], folder: Path) -> list[str]:
 
     out = []
     for t in tokens:
-        for name in ("cloud", "blob", "map", "out", "png", "db", "dir"):
+        for name in ("cloud", "blob", "map", "out", "png", "db", "dir", "scene", "json", "spec", "nameless",
+                     "impostor", "tiny", "mesh", "npyout"):
             if "{" + name + "}" in t:
                 t = t.replace("{" + name + "}", get(name))
         out.append(t)
     return out
+
+
+def gripper_spec(kind: str) -> dict:
+    """A gripper spec file's content: ``spec`` a valid one of its own name, ``nameless``
+    without a name, ``impostor`` named like the Festo with other numbers, ``tiny`` one
+    whose 1 mm stroke fits no grasp of the fuzz maps."""
+    from graspsim.grippers.spec import HGPL_25_60_A
+
+    d = {**HGPL_25_60_A.to_dict(), "name": "fuzz_gripper", "stroke_per_jaw": 0.04}
+    if kind == "nameless":
+        d.pop("name")
+    elif kind == "impostor":
+        d["name"] = HGPL_25_60_A.name
+    elif kind == "tiny":
+        d.update(name="tiny", stroke_per_jaw=0.001)
+    return d
 
 
 def _outside_db(state: dict) -> dict:
@@ -182,7 +205,7 @@ def _output_path(kind: str, folder: Path, suffix: str, same_as: str | None) -> s
             "trailing_slash": str(folder / ("out" + suffix)) + "/", "same_as_input": same_as}[kind]
 
 
-@register("output_paths", "output paths (CLI)", options.output_paths, 60)
+@register("output_paths", "output paths (CLI)", options.output_paths, 80)
 def check_output_path(case: dict) -> str:
     """An output path that cannot be written fails before the work with one line; a
     failure leaves every file (an existing map or image included) as it was; inputs
@@ -191,14 +214,14 @@ def check_output_path(case: dict) -> str:
     folder = assets().fresh()
     try:
         tokens, failing = options.OUTPUT_COMMANDS[case["command"]]
-        suffix = {"map": ".h5", "adapt": ".h5", "adapt of nothing": ".h5", "trial --render": ""}.get(
-            case["command"], ".png")
+        suffix = options.OUTPUT_SUFFIXES.get(case["command"], ".png")
         argv = materialise(tokens + (failing if case["fail"] else []), folder)
         same_as = {"adapt": "cloud.npy", "adapt of nothing": "blob.npy", "show": "map.h5",
-                   "trial --render": "map.h5"}.get(case["command"])
+                   "trial --render": "map.h5", "adapt-gripper": "map.h5", "adapt-gripper (empty result)": "map.h5",
+                   "plan-scene": "scene.npy"}.get(case["command"])
         path = _output_path(case["kind"], folder, suffix, str(folder / same_as) if same_as else None)
         argv = [path if t == "{path}" else t for t in argv]
-        inputs = tuple(x for x in ("cloud.npy", "blob.npy", "map.h5") if (folder / x).exists()
+        inputs = tuple(x for x in ("cloud.npy", "blob.npy", "map.h5", "scene.npy") if (folder / x).exists()
                        and not (case["command"] == "trial --render" and x == "map.h5"))
         label, run = run_checked(argv, folder, inputs=inputs)
         return label
@@ -228,15 +251,14 @@ def _input_path(kind: str, folder: Path, suffix: str) -> str:
             "nul_byte": str(folder / ("a\x00b" + suffix)), "empty": "", "proc": "/proc/graspsim" + suffix}[kind]
 
 
-@register("input_paths", "input paths (CLI)", options.input_paths, 40)
+@register("input_paths", "input paths (CLI)", options.input_paths, 60)
 def check_input_path(case: dict) -> str:
     """An input that is missing, a folder, a FIFO, a device, a loop of links, a NUL byte
     or a name too long: one error line, nothing written, never a hang."""
     count("input paths (CLI)")
     folder = assets().fresh()
     try:
-        suffixes = {"identify": ".npy", "adapt": ".npy", "trial --mesh": ".obj", "db check": ""}
-        suffix = suffixes.get(case["command"], ".h5")
+        suffix = options.INPUT_SUFFIXES.get(case["command"], ".h5")
         path = _input_path(case["kind"], folder, suffix)
         argv = [path if t == "{path}" else t for t in materialise(options.INPUT_COMMANDS[case["command"]], folder)]
         label, run = run_checked(argv, folder)

@@ -120,9 +120,9 @@ def check_database_case(case: dict) -> str:
             shutil.copyfile(a.hand_map, out)
         label, _ = run_checked(["adapt", str(cloud), "-o", str(out), "--db", str(db), "--threads", "1",
                                 *FAST_FLAGS, "--json"], folder, inputs=("cloud.npy",))
-        repair = run_cli(["db", "check", "--root", str(db), "--repair", "--json"], cwd=folder)
+        repair = run_cli(["db", "check", "--db", str(db), "--repair", "--json"], cwd=folder)
         assert_clean(repair)
-        check = run_cli(["db", "check", "--root", str(db), "--json"], cwd=folder)
+        check = run_cli(["db", "check", "--db", str(db), "--json"], cwd=folder)
         assert assert_clean(check) == "ok", f"db check after --repair: {check.out[-2000:]}"
         records = json.loads((db / "index.json").read_text())["maps"] if (db / "index.json").exists() else []
         problems = database_problems(db, {r["file"] for r in records})

@@ -47,7 +47,7 @@ def register(name: str, category: str, strategy: Callable, examples: int, per_ca
 
 
 def all_properties() -> dict[str, Property]:
-    from . import props_api, props_cli, props_db, props_memory  # noqa: F401  (they register themselves)
+    from . import props_api, props_cli, props_db, props_memory, props_newer  # noqa: F401  (they register themselves)
 
     return PROPERTIES
 

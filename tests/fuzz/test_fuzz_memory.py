@@ -18,7 +18,7 @@ pytestmark = pytest.mark.slow
 test_memory_capped = ci_test("memory_capped")
 
 
-def test_worst_cases_stay_within_memory(capsys):
+def test_worst_cases_stay_within_memory(request, capsys):
     """The known worst cases: a map filling its budget, refusals of a 10 m plate, of a
     familiar object 2.75 times its stored map and of a file claiming 10^10 grasps or
     10^9 points, a 10^6-point cloud, identification at the repetition cap."""
@@ -49,10 +49,11 @@ def test_worst_cases_stay_within_memory(capsys):
         jobs = [{**j, "argv": [str(x) for x in j["argv"]], "seconds": 240} for j in jobs]
         results = run_capped(jobs, address_space=ADDRESS_SPACE, timeout=1200, cwd=folder)
         check_capped_results(jobs, results)
-        with capsys.disabled():
-            for r in results:
-                print(f"\n  [{r.code}] {' '.join(r.argv[:2])} ... peak {r.peak_rss / 2**20:.0f} MiB, grew "
-                      f"{r.growth / 2**20:.0f} MiB, {r.seconds:.1f} s", end="")
+        if request.config.get_verbosity() > 0:  # -q's dots stay one line
+            with capsys.disabled():
+                for r in results:
+                    print(f"\n  [{r.code}] {' '.join(r.argv[:2])} ... peak {r.peak_rss / 2**20:.0f} MiB, grew "
+                          f"{r.growth / 2**20:.0f} MiB, {r.seconds:.1f} s", end="")
         codes = [r.code for r in results]
         assert codes[:2] == [0, 0], [r.err for r in results[:2]]  # the map within its budget is made
         assert codes[2:4] == [2, 2] and "budget" in results[2].err and "budget" in results[3].err

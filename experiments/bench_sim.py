@@ -42,7 +42,6 @@ from hand_made import grasp_pose
 from graspsim.primitives import Cylinder
 from graspsim.sim import LiftPlace, build_scene, object_from_mesh, object_from_shape, run_trials
 from graspsim.sim.batch import initial_states, pregrasp_opening, simulate
-from graspsim.tabletop.scene_objects import SHIPPED
 
 log = logging.getLogger("bench_sim")
 BREAD = Path(__file__).resolve().parents[1] / "assets/objects/robosuite/bread.stl"
@@ -106,7 +105,7 @@ def _step_rate(scene, state0, control) -> float:
 def run(cfg: BenchConfig) -> list[dict]:
     rng = rng_for(cfg.seed)
     objects = {"primitive": object_from_shape(Cylinder(0.02, 0.20)),
-               "coacd_mesh": object_from_mesh(BREAD, coacd=SHIPPED)}
+               "coacd_mesh": object_from_mesh(BREAD)}
     rows = []
     for kind, obj in objects.items():
         scene = build_scene(obj)

@@ -1,14 +1,25 @@
 """Experiment E10: clutter removal on table-top scenes seen by a simulated depth camera.
 
-For each condition -- scene kind (pile: dropped and settled; packed: upright side by side,
->= 1 cm apart), objects per scene, execution error (none, or 3 mm / 2 deg) -- the script
-draws scenes (``graspsim.tabletop.table_scene.make_scene``, the "mixed" object set), renders each
+For each condition -- object set, scene kind (pile: dropped and settled; packed: upright
+side by side, >= 1 cm apart), objects per scene, execution error (none, or 3 mm / 2 deg) --
+the script draws scenes (``graspsim.tabletop.table_scene.make_scene``; by default the shipped real
+household meshes, their tuning part and their held-out third reported apart: see
+``assets/objects/README.md``), renders each
 with one D435-like depth camera (sensor noise on) and clears it grasp by grasp
 (``graspsim.tabletop.clutter``): segment, plan every object, check grasps against the whole
 scene, execute the best, remove the lifted object, render again; until the table is
 clear, two grasps in a row failed or no grasp is found. Ablations (without execution
 error): no neighbour check; the render's ground-truth segmentation instead of clustering.
 Every condition meets the same scenes and the same random draws (paired).
+
+As the clutter-removal literature reports it (GIGA, EdgeGraspNet): ``--seeds`` seeds of
+``--scenes`` scenes each (the seeds of ``graspsim scene --seeds``:
+``graspsim.tabletop.clutter_stats.benchmark_seeds``, ``--seed`` itself for one seed, else
+``derived_seed(--seed, "seed", k)``), GSR and DR per seed and their mean +- standard
+deviation over the seeds, beside GIGA's and EdgeGraspNet's published simulated numbers
+(other simulators, grippers and object sets: a reference, not a like-for-like
+comparison). The failure table per object (which object failed how often and why) is
+in the summary and the README block.
 
 Reports per condition: grasp success rate (GSR = lifts / grasps) and declutter rate
 (DR = objects removed / placed) with 95 % Wilson intervals (grasps and objects of one
@@ -22,8 +33,8 @@ scenes of the rest after them). The database is read only during the run: a size
 of FS maps is stored in it before the first scene, so the first scene plans like the
 last; a part no stored map serves gets a map built in memory, not stored.
 
-    python experiments/e10_clutter_removal.py                 # 50 scenes per condition
-    python experiments/e10_clutter_removal.py --scenes 5 --publish
+    python experiments/e10_clutter_removal.py                 # 5 seeds x 20 scenes per condition
+    python experiments/e10_clutter_removal.py --seeds 2 --scenes 5 --objects 5 --noise none --ablations none
     python experiments/e10_clutter_removal.py --quick --out results/e10-quick
 """
 
@@ -40,22 +51,23 @@ from typing import ClassVar
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np
 from _common import (
-    database_note,
     database_record,
     experiment_database,
     map_config,
     opt,
-    pct,
     rate_ci,
     start,
 )
+from _e10_report import readme_section, rows_of
 
 from graspsim.errors import MapDatabaseError, NoFeasibleGraspError, SimulationError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import generate_fs_map
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.stats import wilson_interval
-from graspsim.tabletop.clutter import OTHER, ClutterConfig, run_benchmark, scene_settings, summarize
+from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings, summarize
+from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
+from graspsim.tabletop.scene_objects import prepare_objects
 
 log = logging.getLogger("e10")
 ABLATIONS = ("no_neighbours", "ground_truth")
@@ -63,7 +75,12 @@ ABLATIONS = ("no_neighbours", "ground_truth")
 
 @dataclass(frozen=True)
 class Config:
-    scenes: int = opt(50, "scenes per condition")
+    scenes: int = opt(20, "scenes per condition and seed")
+    seeds: int = opt(5, "seeds per condition (one: --seed; else seed k: derived_seed(--seed, 'seed', k)); "
+                     "GSR and DR are reported "
+                     "per seed and as mean +- std over them")
+    object_sets: tuple[str, ...] = opt(("household-tuning", "household-heldout"),
+                                       "object sets (reported apart): named sets or folders of meshes")
     others: int = opt(0, "scenes of the conditions outside the goals (other sizes, ablations), run after the "
                       "goal conditions (0: --scenes, all conditions together)")
     goal_objects: int = opt(5, "objects per scene of the goal conditions (--others does not cut them)")
@@ -72,26 +89,42 @@ class Config:
     kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
     noise: tuple[str, ...] = opt(("none", "default"), "execution error: none, default (3 mm / 2 deg)",
                                  choices=("none", "default"))
-    ablations: tuple[str, ...] = opt(ABLATIONS, "ablations (without execution error)", choices=ABLATIONS)
+    ablations: tuple[str, ...] = opt(ABLATIONS, "ablations (without execution error; none: no ablation)",
+                                     choices=(*ABLATIONS, "none"))
     ablation_objects: tuple[int, ...] = opt((5,), "objects per scene of the ablations")
-    object_set: str = opt("mixed", "objects drawn from this set")
     seed: int = opt(0, "run seed")
     quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
     grid: bool = opt(True, "store FS maps of a size grid (GRID) in the database before the first scene")
     workers: int = opt(1, "processes; results do not depend on it (the database is read only during the run)")
-    QUICK: ClassVar[dict] = {"scenes": 1, "block": 1, "objects": (2,), "kinds": ("packed",), "noise": ("none",),
-                             "ablations": ("ground_truth",), "ablation_objects": (2,), "quick_maps": True,
-                             "grid": False}
+    QUICK: ClassVar[dict] = {"scenes": 1, "seeds": 1, "block": 1, "objects": (2,), "kinds": ("packed",),
+                             "noise": ("none",), "ablations": ("ground_truth",), "ablation_objects": (2,),
+                             "quick_maps": True, "grid": False, "object_sets": ("primitives",)}
+
+    def __post_init__(self) -> None:
+        from graspsim.tabletop.scene_objects import check_object_set
+
+        if self.scenes < 1 or self.seeds < 1 or not self.object_sets:
+            raise ValueError("--scenes and --seeds must be >= 1 and --object-sets not empty")
+        for name in self.object_sets:
+            check_object_set(name)
 
 
 def conditions(cfg: Config) -> list[dict]:
-    """Every condition: kind, objects, noise label, ablation (None: the full method)."""
-    out = [{"kind": k, "objects": n, "noise": z, "ablation": None}
-           for k in cfg.kinds for n in cfg.objects for z in cfg.noise]
-    out += [{"kind": k, "objects": n, "noise": "none", "ablation": a}
-            for a in cfg.ablations for k in cfg.kinds for n in cfg.ablation_objects]
+    """Every condition: object set, kind, objects, noise label, ablation (None: the full method)."""
+    out = []
+    for o in cfg.object_sets:
+        out += [{"object_set": o, "kind": k, "objects": n, "noise": z, "ablation": None}
+                for k in cfg.kinds for n in cfg.objects for z in cfg.noise]
+        out += [{"object_set": o, "kind": k, "objects": n, "noise": "none", "ablation": a}
+                for a in cfg.ablations if a != "none" for k in cfg.kinds for n in cfg.ablation_objects]
     return out
+
+
+def seed_of(cfg: Config, k: int) -> int:
+    """The benchmark seed of seed index ``k``: ``graspsim scene --seeds``' rule
+    (:func:`graspsim.tabletop.clutter_stats.benchmark_seeds`)."""
+    return benchmark_seeds(cfg.seed, cfg.seeds)[k]
 
 
 def _clutter_config(c: dict) -> ClutterConfig:
@@ -100,20 +133,31 @@ def _clutter_config(c: dict) -> ClutterConfig:
                          ground_truth=c["ablation"] == "ground_truth")
 
 
-def _row(c: dict, results: list) -> dict:
+def _row(c: dict, pairs: list) -> dict:
+    """A condition's row from its (seed, ClutterResult) pairs; per seed GSR and DR and
+    their mean +- std by :func:`graspsim.tabletop.clutter_stats.per_seed` (as ``graspsim
+    scene --seeds`` and E15 report them)."""
+    results = [r for _, r in pairs]
     s = summarize(results)
+    by_seed: dict = {}
+    for k, r in pairs:
+        by_seed.setdefault(k, []).append(r)
+    ps = per_seed(dict(sorted(by_seed.items())))
     gsr = wilson_interval(s["successes"], s["attempts"]) if s["attempts"] else None
     dr = wilson_interval(s["removed"], s["placed"]) if s["placed"] else None
-    return {**c, **s, "gsr_interval_95": gsr, "cleared_interval_95": dr,
-            "episodes": [{"scene": i, **{k: v for k, v in r.to_dict().items() if k != "steps"},
+    return {**c, **s, "gsr_interval_95": gsr, "cleared_interval_95": dr, "per_seed": ps["per_seed"],
+            "gsr_over_seeds": ps["gsr"], "dr_over_seeds": ps["dr"],
+            "episodes": [{"seed": k, "scene": i, **{key: v for key, v in r.to_dict().items() if key != "steps"},
                           "causes": [a.cause for a in r.attempts], "planning": [a.planning for a in r.attempts]}
-                         for i, r in enumerate(results)]}
+                         for i, (k, r) in enumerate(pairs)]}
 
 
 def main(argv=None) -> int:
     cfg, out, run = start(Config, __file__, argv, __doc__)
     db = experiment_database(cfg.db, out, map_config(cfg.quick_maps))
     empty = build_grid(db) if cfg.grid else []  # the maps the run plans from, before the first scene
+    for o in cfg.object_sets:  # every mesh's convex parts (cached on disk) before the first scene
+        prepare_objects(o, db.gripper, progress=True)
     db_start = {**database_record(db), "grid_without_grasps": empty}
     conds = conditions(cfg)
     goal = [target(cfg, c) for c in conds]
@@ -153,7 +197,7 @@ def rounds(cfg: Config, conds: list) -> list[list[tuple[int, int]]]:
     (:func:`target`) run all their scenes first, then the others, so a run cut short
     has finished the goals."""
     goal = [target(cfg, c) for c in conds]
-    first = [i for i, c in enumerate(conds) if not cfg.others or goal[i] == cfg.scenes and _is_goal(cfg, c)]
+    first = [i for i, c in enumerate(conds) if not cfg.others or _is_goal(cfg, c)]
     out = []
     for group in (first, [i for i in range(len(conds)) if i not in first]):
         for lo in range(0, max((goal[i] for i in group), default=0), cfg.block):
@@ -165,10 +209,16 @@ def _is_goal(cfg: Config, c: dict) -> bool:
     return c["objects"] == cfg.goal_objects and c["ablation"] is None
 
 
-def target(cfg: Config, c: dict) -> int:
-    """Scenes a condition runs: ``scenes`` for the goal conditions (``goal_objects``
-    objects, the full method), ``others`` (if > 0) for the rest."""
+def scenes_per_seed(cfg: Config, c: dict) -> int:
+    """Scenes a condition runs per seed: ``scenes`` for the goal conditions
+    (``goal_objects`` objects, the full method), ``others`` (if > 0) for the rest."""
     return cfg.scenes if _is_goal(cfg, c) or not cfg.others else min(cfg.others, cfg.scenes)
+
+
+def target(cfg: Config, c: dict) -> int:
+    """Scenes a condition runs in all: :func:`scenes_per_seed` x ``seeds``; its j-th is
+    scene j % per-seed of seed index j // per-seed."""
+    return scenes_per_seed(cfg, c) * cfg.seeds
 
 
 def _data(cfg: Config, conds: list, goal: list, done: list, skipped: list, built: list, db_start: dict,
@@ -258,104 +308,40 @@ def _block(task) -> tuple[list, list, set]:
     said so; the same scene is then skipped in every condition of its kind and size
     that fails the same way."""
     c, cfg, root, first, n = task
+    per = scenes_per_seed(cfg, c)
     key = (root, cfg.quick_maps)
     if key not in _DATABASES:  # one per process: its cache of loaded maps serves every task
         _DATABASES[key] = RunDatabase(root, config=map_config(cfg.quick_maps))
     db = _DATABASES[key]
     db.built = set()
     out, skipped = [], []
-    for i in range(first, first + n):
+    for j in range(first, first + n):
+        k, i = divmod(j, per)
+        sd = seed_of(cfg, k)
         try:
-            out += run_benchmark(c["objects"], c["kind"], 1, cfg.seed, db=db, config=_clutter_config(c),
-                                 object_set=cfg.object_set, first=i)
+            out += [(sd, r) for r in run_benchmark(c["objects"], c["kind"], 1, sd, db=db,
+                                                   config=_clutter_config(c), object_set=c["object_set"], first=i)]
         except SimulationError as err:
-            log.warning("%s scene %d skipped: %s", c, i, err)
-            skipped.append({"scene": i, "reason": str(err)})
+            log.warning("%s seed %d scene %d skipped: %s", c, sd, i, err)
+            skipped.append({"seed": sd, "scene": i, "reason": str(err)})
     return out, skipped, db.built
 
 
 _DATABASES: dict = {}
 
 
-def _label(c: dict) -> str:
-    if c["ablation"] == "no_neighbours":
-        return "no neighbour check"
-    if c["ablation"] == "ground_truth":
-        return "ground-truth segmentation"
-    return "with execution error" if c["noise"] == "default" else "no execution error"
-
-
-def _memory_note(rows: list) -> str:
-    keys = {k for r in rows for k in r.get("built_in_memory", ())}
-    return f" {len(keys)} FS maps were built in memory during the run (parts no stored map serves; not stored)." \
-        if "built_in_memory" in rows[0] else ""
-
-
-def _median(spread: dict | None) -> str:
-    if not spread or spread.get("median") is None:
-        return "n/a"
-    return f"{spread['median']:.2f} s ({spread['count']})"
-
-
-def readme_section(s: dict) -> str:
-    """The README's E10 block (see ``experiments/report.py``)."""
-    rows = s["conditions"]
-    short = [r for r in rows if not r.get("complete", s.get("complete"))]
-    L = [f"`{s['command']}`: the scenes per condition are in the table"
-         + ("" if not short else f" ({len(short)} of {len(rows)} conditions did not run all the scenes asked: "
-            "the run was cut short, each row holds the scenes it finished)")
-         + f"; objects from the \"{s['config']['object_set']}\" set, one D435-like depth camera with sensor noise; "
-         "grasps until the table is clear, two failures in a row, or no grasp found. GSR = grasps that lifted "
-         "their target / grasps; a grasp that lifted another object is no success (its own column; the object "
-         "leaves the table and counts in DR). DR = objects removed / placed (95 % Wilson intervals; grasps of "
-         "one scene are correlated, so the intervals understate the spread between scenes). Planning per grasp: "
-         "median seconds from the depth frame to the ranked grasps of the whole scene, in the first frame of a "
-         "scene and in later frames (which reuse the plans of segments that did not change).", "",
-         "| scene | objects | condition | scenes (of asked) | GSR | other object lifted | DR | cleared scenes | "
-         "one cluster (first frame) | planning: first frame / later | failure causes |",
-         "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        causes = ", ".join(f"{k} {v}" for k, v in r["failure_causes"].items() if k != OTHER) or "-"
-        seg = r["segmentation"]
-        p = r["planning_s"]
-        L.append(f"| {r['kind']} | {r['objects']} | {_label(r)} | {r['scenes']} ({r.get('target', '-')}) | "
-                 f"{rate_ci(r['successes'], r['attempts'], r['gsr_interval_95'])} | "
-                 f"{r.get('other_objects', 'n/a')} | "
-                 f"{rate_ci(r['removed'], r['placed'], r['cleared_interval_95'])} | {r['scenes_cleared']} | "
-                 f"{pct(seg['share'], 1)} % ({seg['one_cluster']}/{seg['objects_seen']}) | "
-                 f"{_median(p.get('first_frame'))} / {_median(p.get('later_frames'))} | {causes} |")
-    lost = [(r, k) for r in rows for k in r.get("skipped", [])]
-    if lost:
-        L += ["", "Skipped (not counted above): " + "; ".join(
-            f"{r['kind']} {r['objects']} {_label(r)}, scene {k['scene']}: {k['reason']}" for r, k in lost) + "."]
-    L += ["", "Where the planning time goes (median seconds per grasp, `plan_scene`'s stages; the planning "
-          "column above also counts the back-projection): table fit, segmentation, identification of every "
-          "segment, maps and robust scores of every segment (including FS maps built in memory for parts no "
-          "stored map serves):", "",
-          "| scene | objects | condition | table | segmentation | identification | maps + scores | total |",
-          "|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        st = r["planning_s"].get("stages_median") or {}
-        cells = " | ".join("n/a" if k not in st else f"{st[k]:.2f}" for k in ("table", "segment", "identify",
-                                                                            "plan", "total"))
-        L.append(f"| {r['kind']} | {r['objects']} | {_label(r)} | {cells} |")
-    m = s["machine"]
-    L += ["", f"Planning = depth frame to ranked grasps for the whole scene (table, segmentation, identification "
-          f"of every segment, maps, robust scores against the scene), measured at load "
-          f"{m['load_avg_start'][0] if m.get('load_avg_start') else 'n/a'} (start) to "
-          f"{m['load_avg_end'][0] if m.get('load_avg_end') else 'n/a'} (end) on {m['cpus']} cores."
-          + database_note(s) + _memory_note(rows)]
-    return "\n".join(L) + "\n"
-
-
 def headline(s: dict) -> str:
     """The README's headline line (see ``experiments/report.py``): clutter removal with
-    execution error and the full method, per scene kind and size."""
-    rows = [r for r in s["conditions"] if r["noise"] == "default" and not r["ablation"]]
+    execution error and the full method, per object set, scene kind and size, with the
+    seeds x scenes it pooled (a summary written before object sets and seeds: the "mixed"
+    set and its one seed)."""
+    rows = [r for r in rows_of(s) if r["noise"] == "default" and not r["ablation"]]
     return ("Clutter removal with execution error (GSR: grasps that lifted their target; DR: objects "
-            "removed): " + "; ".join(
-                f"{r['kind']} of {r['objects']}: GSR {rate_ci(r['successes'], r['attempts'])}, "
+            "removed; seeds x scenes): " + "; ".join(
+                f"{r['object_set']} {r['kind']} of {r['objects']} ({len(r['per_seed'])} x "
+                f"{max(x['scenes'] for x in r['per_seed'])}): GSR {rate_ci(r['successes'], r['attempts'])}, "
                 f"DR {rate_ci(r['removed'], r['placed'])}" for r in rows) + ".")
+
 
 if __name__ == "__main__":
     raise SystemExit(main())

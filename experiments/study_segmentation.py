@@ -50,7 +50,11 @@ class Config:
     radii_mm: tuple[float, ...] = opt((5.0, 6.0, 7.0, 8.0, 9.0), "clustering radii [mm] compared with the default")
     cameras: tuple[int, ...] = opt((1, 2), "cameras whose views are fused (1: E10's frame)")
     seed: int = opt(0, "E10's seed")
-    QUICK: ClassVar[dict] = {"scenes": 2, "sizes": (5,), "kinds": ("packed",), "radii_mm": (7.0,), "cameras": (1,)}
+    object_set: str = opt("mixed", "objects drawn from this set (a named set or a folder of meshes)")
+    crease_angles: tuple[float, ...] = opt((30.0, 40.0, 50.0), "crease angles [deg] compared (one camera): links "
+                                           "across sharper concave creases cut (euclidean_clusters)")
+    QUICK: ClassVar[dict] = {"scenes": 2, "sizes": (5,), "kinds": ("packed",), "radii_mm": (7.0,), "cameras": (1,),
+                             "crease_angles": (40.0,)}
 
     def __post_init__(self) -> None:
         if self.scenes < 1 or min(self.radii_mm, default=1) <= 0 or min(self.sizes) < 1:
@@ -59,23 +63,25 @@ class Config:
             raise ValueError("--cameras takes 1 to 3 cameras per rig")
 
 
-def first_frame(n: int, kind: str, i: int, seed: int, cameras: int = 1):
-    """(perception, per-point object ids, footprint gaps, object names) of E10's first frame
-    of scene i (``cameras`` > 1: that many views around the table, fused)."""
+def first_frame(n: int, kind: str, i: int, seed: int, cameras: int = 1, object_set: str = "mixed"):
+    """(perception, per-point object ids, footprint gaps, object names, viewpoint) of E10's
+    first frame of scene i (``cameras`` > 1: that many views around the table, fused; no
+    viewpoint)."""
     from graspsim.geometry.camera import fuse, rig
     from graspsim.planning.scene import perceive_scene
     from graspsim.tabletop.clutter import ClutterConfig, scene_settings
     from graspsim.tabletop.table_scene import footprint_gaps, make_scene
 
     cfg = ClutterConfig()
-    scene = make_scene(n, kind, derived_seed(seed, "scene", i))
+    scene = make_scene(n, kind, derived_seed(seed, "scene", i), object_set=object_set)
     depth_rng, plan_rng, _ = rng_for(seed, "clutter", i).spawn(3)  # as ClutterEpisode draws them
     sim = scene.sim()
     frames = [sim.render(cam, noise=cfg.depth_noise, rng=depth_rng) for cam in rig(cameras)]
     sim.close()
     points, labels = fuse(frames)
-    per = perceive_scene(points, plan_rng, scene_settings(kind))
-    return per, labels[per.indices], footprint_gaps(scene), [o.name for o in scene.objects]
+    eye = rig(cameras)[0].T_world_camera[:3, 3] if cameras == 1 else None  # as ClutterEpisode plans
+    per = perceive_scene(points, plan_rng, scene_settings(kind), viewpoint=eye)
+    return per, labels[per.indices], footprint_gaps(scene), [o.name for o in scene.objects], eye
 
 
 def merged_objects(truth: np.ndarray, found: np.ndarray, min_seen: int = 40) -> int:
@@ -129,20 +135,27 @@ def run(cfg: Config) -> dict:
 
 def _condition(cfg: Config, kind: str, n: int, cameras: int) -> tuple[list[dict], list]:
     """The table rows of one kind, size and camera count, and the closest pairs seen."""
-    from graspsim.perception.segment import cluster_radius, euclidean_clusters
+    from graspsim.perception.segment import cluster_radius, euclidean_clusters, gap_link
     from graspsim.tabletop.clutter import one_cluster_objects, scene_settings
 
     scene_cfg = scene_settings(kind)
-    conds = ["default", *(["spacing"] if scene_cfg.min_gap is not None else []), *(f"{r:g} mm" for r in cfg.radii_mm)]
+    touching = scene_cfg.min_gap is None and cameras == 1  # where E10 cuts creases (piles, one camera)
+    creases = ["no crease", *(f"crease {a:g}" for a in cfg.crease_angles)] if touching else []
+    conds = ["default", *creases, *(["spacing"] if scene_cfg.min_gap is not None else []),
+             *(f"{r:g} mm" for r in cfg.radii_mm)]
     counts = {c: np.zeros(4, int) for c in conds}  # seen, one, split, merged
     missed = {c: Counter() for c in conds}  # objects not one cluster, by name
     pairs = []
     for i in range(cfg.scenes):
-        per, truth, gaps, names = first_frame(n, kind, i, cfg.seed, cameras)
+        per, truth, gaps, names, eye = first_frame(n, kind, i, cfg.seed, cameras, cfg.object_set)
         pairs += closest_pairs(per, truth, gaps) if cameras == 1 else []
         for c in conds:
             if c == "default":  # E10's segments
                 found = per.segment
+            elif c == "no crease" or c.startswith("crease"):  # E10's rule without / with another crease angle
+                found = euclidean_clusters(per.points, radius=per.radius, min_points=scene_cfg.min_points,
+                                           link=gap_link(scene_cfg.min_gap), viewpoint=eye,
+                                           crease_angle=None if c == "no crease" else float(c.split()[1]))
             else:
                 r = cluster_radius(per.points, max_radius=scene_cfg.max_radius) if c == "spacing" else (
                     float(c.split()[0]) / 1000)
@@ -168,7 +181,11 @@ def readme_section(s: dict) -> str:
          "D435-like cameras, sensor noise on; 1 camera is E10's view, 2 are two views fused), clustered at each "
          "radius; *default* is E10's segmentation: the *spacing* rule (2.5 x the median nearest-neighbour spacing, "
          "3-7 mm; 5.7 mm on these 3 mm grids), and for packed scenes, whose objects stand >= 1 cm apart, its "
-         "clusters closer than 0.8 x that gap (8 mm) joined. Objects with >= 40 points; *split*: its largest "
+         "clusters closer than 0.8 x that gap (8 mm) joined" + (
+             "; in piles (objects may touch), from one camera, the points along concave creases sharper than "
+             "SceneConfig.crease_angle taken out first (*no crease*: without that; *crease A*: at A deg). Objects "
+             f"from the \"{s['config'].get('object_set', 'mixed')}\" set" if "crease_angles" in s["config"] else "")
+         + ". Objects with >= 40 points; *split*: its largest "
          "segment is >= 90 % its own but holds < 90 % of it (or none), *merged*: that segment is mixed.", "",
          "| scene | cameras | radius | one cluster | split | merged |", "|---|---|---|---|---|---|"]
     for t in s["table"]:

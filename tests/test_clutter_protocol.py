@@ -3,6 +3,7 @@ a grasp that lifts another object than its target is no success; first-frame and
 later-frame planning times are reported apart."""
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -21,6 +22,9 @@ class _Sim:
     def objects_left(self):
         return sorted(self.left)
 
+    def outside(self):
+        return []
+
     def render(self, cam, **kw):
         return "frame"
 
@@ -38,7 +42,7 @@ class _Sim:
 
 class _Scene:
     def __init__(self, picks):
-        self.objects = [0, 1, 2]
+        self.objects = [SimpleNamespace(name=n) for n in ("box", "can", "cup")]
         self.picks = picks
 
     def sim(self):
@@ -107,7 +111,10 @@ def test_a_grasp_lifting_another_object_is_counted_apart_not_as_a_success(monkey
     assert [a.cause for a in r.attempts] == [OTHER, "success", "no_contact", "success"]
     assert r.successes == 2 and r.other_objects == 1 and r.grasp_success_rate == 0.5
     assert r.removed == 3 and r.declutter_rate == 1.0 and r.stop == "cleared"
+    assert r.names == ("box", "can", "cup") and r.left == {}  # cleared: nothing left to explain
     s = summarize([r])
+    assert s["per_object"]["box"] == {"placed": 1, "removed": 1, "grasps": 2, "lifted": 1, "failed": {OTHER: 1},
+                                      "left": {}}
     assert s["successes"] == 2 and s["attempts"] == 4 and s["grasp_success_rate"] == 0.5
     assert s["other_objects"] == 1 and s["failure_causes"] == {OTHER: 1, "no_contact": 1}
     p = s["planning_s"]

@@ -572,19 +572,65 @@ def test_e10_run_database_builds_missing_maps_in_memory_only(tmp_path):
 
 def test_e10_others_cut_only_the_conditions_outside_the_goals():
     mod = _load("e10_clutter_removal")
-    cfg = mod.Config(scenes=50, others=20)
+    cfg = mod.Config(scenes=50, others=20, seeds=1, object_sets=("primitives",))
     got = {(c["kind"], c["objects"], c["noise"], c["ablation"]): mod.target(cfg, c) for c in mod.conditions(cfg)}
     assert got[("pile", 5, "none", None)] == got[("packed", 5, "default", None)] == 50
     assert got[("pile", 10, "none", None)] == got[("pile", 5, "none", "ground_truth")] == 20
-    assert mod.target(mod.Config(scenes=50), {"objects": 10, "ablation": None}) == 50
+    assert mod.target(mod.Config(scenes=50, seeds=1), {"objects": 10, "ablation": None}) == 50
+    assert mod.target(mod.Config(scenes=20, seeds=5), {"objects": 5, "ablation": None}) == 100  # 5 seeds x 20
     conds = mod.conditions(cfg)
-    r = mod.rounds(mod.Config(scenes=4, others=2, block=2), conds)
+    r = mod.rounds(mod.Config(scenes=4, others=2, block=2, seeds=1, object_sets=("primitives",)), conds)
     goal = {i for i, c in enumerate(conds) if c["objects"] == 5 and c["ablation"] is None}
     assert [sorted({i for i, _ in x}) == sorted(goal) for x in r] == [True, True, False]  # the goals first
     assert sorted(p for x in r for p in x) == sorted([(i, j) for i in goal for j in range(4)]
                                                      + [(i, j) for i in range(len(conds)) if i not in goal
                                                         for j in range(2)])
-    assert sum(len(x) for x in mod.rounds(mod.Config(scenes=3, block=2), conds)) == 3 * len(conds)
+    assert sum(len(x) for x in mod.rounds(mod.Config(scenes=3, block=2, seeds=1), conds)) == 3 * len(conds)
+
+
+def test_e10_reports_per_seed_and_mean_std_over_seeds():
+    """Seeds are the field's unit: GSR and DR per seed, mean +- sample std over them, each
+    object set apart, every seed's scenes from its own derived seed."""
+    from graspsim.tabletop.clutter import Attempt, ClutterResult
+
+    mod = _load("e10_clutter_removal")
+    cfg = mod.Config(seeds=3, scenes=2, object_sets=("household-tuning", "household-heldout"))
+    assert len({mod.seed_of(cfg, k) for k in range(3)}) == 3
+    assert {c["object_set"] for c in mod.conditions(cfg)} == {"household-tuning", "household-heldout"}
+
+    def ep(ok: int, n: int, removed: int) -> ClutterResult:
+        a = [Attempt(0, {}, j < ok, "success" if j < ok else "slipped", 1.0, 0.1, {}, 1, 1, 1) for j in range(n)]
+        return ClutterResult(5, tuple(a), removed, "cleared", 5, 5, 1.0, ("a", "b", "c", "d", "e"))
+
+    pairs = [(0, ep(4, 4, 4)), (0, ep(4, 4, 4)), (1, ep(2, 4, 2)), (1, ep(2, 4, 2))]
+    row = mod._row({"object_set": "x", "kind": "pile", "objects": 5, "noise": "none", "ablation": None}, pairs)
+    assert [s["gsr"] for s in row["per_seed"]] == [1.0, 0.5] and [s["dr"] for s in row["per_seed"]] == [0.8, 0.4]
+    assert row["gsr_over_seeds"]["mean"] == pytest.approx(0.75)
+    assert row["gsr_over_seeds"]["std"] == pytest.approx(np.std([1.0, 0.5], ddof=1))
+    import sys
+
+    text = "\n".join(sys.modules["_e10_report"].literature_lines([row]))
+    assert "75.0 ± 35.4 (2)" in text and "GIGA" in text and "EdgeGraspNet" in text
+
+
+def test_e10_seeds_are_graspsim_scenes_and_old_summaries_say_their_set_and_seed():
+    """One seed rule (clutter_stats.benchmark_seeds, as ``graspsim scene --seeds``), and the
+    published summary written before object sets and seeds renders as the "mixed" set and
+    one seed, never a placeholder, in the README headline and the results block."""
+    from graspsim.tabletop.clutter_stats import benchmark_seeds
+
+    mod = _load("e10_clutter_removal")
+    for seeds in (1, 3):
+        cfg = mod.Config(seeds=seeds, seed=7, object_sets=("primitives",))
+        assert [mod.seed_of(cfg, k) for k in range(seeds)] == benchmark_seeds(7, seeds)
+    assert mod.seed_of(mod.Config(seeds=1, seed=7, object_sets=("primitives",)), 0) == 7
+    s = json.loads((EXPERIMENTS / "reported" / "e10_clutter_removal.json").read_text())
+    assert "object_sets" not in s["config"] and not any("per_seed" in r for r in s["conditions"])
+    head = mod.headline(s)
+    n = sum(r["noise"] == "default" and not r["ablation"] for r in s["conditions"])
+    assert head.count("mixed ") == n and head.count(f"(1 x {s['conditions'][0]['scenes']})") == n
+    block = mod.readme_section(s)
+    assert "| - |" not in block and "n/a (" not in block and "| 1 x 50 |" in block
 
 
 @pytest.mark.slow

@@ -113,6 +113,34 @@ def test_cli_scene_json_and_renders(tmp_path, capsys, db):
 
 
 @pytest.mark.slow
+def test_cli_scene_of_a_folder_of_meshes(tmp_path, capsys, db):
+    """`--objects-dir`: a user's meshes, their masses from the manifest, poses in each file's
+    frame, the failure table per object by name."""
+    import trimesh
+
+    d = tmp_path / "mine"
+    d.mkdir()
+    box = trimesh.creation.box([0.05, 0.04, 0.07])
+    box.apply_translation([0.3, 0.0, 0.0])  # a file origin 30 cm from the object
+    box.export(d / "carton.stl")
+    trimesh.creation.cylinder(0.025, 0.09, sections=32).export(d / "tin.obj")
+    (d / "objects.json").write_text(json.dumps({"objects": {"carton.stl": {"mass": 0.2}}}))
+    code = main(["scene", "--objects-dir", str(d), "--objects", "2", "--kind", "packed", "--seed", "1",
+                 "--max-attempts", "1", "--db", str(db.root), *FAST_FLAGS, "--save-scenes", str(tmp_path / "s"),
+                 "--json"])
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and s["object_set"] == str(d.resolve()) and sorted(s["meshes"]) == ["carton", "tin"]
+    names = s["details"][0]["objects"]
+    assert set(s["per_object"]) == set(names) <= {"carton", "tin"}
+    assert sum(r["placed"] for r in s["per_object"].values()) == 2
+    scene = load_scene(tmp_path / "s" / "scene000.json")
+    for o, pose in zip(scene.objects, s["details"][0]["poses"]):
+        assert pose["frame"] == "file" and np.allclose(pose["pos"], o.T_world_file[:3, 3])
+        if o.name == "carton":
+            assert o.spec.mass == 0.2 and abs(np.linalg.norm(np.subtract(pose["pos"], o.pos)) - 0.3) < 1e-6
+
+
+@pytest.mark.slow
 def test_cli_scene_honours_gripper(tmp_path, capsys):
     from graspsim.grippers import get_gripper
 
@@ -141,6 +169,8 @@ def test_cli_scene_honours_gripper(tmp_path, capsys):
     (["--min-gap", "1cm"], "--min-gap"),
     (["--budget", "8:"], "--budget"),
     (["--budget", "8:0"], "--budget"),
+    (["--objects-dir", "no/such/folder"], "--objects-dir"),
+    (["--objects-dir", ".", "--object-set", "primitives"], "not both"),
 ])
 def test_cli_scene_bad_arguments_are_one_line_errors(args, message, capsys, tmp_path):
     try:

@@ -1,16 +1,26 @@
 """``graspsim scene``: clutter removal on simulated table-top scenes seen by a depth camera.
 
-    graspsim scene [--objects N] [--scenes S] [--kind pile|packed] [--object-set SET]
+    graspsim scene [--objects N] [--scenes S] [--kind pile|packed] [--object-set SET | --objects-dir DIR]
                    [--min-gap M] [--noise] [--no-neighbours] [--ground-truth] [--max-attempts M]
-                   [--seed S] [--db DIR] [--gripper NAME|MODEL.xml|SPEC.json] [--render DIR]
-                   [--save-scenes DIR] [--json]
+                   [--seed S] [--seeds N] [--planner NAME|module:function] [--db DIR]
+                   [--gripper NAME|MODEL.xml|SPEC.json] [--render DIR] [--save-scenes DIR] [--json]
 
 Each scene is drawn and settled in MuJoCo, rendered by one D435-like depth camera, and
 cleared grasp by grasp (:mod:`graspsim.tabletop.clutter`): segment, plan every object, execute
 the best grasp, remove what was lifted, render again; until the table is clear, two
 grasps in a row failed or no grasp is found. The JSON summary carries
-``grasp_success_rate`` (lifts / grasps), ``cleared_rate`` (objects removed / placed) and
-per-scene details.
+``grasp_success_rate`` (lifts / grasps), ``cleared_rate`` (objects removed / placed),
+the failure table per object (``per_object``: which object failed how often and why),
+GSR and DR per seed with their mean and std (``seeds``: ``--seeds N``,
+:mod:`graspsim.tabletop.clutter_stats`) and per-scene details. ``--planner`` swaps in
+another grasp planner (:mod:`graspsim.tabletop.planners`).
+
+Objects: a named set (``household``, the default: the shipped real meshes; ``random``;
+their ``-tuning`` / ``-heldout`` parts; ``primitives``, ``analogs``, ``mixed``) or any
+folder of the user's mesh files (``--objects-dir DIR``, with an optional manifest
+``objects.json`` / ``objects.toml`` for scale, mass or density, friction:
+:mod:`graspsim.tabletop.mesh_objects`). Meshes are prepared (convex parts, cached) before the
+first scene, with a progress bar.
 """
 
 from __future__ import annotations
@@ -39,14 +49,24 @@ def _cmd_scene(args) -> int:
     from graspsim.perception.segment import gap_link
     from graspsim.planning.scene_config import SceneConfig
     from graspsim.sim.noise import ExecutionNoise
-    from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, summarize
-    from graspsim.tabletop.scene_objects import OBJECT_SETS
+    from graspsim.tabletop.clutter import FAILURE_COLUMNS, ClutterConfig, failure_rows, run_benchmark, summarize
+    from graspsim.tabletop.scene_objects import OBJECT_SETS, object_set_names, prepare_objects
     from graspsim.tabletop.table_scene import MAX_OBJECTS, known_gap
 
     if args.objects > MAX_OBJECTS:
         raise InvalidParameterError(f"--objects must be at most {MAX_OBJECTS}, got {args.objects}")
-    if args.object_set not in OBJECT_SETS:
-        raise InvalidParameterError(f"--object-set {args.object_set!r} unknown; valid: {sorted(OBJECT_SETS)}")
+    if args.objects_dir is not None:
+        if args.object_set is not None:
+            raise InvalidParameterError("give --object-set or --objects-dir, not both")
+        if not Path(args.objects_dir).is_dir():
+            raise InvalidParameterError(f"--objects-dir {args.objects_dir} is not a folder (a folder of mesh files "
+                                        "is expected)")
+        object_set = str(Path(args.objects_dir).resolve())
+    else:
+        object_set = args.object_set or "household"
+        if object_set not in object_set_names():
+            raise InvalidParameterError(f"--object-set {object_set!r} unknown; valid: {list(object_set_names())} "
+                                        "(a folder of meshes: --objects-dir)")
     render = check_folder(args.render, "render folder") if args.render else None
     saves = check_folder(args.save_scenes, "scene folder") if args.save_scenes else None
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
@@ -67,6 +87,7 @@ def _cmd_scene(args) -> int:
                         max_attempts=args.max_attempts, planner=planner, planner_name=args.planner)
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, gripper=gripper_from_args(args), quality=quality, config=map_cfg)
+    drawn = prepare_objects(object_set, db.gripper, progress=not args.json)  # decompositions before scene 0
     on_step = None
     if render is not None:
         render.mkdir(parents=True, exist_ok=True)
@@ -79,8 +100,8 @@ def _cmd_scene(args) -> int:
 
             saves.mkdir(parents=True, exist_ok=True)
             save_scene(scene, saves / f"scene{i:03d}.json")
-        details.append({"scene": i, "seed": scene.seed, "objects": [o.name for o in scene.objects],
-                        **result.to_dict()})
+        details.append({"scene": i, "seed": scene.seed, **result.to_dict(),
+                        "poses": [_pose(o) for o in scene.objects]})
 
     from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
 
@@ -88,9 +109,10 @@ def _cmd_scene(args) -> int:
     by_seed = {}
     for sd in seeds:
         by_seed[sd] = run_benchmark(args.objects, args.kind, args.scenes, sd, db=db, config=cfg,
-                                    object_set=args.object_set, on_step=on_step, on_scene=on_scene)
+                                    object_set=object_set, on_step=on_step, on_scene=on_scene)
     results = [r for rs in by_seed.values() for r in rs]
-    s = {"kind": args.kind, "objects": args.objects, "object_set": args.object_set, "seed": args.seed,
+    s = {"kind": args.kind, "objects": args.objects, "object_set": object_set,
+         "meshes": drawn if object_set not in OBJECT_SETS else None, "seed": args.seed,
          "planner": args.planner, "seeds": per_seed(by_seed), "gripper": db.gripper.name,
          "execution_noise": None if cfg.execution is None else cfg.execution.to_dict(),
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth, "min_gap": gap,
@@ -100,6 +122,8 @@ def _cmd_scene(args) -> int:
              f"{d['first_one_cluster']}/{d['first_seen']}") for d in details]
     gsr = s["grasp_success_rate"]
     human = (format_table(rows, ["scene", "objects", "removed", "grasps", "lifted", "stop", "one cluster"])
+             + "\n\nper object (failed grasps by cause; objects left by why):\n"
+             + format_table(failure_rows(s["per_object"]), list(FAILURE_COLUMNS))
              + f"\ngrasp success {s['successes']}/{s['attempts']}"
              + ("" if gsr is None else f" ({100 * gsr:.1f} %)")
              + f", cleared {s['removed']}/{s['placed']} objects ({100 * s['cleared_rate']:.1f} %)"
@@ -109,6 +133,15 @@ def _cmd_scene(args) -> int:
                 if s["planning_s"]["median"] is not None else ""))
     emit(s, args.json, human)
     return 0
+
+
+def _pose(placed) -> dict:
+    """An object's settled pose, in its mesh file's frame for meshes."""
+    from graspsim.transforms import matrix_to_quat
+
+    T = placed.T_world_file
+    return {"name": placed.name, "pos": T[:3, 3].tolist(), "quat": matrix_to_quat(T[:3, :3]).tolist(),
+            "frame": "file" if placed.spec.source == "mesh" else "object"}
 
 
 def _figure_writer(folder, gripper):
@@ -138,7 +171,13 @@ def register(sub) -> None:
     p.add_argument("--min-gap", type=float, default=None, metavar="M",
                    help="least gap [m] between any two objects, which segmentation may rely on (0: none; default: "
                    "the kind's: packed 0.01, pile none)")
-    p.add_argument("--object-set", default="mixed", help="objects drawn from this set (mixed)")
+    p.add_argument("--object-set", default=None, metavar="SET",
+                   help="objects drawn from this set: household (the default: shipped real meshes), random, "
+                   "household-tuning, household-heldout, random-tuning, random-heldout, primitives, analogs, "
+                   "meshes, mixed")
+    p.add_argument("--objects-dir", default=None, metavar="DIR",
+                   help="objects drawn from a folder of your mesh files (.stl .obj .ply .off .glb .gltf; an optional "
+                   "objects.json or objects.toml gives per-file scale, mass or density, friction)")
     p.add_argument("--noise", action="store_true", help="execution error: the arm misses each pose by 3 mm / 2 deg "
                    "(sigma)")
     p.add_argument("--no-neighbours", action="store_true",

@@ -23,7 +23,9 @@ class ClutterEnvConfig:
     """Environment settings.
 
     n_objects, kind (``"pile"`` | ``"packed"``), object_set: the scenes drawn at reset
-        (:func:`graspsim.tabletop.table_scene.make_scene`; sets of :mod:`graspsim.tabletop.scene_objects`).
+        (:func:`graspsim.tabletop.table_scene.make_scene`; a set of :mod:`graspsim.tabletop.scene_objects`:
+        ``"mixed"``, ``"household"``, ... or a folder of the user's mesh files, as
+        ``graspsim scene --objects-dir``).
     n_candidates: K, candidate grasps offered per step (the scene's ranking, best first).
     cloud_size: N, points of the observed depth cloud (a fixed-size sample of the frame's
         back-projected points, with repeats when it has fewer).
@@ -67,10 +69,12 @@ class ClutterEnvConfig:
             raise InvalidParameterError(f"max_attempts must be an integer >= 1 or None, got {m!r}")
         if self.kind not in _KINDS:
             raise InvalidParameterError(f"kind {self.kind!r} unknown; valid: {list(_KINDS)}")
-        from graspsim.tabletop.scene_objects import OBJECT_SETS
+        from graspsim.tabletop.scene_objects import check_object_set
 
-        if self.object_set not in OBJECT_SETS:
-            raise InvalidParameterError(f"object_set {self.object_set!r} unknown; valid: {sorted(OBJECT_SETS)}")
+        try:
+            check_object_set(self.object_set)
+        except InvalidParameterError as err:
+            raise InvalidParameterError(f"object_set: {err}") from None
         for name in ("depth_image", "depth_noise", "execution_error", "neighbours"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidParameterError(f"{name} must be True or False, got {getattr(self, name)!r}")

@@ -124,10 +124,13 @@ def _check_memory(n: int) -> None:
 
 
 def perceive_scene(points: np.ndarray, rng: np.random.Generator, config: SceneConfig | None = None, *,
-                   labels: np.ndarray | None = None) -> ScenePerception:
+                   labels: np.ndarray | None = None, viewpoint=None) -> ScenePerception:
     """The table and the objects of a scene cloud (N, 3) [m] (NaN rows: no depth).
     ``labels`` (N,): given segment ids (>= 0 objects, < 0 none; e.g. the simulator's
-    ground truth) replace the clustering."""
+    ground truth) replace the clustering. ``viewpoint`` (3,): the camera that saw the
+    cloud (one view): surface normals point towards it, and with
+    ``SceneConfig.crease_angle`` the clustering parts touching objects along the
+    concave creases between them (:func:`~graspsim.perception.segment.euclidean_clusters`)."""
     from graspsim.seeding import check_rng
 
     check_rng(rng)
@@ -145,7 +148,9 @@ def perceive_scene(points: np.ndarray, rng: np.random.Generator, config: SceneCo
         seg, radius = _given_segments(labels, idx, len(pts), cfg.min_points), float("nan")
     else:
         radius = cfg.radius if cfg.radius is not None else cluster_radius(sub, max_radius=cfg.max_radius)
-        seg = euclidean_clusters(sub, radius=radius, min_points=cfg.min_points, link=gap_link(cfg.min_gap))
+        crease = None if viewpoint is None or cfg.min_gap is not None else cfg.crease_angle  # apart: no creases
+        seg = euclidean_clusters(sub, radius=radius, min_points=cfg.min_points, link=gap_link(cfg.min_gap),
+                                 viewpoint=viewpoint, crease_angle=crease)
     full = np.full(len(pts), -1, np.int64)
     full[idx] = seg
     t2 = time.perf_counter()
@@ -239,7 +244,7 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     t0 = time.perf_counter()
     viewpoint = check_viewpoint(viewpoint)  # before the work: a bad one fails now, in one line
     check_rng(rng)
-    per = perceive_scene(points, rng, cfg, labels=labels)
+    per = perceive_scene(points, rng, cfg, labels=labels, viewpoint=viewpoint)
     table = per.plane.table(cfg.clearance)
     t1 = time.perf_counter()
     segs = [per.segment_points(k) for k in range(per.n_segments)]

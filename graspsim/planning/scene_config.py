@@ -58,7 +58,10 @@ class SceneConfig:
     to; radius [m]: the clustering radius (None: from the spacing, at most max_radius);
     min_gap [m]: the least gap the user knows parts any two objects (objects placed
     apart; None: they may touch): clusters closer than
-    :data:`~graspsim.perception.segment.GAP_LINK` x min_gap are one object; min_points: smallest
+    :data:`~graspsim.perception.segment.GAP_LINK` x min_gap are one object; crease_angle [deg]:
+    where objects may touch (no ``min_gap``) and the camera's viewpoint is known, the
+    points along concave creases sharper than this are taken out before clustering, so
+    touching objects come apart (None: off; :mod:`~graspsim.perception.segment`); min_points: smallest
     object (points after thinning); neighbours: score grasps
     against the whole scene (False: the segment's points only); reach [m]: scene points
     farther than this from a segment's bounding box cannot touch the gripper and are
@@ -83,6 +86,7 @@ class SceneConfig:
     radius: float | None = None
     max_radius: float = 0.007
     min_gap: float | None = None
+    crease_angle: float | None = 15.0
     min_points: int = 40
     neighbours: bool = True
     reach: float = 0.15
@@ -101,6 +105,10 @@ class SceneConfig:
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InvalidParameterError(f"SceneConfig.{k} must be > 0 m, got {v!r}")
+        if self.crease_angle is not None and not (isinstance(self.crease_angle, (int, float))
+                                                  and 0 < self.crease_angle < 180):
+            raise InvalidParameterError(f"SceneConfig.crease_angle must be in (0, 180) deg or None, "
+                                        f"got {self.crease_angle!r}")
         if self.radius is not None and not (np.isfinite(self.radius) and self.radius > 0):
             raise InvalidParameterError(f"SceneConfig.radius must be > 0 m or None, got {self.radius!r}")
         try:

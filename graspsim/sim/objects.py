@@ -49,6 +49,8 @@ class SimObject:
     geoms: collision parts, object frame. mass [kg]; com (3,) [m] and inertia (3, 3)
     [kg m^2] about the COM, object frame. surface: a trimesh of the object for the
     resting pose and the start-collision check. description: what it is (for results).
+    friction: the sliding friction of its contacts (None: the scene's; given, its geoms
+    take precedence in every contact, MuJoCo's geom priority).
     """
 
     geoms: tuple[GeomPart, ...]
@@ -57,12 +59,15 @@ class SimObject:
     inertia: np.ndarray
     surface: object = field(repr=False)
     description: dict = field(default_factory=dict)
+    friction: float | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mass) and self.mass > 0):
             raise SimulationError(f"object mass must be a finite value > 0 kg, got {self.mass!r}")
         if not self.geoms:
             raise SimulationError("object has no collision geometry")
+        if self.friction is not None and not (math.isfinite(self.friction) and self.friction > 0):
+            raise SimulationError(f"object friction must be a finite value > 0, got {self.friction!r}")
 
 
 def _mass(volume: float, mass: float | None, density: float) -> float:
@@ -132,7 +137,8 @@ def object_from_shape(shape: Primitive | Compound, *, mass: float | None = None,
 def object_from_mesh(path, *, T_obj_mesh: np.ndarray | None = None,
                      scale: float = 1.0, mass: float | None = None, density: float = 1000.0,
                      coacd: CoacdParams = CoacdParams(),
-                     cache_dir: str | os.PathLike | None = None, progress=None) -> SimObject:
+                     cache_dir: str | os.PathLike | None = None, progress=None,
+                     friction: float | None = None) -> SimObject:
     """A mesh file as a simulation object: its collision model from
     :func:`~graspsim.sim.meshes.prepare_mesh` (convex parts, bounded and cached; mass
     properties of the closed mesh, else of its parts), placed in the object frame.
@@ -143,6 +149,7 @@ def object_from_mesh(path, *, T_obj_mesh: np.ndarray | None = None,
     for a map adapted from a point cloud, ``inv(T_cloud_obj)`` when mesh and cloud
     share a frame. The model is prepared in the mesh's own frame, so one cache entry
     serves every placement. scale: multiplies the file's coordinates (e.g. 0.001 for mm files).
+    friction: the object's own sliding friction (None: the scene's).
     """
     prepared = path if isinstance(path, PreparedMesh) else prepare_mesh(
         path, scale=scale, params=coacd, cache_dir=cache_dir, progress=progress)
@@ -159,4 +166,4 @@ def object_from_mesh(path, *, T_obj_mesh: np.ndarray | None = None,
     desc = {"primitive": "mesh", "file": prepared.source, "scale": prepared.scale, "parts": len(prepared.parts),
             "model": prepared.describe()}
     return SimObject(tuple(GeomPart("mesh", vertices=transform_points(T, p)) for p in prepared.parts), m,
-                     R @ prepared.com + T[:3, 3], m * (R @ prepared.unit_inertia @ R.T), surface, desc)
+                     R @ prepared.com + T[:3, 3], m * (R @ prepared.unit_inertia @ R.T), surface, desc, friction)

@@ -254,12 +254,13 @@ def _add_object(spec: mujoco.MjSpec, obj: SimObject, T_world_obj: np.ndarray,
     body.ipos = obj.com
     I = obj.inertia
     body.fullinertia = [I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]]
-    friction = [s.table_friction, s.torsional_friction, s.rolling_friction]
+    friction = [s.table_friction if obj.friction is None else obj.friction, s.torsional_friction,
+                s.rolling_friction]
     kinds = {"box": mujoco.mjtGeom.mjGEOM_BOX, "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
              "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER, "mesh": mujoco.mjtGeom.mjGEOM_MESH}
     for i, g in enumerate(obj.geoms):
         kw = dict(name=f"{name}_{i}", type=kinds[g.kind], pos=g.pos, quat=g.quat,
-                  friction=friction, condim=s.condim, rgba=list(rgba))
+                  friction=friction, condim=s.condim, rgba=list(rgba), priority=int(obj.friction is not None))
         if g.kind == "mesh":
             mesh = spec.add_mesh(name=f"{name}_{i}", uservert=np.asarray(g.vertices, float).ravel())
             mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX

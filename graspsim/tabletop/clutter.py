@@ -33,17 +33,25 @@ from graspsim.planning.scene import plan_scene
 from graspsim.planning.scene_config import SceneConfig
 from graspsim.planning.scene_reuse import drop_grasp, near_pose
 from graspsim.sim.noise import ExecutionNoise
+from graspsim.tabletop.clutter_metrics import (
+    FAILURE_COLUMNS,
+    LEFT,
+    OTHER,
+    STOPS,
+    failure_rows,
+    object_segmentation,
+    one_cluster_objects,
+    per_object,
+    summarize,
+)
 from graspsim.tabletop.depth_noise import DepthNoise
 from graspsim.tabletop.planners import grasp_target
 from graspsim.tabletop.table_scene import known_gap
 
 __all__ = ["scene_settings", "ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame", "ClutterEpisode",
-           "run_clutter", "run_benchmark", "summarize", "one_cluster_objects", "STOPS", "OTHER"]
+           "run_clutter", "run_benchmark", "summarize", "one_cluster_objects", "object_segmentation",
+           "per_object", "failure_rows", "FAILURE_COLUMNS", "STOPS", "OTHER", "LEFT"]
 
-#: Why an episode ended.
-STOPS = ("cleared", "failures", "no_grasp", "max_attempts")
-#: The cause of a grasp that lifted an object other than its target.
-OTHER = "success_other_object"
 
 
 def scene_settings(kind: str, **kw) -> SceneConfig:
@@ -116,10 +124,14 @@ class Attempt:
         return dict(self.__dict__)
 
 
+
+
 @dataclass(frozen=True)
 class ClutterResult:
     """One episode: placed objects, attempts in order, removed objects, why it stopped
-    (:data:`STOPS`), the first frame's segmentation quality (objects seen, one cluster)."""
+    (:data:`STOPS`), the first frame's segmentation quality (objects seen, one cluster);
+    names: the placed objects' names (by id); left: object id -> why it is still on the
+    table (:data:`LEFT`)."""
 
     placed: int
     attempts: tuple[Attempt, ...]
@@ -128,6 +140,8 @@ class ClutterResult:
     first_seen: int
     first_one_cluster: int
     seconds: float
+    names: tuple[str, ...] = ()
+    left: dict = field(default_factory=dict)
 
     @property
     def successes(self) -> int:
@@ -152,31 +166,8 @@ class ClutterResult:
                 "grasp_success_rate": self.grasp_success_rate,
                 "declutter_rate": self.declutter_rate, "stop": self.stop, "first_seen": self.first_seen,
                 "first_one_cluster": self.first_one_cluster, "seconds": self.seconds,
+                "objects": list(self.names), "left": {str(k): v for k, v in self.left.items()},
                 "steps": [a.to_dict() for a in self.attempts]}
-
-
-def one_cluster_objects(truth: np.ndarray, found: np.ndarray, *, min_seen: int = 40,
-                        share: float = 0.9) -> tuple[int, int]:
-    """(objects seen, objects segmented as one cluster) from per-point ground-truth
-    object ids ``truth`` (N,) (< 0: none) and found segment ids ``found`` (N,) (< 0:
-    none) of the same points. An object is seen with ``min_seen`` points or more; it is
-    one cluster when one segment holds at least ``share`` of its segmented points and at
-    least ``share`` of that segment's points are the object's."""
-    truth, found = np.asarray(truth), np.asarray(found)
-    seen = one = 0
-    for k in np.unique(truth[truth >= 0]):
-        mine = truth == k
-        if mine.sum() < min_seen:
-            continue
-        seen += 1
-        segs = found[mine & (found >= 0)]
-        if not len(segs):
-            continue
-        ids, counts = np.unique(segs, return_counts=True)
-        best = ids[np.argmax(counts)]
-        if counts.max() >= share * len(segs) and np.mean(truth[found == best] == k) >= share:
-            one += 1
-    return seen, one
 
 
 @dataclass(frozen=True, eq=False)
@@ -324,10 +315,45 @@ class ClutterEpisode:
     def removed(self) -> int:
         return len(self.scene.objects) - len(self.sim.objects_left())
 
+    def left_reasons(self) -> dict[int, str]:
+        """Why each object left on the table is there, judged on the last look
+        (:data:`LEFT`): off the table (knocked beyond it), not seen (fewer than
+        ``min_seen`` points), merged with another object or split (by
+        :func:`object_segmentation`), one cluster but no grasp with a robust score > 0
+        left to try on its segment (no_grasp), or one that was not tried before the
+        episode stopped (not_tried). With a planner of :mod:`graspsim.tabletop.planners`
+        (no segments) a seen object is not_tried when a grasp left to try aims at it
+        (:func:`~graspsim.tabletop.planners.grasp_target`), else no_grasp."""
+        look, out = self.last, {}
+        gripper = self.db.gripper if self.db is not None else None
+        off = set(self.sim.outside())
+        for k in self.sim.objects_left():
+            if k in off:
+                out[k] = "off_table"
+                continue
+            if look is None:
+                out[k] = "not_seen"
+                continue
+            if self.config.planner is not None:
+                seen = int(np.sum(look.view.labels == k)) >= self.config.min_seen
+                aimed = any(grasp_target(look, g, gripper) == k for g in look.candidates)
+                out[k] = "not_seen" if not seen else "not_tried" if aimed else "no_grasp"
+                continue
+            per = look.plan.perception
+            how, seg = object_segmentation(look.view.labels[per.indices], per.segment, k,
+                                           min_seen=self.config.min_seen)
+            if how != "one":
+                out[k] = how
+            else:
+                out[k] = "not_tried" if any(g.segment == seg and g.score > 0 for g in look.candidates) \
+                    else "no_grasp"
+        return out
+
     def result(self) -> ClutterResult:
         first = self.first or (0, 0)
         return ClutterResult(len(self.scene.objects), tuple(self.attempts), self.removed, self.stop or "max_attempts",
-                             first[0], first[1], time.perf_counter() - self._t0)
+                             first[0], first[1], time.perf_counter() - self._t0,
+                             tuple(o.name for o in self.scene.objects), self.left_reasons())
 
     def close(self) -> None:
         """Free the renderer (the simulation stays readable)."""
@@ -379,44 +405,3 @@ def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, conf
         if on_scene is not None:
             on_scene(i, scene, r)
     return out
-
-
-def _spread(values: list[float]) -> dict:
-    """count, mean, median and max of seconds (None when there are none)."""
-    v = np.asarray(values, float)
-    if not len(v):
-        return {"count": 0, "mean": None, "median": None, "max": None}
-    return {"count": len(v), "mean": float(v.mean()), "median": float(np.median(v)), "max": float(v.max())}
-
-
-def summarize(results: list[ClutterResult]) -> dict:
-    """Pooled metrics of episodes: grasp success rate (successes / attempts), cleared
-    rate (objects removed / placed), grasps that lifted another object than their
-    target (``other_objects``, not successes), scenes cleared, stops, failure causes,
-    planning seconds per grasp (count, mean, median, max; of the episodes' first frames
-    and of later frames, which may reuse plans, apart; median per stage of
-    ``plan_scene``), segmentation quality of the first frames
-    (objects seen, segmented as one cluster)."""
-    attempts = [a for r in results for a in r.attempts]
-    ok = sum(a.success for a in attempts)
-    placed, removed = sum(r.placed for r in results), sum(r.removed for r in results)
-    causes: dict[str, int] = {}
-    for a in attempts:
-        if not a.success:
-            causes[a.cause] = causes.get(a.cause, 0) + 1
-    seen, one = sum(r.first_seen for r in results), sum(r.first_one_cluster for r in results)
-    stages = sorted({k for a in attempts for k in a.timing})
-    medians = {k: float(np.median([a.timing.get(k, 0.0) for a in attempts])) for k in stages}
-    first = [r.attempts[0].planning for r in results if r.attempts]
-    later = [a.planning for r in results for a in r.attempts[1:]]
-    return {"scenes": len(results), "attempts": len(attempts), "successes": ok,
-            "other_objects": sum(a.cause == OTHER for a in attempts),
-            "grasp_success_rate": ok / len(attempts) if attempts else None,
-            "placed": placed, "removed": removed, "cleared_rate": removed / placed if placed else None,
-            "scenes_cleared": sum(r.removed == r.placed for r in results),
-            "stops": {s: sum(r.stop == s for r in results) for s in STOPS},
-            "failure_causes": dict(sorted(causes.items())),
-            "planning_s": {**_spread([a.planning for a in attempts]), "stages_median": medians,
-                           "first_frame": _spread(first), "later_frames": _spread(later)},
-            "segmentation": {"objects_seen": seen, "one_cluster": one,
-                             "share": one / seen if seen else None}}

@@ -29,9 +29,9 @@ from graspsim.errors import InvalidParameterError, OutputPathError, SimulationEr
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.seeding import rng_for
 from graspsim.sim.scene import SimSettings, resting_pose
-from graspsim.tabletop.scene_objects import OBJECT_SETS, ObjectSpec, draw_object
+from graspsim.tabletop.scene_objects import ObjectSpec, check_object_set, draw_object
 from graspsim.tabletop.scene_sim import SceneOutcome, SceneSim
-from graspsim.transforms import make_transform, quat_to_matrix, random_rotation
+from graspsim.transforms import make_transform, matrix_to_quat, quat_to_matrix, random_rotation
 
 __all__ = ["PlacedObject", "TableScene", "make_scene", "save_scene", "load_scene", "footprint_gaps", "object_view",
            "SceneSim", "SceneOutcome", "KINDS", "PACKED_GAP", "known_gap"]
@@ -60,8 +60,17 @@ class PlacedObject:
     def T_world_obj(self) -> np.ndarray:
         return make_transform(quat_to_matrix(np.asarray(self.quat)), np.asarray(self.pos))
 
+    @property
+    def T_world_file(self) -> np.ndarray:
+        """(4, 4) the pose of a mesh's file frame (= T_world_obj for shapes)."""
+        return self.T_world_obj @ self.spec.T_obj_file
+
     def to_dict(self) -> dict:
-        return {"object": self.spec.to_dict(), "pos": list(self.pos), "quat": list(self.quat)}
+        d = {"object": self.spec.to_dict(), "pos": list(self.pos), "quat": list(self.quat)}
+        if self.spec.source == "mesh":  # the pose in the mesh file's own frame, for the user (not read back)
+            T = self.T_world_file
+            d["file_pose"] = {"pos": T[:3, 3].tolist(), "quat": matrix_to_quat(T[:3, :3]).tolist()}
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> PlacedObject:
@@ -226,8 +235,7 @@ def make_scene(n_objects: int, kind: str = "pile", seed: int = 0, *, object_set:
         raise InvalidParameterError(f"n_objects must be a whole number in [1, {MAX_OBJECTS}], got {n_objects!r}")
     if kind not in KINDS:
         raise InvalidParameterError(f"scene kind {kind!r} unknown; valid: {list(KINDS)}")
-    if object_set not in OBJECT_SETS:
-        raise InvalidParameterError(f"unknown object set {object_set!r}; valid: {list(OBJECT_SETS)}")
+    check_object_set(object_set)
     if not (0.1 <= area <= 0.6) or not (0 <= gap <= 0.1):
         raise InvalidParameterError(f"area must be in [0.1, 0.6] m and gap in [0, 0.1] m, got {area!r}, {gap!r}")
     rng = rng_for(seed, "table_scene", kind, n_objects)

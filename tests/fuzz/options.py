@@ -106,11 +106,13 @@ NEWER_COMMANDS: dict[str, tuple[list[str], dict]] = {
               "--top": _COUNTS, "--pick": _COUNTS, "--colour": ["grade", "robust", "magic", ""],
               "--host": ["127.0.0.1", "0.0.0.0", "256.1.1.1", "", "no.such.host.invalid"], "--cloud": ["{cloud}",
               "{map}", "{dir}"], "--mesh": ["{mesh}", "{map}"], "--replay": ["{map}", "{out}"]}),
+    # primitives: the option handling is under test, not the first preparation of the household meshes
     "scene": (["scene", "--objects", "1", "--scenes", "1", "--max-attempts", "1", "--budget", "4:20", "--db", "{db}",
-               "--threads", "1", *FAST_FLAGS],
+               "--threads", "1", "--object-set", "primitives", *FAST_FLAGS],
               {"--objects": ["-1", "0", "abc", "1000", "nan"], "--scenes": ["-1", "0", "abc", "1e9"],
                "--kind": ["pile", "packed", "heap"], "--min-gap": _LENGTHS, "--max-attempts": ["-1", "0", "abc"],
-               "--budget": ["0:0", "abc", "-1:5"], "--seed": _SEEDS, "--object-set": ["mixed", "none", ""],
+               "--budget": ["0:0", "abc", "-1:5"], "--seed": _SEEDS,
+               "--object-set": ["mixed", "none", "", "random-heldout"], "--seeds": ["0", "2", "abc"],
                "--render": ["{dir}/r", "{out}"], "--save-scenes": ["{dir}/s", "{out}"]}),
 }
 

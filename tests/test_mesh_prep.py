@@ -93,7 +93,7 @@ def test_a_cache_hit_gives_the_identical_model(tmp_path):
 
 def test_units_are_checked_as_clouds_are(tmp_path):
     box_mm = trimesh.creation.box([40.0, 50.0, 60.0])  # a 6 cm box written in millimetres
-    with pytest.raises(MeshError, match=r"60 m across.*millimetres \(0\.06 m with --mesh-scale 1000\)"):
+    with pytest.raises(MeshError, match=r"60 m across.*millimetres \(0\.06 m with --mesh-scale 0\.001\)"):
         prepare_mesh(box_mm, cache_dir=tmp_path)
     ok = prepare_mesh(box_mm, scale=0.001, cache_dir=tmp_path)
     assert ok.volume == pytest.approx(0.04 * 0.05 * 0.06)
@@ -151,7 +151,7 @@ def test_trial_refuses_a_millimetre_mesh_naming_mesh_scale_and_runs_it_scaled(tm
     trimesh.creation.cylinder(20.0, 200.0, sections=32).export(mesh)
     assert main(["trial", str(path), "--top", "1", "--mesh", str(mesh), "--no-write", "--json"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--mesh-scale 1000" in err[0] and "millimetres" in err[0]
+    assert len(err) == 1 and "--mesh-scale 0.001" in err[0] and "millimetres" in err[0]
     assert main(["trial", str(path), "--top", "1", "--mesh", str(mesh), "--mesh-scale", "0.001",
                  "--no-write", "--threads", "1", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])

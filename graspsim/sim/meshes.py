@@ -233,7 +233,7 @@ def check_mesh_arrays(vertices, faces, *, scale: float = 1.0, name: str = "the m
     width = np.ptp(used, axis=0)
     big = float(width.max())
     if big > MAX_MESH_EXTENT:
-        hints = [f"{u} ({big / k:.4g} m with --mesh-scale {k:g})"
+        hints = [f"{u} ({big / k:.4g} m with --mesh-scale {scale / k:g})"
                  for u, k in (("millimetres", 1000.0), ("centimetres", 100.0)) if big / k <= MAX_MESH_EXTENT]
         hint = ("is it in " + " or ".join(hints) + "?") if hints else "convert it to metres with --mesh-scale S"
         raise MeshError(f"{name} is {big:.4g} m across, implausible for a graspable object (at most "
@@ -241,7 +241,7 @@ def check_mesh_arrays(vertices, faces, *, scale: float = 1.0, name: str = "the m
     if big < MIN_MESH_EXTENT:
         raise MeshError(f"{name} is only {big * 1000:.3g} mm across, smaller than any graspable object (at least "
                         f"{MIN_MESH_EXTENT * 1000:g} mm); is it in another unit? scale it with --mesh-scale S "
-                        "(e.g. 10 for decimetres, 1000 for kilometres)")
+                        "(S multiplies the file's coordinates to give metres)")
     if float(width.min()) < 1e-6 * big or not _some_area(v, f, 1e-12 * big * big / scale**2):
         raise MeshError(f"{name} is flat or degenerate (its extents are {np.round(width * 1000, 3).tolist()} mm); "
                         "a solid needs some thickness in every direction")

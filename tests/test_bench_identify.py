@@ -51,7 +51,8 @@ def test_bench_identify_quick(tmp_path):
     bench = _load("bench_identify")
     out = tmp_path / "b"
     objects = ROOT / "assets" / "objects"
-    assert bench.main(["--quick", "--objects-dir", str(objects), "--out", str(out)]) == 0
+    assert bench.main(["--quick", "--objects-dir", str(objects), "--objects", "robosuite/bread.stl",
+                       "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     (row,) = s["objects"]
     for view in ("full", "single"):

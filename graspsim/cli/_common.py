@@ -267,19 +267,15 @@ def add_viewpoint_flag(p) -> None:
 
 
 def viewpoint_from_args(args):
-    """``--viewpoint`` as a (3,) array, None when not given."""
-    import math
-
-    import numpy as np
-
+    """``--viewpoint`` as a (3,) array, None when not given; checked by the one viewpoint
+    check every planner entry point uses (:func:`graspsim.maps.occlusion.check_viewpoint`)."""
     from graspsim.errors import InvalidParameterError
+    from graspsim.maps.occlusion import check_viewpoint
 
-    v = getattr(args, "viewpoint", None)
-    if v is None:
-        return None
-    if not all(math.isfinite(x) for x in v):
-        raise InvalidParameterError(f"--viewpoint takes three finite numbers [m], got {' '.join(map(str, v))}")
-    return np.asarray(v, float)
+    try:
+        return check_viewpoint(getattr(args, "viewpoint", None))
+    except InvalidParameterError as err:
+        raise InvalidParameterError(f"--viewpoint: {err}") from None
 
 
 def stored_text(part: dict) -> str:

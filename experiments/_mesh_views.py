@@ -1,4 +1,5 @@
-"""E09's view of a mesh: resting on the table as the simulator rests it, at a random yaw,
+"""E09's view of a mesh: resting on the table (settled by physics, as the simulator rests it,
+or on trimesh's most probable stable face), at a random yaw,
 seen as a full cloud (uniform over the surface) and as a single view (the points one
 camera sees, z-buffered; noise along the ray). World frame, table at z = 0, metres."""
 
@@ -12,7 +13,7 @@ from _scenes import camera_position
 from graspsim.sim.scene import resting_pose
 from graspsim.transforms import make_transform
 
-__all__ = ["rest_on_table", "rest_stable", "surface_points", "visible", "clouds"]
+__all__ = ["rest_on_table", "rest_physics", "rest_stable", "surface_points", "visible", "clouds"]
 
 
 def rest_on_table(mesh, obj, rng: np.random.Generator):
@@ -23,6 +24,32 @@ def rest_on_table(mesh, obj, rng: np.random.Generator):
     a = rng.uniform(0.0, 2.0 * math.pi)
     Rz = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
     T = make_transform(Rz, np.zeros(3)) @ resting_pose(obj)
+    out = mesh.copy()
+    out.apply_transform(T)
+    return out, T
+
+
+def rest_physics(mesh, obj, rng: np.random.Generator, *, max_time: float = 3.0):
+    """The mesh (a copy) as it comes to rest in MuJoCo: its simulated object ``obj`` put
+    on the table as :func:`rest_on_table` puts it and stepped until at rest (``SceneSim.settle``;
+    at most ``max_time`` s), so a pose that only looks stable (a centre of mass over the
+    edge of its support, within the support rule's 2 mm tolerance) tips over first; then
+    lowest point at z = 0, centre of mass over the origin, turned by a random yaw about the
+    vertical. Returns the mesh and T_world_mesh."""
+    from graspsim.tabletop.scene_sim import SceneSim
+
+    sim = SceneSim([(obj, resting_pose(obj))])
+    try:
+        sim.settle(max_time=max_time)
+        R = sim.pose(0)[:3, :3]
+    finally:
+        sim.close()
+    v = np.asarray(obj.surface.vertices, float) @ R.T
+    c = R @ obj.com
+    T = make_transform(R, np.array([-c[0], -c[1], -v[:, 2].min()]))
+    a = rng.uniform(0.0, 2.0 * math.pi)
+    Rz = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    T = make_transform(Rz, np.zeros(3)) @ T
     out = mesh.copy()
     out.apply_transform(T)
     return out, T

@@ -1,8 +1,9 @@
 """Experiment E09: everyday objects -- paper vs robust identification, and the grasps in MuJoCo.
 
 Every mesh in ``--objects-dir`` (default ``../shared/objects``: 6 robosuite and 36
-pybullet everyday and random objects) rests on a table (z = 0) as the simulator rests it
-(upright when stable, else on the hull face nearest its centre of mass), at a random yaw.
+pybullet everyday and random objects) rests on a table (z = 0) as physics rests it (its
+simulated object put down upright when that looks stable, else on the hull face nearest its
+centre of mass, then stepped in MuJoCo until at rest: ``--rest physics``), at a random yaw.
 Two clouds per object, both with 1 mm noise: a *full* cloud (uniform surface samples,
 3 mm spacing) and a *single view* (a camera 0.6 m away at 40 deg elevation, random
 azimuth; the points it sees, noise along the ray; planned with that camera as its
@@ -65,7 +66,7 @@ from _common import (
     start,
     write_json,
 )
-from _mesh_views import clouds, rest_on_table, rest_stable
+from _mesh_views import clouds, rest_on_table, rest_physics, rest_stable
 
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.database import MapDatabase
@@ -104,9 +105,10 @@ class Config:
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
     separation_mm: float = opt(10.0, "also simulate the best grasps at least this far apart [mm] (0: not)")
     separation_deg: float = opt(20.0, "... or this far apart in orientation [deg]")
-    rest: str = opt("simulator", "resting pose: 'simulator' (upright when stable, else the hull face nearest the "
-                    "centre of mass) or 'stable' (trimesh's most probable stable pose)",
-                    choices=("simulator", "stable"))
+    rest: str = opt("physics", "resting pose: 'physics' (the 'simulator' pose stepped in MuJoCo until at rest), "
+                    "'simulator' (upright when stable, else the hull face nearest the centre of mass; a centre of "
+                    "mass over the support's edge tips over once released) or 'stable' (trimesh's most probable "
+                    "stable pose)", choices=("physics", "simulator", "stable"))
     coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
     QUICK: ClassVar[dict] = {"resolution": 0.005, "coarse_db": True, "top": 4}
 
@@ -137,8 +139,10 @@ def _sim(map_path: Path, mesh_path: Path, cfg: Config, seed: int, separated: boo
     through the function the command is a layer over (:func:`simulate_map`)."""
     sep = (1e-3 * cfg.separation_mm, math.radians(cfg.separation_deg)) if separated else None
     try:
+        # the plain run stores its outcomes in the map (as `trial` does); the separated one
+        # is `trial --separation MM DEG --no-write` (storing would replace them)
         t = simulate_map(map_path, top=cfg.top, rank=cfg.rank, mesh=mesh_path, seed=seed, threads=cfg.threads,
-                         separation=sep)
+                         separation=sep, write=not separated)
     except InvalidParameterError:  # nothing to simulate (an empty map): `trial` refuses it too
         return None
     if not len(t.index):
@@ -176,9 +180,9 @@ def object_views(name: str, cfg: Config):
     drawn from ``rng_for(cfg.seed, name)``."""
     rng = rng_for(cfg.seed, name)
     path = Path(cfg.objects_dir) / name
-    # the simulator's rule needs the simulated object (a convex decomposition); trimesh's does not
-    obj = object_from_mesh(path) if cfg.rest == "simulator" else None
-    rest = rest_on_table if cfg.rest == "simulator" else rest_stable
+    # physics and the simulator's rule need the simulated object (a convex decomposition); trimesh's does not
+    obj = object_from_mesh(path) if cfg.rest != "stable" else None
+    rest = {"physics": rest_physics, "simulator": rest_on_table, "stable": rest_stable}[cfg.rest]
     mesh, T_world_mesh = rest(load_mesh(path), obj, rng)
     return obj, mesh, T_world_mesh, clouds(mesh, cfg, rng)
 
@@ -429,8 +433,9 @@ def readme_section(s: dict) -> str:
     g = s["gripper"]
     load = s["machine"]["load_avg_start"], s["machine"]["load_avg_end"]
     public = "table" in cfg  # runs through the public path (issue 33) record their table
-    rest = "on its most probable stable face (trimesh's stable poses)" if cfg.get("rest") == "stable" else \
-        "as the simulator rests it"
+    rest = {"stable": "on its most probable stable face (trimesh's stable poses)",
+            "physics": "as physics rests it (put down, then stepped in MuJoCo until at rest)"}.get(
+        cfg.get("rest"), "as the simulator rests it")
     path = (", through the public path (`graspsim adapt` -> map file -> `graspsim trial --mesh`: "
             "`graspsim.planning.adapt.adapt_cloud`, `graspsim.sim.mapsim.simulate_map`)") if public else ""
     best = (f"The adapted map's {cfg['top']} best grasps (`trial --top {cfg['top']} --rank {cfg['rank']}`: "

@@ -247,19 +247,19 @@ def test_a_grown_database_changes_no_part_and_names_the_map_it_used(tmp_path):
     np.testing.assert_array_equal(maps[0].robust, maps[1].robust)
 
 
-def test_table_auto_lies_at_the_cloud_for_a_full_cloud_and_may_go_under_the_shape_for_a_single_view():
+def test_table_auto_lies_at_the_cloud_never_under_a_fitted_shape_that_overshoots():
     from graspsim.geometry.table import TablePlane
     from graspsim.maps.table import table_height
     from graspsim.primitives import Box
 
     rng = np.random.default_rng(0)
     pts = np.column_stack([rng.uniform(-0.02, 0.02, 2000), rng.uniform(-0.02, 0.02, 2000), rng.uniform(0, 0.05, 2000)])
-    box = Box(0.05, 0.05, 0.07)  # fitted over the object, 1 cm below the cloud's bottom
+    box = Box(0.05, 0.05, 0.07)  # fitted over the object (or extrapolated behind a view), 1 cm below the cloud
     T = np.eye(4)
     T[2, 3] = 0.025
     auto = TablePlane()
     assert table_height(auto, pts, box, T) == pytest.approx(np.quantile(pts[:, 2], 0.005))
-    assert table_height(auto, pts, box, T, single_view=True) == pytest.approx(-0.01)
+    assert table_height(auto, np.zeros((0, 3)), box, T) == pytest.approx(-0.01)  # no points: the shape's
     assert table_height(TablePlane(height=0.003), pts, box, T) == 0.003
 
 
@@ -321,6 +321,9 @@ def test_adapt_takes_the_viewpoint_into_the_robust_score_and_records_it(tmp_path
     assert s["viewpoint"] == pytest.approx(cam.tolist())
     m = load_map(tmp_path / "a.h5")
     assert m.meta.extra["viewpoint"] == pytest.approx(cam.tolist()) and m.meta.extra["robust"]["viewpoint"] is True
+    # a single view's table lies at its lowest visible point (above the real one at z = 0), never under it
+    assert m.meta.placement.table["height"] == pytest.approx(np.quantile(pts[:, 2], 0.005), abs=1e-6)
+    assert m.meta.placement.table["height"] > 0.0
     assert s["parts"][0]["stored"]["key"]  # the stored map used, with its size ratio
     assert main(["trial", str(tmp_path / "a.h5"), "--top", "2", "--json", "--no-write"]) == 0
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["viewpoint"] == pytest.approx(cam.tolist())

@@ -110,9 +110,9 @@ def register(sub) -> None:
                    help="no map at all when clustering fails (default: map of the identified parts)")
     p.add_argument("--table", default=None, metavar="auto|HEIGHT",
                    help="drop grasps that would take the gripper below the table the object "
-                   "stands on: 'auto' puts the table at the object's lowest point along "
-                   "--table-normal (the cloud's; for a single view, with --viewpoint, the "
-                   "identified shape's where that is lower), a number is its height along the "
+                   "stands on: 'auto' puts the table at the cloud's lowest point along "
+                   "--table-normal (a single view's lowest visible point lies a few mm above the "
+                   "real table: safe), a number is its height along the "
                    "normal [m] in the cloud's frame (default: no table, as the paper's maps)")
     p.add_argument("--table-normal", type=float, nargs=3, default=(0.0, 0.0, 1.0),
                    metavar=("NX", "NY", "NZ"), help="the table's upward normal in the cloud's frame (0 0 1)")

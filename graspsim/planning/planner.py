@@ -267,8 +267,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
-    T_table_obj, table = _table_in_object(cfg, points, prims[0] if compound is None else compound, T_cloud_obj,
-                                          single_view=viewpoint is not None)
+    T_table_obj, table = _table_in_object(cfg, points, prims[0] if compound is None else compound, T_cloud_obj)
     extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
              "identification": ident_info,
              "viewpoint": None if viewpoint is None else np.asarray(viewpoint, float).tolist()}
@@ -361,14 +360,12 @@ def _finished(batches: list, parts: list, extra: dict, table: dict | None, n_bel
     return full.ranked(cfg.rank)
 
 
-def _table_in_object(cfg: PlannerConfig, points: np.ndarray, shape, T_cloud_obj: np.ndarray, *,
-                     single_view: bool = False):
-    """The table's frame in the object's and its record (height found from the cloud:
-    ``single_view``, a cloud with a viewpoint, see :func:`table_height`), or (None,
-    None) without a table."""
+def _table_in_object(cfg: PlannerConfig, points: np.ndarray, shape, T_cloud_obj: np.ndarray):
+    """The table's frame in the object's and its record (height given, or found from the
+    cloud: :func:`table_height`), or (None, None) without a table."""
     if cfg.table is None:
         return None, None
-    height = table_height(cfg.table, points, shape, T_cloud_obj, single_view=single_view)
+    height = table_height(cfg.table, points, shape, T_cloud_obj)
     return table_frame(cfg.table.normal, height) @ T_cloud_obj, {**cfg.table.to_dict(), "height": height}
 
 

@@ -113,6 +113,21 @@ def test_cli_scene_json_and_renders(tmp_path, capsys, db):
 
 
 @pytest.mark.slow
+def test_cli_scene_saves_every_seed_apart(tmp_path, capsys, db):
+    """--seeds 2 --save-scenes: one file per seed and scene (the second seed's scene 0 once
+    overwrote the first's), each reloading as the scene its seed drew."""
+    code = main(["scene", "--objects", "1", "--kind", "packed", "--object-set", "primitives", "--seeds", "2",
+                 "--max-attempts", "1", "--db", str(db.root), *FAST_FLAGS, "--save-scenes", str(tmp_path / "s"),
+                 "--json"])
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and len(s["details"]) == 2
+    files = sorted(p.name for p in (tmp_path / "s").iterdir())
+    assert files == ["seed0_scene000.json", "seed1_scene000.json"]
+    seeds = [load_scene(tmp_path / "s" / f).seed for f in files]
+    assert seeds == [d["seed"] for d in s["details"]] and seeds[0] != seeds[1]
+
+
+@pytest.mark.slow
 def test_cli_scene_of_a_folder_of_meshes(tmp_path, capsys, db):
     """`--objects-dir`: a user's meshes, their masses from the manifest, poses in each file's
     frame, the failure table per object by name."""

@@ -88,10 +88,16 @@ def _cmd_scene(args) -> int:
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, gripper=gripper_from_args(args), quality=quality, config=map_cfg)
     drawn = prepare_objects(object_set, db.gripper, progress=not args.json)  # decompositions before scene 0
+    from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
+
+    seeds = benchmark_seeds(args.seed, args.seeds)
+    # files of one seed's scene i: scene{i:03d}..., of several seeds: seed{k}_scene{i:03d}... (no overwriting)
+    prefix = ["" if len(seeds) == 1 else f"seed{k}_" for k in range(len(seeds))]
+    current = {"prefix": ""}
     on_step = None
     if render is not None:
         render.mkdir(parents=True, exist_ok=True)
-        on_step = _figure_writer(render, db.gripper)
+        on_step = _figure_writer(render, db.gripper, current)
     details = []
 
     def on_scene(i, scene, result):
@@ -99,15 +105,13 @@ def _cmd_scene(args) -> int:
             from graspsim.tabletop.table_scene import save_scene
 
             saves.mkdir(parents=True, exist_ok=True)
-            save_scene(scene, saves / f"scene{i:03d}.json")
+            save_scene(scene, saves / f"{current['prefix']}scene{i:03d}.json")
         details.append({"scene": i, "seed": scene.seed, **result.to_dict(),
                         "poses": [_pose(o) for o in scene.objects]})
 
-    from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
-
-    seeds = benchmark_seeds(args.seed, args.seeds)
     by_seed = {}
-    for sd in seeds:
+    for k, sd in enumerate(seeds):
+        current["prefix"] = prefix[k]
         by_seed[sd] = run_benchmark(args.objects, args.kind, args.scenes, sd, db=db, config=cfg,
                                     object_set=object_set, on_step=on_step, on_scene=on_scene)
     results = [r for rs in by_seed.values() for r in rs]
@@ -144,12 +148,15 @@ def _pose(placed) -> dict:
             "frame": "file" if placed.spec.source == "mesh" else "object"}
 
 
-def _figure_writer(folder, gripper):
+def _figure_writer(folder, gripper, current: dict):
+    """The per-step figure writer of ``--render``; ``current["prefix"]``: the running seed's
+    file prefix."""
     from graspsim.tabletop.clutter_figure import save_step_figure
 
     def write(i, view, frame, plan, attempt):
-        k = len(list(folder.glob(f"scene{i:03d}_step*.png")))
-        save_step_figure(folder / f"scene{i:03d}_step{k:02d}.png", frame, plan, view.uv, gripper,
+        stem = f"{current['prefix']}scene{i:03d}"
+        k = len(list(folder.glob(f"{stem}_step*.png")))
+        save_step_figure(folder / f"{stem}_step{k:02d}.png", frame, plan, view.uv, gripper,
                          title=f"scene {i}, grasp {k + 1}: {attempt.cause} (score {attempt.score:.2f})")
 
     return write
@@ -200,7 +207,8 @@ def register(sub) -> None:
     p.add_argument("--render", default=None, metavar="DIR",
                    help="write a picture of every grasp (colour, depth, segments, the grasp) into DIR")
     p.add_argument("--save-scenes", default=None, metavar="DIR",
-                   help="write every scene as DIR/sceneNNN.json (for 'graspsim view --scene')")
+                   help="write every scene as DIR/sceneNNN.json, with --seeds > 1 as DIR/seedK_sceneNNN.json "
+                   "(for 'graspsim view --scene')")
     _add_generation(p)
     add_json_flag(p)
     with_glossary(p, "robust score", "known / familiar / build")

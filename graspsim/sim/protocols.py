@@ -26,7 +26,7 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError
 from graspsim.sim.outcomes import Record, TrialOutcome, pads_touching, relative_motion, tilt, unstable
-from graspsim.sim.scene import Scene
+from graspsim.sim.trial_scene import Scene
 from graspsim.transforms import matrix_to_quat
 
 __all__ = ["Protocol", "LiftPlace", "Tug", "PROTOCOLS", "make_protocol", "min_jerk"]

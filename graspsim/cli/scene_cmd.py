@@ -35,7 +35,7 @@ from graspsim.cli._common import (
     whole_number,
     with_glossary,
 )
-from graspsim.cli.maps import _add_generation, _config
+from graspsim.cli.maps_cmd import _add_generation, _config
 
 __all__ = ["register"]
 

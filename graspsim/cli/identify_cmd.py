@@ -106,8 +106,8 @@ def _lookup(db_dir: str | None, gripper=None):
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from graspsim.perception.cloud_input import read_point_cloud
     from graspsim.perception.identify import IdentifyConfig, identify
-    from graspsim.perception.io import read_point_cloud
 
     config = IdentifyConfig.preset(args.mode, repetitions=args.repetitions, theta=args.theta, noise=args.noise)
     cloud = read_point_cloud(args.cloud, units=args.units)

@@ -27,7 +27,7 @@ from graspsim.cli._common import (
     gripper_from_args,
     with_glossary,
 )
-from graspsim.cli.maps import _add_generation, _config
+from graspsim.cli.maps_cmd import _add_generation, _config
 
 __all__ = ["register"]
 
@@ -195,7 +195,7 @@ def _show(plan, points, gripper, viewpoint, args, shot) -> dict:
     served until Ctrl-C. Returns what to add to the summary."""
     import time
 
-    from graspsim.cli.view import _quiet_server_logs, _serve, _stop_uninterrupted
+    from graspsim.cli.view_cmd import _quiet_server_logs, _serve, _stop_uninterrupted
     from graspsim.viewer import show_plan
 
     _quiet_server_logs()

@@ -61,8 +61,8 @@ def _cmd_design(args) -> int:
     from graspsim.calibration.outputs import write_json
     from graspsim.errors import InvalidParameterError
     from graspsim.grippers.spec import HGPL_25_60_A
-    from graspsim.maps.config import MapConfig
     from graspsim.maps.database import PAPER_SHAPES, size_grid
+    from graspsim.maps.map_config import MapConfig
 
     out = check_output(args.output, "results") if args.output else None
     plot = check_output(args.plot, "plot", others={"results (-o)": out} if out else None) if args.plot else None

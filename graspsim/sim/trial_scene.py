@@ -23,9 +23,9 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
+from graspsim.sim.authored_model import build_vendored_gripper_spec, model_drive
 from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, box_drive, build_gripper_spec
 from graspsim.sim.objects import SimObject
-from graspsim.sim.vendored import build_vendored_gripper_spec, model_drive
 
 __all__ = ["SimSettings", "Scene", "build_scene", "observed_pose", "resting_pose", "add_gripper",
            "gripper_drive", "gripper_geoms"]

@@ -60,7 +60,7 @@ def _add_generation(p) -> None:
 def _config(args):
     from graspsim.errors import InvalidParameterError
     from graspsim.grades.paper import QualityModel
-    from graspsim.maps.config import MapConfig
+    from graspsim.maps.map_config import MapConfig
 
     if args.threads is not None and args.threads < 1:
         raise InvalidParameterError(f"--threads must be >= 1, got {args.threads}")
@@ -187,13 +187,13 @@ def _cmd_info(args) -> int:
     from graspsim.maps.metrics import map_rates
 
     if is_foreign(args.file):
-        from graspsim.cli.export import info_dataset
+        from graspsim.cli.export_cmd import info_dataset
 
         return info_dataset(args, _describe_object)
     gmap = load_map(args.file)
     s = gmap.summary()
     if not s["graded"]:  # an imported third-party file's map: no grades, no contacts
-        from graspsim.cli.export import info_imported
+        from graspsim.cli.export_cmd import info_imported
 
         return info_imported(args, gmap, s, _describe_object)
     rates = map_rates(gmap)

@@ -38,7 +38,7 @@ MAX_TRIALS = 10_000  # more than this many trials need --all
 TRIALS_PER_SECOND_PER_THREAD = 80.0
 # --render: one rendered trial (offscreen 640 x 480, the key moments and a 25 frames/s GIF,
 # ~100 frames; rendering runs on one core) took 5 s of CPU, measured by timing
-# graspsim.sim.render.render_trial on a cylinder map's trials (15 s of wall time each at
+# graspsim.sim.trial_render.render_trial on a cylinder map's trials (15 s of wall time each at
 # load 10 on 2 cores): the estimate says "at least" and the bar shows the measured pace.
 RENDER_SECONDS_PER_TRIAL = 5.0
 
@@ -269,7 +269,7 @@ def _render(args, out, protocol) -> list[str]:
     """Pictures and GIFs of the first ``--render-count`` trials that started (not in
     collision) into ``--render``; their paths."""
     from graspsim.sim import TrialOutcome
-    from graspsim.sim.render import render_trial
+    from graspsim.sim.trial_render import render_trial
 
     res = out.results
     clear = [j for j in range(len(out.index)) if res.outcome[j] != TrialOutcome.START_COLLISION]

@@ -17,7 +17,7 @@ from graspsim.cli._common import (
     viewpoint_from_args,
     with_glossary,
 )
-from graspsim.cli.maps import _add_generation, _config
+from graspsim.cli.maps_cmd import _add_generation, _config
 
 __all__ = ["register"]
 

@@ -13,9 +13,9 @@ from enum import Enum
 
 import numpy as np
 
-from graspsim.envs.objects import resolve_object_set
+from graspsim.envs.object_sets import resolve_object_set
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.robust import DEFAULT_OPENINGS, POSITION_SIGMA, ROTATION_SIGMA
 
 __all__ = ["EnvConfig", "Perception", "RewardMode", "View", "make_config"]
@@ -40,7 +40,7 @@ class View(str, Enum):
 class EnvConfig:
     """Environment settings. Lengths [m], angles [rad].
 
-    objects: object set name(s) (see :mod:`graspsim.envs.objects`): ``"primitives"``,
+    objects: object set name(s) (see :mod:`graspsim.envs.object_sets`): ``"primitives"``,
         ``"compounds"``, ``"all"``, a kind (``"cylinder"``, ``"bottle"``, ...) or a tuple.
     n_candidates: K, the number of candidate grasps offered (GraspSelect).
     cloud_size: N, points in the observed cloud (sampled from the sensor cloud, with
@@ -78,7 +78,7 @@ class EnvConfig:
     gripper: the gripper: a registered name (``"festo_hgpl_25_60_a"``, ``"franka_hand"``),
         a spec .json or a :class:`~graspsim.grippers.spec.GripperSpec`; its own FS maps (the
         database keys maps by the gripper) and its own simulated model. The objects' widths
-        are drawn within what it spans (:func:`graspsim.envs.objects.size_limits`: its
+        are drawn within what it spans (:func:`graspsim.envs.object_sets.size_limits`: its
         stroke; the Festo takes the sets' full ranges).
     """
 

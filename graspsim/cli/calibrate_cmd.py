@@ -146,8 +146,8 @@ def _grade_models(grades, maps, *, quiet: bool) -> list:
 def _write(out: Path, table, rep, scores: dict) -> list[str]:
     """All five files, or none: each is written to a temporary and renamed at the end."""
     from graspsim._atomic import atomic_paths
+    from graspsim.calibration.figures import plot_reliability, plot_roc
     from graspsim.calibration.outputs import library_versions, write_json, write_text
-    from graspsim.calibration.plots import plot_reliability, plot_roc
     from graspsim.errors import OutputPathError
 
     out.mkdir(parents=True, exist_ok=True)

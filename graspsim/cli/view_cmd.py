@@ -19,7 +19,7 @@ import sys
 import time
 
 from graspsim.cli._common import add_json_flag, emit, seed_value
-from graspsim.cli.maps import _add_generation
+from graspsim.cli.maps_cmd import _add_generation
 
 __all__ = ["register", "run"]
 
@@ -122,7 +122,7 @@ def run(args) -> int:
 def _show_scene(args):
     """The scene viewer's server, its summary and banner."""
     from graspsim.cli._common import gripper_from_args
-    from graspsim.cli.maps import _config
+    from graspsim.cli.maps_cmd import _config
     from graspsim.maps.database import MapDatabase
     from graspsim.tabletop.table_scene import load_scene
     from graspsim.viewer import show_scene

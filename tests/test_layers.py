@@ -18,10 +18,10 @@ import pytest
 
 PKG = Path(__file__).resolve().parents[1] / "graspsim"
 
-#: The base: small modules every part may use (errors, version, atomic writes, small
+#: The base: small modules every part may use (errors, settings checks, version, atomic writes, small
 #: input files, JSON, installed files, the GL backend, seeds, frames, executors, statistics).
-BASE = frozenset({"errors", "_version", "_atomic", "_files", "_jsonable", "_resources", "_gl", "seeding",
-                  "transforms", "executors", "stats"})
+BASE = frozenset({"errors", "checks", "_version", "_atomic", "_files", "_jsonable", "_resources", "_gl",
+                  "seeding", "transforms", "executors", "stats"})
 
 
 def _above(*parts: str) -> frozenset[str]:

@@ -41,6 +41,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from graspsim.checks import POSITIVE, check_fields
 from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import GripperSpec
 from graspsim.primitives import shape_from_dict
@@ -70,9 +71,7 @@ class FeatureConfig:
     support_tol: float = 0.001
 
     def __post_init__(self) -> None:
-        for k, v in asdict(self).items():
-            if not (math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"FeatureConfig.{k} must be > 0, got {v!r}")
+        check_fields(self, POSITIVE, owner="FeatureConfig")
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -19,14 +19,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from graspsim.cli._common import (
-    add_executor_flags,
-    command,
-    emit,
-    executor_from_args,
-    format_table,
-    progress,
-)
+from graspsim.cli._common import add_executor_flags, command, emit, executor_from_args, format_table, progress
 
 __all__ = ["register", "run"]
 

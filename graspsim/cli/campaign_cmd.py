@@ -4,14 +4,7 @@ from __future__ import annotations
 
 import math
 
-from graspsim.cli._common import (
-    add_executor_flags,
-    command,
-    emit,
-    executor_from_args,
-    format_table,
-    progress,
-)
+from graspsim.cli._common import add_executor_flags, command, emit, executor_from_args, format_table, progress
 
 __all__ = ["register"]
 

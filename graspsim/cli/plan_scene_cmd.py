@@ -18,14 +18,7 @@ the jaw opening to approach with, the robust score). Exit status 1, and no file 
 
 from __future__ import annotations
 
-from graspsim.cli._common import (
-    add_budget_flag,
-    budget_from_args,
-    command,
-    emit,
-    format_table,
-    gripper_from_args,
-)
+from graspsim.cli._common import add_budget_flag, budget_from_args, command, emit, format_table, gripper_from_args
 from graspsim.cli.maps_cmd import _add_generation, _config
 
 __all__ = ["register"]

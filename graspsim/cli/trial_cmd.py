@@ -19,14 +19,7 @@ from __future__ import annotations
 import math
 import sys
 
-from graspsim.cli._common import (
-    add_gripper_flag,
-    command,
-    emit,
-    format_table,
-    gripper_from_args,
-    progress,
-)
+from graspsim.cli._common import add_gripper_flag, command, emit, format_table, gripper_from_args, progress
 
 __all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD", "RENDER_SECONDS_PER_TRIAL"]
 

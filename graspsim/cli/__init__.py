@@ -25,8 +25,8 @@ from graspsim.errors import GraspsimError
 
 __all__ = ["main", "build_parser"]
 
-# Each module defines ``register(subparsers)``; its parsers set ``func`` returning a
-# summary dict.
+# Each module defines ``register(subparsers)``, declaring its commands with
+# ``_common.command`` (the parser, its options, --json and ``func``, the function run).
 COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.demo_cmd",
     "graspsim.cli.maps_cmd",

@@ -13,9 +13,9 @@ from _common import Clock
 from graspsim.grades.paper import QualityModel
 from graspsim.grippers.spec import HGPL_25_60_A
 from graspsim.maps import generate as _generate
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 
 __all__ = ["time_fs", "time_scaled"]

@@ -10,7 +10,7 @@ import math
 import numpy as np
 from _scenes import camera_position
 
-from graspsim.sim.scene import resting_pose
+from graspsim.sim.trial_scene import resting_pose
 from graspsim.transforms import make_transform
 
 __all__ = ["rest_on_table", "rest_physics", "rest_stable", "surface_points", "visible", "clouds"]

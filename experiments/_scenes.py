@@ -27,7 +27,7 @@ __all__ = ["map_config", "camera_position", "standing_cloud", "noise_sigmas", "e
 def map_config(quick: bool = False, **kw):
     """The scripts' ``MapConfig(**kw)``: at the library's default resolution, or for
     quick runs coarse (1 cm surface step, 22 deg rotation step)."""
-    from graspsim.maps.config import MapConfig
+    from graspsim.maps.map_config import MapConfig
 
     if quick:
         kw = {"surface_step": 0.01, "rotation_step": math.radians(22.0), **kw}

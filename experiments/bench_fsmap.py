@@ -112,10 +112,10 @@ def _in_process(name: str, threads: int, repeat: int, quick: bool, queue) -> Non
     """Spawned worker: in-process generation times (kernels loaded beforehand)."""
     import resource
 
-    from graspsim.maps.config import MapConfig
     from graspsim.maps.database import PAPER_SHAPES
     from graspsim.maps.generate import clear_caches, generate_fs_map
     from graspsim.maps.kernels import default_threads, ensure_compiled
+    from graspsim.maps.map_config import MapConfig
     from graspsim.primitives import Cylinder
 
     ensure_compiled()

@@ -67,10 +67,10 @@ def _status_mib(key: str) -> float:
 
 def _measure(name: str, queue) -> None:
     from graspsim.grippers.spec import HGPL_25_60_A
-    from graspsim.maps.config import MapConfig
     from graspsim.maps.database import PAPER_SHAPES
     from graspsim.maps.generate import generate_fs_map
     from graspsim.maps.io import save_map
+    from graspsim.maps.map_config import MapConfig
     from graspsim.maps.preflight import estimate_map_memory
     from graspsim.primitives import Sphere
 

@@ -42,11 +42,11 @@ GOALS_MS = {"score_1000": 50.0, "first_robust": 20.0}
 
 def _scenes(seed: int, kinds: tuple[str, ...]):
     """(kind, world cloud (M, 3)) per kind: the object resting on the table at the origin."""
-    from graspsim.envs.objects import draw_object
+    from graspsim.envs.object_sets import draw_object
     from graspsim.primitives import synthetic_cloud
     from graspsim.seeding import rng_for
     from graspsim.sim.objects import object_from_shape
-    from graspsim.sim.scene import resting_pose
+    from graspsim.sim.trial_scene import resting_pose
 
     out = []
     for j, kind in enumerate(kinds):

@@ -52,9 +52,9 @@ from _stats import mean_sd, mixed_anova, p_text, paired_posthoc, tests_markdown
 
 from graspsim.grades.paper import QualityModel
 from graspsim.grippers.spec import HGPL_25_60_A
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.metrics import map_rates, relative_rates
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.plots import plot_maps

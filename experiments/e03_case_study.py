@@ -54,9 +54,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import Clock, experiment_database, fmt, machine_load, map_config, opt, rng_for, start, write_json
 
 from graspsim.maps import generate as _generate
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.io import save_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.perception import IdentifyConfig
 from graspsim.planning.planner import PlannerConfig, plan
 from graspsim.plots import plot_clouds, plot_maps

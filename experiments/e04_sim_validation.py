@@ -56,9 +56,9 @@ from _paired_trials import rate_rows, rates, simulate_paired
 from graspsim.calibration import CalibrationCase, SimCondition, TrialTable
 from graspsim.calibration.trials import CaseSample, case_clears_table
 from graspsim.grades import get_grade
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import PAPER_SHAPES, size_grid
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.scaling import scale_map
 from graspsim.planning.planner import plan
 from graspsim.primitives.case_study import ANALOGS

@@ -1,6 +1,6 @@
 """Experiment E05: what the paper's 0.7 means in simulation, and how robust that is.
 
-Held-out objects (``graspsim.calibration.objects.HELD_OUT_SHAPES``: five primitives at
+Held-out objects (``graspsim.calibration.study_shapes.HELD_OUT_SHAPES``: five primitives at
 sizes and proportions not used to fit the calibrated grade, and two compounds with the
 planner's combined maps), FS maps with closing directions up to 44 deg (default maps stop
 at 22 deg: the subset a default map holds is reported apart), grasps drawn evenly over
@@ -43,11 +43,11 @@ from _common import NAMED, derived_seed, fmt, map_config, md_table, opt, pct, st
 
 from graspsim.calibration import TrialTable, calibrate, draw_samples, simulate_samples
 from graspsim.calibration.conditions import SimCondition, condition
-from graspsim.calibration.objects import CALIBRATION_CONE, HELD_OUT_SHAPES, paper_size_grid
-from graspsim.calibration.plots import plot_reliability, plot_roc, plot_threshold_sweep
+from graspsim.calibration.figures import plot_reliability, plot_roc, plot_threshold_sweep
+from graspsim.calibration.study_shapes import CALIBRATION_CONE, HELD_OUT_SHAPES, paper_size_grid
 from graspsim.calibration.trials import fs_cases
 from graspsim.grades import get_grade
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 from graspsim.sim import ExecutionNoise
 
 log = logging.getLogger("e05")

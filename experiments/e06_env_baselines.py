@@ -82,7 +82,7 @@ from graspsim.envs.baselines import (
     FEATURE_NAMES,
     LogisticPolicy,
 )
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.robust import ABLATION_LABELS
 
 log = logging.getLogger("e06")

@@ -46,8 +46,8 @@ from _common import (
 )
 
 from graspsim.geometry.table import TablePlane
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+from graspsim.maps.map_config import MapConfig
 from graspsim.planning.planner import PlannerConfig, plan
 from graspsim.primitives.case_study import ANALOGS
 from graspsim.sim import (

@@ -55,9 +55,9 @@ from graspsim.apps.design import (
 )
 from graspsim.errors import GraspsimError
 from graspsim.grippers.spec import HGPL_25_60_A
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import PAPER_SHAPES, size_grid
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.plots import plot_design
 from graspsim.stats import wilson_interval
 

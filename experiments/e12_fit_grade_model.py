@@ -1,10 +1,10 @@
 """Experiment E12: fit the calibrated flat-pad contact grade on simulated trials.
 
-Training objects only (``graspsim.calibration.objects.TRAIN_SHAPES``: the five paper
+Training objects only (``graspsim.calibration.study_shapes.TRAIN_SHAPES``: the five paper
 primitives at three sizes plus other proportions): FS maps with closing directions up
 to 44 deg, grasps drawn evenly over ten paper-grade bins among the poses that clear the
 table, lift-and-place under the default physics. A logistic model on the features of
-``graspsim.grades.features`` is fitted and cross-validated by object (leave one object
+``graspsim.grades.grade_features`` is fitted and cross-validated by object (leave one object
 out; and, stricter, leave one primitive kind out); its threshold is the one whose
 out-of-fold population precision reaches 97 %. ``--install`` writes the model to
 ``graspsim/data/grade_model.json`` (the shipped ``pad_contact`` grade).
@@ -40,15 +40,15 @@ from _common import NAMED, fmt, map_config, md_table, opt, start, write_text
 
 from graspsim import stats
 from graspsim.calibration import SimCondition, TrialTable, draw_samples, simulate_samples
-from graspsim.calibration.objects import CALIBRATION_CONE, TRAIN_SHAPES
-from graspsim.calibration.plots import plot_roc
+from graspsim.calibration.figures import plot_roc
+from graspsim.calibration.study_shapes import CALIBRATION_CONE, TRAIN_SHAPES
 from graspsim.calibration.trials import fs_cases, table_features
 from graspsim.errors import NoFeasibleGraspError
-from graspsim.grades.features import FEATURES
 from graspsim.grades.fit import fit_grade
+from graspsim.grades.grade_features import FEATURES
 from graspsim.grades.models import FESTO, gripper_identity, model_path
 from graspsim.grippers import get_gripper
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 
 log = logging.getLogger("e12_fit")
 

@@ -50,9 +50,9 @@ from graspsim.calibration.trials import CaseSample, case_clears_table
 from graspsim.errors import NoFeasibleGraspError
 from graspsim.grades import get_grade, regrade
 from graspsim.grippers import get_gripper
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import PAPER_SHAPES, size_grid
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.sim import LiftPlace, select_grasps
 from graspsim.sim.outcomes import TrialOutcome
 

@@ -121,12 +121,12 @@ def _forget_objects() -> None:
     hierarchies, surface points, feature contexts): every scene's first frame is then
     planned as a new frame (another budget's episode of the same scene may have run
     here just before)."""
-    from graspsim.grades import features
+    from graspsim.grades import grade_features
     from graspsim.maps import _robust_geometry, hierarchy
 
     hierarchy.clear_caches()
     _robust_geometry._primitive_points.cache_clear()
-    features._context.cache_clear()
+    grade_features._context.cache_clear()
 
 
 def episode(task) -> dict:

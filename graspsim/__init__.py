@@ -72,7 +72,7 @@ _LAZY: dict[str, str] = {
     **_from("graspsim.grades", "get_grade", "regrade", "PaperGrade", "LogisticGrade"),
     # maps: generation, files, metrics, the full-scale database
     **_from("graspsim.maps.generate", "generate_fs_map"),
-    **_from("graspsim.maps.config", "MapConfig"),
+    **_from("graspsim.maps.map_config", "MapConfig"),
     **_from("graspsim.maps.graspmap", "GraspabilityMap", "MapMeta"),
     **_from("graspsim.maps.io", "load_map", "save_map"),
     **_from("graspsim.maps.metrics", "map_rates"),

@@ -32,11 +32,11 @@ from graspsim.errors import (
     PrimitiveError,
 )
 from graspsim.grippers.spec import HGPL_25_60_A
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.dbcheck import check_database
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.preflight import check_memory, estimate_map_memory, memory_budget, parse_size
 from graspsim.maps.validate import map_problems
 from graspsim.perception import identify
@@ -461,7 +461,7 @@ def test_errors_are_graspsim_errors():
 def test_cloud_of_complex_ragged_or_boolean_values_is_a_point_cloud_error():
     # complex: a leaked ComplexWarning and the imaginary part silently dropped; ragged: ValueError
     from graspsim.perception import to_metres
-    from graspsim.perception.io import check_cloud
+    from graspsim.perception.cloud_input import check_cloud
 
     good = synthetic_cloud(Sphere(0.04), np.random.default_rng(0), resolution=0.01).points
     for bad in (good.astype(complex), [[0.1], [0.1, 0.2]], good > 0, [["a", "b", "c"]] * 20, [[10**400, 0, 0]] * 20):

@@ -328,7 +328,7 @@ def test_trial_that_selects_nothing_exits_nonzero(map_file, capsys, no_work, sel
 
 
 def test_trial_huge_sample_requires_all(tmp_path, capsys, no_work):
-    from graspsim.cli import trial
+    from graspsim.cli import trial_cmd as trial
 
     n = trial.MAX_TRIALS + 1
     T = np.repeat(_small_map(1).T_obj_wrist, n, axis=0)
@@ -340,7 +340,7 @@ def test_trial_huge_sample_requires_all(tmp_path, capsys, no_work):
 
 
 def test_trial_with_all_runs_past_the_cap_and_says_how_many(map_file, capsys, monkeypatch):
-    from graspsim.cli import trial
+    from graspsim.cli import trial_cmd as trial
 
     monkeypatch.setattr(trial, "MAX_TRIALS", 2)
     assert "--all" in _fails(capsys, ["trial", map_file, "--sample", "3", "--threads", "1"])

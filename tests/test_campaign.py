@@ -12,9 +12,9 @@ import pytest
 
 from graspsim.apps.campaign import CampaignError, campaign_tasks, load_campaign, run_campaign
 from graspsim.executors import ProcessExecutor, make_executor
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.io import save_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Box, Cylinder
 from graspsim.sim import ExecutionNoise
 

@@ -3,7 +3,7 @@
 import json
 
 from graspsim.apps.design import PARAMS
-from graspsim.cli import design as cli_design
+from graspsim.cli import design_cmd as cli_design
 from graspsim.cli import main
 from graspsim.maps.io import load_map
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from graspsim.cli import main
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.map_config import MapConfig
 from graspsim.perception import read_point_cloud
 from graspsim.planning.scene import plan_scene
 from graspsim.planning.scene_config import SceneConfig

@@ -8,7 +8,7 @@ import pytest
 from graspsim.apps.design import PARAMS, DesignConfig, evaluate, param_value, resolve_design, sweep, vary
 from graspsim.errors import GripperError, InvalidParameterError
 from graspsim.grippers.spec import HGPL_25_60_A as A
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Box, Sphere
 
 COARSE = DesignConfig(map_config=MapConfig(surface_step=0.01, rotation_step=math.radians(22)), sim_grasps=0,

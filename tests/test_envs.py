@@ -1,7 +1,7 @@
 """Gymnasium environments: API conformance, determinism, masks, baselines, bad options.
 
 A coarse map database in a temporary folder keeps these fast (small K, small clouds,
-small map pools); the environments share it through ``graspsim.envs.base.database``.
+small map pools); the environments share it through ``graspsim.envs.table_task.database``.
 """
 
 from __future__ import annotations
@@ -28,13 +28,13 @@ from graspsim.envs.baselines import (
     wilson_interval,
 )
 from graspsim.envs.candidates import CANDIDATE_FEATURES
-from graspsim.envs.config import RewardMode
-from graspsim.envs.objects import COMPOUND_KINDS, PRIMITIVE_KINDS, draw_object, resolve_object_set
+from graspsim.envs.env_config import RewardMode
+from graspsim.envs.object_sets import COMPOUND_KINDS, PRIMITIVE_KINDS, draw_object, resolve_object_set
 from graspsim.envs.rewards import trial_reward
 from graspsim.errors import GraspsimError, InvalidParameterError
 from graspsim.grippers.spec import HGPL_25_60_A as G
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import PAPER_SHAPES
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Cylinder
 from graspsim.transforms import make_transform, quat_to_matrix
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from graspsim.envs.candidates import PooledDatabase
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Sphere
 
 FAST = MapConfig(surface_step=0.008, rotation_step=math.radians(22))

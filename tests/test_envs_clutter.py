@@ -16,8 +16,8 @@ import graspsim  # noqa: F401  (registers the environments)
 from graspsim.envs import CLUTTER_CLEAR_ID
 from graspsim.envs.clutter_clear import CLUTTER_FEATURES
 from graspsim.errors import GraspsimError, InvalidParameterError
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Box, Cylinder, Sphere
 from graspsim.tabletop.table_scene import make_scene
 

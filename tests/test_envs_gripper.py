@@ -9,9 +9,9 @@ import pytest
 
 from graspsim.envs import GRASP_SELECT_ID
 from graspsim.envs.baselines import highest_grade_policy
-from graspsim.envs.config import EnvConfig
+from graspsim.envs.env_config import EnvConfig
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 
 FAST = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
 
@@ -52,7 +52,7 @@ def _widths(d):
 
 @pytest.mark.slow
 def test_object_sizes_follow_the_grippers_stroke():
-    from graspsim.envs.objects import COMPOUND_KINDS, PRIMITIVE_KINDS, draw_object, size_limits
+    from graspsim.envs.object_sets import COMPOUND_KINDS, PRIMITIVE_KINDS, draw_object, size_limits
     from graspsim.grippers import get_gripper
     from graspsim.grippers.spec import HGPL_25_60_A
     from graspsim.maps.database import PAPER_SHAPES
@@ -97,7 +97,7 @@ def test_the_franka_hand_can_take_the_widest_objects_it_is_given():
 def test_a_gripper_too_small_for_an_object_set_is_one_clear_error():
     from dataclasses import replace
 
-    from graspsim.envs.objects import draw_object
+    from graspsim.envs.object_sets import draw_object
     from graspsim.errors import GripperError
     from graspsim.grippers.spec import HGPL_25_60_A
 

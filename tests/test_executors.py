@@ -8,9 +8,9 @@ import pytest
 
 from graspsim.errors import DependencyNotInstalled, InvalidParameterError
 from graspsim.executors import ProcessExecutor, SerialExecutor, make_executor
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.io import load_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Cylinder, Sphere
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))

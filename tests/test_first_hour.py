@@ -317,7 +317,7 @@ def test_trial_render_estimate_counts_the_rendering(capsys):
     import argparse
 
     from graspsim.cli._common import progress
-    from graspsim.cli.trial import RENDER_SECONDS_PER_TRIAL, _selection_check
+    from graspsim.cli.trial_cmd import RENDER_SECONDS_PER_TRIAL, _selection_check
 
     args = argparse.Namespace(threads=2, min_grade=None, sample=10, top=None, all=False, json=False,
                               render="out", render_count=3)

@@ -13,8 +13,8 @@ from graspsim.grades import LogisticGrade, get_grade, regrade
 from graspsim.grades.models import FESTO, check_gripper, gripper_identity, model_path
 from graspsim.grippers import get_gripper
 from graspsim.grippers.spec import HGPL_25_60_A
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Box
 
 COARSE = MapConfig(surface_step=0.012, rotation_step=math.radians(30.0), closing_cone=math.radians(30.0))

@@ -17,8 +17,8 @@ from graspsim.grades import (
     resting_frame,
 )
 from graspsim.grippers.spec import HGPL_25_60_A as G
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Box, Cylinder, Sphere
 
 COARSE = MapConfig(surface_step=0.012, rotation_step=math.radians(30.0), closing_cone=math.radians(30.0))

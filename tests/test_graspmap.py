@@ -3,8 +3,8 @@ import pytest
 
 from graspsim.errors import InvalidParameterError
 from graspsim.maps import GraspabilityMap, MapMeta
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Box
 
 

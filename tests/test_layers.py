@@ -18,10 +18,10 @@ import pytest
 
 PKG = Path(__file__).resolve().parents[1] / "graspsim"
 
-#: The base: small modules every part may use (errors, version, atomic writes, small
+#: The base: small modules every part may use (errors, settings checks, version, atomic writes, small
 #: input files, JSON, installed files, the GL backend, seeds, frames, executors, statistics).
-BASE = frozenset({"errors", "_version", "_atomic", "_files", "_jsonable", "_resources", "_gl", "seeding",
-                  "transforms", "executors", "stats"})
+BASE = frozenset({"errors", "checks", "_version", "_atomic", "_files", "_jsonable", "_resources", "_gl",
+                  "seeding", "transforms", "executors", "stats"})
 
 
 def _above(*parts: str) -> frozenset[str]:
@@ -205,3 +205,59 @@ def test_docs_architecture_states_this_map():
     assert set(re.findall(r"`(\w+)`", base_line)) == BASE
     higher = {p: allowed - BASE - {p} for p, allowed in LAYERS.items() if p not in BASE}
     assert rows == higher
+
+
+#: Base names more than one module may have: a package's ``__init__`` and ``__main__``
+#: (Python's own names for a package's face and its ``-m`` entry), nothing else.
+SHARED_BASE_NAMES = frozenset({"__init__", "__main__"})
+
+
+def shared_base_names(paths) -> dict[str, list[str]]:
+    """Base names (``camera`` of ``graspsim/geometry/camera.py``) that several modules
+    have, each with its modules, outside :data:`SHARED_BASE_NAMES`."""
+    by_name: dict[str, list[str]] = {}
+    for p in paths:
+        by_name.setdefault(Path(p).stem, []).append(str(p))
+    return {n: sorted(ps) for n, ps in sorted(by_name.items()) if len(ps) > 1 and n not in SHARED_BASE_NAMES}
+
+
+def test_no_two_modules_share_a_base_name():
+    """A base name says what a module is about wherever it is read (a traceback, a
+    ``git log --stat``, an editor tab): two modules with one name in two packages (a
+    viewer's camera and the pinhole camera, a trial's scene and a table-top scene)
+    are two concepts a reader confuses."""
+    assert shared_base_names(p.relative_to(PKG.parent) for p in MODULES.values()) == {}
+
+
+def private_imports(graph: dict[str, set[str]]) -> list[str]:
+    """Imports of another part's private module (a ``_name`` module inside a package):
+    what a package offers other parts is its public modules. The base's own private
+    modules (``graspsim._atomic``) are parts in themselves, open to all."""
+    bad = []
+    for mod, deps in graph.items():
+        for dep in sorted(deps):
+            names = dep.split(".")
+            if len(names) > 2 and names[-1].startswith("_") and part(dep) != part(mod):
+                bad.append(f"{mod} imports {dep}, a private module of {part(dep)!r}")
+    return bad
+
+
+def _module_strings(module: str, source: str) -> set[str]:
+    """graspsim modules a module names in a string (``importlib.import_module(name)``)."""
+    return {n.value for n in ast.walk(ast.parse(source))
+            if isinstance(n, ast.Constant) and isinstance(n.value, str) and n.value in MODULES
+            and n.value != module}
+
+
+def test_no_module_imports_another_parts_private_module(graph):
+    named = {m: graph[m] | _module_strings(m, p.read_text()) for m, p in MODULES.items()}
+    assert private_imports(named) == []
+
+
+def test_the_name_and_privacy_checks_trip():
+    assert shared_base_names(["graspsim/viewer/camera.py", "graspsim/geometry/camera.py",
+                              "graspsim/a/__init__.py", "graspsim/b/__init__.py"]) == {
+        "camera": ["graspsim/geometry/camera.py", "graspsim/viewer/camera.py"]}
+    g = {"graspsim.maps.warmup": {"graspsim.grades._pads", "graspsim.maps._kernel", "graspsim._atomic"}}
+    assert private_imports(g) == ["graspsim.maps.warmup imports graspsim.grades._pads, a private module of 'grades'"]
+    assert _module_strings("graspsim.maps.warmup", 'K = ("graspsim.maps.kernels", "x")') == {"graspsim.maps.kernels"}

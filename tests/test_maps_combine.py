@@ -7,8 +7,8 @@ from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide_fcl import FclChecker
 from graspsim.maps.combine import combine_maps
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Box, Compound, Cylinder, Sphere
 from graspsim.transforms import make_transform
 

@@ -4,8 +4,8 @@ import math
 import pytest
 
 from graspsim.errors import MapDatabaseError, PrimitiveError
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase, size_grid
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.match import MatchKind
 from graspsim.primitives import Cylinder, Sphere
 

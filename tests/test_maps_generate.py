@@ -11,9 +11,9 @@ from graspsim.grades.paper import QualityModel
 from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide import collision_free
 from graspsim.maps.collide_fcl import FclChecker, penetration_depth
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import closing_directions, closing_lines, generate_fs_map, roll_angles, sweep_collisions
 from graspsim.maps.hierarchy import sample_levels
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Cylinder, Sphere
 from graspsim.transforms import make_transform, quat_to_matrix, random_rotation
 

@@ -7,8 +7,8 @@ paths differ between CPUs), and every child lies within its parent's patch."""
 import numpy as np
 import pytest
 
-from graspsim.maps.config import MapConfig
 from graspsim.maps.hierarchy import _patches, build_levels, clusters
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Box, Cone, Cylinder
 
 

@@ -6,8 +6,8 @@ import pytest
 
 from graspsim.errors import MapFileError
 from graspsim.maps import load_map, read_sim_results, save_map, write_sim_results
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Cone
 
 

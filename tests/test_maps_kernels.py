@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from graspsim.maps import kernels as K
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Cylinder
 
 COARSE = MapConfig(surface_step=0.02, rotation_step=np.radians(30), depth_step=0.02)
@@ -101,7 +101,7 @@ _PLAN_A_SCENE = """
 import json, math, sys
 import numpy as np
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 from graspsim.planning.scene_config import SceneConfig
 from graspsim.planning.scene import plan_scene
 from graspsim.primitives import Box, Sphere
@@ -131,10 +131,10 @@ def test_compile_all_compiles_every_kernel_for_the_types_a_scene_plan_passes(tmp
     pad-contact grade, is one compile_all compiles."""
     planned = _signatures(_PLAN_A_SCENE, str(tmp_path / "db"))
     warmed = _signatures(_COMPILE_ALL)
-    for name in ("maps._robust_kernel.robust_flags", "primitives._sdf_kernel.model_sdf_into",
+    for name in ("maps._robust_kernel.robust_flags", "primitives.sdf_kernel.model_sdf_into",
                  "maps._hierarchy_kernel.regroup", "maps._hierarchy_kernel.cluster_tree",
                  "maps._occlusion_kernel.occluded_fraction"):
         assert planned[f"graspsim.{name}"], name  # the plan did use them
-    assert any(planned[f"graspsim.grades._pads.{k}"] for k in ("pad_patches", "pad_patches_serial"))
+    assert any(planned[f"graspsim.grades.pad_kernel.{k}"] for k in ("pad_patches", "pad_patches_serial"))
     missing = {k: sorted(v - warmed[k]) for k, v in planned.items() if v - warmed[k]}
     assert not missing

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.metrics import map_rates, orientation_bins, relative_rates, voxel_keys
 from graspsim.primitives import Cylinder
 from graspsim.transforms import matrix_to_quat, random_rotation

@@ -12,8 +12,8 @@ from scipy.spatial import cKDTree
 from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import HGPL_25_60_A as A
 from graspsim.maps.collide import boxes_clear_sdf
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.regrip import adapt_to_gripper, pad_depth
 from graspsim.primitives import Cylinder
 

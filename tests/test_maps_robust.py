@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.io import load_map, save_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.robust import RobustConfig, ranking, score_map, score_rows, wrist_perturbations
 from graspsim.primitives import Box, synthetic_cloud
 from graspsim.transforms import make_transform

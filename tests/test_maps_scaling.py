@@ -9,8 +9,8 @@ from graspsim.errors import InvalidParameterError
 from graspsim.grades.paper import QualityModel
 from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide import boxes_clear_sdf
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.scaling import ScalingConfig, ScalingMethod, scale_map, scale_stream
 from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Sphere
 

@@ -46,8 +46,8 @@ def test_near_duplicates_are_suppressed_and_distinct_grasps_kept_in_order():
 
 
 def test_kept_grasps_of_a_real_map_are_pairwise_separated():
-    from graspsim.maps.config import MapConfig
     from graspsim.maps.generate import generate_fs_map
+    from graspsim.maps.map_config import MapConfig
     from graspsim.primitives import Box
     from graspsim.transforms import quat_to_matrix
 

@@ -10,9 +10,9 @@ from graspsim.errors import GraspsimError
 from graspsim.geometry.table import TablePlane, table_frame
 from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide_fcl import FclChecker
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
-from graspsim.maps.table import clears_table
+from graspsim.maps.map_config import MapConfig
+from graspsim.maps.table_clearance import clears_table
 from graspsim.primitives import Box, Cylinder
 from graspsim.transforms import make_transform, matrix_to_quat
 
@@ -133,7 +133,7 @@ def test_lowest_point_equals_the_lowest_of_all_box_corners():
 
 
 def test_heights_above_match_the_lowest_point_in_the_table_frame():
-    from graspsim.maps.table import heights_above
+    from graspsim.maps.table_clearance import heights_above
     from graspsim.transforms import quat_to_matrix, random_rotation
 
     rng = np.random.default_rng(4)
@@ -148,7 +148,7 @@ def test_heights_above_match_the_lowest_point_in_the_table_frame():
 
 @pytest.mark.parametrize("n,first,growth", [(0, 1, 4.0), (1, 1, 4.0), (1000, 1, 4.0), (999, 48, 1.0), (10000, 7, 2.5)])
 def test_stream_order_yields_every_position_once_preferred_first(n, first, growth):
-    from graspsim.maps.table import stream_order
+    from graspsim.maps.table_clearance import stream_order
 
     plain = list(stream_order(n, first, growth))
     assert np.array_equal(np.concatenate(plain) if plain else np.zeros(0), np.arange(n))
@@ -175,7 +175,7 @@ def test_stream_order_batches_do_not_depend_on_the_chunks_and_an_early_stop_asks
     """The preference is asked about chunks that grow from 256 positions: the batches
     are those of one chunk of everything, and a consumer that stops after its first
     batches has asked about a few hundred positions, not thousands."""
-    from graspsim.maps.table import _chunks, stream_order
+    from graspsim.maps.table_clearance import _chunks, stream_order
 
     liked = np.random.default_rng(n).random(n) < 0.5
     asked = []

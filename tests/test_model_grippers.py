@@ -13,7 +13,7 @@ from graspsim.errors import GripperError
 from graspsim.grippers import get_gripper, load_model_gripper, model_folder, mount
 from graspsim.grippers.model_file import pad_arc
 from graspsim.sim import LiftPlace, TrialOutcome, build_scene, object_from_shape, run_trials
-from graspsim.sim.vendored import PREFIX, build_vendored_gripper_spec
+from graspsim.sim.authored_model import PREFIX, build_vendored_gripper_spec
 
 MODELS = ("franka_hand", "rethink_gripper", "robotiq_2f85")
 TOL = 1.5e-4  # [m] the Franka finger mesh's inner face lies 0.1 mm past its joint's zero

@@ -11,8 +11,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from graspsim.geometry.table import TablePlane
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.robust import cloud_in_object, executed_width
 from graspsim.perception.acceptance import fit_quality
 from graspsim.planning.planner import PlannerConfig, plan

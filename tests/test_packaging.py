@@ -56,7 +56,7 @@ def test_every_package_is_listed_for_the_wheel():
 
 def test_a_checkout_finds_its_data_at_the_top_level():
     from graspsim.grippers import mjcf_root, model_folder
-    from graspsim.sim.export import default_folder
+    from graspsim.sim.model_folder import default_folder
     from graspsim.tabletop.scene_objects import ASSETS, MESHES
 
     pkg = Path(str(resources.files("graspsim")))

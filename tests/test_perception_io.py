@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from graspsim.errors import GraspsimError, PointCloudError
-from graspsim.perception.io import check_cloud, lzf_decompress, read_point_cloud
+from graspsim.perception.cloud_input import check_cloud, lzf_decompress, read_point_cloud
 
 PTS = np.random.default_rng(7).uniform(-0.1, 0.1, size=(50, 3)).astype(np.float32)
 

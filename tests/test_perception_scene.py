@@ -10,8 +10,8 @@ from scipy.spatial.transform import Rotation
 from graspsim.errors import GraspsimError, PointCloudError
 from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide import boxes_clear_sdf
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.map_config import MapConfig
 from graspsim.perception.plane import fit_table
 from graspsim.perception.segment import GAP_LINK, cluster_radius, euclidean_clusters, gap_link
 from graspsim.planning.scene import perceive_scene, plan_scene

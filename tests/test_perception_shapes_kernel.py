@@ -1,5 +1,5 @@
 """The compiled signed distances of the fitters' models
-(:mod:`graspsim.primitives._sdf_kernel`) equal the numpy formulas of
+(:mod:`graspsim.primitives.sdf_kernel`) equal the numpy formulas of
 :mod:`graspsim.primitives.sdf` -- NaN and the points on a model's edges included --
 so identification does not change with which one runs. They agree to the bit on the
 builds this was written on; the test allows a few units in the last place, because
@@ -10,8 +10,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from graspsim.primitives import sdf as shapes
-from graspsim.primitives._sdf_kernel import model_sdf as compiled
 from graspsim.primitives.sdf import DIM_NAMES, sdf_local, to_local
+from graspsim.primitives.sdf_kernel import model_sdf as compiled
 
 DIMS = {"sphere": [0.03], "cylinder": [0.025, 0.1], "box": [0.03, 0.05, 0.08], "cone": [0.04, 0.015, 0.09],
         "half_toroid": [0.04, 0.012]}

@@ -9,8 +9,8 @@ from graspsim.errors import InvalidParameterError
 from graspsim.geometry.table import TablePlane
 from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide import boxes_clear_sdf
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.match import MatchKind
 from graspsim.perception import IdentifyConfig
 from graspsim.planning.planner import GraspBatch, PlannerConfig, PlanResult, PlanStatus, plan, plan_stream

@@ -16,7 +16,7 @@ import pytest
 
 import graspsim.grades.paper
 import graspsim.sim
-import graspsim.sim.scene
+import graspsim.sim.trial_scene
 from graspsim.calibration.mutations import MUTATIONS, mutated
 from graspsim.calibration.regression import check_bands, regression_cases, regression_rates, regression_trials
 
@@ -73,10 +73,10 @@ def test_every_mutation_trips_a_band_in_the_full_run():
 
 def test_mutations_restore_the_library():
     before = (graspsim.grades.paper.force_closure_angle, graspsim.grades.paper.QualityModel.combine,
-              graspsim.sim.build_scene, graspsim.sim.scene.build_gripper_spec)
+              graspsim.sim.build_scene, graspsim.sim.trial_scene.build_gripper_spec)
     for name in MUTATIONS:
         with pytest.raises(RuntimeError):
             with mutated(name):
                 raise RuntimeError("leave the block early")
     assert before == (graspsim.grades.paper.force_closure_angle, graspsim.grades.paper.QualityModel.combine,
-                      graspsim.sim.build_scene, graspsim.sim.scene.build_gripper_spec)
+                      graspsim.sim.build_scene, graspsim.sim.trial_scene.build_gripper_spec)

@@ -10,8 +10,8 @@ from hand_made import grasp_pose, hand_made_map
 
 from graspsim.cli import main
 from graspsim.maps import load_map, save_map
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.occlusion import ViewDepth
 from graspsim.maps.robust import (
     DEFAULT_OPENINGS,
@@ -204,7 +204,7 @@ def test_finger_samples_handed_out_are_the_callers_own():
 
 def test_a_cloud_file_with_a_camera_record_carries_its_viewpoint(tmp_path):
     from graspsim.geometry.camera import Camera, Intrinsics, look_at
-    from graspsim.perception.io import read_point_cloud
+    from graspsim.perception.cloud_input import read_point_cloud
     from graspsim.tabletop.cloud_io import save_cloud
 
     _, pts, eye = _box_view()

@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.map_config import MapConfig
 from graspsim.planning.scene import plan_scene
 from graspsim.planning.scene_config import SceneConfig
 from graspsim.planning.scene_reuse import drop_grasp, near_pose, nothing_new, same_points

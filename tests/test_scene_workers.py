@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.map_config import MapConfig
 from graspsim.perception.identify import identify
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.planning import scene_segments
@@ -86,7 +86,7 @@ def test_segments_identified_on_workers_match_this_process():
 
 
 def _run_parallel_pad_kernel():
-    from graspsim.grades._pads import SERIAL_BELOW, run_pad_patches
+    from graspsim.grades.pad_kernel import SERIAL_BELOW, run_pad_patches
 
     n = 2 * SERIAL_BELOW  # enough grasps for the parallel path
     R = np.repeat(np.eye(3)[None], n, axis=0)
@@ -119,7 +119,7 @@ def test_worker_count_is_validated():
 def test_serial_pad_kernel_gives_the_parallel_kernels_results_bit_for_bit():
     from scipy.spatial.transform import Rotation
 
-    from graspsim.grades._pads import pad_patches, pad_patches_serial
+    from graspsim.grades.pad_kernel import pad_patches, pad_patches_serial
 
     rng = np.random.default_rng(3)
     P, N = rng.normal(size=(2000, 3)) * 0.03, rng.normal(size=(2000, 3))
@@ -250,7 +250,7 @@ def test_warm_loads_what_planning_uses_in_a_fresh_process():
     import sys
 
     names = ["numba", "h5py", "graspsim.maps._kernel", "graspsim.maps._robust_kernel",
-             "graspsim.primitives._sdf_kernel", "graspsim.maps._hierarchy_kernel", "graspsim.grades.models"]
+             "graspsim.primitives.sdf_kernel", "graspsim.maps._hierarchy_kernel", "graspsim.grades.models"]
     code = ("import sys; from graspsim.planning.scene_workers import _warm; "
             f"before = [n in sys.modules for n in {names!r}]; _warm(); "
             f"print(sum(before), all(n in sys.modules for n in {names!r}))")

@@ -9,7 +9,7 @@ import pytest
 
 from graspsim.errors import GraspsimError, InvalidParameterError, OutputPathError
 from graspsim.geometry.camera import Camera, DepthFrame, Intrinsics, backproject, fuse, look_at, to_world
-from graspsim.perception.io import read_camera, read_point_cloud
+from graspsim.perception.cloud_input import read_camera, read_point_cloud
 from graspsim.tabletop.cloud_io import save_cloud, save_view
 from graspsim.tabletop.depth_noise import DepthNoise
 from graspsim.tabletop.depth_render import render_depth

@@ -9,8 +9,8 @@ import pytest
 
 from graspsim.cli import main
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.config import MapConfig
 from graspsim.maps.database import MapDatabase
+from graspsim.maps.map_config import MapConfig
 from graspsim.primitives import Box, Cylinder, Sphere
 from graspsim.tabletop.clutter import (
     STOPS,

@@ -9,8 +9,8 @@ import pytest
 
 from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
-from graspsim.sim.export import default_folder, model_files
 from graspsim.sim.model import NAMES, GripperPhysics, build_gripper_spec
+from graspsim.sim.model_folder import default_folder, model_files
 
 MJCF = Path(__file__).resolve().parents[1] / "mjcf"
 
@@ -36,7 +36,7 @@ def test_model_folder_matches_the_spec():
     folder = default_folder(HGPL_25_60_A)
     for name, text in model_files(HGPL_25_60_A).items():
         assert (folder / name).read_text() == text, (
-            f"{folder / name} is stale: regenerate with `python -m graspsim.sim.export`")
+            f"{folder / name} is stale: regenerate with `python -m graspsim.sim.model_folder`")
     assert (folder / "LICENSE").is_file()
 
 

@@ -12,7 +12,7 @@ from graspsim.sim import LiftPlace, build_scene, object_from_shape
 def gl():
     import mujoco
 
-    from graspsim.sim.render import gl_backend
+    from graspsim.sim.trial_render import gl_backend
 
     m = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='.1'/></worldbody></mujoco>")
     try:
@@ -26,7 +26,7 @@ def gl():
 def test_render_writes_key_moments_and_a_gif(gl, tmp_path):
     from PIL import Image
 
-    from graspsim.sim.render import render_trial
+    from graspsim.sim.trial_render import render_trial
 
     scene = build_scene(object_from_shape(Box(0.06, 0.06, 0.06)))
     T = grasp_pose([0, 0, 0], [-1, 0, 0], [0, 1, 0])

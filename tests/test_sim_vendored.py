@@ -10,7 +10,7 @@ from graspsim.grippers import get_gripper
 from graspsim.grippers.franka import hull_points
 from graspsim.primitives import Box
 from graspsim.sim import LiftPlace, SimSettings, TrialOutcome, build_scene, object_from_shape, run_trials
-from graspsim.sim.vendored import PREFIX, build_vendored_gripper_spec
+from graspsim.sim.authored_model import PREFIX, build_vendored_gripper_spec
 
 FRANKA = get_gripper("franka_hand")
 BOX = Box(0.05, 0.05, 0.05)

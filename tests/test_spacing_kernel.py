@@ -1,13 +1,13 @@
 """The compiled nearest-other-location distances behind ``median_spacing``
-(graspsim/geometry/_spacing_kernel.py) against a KD-tree over the distinct rows."""
+(graspsim/geometry/spacing_kernel.py) against a KD-tree over the distinct rows."""
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
 from graspsim.errors import PointCloudError
-from graspsim.geometry._spacing_kernel import nearest_other
 from graspsim.geometry.spacing import median_spacing
+from graspsim.geometry.spacing_kernel import nearest_other
 from graspsim.perception.prepare import distinct_rows
 
 

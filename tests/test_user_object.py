@@ -249,7 +249,7 @@ def test_a_grown_database_changes_no_part_and_names_the_map_it_used(tmp_path):
 
 def test_table_auto_lies_at_the_cloud_never_under_a_fitted_shape_that_overshoots():
     from graspsim.geometry.table import TablePlane
-    from graspsim.maps.table import table_height
+    from graspsim.maps.table_clearance import table_height
     from graspsim.primitives import Box
 
     rng = np.random.default_rng(0)

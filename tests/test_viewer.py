@@ -516,8 +516,8 @@ def test_clicking_a_glyph_in_chromium_picks_that_grasp(tmp_path):
 def scene_db(tmp_path_factory):
     import math
 
-    from graspsim.maps.config import MapConfig
     from graspsim.maps.database import MapDatabase
+    from graspsim.maps.map_config import MapConfig
     from graspsim.primitives import Box, Sphere
 
     db = MapDatabase(tmp_path_factory.mktemp("scenedb"),

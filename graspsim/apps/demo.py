@@ -66,8 +66,8 @@ class DemoConfig:
 def _database(cfg: DemoConfig, step: Callable):
     import math
 
-    from graspsim.maps.config import MapConfig
     from graspsim.maps.database import PAPER_SHAPES, MapDatabase
+    from graspsim.maps.map_config import MapConfig
 
     gripper = cfg.gripper_spec
     if cfg.quick:
@@ -108,7 +108,7 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
     written to ``out/summary.json``)."""
     from graspsim.maps.io import save_map
     from graspsim.maps.robust import executed_width, ranking
-    from graspsim.maps.table import clears_table
+    from graspsim.maps.table_clearance import clears_table
     from graspsim.planning.planner import plan
     from graspsim.plots import plot_map
     from graspsim.sim import ExecutionNoise, LiftPlace, TrialOutcome, run_trials

@@ -28,8 +28,8 @@ import numpy as np
 
 from graspsim.errors import GraspsimError, InvalidParameterError, NoFeasibleGraspError
 from graspsim.grippers.spec import GripperSpec
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.metrics import map_rates
 from graspsim.seeding import rng_for
 
@@ -131,9 +131,9 @@ def evaluate(gripper: GripperSpec, name: str, shape, cfg: DesignConfig, *,
 def simulate_accepted(gmap, n: int, rng: np.random.Generator, *, threads: int | None = None) -> dict:
     """Lift-and-place trials of ``n`` accepted grasps of ``gmap`` drawn uniformly over
     the surface among those that clear the table (the object at rest on it)."""
-    from graspsim.maps.table import clears_table
+    from graspsim.maps.table_clearance import clears_table
     from graspsim.sim import LiftPlace, SimSettings, build_scene, map_object, run_trials
-    from graspsim.sim.scene import resting_pose
+    from graspsim.sim.trial_scene import resting_pose
 
     t0 = time.perf_counter()
     obj = map_object(gmap)

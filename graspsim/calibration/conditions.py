@@ -23,10 +23,10 @@ object mass and execution noise. Two presets are named (:data:`CONDITIONS`):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
+from graspsim.checks import POSITIVE, check_fields, or_none
 from graspsim.errors import InvalidParameterError
 
 if TYPE_CHECKING:  # graspsim.sim loads mujoco
@@ -49,20 +49,15 @@ class SimCondition:
     mass: float | None = None
 
     def __post_init__(self) -> None:
-        for k in ("friction", "mass_scale"):
-            v = getattr(self, k)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"SimCondition.{k} must be > 0, got {v!r}")
+        check_fields(self, POSITIVE, "friction", "mass_scale", owner="SimCondition")
         if self.noise is not None:
             from graspsim.sim.noise import ExecutionNoise
 
             if not isinstance(self.noise, ExecutionNoise):
                 raise InvalidParameterError(f"SimCondition.noise must be an ExecutionNoise or None, "
                                             f"got {self.noise!r}")
-        for k, unit in (("grip_force", "N"), ("mass", "kg")):
-            v = getattr(self, k)
-            if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"SimCondition.{k} must be > 0 {unit} or None, got {v!r}")
+        check_fields(self, or_none(POSITIVE.saying("> 0 N")), "grip_force", owner="SimCondition")
+        check_fields(self, or_none(POSITIVE.saying("> 0 kg")), "mass", owner="SimCondition")
 
     @property
     def noisy(self) -> bool:

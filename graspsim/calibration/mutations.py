@@ -69,7 +69,7 @@ def _scene_settings(change: Callable):
     def wrap(orig):
         def build(obj, gripper=None, settings=None, **kwargs):
             from graspsim.grippers.spec import HGPL_25_60_A
-            from graspsim.sim.scene import SimSettings
+            from graspsim.sim.trial_scene import SimSettings
 
             gripper = gripper or HGPL_25_60_A
             settings = settings or SimSettings()
@@ -96,9 +96,9 @@ def _force_closure_only(orig):
 _SCENE = ("graspsim.sim", "build_scene")
 MUTATIONS: dict[str, Mutation] = {m.name: m for m in (
     Mutation("wrist_frame_-5mm", "gripper 5 mm back along the approach (contacts nearer the tips)",
-             (("graspsim.sim.scene", "build_gripper_spec", _shift_gripper(-0.005)),), ("half_toroid/hi",)),
+             (("graspsim.sim.trial_scene", "build_gripper_spec", _shift_gripper(-0.005)),), ("half_toroid/hi",)),
     Mutation("wrist_frame_+5mm", "gripper 5 mm forward along the approach (contacts nearer the palm)",
-             (("graspsim.sim.scene", "build_gripper_spec", _shift_gripper(0.005)),), ("half_toroid/hi",)),
+             (("graspsim.sim.trial_scene", "build_gripper_spec", _shift_gripper(0.005)),), ("half_toroid/hi",)),
     Mutation("normals_flipped", "the grade's force-closure angle with inward contact normals",
              (("graspsim.grades.paper", "force_closure_angle", _flip_normals),), ("cylinder/hi", "box/lo"),
              regrade=True),

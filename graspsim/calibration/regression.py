@@ -53,7 +53,7 @@ masses, forces and friction; a one-off cross-check, not in this repository) agre
 high-grade grasps in a friction-limited condition but on far fewer low-grade ones (MuJoCo
 the stricter on edge and corner contacts): the ceilings pin MuJoCo's behaviour, not the
 world's. There is no AUC check: the calibrated ``pad_contact`` grade was fitted on these
-very objects (``calibration.objects.TRAIN_SHAPES`` holds the paper primitives at 0.8, 1
+very objects (``calibration.study_shapes.TRAIN_SHAPES`` holds the paper primitives at 0.8, 1
 and 1.25 x), so its AUC here would be in-sample -- it is evaluated on held-out objects by
 experiments/e05_threshold_calibration.py; the paper grade's discrimination is what the
 hi floors and lo ceilings check.
@@ -73,7 +73,7 @@ from graspsim.calibration.conditions import SimCondition, condition
 from graspsim.calibration.trial_table import TrialTable
 from graspsim.errors import InvalidParameterError
 from graspsim.grades.paper import QualityModel
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.scaling import ScalingConfig
 from graspsim.primitives import Box, Cylinder
 

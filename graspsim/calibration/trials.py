@@ -24,7 +24,7 @@ from graspsim.calibration.conditions import CONDITIONS, FRICTION_LIMITED, SimCon
 from graspsim.calibration.sampling import stratified_rows
 from graspsim.calibration.trial_table import TrialTable
 from graspsim.errors import InvalidParameterError
-from graspsim.grades.features import FEATURES, map_features
+from graspsim.grades.grade_features import FEATURES, map_features
 from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.seeding import derived_seed
@@ -115,8 +115,8 @@ def case_clears_table(case: CalibrationCase, min_clearance: float = 0.0) -> np.n
     """(N,) bool over the case's map: the pose keeps the map's gripper ``min_clearance``
     [m] above the simulator's table (z = 0) with the simulated object at rest (the
     map's frame at ``resting_pose @ T_sim_map``)."""
-    from graspsim.maps.table import clears_table
-    from graspsim.sim.scene import resting_pose
+    from graspsim.maps.table_clearance import clears_table
+    from graspsim.sim.trial_scene import resting_pose
 
     T = resting_pose(_sim_object(case))
     if case.T_sim_map is not None:
@@ -218,7 +218,7 @@ def table_features(table: TrialTable, names: tuple[str, ...] = FEATURES,
                    config=None) -> dict[str, np.ndarray]:
     """Grade features {name: (N,)} of a table's trials, recomputed from its stored grasp
     geometry and the cases' object, gripper and quality records (no maps needed)."""
-    from graspsim.grades.features import FeatureConfig, grasp_features, object_context
+    from graspsim.grades.grade_features import FeatureConfig, grasp_features, object_context
     from graspsim.transforms import quat_to_matrix
 
     config = config or FeatureConfig()

@@ -1,4 +1,5 @@
-"""The ``graspsim`` command line: argparse subcommands, one module per group.
+"""The ``graspsim`` command line: argparse subcommands, one module per group
+(``<command>_cmd.py``, so that no name repeats a library module's).
 
 Every subcommand accepts ``--json`` and then prints one JSON summary object as the
 last line of standard output. Errors print ``graspsim: error: ...`` on stderr and exit
@@ -24,22 +25,22 @@ from graspsim.errors import GraspsimError
 
 __all__ = ["main", "build_parser"]
 
-# Each module defines ``register(subparsers)``; its parsers set ``func`` returning a
-# summary dict.
+# Each module defines ``register(subparsers)``, declaring its commands with
+# ``_common.command`` (the parser, its options, --json and ``func``, the function run).
 COMMAND_MODULES: tuple[str, ...] = (
-    "graspsim.cli.demo",
-    "graspsim.cli.maps",
-    "graspsim.cli.identify",
-    "graspsim.cli.adapt",
-    "graspsim.cli.trial",
-    "graspsim.cli.export",
-    "graspsim.cli.campaign",
-    "graspsim.cli.calibrate",
-    "graspsim.cli.warmup",
-    "graspsim.cli.view",
-    "graspsim.cli.design",
-    "graspsim.cli.scene",
-    "graspsim.cli.plan_scene",
+    "graspsim.cli.demo_cmd",
+    "graspsim.cli.maps_cmd",
+    "graspsim.cli.identify_cmd",
+    "graspsim.cli.adapt_cmd",
+    "graspsim.cli.trial_cmd",
+    "graspsim.cli.export_cmd",
+    "graspsim.cli.campaign_cmd",
+    "graspsim.cli.calibrate_cmd",
+    "graspsim.cli.warmup_cmd",
+    "graspsim.cli.view_cmd",
+    "graspsim.cli.design_cmd",
+    "graspsim.cli.scene_cmd",
+    "graspsim.cli.plan_scene_cmd",
 )
 
 

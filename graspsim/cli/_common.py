@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
-__all__ = ["emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value", "whole_number",
+__all__ = ["command", "emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value", "whole_number",
            "executor_from_args", "format_table", "dims_text", "add_db_flag", "progress", "add_gripper_flag",
            "gripper_from_args", "VARIANT_HELP", "GLOSSARY", "glossary", "with_glossary"]
 
@@ -65,6 +66,25 @@ def add_json_flag(p) -> None:
     p.add_argument(
         "--json", action="store_true", help="print one JSON summary object as the last line"
     )
+
+
+@contextmanager
+def command(sub, name: str, *, run, glossary: Iterable[str] = (), **parser_kw) -> Iterator:
+    """A subcommand's parser (``sub.add_parser(name, **parser_kw)``), for the ``with``
+    body to add the command's own options to; then what every command has: ``--json``
+    (listed last in --help), the glossary of the words its output uses, and ``run``, the
+    function the command runs (returning its exit status). The --help description is
+    ``run``'s docstring unless ``description`` is given: what the command does is said
+    once, beside the code that does it."""
+    import inspect
+
+    parser_kw.setdefault("description", inspect.getdoc(run))
+    p = sub.add_parser(name, **parser_kw)
+    yield p
+    add_json_flag(p)
+    if glossary:
+        with_glossary(p, *glossary)
+    p.set_defaults(func=run)
 
 
 def add_units_flag(p, widest: str = "wider than 2 m") -> None:

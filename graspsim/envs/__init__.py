@@ -16,7 +16,7 @@ registers the environments right after gymnasium's own import, so
 ``import graspsim; import gymnasium; gymnasium.make("graspsim/GraspSelect-v0")`` works in
 either import order. ``gymnasium.make("graspsim:graspsim/GraspSelect-v0")`` imports
 graspsim first.
-Keyword arguments of ``gymnasium.make`` are :class:`~graspsim.envs.config.EnvConfig`
+Keyword arguments of ``gymnasium.make`` are :class:`~graspsim.envs.env_config.EnvConfig`
 fields. For ``make_vec`` use ``autoreset_mode=SAME_STEP`` (one-step episodes; see
 :mod:`graspsim.envs.grasp_select`).
 
@@ -95,7 +95,7 @@ def __getattr__(name: str):
 
         return ClutterClearEnv
     if name == "EnvConfig":
-        from graspsim.envs.config import EnvConfig
+        from graspsim.envs.env_config import EnvConfig
 
         return EnvConfig
     raise AttributeError(f"module 'graspsim.envs' has no attribute {name!r}")

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 
 __all__ = ["ClutterEnvConfig", "make_clutter_config"]
 
@@ -78,7 +78,7 @@ class ClutterEnvConfig:
         for name in ("depth_image", "depth_noise", "execution_error", "neighbours"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidParameterError(f"{name} must be True or False, got {getattr(self, name)!r}")
-        from graspsim.envs.config import check_database_fields
+        from graspsim.envs.env_config import check_database_fields
 
         check_database_fields(self)
 
@@ -91,7 +91,7 @@ class ClutterEnvConfig:
 
 def make_clutter_config(config: ClutterEnvConfig | None = None, **kwargs) -> ClutterEnvConfig:
     """``config`` (or the defaults) with ``kwargs`` overriding fields (see
-    :func:`graspsim.envs.config.make_config`)."""
-    from graspsim.envs.config import make_config
+    :func:`graspsim.envs.env_config.make_config`)."""
+    from graspsim.envs.env_config import make_config
 
     return make_config(config, ClutterEnvConfig, **kwargs)

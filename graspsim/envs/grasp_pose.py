@@ -1,7 +1,7 @@
 """``graspsim/GraspPose-v0``: propose a grasp pose for an object seen as a point cloud.
 
 The continuous sibling of ``GraspSelect-v0`` (same objects, table, sensor, trial and
-rewards; see :mod:`graspsim.envs.base`), for policies that propose grasps instead of
+rewards; see :mod:`graspsim.envs.table_task`), for policies that propose grasps instead of
 picking planned ones. No planner runs: an episode costs its cloud and its trial.
 
 Observation (``Dict``): ``cloud`` (N, 3) float32, world frame [m]; ``bounds`` (2, 3)
@@ -31,8 +31,8 @@ import time
 import numpy as np
 from gymnasium import spaces
 
-from graspsim.envs.base import WORLD_BOUND, TableTask
-from graspsim.envs.config import EnvConfig
+from graspsim.envs.env_config import EnvConfig
+from graspsim.envs.table_task import WORLD_BOUND, TableTask
 from graspsim.errors import GraspsimError
 from graspsim.transforms import make_transform
 

@@ -1,7 +1,7 @@
 """``graspsim/GraspSelect-v0``: pick one of K planned grasps (a contextual bandit).
 
 Each episode is one step. ``reset`` puts a random object on the table (see
-:mod:`graspsim.envs.base`), takes its sensor cloud, runs the planner on it (paper
+:mod:`graspsim.envs.table_task`), takes its sensor cloud, runs the planner on it (paper
 2.2-2.5: identification, known/familiar lookup, scaling, combination) and offers K
 grasps of the adapted map, drawn at random among those whose gripper stays clear of the
 table in the estimated object pose (the planner itself does not know the table). With
@@ -54,9 +54,9 @@ import time
 import numpy as np
 from gymnasium import spaces
 
-from graspsim.envs.base import WORLD_BOUND, TableTask, pose_vector
 from graspsim.envs.candidates import CANDIDATE_FEATURES, candidate_features, feature_bounds
-from graspsim.envs.config import EnvConfig, Perception
+from graspsim.envs.env_config import EnvConfig, Perception
+from graspsim.envs.table_task import WORLD_BOUND, TableTask, pose_vector
 from graspsim.errors import GraspsimError, InvalidParameterError, NoFeasibleGraspError
 from graspsim.geometry.table import TablePlane
 from graspsim.maps.robust import RobustConfig, executed_width

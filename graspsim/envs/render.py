@@ -15,7 +15,7 @@ from graspsim._gl import import_mujoco
 from graspsim.errors import DependencyNotInstalled
 from graspsim.sim.batch import initial_states, pregrasp_opening
 from graspsim.sim.protocols import Protocol
-from graspsim.sim.scene import Scene
+from graspsim.sim.trial_scene import Scene
 
 __all__ = ["FrameRenderer"]
 

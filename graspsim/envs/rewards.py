@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 
-from graspsim.envs.config import RewardMode
+from graspsim.envs.env_config import RewardMode
 from graspsim.sim.outcomes import TrialOutcome
 
 __all__ = ["trial_reward", "SLIP_SCALE", "PARTIAL_CREDIT"]

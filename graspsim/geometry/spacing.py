@@ -20,7 +20,7 @@ def median_spacing(points: np.ndarray) -> float:
     if not np.isfinite(P).all():
         raise PointCloudError(f"point spacing needs finite coordinates; {int(np.sum(~np.isfinite(P).all(axis=1)))} "
                               f"of {len(P)} points have NaN or inf ones")
-    from graspsim.geometry._spacing_kernel import nearest_other  # compiled: a few times faster than a KD-tree
+    from graspsim.geometry.spacing_kernel import nearest_other  # compiled: a few times faster than a KD-tree
 
     d = nearest_other(P) if len(P) else P[:, 0]
     return float(np.median(d)) if len(d) >= 2 else 0.0

@@ -1,6 +1,6 @@
 """The table an object stands on: :class:`TablePlane` (the support plane in the cloud's
 frame and the clearance the gripper keeps above it) and :func:`table_frame`. Which map
-poses clear it is :mod:`graspsim.maps.table`; fitting it to a scene cloud is
+poses clear it is :mod:`graspsim.maps.table_clearance`; fitting it to a scene cloud is
 :func:`graspsim.perception.plane.fit_table`."""
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ class TablePlane:
     normal: the plane's upward normal (away from the table; normalised here).
     height: signed offset of the plane along the normal [m] (points p on it have
         normal . p = height); None: the object rests on it, so the planner puts it at
-        the object's lowest point along the normal (``maps.table.table_height``: the
+        the object's lowest point along the normal (``maps.table_clearance.table_height``: the
         cloud's for a cloud seen all round; for a single view, whose camera rarely sees
         the base, the identified shape's where that is lower).
     clearance: the gripper must stay this far above the plane [m].

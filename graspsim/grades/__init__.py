@@ -7,7 +7,7 @@ above: maps are graded with these).
 
 from __future__ import annotations
 
-from graspsim.grades.features import (
+from graspsim.grades.grade_features import (
     FEATURES,
     FeatureConfig,
     ObjectContext,

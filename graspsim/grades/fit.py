@@ -15,7 +15,7 @@ import numpy as np
 
 from graspsim import stats
 from graspsim.errors import InvalidParameterError
-from graspsim.grades.features import FeatureConfig
+from graspsim.grades.grade_features import FeatureConfig
 from graspsim.grades.models import LogisticGrade
 
 __all__ = ["GradeFit", "fit_grade", "out_of_fold"]

@@ -3,7 +3,7 @@
 * :class:`PaperGrade` -- the paper's grade (``QualityModel``: force closure + stability,
   accepted > 0.7). It is the default everywhere, for reproducing the paper.
 * :class:`LogisticGrade` -- P(success) of a logistic model on the features of
-  :mod:`graspsim.grades.features`, fitted to simulated lift-and-place trials and shipped
+  :mod:`graspsim.grades.grade_features`, fitted to simulated lift-and-place trials and shipped
   as JSON with its provenance (``graspsim/data/grade_model.json``, name
   ``"pad_contact"``); its threshold is the one that reached the target precision on
   objects held out from the fit.
@@ -34,7 +34,7 @@ import numpy as np
 from scipy.special import expit
 
 from graspsim.errors import GripperError, InvalidParameterError
-from graspsim.grades.features import FEATURES, FeatureConfig, map_features
+from graspsim.grades.grade_features import FEATURES, FeatureConfig, map_features
 from graspsim.grades.paper import QualityModel
 
 __all__ = ["PaperGrade", "LogisticGrade", "get_grade", "regrade", "GRADE_NAMES",

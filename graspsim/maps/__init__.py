@@ -6,10 +6,10 @@ planning, sim or anything above).
 
 from __future__ import annotations
 
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
 from graspsim.maps.io import load_map, read_sim_results, save_map, write_sim_results
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.preflight import estimate_map_memory, memory_budget
 from graspsim.maps.validate import map_problems, validate_map
 

@@ -20,8 +20,8 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import GripperSpec
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import ClosingLines, sweep_collisions
+from graspsim.maps.map_config import MapConfig
 
 __all__ = ["boxes_clear_sdf", "collision_free", "grasps_collision_free"]
 

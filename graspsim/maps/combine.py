@@ -20,9 +20,9 @@ from graspsim.errors import InvalidParameterError
 from graspsim.grades.paper import QualityModel, stability_distance
 from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.collide import grasps_collision_free
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.rowids import row_ids
 from graspsim.primitives import Compound
 from graspsim.transforms import invert_transform, matrix_to_quat, quat_multiply, quat_to_matrix

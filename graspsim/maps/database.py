@@ -34,10 +34,10 @@ from graspsim._atomic import atomic_write_text
 from graspsim.errors import GraspsimError, MapDatabaseError, MapFileError
 from graspsim.grades.paper import QualityModel
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
 from graspsim.maps.io import load_map, save_map
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.match import KNOWN_TOL, MatchDecision, match_entries
 from graspsim.maps.validate import validate_map
 from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Primitive, Sphere, make_primitive, primitive_from_dict

@@ -24,9 +24,9 @@ from graspsim._version import __version__
 from graspsim.errors import GripperError, InvalidParameterError, NoFeasibleGraspError
 from graspsim.grades.paper import QualityModel
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
-from graspsim.maps.config import MapConfig, ring_sizes, roll_count
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
 from graspsim.maps.hierarchy import clear_caches, clusters, sample_levels
+from graspsim.maps.map_config import MapConfig, ring_sizes, roll_count
 from graspsim.maps.preflight import check_graspable, check_memory, estimate_map_memory
 from graspsim.maps.preflight import memory_budget as preflight_budget
 from graspsim.transforms import normalize

@@ -19,7 +19,7 @@ from graspsim.grippers.spec import GripperSpec
 from graspsim.transforms import quat_to_matrix
 
 if TYPE_CHECKING:
-    from graspsim.maps.config import MapConfig
+    from graspsim.maps.map_config import MapConfig
 
 __all__ = ["GraspabilityMap", "MapMeta", "Placement", "COLUMNS", "OPTIONAL_COLUMNS"]
 
@@ -89,7 +89,7 @@ class MapMeta:
     @cached_property
     def map_config(self) -> MapConfig:
         """The generation settings recorded in ``resolution`` (defaults for missing ones)."""
-        from graspsim.maps.config import MapConfig
+        from graspsim.maps.map_config import MapConfig
 
         return MapConfig(**{k: v for k, v in self.resolution.items() if k in MapConfig.__dataclass_fields__})
 
@@ -109,14 +109,14 @@ class MapMeta:
     @property
     def surface_step(self) -> float:
         """[m] (the map settings' default if unrecorded)."""
-        from graspsim.maps.config import MapConfig
+        from graspsim.maps.map_config import MapConfig
 
         return float(self.resolution.get("surface_step", MapConfig.surface_step))
 
     @property
     def rotation_step(self) -> float:
         """[rad] (the map settings' default if unrecorded)."""
-        from graspsim.maps.config import MapConfig
+        from graspsim.maps.map_config import MapConfig
 
         return float(self.resolution.get("rotation_step", MapConfig.rotation_step))
 

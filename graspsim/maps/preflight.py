@@ -162,7 +162,7 @@ def estimate_map_memory(shape, gripper, config) -> MapEstimate:
     """Counts of what :func:`~graspsim.maps.generate.generate_fs_map` allocates for
     ``shape`` (Primitive or Compound), from its surface area and the sampling steps
     (a few hundred coarse samples; nothing the size of the map)."""
-    from graspsim.maps.config import closing_direction_count, roll_count
+    from graspsim.maps.map_config import closing_direction_count, roll_count
 
     parts = getattr(shape, "parts", (shape,))
     # sampling grids fit whole cells into each patch: up to ~15 % more samples than

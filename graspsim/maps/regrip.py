@@ -35,8 +35,8 @@ import numpy as np
 from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.collide import grasps_collision_free
-from graspsim.maps.config import MapConfig
 from graspsim.maps.graspmap import OPTIONAL_COLUMNS, GraspabilityMap, GripperAdaptation
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.rowids import row_ids
 from graspsim.transforms import quat_to_matrix
 

@@ -39,6 +39,7 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from graspsim.checks import NON_NEGATIVE, check_fields, integer
 from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import GripperSpec
 from graspsim.maps._robust_geometry import cloud_in_object, map_table, merged_boxes, object_points, table_rows
@@ -120,17 +121,11 @@ class RobustConfig:
     occlusion: bool = True
 
     def __post_init__(self) -> None:
-        for k in ("position_sigma", "rotation_sigma", "margin"):
-            v = getattr(self, k)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise InvalidParameterError(f"RobustConfig.{k} must be >= 0, got {v!r}")
+        check_fields(self, NON_NEGATIVE, "position_sigma", "rotation_sigma", "margin", owner="RobustConfig")
         if not (isinstance(self.primitive_step, (int, float)) and self.primitive_step > 0):
             raise InvalidParameterError(f"RobustConfig.primitive_step must be > 0 m, got {self.primitive_step!r}")
-        for k in ("samples", "top"):
-            v = getattr(self, k)
-            if isinstance(v, bool) or not isinstance(v, int) or v < (1 if k == "samples" else 0):
-                raise InvalidParameterError(f"RobustConfig.{k} must be an integer >= "
-                                            f"{1 if k == 'samples' else 0}, got {v!r}")
+        check_fields(self, integer(1), "samples", owner="RobustConfig")
+        check_fields(self, integer(0), "top", owner="RobustConfig")
         terms = (self.terms,) if isinstance(self.terms, str) else tuple(self.terms)
         bad = sorted(set(terms) - set(TERMS))
         if bad:

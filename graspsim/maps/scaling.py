@@ -38,10 +38,10 @@ from graspsim.errors import InvalidParameterError
 from graspsim.grades.paper import QualityModel
 from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.collide import grasps_collision_free
-from graspsim.maps.config import MapConfig
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
-from graspsim.maps.table import stream_order
+from graspsim.maps.map_config import MapConfig
+from graspsim.maps.table_clearance import stream_order
 from graspsim.primitives import Primitive
 from graspsim.transforms import quat_to_matrix
 
@@ -216,7 +216,7 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
     function of predicted scaled poses -- wrist quaternions (m, 4), wrist positions
     (m, 3) and contact widths (m,) in the target's frame, from the grasp's contacts
     mapped as Quality maps them, before the exact chord -- returning (m,) bool: those
-    grasps are scaled first (see :func:`graspsim.maps.table.stream_order`); the same
+    grasps are scaled first (see :func:`graspsim.maps.table_clearance.stream_order`); the same
     grasps are kept, only the order they stream in changes."""
     sc = scaling or ScalingConfig()
     source, ratios = _scalable(fs_map, target, sc.max_ratio)

@@ -18,8 +18,8 @@ log = logging.getLogger(__name__)
 #: The modules of graspsim's compiled kernels: the map kernels' and those compiled on their first call.
 KERNEL_MODULES = ("graspsim.maps._kernel", "graspsim.maps._assemble_kernel", "graspsim.maps._hierarchy_kernel",
                   "graspsim.maps._robust_kernel", "graspsim.maps._robust_blocks", "graspsim.maps._occlusion_kernel",
-                  "graspsim.primitives._sdf_kernel",
-                  "graspsim.geometry._spacing_kernel", "graspsim.grades._pads")
+                  "graspsim.primitives.sdf_kernel",
+                  "graspsim.geometry.spacing_kernel", "graspsim.grades.pad_kernel")
 
 
 def compiled_kernels() -> dict:
@@ -45,10 +45,10 @@ def compile_all(*, parallel: bool = True) -> bool:
     import numpy as np
 
     from graspsim.geometry.spacing import median_spacing
-    from graspsim.grades._pads import SERIAL_BELOW, run_pad_patches
+    from graspsim.grades.pad_kernel import SERIAL_BELOW, run_pad_patches
     from graspsim.grippers.spec import HGPL_25_60_A
-    from graspsim.maps.config import MapConfig
     from graspsim.maps.hierarchy import build_levels, clusters
+    from graspsim.maps.map_config import MapConfig
     from graspsim.maps.robust import score_poses
     from graspsim.primitives import Box
     from graspsim.primitives.sdf import DIM_NAMES, KINDS, sdf_function

@@ -9,8 +9,8 @@ anything above): it turns clouds into identified primitives and nothing else.
 from __future__ import annotations
 
 from graspsim.perception.classify import Shape, classify
+from graspsim.perception.cloud_input import LoadedCloud, check_cloud, read_point_cloud
 from graspsim.perception.depth_image import read_depth_image
-from graspsim.perception.features import ShapeFeatures, shape_features
 from graspsim.perception.identify import (
     Identification,
     IdentificationStatus,
@@ -19,11 +19,11 @@ from graspsim.perception.identify import (
     identify,
     identify_cluster,
 )
-from graspsim.perception.io import LoadedCloud, check_cloud, read_point_cloud
 from graspsim.perception.mlesac import ModelFit, fit_model, mixture_loglik
 from graspsim.perception.mvbb import OrientedBox, min_volume_box, pca_box
 from graspsim.perception.normals import LocalSurface, estimate_local_surface, remove_outliers
 from graspsim.perception.prepare import Downsampling, check_solid, to_metres, voxel_downsample
+from graspsim.perception.shape_features import ShapeFeatures, shape_features
 from graspsim.perception.split import Split, best_split, theta_star
 
 __all__ = [

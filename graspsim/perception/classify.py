@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from enum import Enum
 
-from graspsim.perception.features import ShapeFeatures
+from graspsim.perception.shape_features import ShapeFeatures
 
 __all__ = ["Shape", "classify"]
 

@@ -15,10 +15,10 @@ from scipy.spatial import cKDTree
 from graspsim.errors import PrimitiveError
 from graspsim.geometry.spacing import median_spacing
 from graspsim.perception.classify import Shape, classify
-from graspsim.perception.features import ShapeFeatures, shape_features
 from graspsim.perception.identify_config import IdentifyConfig
+from graspsim.perception.identify_results import PartResult
 from graspsim.perception.mlesac import ModelFit, fit_from, fit_model, rescore, residual_sigma
-from graspsim.perception.results import PartResult
+from graspsim.perception.shape_features import ShapeFeatures, shape_features
 from graspsim.perception.support import extent_ratio, surface_coverage
 from graspsim.primitives.sdf import KINDS, fit_to_object
 

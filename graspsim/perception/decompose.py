@@ -36,10 +36,10 @@ from graspsim.perception.acceptance import band_rate, data_scale, decomposition_
 from graspsim.perception.classify import Shape
 from graspsim.perception.cluster import Cloud
 from graspsim.perception.identify_config import IdentifyConfig
+from graspsim.perception.identify_results import PartResult
 from graspsim.perception.mlesac import fit_from, rescore
 from graspsim.perception.mvbb import min_volume_box
 from graspsim.perception.profile import profile_segments
-from graspsim.perception.results import PartResult
 from graspsim.perception.split import best_split, theta_star
 from graspsim.primitives.sdf import fit_to_object
 

@@ -33,14 +33,14 @@ from dataclasses import replace
 import numpy as np
 
 from graspsim.perception.classify import Shape
+from graspsim.perception.cloud_input import check_cloud
 from graspsim.perception.cluster import Cloud, identify_cluster
 from graspsim.perception.decompose import keep_going, settled
 from graspsim.perception.identify_config import IdentifyConfig
-from graspsim.perception.io import check_cloud
+from graspsim.perception.identify_results import Identification, IdentificationStatus, PartResult
 from graspsim.perception.mvbb import OrientedBox, min_volume_box
 from graspsim.perception.normals import estimate_local_surface, remove_outliers
 from graspsim.perception.prepare import check_solid, voxel_downsample
-from graspsim.perception.results import Identification, IdentificationStatus, PartResult
 from graspsim.perception.split import best_split, theta_star
 
 __all__ = ["IdentificationStatus", "IdentifyConfig", "PartResult", "Identification", "Cloud",

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from graspsim.checks import Rule, check_fields
 from graspsim.errors import InvalidParameterError
 
 __all__ = ["MODES", "MAX_REPETITIONS", "IdentifyConfig"]
@@ -120,13 +121,7 @@ class IdentifyConfig:
             ("fit_points", lambda v: v is None or (_whole(v) and v >= 300), "None or >= 300, an integer"),
         ]
         for name, ok, valid in checks:
-            value = getattr(self, name)
-            try:
-                good = bool(ok(value))
-            except (TypeError, ValueError):  # not a number at all
-                good = False
-            if not good:
-                raise InvalidParameterError(f"{name} must be {valid}, got {value!r}")
+            check_fields(self, Rule(ok, valid), name)
 
     @classmethod
     def preset(cls, mode: str, **changes) -> IdentifyConfig:

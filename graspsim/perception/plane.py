@@ -11,7 +11,7 @@ after a few dozen, not the ``repetitions`` drawn). It refines the best by
 least squares on its inliers (twice, re-selecting them) and orients its normal
 upwards: towards the side most off-plane points lie on (objects stand on the table),
 or along ``up`` when the caller knows it. The result becomes graspsim's
-:class:`~graspsim.maps.table.TablePlane` (normal . p = height, cloud frame).
+:class:`~graspsim.maps.table_clearance.TablePlane` (normal . p = height, cloud frame).
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ class PlaneFit:
         return np.asarray(points, float) @ self.normal - self.height
 
     def table(self, clearance: float = 0.002) -> TablePlane:
-        """The plane as the planner's :class:`~graspsim.maps.table.TablePlane`."""
+        """The plane as the planner's :class:`~graspsim.maps.table_clearance.TablePlane`."""
         return TablePlane(normal=tuple(self.normal), height=self.height, clearance=clearance)
 
     def to_dict(self) -> dict:

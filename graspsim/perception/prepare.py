@@ -3,7 +3,7 @@
 * :func:`to_metres` converts a cloud given in millimetres or centimetres;
 * :func:`check_extent` refuses a cloud too large to be one graspable object in
   metres -- almost always a cloud in millimetres or centimetres -- and names the
-  likely unit (used by :func:`~graspsim.perception.io.check_cloud`, so by the file
+  likely unit (used by :func:`~graspsim.perception.cloud_input.check_cloud`, so by the file
   reader, :func:`~graspsim.perception.identify.identify`, the planner and the CLI);
 * :func:`check_solid` refuses a collinear or planar cloud: no solid primitive has a
   shape to fit there (it would come out as a zero-radius cylinder or a flat box);

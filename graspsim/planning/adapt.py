@@ -31,7 +31,7 @@ def adapt_config(*, mode: str = "robust", table: str | float | None = None,
                  partial: bool = True):
     """The :class:`~graspsim.planning.planner.PlannerConfig` of ``graspsim adapt``'s options:
     ``mode`` "robust" | "paper"; ``table`` None (no table, as the paper's maps), "auto"
-    (the object's lowest point: :func:`~graspsim.maps.table.table_height`) or a height
+    (the object's lowest point: :func:`~graspsim.maps.table_clearance.table_height`) or a height
     [m] along ``table_normal`` in the cloud's frame; ``scaling`` the scaling method of
     familiar parts; ``partial``: a map of the identified parts when clustering fails."""
     from graspsim.geometry.table import TablePlane
@@ -62,7 +62,7 @@ def adapt_cloud(cloud, *, db, config=None, seed: int = 0, source: str | None = N
     ``--table auto`` then may lie under the identified shape); None: seen all round.
     Returns the planner's :class:`~graspsim.planning.planner.PlanResult`; its map records the
     viewpoint (``meta.extra["viewpoint"]``)."""
-    from graspsim.perception.io import LoadedCloud
+    from graspsim.perception.cloud_input import LoadedCloud
     from graspsim.perception.prepare import canonical_points
     from graspsim.planning.planner import plan
 

@@ -12,7 +12,7 @@ the object. For each plan made from a cloud in robust identification mode,
   :func:`clear_of_cloud`): where the primitives miss the object -- a bowl's rim, a
   tool's handle, a rounded box's bulge -- the fingers would start inside it;
 * :meth:`~ObservedChecks.feature_batch`: where the parts give too few grasps expected to
-  succeed, grasps fitted to the cloud's own features (:mod:`graspsim.maps.features`),
+  succeed, grasps fitted to the cloud's own features (:mod:`graspsim.maps.feature_grasps`),
   through the same checks and the robust score without its primitives term.
 
 :meth:`~ObservedChecks.record` is what the map records of them (``extra["observed"]``,
@@ -29,11 +29,11 @@ import numpy as np
 from graspsim.geometry.spacing import median_spacing
 from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.agreement import ObservedSurface
-from graspsim.maps.features import feature_columns
+from graspsim.maps.feature_grasps import feature_columns
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
 from graspsim.maps.robust import RobustConfig, cloud_in_object, score_map, score_rows, view_of
 from graspsim.maps.rowids import first_rows, row_ids
-from graspsim.maps.table import clears_table
+from graspsim.maps.table_clearance import clears_table
 from graspsim.planning.plan_results import GraspBatch
 
 __all__ = ["ObservedChecks", "clear_of_cloud"]

@@ -29,13 +29,13 @@ from graspsim.errors import InvalidParameterError
 from graspsim.geometry.table import TablePlane, table_frame
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
-from graspsim.maps.features import FeatureConfig
+from graspsim.maps.feature_grasps import FeatureConfig
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map, view_of
 from graspsim.maps.scaling import ScalingConfig, scale_stream
-from graspsim.maps.table import clears_table, heights_above, stream_order, table_height
+from graspsim.maps.table_clearance import clears_table, heights_above, stream_order, table_height
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
 from graspsim.planning.observed import ObservedChecks
 from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
@@ -86,7 +86,7 @@ class PlannerConfig:
     features: robust identification: where the parts give fewer than
         ``features.min_grasps`` grasps with a robust score > 0 (a bowl as one sphere wider
         than the gripper), grasps on the cloud's own features (a rim, a bar;
-        :mod:`~graspsim.maps.features`) are added as part ``len(parts)``, through the same
+        :mod:`~graspsim.maps.feature_grasps`) are added as part ``len(parts)``, through the same
         checks. None: never. Paper mode never adds.
     """
 

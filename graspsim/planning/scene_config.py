@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from graspsim.checks import POSITIVE, check_fields, integer
 from graspsim.errors import InvalidParameterError
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.segment import gap_link
@@ -100,11 +101,8 @@ class SceneConfig:
     workers: int | None = None
 
     def __post_init__(self) -> None:
-        for k in ("plane_sigma", "table_band", "max_height", "voxel", "max_radius", "reach", "solid_step",
-                  "reuse_tol"):
-            v = getattr(self, k)
-            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"SceneConfig.{k} must be > 0 m, got {v!r}")
+        check_fields(self, POSITIVE.saying("> 0 m"), "plane_sigma", "table_band", "max_height", "voxel", "max_radius",
+                     "reach", "solid_step", "reuse_tol", owner="SceneConfig")
         if self.crease_angle is not None and not (isinstance(self.crease_angle, (int, float))
                                                   and 0 < self.crease_angle < 180):
             raise InvalidParameterError(f"SceneConfig.crease_angle must be in (0, 180) deg or None, "
@@ -115,10 +113,8 @@ class SceneConfig:
             gap_link(self.min_gap)
         except InvalidParameterError as err:
             raise InvalidParameterError(f"SceneConfig.{err}") from None
-        for k in ("plane_repetitions", "min_points", "per_segment", "enough", "keep"):
-            v = getattr(self, k)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise InvalidParameterError(f"SceneConfig.{k} must be an integer >= 1, got {v!r}")
+        check_fields(self, integer(1), "plane_repetitions", "min_points", "per_segment", "enough", "keep",
+                     owner="SceneConfig")
         scene_workers(self.workers)  # validates it
         if self.plane_confidence is not None and not 0 < self.plane_confidence < 1:
             raise InvalidParameterError(f"SceneConfig.plane_confidence must be in (0, 1) or None, "

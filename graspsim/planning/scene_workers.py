@@ -13,7 +13,7 @@ run a user's unguarded script again), and each scene costs only the transfer of 
 and results. They never touch MuJoCo, whose GL contexts the fork does not carry, nor
 numba's OpenMP pool: a child forked after the parent ran a ``parallel=True`` kernel (the
 pad-contact grade's) is terminated if it runs one, so the workers run that kernel's
-serial twin (:func:`graspsim.grades._pads.serial_only`; the same arithmetic); the map
+serial twin (:func:`graspsim.grades.pad_kernel.serial_only`; the same arithmetic); the map
 kernels' thread pools are the process's own (:mod:`graspsim.maps.kernels`). A map
 database sent to a worker stays there (:func:`resident_database`), with its cache of
 loaded maps. Where ``fork`` does not exist (Windows), and inside a process that is
@@ -90,7 +90,7 @@ def _pool(workers: int) -> ProcessPoolExecutor:
 
 def _start_worker() -> None:
     global _in_worker
-    from graspsim.grades._pads import serial_only
+    from graspsim.grades.pad_kernel import serial_only
 
     serial_only()  # the parent may have started numba's OpenMP pool: this child must not
     _databases.clear()

@@ -146,11 +146,18 @@ class Primitive(ABC):
     def _ray_exit_geo(self, o: np.ndarray, d: np.ndarray) -> np.ndarray:
         return _march_exit(self._sdf_geo, o, d, self.size_scale)
 
-    @abstractmethod
-    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray: ...
+    def _unit_axes(self):
+        """The lengths along x, y, z (one number: the same on all three) that the unit
+        shape is scaled by to make this one: a box's half sides, a cylinder's radius and
+        half height, a sphere's radius. A primitive whose unit map is no scaling (the
+        cone, the half-toroid) overrides :meth:`_to_unit_geo` and :meth:`_from_unit_geo`."""
+        raise NotImplementedError(f"{type(self).__name__} has no axis scaling to its unit shape")
 
-    @abstractmethod
-    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray: ...
+    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray:
+        return p / self._unit_axes()
+
+    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray:
+        return q * self._unit_axes()
 
     def to_unit(self, points: np.ndarray) -> np.ndarray:
         """Shape-normalised coordinates (N, 3) of object-frame points: the same for

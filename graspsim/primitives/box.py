@@ -58,11 +58,8 @@ class Box(Primitive):
         t = np.where(np.abs(d) > 1e-15, t, np.inf)
         return np.min(t, axis=1)
 
-    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray:
-        return p / self.half
-
-    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray:
-        return q * self.half
+    def _unit_axes(self) -> np.ndarray:
+        return self.half
 
     def _samples_geo(self, step: float) -> SurfaceSamples:
         h = self.half

@@ -61,11 +61,8 @@ class Cylinder(Primitive):
         cap = np.where(np.abs(d[:, 2]) > 1e-15, cap, np.inf)
         return np.minimum(side, cap)
 
-    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray:
-        return p / np.array([self.radius, self.radius, 0.5 * self.height])
-
-    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray:
-        return q * np.array([self.radius, self.radius, 0.5 * self.height])
+    def _unit_axes(self) -> np.ndarray:
+        return np.array([self.radius, self.radius, 0.5 * self.height])
 
     def _samples_geo(self, step: float) -> SurfaceSamples:
         r, h = self.radius, self.height

@@ -103,11 +103,11 @@ def model_extents(kind: str, dims: np.ndarray) -> np.ndarray:
 def model_sdf(kind: str, R: np.ndarray, t: np.ndarray, dims: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Signed distances (H, N) of world points (N, 3) to H posed models. In a process
     that has numba loaded already (planning loads it for the map kernels) float64
-    input goes through the compiled twin (:mod:`~graspsim.primitives._sdf_kernel`,
+    input goes through the compiled twin (:mod:`~graspsim.primitives.sdf_kernel`,
     the same values to the bit, a few times faster); elsewhere (identifying alone)
     importing the compiler would cost more than it saves."""
     if "numba" in sys.modules and _kernel_fits(kind, R, t, dims, points):
-        from graspsim.primitives._sdf_kernel import model_sdf as compiled
+        from graspsim.primitives.sdf_kernel import model_sdf as compiled
 
         return compiled(kind, R, t, dims, points)
     return sdf_local(kind, to_local(R, t, points), dims)
@@ -119,7 +119,7 @@ def sdf_function(kind: str, points: np.ndarray):
     dims (H, k)): the path is chosen once, and the compiled one is called directly."""
     if "numba" in sys.modules and isinstance(points, np.ndarray) and points.dtype == np.float64 \
             and points.ndim == 2 and points.shape[1] == 3 and kind in DIM_NAMES:
-        from graspsim.primitives._sdf_kernel import KIND_IDS, model_sdf_into
+        from graspsim.primitives.sdf_kernel import KIND_IDS, model_sdf_into
 
         code, n, k, pts = KIND_IDS[kind], len(points), len(DIM_NAMES[kind]), np.ascontiguousarray(points)
 

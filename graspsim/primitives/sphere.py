@@ -47,11 +47,8 @@ class Sphere(Primitive):
         c = np.sum(o * o, axis=1) - self.radius**2
         return -b + np.sqrt(np.maximum(b * b - c, 0.0))
 
-    def _to_unit_geo(self, p: np.ndarray) -> np.ndarray:
-        return p / self.radius
-
-    def _from_unit_geo(self, q: np.ndarray) -> np.ndarray:
-        return q * self.radius
+    def _unit_axes(self) -> float:
+        return self.radius
 
     def _samples_geo(self, step: float) -> SurfaceSamples:
         r = self.radius

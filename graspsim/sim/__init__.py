@@ -21,6 +21,7 @@ from graspsim._gl import default_gl
 
 default_gl()  # before any submodule imports mujoco
 
+from graspsim.sim.authored_model import build_vendored_gripper_spec  # noqa: E402
 from graspsim.sim.batch import initial_states, pregrasp_opening, run_trials, start_penetration  # noqa: E402
 from graspsim.sim.mapsim import MapTrials, map_object, select_grasps, simulate_map, write_results  # noqa: E402
 from graspsim.sim.meshes import CoacdParams, PreparedMesh, convex_parts, load_mesh, prepare_mesh  # noqa: E402
@@ -30,8 +31,7 @@ from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape 
 from graspsim.sim.outcomes import TrialOutcome  # noqa: E402
 from graspsim.sim.protocols import PROTOCOLS, LiftPlace, Protocol, Tug, make_protocol  # noqa: E402
 from graspsim.sim.results import RESULT_GROUPS, TrialResults  # noqa: E402
-from graspsim.sim.scene import Scene, SimSettings, build_scene, resting_pose  # noqa: E402
-from graspsim.sim.vendored import build_vendored_gripper_spec  # noqa: E402
+from graspsim.sim.trial_scene import Scene, SimSettings, build_scene, resting_pose  # noqa: E402
 
 __all__ = [
     "GripperPhysics", "build_gripper_spec", "gripper_xml", "build_vendored_gripper_spec",
@@ -48,7 +48,7 @@ __all__ = [
 
 def __getattr__(name: str):
     if name == "render_trial":  # keeps PIL out of plain imports
-        from graspsim.sim.render import render_trial
+        from graspsim.sim.trial_render import render_trial
 
         return render_trial
     raise AttributeError(f"module 'graspsim.sim' has no attribute {name!r}")

@@ -25,7 +25,7 @@ from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.outcomes import Record, TrialOutcome, collision_kind
 from graspsim.sim.protocols import LiftPlace, Protocol
 from graspsim.sim.results import TrialResults
-from graspsim.sim.scene import Scene
+from graspsim.sim.trial_scene import Scene
 from graspsim.transforms import matrix_to_quat
 
 __all__ = ["run_trials", "start_penetration", "initial_states", "simulate", "pregrasp_opening", "arm_below_table"]

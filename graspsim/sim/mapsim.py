@@ -37,7 +37,7 @@ from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape
 from graspsim.sim.protocols import LiftPlace, Protocol
 from graspsim.sim.results import RESULT_GROUPS, TrialResults
-from graspsim.sim.scene import Scene, SimSettings, build_scene
+from graspsim.sim.trial_scene import Scene, SimSettings, build_scene
 from graspsim.transforms import invert_transform
 
 __all__ = ["MapTrials", "select_grasps", "map_object", "map_gripper", "observed_placement", "simulate_map",
@@ -220,12 +220,12 @@ def write_results(path: str | os.PathLike, n_rows: int, index: np.ndarray,
 
 def observed_placement(gmap: GraspabilityMap, obj: SimObject, has_mesh: bool) -> np.ndarray | None:
     """T_world_obj (4, 4) for a map planned from a cloud: the object stands on the table
-    as the cloud saw it (:func:`~graspsim.sim.scene.observed_pose`), up along the normal
+    as the cloud saw it (:func:`~graspsim.sim.trial_scene.observed_pose`), up along the normal
     of the table the planner was told about (its map then holds only poses above that
     table), or for a mesh (the real object, in the cloud's frame) without one, along the
     cloud's +z. None: the object's own stable resting pose (a map not planned from a
     cloud, or primitives planned without a table)."""
-    from graspsim.sim.scene import observed_pose
+    from graspsim.sim.trial_scene import observed_pose
 
     placement = gmap.meta.placement
     if placement is None:

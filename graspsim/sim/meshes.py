@@ -67,10 +67,14 @@ from pathlib import Path
 import numpy as np
 
 from graspsim._atomic import atomic_path
+from graspsim.checks import Rule, check_fields
 from graspsim.errors import DependencyNotInstalled, InvalidParameterError, MeshError
 
 __all__ = ["CoacdParams", "PreparedMesh", "prepare_mesh", "check_mesh_path", "check_mesh_arrays",
            "load_mesh", "convex_parts", "default_cache_dir", "MAX_MESH_EXTENT", "MIN_MESH_EXTENT"]
+
+#: CoACD's counts (faces, vertices, resolutions, search sizes): >= 1 as whole numbers.
+_COUNT = Rule(lambda v: int(v) >= 1, ">= 1")
 
 log = logging.getLogger(__name__)
 
@@ -132,10 +136,8 @@ class CoacdParams:
             raise InvalidParameterError(f"max_parts must be -1 or >= 1, got {self.max_parts!r}")
         if not self.time_limit >= 0:  # inf: no limit (a caller's explicit choice)
             raise InvalidParameterError(f"time_limit must be >= 0 s (inf: none), got {self.time_limit!r}")
-        for name in ("max_faces", "max_hull_vertices", "resolution", "preprocess_resolution",
-                     "mcts_iterations", "mcts_nodes", "mcts_max_depth"):
-            if int(getattr(self, name)) < 1:
-                raise InvalidParameterError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        check_fields(self, _COUNT, "max_faces", "max_hull_vertices", "resolution", "preprocess_resolution",
+                     "mcts_iterations", "mcts_nodes", "mcts_max_depth")
 
 
 @dataclass(frozen=True, eq=False)

@@ -11,12 +11,11 @@ the flange, 2 deg would swing the fingertips 6 mm. The draw is
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from graspsim.errors import InvalidParameterError
+from graspsim.checks import NON_NEGATIVE, check_fields
 from graspsim.maps.robust import POSITION_SIGMA, ROTATION_SIGMA, wrist_perturbations
 
 __all__ = ["ExecutionNoise"]
@@ -32,9 +31,7 @@ class ExecutionNoise:
     rotation_sigma: float = ROTATION_SIGMA
 
     def __post_init__(self) -> None:
-        for k, v in asdict(self).items():
-            if not (math.isfinite(v) and v >= 0):
-                raise InvalidParameterError(f"{k} must be >= 0, got {v!r}")
+        check_fields(self, NON_NEGATIVE)
 
     def sample(self, n: int, rng: np.random.Generator,
                pivot: np.ndarray = np.zeros(3)) -> np.ndarray:

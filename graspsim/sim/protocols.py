@@ -24,9 +24,10 @@ from typing import ClassVar
 import mujoco
 import numpy as np
 
+from graspsim.checks import NON_NEGATIVE, check_fields
 from graspsim.errors import InvalidParameterError
 from graspsim.sim.outcomes import Record, TrialOutcome, pads_touching, relative_motion, tilt, unstable
-from graspsim.sim.scene import Scene
+from graspsim.sim.trial_scene import Scene
 from graspsim.transforms import matrix_to_quat
 
 __all__ = ["Protocol", "LiftPlace", "Tug", "PROTOCOLS", "make_protocol", "min_jerk"]
@@ -45,9 +46,9 @@ def min_jerk(u: np.ndarray) -> np.ndarray:
 
 
 def _check_positive(obj) -> None:
-    for k, v in asdict(obj).items():
-        if isinstance(v, float) and not (math.isfinite(v) and v >= 0):
-            raise InvalidParameterError(f"{type(obj).__name__}.{k} must be >= 0, got {v!r}")
+    """Every float setting of a protocol (times, distances, speeds) is a finite number >= 0."""
+    check_fields(obj, NON_NEGATIVE, *(k for k, v in asdict(obj).items() if isinstance(v, float)),
+                 owner=type(obj).__name__)
 
 
 @dataclass(frozen=True)

@@ -7,8 +7,8 @@ a sidecar ``<file>.json``; a PCD also carries the pose in its ``VIEWPOINT`` line
 (tx ty tz qw qx qy qz, the camera in the world) when its points are in the camera frame,
 as PCL defines it. PCD and PLY carry per-point ``label`` s when given (the ``.npy`` stays
 an (N, 3) array: its labels go into ``<file>.labels.npy``). Every file is written
-atomically, all of them together. :func:`graspsim.perception.io.read_point_cloud` reads
-the points back; :func:`graspsim.perception.io.read_camera` the sidecar.
+atomically, all of them together. :func:`graspsim.perception.cloud_input.read_point_cloud` reads
+the points back; :func:`graspsim.perception.cloud_input.read_camera` the sidecar.
 """
 
 from __future__ import annotations

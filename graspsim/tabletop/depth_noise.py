@@ -12,13 +12,19 @@ Invalid pixels are 0, as a RealSense reports them.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
+from graspsim.checks import NON_NEGATIVE, Rule, check_fields
 from graspsim.errors import InvalidParameterError
 
 __all__ = ["DepthNoise"]
+
+#: Every setting of the noise model is a finite number >= 0 but ``edge_jump``, which may
+#: be inf (no depth edges at all).
+_FINITE = NON_NEGATIVE.saying("a finite number >= 0")
+_EDGE_JUMP = Rule(lambda v: isinstance(v, (int, float)) and v >= 0, _FINITE.says)
 
 
 @dataclass(frozen=True)
@@ -44,9 +50,8 @@ class DepthNoise:
     baseline: float = 0.05
 
     def __post_init__(self) -> None:
-        for k, v in asdict(self).items():
-            if not (isinstance(v, (int, float)) and (math.isfinite(v) or k == "edge_jump") and v >= 0):
-                raise InvalidParameterError(f"DepthNoise.{k} must be a finite number >= 0, got {v!r}")
+        check_fields(self, _FINITE, *(f.name for f in fields(self) if f.name != "edge_jump"), owner="DepthNoise")
+        check_fields(self, _EDGE_JUMP, "edge_jump", owner="DepthNoise")
         for k in ("edge_dropout", "dropout"):
             if getattr(self, k) > 1:
                 raise InvalidParameterError(f"DepthNoise.{k} is a probability in [0, 1], got {getattr(self, k)!r}")

@@ -46,7 +46,7 @@ class DepthRenderer:
 
     def __init__(self, model: mujoco.MjModel, intrinsics: Intrinsics, *,
                  scene_option: mujoco.MjvOption | None = None) -> None:
-        from graspsim.sim.render import offscreen_renderer
+        from graspsim.sim.trial_render import offscreen_renderer
 
         self.model, self.intrinsics, self.scene_option = model, intrinsics, scene_option
         self._r = offscreen_renderer(model, intrinsics.height, intrinsics.width)

@@ -1,6 +1,6 @@
 """A table with several objects and the gripper, in MuJoCo: settle, look, grasp, remove.
 
-Frames as in :mod:`graspsim.sim.scene`: world z up, the table top is the plane z = 0;
+Frames as in :mod:`graspsim.sim.trial_scene`: world z up, the table top is the plane z = 0;
 object ``k``'s body frame is its object frame, its pose ``T_world_obj``. The gripper
 waits far above the table (``HOME``; its geoms are in geom group 2, hidden from the
 camera) until :meth:`SceneSim.execute` puts its wrist at a pose, closes and lifts by the
@@ -27,7 +27,7 @@ from graspsim.sim.model import NAMES
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.outcomes import TrialOutcome, collision_kind
 from graspsim.sim.protocols import LiftPlace
-from graspsim.sim.scene import (
+from graspsim.sim.trial_scene import (
     SimSettings,
     _add_object,
     _add_table,

@@ -28,7 +28,7 @@ from graspsim._atomic import atomic_write_text
 from graspsim.errors import InvalidParameterError, OutputPathError, SimulationError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.seeding import rng_for
-from graspsim.sim.scene import SimSettings, resting_pose
+from graspsim.sim.trial_scene import SimSettings, resting_pose
 from graspsim.tabletop.scene_objects import ObjectSpec, check_object_set, draw_object
 from graspsim.tabletop.scene_sim import SceneOutcome, SceneSim
 from graspsim.transforms import make_transform, matrix_to_quat, quat_to_matrix, random_rotation

@@ -218,7 +218,7 @@ def _read_inputs(cloud, mesh, recording):
     """Files among the cloud, mesh and recording read (their own clear errors), the
     rest passed through."""
     if isinstance(cloud, (str, os.PathLike)):
-        from graspsim.perception.io import read_point_cloud
+        from graspsim.perception.cloud_input import read_point_cloud
 
         cloud = read_point_cloud(cloud).points
     if isinstance(mesh, (str, os.PathLike)):

@@ -17,7 +17,7 @@ import numpy as np
 from graspsim.geometry.boxes import box_mesh
 from graspsim.grippers.wireframe import gripper_wireframe
 from graspsim.transforms import frame_from_axes, invert_transform, matrix_to_quat, transform_points
-from graspsim.viewer.camera import BrowserView
+from graspsim.viewer.browser_view import BrowserView
 from graspsim.viewer.columns import OUTCOME_PREFIX, Selection, ViewData
 from graspsim.viewer.glyphs import PART_COLOURS, fork_glyph
 

@@ -20,7 +20,7 @@ import numpy as np
 from graspsim.geometry.boxes import box_mesh
 from graspsim.grippers.wireframe import gripper_wireframe
 from graspsim.transforms import frame_from_axes, matrix_to_quat
-from graspsim.viewer.camera import BrowserView
+from graspsim.viewer.browser_view import BrowserView
 from graspsim.viewer.glyphs import PART_COLOURS, colormap, fork_glyph
 
 __all__ = ["SceneViewer", "SEGMENT_COLOURS", "CLOUD_COLOUR"]

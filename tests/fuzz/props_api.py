@@ -104,8 +104,8 @@ def check_primitive_spec(case: dict) -> str:
     """make_primitive(), the preflight (gripper fit, memory estimate against the budget)
     and, when the estimate is small, a coarse generate_fs_map(): a GraspsimError or a
     valid primitive and map."""
-    from graspsim.maps.config import MapConfig
     from graspsim.maps.generate import generate_fs_map
+    from graspsim.maps.map_config import MapConfig
     from graspsim.maps.validate import map_problems
     from graspsim.primitives import make_primitive
 

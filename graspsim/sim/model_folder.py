@@ -5,8 +5,8 @@ README with the dimensions and assumptions; the LICENSE file is kept as it is. T
 are generated, never edited by hand: a test regenerates them and compares. Regenerate
 after changing the spec or the model with::
 
-    python -m graspsim.sim.export            # writes mjcf/festo_hgpl_25_60_a/
-    python -m graspsim.sim.export OUT_DIR
+    python -m graspsim.sim.model_folder            # writes mjcf/festo_hgpl_25_60_a/
+    python -m graspsim.sim.model_folder OUT_DIR
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ def readme_text(gripper: GripperSpec = HGPL_25_60_A,
     return f"""# Festo HGPL-25-60-A style parallel gripper (MuJoCo model)
 
 Generated from `graspsim.grippers.spec.GripperSpec` (name `{g.name}`) by
-`python -m graspsim.sim.export`; do not edit by hand (a test regenerates the files and
+`python -m graspsim.sim.model_folder`; do not edit by hand (a test regenerates the files and
 compares). The planner's collision boxes come from the same spec, so planner and
 simulator agree on the gripper's geometry.
 
@@ -134,7 +134,7 @@ def write_model_folder(folder: str | Path | None = None, gripper: GripperSpec = 
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m graspsim.sim.export", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m graspsim.sim.model_folder", description=__doc__.split("\n")[0])
     ap.add_argument("folder", nargs="?", help="output folder (default: mjcf/<gripper name>)")
     args = ap.parse_args(argv)
     for p in write_model_folder(args.folder):

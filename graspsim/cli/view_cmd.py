@@ -18,52 +18,50 @@ from __future__ import annotations
 import sys
 import time
 
-from graspsim.cli._common import add_json_flag, emit, seed_value
-from graspsim.cli.maps import _add_generation
+from graspsim.cli._common import command, emit, seed_value
+from graspsim.cli.maps_cmd import _add_generation
 
 __all__ = ["register", "run"]
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser(
-        "view", help="interactive 3D viewer of a map (and cloud, mesh, trial replay) in the browser",
-        description="Serve a map in the browser (viser): the object's primitives coloured by part, "
-                    "the table, the cloud and mesh when given, and the grasps as glyphs coloured by "
-                    "grade, robust score or simulated outcome, with filters; click a grasp for its "
-                    "numbers and the full gripper. Ctrl-C stops it. Needs the 'viewer' extra: "
-                    "pip install 'graspsim[viewer]'.")
-    p.add_argument("map", metavar="MAP.h5", nargs="?", help="graspability map file, or an ACRONYM .h5 / "
-                   "GraspGen .json / GraspNet .npy grasp file (its labels as colour columns) (or --scene)")
-    p.add_argument("--scene", metavar="SCENE.json", help="show a table-top scene instead: rendered, "
-                   "segmented and planned once (its top K grasps per object, default 3)")
-    p.add_argument("--db", default=None, help="with --scene: the FS map database folder (default $GRASPSIM_DB or "
-                   "~/.cache/graspsim/db)")
-    p.add_argument("--seed", type=seed_value, default=0, help="with --scene: random seed of the render's noise "
-                   "and the planning (0)")
-    p.add_argument("--cloud", metavar="CLOUD", help="the observed cloud (.pcd/.ply/.npy/.xyz), cloud frame")
-    p.add_argument("--mesh", metavar="MESH", help="the true mesh (.obj/.stl/.ply ...), cloud frame")
-    p.add_argument("--mesh-scale", type=float, default=1.0, metavar="S",
-                   help="multiplies the mesh file's coordinates to give metres (0.001 for millimetres; default 1)")
-    p.add_argument("--replay", metavar="TRIALS.npz",
-                   help="trials recorded by 'graspsim trial MAP --record TRIALS.npz', on a timeline")
-    p.add_argument("--host", default="127.0.0.1",
-                   help="address to serve on (default 127.0.0.1: this machine only; 0.0.0.0: all)")
-    p.add_argument("--port", type=int, default=8080, help="first port tried (default 8080; the next free "
-                   "one is taken)")
-    p.add_argument("--colour", default="grade", help="initial colour column (default grade)")
-    p.add_argument("--min-grade", type=float, default=0.0, help="initial min-grade filter (default 0)")
-    p.add_argument("--top", type=int, default=0, metavar="K", help="initial top-K filter (default 0: all)")
-    p.add_argument("--pick", type=int, metavar="ROW", help="show this grasp's numbers and full gripper at start")
-    p.add_argument("--max-drawn", type=int, default=2000, metavar="N",
-                   help="draw at most N grasps (default 2000; the filters use all)")
-    p.add_argument("--screenshot", metavar="PNG",
-                   help="save what headless Chromium draws to PNG and exit instead of serving")
-    _add_generation(p)
-    add_json_flag(p)
-    p.set_defaults(func=run)
+    with command(subparsers, "view", run=run,
+                 help="interactive 3D viewer of a map (and cloud, mesh, trial replay) in the browser") as p:
+        p.add_argument("map", metavar="MAP.h5", nargs="?", help="graspability map file, or an ACRONYM .h5 / "
+                       "GraspGen .json / GraspNet .npy grasp file (its labels as colour columns) (or --scene)")
+        p.add_argument("--scene", metavar="SCENE.json", help="show a table-top scene instead: rendered, "
+                       "segmented and planned once (its top K grasps per object, default 3)")
+        p.add_argument("--db", default=None, help="with --scene: the FS map database folder (default $GRASPSIM_DB or "
+                       "~/.cache/graspsim/db)")
+        p.add_argument("--seed", type=seed_value, default=0, help="with --scene: random seed of the render's noise "
+                       "and the planning (0)")
+        p.add_argument("--cloud", metavar="CLOUD", help="the observed cloud (.pcd/.ply/.npy/.xyz), cloud frame")
+        p.add_argument("--mesh", metavar="MESH", help="the true mesh (.obj/.stl/.ply ...), cloud frame")
+        p.add_argument("--mesh-scale", type=float, default=1.0, metavar="S",
+                       help="multiplies the mesh file's coordinates to give metres (0.001 for millimetres; default 1)")
+        p.add_argument("--replay", metavar="TRIALS.npz",
+                       help="trials recorded by 'graspsim trial MAP --record TRIALS.npz', on a timeline")
+        p.add_argument("--host", default="127.0.0.1",
+                       help="address to serve on (default 127.0.0.1: this machine only; 0.0.0.0: all)")
+        p.add_argument("--port", type=int, default=8080, help="first port tried (default 8080; the next free "
+                       "one is taken)")
+        p.add_argument("--colour", default="grade", help="initial colour column (default grade)")
+        p.add_argument("--min-grade", type=float, default=0.0, help="initial min-grade filter (default 0)")
+        p.add_argument("--top", type=int, default=0, metavar="K", help="initial top-K filter (default 0: all)")
+        p.add_argument("--pick", type=int, metavar="ROW", help="show this grasp's numbers and full gripper at start")
+        p.add_argument("--max-drawn", type=int, default=2000, metavar="N",
+                       help="draw at most N grasps (default 2000; the filters use all)")
+        p.add_argument("--screenshot", metavar="PNG",
+                       help="save what headless Chromium draws to PNG and exit instead of serving")
+        _add_generation(p)
 
 
 def run(args) -> int:
+    """Serve a map in the browser (viser): the object's primitives coloured by part, the
+    table, the cloud and mesh when given, and the grasps as glyphs coloured by grade,
+    robust score or simulated outcome, with filters; click a grasp for its numbers and
+    the full gripper. Ctrl-C stops it. Needs the 'viewer' extra: pip install
+    'graspsim[viewer]'."""
     t0 = time.perf_counter()
     from graspsim.errors import InvalidParameterError
     from graspsim.viewer import require_viser, show
@@ -122,7 +120,7 @@ def run(args) -> int:
 def _show_scene(args):
     """The scene viewer's server, its summary and banner."""
     from graspsim.cli._common import gripper_from_args
-    from graspsim.cli.maps import _config
+    from graspsim.cli.maps_cmd import _config
     from graspsim.maps.database import MapDatabase
     from graspsim.tabletop.table_scene import load_scene
     from graspsim.viewer import show_scene

@@ -28,7 +28,7 @@ simulator), all vectorised over grasps:
   put back down, falls over.
 
 Patches are computed from surface samples (``FeatureConfig.sample_step``) by the
-compiled kernel in ``_pads``; the rest is numpy.
+compiled kernel in :mod:`~graspsim.grades.pad_kernel`; the rest is numpy.
 """
 
 from __future__ import annotations
@@ -41,6 +41,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from graspsim.checks import POSITIVE, check_fields
 from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import GripperSpec
 from graspsim.primitives import shape_from_dict
@@ -70,9 +71,7 @@ class FeatureConfig:
     support_tol: float = 0.001
 
     def __post_init__(self) -> None:
-        for k, v in asdict(self).items():
-            if not (math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"FeatureConfig.{k} must be > 0, got {v!r}")
+        check_fields(self, POSITIVE, owner="FeatureConfig")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -110,7 +109,7 @@ def _inside_margin(poly: np.ndarray, point: np.ndarray) -> float:
 def resting_frame(shape, support_tol: float = 0.001) -> tuple[np.ndarray, float]:
     """The object's up axis (3,) in its frame when resting on a table, and its tipping
     angle [rad]: atan(distance from the COM's projection to the support polygon's border
-    / COM height). The rule follows ``graspsim.sim.scene.resting_pose`` (pure geometry
+    / COM height). The rule follows ``graspsim.sim.trial_scene.resting_pose`` (pure geometry
     here, no mujoco): +z up when the COM lies over the support, else the convex-hull
     face nearest the COM that it can stand on."""
     v = np.asarray(shape.mesh(64).vertices, float)
@@ -182,7 +181,7 @@ def grasp_features(ctx: ObjectContext, gripper: GripperSpec, contacts: np.ndarra
 
 def _pad_features(ctx: ObjectContext, g: GripperSpec, R: np.ndarray, p: np.ndarray,
                   cfg: FeatureConfig) -> dict[str, np.ndarray]:
-    from graspsim.grades._pads import run_pad_patches
+    from graspsim.grades.pad_kernel import run_pad_patches
 
     patches = run_pad_patches(ctx.points, ctx.normals, ctx.areas, R, p,
                               0.5 * g.finger_size[1], g.fingertip_z, g.finger_size[2],

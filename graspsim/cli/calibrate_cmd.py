@@ -19,7 +19,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from graspsim.cli._common import add_executor_flags, add_json_flag, emit, executor_from_args, format_table, progress
+from graspsim.cli._common import add_executor_flags, command, emit, executor_from_args, format_table, progress
 
 __all__ = ["register", "run"]
 
@@ -27,32 +27,30 @@ __all__ = ["register", "run"]
 def register(subparsers) -> None:
     from graspsim.cli._common import seed_value
 
-    p = subparsers.add_parser(
-        "calibrate", help="calibrate grades against simulated lift-and-place trials",
-        description="Draw grasps across the whole grade range of map files, simulate them "
-                    "(lift-and-place) and report what each grade predicts: AUC, thresholds "
-                    "for a target precision and Youden's J, precision/recall at 0.7.")
-    p.add_argument("maps", nargs="+", metavar="FILE.h5", help="graspability map files")
-    p.add_argument("--per-bin", type=int, default=20, metavar="N",
-                   help="grasps per grade bin (ten bins) per map (default 20)")
-    p.add_argument("--grade", action="append", metavar="NAME|FILE",
-                   help="extra grade beside the map's own: pad_contact (the model fitted for the "
-                        "maps' gripper) or a model .json (repeatable; default: pad_contact)")
-    p.add_argument("--target", type=float, default=0.97, help="target precision (default 0.97)")
-    p.add_argument("--friction", type=float, default=0.5, help="pad friction mu (default 0.5)")
-    p.add_argument("--grip-force", type=float, metavar="N", help="grip force per jaw [N] (default: spec)")
-    p.add_argument("--mass-scale", type=float, default=1.0, help="object mass x this (default 1)")
-    p.add_argument("--noise", action="store_true", help="execution noise sigma 3 mm / 2 deg")
-    p.add_argument("--seed", type=seed_value, default=0, help="seed of sampling and noise (default 0)")
-    p.add_argument("--threads", type=int, metavar="T", help="native threads (default: all cores)")
-    p.add_argument("--boot", type=int, default=500, metavar="B", help="bootstrap replicates (default 500)")
-    p.add_argument("-o", "--out", metavar="DIR", help="write trials.npz, report.json/.md and PNGs here")
-    add_executor_flags(p)
-    add_json_flag(p)
-    p.set_defaults(func=run)
+    with command(subparsers, "calibrate", run=run,
+                 help="calibrate grades against simulated lift-and-place trials") as p:
+        p.add_argument("maps", nargs="+", metavar="FILE.h5", help="graspability map files")
+        p.add_argument("--per-bin", type=int, default=20, metavar="N",
+                       help="grasps per grade bin (ten bins) per map (default 20)")
+        p.add_argument("--grade", action="append", metavar="NAME|FILE",
+                       help="extra grade beside the map's own: pad_contact (the model fitted for the "
+                            "maps' gripper) or a model .json (repeatable; default: pad_contact)")
+        p.add_argument("--target", type=float, default=0.97, help="target precision (default 0.97)")
+        p.add_argument("--friction", type=float, default=0.5, help="pad friction mu (default 0.5)")
+        p.add_argument("--grip-force", type=float, metavar="N", help="grip force per jaw [N] (default: spec)")
+        p.add_argument("--mass-scale", type=float, default=1.0, help="object mass x this (default 1)")
+        p.add_argument("--noise", action="store_true", help="execution noise sigma 3 mm / 2 deg")
+        p.add_argument("--seed", type=seed_value, default=0, help="seed of sampling and noise (default 0)")
+        p.add_argument("--threads", type=int, metavar="T", help="native threads (default: all cores)")
+        p.add_argument("--boot", type=int, default=500, metavar="B", help="bootstrap replicates (default 500)")
+        p.add_argument("-o", "--out", metavar="DIR", help="write trials.npz, report.json/.md and PNGs here")
+        add_executor_flags(p)
 
 
 def run(args) -> int:
+    """Draw grasps across the whole grade range of map files, simulate them
+    (lift-and-place) and report what each grade predicts: AUC, thresholds for a target
+    precision and Youden's J, precision/recall at 0.7."""
     from graspsim.calibration import CalibrationCase, SimCondition, calibrate, draw_samples, simulate_samples
     from graspsim.errors import InvalidParameterError
     from graspsim.maps import load_map
@@ -146,8 +144,8 @@ def _grade_models(grades, maps, *, quiet: bool) -> list:
 def _write(out: Path, table, rep, scores: dict) -> list[str]:
     """All five files, or none: each is written to a temporary and renamed at the end."""
     from graspsim._atomic import atomic_paths
+    from graspsim.calibration.figures import plot_reliability, plot_roc
     from graspsim.calibration.outputs import library_versions, write_json, write_text
-    from graspsim.calibration.plots import plot_reliability, plot_roc
     from graspsim.errors import OutputPathError
 
     out.mkdir(parents=True, exist_ok=True)

@@ -27,20 +27,24 @@ from __future__ import annotations
 
 from graspsim.cli._common import (
     add_budget_flag,
-    add_json_flag,
     budget_from_args,
+    command,
     emit,
     format_table,
     gripper_from_args,
     whole_number,
-    with_glossary,
 )
-from graspsim.cli.maps import _add_generation, _config
+from graspsim.cli.maps_cmd import _add_generation, _config
 
 __all__ = ["register"]
 
 
 def _cmd_scene(args) -> int:
+    """Draw table-top scenes of several objects, settle them in MuJoCo, render them with
+    a D435-like depth camera, and clear each table grasp by grasp: segment the cloud,
+    plan every object (grasps checked against the whole scene), execute the best, remove
+    what was lifted, render again. Reports the grasp success rate and the share of
+    objects cleared."""
     from pathlib import Path
 
     from graspsim._atomic import check_folder
@@ -165,51 +169,45 @@ def _figure_writer(folder, gripper, current: dict):
 def register(sub) -> None:
     from graspsim.cli._common import seed_value
 
-    p = sub.add_parser(
-        "scene", help="clutter removal on simulated table-top scenes seen by a depth camera",
-        description="Draw table-top scenes of several objects, settle them in MuJoCo, render them with "
-        "a D435-like depth camera, and clear each table grasp by grasp: segment the cloud, plan every "
-        "object (grasps checked against the whole scene), execute the best, remove what was lifted, "
-        "render again. Reports the grasp success rate and the share of objects cleared.")
-    p.add_argument("--objects", type=whole_number(1), default=5, help="objects per scene (5)")
-    p.add_argument("--scenes", type=whole_number(1), default=1, help="scenes (1)")
-    p.add_argument("--kind", choices=["pile", "packed"], default="pile",
-                   help="pile: dropped and settled; packed: upright side by side, >= 1 cm apart (pile)")
-    p.add_argument("--min-gap", type=float, default=None, metavar="M",
-                   help="least gap [m] between any two objects, which segmentation may rely on (0: none; default: "
-                   "the kind's: packed 0.01, pile none)")
-    p.add_argument("--object-set", default=None, metavar="SET",
-                   help="objects drawn from this set: household (the default: shipped real meshes), random, "
-                   "household-tuning, household-heldout, random-tuning, random-heldout, primitives, analogs, "
-                   "meshes, mixed")
-    p.add_argument("--objects-dir", default=None, metavar="DIR",
-                   help="objects drawn from a folder of your mesh files (.stl .obj .ply .off .glb .gltf; an optional "
-                   "objects.json or objects.toml gives per-file scale, mass or density, friction)")
-    p.add_argument("--noise", action="store_true", help="execution error: the arm misses each pose by 3 mm / 2 deg "
-                   "(sigma)")
-    p.add_argument("--no-neighbours", action="store_true",
-                   help="ablation: check grasps against the object's own points only")
-    p.add_argument("--ground-truth", action="store_true",
-                   help="ablation: segment by the simulator's object labels instead of clustering")
-    p.add_argument("--max-attempts", type=whole_number(1), default=None,
-                   help="grasps per scene at most (default 2 x objects + 2)")
-    add_budget_flag(p)
-    p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
-    p.add_argument("--seeds", type=whole_number(1), default=1,
-                   help="repeat the benchmark over this many seeds (derived from --seed; 1: --seed itself) and "
-                   "report GSR / DR per seed and their mean and std (the field's way)")
-    p.add_argument("--planner", default="graspsim", metavar="NAME|module:function",
-                   help="the grasp planner: graspsim (default: its scene planner, plans reused between "
-                   "frames), graspsim-interface (the same through the planner interface), antipodal (a "
-                   "geometric baseline), or module:function of your own (graspsim.tabletop.planners)")
-    p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
-                   "~/.cache/graspsim/db)")
-    p.add_argument("--render", default=None, metavar="DIR",
-                   help="write a picture of every grasp (colour, depth, segments, the grasp) into DIR")
-    p.add_argument("--save-scenes", default=None, metavar="DIR",
-                   help="write every scene as DIR/sceneNNN.json, with --seeds > 1 as DIR/seedK_sceneNNN.json "
-                   "(for 'graspsim view --scene')")
-    _add_generation(p)
-    add_json_flag(p)
-    with_glossary(p, "robust score", "known / familiar / build")
-    p.set_defaults(func=_cmd_scene)
+    with command(sub, "scene", run=_cmd_scene,
+                 help="clutter removal on simulated table-top scenes seen by a depth camera",
+                 glossary=("robust score", "known / familiar / build")) as p:
+        p.add_argument("--objects", type=whole_number(1), default=5, help="objects per scene (5)")
+        p.add_argument("--scenes", type=whole_number(1), default=1, help="scenes (1)")
+        p.add_argument("--kind", choices=["pile", "packed"], default="pile",
+                       help="pile: dropped and settled; packed: upright side by side, >= 1 cm apart (pile)")
+        p.add_argument("--min-gap", type=float, default=None, metavar="M",
+                       help="least gap [m] between any two objects, which segmentation may rely on (0: none; default: "
+                       "the kind's: packed 0.01, pile none)")
+        p.add_argument("--object-set", default=None, metavar="SET",
+                       help="objects drawn from this set: household (the default: shipped real meshes), random, "
+                       "household-tuning, household-heldout, random-tuning, random-heldout, primitives, analogs, "
+                       "meshes, mixed")
+        p.add_argument("--objects-dir", default=None, metavar="DIR",
+                       help="objects drawn from a folder of your mesh files (.stl .obj .ply .off .glb .gltf; an "
+                       "optional objects.json or objects.toml gives per-file scale, mass or density, friction)")
+        p.add_argument("--noise", action="store_true", help="execution error: the arm misses each pose by 3 mm / 2 deg "
+                       "(sigma)")
+        p.add_argument("--no-neighbours", action="store_true",
+                       help="ablation: check grasps against the object's own points only")
+        p.add_argument("--ground-truth", action="store_true",
+                       help="ablation: segment by the simulator's object labels instead of clustering")
+        p.add_argument("--max-attempts", type=whole_number(1), default=None,
+                       help="grasps per scene at most (default 2 x objects + 2)")
+        add_budget_flag(p)
+        p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
+        p.add_argument("--seeds", type=whole_number(1), default=1,
+                       help="repeat the benchmark over this many seeds (derived from --seed; 1: --seed itself) and "
+                       "report GSR / DR per seed and their mean and std (the field's way)")
+        p.add_argument("--planner", default="graspsim", metavar="NAME|module:function",
+                       help="the grasp planner: graspsim (default: its scene planner, plans reused between "
+                       "frames), graspsim-interface (the same through the planner interface), antipodal (a "
+                       "geometric baseline), or module:function of your own (graspsim.tabletop.planners)")
+        p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
+                       "~/.cache/graspsim/db)")
+        p.add_argument("--render", default=None, metavar="DIR",
+                       help="write a picture of every grasp (colour, depth, segments, the grasp) into DIR")
+        p.add_argument("--save-scenes", default=None, metavar="DIR",
+                       help="write every scene as DIR/sceneNNN.json, with --seeds > 1 as DIR/seedK_sceneNNN.json "
+                        "(for 'graspsim view --scene')")
+        _add_generation(p)

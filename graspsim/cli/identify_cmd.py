@@ -24,57 +24,43 @@ import argparse
 
 from graspsim.cli._common import (
     add_gripper_flag,
-    add_json_flag,
     add_mode_flag,
     add_units_flag,
     add_viewpoint_flag,
+    command,
     dims_text,
     emit,
     format_table,
     gripper_from_args,
     stored_text,
     viewpoint_from_args,
-    with_glossary,
 )
 from graspsim.errors import DependencyNotInstalled
 
 __all__ = ["register", "run"]
 
-_DESCRIPTION = (
-    "Identify the shape primitives (box, cylinder, sphere, cone, half-toroid) of an object "
-    "point cloud by MLESAC fitting and splitting (paper section 4). Prints each part's "
-    "primitive, dimensions, fit rate and whether the map database knows it (known: a map of "
-    "that size is stored; familiar: same primitive, another size). Coordinates in metres. "
-    "Exit status 1 when nothing is identified.")
-
-
 def register(subparsers) -> None:
     from graspsim.cli._common import seed_value
 
-    p = subparsers.add_parser(
-        "identify",
-        help="identify shape primitives in a point cloud (.pcd, .ply, .npy, .xyz)",
-        description=_DESCRIPTION,
-    )
-    p.add_argument("cloud", help="point cloud file, coordinates in metres (see --units)")
-    add_units_flag(p)
-    p.add_argument("--repetitions", type=int, default=10,
-                   help="MLESAC samples per model (default 10)")
-    add_mode_flag(p)
-    p.add_argument("--theta", type=float, default=0.5,
-                   help="split threshold theta_th of eq. (1), in (0, 1] (default 0.5)")
-    p.add_argument("--noise", type=float, default=None,
-                   help="sensor noise sigma in metres (default: estimated)")
-    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
-    p.add_argument("--db", metavar="DIR", default=None,
-                   help="FS map database folder for the known/familiar decision (default: "
-                   "$GRASPSIM_DB or ~/.cache/graspsim/db when it exists; never built here)")
-    add_gripper_flag(p, help="whose maps --db's known / familiar decision reads: festo_hgpl_25_60_a "
-                     "(default), franka_hand or a gripper spec .json")
-    add_viewpoint_flag(p)
-    add_json_flag(p)
-    with_glossary(p, "known / familiar / build", "FS map")
-    p.set_defaults(func=run)
+    with command(subparsers, "identify", run=run,
+                 help="identify shape primitives in a point cloud (.pcd, .ply, .npy, .xyz)",
+                 glossary=("known / familiar / build", "FS map")) as p:
+        p.add_argument("cloud", help="point cloud file, coordinates in metres (see --units)")
+        add_units_flag(p)
+        p.add_argument("--repetitions", type=int, default=10,
+                       help="MLESAC samples per model (default 10)")
+        add_mode_flag(p)
+        p.add_argument("--theta", type=float, default=0.5,
+                       help="split threshold theta_th of eq. (1), in (0, 1] (default 0.5)")
+        p.add_argument("--noise", type=float, default=None,
+                       help="sensor noise sigma in metres (default: estimated)")
+        p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
+        p.add_argument("--db", metavar="DIR", default=None,
+                       help="FS map database folder for the known/familiar decision (default: "
+                       "$GRASPSIM_DB or ~/.cache/graspsim/db when it exists; never built here)")
+        add_gripper_flag(p, help="whose maps --db's known / familiar decision reads: festo_hgpl_25_60_a "
+                         "(default), franka_hand or a gripper spec .json")
+        add_viewpoint_flag(p)
 
 
 def _lookup(db_dir: str | None, gripper=None):
@@ -104,10 +90,15 @@ def _lookup(db_dir: str | None, gripper=None):
 
 
 def run(args: argparse.Namespace) -> int:
+    """Identify the shape primitives (box, cylinder, sphere, cone, half-toroid) of an
+    object point cloud by MLESAC fitting and splitting (paper section 4). Prints each
+    part's primitive, dimensions, fit rate and whether the map database knows it (known:
+    a map of that size is stored; familiar: same primitive, another size). Coordinates
+    in metres. Exit status 1 when nothing is identified."""
     import numpy as np
 
+    from graspsim.perception.cloud_input import read_point_cloud
     from graspsim.perception.identify import IdentifyConfig, identify
-    from graspsim.perception.io import read_point_cloud
 
     config = IdentifyConfig.preset(args.mode, repetitions=args.repetitions, theta=args.theta, noise=args.noise)
     cloud = read_point_cloud(args.cloud, units=args.units)

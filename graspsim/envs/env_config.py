@@ -13,12 +13,16 @@ from enum import Enum
 
 import numpy as np
 
-from graspsim.envs.objects import resolve_object_set
+from graspsim.checks import NON_NEGATIVE, POSITIVE, Rule, check_fields, integer
+from graspsim.envs.object_sets import resolve_object_set
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.config import MapConfig
+from graspsim.maps.map_config import MapConfig
 from graspsim.maps.robust import DEFAULT_OPENINGS, POSITION_SIGMA, ROTATION_SIGMA
 
 __all__ = ["EnvConfig", "Perception", "RewardMode", "View", "make_config"]
+
+_FRACTION = Rule(lambda v: isinstance(v, (int, float)) and 0 <= v < 1, "a fraction in [0, 1)")
+_SHARE = Rule(lambda v: isinstance(v, (int, float)) and 0 <= v <= 1, "a fraction in [0, 1]")
 
 
 class RewardMode(str, Enum):
@@ -40,7 +44,7 @@ class View(str, Enum):
 class EnvConfig:
     """Environment settings. Lengths [m], angles [rad].
 
-    objects: object set name(s) (see :mod:`graspsim.envs.objects`): ``"primitives"``,
+    objects: object set name(s) (see :mod:`graspsim.envs.object_sets`): ``"primitives"``,
         ``"compounds"``, ``"all"``, a kind (``"cylinder"``, ``"bottle"``, ...) or a tuple.
     n_candidates: K, the number of candidate grasps offered (GraspSelect).
     cloud_size: N, points in the observed cloud (sampled from the sensor cloud, with
@@ -78,7 +82,7 @@ class EnvConfig:
     gripper: the gripper: a registered name (``"festo_hgpl_25_60_a"``, ``"franka_hand"``),
         a spec .json or a :class:`~graspsim.grippers.spec.GripperSpec`; its own FS maps (the
         database keys maps by the gripper) and its own simulated model. The objects' widths
-        are drawn within what it spans (:func:`graspsim.envs.objects.size_limits`: its
+        are drawn within what it spans (:func:`graspsim.envs.object_sets.size_limits`: its
         stroke; the Festo takes the sets' full ranges).
     """
 
@@ -112,39 +116,19 @@ class EnvConfig:
         objects = self.objects if isinstance(self.objects, str) else tuple(self.objects)
         object.__setattr__(self, "objects", objects)
         resolve_object_set(objects)  # raises on unknown names
-        for name in ("n_candidates", "cloud_size", "pool_size", "identify_repetitions",
-                     "max_redraws", "threads"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise InvalidParameterError(f"{name} must be an integer >= 1, got {v!r}")
-        for name in ("cloud_resolution", "camera_distance"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"{name} must be > 0, got {v!r}")
-        for name in ("cloud_noise", "table_cut", "position_noise", "rotation_noise", "placement",
-                     "table_margin"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise InvalidParameterError(f"{name} must be >= 0, got {v!r}")
-        for name in ("cloud_outliers", "lying"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and 0 <= v <= 1 and not (name == "cloud_outliers" and v == 1)):
-                raise InvalidParameterError(f"{name} must be a fraction in [0, 1), got {v!r}")
-        try:
-            object.__setattr__(self, "view", View(self.view))
-        except ValueError:
-            raise InvalidParameterError(
-                f"view must be one of {[v.value for v in View]}, got {self.view!r}") from None
-        try:
-            object.__setattr__(self, "perception", Perception(self.perception))
-        except ValueError:
-            raise InvalidParameterError(
-                f"perception must be one of {[p.value for p in Perception]}, got {self.perception!r}") from None
-        try:
-            object.__setattr__(self, "reward", RewardMode(self.reward))
-        except ValueError:
-            raise InvalidParameterError(
-                f"reward must be one of {[r.value for r in RewardMode]}, got {self.reward!r}") from None
+        check_fields(self, integer(1), "n_candidates", "cloud_size", "pool_size", "identify_repetitions",
+                     "max_redraws", "threads")
+        check_fields(self, POSITIVE, "cloud_resolution", "camera_distance")
+        check_fields(self, NON_NEGATIVE, "cloud_noise", "table_cut", "position_noise", "rotation_noise", "placement",
+                     "table_margin")
+        check_fields(self, _FRACTION, "cloud_outliers")
+        check_fields(self, _SHARE, "lying")
+        for name, kind in (("view", View), ("perception", Perception), ("reward", RewardMode)):
+            try:
+                object.__setattr__(self, name, kind(getattr(self, name)))
+            except ValueError:
+                raise InvalidParameterError(
+                    f"{name} must be one of {[v.value for v in kind]}, got {getattr(self, name)!r}") from None
         try:
             openings = tuple(float(v) for v in np.atleast_1d(np.asarray(self.openings, float)))
         except (TypeError, ValueError):

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import math
 
-from graspsim.cli._common import add_executor_flags, add_json_flag, emit, executor_from_args, format_table, progress
+from graspsim.cli._common import add_executor_flags, command, emit, executor_from_args, format_table, progress
 
 __all__ = ["register"]
 
 
 def _cmd_run(args) -> int:
+    """Every map x seed is one task, stored in OUT/tasks as soon as it finishes; running
+    the same command again skips finished tasks."""
     import sys
 
     from graspsim._atomic import check_folder
@@ -45,6 +47,7 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_status(args) -> int:
+    """Count the finished and missing tasks of a campaign folder."""
     from graspsim.apps.campaign import load_campaign
 
     tasks, done = load_campaign(args.out)
@@ -60,27 +63,20 @@ def register(sub) -> None:
                        "'run' starts or resumes one in a folder, 'status' says how far it is.")
     cs = p.add_subparsers(dest="campaign_command", metavar="ACTION")
     cs.required = True
-    q = cs.add_parser("run", help="simulate grasps of many maps; rerun to resume",
-                      description="Every map x seed is one task, stored in OUT/tasks as soon as "
-                      "it finishes; running the same command again skips finished tasks.")
-    q.add_argument("maps", nargs="+", help="map files (.h5)")
-    q.add_argument("--out", required=True, help="campaign folder")
-    q.add_argument("--protocol", choices=["lift_place", "tug"], default="lift_place")
-    sel = q.add_mutually_exclusive_group()
-    sel.add_argument("--top", type=int, default=None, help="simulate the N best grasps of each map")
-    sel.add_argument("--sample", type=int, default=None, help="N grasps spread over the surface")
-    q.add_argument("--min-grade", type=float, default=None, help="sample among grasps above this grade")
-    q.add_argument("--seeds", type=int, default=1, help="repeat each map with seeds 0..K-1 (1)")
-    q.add_argument("--noise", action="store_true", help="execution noise (wrist pose error)")
-    q.add_argument("--noise-pos", type=float, default=0.003, help="position sigma [m] (0.003)")
-    q.add_argument("--noise-rot-deg", type=float, default=2.0, help="rotation sigma [deg] (2)")
-    q.add_argument("--threads", type=int, default=1, help="threads inside each task (1)")
-    q.add_argument("--max-tasks", type=int, default=None, help="stop after N new tasks")
-    add_executor_flags(q)
-    add_json_flag(q)
-    q.set_defaults(func=_cmd_run)
-    q = cs.add_parser("status", help="how far a campaign folder is",
-                      description="Count the finished and missing tasks of a campaign folder.")
-    q.add_argument("out", help="campaign folder")
-    add_json_flag(q)
-    q.set_defaults(func=_cmd_status)
+    with command(cs, "run", run=_cmd_run, help="simulate grasps of many maps; rerun to resume") as q:
+        q.add_argument("maps", nargs="+", help="map files (.h5)")
+        q.add_argument("--out", required=True, help="campaign folder")
+        q.add_argument("--protocol", choices=["lift_place", "tug"], default="lift_place")
+        sel = q.add_mutually_exclusive_group()
+        sel.add_argument("--top", type=int, default=None, help="simulate the N best grasps of each map")
+        sel.add_argument("--sample", type=int, default=None, help="N grasps spread over the surface")
+        q.add_argument("--min-grade", type=float, default=None, help="sample among grasps above this grade")
+        q.add_argument("--seeds", type=int, default=1, help="repeat each map with seeds 0..K-1 (1)")
+        q.add_argument("--noise", action="store_true", help="execution noise (wrist pose error)")
+        q.add_argument("--noise-pos", type=float, default=0.003, help="position sigma [m] (0.003)")
+        q.add_argument("--noise-rot-deg", type=float, default=2.0, help="rotation sigma [deg] (2)")
+        q.add_argument("--threads", type=int, default=1, help="threads inside each task (1)")
+        q.add_argument("--max-tasks", type=int, default=None, help="stop after N new tasks")
+        add_executor_flags(q)
+    with command(cs, "status", run=_cmd_status, help="how far a campaign folder is") as q:
+        q.add_argument("out", help="campaign folder")

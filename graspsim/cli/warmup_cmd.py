@@ -10,12 +10,15 @@ from __future__ import annotations
 
 import time
 
-from graspsim.cli._common import add_json_flag, emit
+from graspsim.cli._common import command, emit
 
 __all__ = ["register"]
 
 
 def _cmd_warmup(args) -> int:
+    """Compile graspsim's numba kernels now (the first map generation, scene plan or
+    adaptation on a machine otherwise does it, tens of seconds; they are cached on
+    disk). Run once after installing, e.g. in a container build."""
     from graspsim.maps.kernels import cache_dir
     from graspsim.maps.warmup import compile_all
 
@@ -29,9 +32,5 @@ def _cmd_warmup(args) -> int:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("warmup", help="compile graspsim's kernels now (first run only; cached)",
-                       description="Compile graspsim's numba kernels now (the first map generation, "
-                       "scene plan or adaptation on a machine otherwise does it, tens of seconds; they "
-                       "are cached on disk). Run once after installing, e.g. in a container build.")
-    add_json_flag(p)
-    p.set_defaults(func=_cmd_warmup)
+    with command(sub, "warmup", run=_cmd_warmup, help="compile graspsim's kernels now (first run only; cached)"):
+        pass  # no options of its own

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["pad_patches", "serial_only"]
+__all__ = ["SERIAL_BELOW", "pad_patches", "pad_patches_serial", "run_pad_patches", "serial_only"]
 
 
 @njit(cache=True, inline="always")

@@ -21,11 +21,12 @@ from dataclasses import asdict, dataclass, field
 import mujoco
 import numpy as np
 
+from graspsim.checks import NON_NEGATIVE, POSITIVE, check_fields
 from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
+from graspsim.sim.authored_model import build_vendored_gripper_spec, model_drive
 from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, box_drive, build_gripper_spec
 from graspsim.sim.objects import SimObject
-from graspsim.sim.vendored import build_vendored_gripper_spec, model_drive
 
 __all__ = ["SimSettings", "Scene", "build_scene", "observed_pose", "resting_pose", "add_gripper",
            "gripper_drive", "gripper_geoms"]
@@ -76,15 +77,9 @@ class SimSettings:
     physics: GripperPhysics = field(default_factory=GripperPhysics)
 
     def __post_init__(self) -> None:
-        for name in ("friction", "table_friction", "density", "timestep", "impratio",
-                     "tolerance"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"{name} must be a number > 0, got {v!r}")
-        for name in ("torsional_friction", "rolling_friction", "start_penetration"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise InvalidParameterError(f"{name} must be >= 0, got {v!r}")
+        check_fields(self, POSITIVE.saying("a number > 0"), "friction", "table_friction", "density", "timestep",
+                     "impratio", "tolerance")
+        check_fields(self, NON_NEGATIVE, "torsional_friction", "rolling_friction", "start_penetration")
         if self.grip_force is not None and not (math.isfinite(self.grip_force) and self.grip_force > 0):
             raise InvalidParameterError(f"grip_force must be > 0 N or None, got {self.grip_force!r}")
         if self.cone not in _CONES:

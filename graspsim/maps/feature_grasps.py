@@ -39,6 +39,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from graspsim.checks import POSITIVE, check_fields, integer
 from graspsim.errors import InvalidParameterError
 from graspsim.grades.paper import QualityModel
 from graspsim.grippers.spec import GripperSpec
@@ -65,14 +66,9 @@ class FeatureConfig:
     gap: float | None = None
 
     def __post_init__(self) -> None:
-        for k in ("seed_step", "radius"):
-            v = getattr(self, k)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"FeatureConfig.{k} must be > 0 m, got {v!r}")
-        if isinstance(self.min_grasps, bool) or not isinstance(self.min_grasps, int) or self.min_grasps < 0:
-            raise InvalidParameterError(f"FeatureConfig.min_grasps must be an integer >= 0, got {self.min_grasps!r}")
-        if isinstance(self.approaches, bool) or not isinstance(self.approaches, int) or self.approaches < 1:
-            raise InvalidParameterError(f"FeatureConfig.approaches must be an integer >= 1, got {self.approaches!r}")
+        check_fields(self, POSITIVE.saying("> 0 m"), "seed_step", "radius", owner="FeatureConfig")
+        check_fields(self, integer(0), "min_grasps", owner="FeatureConfig")
+        check_fields(self, integer(1), "approaches", owner="FeatureConfig")
         depths = tuple(float(d) for d in np.atleast_1d(self.depths))
         if not depths or any(not (math.isfinite(d) and d >= 0) for d in depths):
             raise InvalidParameterError(f"FeatureConfig.depths must be depths >= 0 m, got {self.depths!r}")

@@ -26,8 +26,8 @@ import gymnasium as gym
 import numpy as np
 
 from graspsim.envs.candidates import PooledDatabase
-from graspsim.envs.config import EnvConfig, View, make_config
-from graspsim.envs.objects import DrawnObject, draw_object, resolve_object_set
+from graspsim.envs.env_config import EnvConfig, View, make_config
+from graspsim.envs.object_sets import DrawnObject, draw_object, resolve_object_set
 from graspsim.envs.render import FrameRenderer
 from graspsim.envs.rewards import trial_reward
 from graspsim.errors import InvalidParameterError
@@ -39,7 +39,7 @@ from graspsim.sim.objects import object_from_shape
 from graspsim.sim.outcomes import TrialOutcome
 from graspsim.sim.protocols import Protocol, make_protocol
 from graspsim.sim.results import TrialResults
-from graspsim.sim.scene import Scene, SimSettings, build_scene
+from graspsim.sim.trial_scene import Scene, SimSettings, build_scene
 from graspsim.transforms import invert_transform, make_transform, matrix_to_quat
 
 __all__ = ["TableEpisode", "TableTask", "pose_vector", "database"]
@@ -216,6 +216,6 @@ class TableTask(gym.Env):
 def _rest_for_cloud(shape, scene: Scene) -> np.ndarray:
     """Without a table (``tug``) the object still stands on the table for the camera:
     its resting pose (the scene itself keeps it at the origin)."""
-    from graspsim.sim.scene import resting_pose
+    from graspsim.sim.trial_scene import resting_pose
 
     return resting_pose(scene.obj)

@@ -8,7 +8,7 @@ loader, graspnetAPI's ``GraspGroup().from_npy``); see :mod:`graspsim.maps.export
 
 from __future__ import annotations
 
-from graspsim.cli._common import add_json_flag, emit, format_table
+from graspsim.cli._common import command, emit, format_table
 
 __all__ = ["register", "run", "info_dataset", "info_imported"]
 
@@ -16,23 +16,21 @@ _SUFFIX = {"acronym": ".h5", "graspgen": ".json", "graspnet": ".npy"}
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser(
-        "export", help="write a map as an ACRONYM .h5, GraspGen .json or GraspNet .npy grasp file",
-        description="Write a graspsim map in a third-party grasp format, the poses converted to the "
-                    "format's gripper frame and the labels named honestly (the file says which "
-                    "simulator produced them).")
-    p.add_argument("map", metavar="MAP.h5", help="graspsim map file (or another format's grasp file: converted)")
-    p.add_argument("--format", required=True, choices=tuple(_SUFFIX), help="the format to write")
-    p.add_argument("-o", "--output", required=True, metavar="FILE",
-                   help="output file (.h5 for acronym, .json for graspgen, .npy for graspnet)")
-    p.add_argument("--label", default="auto", choices=("auto", "mujoco", "tug", "source", "grade"),
-                   help="per-grasp label: auto (default): the MuJoCo lift-and-place outcome when the "
-                        "map holds one, else an imported dataset's own labels, else grade > threshold")
-    add_json_flag(p)
-    p.set_defaults(func=run)
+    with command(subparsers, "export", run=run,
+                 help="write a map as an ACRONYM .h5, GraspGen .json or GraspNet .npy grasp file") as p:
+        p.add_argument("map", metavar="MAP.h5", help="graspsim map file (or another format's grasp file: converted)")
+        p.add_argument("--format", required=True, choices=tuple(_SUFFIX), help="the format to write")
+        p.add_argument("-o", "--output", required=True, metavar="FILE",
+                       help="output file (.h5 for acronym, .json for graspgen, .npy for graspnet)")
+        p.add_argument("--label", default="auto", choices=("auto", "mujoco", "tug", "source", "grade"),
+                       help="per-grasp label: auto (default): the MuJoCo lift-and-place outcome when the "
+                            "map holds one, else an imported dataset's own labels, else grade > threshold")
 
 
 def run(args) -> int:
+    """Write a graspsim map in a third-party grasp format, the poses converted to the
+    format's gripper frame and the labels named honestly (the file says which simulator
+    produced them)."""
     import numpy as np
 
     from graspsim._atomic import check_output

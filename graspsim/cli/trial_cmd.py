@@ -19,15 +19,7 @@ from __future__ import annotations
 import math
 import sys
 
-from graspsim.cli._common import (
-    add_gripper_flag,
-    add_json_flag,
-    emit,
-    format_table,
-    gripper_from_args,
-    progress,
-    with_glossary,
-)
+from graspsim.cli._common import add_gripper_flag, command, emit, format_table, gripper_from_args, progress
 
 __all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD", "RENDER_SECONDS_PER_TRIAL"]
 
@@ -38,7 +30,7 @@ MAX_TRIALS = 10_000  # more than this many trials need --all
 TRIALS_PER_SECOND_PER_THREAD = 80.0
 # --render: one rendered trial (offscreen 640 x 480, the key moments and a 25 frames/s GIF,
 # ~100 frames; rendering runs on one core) took 5 s of CPU, measured by timing
-# graspsim.sim.render.render_trial on a cylinder map's trials (15 s of wall time each at
+# graspsim.sim.trial_render.render_trial on a cylinder map's trials (15 s of wall time each at
 # load 10 on 2 cores): the estimate says "at least" and the bar shows the measured pace.
 RENDER_SECONDS_PER_TRIAL = 5.0
 
@@ -46,75 +38,73 @@ RENDER_SECONDS_PER_TRIAL = 5.0
 def register(subparsers) -> None:
     from graspsim.cli._common import seed_value
 
-    p = subparsers.add_parser(
-        "trial", help="simulate a map's grasps (lift-and-place or tug) and store the outcomes",
-        description="Simulate grasps of a graspability map in MuJoCo; results go back into "
-                    "the file under grasps/qualities/mujoco (lift_place) or mujoco_tug (tug), beside the "
-                    "results of earlier runs of other grasps with the same settings; a run that would "
-                    "overwrite stored results (the same grasps again, or other settings) needs --replace. "
-                    "The success rate counts feasible poses: a pose whose gripper starts in collision "
-                    "(with the object, or blocked by the table) is excluded and counted apart.")
-    p.add_argument("map", metavar="FILE", help="graspability map file, or an ACRONYM .h5 / GraspGen "
-                   ".json / GraspNet .npy grasp file (results go to <stem>.graspsim.h5 beside it)")
-    p.add_argument("--protocol", choices=("lift_place", "tug"), default="lift_place",
-                   help="lift_place: the paper's lift-and-place test (default); tug: "
-                        "table-free pulls of 1 g x mass in six gripper directions")
-    sel = p.add_mutually_exclusive_group()
-    sel.add_argument("--top", type=int, metavar="N",
-                     help="the N best grasps by --rank (the ones a robot would execute)")
-    sel.add_argument("--sample", type=int, metavar="N",
-                     help="N grasps spread uniformly over the object's surface")
-    p.add_argument("--rank", choices=("robust", "paper"), default="robust",
-                   help="order of --top: robust (default): the map's robust scores (expected success "
-                        "under wrist pose error, clearance to the observed cloud; maps planned from a "
-                        "cloud have them), then the grade; paper: the paper's grade")
-    p.add_argument("--separation", type=float, nargs=2, metavar=("MM", "DEG"),
-                   help="with --top: the N best at least MM mm apart (grasp points) or DEG deg "
-                        "(wrist orientation, jaws swapped counted the same): non-maximum suppression")
-    p.add_argument("--min-grade", type=float, metavar="G", help="only grasps with grade > G")
-    p.add_argument("--threads", type=int, metavar="T", help="native threads (default: all cores)")
-    p.add_argument("--seed", type=seed_value, default=0, help="seed of sampling and noise (default 0)")
-    p.add_argument("--noise", action="store_true",
-                   help="execution noise: wrist pose error sigma 3 mm / 2 deg per trial")
-    p.add_argument("--mesh", metavar="FILE",
-                   help="simulate against this mesh (the real object) instead of the map's "
-                        "primitives, placed by the map's cloud->object transform")
-    p.add_argument("--mesh-scale", type=float, default=None, metavar="S",
-                   help="multiplies the mesh file's coordinates to give metres (0.001 for millimetres, "
-                        "0.01 for centimetres; default 1, or a grasp file's own object/scale for its own "
-                        "mesh). A mesh wider than 2 m or smaller than 5 mm is refused: its units are "
-                        "probably not metres")
-    p.add_argument("--camera-pose", metavar="FILE.npy",
-                   help="GraspNet files: the object's 4x4 pose in the camera frame (.npy or text)")
-    p.add_argument("--object-id", type=int, help="GraspNet files: simulate this object's grasps only")
-    p.add_argument("--mass", type=float, help="object mass [kg] (default: the map's, or density)")
-    p.add_argument("--friction", type=float,
-                   help="pad-object friction (default: the map's quality model mu)")
-    p.add_argument("--grip-force", type=float, metavar="N", help="grip force per jaw [N]")
-    p.add_argument("--render", metavar="DIR", help="write PNGs (and a GIF) of the first trials that start clear")
-    p.add_argument("--render-count", type=int, default=3, metavar="K",
-                   help="how many trials --render pictures (default 3)")
-    p.add_argument("--record", metavar="FILE",
-                   help="also save the trials' trajectories (25 frames/s, the first 2000 trials "
-                        "that start clear) to FILE (.npz), for 'graspsim view MAP --replay FILE'")
-    p.add_argument("--no-write", action="store_true", help="do not store results in the map")
-    p.add_argument("--replace", action="store_true",
-                   help="replace results the map already holds that these would overwrite (an earlier run "
-                        "of the same grasps, or one with other settings: protocol, object, friction, noise); "
-                        "without it such a run is refused before simulating. Results of other grasps made "
-                        "with the same settings are always kept beside the new ones")
-    p.add_argument("--all", action="store_true",
-                   help=f"run the selection however large (without it, more than {MAX_TRIALS:,} "
-                        "trials are refused with an estimate of their duration)")
-    add_gripper_flag(p, help="the gripper the map was made for (default: the one it records; a "
-                     "name or spec .json that differs from it is an error: the map's poses are that gripper's)")
-    add_json_flag(p)
-    with_glossary(p, "feasible", "robust score", "grade")
-    p.set_defaults(func=run)
+    with command(subparsers, "trial", run=run,
+                 help="simulate a map's grasps (lift-and-place or tug) and store the outcomes",
+                 glossary=("feasible", "robust score", "grade")) as p:
+        p.add_argument("map", metavar="FILE", help="graspability map file, or an ACRONYM .h5 / GraspGen "
+                       ".json / GraspNet .npy grasp file (results go to <stem>.graspsim.h5 beside it)")
+        p.add_argument("--protocol", choices=("lift_place", "tug"), default="lift_place",
+                       help="lift_place: the paper's lift-and-place test (default); tug: "
+                            "table-free pulls of 1 g x mass in six gripper directions")
+        sel = p.add_mutually_exclusive_group()
+        sel.add_argument("--top", type=int, metavar="N",
+                         help="the N best grasps by --rank (the ones a robot would execute)")
+        sel.add_argument("--sample", type=int, metavar="N",
+                         help="N grasps spread uniformly over the object's surface")
+        p.add_argument("--rank", choices=("robust", "paper"), default="robust",
+                       help="order of --top: robust (default): the map's robust scores (expected success "
+                            "under wrist pose error, clearance to the observed cloud; maps planned from a "
+                            "cloud have them), then the grade; paper: the paper's grade")
+        p.add_argument("--separation", type=float, nargs=2, metavar=("MM", "DEG"),
+                       help="with --top: the N best at least MM mm apart (grasp points) or DEG deg "
+                            "(wrist orientation, jaws swapped counted the same): non-maximum suppression")
+        p.add_argument("--min-grade", type=float, metavar="G", help="only grasps with grade > G")
+        p.add_argument("--threads", type=int, metavar="T", help="native threads (default: all cores)")
+        p.add_argument("--seed", type=seed_value, default=0, help="seed of sampling and noise (default 0)")
+        p.add_argument("--noise", action="store_true",
+                       help="execution noise: wrist pose error sigma 3 mm / 2 deg per trial")
+        p.add_argument("--mesh", metavar="FILE",
+                       help="simulate against this mesh (the real object) instead of the map's "
+                            "primitives, placed by the map's cloud->object transform")
+        p.add_argument("--mesh-scale", type=float, default=None, metavar="S",
+                       help="multiplies the mesh file's coordinates to give metres (0.001 for millimetres, "
+                            "0.01 for centimetres; default 1, or a grasp file's own object/scale for its own "
+                            "mesh). A mesh wider than 2 m or smaller than 5 mm is refused: its units are "
+                            "probably not metres")
+        p.add_argument("--camera-pose", metavar="FILE.npy",
+                       help="GraspNet files: the object's 4x4 pose in the camera frame (.npy or text)")
+        p.add_argument("--object-id", type=int, help="GraspNet files: simulate this object's grasps only")
+        p.add_argument("--mass", type=float, help="object mass [kg] (default: the map's, or density)")
+        p.add_argument("--friction", type=float,
+                       help="pad-object friction (default: the map's quality model mu)")
+        p.add_argument("--grip-force", type=float, metavar="N", help="grip force per jaw [N]")
+        p.add_argument("--render", metavar="DIR", help="write PNGs (and a GIF) of the first trials that start clear")
+        p.add_argument("--render-count", type=int, default=3, metavar="K",
+                       help="how many trials --render pictures (default 3)")
+        p.add_argument("--record", metavar="FILE",
+                       help="also save the trials' trajectories (25 frames/s, the first 2000 trials "
+                            "that start clear) to FILE (.npz), for 'graspsim view MAP --replay FILE'")
+        p.add_argument("--no-write", action="store_true", help="do not store results in the map")
+        p.add_argument("--replace", action="store_true",
+                       help="replace results the map already holds that these would overwrite (an earlier run "
+                            "of the same grasps, or one with other settings: protocol, object, friction, noise); "
+                            "without it such a run is refused before simulating. Results of other grasps made "
+                            "with the same settings are always kept beside the new ones")
+        p.add_argument("--all", action="store_true",
+                       help=f"run the selection however large (without it, more than {MAX_TRIALS:,} "
+                            "trials are refused with an estimate of their duration)")
+        add_gripper_flag(p, help="the gripper the map was made for (default: the one it records; a "
+                         "name or spec .json that differs from it is an error: the map's poses are that gripper's)")
 
 
 def run(args) -> int:
     # mujoco loads only when the command runs (keeps `graspsim --help` fast)
+    """Simulate grasps of a graspability map in MuJoCo; results go back into the file
+    under grasps/qualities/mujoco (lift_place) or mujoco_tug (tug), beside the results
+    of earlier runs of other grasps with the same settings; a run that would overwrite
+    stored results (the same grasps again, or other settings) needs --replace. The
+    success rate counts feasible poses: a pose whose gripper starts in collision (with
+    the object, or blocked by the table) is excluded and counted apart."""
     from graspsim.errors import InvalidParameterError
     from graspsim.maps import load_map
     from graspsim.sim import ExecutionNoise, SimSettings, make_protocol, simulate_map
@@ -269,7 +259,7 @@ def _render(args, out, protocol) -> list[str]:
     """Pictures and GIFs of the first ``--render-count`` trials that started (not in
     collision) into ``--render``; their paths."""
     from graspsim.sim import TrialOutcome
-    from graspsim.sim.render import render_trial
+    from graspsim.sim.trial_render import render_trial
 
     res = out.results
     clear = [j for j in range(len(out.index)) if res.outcome[j] != TrialOutcome.START_COLLISION]

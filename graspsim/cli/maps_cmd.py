@@ -10,6 +10,7 @@ from graspsim.cli._common import (
     add_executor_flags,
     add_gripper_flag,
     add_json_flag,
+    command,
     dims_text,
     emit,
     executor_from_args,
@@ -60,7 +61,7 @@ def _add_generation(p) -> None:
 def _config(args):
     from graspsim.errors import InvalidParameterError
     from graspsim.grades.paper import QualityModel
-    from graspsim.maps.config import MapConfig
+    from graspsim.maps.map_config import MapConfig
 
     if args.threads is not None and args.threads < 1:
         raise InvalidParameterError(f"--threads must be >= 1, got {args.threads}")
@@ -71,6 +72,8 @@ def _config(args):
 
 
 def _cmd_map(args) -> int:
+    """Surface-to-voxel FS map of a shape primitive for a two-jaw gripper (default the
+    Festo HGPL-25-60-A style; --gripper); writes an HDF5 map file."""
     from graspsim._atomic import atomic_paths, check_output
     from graspsim.errors import MapFileError
     from graspsim.maps.generate import generate_fs_map
@@ -113,6 +116,9 @@ def _cmd_map(args) -> int:
 
 
 def _cmd_show(args) -> int:
+    """Draw a map's grasp points (or wrist positions) as a 3-D scatter coloured by grade
+    over a translucent mesh of the object, and save the image (PNG, PDF, SVG ... by the
+    file's extension)."""
     from graspsim._atomic import check_output
     from graspsim.errors import InvalidParameterError
     from graspsim.maps.io import load_map
@@ -182,18 +188,21 @@ def _settings_rows(meta) -> list[tuple[str, str]]:
 
 
 def _cmd_info(args) -> int:
+    """Check a map file and print what it holds: the object, grasp counts, grades, SR /
+    VR, the settings it was made with (grade, resolution, gripper), an adapted map's
+    source and table, and which grasps were simulated."""
     from graspsim.maps.formats import is_foreign
     from graspsim.maps.io import load_map, read_sim_results
     from graspsim.maps.metrics import map_rates
 
     if is_foreign(args.file):
-        from graspsim.cli.export import info_dataset
+        from graspsim.cli.export_cmd import info_dataset
 
         return info_dataset(args, _describe_object)
     gmap = load_map(args.file)
     s = gmap.summary()
     if not s["graded"]:  # an imported third-party file's map: no grades, no contacts
-        from graspsim.cli.export import info_imported
+        from graspsim.cli.export_cmd import info_imported
 
         return info_imported(args, gmap, s, _describe_object)
     rates = map_rates(gmap)
@@ -293,41 +302,26 @@ def _count(n: int, noun: str) -> str:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("map", help="generate a full-scale graspability map of a primitive",
-                       description="Surface-to-voxel FS map of a shape primitive for a two-jaw "
-                       "gripper (default the Festo HGPL-25-60-A style; --gripper); writes an HDF5 map file.")
-    p.add_argument("primitive", help="box, cylinder, sphere, cone or half_toroid")
-    _add_dims(p)
-    p.add_argument("-o", "--output", required=True, help="map file to write (.h5)")
-    p.add_argument("--mass", type=float, default=None, help="object mass [kg] (default: 500 kg/m^3)")
-    p.add_argument("--plot", default=None, help="also save a PNG of the map")
-    _add_generation(p)
-    add_json_flag(p)
-    with_glossary(p, "FS map", "grade", "SR / VR")
-    p.set_defaults(func=_cmd_map)
+    with command(sub, "map", run=_cmd_map, help="generate a full-scale graspability map of a primitive",
+                 glossary=("FS map", "grade", "SR / VR")) as p:
+        p.add_argument("primitive", help="box, cylinder, sphere, cone or half_toroid")
+        _add_dims(p)
+        p.add_argument("-o", "--output", required=True, help="map file to write (.h5)")
+        p.add_argument("--mass", type=float, default=None, help="object mass [kg] (default: 500 kg/m^3)")
+        p.add_argument("--plot", default=None, help="also save a PNG of the map")
+        _add_generation(p)
 
-    p = sub.add_parser("show", help="plot a map file as a 3-D scatter coloured by grade",
-                       description="Draw a map's grasp points (or wrist positions) as a 3-D "
-                       "scatter coloured by grade over a translucent mesh of the object, and save "
-                       "the image (PNG, PDF, SVG ... by the file's extension).")
-    p.add_argument("file", help="map file (.h5)")
-    p.add_argument("-o", "--output", required=True, help="image to write (.png)")
-    p.add_argument("--what", choices=["grasp_point", "wrist"], default="grasp_point",
-                   help="plot grasp points (default) or wrist positions")
-    p.add_argument("--min-grade", type=float, default=0.0, help="plot grasps above this grade")
-    add_json_flag(p)
-    with_glossary(p, "grade")
-    p.set_defaults(func=_cmd_show)
+    with command(sub, "show", run=_cmd_show, help="plot a map file as a 3-D scatter coloured by grade",
+                 glossary=("grade",)) as p:
+        p.add_argument("file", help="map file (.h5)")
+        p.add_argument("-o", "--output", required=True, help="image to write (.png)")
+        p.add_argument("--what", choices=["grasp_point", "wrist"], default="grasp_point",
+                       help="plot grasp points (default) or wrist positions")
+        p.add_argument("--min-grade", type=float, default=0.0, help="plot grasps above this grade")
 
-    p = sub.add_parser("info", help="summarise a map file",
-                       description="Check a map file and print what it holds: the object, "
-                       "grasp counts, grades, SR / VR, the settings it was made with (grade, "
-                       "resolution, gripper), an adapted map's source and table, and which "
-                       "grasps were simulated.")
-    p.add_argument("file", help="map file (.h5)")
-    add_json_flag(p)
-    with_glossary(p, "grade", "SR / VR", "robust score")
-    p.set_defaults(func=_cmd_info)
+    with command(sub, "info", run=_cmd_info, help="summarise a map file",
+                 glossary=("grade", "SR / VR", "robust score")) as p:
+        p.add_argument("file", help="map file (.h5)")
 
     p = sub.add_parser("db", help="the full-scale map database (build, list, lookup, check)",
                        description="The FS map database that adapt takes its maps from "

@@ -10,9 +10,9 @@ from enum import Enum
 import numpy as np
 
 from graspsim.perception.classify import Shape
-from graspsim.perception.features import ShapeFeatures
 from graspsim.perception.mlesac import ModelFit
 from graspsim.perception.prepare import Downsampling
+from graspsim.perception.shape_features import ShapeFeatures
 
 __all__ = ["IdentificationStatus", "PartResult", "Identification"]
 

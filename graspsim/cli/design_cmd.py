@@ -10,17 +10,21 @@ import time
 from graspsim.cli._common import (
     VARIANT_HELP,
     add_gripper_flag,
-    add_json_flag,
+    command,
     emit,
     format_table,
     gripper_from_args,
     seed_value,
-    with_glossary,
 )
 
 __all__ = ["register"]
 
 def _cmd_adapt_gripper(args) -> int:
+    """Carry a map's accepted grasps to another gripper by Combined scaling: each
+    contact keeps its place on the object and along the pad (else the wrist keeps its
+    place), grasps wider than the new opening are dropped, the rest re-checked for
+    collision with the new gripper. The map records the new gripper and its source
+    gripper."""
     from graspsim._atomic import atomic_path
     from graspsim.errors import MapFileError
     from graspsim.maps.io import check_map_output, load_map, save_map
@@ -61,8 +65,8 @@ def _cmd_design(args) -> int:
     from graspsim.calibration.outputs import write_json
     from graspsim.errors import InvalidParameterError
     from graspsim.grippers.spec import HGPL_25_60_A
-    from graspsim.maps.config import MapConfig
     from graspsim.maps.database import PAPER_SHAPES, size_grid
+    from graspsim.maps.map_config import MapConfig
 
     out = check_output(args.output, "results") if args.output else None
     plot = check_output(args.plot, "plot", others={"results (-o)": out} if out else None) if args.plot else None
@@ -113,39 +117,30 @@ PARAMS = {
 
 
 def register(sub) -> None:
-    p = sub.add_parser("adapt-gripper", help="adapt a map to another gripper (paper section 5)",
-                       description="Carry a map's accepted grasps to another gripper by Combined "
-                       "scaling: each contact keeps its place on the object and along the pad (else "
-                       "the wrist keeps its place), grasps wider than the new opening are dropped, "
-                       "the rest re-checked for collision with the new gripper. The map records "
-                       "the new gripper and its source gripper.")
-    p.add_argument("file", help="map file (.h5) of a primitive or compound")
-    add_gripper_flag(p, VARIANT_HELP, flag="--to-gripper", required=True, variants=True)
-    p.add_argument("-o", "--output", required=True, help="adapted map to write (.h5)")
-    p.add_argument("--source-min-grade", type=float, default=None,
-                   help="carry grasps above this grade (default: the map's threshold, 0.7)")
-    add_json_flag(p)
-    with_glossary(p, "grade")
-    p.set_defaults(func=_cmd_adapt_gripper)
+    with command(sub, "adapt-gripper", run=_cmd_adapt_gripper, help="adapt a map to another gripper (paper section 5)",
+                 glossary=("grade",)) as p:
+        p.add_argument("file", help="map file (.h5) of a primitive or compound")
+        add_gripper_flag(p, VARIANT_HELP, flag="--to-gripper", required=True, variants=True)
+        p.add_argument("-o", "--output", required=True, help="adapted map to write (.h5)")
+        p.add_argument("--source-min-grade", type=float, default=None,
+                       help="carry grasps above this grade (default: the map's threshold, 0.7)")
 
-    p = sub.add_parser("design", help="sweep a gripper design parameter over the paper's primitives",
-                       description="FS maps of the paper's primitives (at --sizes) for each value of one "
-                       "design parameter of --gripper: SR and VR of grasps > 0.7 (VR over one voxel box "
-                       "for all values), the share of grasps > 0.7, and lift-and-place trials of "
-                       "accepted grasps. " + "; ".join(f"{k}: {v}" for k, v in PARAMS.items()) + ".")
-    p.add_argument("--param", required=True, choices=sorted(PARAMS), help="the parameter to vary")
-    p.add_argument("--values", required=True, type=float, nargs="+", metavar="M", help="its values [m]")
-    add_gripper_flag(p, "the base design (default: festo_hgpl_25_60_a): " + VARIANT_HELP, variants=True)
-    p.add_argument("--primitives", nargs="+", default=["box", "cylinder", "sphere", "cone", "half_toroid"],
-                   help="which of the paper's primitives (default: all five)")
-    p.add_argument("--sizes", type=float, nargs="+", default=[1.0], help="scale factors of their sizes (1)")
-    p.add_argument("--sim-grasps", type=int, default=12, help="accepted grasps simulated per map (12; 0: none)")
-    p.add_argument("--surface-step", type=float, default=0.0075, help="map surface step [m] (0.0075)")
-    p.add_argument("--rotation-step-deg", type=float, default=16.5, help="map rotation step [deg] (16.5)")
-    p.add_argument("--threads", type=int, default=None, help="map and simulation threads (default: all cores)")
-    p.add_argument("--seed", type=seed_value, default=0, help="seed of the simulated draws (0)")
-    p.add_argument("-o", "--output", default=None, help="write every number to this .json")
-    p.add_argument("--plot", default=None, help="write the design plot (VR, SR, share, success) here")
-    add_json_flag(p)
-    with_glossary(p, "FS map", "SR / VR", "grade", "feasible")
-    p.set_defaults(func=_cmd_design)
+    with command(sub, "design", help="sweep a gripper design parameter over the paper's primitives",
+                 description="FS maps of the paper's primitives (at --sizes) for each value of one "
+                 "design parameter of --gripper: SR and VR of grasps > 0.7 (VR over one voxel box "
+                 "for all values), the share of grasps > 0.7, and lift-and-place trials of "
+                 "accepted grasps. " + "; ".join(f"{k}: {v}" for k, v in PARAMS.items()) + ".",
+                 run=_cmd_design, glossary=("FS map", "SR / VR", "grade", "feasible")) as p:
+        p.add_argument("--param", required=True, choices=sorted(PARAMS), help="the parameter to vary")
+        p.add_argument("--values", required=True, type=float, nargs="+", metavar="M", help="its values [m]")
+        add_gripper_flag(p, "the base design (default: festo_hgpl_25_60_a): " + VARIANT_HELP, variants=True)
+        p.add_argument("--primitives", nargs="+", default=["box", "cylinder", "sphere", "cone", "half_toroid"],
+                       help="which of the paper's primitives (default: all five)")
+        p.add_argument("--sizes", type=float, nargs="+", default=[1.0], help="scale factors of their sizes (1)")
+        p.add_argument("--sim-grasps", type=int, default=12, help="accepted grasps simulated per map (12; 0: none)")
+        p.add_argument("--surface-step", type=float, default=0.0075, help="map surface step [m] (0.0075)")
+        p.add_argument("--rotation-step-deg", type=float, default=16.5, help="map rotation step [deg] (16.5)")
+        p.add_argument("--threads", type=int, default=None, help="map and simulation threads (default: all cores)")
+        p.add_argument("--seed", type=seed_value, default=0, help="seed of the simulated draws (0)")
+        p.add_argument("-o", "--output", default=None, help="write every number to this .json")
+        p.add_argument("--plot", default=None, help="write the design plot (VR, SR, share, success) here")

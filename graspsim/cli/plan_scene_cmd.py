@@ -18,21 +18,18 @@ the jaw opening to approach with, the robust score). Exit status 1, and no file 
 
 from __future__ import annotations
 
-from graspsim.cli._common import (
-    add_budget_flag,
-    add_json_flag,
-    budget_from_args,
-    emit,
-    format_table,
-    gripper_from_args,
-    with_glossary,
-)
-from graspsim.cli.maps import _add_generation, _config
+from graspsim.cli._common import add_budget_flag, budget_from_args, command, emit, format_table, gripper_from_args
+from graspsim.cli.maps_cmd import _add_generation, _config
 
 __all__ = ["register"]
 
 
 def _cmd_plan_scene(args) -> int:
+    """Fit the table of a scene cloud, segment the objects standing on it, identify each
+    and plan grasps checked against the whole scene (neighbours and table), and write
+    the table, the segments and the ranked grasps (poses in the cloud's frame) as JSON.
+    Exit status 1, and nothing written (an existing file is left as it was), when no
+    grasp scores above 0."""
     import sys
     from dataclasses import replace
 
@@ -195,7 +192,7 @@ def _show(plan, points, gripper, viewpoint, args, shot) -> dict:
     served until Ctrl-C. Returns what to add to the summary."""
     import time
 
-    from graspsim.cli.view import _quiet_server_logs, _serve, _stop_uninterrupted
+    from graspsim.cli.view_cmd import _quiet_server_logs, _serve, _stop_uninterrupted
     from graspsim.viewer import show_plan
 
     _quiet_server_logs()
@@ -293,53 +290,47 @@ def _finite(flag: str, values):
 def register(sub) -> None:
     from graspsim.cli._common import add_units_flag, seed_value
 
-    p = sub.add_parser(
-        "plan-scene", help="grasps for every object of a table-top scene cloud (a depth camera's view)",
-        description="Fit the table of a scene cloud, segment the objects standing on it, identify each and "
-        "plan grasps checked against the whole scene (neighbours and table), and write the table, the "
-        "segments and the ranked grasps (poses in the cloud's frame) as JSON. Exit status 1, and nothing "
-        "written (an existing file is left as it was), when no grasp scores above 0.")
-    p.add_argument("cloud", help="scene cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m; see --units]; "
-                   "NaN rows (no depth) are dropped; or, with --intrinsics or --camera, a depth image: a "
-                   "one-channel 16-bit .png/.tif or an (H, W) .npy")
-    add_units_flag(p, widest="too wide for a table-top scene")
-    p.add_argument("-o", "--output", required=True, help="grasps file to write (.json)")
-    p.add_argument("--intrinsics", type=float, nargs=4, default=None, metavar=("FX", "FY", "CX", "CY"),
-                   help="the input is a depth image from a camera with these pinhole intrinsics [px] (OpenCV "
-                   "convention); the points are planned in the camera's frame")
-    p.add_argument("--camera", default=None, metavar="NAME",
-                   help="the input is a depth image from this camera preset (d435: 640 x 480, 87 deg)")
-    p.add_argument("--depth-scale", type=float, default=None, metavar="S",
-                   help="metres per depth image unit (default 0.001 for integer images: millimetres; 1 for "
-                   "float arrays)")
-    p.add_argument("--viewpoint", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
-                   help="where the camera was, in the cloud's frame [m] (0 0 0 for a cloud in the camera's "
-                   "frame): the robust score then counts finger volume in the space behind what the camera saw, "
-                   "and the table's up is towards it (default: the camera record beside the cloud, written by "
-                   "graspsim's save_cloud, else unknown)")
-    p.add_argument("--up", type=float, nargs=3, default=None, metavar=("NX", "NY", "NZ"),
-                   help="the table's upward direction in the cloud's frame (default: towards the viewpoint, "
-                   "else the side of the table with more points)")
-    p.add_argument("--crop", type=float, nargs=6, default=None,
-                   metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
-                   help="keep only the points in this box of the cloud's frame [m] (e.g. the table and "
-                   "what stands on it, without the floor or the walls)")
-    p.add_argument("--min-gap", type=float, default=0.0, metavar="M",
-                   help="least gap [m] between any two objects, if known (segments closer than 0.8 x it are "
-                   "joined into one object; 0: unknown, default)")
-    p.add_argument("--labels", default=None, metavar="LABELS.npy",
-                   help="also write each file point's segment (-1: table, cropped, no depth or noise) as .npy")
-    add_budget_flag(p)
-    p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
-    p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
-                   "~/.cache/graspsim/db; maps of new sizes are built on first use)")
-    p.add_argument("--view", action="store_true",
-                   help="then show the planned scene in the browser (the viewer extra: the points coloured by "
-                   "segment, the table, each object's best grasps, the chosen one) until Ctrl-C")
-    p.add_argument("--port", type=int, default=8080, help="with --view: first port tried (8080)")
-    p.add_argument("--screenshot", default=None, metavar="PNG",
-                   help="save what headless Chromium draws of the planned scene to PNG (instead of serving)")
-    _add_generation(p)
-    add_json_flag(p)
-    with_glossary(p, "robust score", "grade", "known / familiar / build")
-    p.set_defaults(func=_cmd_plan_scene)
+    with command(sub, "plan-scene", run=_cmd_plan_scene,
+                 help="grasps for every object of a table-top scene cloud (a depth camera's view)",
+                 glossary=("robust score", "grade", "known / familiar / build")) as p:
+        p.add_argument("cloud", help="scene cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m; see --units]; "
+                       "NaN rows (no depth) are dropped; or, with --intrinsics or --camera, a depth image: a "
+                       "one-channel 16-bit .png/.tif or an (H, W) .npy")
+        add_units_flag(p, widest="too wide for a table-top scene")
+        p.add_argument("-o", "--output", required=True, help="grasps file to write (.json)")
+        p.add_argument("--intrinsics", type=float, nargs=4, default=None, metavar=("FX", "FY", "CX", "CY"),
+                       help="the input is a depth image from a camera with these pinhole intrinsics [px] (OpenCV "
+                       "convention); the points are planned in the camera's frame")
+        p.add_argument("--camera", default=None, metavar="NAME",
+                       help="the input is a depth image from this camera preset (d435: 640 x 480, 87 deg)")
+        p.add_argument("--depth-scale", type=float, default=None, metavar="S",
+                       help="metres per depth image unit (default 0.001 for integer images: millimetres; 1 for "
+                       "float arrays)")
+        p.add_argument("--viewpoint", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
+                       help="where the camera was, in the cloud's frame [m] (0 0 0 for a cloud in the camera's "
+                       "frame): the robust score then counts finger volume in the space behind what the camera saw, "
+                       "and the table's up is towards it (default: the camera record beside the cloud, written by "
+                       "graspsim's save_cloud, else unknown)")
+        p.add_argument("--up", type=float, nargs=3, default=None, metavar=("NX", "NY", "NZ"),
+                       help="the table's upward direction in the cloud's frame (default: towards the viewpoint, "
+                       "else the side of the table with more points)")
+        p.add_argument("--crop", type=float, nargs=6, default=None,
+                       metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+                       help="keep only the points in this box of the cloud's frame [m] (e.g. the table and "
+                       "what stands on it, without the floor or the walls)")
+        p.add_argument("--min-gap", type=float, default=0.0, metavar="M",
+                       help="least gap [m] between any two objects, if known (segments closer than 0.8 x it are "
+                       "joined into one object; 0: unknown, default)")
+        p.add_argument("--labels", default=None, metavar="LABELS.npy",
+                       help="also write each file point's segment (-1: table, cropped, no depth or noise) as .npy")
+        add_budget_flag(p)
+        p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
+        p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
+                       "~/.cache/graspsim/db; maps of new sizes are built on first use)")
+        p.add_argument("--view", action="store_true",
+                       help="then show the planned scene in the browser (the viewer extra: the points coloured by "
+                       "segment, the table, each object's best grasps, the chosen one) until Ctrl-C")
+        p.add_argument("--port", type=int, default=8080, help="with --view: first port tried (8080)")
+        p.add_argument("--screenshot", default=None, metavar="PNG",
+                       help="save what headless Chromium draws of the planned scene to PNG (instead of serving)")
+        _add_generation(p)

@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import sys
 
-from graspsim.cli._common import add_gripper_flag, add_json_flag, emit, format_table, with_glossary
+from graspsim.cli._common import add_gripper_flag, command, emit, format_table
 
 __all__ = ["register"]
 
 
 def _cmd_demo(args) -> int:
+    """The paper's case study in one run: a glue-bottle analog seen as a noisy cloud is
+    identified, its adapted map is built from the FS database (built on first use in
+    ~/.cache/graspsim/db or $GRASPSIM_DB), and grasps drawn uniformly over the map are
+    lift-and-placed in MuJoCo against the true geometry. Writes the map, its plot, trial
+    renders and summary.json to --out."""
     from graspsim.apps.demo import DemoConfig, run_demo
 
     cfg = DemoConfig(out=args.out, cloud=args.cloud, db=args.db, quick=args.quick,
@@ -44,24 +49,16 @@ def _cmd_demo(args) -> int:
 def register(sub) -> None:
     from graspsim.cli._common import seed_value
 
-    p = sub.add_parser(
-        "demo", help="end to end: cloud -> identification -> adapted map -> MuJoCo trials",
-        description="The paper's case study in one run: a glue-bottle analog seen as a noisy "
-        "cloud is identified, its adapted map is built from the FS database (built on first "
-        "use in ~/.cache/graspsim/db or $GRASPSIM_DB), and grasps drawn uniformly over the map "
-        "are lift-and-placed in MuJoCo against the true geometry. Writes the map, its plot, "
-        "trial renders and summary.json to --out.")
-    p.add_argument("--out", default="graspsim-demo", help="output folder (graspsim-demo)")
-    p.add_argument("--cloud", default=None, help="use this cloud file instead of the synthetic analog")
-    p.add_argument("--db", default=None, help="FS database folder")
-    p.add_argument("--trials", type=int, default=15, help="grasps to simulate (15, as the paper)")
-    p.add_argument("--renders", type=int, default=3, help="trials to render as PNG (3; 0: none)")
-    p.add_argument("--noise", action="store_true", help="execution noise (3 mm / 2 deg) in the trials")
-    p.add_argument("--seed", type=seed_value, default=0)
-    p.add_argument("--threads", type=int, default=None, help="CPU threads (default: all)")
-    p.add_argument("--quick", action="store_true",
-                   help="coarse database in OUT/db and fewer trials: a fast smoke run (CI)")
-    add_gripper_flag(p)
-    add_json_flag(p)
-    with_glossary(p, "FS map", "known / familiar / build", "grade", "robust score", "feasible")
-    p.set_defaults(func=_cmd_demo)
+    with command(sub, "demo", run=_cmd_demo, help="end to end: cloud -> identification -> adapted map -> MuJoCo trials",
+                 glossary=("FS map", "known / familiar / build", "grade", "robust score", "feasible")) as p:
+        p.add_argument("--out", default="graspsim-demo", help="output folder (graspsim-demo)")
+        p.add_argument("--cloud", default=None, help="use this cloud file instead of the synthetic analog")
+        p.add_argument("--db", default=None, help="FS database folder")
+        p.add_argument("--trials", type=int, default=15, help="grasps to simulate (15, as the paper)")
+        p.add_argument("--renders", type=int, default=3, help="trials to render as PNG (3; 0: none)")
+        p.add_argument("--noise", action="store_true", help="execution noise (3 mm / 2 deg) in the trials")
+        p.add_argument("--seed", type=seed_value, default=0)
+        p.add_argument("--threads", type=int, default=None, help="CPU threads (default: all)")
+        p.add_argument("--quick", action="store_true",
+                       help="coarse database in OUT/db and fewer trials: a fast smoke run (CI)")
+        add_gripper_flag(p)

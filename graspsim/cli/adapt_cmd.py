@@ -5,24 +5,28 @@ from __future__ import annotations
 from pathlib import Path
 
 from graspsim.cli._common import (
-    add_json_flag,
     add_mode_flag,
     add_units_flag,
     add_viewpoint_flag,
+    command,
     dims_text,
     emit,
     format_table,
     gripper_from_args,
     stored_text,
     viewpoint_from_args,
-    with_glossary,
 )
-from graspsim.cli.maps import _add_generation, _config
+from graspsim.cli.maps_cmd import _add_generation, _config
 
 __all__ = ["register"]
 
 
 def _cmd_adapt(args) -> int:
+    """Identify the cloud's shape primitives, take their FS maps from the database
+    (built on first use), scale familiar ones, combine several parts, and write the
+    adapted map (object frame; object/T_cloud_obj maps it to the cloud's frame). Exit
+    status 1, and no map written (an existing file is left as it was), when nothing is
+    identified or no grasp is found."""
     import sys
 
     from graspsim.maps.database import MapDatabase
@@ -88,38 +92,30 @@ def _height(text: str) -> float:
 def register(sub) -> None:
     from graspsim.cli._common import seed_value
 
-    p = sub.add_parser(
-        "adapt", help="adapted graspability map of an object's point cloud",
-        description="Identify the cloud's shape primitives, take their FS maps from the "
-        "database (built on first use), scale familiar ones, combine several parts, and "
-        "write the adapted map (object frame; object/T_cloud_obj maps it to the cloud's "
-        "frame). Exit status 1, and no map written (an existing file is left as it was), "
-        "when nothing is identified or no grasp is found.")
-    p.add_argument("cloud", help="point cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m; see --units]")
-    add_units_flag(p)
-    p.add_argument("-o", "--output", required=True, help="map file to write (.h5)")
-    p.add_argument("--scaling", choices=["combined", "quality", "feasibility"], default="combined",
-                   help="map scaling for familiar objects (combined)")
-    p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
-                   "~/.cache/graspsim/db)")
-    p.add_argument("--repetitions", type=int, default=10, help="MLESAC repetitions (10)")
-    p.add_argument("--theta", type=float, default=0.5, help="split threshold theta_th (0.5)")
-    p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
-    add_mode_flag(p)
-    p.add_argument("--no-partial", action="store_true",
-                   help="no map at all when clustering fails (default: map of the identified parts)")
-    p.add_argument("--table", default=None, metavar="auto|HEIGHT",
-                   help="drop grasps that would take the gripper below the table the object "
-                   "stands on: 'auto' puts the table at the cloud's lowest point along "
-                   "--table-normal (a single view's lowest visible point lies a few mm above the "
-                   "real table: safe), a number is its height along the "
-                   "normal [m] in the cloud's frame (default: no table, as the paper's maps)")
-    p.add_argument("--table-normal", type=float, nargs=3, default=(0.0, 0.0, 1.0),
-                   metavar=("NX", "NY", "NZ"), help="the table's upward normal in the cloud's frame (0 0 1)")
-    p.add_argument("--table-clearance", type=float, default=0.002,
-                   help="gripper clearance above the table [m] (0.002)")
-    add_viewpoint_flag(p)
-    _add_generation(p)
-    add_json_flag(p)
-    with_glossary(p, "known / familiar / build", "FS map", "grade", "robust score")
-    p.set_defaults(func=_cmd_adapt)
+    with command(sub, "adapt", run=_cmd_adapt, help="adapted graspability map of an object's point cloud",
+                 glossary=("known / familiar / build", "FS map", "grade", "robust score")) as p:
+        p.add_argument("cloud", help="point cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m; see --units]")
+        add_units_flag(p)
+        p.add_argument("-o", "--output", required=True, help="map file to write (.h5)")
+        p.add_argument("--scaling", choices=["combined", "quality", "feasibility"], default="combined",
+                       help="map scaling for familiar objects (combined)")
+        p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
+                       "~/.cache/graspsim/db)")
+        p.add_argument("--repetitions", type=int, default=10, help="MLESAC repetitions (10)")
+        p.add_argument("--theta", type=float, default=0.5, help="split threshold theta_th (0.5)")
+        p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
+        add_mode_flag(p)
+        p.add_argument("--no-partial", action="store_true",
+                       help="no map at all when clustering fails (default: map of the identified parts)")
+        p.add_argument("--table", default=None, metavar="auto|HEIGHT",
+                       help="drop grasps that would take the gripper below the table the object "
+                       "stands on: 'auto' puts the table at the cloud's lowest point along "
+                       "--table-normal (a single view's lowest visible point lies a few mm above the "
+                       "real table: safe), a number is its height along the "
+                       "normal [m] in the cloud's frame (default: no table, as the paper's maps)")
+        p.add_argument("--table-normal", type=float, nargs=3, default=(0.0, 0.0, 1.0),
+                       metavar=("NX", "NY", "NZ"), help="the table's upward normal in the cloud's frame (0 0 1)")
+        p.add_argument("--table-clearance", type=float, default=0.002,
+                       help="gripper clearance above the table [m] (0.002)")
+        add_viewpoint_flag(p)
+        _add_generation(p)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
+from graspsim.checks import POSITIVE, check_fields
 from graspsim.errors import InvalidParameterError
 
 __all__ = ["MapConfig", "closing_direction_count", "ring_sizes", "roll_count"]
@@ -46,11 +47,8 @@ class MapConfig:
     density: float = 500.0
 
     def __post_init__(self) -> None:
-        for name in ("surface_step", "rotation_step", "depth_step", "min_width",
-                     "collision_step", "collision_tolerance", "density"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"MapConfig.{name} must be > 0, got {v!r}")
+        check_fields(self, POSITIVE, "surface_step", "rotation_step", "depth_step", "min_width",
+                     "collision_step", "collision_tolerance", "density", owner="MapConfig")
         if not 0 <= self.closing_cone < math.pi / 2:
             raise InvalidParameterError(
                 f"closing_cone must be in [0, pi/2) rad, got {self.closing_cone!r}")

@@ -24,7 +24,7 @@ import numpy as np
 from graspsim.errors import DependencyNotInstalled, InvalidParameterError
 from graspsim.sim.batch import initial_states, pregrasp_opening
 from graspsim.sim.protocols import LiftPlace, Protocol
-from graspsim.sim.scene import Scene
+from graspsim.sim.trial_scene import Scene
 
 __all__ = ["render_trial", "gl_backend", "offscreen_renderer", "KEY_MOMENTS"]
 

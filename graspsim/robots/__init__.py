@@ -27,8 +27,9 @@ default_gl()  # before any submodule imports mujoco
 from graspsim.robots.arm import ARMS, PANDA, ROBOTS, ArmServos, ArmSpec, base_transform, build_robot_model, get_arm  # noqa: E402,E501
 from graspsim.robots.capability import CapabilityConfig, CapabilityMap, capability_map  # noqa: E402
 from graspsim.robots.execute import ArmLiftPlace, ArmScene, build_arm_scene, plan_grasp, run_arm_trials  # noqa: E402
+from graspsim.robots.maptrials import simulate_map_arm  # noqa: E402
 from graspsim.robots.reach import ArmKinematics, Reach, check_reach  # noqa: E402
 
 __all__ = ["ARMS", "PANDA", "ROBOTS", "ArmServos", "ArmSpec", "base_transform", "build_robot_model", "get_arm",
            "CapabilityConfig", "CapabilityMap", "capability_map", "ArmLiftPlace", "ArmScene", "build_arm_scene",
-           "plan_grasp", "run_arm_trials", "ArmKinematics", "Reach", "check_reach"]
+           "plan_grasp", "run_arm_trials", "ArmKinematics", "Reach", "check_reach", "simulate_map_arm"]

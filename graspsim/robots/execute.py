@@ -47,7 +47,7 @@ from graspsim.sim.objects import SimObject
 from graspsim.sim.outcomes import Record, TrialOutcome
 from graspsim.sim.protocols import LiftPlace, min_jerk
 from graspsim.sim.results import TrialResults
-from graspsim.sim.scene import OBJECT, TABLE, SimSettings, add_pad_sensors, gripper_drive, resting_pose
+from graspsim.sim.scene import OBJECT, SimSettings, add_pad_sensors, gripper_drive, resting_pose
 from graspsim.transforms import quat_to_matrix
 
 __all__ = ["ArmScene", "build_arm_scene", "ArmLiftPlace", "ArmPlan", "plan_grasp", "run_arm_trials"]
@@ -430,10 +430,22 @@ def run_arm_trials(scene: ArmScene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     if noise is not None:
         T_world = T_world @ noise.sample(n, np.random.default_rng(seed), pivot=scene.gripper.nominal_tcp)
     openings = scene.gripper.pregrasp_opening(widths)
+    # the start check of the floating harness, on the same poses: what it excludes as
+    # infeasible (the gripper in the object or the table) is excluded here alike
+    from graspsim.sim.batch import initial_states, start_overlaps
+    from graspsim.sim.scene import build_scene
+
+    floating = build_scene(scene.obj, scene.gripper, scene.settings, T_world_obj=scene.T_world_obj)
+    on_object, on_table = start_overlaps(floating, initial_states(floating, T_world, openings), T_world)
+    tol = scene.settings.start_penetration
+    blocked = np.maximum(on_object, on_table) > tol
     kin = scene.kinematics()
     seeds = capability.lookup(T_world)[1] if capability is not None else np.full((n, 7), np.nan)
     plans = []
     for i in range(n):
+        if blocked[i]:
+            plans.append(ArmPlan(ReachCheck(Reach.START, "grasp"), TrialOutcome.START_COLLISION, "grasp"))
+            continue
         s = () if np.isnan(seeds[i]).any() else (seeds[i],)
         plans.append(plan_grasp(scene, kin, T_world[i], float(openings[i]), protocol, seeds=s))
     outcome = np.array([TrialOutcome.SUCCESS if p.outcome is None else p.outcome for p in plans], np.int8)
@@ -465,11 +477,14 @@ def run_arm_trials(scene: ArmScene, T_obj_wrist: np.ndarray, widths: np.ndarray,
             if on_progress is not None:
                 on_progress(done)
     wall = time.perf_counter() - t_start
-    start = np.array(["object" if p.check.reach == Reach.START and p.check.contacts
-                      and p.check.contacts["gripper_scene"] > 0 else
-                      "table" if p.outcome == TrialOutcome.START_COLLISION else "" for p in plans], dtype="<U6")
-    depth = np.array([max(p.check.contacts["gripper_scene"], p.check.contacts["gripper_table"])
-                      if p.outcome == TrialOutcome.START_COLLISION and p.check.contacts else 0.0 for p in plans])
+    arm_start = np.array([p.outcome == TrialOutcome.START_COLLISION and not blocked[i] for i, p in enumerate(plans)])
+    depth = np.maximum(on_object, on_table)
+    start = np.where(blocked, np.where(on_object > tol, "object", "table"), "")
+    for i in np.flatnonzero(arm_start):  # the arm's own check found the gripper in collision at the grasp
+        c = plans[i].check.contacts
+        depth[i] = max(c["gripper_scene"], c["gripper_table"])
+        start[i] = "object" if c["gripper_scene"] > 0 else "table"
+    start = start.astype("<U6")
     held = np.isin(outcome, [TrialOutcome.SUCCESS, TrialOutcome.PLACE_FAILED]).astype(np.int8)
     log.info("%d arm trials (%d executed) in %.2f s", n, len(todo), wall)
     return TrialResults(

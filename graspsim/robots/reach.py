@@ -145,7 +145,8 @@ class ArmKinematics:
         constraints = [self._frozen] if self._frozen is not None else None
         pe = re = np.inf
         it = 0
-        for it in range(1, self.iterations + 1):
+        while it < self.iterations:
+            it += 1
             v = mink.solve_ik(cfg, tasks, 1.0, self.solver, damping=self.damping, limits=self._limits,
                               constraints=constraints)
             cfg.integrate_inplace(v, 1.0)
@@ -156,6 +157,15 @@ class ArmKinematics:
         q = cfg.q[self.qadr].copy()
         ok = pe <= POS_TOL and re <= ROT_TOL and self.within_limits(q)
         return IKResult(q=q, ok=bool(ok), pos_err=pe, rot_err=re, iterations=it)
+
+    def spread_seeds(self, n: int = 6) -> np.ndarray:
+        """(n, 7) fixed configurations spread over the joint ranges (a seeded draw, the
+        same every call): more starts for an IK that the first seeds leave in a local
+        minimum."""
+        if getattr(self, "_spread", None) is None or len(self._spread) != n:
+            rng = np.random.default_rng(20_260_839)
+            self._spread = self.lower + (self.upper - self.lower) * rng.uniform(0.15, 0.85, (n, len(self.lower)))
+        return self._spread
 
     # -- collisions ---------------------------------------------------------------
     def contacts(self, q: np.ndarray, jaws: np.ndarray | None = None, *, tol: float = 0.0,
@@ -231,24 +241,28 @@ def check_reach(kin: ArmKinematics, T_world_wrist: np.ndarray, *, approach: floa
     collisions (penetration > ``tol`` [m]; jaws posed by ``jaws``: (addresses, values))?
 
     Order (first failure wins, each IK seeded by the previous solution): the grasp pose
-    (IK from each of ``seeds`` and the home until one converges; the gripper in the
-    object there is :attr:`Reach.START`, as the floating harness's start collision), the
+    (IK from each of ``seeds``, the home and the arm's spread seeds until one converges
+    to a collision-free configuration; the gripper in the object or the table there is
+    :attr:`Reach.START`, as the floating harness's start collision), the
     pre-grasp pose, then waypoints every ``step`` [m] of the approach line from the
     pre-grasp in (the gripper touching the scene on the way is :attr:`Reach.SCENE`)."""
     if not (approach >= 0 and step > 0):
         raise InvalidParameterError(f"approach must be >= 0 m and step > 0 m, got {approach!r}, {step!r}")
     T = np.asarray(T_world_wrist, float)
-    res = None
-    for seed in [*seeds, None]:
+    first = None
+    for seed in [*seeds, None, *kin.spread_seeds()]:
         res = kin.ik(T, seed)
-        if res.ok:
+        if not res.ok:
+            continue
+        c = kin.contacts(res.q, jaws, tol=tol)
+        v = _verdict(c, at_grasp=True)
+        if v is None:
             break
-    if not res.ok:
-        return ReachCheck(Reach.NO_IK, "grasp", pos_err=res.pos_err, rot_err=res.rot_err)
-    c = kin.contacts(res.q, jaws, tol=tol)
-    v = _verdict(c, at_grasp=True)
-    if v is not None:
-        return ReachCheck(v, "grasp", pos_err=res.pos_err, rot_err=res.rot_err, contacts=c)
+        if v == Reach.START:  # the gripper's own collision: no other arm pose changes it
+            return ReachCheck(v, "grasp", pos_err=res.pos_err, rot_err=res.rot_err, contacts=c)
+        first = first or ReachCheck(v, "grasp", pos_err=res.pos_err, rot_err=res.rot_err, contacts=c)
+    else:
+        return first or ReachCheck(Reach.NO_IK, "grasp", pos_err=res.pos_err, rot_err=res.rot_err)
     q_grasp = res.q
     k = max(1, int(math.ceil(approach / step)))
     back = T[:3, 2]

@@ -85,8 +85,12 @@ class ArmScene:
         return mujoco.mj_stateSize(self.model, _FULL)
 
     def kinematics(self) -> ArmKinematics:
-        """IK and collision queries in this scene (the object where it rests)."""
-        return ArmKinematics(self.model, self.arm)
+        """IK and collision queries in this scene (the object where it rests); IK on the
+        arm and gripper alone at the same base."""
+        from graspsim.robots.arm import build_robot_model
+
+        return ArmKinematics(self.model, self.arm,
+                             ik_model=build_robot_model(self.arm, self.gripper, self.T_world_base, table=False))
 
     def info(self) -> dict:
         return {"object": self.obj.description, "mass": self.obj.mass, "gripper": self.gripper.to_dict(),
@@ -130,7 +134,6 @@ def build_arm_scene(obj: SimObject, gripper: GripperSpec, settings: SimSettings 
     except ValueError as err:
         raise SimulationError(f"the arm's trial scene does not compile: {' '.join(str(err).split())}") from err
     jid = [model.joint(j).id for j in names.joints]
-    model.qpos0[model.jnt_qposadr[jid]] = arm.home  # the arm starts at home
     oj = model.joint(OBJECT).id
     return ArmScene(
         model=model, arm=arm, gripper=gripper, obj=obj, settings=s, T_world_obj=T_world_obj, T_world_base=T_base,
@@ -270,9 +273,9 @@ def plan_grasp(scene: ArmScene, kin: ArmKinematics, T_world_wrist: np.ndarray, o
     chk = check_reach(kin, T, approach=p.approach, step=p.step, jaws=jaws, seeds=seeds, tol=p.clearance)
     if chk.reach == Reach.START:
         return ArmPlan(chk, TrialOutcome.START_COLLISION, "grasp")
-    if chk.reach == Reach.NO_IK or chk.stage == "grasp" or chk.stage == "pre_grasp":
+    if chk.reach == Reach.NO_IK or chk.stage == "grasp":  # no IK, or every solution at the grasp collides
         return ArmPlan(chk, TrialOutcome.UNREACHABLE, chk.stage)
-    if not chk.ok:  # the approach line meets the table, the object or the arm
+    if not chk.ok:  # the pre-grasp or the approach line meets the table, the object or the arm
         return ArmPlan(chk, TrialOutcome.APPROACH_COLLISION, chk.stage)
     q_grasp = chk.q_approach[-1]
     lp = p.lift
@@ -360,6 +363,7 @@ def _initial_states(scene: ArmScene, openings: np.ndarray) -> np.ndarray:
     state = np.empty(scene.nstate)
     mujoco.mj_getState(m, d, state, _FULL)
     out = np.repeat(state[None], len(openings), axis=0)
+    out[:, 1 + scene.qadr_arm] = scene.arm.home  # the arm starts at home (qpos0 is MuJoCo's reference pose: kept)
     out[:, 1 + scene.drive.qadr] = scene.drive.joint_positions(openings)
     return out
 

@@ -70,9 +70,9 @@ class Reach(enum.IntEnum):
 class ArmKinematics:
     """IK and collision queries of the arm in a compiled ``model`` (module doc)."""
 
-    def __init__(self, model: mujoco.MjModel, arm: ArmSpec, *, wrist_site: str = "wrist",
-                 table_geom: str = "table", iterations: int = 60, posture_cost: float = 1e-3,
-                 damping: float = 1e-4, solver: str = "daqp") -> None:
+    def __init__(self, model: mujoco.MjModel, arm: ArmSpec, *, ik_model: mujoco.MjModel | None = None,
+                 wrist_site: str = "wrist", table_geom: str = "table", iterations: int = 60,
+                 stall: int = 8, posture_cost: float = 1e-3, damping: float = 1e-4, solver: str = "daqp") -> None:
         import mink
 
         from graspsim.robots.arm import ARM_PREFIX
@@ -103,14 +103,21 @@ class ArmKinematics:
         self.scene_geom = collide & ~self.robot_geom & ~self.table_geom
         self.data = mujoco.MjData(model)
         self.q0 = model.qpos0.copy()
-        self._cfg = mink.Configuration(model)
+        # IK runs on ``ik_model`` when given: the same arm and gripper at the same base
+        # without the scene (fewer degrees of freedom for mink to carry)
+        im = model if ik_model is None else ik_model
+        self._ik_qadr = im.jnt_qposadr[[im.joint(ARM_PREFIX + j).id for j in arm.joints]].copy()
+        self._ik_q0 = im.qpos0.copy()
+        self.stall = int(stall)
+        self._cfg = mink.Configuration(im)
         self._task = mink.FrameTask(wrist_site, "site", position_cost=1.0, orientation_cost=1.0)
-        self._posture = mink.PostureTask(model, cost=posture_cost)
-        self._limits = [mink.ConfigurationLimit(model)]
+        self._posture = mink.PostureTask(im, cost=posture_cost)
+        self._limits = [mink.ConfigurationLimit(im)]
         self._mink = mink
-        # the joints mink may move: the arm's; everything else is frozen
-        others = np.setdiff1d(np.arange(model.nv), self.dadr)
-        self._frozen = mink.DofFreezingTask(model, dof_indices=others.tolist()) if len(others) else None
+        # the joints mink may move: the arm's; everything else (the jaws, the scene) is frozen
+        ik_dadr = im.jnt_dofadr[[im.joint(ARM_PREFIX + j).id for j in arm.joints]]
+        others = np.setdiff1d(np.arange(im.nv), ik_dadr)
+        self._frozen = mink.DofFreezingTask(im, dof_indices=others.tolist()) if len(others) else None
 
     # -- kinematics ---------------------------------------------------------------
     def full_q(self, q: np.ndarray, base: np.ndarray | None = None) -> np.ndarray:
@@ -133,18 +140,23 @@ class ArmKinematics:
 
     def ik(self, T_world_wrist: np.ndarray, seed: np.ndarray | None = None) -> IKResult:
         """Joints putting the wrist frame at ``T_world_wrist`` (4, 4), solved from
-        ``seed`` (7,; default the arm's home)."""
+        ``seed`` (7,; default the arm's home): mink's step iterated until the pose is
+        met (POS_TOL, ROT_TOL), ``iterations`` ran out, or ``stall`` steps in a row did not
+        cut the error by 1 %."""
         mink = self._mink
         T = np.asarray(T_world_wrist, float)
         q = np.clip(np.asarray(self.arm.home if seed is None else seed, float), self.lower, self.upper)
         cfg = self._cfg
-        cfg.update(self.full_q(q))
+        q_full = self._ik_q0.copy()
+        q_full[self._ik_qadr] = q
+        cfg.update(q_full)
         self._task.set_target(mink.SE3.from_matrix(T))
         self._posture.set_target(cfg.q)
         tasks = [self._task, self._posture]
         constraints = [self._frozen] if self._frozen is not None else None
         pe = re = np.inf
         it = 0
+        best, since = np.inf, 0
         while it < self.iterations:
             it += 1
             v = mink.solve_ik(cfg, tasks, 1.0, self.solver, damping=self.damping, limits=self._limits,
@@ -154,7 +166,14 @@ class ArmKinematics:
             pe, re = float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:]))
             if pe <= POS_TOL and re <= ROT_TOL:
                 break
-        q = cfg.q[self.qadr].copy()
+            e = pe + 0.1 * re  # [m]: 0.1 m per radian
+            if e < 0.99 * best:
+                best, since = e, 0
+            else:
+                since += 1
+                if since >= self.stall:  # stuck (a joint limit, a singularity, out of reach)
+                    break
+        q = cfg.q[self._ik_qadr].copy()
         ok = pe <= POS_TOL and re <= ROT_TOL and self.within_limits(q)
         return IKResult(q=q, ok=bool(ok), pos_err=pe, rot_err=re, iterations=it)
 

@@ -84,6 +84,7 @@ def measure(kind: str, gripper, cfg: Config, cache: Path) -> dict:
 
     robot = build_robot_model(PANDA, gripper)
     ccfg = CapabilityConfig(samples=cfg.samples)
+    cache = cache / kind  # a fresh cache per primitive: every build is timed cold
     cmap, build_s, _ = _timed(lambda: capability_map(robot, PANDA, B, ccfg, cache_dir=cache))
     _, load_s, _ = _timed(lambda: capability_map(robot, PANDA, B, ccfg, cache_dir=cache))
     reps = max(1, -(-cfg.min_poses // len(T_world)))

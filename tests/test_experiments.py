@@ -762,3 +762,15 @@ def test_bench_mesh_prep_reported_summary_renders():
     names = {r["mesh"] for r in s["rows"]}
     assert {"open_cylinder_512f", "cylinder_327680f", "torus_500000f", "pybullet/lego"} <= names
     assert s["goals"]["meshes"] == len(s["rows"]) and "from the cache" in md
+
+
+@pytest.mark.slow
+def test_bench_reach_quick(tmp_path):
+    mod = _load("bench_reach")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    (row,) = s["rows"]
+    assert row["kind"] == "box" and row["best"] == 10 and sum(row["verdicts"].values()) == 10
+    assert row["lookup_poses"] >= 20_000 and row["poses_per_s"] > 0
+    assert (tmp_path / "reach-cache").is_dir()  # the capability map cached under --out, not the user's cache
+    assert s["command"] in mod.readme_section(s)

@@ -23,8 +23,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import math
 import os
+import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -38,6 +40,7 @@ from graspsim.transforms import invert_transform, quat_to_matrix
 __all__ = ["CapabilityConfig", "CapabilityMap", "ChainFK", "capability_map", "fibonacci_sphere", "default_cache_dir"]
 
 _VERSION = 2
+log = logging.getLogger(__name__)
 
 
 def default_cache_dir() -> Path:
@@ -242,7 +245,11 @@ def capability_map(model: mujoco.MjModel, arm: ArmSpec, T_world_base: np.ndarray
                                      T_world_base=np.asarray(T_world_base, float), key=key)
             except (OSError, ValueError, KeyError):
                 pass  # unreadable: built again and replaced
+    log.warning("building the %s's capability map (first run only; cached in %s) ...", arm.name,
+                "memory" if path is None else path.parent)
+    t0 = time.perf_counter()
     shape, flat, q = _build(model, arm, fk, config, on_progress)
+    log.warning("capability map built in %.1f s", time.perf_counter() - t0)
     if path is not None:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)

@@ -446,12 +446,16 @@ def run_arm_trials(scene: ArmScene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     kin = scene.kinematics()
     seeds = capability.lookup(T_world)[1] if capability is not None else np.full((n, 7), np.nan)
     plans = []
+    finished = 0  # grasps planned and not to be executed: finished trials
     for i in range(n):
         if blocked[i]:
             plans.append(ArmPlan(ReachCheck(Reach.START, "grasp"), TrialOutcome.START_COLLISION, "grasp"))
-            continue
-        s = () if np.isnan(seeds[i]).any() else (seeds[i],)
-        plans.append(plan_grasp(scene, kin, T_world[i], float(openings[i]), protocol, seeds=s))
+        else:
+            s = () if np.isnan(seeds[i]).any() else (seeds[i],)
+            plans.append(plan_grasp(scene, kin, T_world[i], float(openings[i]), protocol, seeds=s))
+        finished += plans[-1].outcome is not None
+        if on_progress is not None and i % 8 == 7:
+            on_progress(finished)
     outcome = np.array([TrialOutcome.SUCCESS if p.outcome is None else p.outcome for p in plans], np.int8)
     metrics = {k: np.full(n, np.nan) for k in protocol.metric_names}
     metrics["reach"] = np.array([float(p.check.reach) for p in plans])  # the Reach code of each grasp

@@ -234,16 +234,18 @@ class ArmPlan:
     q_retreat: np.ndarray | None = None
 
 
-def _line(kin: ArmKinematics, T0: np.ndarray, delta: np.ndarray, q0: np.ndarray, step: float):
+def _line(kin: ArmKinematics, T0: np.ndarray, delta: np.ndarray, q0: np.ndarray, step: float,
+          max_joint_step: float = 0.5):
     """IK along the straight wrist path T0 -> T0 + delta (orientation kept), every ``step``
-    [m], each solved from the previous; (K + 1, 7) joints or None if one has no solution."""
+    [m], each solved from the previous; (K + 1, 7) joints or None if one has no solution
+    or a joint jumps more than ``max_joint_step`` [rad] between waypoints."""
     k = max(1, int(math.ceil(np.linalg.norm(delta) / step)))
     qs = [q0]
     for i in range(1, k + 1):
         T = T0.copy()
         T[:3, 3] = T0[:3, 3] + delta * i / k
         r = kin.ik(T, qs[-1])
-        if not r.ok:
+        if not r.ok or np.abs(r.q - qs[-1]).max() > max_joint_step:  # no solution, or a jump between branches
             return None
         qs.append(r.q)
     return np.array(qs)

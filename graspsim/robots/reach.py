@@ -24,7 +24,6 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError
 from graspsim.robots.arm import ArmSpec
-from graspsim.transforms import angle_between
 
 __all__ = ["ArmKinematics", "IKResult", "Reach", "ReachCheck", "check_reach", "pose_error", "POS_TOL", "ROT_TOL"]
 
@@ -254,7 +253,8 @@ def _verdict(c: dict[str, float], *, at_grasp: bool) -> Reach | None:
 
 
 def check_reach(kin: ArmKinematics, T_world_wrist: np.ndarray, *, approach: float = 0.10, step: float = 0.01,
-                jaws: np.ndarray | None = None, seeds=(), tol: float = 0.001) -> ReachCheck:
+                jaws: np.ndarray | None = None, seeds=(), tol: float = 0.001,
+                max_joint_step: float = 0.5) -> ReachCheck:
     """Can the arm reach the grasp ``T_world_wrist`` (4, 4) from its pre-grasp pose
     ``approach`` [m] back along the wrist's z axis, moving straight in, without
     collisions (penetration > ``tol`` [m]; jaws posed by ``jaws``: (addresses, values))?
@@ -264,7 +264,10 @@ def check_reach(kin: ArmKinematics, T_world_wrist: np.ndarray, *, approach: floa
     to a collision-free configuration; the gripper in the object or the table there is
     :attr:`Reach.START`, as the floating harness's start collision), the
     pre-grasp pose, then waypoints every ``step`` [m] of the approach line from the
-    pre-grasp in (the gripper touching the scene on the way is :attr:`Reach.SCENE`)."""
+    pre-grasp in (the gripper touching the scene on the way is :attr:`Reach.SCENE`), the
+    last being the grasp again on the approach's branch; a joint moving more than
+    ``max_joint_step`` [rad] between waypoints (a jump between IK branches, not a
+    straight line) is :attr:`Reach.NO_IK` too."""
     if not (approach >= 0 and step > 0):
         raise InvalidParameterError(f"approach must be >= 0 m and step > 0 m, got {approach!r}, {step!r}")
     T = np.asarray(T_world_wrist, float)
@@ -282,7 +285,6 @@ def check_reach(kin: ArmKinematics, T_world_wrist: np.ndarray, *, approach: floa
         first = first or ReachCheck(v, "grasp", pos_err=res.pos_err, rot_err=res.rot_err, contacts=c)
     else:
         return first or ReachCheck(Reach.NO_IK, "grasp", pos_err=res.pos_err, rot_err=res.rot_err)
-    q_grasp = res.q
     k = max(1, int(math.ceil(approach / step)))
     back = T[:3, 2]
     poses = []
@@ -290,27 +292,20 @@ def check_reach(kin: ArmKinematics, T_world_wrist: np.ndarray, *, approach: floa
         P = T.copy()
         P[:3, 3] = T[:3, 3] - back * approach * (1.0 - i / k)
         poses.append(P)
-    pre = kin.ik(poses[0], q_grasp)
+    pre = kin.ik(poses[0], res.q)
     if not pre.ok:
         return ReachCheck(Reach.NO_IK, "pre_grasp", pos_err=res.pos_err, rot_err=res.rot_err)
     qs = [pre.q]
-    for P in poses[1:-1]:
+    for P in poses[1:]:  # the last is the grasp again, reached from the approach's side (one branch)
         r = kin.ik(P, qs[-1])
-        if not r.ok:
+        if not r.ok or np.abs(r.q - qs[-1]).max() > max_joint_step:  # no solution, or a jump between branches
             return ReachCheck(Reach.NO_IK, "approach", pos_err=res.pos_err, rot_err=res.rot_err)
         qs.append(r.q)
-    last = kin.ik(poses[-1], qs[-1])  # the grasp again, from the approach's side (same branch)
-    qs.append(last.q if last.ok else q_grasp)
-    for i, q in enumerate(qs[:-1]):
+    for i, q in enumerate(qs):
         c = kin.contacts(q, jaws, tol=tol)
-        v = _verdict(c, at_grasp=False)
+        v = _verdict(c, at_grasp=i == len(qs) - 1)
         if v is not None:
             return ReachCheck(v, "pre_grasp" if i == 0 else "approach", pos_err=res.pos_err, rot_err=res.rot_err,
                               contacts=c)
     return ReachCheck(Reach.REACHABLE, "", q_pre=qs[0], q_approach=np.array(qs), pos_err=res.pos_err,
                       rot_err=res.rot_err)
-
-
-def angle_of(T_a: np.ndarray, T_b: np.ndarray) -> float:
-    """Angle [rad] between the approach (z) axes of two poses."""
-    return float(angle_between(T_a[:3, 2], T_b[:3, 2]))

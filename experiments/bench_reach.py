@@ -26,6 +26,7 @@ through the public API a user calls (``graspsim.robots``):
 from __future__ import annotations
 
 import logging
+import shutil
 import statistics
 import sys
 import time
@@ -84,7 +85,8 @@ def measure(kind: str, gripper, cfg: Config, cache: Path) -> dict:
 
     robot = build_robot_model(PANDA, gripper)
     ccfg = CapabilityConfig(samples=cfg.samples)
-    cache = cache / kind  # a fresh cache per primitive: every build is timed cold
+    cache = cache / kind  # a fresh cache per primitive: every build is timed cold (a rerun's is removed)
+    shutil.rmtree(cache, ignore_errors=True)
     cmap, build_s, _ = _timed(lambda: capability_map(robot, PANDA, B, ccfg, cache_dir=cache))
     _, load_s, _ = _timed(lambda: capability_map(robot, PANDA, B, ccfg, cache_dir=cache))
     reps = max(1, -(-cfg.min_poses // len(T_world)))

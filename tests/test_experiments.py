@@ -762,3 +762,27 @@ def test_bench_mesh_prep_reported_summary_renders():
     names = {r["mesh"] for r in s["rows"]}
     assert {"open_cylinder_512f", "cylinder_327680f", "torus_500000f", "pybullet/lego"} <= names
     assert s["goals"]["meshes"] == len(s["rows"]) and "from the cache" in md
+
+
+@pytest.mark.slow
+def test_bench_reach_quick(tmp_path):
+    mod = _load("bench_reach")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    (row,) = s["rows"]
+    assert row["kind"] == "box" and row["best"] == 10 and sum(row["verdicts"].values()) == 10
+    assert row["lookup_poses"] >= 20_000 and row["poses_per_s"] > 0
+    assert (tmp_path / "reach-cache").is_dir()  # the capability map cached under --out, not the user's cache
+    assert s["command"] in mod.readme_section(s)
+
+
+@pytest.mark.slow
+def test_e16_quick_pairs_arm_and_floating_on_the_same_grasps(tmp_path):
+    mod = _load("e16_arm_execution")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    s = _summary(tmp_path)
+    assert s["episodes"] == 2 and s["top1_arm"]["n"] == s["top1_floating"]["n"] == 2
+    assert s["executed_unreachable"] == 0  # never executes what the check refused
+    for e in s["rows"][0]["episodes"]:
+        assert len(e["arm"]) == len(e["reach"]) == 3
+    assert s["command"] in mod.readme_section(s)

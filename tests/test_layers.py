@@ -44,12 +44,13 @@ LAYERS: dict[str, frozenset[str]] = {
     "perception": _GEOMETRY,                                 # cloud input and identification
     "planning": _GRIPPERS | {"maps", "perception"},          # cloud -> ranked grasps, scenes
     "sim": _MAPS,                                            # MuJoCo trials of one object
-    "tabletop": _MAPS | {"perception", "planning", "sim"},   # table-top scenes, camera, clutter
+    "robots": _MAPS | {"sim"},                               # an arm: reachability, execution
+    "tabletop": _MAPS | {"perception", "planning", "sim", "robots"},  # table-top scenes, camera, clutter
     "calibration": _MAPS | {"perception", "planning", "sim"},  # grades against simulated trials
-    "viewer": _MAPS | {"perception", "planning", "sim", "tabletop"},
-    "envs": _MAPS | {"perception", "planning", "sim", "tabletop"},
-    "apps": _MAPS | {"perception", "planning", "sim", "tabletop", "calibration"},  # demo, design, campaign
-    "cli": _MAPS | {"perception", "planning", "sim", "tabletop", "calibration", "viewer", "envs", "apps",
+    "viewer": _MAPS | {"perception", "planning", "sim", "robots", "tabletop"},
+    "envs": _MAPS | {"perception", "planning", "sim", "robots", "tabletop"},
+    "apps": _MAPS | {"perception", "planning", "sim", "robots", "tabletop", "calibration"},  # demo, design, campaign
+    "cli": _MAPS | {"perception", "planning", "sim", "robots", "tabletop", "calibration", "viewer", "envs", "apps",
                     "graspsim"},
     "__main__": frozenset({"cli"}),
     # the package face: names resolved lazily; it registers the envs

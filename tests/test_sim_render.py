@@ -63,8 +63,8 @@ def test_trial_cli_renders_the_first_trials_that_start_clear(gl, tmp_path, capsy
 
 
 def test_every_mujoco_import_goes_through_the_gl_choice():
-    """MuJoCo reads MUJOCO_GL once, at its first import: a module outside graspsim.sim
-    and graspsim.tabletop (whose __init__ files pick the backend first) that imported
+    """MuJoCo reads MUJOCO_GL once, at its first import: a module outside graspsim.sim,
+    graspsim.robots and graspsim.tabletop (whose __init__ files pick the backend first) that imported
     mujoco directly made a later offscreen render fail in a fresh process (the Franka
     hand's measurements did)."""
     import re
@@ -74,7 +74,7 @@ def test_every_mujoco_import_goes_through_the_gl_choice():
 
     root = Path(graspsim.__file__).parent
     direct = [str(p.relative_to(root)) for p in root.rglob("*.py")
-              if p.parent not in (root / "sim", root / "tabletop") and p.name != "_gl.py"
+              if p.parent not in (root / "sim", root / "robots", root / "tabletop") and p.name != "_gl.py"
               and re.search(r"^\s*(import mujoco|from mujoco)", p.read_text(), re.M)]
     assert direct == []
 

@@ -4,6 +4,12 @@
                    --sample N --min-grade G] [--threads T] [--render DIR]
                    [--mesh FILE [--mesh-scale S]]
                    [--seed S] [--noise] [--all] [--json]
+                   [--robot none|panda [--robot-base X Y YAW]]
+
+``--robot panda`` executes each grasp with the Franka Emika Panda arm standing beside the
+table (:func:`graspsim.robots.simulate_map_arm`): reachability checked first (grasps it
+refuses count as failures: unreachable, approach_collision), then a joint-space move, a
+Cartesian approach, close, lift, place by the arm's joint servos.
 
 MAP may also be a third-party grasp file -- ACRONYM (.h5), GraspGen (.json), GraspNet-1Billion
 (GraspGroup .npy, with --mesh and --camera-pose) -- which is read into a graspsim map beside it
@@ -43,6 +49,13 @@ def register(subparsers) -> None:
                  glossary=("feasible", "robust score", "grade")) as p:
         p.add_argument("map", metavar="FILE", help="graspability map file, or an ACRONYM .h5 / GraspGen "
                        ".json / GraspNet .npy grasp file (results go to <stem>.graspsim.h5 beside it)")
+        p.add_argument("--robot", choices=("none", "panda"), default="none",
+                       help="none: the floating gripper (default); panda: the Franka Emika Panda arm beside the "
+                            "table carries the map's gripper (a model-file gripper, e.g. franka_hand), checks each "
+                            "grasp's reachability and executes it with its joint servos (lift_place only)")
+        p.add_argument("--robot-base", type=float, nargs=3, metavar=("X", "Y", "YAW"),
+                       help="with --robot: the arm's base on the table top, x and y [m] from the object "
+                            "(which stands over the origin) and yaw [deg] (default -0.5 0 0: 0.5 m away, facing it)")
         p.add_argument("--protocol", choices=("lift_place", "tug"), default="lift_place",
                        help="lift_place: the paper's lift-and-place test (default); tug: "
                             "table-free pulls of 1 g x mass in six gripper directions")
@@ -151,6 +164,7 @@ def run(args) -> int:
             mu = float(header.quality.get("friction", 0.5))
         settings = SimSettings(friction=mu, grip_force=args.grip_force)
     protocol = make_protocol(args.protocol)
+    arm = _arm_args(args)
     bar = progress(None, "trials", enabled=not args.json and sys.stderr.isatty(), unit="trial")
     try:
         done = [0]
@@ -159,15 +173,18 @@ def run(args) -> int:
             bar.update(k - done[0])
             done[0] = k
 
-        out = simulate_map(
-            args.map, protocol=protocol, top=args.top, sample=args.sample,
-            min_grade=args.min_grade, threads=args.threads, seed=args.seed,
-            noise=ExecutionNoise() if args.noise else None, mesh=mesh,
-            mesh_scale=1.0 if args.mesh_scale is None else args.mesh_scale,
-            mass=args.mass, settings=settings,
-            write=not args.no_write, replace_stored=args.replace, on_progress=tick,
-            on_selected=_selection_check(args, bar),
-            on_record=recorder, rank=args.rank, separation=separation)
+        common = dict(top=args.top, sample=args.sample, min_grade=args.min_grade, threads=args.threads,
+                      seed=args.seed, noise=ExecutionNoise() if args.noise else None, mesh=mesh,
+                      mesh_scale=1.0 if args.mesh_scale is None else args.mesh_scale, mass=args.mass,
+                      settings=settings, write=not args.no_write, replace_stored=args.replace, on_progress=tick,
+                      on_selected=_selection_check(args, bar), rank=args.rank, separation=separation)
+        if arm is None:
+            out = simulate_map(args.map, protocol=protocol, on_record=recorder, **common)
+        else:
+            from graspsim.robots import simulate_map_arm
+
+            protocol = arm["protocol"]
+            out = simulate_map_arm(args.map, robot=args.robot, base=arm["base"], protocol=protocol, **common)
     finally:
         bar.close()
     res = out.results
@@ -187,9 +204,12 @@ def run(args) -> int:
         "written_to": out.group, "kept_stored": out.kept, "replaced_stored": out.replaced,
         "renders": renders, "record": args.record,
         "separation": args.separation, "T_world_obj": out.scene.T_world_obj.tolist(),
-        "viewpoint": out.viewpoint,
+        "viewpoint": out.viewpoint, "robot": args.robot,
     }
-    human = _report(res, counts, blocked, out, foreign=dataset is not None)
+    if arm is not None:
+        summary["robot_base"] = arm["base_args"]
+        summary["plan"] = res.extra.get("plan")
+    human = _report(res, counts, blocked, out, foreign=dataset is not None, robot=arm is not None)
     if mesh is not None:
         m = mesh.describe()
         human += (f"\nmesh {args.mesh}: {m['parts']} convex part(s) ({m['method']}), mass from the "
@@ -203,15 +223,43 @@ def _percent(k: int, n: int) -> str:
     return f"{100 * k / n:5.1f} %" if n else "    - "
 
 
-def _report(res, counts: dict, blocked: dict, out, foreign: bool = False) -> str:
+def _arm_args(args) -> dict | None:
+    """``--robot`` / ``--robot-base`` checked before any work: None for the floating
+    gripper, else the arm's protocol and base (x, y, yaw [rad])."""
+    from graspsim.errors import InvalidParameterError
+
+    if args.robot == "none":
+        if args.robot_base is not None:
+            raise InvalidParameterError("--robot-base needs --robot panda")
+        return None
+    for flag, bad in (("--protocol tug", args.protocol != "lift_place"), ("--render", args.render),
+                      ("--record", args.record)):
+        if bad:
+            raise InvalidParameterError(f"{flag} is not available with --robot {args.robot} "
+                                        "(the arm executes lift_place and is not rendered or recorded yet)")
+    base = (-0.5, 0.0, 0.0) if args.robot_base is None else tuple(args.robot_base)
+    if not all(math.isfinite(v) for v in base) or math.hypot(base[0], base[1]) > 2.0:
+        raise InvalidParameterError(f"--robot-base {base}: x and y within 2 m of the object, finite yaw [deg]")
+    from graspsim.robots import ArmLiftPlace
+
+    return {"protocol": ArmLiftPlace(), "base": (base[0], base[1], math.radians(base[2])), "base_args": list(base)}
+
+
+_ARM_ONLY = ("unreachable", "approach_collision", "controller_error")
+
+
+def _report(res, counts: dict, blocked: dict, out, foreign: bool = False, robot: bool = False) -> str:
     """The outcome table and the headline: every rate with its counts, the attempts and
-    what was excluded from the feasible ones and why."""
+    what was excluded from the feasible ones and why (and with an arm, what it did not
+    execute, counted as failures)."""
     from graspsim.sim import TrialOutcome
     from graspsim.stats import wilson_interval
 
     n = len(res)
     rows = []
     for o in TrialOutcome:
+        if o.label in _ARM_ONLY and not robot:
+            continue
         if o is TrialOutcome.START_COLLISION:
             rows.append(("start_collision (object)", blocked["object"], _percent(blocked["object"], n)))
             rows.append(("start_collision (table only)", blocked["table"], _percent(blocked["table"], n)))
@@ -231,6 +279,13 @@ def _report(res, counts: dict, blocked: dict, out, foreign: bool = False) -> str
     head += (f"; {attempts}, {excluded} excluded as infeasible (the gripper starts in collision: {why})"
              if excluded else f"; {attempts}, none excluded")
     head += f"; of all {n} attempts {ok} succeeded ({100 * ok / n:.1f} %)" if excluded and n else ""
+    if robot:
+        plan = res.extra.get("plan", {})
+        skipped = sum(plan.get("not_executed_at", {}).values()) - excluded
+        head += (f"\nthe arm did not execute {skipped} feasible grasp(s) its reachability check refused "
+                 f"(counted as failures: {counts['unreachable']} unreachable, "
+                 f"{counts['approach_collision']} approach collision at planning or execution); "
+                 f"reachability verdicts: {plan.get('reach', {})}")
     stored = ""
     if out.group:
         stored = (f"\nresults stored in {out.group}" + (f" of {out.file}" if foreign else "")

@@ -32,7 +32,7 @@ from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.grippers.spec import GripperSpec
 from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, add_weld, add_wrist, drive_force
 
-__all__ = ["build_vendored_gripper_spec", "model_drive", "PREFIX"]
+__all__ = ["build_vendored_gripper_spec", "attach_model", "model_drive", "PREFIX"]
 
 PREFIX = "gripper/"
 
@@ -65,22 +65,35 @@ def build_vendored_gripper_spec(
     """A new ``MjSpec`` with the model of ``gripper.model`` on the harness's wrist, and
     the names of its elements the harness uses (same arguments as
     :func:`~graspsim.sim.model.build_gripper_spec`; grip_force per finger [N])."""
-    from graspsim.grippers import mount
-
     if gripper.model is None:
         raise InvalidParameterError(f"gripper {gripper.name!r} has no model file")
-    mnt = mount(gripper.model)
     force = drive_force(gripper, grip_force, condim)
     spec = mujoco.MjSpec()
     spec.modelname = gripper.name
     spec.compiler.degree = False
     wrist = add_wrist(spec, gripper, home_pos, home_quat)
+    names = attach_model(spec, wrist, gripper, physics, force=force, friction=friction, condim=condim)
+    add_weld(spec, physics)
+    return spec, names
+
+
+def attach_model(spec: mujoco.MjSpec, wrist: mujoco.MjsBody, gripper: GripperSpec,
+                 physics: GripperPhysics, *, force: float, friction: tuple[float, float, float],
+                 condim: int) -> GripperNames:
+    """Attach ``gripper.model`` as authored under the body ``wrist`` (the wrist frame of the
+    spec: the harness's free wrist, or an arm's flange) at its mount pose, with the
+    harness's settings (module doc; ``force`` per finger [N], from
+    :func:`~graspsim.sim.model.drive_force`); returns the names of its elements."""
+    from graspsim.grippers import mount
+
+    if gripper.model is None:
+        raise InvalidParameterError(f"gripper {gripper.name!r} has no model file")
+    mnt = mount(gripper.model)
     frame = wrist.add_frame(pos=list(mnt.pos), quat=list(mnt.quat))
     child = _load(mnt)
     for opt in ("timestep", "impratio", "integrator", "cone", "enableflags", "disableflags"):
         setattr(spec.option, opt, getattr(child.option, opt))  # the model's options (no attach
     spec.attach(child, prefix=PREFIX, frame=frame)             # conflict); a scene sets its own
-    add_weld(spec, physics)
 
     root = spec.body(PREFIX + mnt.root_body)
     for body in [root, *root.find_all(mujoco.mjtObj.mjOBJ_BODY)]:
@@ -117,7 +130,7 @@ def build_vendored_gripper_spec(
         jaw_neg=PREFIX + mnt.jaw_joints[0], jaw_pos=PREFIX + mnt.jaw_joints[1],
         finger_neg=PREFIX + mnt.pad_geoms[0], finger_pos=PREFIX + mnt.pad_geoms[1], housing="",
         wrist=NAMES.wrist, target=NAMES.target, weld=NAMES.weld)
-    return spec, names
+    return names
 
 
 def model_drive(model: mujoco.MjModel, gripper: GripperSpec) -> GripDrive:

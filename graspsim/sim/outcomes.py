@@ -20,7 +20,15 @@ __all__ = ["TrialOutcome", "collision_kind", "Record", "relative_motion", "unsta
 
 class TrialOutcome(enum.IntEnum):
     """How a trial ended. START_COLLISION is an infeasible pose (reported apart), not a
-    failed grasp; SIM_UNSTABLE is a failed simulation, never a success."""
+    failed grasp; SIM_UNSTABLE is a failed simulation, never a success.
+
+    A robot arm's trials (:mod:`graspsim.robots`) name three more failures, each counted
+    in the denominator: UNREACHABLE (the reachability check found no collision-free IK
+    solution for the grasp, its pre-grasp, approach, lift or retreat: never executed);
+    APPROACH_COLLISION (the planned motion to the grasp meets the table, the object or
+    the arm itself: never executed; or, executed, the grasp failed after the approach
+    had pushed the object); CONTROLLER_ERROR (the grasp failed and the arm's servos had
+    left the wrist off its target when the jaws closed)."""
 
     SUCCESS = 0
     START_COLLISION = 1
@@ -29,6 +37,9 @@ class TrialOutcome(enum.IntEnum):
     DROPPED = 4
     PLACE_FAILED = 5
     SIM_UNSTABLE = 6
+    UNREACHABLE = 7
+    APPROACH_COLLISION = 8
+    CONTROLLER_ERROR = 9
 
     @property
     def label(self) -> str:

@@ -1,0 +1,98 @@
+"""A map's grasps executed by an arm, written back into the map file.
+
+The counterpart of :func:`graspsim.sim.mapsim.simulate_map` (the same selection, object,
+placement, settings and storage; ``graspsim trial MAP --robot panda`` calls it): the
+floating gripper's scene becomes the arm's (:func:`~graspsim.robots.execute.build_arm_scene`)
+and each grasp is planned and executed by the arm
+(:func:`~graspsim.robots.execute.run_arm_trials`), its IK seeded by the arm's cached
+capability map. Results go to ``grasps/qualities/mujoco_arm_lift_place``, their record
+naming the robot and its base; grasps the reachability check refused count as
+failures (UNREACHABLE, APPROACH_COLLISION).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from graspsim.errors import InvalidParameterError
+from graspsim.maps import load_map
+from graspsim.maps.robust import executed_width
+from graspsim.robots.arm import DEFAULT_BASE, base_transform, build_robot_model, get_arm
+from graspsim.robots.capability import CapabilityConfig, capability_map
+from graspsim.robots.execute import ArmLiftPlace, build_arm_scene, run_arm_trials
+from graspsim.sim.mapsim import (
+    MapTrials,
+    _simulated_file,
+    map_gripper,
+    map_object,
+    observed_placement,
+    select_grasps,
+    stored_results,
+    write_results,
+)
+from graspsim.sim.noise import ExecutionNoise
+from graspsim.sim.trial_scene import SimSettings
+
+__all__ = ["simulate_map_arm"]
+
+
+def simulate_map_arm(path: str | os.PathLike, *, robot: str = "panda", base=DEFAULT_BASE,
+                     protocol: ArmLiftPlace = ArmLiftPlace(), top: int | None = None, sample: int | None = None,
+                     min_grade: float | None = None, threads: int | None = None, seed: int = 0,
+                     noise: ExecutionNoise | None = None, mesh=None, mesh_scale: float = 1.0,
+                     mass: float | None = None, settings: SimSettings | None = None, write: bool = True,
+                     replace_stored: bool = False, cache_dir=None, capability: CapabilityConfig | None = None,
+                     capability_cache=None, on_progress=None, on_selected=None, rank: str = "robust",
+                     separation: tuple[float, float] | None = None, dataset: dict | None = None) -> MapTrials:
+    """Execute grasps of the map file ``path`` with the arm ``robot`` standing at ``base``
+    (x [m], y [m], yaw [rad] on the table top, or a (4, 4) pose) and (``write``) store the
+    results in it. Every other argument as in :func:`~graspsim.sim.mapsim.simulate_map`;
+    ``capability`` / ``capability_cache``: the capability map's settings and cache folder
+    (``False``: no cache)."""
+    arm = get_arm(robot)
+    T_base = base_transform(base)
+    if not isinstance(protocol, ArmLiftPlace):
+        raise InvalidParameterError("an arm executes the lift_place protocol (ArmLiftPlace) only")
+    path, mesh = _simulated_file(Path(path), mesh, mesh_scale, dataset)
+    gmap = load_map(path)
+    gripper = map_gripper(gmap)
+    if gripper.model is None:
+        raise InvalidParameterError(
+            f"the map's gripper {gripper.name!r} has no model file: --robot {robot} carries grippers simulated "
+            "from their model files (e.g. franka_hand, robotiq_2f85)")
+    if settings is None:
+        mu = gmap.meta.quality.get("friction")
+        settings = SimSettings(friction=float(mu)) if mu else SimSettings()
+    rng = np.random.default_rng(seed)
+    index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng, rank=rank,
+                          separation=separation)
+    if on_selected is not None:
+        on_selected(gmap, index)
+    obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,
+                     map_dir=path.parent, cache_dir=cache_dir)
+    scene = build_arm_scene(obj, gripper, settings, arm=arm, base=T_base,
+                            T_world_obj=observed_placement(gmap, obj, mesh is not None))
+    held, why = 0, None
+    if write and len(index):
+        group, held, why = stored_results(path, protocol, scene, noise, index)
+        if why is not None and not replace_stored:
+            raise InvalidParameterError(
+                f"{path.name} already holds the results of {held} trials in {group} ({why}): storing "
+                "these would replace them; pass --replace (replace_stored=True) to replace them, or "
+                "--no-write (write=False) to keep them and store nothing")
+    cmap = capability_map(build_robot_model(arm, gripper, T_base), arm, T_base, capability or CapabilityConfig(),
+                          cache_dir=capability_cache)
+    chosen = gmap.select(index)
+    width = executed_width(chosen)
+    results = run_arm_trials(scene, chosen.T_obj_wrist, width, protocol, threads=threads, seed=seed, noise=noise,
+                             capability=cmap, on_progress=on_progress)
+    results = replace(results, extra={**results.extra, "map_file": str(path),
+                                      "mesh": None if mesh is None else str(getattr(mesh, "source", mesh))})
+    group = write_results(path, len(gmap), index, results) if write and len(index) else None
+    return MapTrials(index=index, results=results, scene=scene, group=group, width=width, file=path,
+                     viewpoint=gmap.meta.extra.get("viewpoint"),
+                     kept=held if group and why is None else 0, replaced=held if group and why else 0)

@@ -11,7 +11,7 @@ from scipy.spatial import ConvexHull
 
 from graspsim.errors import GripperError
 from graspsim.grippers import get_gripper, load_model_gripper, model_folder, mount
-from graspsim.grippers.model_file import pad_arc
+from graspsim.grippers.model_file import GRID, pad_arc, straight_line_error
 from graspsim.sim import LiftPlace, TrialOutcome, build_scene, object_from_shape, run_trials
 from graspsim.sim.vendored import PREFIX, build_vendored_gripper_spec
 
@@ -140,6 +140,10 @@ def test_the_2f85_pad_arc_matches_the_stepped_model_within_half_a_millimetre():
     g = get_gripper("robotiq_2f85")
     mnt = mount("robotiq_2f85")
     assert not mnt.prismatic and np.ptp(mnt.pad_z) > 0.005  # a linkage: the pads rise and fall by mm
+    err = straight_line_error(g, mnt)
+    assert g.arc_error == pytest.approx(np.abs(err["centre_offset"]).max(), abs=GRID)
+    assert min(np.min(err["margin_upper"]), np.min(err["margin_lower"])) >= 0  # conservative at every row
+    offsets = []
     spec, names = build_vendored_gripper_spec(g)
     spec.option.gravity = [0.0, 0.0, 0.0]
     m = spec.compile()
@@ -168,10 +172,20 @@ def test_the_2f85_pad_arc_matches_the_stepped_model_within_half_a_millimetre():
         if not g.min_opening <= gap <= g.max_opening:
             continue
         z = np.array([0.5 * (p[:, 2].min() + p[:, 2].max()) for p in (neg, pos)])
-        print(t, gap, np.abs(pad_arc(mnt, [gap])[0] - z).max())
         assert np.abs(pad_arc(mnt, [gap])[0] - z).max() < 5e-4, (t, gap, z, pad_arc(mnt, [gap]))
+        # the straight-line model's error the spec states holds for the stepped model: its
+        # pad centres lie within arc_error of the nominal TCP, the stated offset at this
+        # gap matches, and the planned contact region lies on both pads
+        offset = z - g.nominal_tcp[2]
+        assert np.abs(offset).max() <= g.arc_error + 5e-4, (gap, offset, g.arc_error)
+        stated = np.array([np.interp(gap, err["openings"], c) for c in np.array(err["centre_offset"]).T])
+        assert np.abs(stated - offset).max() < 5e-4, (gap, stated, offset)
+        lo, hi = err["planned"]
+        assert all(p[:, 2].min() <= lo + 5e-4 and hi <= p[:, 2].max() + 5e-4 for p in (neg, pos)), (gap, lo, hi)
+        offsets.append(offset.mean())
         checked += 1
     assert checked >= 3
+    assert np.ptp(offsets) > 1e-3  # the samples span the arc: the error changes with the opening
 
 
 @pytest.mark.parametrize("name", ["rethink_gripper", "robotiq_2f85"])

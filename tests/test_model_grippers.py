@@ -279,3 +279,30 @@ def test_a_urdf_gets_a_drive_from_its_effort_limit_and_lifts(tmp_path):
     r = run_trials(scene, T[None], [0.04], LiftPlace(), threads=1)
     assert TrialOutcome(int(r.outcome[0])) is TrialOutcome.SUCCESS
     assert r.metrics["pad_force_neg"][0] == pytest.approx(20.0, rel=0.05)
+
+
+def test_a_model_files_database_key_and_maps_follow_its_content_not_its_path(tmp_path):
+    from graspsim import Box, MapDatabase
+    from graspsim.grades.models import gripper_identity
+    from graspsim.maps.config import MapConfig
+
+    for d in ("a", "b/deeper", "c"):
+        shutil.copytree(model_folder("rethink_gripper"), tmp_path / d)
+    a, b, c = (get_gripper(str(tmp_path / d / "rethink_gripper.xml")) for d in ("a", "b/deeper", "c"))
+    assert a.model != b.model and a.to_dict() != b.to_dict()  # each records its own file
+    cfg = MapConfig(surface_step=0.012, rotation_step=np.radians(30))
+    dba, dbb = (MapDatabase(tmp_path / "db", gripper=g, config=cfg) for g in (a, b))
+    box = Box(0.04, 0.04, 0.04)
+    assert dba.key(box) == dbb.key(box) and gripper_identity(a) == gripper_identity(b)
+    built = dba.get(box)
+    assert dbb.contains(box)  # the copy finds the map the first file's database built
+    served = dbb.get(box, build=False)
+    assert np.array_equal(served.grade, built.grade) and len(served) == len(built) > 0
+    assert served.meta.gripper_spec == b  # and it records the copy's file: its trials simulate that
+    mesh = tmp_path / "c" / "meshes" / "half_round_tip.stl"
+    data = bytearray(mesh.read_bytes())
+    data[40] ^= 1  # one bit of the binary STL's header: the mesh's content, not its size or geometry
+    mesh.write_bytes(bytes(data))
+    assert MapDatabase(tmp_path / "db", gripper=c, config=cfg).key(box) != dba.key(box)
+    (tmp_path / "a" / "rethink_gripper.gripper.json").write_text(json.dumps({"grip_force": 15.0}))
+    assert MapDatabase(tmp_path / "db", gripper=get_gripper(a.model), config=cfg).key(box) != dbb.key(box)

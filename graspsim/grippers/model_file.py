@@ -61,7 +61,7 @@ from graspsim.errors import GripperError
 from graspsim.grippers.spec import GripperSpec
 
 __all__ = ["measure_model", "vendored_gripper", "model_report", "pad_arc", "straight_line_error", "sidecar_path",
-           "model_digest", "SIDECAR_KEYS", "MEASURE_VERSION", "ROWS"]
+           "model_digest", "content_digest", "model_content_key", "SIDECAR_KEYS", "MEASURE_VERSION", "ROWS"]
 
 MEASURE_VERSION = 1  # bump when the measurement changes: old cache entries are ignored
 ROWS = 17            # rows of the opening table (a linkage: stepped rows)
@@ -161,18 +161,57 @@ def _add_urdf_drive(path: Path, child, opts: dict) -> None:
     act.ctrlrange = [-1.0, 1.0]
 
 
-def model_digest(path: Path, opts: dict) -> str:
-    """sha256 of the model file, every mesh it names, the options and the measuring code."""
-    h = hashlib.sha256(f"graspsim-gripper-model-v{MEASURE_VERSION}".encode())
-    h.update(Path(__file__).read_bytes())  # the measurement's own code: a change re-measures
+def content_digest(path: Path, opts: dict) -> str:
+    """sha256 of what the gripper is, wherever its files lie: the model file's bytes, the
+    options (the sidecar's keys) and every mesh it names (each by its path relative to
+    the model's folder, when it lies under it, and its bytes). A copy of the folder
+    elsewhere has the same digest; the files' absolute paths do not enter it."""
+    h = hashlib.sha256(b"graspsim-gripper-content-v1")
     h.update(path.read_bytes())
     h.update(json.dumps(opts, sort_keys=True).encode())
-    for mesh in sorted({m.file for m in _load_spec(path, opts).meshes if m.file}):
+    meshes = []
+    for mesh in {m.file for m in _load_spec(path, opts).meshes if m.file}:
         try:
-            h.update(Path(mesh).read_bytes())
+            name = Path(mesh).relative_to(path.parent).as_posix()
+        except ValueError:  # a mesh outside the model's folder: its name only
+            name = Path(mesh).name
+        meshes.append((name, mesh))
+    for name, mesh in sorted(meshes):
+        try:
+            data = Path(mesh).read_bytes()
         except OSError as err:
             raise _error(path, f"mesh {mesh} cannot be read: {err}") from err
+        h.update(f"{name}:{len(data)}:".encode())
+        h.update(data)
     return h.hexdigest()
+
+
+def model_digest(path: Path, opts: dict) -> str:
+    """The measurement's cache key: :func:`content_digest` and the measuring code."""
+    h = hashlib.sha256(f"graspsim-gripper-model-v{MEASURE_VERSION}".encode())
+    h.update(Path(__file__).read_bytes())  # the measurement's own code: a change re-measures
+    h.update(content_digest(path, opts).encode())
+    return h.hexdigest()
+
+
+@functools.lru_cache(maxsize=64)
+def _content_key(path: str, stamp: tuple) -> str:
+    p = Path(path)
+    return content_digest(p, _options(p, None))
+
+
+def model_content_key(model: str) -> str:
+    """``"sha256:<content_digest>"`` of the model file ``model`` (a path) with its sidecar:
+    what a spec's ``model`` path stands for in digests and database keys (a copy of the
+    file elsewhere gives the same key). GripperError if the file cannot be read."""
+    p = Path(model)
+    try:
+        side = sidecar_path(p)
+        files = (p, side) if side.is_file() else (p,)
+        stamp = tuple((f.stat().st_mtime_ns, f.stat().st_size) for f in files)
+    except (OSError, ValueError) as err:
+        raise GripperError(f"cannot read gripper model {model!r}: {err}") from err
+    return "sha256:" + _content_key(str(p.resolve()), stamp)
 
 
 def _harness(child, *, block=None):

@@ -210,6 +210,8 @@ def readme_section(s: dict) -> str:
     pr, cal = s["paper_at_0.7"], s["calibrated_at_threshold_oof"]
     L = [f"`{s['command']}`: gripper `{g['name']}` (spec digest `{g['digest']}`); {len(objs)} training objects"
          + (f" ({len(left)} it cannot take at all left out: {', '.join(left)})" if left else "")
+         + (f", {len(s['paper_auc_by_object'])} of them with trials"
+            if len(s["paper_auc_by_object"]) < len(objs) else "")
          + f", {c['per_bin']} grasps per paper-grade bin (ten bins) and object drawn among the poses clear of "
          f"the table, lift-and-place with the gripper's own model; {s['trials']} trials, "
          f"{s['trials'] - s['feasible']} of them starting in collision, {s['feasible']} feasible (the denominator: "

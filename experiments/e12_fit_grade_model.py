@@ -25,7 +25,7 @@ Per gripper, at a size a loaded 2-core machine runs in minutes (the published bl
 docs/results.md; ``--publish`` writes ``experiments/reported/e12_fit_grade_model.<name>.json``
 when ``--out`` is ``results/e12_fit_grade_model.<name>``):
 
-    python experiments/e12_fit_grade_model.py --gripper robotiq_2f85 --per-bin 10 \
+    python experiments/e12_fit_grade_model.py --gripper robotiq_2f85 --per-bin 20 \
         --out results/e12_fit_grade_model.robotiq_2f85 --install --publish
 
 The summary records which model the package ships for the gripper (its provenance:

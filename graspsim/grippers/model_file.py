@@ -196,6 +196,8 @@ def model_digest(path: Path, opts: dict) -> str:
 
 @functools.lru_cache(maxsize=64)
 def _content_key(path: str, stamp: tuple) -> str:
+    # per process, keyed by the model file's and sidecar's mtime and size: a mesh edited
+    # in place while the process runs keeps its old key until the model file changes
     p = Path(path)
     return content_digest(p, _options(p, None))
 

@@ -19,6 +19,17 @@ writes it where ``get_grade("pad_contact", gripper=...)`` finds it
     python experiments/e12_fit_grade_model.py --gripper franka_hand --out results/e12_fit_grade_model.franka_hand \
         [--install]
     python experiments/e12_fit_grade_model.py --quick --out results/e12_quick
+    python experiments/e12_fit_grade_model.py --gripper path/to/my_gripper.xml --out results/e12_mine
+
+Per gripper, at a size a loaded 2-core machine runs in minutes (the published blocks of
+docs/results.md; ``--publish`` writes ``experiments/reported/e12_fit_grade_model.<name>.json``
+when ``--out`` is ``results/e12_fit_grade_model.<name>``):
+
+    python experiments/e12_fit_grade_model.py --gripper robotiq_2f85 --per-bin 20 \
+        --out results/e12_fit_grade_model.robotiq_2f85 --install --publish
+
+The summary records which model the package ships for the gripper (its provenance:
+trials, per-bin, cross-validated AUC) and whether this run installed its own.
 
 (It was E05a, ``e05_fit_grade_model.py``; E05 is the threshold calibration on held-out
 objects that uses the model this script installs.)
@@ -36,7 +47,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import NAMED, fmt, map_config, md_table, opt, start, write_text
+from _common import NAMED, fmt, map_config, md_table, opt, pct, start, write_text
 
 from graspsim import stats
 from graspsim.calibration import SimCondition, TrialTable, draw_samples, simulate_samples
@@ -55,7 +66,7 @@ log = logging.getLogger("e12_fit")
 
 @dataclass(frozen=True)
 class Config:
-    gripper: str = opt(FESTO, "gripper: a registered name or a spec .json")
+    gripper: str = opt(FESTO, "gripper: a registered name, a model file (.xml, .urdf) or a spec .json")
     per_bin: int = opt(40, "grasps drawn per paper-grade bin and object")
     seed: int = opt(0, "run seed")
     threads: int = opt(2, "simulation and map threads")
@@ -138,6 +149,7 @@ def main(argv=None) -> int:
         **provenance, "cv_auc": fit.auc, "cv_threshold": fit.threshold_oof,
         "paper_grade_auc": paper_auc}})
     model.save(out / "grade_model.json")
+    shipped = _shipped(gripper)  # before --install replaces it
     if cfg.install:
         model.save(model_path(gripper["name"]))
         log.info("installed %s", model_path(gripper["name"]))
@@ -151,7 +163,7 @@ def main(argv=None) -> int:
                "threshold_oof": fit.threshold_oof,
                "paper_at_0.7": dict(zip(("precision", "recall", "accepted"), p07)),
                "calibrated_at_threshold_oof": dict(zip(("precision", "recall", "accepted"), pt)),
-               "model": model.to_dict()}
+               "model": model.to_dict(), "installed": bool(cfg.install), "shipped_before": shipped}
     run.write(out, summary)
     rows = [[g, summary["paper_auc_by_object"][g], fit.auc_by_group[g]] for g in fit.auc_by_group]
     md = [f"# E12: calibrated grade fit for {gripper['name']} ({len(t)} feasible trials, "
@@ -175,6 +187,66 @@ def main(argv=None) -> int:
              out / "roc_fit.png", title="Training objects (out-of-fold)")
     print("\n".join(md))
     return 0
+
+
+def _shipped(gripper: dict) -> dict | None:
+    """The provenance of the model the package ships for ``gripper`` (None: none)."""
+    import json
+
+    path = model_path(gripper["name"])
+    if not path.is_file():
+        return None
+    d = json.loads(path.read_text())
+    p = d.get("provenance") or {}
+    return {"file": f"graspsim/data/{path.name}", "gripper": d.get("gripper"),
+            **{k: p.get(k) for k in ("command", "per_bin", "trials", "feasible_trials", "cv_auc", "cv_threshold",
+                                     "git_commit", "date")}}
+
+
+def readme_section(s: dict) -> str:
+    """docs/results.md's block of one gripper's fit (see ``experiments/report.py``)."""
+    c, g, m = s["config"], s["gripper"], s["model"]
+    objs, left = [k for k in c["objects"] if k not in s["objects_left_out"]], s["objects_left_out"]
+    pr, cal = s["paper_at_0.7"], s["calibrated_at_threshold_oof"]
+    L = [f"`{s['command']}`: gripper `{g['name']}` (spec digest `{g['digest']}`); {len(objs)} training objects"
+         + (f" ({len(left)} it cannot take at all left out: {', '.join(left)})" if left else "")
+         + (f", {len(s['paper_auc_by_object'])} of them with trials"
+            if len(s["paper_auc_by_object"]) < len(objs) else "")
+         + f", {c['per_bin']} grasps per paper-grade bin (ten bins) and object drawn among the poses clear of "
+         f"the table, lift-and-place with the gripper's own model; {s['trials']} trials, "
+         f"{s['trials'] - s['feasible']} of them starting in collision, {s['feasible']} feasible (the denominator: "
+         f"the fit predicts the success of an executed grasp), {pct(s['success_rate'])} % of them succeed. "
+         "Cross-validated by object:", ""]
+    au, pa = s["cv_auc"], s["paper_auc"]
+    L += [md_table(["", "paper grade", "pad_contact fitted here (out of fold)"],
+                   [["AUC, leave one object out", pa["object"], au["object"]],
+                    ["AUC, leave one primitive kind out", pa["object"], au.get("kind")],
+                    ["population AUC (sampling weights), leave one object out", pa["object_population"],
+                     au["object_population"]]]), ""]
+    thr = s["threshold_oof"]
+    L.append(f"Out of fold, the threshold reaching {pct(c['target'], 0)} % precision is "
+             + (f"{fmt(thr)}: precision {pct(cal['precision'])} %, recall {pct(cal['recall'])} % "
+                if thr is not None and math.isfinite(thr) else "not reached ")
+             + f"(population); the paper's grade at 0.7: precision {pct(pr['precision'])} %, recall "
+             f"{pct(pr['recall'])} %.")
+    sh = s.get("shipped_before")
+    if s.get("installed"):
+        L.append(f"This fit is the model shipped for `{g['name']}` (`{model_path_name(g['name'])}`, "
+                 f"threshold {fmt(m['threshold'])})"
+                 + (f"; it replaced one fitted on {sh['trials']} trials" if sh else "") + ".")
+    elif sh:
+        auc = (sh.get("cv_auc") or {}).get("object")
+        L.append(f"Not installed: the model shipped for `{g['name']}` (`{sh['file']}`) was fitted on "
+                 f"{sh['trials']} trials at {sh['per_bin']} per bin (AUC leave one object out {fmt(auc)}) "
+                 "and is kept; this block shows the fit at this run's size.")
+    else:
+        L.append(f"Not installed: no model is shipped for `{g['name']}` (it takes the paper's grade).")
+    return "\n".join(L)
+
+
+def model_path_name(name: str) -> str:
+    """The shipped model's path relative to the repository (``graspsim/data/...``)."""
+    return f"graspsim/data/{model_path(name).name}"
 
 
 if __name__ == "__main__":

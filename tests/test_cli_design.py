@@ -52,3 +52,27 @@ def test_design_sweeps_one_parameter(tmp_path, capsys):
     assert s["rows"][0]["accepted"] < s["rows"][2]["accepted"]
     code = main(["design", "--param", "stroke", "--values", "0.03", "--primitives", "torus"])
     assert code == 2 and "--primitives" in capsys.readouterr().err
+
+
+def test_adapt_gripper_and_design_take_a_model_file(tmp_path, capsys):
+    import shutil
+
+    from graspsim.grippers import get_gripper, model_folder
+
+    shutil.copytree(model_folder("rethink_gripper"), tmp_path / "g")
+    model = str(tmp_path / "g" / "rethink_gripper.xml")
+    src, dst = tmp_path / "s.h5", tmp_path / "r.h5"
+    assert main(["map", "sphere", "--radius", "0.02", "--surface-step", "0.01", "--rotation-step-deg", "22",
+                 "-o", str(src), "--json"]) == 0
+    capsys.readouterr()
+    assert main(["adapt-gripper", str(src), "--to-gripper", model, "-o", str(dst), "--json"]) == 0
+    assert _last_json(capsys)["gripper"] == "rethink_gripper"
+    m = load_map(dst)  # the adapted map records the model file: its trials simulate it as authored
+    assert len(m) > 0 and m.meta.gripper_spec == get_gripper(model) and m.meta.gripper_spec.model == str(
+        (tmp_path / "g" / "rethink_gripper.xml").resolve())
+    assert main(["design", "--gripper", model, "--param", "finger_length", "--values", "0.045",
+                 "--primitives", "cylinder", "--sim-grasps", "0", "--surface-step", "0.01",
+                 "--rotation-step-deg", "22", "--threads", "1", "--json"]) == 0
+    s = _last_json(capsys)
+    assert s["gripper"] == "rethink_gripper" and s["rows"][0]["gripper"] == "rethink_gripper[finger_length=45mm]"
+    assert s["rows"][0]["accepted"] > 0  # the variant of the measured spec takes the 4 cm cylinder

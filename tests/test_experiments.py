@@ -347,6 +347,26 @@ def test_e12_fit_grade_model_quick(tmp_path):
     assert model["provenance"]["command"] == s["command"] and len(model["coef"]) == len(model["features"])
     # a rerun with the same configuration reuses the simulated trials
     assert mod.main(["--quick", "--out", str(tmp_path)]) == 0 and _summary(tmp_path)["trials"] == s["trials"]
+    text = mod.readme_section(s)  # the published block: the command, the sizes, and the shipped model kept
+    assert s["command"] in text and f"{s['trials']} trials" in text and not s["installed"]
+    assert s["shipped_before"]["file"] == "graspsim/data/grade_model.json" and "is kept" in text
+
+
+@pytest.mark.slow
+def test_e12_fits_a_model_files_gripper(tmp_path):
+    import shutil
+
+    from graspsim.grades.models import gripper_identity
+    from graspsim.grippers import get_gripper, model_folder
+
+    mod = _load("e12_fit_grade_model")
+    shutil.copytree(model_folder("rethink_gripper"), tmp_path / "g")
+    model = str(tmp_path / "g" / "rethink_gripper.xml")
+    out = tmp_path / "e12"
+    assert mod.main(["--quick", "--gripper", model, "--objects", "box@0.8", "cylinder@0.8", "--out", str(out)]) == 0
+    s = _summary(out)
+    assert s["gripper"] == gripper_identity(get_gripper(model)) and s["gripper"]["name"] == "rethink_gripper"
+    assert s["trials"] > 0 and s["command"] in mod.readme_section(s)
 
 
 @pytest.mark.slow

@@ -131,3 +131,11 @@ def test_the_franka_hand_ships_its_own_model_and_the_robust_score_uses_it():
     assert pad.meta.quality["grade_model"]["gripper"]["name"] == "franka_hand"
     with pytest.raises(GripperError):
         get_grade("pad_contact").grade_rows(fs, rows)  # the Festo's model: refused
+
+
+@pytest.mark.parametrize("name", ["festo_hgpl_25_60_a", "franka_hand", "robotiq_2f85", "rethink_gripper"])
+def test_every_registered_gripper_ships_a_grade_fitted_for_its_current_spec(name):
+    # E12 per gripper (docs/results.md): a spec changed since its fit must be refitted
+    m = get_grade("pad_contact", gripper=name)
+    assert m.gripper == gripper_identity(get_gripper(name)) and 0 < m.threshold < 1
+    assert m.provenance["script"] == "experiments/e12_fit_grade_model.py" and m.provenance["trials"] > 1000

@@ -11,7 +11,7 @@ from scipy.spatial import ConvexHull
 
 from graspsim.errors import GripperError
 from graspsim.grippers import get_gripper, load_model_gripper, model_folder, mount
-from graspsim.grippers.model_file import pad_arc
+from graspsim.grippers.model_file import GRID, pad_arc, straight_line_error
 from graspsim.sim import LiftPlace, TrialOutcome, build_scene, object_from_shape, run_trials
 from graspsim.sim.authored_model import PREFIX, build_vendored_gripper_spec
 
@@ -140,6 +140,10 @@ def test_the_2f85_pad_arc_matches_the_stepped_model_within_half_a_millimetre():
     g = get_gripper("robotiq_2f85")
     mnt = mount("robotiq_2f85")
     assert not mnt.prismatic and np.ptp(mnt.pad_z) > 0.005  # a linkage: the pads rise and fall by mm
+    err = straight_line_error(g, mnt)
+    assert g.arc_error == pytest.approx(np.abs(err["centre_offset"]).max(), abs=GRID)
+    assert min(np.min(err["margin_upper"]), np.min(err["margin_lower"])) >= 0  # conservative at every row
+    offsets = []
     spec, names = build_vendored_gripper_spec(g)
     spec.option.gravity = [0.0, 0.0, 0.0]
     m = spec.compile()
@@ -168,10 +172,20 @@ def test_the_2f85_pad_arc_matches_the_stepped_model_within_half_a_millimetre():
         if not g.min_opening <= gap <= g.max_opening:
             continue
         z = np.array([0.5 * (p[:, 2].min() + p[:, 2].max()) for p in (neg, pos)])
-        print(t, gap, np.abs(pad_arc(mnt, [gap])[0] - z).max())
         assert np.abs(pad_arc(mnt, [gap])[0] - z).max() < 5e-4, (t, gap, z, pad_arc(mnt, [gap]))
+        # the straight-line model's error the spec states holds for the stepped model: its
+        # pad centres lie within arc_error of the nominal TCP, the stated offset at this
+        # gap matches, and the planned contact region lies on both pads
+        offset = z - g.nominal_tcp[2]
+        assert np.abs(offset).max() <= g.arc_error + 5e-4, (gap, offset, g.arc_error)
+        stated = np.array([np.interp(gap, err["openings"], c) for c in np.array(err["centre_offset"]).T])
+        assert np.abs(stated - offset).max() < 5e-4, (gap, stated, offset)
+        lo, hi = err["planned"]
+        assert all(p[:, 2].min() <= lo + 5e-4 and hi <= p[:, 2].max() + 5e-4 for p in (neg, pos)), (gap, lo, hi)
+        offsets.append(offset.mean())
         checked += 1
     assert checked >= 3
+    assert np.ptp(offsets) > 1e-3  # the samples span the arc: the error changes with the opening
 
 
 @pytest.mark.parametrize("name", ["rethink_gripper", "robotiq_2f85"])
@@ -265,3 +279,30 @@ def test_a_urdf_gets_a_drive_from_its_effort_limit_and_lifts(tmp_path):
     r = run_trials(scene, T[None], [0.04], LiftPlace(), threads=1)
     assert TrialOutcome(int(r.outcome[0])) is TrialOutcome.SUCCESS
     assert r.metrics["pad_force_neg"][0] == pytest.approx(20.0, rel=0.05)
+
+
+def test_a_model_files_database_key_and_maps_follow_its_content_not_its_path(tmp_path):
+    from graspsim import Box, MapDatabase
+    from graspsim.grades.models import gripper_identity
+    from graspsim.maps.map_config import MapConfig
+
+    for d in ("a", "b/deeper", "c"):
+        shutil.copytree(model_folder("rethink_gripper"), tmp_path / d)
+    a, b, c = (get_gripper(str(tmp_path / d / "rethink_gripper.xml")) for d in ("a", "b/deeper", "c"))
+    assert a.model != b.model and a.to_dict() != b.to_dict()  # each records its own file
+    cfg = MapConfig(surface_step=0.012, rotation_step=np.radians(30))
+    dba, dbb = (MapDatabase(tmp_path / "db", gripper=g, config=cfg) for g in (a, b))
+    box = Box(0.04, 0.04, 0.04)
+    assert dba.key(box) == dbb.key(box) and gripper_identity(a) == gripper_identity(b)
+    built = dba.get(box)
+    assert dbb.contains(box)  # the copy finds the map the first file's database built
+    served = dbb.get(box, build=False)
+    assert np.array_equal(served.grade, built.grade) and len(served) == len(built) > 0
+    assert served.meta.gripper_spec == b  # and it records the copy's file: its trials simulate that
+    mesh = tmp_path / "c" / "meshes" / "half_round_tip.stl"
+    data = bytearray(mesh.read_bytes())
+    data[40] ^= 1  # one bit of the binary STL's header: the mesh's content, not its size or geometry
+    mesh.write_bytes(bytes(data))
+    assert MapDatabase(tmp_path / "db", gripper=c, config=cfg).key(box) != dba.key(box)
+    (tmp_path / "a" / "rethink_gripper.gripper.json").write_text(json.dumps({"grip_force": 15.0}))
+    assert MapDatabase(tmp_path / "db", gripper=get_gripper(a.model), config=cfg).key(box) != dbb.key(box)

@@ -198,7 +198,8 @@ def _found(a, b, tol: float = 1e-6) -> np.ndarray:
 
 def resolve_design(text: str, base: GripperSpec) -> GripperSpec:
     """A gripper named on a command line: ``param=value`` ([m]) varies ``base`` (e.g.
-    ``finger_length=0.05``); anything else is a registered gripper name or a JSON spec."""
+    ``finger_length=0.05``); anything else is a registered gripper name, a model file
+    (.xml, .urdf) or a JSON spec (:func:`graspsim.grippers.get_gripper`)."""
     if "=" in text:
         param, _, value = text.partition("=")
         try:

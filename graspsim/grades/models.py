@@ -59,7 +59,9 @@ def model_path(gripper: str = FESTO) -> Path:
 def gripper_identity(spec) -> dict:
     """``{"name", "digest"}`` of a gripper (a ``GripperSpec`` or its dict): what a
     fitted model records as the gripper it was fitted for."""
-    d = spec if isinstance(spec, dict) else spec.to_dict()
+    from graspsim.grippers import gripper_key
+
+    d = gripper_key(spec, missing_ok=True)  # a model file by its content (a copy: the same gripper)
     digest = hashlib.sha1(json.dumps(d, sort_keys=True).encode()).hexdigest()[:10]
     return {"name": str(d.get("name")), "digest": digest}
 

@@ -23,13 +23,13 @@ from pathlib import Path
 
 from graspsim.errors import GripperError
 from graspsim.grippers.franka import franka_hand_spec
-from graspsim.grippers.model_file import is_model_path, measure_model, vendored_gripper
+from graspsim.grippers.model_file import is_model_path, measure_model, model_content_key, vendored_gripper
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.grippers.vendored import Mount, mjcf_root, model_folder
 
 __all__ = ["GRIPPERS", "DEFAULT_GRIPPER", "get_gripper", "gripper_names", "load_gripper_json", "mount",
            "Mount", "mjcf_root", "model_folder", "franka_hand_spec", "load_model_gripper", "vendored_gripper",
-           "VENDORED"]
+           "VENDORED", "gripper_key"]
 
 DEFAULT_GRIPPER = HGPL_25_60_A.name
 MAX_SPEC_BYTES = 1 << 20
@@ -113,3 +113,20 @@ def mount(model: str) -> Mount:
     if is_model_path(model):
         return measure_model(model)[1]
     raise GripperError(f"no gripper model {model!r}; vendored: {list(VENDORED)}, or a model file path")
+
+
+def gripper_key(gripper: GripperSpec | dict, *, missing_ok: bool = False) -> dict:
+    """What identifies a gripper in digests (a database's keys, a grade model's gripper):
+    its spec (``to_dict()``, or such a dict) with a model file's path replaced by the
+    file's content key (:func:`~graspsim.grippers.model_file.model_content_key`: the
+    file, its meshes and sidecar), so the same model copied elsewhere gives the same key.
+    A file that cannot be read: GripperError, or with ``missing_ok`` its path kept."""
+    d = dict(gripper if isinstance(gripper, dict) else gripper.to_dict())
+    model = d.get("model")
+    if isinstance(model, str) and is_model_path(model):
+        try:
+            d["model"] = model_content_key(model)
+        except GripperError:
+            if not missing_ok:
+                raise
+    return d

@@ -30,8 +30,9 @@ over the stroke). The spec keeps graspsim's straight-line model and stays conser
 its boxes enclose the hulls at every opening and its pad region is where the flat face
 lies at every opening, so a contact planned on the spec's pad lands on the real pad
 whatever the width. :attr:`Mount.pad_z` holds the pad centre's height at every row
-(:func:`pad_arc`), and ``arc_error`` in :func:`model_report` states the straight-line
-model's error.
+(:func:`pad_arc`) and :attr:`Mount.pad_face` the pad faces' ends; the straight-line
+model's error at every row is :func:`straight_line_error`, its largest the spec's
+``arc_error``.
 
 What the model does not say is named in a sidecar JSON beside it (``<model>.gripper.json``)
 or passed as options: ``name``, ``root_body``, ``pad_geoms`` [two geom names],
@@ -59,8 +60,8 @@ from graspsim._gl import import_mujoco
 from graspsim.errors import GripperError
 from graspsim.grippers.spec import GripperSpec
 
-__all__ = ["measure_model", "vendored_gripper", "model_report", "pad_arc", "sidecar_path", "model_digest",
-           "SIDECAR_KEYS", "MEASURE_VERSION", "ROWS"]
+__all__ = ["measure_model", "vendored_gripper", "model_report", "pad_arc", "straight_line_error", "sidecar_path",
+           "model_digest", "content_digest", "model_content_key", "SIDECAR_KEYS", "MEASURE_VERSION", "ROWS"]
 
 MEASURE_VERSION = 1  # bump when the measurement changes: old cache entries are ignored
 ROWS = 17            # rows of the opening table (a linkage: stepped rows)
@@ -160,18 +161,59 @@ def _add_urdf_drive(path: Path, child, opts: dict) -> None:
     act.ctrlrange = [-1.0, 1.0]
 
 
-def model_digest(path: Path, opts: dict) -> str:
-    """sha256 of the model file, every mesh it names, the options and the measuring code."""
-    h = hashlib.sha256(f"graspsim-gripper-model-v{MEASURE_VERSION}".encode())
-    h.update(Path(__file__).read_bytes())  # the measurement's own code: a change re-measures
+def content_digest(path: Path, opts: dict) -> str:
+    """sha256 of what the gripper is, wherever its files lie: the model file's bytes, the
+    options (the sidecar's keys) and every mesh it names (each by its path relative to
+    the model's folder, when it lies under it, and its bytes). A copy of the folder
+    elsewhere has the same digest; the files' absolute paths do not enter it."""
+    h = hashlib.sha256(b"graspsim-gripper-content-v1")
     h.update(path.read_bytes())
     h.update(json.dumps(opts, sort_keys=True).encode())
-    for mesh in sorted({m.file for m in _load_spec(path, opts).meshes if m.file}):
+    meshes = []
+    for mesh in {m.file for m in _load_spec(path, opts).meshes if m.file}:
         try:
-            h.update(Path(mesh).read_bytes())
+            name = Path(mesh).relative_to(path.parent).as_posix()
+        except ValueError:  # a mesh outside the model's folder: its name only
+            name = Path(mesh).name
+        meshes.append((name, mesh))
+    for name, mesh in sorted(meshes):
+        try:
+            data = Path(mesh).read_bytes()
         except OSError as err:
             raise _error(path, f"mesh {mesh} cannot be read: {err}") from err
+        h.update(f"{name}:{len(data)}:".encode())
+        h.update(data)
     return h.hexdigest()
+
+
+def model_digest(path: Path, opts: dict) -> str:
+    """The measurement's cache key: :func:`content_digest` and the measuring code."""
+    h = hashlib.sha256(f"graspsim-gripper-model-v{MEASURE_VERSION}".encode())
+    h.update(Path(__file__).read_bytes())  # the measurement's own code: a change re-measures
+    h.update(content_digest(path, opts).encode())
+    return h.hexdigest()
+
+
+@functools.lru_cache(maxsize=64)
+def _content_key(path: str, stamp: tuple) -> str:
+    # per process, keyed by the model file's and sidecar's mtime and size: a mesh edited
+    # in place while the process runs keeps its old key until the model file changes
+    p = Path(path)
+    return content_digest(p, _options(p, None))
+
+
+def model_content_key(model: str) -> str:
+    """``"sha256:<content_digest>"`` of the model file ``model`` (a path) with its sidecar:
+    what a spec's ``model`` path stands for in digests and database keys (a copy of the
+    file elsewhere gives the same key). GripperError if the file cannot be read."""
+    p = Path(model)
+    try:
+        side = sidecar_path(p)
+        files = (p, side) if side.is_file() else (p,)
+        stamp = tuple((f.stat().st_mtime_ns, f.stat().st_size) for f in files)
+    except (OSError, ValueError) as err:
+        raise GripperError(f"cannot read gripper model {model!r}: {err}") from err
+    return "sha256:" + _content_key(str(p.resolve()), stamp)
 
 
 def _harness(child, *, block=None):
@@ -713,6 +755,16 @@ def _measure(path: Path, opts: dict) -> tuple[dict, dict]:
         housing_mass=housing_mass, jaw_mass=_r((1 - share) * side_mass), finger_mass=_r(share * side_mass))
     if spec["finger_size"][2] <= 0:
         raise _error(path, "the pads have no length below the jaws")
+    # each row's flat pad faces (K, 2 pads, (upper end, lower end)) in the wrist frame
+    pad_face = np.array(list(zip(tops, bots))).reshape(len(W), 2, 2) - z0g
+    if not table.prismatic:  # a linkage: the straight-line model's largest error (see straight_line_error)
+        try:  # the spec's nominal TCP: the middle of the contacts it plans
+            planned = GripperSpec(**{k: tuple(v) if isinstance(v, list) else v for k, v in spec.items()}).nominal_tcp[2]
+        except GripperError as e:
+            raise _error(path, f"the measured spec is not valid: {e}") from e
+        err = float(np.abs(pad_face.mean(axis=2) - planned).max())
+        if err > GRID:
+            spec["arc_error"] = _grid(err)
     # the harness's table: joint values of the gripper (by name), controls, pad heights
     jnames = [m.joint(j).name[len(PREFIX):] for j in parts.joints]
     jcols = [m.jnt_qposadr[j] for j in parts.joints]
@@ -728,7 +780,8 @@ def _measure(path: Path, opts: dict) -> tuple[dict, dict]:
         openings=[float(max(g, 0.0)) for g in gaps], qpos=qtab[:, jcols].tolist(),
         ctrl_open=ctrl_open.tolist(), ctrl_close=ctrl_close.tolist(), ctrl_hold=ctab.tolist(),
         hold=bool(any(_is_position(m, a) for a in range(m.nu))), pad_z=pad_z, pad_x=pad_x,
-        model_force=force, prismatic=table.prismatic, pad_top=float(pad_top - z0g), pad_bottom=float(pad_bot - z0g))
+        model_force=force, prismatic=table.prismatic, pad_top=float(pad_top - z0g), pad_bottom=float(pad_bot - z0g),
+        pad_face=pad_face.tolist())
     return spec, mount
 
 
@@ -926,7 +979,8 @@ def _measured(path: str, digest: str, opts_json: str, model: str | None):
         quat=tuple(mf["quat"]), joints=tuple(mf["joints"]), openings=np.array(mf["openings"]),
         qpos=np.array(mf["qpos"]), ctrl_open=np.array(mf["ctrl_open"]), ctrl_close=np.array(mf["ctrl_close"]),
         ctrl_hold=np.array(mf["ctrl_hold"]), hold=bool(mf["hold"]), model_force=float(mf["model_force"]),
-        pad_z=np.array(mf["pad_z"]), prismatic=bool(mf["prismatic"]), options=tuple(sorted(opts.items())))
+        pad_z=np.array(mf["pad_z"]), prismatic=bool(mf["prismatic"]), options=tuple(sorted(opts.items())),
+        pad_face=np.array(mf["pad_face"]))
     return spec, mount
 
 
@@ -937,14 +991,40 @@ def pad_arc(mount, openings) -> np.ndarray:
     return np.stack([np.interp(w, mount.openings, mount.pad_z[:, s]) for s in range(2)], -1)
 
 
+def straight_line_error(spec: GripperSpec, mount) -> dict:
+    """The straight-line model's error at every row of the opening table: the planner puts
+    each pad at x = +-opening/2 with its planned contacts between fixed heights (centred
+    on the nominal TCP); the model's pad faces move on an arc (a linkage). Lists over the
+    rows [m], heights along the approach (z, towards the tip), each pad (neg, pos):
+
+    * ``openings`` (K,): the pad gaps;
+    * ``centre_offset`` (K, 2): the pad face's centre minus the nominal TCP's height (the
+      straight-line model's pad centre); ``spec.arc_error`` is its largest magnitude;
+    * ``margin_upper`` / ``margin_lower`` (K, 2): how far the planned contact region lies
+      inside the face at its upper (flange-side) / lower (tip-side) end (>= 0: a contact
+      planned anywhere on the spec's pad lands on the real pad at that opening);
+    * ``unused`` (K, 2): the face's length outside the planned region (what following the
+      arc would recover)."""
+    if mount.pad_face is None:
+        raise GripperError(f"gripper model of {spec.name!r}: no pad faces measured (an old cache entry)")
+    face = np.asarray(mount.pad_face, float)
+    lo, hi = float(spec.tcp_offset(spec.depth_hi)), float(spec.tcp_offset(spec.depth_lo))  # upper, lower end
+    centre = face.mean(axis=2) - float(spec.nominal_tcp[2])
+    return {"openings": np.asarray(mount.openings, float).tolist(), "centre_offset": centre.tolist(),
+            "margin_upper": (lo - face[:, :, 0]).tolist(), "margin_lower": (face[:, :, 1] - hi).tolist(),
+            "unused": ((face[:, :, 1] - face[:, :, 0]) - (hi - lo)).tolist(),
+            "planned": [lo, hi]}
+
+
 def model_report(spec: GripperSpec, mount) -> dict:
-    """What was measured, for the docs and the CLI: the opening range, the force, and the
-    straight-line model's error (``arc_error``: the largest change of the pad centre's
-    height over the opening range [m]; the spec's pad region is where the flat face lies
-    at every opening)."""
+    """What was measured, for the docs and the CLI: the opening range, the force, the
+    pads' rise over the stroke (``arc_rise``: the largest change of a pad centre's height)
+    and the straight-line model's error (``arc_error``, :func:`straight_line_error`; 0 for
+    pads that move on a line)."""
     z = mount.pad_z
     return {"name": spec.name, "model": str(mount.path), "opening": [spec.min_opening, spec.max_opening],
             "grip_force": spec.grip_force, "closing_speed": spec.closing_speed,
             "pads": list(mount.pad_geoms), "jaw_joints": list(mount.jaw_joints),
             "actuators": list(mount.actuators), "linkage": not mount.prismatic,
-            "arc_error": float(z.max() - z.min())}
+            "arc_rise": float(np.ptp(z, axis=0).max()), "arc_error": spec.arc_error or 0.0,
+            "straight_line_error": straight_line_error(spec, mount)}

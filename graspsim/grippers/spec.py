@@ -96,13 +96,20 @@ class GripperSpec:
     # (measured from a model file, graspsim.grippers.model_file). Left out of ``to_dict``
     # when None.
     tip_margin: float | None = None
+    # A linkage's pads move on an arc; the planner keeps the straight-line model (pads at
+    # x = +-opening/2 and fixed heights, the planned contacts centred on the nominal TCP).
+    # Its error [m]: the largest distance along the approach between a pad's centre and
+    # the nominal TCP over the opening range, measured from a model file (per opening:
+    # graspsim.grippers.model_file.straight_line_error). None: the pads move on a line.
+    # Left out of ``to_dict`` when None.
+    arc_error: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise GripperError(f"gripper name must be a non-empty string, got {self.name!r}")
         for f in fields(self)[1:]:
             v = getattr(self, f.name)
-            if f.name == "tip_margin" and v is not None:
+            if f.name in ("tip_margin", "arc_error") and v is not None:
                 object.__setattr__(self, f.name, _checked(f.name, v, False))
             elif f.name == "model":
                 if v is not None and not (isinstance(v, str) and (v.isidentifier() or (
@@ -343,6 +350,6 @@ def _checked(name: str, v, triple: bool):
     return fv
 
 
-_OPTIONAL = ("rated_force", "model", "tip_margin")
+_OPTIONAL = ("rated_force", "model", "tip_margin", "arc_error")
 
 HGPL_25_60_A = GripperSpec()

@@ -32,7 +32,9 @@ class Mount:
     row (position actuators; ``hold`` False: force actuators, held by 0); ctrl_open /
     ctrl_close (nu,): the controls that open / close. pad_z (K, 2) [m]: height of each
     pad's centre above the wrist origin at each row (the pads' arc; constant for a
-    prismatic gripper). model_force: the model's grip force per finger [N]."""
+    prismatic gripper). pad_face (K, 2, 2) [m]: each pad's flat face at each row, (upper
+    end, lower end) above the wrist origin (None: a cache from before it was measured).
+    model_force: the model's grip force per finger [N]."""
 
     name: str
     path: Path
@@ -53,6 +55,7 @@ class Mount:
     pad_z: np.ndarray
     prismatic: bool
     options: tuple = ()
+    pad_face: np.ndarray | None = None
 
     @property
     def xml(self) -> Path:

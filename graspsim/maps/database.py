@@ -33,6 +33,7 @@ import numpy as np
 from graspsim._atomic import atomic_write_text
 from graspsim.errors import GraspsimError, MapDatabaseError, MapFileError
 from graspsim.grades.paper import QualityModel
+from graspsim.grippers import gripper_key
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import GraspabilityMap
@@ -151,7 +152,8 @@ class MapDatabase:
             self.root.mkdir(parents=True, exist_ok=True)
         except (OSError, ValueError) as err:  # ValueError: a NUL byte in the path
             raise MapDatabaseError(f"cannot create map database folder {self.root}: {err}") from err
-        self._settings = _digest({"gripper": gripper.to_dict(), "quality": self.quality.to_dict(),
+        # a model file's gripper by its content, not its path: a copy elsewhere finds the same maps
+        self._settings = _digest({"gripper": gripper_key(gripper), "quality": self.quality.to_dict(),
                                   "config": self.config.to_dict()})
 
     def __getstate__(self) -> dict:
@@ -234,7 +236,7 @@ class MapDatabase:
         p = self.path(shape)
         if self.contains(shape):
             try:
-                return load_map(p, verify_transforms=False)
+                return self._ours(load_map(p, verify_transforms=False))
             except MapFileError as err:
                 log.warning("rebuilding damaged database map %s: %s", p, err)
         if not build:
@@ -249,13 +251,13 @@ class MapDatabase:
         path = self.root / entry["file"]
         try:
             if not accepted_only:
-                return load_map(path, verify_transforms=False)
+                return self._ours(load_map(path, verify_transforms=False))
             key = (str(path), path.stat().st_mtime_ns)
             gmap = self._cache.get(key)
             if gmap is not None:
                 self._cache.move_to_end(key)
                 return gmap
-            gmap = load_map(path, rows=slice(0, int(entry["accepted"])), verify_transforms=False)
+            gmap = self._ours(load_map(path, rows=slice(0, int(entry["accepted"])), verify_transforms=False))
         except (OSError, KeyError, TypeError, ValueError) as err:  # MapFileError is an OSError
             raise MapDatabaseError(f"stored map {path} is unusable ({err}); `graspsim db check --repair "
                                    f"--root {self.root}` removes it (the next use rebuilds it)") from err
@@ -265,6 +267,17 @@ class MapDatabase:
             self._cache[key] = gmap
             while len(self._cache) > self.cache_size:
                 self._cache.popitem(last=False)
+        return gmap
+
+    def _ours(self, gmap: GraspabilityMap) -> GraspabilityMap:
+        """A stored map as this database's gripper's: a map keyed by this gripper's digest
+        but made with a copy of its model file elsewhere (the key holds the file's content,
+        not its path) records this gripper's path, so its trials simulate this file."""
+        model = gmap.meta.gripper.get("model")
+        if model != self.gripper.model and isinstance(model, str) and isinstance(self.gripper.model, str) \
+                and {k: v for k, v in gmap.meta.gripper.items() if k != "model"} == \
+                {k: v for k, v in self.gripper.to_dict().items() if k != "model"}:
+            return gmap.with_meta(gripper=self.gripper.to_dict())
         return gmap
 
     # ------------------------------------------------------------------ building

@@ -467,5 +467,23 @@ def readme_section(s: dict) -> str:
     return "\n".join(L) + "\n"
 
 
+def headline(s: dict) -> str:
+    """The README's headline line (see ``experiments/report.py``): robust mode through the
+    public path, full clouds and single views, development and held-out meshes apart."""
+    parts = []
+    for split, pool in s["splits"].items():
+        cells = []
+        for key, what in (("full/robust", "full clouds"), ("single/robust", "single views")):
+            p = pool[key]
+            cells.append(f"{what} {p['with_grasp']}/{p['objects']} usable, "
+                         f"{rate_ci(p['placed'], p['trials'])} of the 10 best placed, "
+                         f"{p['start_collision']} START_COLLISION")
+        label = {"development": "Development", "held_out": "Held out"}.get(split, split)
+        parts.append(f"{label} ({pool['full/robust']['objects']} meshes): " + "; ".join(cells))
+    return (f"{len(s['objects'])} everyday and random meshes, each resting on a table, through `graspsim adapt "
+            "--table auto` and `graspsim trial --top 10 --mesh` (1 mm noise; single views with their camera as "
+            "viewpoint): " + ". ".join(parts) + ".")
+
+
 if __name__ == "__main__":
     raise SystemExit(main())

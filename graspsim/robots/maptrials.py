@@ -13,27 +13,12 @@ failures (UNREACHABLE, APPROACH_COLLISION).
 from __future__ import annotations
 
 import os
-from dataclasses import replace
-from pathlib import Path
-
-import numpy as np
 
 from graspsim.errors import InvalidParameterError
-from graspsim.maps import load_map
-from graspsim.maps.robust import executed_width
 from graspsim.robots.arm import DEFAULT_BASE, base_transform, build_robot_model, get_arm
 from graspsim.robots.capability import CapabilityConfig, capability_map
 from graspsim.robots.execute import ArmLiftPlace, build_arm_scene, run_arm_trials
-from graspsim.sim.mapsim import (
-    MapTrials,
-    _simulated_file,
-    map_gripper,
-    map_object,
-    observed_placement,
-    select_grasps,
-    stored_results,
-    write_results,
-)
+from graspsim.sim.mapsim import MapTrials, map_trials
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.trial_scene import SimSettings
 
@@ -57,42 +42,22 @@ def simulate_map_arm(path: str | os.PathLike, *, robot: str = "panda", base=DEFA
     T_base = base_transform(base)
     if not isinstance(protocol, ArmLiftPlace):
         raise InvalidParameterError("an arm executes the lift_place protocol (ArmLiftPlace) only")
-    path, mesh = _simulated_file(Path(path), mesh, mesh_scale, dataset)
-    gmap = load_map(path)
-    gripper = map_gripper(gmap)
-    if gripper.model is None:
-        raise InvalidParameterError(
-            f"the map's gripper {gripper.name!r} has no model file: --robot {robot} carries grippers simulated "
-            "from their model files (e.g. franka_hand, robotiq_2f85)")
-    if settings is None:
-        mu = gmap.meta.quality.get("friction")
-        settings = SimSettings(friction=float(mu)) if mu else SimSettings()
-    rng = np.random.default_rng(seed)
-    index = select_grasps(gmap, top=top, sample=sample, min_grade=min_grade, rng=rng, rank=rank,
-                          separation=separation)
-    if on_selected is not None:
-        on_selected(gmap, index)
-    obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,
-                     map_dir=path.parent, cache_dir=cache_dir)
-    scene = build_arm_scene(obj, gripper, settings, arm=arm, base=T_base,
-                            T_world_obj=observed_placement(gmap, obj, mesh is not None))
-    held, why = 0, None
-    if write and len(index):
-        group, held, why = stored_results(path, protocol, scene, noise, index)
-        if why is not None and not replace_stored:
+    def check_gripper(gripper):
+        if gripper.model is None:
             raise InvalidParameterError(
-                f"{path.name} already holds the results of {held} trials in {group} ({why}): storing "
-                "these would replace them; pass --replace (replace_stored=True) to replace them, or "
-                "--no-write (write=False) to keep them and store nothing")
-    cmap = capability_map(build_robot_model(arm, gripper, T_base), arm, T_base, capability or CapabilityConfig(),
-                          cache_dir=capability_cache)
-    chosen = gmap.select(index)
-    width = executed_width(chosen)
-    results = run_arm_trials(scene, chosen.T_obj_wrist, width, protocol, threads=threads, seed=seed, noise=noise,
-                             capability=cmap, on_progress=on_progress)
-    results = replace(results, extra={**results.extra, "map_file": str(path),
-                                      "mesh": None if mesh is None else str(getattr(mesh, "source", mesh))})
-    group = write_results(path, len(gmap), index, results) if write and len(index) else None
-    return MapTrials(index=index, results=results, scene=scene, group=group, width=width, file=path,
-                     viewpoint=gmap.meta.extra.get("viewpoint"),
-                     kept=held if group and why is None else 0, replaced=held if group and why else 0)
+                f"the map's gripper {gripper.name!r} has no model file: --robot {robot} carries grippers simulated "
+                "from their model files (e.g. franka_hand, robotiq_2f85)")
+
+    def scene_of(obj, gripper, settings, T_world_obj):
+        return build_arm_scene(obj, gripper, settings, arm=arm, base=T_base, T_world_obj=T_world_obj)
+
+    def execute(scene, T_obj_wrist, width):
+        cmap = capability_map(build_robot_model(arm, scene.gripper, T_base), arm, T_base,
+                              capability or CapabilityConfig(), cache_dir=capability_cache)
+        return run_arm_trials(scene, T_obj_wrist, width, protocol, threads=threads, seed=seed, noise=noise,
+                              capability=cmap, on_progress=on_progress)
+
+    return map_trials(path, scene_of, execute, protocol=protocol, top=top, sample=sample, min_grade=min_grade,
+                      seed=seed, noise=noise, mesh=mesh, mesh_scale=mesh_scale, mass=mass, settings=settings,
+                      write=write, replace_stored=replace_stored, cache_dir=cache_dir, on_selected=on_selected,
+                      rank=rank, separation=separation, dataset=dataset, check_gripper=check_gripper)

@@ -41,7 +41,7 @@ from graspsim.sim.trial_scene import Scene, SimSettings, build_scene
 from graspsim.transforms import invert_transform
 
 __all__ = ["MapTrials", "select_grasps", "map_object", "map_gripper", "observed_placement", "simulate_map",
-           "write_results"]
+           "map_trials", "write_results"]
 
 log = logging.getLogger(__name__)
 
@@ -265,9 +265,38 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
     :class:`~graspsim.errors.InvalidParameterError` before anything is simulated;
     ``write=False`` stores nothing). ``MapTrials.kept`` / ``.replaced`` say which.
     """
+    def scene_of(obj, gripper, settings, T_world_obj):
+        return build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity,
+                           T_world_obj=T_world_obj)
+
+    def execute(scene, T_obj_wrist, width):
+        return run_trials(scene, T_obj_wrist, width, protocol, threads=threads, seed=seed, noise=noise,
+                          on_progress=on_progress, on_record=on_record)
+
+    return map_trials(path, scene_of, execute, protocol=protocol, top=top, sample=sample, min_grade=min_grade,
+                      seed=seed, noise=noise, mesh=mesh, mesh_scale=mesh_scale, mass=mass, settings=settings,
+                      write=write, replace_stored=replace_stored, cache_dir=cache_dir, on_selected=on_selected,
+                      rank=rank, separation=separation, dataset=dataset)
+
+
+def map_trials(path, scene_of, execute, *, protocol: Protocol, top: int | None = None, sample: int | None = None,
+               min_grade: float | None = None, seed: int = 0, noise: ExecutionNoise | None = None,
+               mesh=None, mesh_scale: float = 1.0, mass: float | None = None, settings: SimSettings | None = None,
+               write: bool = True, replace_stored: bool = False, cache_dir=None, on_selected=None,
+               rank: str = "robust", separation: tuple[float, float] | None = None, dataset: dict | None = None,
+               check_gripper=None) -> MapTrials:
+    """The one path from a map file to its stored trial results, whatever executes the grasps:
+    :func:`simulate_map` (the floating gripper) and the arm's
+    :func:`graspsim.robots.simulate_map_arm` differ only in ``scene_of(obj, gripper, settings,
+    T_world_obj) -> scene`` and ``execute(scene, T_obj_wrist, width) -> TrialResults``
+    (``check_gripper(gripper)`` may refuse the map's gripper first). Selection, the
+    object and where it stands, the settings, the stored-results check and the storing are
+    :func:`simulate_map`'s (arguments as there)."""
     path, mesh = _simulated_file(Path(path), mesh, mesh_scale, dataset)
     gmap = load_map(path)
     gripper = map_gripper(gmap)
+    if check_gripper is not None:
+        check_gripper(gripper)
     if settings is None:
         mu = gmap.meta.quality.get("friction")
         settings = SimSettings(friction=float(mu)) if mu else SimSettings()
@@ -278,8 +307,7 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
         on_selected(gmap, index)
     obj = map_object(gmap, mesh=mesh, mesh_scale=mesh_scale, mass=mass, density=settings.density,
                      map_dir=path.parent, cache_dir=cache_dir)
-    scene = build_scene(obj, gripper, settings, table=protocol.table, gravity=protocol.gravity,
-                        T_world_obj=observed_placement(gmap, obj, mesh is not None))
+    scene = scene_of(obj, gripper, settings, observed_placement(gmap, obj, mesh is not None))
     held, why = 0, None
     if write and len(index):
         group, held, why = stored_results(path, protocol, scene, noise, index)
@@ -290,10 +318,8 @@ def simulate_map(path: str | os.PathLike, *, protocol: Protocol = LiftPlace(),
                 "--no-write (write=False) to keep them and store nothing")
     chosen = gmap.select(index)  # transforms of the chosen rows only (all of a 10 M-grasp map: 1.2 GB)
     width = executed_width(chosen)
-    results = run_trials(scene, chosen.T_obj_wrist, width, protocol,
-                         threads=threads, seed=seed, noise=noise, on_progress=on_progress,
-                         on_record=on_record)
-    results = replace(results, extra={"map_file": str(path),
+    results = execute(scene, chosen.T_obj_wrist, width)
+    results = replace(results, extra={**results.extra, "map_file": str(path),
                                       "mesh": None if mesh is None else str(getattr(mesh, "source", mesh))})
     group = write_results(path, len(gmap), index, results) if write and len(index) else None
     return MapTrials(index=index, results=results, scene=scene, group=group, width=width, file=path,

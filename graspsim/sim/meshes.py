@@ -55,6 +55,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
 import os
 import subprocess
 import sys
@@ -69,7 +70,7 @@ import numpy as np
 from graspsim._atomic import atomic_path
 from graspsim.errors import DependencyNotInstalled, InvalidParameterError, MeshError
 
-__all__ = ["CoacdParams", "PreparedMesh", "prepare_mesh", "check_mesh_path", "check_mesh_arrays",
+__all__ = ["CoacdParams", "PreparedMesh", "prepare_mesh", "surface_model", "check_mesh_path", "check_mesh_arrays",
            "load_mesh", "convex_parts", "default_cache_dir", "MAX_MESH_EXTENT", "MIN_MESH_EXTENT"]
 
 log = logging.getLogger(__name__)
@@ -144,7 +145,8 @@ class PreparedMesh:
 
     parts: convex vertex arrays (V_i, 3) [m]; method: "convex" (one hull), "components"
     (each component convex: its hulls), "coacd" (CoACD's parts for the non-convex
-    components) or "hull" (the fallback: one hull per component); volume [m^3], com (3,)
+    components), "hull" (the fallback: one hull per component) or "surface"
+    (:func:`surface_model`: a thin prism per face); volume [m^3], com (3,)
     [m], unit_inertia (3, 3) [m^2] (inertia about the COM per kg); mass_from: "mesh"
     (closed mesh) or "parts" (the union of the parts stands in); surface: the mesh
     (trimesh); faces: the file's face count; watertight; warning: the fallback's reason,
@@ -530,6 +532,53 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
         log.info("prepared %s: %d convex parts (%s) in %.1f s", name, len(parts), method, out.seconds)
     if out.warning:
         log.warning("%s%s", out.warning, " (cached)" if out.from_cache else "")
+    return out
+
+
+#: the most faces :func:`surface_model` takes (one MuJoCo geom each: trials slow down with them)
+MAX_SURFACE_FACES = 10_000
+
+
+def surface_model(source, *, scale: float = 1.0, thickness: float = 0.0015,
+                  max_faces: int = MAX_SURFACE_FACES) -> PreparedMesh:
+    """The mesh's own surface as its collision model: each triangle extruded ``thickness``
+    [m] inwards along its normal into a thin convex prism (a closed mesh; an open one
+    is extruded half each way), so concavities, cavities and thin walls stay as the mesh
+    has them -- where CoACD's few parts (``prepare_mesh``) thicken a wall by millimetres
+    or its fallback fills a mug's cavity. The price is one geom per face: trials run
+    several times slower than with a dozen parts, so this model is for checking a
+    simulated outcome against the exact geometry (E14), not for every run. Mass
+    properties: those of the closed mesh (else of the prisms). Not cached (it takes
+    milliseconds). Raises :class:`MeshError` on a mesh that cannot be simulated or has
+    more than ``max_faces`` faces (decimate it first)."""
+    import trimesh
+
+    t0 = time.perf_counter()
+    scale = _check_scale(scale)
+    if not (math.isfinite(thickness) and 0 < thickness <= 0.01):
+        raise InvalidParameterError(f"surface thickness must be in (0, 0.01] m, got {thickness!r}")
+    if isinstance(source, trimesh.Trimesh):
+        name, label = "the mesh", "<trimesh>"
+        vertices, faces = np.asarray(source.vertices, np.float64), np.asarray(source.faces, np.int64)
+    else:
+        path = check_mesh_path(source)
+        name, label = f"mesh {path.name}", str(path)
+        vertices, faces = _read_arrays(path)
+    check_mesh_arrays(vertices, faces, scale=scale, name=name)
+    mesh = _clean(vertices, faces, scale, name)
+    if len(mesh.faces) > max_faces:
+        raise MeshError(f"{name} has {len(mesh.faces)} faces; a surface model takes at most {max_faces} "
+                        "(one geom each): decimate the mesh first")
+    closed = bool(mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0)
+    tri = np.asarray(mesh.triangles, float)
+    normal = np.asarray(mesh.face_normals, float)[:, None, :]
+    inner, outer = (tri - thickness * normal, tri) if closed else (tri - thickness / 2 * normal,
+                                                                    tri + thickness / 2 * normal)
+    parts = [np.concatenate([a, b]) for a, b in zip(outer, inner)]
+    volume, com, unit, mass_from = _mass_properties(mesh, parts)
+    out = PreparedMesh(tuple(parts), "surface", volume, com, unit, mass_from, mesh, len(faces), closed, None,
+                       "", False, time.perf_counter() - t0, label, scale)
+    log.info("prepared %s: its surface as %d prisms of %.1f mm", name, len(parts), 1000 * thickness)
     return out
 
 

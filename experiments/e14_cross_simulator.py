@@ -81,7 +81,7 @@ class Config:
     grasps: str = opt("", "ACRONYM .h5 / GraspGen .json grasp file (empty with --quick: a generated one)")
     mesh: str = opt("", "the object's mesh (default: the file's object/file, found beside it)")
     protocols: tuple[str, ...] = opt(("tug", "lift_place"), "protocols", choices=("tug", "lift_place"))
-    models: tuple[str, ...] = opt(("default", "surface"), "the object's collision models (see the doc)",
+    models: tuple[str, ...] = opt(MODELS, "the object's collision models (see the doc)",
                                   choices=MODELS)
     sample: int = opt(300, "grasps simulated, a seeded sample spread over the surface (0: all)")
     seed: int = opt(0, "run seed (draws the sample; no execution error)")

@@ -136,3 +136,19 @@ def test_a_grasp_pinching_a_thin_wall_starts_clear_on_the_surface_model(tmp_path
         out[name] = run_trials(scene, T[None], np.array([0.004]), tug, threads=1).outcome[0]
     assert out["surface"] == TrialOutcome.SUCCESS
     assert out["hull"] == TrialOutcome.START_COLLISION
+
+
+@pytest.mark.slow
+def test_an_unbounded_model_in_the_cache_does_not_change_a_bounded_call(tmp_path):
+    """A model CoACD made without a time limit is served only to limits at least the CPU
+    time it took: a call with a smaller limit gets the fallback it would get on an empty
+    cache. Mutation: serving the complete model to every limit (the earlier rule) trips it."""
+    ring = _ring()
+    full = prepare_mesh(ring, cache_dir=tmp_path, params=UNBOUNDED)
+    assert full.method == "coacd" and full.decompose_cpu > 0
+    again = prepare_mesh(ring, cache_dir=tmp_path, params=UNBOUNDED)
+    assert again.from_cache and again.method == "coacd" and again.decompose_cpu == full.decompose_cpu
+    bounded = prepare_mesh(ring, cache_dir=tmp_path, params=CoacdParams(time_limit=0.0))
+    assert bounded.method == "hull" and bounded.warning
+    roomy = prepare_mesh(ring, cache_dir=tmp_path, params=CoacdParams(time_limit=full.decompose_cpu + 60))
+    assert roomy.from_cache and roomy.method == "coacd"

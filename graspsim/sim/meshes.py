@@ -24,7 +24,10 @@ convex parts first. :func:`prepare_mesh` is the one entry point (``graspsim tria
 5. caches the result under :func:`default_cache_dir`, keyed by a hash of the file's
    vertex and face arrays, the scale and the settings, written atomically: a second
    run of the same mesh loads it (no decomposition, no decimation). A complete model
-   serves every time limit; a fallback is kept apart, for the time limit that gave it.
+   serves every time limit at least the CPU time CoACD took for it (recorded with it):
+   a model made without a limit is not handed to a call whose limit would have fallen
+   back, so the model a call gets does not depend on what the cache holds; a fallback
+   is kept apart, for the time limit that gave it.
 
 Mass properties: a closed mesh's own volume, centre of mass and inertia; an open or
 non-manifold mesh has no meaningful volume, so those of the union of its convex parts
@@ -151,7 +154,8 @@ class PreparedMesh:
     (closed mesh) or "parts" (the union of the parts stands in); surface: the mesh
     (trimesh); faces: the file's face count; watertight; warning: the fallback's reason,
     or None; key: the cache key; from_cache; seconds: the time preparation took; source:
-    the file (or "<trimesh>"); scale: the scale applied to the file's coordinates."""
+    the file (or "<trimesh>"); scale: the scale applied to the file's coordinates;
+    decompose_cpu: the CPU seconds CoACD took for this model (0: none ran, or unknown)."""
 
     parts: tuple[np.ndarray, ...]
     method: str
@@ -168,6 +172,7 @@ class PreparedMesh:
     seconds: float = 0.0
     source: str = ""
     scale: float = 1.0
+    decompose_cpu: float = 0.0
 
     def describe(self) -> dict:
         """What was simulated, for results and ``--json``."""
@@ -352,9 +357,10 @@ def _components(mesh):
     return list(comps) if len(comps) > 1 else [mesh]
 
 
-def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | None, str | None, bool]:
+def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | None, str | None, bool, float]:
     """(CoACD's parts of ``mesh`` from the bounded worker, or None; why it gave none;
-    whether the outcome depended on the machine's load: the wall-clock backstop ended it)."""
+    whether the outcome depended on the machine's load: the wall-clock backstop ended it;
+    the worker's CPU seconds, last read while it ran)."""
     try:
         import coacd  # noqa: F401
     except ImportError as err:
@@ -370,19 +376,20 @@ def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | 
             proc = subprocess.Popen([sys.executable, str(_WORKER), str(src), str(dst)], stdout=subprocess.PIPE,
                                     stderr=err_file, env={**os.environ, "PYTHONWARNINGS": "ignore"})
             os.set_blocking(proc.stdout.fileno(), False)
-            stage, said = "decomposing", b""
+            stage, said, used = "decomposing", b"", 0.0
             started = time.monotonic()
             backstop = started + WALL_FACTOR * params.time_limit + WALL_SLACK
             try:
                 while proc.poll() is None:
                     cpu = _cpu_seconds(proc.pid)
                     spent = time.monotonic() - started if cpu is None else cpu
+                    used = max(used, spent)
                     if spent > params.time_limit:
                         return None, (f"decomposition did not finish within its limit of {params.time_limit:g} s"
-                                      f" of {'wall' if cpu is None else 'CPU'} time"), False
+                                      f" of {'wall' if cpu is None else 'CPU'} time"), False, used
                     if time.monotonic() > backstop:
                         return None, (f"decomposition was starved of CPU (machine load) past "
-                                      f"{backstop - started:g} s of wall time; not cached: run it again"), True
+                                      f"{backstop - started:g} s of wall time; not cached: run it again"), True, used
                     try:
                         said += os.read(proc.stdout.fileno(), 65536)
                     except BlockingIOError:
@@ -402,11 +409,11 @@ def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | 
             err = err_file.read().decode(errors="replace")
         if proc.returncode != 0 or not dst.is_file():
             last = (err.strip().splitlines() or [f"exit status {proc.returncode}"])[-1]
-            return None, f"CoACD failed ({last[:200]})", False
+            return None, f"CoACD failed ({last[:200]})", False, used
         with np.load(dst) as z:
             parts = [z[f"part{i}"] for i in range(int(z["count"]))]
     parts = [p for p in (_hull_part(p, params.max_hull_vertices) for p in parts) if p is not None]
-    return (parts, None, False) if parts else (None, "CoACD returned no convex part with a volume", False)
+    return (parts, None, False, used) if parts else (None, "CoACD returned no convex part with a volume", False, used)
 
 
 def _mass_properties(mesh, parts: list[np.ndarray]) -> tuple[float, np.ndarray, np.ndarray, str]:
@@ -428,30 +435,30 @@ def _mass_properties(mesh, parts: list[np.ndarray]) -> tuple[float, np.ndarray, 
     return volume, np.asarray(com, float), unit / volume, "parts"
 
 
-def _build(mesh, params: CoacdParams, name: str, progress) -> tuple[list[np.ndarray], str, str | None, bool]:
-    """(parts, method, warning, cacheable) for the cleaned mesh (steps 2-4 of the module
-    docstring); not cacheable: the machine's load decided the model."""
+def _build(mesh, params: CoacdParams, name: str, progress) -> tuple[list[np.ndarray], str, str | None, bool, float]:
+    """(parts, method, warning, cacheable, CoACD's CPU seconds) for the cleaned mesh (steps
+    2-4 of the module docstring); not cacheable: the machine's load decided the model."""
     if mesh.is_convex:
-        return [_thin(np.asarray(mesh.vertices, float), params.max_hull_vertices)], "convex", None, True
+        return [_thin(np.asarray(mesh.vertices, float), params.max_hull_vertices)], "convex", None, True, 0.0
     comps = _components(mesh)
     convex = [c for c in comps if c.is_watertight and c.is_convex]
     rest = [c for c in comps if not (c.is_watertight and c.is_convex)]
     parts = [p for p in (_hull_part(c.vertices, params.max_hull_vertices) for c in convex) if p is not None]
     if not rest:
-        return parts, "components", None, True
+        return parts, "components", None, True, 0.0
     import trimesh
 
     remainder = rest[0] if len(rest) == 1 else trimesh.util.concatenate(rest)
-    decomposed, why, by_load = _decompose(remainder, params, progress)
+    decomposed, why, by_load, used = _decompose(remainder, params, progress)
     if decomposed is not None:
-        return parts + decomposed, "coacd", None, True
+        return parts + decomposed, "coacd", None, True, used
     hulls = [p for p in (_hull_part(c.vertices, params.max_hull_vertices) for c in rest) if p is not None]
     if not parts + hulls:
         raise MeshError(f"{name} has no part with a volume (flat or degenerate)")
     what = "its convex hull" if len(comps) == 1 else f"the convex hulls of its {len(comps)} components"
     warning = (f"{name}: {why}; simulating {what} instead (concave regions are filled; raise "
                "CoacdParams.time_limit for a finer model)")
-    return parts + hulls, "hull", warning, not by_load
+    return parts + hulls, "hull", warning, not by_load, used
 
 
 def _cache_read(file: Path) -> dict | None:
@@ -472,7 +479,8 @@ def _cache_read(file: Path) -> dict | None:
 
 def _cache_write(file: Path, prepared: PreparedMesh) -> None:
     info = {"method": prepared.method, "volume": prepared.volume, "mass_from": prepared.mass_from,
-            "warning": prepared.warning, "watertight": prepared.watertight}
+            "warning": prepared.warning, "watertight": prepared.watertight,
+            "decompose_cpu": prepared.decompose_cpu}
     try:
         file.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(file, error=MeshError) as tmp:
@@ -510,23 +518,28 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
         vertices, faces = _read_arrays(path)
     check_mesh_arrays(vertices, faces, scale=scale, name=name)
     key = _key(vertices, faces, scale, params)
-    # a complete model serves any time limit; a fallback only the (CPU-time) limit that gave it.
+    # a complete model serves any time limit at least the CPU time it took (recorded since; older
+    # entries serve every limit); a fallback only the (CPU-time) limit that gave it.
     # "cpu" in its name: fallbacks cached while the limit was wall-clock time (a loaded machine's:
     # the shipped bread fell back there, CoACD parts it in 3 s of CPU) are not reused
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     file, fallback = folder / f"{key}.npz", folder / f"{key}.hull-cpu{params.time_limit:g}s.npz"
-    cached = _cache_read(file) or _cache_read(fallback)
+    complete = _cache_read(file)
+    if complete is not None and float(complete.get("decompose_cpu", 0.0)) > params.time_limit:
+        complete = None  # made with more CPU time than this limit allows: this limit gets the fallback
+    cached = complete or _cache_read(fallback)
     if cached is not None:
         out = PreparedMesh(cached["parts"], cached["method"], float(cached["volume"]), np.asarray(cached["com"]),
                            np.asarray(cached["unit_inertia"]), cached["mass_from"], cached["surface"], len(faces),
                            bool(cached["watertight"]), cached["warning"], key, True, time.perf_counter() - t0, label,
-                           scale)
+                           scale, float(cached.get("decompose_cpu", 0.0)))
     else:
         mesh = _clean(vertices, faces, scale, name)
-        parts, method, warning, cacheable = _build(mesh, params, name, progress)
+        parts, method, warning, cacheable, used = _build(mesh, params, name, progress)
         volume, com, unit, mass_from = _mass_properties(mesh, parts)
         out = PreparedMesh(tuple(parts), method, volume, com, unit, mass_from, mesh, len(faces),
-                           bool(mesh.is_watertight), warning, key, False, time.perf_counter() - t0, label, scale)
+                           bool(mesh.is_watertight), warning, key, False, time.perf_counter() - t0, label, scale,
+                           used if method == "coacd" else 0.0)
         if cacheable:  # a fallback the machine's load made is not pinned
             _cache_write(fallback if method == "hull" else file, out)
         log.info("prepared %s: %d convex parts (%s) in %.1f s", name, len(parts), method, out.seconds)

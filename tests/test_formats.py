@@ -305,3 +305,24 @@ def test_imported_map_views_and_infos_without_grades(tmp_path, capsys):
     assert s["format"] == "acronym" and s["grasps"] == 3 and s["labels"] == ["object_in_gripper"]
     with pytest.raises(GraspsimError):  # nothing has a grade
         export_map(read_grasp_file(path).gmap, "acronym", tmp_path / "x.h5", label="grade")
+
+
+def test_trial_of_a_dataset_against_its_mesh_surface(tmp_path, capsys):
+    """``graspsim trial FILE --mesh-model surface`` simulates the file's own mesh (found
+    beside it, at its scale) as its surface, writes beside the file and leaves it as it
+    was; a map whose object is not a mesh is refused in one line."""
+    from graspsim.cli import main
+
+    _box_mesh(tmp_path)
+    path = tmp_path / "Box.h5"
+    _write_acronym(path, np.stack([_acronym_top_grasp(0.018), _acronym_top_grasp(0.018, turn=np.pi / 2)]), [1, 0])
+    before = hashlib.sha256(path.read_bytes()).hexdigest()
+    assert main(["trial", str(path), "--protocol", "tug", "--mesh-model", "surface", "--threads", "1",
+                 "--json"]) == 0
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert s["mesh_model"]["method"] == "surface" and s["mesh_model"]["parts"] == 12  # a box: 12 triangles
+    assert s["counts"]["success"] == 1 and s["counts"]["start_collision"] == 1
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == before
+    gmap, map_path = _franka_box_map(tmp_path)
+    assert main(["trial", str(map_path), "--top", "1", "--mesh-model", "surface", "--threads", "1"]) != 0
+    assert "--mesh-model surface needs a mesh" in capsys.readouterr().err

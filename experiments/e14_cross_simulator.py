@@ -130,10 +130,12 @@ CLOSING_BINS = ((0.0, 0.01), (0.01, 0.03), (0.03, np.inf))
 
 
 def compare(dataset: np.ndarray, held: np.ndarray, outcome: np.ndarray, approach_z: np.ndarray,
-            close_lin: np.ndarray, in_hull: np.ndarray | None = None) -> dict:
+            close_lin: np.ndarray, in_hull: np.ndarray | None = None,
+            dataset_close_lin: np.ndarray | None = None) -> dict:
     """The confusion table and agreement of dataset labels (1 held) with MuJoCo's; the
     goal figure by grasp type, by whether a finger starts in a concavity (``in_hull``)
-    and by the object's motion while the jaws closed."""
+    and by the object's motion while the jaws closed, in MuJoCo and in the dataset's
+    own simulator (``dataset_close_lin``, ACRONYM's ``object_motion_during_closing_linear``)."""
     execu = outcome != TrialOutcome.START_COLLISION
     ds = dataset == 1
     mj = held == 1
@@ -155,11 +157,14 @@ def compare(dataset: np.ndarray, held: np.ndarray, outcome: np.ndarray, approach
                          "held_of_dataset_held_executable": _rate(int(np.sum(m & ds & execu & mj)),
                                                                   int(np.sum(m & ds & execu))),
                          "agreement": _rate(int(np.sum(m & execu & (ds == mj))), int(np.sum(m & execu)))}
-    moved = {}
+    moved, moved_ds = {}, {}
     for lo, hi in CLOSING_BINS:
+        name = f"{lo * 100:g}-{hi * 100:g} cm" if np.isfinite(hi) else f">= {lo * 100:g} cm"
         m = ds & execu & (close_lin >= lo) & (close_lin < hi)
-        moved[f"{lo * 100:g}-{hi * 100:g} cm" if np.isfinite(hi) else f">= {lo * 100:g} cm"] = \
-            _rate(int(np.sum(m & mj)), int(m.sum()))
+        moved[name] = _rate(int(np.sum(m & mj)), int(m.sum()))
+        if dataset_close_lin is not None:
+            m = ds & execu & (dataset_close_lin >= lo) & (dataset_close_lin < hi)
+            moved_ds[name] = _rate(int(np.sum(m & mj)), int(m.sum()))
     concavity = {}
     if in_hull is not None:
         for name, m in (("a finger in a concavity", in_hull), ("both fingers outside the hull", ~in_hull)):
@@ -172,7 +177,7 @@ def compare(dataset: np.ndarray, held: np.ndarray, outcome: np.ndarray, approach
              if o not in (TrialOutcome.SUCCESS, TrialOutcome.START_COLLISION)}
     return {"grasps": len(ds), "executable": n, "confusion": table, "agreement": _rate(agree, n),
             "kappa": kappa, "goal": goal, "by_type": by_type, "by_concavity": concavity, "by_closing_motion": moved,
-            "dataset_held_outcomes": fails}
+            "by_dataset_closing_motion": moved_ds, "dataset_held_outcomes": fails}
 
 
 def _rate(k: int, n: int) -> dict:
@@ -186,6 +191,20 @@ def collision_model(model: str, file: str, scale: float):
         return surface_model(file, scale=scale)
     return prepare_mesh(file, scale=scale, params=CoacdParams(time_limit=math.inf) if model == "coacd"
                         else CoacdParams())
+
+
+def dataset_closing_motion(src: Path, n: int) -> np.ndarray | None:
+    """(N,) how far [m] the object moved while the jaws closed in the dataset's own
+    simulator (ACRONYM's ``grasps/qualities/flex/object_motion_during_closing_linear``),
+    or None where the file has no such column."""
+    if src.suffix.lower() not in (".h5", ".hdf5"):
+        return None
+    import h5py
+
+    with h5py.File(src, "r") as f:
+        key = "grasps/qualities/flex/object_motion_during_closing_linear"
+        v = f[key][()] if key in f else None
+    return np.asarray(v, float) if v is not None and len(v) == n else None
 
 
 def finger_in_hull(gmap, mesh) -> np.ndarray:
@@ -217,6 +236,7 @@ def main(argv=None) -> int:
     gmap = load_map(imported)
     labels = read_sim_results(imported, SOURCE_GROUP)
     dataset_all = np.asarray(labels["object_in_gripper"]).astype(int)
+    ds_close = dataset_closing_motion(src, len(gmap))
     obj = gmap.meta.object
     per_model = {}
     for model in cfg.models:
@@ -229,10 +249,14 @@ def main(argv=None) -> int:
                                   threads=cfg.threads, mesh=prepared, write=False)
             res, index = trials.results, trials.index
             chosen = gmap.select(index)
+            in_hull = finger_in_hull(chosen, prepared.surface)
             per[name] = compare(dataset_all[index], res.object_in_gripper, res.outcome,
                                 chosen.approach[:, 2].astype(float),
-                                np.nan_to_num(res.metrics["close_lin"], nan=np.inf),
-                                finger_in_hull(chosen, prepared.surface))
+                                np.nan_to_num(res.metrics["close_lin"], nan=np.inf), in_hull,
+                                None if ds_close is None else ds_close[index])
+            np.savez_compressed(out / f"trials_{model}_{name}.npz", index=index, outcome=res.outcome,
+                                held=res.object_in_gripper, dataset=dataset_all[index], in_hull=in_hull,
+                                **{k: v for k, v in res.metrics.items()})
             per[name]["trials_per_second"] = res.trials_per_second
         per_model[model] = {"model": {k: prepared.describe()[k] for k in ("method", "parts", "volume_cm3")},
                             "protocols": per}
@@ -287,10 +311,12 @@ def readme_section(s: dict) -> str:
             L += [md_table(["", "MuJoCo held", "MuJoCo not held", "not executable"], rows), ""]
             rows = _rates(r["by_type"]) + _rates(r.get("by_concavity", {}))
             L += [md_table(["approach (mesh frame) / where the fingers start", *head[1:]], rows), ""]
-            rows = [[k, rate_ci(v["k"], v["n"], v["ci"])] for k, v in r.get("by_closing_motion", {}).items()]
+            mj, dsm = r.get("by_closing_motion", {}), r.get("by_dataset_closing_motion") or {}
+            rows = [[k, rate_ci(v["k"], v["n"], v["ci"])] + ([rate_ci(dsm[k]["k"], dsm[k]["n"], dsm[k]["ci"])]
+                                                              if dsm else []) for k, v in mj.items()]
             if rows:
-                L += [md_table(["object moved while the jaws closed (MuJoCo)", "held in MuJoCo of dataset-held "
-                                "executable"], rows), ""]
+                L += [md_table(["object moved while the jaws closed", "in MuJoCo: held in MuJoCo of dataset-held "
+                                "executable"] + (["in the dataset's simulator: the same"] if dsm else []), rows), ""]
     return "\n".join(L)
 
 

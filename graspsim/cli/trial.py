@@ -87,7 +87,7 @@ def register(subparsers) -> None:
     p.add_argument("--mesh-model", choices=("parts", "surface"), default="parts",
                    help="the mesh's collision model: parts (default: CoACD's convex parts within 15 CPU seconds, "
                         "else its convex hull) or surface (the mesh's own surface, a 1.5 mm prism per face: "
-                        "cavities and thin walls as the mesh has them; one geom per face: slower per trial, about 10x "
+                        "cavities and thin walls as the mesh has them; one geom per face: slower per trial, about 8x "
                         "on a 2334-face mug)")
     p.add_argument("--camera-pose", metavar="FILE.npy",
                    help="GraspNet files: the object's 4x4 pose in the camera frame (.npy or text)")

@@ -559,7 +559,7 @@ def surface_model(source, *, scale: float = 1.0, thickness: float = 0.0015,
     is extruded half each way), so concavities, cavities and thin walls stay as the mesh
     has them -- where CoACD's few parts (``prepare_mesh``) thicken a wall by millimetres
     or its fallback fills a mug's cavity. The price is one geom per face: trials run
-    slower than with a dozen parts (about 10x for a 2334-face mug in E14), so this model
+    slower than with a dozen parts (about 8x for a 2334-face mug in E14), so this model
     is for checking outcomes against the exact geometry, not for every run. Mass
     properties: those of the closed mesh (else of the prisms). Not cached (it takes
     milliseconds). Raises :class:`MeshError` on a mesh that cannot be simulated or has

@@ -316,6 +316,15 @@ class GraspabilityMap:
         """Whether any row has a reachability verdict (the ``reachable`` column)."""
         return bool(np.isfinite(self.reachable).any())
 
+    def reach_groups(self) -> np.ndarray | None:
+        """(N,) int the rank the ``reachable`` column gives each row, lower first: 0 the
+        arm's exact check planned it, 1 only its first cut let it through, 2 unchecked,
+        3 unreachable; None for a map without the column (all NaN)."""
+        if not self.has_reach:
+            return None
+        r = self.reachable
+        return np.select([r == REACH_EXACT, r == REACH_FIRST_CUT, r == REACH_NONE], [0, 1, 3], default=2)
+
     def ranked(self, rank: str = "robust") -> GraspabilityMap:
         """The map ordered best first: ``"robust"`` (default): rows with a robust score by
         it, then the others by grade -- the grade alone for a map without robust scores;

@@ -49,7 +49,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["RobustConfig", "RobustScores", "TERMS", "RANKS", "ABLATIONS", "ABLATION_LABELS",
            "POSITION_SIGMA", "ROTATION_SIGMA", "DEFAULT_OPENINGS", "wrist_perturbations", "score_rows", "score_map",
-           "ranking", "reach_group", "cloud_in_object", "extra_openings", "executed_width", "score_poses"]
+           "ranking", "cloud_in_object", "extra_openings", "executed_width", "score_poses"]
 
 #: The default wrist pose error at the TCP, one place for the planner's robustness model
 #: (:class:`RobustConfig`), the simulated execution error (``graspsim.sim.ExecutionNoise``)
@@ -379,30 +379,19 @@ def executed_width(gmap, rows=None) -> np.ndarray:
     return np.asarray(w, float) + 2.0 * extra_openings(gmap, rows)
 
 
-def reach_group(gmap) -> np.ndarray | None:
-    """(N,) int the rank a map's ``reachable`` column gives each row, lower first: 0 the
-    arm's exact check planned it, 1 only its first cut let it through, 2 unchecked, 3
-    unreachable; None for a map without the column (all NaN)."""
-    if not gmap.has_reach:
-        return None
-    from graspsim.maps.graspmap import REACH_EXACT, REACH_FIRST_CUT, REACH_NONE
-
-    r = gmap.reachable
-    return np.select([r == REACH_EXACT, r == REACH_FIRST_CUT, r == REACH_NONE], [0, 1, 3], default=2)
-
-
 def ranking(gmap, rank: str = "robust", *, reach: bool = True) -> np.ndarray:
     """Row order, best first: ``"robust"``: rows with a robust score > 0 by it (ties by
     grade), then unscored rows by grade, last the rows scored 0 (colliding at their
     nominal pose or never feasible); ``"paper"``: by grade alone (stable). With
     ``reach`` and a map whose ``reachable`` column is filled (an arm at a base:
     :func:`graspsim.robots.mark_reach`), that order holds within each of
-    :func:`reach_group`'s groups: the grasps the arm's exact check planned first, then
-    those only its first cut passed, the unchecked, the unreachable last."""
+    :meth:`~graspsim.maps.graspmap.GraspabilityMap.reach_groups`: the grasps the arm's
+    exact check planned first, then those only its first cut passed, the unchecked, the
+    unreachable last."""
     if rank not in RANKS:
         raise InvalidParameterError(f"rank must be one of {list(RANKS)}, got {rank!r}")
     grade = -gmap.grade.astype(float)
-    reached = reach_group(gmap) if reach else None
+    reached = gmap.reach_groups() if reach else None
     outer = () if reached is None else (reached,)
     if rank == "paper":
         order = np.argsort(grade, kind="stable")

@@ -117,3 +117,55 @@ def test_the_arm_marks_a_maps_grasps_and_graspsim_reach_writes_them(tmp_path, mo
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["exact_checked"] == 1 and out["robot_base"] == [-0.5, 0.0, 0.0]
     assert load_map(f).meta.extra["reach"]["exact"]["rows"] == 1
+
+
+def test_adapt_refuses_an_arm_it_cannot_judge_before_reading_the_cloud(tmp_path, capsys):
+    from graspsim.cli import main
+
+    out = tmp_path / "a.h5"
+    for extra, words in ((["--robot", "panda"], "model files"),  # the default gripper has no model file
+                         (["--reach-exact", "5"], "--reach-exact needs --robot panda"),
+                         (["--robot", "panda", "--gripper", "franka_hand", "--robot-base", "0", "3", "0"],
+                          "within 2 m")):
+        assert main(["adapt", str(tmp_path / "missing.npy"), "-o", str(out), *extra]) == 2
+        err = capsys.readouterr().err
+        assert words in err and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+@pytest.mark.slow
+def test_adapt_with_an_arm_writes_the_maps_reachable_column(tmp_path, monkeypatch, capsys):
+    from graspsim.cli import main
+    from graspsim.primitives import Cylinder, synthetic_cloud
+    from graspsim.transforms import make_transform
+
+    monkeypatch.setenv("GRASPSIM_CACHE_DIR", str(tmp_path / "cache"))
+    rng = np.random.default_rng(2)
+    c = synthetic_cloud(Cylinder(0.022, 0.15), rng, resolution=0.004, noise=0.0005,
+                        T_world_obj=make_transform(np.eye(3), [0.0, 0.0, 0.075]))
+    np.save(tmp_path / "cloud.npy", c.points)
+    coarse = ["--surface-step", "0.01", "--rotation-step-deg", "30", "--gripper", "franka_hand"]
+    out = tmp_path / "a.h5"
+    assert main(["adapt", str(tmp_path / "cloud.npy"), "-o", str(out), "--db", str(tmp_path / "db"), *coarse,
+                 "--table", "auto", "--robot", "panda", "--reach-exact", "10", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    gmap = load_map(out)
+    assert gmap.has_reach and s["reach"]["robot"] == "panda" and s["reach"]["exact_checked"] == 10
+    assert s["reach"]["exact"] == int((gmap.reachable == REACH_EXACT).sum()) >= 1
+    assert np.all(np.isin(gmap.reachable, [REACH_EXACT, REACH_FIRST_CUT, REACH_NONE]))  # every row judged
+    top = gmap.ranked()
+    k = s["reach"]["exact"]
+    assert np.all(top.reachable[:k] == REACH_EXACT)
+
+
+def test_a_trial_names_what_differs_from_the_maps_reach_record():
+    from graspsim.robots import base_transform
+    from graspsim.robots.maptrials import reach_mismatch
+
+    B, O = base_transform((-0.5, 0.0, 0.0)), np.eye(4)
+    record = {"robot": "panda", "T_world_base": B.tolist(), "T_world_obj": O.tolist()}
+    assert reach_mismatch(None, "panda", B, O) is None and reach_mismatch(record, "panda", B, O) is None
+    assert reach_mismatch(record, "panda", base_transform((-0.4, 0.0, 0.0)), O) == "another base"
+    lifted = O.copy()
+    lifted[2, 3] = 0.01
+    assert reach_mismatch(record, "panda", B, lifted) == "the object standing elsewhere"
+    assert "not 'ur5'" in reach_mismatch(record, "ur5", B, O)

@@ -117,6 +117,9 @@ def test_the_arm_marks_a_maps_grasps_and_graspsim_reach_writes_them(tmp_path, mo
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["exact_checked"] == 1 and out["robot_base"] == [-0.5, 0.0, 0.0]
     assert load_map(f).meta.extra["reach"]["exact"]["rows"] == 1
+    assert main(["info", str(f), "--json"]) == 0  # info says what the column holds
+    info = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["reach"]
+    assert info["robot"] == "panda" and info["exact"] + info["first_cut"] + info["unreachable"] == 3
 
 
 def test_adapt_refuses_an_arm_it_cannot_judge_before_reading_the_cloud(tmp_path, capsys):

@@ -160,6 +160,25 @@ def test_show_serves_the_page_and_its_gui_filters_and_picks(tmp_path):
 
 
 @needs_viser
+def test_the_served_page_colours_by_reach_with_its_legend(tmp_path):
+    from graspsim.maps import write_reach
+    from graspsim.viewer.glyphs import REACH_COLOURS
+
+    path = _map_file(tmp_path, outcomes=False)
+    write_reach(path, np.tile(np.array([1.0, 0.0], np.float32), 30), {"robot": "panda"})
+    server = show(str(path), port=0, colour="reachable", top_k=10)
+    try:
+        v = server.graspsim_viewer
+        assert "reachable" in v.g_colour.options and "red: unreachable" in v.g_scale.content
+        assert np.all(v.rows % 2 == 0)  # top 10 by the column: the reachable (even) rows
+        v.g_row.value = 1
+        assert "unreachable" in v.g_details.content
+    finally:
+        stop(server)
+    assert REACH_COLOURS["reachable"] != REACH_COLOURS["unreachable"]
+
+
+@needs_viser
 def test_a_click_picks_the_instance_or_the_grasp_nearest_the_ray_and_wireframes_are_bounded(tmp_path):
     from types import SimpleNamespace
 

@@ -43,8 +43,7 @@ def run(args) -> int:
     load_map(args.map, rows=slice(0, 0))  # a readable map before the arm is built
     from graspsim.robots import mark_reach_file
 
-    bar = progress(min(args.exact, 10**9), "exact checks", enabled=not args.json and sys.stderr.isatty(),
-                   unit="grasp")
+    bar = progress(None, "exact checks", enabled=not args.json and sys.stderr.isatty(), unit="grasp")
     try:
         record = mark_reach_file(args.map, robot=args.robot, base=base, exact=args.exact, rank=args.rank,
                                  on_progress=lambda k: bar.update(k - bar.n))

@@ -415,14 +415,15 @@ def _judge(scene: ArmScene, protocol: ArmLiftPlace, rec: Record, T_target: np.nd
 
 def plan_grasps(scene: ArmScene, T_world_wrist: np.ndarray, openings: np.ndarray,
                 protocol: ArmLiftPlace = ArmLiftPlace(), *, capability=None,
-                on_progress=None) -> tuple[list[ArmPlan], np.ndarray, np.ndarray]:
+                on_progress=None, on_planned=None) -> tuple[list[ArmPlan], np.ndarray, np.ndarray]:
     """The plans of N grasps (wrist poses (N, 4, 4) in the world, jaw openings (N,) [m]),
     as the arm's trials make them (:func:`run_arm_trials`, :func:`graspsim.robots.mark_reach`):
     first the floating harness's start check on the same poses (what it excludes as
     infeasible, the gripper in the object or the table, is excluded alike: START_COLLISION,
     never planned), then :func:`plan_grasp` with the capability map's seed. Returns the
     plans and the start check's penetrations into the object and the table (N,) [m].
-    ``on_progress(k)``: the grasps finished (refused) so far."""
+    ``on_progress(k)``: the grasps finished (refused) so far; ``on_planned(k)``: the
+    grasps judged so far, refused or not."""
     from graspsim.sim.batch import initial_states, start_overlaps
     from graspsim.sim.trial_scene import build_scene
 
@@ -445,6 +446,8 @@ def plan_grasps(scene: ArmScene, T_world_wrist: np.ndarray, openings: np.ndarray
         finished += plans[-1].outcome is not None
         if on_progress is not None and i % 8 == 7:
             on_progress(finished)
+        if on_planned is not None:
+            on_planned(i + 1)
     return plans, on_object, on_table
 
 

@@ -95,7 +95,7 @@ def reach_column(gmap: GraspabilityMap, *, robot: str = "panda", base=DEFAULT_BA
         chosen = gmap.select(rows)
         openings = gripper.pregrasp_opening(executed_width(chosen))
         plans, _, _ = plan_grasps(scene, scene.T_world_obj @ chosen.T_obj_wrist, openings, protocol,
-                                  capability=cmap, on_progress=on_progress)
+                                  capability=cmap, on_planned=on_progress)
         col[rows] = np.where([p.outcome is None for p in plans], REACH_EXACT, REACH_NONE)
     record = {
         "robot": arm.name, "T_world_base": T_base.tolist(), "T_world_obj": scene.T_world_obj.tolist(),

@@ -8,6 +8,7 @@ example grasps are CC BY-NC and their mug mesh is ShapeNet's); the layout is the
 
 import hashlib
 import json
+import os
 
 import h5py
 import numpy as np
@@ -36,11 +37,30 @@ FRANKA = get_gripper("franka_hand")
 ACRONYM_HAND_BOUNDS = np.array([[-0.10043, -0.03164, -0.02592], [0.10399, 0.03162, 0.05690]])
 
 
+# ACRONYM's reader, github.com/NVlabs/acronym acronym_tools/acronym.py at d02f58f (MIT), is not on
+# PyPI; the two functions below make exactly its h5py / trimesh calls for an .h5 file, nothing else:
+#   load_grasps (l. 381-400): data = h5py.File(filename, "r"); T = np.array(data["grasps/transforms"])
+#       success = np.array(data["grasps/qualities/flex/object_in_gripper"])
+#   load_mesh (l. 354-378): mesh_fname = data["object/file"][()].decode('utf-8')
+#       mesh_scale = data["object/scale"][()]; obj_mesh = trimesh.load(os.path.join(mesh_root_dir, mesh_fname))
+#       obj_mesh = obj_mesh.apply_scale(mesh_scale)
 def _acronym_load_grasps(filename):
-    """What acronym_tools.load_grasps does for .h5 (acronym_tools/acronym.py):
-    T = np.array(data["grasps/transforms"]); success = np.array(data["grasps/qualities/flex/object_in_gripper"])"""
-    with h5py.File(filename, "r") as data:
-        return np.array(data["grasps/transforms"]), np.array(data["grasps/qualities/flex/object_in_gripper"])
+    """``acronym_tools.load_grasps`` for an .h5 file (see above)."""
+    data = h5py.File(filename, "r")
+    T = np.array(data["grasps/transforms"])
+    success = np.array(data["grasps/qualities/flex/object_in_gripper"])
+    data.close()
+    return T, success
+
+
+def _acronym_load_mesh(filename, mesh_root_dir):
+    """``acronym_tools.load_mesh`` for an .h5 file (see above)."""
+    data = h5py.File(filename, "r")
+    mesh_fname = data["object/file"][()].decode("utf-8")
+    mesh_scale = data["object/scale"][()]
+    data.close()
+    obj_mesh = trimesh.load(os.path.join(mesh_root_dir, mesh_fname))
+    return obj_mesh.apply_scale(mesh_scale)
 
 
 def _box_mesh(tmp_path, extents=(0.05, 0.12, 0.08)):
@@ -231,12 +251,18 @@ def test_round_trip_poses_and_labels(tmp_path, fmt, suffix, gripper):
 
 
 def test_acronym_export_loads_with_acronyms_reader(tmp_path):
+    """A Franka-hand map exported as ACRONYM is read by ACRONYM's own calls: its grasps in
+    ACRONYM's gripper frame, its labels (1 held, 0 not, -1 not simulated: ACRONYM's scripts
+    select ``success == 1`` / ``== 0``) and its mesh at its scale. Mutations caught: labels
+    written elsewhere (KeyError), the wrist poses written without the frame change."""
     gmap, path = _franka_box_map(tmp_path)
     out = tmp_path / "a.h5"
     export_map(gmap, "acronym", out, map_path=path)
-    T, success = _acronym_load_grasps(out)
+    T, success = _acronym_load_grasps(str(out))
     assert T.shape == (6, 4, 4) and success.tolist() == [1, 0, -1, 1, 1, 0]
     assert np.allclose(T, gmap.T_obj_wrist @ invert_transform(grasp_frame(FRANKA)), atol=1e-12)
+    mesh = _acronym_load_mesh(str(out), str(tmp_path))
+    assert mesh.extents == pytest.approx([0.05, 0.06, 0.08])
     with h5py.File(out, "r") as f:
         assert f["object/file"][()].decode("utf-8") == "a.obj" and f["object/scale"][()] == 1.0
         assert f["gripper/type"][()] == b"panda"
@@ -279,3 +305,24 @@ def test_imported_map_views_and_infos_without_grades(tmp_path, capsys):
     assert s["format"] == "acronym" and s["grasps"] == 3 and s["labels"] == ["object_in_gripper"]
     with pytest.raises(GraspsimError):  # nothing has a grade
         export_map(read_grasp_file(path).gmap, "acronym", tmp_path / "x.h5", label="grade")
+
+
+def test_trial_of_a_dataset_against_its_mesh_surface(tmp_path, capsys):
+    """``graspsim trial FILE --mesh-model surface`` simulates the file's own mesh (found
+    beside it, at its scale) as its surface, writes beside the file and leaves it as it
+    was; a map whose object is not a mesh is refused in one line."""
+    from graspsim.cli import main
+
+    _box_mesh(tmp_path)
+    path = tmp_path / "Box.h5"
+    _write_acronym(path, np.stack([_acronym_top_grasp(0.018), _acronym_top_grasp(0.018, turn=np.pi / 2)]), [1, 0])
+    before = hashlib.sha256(path.read_bytes()).hexdigest()
+    assert main(["trial", str(path), "--protocol", "tug", "--mesh-model", "surface", "--threads", "1",
+                 "--json"]) == 0
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert s["mesh_model"]["method"] == "surface" and s["mesh_model"]["parts"] == 12  # a box: 12 triangles
+    assert s["counts"]["success"] == 1 and s["counts"]["start_collision"] == 1
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == before
+    gmap, map_path = _franka_box_map(tmp_path)
+    assert main(["trial", str(map_path), "--top", "1", "--mesh-model", "surface", "--threads", "1"]) != 0
+    assert "--mesh-model surface needs a mesh" in capsys.readouterr().err

@@ -24,7 +24,10 @@ convex parts first. :func:`prepare_mesh` is the one entry point (``graspsim tria
 5. caches the result under :func:`default_cache_dir`, keyed by a hash of the file's
    vertex and face arrays, the scale and the settings, written atomically: a second
    run of the same mesh loads it (no decomposition, no decimation). A complete model
-   serves every time limit; a fallback is kept apart, for the time limit that gave it.
+   serves every time limit at least the CPU time CoACD took for it (recorded with it):
+   a model made without a limit is not handed to a call whose limit would have fallen
+   back, so the model a call gets does not depend on what the cache holds; a fallback
+   is kept apart, for the time limit that gave it.
 
 Mass properties: a closed mesh's own volume, centre of mass and inertia; an open or
 non-manifold mesh has no meaningful volume, so those of the union of its convex parts
@@ -55,6 +58,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
 import os
 import subprocess
 import sys
@@ -70,7 +74,7 @@ from graspsim._atomic import atomic_path
 from graspsim.checks import Rule, check_fields
 from graspsim.errors import DependencyNotInstalled, InvalidParameterError, MeshError
 
-__all__ = ["CoacdParams", "PreparedMesh", "prepare_mesh", "check_mesh_path", "check_mesh_arrays",
+__all__ = ["CoacdParams", "PreparedMesh", "prepare_mesh", "surface_model", "check_mesh_path", "check_mesh_arrays",
            "load_mesh", "convex_parts", "default_cache_dir", "MAX_MESH_EXTENT", "MIN_MESH_EXTENT"]
 
 #: CoACD's counts (faces, vertices, resolutions, search sizes): >= 1 as whole numbers.
@@ -146,12 +150,14 @@ class PreparedMesh:
 
     parts: convex vertex arrays (V_i, 3) [m]; method: "convex" (one hull), "components"
     (each component convex: its hulls), "coacd" (CoACD's parts for the non-convex
-    components) or "hull" (the fallback: one hull per component); volume [m^3], com (3,)
+    components), "hull" (the fallback: one hull per component) or "surface"
+    (:func:`surface_model`: a thin prism per face); volume [m^3], com (3,)
     [m], unit_inertia (3, 3) [m^2] (inertia about the COM per kg); mass_from: "mesh"
     (closed mesh) or "parts" (the union of the parts stands in); surface: the mesh
     (trimesh); faces: the file's face count; watertight; warning: the fallback's reason,
     or None; key: the cache key; from_cache; seconds: the time preparation took; source:
-    the file (or "<trimesh>"); scale: the scale applied to the file's coordinates."""
+    the file (or "<trimesh>"); scale: the scale applied to the file's coordinates;
+    decompose_cpu: the CPU seconds CoACD took for this model (0: none ran, or unknown)."""
 
     parts: tuple[np.ndarray, ...]
     method: str
@@ -168,6 +174,7 @@ class PreparedMesh:
     seconds: float = 0.0
     source: str = ""
     scale: float = 1.0
+    decompose_cpu: float = 0.0
 
     def describe(self) -> dict:
         """What was simulated, for results and ``--json``."""
@@ -352,9 +359,10 @@ def _components(mesh):
     return list(comps) if len(comps) > 1 else [mesh]
 
 
-def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | None, str | None, bool]:
+def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | None, str | None, bool, float]:
     """(CoACD's parts of ``mesh`` from the bounded worker, or None; why it gave none;
-    whether the outcome depended on the machine's load: the wall-clock backstop ended it)."""
+    whether the outcome depended on the machine's load: the wall-clock backstop ended it;
+    the worker's CPU seconds, last read while it ran)."""
     try:
         import coacd  # noqa: F401
     except ImportError as err:
@@ -370,19 +378,20 @@ def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | 
             proc = subprocess.Popen([sys.executable, str(_WORKER), str(src), str(dst)], stdout=subprocess.PIPE,
                                     stderr=err_file, env={**os.environ, "PYTHONWARNINGS": "ignore"})
             os.set_blocking(proc.stdout.fileno(), False)
-            stage, said = "decomposing", b""
+            stage, said, used = "decomposing", b"", 0.0
             started = time.monotonic()
             backstop = started + WALL_FACTOR * params.time_limit + WALL_SLACK
             try:
                 while proc.poll() is None:
                     cpu = _cpu_seconds(proc.pid)
                     spent = time.monotonic() - started if cpu is None else cpu
+                    used = max(used, spent)
                     if spent > params.time_limit:
                         return None, (f"decomposition did not finish within its limit of {params.time_limit:g} s"
-                                      f" of {'wall' if cpu is None else 'CPU'} time"), False
+                                      f" of {'wall' if cpu is None else 'CPU'} time"), False, used
                     if time.monotonic() > backstop:
                         return None, (f"decomposition was starved of CPU (machine load) past "
-                                      f"{backstop - started:g} s of wall time; not cached: run it again"), True
+                                      f"{backstop - started:g} s of wall time; not cached: run it again"), True, used
                     try:
                         said += os.read(proc.stdout.fileno(), 65536)
                     except BlockingIOError:
@@ -402,11 +411,11 @@ def _decompose(mesh, params: CoacdParams, progress) -> tuple[list[np.ndarray] | 
             err = err_file.read().decode(errors="replace")
         if proc.returncode != 0 or not dst.is_file():
             last = (err.strip().splitlines() or [f"exit status {proc.returncode}"])[-1]
-            return None, f"CoACD failed ({last[:200]})", False
+            return None, f"CoACD failed ({last[:200]})", False, used
         with np.load(dst) as z:
             parts = [z[f"part{i}"] for i in range(int(z["count"]))]
     parts = [p for p in (_hull_part(p, params.max_hull_vertices) for p in parts) if p is not None]
-    return (parts, None, False) if parts else (None, "CoACD returned no convex part with a volume", False)
+    return (parts, None, False, used) if parts else (None, "CoACD returned no convex part with a volume", False, used)
 
 
 def _mass_properties(mesh, parts: list[np.ndarray]) -> tuple[float, np.ndarray, np.ndarray, str]:
@@ -428,30 +437,30 @@ def _mass_properties(mesh, parts: list[np.ndarray]) -> tuple[float, np.ndarray, 
     return volume, np.asarray(com, float), unit / volume, "parts"
 
 
-def _build(mesh, params: CoacdParams, name: str, progress) -> tuple[list[np.ndarray], str, str | None, bool]:
-    """(parts, method, warning, cacheable) for the cleaned mesh (steps 2-4 of the module
-    docstring); not cacheable: the machine's load decided the model."""
+def _build(mesh, params: CoacdParams, name: str, progress) -> tuple[list[np.ndarray], str, str | None, bool, float]:
+    """(parts, method, warning, cacheable, CoACD's CPU seconds) for the cleaned mesh (steps
+    2-4 of the module docstring); not cacheable: the machine's load decided the model."""
     if mesh.is_convex:
-        return [_thin(np.asarray(mesh.vertices, float), params.max_hull_vertices)], "convex", None, True
+        return [_thin(np.asarray(mesh.vertices, float), params.max_hull_vertices)], "convex", None, True, 0.0
     comps = _components(mesh)
     convex = [c for c in comps if c.is_watertight and c.is_convex]
     rest = [c for c in comps if not (c.is_watertight and c.is_convex)]
     parts = [p for p in (_hull_part(c.vertices, params.max_hull_vertices) for c in convex) if p is not None]
     if not rest:
-        return parts, "components", None, True
+        return parts, "components", None, True, 0.0
     import trimesh
 
     remainder = rest[0] if len(rest) == 1 else trimesh.util.concatenate(rest)
-    decomposed, why, by_load = _decompose(remainder, params, progress)
+    decomposed, why, by_load, used = _decompose(remainder, params, progress)
     if decomposed is not None:
-        return parts + decomposed, "coacd", None, True
+        return parts + decomposed, "coacd", None, True, used
     hulls = [p for p in (_hull_part(c.vertices, params.max_hull_vertices) for c in rest) if p is not None]
     if not parts + hulls:
         raise MeshError(f"{name} has no part with a volume (flat or degenerate)")
     what = "its convex hull" if len(comps) == 1 else f"the convex hulls of its {len(comps)} components"
     warning = (f"{name}: {why}; simulating {what} instead (concave regions are filled; raise "
                "CoacdParams.time_limit for a finer model)")
-    return parts + hulls, "hull", warning, not by_load
+    return parts + hulls, "hull", warning, not by_load, used
 
 
 def _cache_read(file: Path) -> dict | None:
@@ -472,7 +481,8 @@ def _cache_read(file: Path) -> dict | None:
 
 def _cache_write(file: Path, prepared: PreparedMesh) -> None:
     info = {"method": prepared.method, "volume": prepared.volume, "mass_from": prepared.mass_from,
-            "warning": prepared.warning, "watertight": prepared.watertight}
+            "warning": prepared.warning, "watertight": prepared.watertight,
+            "decompose_cpu": prepared.decompose_cpu}
     try:
         file.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(file, error=MeshError) as tmp:
@@ -510,28 +520,80 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
         vertices, faces = _read_arrays(path)
     check_mesh_arrays(vertices, faces, scale=scale, name=name)
     key = _key(vertices, faces, scale, params)
-    # a complete model serves any time limit; a fallback only the (CPU-time) limit that gave it.
+    # a complete model serves any time limit at least the CPU time it took (recorded since; older
+    # entries serve every limit); a fallback only the (CPU-time) limit that gave it.
     # "cpu" in its name: fallbacks cached while the limit was wall-clock time (a loaded machine's:
     # the shipped bread fell back there, CoACD parts it in 3 s of CPU) are not reused
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     file, fallback = folder / f"{key}.npz", folder / f"{key}.hull-cpu{params.time_limit:g}s.npz"
-    cached = _cache_read(file) or _cache_read(fallback)
+    complete = _cache_read(file)
+    if complete is not None and float(complete.get("decompose_cpu", 0.0)) > params.time_limit:
+        complete = None  # made with more CPU time than this limit allows: this limit gets the fallback
+    cached = complete or _cache_read(fallback)
     if cached is not None:
         out = PreparedMesh(cached["parts"], cached["method"], float(cached["volume"]), np.asarray(cached["com"]),
                            np.asarray(cached["unit_inertia"]), cached["mass_from"], cached["surface"], len(faces),
                            bool(cached["watertight"]), cached["warning"], key, True, time.perf_counter() - t0, label,
-                           scale)
+                           scale, float(cached.get("decompose_cpu", 0.0)))
     else:
         mesh = _clean(vertices, faces, scale, name)
-        parts, method, warning, cacheable = _build(mesh, params, name, progress)
+        parts, method, warning, cacheable, used = _build(mesh, params, name, progress)
         volume, com, unit, mass_from = _mass_properties(mesh, parts)
         out = PreparedMesh(tuple(parts), method, volume, com, unit, mass_from, mesh, len(faces),
-                           bool(mesh.is_watertight), warning, key, False, time.perf_counter() - t0, label, scale)
+                           bool(mesh.is_watertight), warning, key, False, time.perf_counter() - t0, label, scale,
+                           used if method == "coacd" else 0.0)
         if cacheable:  # a fallback the machine's load made is not pinned
             _cache_write(fallback if method == "hull" else file, out)
         log.info("prepared %s: %d convex parts (%s) in %.1f s", name, len(parts), method, out.seconds)
     if out.warning:
         log.warning("%s%s", out.warning, " (cached)" if out.from_cache else "")
+    return out
+
+
+#: the most faces :func:`surface_model` takes (one MuJoCo geom each: trials slow down with them)
+MAX_SURFACE_FACES = 10_000
+
+
+def surface_model(source, *, scale: float = 1.0, thickness: float = 0.0015,
+                  max_faces: int = MAX_SURFACE_FACES) -> PreparedMesh:
+    """The mesh's own surface as its collision model: each triangle extruded ``thickness``
+    [m] inwards along its normal into a thin convex prism (a closed mesh; an open one
+    is extruded half each way), so concavities, cavities and thin walls stay as the mesh
+    has them -- where CoACD's few parts (``prepare_mesh``) thicken a wall by millimetres
+    or its fallback fills a mug's cavity. The price is one geom per face: trials run
+    slower than with a dozen parts (about 8x for a 2334-face mug in E14), so this model
+    is for checking outcomes against the exact geometry, not for every run. Mass
+    properties: those of the closed mesh (else of the prisms). Not cached (it takes
+    milliseconds). Raises :class:`MeshError` on a mesh that cannot be simulated or has
+    more than ``max_faces`` faces (decimate it first)."""
+    import trimesh
+
+    t0 = time.perf_counter()
+    scale = _check_scale(scale)
+    if not (math.isfinite(thickness) and 0 < thickness <= 0.01):
+        raise InvalidParameterError(f"surface thickness must be in (0, 0.01] m, got {thickness!r}")
+    if isinstance(source, trimesh.Trimesh):
+        name, label = "the mesh", "<trimesh>"
+        vertices, faces = np.asarray(source.vertices, np.float64), np.asarray(source.faces, np.int64)
+    else:
+        path = check_mesh_path(source)
+        name, label = f"mesh {path.name}", str(path)
+        vertices, faces = _read_arrays(path)
+    check_mesh_arrays(vertices, faces, scale=scale, name=name)
+    mesh = _clean(vertices, faces, scale, name)
+    if len(mesh.faces) > max_faces:
+        raise MeshError(f"{name} has {len(mesh.faces)} faces; a surface model takes at most {max_faces} "
+                        "(one geom each): decimate the mesh first")
+    closed = bool(mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0)
+    tri = np.asarray(mesh.triangles, float)
+    normal = np.asarray(mesh.face_normals, float)[:, None, :]
+    inner, outer = (tri - thickness * normal, tri) if closed else (tri - thickness / 2 * normal,
+                                                                    tri + thickness / 2 * normal)
+    parts = [np.concatenate([a, b]) for a, b in zip(outer, inner)]
+    volume, com, unit, mass_from = _mass_properties(mesh, parts)
+    out = PreparedMesh(tuple(parts), "surface", volume, com, unit, mass_from, mesh, len(faces), closed, None,
+                       "", False, time.perf_counter() - t0, label, scale)
+    log.info("prepared %s: its surface as %d prisms of %.1f mm", name, len(parts), 1000 * thickness)
     return out
 
 

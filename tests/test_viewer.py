@@ -96,6 +96,25 @@ def test_robust_scores_are_a_colour_column_when_present(tmp_path):
     assert not any("robust" in c for c in without.colour_names())
 
 
+def test_an_arms_reach_verdicts_are_a_colour_column_when_present(tmp_path):
+    from graspsim.maps import write_reach
+    from graspsim.viewer.columns import REACH
+    from graspsim.viewer.glyphs import NOT_SIMULATED_COLOUR, REACH_COLOURS
+
+    path = _map_file(tmp_path, outcomes=False)
+    assert REACH not in ViewData.from_map(load_map(path), path).colour_names()
+    verdicts = np.tile(np.array([1.0, 0.5, 0.0, np.nan], np.float32), 15)
+    write_reach(path, verdicts, {"robot": "panda"})
+    d = ViewData.from_map(load_map(path), path)
+    assert d.colour_names()[1] == REACH and not any("qualities/reach" in c for c in d.colour_names())
+    rgb, _ = d.colours(np.arange(4), REACH)
+    assert [tuple(c) for c in rgb] == [REACH_COLOURS["reachable"], REACH_COLOURS["first cut only"],
+                                       REACH_COLOURS["unreachable"], NOT_SIMULATED_COLOUR]
+    top = d.selected(Selection(colour=REACH, top_k=15))
+    assert np.all(verdicts[top] == 1.0)  # top-K by the column: the reachable ones
+    assert d.details(2)["reachable by panda"] == "unreachable" and d.details(3)["reachable by panda"] == "unchecked"
+
+
 def test_gripper_wireframe_and_colour_scale():
     seg = gripper_wireframe(HGPL_25_60_A, np.eye(4), 0.05)
     assert seg.shape == (12 * len(HGPL_25_60_A.collision_boxes().names), 2, 3)
@@ -138,6 +157,25 @@ def test_show_serves_the_page_and_its_gui_filters_and_picks(tmp_path):
         stop(server)
     with pytest.raises(urllib.error.URLError):
         _get(f"http://127.0.0.1:{port}/", timeout=5)
+
+
+@needs_viser
+def test_the_served_page_colours_by_reach_with_its_legend(tmp_path):
+    from graspsim.maps import write_reach
+    from graspsim.viewer.glyphs import REACH_COLOURS
+
+    path = _map_file(tmp_path, outcomes=False)
+    write_reach(path, np.tile(np.array([1.0, 0.0], np.float32), 30), {"robot": "panda"})
+    server = show(str(path), port=0, colour="reachable", top_k=10)
+    try:
+        v = server.graspsim_viewer
+        assert "reachable" in v.g_colour.options and "red: unreachable" in v.g_scale.content
+        assert np.all(v.rows % 2 == 0)  # top 10 by the column: the reachable (even) rows
+        v.g_row.value = 1
+        assert "unreachable" in v.g_details.content
+    finally:
+        stop(server)
+    assert REACH_COLOURS["reachable"] != REACH_COLOURS["unreachable"]
 
 
 @needs_viser

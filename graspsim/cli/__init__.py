@@ -33,6 +33,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "graspsim.cli.identify_cmd",
     "graspsim.cli.adapt_cmd",
     "graspsim.cli.trial_cmd",
+    "graspsim.cli.reach_cmd",
     "graspsim.cli.export_cmd",
     "graspsim.cli.campaign_cmd",
     "graspsim.cli.calibrate_cmd",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -172,6 +173,36 @@ def gripper_from_args(args, *, flag: str = "gripper", base=None):
     from graspsim.grippers import get_gripper
 
     return get_gripper(text)
+
+
+ROBOTS = ("none", "panda")
+
+
+def add_robot_flags(p, *, required: bool = False, robot_help: str | None = None) -> None:
+    """The arm flags: ``--robot none|panda`` and ``--robot-base X Y YAW``, checked by
+    :func:`robot_base_from_args` (one line, exit 2, before any work)."""
+    p.add_argument("--robot", choices=ROBOTS[1:] if required else ROBOTS, default=None if required else "none",
+                   required=required, help=robot_help or "the arm (panda: the Franka Emika Panda)")
+    p.add_argument("--robot-base", type=float, nargs=3, metavar=("X", "Y", "YAW"),
+                   help="with --robot: the arm's base on the table top, x and y [m] from the object "
+                        "(which stands over the origin) and yaw [deg] (default -0.5 0 0: 0.5 m away, facing it)")
+
+
+def robot_base_from_args(args) -> tuple[float, float, float] | None:
+    """The arm's base (x [m], y [m], yaw [rad]) of ``--robot`` / ``--robot-base``; None for
+    ``--robot none`` (a base given without an arm is an error). Bad values: one line
+    naming what is valid."""
+    from graspsim.errors import InvalidParameterError
+
+    if args.robot in (None, "none"):
+        if args.robot_base is not None:
+            raise InvalidParameterError("--robot-base needs --robot panda")
+        return None
+    base = (-0.5, 0.0, 0.0) if args.robot_base is None else tuple(args.robot_base)
+    if not all(math.isfinite(v) for v in base) or math.hypot(base[0], base[1]) > 2.0:
+        raise InvalidParameterError(f"--robot-base {' '.join(f'{v:g}' for v in base)}: x and y [m] within 2 m of "
+                                    "the object, a finite yaw [deg]")
+    return (base[0], base[1], math.radians(base[2]))
 
 
 def whole_number(minimum: int):

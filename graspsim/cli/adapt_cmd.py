@@ -6,6 +6,7 @@ from pathlib import Path
 
 from graspsim.cli._common import (
     add_mode_flag,
+    add_robot_flags,
     add_units_flag,
     add_viewpoint_flag,
     command,
@@ -13,6 +14,7 @@ from graspsim.cli._common import (
     emit,
     format_table,
     gripper_from_args,
+    robot_base_from_args,
     stored_text,
     viewpoint_from_args,
 )
@@ -26,7 +28,8 @@ def _cmd_adapt(args) -> int:
     (built on first use), scale familiar ones, combine several parts, and write the
     adapted map (object frame; object/T_cloud_obj maps it to the cloud's frame). Exit
     status 1, and no map written (an existing file is left as it was), when nothing is
-    identified or no grasp is found."""
+    identified or no grasp is found. With ``--robot``, every grasp is judged for the arm
+    at its base before the map is written (its ``reachable`` column; graspsim reach)."""
     import sys
 
     from graspsim.maps.database import MapDatabase
@@ -38,6 +41,16 @@ def _cmd_adapt(args) -> int:
     # every option and the output path before the cloud is read or anything computed
     out = check_map_output(args.output, others={"input cloud": args.cloud})
     gripper = gripper_from_args(args)
+    base = robot_base_from_args(args)
+    if base is None and args.reach_exact != 100:
+        from graspsim.errors import InvalidParameterError
+
+        raise InvalidParameterError("--reach-exact needs --robot panda")
+    if base is not None and gripper.model is None:
+        from graspsim.errors import InvalidParameterError
+
+        raise InvalidParameterError(f"--robot {args.robot} carries grippers simulated from their model files "
+                                    f"(e.g. --gripper franka_hand); {gripper.name!r} has none")
     cfg = adapt_config(mode=args.mode, table=None if args.table is None else (
         "auto" if args.table == "auto" else _height(args.table)), table_normal=args.table_normal,
         table_clearance=args.table_clearance, repetitions=args.repetitions, theta=args.theta,
@@ -55,12 +68,22 @@ def _cmd_adapt(args) -> int:
     # only a map with grasps is written: a failed run leaves an existing file as it was
     why = ("nothing was identified" if result.status.value == "failed"
            else "the identified parts have no collision-free grasp" if not len(result.map) else None)
+    reach = None
     if why is None:
-        save_map(result.map, out)
+        gmap = result.map
+        if base is not None:
+            from graspsim.robots import mark_reach
+
+            gmap = mark_reach(gmap, robot=args.robot, base=base, exact=args.reach_exact, map_dir=out.parent)
+            reach = gmap.meta.extra["reach"]
+        save_map(gmap, out)
     s = result.summary()
     vp = result.map.meta.extra.get("viewpoint")
     s.update(file=str(out) if why is None else None, cloud=args.cloud, points=len(cloud.points),
              units=cloud.units, dropped=cloud.n_dropped, timing=result.timing, viewpoint=vp, seed=args.seed)
+    if reach is not None:
+        s["reach"] = {"robot": reach["robot"], "robot_base": reach["base"], **reach["counts"],
+                      "exact_checked": reach["exact"]["rows"]}
     rows = [(p["primitive"], dims_text(p["dims"]), p["match"], stored_text(p)) for p in s["parts"]]
     first = s["time_to_first_0.95"]
     human = (format_table(rows, ["part", "dims", "match", "stored map (size ratio)"]) +
@@ -71,7 +94,10 @@ def _cmd_adapt(args) -> int:
              + (f"; viewpoint {' '.join(f'{v:g}' for v in vp)}" if vp is not None
                 else "; seen all round (no viewpoint)")
              + (f" -> {out}" if why is None else "")
-             + (f"\n{FitQuality.from_dict(s['fit']).text()}" if s.get("fit") else ""))
+             + (f"\n{FitQuality.from_dict(s['fit']).text()}" if s.get("fit") else "")
+             + (f"\nreachable by {reach['robot']}: {reach['counts']['exact']} of the {reach['exact']['rows']} best "
+                f"planned, {reach['counts']['first_cut']} more pass the first cut, {reach['counts']['unreachable']} "
+                "unreachable" if reach is not None else ""))
     emit(s, args.json, human)
     if why is not None:
         kept = f"{out} left as it was" if out.exists() else f"{out} not written"
@@ -118,4 +144,10 @@ def register(sub) -> None:
         p.add_argument("--table-clearance", type=float, default=0.002,
                        help="gripper clearance above the table [m] (0.002)")
         add_viewpoint_flag(p)
+        add_robot_flags(p, robot_help="mark each grasp reachable or not for this arm at --robot-base (the map's "
+                        "reachable column; its ranking then puts reachable grasps first; see graspsim reach)")
+        from graspsim.cli._common import whole_number
+
+        p.add_argument("--reach-exact", type=whole_number(0), default=100, metavar="N",
+                       help="with --robot: how many of the best grasps get the exact reach check (100)")
         _add_generation(p)

@@ -223,6 +223,18 @@ def _cmd_info(args) -> int:
         t = placement.table
         rows.append(("table", "none (the map ignores it)" if not t else
                      f"normal {t['normal']}, height {t['height']:.4f} m, {t.get('dropped', 0)} poses dropped"))
+    if gmap.has_reach:  # an arm's verdicts (graspsim reach)
+        from graspsim.maps.graspmap import REACH_EXACT, REACH_FIRST_CUT, REACH_NONE
+
+        r, rec = gmap.reachable, extra.get("reach", {})
+        counts = {k: int((r == v).sum()) for k, v in (("exact", REACH_EXACT), ("first_cut", REACH_FIRST_CUT),
+                                                      ("unreachable", REACH_NONE))}
+        base = rec.get("base")
+        s["reach"] = {"robot": rec.get("robot"), "robot_base": base, **counts}
+        rows.append(("reachable", f"by {rec.get('robot')} at base "
+                     + (" ".join(f"{v:g}" for v in base) if base else "(a pose)")
+                     + f": {counts['exact']} planned, {counts['first_cut']} first cut only, "
+                       f"{counts['unreachable']} unreachable"))
     if "simulated" in sim:
         rows.append(("simulated", f"{int(sim['simulated'].sum())} of {len(gmap)} grasps "
                                   "(grasps/qualities/mujoco)"))

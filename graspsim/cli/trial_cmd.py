@@ -25,7 +25,16 @@ from __future__ import annotations
 import math
 import sys
 
-from graspsim.cli._common import add_gripper_flag, command, emit, format_table, gripper_from_args, progress
+from graspsim.cli._common import (
+    add_gripper_flag,
+    add_robot_flags,
+    command,
+    emit,
+    format_table,
+    gripper_from_args,
+    progress,
+    robot_base_from_args,
+)
 
 __all__ = ["register", "run", "MAX_TRIALS", "TRIALS_PER_SECOND_PER_THREAD", "RENDER_SECONDS_PER_TRIAL"]
 
@@ -49,13 +58,10 @@ def register(subparsers) -> None:
                  glossary=("feasible", "robust score", "grade")) as p:
         p.add_argument("map", metavar="FILE", help="graspability map file, or an ACRONYM .h5 / GraspGen "
                        ".json / GraspNet .npy grasp file (results go to <stem>.graspsim.h5 beside it)")
-        p.add_argument("--robot", choices=("none", "panda"), default="none",
-                       help="none: the floating gripper (default); panda: the Franka Emika Panda arm beside the "
-                            "table carries the map's gripper (a model-file gripper, e.g. franka_hand), checks each "
-                            "grasp's reachability and executes it with its joint servos (lift_place only)")
-        p.add_argument("--robot-base", type=float, nargs=3, metavar=("X", "Y", "YAW"),
-                       help="with --robot: the arm's base on the table top, x and y [m] from the object "
-                            "(which stands over the origin) and yaw [deg] (default -0.5 0 0: 0.5 m away, facing it)")
+        add_robot_flags(p, robot_help="none: the floating gripper (default); panda: the Franka Emika Panda arm beside "
+                        "the table carries the map's gripper (a model-file gripper, e.g. franka_hand), checks each "
+                        "grasp's reachability and executes it with its joint servos (lift_place only); --top takes "
+                        "the best grasps the map marks reachable first (graspsim reach)")
         p.add_argument("--protocol", choices=("lift_place", "tug"), default="lift_place",
                        help="lift_place: the paper's lift-and-place test (default); tug: "
                             "table-free pulls of 1 g x mass in six gripper directions")
@@ -234,21 +240,18 @@ def _arm_args(args) -> dict | None:
     gripper, else the arm's protocol and base (x, y, yaw [rad])."""
     from graspsim.errors import InvalidParameterError
 
-    if args.robot == "none":
-        if args.robot_base is not None:
-            raise InvalidParameterError("--robot-base needs --robot panda")
+    base = robot_base_from_args(args)
+    if base is None:
         return None
     for flag, bad in (("--protocol tug", args.protocol != "lift_place"), ("--render", args.render),
                       ("--record", args.record)):
         if bad:
             raise InvalidParameterError(f"{flag} is not available with --robot {args.robot} "
                                         "(the arm executes lift_place and is not rendered or recorded yet)")
-    base = (-0.5, 0.0, 0.0) if args.robot_base is None else tuple(args.robot_base)
-    if not all(math.isfinite(v) for v in base) or math.hypot(base[0], base[1]) > 2.0:
-        raise InvalidParameterError(f"--robot-base {base}: x and y within 2 m of the object, finite yaw [deg]")
     from graspsim.robots import ArmLiftPlace
 
-    return {"protocol": ArmLiftPlace(), "base": (base[0], base[1], math.radians(base[2])), "base_args": list(base)}
+    return {"protocol": ArmLiftPlace(), "base": base,
+            "base_args": [-0.5, 0.0, 0.0] if args.robot_base is None else list(args.robot_base)}
 
 
 _ARM_ONLY = ("unreachable", "approach_collision", "controller_error")

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
-from graspsim.maps.io import load_map, read_sim_results, save_map, write_sim_results
+from graspsim.maps.io import load_map, read_sim_results, save_map, write_reach, write_sim_results
 from graspsim.maps.map_config import MapConfig
 from graspsim.maps.preflight import estimate_map_memory, memory_budget
 from graspsim.maps.validate import map_problems, validate_map
@@ -22,6 +22,7 @@ __all__ = [
     "load_map",
     "save_map",
     "write_sim_results",
+    "write_reach",
     "read_sim_results",
     "estimate_map_memory",
     "memory_budget",

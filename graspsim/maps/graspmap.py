@@ -21,7 +21,8 @@ from graspsim.transforms import quat_to_matrix
 if TYPE_CHECKING:
     from graspsim.maps.map_config import MapConfig
 
-__all__ = ["GraspabilityMap", "MapMeta", "Placement", "COLUMNS", "OPTIONAL_COLUMNS"]
+__all__ = ["GraspabilityMap", "MapMeta", "Placement", "COLUMNS", "OPTIONAL_COLUMNS", "REACH_EXACT",
+           "REACH_FIRST_CUT", "REACH_NONE", "REACH_VALUES"]
 
 # column name -> (trailing shape, dtype)
 COLUMNS: dict[str, tuple[tuple[int, ...], type]] = {
@@ -41,13 +42,23 @@ COLUMNS: dict[str, tuple[tuple[int, ...], type]] = {
 #: Columns a map may lack (NaN: not computed): the robust scores of
 #: :mod:`graspsim.maps.robust` -- clearance to the observed points [m], the fraction of
 #: pose perturbations that stay feasible, the robust score (expected success) and the
-#: extra pad gap per side it assumes [m] (0 unless ``RobustConfig.openings`` says more).
+#: extra pad gap per side it assumes [m] (0 unless ``RobustConfig.openings`` says more);
+#: and ``reachable``, whether an arm at a base reaches the grasp (:data:`REACH_VALUES`;
+#: computed by :func:`graspsim.robots.mark_reach`, the arm and base in
+#: ``meta.extra["reach"]``; here it is plain data).
 OPTIONAL_COLUMNS: dict[str, tuple[tuple[int, ...], type]] = {
     "clearance": ((), np.float32),
     "robust_feasible": ((), np.float32),
     "robust": ((), np.float32),
     "robust_extra_opening": ((), np.float32),
+    "reachable": ((), np.float32),
 }
+#: ``reachable`` values: the arm's exact check planned the grasp (IK of the grasp, its
+#: pre-grasp, the approach line, the lift, the move from home, all collision-free);
+#: only the first cut (the arm's capability map) let it through; unreachable (refused by
+#: either). NaN: not checked.
+REACH_EXACT, REACH_FIRST_CUT, REACH_NONE = 1.0, 0.5, 0.0
+REACH_VALUES = (REACH_EXACT, REACH_FIRST_CUT, REACH_NONE)
 
 
 @dataclass(frozen=True)
@@ -215,6 +226,7 @@ class GraspabilityMap:
     robust_feasible: np.ndarray | None = None
     robust: np.ndarray | None = None
     robust_extra_opening: np.ndarray | None = None
+    reachable: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(np.asarray(self.wrist_position))  # the first column sets the row count
@@ -298,6 +310,20 @@ class GraspabilityMap:
     def has_robust(self) -> bool:
         """Whether any row has a robust score (:mod:`graspsim.maps.robust`)."""
         return bool(np.isfinite(self.robust).any())
+
+    @property
+    def has_reach(self) -> bool:
+        """Whether any row has a reachability verdict (the ``reachable`` column)."""
+        return bool(np.isfinite(self.reachable).any())
+
+    def reach_groups(self) -> np.ndarray | None:
+        """(N,) int the rank the ``reachable`` column gives each row, lower first: 0 the
+        arm's exact check planned it, 1 only its first cut let it through, 2 unchecked,
+        3 unreachable; None for a map without the column (all NaN)."""
+        if not self.has_reach:
+            return None
+        r = self.reachable
+        return np.select([r == REACH_EXACT, r == REACH_FIRST_CUT, r == REACH_NONE], [0, 1, 3], default=2)
 
     def ranked(self, rank: str = "robust") -> GraspabilityMap:
         """The map ordered best first: ``"robust"`` (default): rows with a robust score by

@@ -10,6 +10,10 @@ Layout (datasets, not attributes; N grasps)::
                                       [m per side]; NaN where not
                                       scored (graspsim.maps.robust); the group's attribute
                                       ``provenance`` (JSON) says how; optional on reading
+    grasps/qualities/reach/reachable  (N,) whether an arm reaches the grasp (1 exact check,
+                                      0.5 first cut only, 0 unreachable, NaN unchecked;
+                                      graspsim.robots.mark_reach); attribute ``provenance``
+                                      (JSON: the arm, its base, the object's pose); optional
     grasps/qualities/mujoco/...       simulation results, once simulated
     graspability/wrist_position (N,3), wrist_quat (N,4) wxyz, grasp_point (N,3),
                  contacts (N,2,3), normals (N,2,3), width (N,), part (N,), accepted (N,)
@@ -46,7 +50,7 @@ from graspsim._atomic import atomic_path
 from graspsim.errors import GraspsimError, MapFileError
 from graspsim.maps.graspmap import COLUMNS, GraspabilityMap, MapMeta
 
-__all__ = ["save_map", "load_map", "write_sim_results", "read_sim_results", "FORMAT",
+__all__ = ["save_map", "load_map", "write_sim_results", "read_sim_results", "write_reach", "FORMAT",
            "SCHEMA_VERSION"]
 
 FORMAT = "graspsim-map-1"
@@ -68,12 +72,14 @@ _PATHS = {
     "width": "graspability/width",
     "part": "graspability/part",
 }
-# optional columns (robust scores) -> dataset path; absent in older files (read as NaN)
+_REACH_PATH = "grasps/qualities/reach/reachable"
+# optional columns (robust scores, reachability) -> dataset path; absent in older files (read as NaN)
 _OPTIONAL_PATHS = {
     "robust": "grasps/qualities/robust/score",
     "robust_feasible": "grasps/qualities/robust/feasible_fraction",
     "clearance": "grasps/qualities/robust/clearance",
     "robust_extra_opening": "grasps/qualities/robust/extra_opening",
+    "reachable": _REACH_PATH,
 }
 
 
@@ -131,9 +137,14 @@ def save_map(gmap: GraspabilityMap, path: str | os.PathLike, *, compression: str
                 f.create_dataset("graspability/accepted", data=gmap.accepted, **opts)
                 if gmap.has_robust:
                     for col, dpath in _OPTIONAL_PATHS.items():
-                        f.create_dataset(dpath, data=getattr(gmap, col), **opts)
+                        if col != "reachable":
+                            f.create_dataset(dpath, data=getattr(gmap, col), **opts)
                     f["grasps/qualities/robust"].attrs["provenance"] = json.dumps(
                         m.extra.get("robust", {}), sort_keys=True)
+                if gmap.has_reach:
+                    f.create_dataset(_REACH_PATH, data=gmap.reachable, **opts)
+                    f["grasps/qualities/reach"].attrs["provenance"] = json.dumps(
+                        m.extra.get("reach", {}), sort_keys=True)
                 f["graspability/format"] = _fixed(FORMAT)
                 f["graspability/schema_version"] = SCHEMA_VERSION
                 f["graspability/meta"] = _fixed(json.dumps(
@@ -357,6 +368,36 @@ def write_sim_results(path: str | os.PathLike, results: dict[str, np.ndarray],
         saved = _save_results_aside(path, results, group, attrs_json)
         raise MapFileError(f"cannot store the results in {path}: {err}; they were saved to "
                            f"{saved} instead (numpy .npz, group {group!r})") from err
+
+
+def write_reach(path: str | os.PathLike, reachable: np.ndarray, record: dict) -> None:
+    """Store the ``reachable`` column (N,) of the map file ``path`` and its provenance
+    ``record`` (the arm, its base, the object's pose; also ``meta.extra["reach"]``),
+    atomically: the file is copied, updated and renamed back, so a failure leaves it as
+    it was, every other group (trial results) kept. A column of another length than the
+    map's rows raises :class:`MapFileError` with nothing written."""
+    path = Path(path)
+    reachable = np.asarray(reachable, np.float32).reshape(-1)
+    try:
+        with _open(path) as f, _damaged(path):
+            if _PATHS["grade"] not in f or "graspability/meta" not in f:
+                raise MapFileError(f"{path} is not a graspsim map (no {_PATHS['grade']})")
+            n = len(f[_PATHS["grade"]])
+        if len(reachable) != n:
+            raise MapFileError(f"reachable has {len(reachable)} rows, the map {path} has {n} grasps")
+        with atomic_path(path) as tmp:
+            shutil.copyfile(path, tmp)
+            with _open(tmp, "r+") as f:
+                meta = _json_dict(f, "graspability/meta", path)
+                meta["extra"] = {**meta.get("extra", {}), "reach": record}
+                del f["graspability/meta"]
+                f["graspability/meta"] = _fixed(json.dumps(meta, sort_keys=True))
+                if _REACH_PATH in f:
+                    del f[_REACH_PATH]
+                f.create_dataset(_REACH_PATH, data=reachable, **({"compression": "lzf"} if n else {}))
+                f["grasps/qualities/reach"].attrs["provenance"] = json.dumps(record, sort_keys=True)
+    except (OSError, KeyError, ValueError, TypeError, RuntimeError) as err:  # h5py on a damaged file
+        raise MapFileError(f"cannot store the reachability in {path}: {' '.join(str(err).split())}") from err
 
 
 def _save_results_aside(path: Path, results: dict, group: str, attrs_json: dict | None) -> Path:

@@ -379,15 +379,23 @@ def executed_width(gmap, rows=None) -> np.ndarray:
     return np.asarray(w, float) + 2.0 * extra_openings(gmap, rows)
 
 
-def ranking(gmap, rank: str = "robust") -> np.ndarray:
+def ranking(gmap, rank: str = "robust", *, reach: bool = True) -> np.ndarray:
     """Row order, best first: ``"robust"``: rows with a robust score > 0 by it (ties by
     grade), then unscored rows by grade, last the rows scored 0 (colliding at their
-    nominal pose or never feasible); ``"paper"``: by grade alone (stable)."""
+    nominal pose or never feasible); ``"paper"``: by grade alone (stable). With
+    ``reach`` and a map whose ``reachable`` column is filled (an arm at a base:
+    :func:`graspsim.robots.mark_reach`), that order holds within each of
+    :meth:`~graspsim.maps.graspmap.GraspabilityMap.reach_groups`: the grasps the arm's
+    exact check planned first, then those only its first cut passed, the unchecked, the
+    unreachable last."""
     if rank not in RANKS:
         raise InvalidParameterError(f"rank must be one of {list(RANKS)}, got {rank!r}")
     grade = -gmap.grade.astype(float)
+    reached = gmap.reach_groups() if reach else None
+    outer = () if reached is None else (reached,)
     if rank == "paper":
-        return np.argsort(grade, kind="stable")
+        order = np.argsort(grade, kind="stable")
+        return order if reached is None else order[np.argsort(reached[order], kind="stable")]
     r = gmap.robust.astype(float)
     group = np.where(np.isfinite(r), np.where(r > 0, 0, 2), 1)
-    return np.lexsort((grade, np.where(group == 0, -r, 0.0), group))
+    return np.lexsort((grade, np.where(group == 0, -r, 0.0), group, *outer))

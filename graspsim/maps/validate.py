@@ -126,7 +126,17 @@ def map_problems(gmap: GraspabilityMap, *, allow_empty: bool = False) -> list[st
     """What is wrong with ``gmap`` (empty when nothing): one short sentence per problem.
     ``allow_empty``: a map without grasps is not a problem (a slice of a stored map)."""
     out = [] if len(gmap) or allow_empty else ["it has no grasps"]
-    return out + _column_problems(gmap) + _meta_problems(gmap.meta)
+    return out + _column_problems(gmap) + _reach_problems(gmap) + _meta_problems(gmap.meta)
+
+
+def _reach_problems(gmap: GraspabilityMap) -> list[str]:
+    """The ``reachable`` column holds only :data:`~graspsim.maps.graspmap.REACH_VALUES` or NaN."""
+    from graspsim.maps.graspmap import REACH_VALUES
+
+    r = gmap.reachable
+    bad = ~(np.isnan(r) | np.isin(r, np.asarray(REACH_VALUES, r.dtype)))
+    p = _rows(bad, f"reachable holds values other than {list(REACH_VALUES)} or NaN")
+    return [p] if p else []
 
 
 def validate_map(gmap: GraspabilityMap, *, error: type[GraspsimError] = InvalidMapError,

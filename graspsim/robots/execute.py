@@ -50,7 +50,8 @@ from graspsim.sim.results import TrialResults
 from graspsim.sim.trial_scene import OBJECT, SimSettings, add_pad_sensors, gripper_drive, resting_pose
 from graspsim.transforms import quat_to_matrix
 
-__all__ = ["ArmScene", "build_arm_scene", "ArmLiftPlace", "ArmPlan", "plan_grasp", "run_arm_trials"]
+__all__ = ["ArmScene", "build_arm_scene", "ArmLiftPlace", "ArmPlan", "plan_grasp", "plan_grasps", "plan_counts",
+           "run_arm_trials"]
 
 log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -412,6 +413,44 @@ def _judge(scene: ArmScene, protocol: ArmLiftPlace, rec: Record, T_target: np.nd
     return out.astype(np.int8), met
 
 
+def plan_grasps(scene: ArmScene, T_world_wrist: np.ndarray, openings: np.ndarray,
+                protocol: ArmLiftPlace = ArmLiftPlace(), *, capability=None,
+                on_progress=None, on_planned=None) -> tuple[list[ArmPlan], np.ndarray, np.ndarray]:
+    """The plans of N grasps (wrist poses (N, 4, 4) in the world, jaw openings (N,) [m]),
+    as the arm's trials make them (:func:`run_arm_trials`, :func:`graspsim.robots.mark_reach`):
+    first the floating harness's start check on the same poses (what it excludes as
+    infeasible, the gripper in the object or the table, is excluded alike: START_COLLISION,
+    never planned), then :func:`plan_grasp` with the capability map's seed. Returns the
+    plans and the start check's penetrations into the object and the table (N,) [m].
+    ``on_progress(k)``: the grasps finished (refused) so far; ``on_planned(k)``: the
+    grasps judged so far, refused or not."""
+    from graspsim.sim.batch import initial_states, start_overlaps
+    from graspsim.sim.trial_scene import build_scene
+
+    T_world = np.asarray(T_world_wrist, float).reshape(-1, 4, 4)
+    openings = np.asarray(openings, float).reshape(-1)
+    n = len(T_world)
+    floating = build_scene(scene.obj, scene.gripper, scene.settings, T_world_obj=scene.T_world_obj)
+    on_object, on_table = start_overlaps(floating, initial_states(floating, T_world, openings), T_world)
+    blocked = np.maximum(on_object, on_table) > scene.settings.start_penetration
+    kin = scene.kinematics()
+    seeds = capability.lookup(T_world)[1] if capability is not None else np.full((n, 7), np.nan)
+    plans = []
+    finished = 0  # grasps planned and not to be executed: finished trials
+    for i in range(n):
+        if blocked[i]:
+            plans.append(ArmPlan(ReachCheck(Reach.START, "grasp"), TrialOutcome.START_COLLISION, "grasp"))
+        else:
+            s = () if np.isnan(seeds[i]).any() else (seeds[i],)
+            plans.append(plan_grasp(scene, kin, T_world[i], float(openings[i]), protocol, seeds=s))
+        finished += plans[-1].outcome is not None
+        if on_progress is not None and i % 8 == 7:
+            on_progress(finished)
+        if on_planned is not None:
+            on_planned(i + 1)
+    return plans, on_object, on_table
+
+
 def run_arm_trials(scene: ArmScene, T_obj_wrist: np.ndarray, widths: np.ndarray,
                    protocol: ArmLiftPlace = ArmLiftPlace(), *, threads: int | None = None, seed: int = 0,
                    noise: ExecutionNoise | None = None, capability=None, on_progress=None) -> TrialResults:
@@ -436,28 +475,10 @@ def run_arm_trials(scene: ArmScene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     if noise is not None:
         T_world = T_world @ noise.sample(n, np.random.default_rng(seed), pivot=scene.gripper.nominal_tcp)
     openings = scene.gripper.pregrasp_opening(widths)
-    # the start check of the floating harness, on the same poses: what it excludes as
-    # infeasible (the gripper in the object or the table) is excluded here alike
-    from graspsim.sim.batch import initial_states, start_overlaps
-    from graspsim.sim.trial_scene import build_scene
-
-    floating = build_scene(scene.obj, scene.gripper, scene.settings, T_world_obj=scene.T_world_obj)
-    on_object, on_table = start_overlaps(floating, initial_states(floating, T_world, openings), T_world)
+    plans, on_object, on_table = plan_grasps(scene, T_world, openings, protocol, capability=capability,
+                                             on_progress=on_progress)
     tol = scene.settings.start_penetration
     blocked = np.maximum(on_object, on_table) > tol
-    kin = scene.kinematics()
-    seeds = capability.lookup(T_world)[1] if capability is not None else np.full((n, 7), np.nan)
-    plans = []
-    finished = 0  # grasps planned and not to be executed: finished trials
-    for i in range(n):
-        if blocked[i]:
-            plans.append(ArmPlan(ReachCheck(Reach.START, "grasp"), TrialOutcome.START_COLLISION, "grasp"))
-        else:
-            s = () if np.isnan(seeds[i]).any() else (seeds[i],)
-            plans.append(plan_grasp(scene, kin, T_world[i], float(openings[i]), protocol, seeds=s))
-        finished += plans[-1].outcome is not None
-        if on_progress is not None and i % 8 == 7:
-            on_progress(finished)
     outcome = np.array([TrialOutcome.SUCCESS if p.outcome is None else p.outcome for p in plans], np.int8)
     metrics = {k: np.full(n, np.nan) for k in protocol.metric_names}
     metrics["reach"] = np.array([float(p.check.reach) for p in plans])  # the Reach code of each grasp
@@ -502,10 +523,10 @@ def run_arm_trials(scene: ArmScene, T_obj_wrist: np.ndarray, widths: np.ndarray,
         protocol=protocol.to_dict(), scene=scene.info(), seed=int(seed),
         noise=None if noise is None else noise.to_dict(), threads=threads, wall_time=wall,
         simulated_seconds=len(todo) * S * m.opt.timestep, start_kind=start,
-        extra={"plan": _plan_counts(plans)})
+        extra={"plan": plan_counts(plans)})
 
 
-def _plan_counts(plans: list[ArmPlan]) -> dict:
+def plan_counts(plans: list[ArmPlan]) -> dict:
     """How many grasps each reachability verdict and each failing stage got."""
     reach, stage = {}, {}
     for p in plans:

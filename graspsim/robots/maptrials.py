@@ -7,12 +7,17 @@ and each grasp is planned and executed by the arm
 (:func:`~graspsim.robots.execute.run_arm_trials`), its IK seeded by the arm's cached
 capability map. Results go to ``grasps/qualities/mujoco_arm_lift_place``, their record
 naming the robot and its base; grasps the reachability check refused count as
-failures (UNREACHABLE, APPROACH_COLLISION).
+failures (UNREACHABLE, APPROACH_COLLISION). A map whose ``reachable`` column
+(:func:`~graspsim.robots.mapreach.mark_reach_file`) was judged for another arm, base or
+object pose than this run's is still ranked by it, with a warning saying so.
 """
 
 from __future__ import annotations
 
+import logging
 import os
+
+import numpy as np
 
 from graspsim.errors import InvalidParameterError
 from graspsim.robots.arm import DEFAULT_BASE, base_transform, build_robot_model, get_arm
@@ -22,7 +27,26 @@ from graspsim.sim.mapsim import MapTrials, map_trials
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.trial_scene import SimSettings
 
-__all__ = ["simulate_map_arm"]
+__all__ = ["simulate_map_arm", "reach_mismatch"]
+
+log = logging.getLogger(__name__)
+
+
+def reach_mismatch(record: dict | None, robot: str, T_world_base: np.ndarray,
+                   T_world_obj: np.ndarray | None = None, tol: float = 1e-6) -> str | None:
+    """What differs between a map's reach record (``meta.extra["reach"]``) and a run of
+    ``robot`` at ``T_world_base`` with the object at ``T_world_obj`` (None: not
+    compared), in words; None when nothing does (or there is no record)."""
+    if not record:
+        return None
+    if record.get("robot") != robot:
+        return f"the arm {record.get('robot')!r}, not {robot!r}"
+    if not np.allclose(np.asarray(record.get("T_world_base"), float), T_world_base, atol=tol):
+        return "another base"
+    if T_world_obj is not None and not np.allclose(np.asarray(record.get("T_world_obj"), float), T_world_obj,
+                                                   atol=tol):
+        return "the object standing elsewhere"
+    return None
 
 
 def simulate_map_arm(path: str | os.PathLike, *, robot: str = "panda", base=DEFAULT_BASE,
@@ -48,8 +72,20 @@ def simulate_map_arm(path: str | os.PathLike, *, robot: str = "panda", base=DEFA
                 f"the map's gripper {gripper.name!r} has no model file: --robot {robot} carries grippers simulated "
                 "from their model files (e.g. franka_hand, robotiq_2f85)")
 
+    record = {}
+
+    def selected(gmap, index):
+        record.update((gmap.meta.extra.get("reach") or {}) if gmap.has_reach else {})
+        if on_selected is not None:
+            on_selected(gmap, index)
+
     def scene_of(obj, gripper, settings, T_world_obj):
-        return build_arm_scene(obj, gripper, settings, arm=arm, base=T_base, T_world_obj=T_world_obj)
+        scene = build_arm_scene(obj, gripper, settings, arm=arm, base=T_base, T_world_obj=T_world_obj)
+        why = reach_mismatch(record, arm.name, T_base, scene.T_world_obj)
+        if why is not None:
+            log.warning("the map's reachable column was judged for %s: it still orders the grasps "
+                        "(graspsim reach to judge them again for this run)", why)
+        return scene
 
     def execute(scene, T_obj_wrist, width):
         cmap = capability_map(build_robot_model(arm, scene.gripper, T_base), arm, T_base,
@@ -59,5 +95,5 @@ def simulate_map_arm(path: str | os.PathLike, *, robot: str = "panda", base=DEFA
 
     return map_trials(path, scene_of, execute, protocol=protocol, top=top, sample=sample, min_grade=min_grade,
                       seed=seed, noise=noise, mesh=mesh, mesh_scale=mesh_scale, mass=mass, settings=settings,
-                      write=write, replace_stored=replace_stored, cache_dir=cache_dir, on_selected=on_selected,
+                      write=write, replace_stored=replace_stored, cache_dir=cache_dir, on_selected=selected,
                       rank=rank, separation=separation, dataset=dataset, check_gripper=check_gripper)

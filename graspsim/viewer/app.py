@@ -18,7 +18,7 @@ from graspsim.geometry.boxes import box_mesh
 from graspsim.grippers.wireframe import gripper_wireframe
 from graspsim.transforms import frame_from_axes, invert_transform, matrix_to_quat, transform_points
 from graspsim.viewer.browser_view import BrowserView
-from graspsim.viewer.columns import OUTCOME_PREFIX, Selection, ViewData
+from graspsim.viewer.columns import OUTCOME_PREFIX, REACH, Selection, ViewData
 from graspsim.viewer.glyphs import PART_COLOURS, fork_glyph
 
 __all__ = ["MapViewer", "OBJECT_COLOUR", "MAX_WIREFRAMES", "GLYPHS"]
@@ -194,7 +194,8 @@ class MapViewer:
         colours, (lo, hi) = self.data.colours(rows, sel.colour)
         self.g_scale.content = ("green: success, red: dropped, orange: slipped, grey: start collision"
                                 if sel.colour.startswith(OUTCOME_PREFIX) else
-                                f"{sel.colour}: purple {lo:.3g} → yellow {hi:.3g}")
+                                "green: reachable, light green: first cut only, red: unreachable, grey: unchecked"
+                                if sel.colour == REACH else f"{sel.colour}: purple {lo:.3g} → yellow {hi:.3g}")
         s = float(self.g_size.value)
         opening = self.gripper.pregrasp_opening(m.width[rows])
         if wire:  # the full gripper's boxes at each pose, edges in the grasp's colour (forks: to click)

@@ -2,8 +2,10 @@
 by, and which grasps are drawn.
 
 Colour columns: the paper grade and its terms, every per-grasp number stored under
-``grasps/qualities/robust`` (robust scores, when the map has them), and the outcome of
-each simulation group (``grasps/qualities/mujoco``: lift_place, ``mujoco_tug``: tug).
+``grasps/qualities/robust`` (robust scores, when the map has them), ``reachable`` (when
+an arm's verdicts are recorded: ``graspsim reach``; reachable, first cut only,
+unreachable, unchecked), and the outcome of each simulation group
+(``grasps/qualities/mujoco``: lift_place, ``mujoco_tug``: tug).
 Filters (min grade, outcome, top-K by the colour column) run on all N grasps; at most
 ``max_drawn`` of the selected grasps are drawn, chosen by a fixed random priority per
 grasp (seeded), so a grasp that is drawn stays drawn when a filter is loosened.
@@ -20,10 +22,20 @@ import numpy as np
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.graspmap import GraspabilityMap
 
-__all__ = ["ViewData", "Selection", "OUTCOME_PREFIX"]
+__all__ = ["ViewData", "Selection", "OUTCOME_PREFIX", "REACH", "reach_label"]
 
 OUTCOME_PREFIX = "outcome: "
+#: the colour column of the map's ``reachable`` verdicts
+REACH = "reachable"
 _QUALITIES = "grasps/qualities"
+
+
+def reach_label(value: float) -> str:
+    """The words of a ``reachable`` value (:data:`graspsim.maps.graspmap.REACH_VALUES`)."""
+    from graspsim.maps.graspmap import REACH_EXACT, REACH_FIRST_CUT, REACH_NONE
+
+    return {REACH_EXACT: "reachable", REACH_FIRST_CUT: "first cut only", REACH_NONE: "unreachable"}.get(
+        float(value), "unchecked")
 
 
 @dataclass(frozen=True)
@@ -58,9 +70,13 @@ class ViewData:
         """The map's own columns plus, when ``path`` (its file) is given, everything
         stored under ``grasps/qualities`` beside the analytic grade."""
         numbers = {"grade": gmap.grade, "q_fc": gmap.q_fc, "q_st": gmap.q_st, "width": gmap.width}
+        if gmap.has_reach:
+            numbers[REACH] = gmap.reachable.astype(np.float64)
         outcomes, info = {}, {}
         if path is not None:
             for group, arrays in _stored_groups(Path(path), len(gmap)).items():
+                if group == f"{_QUALITIES}/reach":  # the map's own column (REACH)
+                    continue
                 info[group] = arrays.pop("info", {}) or {}
                 if "outcome" in arrays:
                     outcomes[group] = np.asarray(arrays.pop("outcome")).astype(np.int64)
@@ -89,7 +105,8 @@ class ViewData:
         """Grade first, robust scores next, then outcomes, then the rest."""
         robust = [k for k in self.numbers if k.startswith(f"{_QUALITIES}/robust/")]
         source = [k for k in self.numbers if k.startswith(("source/", f"{_QUALITIES}/source/"))]
-        return (["grade"] + robust + source + [OUTCOME_PREFIX + g for g in self.outcomes]
+        return (["grade"] + robust + [REACH] * (REACH in self.numbers) + source
+                + [OUTCOME_PREFIX + g for g in self.outcomes]
                 + [k for k in ("q_fc", "q_st", "width") if k in self.numbers])
 
     def outcome_labels(self, group: str) -> dict[int, str]:
@@ -161,6 +178,12 @@ class ViewData:
                             for c in range(max(labels) + 1)] + [NOT_SIMULATED_COLOUR], np.uint8)
             codes = self.outcomes[group][rows]
             return lut[np.where((codes >= 0) & (codes <= max(labels)), codes, -1)], (0.0, 0.0)
+        if colour == REACH:
+            from graspsim.viewer.glyphs import REACH_COLOURS
+
+            lut = {**REACH_COLOURS, "unchecked": NOT_SIMULATED_COLOUR}
+            return np.array([lut[reach_label(v)] for v in self.numbers[REACH][rows]], np.uint8).reshape(-1, 3), \
+                (0.0, 0.0)
         v = self.numbers[colour]
         lo, hi = (0.0, 1.0) if colour == "grade" else _finite_range(v)
         return colormap(v[rows], lo, hi), (lo, hi)
@@ -178,6 +201,9 @@ class ViewData:
         for k, v in self.numbers.items():
             if "/" in k and np.isfinite(v[row]):
                 out[k] = float(v[row])
+        if REACH in self.numbers:
+            robot = m.meta.extra.get("reach", {}).get("robot", "the arm")
+            out[f"reachable by {robot}"] = reach_label(self.numbers[REACH][row])
         return out
 
 

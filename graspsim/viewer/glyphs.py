@@ -17,7 +17,7 @@ import numpy as np
 
 from graspsim.geometry.boxes import box_mesh
 
-__all__ = ["fork_glyph", "colormap", "OUTCOME_COLOURS",
+__all__ = ["fork_glyph", "colormap", "OUTCOME_COLOURS", "REACH_COLOURS",
            "NOT_SIMULATED_COLOUR", "PART_COLOURS"]
 
 # viridis at 0, 1/8, ..., 1 (matplotlib's table), interpolated linearly: close enough
@@ -32,6 +32,9 @@ OUTCOME_COLOURS: dict[str, tuple[int, int, int]] = {
     "slipped": (250, 150, 30), "dropped": (220, 40, 40), "place_failed": (230, 200, 40),
     "sim_unstable": (30, 30, 30)}
 NOT_SIMULATED_COLOUR = (205, 205, 215)
+#: colours of the map's ``reachable`` verdicts (an arm at a base; unchecked: NOT_SIMULATED_COLOUR)
+REACH_COLOURS: dict[str, tuple[int, int, int]] = {
+    "reachable": (40, 170, 70), "first cut only": (170, 215, 90), "unreachable": (220, 40, 40)}
 #: colours of identified parts (cycled)
 PART_COLOURS = ((230, 120, 60), (70, 130, 200), (120, 190, 90), (200, 90, 160), (230, 200, 60),
                 (90, 200, 200))

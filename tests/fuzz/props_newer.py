@@ -30,8 +30,8 @@ from .registry import register
 @register("newer_options", "option values (CLI: newer commands)",
           lambda: options.command_lines(tuple(options.NEWER_COMMANDS), options.NEWER_COMMANDS), 70)
 def check_newer_options(case: dict) -> str:
-    """Edge option values of plan-scene, scene, view, adapt-gripper, design, trial --mesh
-    and db check: a clean outcome; failures change nothing; maps written are valid."""
+    """Edge option values of plan-scene, scene, view, adapt-gripper, design, trial --mesh,
+    db check and reach: a clean outcome; failures change nothing; maps written are valid."""
     count("option values (CLI: newer commands)")
     folder = assets().fresh()
     try:

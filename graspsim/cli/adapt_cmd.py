@@ -28,8 +28,8 @@ def _cmd_adapt(args) -> int:
     (built on first use), scale familiar ones, combine several parts, and write the
     adapted map (object frame; object/T_cloud_obj maps it to the cloud's frame). Exit
     status 1, and no map written (an existing file is left as it was), when nothing is
-    identified or no grasp is found. With ``--robot``, every grasp is judged for the arm
-    at its base before the map is written (its ``reachable`` column; graspsim reach)."""
+    identified or no grasp is found. With --robot, every grasp is judged for the arm
+    at its base before the map is written (its reachable column; graspsim reach)."""
     import sys
 
     from graspsim.maps.database import MapDatabase

@@ -35,7 +35,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     """Judge every grasp of the map for the arm at its base -- the arm's capability map
     for all, the plan an arm trial makes for the --exact best -- and store the verdicts
-    in the map (its ``reachable`` column: 1 planned, 0.5 first cut only, 0 unreachable),
+    in the map (its reachable column: 1 planned, 0.5 first cut only, 0 unreachable),
     atomically: a bad option or a failure writes nothing."""
     from graspsim.maps.io import load_map
 

@@ -268,11 +268,13 @@ def test_e14_quick_compares_dataset_labels_with_mujoco(tmp_path):
     s = _summary(tmp_path)
     assert s["input"]["format"] == "acronym" and s["input"]["grasps"] == 8
     assert s["input"]["label_source"].startswith("hand-made") and s["input"]["dataset_held"] == 4
-    for name in ("tug", "lift_place"):
-        r = s["protocols"][name]
-        cells = [v for row in r["confusion"].values() for v in row.values()]
-        assert sum(cells) == 8 and r["executable"] == r["agreement"]["n"]
-        assert sum(t["grasps"] for t in r["by_type"].values()) == 8
+    assert set(s["models"]) == set(s["config"]["models"])  # one block per collision model of the mesh
+    for model in s["models"].values():
+        for name in ("tug", "lift_place"):
+            r = model["protocols"][name]
+            cells = [v for row in r["confusion"].values() for v in row.values()]
+            assert sum(cells) == 8 and r["executable"] == r["agreement"]["n"]
+            assert sum(t["grasps"] for t in r["by_type"].values()) == 8
     assert (tmp_path / "imported.graspsim.h5").is_file() and "tug" in (tmp_path / "README.md").read_text()
 
 

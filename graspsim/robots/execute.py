@@ -45,7 +45,7 @@ from graspsim.sim.model import GripDrive
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.objects import SimObject
 from graspsim.sim.outcomes import Record, TrialOutcome
-from graspsim.sim.protocols import LiftPlace, min_jerk
+from graspsim.sim.protocols import LiftPlace, min_jerk, phase_steps
 from graspsim.sim.results import TrialResults
 from graspsim.sim.trial_scene import OBJECT, SimSettings, add_pad_sensors, gripper_drive, resting_pose
 from graspsim.transforms import quat_to_matrix
@@ -203,12 +203,7 @@ class ArmLiftPlace:
                 *self.lift.phases()]
 
     def steps(self, dt: float) -> dict[str, tuple[int, int]]:
-        out, k = {}, 0
-        for name, dur in self.phases():
-            n = max(1, int(round(dur / dt)))
-            out[name] = (k, k + n - 1)
-            k += n
-        return out
+        return phase_steps(self.phases(), dt)
 
     def nstep(self, dt: float) -> int:
         return max(b for _, b in self.steps(dt).values()) + 1

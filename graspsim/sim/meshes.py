@@ -495,6 +495,22 @@ def _cache_write(file: Path, prepared: PreparedMesh) -> None:
         log.warning("cannot cache the prepared mesh in %s: %s", file.parent, err)
 
 
+def _source_arrays(source, scale: float) -> tuple[str, str, np.ndarray, np.ndarray]:
+    """(name for messages, label, vertices, faces) of a mesh file or a ``trimesh.Trimesh``
+    (its arrays as they are), checked by :func:`check_mesh_arrays` at ``scale``."""
+    import trimesh
+
+    if isinstance(source, trimesh.Trimesh):
+        name, label = "the mesh", "<trimesh>"
+        vertices, faces = np.asarray(source.vertices, np.float64), np.asarray(source.faces, np.int64)
+    else:
+        path = check_mesh_path(source)
+        name, label = f"mesh {path.name}", str(path)
+        vertices, faces = _read_arrays(path)
+    check_mesh_arrays(vertices, faces, scale=scale, name=name)
+    return name, label, vertices, faces
+
+
 def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParams(),
                  cache_dir: str | os.PathLike | None = None,
                  progress: Callable[[str, float], None] | None = None) -> PreparedMesh:
@@ -507,18 +523,10 @@ def prepare_mesh(source, *, scale: float = 1.0, params: CoacdParams = CoacdParam
     the time limit spent). Raises :class:`MeshError` on a mesh that cannot be simulated.
     The fallback's warning is logged once per call and kept in ``warning``.
     """
-    import trimesh
 
     t0 = time.perf_counter()
     scale = _check_scale(scale)
-    if isinstance(source, trimesh.Trimesh):
-        name, label = "the mesh", "<trimesh>"
-        vertices, faces = np.asarray(source.vertices, np.float64), np.asarray(source.faces, np.int64)
-    else:
-        path = check_mesh_path(source)
-        name, label = f"mesh {path.name}", str(path)
-        vertices, faces = _read_arrays(path)
-    check_mesh_arrays(vertices, faces, scale=scale, name=name)
+    name, label, vertices, faces = _source_arrays(source, scale)
     key = _key(vertices, faces, scale, params)
     # a complete model serves any time limit at least the CPU time it took (recorded since; older
     # entries serve every limit); a fallback only the (CPU-time) limit that gave it.
@@ -566,20 +574,12 @@ def surface_model(source, *, scale: float = 1.0, thickness: float = 0.0015,
     properties: those of the closed mesh (else of the prisms). Not cached (it takes
     milliseconds). Raises :class:`MeshError` on a mesh that cannot be simulated or has
     more than ``max_faces`` faces (decimate it first)."""
-    import trimesh
 
     t0 = time.perf_counter()
     scale = _check_scale(scale)
     if not (math.isfinite(thickness) and 0 < thickness <= 0.01):
         raise InvalidParameterError(f"surface thickness must be in (0, 0.01] m, got {thickness!r}")
-    if isinstance(source, trimesh.Trimesh):
-        name, label = "the mesh", "<trimesh>"
-        vertices, faces = np.asarray(source.vertices, np.float64), np.asarray(source.faces, np.int64)
-    else:
-        path = check_mesh_path(source)
-        name, label = f"mesh {path.name}", str(path)
-        vertices, faces = _read_arrays(path)
-    check_mesh_arrays(vertices, faces, scale=scale, name=name)
+    name, label, vertices, faces = _source_arrays(source, scale)
     mesh = _clean(vertices, faces, scale, name)
     if len(mesh.faces) > max_faces:
         raise MeshError(f"{name} has {len(mesh.faces)} faces; a surface model takes at most {max_faces} "

@@ -51,6 +51,17 @@ def _check_positive(obj) -> None:
                  owner=type(obj).__name__)
 
 
+def phase_steps(phases, dt: float) -> dict[str, tuple[int, int]]:
+    """Phase name -> (first step, last step) of ``phases`` ((name, duration [s]) in order)
+    in a record of step ``dt`` [s]; every phase at least one step."""
+    out, k = {}, 0
+    for name, dur in phases:
+        n = max(1, int(round(dur / dt)))
+        out[name] = (k, k + n - 1)
+        k += n
+    return out
+
+
 @dataclass(frozen=True)
 class Protocol:
     """Base of the protocols: phases (name, duration [s]) and the shared checks."""
@@ -66,12 +77,7 @@ class Protocol:
 
     def steps(self, dt: float) -> dict[str, tuple[int, int]]:
         """Phase name -> (first step, last step) in a record of step ``dt``."""
-        out, k = {}, 0
-        for name, dur in self.phases():
-            n = max(1, int(round(dur / dt)))
-            out[name] = (k, k + n - 1)
-            k += n
-        return out
+        return phase_steps(self.phases(), dt)
 
     def nstep(self, dt: float) -> int:
         return max(b for _, b in self.steps(dt).values()) + 1

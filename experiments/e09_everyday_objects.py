@@ -77,7 +77,7 @@ from graspsim.perception.mvbb import min_volume_box
 from graspsim.planning.adapt import adapt_cloud, adapt_config
 from graspsim.sim import TrialOutcome
 from graspsim.sim.mapsim import simulate_map
-from graspsim.sim.meshes import load_mesh
+from graspsim.sim.meshes import load_mesh, surface_model
 from graspsim.sim.objects import object_from_mesh
 from graspsim.stats import wilson_interval
 
@@ -109,6 +109,9 @@ class Config:
                     "'simulator' (upright when stable, else the hull face nearest the centre of mass; a centre of "
                     "mass over the support's edge tips over once released) or 'stable' (trimesh's most probable "
                     "stable pose)", choices=("physics", "simulator", "stable"))
+    mesh_model: str = opt("parts", "the true mesh's collision model in the trials (graspsim trial --mesh-model): "
+                          "parts (CoACD's convex parts within the CPU limit, else its hull) or surface (the mesh's "
+                          "own surface, a prism per face: cavities kept)", choices=("parts", "surface"))
     coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
     QUICK: ClassVar[dict] = {"resolution": 0.005, "coarse_db": True, "top": 4}
 
@@ -141,7 +144,8 @@ def _sim(map_path: Path, mesh_path: Path, cfg: Config, seed: int, separated: boo
     try:
         # the plain run stores its outcomes in the map (as `trial` does); the separated one
         # is `trial --separation MM DEG --no-write` (storing would replace them)
-        t = simulate_map(map_path, top=cfg.top, rank=cfg.rank, mesh=mesh_path, seed=seed, threads=cfg.threads,
+        mesh = surface_model(mesh_path) if cfg.mesh_model == "surface" else mesh_path  # `trial --mesh-model`
+        t = simulate_map(map_path, top=cfg.top, rank=cfg.rank, mesh=mesh, seed=seed, threads=cfg.threads,
                          separation=sep, write=not separated)
     except InvalidParameterError:  # nothing to simulate (an empty map): `trial` refuses it too
         return None
@@ -181,7 +185,9 @@ def object_views(name: str, cfg: Config):
     rng = rng_for(cfg.seed, name)
     path = Path(cfg.objects_dir) / name
     # physics and the simulator's rule need the simulated object (a convex decomposition); trimesh's does not
-    obj = object_from_mesh(path) if cfg.rest != "stable" else None
+    # (with --mesh-model surface the rest is the surface's too: a hull rests otherwise)
+    model = surface_model(path) if cfg.mesh_model == "surface" else path
+    obj = None if cfg.rest == "stable" else object_from_mesh(model)
     rest = {"physics": rest_physics, "simulator": rest_on_table, "stable": rest_stable}[cfg.rest]
     mesh, T_world_mesh = rest(load_mesh(path), obj, rng)
     return obj, mesh, T_world_mesh, clouds(mesh, cfg, rng)
@@ -438,9 +444,12 @@ def readme_section(s: dict) -> str:
         cfg.get("rest"), "as the simulator rests it")
     path = (", through the public path (`graspsim adapt` -> map file -> `graspsim trial --mesh`: "
             "`graspsim.planning.adapt.adapt_cloud`, `graspsim.sim.mapsim.simulate_map`)") if public else ""
-    best = (f"The adapted map's {cfg['top']} best grasps (`trial --top {cfg['top']} --rank {cfg['rank']}`: "
-            f"{_RANK_TEXT[cfg['rank']]}) lifted and placed in MuJoCo against the true mesh standing where the "
-            "cloud was; ") if public else (
+    surface = cfg.get("mesh_model") == "surface"
+    best = (f"The adapted map's {cfg['top']} best grasps (`trial --top {cfg['top']} --rank {cfg['rank']}"
+            f"{' --mesh-model surface' if surface else ''}`: {_RANK_TEXT[cfg['rank']]}) lifted and placed in MuJoCo "
+            "against the true mesh standing where the cloud was"
+            + (" (simulated as its own surface, a prism per face: cavities kept)" if surface else "")
+            + "; ") if public else (
         f"The adapted map's {cfg['top']} best accepted grasps by the planner's ranking "
         f"({_RANK_TEXT[cfg.get('rank', 'robust')]}) lifted and placed in MuJoCo against the true mesh; ")
     L = [f"`{s['command']}`: {len(objs)} meshes, each resting on a table {rest}, at a random yaw; "

@@ -458,8 +458,8 @@ def _build(mesh, params: CoacdParams, name: str, progress) -> tuple[list[np.ndar
     if not parts + hulls:
         raise MeshError(f"{name} has no part with a volume (flat or degenerate)")
     what = "its convex hull" if len(comps) == 1 else f"the convex hulls of its {len(comps)} components"
-    warning = (f"{name}: {why}; simulating {what} instead (concave regions are filled; raise "
-               "CoacdParams.time_limit for a finer model)")
+    warning = (f"{name}: {why}; simulating {what} instead (concave regions are filled: for the mesh's own "
+               "surface use `graspsim trial --mesh-model surface`, or raise CoacdParams.time_limit)")
     return parts + hulls, "hull", warning, not by_load, used
 
 

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, field
 from typing import ClassVar
@@ -455,20 +454,10 @@ def run_arm_trials(scene: ArmScene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     :class:`~graspsim.robots.capability.CapabilityMap` whose seeds start the IK.
     ``extra["plan"]`` holds each grasp's reachability verdict and failing stage."""
     t_start = time.perf_counter()
-    T = np.asarray(T_obj_wrist, float)
-    widths = np.asarray(widths, float).reshape(-1)
-    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) != len(widths):
-        raise InvalidParameterError(f"T_obj_wrist must be (N, 4, 4) and widths (N,); got {T.shape} and {widths.shape}")
-    if not (np.all(np.isfinite(T)) and np.all(np.isfinite(widths))):
-        raise InvalidParameterError("poses and widths must be finite")
-    threads = int(threads or os.cpu_count() or 1)
-    if threads < 1:
-        raise InvalidParameterError(f"threads must be >= 1, got {threads}")
-    n = len(T)
-    threads = min(threads, max(n, 1), 4 * (os.cpu_count() or 1))
-    T_world = scene.T_world_obj @ T
-    if noise is not None:
-        T_world = T_world @ noise.sample(n, np.random.default_rng(seed), pivot=scene.gripper.nominal_tcp)
+    from graspsim.sim.batch import trial_inputs
+
+    T_world, widths, threads = trial_inputs(scene, T_obj_wrist, widths, threads=threads, seed=seed, noise=noise)
+    n = len(T_world)
     openings = scene.gripper.pregrasp_opening(widths)
     plans, on_object, on_table = plan_grasps(scene, T_world, openings, protocol, capability=capability,
                                              on_progress=on_progress)

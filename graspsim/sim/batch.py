@@ -28,7 +28,8 @@ from graspsim.sim.results import TrialResults
 from graspsim.sim.trial_scene import Scene
 from graspsim.transforms import matrix_to_quat
 
-__all__ = ["run_trials", "start_penetration", "initial_states", "simulate", "pregrasp_opening", "arm_below_table"]
+__all__ = ["run_trials", "trial_inputs", "start_penetration", "initial_states", "simulate", "pregrasp_opening",
+           "arm_below_table"]
 
 log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -152,6 +153,31 @@ def _record(scene: Scene, states: np.ndarray, sens: np.ndarray) -> Record:
                   jaws=scene.drive.half_openings(qp[..., scene.qadr_jaws]), pads=pads)
 
 
+def trial_inputs(scene, T_obj_wrist, widths, *, threads: int | None, seed: int,
+                 noise: ExecutionNoise | None) -> tuple[np.ndarray, np.ndarray, int]:
+    """(T_world_wrist (N, 4, 4) with the execution noise drawn from ``seed`` applied, widths
+    (N,), threads) of a batch of trials, checked: poses (N, 4, 4) and widths (N,) finite,
+    threads >= 1 and clamped to the trials and a few per core (beyond that they only cost
+    memory: one MjData and one native thread each; results do not depend on them). Every
+    executor of a batch (:func:`run_trials`, the arm's ``run_arm_trials``) starts here."""
+    T = np.asarray(T_obj_wrist, dtype=float)
+    widths = np.asarray(widths, dtype=float).reshape(-1)
+    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) != len(widths):
+        raise InvalidParameterError(
+            f"T_obj_wrist must be (N, 4, 4) and widths (N,); got {T.shape} and {widths.shape}")
+    if not (np.all(np.isfinite(T)) and np.all(np.isfinite(widths))):
+        raise InvalidParameterError("poses and widths must be finite")
+    threads = int(threads or os.cpu_count() or 1)
+    if threads < 1:
+        raise InvalidParameterError(f"threads must be >= 1, got {threads}")
+    n = len(T)
+    threads = min(threads, max(n, 1), 4 * (os.cpu_count() or 1))
+    T_world = scene.T_world_obj @ T
+    if noise is not None:
+        T_world = T_world @ noise.sample(n, np.random.default_rng(seed), pivot=scene.gripper.nominal_tcp)
+    return T_world, widths, threads
+
+
 def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
                protocol: Protocol = LiftPlace(), *, threads: int | None = None, seed: int = 0,
                noise: ExecutionNoise | None = None, backend: str = "rollout",
@@ -169,28 +195,12 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     their full :class:`Record` (e.g. a :class:`~graspsim.sim.recording.Recorder`).
     """
     t_start = time.perf_counter()
-    T = np.asarray(T_obj_wrist, dtype=float)
-    widths = np.asarray(widths, dtype=float).reshape(-1)
-    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) != len(widths):
-        raise InvalidParameterError(
-            f"T_obj_wrist must be (N, 4, 4) and widths (N,); got {T.shape} and {widths.shape}")
-    if not (np.all(np.isfinite(T)) and np.all(np.isfinite(widths))):
-        raise InvalidParameterError("poses and widths must be finite")
+    T_world, widths, threads = trial_inputs(scene, T_obj_wrist, widths, threads=threads, seed=seed, noise=noise)
+    n = len(T_world)
     if scene.table != protocol.table or scene.gravity != protocol.gravity:
         raise SimulationError(
             f"protocol {protocol.name!r} needs a scene with table={protocol.table}, "
             f"gravity={protocol.gravity}; build it with build_scene(..., table=..., gravity=...)")
-    threads = int(threads or os.cpu_count() or 1)
-    if threads < 1:
-        raise InvalidParameterError(f"threads must be >= 1, got {threads}")
-    n = len(T)
-    # threads beyond the trials or a few per core only cost memory (one MjData and one
-    # native thread each; --threads 1000000000 exhausted it): results do not depend on them
-    threads = min(threads, max(n, 1), 4 * (os.cpu_count() or 1))
-    T_world = scene.T_world_obj @ T
-    if noise is not None:
-        g = scene.gripper
-        T_world = T_world @ noise.sample(n, np.random.default_rng(seed), pivot=g.nominal_tcp)
     openings = pregrasp_opening(scene, widths)
     state0 = initial_states(scene, T_world, openings)
     on_object, on_table = start_overlaps(scene, state0, T_world)

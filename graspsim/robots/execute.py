@@ -36,7 +36,8 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from graspsim.errors import InvalidParameterError, SimulationError
+from graspsim.checks import NON_NEGATIVE, POSITIVE, check_fields
+from graspsim.errors import SimulationError
 from graspsim.grippers.spec import GripperSpec
 from graspsim.robots.arm import DEFAULT_BASE, PANDA, ArmSpec, add_arm, base_transform
 from graspsim.robots.reach import ArmKinematics, Reach, ReachCheck, check_reach, pose_error
@@ -121,10 +122,10 @@ def build_arm_scene(obj: SimObject, gripper: GripperSpec, settings: SimSettings 
     _add_table(spec, s, size=1.0)
     spec.add_exclude(bodyname1="world", bodyname2=names.bodies[0])  # the base stands on the table
     _add_object(spec, obj, T_world_obj, s)
+    from graspsim.sim.authored_model import authored_names
     from graspsim.sim.model import NAMES
 
-    gnames = _gripper_names(gripper)
-    add_pad_sensors(spec, gripper, gnames, OBJECT, "")
+    add_pad_sensors(spec, gripper, authored_names(gripper), OBJECT, "")
     spec.add_sensor(name="wrist_pos", type=mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype=mujoco.mjtObj.mjOBJ_SITE,
                     objname=NAMES.wrist)
     spec.add_sensor(name="wrist_quat", type=mujoco.mjtSensor.mjSENS_FRAMEQUAT, objtype=mujoco.mjtObj.mjOBJ_SITE,
@@ -144,18 +145,6 @@ def build_arm_scene(obj: SimObject, gripper: GripperSpec, settings: SimSettings 
         wrist_sensors=(int(model.sensor_adr[model.sensor("wrist_pos").id]),
                        int(model.sensor_adr[model.sensor("wrist_quat").id])),
         drive=gripper_drive(model, gripper))
-
-
-def _gripper_names(gripper: GripperSpec):
-    from graspsim.grippers import mount
-    from graspsim.sim.authored_model import PREFIX
-    from graspsim.sim.model import NAMES, GripperNames
-
-    mnt = mount(gripper.model)
-    return GripperNames(sync="", tendon="", actuator=PREFIX + mnt.actuators[0],
-                        jaw_neg=PREFIX + mnt.jaw_joints[0], jaw_pos=PREFIX + mnt.jaw_joints[1],
-                        finger_neg=PREFIX + mnt.pad_geoms[0], finger_pos=PREFIX + mnt.pad_geoms[1], housing="",
-                        wrist=NAMES.wrist, target=NAMES.target, weld=NAMES.weld)
 
 
 @dataclass(frozen=True)
@@ -185,13 +174,8 @@ class ArmLiftPlace:
     reach_tol: tuple[float, float] = (0.005, math.radians(3.0))
 
     def __post_init__(self) -> None:
-        for k in ("move_time", "approach", "approach_time", "arrive_time", "step", "path_step", "clearance",
-                  "approach_push"):
-            v = getattr(self, k)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise InvalidParameterError(f"ArmLiftPlace.{k} must be >= 0, got {v!r}")
-        if not (self.step > 0 and self.path_step > 0 and self.move_time > 0 and self.approach_time > 0):
-            raise InvalidParameterError("ArmLiftPlace: step, path_step, move_time and approach_time must be > 0")
+        check_fields(self, NON_NEGATIVE, "approach", "arrive_time", "clearance", "approach_push", owner="ArmLiftPlace")
+        check_fields(self, POSITIVE, "move_time", "approach_time", "step", "path_step", owner="ArmLiftPlace")
 
     @property
     def metric_names(self) -> tuple[str, ...]:
@@ -454,7 +438,7 @@ def run_arm_trials(scene: ArmScene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     :class:`~graspsim.robots.capability.CapabilityMap` whose seeds start the IK.
     ``extra["plan"]`` holds each grasp's reachability verdict and failing stage."""
     t_start = time.perf_counter()
-    from graspsim.sim.batch import trial_inputs
+    from graspsim.sim.batch import run_in_chunks, trial_inputs
 
     T_world, widths, threads = trial_inputs(scene, T_obj_wrist, widths, threads=threads, seed=seed, noise=noise)
     n = len(T_world)
@@ -477,20 +461,16 @@ def run_arm_trials(scene: ArmScene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     S = protocol.nstep(m.opt.timestep)
     with rollout.Rollout(nthread=threads if threads > 1 else 0) as pool:
         datas = [mujoco.MjData(m) for _ in range(threads)]
-        for a in range(0, len(todo), chunk):
-            idx = todo[a:a + chunk]
+
+        def run(idx: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
             ctrl = _controls(scene, protocol, [plans[i] for i in idx], openings[idx])
             states, sens = pool.rollout([m] * len(idx), datas, np.ascontiguousarray(state0[idx]),
                                         np.ascontiguousarray(ctrl), control_spec=int(_CTRL), nstep=S,
                                         initial_warmstart=np.zeros((len(idx), m.nv)))
             rec = _record(scene, states, sens)
-            out, met = _judge(scene, protocol, rec, T_world[idx], np.repeat(obj_q[None], len(idx), axis=0))
-            outcome[idx] = out
-            for k, v in met.items():
-                metrics.setdefault(k, np.full(n, np.nan))[idx] = v
-            done += len(idx)
-            if on_progress is not None:
-                on_progress(done)
+            return _judge(scene, protocol, rec, T_world[idx], np.repeat(obj_q[None], len(idx), axis=0))
+
+        run_in_chunks(todo, chunk, run, outcome, metrics, done=done, on_progress=on_progress)
     wall = time.perf_counter() - t_start
     arm_start = np.array([p.outcome == TrialOutcome.START_COLLISION and not blocked[i] for i, p in enumerate(plans)])
     depth = np.maximum(on_object, on_table)

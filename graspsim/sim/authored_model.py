@@ -32,7 +32,7 @@ from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.grippers.spec import GripperSpec
 from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, add_weld, add_wrist, drive_force
 
-__all__ = ["build_vendored_gripper_spec", "attach_model", "model_drive", "PREFIX"]
+__all__ = ["build_vendored_gripper_spec", "attach_model", "authored_names", "model_drive", "PREFIX"]
 
 PREFIX = "gripper/"
 
@@ -125,12 +125,23 @@ def attach_model(spec: mujoco.MjSpec, wrist: mujoco.MjsBody, gripper: GripperSpe
             j = spec.joint(PREFIX + name)
             if j.damping[0] > 0:
                 j.damping[0] = force / gripper.closing_speed
-    names = GripperNames(
+    return _names(mnt)
+
+
+def authored_names(gripper: GripperSpec) -> GripperNames:
+    """The names of the elements of ``gripper``'s model as :func:`attach_model` attaches
+    it (prefixed; no coupling tendon, no housing geom) and of the harness's wrist."""
+    from graspsim.grippers import mount
+
+    return _names(mount(gripper.model))
+
+
+def _names(mnt) -> GripperNames:
+    return GripperNames(
         sync="", tendon="", actuator=PREFIX + mnt.actuators[0],
         jaw_neg=PREFIX + mnt.jaw_joints[0], jaw_pos=PREFIX + mnt.jaw_joints[1],
         finger_neg=PREFIX + mnt.pad_geoms[0], finger_pos=PREFIX + mnt.pad_geoms[1], housing="",
         wrist=NAMES.wrist, target=NAMES.target, weld=NAMES.weld)
-    return names
 
 
 def model_drive(model: mujoco.MjModel, gripper: GripperSpec) -> GripDrive:

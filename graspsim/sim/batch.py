@@ -28,8 +28,8 @@ from graspsim.sim.results import TrialResults
 from graspsim.sim.trial_scene import Scene
 from graspsim.transforms import matrix_to_quat
 
-__all__ = ["run_trials", "trial_inputs", "start_penetration", "initial_states", "simulate", "pregrasp_opening",
-           "arm_below_table"]
+__all__ = ["run_trials", "run_in_chunks", "trial_inputs", "start_penetration", "initial_states", "simulate",
+           "pregrasp_opening", "arm_below_table"]
 
 log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -178,6 +178,28 @@ def trial_inputs(scene, T_obj_wrist, widths, *, threads: int | None, seed: int,
     return T_world, widths, threads
 
 
+def run_in_chunks(todo: np.ndarray, chunk: int, run: Callable[[np.ndarray], tuple[np.ndarray, dict[str, np.ndarray]]],
+                  outcome: np.ndarray, metrics: dict[str, np.ndarray], *, done: int,
+                  on_progress: Callable[[int], None] | None = None) -> None:
+    """Simulate the trials ``todo`` (indices into ``outcome``) ``chunk`` at a time:
+    ``run(idx)`` simulates and judges those trials and returns their outcomes and metrics,
+    written into ``outcome`` and ``metrics`` at ``idx`` (a metric not in ``metrics`` yet
+    is NaN for the other trials). ``on_progress(k)`` after each chunk: ``k`` trials
+    finished, counting the ``done`` ones decided before any ran. The chunk loop of
+    :func:`run_trials` and of the arm's trials
+    (:func:`graspsim.robots.execute.run_arm_trials`)."""
+    n = len(outcome)
+    for a in range(0, len(todo), chunk):
+        idx = todo[a:a + chunk]
+        out, met = run(idx)
+        outcome[idx] = out
+        for k, v in met.items():
+            metrics.setdefault(k, np.full(n, np.nan))[idx] = v
+        done += len(idx)
+        if on_progress is not None:
+            on_progress(done)
+
+
 def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
                protocol: Protocol = LiftPlace(), *, threads: int | None = None, seed: int = 0,
                noise: ExecutionNoise | None = None, backend: str = "rollout",
@@ -215,23 +237,18 @@ def run_trials(scene: Scene, T_obj_wrist: np.ndarray, widths: np.ndarray,
     obj_q = scene.model.qpos0[scene.qadr_obj:scene.qadr_obj + 7]  # the object at rest
     pool = rollout.Rollout(nthread=threads if threads > 1 else 0) if backend == "rollout" else None
     datas = [mujoco.MjData(m) for _ in range(threads)]
-    done = int(collide.sum())
+
+    def run(idx: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        control = protocol.controls(scene, T_world[idx], openings[idx])
+        states, sens = simulate(scene, protocol, state0[idx], control, pool=pool, datas=datas, backend=backend)
+        rec = _record(scene, states, sens)
+        judged = protocol.judge(scene, rec, np.repeat(obj_q[None], len(idx), axis=0))
+        if on_record is not None:
+            on_record(idx, rec)
+        return judged
+
     try:
-        for a in range(0, len(todo), chunk):
-            idx = todo[a:a + chunk]
-            control = protocol.controls(scene, T_world[idx], openings[idx])
-            states, sens = simulate(scene, protocol, state0[idx], control, pool=pool,
-                                    datas=datas, backend=backend)
-            rec = _record(scene, states, sens)
-            out, met = protocol.judge(scene, rec, np.repeat(obj_q[None], len(idx), axis=0))
-            if on_record is not None:
-                on_record(idx, rec)
-            outcome[idx] = out
-            for k, v in met.items():
-                metrics.setdefault(k, np.full(n, np.nan))[idx] = v
-            done += len(idx)
-            if on_progress is not None:
-                on_progress(done)
+        run_in_chunks(todo, chunk, run, outcome, metrics, done=int(collide.sum()), on_progress=on_progress)
     finally:
         if pool is not None:
             pool.close()

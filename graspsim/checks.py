@@ -19,7 +19,7 @@ from typing import Any
 
 from graspsim.errors import InvalidParameterError
 
-__all__ = ["Rule", "POSITIVE", "NON_NEGATIVE", "integer", "or_none", "check_fields"]
+__all__ = ["Rule", "POSITIVE", "NON_NEGATIVE", "BOOLEAN", "integer", "or_none", "check_fields"]
 
 
 @dataclass(frozen=True)
@@ -52,6 +52,8 @@ def _finite(v) -> bool:
 POSITIVE = Rule(lambda v: _finite(v) and v > 0, "> 0")
 #: A finite number >= 0.
 NON_NEGATIVE = Rule(lambda v: _finite(v) and v >= 0, ">= 0")
+#: True or False (a bool, not 0 / 1).
+BOOLEAN = Rule(lambda v: isinstance(v, bool), "True or False")
 
 
 def integer(low: int) -> Rule:

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import pytest
 
-from graspsim.checks import NON_NEGATIVE, POSITIVE, Rule, check_fields, integer, or_none
+from graspsim.checks import BOOLEAN, NON_NEGATIVE, POSITIVE, Rule, check_fields, integer, or_none
 from graspsim.errors import InvalidParameterError
 
 
@@ -44,6 +44,18 @@ def test_integer_wants_a_whole_python_int(bad):
     with pytest.raises(InvalidParameterError, match="count must be an integer >= 1"):
         check_fields(_Settings(count=bad), integer(1), "count")
     check_fields(_Settings(count=1), integer(1), "count")
+
+
+@pytest.mark.parametrize("bad", [1, 0, "True", None])
+def test_boolean_wants_true_or_false_not_a_number(bad):
+    with pytest.raises(InvalidParameterError, match=r"^flag must be True or False, got "):
+        check_fields(_Flags(flag=bad), BOOLEAN, "flag")
+    check_fields(_Flags(flag=False), BOOLEAN, "flag")
+
+
+@dataclass(frozen=True)
+class _Flags:
+    flag: object = True
 
 
 def test_a_rule_that_cannot_compare_the_value_refuses_it():

@@ -141,6 +141,12 @@ def test_bad_robot_settings_are_refused():
         build_robot_model(PANDA, get_gripper("festo_hgpl_25_60_a"))
     with pytest.raises(InvalidParameterError, match="must be >= 0"):
         ArmLiftPlace(approach=-0.1)
+    with pytest.raises(InvalidParameterError, match=r"^ArmLiftPlace\.step must be > 0, got 0"):
+        ArmLiftPlace(step=0.0)
+    with pytest.raises(InvalidParameterError, match=r"^CapabilityConfig\.extent must be > voxel \(0\.05 m\)"):
+        CapabilityConfig(extent=0.01)
+    with pytest.raises(InvalidParameterError, match=r"^CapabilityConfig\.samples must be an integer >= 1, got 0$"):
+        CapabilityConfig(samples=0)
 
 
 @pytest.mark.slow

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+from graspsim.checks import BOOLEAN, check_fields, integer, or_none
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.map_config import MapConfig
 
@@ -58,15 +59,10 @@ class ClutterEnvConfig:
     gripper: object = "festo_hgpl_25_60_a"
 
     def __post_init__(self) -> None:
-        for name in ("n_objects", "n_candidates", "cloud_size", "max_failures", "max_redraws"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise InvalidParameterError(f"{name} must be an integer >= 1, got {v!r}")
+        check_fields(self, integer(1), "n_objects", "n_candidates", "cloud_size", "max_failures", "max_redraws")
         if self.n_objects > _MAX_OBJECTS:
             raise InvalidParameterError(f"n_objects must be at most {_MAX_OBJECTS}, got {self.n_objects}")
-        m = self.max_attempts
-        if m is not None and (isinstance(m, bool) or not isinstance(m, int) or m < 1):
-            raise InvalidParameterError(f"max_attempts must be an integer >= 1 or None, got {m!r}")
+        check_fields(self, or_none(integer(1)), "max_attempts")
         if self.kind not in _KINDS:
             raise InvalidParameterError(f"kind {self.kind!r} unknown; valid: {list(_KINDS)}")
         from graspsim.tabletop.scene_objects import check_object_set
@@ -75,9 +71,7 @@ class ClutterEnvConfig:
             check_object_set(self.object_set)
         except InvalidParameterError as err:
             raise InvalidParameterError(f"object_set: {err}") from None
-        for name in ("depth_image", "depth_noise", "execution_error", "neighbours"):
-            if not isinstance(getattr(self, name), bool):
-                raise InvalidParameterError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        check_fields(self, BOOLEAN, "depth_image", "depth_noise", "execution_error", "neighbours")
         from graspsim.envs.env_config import check_database_fields
 
         check_database_fields(self)

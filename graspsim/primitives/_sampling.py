@@ -20,7 +20,7 @@ import numpy as np
 
 from graspsim.primitives.samples import PatchGrid, SurfaceSamples, cells, grid_cover_radius
 
-__all__ = ["disk_samples", "revolution_samples", "rect_part", "disk_part", "revolution_part",
+__all__ = ["disk_samples", "rect_part", "disk_part", "revolution_part",
            "assemble"]
 
 
@@ -141,7 +141,14 @@ def revolution_part(
     step: float,
     sweep: float = 2.0 * math.pi,
 ) -> Part:
-    """Surface of revolution about z (see :func:`revolution_samples`)."""
+    """Surface of revolution about z.
+
+    ``profile(s)`` maps arc length s in [0, length] to (rho, z, n_rho, n_z): the
+    distance from the axis, the height and the outward unit normal in the (rho, z)
+    half-plane. The profile is swept over azimuth [0, sweep] (counter-clockwise
+    from +x). Rings of cells along s; each ring has enough azimuth cells that no cell
+    side exceeds ``step``.
+    """
     ns = cells(length, step)
     ds = length / ns
     s = (np.arange(ns) + 0.5) * ds
@@ -187,20 +194,3 @@ def revolution_part(
 
     return Part(int(nt.sum()), cover, PatchGrid("rings", 0, width=ds, counts=tuple(int(c) for c in nt), sweep=sweep),
                 fill)
-
-
-def revolution_samples(
-    profile: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
-    length: float,
-    step: float,
-    sweep: float = 2.0 * math.pi,
-) -> SurfaceSamples:
-    """Surface of revolution about z.
-
-    ``profile(s)`` maps arc length s in [0, length] to (rho, z, n_rho, n_z): the
-    distance from the axis, the height and the outward unit normal in the (rho, z)
-    half-plane. The profile is swept over azimuth [0, sweep] (counter-clockwise
-    from +x). Rings of cells along s; each ring has enough azimuth cells that no cell
-    side exceeds ``step``.
-    """
-    return assemble([revolution_part(profile, length, step, sweep)])

@@ -8,7 +8,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from graspsim.primitives._sampling import revolution_samples
+from graspsim.primitives._sampling import assemble, revolution_part
 from graspsim.primitives.base import Primitive
 from graspsim.primitives.samples import SurfaceSamples
 
@@ -57,7 +57,7 @@ class Sphere(Primitive):
             a = s / r
             return r * np.sin(a), -r * np.cos(a), np.sin(a), -np.cos(a)
 
-        return revolution_samples(profile, math.pi * r, step)
+        return assemble([revolution_part(profile, math.pi * r, step)])
 
     def _aabb_geo(self) -> np.ndarray:
         return np.array([[-1.0] * 3, [1.0] * 3]) * self.radius

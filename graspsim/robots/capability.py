@@ -33,6 +33,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from graspsim.checks import POSITIVE, check_fields, integer
 from graspsim.errors import GraspsimError, InvalidParameterError
 from graspsim.robots.arm import ARM_PREFIX, ArmSpec
 from graspsim.transforms import invert_transform, quat_to_matrix
@@ -130,9 +131,12 @@ class CapabilityConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if not (self.voxel > 0 and self.extent > self.voxel and self.directions >= 1 and self.samples >= 1
-                and self.dilate >= 0):
-            raise InvalidParameterError(f"bad capability map settings: {self}")
+        check_fields(self, POSITIVE.saying("> 0 m"), "voxel", owner="CapabilityConfig")
+        check_fields(self, integer(1), "directions", "samples", owner="CapabilityConfig")
+        check_fields(self, integer(0), "dilate", owner="CapabilityConfig")
+        if not (isinstance(self.extent, (int, float)) and math.isfinite(self.extent) and self.extent > self.voxel):
+            raise InvalidParameterError(f"CapabilityConfig.extent must be > voxel ({self.voxel} m), "
+                                        f"got {self.extent!r}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from graspsim.checks import check_fields, integer, or_none
 from graspsim.errors import InvalidParameterError
 from graspsim.geometry.camera import Camera, backproject, rig
 from graspsim.planning.scene import plan_scene
@@ -85,13 +86,8 @@ class ClutterConfig:
     planner_name: str = "graspsim"
 
     def __post_init__(self) -> None:
-        for k in ("max_failures", "min_seen"):
-            v = getattr(self, k)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise InvalidParameterError(f"ClutterConfig.{k} must be an integer >= 1, got {v!r}")
-        m = self.max_attempts
-        if m is not None and (isinstance(m, bool) or not isinstance(m, int) or m < 1):
-            raise InvalidParameterError(f"ClutterConfig.max_attempts must be an integer >= 1 or None, got {m!r}")
+        check_fields(self, integer(1), "max_failures", "min_seen", owner="ClutterConfig")
+        check_fields(self, or_none(integer(1)), "max_attempts", owner="ClutterConfig")
 
     def to_dict(self) -> dict:
         return {"scene": self.scene.to_dict(), "depth_noise": None if self.depth_noise is None

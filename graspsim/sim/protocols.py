@@ -64,13 +64,23 @@ def phase_steps(phases, dt: float) -> dict[str, tuple[int, int]]:
 
 @dataclass(frozen=True)
 class Protocol:
-    """Base of the protocols: phases (name, duration [s]) and the shared checks."""
+    """Base of the protocols: phases (name, duration [s]), the shared checks (every float
+    setting a finite number >= 0) and what every protocol judges SIM_UNSTABLE:
+    max_speed [m/s] / max_spin [rad/s] / max_distance [m] of the object, beyond which
+    (far beyond anything a 300 N squeeze can do: an object squirting out of the jaws
+    flies at a few m/s) the simulation diverged."""
 
     name: ClassVar[str] = ""
     metric_names: ClassVar[tuple[str, ...]] = ()
     table: ClassVar[bool] = True
     gravity: ClassVar[bool] = True
     control_spec: ClassVar[int] = int(_CTRL | _MPOS | _MQUAT)
+    max_speed: float = 50.0
+    max_spin: float = 2000.0
+    max_distance: float = 20.0
+
+    def __post_init__(self) -> None:
+        _check_positive(self)
 
     def phases(self) -> list[tuple[str, float]]:
         raise NotImplementedError
@@ -87,6 +97,11 @@ class Protocol:
         return {"name": self.name, **d}
 
     # -- shared pieces ------------------------------------------------------------
+    def _unstable(self, rec: Record, obj0: np.ndarray) -> np.ndarray:
+        """(N,) bool: the trials whose object broke a limit (SIM_UNSTABLE)."""
+        return unstable(rec, max_speed=self.max_speed, max_spin=self.max_spin, max_distance=self.max_distance,
+                        start_pos=obj0[:, :3])
+
     def _jaw_and_mocap(self, scene: Scene, T_world_wrist: np.ndarray, n_steps: int):
         n = len(T_world_wrist)
         ctrl = np.zeros((n, n_steps))
@@ -112,10 +127,8 @@ class LiftPlace(Protocol):
     place_height / place_tilt: largest height change and tilt of the object after release;
     rest_speed: largest object speed at the end of ``rest_time`` after the retract (it
     must be at rest: a tall cylinder placed 10 deg off upright still rocks after 0.1 s,
-    and one that is toppling still looks upright);
-    max_speed / max_spin / max_distance: beyond these (far beyond anything a 300 N
-    squeeze can do: an object squirting out of the jaws flies at a few m/s) the
-    simulation is SIM_UNSTABLE.
+    and one that is toppling still looks upright); max_speed / max_spin / max_distance:
+    see :class:`Protocol`.
     """
 
     name: ClassVar[str] = "lift_place"
@@ -138,12 +151,9 @@ class LiftPlace(Protocol):
     place_height: float = 0.01
     place_tilt: float = math.radians(20.0)
     rest_speed: float = 0.05
-    max_speed: float = 50.0
-    max_spin: float = 2000.0
-    max_distance: float = 20.0
 
     def __post_init__(self) -> None:
-        _check_positive(self)
+        super().__post_init__()
         if self.lift_height < 0.10:
             raise InvalidParameterError(f"lift_height must be >= 0.10 m (the paper lifts clear of "
                                         f"the table), got {self.lift_height!r}")
@@ -194,8 +204,7 @@ class LiftPlace(Protocol):
         m["pad_force_neg"], m["pad_force_pos"] = f_hold[:, 0], f_hold[:, 1]
         m["grip_force_closed"] = rec.pad_force(c1).min(axis=1)
 
-        bad = unstable(rec, max_speed=self.max_speed, max_spin=self.max_spin,
-                       max_distance=self.max_distance, start_pos=obj0[:, :3])
+        bad = self._unstable(rec, obj0)
         no_contact = pads_touching(rec, c1) < 2
         dropped = pads_touching(rec, h1) < 2
         slipped = (m["lift_height"] < self.lift_height - self.lift_tolerance) | (m["hold_lin"] > self.hold_slip)
@@ -243,12 +252,9 @@ class Tug(Protocol):
     pull_time: float = 0.15
     slip_tolerance: float = 0.01
     drop_distance: float = 0.03
-    max_speed: float = 50.0
-    max_spin: float = 2000.0
-    max_distance: float = 20.0
 
     def __post_init__(self) -> None:
-        _check_positive(self)
+        super().__post_init__()
         d = np.asarray(self.directions, float)
         if d.ndim != 2 or d.shape[1] != 3 or len(d) == 0 or np.any(np.linalg.norm(d, axis=1) < 1e-9):
             raise InvalidParameterError(f"directions must be non-zero 3-vectors, got {self.directions!r}")
@@ -291,8 +297,7 @@ class Tug(Protocol):
         f = rec.pad_force(c1)
         m["pad_force_neg"], m["pad_force_pos"] = f[:, 0], f[:, 1]
         m["grip_force_closed"] = f.min(axis=1)
-        bad = unstable(rec, max_speed=self.max_speed, max_spin=self.max_spin,
-                       max_distance=self.max_distance, start_pos=obj0[:, :3])
+        bad = self._unstable(rec, obj0)
         no_contact = pads_touching(rec, c1) < 2
         dropped = (pads_touching(rec, end) < 2) | (m["tug_lin"] > self.drop_distance)
         slipped = m["tug_lin"] > self.slip_tolerance

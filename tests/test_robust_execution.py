@@ -15,6 +15,7 @@ from graspsim.maps.map_config import MapConfig
 from graspsim.maps.occlusion import ViewDepth
 from graspsim.maps.robust import (
     DEFAULT_OPENINGS,
+    OCCLUSION_POWER,
     RobustConfig,
     executed_width,
     score_poses,
@@ -178,7 +179,12 @@ def test_fingers_in_occluded_space_are_scored_down():
     assert along.any() and across.any()
     assert np.all(seen.occluded[along] > 0.1) and np.all(seen.robust[along] < plain.robust[along])
     assert np.median(seen.occluded[across]) < np.median(seen.occluded[along])
-    np.testing.assert_allclose(seen.robust, plain.robust * (1 - seen.occluded), atol=1e-9)
+    # the chance of starting in something unseen: (1 - f) ** k, k calibrated (OCCLUSION_POWER); k = 1 the plain fraction
+    assert cfg.occlusion_power == OCCLUSION_POWER > 1
+    np.testing.assert_allclose(seen.robust, plain.robust * (1 - seen.occluded) ** OCCLUSION_POWER, atol=1e-9)
+    linear = score_rows(m, rows, pts, replace(cfg, occlusion_power=1.0), viewpoint=camera)
+    np.testing.assert_allclose(linear.robust, plain.robust * (1 - linear.occluded), atol=1e-9)
+    assert np.all(seen.robust[along] < linear.robust[along])
     off = score_rows(m, rows, pts, replace(cfg, occlusion=False), viewpoint=camera)
     np.testing.assert_array_equal(off.robust, plain.robust)
 

@@ -3,7 +3,8 @@
     graspsim scene [--objects N] [--scenes S] [--kind pile|packed] [--object-set SET | --objects-dir DIR]
                    [--min-gap M] [--noise] [--no-neighbours] [--ground-truth] [--max-attempts M]
                    [--seed S] [--seeds N] [--planner NAME|module:function] [--db DIR]
-                   [--gripper NAME|MODEL.xml|SPEC.json] [--render DIR] [--save-scenes DIR] [--json]
+                   [--gripper NAME|MODEL.xml|SPEC.json] [--robot none|panda [--robot-base X Y YAW]]
+                   [--render DIR] [--save-scenes DIR] [--json]
 
 Each scene is drawn and settled in MuJoCo, rendered by one D435-like depth camera, and
 cleared grasp by grasp (:mod:`graspsim.tabletop.clutter`): segment, plan every object, execute
@@ -13,7 +14,11 @@ grasps in a row failed or no grasp is found. The JSON summary carries
 the failure table per object (``per_object``: which object failed how often and why),
 GSR and DR per seed with their mean and std (``seeds``: ``--seeds N``,
 :mod:`graspsim.tabletop.clutter_stats`) and per-scene details. ``--planner`` swaps in
-another grasp planner (:mod:`graspsim.tabletop.planners`).
+another grasp planner (:mod:`graspsim.tabletop.planners`). ``--robot panda`` clears the
+table with the Franka Emika Panda arm standing beside it (``ClutterConfig.robot``): the
+planner's grasps go through the arm's reachability check, the best it reaches is executed
+by the arm's servos, and an episode whose grasps the arm reaches none of stops
+``unreachable`` (docs/robots.md).
 
 Objects: a named set (``household``, the default: the shipped real meshes; ``random``;
 their ``-tuning`` / ``-heldout`` parts; ``primitives``, ``analogs``, ``mixed``) or any
@@ -27,11 +32,13 @@ from __future__ import annotations
 
 from graspsim.cli._common import (
     add_budget_flag,
+    add_robot_flags,
     budget_from_args,
     command,
     emit,
     format_table,
     gripper_from_args,
+    robot_base_from_args,
     whole_number,
 )
 from graspsim.cli.maps_cmd import _add_generation, _config
@@ -81,6 +88,17 @@ def _cmd_scene(args) -> int:
     except InvalidParameterError:
         raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
     budget = budget_from_args(args)
+    gripper = gripper_from_args(args)
+    robot = None
+    base = robot_base_from_args(args)
+    if base is not None:
+        from graspsim.tabletop.clutter import ClutterRobot
+
+        if gripper.model is None:
+            raise InvalidParameterError(
+                f"--robot {args.robot} carries grippers simulated from their model files and {gripper.name} has none: "
+                "give --gripper franka_hand (or robotiq_2f85, rethink_gripper, an MJCF / URDF file)")
+        robot = ClutterRobot(name=args.robot, base=base)
     planner = None
     if args.planner != "graspsim":
         from graspsim.tabletop.planners import load_planner
@@ -88,9 +106,9 @@ def _cmd_scene(args) -> int:
         planner = load_planner(args.planner)
     cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours, min_gap=gap, **budget),
                         execution=ExecutionNoise() if args.noise else None, ground_truth=args.ground_truth,
-                        max_attempts=args.max_attempts, planner=planner, planner_name=args.planner)
+                        max_attempts=args.max_attempts, planner=planner, planner_name=args.planner, robot=robot)
     map_cfg, quality = _config(args)
-    db = MapDatabase(args.db, gripper=gripper_from_args(args), quality=quality, config=map_cfg)
+    db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
     drawn = prepare_objects(object_set, db.gripper, progress=not args.json)  # decompositions before scene 0
     from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
 
@@ -124,7 +142,8 @@ def _cmd_scene(args) -> int:
          "planner": args.planner, "seeds": per_seed(by_seed), "gripper": db.gripper.name,
          "execution_noise": None if cfg.execution is None else cfg.execution.to_dict(),
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth, "min_gap": gap,
-         "budget": cfg.scene.budget,
+         "budget": cfg.scene.budget, "robot": args.robot,
+         "robot_base": None if robot is None else (list(args.robot_base) if args.robot_base else [-0.5, 0.0, 0.0]),
          **summarize(results), "render": None if render is None else str(render), "details": details}
     rows = [(d["scene"], len(d["objects"]), d["removed"], d["attempts"], d["successes"], d["stop"],
              f"{d['first_one_cluster']}/{d['first_seen']}") for d in details]
@@ -135,6 +154,8 @@ def _cmd_scene(args) -> int:
              + f"\ngrasp success {s['successes']}/{s['attempts']}"
              + ("" if gsr is None else f" ({100 * gsr:.1f} %)")
              + f", cleared {s['removed']}/{s['placed']} objects ({100 * s['cleared_rate']:.1f} %)"
+             + ("" if robot is None
+                else f" by the {args.robot} arm (base {' '.join(f'{v:g}' for v in s['robot_base'])})")
              + (f"; over {len(seeds)} seeds GSR {s['seeds']['gsr_text']}, DR {s['seeds']['dr_text']}"
                 if len(seeds) > 1 else "")
              + (f", planning {s['planning_s']['median']:.2f} s per grasp (median)"
@@ -199,6 +220,9 @@ def register(sub) -> None:
         p.add_argument("--seeds", type=whole_number(1), default=1,
                        help="repeat the benchmark over this many seeds (derived from --seed; 1: --seed itself) and "
                        "report GSR / DR per seed and their mean and std (the field's way)")
+        add_robot_flags(p, robot_help="none: the floating gripper (default); panda: the Franka Emika Panda arm beside "
+                        "the table executes each grasp, the best the arm reaches (a model-file --gripper, e.g. "
+                        "franka_hand)")
         p.add_argument("--planner", default="graspsim", metavar="NAME|module:function",
                        help="the grasp planner: graspsim (default: its scene planner, plans reused between "
                        "frames), graspsim-interface (the same through the planner interface), antipodal (a "

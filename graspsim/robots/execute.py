@@ -51,7 +51,7 @@ from graspsim.sim.trial_scene import OBJECT, SimSettings, add_pad_sensors, gripp
 from graspsim.transforms import quat_to_matrix
 
 __all__ = ["ArmScene", "build_arm_scene", "ArmLiftPlace", "ArmPlan", "plan_grasp", "plan_grasps", "plan_counts",
-           "run_arm_trials"]
+           "run_arm_trials", "arm_controls", "arm_targets", "arm_failures"]
 
 log = logging.getLogger(__name__)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -247,7 +247,9 @@ def plan_grasp(scene: ArmScene, kin: ArmKinematics, T_world_wrist: np.ndarray, o
                protocol: ArmLiftPlace = ArmLiftPlace(), seeds=()) -> ArmPlan:
     """The reachability check and the motion plan of one grasp (module doc): the jaws
     at ``opening`` [m] throughout; ``seeds``: joints to start the grasp's IK from (e.g.
-    the capability map's)."""
+    the capability map's). ``scene``: an :class:`ArmScene`, or any scene carrying the arm
+    with its ``arm`` and gripper ``drive`` (a table scene of several objects,
+    :class:`graspsim.tabletop.scene_sim.SceneSim`, whose ``kin`` poses them as they lie)."""
     jaws = (scene.drive.qadr, scene.drive.joint_positions([opening])[0])
     p = protocol
     T = np.asarray(T_world_wrist, float)
@@ -324,7 +326,11 @@ def arm_targets(protocol: ArmLiftPlace, plan: ArmPlan, dt: float) -> np.ndarray:
     return q
 
 
-def _controls(scene: ArmScene, protocol: ArmLiftPlace, plans: list[ArmPlan], openings: np.ndarray) -> np.ndarray:
+def arm_controls(scene, protocol: ArmLiftPlace, plans: list[ArmPlan], openings: np.ndarray) -> np.ndarray:
+    """(N, S, nu) controls of executed plans: the gripper's command (open, closed from the
+    close to the open phase) and each servo's joint target (:func:`arm_targets`).
+    ``scene``: an :class:`ArmScene` or any arm-carrying scene with ``model``, ``drive``
+    and ``act_arm`` (a table scene with the arm, :class:`graspsim.tabletop.scene_sim.SceneSim`)."""
     dt = scene.model.opt.timestep
     ph, S = protocol.steps(dt), protocol.nstep(dt)
     valve = np.zeros((len(plans), S))
@@ -384,11 +390,22 @@ def _judge(scene: ArmScene, protocol: ArmLiftPlace, rec: Record, T_target: np.nd
     err = np.array([pose_error(w, t) for w, t in zip(wrist, T_target)]).reshape(-1, 2)
     met["reach_lin"], met["reach_ang"] = err[:, 0], err[:, 1]
     met["approach_push"] = np.linalg.norm(rec.obj_pos[:, k] - obj0[:, :3], axis=-1)
+    return arm_failures(out, met["approach_push"], err, protocol), met
+
+
+def arm_failures(outcome: np.ndarray, push: np.ndarray, wrist_err: np.ndarray, protocol: ArmLiftPlace) -> np.ndarray:
+    """The arm's names for failed executions (module doc): of the outcomes (N,) that are
+    neither SUCCESS nor SIM_UNSTABLE, APPROACH_COLLISION where an object had moved more
+    than ``protocol.approach_push`` [m] before the close (``push`` (N,)), else
+    CONTROLLER_ERROR where the wrist was farther than ``protocol.reach_tol`` from its
+    target then (``wrist_err`` (N, 2): [m], [rad]); the rest keep their outcome."""
+    out = np.asarray(outcome)
+    err = np.asarray(wrist_err, float).reshape(-1, 2)
     failed = ~np.isin(out, [TrialOutcome.SUCCESS, TrialOutcome.SIM_UNSTABLE])
-    pushed = failed & (met["approach_push"] > protocol.approach_push)
+    pushed = failed & (np.asarray(push, float) > protocol.approach_push)
     off = failed & ~pushed & ((err[:, 0] > protocol.reach_tol[0]) | (err[:, 1] > protocol.reach_tol[1]))
     out = np.where(pushed, TrialOutcome.APPROACH_COLLISION, np.where(off, TrialOutcome.CONTROLLER_ERROR, out))
-    return out.astype(np.int8), met
+    return out.astype(np.int8)
 
 
 def plan_grasps(scene: ArmScene, T_world_wrist: np.ndarray, openings: np.ndarray,
@@ -463,7 +480,7 @@ def run_arm_trials(scene: ArmScene, T_obj_wrist: np.ndarray, widths: np.ndarray,
         datas = [mujoco.MjData(m) for _ in range(threads)]
 
         def run(idx: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-            ctrl = _controls(scene, protocol, [plans[i] for i in idx], openings[idx])
+            ctrl = arm_controls(scene, protocol, [plans[i] for i in idx], openings[idx])
             states, sens = pool.rollout([m] * len(idx), datas, np.ascontiguousarray(state0[idx]),
                                         np.ascontiguousarray(ctrl), control_spec=int(_CTRL), nstep=S,
                                         initial_warmstart=np.zeros((len(idx), m.nv)))

@@ -118,6 +118,15 @@ class ArmKinematics:
         others = np.setdiff1d(np.arange(im.nv), ik_dadr)
         self._frozen = mink.DofFreezingTask(im, dof_indices=others.tolist()) if len(others) else None
 
+    def set_scene(self, qpos: np.ndarray) -> None:
+        """Pose the rest of the model (the scene's objects) as in ``qpos`` (a full qpos of
+        ``model``, e.g. a table scene's state now) for every later collision query; the
+        arm's own joints in it are ignored."""
+        q = np.asarray(qpos, float)
+        if q.shape != self.q0.shape:
+            raise InvalidParameterError(f"qpos must have {self.q0.shape[0]} entries, got {q.shape}")
+        self.q0 = q.copy()
+
     # -- kinematics ---------------------------------------------------------------
     def full_q(self, q: np.ndarray, base: np.ndarray | None = None) -> np.ndarray:
         out = (self.q0 if base is None else base).copy()
@@ -232,6 +241,7 @@ class ReachCheck:
     pos_err: float = float("nan")
     rot_err: float = float("nan")
     contacts: dict | None = None  # the failing pose's penetrations (ArmKinematics.contacts)
+    q: np.ndarray | None = None  # the failing pose's joints (the grasp's solution of a START)
 
     @property
     def ok(self) -> bool:
@@ -281,7 +291,7 @@ def check_reach(kin: ArmKinematics, T_world_wrist: np.ndarray, *, approach: floa
         if v is None:
             break
         if v == Reach.START:  # the gripper's own collision: no other arm pose changes it
-            return ReachCheck(v, "grasp", pos_err=res.pos_err, rot_err=res.rot_err, contacts=c)
+            return ReachCheck(v, "grasp", pos_err=res.pos_err, rot_err=res.rot_err, contacts=c, q=res.q)
         first = first or ReachCheck(v, "grasp", pos_err=res.pos_err, rot_err=res.rot_err, contacts=c)
     else:
         return first or ReachCheck(Reach.NO_IK, "grasp", pos_err=res.pos_err, rot_err=res.rot_err)

@@ -35,6 +35,7 @@ from graspsim.planning.scene_config import SceneConfig
 from graspsim.planning.scene_reuse import drop_grasp, near_pose
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.tabletop.clutter_metrics import (
+    ARM_STOPS,
     FAILURE_COLUMNS,
     LEFT,
     OTHER,
@@ -49,9 +50,9 @@ from graspsim.tabletop.depth_noise import DepthNoise
 from graspsim.tabletop.planners import grasp_target
 from graspsim.tabletop.table_scene import known_gap
 
-__all__ = ["scene_settings", "ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame", "ClutterEpisode",
-           "run_clutter", "run_benchmark", "summarize", "one_cluster_objects", "object_segmentation",
-           "per_object", "failure_rows", "FAILURE_COLUMNS", "STOPS", "OTHER", "LEFT"]
+__all__ = ["scene_settings", "ClutterRobot", "ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame",
+           "ClutterEpisode", "run_clutter", "run_benchmark", "summarize", "one_cluster_objects", "object_segmentation",
+           "per_object", "failure_rows", "FAILURE_COLUMNS", "STOPS", "ARM_STOPS", "OTHER", "LEFT"]
 
 
 
@@ -64,6 +65,39 @@ def scene_settings(kind: str, **kw) -> SceneConfig:
 
 
 @dataclass(frozen=True)
+class ClutterRobot:
+    """The arm that clears the table (``ClutterConfig.robot``): ``name`` (one of
+    :data:`graspsim.robots.ARMS`) standing at ``base`` (x [m], y [m], yaw [rad] on the
+    table top, the scene's objects lying around the origin); each look, the ranked grasps
+    go through the arm's capability map (the first cut, all of them) and the best
+    ``exact`` of those it lets through, in ranking order, through the exact check in the
+    scene as it lies (:meth:`~graspsim.tabletop.scene_sim.SceneSim.plan_arm`) until one
+    passes: that one is executed by the arm. ``capability``: the first cut's
+    :class:`~graspsim.robots.CapabilityConfig` (None: the default) and ``cache_dir``
+    its cache folder (None: the default; False: none)."""
+
+    name: str = "panda"
+    base: tuple = (-0.5, 0.0, 0.0)
+    exact: int = 10
+    capability: object = None
+    cache_dir: object = None
+
+    def __post_init__(self) -> None:
+        from graspsim.robots.arm import base_transform, get_arm
+
+        get_arm(self.name)
+        base_transform(self.base)
+        object.__setattr__(self, "base", tuple(float(v) for v in np.asarray(self.base, float).reshape(-1)))
+        check_fields(self, integer(1), "exact", owner="ClutterRobot")
+
+    def to_dict(self) -> dict:
+        from graspsim.robots.arm import base_transform, get_arm
+
+        return {"robot": get_arm(self.name).to_dict(), "base": list(self.base),
+                "T_world_base": base_transform(self.base).tolist(), "exact": self.exact}
+
+
+@dataclass(frozen=True)
 class ClutterConfig:
     """scene: the perception and planning settings; depth_noise: the sensor's (None: a
     perfect sensor); execution: the arm's pose error (None: none); ground_truth: segment
@@ -72,7 +106,9 @@ class ClutterConfig:
     most (None: 2 x objects + 2); min_seen: points (after thinning) an object needs in
     a frame to count in the segmentation quality; reuse: a segment that did not change
     since the previous frame keeps its plan (``plan_scene(previous=...)``), less the
-    grasp that was executed; planner: one of :mod:`graspsim.tabletop.planners` (its name in ``planner_name``)."""
+    grasp that was executed; planner: one of :mod:`graspsim.tabletop.planners` (its name in ``planner_name``);
+    robot: the arm that executes the grasps (:class:`ClutterRobot`; None: the floating
+    gripper), its gripper the database's (a model-file gripper)."""
 
     scene: SceneConfig = field(default_factory=SceneConfig)
     depth_noise: DepthNoise | None = field(default_factory=DepthNoise)
@@ -84,6 +120,7 @@ class ClutterConfig:
     reuse: bool = True
     planner: object = None  # a planner of graspsim.tabletop.planners' interface; None: plan_scene (with reuse)
     planner_name: str = "graspsim"
+    robot: ClutterRobot | None = None
 
     def __post_init__(self) -> None:
         check_fields(self, integer(1), "max_failures", "min_seen", owner="ClutterConfig")
@@ -94,7 +131,8 @@ class ClutterConfig:
                 else self.depth_noise.to_dict(), "execution": None if self.execution is None
                 else self.execution.to_dict(), "ground_truth": self.ground_truth,
                 "max_failures": self.max_failures, "max_attempts": self.max_attempts, "min_seen": self.min_seen,
-                "reuse": self.reuse, "planner": self.planner_name}
+                "reuse": self.reuse, "planner": self.planner_name,
+                **({} if self.robot is None else {"robot": self.robot.to_dict()})}
 
 
 @dataclass(frozen=True)
@@ -103,7 +141,8 @@ class Attempt:
     truth), outcome (:meth:`SceneOutcome.to_dict`), success (the target lifted), cause
     (``success_other_object``: another object came up; not a success), score (robust),
     planning [s] (depth frame to ranked grasps; ``timing`` per stage), segments found,
-    objects seen, and of those segmented as one cluster."""
+    objects seen, and of those segmented as one cluster; reach (with an arm): what the
+    look's reachability check found (:meth:`ClutterEpisode.observe`)."""
 
     target: int | None
     outcome: dict
@@ -115,9 +154,10 @@ class Attempt:
     segments: int
     seen: int
     one_cluster: int
+    reach: dict | None = None
 
     def to_dict(self) -> dict:
-        return dict(self.__dict__)
+        return {k: v for k, v in self.__dict__.items() if k != "reach" or v is not None}
 
 
 
@@ -138,6 +178,7 @@ class ClutterResult:
     seconds: float
     names: tuple[str, ...] = ()
     left: dict = field(default_factory=dict)
+    robot: dict | None = None  # the arm and its base (ClutterRobot.to_dict); None: the floating gripper
 
     @property
     def successes(self) -> int:
@@ -163,7 +204,8 @@ class ClutterResult:
                 "declutter_rate": self.declutter_rate, "stop": self.stop, "first_seen": self.first_seen,
                 "first_one_cluster": self.first_one_cluster, "seconds": self.seconds,
                 "objects": list(self.names), "left": {str(k): v for k, v in self.left.items()},
-                "steps": [a.to_dict() for a in self.attempts]}
+                "steps": [a.to_dict() for a in self.attempts],
+                **({} if self.robot is None else {"robot": self.robot})}
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,7 +216,10 @@ class ClutterFrame:
     (ground truth) those segmented as one cluster; ``candidates``: the plan's grasps in
     ranking order less those closing on a failed grasp's contacts (not tried again), and
     ``best``: the first of them with a robust score > 0 (None: none), what the protocol
-    executes."""
+    executes; with an arm (``ClutterConfig.robot``), the first the arm reaches, its plan
+    ``arm_plan``, and ``reach`` what the check found of the candidates (how many, how many
+    the first cut let through, those the exact check refused with their rank, cause and
+    stage)."""
 
     frame: object
     view: object
@@ -184,6 +229,8 @@ class ClutterFrame:
     one_cluster: int
     candidates: tuple = ()
     best: object = None
+    arm_plan: object = None  # with an arm: the plan of ``best`` (graspsim.robots.execute.ArmPlan)
+    reach: dict | None = None  # with an arm: what the reachability check found
 
 
 class ClutterEpisode:
@@ -211,7 +258,8 @@ class ClutterEpisode:
         self.camera = camera or rig(1)[0]
         self.cap = cfg.max_attempts or 2 * len(scene.objects) + 2
         self._t0 = time.perf_counter()
-        self.sim = scene.sim()
+        self.sim = scene.sim() if cfg.robot is None else scene.sim(
+            gripper=db.gripper, robot=_arm(cfg.robot), base=cfg.robot.base)
         self._depth_rng, self._plan_rng, self._exec_rng = rng.spawn(3)
         self.attempts: list[Attempt] = []
         self.failures = 0
@@ -246,11 +294,38 @@ class ClutterEpisode:
             seen, one = one_cluster_objects(view.labels[per.indices], per.segment, min_seen=cfg.min_seen)
         if self.first is None:
             self.first = (seen, one)
-        self.last = ClutterFrame(frame, view, sp, planning, seen, one, cands, best)
+        arm_plan = reach = None
+        if cfg.robot is not None and best is not None:
+            best, arm_plan, reach = self._reachable(cands, positive=cfg.planner is None)
+        self.last = ClutterFrame(frame, view, sp, planning, seen, one, cands, best, arm_plan, reach)
         if best is None:
-            self.stop = "no_grasp"
+            self.stop = "no_grasp" if reach is None else "unreachable"
             return None
         return self.last
+
+    def _reachable(self, cands, positive: bool):
+        """The arm's choice among the candidates (with a robust score > 0 when
+        ``positive``), best first: (grasp, its plan, what the check found) or (None,
+        None, found) when it reaches none (:class:`ClutterRobot`). A grasp whose gripper
+        is in an object or the table at the grasp pose (the floating gripper's start
+        collision) is chosen as the floating gripper would: the check cannot make the
+        planner's grasp better, only refuse what the arm cannot do."""
+        from graspsim.sim.outcomes import TrialOutcome
+
+        robot = self.config.robot
+        pool = [g for g in cands if g.score > 0 or not positive]
+        T = np.array([g.T_world_wrist for g in pool], float).reshape(-1, 4, 4)
+        ok, seeds = self.sim.reach_first_cut(T, config=robot.capability, cache_dir=robot.cache_dir)
+        found = {"candidates": len(pool), "first_cut": int(ok.sum()), "checked": 0, "refused": []}
+        for i in np.flatnonzero(ok)[:robot.exact]:
+            plan = self.sim.plan_arm(T[i], pool[i].opening, seeds[i])
+            found["checked"] += 1
+            if plan.outcome is None or plan.outcome is TrialOutcome.START_COLLISION:
+                found["chosen"] = int(i)
+                return pool[i], plan, found
+            found["refused"].append({"rank": int(i), "cause": plan.outcome.label, "stage": plan.stage,
+                                     "reach": plan.check.reach.label})
+        return None, None, found
 
     def _plan(self, frame):
         """graspsim's scene planner on ``frame``: (view, plan, candidates, best, seconds)."""
@@ -286,14 +361,16 @@ class ClutterEpisode:
         cfg = self.config
         sp, external = look.plan, cfg.planner is not None
         target = grasp_target(look, grasp, self.db.gripper if self.db is not None else None)
+        arm = {} if cfg.robot is None else {"plan": look.arm_plan if grasp is look.best else None}
         out = self.sim.execute(grasp.T_world_wrist, grasp.opening, target=target, noise=cfg.execution,
-                               rng=self._exec_rng if cfg.execution is not None else None)
+                               rng=self._exec_rng if cfg.execution is not None else None, **arm)
         if cfg.reuse and not external:  # the executed grasp is not offered again
             self._previous = replace(sp, memory=drop_grasp(sp.memory, grasp.T_world_wrist, reach=self.reach))
         hit = out.success and out.picked == target  # the target came up (None: unknown target)
         cause = OTHER if out.success and not hit else out.cause
         a = Attempt(target, out.to_dict(), hit, cause, grasp.score, look.planning, {} if external else sp.timing,
-                    0 if external else sp.perception.n_segments, look.seen, look.one_cluster)
+                    0 if external else sp.perception.n_segments, look.seen, look.one_cluster,
+                    look.reach if grasp is look.best else None)
         self.attempts.append(a)
         # a grasp that lifted another object is no success, but the scene changed: no failure in a row
         self.failures = 0 if out.success else self.failures + 1
@@ -333,27 +410,37 @@ class ClutterEpisode:
             if self.config.planner is not None:
                 seen = int(np.sum(look.view.labels == k)) >= self.config.min_seen
                 aimed = any(grasp_target(look, g, gripper) == k for g in look.candidates)
-                out[k] = "not_seen" if not seen else "not_tried" if aimed else "no_grasp"
+                tried = "unreachable" if self.stop == "unreachable" else "not_tried"
+                out[k] = "not_seen" if not seen else tried if aimed else "no_grasp"
                 continue
             per = look.plan.perception
             how, seg = object_segmentation(look.view.labels[per.indices], per.segment, k,
                                            min_seen=self.config.min_seen)
             if how != "one":
                 out[k] = how
+            elif any(g.segment == seg and g.score > 0 for g in look.candidates):
+                out[k] = "unreachable" if self.stop == "unreachable" else "not_tried"
             else:
-                out[k] = "not_tried" if any(g.segment == seg and g.score > 0 for g in look.candidates) \
-                    else "no_grasp"
+                out[k] = "no_grasp"
         return out
 
     def result(self) -> ClutterResult:
         first = self.first or (0, 0)
+        robot = self.config.robot
         return ClutterResult(len(self.scene.objects), tuple(self.attempts), self.removed, self.stop or "max_attempts",
                              first[0], first[1], time.perf_counter() - self._t0,
-                             tuple(o.name for o in self.scene.objects), self.left_reasons())
+                             tuple(o.name for o in self.scene.objects), self.left_reasons(),
+                             None if robot is None else robot.to_dict())
 
     def close(self) -> None:
         """Free the renderer (the simulation stays readable)."""
         self.sim.close()
+
+
+def _arm(robot: ClutterRobot):
+    from graspsim.robots.arm import get_arm
+
+    return get_arm(robot.name)
 
 
 def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,

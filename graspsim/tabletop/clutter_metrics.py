@@ -10,16 +10,19 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["STOPS", "OTHER", "LEFT", "FAILURE_COLUMNS", "summarize", "per_object", "failure_rows",
+__all__ = ["STOPS", "ARM_STOPS", "OTHER", "LEFT", "FAILURE_COLUMNS", "summarize", "per_object", "failure_rows",
            "one_cluster_objects", "object_segmentation"]
 
 #: Why an episode ended.
 STOPS = ("cleared", "failures", "no_grasp", "max_attempts")
+#: Why an episode of an arm (``ClutterConfig.robot``) may end besides: grasps were left to
+#: try, and the arm reached none of them.
+ARM_STOPS = ("unreachable",)
 #: The cause of a grasp that lifted an object other than its target.
 OTHER = "success_other_object"
 #: Why an object was left on the table, judged on the episode's last look
 #: (:meth:`graspsim.tabletop.clutter.ClutterEpisode.left_reasons`).
-LEFT = ("not_seen", "merged", "split", "no_grasp", "not_tried", "off_table")
+LEFT = ("not_seen", "merged", "split", "no_grasp", "not_tried", "off_table", "unreachable")
 
 
 def object_segmentation(truth: np.ndarray, found: np.ndarray, k: int, *, min_seen: int = 40,
@@ -141,12 +144,13 @@ def summarize(results: list) -> dict:
     medians = {k: float(np.median([a.timing.get(k, 0.0) for a in attempts])) for k in stages}
     first = [r.attempts[0].planning for r in results if r.attempts]
     later = [a.planning for r in results for a in r.attempts[1:]]
+    stops = STOPS + (ARM_STOPS if any(getattr(r, "robot", None) for r in results) else ())
     return {"scenes": len(results), "attempts": len(attempts), "successes": ok,
             "other_objects": sum(a.cause == OTHER for a in attempts),
             "grasp_success_rate": ok / len(attempts) if attempts else None,
             "placed": placed, "removed": removed, "cleared_rate": removed / placed if placed else None,
             "scenes_cleared": sum(r.removed == r.placed for r in results),
-            "stops": {s: sum(r.stop == s for r in results) for s in STOPS},
+            "stops": {s: sum(r.stop == s for r in results) for s in stops},
             "failure_causes": dict(sorted(causes.items())),
             "planning_s": {**_spread([a.planning for a in attempts]), "stages_median": medians,
                            "first_frame": _spread(first), "later_frames": _spread(later)},

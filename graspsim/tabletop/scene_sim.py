@@ -88,19 +88,34 @@ class SceneSim:
     """The compiled scene. objects: (ObjectSpec or SimObject, T_world_obj (4, 4)) pairs;
     object ids are their indices. table_rolling [m]: rolling resistance on the table (without it a
     dropped ball rolls off); held_height [m]: a picked object rose at least this much;
-    bin [m]: walls around [-bin, bin]^2 that hold a pile while it settles (``open_bin``)."""
+    bin [m]: walls around [-bin, bin]^2 that hold a pile while it settles (``open_bin``).
+
+    robot: an arm (:class:`graspsim.robots.ArmSpec`) standing at ``base`` (x [m], y [m],
+    yaw [rad] on the table top, default :data:`graspsim.robots.arm.DEFAULT_BASE`, or a
+    (4, 4) pose) carries the gripper (a model-file gripper) on its flange instead of the
+    floating wrist: it waits at its home pose, hidden from the camera like the floating
+    gripper; :meth:`plan_arm` checks a grasp's reachability in the scene as it lies
+    (:func:`graspsim.robots.execute.plan_grasp`: IK, the approach, collisions with the
+    table and every object) and :meth:`execute` drives the arm's servos through the plan
+    (:class:`graspsim.robots.ArmLiftPlace`'s move, approach, arrive, then this scene's
+    settle, close, lift and hold)."""
 
     def __init__(self, objects: Sequence[tuple[ObjectSpec, np.ndarray]], *,
                  gripper: GripperSpec = HGPL_25_60_A, settings: SimSettings = SimSettings(),
                  protocol: LiftPlace = LiftPlace(), table_rolling: float = 0.003,
-                 held_height: float = 0.05, bin: float | None = None) -> None:
+                 held_height: float = 0.05, bin: float | None = None, robot=None, base=None) -> None:
         if not objects:
             raise InvalidParameterError("a scene needs at least one object")
         self.gripper, self.settings, self.protocol, self.held_height = gripper, settings, protocol, held_height
         self.specs = [o for o, _ in objects]
         self.sim_objects = [o.sim_object() if isinstance(o, ObjectSpec) else o for o in self.specs]
         s = settings
-        spec, names = add_gripper(gripper, s, gripper.grip_force if s.grip_force is None else s.grip_force, HOME)
+        self.robot = robot
+        force = gripper.grip_force if s.grip_force is None else s.grip_force
+        if robot is None:
+            spec, names = add_gripper(gripper, s, force, HOME)
+        else:
+            spec, names, arm_names = self._arm_spec(robot, base, force)
         for g in spec.geoms:
             g.group = GRIPPER_GROUP
         spec.modelname = f"table_scene_{gripper.name}"
@@ -131,17 +146,103 @@ class SceneSim:
             self.geom_object[m.geom_bodyid == b] = k
         self.table_geom = m.geom("table").id
         self.bin_geoms = np.array([m.geom(f"bin_{i}").id for i in range(4)] if bin is not None else [], int)
-        self.gripper_geoms = gripper_geoms(m)
         self.drive = gripper_drive(m, gripper)
         self.pad_adr = np.array([[m.sensor_adr[m.sensor(f"pad_{side}_{k}").id] for side in ("neg", "pos")]
                                  for k in range(n)])
-        self.qadr_wrist = int(m.jnt_qposadr[m.joint(NAMES.wrist).id])
-        self.dadr_wrist = int(m.jnt_dofadr[m.joint(NAMES.wrist).id])
         self.qadr_jaws = self.drive.qadr_jaws
         self.data = mujoco.MjData(m)
+        if robot is None:
+            self.gripper_geoms = gripper_geoms(m)
+            self.qadr_wrist = int(m.jnt_qposadr[m.joint(NAMES.wrist).id])
+            self.dadr_wrist = int(m.jnt_dofadr[m.joint(NAMES.wrist).id])
+        else:
+            self._arm_setup(arm_names)
         mujoco.mj_forward(m, self.data)
         self._left = list(range(n))
         self._renderer: DepthRenderer | None = None
+
+    # -- the arm ----------------------------------------------------------------
+    def _arm_spec(self, robot, base, force: float):
+        """The spec with ``robot`` at ``base`` carrying the gripper (class doc)."""
+        from graspsim.robots.arm import DEFAULT_BASE, add_arm, base_transform
+
+        s = self.settings
+        self.T_world_base = base_transform(DEFAULT_BASE if base is None else base)
+        spec = mujoco.MjSpec()
+        spec.compiler.degree = False
+        arm_names = add_arm(spec, robot, self.gripper, s.physics, force=force,
+                            friction=(s.friction, s.torsional_friction, s.rolling_friction), condim=s.condim,
+                            T_world_base=self.T_world_base)
+        spec.add_exclude(bodyname1="world", bodyname2=arm_names.bodies[0])  # the base stands on the table
+        for site, kind in (("pos", mujoco.mjtSensor.mjSENS_FRAMEPOS), ("quat", mujoco.mjtSensor.mjSENS_FRAMEQUAT)):
+            spec.add_sensor(name=f"wrist_{site}", type=kind, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=NAMES.wrist)
+        from graspsim.sim.authored_model import authored_names
+
+        return spec, authored_names(self.gripper), arm_names
+
+    def _arm_setup(self, arm_names) -> None:
+        """Addresses of the arm; the arm at home, its servos holding it there, the jaws open."""
+        from graspsim.robots.arm import build_robot_model
+        from graspsim.robots.execute import ArmLiftPlace
+        from graspsim.robots.reach import ArmKinematics
+
+        m, d, robot = self.model, self.data, self.robot
+        self.qadr_wrist = self.dadr_wrist = None
+        self.qadr_arm = m.jnt_qposadr[[m.joint(j).id for j in arm_names.joints]].copy()
+        self.dadr_arm = m.jnt_dofadr[[m.joint(j).id for j in arm_names.joints]].copy()
+        self.act_arm = np.array([m.actuator(a).id for a in arm_names.actuators])
+        self.wrist_sensors = (int(m.sensor_adr[m.sensor("wrist_pos").id]), int(m.sensor_adr[m.sensor("wrist_quat").id]))
+        self.arm = robot
+        self.arm_protocol = ArmLiftPlace(lift=self.protocol)
+        self.kin = ArmKinematics(m, robot, ik_model=build_robot_model(robot, self.gripper, self.T_world_base,
+                                                                      table=False))
+        self.gripper_geoms = np.flatnonzero(self.kin.gripper_geom)
+        self._capability = None
+        self._arm_home(d)
+
+    def _arm_home(self, d) -> None:
+        """The arm at home at rest, its servos' targets there, the jaws open and commanded open."""
+        home = np.asarray(self.arm.home, float)
+        d.qpos[self.qadr_arm] = home
+        d.qvel[self.dadr_arm] = 0.0
+        d.ctrl[self.act_arm] = home
+        w = self.gripper.max_opening
+        d.qpos[self.drive.qadr] = self.drive.joint_positions([w])[0]
+        d.qvel[self.drive.dadr] = 0.0
+        grip = self.drive.controls(np.zeros((1, 1)), np.array([w]))[0, 0]
+        d.ctrl[:len(grip)] = grip
+
+    def _need_arm(self, what: str) -> None:
+        if self.robot is None:
+            raise InvalidParameterError(f"{what} needs a scene with an arm (SceneSim(robot=...))")
+
+    def reach_first_cut(self, T_world_wrist: np.ndarray, *, config=None, cache_dir=None) -> tuple[np.ndarray,
+                                                                                                   np.ndarray]:
+        """The fast first cut of wrist poses (N, 4, 4): the arm's capability map
+        (:func:`graspsim.robots.capability_map`, cached) -> (reachable (N,) bool, IK seed
+        joints (N, 7), NaN where not)."""
+        self._need_arm("the reachability first cut")
+        if self._capability is None:
+            from graspsim.robots.arm import build_robot_model
+            from graspsim.robots.capability import CapabilityConfig, capability_map
+
+            self._capability = capability_map(build_robot_model(self.arm, self.gripper, self.T_world_base), self.arm,
+                                              self.T_world_base, config or CapabilityConfig(), cache_dir=cache_dir)
+        return self._capability.lookup(np.asarray(T_world_wrist, float).reshape(-1, 4, 4))
+
+    def plan_arm(self, T_world_wrist: np.ndarray, opening: float, seed: np.ndarray | None = None):
+        """The arm's plan of the grasp at ``T_world_wrist`` (4, 4) with the jaws open to
+        ``opening`` [m], checked against the table and every object where they lie now
+        (:func:`graspsim.robots.execute.plan_grasp`; ``seed``: joints to start the IK
+        from, e.g. the first cut's): an :class:`~graspsim.robots.execute.ArmPlan` whose
+        ``outcome`` is None when it can be executed."""
+        from graspsim.robots.execute import plan_grasp
+
+        self._need_arm("plan_arm")
+        self.kin.set_scene(self.data.qpos)
+        s = () if seed is None or np.isnan(seed).any() else (np.asarray(seed, float),)
+        return plan_grasp(self, self.kin, np.asarray(T_world_wrist, float), float(opening), self.arm_protocol,
+                          seeds=s)
 
     # -- state ------------------------------------------------------------------
     @property
@@ -218,6 +319,8 @@ class SceneSim:
         r = self._renderer_for(camera.intrinsics)
         d = self.data
         if gripper_at is not None:
+            if self.robot is not None:
+                raise InvalidParameterError("a scene with an arm does not draw the gripper at a pose (gripper_at)")
             d = mujoco.MjData(self.model)
             mujoco.mj_setState(self.model, d, self._start_state(np.asarray(gripper_at[0], float),
                                                                 float(gripper_at[1])), _FULL)
@@ -277,7 +380,9 @@ class SceneSim:
         """Where the gripper at ``T_world_wrist`` with the jaws open to ``opening`` [m]
         would start: {(gripper part's geom name, object id | "table"): deepest overlap
         [m]} over its contacts (touching ones included, overlap <= 0). Nothing is
-        simulated or changed (diagnosis of start collisions)."""
+        simulated or changed (diagnosis of start collisions). The floating gripper's only."""
+        if self.robot is not None:
+            raise InvalidParameterError("overlaps() poses the floating gripper; a scene with an arm has none")
         state = self._start_state(np.asarray(T_world_wrist, float), float(opening))
         out: dict[tuple[str, object], float] = {}
         for g, what, depth in self._gripper_contacts(state):
@@ -300,13 +405,22 @@ class SceneSim:
 
     def execute(self, T_world_wrist: np.ndarray, opening: float | None = None, *, width: float | None = None,
                 target: int | None = None, noise: ExecutionNoise | None = None,
-                rng: np.random.Generator | None = None, commit: bool = True) -> SceneOutcome:
+                rng: np.random.Generator | None = None, commit: bool = True, plan=None) -> SceneOutcome:
         """Grasp at ``T_world_wrist`` (4, 4) with the jaws open to ``opening`` [m] (or give
         a map's contact ``width`` [m]: the jaws open to ``gripper.pregrasp_opening(width)``),
         close and lift. noise: the arm misses the pose by one draw from ``rng`` (the
         outcome's ``extra["T_world_wrist"]`` is the pose executed). commit: keep what
         happened (a picked object is removed, the others settle where the attempt left
-        them); False leaves the scene as it was."""
+        them); False leaves the scene as it was.
+
+        With an arm (class doc): ``plan`` (:meth:`plan_arm` of this pose; None, or a pose
+        moved by ``noise``: planned here) is executed by the servos; a plan the check
+        refused is not simulated: UNREACHABLE or APPROACH_COLLISION (cause the same; the
+        failing stage in ``extra["stage"]``), or START_COLLISION when the gripper is in an
+        object or the table at the grasp. A failed execution whose objects had moved more
+        than ``ArmLiftPlace.approach_push`` before the close is APPROACH_COLLISION, one
+        whose wrist missed its target by more than ``reach_tol`` CONTROLLER_ERROR
+        (:func:`graspsim.robots.execute.arm_failures`)."""
         T = np.asarray(T_world_wrist, float)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise InvalidParameterError(f"T_world_wrist must be a finite 4x4 transform, got shape {T.shape}")
@@ -318,11 +432,16 @@ class SceneSim:
             if rng is None:
                 raise InvalidParameterError("execution noise needs rng (a seeded numpy Generator)")
             T = T @ noise.sample(1, rng, pivot=self.gripper.nominal_tcp)[0]
+            plan = None  # the arm aims at the pose it missed by
         if not (self.gripper.min_opening <= opening <= self.gripper.max_opening):
             raise InvalidParameterError(f"opening {opening!r} m outside the gripper's "
                                         f"[{self.gripper.min_opening}, {self.gripper.max_opening}] m")
         if target is not None and target not in self._left:
             raise InvalidParameterError(f"target {target} is not in the scene; left: {self._left}")
+        if self.robot is not None:
+            out = self._execute_arm(T, opening, target, commit, plan)
+            out.extra.update(T_world_wrist=T.tolist(), opening=opening)
+            return out
         state0 = self._start_state(T, opening)
         collided, depth = self._collisions(state0, T)
         if collided:
@@ -339,7 +458,13 @@ class SceneSim:
         c1, h1 = ph["close"][1], ph["hold"][1]
         control = p.controls(self, T[None], np.array([opening]))[:, :h1 + 1]
         states, sens = simulate(self, p, state0[None], np.ascontiguousarray(control))
-        states, sens = states[0], sens[0]
+        return self._judge(states[0], sens[0], target, depth, commit, c1, h1)
+
+    def _judge(self, states, sens, target, depth, commit, c1: int, h1: int, rename=None) -> SceneOutcome:
+        """The outcome of a simulated grasp (states (S, nstate), sensors (S, ns); the close
+        ends at step ``c1``, the hold at ``h1``); ``rename(outcome, xyz)``: the arm's names
+        of a failure (None: the floating gripper's)."""
+        p, m = self.protocol, self.model
         qpos = states[:, 1:1 + m.nq]
         left = np.array(self._left, int)
         z = qpos[:, self.qadr[left] + 2]  # (S, n_left)
@@ -359,6 +484,8 @@ class SceneSim:
             out, picked = TrialOutcome.SLIPPED, None
         else:
             out, picked = TrialOutcome.DROPPED, None
+        if rename is not None:
+            out = rename(out, qpos[:, self.qadr[left][:, None] + np.arange(3)])
         who = picked if picked is not None else target
         lift = float(rise[list(left).index(who)]) if who is not None else 0.0
         xyz = qpos[:, self.qadr[left][:, None] + np.arange(3)]  # (S, n_left, 3)
@@ -373,12 +500,67 @@ class SceneSim:
         """Continue from ``state``: the picked object out, the gripper home, the rest settle."""
         m, d = self.model, self.data
         mujoco.mj_setState(m, d, state, _FULL)
-        q, v = self.qadr_wrist, self.dadr_wrist
-        d.qpos[q:q + 7] = [*HOME, 0.0, 1.0, 0.0, 0.0]
-        d.qpos[self.drive.qadr] = self.drive.joint_positions([self.gripper.max_opening])[0]
-        d.qvel[v:v + 6] = 0.0
-        d.qvel[self.drive.dadr] = 0.0
+        if self.robot is not None:  # the arm back home (as the floating gripper: put there)
+            self._arm_home(d)
+        else:
+            q, v = self.qadr_wrist, self.dadr_wrist
+            d.qpos[q:q + 7] = [*HOME, 0.0, 1.0, 0.0, 0.0]
+            d.qpos[self.drive.qadr] = self.drive.joint_positions([self.gripper.max_opening])[0]
+            d.qvel[v:v + 6] = 0.0
+            d.qvel[self.drive.dadr] = 0.0
         if picked is not None:
             self.remove(picked)
         mujoco.mj_forward(m, d)
         self.settle(max_time=1.0)
+
+    def _execute_arm(self, T, opening, target, commit, plan) -> SceneOutcome:
+        """The arm's grasp (:meth:`execute`): the plan, then the servos through the hold."""
+        from mujoco import rollout
+
+        from graspsim.robots.execute import arm_controls, arm_failures
+        from graspsim.robots.reach import pose_error
+
+        if plan is None:
+            plan = self.plan_arm(T, opening)
+        extra = {"stage": plan.stage, "reach": plan.check.reach.label}
+        if plan.outcome is TrialOutcome.START_COLLISION:  # the gripper in an object or the table at the grasp
+            state = np.empty(self.nstate)
+            mujoco.mj_getState(self.model, self.data, state, _FULL)
+            state[1 + self.qadr_arm] = plan.check.q
+            state[1 + self.drive.qadr] = self.drive.joint_positions([opening])[0]
+            hits: dict = {}
+            for _, what, d in self._gripper_contacts(state):
+                hits[what] = max(hits.get(what, 0.0), d)
+            bad = {k: v for k, v in hits.items() if v > self.settings.start_penetration}
+            collided = tuple(sorted(k for k in bad if k != "table")) + (("table",) if "table" in bad else ())
+            kind = collision_kind(collided, target) if collided else "table"
+            return SceneOutcome(TrialOutcome.START_COLLISION, None, target, f"start_collision_{kind}", collided,
+                                max(hits.values(), default=0.0), extra=extra)
+        if plan.outcome is not None:  # refused by the check: never executed
+            return SceneOutcome(plan.outcome, None, target, plan.outcome.label, extra=extra)
+        ap, m = self.arm_protocol, self.model
+        ph = ap.steps(m.opt.timestep)
+        c1, h1, k = ph["close"][1], ph["hold"][1], ph["settle"][0] - 1  # k: the arrival's end, before the close
+        state0 = np.empty(self.nstate)
+        mujoco.mj_getState(m, self.data, state0, _FULL)
+        state0[0] = 0.0
+        state0[1 + self.qadr_arm] = self.arm.home
+        state0[1 + self.drive.qadr] = self.drive.joint_positions([opening])[0]
+        state0[1 + m.nq:1 + m.nq + m.nv] = 0.0
+        ctrl = arm_controls(self, ap, [plan], np.array([opening]))[:, :h1 + 1]
+        states, sens = rollout.rollout([m], [mujoco.MjData(m)], state0[None], np.ascontiguousarray(ctrl),
+                                       control_spec=int(mujoco.mjtState.mjSTATE_CTRL), nstep=h1 + 1,
+                                       initial_warmstart=np.zeros((1, m.nv)))
+        states, sens = states[0], sens[0]
+        wp, wq = self.wrist_sensors
+        W = make_transform(quat_to_matrix(sens[k, wq:wq + 4]), sens[k, wp:wp + 3])
+        err = np.array(pose_error(W, T))
+        met = {}
+
+        def rename(out, xyz):
+            met["approach_push"] = float(np.linalg.norm(xyz[k] - xyz[0], axis=1).max(initial=0.0))
+            return TrialOutcome(int(arm_failures(np.array([out]), [met["approach_push"]], err[None], ap)[0]))
+
+        out = self._judge(states, sens, target, 0.0, commit, c1, h1, rename=rename)
+        out.extra.update(extra, reach_lin=float(err[0]), reach_ang=float(err[1]), **met)
+        return out

@@ -258,8 +258,10 @@ class ClutterEpisode:
         self.camera = camera or rig(1)[0]
         self.cap = cfg.max_attempts or 2 * len(scene.objects) + 2
         self._t0 = time.perf_counter()
-        self.sim = scene.sim() if cfg.robot is None else scene.sim(
-            gripper=db.gripper, robot=_arm(cfg.robot), base=cfg.robot.base)
+        # the database's gripper executes what was planned for it (the default gripper: scene.sim()'s own)
+        grip = {} if db is None else {"gripper": db.gripper}
+        self.sim = scene.sim(**grip) if cfg.robot is None else scene.sim(
+            **grip, robot=_arm(cfg.robot), base=cfg.robot.base)
         self._depth_rng, self._plan_rng, self._exec_rng = rng.spawn(3)
         self.attempts: list[Attempt] = []
         self.failures = 0

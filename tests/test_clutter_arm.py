@@ -1,0 +1,124 @@
+"""Clutter removal by the arm (``graspsim scene --robot panda``): a small scene cleared by
+the Panda with its causes recorded, a grasp whose approach passes through a neighbour
+refused (approach_collision) and never executed, an episode whose grasps the arm reaches
+none of stopped ``unreachable``, and a spec-only gripper refused in one line.
+
+A scripted planner (the clutter benchmark's planner interface) proposes fixed grasps on
+boxes whose poses the test sets, so nothing here depends on map generation."""
+
+import math
+
+import numpy as np
+import pytest
+from hand_made import grasp_pose
+
+from graspsim.cli import main
+from graspsim.grippers import get_gripper
+from graspsim.primitives import Box
+from graspsim.robots import PANDA, CapabilityConfig
+from graspsim.sim.outcomes import TrialOutcome
+from graspsim.tabletop.clutter import ClutterConfig, ClutterRobot, run_clutter
+from graspsim.tabletop.planners import Proposals
+from graspsim.tabletop.scene_objects import ObjectSpec
+from graspsim.tabletop.table_scene import PlacedObject, TableScene
+
+FRANKA = get_gripper("franka_hand")
+LOW = ObjectSpec("primitive", "box", Box(0.05, 0.05, 0.05).to_dict())
+TALL = ObjectSpec("primitive", "box", Box(0.04, 0.04, 0.2).to_dict())
+
+
+@pytest.fixture(scope="module")
+def robot(tmp_path_factory):
+    """The Panda at its default base; a smaller capability map than the default (200 000
+    samples), cached in the test's folder: no test reads or writes the user's cache."""
+    return ClutterRobot(capability=CapabilityConfig(samples=200_000), cache_dir=tmp_path_factory.mktemp("reach"))
+
+
+def _scene(*objects) -> TableScene:
+    """Boxes standing upright: (spec, x, y) each."""
+    placed = tuple(PlacedObject(spec, (x, y, 0.025 if spec is LOW else 0.1), (1, 0, 0, 0)) for spec, x, y in objects)
+    return TableScene(0, "packed", "primitives", placed)
+
+
+def _grasp(x, y, z, approach=(0.0, 0.0, -1.0), closing=(0.0, 1.0, 0.0)) -> np.ndarray:
+    a = np.asarray(approach, float) / np.linalg.norm(approach)
+    c = np.asarray(closing, float)
+    c = c - a * (a @ c)
+    T = grasp_pose(depth=FRANKA.nominal_depth, gripper=FRANKA, grasp_point=[0, 0, 0], approach=a,
+                   closing=c / np.linalg.norm(c))
+    T[:3, 3] += [x, y, z]
+    return T
+
+
+#: top-down on the low box at the origin; tilted 30 deg towards +x (from above the arm's side)
+TOP = _grasp(0.0, 0.0, 0.025)
+TILTED = _grasp(0.0, 0.0, 0.025, approach=(0.5, 0.0, -math.sqrt(0.75)))
+
+
+def _scripted(grasps):
+    """A planner proposing ``grasps`` ((T, score) each, best first) whose object is still
+    seen: points of the cloud above the table within 2 cm of the grasp point's x, y."""
+    def plan(obs):
+        up = obs.cloud[obs.cloud[:, 2] > 0.01]
+        keep = [(T, s) for T, s in grasps if len(up) and np.min(np.linalg.norm(
+            up[:, :2] - FRANKA.grasp_point_from_wrist(T[:3, 3], T[:3, 2], FRANKA.nominal_depth)[:2], axis=1)) < 0.02]
+        return Proposals(np.array([T for T, _ in keep]).reshape(-1, 4, 4), np.full(len(keep), 0.07),
+                         np.array([s for _, s in keep]))
+
+    return plan
+
+
+def _run(scene, grasps, robot, **kw):
+    cfg = ClutterConfig(planner=_scripted(grasps), planner_name="scripted", robot=robot, depth_noise=None, **kw)
+    return run_clutter(scene, db=_Db(), rng=np.random.default_rng(0), config=cfg)
+
+
+class _Db:
+    gripper = FRANKA
+
+
+def test_the_arm_clears_a_two_box_scene_with_its_record(robot):
+    scene = _scene((LOW, 0.0, 0.0), (LOW, 0.05, 0.15))
+    r = _run(scene, [(TOP, 0.9), (_grasp(0.05, 0.15, 0.025), 0.8)], robot)
+    assert r.stop == "cleared" and r.removed == 2 and len(r.attempts) == 2 and r.successes == 2
+    assert r.robot["robot"]["name"] == "panda" and r.robot["base"] == [-0.5, 0.0, 0.0]
+    for a in r.attempts:
+        assert a.cause == "success" and a.outcome["reach"] == "reachable"
+        assert a.outcome["reach_lin"] < 0.005 and a.outcome["approach_push"] < 0.005
+        assert a.outcome["lift_height"] > 0.05
+        assert a.reach["first_cut"] >= 1 and a.reach["checked"] >= 1 and a.reach["refused"] == []
+    d = r.to_dict()
+    assert d["robot"]["exact"] == robot.exact and d["steps"][0]["reach"]["chosen"] == 0
+
+
+def test_a_grasp_whose_approach_passes_through_a_neighbour_is_refused_never_executed(robot):
+    # the tall box stands where the tilted grasp's gripper is at its pre-grasp, clear of it at the grasp
+    crowded = _scene((LOW, 0.0, 0.0), (TALL, -0.12, 0.08))
+    sim = crowded.sim(gripper=FRANKA, robot=PANDA)
+    plan = sim.plan_arm(TILTED, 0.07)
+    assert plan.outcome is TrialOutcome.APPROACH_COLLISION and plan.stage == "pre_grasp"
+    assert plan.check.contacts["gripper_scene"] > 0.005
+    free = _scene((LOW, 0.0, 0.0), (TALL, 0.0, 0.3)).sim(gripper=FRANKA, robot=PANDA)
+    assert free.plan_arm(TILTED, 0.07).outcome is None  # the same grasp without the neighbour there
+    a = free.qadr[1]
+    free.data.qpos[a:a + 2] = (-0.12, 0.08)  # the neighbour moved there (as a grasp may push it): checked where it lies
+    assert free.plan_arm(TILTED, 0.07).outcome is TrialOutcome.APPROACH_COLLISION
+    # in an episode: the refused grasp is recorded and the next best executed instead
+    r = _run(crowded, [(TILTED, 0.9), (TOP, 0.5)], robot, max_attempts=1)
+    (a,) = r.attempts
+    assert a.reach["refused"] == [{"rank": 0, "cause": "approach_collision", "stage": "pre_grasp",
+                                   "reach": "scene"}]
+    assert a.reach["chosen"] == 1 and np.allclose(a.outcome["T_world_wrist"], TOP)
+    # offered nothing else, the arm executes nothing: the episode stops 'unreachable'
+    r = _run(crowded, [(TILTED, 0.9)], robot)
+    assert r.attempts == () and r.stop == "unreachable" and r.left[0] == "unreachable"
+
+
+def test_robot_panda_with_a_spec_only_gripper_is_one_line(capsys, tmp_path):
+    code = main(["scene", "--robot", "panda", "--objects", "1", "--db", str(tmp_path / "db")])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--gripper franka_hand" in err
+    assert "Traceback" not in err and not (tmp_path / "db").exists()
+    code = main(["scene", "--robot-base", "0", "0", "0", "--objects", "1", "--db", str(tmp_path / "db")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--robot-base needs --robot panda" in err and len(err.strip().splitlines()) == 1

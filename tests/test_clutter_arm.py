@@ -91,6 +91,20 @@ def test_the_arm_clears_a_two_box_scene_with_its_record(robot):
     assert d["robot"]["exact"] == robot.exact and d["steps"][0]["reach"]["chosen"] == 0
 
 
+def test_the_camera_sees_the_arms_scene_as_the_floating_grippers():
+    """Paired runs start from the same depth frames: the arm is hidden and its scene
+    renders with the floating gripper's depth range."""
+    from graspsim.geometry.camera import rig
+
+    scene = _scene((LOW, 0.0, 0.0), (TALL, 0.05, 0.15), (LOW, -0.1, 0.05))
+    cam = rig(1)[0]
+    floating, arm = scene.sim(gripper=FRANKA), scene.sim(gripper=FRANKA, robot=PANDA)
+    a, b = floating.render(cam), arm.render(cam)
+    floating.close()
+    arm.close()
+    assert np.array_equal(a.depth, b.depth) and np.array_equal(a.labels, b.labels)
+
+
 def test_a_grasp_whose_approach_passes_through_a_neighbour_is_refused_never_executed(robot):
     # the tall box stands where the tilted grasp's gripper is at its pre-grasp, clear of it at the grasp
     crowded = _scene((LOW, 0.0, 0.0), (TALL, -0.12, 0.08))

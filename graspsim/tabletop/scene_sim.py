@@ -157,6 +157,12 @@ class SceneSim:
             self.dadr_wrist = int(m.jnt_dofadr[m.joint(NAMES.wrist).id])
         else:
             self._arm_setup(arm_names)
+            # the camera's depth range follows the model's extent, which the arm widens: keep the
+            # floating gripper's scene's, so that both see the very same depth frames
+            twin = SceneSim([(o, T) for o, (_, T) in zip(self.sim_objects, objects)], gripper=gripper,
+                            settings=settings, protocol=protocol, table_rolling=table_rolling,
+                            held_height=held_height, bin=bin)
+            m.stat.extent, m.stat.center[:] = twin.model.stat.extent, twin.model.stat.center
         mujoco.mj_forward(m, self.data)
         self._left = list(range(n))
         self._renderer: DepthRenderer | None = None

@@ -79,18 +79,20 @@ def noise_sigmas(label: str) -> tuple[float, float]:
     return mm / 1000.0, deg
 
 
-def experiment_database(db: str | os.PathLike | None, out: str | os.PathLike, config, *, threads: int | None = None):
+def experiment_database(db: str | os.PathLike | None, out: str | os.PathLike, config, *, threads: int | None = None,
+                        gripper=None):
     """The ``MapDatabase`` a run plans against, with the paper's five shapes
-    (``PAPER_SHAPES``) built in it at ``config`` (a ``MapConfig``): ``db`` (a folder
-    given with ``--db``) used as it is, or by default a private ``<out>/fsdb`` emptied
-    and built fresh (seconds), so the run does not depend on what ran before it. Maps
-    the planner builds for parts during the run are added to it."""
+    (``PAPER_SHAPES``) built in it at ``config`` (a ``MapConfig``) for ``gripper`` (a
+    ``GripperSpec``; None: the default): ``db`` (a folder given with ``--db``) used as it
+    is, or by default a private ``<out>/fsdb`` emptied and built fresh (seconds), so the
+    run does not depend on what ran before it. Maps the planner builds for parts during
+    the run are added to it."""
     from graspsim.maps.database import PAPER_SHAPES, MapDatabase
 
     root = Path(db) if db else Path(out) / "fsdb"
     if not db:
         shutil.rmtree(root, ignore_errors=True)
-    database = MapDatabase(root, config=config)
+    database = MapDatabase(root, config=config, **({} if gripper is None else {"gripper": gripper}))
     database.build(PAPER_SHAPES.values(), threads=threads)
     return database
 

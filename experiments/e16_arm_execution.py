@@ -23,8 +23,20 @@ whole plan -- reachability, approach, lift, retreat, the move there -- passed: a
 that prefers what the arm reaches); the arm's failure causes. No drawn execution error:
 the arm's is its controller's and the contacts'.
 
+Clutter removal by the arm (``--clutter-scenes`` per seed, ``--clutter-seeds`` seeds by
+``graspsim.tabletop.clutter_stats.benchmark_seeds``): the same scenes
+(``graspsim.tabletop.clutter.run_benchmark``, what ``graspsim scene`` runs) cleared by the
+floating gripper and by the Panda at its default base (``ClutterConfig.robot``, what
+``graspsim scene --robot panda`` runs), planned against one map database for
+``--gripper`` (a private ``<out>/fsdb`` unless ``--db``), at the library's map resolution
+unless ``--coarse-clutter``. Reported: GSR and DR of each (pooled, and per seed mean
++- std), per scene paired (objects removed), the failure causes, the episodes' stops
+(``unreachable``: grasps were left and the arm reached none) and what the arm's
+reachability check refused.
+
     python experiments/e16_arm_execution.py
     python experiments/e16_arm_execution.py --quick --out results/e16-quick
+    python experiments/e16_arm_execution.py --kinds box --episodes 1 --clutter-scenes 3 --clutter-seeds 2
 """
 
 from __future__ import annotations
@@ -57,11 +69,23 @@ class Config:
     gripper: str = opt("franka_hand", "the gripper on the arm's flange (a model-file gripper)")
     coarse: bool = opt(True, "coarse FS maps (1 cm surface step, 22 deg rotations)")
     threads: int = opt(2, "simulation threads")
-    QUICK: ClassVar[dict] = {"kinds": ("box",), "episodes": 2, "top": 3}
+    clutter_scenes: int = opt(3, "clutter-removal scenes per seed, cleared by the arm and by the floating gripper "
+                                 "(0: no clutter part)")
+    clutter_seeds: int = opt(2, "clutter-removal seeds (benchmark_seeds of --seed)")
+    clutter_objects: int = opt(5, "objects per clutter scene")
+    clutter_kind: str = opt("pile", "clutter scene kind", choices=("pile", "packed"))
+    clutter_object_set: str = opt("household-tuning", "the clutter scenes' object set")
+    coarse_clutter: bool = opt(False, "coarse maps for the clutter planner's database (1 cm, 22 deg)")
+    db: str = opt("", "the clutter planner's map database folder (default: a private <out>/fsdb, built fresh)")
+    QUICK: ClassVar[dict] = {"kinds": ("box",), "episodes": 2, "top": 3, "clutter_scenes": 1, "clutter_seeds": 1,
+                             "clutter_objects": 2, "clutter_kind": "packed", "clutter_object_set": "primitives",
+                             "coarse_clutter": True}
 
     def __post_init__(self) -> None:
         if self.episodes < 1 or self.top < 1 or self.threads < 1:
             raise ValueError("--episodes, --top and --threads must be >= 1")
+        if self.clutter_scenes < 0 or self.clutter_seeds < 1 or self.clutter_objects < 1:
+            raise ValueError("--clutter-scenes must be >= 0, --clutter-seeds and --clutter-objects >= 1")
         if not (0.2 <= self.distance <= 1.0):
             raise ValueError("--distance must be within 0.2-1.0 m (the Panda reaches ~0.86 m)")
 
@@ -117,6 +141,54 @@ def run_kind(kind: str, cfg: Config, gripper, out: Path) -> dict:
             "episodes": episodes}
 
 
+def run_clutter_part(cfg: Config, gripper, out: Path) -> dict:
+    """The same clutter scenes cleared by the floating gripper and by the arm (module doc)."""
+    from _common import experiment_database, map_config
+
+    from graspsim.tabletop.clutter import ClutterConfig, ClutterRobot, run_benchmark, scene_settings, summarize
+    from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
+    from graspsim.tabletop.scene_objects import prepare_objects
+
+    db = experiment_database(cfg.db, out, map_config(cfg.coarse_clutter), gripper=gripper)
+    prepare_objects(cfg.clutter_object_set, gripper, progress=True)
+    robot = ClutterRobot(cache_dir=out / "reach-cache")
+    conds = {"floating": None, "arm": robot}
+    by = {k: {} for k in conds}
+    for sd in benchmark_seeds(cfg.seed, cfg.clutter_seeds):
+        for name, arm in conds.items():
+            c = ClutterConfig(scene=scene_settings(cfg.clutter_kind), robot=arm)
+            by[name][sd] = run_benchmark(cfg.clutter_objects, cfg.clutter_kind, cfg.clutter_scenes, sd, db=db,
+                                         config=c, object_set=cfg.clutter_object_set)
+            for i, r in enumerate(by[name][sd]):
+                log.info("clutter seed %d scene %d, %s: removed %d/%d in %d grasps (%s)", sd, i, name, r.removed,
+                         r.placed, len(r.attempts), r.stop)
+    refused, looks = Counter(), 0
+    for rs in by["arm"].values():
+        for r in rs:
+            for a in r.attempts:
+                looks += 1
+                for x in (a.reach or {}).get("refused", []):
+                    refused[f"{x['cause']} at {x['stage']}"] += 1
+    pairs = [{"seed": sd, "scene": i, "floating": f.removed, "arm": a.removed, "placed": f.placed,
+              "floating_stop": f.stop, "arm_stop": a.stop}
+             for sd in by["floating"] for i, (f, a) in enumerate(zip(by["floating"][sd], by["arm"][sd]))]
+    res = {}
+    for name in conds:
+        results = [r for rs in by[name].values() for r in rs]
+        s = summarize(results)
+        s.pop("per_object")
+        res[name] = {**s, "seeds": per_seed(by[name]),
+                     "episodes": [{"seed": sd, "scene": i, **{k: v for k, v in r.to_dict().items() if k != "steps"},
+                                   "causes": [a.cause for a in r.attempts]}
+                                  for sd, rs in by[name].items() for i, r in enumerate(rs)]}
+    return {"kind": cfg.clutter_kind, "objects": cfg.clutter_objects, "object_set": cfg.clutter_object_set,
+            "scenes": cfg.clutter_scenes, "seeds": benchmark_seeds(cfg.seed, cfg.clutter_seeds),
+            "robot": robot.to_dict(), "results": res, "paired": pairs,
+            "arm_refused": dict(refused), "arm_looks_executed": looks,
+            "arm_more": sum(p["arm"] > p["floating"] for p in pairs),
+            "floating_more": sum(p["floating"] > p["arm"] for p in pairs)}
+
+
 def main(argv=None) -> int:
     cfg, out, run = start(Config, __file__, argv, __doc__)
     from graspsim.grippers import get_gripper
@@ -146,6 +218,8 @@ def main(argv=None) -> int:
         "denominators": f"{n} episodes ({len(rows)} objects x {cfg.episodes} base placements); reach verdicts over "
                         f"the top {cfg.top} grasps of every episode; a grasp the arm did not execute is a failure",
     }
+    if cfg.clutter_scenes:
+        data["clutter"] = run_clutter_part(cfg, gripper, out)
     print(run.write(out, data, readme_section))
     return 0
 
@@ -177,9 +251,35 @@ def readme_section(s: dict) -> str:
          "| object | reachable of the top, per episode |", "|---|---|"]
     for k, v in s["per_kind"].items():
         L.append(f"| {k} | {', '.join(str(x) for x in v['reachable_of_top'])} (of {v['top']}) |")
+    if s.get("clutter"):
+        L += ["", *clutter_lines(s["clutter"])]
     L += ["", f"Load average {m['load_avg_start'][0]:.1f} at the start, {m['load_avg_end'][0]:.1f} at the end, on "
           f"{m['cpus']} cores; commit `{s['provenance']['commit']}`."]
     return "\n".join(L) + "\n"
+
+
+def clutter_lines(c: dict) -> list[str]:
+    """The clutter part's block: GSR and DR of the floating gripper and of the arm."""
+    def gsr_dr(r):
+        g = r["grasp_success_rate"]
+        return (f"{r['successes']}/{r['attempts']} ({'n/a' if g is None else f'{100 * g:.1f} %'})",
+                f"{r['removed']}/{r['placed']} ({100 * r['cleared_rate']:.1f} %)", r["seeds"]["gsr_text"],
+                r["seeds"]["dr_text"])
+
+    L = [f"Clutter removal, {len(c['seeds'])} seed(s) x {c['scenes']} {c['kind']}s of {c['objects']} objects "
+         f"({c['object_set']}), the same scenes for both:", "",
+         "| | GSR | DR | GSR per seed | DR per seed | stops | failed grasps by cause |",
+         "|---|---|---|---|---|---|---|"]
+    for name, label in (("floating", "floating gripper"), ("arm", "Panda arm")):
+        r = c["results"][name]
+        stops = ", ".join(f"{k} {v}" for k, v in r["stops"].items() if v) or "-"
+        causes = ", ".join(f"{k} {v}" for k, v in r["failure_causes"].items()) or "-"
+        L.append(f"| {label} | " + " | ".join(gsr_dr(r)) + f" | {stops} | {causes} |")
+    refused = ", ".join(f"{k} {v}" for k, v in c["arm_refused"].items()) or "none"
+    L += ["", f"Per scene, objects removed: the arm more in {c['arm_more']}, the floating gripper more in "
+          f"{c['floating_more']} of {len(c['paired'])}. Grasps the arm's check refused before the one it executed "
+          f"(over {c['arm_looks_executed']} executed grasps): {refused}."]
+    return L
 
 
 if __name__ == "__main__":

@@ -219,7 +219,7 @@ class ClutterFrame:
     executes; with an arm (``ClutterConfig.robot``), the first the arm reaches, its plan
     ``arm_plan``, and ``reach`` what the check found of the candidates (how many, how many
     the first cut let through, those the exact check refused with their rank, cause and
-    stage)."""
+    stage, the one chosen, the seconds the check took)."""
 
     frame: object
     view: object
@@ -314,7 +314,7 @@ class ClutterEpisode:
         planner's grasp better, only refuse what the arm cannot do."""
         from graspsim.sim.outcomes import TrialOutcome
 
-        robot = self.config.robot
+        robot, t0 = self.config.robot, time.perf_counter()
         pool = [g for g in cands if g.score > 0 or not positive]
         T = np.array([g.T_world_wrist for g in pool], float).reshape(-1, 4, 4)
         ok, seeds = self.sim.reach_first_cut(T, config=robot.capability, cache_dir=robot.cache_dir)
@@ -323,10 +323,11 @@ class ClutterEpisode:
             plan = self.sim.plan_arm(T[i], pool[i].opening, seeds[i])
             found["checked"] += 1
             if plan.outcome is None or plan.outcome is TrialOutcome.START_COLLISION:
-                found["chosen"] = int(i)
+                found.update(chosen=int(i), seconds=time.perf_counter() - t0)
                 return pool[i], plan, found
             found["refused"].append({"rank": int(i), "cause": plan.outcome.label, "stage": plan.stage,
                                      "reach": plan.check.reach.label})
+        found["seconds"] = time.perf_counter() - t0
         return None, None, found
 
     def _plan(self, frame):

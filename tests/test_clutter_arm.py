@@ -136,3 +136,36 @@ def test_robot_panda_with_a_spec_only_gripper_is_one_line(capsys, tmp_path):
     code = main(["scene", "--robot-base", "0", "0", "0", "--objects", "1", "--db", str(tmp_path / "db")])
     err = capsys.readouterr().err
     assert code == 2 and "--robot-base needs --robot panda" in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_clutter_env_takes_the_arm_and_refuses_a_spec_only_gripper():
+    from graspsim.envs.clutter_config import ClutterEnvConfig
+    from graspsim.errors import InvalidParameterError
+
+    with pytest.raises(InvalidParameterError, match="gripper='franka_hand'"):
+        ClutterEnvConfig(robot="panda")
+    with pytest.raises(InvalidParameterError, match="robot 'ur5' unknown"):
+        ClutterEnvConfig(robot="ur5", gripper="franka_hand")
+    c = ClutterEnvConfig(robot="panda", gripper="franka_hand", robot_base=(-0.45, 0.1, 0.2))
+    assert c.to_dict()["robot"] == "panda" and c.to_dict()["robot_base"] == [-0.45, 0.1, 0.2]
+
+
+@pytest.mark.slow
+def test_the_clutter_env_steps_with_the_arm(tmp_path, monkeypatch):
+    import gymnasium as gym
+
+    import graspsim  # noqa: F401  (registers the environments)
+    from graspsim.envs import CLUTTER_CLEAR_ID
+    from graspsim.maps.map_config import MapConfig
+
+    monkeypatch.setenv("GRASPSIM_CACHE_DIR", str(tmp_path / "cache"))  # the capability map: not the user's cache
+    fast = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
+    env = gym.make(CLUTTER_CLEAR_ID, n_objects=2, kind="packed", object_set="primitives", db_root=str(tmp_path / "db"),
+                   map_config=fast, n_candidates=6, cloud_size=256, gripper="franka_hand", robot="panda").unwrapped
+    env.reset(seed=5)
+    assert env.episode.sim.robot is PANDA
+    obs, r, term, trunc, info = env.step(0)
+    a = env.episode.attempts[0]
+    assert r == float(info["success"]) and a.reach is not None and a.reach["checked"] >= 1
+    assert info["outcome"] == a.cause and (a.cause == "success") == info["success"]
+    env.close()

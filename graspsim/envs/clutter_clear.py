@@ -31,8 +31,11 @@ the chosen segment's points show) out of the scene, else 0 -- the protocol's suc
 grasp that lifts another object gets 0 (``info["outcome"] == "success_other_object"``),
 though that object leaves the scene too.
 Termination: the table is clear, ``max_failures`` (2) consecutive grasps failed, or no
-grasp with a robust score > 0 is left; also a masked (invalid) choice, which ends the
+grasp with a robust score > 0 is left (with ``robot="panda"``: or none the arm reaches,
+``"unreachable"``); also a masked (invalid) choice, which ends the
 episode with reward 0 and ``info["outcome"] == "invalid_action"`` without a grasp.
+With ``robot="panda"`` the Panda arm executes the chosen grasp (``graspsim scene --robot
+panda``'s execution); one it cannot reach or approach is a failed grasp, never executed.
 Truncation: ``max_attempts`` grasps (default 2 x objects + 2) were executed. ``info``
 has ``stop`` (None while running; else :data:`graspsim.tabletop.clutter.STOPS` or
 ``"invalid_action"``), ``removed``, ``attempts``, ``objects_left`` and, after a grasp, its
@@ -59,7 +62,8 @@ CLOUD_BOUND = 2.0  # [m]
 MAX_SEGMENTS = 255
 MAX_DEPTH = 10.0  # [m]
 _CLEARANCE_CAP = 0.05
-_ENDS = {"cleared", "failures", "no_grasp", "invalid_action"}  # terminated; "max_attempts": truncated
+#: terminated ("unreachable": with an arm); "max_attempts": truncated
+_ENDS = {"cleared", "failures", "no_grasp", "unreachable", "invalid_action"}
 
 
 class ClutterClearEnv(gym.Env):
@@ -73,7 +77,7 @@ class ClutterClearEnv(gym.Env):
         from graspsim.grippers import get_gripper
         from graspsim.maps.database import MapDatabase
         from graspsim.sim.noise import ExecutionNoise
-        from graspsim.tabletop.clutter import ClutterConfig, scene_settings
+        from graspsim.tabletop.clutter import ClutterConfig, ClutterRobot, scene_settings
         from graspsim.tabletop.depth_noise import DepthNoise
 
         self.config = c = make_clutter_config(config, **kwargs)
@@ -85,7 +89,8 @@ class ClutterClearEnv(gym.Env):
         self.clutter_config = ClutterConfig(
             scene=scene_settings(c.kind, neighbours=c.neighbours), depth_noise=DepthNoise() if c.depth_noise else None,
             execution=ExecutionNoise() if c.execution_error else None, max_failures=c.max_failures,
-            max_attempts=c.max_attempts)
+            max_attempts=c.max_attempts,
+            robot=None if c.robot == "none" else ClutterRobot(name=c.robot, base=c.robot_base))
         self.camera = rig(1)[0]
         K, N, F = c.n_candidates, c.cloud_size, len(CLUTTER_FEATURES)
         lo = np.array([0, *[-CLOUD_BOUND] * 3, *[-1.0] * 4, 0, 0, 0, -_CLEARANCE_CAP], np.float32)

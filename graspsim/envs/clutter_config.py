@@ -40,6 +40,12 @@ class ClutterEnvConfig:
     db_root, map_config, gripper: the map database (None: ``$GRASPSIM_DB`` or
         ``~/.cache/graspsim/db``; the paper's generation settings; the Festo); maps of
         new sizes are built there on first use.
+    robot, robot_base: ``"panda"``: the Franka Emika Panda arm standing at ``robot_base``
+        (x [m], y [m], yaw [rad] on the table top) executes the chosen grasps
+        (:class:`graspsim.tabletop.clutter.ClutterRobot`, as ``graspsim scene --robot panda``):
+        its gripper must be simulated from its model file (e.g. ``gripper="franka_hand"``);
+        a chosen grasp it cannot reach or approach is a failed step (cause ``unreachable``
+        / ``approach_collision``, never executed); ``"none"``: the floating gripper.
     """
 
     n_objects: int = 3
@@ -57,6 +63,8 @@ class ClutterEnvConfig:
     db_root: str | None = None
     map_config: MapConfig | None = None
     gripper: object = "festo_hgpl_25_60_a"
+    robot: str = "none"
+    robot_base: tuple = (-0.5, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         check_fields(self, integer(1), "n_objects", "n_candidates", "cloud_size", "max_failures", "max_redraws")
@@ -75,11 +83,23 @@ class ClutterEnvConfig:
         from graspsim.envs.env_config import check_database_fields
 
         check_database_fields(self)
+        if self.robot != "none":
+            from graspsim.grippers import get_gripper
+            from graspsim.robots.arm import ROBOTS, base_transform
+
+            if self.robot not in ROBOTS:
+                raise InvalidParameterError(f"robot {self.robot!r} unknown; valid: {list(ROBOTS)}")
+            base_transform(self.robot_base)
+            g = get_gripper(self.gripper)
+            if g.model is None:
+                raise InvalidParameterError(f"robot {self.robot!r} carries grippers simulated from their model files "
+                                            f"and {g.name} has none: give gripper='franka_hand'")
 
     def to_dict(self) -> dict:
         d = asdict(self)
         d["map_config"] = None if self.map_config is None else self.map_config.to_dict()
         d["gripper"] = self.gripper if isinstance(self.gripper, str) else self.gripper.to_dict()
+        d["robot_base"] = list(self.robot_base)
         return d
 
 

@@ -52,3 +52,22 @@ def test_a_cloud_file_s_camera_record_reaches_the_planner(tmp_path, monkeypatch)
     with pytest.raises(Planned):
         demo.run_demo(demo.DemoConfig(out=str(tmp_path / "out"), cloud=str(tmp_path / "c.pcd")))
     np.testing.assert_allclose(seen["viewpoint"], eye, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_quick_demo_with_the_arm(tmp_path, capsys, monkeypatch):
+    """``graspsim demo --robot panda``: the same trials planned and executed by the arm,
+    its reachability verdicts in the summary; a spec-only gripper refused in one line."""
+    monkeypatch.setenv("GRASPSIM_CACHE_DIR", str(tmp_path / "cache"))  # the capability map: not the user's cache
+    out = tmp_path / "demo"
+    code = main(["demo", "--quick", "--out", str(out), "--gripper", "franka_hand", "--robot", "panda", "--json"])
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and s["robot"] == "panda" and len(s["trials"]) == 6
+    assert sum(s["plan"]["reach"].values()) == 6 and s["robot_base"][0][3] == -0.5
+    assert {t["outcome"] for t in s["trials"]} <= {"success", "unreachable", "approach_collision", "controller_error",
+                                                   "slipped", "dropped", "no_contact", "start_collision",
+                                                   "place_failed"}
+    assert s["success"] >= 1
+    assert main(["demo", "--quick", "--out", str(tmp_path / "x"), "--robot", "panda"]) == 2
+    err = capsys.readouterr().err
+    assert "--gripper franka_hand" in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "x").exists()

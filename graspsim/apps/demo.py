@@ -34,7 +34,11 @@ class DemoConfig:
     database in ``out/db`` and fewer trials (CI); trials: grasps validated (paper: 15);
     renders: trials rendered; noise: execution noise in the trials; seed; gripper: a
     registered name or a spec .json (None: the Festo; see :func:`graspsim.grippers.get_gripper`),
-    resolved once, here (:attr:`gripper_spec`)."""
+    resolved once, here (:attr:`gripper_spec`); robot: ``"panda"``: the trials are planned
+    and executed by the Panda arm standing at ``robot_base`` (x [m], y [m], yaw [rad] from
+    the object; None: 0.5 m away, facing it), as ``graspsim trial --robot panda`` does
+    (:func:`graspsim.robots.run_arm_trials`; a model-file gripper; not rendered), ``"none"``:
+    the floating gripper."""
 
     out: str = "graspsim-demo"
     cloud: str | None = None
@@ -46,12 +50,24 @@ class DemoConfig:
     seed: int = 0
     threads: int | None = None
     gripper: str | None = None
+    robot: str = "none"
+    robot_base: tuple | None = None
 
     def __post_init__(self) -> None:
         from graspsim.grippers import get_gripper
 
         # a bad name or spec: one line, before any work
         object.__setattr__(self, "_gripper_spec", get_gripper(self.gripper))
+        if self.robot != "none":
+            from graspsim.robots.arm import DEFAULT_BASE, ROBOTS, base_transform
+
+            if self.robot not in ROBOTS:
+                raise InvalidParameterError(f"robot {self.robot!r} unknown; valid: {list(ROBOTS)}")
+            base_transform(DEFAULT_BASE if self.robot_base is None else self.robot_base)
+            if self._gripper_spec.model is None:
+                raise InvalidParameterError(
+                    f"--robot {self.robot} carries grippers simulated from their model files and "
+                    f"{self._gripper_spec.name} has none: give --gripper franka_hand")
         if self.trials < 1:
             raise InvalidParameterError(f"trials must be >= 1, got {self.trials}")
         if self.renders < 0:
@@ -159,8 +175,12 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
          f"ranking, then grasps drawn from the {len(candidates)} grasps > 0.7 whose gripper stays "
          f"clear of the table (of {summary['accepted']} > 0.7)")
     noise = ExecutionNoise() if cfg.noise else None
-    res = run_trials(scene, T_sim[rows], executed_width(gmap, rows), LiftPlace(), threads=cfg.threads,
-                     seed=cfg.seed, noise=noise)
+    if cfg.robot == "none":
+        res = run_trials(scene, T_sim[rows], executed_width(gmap, rows), LiftPlace(), threads=cfg.threads,
+                         seed=cfg.seed, noise=noise)
+    else:
+        res = _arm_trials(cfg, scene, T_sim[rows], executed_width(gmap, rows), noise, step)
+        summary.update(robot=cfg.robot, robot_base=res.scene["T_world_base"], plan=res.extra["plan"])
     ok = int(np.sum(res.outcome == TrialOutcome.SUCCESS))
     lo, hi = wilson_interval(ok, res.feasible)
     summary["trials"] = [{"row": int(r), "part": int(gmap.part[r]), "grade": float(gmap.grade[r]),
@@ -172,10 +192,34 @@ def run_demo(cfg: DemoConfig, *, step: Callable[[str], None] = lambda s: None) -
     summary.update(counts=res.counts(), success=ok, feasible=res.feasible,
                    success_rate=res.success_rate, interval_95=[lo, hi],
                    trials_per_second=res.trials_per_second)
-    if cfg.renders:
+    if cfg.renders and cfg.robot != "none":
+        step("the arm's trials are not rendered (yet)")
+    elif cfg.renders:
         summary["renders"] = _render(scene, T_sim[rows], executed_width(gmap, rows), out / "renders",
                                      cfg.renders, step)
     return _finish(summary, out, t0)
+
+
+def _arm_trials(cfg: DemoConfig, scene, T_obj_wrist, widths, noise, step):
+    """The trials planned and executed by the arm (``cfg.robot``) in ``scene``'s place."""
+    from graspsim.robots import (
+        ArmLiftPlace,
+        build_arm_scene,
+        build_robot_model,
+        capability_map,
+        get_arm,
+        run_arm_trials,
+    )
+    from graspsim.robots.arm import DEFAULT_BASE, base_transform
+
+    arm = get_arm(cfg.robot)
+    T_base = base_transform(DEFAULT_BASE if cfg.robot_base is None else cfg.robot_base)
+    step(f"the {arm.name} arm plans and executes them (reachability first: what it refuses is a failure)")
+    arm_scene = build_arm_scene(scene.obj, scene.gripper, scene.settings, arm=arm, base=T_base,
+                                T_world_obj=scene.T_world_obj)
+    cmap = capability_map(build_robot_model(arm, scene.gripper, T_base), arm, T_base)
+    return run_arm_trials(arm_scene, T_obj_wrist, widths, ArmLiftPlace(), threads=cfg.threads, seed=cfg.seed,
+                          noise=noise, capability=cmap)
 
 
 def _sim_scene(result, truth, T_world_true, db):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from graspsim.cli._common import add_gripper_flag, command, emit, format_table
+from graspsim.cli._common import add_gripper_flag, add_robot_flags, command, emit, format_table, robot_base_from_args
 
 __all__ = ["register"]
 
@@ -19,7 +19,8 @@ def _cmd_demo(args) -> int:
 
     cfg = DemoConfig(out=args.out, cloud=args.cloud, db=args.db, quick=args.quick,
                      trials=args.trials, renders=args.renders, noise=args.noise, seed=args.seed,
-                     threads=args.threads, gripper=args.gripper)
+                     threads=args.threads, gripper=args.gripper, robot=args.robot,
+                     robot_base=robot_base_from_args(args))
 
     def step(msg: str) -> None:
         if not args.json:
@@ -39,6 +40,8 @@ def _cmd_demo(args) -> int:
         lines.append("trial 0: the best grasp by the robust ranking; the others drawn over the object")
         lines.append(format_table(rows, ["#", "part", "grade", "robust", "outcome", "lift cm", "hold slip mm"]))
         lo, hi = s["interval_95"]
+        if s.get("robot"):
+            lines.append(f"executed by the {s['robot']} arm: reachability {s['plan']['reach']}")
         lines.append(f"success {s['success']}/{s['feasible']} feasible trials "
                      f"({100 * s['success_rate']:.0f} %, 95 % CI {100 * lo:.0f}-{100 * hi:.0f} %)")
     lines.append(f"outputs in {args.out}/ ({s['seconds']:.1f} s in all)")
@@ -62,3 +65,5 @@ def register(sub) -> None:
         p.add_argument("--quick", action="store_true",
                        help="coarse database in OUT/db and fewer trials: a fast smoke run (CI)")
         add_gripper_flag(p)
+        add_robot_flags(p, robot_help="none: the floating gripper (default); panda: the Franka Emika Panda arm beside "
+                        "the table plans and executes the trials (a model-file --gripper, e.g. franka_hand)")

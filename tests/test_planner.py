@@ -386,3 +386,32 @@ def test_grasps_likely_to_clear_the_table_stream_first(db, monkeypatch, truth, m
 
     np.testing.assert_array_equal(rows(result.map), rows(plain[-1].map))
     assert result.map.meta.extra["table"]["dropped"] == plain[-1].map.meta.extra["table"]["dropped"]
+
+
+def test_a_single_view_of_one_face_gives_no_grasp_across_the_depth_it_did_not_show(db):
+    """A carton seen from the front shows one face: robust identification fits it as a plate
+    a few mm thick. Its depth was not measured, so no grasp may close across it (its far
+    finger would go where the carton goes on, unseen); across the face's width it may. A
+    view that also shows its top edge measures its thickness: nothing is dropped. No viewpoint (a
+    cloud seen all round) or ``seen_depth`` off: nothing is dropped."""
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.planning.observed import ObservedChecks
+
+    plate = Box(0.002, 0.044, 0.06)
+    m = generate_fs_map(plate, G, config=FAST)
+    closing = np.abs(m.wrist_transforms()[:, :3, 0])
+    assert (closing[:, 0] > 0.9).any() and (closing[:, 1] > 0.9).any()
+    rng = np.random.default_rng(3)
+    front = np.column_stack([np.full(800, 0.001), rng.uniform([-0.022, -0.03], [0.022, 0.03], (800, 2))])
+    top = np.column_stack([rng.uniform(-0.001, 0.001, 300), rng.uniform(-0.022, 0.022, 300), np.full(300, 0.03)])
+    eye, I = np.array([0.6, 0.05, 0.3]), np.eye(4)
+
+    def kept(points, viewpoint=eye, seen=True):
+        checks = ObservedChecks(points + rng.normal(0, 0.0005, points.shape), None, I, viewpoint=viewpoint,
+                                noise=0.0005, gripper=G, quality=db.quality, cfg=PlannerConfig(seen_depth=seen))
+        return np.abs(checks.unseen_depth(m, plate, I, I).wrist_transforms()[:, :3, 0])
+
+    one_face = kept(front)
+    assert one_face[:, 0].max() < math.cos(math.radians(45)) + 1e-9 and (one_face[:, 1] > 0.9).any()
+    for other in (kept(np.concatenate([front, top])), kept(front, viewpoint=None), kept(front, seen=False)):
+        assert len(other) == len(m)

@@ -36,7 +36,11 @@ from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.table_clearance import clears_table
 from graspsim.planning.plan_results import GraspBatch
 
-__all__ = ["ObservedChecks", "clear_of_cloud"]
+__all__ = ["ObservedChecks", "clear_of_cloud", "MEASURED_SHARE"]
+
+#: A box part's extent along an axis counts as measured by a single view when at least this share
+#: of its points lie on faces running along the axis (normal > 60 deg from it): ObservedChecks.unseen_depth
+MEASURED_SHARE = 0.1
 
 
 def clear_of_cloud(gmap, rows: np.ndarray, cloud_obj: np.ndarray, config: RobustConfig = RobustConfig(),
@@ -66,8 +70,9 @@ class ObservedChecks:
                  viewpoint: np.ndarray | None, noise: float, gripper: GripperSpec, quality, cfg) -> None:
         self.points, self.cloud_obj, self.T_cloud_obj = points, cloud_obj, T_cloud_obj
         self.surface = ObservedSurface(points, viewpoint=viewpoint)
+        self.viewpoint = viewpoint
         self.noise, self.gripper, self.quality, self.cfg = float(noise), gripper, quality, cfg
-        self.dropped = 0
+        self.dropped = self.unseen = 0
         self.features: int | None = None
 
     @classmethod
@@ -88,6 +93,36 @@ class ObservedChecks:
         return part_map.select(self.surface.borne_out(c, tol=self.cfg.contact_tolerance,
                                                       max_angle=self.quality.friction_angle,
                                                       min_observed=1)[line])
+
+    def unseen_depth(self, part_map: GraspabilityMap, prim, T_cloud_part: np.ndarray,
+                     T_cloud_map: np.ndarray) -> GraspabilityMap:
+        """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) that do not
+        close across a dimension of box part ``prim`` (posed at ``T_cloud_part``) that a
+        single view did not measure. A box's extent along one of its axes is measured
+        where the view shows a face that runs along that axis; where the part's points
+        show only the faces across it (fewer than ``MEASURED_SHARE`` of them with a
+        surface normal more than 60 deg from the axis: a carton seen from the front is
+        fitted as a plate a few mm thick, a gable as a slab) the box's depth there is the
+        fit's guess, and a grasp closing across it (within 45 deg) puts its far finger
+        where the object goes on unseen. Unchanged without a viewpoint (a cloud seen all
+        round shows depths), with ``PlannerConfig.seen_depth`` off, or for other shapes."""
+        if self.viewpoint is None or not self.cfg.seen_depth or prim.kind != "box" or not len(part_map):
+            return part_map
+        T = np.asarray(T_cloud_part, float)
+        half = 0.5 * np.array([prim.x, prim.y, prim.z])
+        local = (self.surface.points - T[:3, 3]) @ T[:3, :3]
+        inside = np.flatnonzero(np.all(np.abs(local) <= half + self.cfg.contact_tolerance, axis=1))
+        if len(inside) < 3 * self.surface.k:
+            return part_map
+        normals = self.surface.normals_at(inside) @ T[:3, :3]  # in the part's frame
+        along = np.mean(np.abs(normals) < np.cos(np.radians(60.0)), axis=0)  # (3,) share of faces along each axis
+        thin = T[:3, :3][:, along < MEASURED_SHARE].T  # (k, 3): the unmeasured axes, cloud frame
+        if not len(thin):
+            return part_map
+        closing = part_map.wrist_transforms()[:, :3, 0] @ np.asarray(T_cloud_map, float)[:3, :3].T  # cloud frame
+        keep = np.all(np.abs(closing @ thin.T) < np.cos(np.radians(45.0)), axis=1)
+        self.unseen += int(len(keep) - keep.sum())
+        return part_map.select(keep)
 
     def clear(self, batch: GraspabilityMap) -> GraspabilityMap:
         """The batch's grasps whose gripper holds no observed point at the opening each is
@@ -162,5 +197,6 @@ class ObservedChecks:
         """The map's record of these checks (``extra`` entries); ``parts``: the parts
         planned (the feature grasps' part index)."""
         f = self.cfg.features
-        return {"observed": {"clear_observed": bool(self.cfg.clear_observed), "dropped": self.dropped},
+        return {"observed": {"clear_observed": bool(self.cfg.clear_observed), "dropped": self.dropped,
+                             "seen_depth": bool(self.cfg.seen_depth), "unseen_depth": self.unseen},
                 "features": None if f is None else {**f.to_dict(), "grasps": self.features or 0, "part": parts}}

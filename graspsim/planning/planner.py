@@ -88,6 +88,12 @@ class PlannerConfig:
         than the gripper), grasps on the cloud's own features (a rim, a bar;
         :mod:`~graspsim.maps.feature_grasps`) are added as part ``len(parts)``, through the same
         checks. None: never. Paper mode never adds.
+    seen_depth: robust identification of a single view (a viewpoint): no grasp is offered
+        that closes across a box part's dimension the view did not measure -- only the faces
+        across it seen, as a carton seen from the front, fitted as a plate a few mm thick
+        (:meth:`~graspsim.planning.observed.ObservedChecks.unseen_depth`; the count in
+        ``extra["observed"]``). False: such grasps offered. Paper mode and clouds without a
+        viewpoint: never applied.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -101,6 +107,7 @@ class PlannerConfig:
     collision_tolerance: float | None = None
     clear_observed: bool = True
     features: FeatureConfig | None = field(default_factory=FeatureConfig)
+    seen_depth: bool = True
 
     def __post_init__(self) -> None:
         tol = self.collision_tolerance
@@ -295,6 +302,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         for part_map in stage.iterate(() if skip_spent and budget <= 0 else stream, "adapt"):
             if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
                 part_map = observed.borne_out(part_map, T_cloud_map)
+                part_map = observed.unseen_depth(part_map, prim, T_cloud[i], T_cloud_map)
             stage.lap("agreement")
             if compound is not None:
                 part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,

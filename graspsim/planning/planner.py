@@ -35,7 +35,14 @@ from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map, view_of
 from graspsim.maps.scaling import ScalingConfig, scale_stream
-from graspsim.maps.table_clearance import clears_table, heights_above, stream_order, table_height
+from graspsim.maps.table_clearance import (
+    LowProfile,
+    clears_table,
+    heights_above,
+    lift_clear,
+    stream_order,
+    table_height,
+)
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
 from graspsim.planning.observed import ObservedChecks
 from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
@@ -88,6 +95,14 @@ class PlannerConfig:
         than the gripper), grasps on the cloud's own features (a rim, a bar;
         :mod:`~graspsim.maps.feature_grasps`) are added as part ``len(parts)``, through the same
         checks. None: never. Paper mode never adds.
+    low_profile: with a ``table``, a pose that would take the gripper under it is lifted
+        clear along its approach, its contacts held nearer the fingertip
+        (:class:`~graspsim.maps.table_clearance.LowProfile`,
+        :func:`~graspsim.maps.table_clearance.lift_clear`): the grasps of objects lower than
+        the pad's planned region (a domino, a lid, a flat tool lying down), which the stored
+        maps' tip margin (``GripperSpec.depth_lo``) leaves with none; they go through the
+        same checks and robust score (count in the table record's ``lifted``). None: never
+        (every such pose dropped, as before). Paper identification mode never lifts.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -101,8 +116,12 @@ class PlannerConfig:
     collision_tolerance: float | None = None
     clear_observed: bool = True
     features: FeatureConfig | None = field(default_factory=FeatureConfig)
+    low_profile: LowProfile | None = field(default_factory=LowProfile)
 
     def __post_init__(self) -> None:
+        if self.low_profile is not None and not isinstance(self.low_profile, LowProfile):
+            raise InvalidParameterError(f"PlannerConfig.low_profile must be a LowProfile or None (off), "
+                                        f"got {self.low_profile!r}")
         tol = self.collision_tolerance
         if tol is not None and (isinstance(tol, bool) or not isinstance(tol, (int, float))
                                 or not (np.isfinite(tol) and tol > 0)):
@@ -271,7 +290,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
              "identification": ident_info,
              "viewpoint": None if viewpoint is None else np.asarray(viewpoint, float).tolist()}
-    n_below = n_hi = 0
+    n_below = n_hi = n_lifted = 0
+    lift = cfg.low_profile if T_table_obj is not None and (ident is None or ident.mode != "paper") else None
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
     first = tenth = first_robust = first_robust_cpu = None
@@ -292,6 +312,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         budget = cfg.robust.top if cfg.rank == "robust" else 0
         # the part map's frame in the cloud's (a part's own frame until it is combined)
         T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
+        seen_lifted: set[bytes] = set()  # a line and roll lifted in one batch is not lifted again in a later one
         for part_map in stage.iterate(() if skip_spent and budget <= 0 else stream, "adapt"):
             if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
                 part_map = observed.borne_out(part_map, T_cloud_map)
@@ -303,7 +324,13 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             if T_table_obj is not None:
                 clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)
                 n_below += int(len(clear) - clear.sum())
-                part_map = part_map.select(clear)
+                if lift is not None and not clear.all():
+                    low = _lifted(part_map.select(~clear), T_table_obj, db.gripper, cfg.table.clearance, lift,
+                                  seen_lifted)
+                    n_lifted += len(low)
+                    part_map = GraspabilityMap.concat([part_map.select(clear), low], meta=part_map.meta)
+                else:
+                    part_map = part_map.select(clear)
             stage.lap("table")
             batch = replace(part_map, meta=replace(obj_meta, extra=extra), part=np.full(len(part_map), i, np.int16))
             batch = batch if observed is None else observed.clear(batch)  # none holding observed points
@@ -339,10 +366,24 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         extra = yield from observed.stream_features(batches, replace(obj_meta, extra=extra), len(parts),
                                                     T_table_obj, view_obj, view, skip_spent, stage, t0)
     timing["maps"] = time.perf_counter() - t1
+    if table is not None and lift is not None:
+        table = {**table, "low_profile": lift.to_dict(), "lifted": n_lifted}
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
                   first_robust_cpu=first_robust_cpu, **stage.seconds)
     yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
+
+
+def _lifted(below: GraspabilityMap, T_table_obj: np.ndarray, gripper, clearance: float, low: LowProfile,
+            seen: set[bytes]) -> GraspabilityMap:
+    """The poses of ``below`` (none clearing the table) lifted clear of it
+    (:func:`~graspsim.maps.table_clearance.lift_clear`), but for a closing line and roll
+    already lifted (``seen``: their keys, updated)."""
+    rows, pos = lift_clear(below, T_table_obj, gripper, clearance, low)
+    key = np.column_stack([below.contacts[rows].reshape(len(rows), 6), below.wrist_quat[rows]]).astype(np.float32)
+    new = np.array([k.tobytes() not in seen for k in key], bool)
+    seen.update(k.tobytes() for k in key[new])
+    return replace(below.select(rows[new]), wrist_position=pos[new])
 
 
 def _finished(batches: list, parts: list, extra: dict, table: dict | None, n_below: int, obj_meta: MapMeta,

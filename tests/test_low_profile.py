@@ -1,0 +1,135 @@
+"""Low-profile grasps: objects lower than the pad's planned region (a domino lying flat)
+get poses lifted clear of the table, their contacts nearer the fingertip
+(``maps.table_clearance.lift_clear``, ``PlannerConfig.low_profile``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from graspsim.errors import InvalidParameterError
+from graspsim.geometry.table import TablePlane, table_frame
+from graspsim.grippers.spec import HGPL_25_60_A as GRIPPER
+from graspsim.maps.collide import boxes_clear_sdf
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import generate_fs_map
+from graspsim.maps.map_config import MapConfig
+from graspsim.maps.table_clearance import LowProfile, clears_table, heights_above, lift_clear
+from graspsim.perception import IdentifyConfig
+from graspsim.planning.planner import PlannerConfig, plan
+from graspsim.primitives import Box
+
+FAST = MapConfig(surface_step=0.005, rotation_step=math.radians(22))
+FLAT = Box(0.006, 0.03, 0.05)  # 6 mm thick: x, the thinnest edge, is up
+
+
+def _table_under(box: Box) -> np.ndarray:
+    """T_table_obj of a table under the box's -x face (the box lies flat on it)."""
+    return table_frame((1.0, 0.0, 0.0), -0.5 * box.x)
+
+
+def test_a_flat_box_has_no_pose_clear_of_the_table_but_lifted_ones_that_touch_it_only_by_the_pads():
+    gmap = generate_fs_map(FLAT, GRIPPER, config=FAST)
+    T = _table_under(FLAT)
+    assert not clears_table(gmap, T, GRIPPER, 0.002).any()  # the problem: every pose under the table
+    low = LowProfile()
+    rows, pos = lift_clear(gmap, T, GRIPPER, 0.002, low)
+    assert len(rows) >= 10
+    lifted = gmap.select(rows)
+    from dataclasses import replace
+
+    lifted = replace(lifted, wrist_position=pos)
+    # clear of the table by the low-profile clearance, not more than a micrometre higher
+    h = heights_above(GRIPPER, T, lifted.wrist_quat, lifted.wrist_position, lifted.width)
+    assert np.all(h >= low.clearance) and np.all(h < low.clearance + 1e-5)
+    # the same contacts, now nearer the fingertip than the maps' tip margin, still on the pad
+    assert np.array_equal(lifted.grasp_point, gmap.grasp_point[rows])
+    d = GRIPPER.contact_depth(lifted.grasp_point.astype(float), lifted.wrist_position.astype(float),
+                              lifted.approach.astype(float))
+    assert np.all(d >= low.min_depth - 1e-6) and np.all(d < GRIPPER.depth_lo)
+    # collision-free with the object at the pre-grasp opening (the exact signed-distance check)
+    free = boxes_clear_sdf(FLAT, GRIPPER, lifted.T_obj_wrist, GRIPPER.pregrasp_opening(lifted.width),
+                           tolerance=FAST.collision_tolerance)
+    assert free.all()
+    # one pose per closing line and roll: the depths of one line lift to the same pose
+    key = np.column_stack([lifted.contacts.reshape(len(lifted), 6), lifted.wrist_quat])
+    assert len(np.unique(key, axis=0)) == len(lifted)
+    # the grasps come from above: the pads close across the box, across the table's normal
+    up = T[2, :3]
+    assert np.all(np.abs(lifted.contacts[:, 1] - lifted.contacts[:, 0]) @ np.abs(up) < 1e-3 + 0.5 * FLAT.x)
+
+
+def test_a_standing_box_gets_no_low_profile_grasp_and_a_minimum_depth_beyond_the_tip_margin_none():
+    tall = Box(0.03, 0.04, 0.08)  # standing on its 30 x 40 face: its z is up
+    gmap = generate_fs_map(tall, GRIPPER, config=MapConfig(surface_step=0.01, rotation_step=math.radians(22)))
+    T = table_frame((0.0, 0.0, 1.0), -0.5 * tall.z)
+    rows, _ = lift_clear(gmap, T, GRIPPER, 0.002, LowProfile())
+    # lifting reaches only the poses whose contacts lie within the pad's tip region of the table
+    gp_h = gmap.grasp_point[rows] @ T[2, :3] + T[2, 3]
+    assert np.all(gp_h < GRIPPER.depth_lo + 0.002 + 1e-6)
+    flat = generate_fs_map(FLAT, GRIPPER, config=FAST)
+    rows, _ = lift_clear(flat, _table_under(FLAT), GRIPPER, 0.002, LowProfile(min_depth=GRIPPER.depth_lo))
+    assert len(rows) == 0
+
+
+def test_bad_low_profile_settings_are_refused():
+    with pytest.raises(InvalidParameterError, match="min_depth"):
+        LowProfile(min_depth=-0.001)
+    with pytest.raises(InvalidParameterError, match="LowProfile or None"):
+        PlannerConfig(low_profile=0.001)
+
+
+def _flat_cloud(rng: np.random.Generator, n: int = 3000) -> np.ndarray:
+    """A 6 x 30 x 50 mm box lying flat on the table z = 0: its top and sides, no bottom, 0.5 mm noise."""
+    dims = np.array([0.05, 0.03, 0.006])
+    pts = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            if axis == 2 and sign < 0:
+                continue  # the table hides the bottom
+            area = np.prod(np.delete(dims, axis))
+            k = max(20, int(n * area / 0.0033))
+            p = (rng.random((k, 3)) - 0.5) * dims
+            p[:, axis] = sign * 0.5 * dims[axis]
+            pts.append(p)
+    p = np.concatenate(pts) + [0.0, 0.0, 0.003]
+    return p + rng.normal(0.0, 0.0005, p.shape)
+
+
+@pytest.fixture(scope="module")
+def flat_db(tmp_path_factory):
+    return MapDatabase(tmp_path_factory.mktemp("db"), config=FAST)
+
+
+def _config(mode: str = "robust", **kw) -> PlannerConfig:
+    return PlannerConfig(identify=IdentifyConfig.preset(mode), table=TablePlane(height=0.0), **kw)
+
+
+def test_planner_offers_a_lying_flat_box_low_profile_grasps_and_the_paper_mode_none(flat_db):
+    pts = _flat_cloud(np.random.default_rng(0))
+    res = plan(pts, db=flat_db, rng=np.random.default_rng(0), config=_config())
+    m = res.map
+    table = m.meta.placement.table
+    assert len(m) > 0 and table["lifted"] == len(m) and table["low_profile"] == LowProfile().to_dict()
+    assert np.any(m.robust > 0)  # scored by the same robust score, some expected to succeed
+    T_table_obj = table_frame((0.0, 0.0, 1.0), 0.0) @ m.meta.placement.T_cloud_obj
+    h = heights_above(GRIPPER, T_table_obj, m.wrist_quat, m.wrist_position, m.width)
+    assert np.all(h >= LowProfile().clearance - 1e-6)
+    # off, and in the paper's identification mode, no such grasp: the map as before
+    assert len(plan(pts, db=flat_db, rng=np.random.default_rng(0), config=_config(low_profile=None)).map) == 0
+    paper = plan(pts, db=flat_db, rng=np.random.default_rng(0), config=_config("paper"))
+    assert len(paper.map) == 0 and "lifted" not in paper.map.meta.placement.table
+
+
+def test_a_low_profile_grasp_lifts_the_flat_box_in_simulation(flat_db, tmp_path):
+    from graspsim.maps.io import save_map
+    from graspsim.sim.mapsim import simulate_map
+
+    pts = _flat_cloud(np.random.default_rng(1))
+    res = plan(pts, db=flat_db, rng=np.random.default_rng(1), config=_config())
+    path = tmp_path / "flat.h5"
+    save_map(res.map, path)
+    out = simulate_map(path, top=3, threads=1, write=False)  # the map's own box, standing as it was seen
+    assert out.results.counts()["success"] >= 2, out.results.counts()

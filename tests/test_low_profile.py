@@ -16,7 +16,7 @@ from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.map_config import MapConfig
-from graspsim.maps.table_clearance import LowProfile, clears_table, heights_above, lift_clear
+from graspsim.maps.table_clearance import LowProfile, clears_table, heights_above, lift_clear, low_part
 from graspsim.perception import IdentifyConfig
 from graspsim.planning.planner import PlannerConfig, plan
 from graspsim.primitives import Box
@@ -72,6 +72,11 @@ def test_a_standing_box_gets_no_low_profile_grasp_and_a_minimum_depth_beyond_the
     flat = generate_fs_map(FLAT, GRIPPER, config=FAST)
     rows, _ = lift_clear(flat, _table_under(FLAT), GRIPPER, 0.002, LowProfile(min_depth=GRIPPER.depth_lo))
     assert len(rows) == 0
+    # which parts are low: the top below clearance + tip margin + surface step (12 mm here)
+    assert low_part(FLAT, _table_under(FLAT), GRIPPER, 0.002, 0.005) and not low_part(tall, T, GRIPPER, 0.002, 0.005)
+    lid = Box(0.011, 0.05, 0.05)
+    assert low_part(lid, _table_under(lid), GRIPPER, 0.002, 0.005)
+    assert not low_part(Box(0.013, 0.05, 0.05), _table_under(Box(0.013, 0.05, 0.05)), GRIPPER, 0.002, 0.005)
 
 
 def test_bad_low_profile_settings_are_refused():
@@ -113,6 +118,7 @@ def test_planner_offers_a_lying_flat_box_low_profile_grasps_and_the_paper_mode_n
     m = res.map
     table = m.meta.placement.table
     assert len(m) > 0 and table["lifted"] == len(m) and table["low_profile"] == LowProfile().to_dict()
+    assert table["low_parts"] == 1
     assert np.any(m.robust > 0)  # scored by the same robust score, some expected to succeed
     T_table_obj = table_frame((0.0, 0.0, 1.0), 0.0) @ m.meta.placement.T_cloud_obj
     h = heights_above(GRIPPER, T_table_obj, m.wrist_quat, m.wrist_position, m.width)
@@ -133,3 +139,23 @@ def test_a_low_profile_grasp_lifts_the_flat_box_in_simulation(flat_db, tmp_path)
     save_map(res.map, path)
     out = simulate_map(path, top=3, threads=1, write=False)  # the map's own box, standing as it was seen
     assert out.results.counts()["success"] >= 2, out.results.counts()
+
+
+def test_a_standing_box_plans_the_same_map_with_and_without_low_profile_grasps(flat_db, rng):
+    """Only parts lower than the pad's planned region are lifted: a 50 mm box standing on the
+    table gets the very map it got before (none of its poses lifted)."""
+    dims = np.array([0.03, 0.04, 0.05])
+    pts = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            if axis == 2 and sign < 0:
+                continue
+            p = (rng.random((600, 3)) - 0.5) * dims
+            p[:, axis] = sign * 0.5 * dims[axis]
+            pts.append(p)
+    pts = np.concatenate(pts) + [0.0, 0.0, 0.025] + rng.normal(0.0, 0.0005, (3000, 3))
+    on = plan(pts, db=flat_db, rng=np.random.default_rng(0), config=_config()).map
+    off = plan(pts, db=flat_db, rng=np.random.default_rng(0), config=_config(low_profile=None)).map
+    assert len(on) > 0 and on.meta.placement.table["low_parts"] == 0 and on.meta.placement.table["lifted"] == 0
+    assert len(on) == len(off) and np.array_equal(on.wrist_position, off.wrist_position)
+    assert np.array_equal(on.robust, off.robust, equal_nan=True)

@@ -27,7 +27,7 @@ from graspsim.geometry.table import TablePlane
 from graspsim.grippers.spec import GripperSpec
 from graspsim.maps.graspmap import GraspabilityMap
 
-__all__ = ["clears_table", "heights_above", "lift_clear", "LowProfile", "stream_order", "table_height"]
+__all__ = ["clears_table", "heights_above", "lift_clear", "low_part", "LowProfile", "stream_order", "table_height"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +83,21 @@ def heights_above(gripper: GripperSpec, T_table_obj: np.ndarray, wrist_quat: np.
     up = _in_wrist_frames(wrist_quat, n)
     height = np.asarray(wrist_position, float) @ n + h
     return gripper.lowest_along(up, height, gripper.pregrasp_opening(width))
+
+
+def low_part(shape, T_table_part: np.ndarray, gripper: GripperSpec, clearance: float, surface_step: float) -> bool:
+    """Whether a part -- ``shape`` with the table's frame at ``T_table_part`` (4, 4) in its
+    own -- is lower than the pad's planned region: its top less than ``clearance`` +
+    ``gripper.depth_lo`` + ``surface_step`` [m] above the table (12 mm for the default
+    gripper, clearance and maps). The shallowest planned contact sits ``depth_lo`` above
+    fingertips ``clearance`` above the table, and the maps' contacts lie up to a surface
+    step apart: below that height a part has no contact the planned pad region reaches
+    from above, or only a row or two. Only such parts get low-profile grasps
+    (:func:`lift_clear`); a taller object keeps the map's own poses alone."""
+    T = np.asarray(T_table_part, float)
+    v = np.asarray(shape.mesh().vertices, float)
+    top = float(np.max(v @ T[2, :3] + T[2, 3]))
+    return top < clearance + gripper.depth_lo + surface_step
 
 
 def lift_clear(gmap: GraspabilityMap, T_table_obj: np.ndarray, gripper: GripperSpec, clearance: float,

@@ -40,6 +40,7 @@ from graspsim.maps.table_clearance import (
     clears_table,
     heights_above,
     lift_clear,
+    low_part,
     stream_order,
     table_height,
 )
@@ -100,9 +101,12 @@ class PlannerConfig:
         (:class:`~graspsim.maps.table_clearance.LowProfile`,
         :func:`~graspsim.maps.table_clearance.lift_clear`): the grasps of objects lower than
         the pad's planned region (a domino, a lid, a flat tool lying down), which the stored
-        maps' tip margin (``GripperSpec.depth_lo``) leaves with none; they go through the
-        same checks and robust score (count in the table record's ``lifted``). None: never
-        (every such pose dropped, as before). Paper identification mode never lifts.
+        maps' tip margin (``GripperSpec.depth_lo``) leaves with none. Only parts that low are
+        lifted (:func:`~graspsim.maps.table_clearance.low_part`: the part's top less than the
+        table clearance + the tip margin + the maps' surface step above the table, 12 mm for
+        the default gripper); a taller object's grasps stay as they were. They go through the
+        same checks and robust score (counts in the table record: ``low_parts``, ``lifted``).
+        None: never (every such pose dropped, as before). Paper identification mode never lifts.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -290,7 +294,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
              "identification": ident_info,
              "viewpoint": None if viewpoint is None else np.asarray(viewpoint, float).tolist()}
-    n_below = n_hi = n_lifted = 0
+    n_below = n_hi = n_lifted = n_low = 0
     lift = cfg.low_profile if T_table_obj is not None and (ident is None or ident.mode != "paper") else None
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
@@ -313,6 +317,9 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         # the part map's frame in the cloud's (a part's own frame until it is combined)
         T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
         seen_lifted: set[bytes] = set()  # a line and roll lifted in one batch is not lifted again in a later one
+        lift_part = lift if lift is not None and low_part(prim, T_table_obj @ T_obj_part[i], db.gripper,
+                                                          cfg.table.clearance, db.config.surface_step) else None
+        n_low += lift_part is not None
         for part_map in stage.iterate(() if skip_spent and budget <= 0 else stream, "adapt"):
             if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
                 part_map = observed.borne_out(part_map, T_cloud_map)
@@ -324,8 +331,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             if T_table_obj is not None:
                 clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)
                 n_below += int(len(clear) - clear.sum())
-                if lift is not None and not clear.all():
-                    low = _lifted(part_map.select(~clear), T_table_obj, db.gripper, cfg.table.clearance, lift,
+                if lift_part is not None and not clear.all():
+                    low = _lifted(part_map.select(~clear), T_table_obj, db.gripper, cfg.table.clearance, lift_part,
                                   seen_lifted)
                     n_lifted += len(low)
                     part_map = GraspabilityMap.concat([part_map.select(clear), low], meta=part_map.meta)
@@ -367,7 +374,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                                                     T_table_obj, view_obj, view, skip_spent, stage, t0)
     timing["maps"] = time.perf_counter() - t1
     if table is not None and lift is not None:
-        table = {**table, "low_profile": lift.to_dict(), "lifted": n_lifted}
+        table = {**table, "low_profile": lift.to_dict(), "low_parts": n_low, "lifted": n_lifted}
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
                   first_robust_cpu=first_robust_cpu, **stage.seconds)

@@ -159,3 +159,18 @@ def test_a_standing_box_plans_the_same_map_with_and_without_low_profile_grasps(f
     assert len(on) > 0 and on.meta.placement.table["low_parts"] == 0 and on.meta.placement.table["lifted"] == 0
     assert len(on) == len(off) and np.array_equal(on.wrist_position, off.wrist_position)
     assert np.array_equal(on.robust, off.robust, equal_nan=True)
+
+
+def test_cli_adapt_lifts_a_flat_box_and_says_so_off_drops_them_and_a_bad_depth_is_refused(tmp_path, capsys):
+    from graspsim.cli import main
+
+    np.save(tmp_path / "flat.npy", _flat_cloud(np.random.default_rng(2)))
+    args = ["adapt", str(tmp_path / "flat.npy"), "--db", str(tmp_path / "db"), "--surface-step", "0.005",
+            "--rotation-step-deg", "22", "--table", "auto"]
+    assert main([*args, "-o", str(tmp_path / "a.h5")]) == 0
+    out = capsys.readouterr().out
+    assert "lifted clear of it (contacts nearer the fingertip)" in out and (tmp_path / "a.h5").exists()
+    assert main([*args, "-o", str(tmp_path / "b.h5"), "--low-profile", "off"]) == 1  # as before: no grasp
+    assert "no collision-free grasp" in capsys.readouterr().err and not (tmp_path / "b.h5").exists()
+    assert main([*args, "-o", str(tmp_path / "c.h5"), "--low-profile", "-1"]) == 2
+    assert "--low-profile takes 'off' or a contact depth >= 0 m" in capsys.readouterr().err

@@ -321,23 +321,32 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                                                           cfg.table.clearance, db.config.surface_step) else None
         n_low += lift_part is not None
         for part_map in stage.iterate(() if skip_spent and budget <= 0 else stream, "adapt"):
+            low = None
+            if lift_part is not None:  # a low part: its poses under the table lifted clear first (part frame)
+                T_table_part = T_table_obj @ T_obj_part[i]
+                clear = clears_table(part_map, T_table_part, db.gripper, cfg.table.clearance)
+                n_below += int(len(clear) - clear.sum())
+                low = _lifted(part_map.select(~clear), T_table_part, db.gripper, cfg.table.clearance, lift_part,
+                              seen_lifted)
+                n_lifted += len(low)
+                part_map = part_map.select(clear)
             if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
+                # (not the lifted poses: their contacts lie within the contact tolerance of a low part's
+                # top face, whose points' normals would count against every side contact, and a scene's
+                # table band removes the side points that bear them out)
                 part_map = observed.borne_out(part_map, T_cloud_map)
             stage.lap("agreement")
             if compound is not None:
-                part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
-                                        d_ref=obj_meta.quality["d_ref"], config=checks, meta=obj_meta)
+                part_map, low = (m if m is None or not len(m) else combine_part(
+                    m, i, compound, gripper=db.gripper, quality=db.quality, d_ref=obj_meta.quality["d_ref"],
+                    config=checks, meta=obj_meta) for m in (part_map, low))
             stage.lap("combine")
             if T_table_obj is not None:
                 clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)
                 n_below += int(len(clear) - clear.sum())
-                if lift_part is not None and not clear.all():
-                    low = _lifted(part_map.select(~clear), T_table_obj, db.gripper, cfg.table.clearance, lift_part,
-                                  seen_lifted)
-                    n_lifted += len(low)
-                    part_map = GraspabilityMap.concat([part_map.select(clear), low], meta=part_map.meta)
-                else:
-                    part_map = part_map.select(clear)
+                part_map = part_map.select(clear)
+                if low is not None and len(low):  # lifted clear of the table already
+                    part_map = GraspabilityMap.concat([part_map, low], meta=part_map.meta)
             stage.lap("table")
             batch = replace(part_map, meta=replace(obj_meta, extra=extra), part=np.full(len(part_map), i, np.int16))
             batch = batch if observed is None else observed.clear(batch)  # none holding observed points

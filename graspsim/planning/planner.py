@@ -105,8 +105,11 @@ class PlannerConfig:
         lifted (:func:`~graspsim.maps.table_clearance.low_part`: the part's top less than the
         table clearance + the tip margin + the maps' surface step above the table, 12 mm for
         the default gripper); a taller object's grasps stay as they were. They go through the
-        same checks and robust score (counts in the table record: ``low_parts``, ``lifted``).
-        None: never (every such pose dropped, as before). Paper identification mode never lifts.
+        observed-point checks and robust score, but not the cloud-agreement filter (a low
+        part's side contacts lie within its tolerance of the top face, and a scene's table
+        band removes the side points that would bear them out); counts in the table record:
+        ``low_parts``, ``lifted``. None: never (every such pose dropped, as before). Paper
+        identification mode never lifts.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)

@@ -33,11 +33,12 @@ __all__ = ["clears_table", "heights_above", "lift_clear", "low_part", "LowProfil
 
 @dataclass(frozen=True)
 class LowProfile:
-    """Low-profile grasps (:func:`lift_clear`): a pose under the table lifted along its
-    approach until the gripper's lowest point is ``clearance`` [m] above the table (the
-    table's own clearance where that is smaller), offered where its contacts then lie at
-    least ``min_depth`` [m] from the fingertip (and nearer than the gripper's tip margin
-    ``depth_lo``, which the map's own poses keep).
+    """Low-profile grasps (:func:`lift_clear`) of a part lower than the pad's planned
+    region (:func:`low_part`): its poses may come to ``clearance`` [m] of the table (the
+    table's own clearance where that is smaller), a pose lower than that lifted along its
+    approach until it is there, offered where its contacts then lie at least
+    ``min_depth`` [m] from the fingertip and both pads' tip edges at most ``max_tip`` [m]
+    above the table.
 
     The defaults: contacts at least 1 mm up the pad from its tip edge; the fingertips
     0.5 mm above the table, as a two-jaw gripper picks a domino, the pad overlapping a 6 mm
@@ -115,26 +116,28 @@ def lift_clear(gmap: GraspabilityMap, T_table_obj: np.ndarray, gripper: GripperS
     """Low-profile grasps: the map's poses that do not clear the table by ``clearance``
     [m], lifted clear (:class:`LowProfile` ``low``).
 
-    Each pose is moved back along its own approach (the wrist by -s x approach) until the
-    gripper's lowest point is ``min(low.clearance, clearance)`` above the table (frame
-    ``T_table_obj`` in the map's object frame), its grasp point and contacts unchanged,
-    so the contacts sit s nearer the fingertip: contact depth d - s. A pose is offered
-    only where that depth lies in [``low.min_depth``, ``gripper.depth_lo``): deeper, it
-    is no low-profile grasp (the map's own poses keep the tip margin); shallower, the
-    contact would leave the pad. Lifting cannot add a collision with the object the pose was checked
-    against: the gripper's boxes nest (finger in jaw in housing in the arm keep-out,
-    widening towards the wrist), so the moved gripper lies in the unmoved one but for a
-    slab s thick behind the arm keep-out's far end, ``arm_length + fingertip_z - d``
-    behind the contacts (at least 210 mm for the default gripper); the planner's checks
-    against the observed points and its robust score still see the whole moved gripper.
-    Poses of one closing line and roll at several depths lift to the same pose: the first
-    row of each stands for them.
+    A low part's pose may come nearer the table than the other grasps: its gripper's lowest
+    point ``min(low.clearance, clearance)`` above the table (``target``; frame
+    ``T_table_obj`` in the map's object frame). A pose lower than that is moved back along
+    its own approach (the wrist by -s x approach) until its lowest point is there, its grasp
+    point and contacts unchanged, so the contacts sit s nearer the fingertip: contact depth
+    d - s; a pose between ``target`` and ``clearance`` stays as it is (s = 0). A pose is
+    offered where its contacts stay at least ``low.min_depth`` from the fingertip (else they
+    would leave the pad) and both pads' tip edges at most ``low.max_tip`` above the table.
+    Lifting cannot add a collision with the object the pose was checked against: the
+    gripper's boxes nest (finger in jaw in housing in the arm keep-out, widening towards
+    the wrist), so the moved gripper lies in the unmoved one but for a slab s thick behind
+    the arm keep-out's far end, ``arm_length + fingertip_z - d`` behind the contacts (at
+    least 210 mm for the default gripper); the planner's checks against the observed
+    points and its robust score still see the whole moved gripper. Poses of one closing
+    line and roll at several depths come to one pose (or to poses between ``target`` and
+    ``clearance``): the lowest of them stands for them.
 
     Returns (rows (K,) of ``gmap``, wrist positions (K, 3) of the lifted poses, object
     frame); the grasps are ``gmap.select(rows)`` with those positions."""
     T_table_obj = np.asarray(T_table_obj, float)
     none = (np.zeros(0, np.int64), np.zeros((0, 3)))
-    if not len(gmap) or low.min_depth >= gripper.depth_lo:
+    if not len(gmap):
         return none
     target = min(float(low.clearance), float(clearance))
     pos = np.asarray(gmap.wrist_position, float)
@@ -147,19 +150,21 @@ def lift_clear(gmap: GraspabilityMap, T_table_obj: np.ndarray, gripper: GripperS
     rise = -(a @ n)  # height gained per metre moved back along the approach
     gp = np.asarray(gmap.grasp_point[below], float)
     depth = gripper.contact_depth(gp, pos[below], a)
+    hb = h[below]
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(rise > 1e-6, (target - h[below] + 1e-7) / rise, np.inf)
-    lifted = depth - s
-    ok = (s >= 0) & (lifted >= low.min_depth) & (lifted < gripper.depth_lo)
-    rows, s = below[ok], s[ok]
+        s = np.where(hb >= target, 0.0, np.where(rise > 1e-6, (target - hb + 1e-7) / rise, np.inf))
+    ok = np.isfinite(s) & (depth - s >= low.min_depth)
+    rows, s, low_h = below[ok], s[ok], hb[ok] + s[ok] * rise[ok]
     if not len(rows):
         return none
-    # one pose per closing line and roll (its depths lift to the same pose): contacts and rotation alike
+    # one pose per closing line and roll: the lowest (lowest point nearest the target)
+    by = np.argsort(low_h, kind="stable")
+    rows, s = rows[by], s[by]
     key = np.column_stack([gmap.contacts[rows].reshape(len(rows), 6), gmap.wrist_quat[rows]]).astype(np.float32)
     _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * key.shape[1]))).ravel(),
                          return_index=True)
-    first = np.sort(first)
-    rows, s = rows[first], s[first]
+    order = np.argsort(rows[first], kind="stable")  # back in the map's order
+    rows, s = rows[first][order], s[first][order]
     new = pos[rows] - s[:, None] * gmap.approach[rows].astype(float)
     # float32 storage must not take a pose back under the clearance
     keep = heights_above(gripper, T_table_obj, gmap.wrist_quat[rows], new.astype(np.float32),

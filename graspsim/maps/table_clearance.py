@@ -44,16 +44,16 @@ class LowProfile:
     0.5 mm above the table, as a two-jaw gripper picks a domino, the pad overlapping a 6 mm
     object over 5.5 mm. In MuJoCo a 3-5 g box 6 mm thick squeezed by the default
     gripper's 250 N slips out of the pads when they overlap it by 5 mm or less (the
-    fingertips 1 mm up: 3 of 10 lifted in ``tests/test_low_profile.py``'s box; 0.5 mm up:
-    10 of 10). The robust score's table term still judges every pose under the execution
+    fingertips 1 mm up: most of ``tests/test_low_profile.py``'s box's best grasps failed;
+    0.5 mm up: none). The robust score's table term still judges every pose under the execution
     error, so these grasps rank by how often the fingertips would meet the table.
 
     ``max_tip`` [m]: the pads' tip edges (the middle of each, at the pre-grasp opening)
     at most this high above the table. An approach tilted across the finger's width
     keeps its lowest corner at ``clearance`` but lifts the pad's edge: 20 deg over the
     default finger's 20 mm width lifts it by 3.4 mm, and a pad 4 mm over the table
-    overlaps a domino by 2 mm: in 20 household-tuning piles (E10's seeds) 10 of 16 domino
-    grasps tilted 12-25 deg, their pad edges 3-5.5 mm up, closed on nothing or dropped it.
+    overlaps a domino by 2 mm: in household-tuning piles such domino grasps, tilted 12-25
+    deg with their pad edges 3-5.5 mm up, mostly closed on nothing or dropped it.
     The default 2 mm allows tilts up to about 8 deg for the default finger."""
 
     min_depth: float = 0.001

@@ -43,8 +43,8 @@ SCENE_COLLISION_TOLERANCE = 0.001
 #: fraction of its bounding-box diagonal; the default's 3 % suits the paper's clouds). A depth
 #: camera's noise at a table's 0.6-0.8 m (1.8-2.8 mm for the default sensor) is 3 % of a 6-9 cm
 #: object: a Lego brick (its studs' roughness on top, 2.2 mm estimated over a 5.2 cm segment) was
-#: never identified, so never grasped (E10's household-tuning piles: lego left with no grasp in
-#: 3 of the 4 scenes checked). 5 %: objects from about 4.5 cm.
+#: never identified, so never grasped (the Lego brick left with no grasp in household-tuning
+#: piles). 5 %: objects from about 4.5 cm.
 SCENE_MAX_NOISE_RATIO = 0.05
 
 

@@ -112,7 +112,8 @@ def failure_lines(rows: list) -> list[str]:
             continue
         L += ["", f"Per object, {o} (the full method's conditions pooled): grasps aimed at it (the target: the "
               "object most of the chosen segment's points show), failed grasps by cause, objects left on the table "
-              "by why (judged on the last look: not seen, merged with a neighbour, split, no grasp planned, not "
+              "by why (judged on the last look: not seen, merged with a neighbour, split, no grasp planned, "
+              "excluded: its planned grasps all on a failed grasp's contacts, not "
               "tried before the episode stopped, off the table):", "",
               "| " + " | ".join(FAILURE_COLUMNS) + " |", "|" + "---|" * len(FAILURE_COLUMNS)]
         L += ["| " + " | ".join(str(x) for x in row) + " |" for row in failure_rows(t)]

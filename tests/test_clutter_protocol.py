@@ -183,3 +183,14 @@ def test_a_frame_whose_reused_plans_offer_nothing_is_planned_afresh(monkeypatch)
     assert calls == [False, True, False, True, False]  # frames 2 and 3: reused plans first, then afresh
     eye = rig(1)[0].T_world_camera[:3, 3]  # every plan knows where the camera was (the occluded space)
     assert len(views) == 5 and all(v is not None and np.allclose(v, eye) for v in views)
+
+
+def test_an_object_whose_planned_grasps_all_failed_is_left_excluded_not_no_grasp(monkeypatch):
+    """Its two grasps failed (the second frame offers the first again, which is not tried):
+    the third look has none left to try. It had grasps planned: "excluded"; the objects
+    that had none: "no_grasp"."""
+    _scripted(monkeypatch, [0, 0, 0], poses=[0.0, 0.0, 0.0])
+    r = run_clutter(_Scene([None, None]), db=None, rng=np.random.default_rng(0),
+                    config=ClutterConfig(depth_noise=None, max_failures=3, reuse=False))
+    assert [a.score for a in r.attempts] == [0.9, 0.5] and r.stop == "no_grasp"
+    assert r.left == {0: "excluded", 1: "no_grasp", 2: "no_grasp"}

@@ -54,7 +54,7 @@ def _cmd_adapt(args) -> int:
     cfg = adapt_config(mode=args.mode, table=None if args.table is None else (
         "auto" if args.table == "auto" else _height(args.table)), table_normal=args.table_normal,
         table_clearance=args.table_clearance, repetitions=args.repetitions, theta=args.theta,
-        scaling=args.scaling, partial=not args.no_partial)
+        scaling=args.scaling, partial=not args.no_partial, low_profile=_low_profile(args.low_profile))
     viewpoint = viewpoint_from_args(args)
     map_cfg, quality = _config(args)
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
@@ -91,6 +91,8 @@ def _cmd_adapt(args) -> int:
              + (f"; first grasp > 0.95 after {first * 1e3:.1f} ms" if first is not None else "")
              + (f"; {s['table']['dropped']} grasps below the table (height "
                 f"{s['table']['height']:.4f} m) dropped" if s.get("table") and "dropped" in s["table"] else "")
+             + (f", {s['table']['lifted']} lifted clear of it (contacts nearer the fingertip)"
+                if s.get("table") and s["table"].get("lifted") else "")
              + (f"; viewpoint {' '.join(f'{v:g}' for v in vp)}" if vp is not None
                 else "; seen all round (no viewpoint)")
              + (f" -> {out}" if why is None else "")
@@ -104,6 +106,20 @@ def _cmd_adapt(args) -> int:
         print(f"graspsim: adapt: no map written: {why} ({kept})", file=sys.stderr)
         return 1
     return 0
+
+
+def _low_profile(text: str) -> float | str:
+    from graspsim.errors import InvalidParameterError
+
+    if text == "off":
+        return "off"
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (v >= 0 and v < float("inf")):
+        raise InvalidParameterError(f"--low-profile takes 'off' or a contact depth >= 0 m, got {text!r}")
+    return v
 
 
 def _height(text: str) -> float:
@@ -143,6 +159,11 @@ def register(sub) -> None:
                        metavar=("NX", "NY", "NZ"), help="the table's upward normal in the cloud's frame (0 0 1)")
         p.add_argument("--table-clearance", type=float, default=0.002,
                        help="gripper clearance above the table [m] (0.002)")
+        p.add_argument("--low-profile", default="0.001", metavar="DEPTH|off",
+                       help="with --table: a grasp that would take the gripper under the table is lifted clear "
+                       "of it along its approach, its contacts held nearer the fingertip, where they stay at "
+                       "least DEPTH [m] from it (low objects lying on the table: a domino, a lid); 'off': "
+                       "dropped (0.001; --mode paper never lifts)")
         add_viewpoint_flag(p)
         add_robot_flags(p, robot_help="mark each grasp reachable or not for this arm at --robot-base (the map's "
                         "reachable column; its ranking then puts reachable grasps first; see graspsim reach)")

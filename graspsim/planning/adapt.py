@@ -28,12 +28,16 @@ __all__ = ["adapt_config", "adapt_cloud"]
 def adapt_config(*, mode: str = "robust", table: str | float | None = None,
                  table_normal: Sequence[float] = (0.0, 0.0, 1.0), table_clearance: float = 0.002,
                  repetitions: int = 10, theta: float = 0.5, scaling: str = "combined",
-                 partial: bool = True):
+                 partial: bool = True, low_profile: float | None = None):
     """The :class:`~graspsim.planning.planner.PlannerConfig` of ``graspsim adapt``'s options:
     ``mode`` "robust" | "paper"; ``table`` None (no table, as the paper's maps), "auto"
     (the object's lowest point: :func:`~graspsim.maps.table_clearance.table_height`) or a height
     [m] along ``table_normal`` in the cloud's frame; ``scaling`` the scaling method of
-    familiar parts; ``partial``: a map of the identified parts when clustering fails."""
+    familiar parts; ``partial``: a map of the identified parts when clustering fails;
+    ``low_profile``: the least contact depth [m] of a grasp lifted clear of the table
+    (:attr:`PlannerConfig.low_profile <graspsim.planning.planner.PlannerConfig.low_profile>`'s
+    ``min_depth``; None: the default :class:`~graspsim.maps.table_clearance.LowProfile`; "off":
+    none lifted)."""
     from graspsim.geometry.table import TablePlane
     from graspsim.maps.scaling import ScalingConfig
     from graspsim.perception import IdentifyConfig
@@ -48,8 +52,12 @@ def adapt_config(*, mode: str = "robust", table: str | float | None = None,
                 raise InvalidParameterError(f"table takes 'auto' or a height in metres, got {table!r}") from None
         plane = TablePlane(normal=tuple(table_normal), clearance=table_clearance,
                            height=None if table == "auto" else table)
+    from graspsim.maps.table_clearance import LowProfile
+
+    lift = {} if low_profile is None else {
+        "low_profile": None if low_profile == "off" else LowProfile(min_depth=float(low_profile))}
     return PlannerConfig(identify=IdentifyConfig.preset(mode, repetitions=repetitions, theta=theta),
-                         scaling=ScalingConfig(method=scaling), partial=partial, table=plane)
+                         scaling=ScalingConfig(method=scaling), partial=partial, table=plane, **lift)
 
 
 def adapt_cloud(cloud, *, db, config=None, seed: int = 0, source: str | None = None,

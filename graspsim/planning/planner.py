@@ -35,7 +35,15 @@ from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map, view_of
 from graspsim.maps.scaling import ScalingConfig, scale_stream
-from graspsim.maps.table_clearance import clears_table, heights_above, stream_order, table_height
+from graspsim.maps.table_clearance import (
+    LowProfile,
+    clears_table,
+    heights_above,
+    lift_clear,
+    low_part,
+    stream_order,
+    table_height,
+)
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
 from graspsim.planning.observed import ObservedChecks
 from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
@@ -94,6 +102,20 @@ class PlannerConfig:
         (:meth:`~graspsim.planning.observed.ObservedChecks.unseen_depth`; the count in
         ``extra["observed"]``). False: such grasps offered. Paper mode and clouds without a
         viewpoint: never applied.
+    low_profile: with a ``table``, a pose that would take the gripper under it is lifted
+        clear along its approach, its contacts held nearer the fingertip
+        (:class:`~graspsim.maps.table_clearance.LowProfile`,
+        :func:`~graspsim.maps.table_clearance.lift_clear`): the grasps of objects lower than
+        the pad's planned region (a domino, a lid, a flat tool lying down), which the stored
+        maps' tip margin (``GripperSpec.depth_lo``) leaves with none. Only parts that low are
+        lifted (:func:`~graspsim.maps.table_clearance.low_part`: the part's top less than the
+        table clearance + the tip margin + the maps' surface step above the table, 12 mm for
+        the default gripper); a taller object's grasps stay as they were. They go through the
+        observed-point checks and robust score, but not the cloud-agreement filter (a low
+        part's side contacts lie within its tolerance of the top face, and a scene's table
+        band removes the side points that would bear them out); counts in the table record:
+        ``low_parts``, ``lifted``. None: never (every such pose dropped, as before). Paper
+        identification mode never lifts.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -108,8 +130,12 @@ class PlannerConfig:
     clear_observed: bool = True
     features: FeatureConfig | None = field(default_factory=FeatureConfig)
     seen_depth: bool = True
+    low_profile: LowProfile | None = field(default_factory=LowProfile)
 
     def __post_init__(self) -> None:
+        if self.low_profile is not None and not isinstance(self.low_profile, LowProfile):
+            raise InvalidParameterError(f"PlannerConfig.low_profile must be a LowProfile or None (off), "
+                                        f"got {self.low_profile!r}")
         tol = self.collision_tolerance
         if tol is not None and (isinstance(tol, bool) or not isinstance(tol, (int, float))
                                 or not (np.isfinite(tol) and tol > 0)):
@@ -278,7 +304,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     extra = {**Placement(T_cloud_obj, table).to_extra(), "source": source, "status": status.value,
              "identification": ident_info,
              "viewpoint": None if viewpoint is None else np.asarray(viewpoint, float).tolist()}
-    n_below = n_hi = 0
+    n_below = n_hi = n_lifted = n_low = 0
+    lift = cfg.low_profile if T_table_obj is not None and (ident is None or ident.mode != "paper") else None
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
     first = tenth = first_robust = first_robust_cpu = None
@@ -299,19 +326,38 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         budget = cfg.robust.top if cfg.rank == "robust" else 0
         # the part map's frame in the cloud's (a part's own frame until it is combined)
         T_cloud_map = T_cloud_obj if compound is None else T_cloud_obj @ compound.poses[i]
+        seen_lifted: set[bytes] = set()  # a line and roll lifted in one batch is not lifted again in a later one
+        lift_part = lift if lift is not None and low_part(prim, T_table_obj @ T_obj_part[i], db.gripper,
+                                                          cfg.table.clearance, db.config.surface_step) else None
+        n_low += lift_part is not None
         for part_map in stage.iterate(() if skip_spent and budget <= 0 else stream, "adapt"):
+            low = None
+            if lift_part is not None:  # a low part: its poses under the table lifted clear first (part frame)
+                T_table_part = T_table_obj @ T_obj_part[i]
+                clear = clears_table(part_map, T_table_part, db.gripper, cfg.table.clearance)
+                n_below += int(len(clear) - clear.sum())
+                low = _lifted(part_map.select(~clear), T_table_part, db.gripper, cfg.table.clearance, lift_part,
+                              seen_lifted)
+                n_lifted += len(low)
+                part_map = part_map.select(clear)
             if observed is not None:  # before combining: it keeps each grasp's contacts, and costs more
+                # (not the lifted poses: their contacts lie within the contact tolerance of a low part's
+                # top face, whose points' normals would count against every side contact, and a scene's
+                # table band removes the side points that bear them out)
                 part_map = observed.borne_out(part_map, T_cloud_map)
                 part_map = observed.unseen_depth(part_map, prim, T_cloud[i], T_cloud_map)
             stage.lap("agreement")
             if compound is not None:
-                part_map = combine_part(part_map, i, compound, gripper=db.gripper, quality=db.quality,
-                                        d_ref=obj_meta.quality["d_ref"], config=checks, meta=obj_meta)
+                part_map, low = (m if m is None or not len(m) else combine_part(
+                    m, i, compound, gripper=db.gripper, quality=db.quality, d_ref=obj_meta.quality["d_ref"],
+                    config=checks, meta=obj_meta) for m in (part_map, low))
             stage.lap("combine")
             if T_table_obj is not None:
                 clear = clears_table(part_map, T_table_obj, db.gripper, cfg.table.clearance)
                 n_below += int(len(clear) - clear.sum())
                 part_map = part_map.select(clear)
+                if low is not None and len(low):  # lifted clear of the table already
+                    part_map = GraspabilityMap.concat([part_map, low], meta=part_map.meta)
             stage.lap("table")
             batch = replace(part_map, meta=replace(obj_meta, extra=extra), part=np.full(len(part_map), i, np.int16))
             batch = batch if observed is None else observed.clear(batch)  # none holding observed points
@@ -347,10 +393,24 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         extra = yield from observed.stream_features(batches, replace(obj_meta, extra=extra), len(parts),
                                                     T_table_obj, view_obj, view, skip_spent, stage, t0)
     timing["maps"] = time.perf_counter() - t1
+    if table is not None and lift is not None:
+        table = {**table, "low_profile": lift.to_dict(), "low_parts": n_low, "lifted": n_lifted}
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
                   first_robust_cpu=first_robust_cpu, **stage.seconds)
     yield PlanResult(status, full.with_meta(timing=timing), tuple(parts), ident, T_cloud_obj, timing)
+
+
+def _lifted(below: GraspabilityMap, T_table_obj: np.ndarray, gripper, clearance: float, low: LowProfile,
+            seen: set[bytes]) -> GraspabilityMap:
+    """The poses of ``below`` (none clearing the table) lifted clear of it
+    (:func:`~graspsim.maps.table_clearance.lift_clear`), but for a closing line and roll
+    already lifted (``seen``: their keys, updated)."""
+    rows, pos = lift_clear(below, T_table_obj, gripper, clearance, low)
+    key = np.column_stack([below.contacts[rows].reshape(len(rows), 6), below.wrist_quat[rows]]).astype(np.float32)
+    new = np.array([k.tobytes() not in seen for k in key], bool)
+    seen.update(k.tobytes() for k in key[new])
+    return replace(below.select(rows[new]), wrist_position=pos[new])
 
 
 def _finished(batches: list, parts: list, extra: dict, table: dict | None, n_below: int, obj_meta: MapMeta,

@@ -396,9 +396,10 @@ class ClutterEpisode:
         (:data:`LEFT`): off the table (knocked beyond it), not seen (fewer than
         ``min_seen`` points), merged with another object or split (by
         :func:`object_segmentation`), one cluster but no grasp with a robust score > 0
-        left to try on its segment (no_grasp), or one that was not tried before the
-        episode stopped (not_tried). With a planner of :mod:`graspsim.tabletop.planners`
-        (no segments) a seen object is not_tried when a grasp left to try aims at it
+        planned on its segment (no_grasp), its planned grasps all closing on the contacts
+        of a grasp that failed, so not tried again (excluded), or one left to try that was
+        not tried before the episode stopped (not_tried). With a planner of
+        :mod:`graspsim.tabletop.planners` (no segments) a seen object is not_tried when a grasp left to try aims at it
         (:func:`~graspsim.tabletop.planners.grasp_target`), else no_grasp."""
         look, out = self.last, {}
         gripper = self.db.gripper if self.db is not None else None
@@ -423,8 +424,9 @@ class ClutterEpisode:
                 out[k] = how
             elif any(g.segment == seg and g.score > 0 for g in look.candidates):
                 out[k] = "unreachable" if self.stop == "unreachable" else "not_tried"
-            else:
-                out[k] = "no_grasp"
+            else:  # planned grasps that all close on a failed grasp's contacts are not "none planned"
+                out[k] = "excluded" if any(g.segment == seg and g.score > 0 for g in look.plan.grasps) \
+                    else "no_grasp"
         return out
 
     def result(self) -> ClutterResult:

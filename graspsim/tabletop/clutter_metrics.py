@@ -22,7 +22,7 @@ ARM_STOPS = ("unreachable",)
 OTHER = "success_other_object"
 #: Why an object was left on the table, judged on the episode's last look
 #: (:meth:`graspsim.tabletop.clutter.ClutterEpisode.left_reasons`).
-LEFT = ("not_seen", "merged", "split", "no_grasp", "not_tried", "off_table", "unreachable")
+LEFT = ("not_seen", "merged", "split", "no_grasp", "excluded", "not_tried", "off_table", "unreachable")
 
 
 def object_segmentation(truth: np.ndarray, found: np.ndarray, k: int, *, min_seen: int = 40,

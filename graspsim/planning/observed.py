@@ -84,15 +84,25 @@ class ObservedChecks:
         return cls(points, cloud_obj, T_cloud_obj, viewpoint=viewpoint, noise=ident.noise, gripper=db.gripper,
                    quality=db.quality, cfg=cfg)
 
+    @property
+    def min_observed(self) -> int:
+        """Contacts of a grasp the cloud must bear out: 1 for a single view (its far
+        contact lies where the camera never looked: no evidence either way), 2 for a
+        cloud seen all round (no viewpoint) -- there a finger whose closing path meets no
+        observed point closes on air: E09's mug, whose half-toroid laid over the rim
+        put one contact 9-11 mm above it, the pads meeting the rim with their edges."""
+        return 1 if self.surface.viewpoint is not None else 2
+
     def borne_out(self, part_map: GraspabilityMap, T_cloud_map: np.ndarray) -> GraspabilityMap:
         """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) the observed
-        cloud bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`); the
-        answer depends on a grasp's contacts alone, so it is found once per closing line."""
+        cloud bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`, at
+        :attr:`min_observed`); the answer depends on a grasp's contacts alone, so it is
+        found once per closing line."""
         line = row_ids(part_map.contacts)
         c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
         return part_map.select(self.surface.borne_out(c, tol=self.cfg.contact_tolerance,
                                                       max_angle=self.quality.friction_angle,
-                                                      min_observed=1)[line])
+                                                      min_observed=self.min_observed)[line])
 
     def unseen_depth(self, part_map: GraspabilityMap, prim, T_cloud_part: np.ndarray,
                      T_cloud_map: np.ndarray) -> GraspabilityMap:

@@ -66,7 +66,9 @@ class PlannerConfig:
         contact or of its closing path further in -- and the cloud's normal at every
         touch it shows within the friction cone about the closing line; a contact
         whose path meets no observed point is no evidence in a single view (its far
-        side), and both must be borne out in a cloud seen all round (no viewpoint).
+        side), and both must be borne out in a cloud seen all round (no viewpoint),
+        within at least 3 of the cloud's median point spacings
+        (:class:`~graspsim.planning.observed.ObservedChecks`).
     rank: ``"robust"`` (default): score the best-graded grasps for robustness
         (``robust``) and order by the robust score; ``"paper"``: the paper's grade.
     robust: the robustness settings (pose error, perturbations, grasps scored per part).

@@ -98,10 +98,11 @@ class ObservedChecks:
     def min_observed(self) -> int:
         """Contacts of a grasp the cloud must bear out: 1 for a single view (its far
         contact lies where the camera never looked: no evidence either way), 2 for a
-        cloud seen all round (no viewpoint) -- there a finger whose closing path meets no
+        cloud seen all round (no viewpoint; ``PlannerConfig.both_contacts_all_round``,
+        off in scene planning) -- there a finger whose closing path meets no
         observed point closes on air: E09's mug, whose half-toroid laid over the rim
         put one contact 9-11 mm above it, the pads meeting the rim with their edges."""
-        return 1 if self.surface.viewpoint is not None else 2
+        return 2 if self.surface.viewpoint is None and self.cfg.both_contacts_all_round else 1
 
     @cached_property
     def spacing(self) -> float:

@@ -18,10 +18,14 @@ own surface normal there (PCA over the ``k`` nearest points) within the friction
 about the closing line: the condition the map's grade assumed for the primitive's
 normal. A shown touch whose normal lies outside the cone is evidence *against* the
 grasp (the finger meets a slope, and the object turns or slides). A contact whose
-closing path meets no observed point is *unobserved*: no evidence either way -- the far
-side of a single view, which the camera never saw, is where the second contact of most
-grasps lies. A grasp is kept when no contact is evidence against it and at least
-``min_observed`` contacts are borne out.
+closing path meets no observed point is *unobserved*. In a single view that is no
+evidence either way -- the far side, which the camera never saw, is where the second
+contact of most grasps lies --; in a cloud seen all round it is: the finger closes on
+air (E09's mug, full cloud: a half-toroid laid over the rim put one contact of each of
+its 10 best grasps 9-11 mm above the rim, where the pads met only the rim's edge with
+their corners, and 8 of the 10 dropped). A grasp is kept when no contact is evidence
+against it and at least ``min_observed`` contacts are borne out: the planner asks 1 of
+a single view, 2 of a cloud seen all round (:class:`graspsim.planning.observed.ObservedChecks`).
 
 With the ``viewpoint`` of a single view, the cloud's normals are oriented: a surface the
 camera saw faces it, so its outward normal points to the camera's side. A finger must

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
+from functools import cached_property
 
 import numpy as np
 
@@ -36,11 +37,20 @@ from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.table_clearance import clears_table
 from graspsim.planning.plan_results import GraspBatch
 
-__all__ = ["ObservedChecks", "clear_of_cloud", "MEASURED_SHARE"]
+__all__ = ["ObservedChecks", "clear_of_cloud", "MEASURED_SHARE", "SPACING_TOLERANCE"]
 
 #: A box part's extent along an axis counts as measured by a single view when at least this share
 #: of its points lie on faces running along the axis (normal > 60 deg from it): ObservedChecks.unseen_depth
 MEASURED_SHARE = 0.1
+
+#: Where both contacts of a grasp must be borne out (a cloud seen all round), a contact
+#: counts as observed within this many median point spacings of a cloud point (or
+#: ``PlannerConfig.contact_tolerance``, whichever is larger): on a surface sampled at
+#: random, with median nearest-neighbour spacing s, no point lies within r of a surface
+#: location with probability 2^-((r / s)^2) -- 0.2 % at 3 s, 4 % at the 4 mm setting in a
+#: cloud spaced 1.8 mm (E09's full clouds), 21 % at 4 mm when spaced 2 mm (the tests'
+#: synthetic clouds): a true contact in a sampling gap must not read as closing on air.
+SPACING_TOLERANCE = 3.0
 
 
 def clear_of_cloud(gmap, rows: np.ndarray, cloud_obj: np.ndarray, config: RobustConfig = RobustConfig(),
@@ -84,15 +94,42 @@ class ObservedChecks:
         return cls(points, cloud_obj, T_cloud_obj, viewpoint=viewpoint, noise=ident.noise, gripper=db.gripper,
                    quality=db.quality, cfg=cfg)
 
+    @property
+    def min_observed(self) -> int:
+        """Contacts of a grasp the cloud must bear out: 1 for a single view (its far
+        contact lies where the camera never looked: no evidence either way), 2 for a
+        cloud seen all round (no viewpoint; ``PlannerConfig.both_contacts_all_round``,
+        off in scene planning) -- there a finger whose closing path meets no
+        observed point closes on air: E09's mug, whose half-toroid laid over the rim
+        put one contact 9-11 mm above it, the pads meeting the rim with their edges."""
+        return 2 if self.surface.viewpoint is None and self.cfg.both_contacts_all_round else 1
+
+    @cached_property
+    def spacing(self) -> float:
+        """The cloud's median point spacing [m]."""
+        return median_spacing(self.surface.points)
+
+    @property
+    def contact_tolerance(self) -> float:
+        """How near a cloud point must lie to a contact (or its closing path) for the
+        cloud to show the finger's touch [m]: ``PlannerConfig.contact_tolerance``; where
+        both contacts must be borne out (:attr:`min_observed` 2) at least
+        :data:`SPACING_TOLERANCE` median point spacings, so that a sampling gap at either
+        contact does not drop a true grasp. A single view, which needs one, keeps the
+        setting as it is (scene planning's thinned segments included)."""
+        tol = float(self.cfg.contact_tolerance)
+        return tol if self.min_observed < 2 else max(tol, SPACING_TOLERANCE * self.spacing)
+
     def borne_out(self, part_map: GraspabilityMap, T_cloud_map: np.ndarray) -> GraspabilityMap:
         """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) the observed
-        cloud bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`); the
-        answer depends on a grasp's contacts alone, so it is found once per closing line."""
+        cloud bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`, at
+        :attr:`contact_tolerance` and :attr:`min_observed`); the answer depends on a
+        grasp's contacts alone, so it is found once per closing line."""
         line = row_ids(part_map.contacts)
         c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
-        return part_map.select(self.surface.borne_out(c, tol=self.cfg.contact_tolerance,
+        return part_map.select(self.surface.borne_out(c, tol=self.contact_tolerance,
                                                       max_angle=self.quality.friction_angle,
-                                                      min_observed=1)[line])
+                                                      min_observed=self.min_observed)[line])
 
     def unseen_depth(self, part_map: GraspabilityMap, prim, T_cloud_part: np.ndarray,
                      T_cloud_map: np.ndarray) -> GraspabilityMap:
@@ -157,7 +194,7 @@ class ObservedChecks:
         cloud (no primitives term: the parts are what these grasps do without), clear of
         the cloud; ``scored_only``: the scored ones alone."""
         cfg = self.cfg
-        gap = 3.0 * median_spacing(self.points) + 4.0 * self.noise
+        gap = 3.0 * self.spacing + 4.0 * self.noise
         up = None if T_table_obj is None else T_table_obj[2, :3]  # the table's normal in the object frame
         fmap = GraspabilityMap(**feature_columns(cloud_in_object(self.points, self.T_cloud_obj), self.gripper,
                                                  self.quality, gap=gap, config=cfg.features, part=part, up=up),
@@ -198,5 +235,6 @@ class ObservedChecks:
         planned (the feature grasps' part index)."""
         f = self.cfg.features
         return {"observed": {"clear_observed": bool(self.cfg.clear_observed), "dropped": self.dropped,
-                             "seen_depth": bool(self.cfg.seen_depth), "unseen_depth": self.unseen},
+                             "seen_depth": bool(self.cfg.seen_depth), "unseen_depth": self.unseen,
+                             "contact_tolerance": self.contact_tolerance, "min_observed": self.min_observed},
                 "features": None if f is None else {**f.to_dict(), "grasps": self.features or 0, "part": parts}}

@@ -73,7 +73,15 @@ class PlannerConfig:
         shows the finger's touch -- a cloud point within this distance [m] of the
         contact or of its closing path further in -- and the cloud's normal at every
         touch it shows within the friction cone about the closing line; a contact
-        whose path meets no observed point (the far side of a view) is no evidence.
+        whose path meets no observed point is no evidence in a single view (its far
+        side), and both must be borne out in a cloud seen all round (no viewpoint;
+        ``both_contacts_all_round``), within at least 3 of the cloud's median point
+        spacings (:class:`~graspsim.planning.observed.ObservedChecks`).
+    both_contacts_all_round: robust identification, a cloud planned without a viewpoint
+        (seen all round): both contacts of a grasp must be borne out, as no part of the
+        object is hidden from such a cloud; False: one, as of a single view. Scene
+        planning sets False: a segment's points are not all of its object even without
+        a viewpoint (thinned, cut at creases and at its neighbours).
     rank: ``"robust"`` (default): score the best-graded grasps for robustness
         (``robust``) and order by the robust score; ``"paper"``: the paper's grade.
     robust: the robustness settings (pose error, perturbations, grasps scored per part).
@@ -131,6 +139,7 @@ class PlannerConfig:
     features: FeatureConfig | None = field(default_factory=FeatureConfig)
     seen_depth: bool = True
     low_profile: LowProfile | None = field(default_factory=LowProfile)
+    both_contacts_all_round: bool = True
 
     def __post_init__(self) -> None:
         if self.low_profile is not None and not isinstance(self.low_profile, LowProfile):

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+import qpsolvers
 
 from graspsim.errors import InvalidParameterError
 from graspsim.robots.arm import ArmSpec
@@ -30,6 +31,46 @@ __all__ = ["ArmKinematics", "IKResult", "Reach", "ReachCheck", "check_reach", "p
 #: IK convergence: wrist position [m] and orientation [rad] errors a solution may keep
 POS_TOL = 1e-4
 ROT_TOL = math.radians(0.05)
+
+
+def _joint_limit(model: mujoco.MjModel):
+    """The joint-position limit of mink's IK for ``model``: :class:`mink.ConfigurationLimit`'s
+    rows, computed without its per-step allocations when every limited joint is a hinge
+    or a slide (the arms' and grippers' joints); mink's own limit otherwise."""
+    import mink
+
+    limited = [j for j in range(model.njnt)
+               if model.jnt_limited[j] and model.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE]
+    if any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL for j in limited):
+        return mink.ConfigurationLimit(model)
+
+    class _HingeSlideLimit(mink.Limit):
+        """``gain * (q_min - q) <= dq <= gain * (q_max - q)`` on the limited joints: the
+        values of mink.ConfigurationLimit (whose ``mj_differentiatePos`` of a hinge or a
+        slide is ``q2 - q1``), the same rows in the same order."""
+
+        gain = 0.95  # mink.ConfigurationLimit's default
+
+        def __init__(self) -> None:
+            ref = mink.ConfigurationLimit(model)
+            self.gain = ref.gain
+            self.indices = ref.indices  # dof addresses, increasing
+            dof_to_q = np.full(model.nv, -1)
+            for j in range(model.njnt):
+                if int(model.jnt_type[j]) in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+                    dof_to_q[model.jnt_dofadr[j]] = model.jnt_qposadr[j]
+            self.qadr = dof_to_q[self.indices]
+            self.lower, self.upper = ref.lower[self.qadr].copy(), ref.upper[self.qadr].copy()
+            self.G = np.vstack([ref.projection_matrix, -ref.projection_matrix])
+            self.G.setflags(write=False)
+
+        def compute_qp_inequalities(self, configuration, dt):
+            del dt
+            q = configuration.q[self.qadr]
+            return mink.Constraint(G=self.G, h=np.concatenate([self.gain * (self.upper - q),
+                                                              self.gain * (q - self.lower)]))
+
+    return _HingeSlideLimit() if limited else mink.ConfigurationLimit(model)
 
 
 def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
@@ -111,7 +152,7 @@ class ArmKinematics:
         self._cfg = mink.Configuration(im)
         self._task = mink.FrameTask(wrist_site, "site", position_cost=1.0, orientation_cost=1.0)
         self._posture = mink.PostureTask(im, cost=posture_cost)
-        self._limits = [mink.ConfigurationLimit(im)]
+        self._limits = [_joint_limit(im)]
         self._mink = mink
         # the joints mink may move: the arm's; everything else (the jaws, the scene) is frozen
         ik_dadr = im.jnt_dofadr[[im.joint(ARM_PREFIX + j).id for j in arm.joints]]
@@ -167,9 +208,13 @@ class ArmKinematics:
         best, since = np.inf, 0
         while it < self.iterations:
             it += 1
-            v = mink.solve_ik(cfg, tasks, 1.0, self.solver, damping=self.damping, limits=self._limits,
-                              constraints=constraints)
-            cfg.integrate_inplace(v, 1.0)
+            # mink.solve_ik less its limit check (a warning at most: the limits are a
+            # constraint of the QP, and every iterate is checked against them below)
+            problem = mink.build_ik(cfg, tasks, 1.0, self.damping, self._limits, constraints)
+            sol = qpsolvers.solve_problem(problem, solver=self.solver)
+            if not sol.found:
+                raise mink.NoSolutionFound(self.solver)
+            cfg.integrate_inplace(sol.x, 1.0)
             err = self._task.compute_error(cfg)
             pe, re = float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:]))
             if pe <= POS_TOL and re <= ROT_TOL:

@@ -15,6 +15,7 @@ line between them (the Cartesian approach), each solved from the one before.
 
 from __future__ import annotations
 
+import ctypes
 import enum
 import math
 from dataclasses import dataclass
@@ -211,10 +212,7 @@ class ArmKinematics:
             # mink.solve_ik less its limit check (a warning at most: the limits are a
             # constraint of the QP, and every iterate is checked against them below)
             problem = mink.build_ik(cfg, tasks, 1.0, self.damping, self._limits, constraints)
-            sol = qpsolvers.solve_problem(problem, solver=self.solver)
-            if not sol.found:
-                raise mink.NoSolutionFound(self.solver)
-            cfg.integrate_inplace(sol.x, 1.0)
+            cfg.integrate_inplace(self._solve_qp(problem), 1.0)
             err = self._task.compute_error(cfg)
             pe, re = float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:]))
             if pe <= POS_TOL and re <= ROT_TOL:
@@ -229,6 +227,32 @@ class ArmKinematics:
         q = cfg.q[self._ik_qadr].copy()
         ok = pe <= POS_TOL and re <= ROT_TOL and self.within_limits(q)
         return IKResult(q=q, ok=bool(ok), pos_err=pe, rot_err=re, iterations=it)
+
+    def _solve_qp(self, problem) -> np.ndarray:
+        """The QP's solution: DAQP called as qpsolvers calls it (the same arrays, so the
+        same result) without qpsolvers' per-call dispatch; any other solver through
+        qpsolvers."""
+        mink = self._mink
+        if self.solver != "daqp" or problem.lb is not None or problem.ub is not None:
+            sol = qpsolvers.solve_problem(problem, solver=self.solver)
+            if not sol.found:
+                raise mink.NoSolutionFound(self.solver)
+            return sol.x
+        import daqp
+
+        G, h, A, b = problem.G, problem.h, problem.A, problem.b
+        parts = [(M, v) for M, v in ((G, h), (A, b)) if M is not None]
+        if not parts:
+            return qpsolvers.solve_problem(problem, solver="daqp").x
+        Atot = parts[0][0] if len(parts) == 1 else np.vstack([G, A])
+        upper = parts[0][1] if len(parts) == 1 else np.concatenate([h, b])
+        sense = np.zeros(len(upper), dtype=ctypes.c_int)
+        if A is not None:
+            sense[len(upper) - len(b):] = 5  # DAQP's equality rows
+        x, _, exitflag, _ = daqp.solve(problem.P, problem.q, Atot, upper, np.full(len(upper), -1e30), sense)
+        if not exitflag > 0:
+            raise mink.NoSolutionFound(self.solver)
+        return x
 
     def spread_seeds(self, n: int = 6) -> np.ndarray:
         """(n, 7) fixed configurations spread over the joint ranges (a seeded draw, the

@@ -280,8 +280,12 @@ class ArmKinematics:
         out = dict.fromkeys(("self", "arm_table", "gripper_table", "arm_scene", "gripper_scene"), 0.0)
         if not d.ncon:
             return out
-        g = d.contact.geom[: d.ncon]
         depth = -d.contact.dist[: d.ncon]
+        deep = depth > tol
+        if not deep.any():  # the usual case: every contact within the tolerance
+            return out
+        g = d.contact.geom[: d.ncon][deep]
+        depth = depth[deep]
         r0, r1 = self.robot_geom[g[:, 0]], self.robot_geom[g[:, 1]]
         t0, t1 = self.table_geom[g[:, 0]], self.table_geom[g[:, 1]]
         s0, s1 = self.scene_geom[g[:, 0]], self.scene_geom[g[:, 1]]
@@ -290,8 +294,7 @@ class ArmKinematics:
         kinds = {"self": r0 & r1, "arm_table": table & ~gr, "gripper_table": table & gr,
                  "arm_scene": scene & ~gr, "gripper_scene": scene & gr}
         for k, sel in kinds.items():
-            sel = sel & (depth > tol)
-            if np.any(sel):
+            if sel.any():
                 out[k] = float(depth[sel].max())
         return out
 

@@ -214,7 +214,8 @@ class ArmKinematics:
             problem = mink.build_ik(cfg, tasks, 1.0, self.damping, self._limits, constraints)
             cfg.integrate_inplace(self._solve_qp(problem), 1.0)
             err = self._task.compute_error(cfg)
-            pe, re = float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:]))
+            ep, er = err[:3], err[3:]  # np.linalg.norm of a vector is sqrt(x.dot(x)): the same values
+            pe, re = math.sqrt(ep.dot(ep)), math.sqrt(er.dot(er))
             if pe <= POS_TOL and re <= ROT_TOL:
                 break
             e = pe + 0.1 * re  # [m]: 0.1 m per radian

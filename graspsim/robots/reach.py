@@ -5,8 +5,8 @@ collisions from MuJoCo's own collision detection.
 :func:`graspsim.robots.arm.add_arm` (the bare robot above the table, or a trial scene
 with the object): ``ik`` solves for the wrist frame with mink's differential IK (a
 :class:`mink.FrameTask` on the ``wrist`` site, a small posture task toward the seed that
-settles the arm's redundancy, :class:`mink.ConfigurationLimit` keeping every iterate
-inside the joint limits), iterated to convergence; ``contacts`` poses the arm (and the
+settles the arm's redundancy, :class:`mink.ConfigurationLimit`'s rows keeping every
+iterate inside the joint limits), iterated to convergence; ``contacts`` poses the arm (and the
 gripper's jaws at an opening) and sorts MuJoCo's contacts into self-collisions, the
 table, and the rest of the scene. :func:`check_reach` applies both to a grasp: its wrist
 pose, the pre-grasp pose ``approach`` back along the approach axis, and the straight
@@ -41,16 +41,14 @@ def _joint_limit(model: mujoco.MjModel):
     import mink
 
     limited = [j for j in range(model.njnt)
-               if model.jnt_limited[j] and model.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE]
-    if any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL for j in limited):
+               if model.jnt_limited[j] and int(model.jnt_type[j]) != mujoco.mjtJoint.mjJNT_FREE]
+    if any(int(model.jnt_type[j]) == mujoco.mjtJoint.mjJNT_BALL for j in limited):
         return mink.ConfigurationLimit(model)
 
     class _HingeSlideLimit(mink.Limit):
         """``gain * (q_min - q) <= dq <= gain * (q_max - q)`` on the limited joints: the
         values of mink.ConfigurationLimit (whose ``mj_differentiatePos`` of a hinge or a
         slide is ``q2 - q1``), the same rows in the same order."""
-
-        gain = 0.95  # mink.ConfigurationLimit's default
 
         def __init__(self) -> None:
             ref = mink.ConfigurationLimit(model)

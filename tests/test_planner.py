@@ -432,3 +432,27 @@ def test_a_single_view_of_one_face_gives_no_grasp_across_the_depth_it_did_not_sh
     assert one_face[:, 0].max() < math.cos(math.radians(45)) + 1e-9 and (one_face[:, 1] > 0.9).any()
     for other in (kept(np.concatenate([front, top])), kept(front, viewpoint=None), kept(front, seen=False)):
         assert len(other) == len(m)
+
+
+def test_unseen_depth_is_found_per_part_and_the_same_for_every_batch(db):
+    """ObservedChecks finds a box part's unmeasured axes once per part and plan (a part
+    streams many batches): a second batch of the same part is judged as the first, and
+    a part of the same size elsewhere (no points on it: nothing measured, nothing
+    dropped) gets its own answer, not the first part's."""
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.planning.observed import ObservedChecks
+
+    plate = Box(0.002, 0.044, 0.06)
+    m = generate_fs_map(plate, G, config=FAST)
+    rng = np.random.default_rng(3)
+    front = np.column_stack([np.full(800, 0.001), rng.uniform([-0.022, -0.03], [0.022, 0.03], (800, 2))])
+    I, away = np.eye(4), np.eye(4)
+    away[:3, 3] = [0.0, 0.3, 0.0]
+    checks = ObservedChecks(front + rng.normal(0, 0.0005, front.shape), None, I, viewpoint=np.array([0.6, 0.05, 0.3]),
+                            noise=0.0005, gripper=G, quality=db.quality, cfg=PlannerConfig())
+    first = checks.unseen_depth(m, plate, I, I)
+    assert 0 < len(first) < len(m)
+    assert len(checks.unseen_depth(m, plate, away, away)) == len(m)
+    again = checks.unseen_depth(m, plate, I, I)
+    np.testing.assert_array_equal(again.wrist_transforms(), first.wrist_transforms())
+    assert checks.unseen == 2 * (len(m) - len(first))

@@ -84,6 +84,7 @@ class ObservedChecks:
         self.noise, self.gripper, self.quality, self.cfg = float(noise), gripper, quality, cfg
         self.dropped = self.unseen = 0
         self.features: int | None = None
+        self._unmeasured: dict[bytes, np.ndarray | None] = {}  # unseen_depth's per-part axes, by part size and pose
 
     @classmethod
     def of_plan(cls, ident, points, cloud_obj, T_cloud_obj, viewpoint, db, cfg) -> ObservedChecks | None:
@@ -145,21 +146,34 @@ class ObservedChecks:
         round shows depths), with ``PlannerConfig.seen_depth`` off, or for other shapes."""
         if self.viewpoint is None or not self.cfg.seen_depth or prim.kind != "box" or not len(part_map):
             return part_map
-        T = np.asarray(T_cloud_part, float)
-        half = 0.5 * np.array([prim.x, prim.y, prim.z])
-        local = (self.surface.points - T[:3, 3]) @ T[:3, :3]
-        inside = np.flatnonzero(np.all(np.abs(local) <= half + self.cfg.contact_tolerance, axis=1))
-        if len(inside) < 3 * self.surface.k:
-            return part_map
-        normals = self.surface.normals_at(inside) @ T[:3, :3]  # in the part's frame
-        along = np.mean(np.abs(normals) < np.cos(np.radians(60.0)), axis=0)  # (3,) share of faces along each axis
-        thin = T[:3, :3][:, along < MEASURED_SHARE].T  # (k, 3): the unmeasured axes, cloud frame
-        if not len(thin):
+        thin = self._unmeasured_axes(prim, T_cloud_part)
+        if thin is None:
             return part_map
         closing = part_map.wrist_transforms()[:, :3, 0] @ np.asarray(T_cloud_map, float)[:3, :3].T  # cloud frame
         keep = np.all(np.abs(closing @ thin.T) < np.cos(np.radians(45.0)), axis=1)
         self.unseen += int(len(keep) - keep.sum())
         return part_map.select(keep)
+
+    def _unmeasured_axes(self, prim, T_cloud_part: np.ndarray) -> np.ndarray | None:
+        """(k, 3) the axes of box part ``prim`` (posed at ``T_cloud_part``) a single view did
+        not measure, in the cloud frame (see :meth:`unseen_depth`); None: too few points on
+        the part to tell, or every axis measured. It depends on the part alone, not on the
+        batch, so it is found once per part and plan: a part streams many batches."""
+        T = np.asarray(T_cloud_part, float)
+        half = 0.5 * np.array([prim.x, prim.y, prim.z])
+        key = half.tobytes() + T.tobytes()
+        if key in self._unmeasured:
+            return self._unmeasured[key]
+        thin = None
+        local = (self.surface.points - T[:3, 3]) @ T[:3, :3]
+        inside = np.flatnonzero(np.all(np.abs(local) <= half + self.cfg.contact_tolerance, axis=1))
+        if len(inside) >= 3 * self.surface.k:
+            normals = self.surface.normals_at(inside) @ T[:3, :3]  # in the part's frame
+            along = np.mean(np.abs(normals) < np.cos(np.radians(60.0)), axis=0)  # (3,) share of faces along each axis
+            axes = T[:3, :3][:, along < MEASURED_SHARE].T  # (k, 3): the unmeasured axes, cloud frame
+            thin = axes if len(axes) else None
+        self._unmeasured[key] = thin
+        return thin
 
     def clear(self, batch: GraspabilityMap) -> GraspabilityMap:
         """The batch's grasps whose gripper holds no observed point at the opening each is

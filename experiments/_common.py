@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import logging
 import math
 import os
@@ -185,6 +186,24 @@ def provenance() -> dict:
     except (OSError, subprocess.SubprocessError):
         commit = None
     return {"commit": commit, "graspsim": graspsim.__version__, "cpus": os.cpu_count()}
+
+
+def run_study(cls, script: str, run, readme_section, argv=None, description: str | None = None) -> int:
+    """The whole ``main`` of a study whose result is one dict: :func:`start`, ``run(config)``,
+    the record written (and published with ``--publish``) with ``readme_section``, and that
+    section printed."""
+    cfg, out, record = start(cls, script, argv, description)
+    res = run(cfg)
+    record.write(out, {"config": cfg, **res}, readme_section)
+    print(readme_section(json.loads((out / "summary.json").read_text())))
+    return 0
+
+
+def load_sentence(summary: dict) -> str:
+    """The sentence 'Load average A at the start, B at the end, N cores.' of a run's summary."""
+    m = summary["machine"]
+    return (f"Load average {m['load_avg_start'][0]:.1f} at the start, {m['load_avg_end'][0]:.1f} at the end, "
+            f"{m['cpus']} cores.")
 
 
 class RunRecord:

@@ -20,7 +20,6 @@ collision | f) = (1 - f) ** k, with a 95 % profile-likelihood interval.
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 from dataclasses import dataclass, replace
@@ -29,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import opt, start
+from _common import load_sentence, opt, run_study
 
 log = logging.getLogger("study_occlusion")
 
@@ -153,18 +152,12 @@ def readme_section(s: dict) -> str:
     L += ["", f"Maximum-likelihood k of P(no start collision | f) = (1 - f) ** k: **{fit['k']:.1f}** (95 % profile "
           f"interval {fit['k_95'][0]:.1f} to {fit['k_95'][1]:.1f}) over {fit['grasps']} grasps, "
           f"{fit['start_collisions']} of them start collisions."]
-    m = s["machine"]
-    L += ["", f"Load average {m['load_avg_start'][0]:.1f} at the start, {m['load_avg_end'][0]:.1f} at the end, "
-          f"{m['cpus']} cores."]
+    L += ["", load_sentence(s)]
     return "\n".join(L) + "\n"
 
 
 def main(argv=None) -> int:
-    cfg, out, record = start(Config, __file__, argv, __doc__)
-    res = run(cfg)
-    record.write(out, {"config": cfg, **res}, readme_section)
-    print(readme_section(json.loads((out / "summary.json").read_text())))
-    return 0
+    return run_study(Config, __file__, run, readme_section, argv, __doc__)
 
 
 if __name__ == "__main__":

@@ -26,7 +26,6 @@ No planning, no grasps.
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 from collections import Counter
@@ -37,7 +36,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import derived_seed, opt, rng_for, start
+from _common import derived_seed, load_sentence, opt, rng_for, run_study
 
 log = logging.getLogger("study_segmentation")
 
@@ -200,18 +199,12 @@ def readme_section(s: dict) -> str:
           "smallest five pairs:", ""]
     L += [f"- {c['kind']} {c['objects']} ({c['pairs']} pairs): " +
           ", ".join(f"{d:g} ({g:g})" for d, g in zip(c["closest_mm"], c["footprint_gap_mm"])) for c in s["closest"]]
-    m = s["machine"]
-    L += ["", f"Load average {m['load_avg_start'][0]:.1f} at the start, {m['load_avg_end'][0]:.1f} at the end, "
-          f"{m['cpus']} cores."]
+    L += ["", load_sentence(s)]
     return "\n".join(L) + "\n"
 
 
 def main(argv=None) -> int:
-    cfg, out, record = start(Config, __file__, argv, __doc__)
-    res = run(cfg)
-    record.write(out, {"config": cfg, **res}, readme_section)
-    print(readme_section(json.loads((out / "summary.json").read_text())))
-    return 0
+    return run_study(Config, __file__, run, readme_section, argv, __doc__)
 
 
 if __name__ == "__main__":

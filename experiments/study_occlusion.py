@@ -59,7 +59,7 @@ def attempts(cfg: Config, kind: str, db) -> list[dict]:
     import e10_clutter_removal as e10
 
     from graspsim.maps.occlusion import ViewDepth, finger_occlusion
-    from graspsim.seeding import rng_for
+    from graspsim.seeding import derived_seed, rng_for
     from graspsim.tabletop.clutter import ClutterEpisode, grasp_target
     from graspsim.tabletop.table_scene import make_scene
 
@@ -69,8 +69,6 @@ def attempts(cfg: Config, kind: str, db) -> list[dict]:
     planner = clutter.scene.planner
     clutter = replace(clutter, scene=replace(clutter.scene, planner=replace(
         planner, robust=replace(planner.robust, occlusion_power=cfg.occlusion_power))))
-    from graspsim.seeding import derived_seed
-
     out = []
     for k in range(cfg.seeds):
         sd = e10.seed_of(e10cfg, k)
@@ -124,7 +122,7 @@ def run(cfg: Config) -> dict:
     for a, b in BANDS:
         m = (f == 0) if b == 0 else (f > a) & (f <= b)
         bands.append({"band": [a, b], "grasps": int(m.sum()), "start_collisions": int(hit[m].sum()),
-                      "model_k1": float(np.mean(1 - (1 - f[m]))) if m.any() else None,
+                      "model_k1": float(np.mean(f[m])) if m.any() else None,  # 1 - (1 - f) ** 1
                       "model_fit": float(np.mean(1 - (1 - f[m]) ** k)) if m.any() and np.isfinite(k) else None})
     return {"attempts": rows, "bands": bands, "fit": {"k": k, "k_95": [lo, hi], "grasps": len(rows),
                                                      "start_collisions": int(hit.sum())}}
@@ -149,9 +147,12 @@ def readme_section(s: dict) -> str:
         m1 = "-" if b["model_k1"] is None else f"{100 * b['model_k1']:.0f} %"
         mk = "-" if b["model_fit"] is None else f"{100 * b['model_fit']:.0f} %"
         L.append(f"| {label} | {n} | {h} | {rate} | {m1} | {mk} |")
-    L += ["", f"Maximum-likelihood k of P(no start collision | f) = (1 - f) ** k: **{fit['k']:.1f}** (95 % profile "
-          f"interval {fit['k_95'][0]:.1f} to {fit['k_95'][1]:.1f}) over {fit['grasps']} grasps, "
-          f"{fit['start_collisions']} of them start collisions."]
+    if fit["k"] is None:  # no start collision, or nothing else: nothing to fit
+        L += ["", f"No exponent fitted: {fit['start_collisions']} start collisions in {fit['grasps']} grasps."]
+    else:
+        L += ["", f"Maximum-likelihood k of P(no start collision | f) = (1 - f) ** k: **{fit['k']:.1f}** (95 % "
+              f"profile interval {fit['k_95'][0]:.1f} to {fit['k_95'][1]:.1f}) over {fit['grasps']} grasps, "
+              f"{fit['start_collisions']} of them start collisions."]
     L += ["", load_sentence(s)]
     return "\n".join(L) + "\n"
 

@@ -47,6 +47,64 @@ def test_an_open_mesh_past_its_time_bound_gets_the_hull_model_with_a_warning(tmp
     assert np.all(np.linalg.eigvalsh(prepared.unit_inertia) > 0)
 
 
+def test_closed_parts_are_decomposed_without_remeshing_and_open_ones_with_the_time_left(tmp_path, monkeypatch):
+    """A mesh of a closed non-convex body (an annulus), an open tube and a stray triangle:
+    the annulus goes to CoACD as closed (its manifold remeshing skipped: the duck's
+    decomposition took 46 s of CPU with it and 7.6 s without, and came out thicker), the
+    tube as open with what the first call left of the limit, the triangle nowhere (it spans
+    no volume). A closed mesh stays closed when cleaning drops its zero-area slivers.
+    Mutations: sending every component as open, or giving the second call the whole limit,
+    fail the recorded calls."""
+    from graspsim.sim import meshes
+
+    calls = []
+
+    def record(mesh, params, progress, *, closed, limit):
+        calls.append((len(mesh.faces), closed, limit))
+        return [np.asarray(mesh.convex_hull.vertices, float)], None, False, 1.5
+
+    monkeypatch.setattr(meshes, "_decompose", record)
+    ring = trimesh.creation.annulus(0.02, 0.04, 0.02, sections=24)
+    tube = _open_cylinder(sections=16)
+    tube.apply_translation([0.2, 0, 0])
+    stray = trimesh.Trimesh([[0.4, 0, 0], [0.41, 0, 0], [0.4, 0.01, 0]], [[0, 1, 2]])
+    prepared = prepare_mesh(trimesh.util.concatenate([ring, tube, stray]), params=CoacdParams(time_limit=10.0),
+                            cache_dir=tmp_path)
+    assert prepared.method == "coacd" and prepared.warning is None
+    assert calls == [(len(ring.faces), True, 10.0), (len(tube.faces), False, 8.5)]
+    # a sliver (a zero-area triangle on a split edge) keeps a closed mesh closed
+    v, f = _box_with_a_sliver()
+    assert trimesh.Trimesh(v, f, process=True).is_watertight
+    cleaned = meshes._clean(v, f, 1.0, "box")
+    assert len(cleaned.faces) == len(f) - 1 and not cleaned.is_watertight
+    assert cleaned.metadata["closed"]
+    # the worker's own test (after decimation, without trimesh): a closed torus decimated stays
+    # closed; a cylinder less one face, or two copies of a face, is not
+    from graspsim.sim._coacd_worker import closed_surface
+
+    torus = trimesh.creation.torus(0.04, 0.012, major_sections=64, minor_sections=64)
+    assert closed_surface(decimate(np.asarray(torus.vertices), np.asarray(torus.faces), 2000)[1])
+    cylinder = np.asarray(trimesh.creation.cylinder(0.03, 0.1).faces)
+    assert closed_surface(cylinder) and not closed_surface(cylinder[1:])
+    assert not closed_surface(np.vstack([cylinder, cylinder[:1]]))
+
+
+def _box_with_a_sliver():
+    """A closed box whose face (a, b, c) is split at the midpoint m of edge ab, and the gap
+    this opens against the face across ab closed by the zero-area triangle (a, m, b) -- as
+    exporters leave them."""
+    box = trimesh.creation.box([0.03, 0.03, 0.03])
+    faces = np.asarray(box.faces)
+    a, b, c = faces[0]
+    m = len(box.vertices)
+    v = np.vstack([box.vertices, (box.vertices[a] + box.vertices[b]) / 2])
+    for sliver in ([a, b, m], [b, a, m]):
+        f = np.vstack([faces[1:], [[a, m, c], [m, b, c], sliver]])
+        if trimesh.Trimesh(v, f, process=False).is_watertight:
+            return v, f
+    raise AssertionError("no orientation closes the box")
+
+
 def test_the_limit_counts_the_workers_cpu_time_and_a_starved_worker_is_not_cached(tmp_path, monkeypatch):
     """The limit is the worker's CPU time (the same model on an idle and a loaded
     machine); a worker the machine's load starves past the wall-clock backstop falls back

@@ -11,7 +11,10 @@ and kills it when the limit passes. It imports only numpy, fast_simplification a
 
 IN.npz: ``vertices`` (V, 3), ``faces`` (F, 3), ``params`` (a JSON string: threshold,
 max_parts, preprocess_resolution, mcts_iterations, mcts_nodes, mcts_max_depth, resolution,
-seed, max_faces). OUT.npz: ``count`` and ``part0`` ... (convex vertex arrays), ``faces_used``.
+seed, max_faces, closed). ``closed``: the caller found the mesh closed and consistently
+wound, so CoACD's manifold remeshing is skipped -- unless decimation (which promises no
+manifold result) left it open. OUT.npz: ``count`` and ``part0``
+... (convex vertex arrays), ``faces_used``.
 Each stage is announced on stdout as ``stage NAME`` for the caller's progress display.
 """
 
@@ -39,10 +42,25 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tuple[n
                                         np.ascontiguousarray(faces, np.int64), target_count=int(max_faces))
 
 
+def closed_surface(faces: np.ndarray) -> bool:
+    """Whether triangles ``faces`` form closed, consistently wound surfaces: every directed
+    edge appears once and its reverse once (what trimesh calls watertight and consistently
+    wound, without importing trimesh here)."""
+    f = np.asarray(faces, np.int64)
+    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    n = int(directed.max()) + 1
+    code = directed[:, 0] * n + directed[:, 1]
+    if len(np.unique(code)) != len(code):
+        return False
+    return bool(np.isin(directed[:, 1] * n + directed[:, 0], code).all())
+
+
 def run(vertices: np.ndarray, faces: np.ndarray, params: dict) -> tuple[list[np.ndarray], int]:
+    closed = bool(params.get("closed", False))
     if len(faces) > params["max_faces"]:
         _stage("decimating")
         vertices, faces = decimate(vertices, faces, params["max_faces"])
+        closed = closed and closed_surface(faces)
     _stage("decomposing")
     import coacd
 
@@ -50,6 +68,7 @@ def run(vertices: np.ndarray, faces: np.ndarray, params: dict) -> tuple[list[np.
     result = coacd.run_coacd(
         coacd.Mesh(np.asarray(vertices, np.float64), np.asarray(faces, np.int32)),
         threshold=params["threshold"], max_convex_hull=params["max_parts"],
+        preprocess_mode="off" if closed else "auto",
         preprocess_resolution=params["preprocess_resolution"], resolution=params["resolution"],
         mcts_iterations=params["mcts_iterations"], mcts_nodes=params["mcts_nodes"],
         mcts_max_depth=params["mcts_max_depth"], seed=params["seed"])

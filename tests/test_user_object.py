@@ -88,6 +88,24 @@ def test_the_simulated_mesh_stands_where_the_cloud_was(tmp_path, normal):
     np.testing.assert_allclose(d_world, d_cloud, atol=2e-6)
 
 
+def test_a_mesh_is_simulated_with_its_own_mass_not_the_fitted_parts(tmp_path):
+    """Against a mesh, the object's mass is density x the mesh's volume (an adapted map's mass
+    is its fitted parts', which fill cavities), unless one is given. Mutation: taking the
+    map's mass first (the old order) fails the first assertion."""
+    import trimesh
+
+    from graspsim.primitives import Box
+    from graspsim.sim.mapsim import map_object
+
+    gmap = _map_with(np.eye(4), None)
+    gmap.meta.object.clear()
+    gmap.meta.object.update(Box(0.03, 0.09, 0.09).to_dict(), mass=0.5)  # the fitted box's, say
+    mesh = trimesh.creation.box([0.02, 0.04, 0.05])
+    assert map_object(gmap, mesh=mesh, density=800.0, cache_dir=tmp_path).mass == pytest.approx(800 * 4e-5)
+    assert map_object(gmap, mesh=mesh, mass=0.2, cache_dir=tmp_path).mass == pytest.approx(0.2)
+    assert map_object(gmap).mass == pytest.approx(0.5)  # no mesh: the map's object, its mass
+
+
 def test_a_partial_map_is_not_turned_onto_another_face():
     """The scene used to rest a map's primitives on the hull face nearest their centre of
     mass when they were not stable as seen: a partial map's grasps then pointed into the

@@ -98,7 +98,8 @@ def register(subparsers) -> None:
         p.add_argument("--camera-pose", metavar="FILE.npy",
                        help="GraspNet files: the object's 4x4 pose in the camera frame (.npy or text)")
         p.add_argument("--object-id", type=int, help="GraspNet files: simulate this object's grasps only")
-        p.add_argument("--mass", type=float, help="object mass [kg] (default: the map's, or density)")
+        p.add_argument("--mass", type=float, help="object mass [kg] (default: the map's, or density x volume; "
+                       "with --mesh, density x the mesh's volume)")
         p.add_argument("--friction", type=float,
                        help="pad-object friction (default: the map's quality model mu)")
         p.add_argument("--grip-force", type=float, metavar="N", help="grip force per jaw [N]")

@@ -458,6 +458,40 @@ def test_a_single_view_of_one_face_gives_no_grasp_across_the_depth_it_did_not_sh
         assert len(other) == len(m)
 
 
+def test_a_block_whose_sides_the_camera_cannot_see_is_grasped_across_its_seen_width(db):
+    """A block lying with its long axis towards the camera shows its top and its near end;
+    its long sides are edge-on to the camera, so no contact of a grasp across its width can
+    be borne out by the cloud. Its width was measured (the top face spans it), so such
+    grasps are kept where no contact is contradicted (``PlannerConfig.hidden_faces``);
+    with the option off, or seen from a side that faces the camera but shows no points
+    (evidence against), there are none across the width. Box frame: x up, y across, z
+    along the block."""
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.planning.observed import ObservedChecks
+
+    block = Box(0.02, 0.04, 0.09)
+    m = generate_fs_map(block, G, config=FAST)
+    rng = np.random.default_rng(5)
+    top = np.column_stack([np.full(900, 0.01), rng.uniform([-0.02, -0.045], [0.02, 0.045], (900, 2))])
+    end = np.column_stack([rng.uniform(-0.01, 0.01, 200), rng.uniform(-0.02, 0.02, 200), np.full(200, -0.045)])
+    cloud = np.concatenate([top, end]) + rng.normal(0, 0.0005, (1100, 3))
+    I = np.eye(4)
+    across = np.abs(m.wrist_transforms()[:, :3, 0] @ np.array([0.0, 1.0, 0.0])) >= math.cos(math.radians(45))
+    assert across.sum() > 0
+
+    def kept_across(eye, hidden=True, prim=block):
+        checks = ObservedChecks(cloud, None, I, viewpoint=np.asarray(eye, float), noise=0.0005, gripper=G,
+                                quality=db.quality, cfg=PlannerConfig(hidden_faces=hidden))
+        out = checks.borne_out(replace(m, part=np.arange(len(m))), I, prim, I if prim is not None else None)
+        return int(across[out.part.astype(int)].sum())
+
+    front = (0.6, 0.0, -0.4)  # above and in front of the near end: both long sides edge-on
+    assert kept_across(front) > 0
+    assert kept_across(front, hidden=False) == 0
+    assert kept_across(front, prim=None) == 0
+    assert kept_across((0.6, 0.5, -0.4)) == 0  # the +y side faces the camera and shows nothing: not hidden
+
+
 def test_unseen_depth_is_found_per_part_and_the_same_for_every_batch(db):
     """ObservedChecks finds a box part's unmeasured axes once per part and plan (a part
     streams many batches): a second batch of the same part is judged as the first, and

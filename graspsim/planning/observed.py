@@ -152,11 +152,12 @@ class ObservedChecks:
         are both hidden from the camera (turned more than :data:`HIDDEN_FACE_ANGLE` from
         it: a block or carton lying with its long sides edge-on to the camera, or away
         from it), neither contact can be; such a grasp is kept when no contact is
-        evidence against it and the view measured the part's extent along that axis (a
-        seen face runs along it, as the top face spans the block's width:
-        :meth:`unseen_depth`'s test) -- the contacts' places are then the seen face's
-        edges, not a guess (``PlannerConfig.hidden_faces``). Without ``prim`` or a
-        viewpoint, or with ``hidden_faces`` off: the plain rule."""
+        evidence against it and the view measured the part's extent along every axis (a
+        seen face runs along each, as the top face spans the block's width and the near
+        end its height: :meth:`unseen_depth`'s test) -- the contacts' places and the
+        hidden faces' extents are then the seen faces' edges, not a guess
+        (``PlannerConfig.hidden_faces``). Without ``prim`` or a viewpoint, or with
+        ``hidden_faces`` off: the plain rule."""
         line = row_ids(part_map.contacts)
         c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
         agree, borne = self.surface.evidence(c, tol=self.contact_tolerance, max_angle=self.quality.friction_angle)
@@ -173,8 +174,10 @@ class ObservedChecks:
     def _hidden_axes(self, prim, T_cloud_part) -> np.ndarray | None:
         """(k, 3) the axes of box part ``prim`` (at ``T_cloud_part``, cloud frame) whose
         faces a single view could not see (both turned more than :data:`HIDDEN_FACE_ANGLE`
-        from the viewpoint) and along which it measured the part's extent; None: none,
-        not a box, or no viewpoint."""
+        from the viewpoint), when it measured the part's extent along every axis (so also
+        the hidden faces' own extents: a plate fitted to a block's top alone has its height
+        guessed, and contacts on its sides would hold the block by its top few mm); None:
+        none, not every extent measured, not a box, or no viewpoint."""
         if self.viewpoint is None or prim is None or prim.kind != "box" or T_cloud_part is None:
             return None
         T = np.asarray(T_cloud_part, float)
@@ -184,7 +187,9 @@ class ObservedChecks:
         shares = self._along_shares(prim, T)
         if shares is None:
             return None
-        axes = T[:3, :3][:, faces_hidden & (shares >= MEASURED_SHARE)].T
+        if np.any(shares < MEASURED_SHARE):  # a face's extent is a guess (a plate fitted to a block's top)
+            return None
+        axes = T[:3, :3][:, faces_hidden].T
         return axes if len(axes) else None
 
     def unseen_depth(self, part_map: GraspabilityMap, prim, T_cloud_part: np.ndarray,

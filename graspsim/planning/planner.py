@@ -115,9 +115,9 @@ class PlannerConfig:
     hidden_faces: robust identification of a single view: a grasp closing across a box
         part's axis whose two faces the camera could not see (turned more than
         :data:`~graspsim.planning.observed.HIDDEN_FACE_ANGLE` from it: a block or carton
-        lying with its long sides edge-on to the camera), along which the view measured the
-        part's extent (its top face spans it), needs no contact borne out by the cloud --
-        none can be -- only none contradicted
+        lying with its long sides edge-on to the camera), where the view measured the
+        part's extent along every axis (its top spans the width, its near end the height),
+        needs no contact borne out by the cloud -- none can be -- only none contradicted
         (:meth:`~graspsim.planning.observed.ObservedChecks.borne_out`). False: such grasps
         dropped, as every grasp with no contact borne out (every grasp of such a block
         that clears the table, before). Paper mode and clouds without a viewpoint: never.

@@ -1,6 +1,7 @@
 """The run-time planner: cloud -> identification -> known / familiar / combined map."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -406,13 +407,20 @@ def test_grasps_likely_to_clear_the_table_stream_first(db, monkeypatch, truth, m
 
 
 def test_a_single_view_of_one_face_gives_no_grasp_across_the_depth_it_did_not_show(db):
-    """A carton seen from the front shows one face: robust identification fits it as a plate
-    a few mm thick. Its depth was not measured, so no grasp may close across it (its far
-    finger would go where the carton goes on, unseen); across the face's width it may. A
-    view that also shows its top edge measures its thickness: nothing is dropped. No viewpoint (a
-    cloud seen all round) or ``seen_depth`` off: nothing is dropped."""
+    """A carton standing on a table, seen from the front and above, shows its front face and
+    its top: robust identification fits the face as a plate a few mm thick. Its depth was not
+    measured, so no grasp may close across it where its far finger goes into what the view
+    did not see (the carton behind the face); what is left across it holds the carton's seen
+    top or goes under the table -- nothing across the depth is offered. Across the face's
+    width it may close. The same face with nothing behind it -- a domino standing on its edge,
+    the camera seeing past it -- keeps the grasps across its thickness whose fingers stay in
+    space the view saw (at most ``SEEN_FINGER_SHARE`` of them unseen). A view that also shows
+    the plate's top edge measures its thickness: nothing is dropped. No viewpoint (a cloud
+    seen all round) or ``seen_depth`` off: nothing is dropped."""
+    from graspsim.geometry.table import table_frame
     from graspsim.maps.generate import generate_fs_map
-    from graspsim.planning.observed import ObservedChecks
+    from graspsim.maps.table_clearance import clears_table
+    from graspsim.planning.observed import ObservedChecks, clear_of_cloud
 
     plate = Box(0.002, 0.044, 0.06)
     m = generate_fs_map(plate, G, config=FAST)
@@ -421,17 +429,69 @@ def test_a_single_view_of_one_face_gives_no_grasp_across_the_depth_it_did_not_sh
     rng = np.random.default_rng(3)
     front = np.column_stack([np.full(800, 0.001), rng.uniform([-0.022, -0.03], [0.022, 0.03], (800, 2))])
     top = np.column_stack([rng.uniform(-0.001, 0.001, 300), rng.uniform(-0.022, 0.022, 300), np.full(300, 0.03)])
+    # the carton's top, 44 mm deep behind the front face (another part: the plate is fitted to the face)
+    carton = np.column_stack([rng.uniform(-0.045, -0.005, 800), rng.uniform(-0.022, 0.022, 800), np.full(800, 0.03)])
     eye, I = np.array([0.6, 0.05, 0.3]), np.eye(4)
+    on_table = clears_table(m, table_frame((0.0, 0.0, 1.0), -0.03), G)  # the plate stands on it
+    cos45 = math.cos(math.radians(45))
 
     def kept(points, viewpoint=eye, seen=True):
+        """The rows of ``m`` unseen_depth keeps, with the plate's points ``points``."""
         checks = ObservedChecks(points + rng.normal(0, 0.0005, points.shape), None, I, viewpoint=viewpoint,
                                 noise=0.0005, gripper=G, quality=db.quality, cfg=PlannerConfig(seen_depth=seen))
-        return np.abs(checks.unseen_depth(m, plate, I, I).wrist_transforms()[:, :3, 0])
+        out = checks.unseen_depth(replace(m, part=np.arange(len(m))), plate, I, I)  # part: the row
+        return out.part.astype(int)
 
-    one_face = kept(front)
-    assert one_face[:, 0].max() < math.cos(math.radians(45)) + 1e-9 and (one_face[:, 1] > 0.9).any()
+    def offered_across(rows, cloud):  # kept, across the depth, on the table and holding no seen point
+        rows = rows[(closing[rows, 0] >= cos45) & on_table[rows]]
+        return rows[clear_of_cloud(m, rows, cloud, gripper=G)[0]]
+
+    seen = np.concatenate([front, carton])
+    carton_rows = kept(seen)
+    assert (closing[carton_rows, 1] > 0.9).any()
+    assert len(offered_across(carton_rows, seen)) == 0
+    assert len(offered_across(np.arange(len(m)), seen)) > 0  # seen_depth's doing, not the other checks'
+    domino_rows = kept(front)
+    assert len(offered_across(domino_rows, front)) > 0
+    assert (closing[domino_rows, 0] >= cos45).sum() < (closing[:, 0] >= cos45).sum()  # not every one
     for other in (kept(np.concatenate([front, top])), kept(front, viewpoint=None), kept(front, seen=False)):
         assert len(other) == len(m)
+
+
+def test_a_block_whose_sides_the_camera_cannot_see_is_grasped_across_its_seen_width(db):
+    """A block lying with its long axis towards the camera shows its top and its near end;
+    its long sides are edge-on to the camera, so no contact of a grasp across its width can
+    be borne out by the cloud. Its width was measured (the top face spans it), so such
+    grasps are kept where no contact is contradicted (``PlannerConfig.hidden_faces``);
+    with the option off, seen from a side that faces the camera but shows no points
+    (evidence against), or with its top alone seen (its height, the hidden sides'
+    extent, a guess), there are none across the width. Box frame: x up, y across, z
+    along the block."""
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.planning.observed import ObservedChecks
+
+    block = Box(0.02, 0.04, 0.09)
+    m = generate_fs_map(block, G, config=FAST)
+    rng = np.random.default_rng(5)
+    top = np.column_stack([np.full(900, 0.01), rng.uniform([-0.02, -0.045], [0.02, 0.045], (900, 2))])
+    end = np.column_stack([rng.uniform(-0.01, 0.01, 200), rng.uniform(-0.02, 0.02, 200), np.full(200, -0.045)])
+    cloud = np.concatenate([top, end]) + rng.normal(0, 0.0005, (1100, 3))
+    I = np.eye(4)
+    across = np.abs(m.wrist_transforms()[:, :3, 0] @ np.array([0.0, 1.0, 0.0])) >= math.cos(math.radians(45))
+    assert across.sum() > 0
+
+    def kept_across(eye, hidden=True, prim=block, points=cloud):
+        checks = ObservedChecks(points, None, I, viewpoint=np.asarray(eye, float), noise=0.0005, gripper=G,
+                                quality=db.quality, cfg=PlannerConfig(hidden_faces=hidden))
+        out = checks.borne_out(replace(m, part=np.arange(len(m))), I, prim, I if prim is not None else None)
+        return int(across[out.part.astype(int)].sum())
+
+    front = (0.6, 0.0, -0.4)  # above and in front of the near end: both long sides edge-on
+    assert kept_across(front) > 0
+    assert kept_across(front, hidden=False) == 0
+    assert kept_across(front, prim=None) == 0
+    assert kept_across((0.6, 0.5, -0.4)) == 0  # the +y side faces the camera and shows nothing: not hidden
+    assert kept_across(front, points=cloud[:900]) == 0  # the top alone: the sides' height is a guess
 
 
 def test_unseen_depth_is_found_per_part_and_the_same_for_every_batch(db):

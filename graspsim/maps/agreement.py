@@ -83,9 +83,17 @@ class ObservedSurface:
         min_observed: 1 or 2."""
         if min_observed not in (1, 2):
             raise InvalidParameterError(f"min_observed must be 1 or 2, got {min_observed!r}")
+        agree, borne = self.evidence(contacts, tol=tol, max_angle=max_angle)
+        return agree & (borne >= min_observed)
+
+    def evidence(self, contacts: np.ndarray, *, tol: float, max_angle: float) -> tuple[np.ndarray, np.ndarray]:
+        """What the cloud says of grasps with ``contacts`` (G, 2, 3) [m, cloud frame]:
+        (agree (G,) bool: no contact is evidence against the grasp; borne (G,) int: its
+        contacts borne out, 0-2). :meth:`borne_out` keeps ``agree & (borne >=
+        min_observed)``. No cloud: nothing agrees."""
         c = np.asarray(contacts, float)
         if not len(c) or self.tree is None:
-            return np.zeros(len(c), bool)
+            return np.zeros(len(c), bool), np.zeros(len(c), int)
         d, j = self.tree.query(c.reshape(-1, 3), k=1, distance_upper_bound=tol)
         shown = np.isfinite(d)  # (G * 2,) flat index g * 2 + side
         u = c[:, 1] - c[:, 0]
@@ -105,7 +113,7 @@ class ObservedSurface:
                 cos = -np.einsum("ij,ij->i", n[inv.reshape(-1)], inward)
             agree[flat] = cos >= np.cos(max_angle)
         borne = (shown & agree).reshape(-1, 2).sum(axis=1)
-        return np.all(agree.reshape(-1, 2), axis=1) & (borne >= min_observed)
+        return np.all(agree.reshape(-1, 2), axis=1), borne
 
     def _probe(self, c: np.ndarray, u: np.ndarray, half: np.ndarray, tol: float,
                shown: np.ndarray, j: np.ndarray, live: np.ndarray) -> None:

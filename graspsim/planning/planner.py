@@ -109,7 +109,18 @@ class PlannerConfig:
         across it seen, as a carton seen from the front, fitted as a plate a few mm thick
         (:meth:`~graspsim.planning.observed.ObservedChecks.unseen_depth`; the count in
         ``extra["observed"]``). False: such grasps offered. Paper mode and clouds without a
-        viewpoint: never applied.
+        viewpoint: never applied. A grasp across the unmeasured depth is still offered where
+        its fingers stay in space the view saw (a domino standing on its edge, the camera
+        seeing past it: :data:`~graspsim.planning.observed.SEEN_FINGER_SHARE`).
+    hidden_faces: robust identification of a single view: a grasp closing across a box
+        part's axis whose two faces the camera could not see (turned more than
+        :data:`~graspsim.planning.observed.HIDDEN_FACE_ANGLE` from it: a block or carton
+        lying with its long sides edge-on to the camera), where the view measured the
+        part's extent along every axis (its top spans the width, its near end the height),
+        needs no contact borne out by the cloud -- none can be -- only none contradicted
+        (:meth:`~graspsim.planning.observed.ObservedChecks.borne_out`). False: such grasps
+        dropped, as every grasp with no contact borne out (every grasp of such a block
+        that clears the table, before). Paper mode and clouds without a viewpoint: never.
     low_profile: with a ``table``, a pose that would take the gripper under it is lifted
         clear along its approach, its contacts held nearer the fingertip
         (:class:`~graspsim.maps.table_clearance.LowProfile`,
@@ -138,6 +149,7 @@ class PlannerConfig:
     clear_observed: bool = True
     features: FeatureConfig | None = field(default_factory=FeatureConfig)
     seen_depth: bool = True
+    hidden_faces: bool = True
     low_profile: LowProfile | None = field(default_factory=LowProfile)
     both_contacts_all_round: bool = True
 
@@ -353,7 +365,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 # (not the lifted poses: their contacts lie within the contact tolerance of a low part's
                 # top face, whose points' normals would count against every side contact, and a scene's
                 # table band removes the side points that bear them out)
-                part_map = observed.borne_out(part_map, T_cloud_map)
+                part_map = observed.borne_out(part_map, T_cloud_map, prim, T_cloud[i])
                 part_map = observed.unseen_depth(part_map, prim, T_cloud[i], T_cloud_map)
             stage.lap("agreement")
             if compound is not None:

@@ -37,11 +37,14 @@ from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.table_clearance import clears_table
 from graspsim.planning.plan_results import GraspBatch
 
-__all__ = ["ObservedChecks", "clear_of_cloud", "MEASURED_SHARE", "SPACING_TOLERANCE"]
+__all__ = ["ObservedChecks", "clear_of_cloud", "MEASURED_SHARE", "SPACING_TOLERANCE", "UNSEEN_CONE_DEG"]
 
 #: A box part's extent along an axis counts as measured by a single view when at least this share
 #: of its points lie on faces running along the axis (normal > 60 deg from it): ObservedChecks.unseen_depth
 MEASURED_SHARE = 0.1
+#: A grasp closes across an unmeasured extent when its closing axis lies within this angle [deg]
+#: of it: of a box part's unmeasured axis, of a curved part's line of sight (ObservedChecks.unseen_depth)
+UNSEEN_CONE_DEG = 45.0
 
 #: Where both contacts of a grasp must be borne out (a cloud seen all round), a contact
 #: counts as observed within this many median point spacings of a cloud point (or
@@ -135,22 +138,43 @@ class ObservedChecks:
     def unseen_depth(self, part_map: GraspabilityMap, prim, T_cloud_part: np.ndarray,
                      T_cloud_map: np.ndarray) -> GraspabilityMap:
         """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) that do not
-        close across a dimension of box part ``prim`` (posed at ``T_cloud_part``) that a
-        single view did not measure. A box's extent along one of its axes is measured
-        where the view shows a face that runs along that axis; where the part's points
-        show only the faces across it (fewer than ``MEASURED_SHARE`` of them with a
-        surface normal more than 60 deg from the axis: a carton seen from the front is
-        fitted as a plate a few mm thick, a gable as a slab) the box's depth there is the
-        fit's guess, and a grasp closing across it (within 45 deg) puts its far finger
-        where the object goes on unseen. Unchanged without a viewpoint (a cloud seen all
-        round shows depths), with ``PlannerConfig.seen_depth`` off, or for other shapes."""
-        if self.viewpoint is None or not self.cfg.seen_depth or prim.kind != "box" or not len(part_map):
+        close across an extent of part ``prim`` (posed at ``T_cloud_part``) that a single
+        view did not measure (within :data:`UNSEEN_CONE_DEG`).
+
+        A box's extent along one of its axes is measured where the view shows a face that
+        runs along that axis; where the part's points show only the faces across it (fewer
+        than ``MEASURED_SHARE`` of them with a surface normal more than 60 deg from the
+        axis: a carton seen from the front is fitted as a plate a few mm thick, a gable as
+        a slab) the box's depth there is the fit's guess, and a grasp closing across it puts
+        its far finger where the object goes on unseen.
+
+        A curved part (cylinder, cone, sphere, half-toroid) shows the view only the side
+        turned to the camera: its extent along the line of sight is the fit's extrapolation
+        of that side's curvature, right only if the object is the primitive. A grasp
+        closing along the line of sight through its grasp point has its near contact on
+        the seen side and its far one on the back the camera never saw, where a real
+        object goes on as its own shape does (a duck's body fitted as a cylinder from its
+        flank: its back reached 10 to 17 mm beyond the fitted cylinder, into the far
+        finger); a grasp closing across the line of sight closes on the silhouette's two
+        edges, which the view measured.
+
+        Unchanged without a viewpoint (a cloud seen all round shows depths) or with
+        ``PlannerConfig.seen_depth`` off."""
+        if self.viewpoint is None or not self.cfg.seen_depth or not len(part_map):
             return part_map
-        thin = self._unmeasured_axes(prim, T_cloud_part)
-        if thin is None:
-            return part_map
-        closing = part_map.wrist_transforms()[:, :3, 0] @ np.asarray(T_cloud_map, float)[:3, :3].T  # cloud frame
-        keep = np.all(np.abs(closing @ thin.T) < np.cos(np.radians(45.0)), axis=1)
+        T_map = np.asarray(T_cloud_map, float)
+        closing = part_map.wrist_transforms()[:, :3, 0] @ T_map[:3, :3].T  # cloud frame
+        cone = np.cos(np.radians(UNSEEN_CONE_DEG))
+        if prim.kind == "box":
+            thin = self._unmeasured_axes(prim, T_cloud_part)
+            if thin is None:
+                return part_map
+            keep = np.all(np.abs(closing @ thin.T) < cone, axis=1)
+        else:
+            at = np.asarray(part_map.grasp_point, float) @ T_map[:3, :3].T + T_map[:3, 3]
+            sight = at - np.asarray(self.viewpoint, float)
+            sight /= np.maximum(np.linalg.norm(sight, axis=1, keepdims=True), 1e-12)
+            keep = np.abs(np.einsum("ni,ni->n", closing, sight)) < cone
         self.unseen += int(len(keep) - keep.sum())
         return part_map.select(keep)
 

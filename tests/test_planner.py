@@ -494,6 +494,53 @@ def test_a_block_whose_sides_the_camera_cannot_see_is_grasped_across_its_seen_wi
     assert kept_across(front, points=cloud[:900]) == 0  # the top alone: the sides' height is a guess
 
 
+def test_a_single_view_of_a_curved_part_gives_no_grasp_closing_along_the_line_of_sight(db):
+    """A cylinder seen from one side shows the camera its near half: the fit's back is the
+    extrapolation of that side's curvature, and a real object's back (a duck's body fitted
+    as a cylinder) goes on beyond it. So no grasp may close within 45 deg of the line of
+    sight through its grasp point (its far finger on the unseen back) unless its fingers
+    stay in space the view saw; grasps closing across it (on the silhouette's edges) stay.
+    No viewpoint or ``seen_depth`` off:
+    nothing is dropped."""
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.planning.observed import ObservedChecks
+
+    can = Cylinder(0.03, 0.08)
+    m = generate_fs_map(can, G, config=FAST)
+    eye, I = np.array([0.5, 0.0, 0.4]), np.eye(4)
+    rng = np.random.default_rng(5)
+    a, z = rng.uniform(-math.pi / 2, math.pi / 2, 1500), rng.uniform(-0.04, 0.04, 1500)
+    seen = np.column_stack([0.03 * np.cos(a), 0.03 * np.sin(a), z])  # the half turned to the camera (+x)
+
+    def sight_cos(k):
+        at = k.grasp_point.astype(float)
+        s = (at - eye) / np.linalg.norm(at - eye, axis=1, keepdims=True)
+        return np.abs(np.einsum("ni,ni->n", k.wrist_transforms()[:, :3, 0], s))
+
+    def kept(viewpoint=eye, seen_depth=True):
+        checks = ObservedChecks(seen + rng.normal(0, 0.0005, seen.shape), None, I, viewpoint=viewpoint, noise=0.0005,
+                                gripper=G, quality=db.quality, cfg=PlannerConfig(seen_depth=seen_depth))
+        return checks.unseen_depth(m, can, I, I), checks
+
+    assert (sight_cos(m) > 0.9).any() and (sight_cos(m) < 0.3).any()
+    k, checks = kept()
+    cone = math.cos(math.radians(45))
+    across, along = int(np.sum(sight_cos(m) < cone)), int(np.sum(sight_cos(m) >= cone))
+    assert checks.unseen == len(m) - len(k)
+    # every grasp across the line of sight stays; of those along it, only the few whose fingers
+    # stay in space the view saw (SEEN_FINGER_SHARE) -- not those with a finger on the unseen back
+    assert int(np.sum(sight_cos(k) < cone)) == across
+    from graspsim.maps.occlusion import finger_occlusion
+    from graspsim.planning.observed import SEEN_FINGER_SHARE
+
+    on_sight = sight_cos(m) >= cone
+    w = m.wrist_transforms()[on_sight]
+    f = finger_occlusion(checks._view, w[:, :3, :3], w[:, :3, 3], G.pregrasp_opening(m.width[on_sight]), G)
+    assert len(k) - across == int(np.sum(f <= SEEN_FINGER_SHARE)) < along / 2
+    assert (sight_cos(k) < 0.3).any()  # closing across the line of sight: kept
+    assert len(kept(viewpoint=None)[0]) == len(kept(seen_depth=False)[0]) == len(m)
+
+
 def test_unseen_depth_is_found_per_part_and_the_same_for_every_batch(db):
     """ObservedChecks finds a box part's unmeasured axes once per part and plan (a part
     streams many batches): a second batch of the same part is judged as the first, and

@@ -39,11 +39,14 @@ from graspsim.maps.table_clearance import clears_table
 from graspsim.planning.plan_results import GraspBatch
 
 __all__ = ["ObservedChecks", "clear_of_cloud", "HIDDEN_FACE_ANGLE", "MEASURED_SHARE", "SEEN_FINGER_SHARE",
-           "SPACING_TOLERANCE"]
+           "SPACING_TOLERANCE", "UNSEEN_CONE_DEG"]
 
 #: A box part's extent along an axis counts as measured by a single view when at least this share
 #: of its points lie on faces running along the axis (normal > 60 deg from it): ObservedChecks.unseen_depth
 MEASURED_SHARE = 0.1
+#: A grasp closes across an unmeasured extent when its closing axis lies within this angle [deg]
+#: of it: of a box part's unmeasured axis, of a curved part's line of sight (ObservedChecks.unseen_depth)
+UNSEEN_CONE_DEG = 45.0
 
 #: A grasp across a box part's unmeasured depth (ObservedChecks.unseen_depth) is still offered when at most
 #: this share of its finger volume, at its pre-grasp opening, lies in space the view did not see
@@ -195,30 +198,52 @@ class ObservedChecks:
     def unseen_depth(self, part_map: GraspabilityMap, prim, T_cloud_part: np.ndarray,
                      T_cloud_map: np.ndarray) -> GraspabilityMap:
         """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) that do not
-        close across a dimension of box part ``prim`` (posed at ``T_cloud_part``) that a
-        single view did not measure. A box's extent along one of its axes is measured
-        where the view shows a face that runs along that axis; where the part's points
-        show only the faces across it (fewer than ``MEASURED_SHARE`` of them with a
-        surface normal more than 60 deg from the axis: a carton seen from the front is
-        fitted as a plate a few mm thick, a gable as a slab) the box's depth there is the
-        fit's guess, and a grasp closing across it (within 45 deg) puts its far finger
-        where the object may go on unseen: it is dropped unless at most
-        :data:`SEEN_FINGER_SHARE` of its finger volume (at its pre-grasp opening) lies in
-        space the view did not see -- there the camera saw past the part, so the object
-        does not go on where the far finger goes (a domino standing on its edge, grasped
-        across its thickness from above). Unchanged without a viewpoint (a cloud seen all
-        round shows depths), with ``PlannerConfig.seen_depth`` off, or for other shapes."""
-        if self.viewpoint is None or not self.cfg.seen_depth or prim.kind != "box" or not len(part_map):
-            return part_map
-        thin = self._unmeasured_axes(prim, T_cloud_part)
-        if thin is None:
+        close across an extent of part ``prim`` (posed at ``T_cloud_part``) that a single
+        view did not measure (within :data:`UNSEEN_CONE_DEG`), unless its fingers stay in
+        space the view saw.
+
+        A box's extent along one of its axes is measured where the view shows a face that
+        runs along that axis; where the part's points show only the faces across it (fewer
+        than ``MEASURED_SHARE`` of them with a surface normal more than 60 deg from the
+        axis: a carton seen from the front is fitted as a plate a few mm thick, a gable as
+        a slab) the box's depth there is the fit's guess, and a grasp closing across it puts
+        its far finger where the object may go on unseen.
+
+        A curved part (cylinder, cone, sphere, half-toroid) shows the view only the side
+        turned to the camera: its extent along the line of sight is the fit's extrapolation
+        of that side's curvature, right only if the object is the primitive. A grasp
+        closing along the line of sight through its grasp point has its near contact on
+        the seen side and its far one on the back the camera never saw, where a real
+        object goes on as its own shape does (a duck's body fitted as a cylinder from its
+        flank: its back reached 10 to 17 mm beyond the fitted cylinder, into the far
+        finger); a grasp closing across the line of sight closes on the silhouette's two
+        edges, which the view measured.
+
+        Such a grasp is still offered when at most :data:`SEEN_FINGER_SHARE` of its finger
+        volume (at its pre-grasp opening) lies in space the view did not see: there the
+        camera saw past the part, so the object does not go on where the far finger goes
+        (a domino standing on its edge, grasped across its thickness from above).
+        Unchanged without a viewpoint (a cloud seen all round shows depths) or with
+        ``PlannerConfig.seen_depth`` off."""
+        if self.viewpoint is None or not self.cfg.seen_depth or not len(part_map):
             return part_map
         T_map = np.asarray(T_cloud_map, float)
         wrist = T_map[None, :3, :3] @ part_map.wrist_transforms()[:, :3, :]  # (n, 3, 4) rotation and position
         wrist[:, :, 3] += T_map[:3, 3]
-        keep = np.all(np.abs(wrist[:, :, 0] @ thin.T) < np.cos(np.radians(45.0)), axis=1)
+        closing = wrist[:, :, 0]
+        cone = np.cos(np.radians(UNSEEN_CONE_DEG))
+        if prim.kind == "box":
+            thin = self._unmeasured_axes(prim, T_cloud_part)
+            if thin is None:
+                return part_map
+            keep = np.all(np.abs(closing @ thin.T) < cone, axis=1)
+        else:
+            at = np.asarray(part_map.grasp_point, float) @ T_map[:3, :3].T + T_map[:3, 3]
+            sight = at - np.asarray(self.viewpoint, float)
+            sight /= np.maximum(np.linalg.norm(sight, axis=1, keepdims=True), 1e-12)
+            keep = np.abs(np.einsum("ni,ni->n", closing, sight)) < cone
         across = np.flatnonzero(~keep)
-        if len(across):  # across the unmeasured depth: offered where the fingers stay in space the view saw
+        if len(across):  # across the unmeasured extent: offered where the fingers stay in space the view saw
             opening = self.gripper.pregrasp_opening(np.asarray(part_map.width, float)[across])
             f = finger_occlusion(self._view, wrist[across, :, :3], wrist[across, :, 3], opening, self.gripper)
             keep[across] = f <= SEEN_FINGER_SHARE

@@ -105,8 +105,10 @@ class PlannerConfig:
         :mod:`~graspsim.maps.feature_grasps`) are added as part ``len(parts)``, through the same
         checks. None: never. Paper mode never adds.
     seen_depth: robust identification of a single view (a viewpoint): no grasp is offered
-        that closes across a box part's dimension the view did not measure -- only the faces
-        across it seen, as a carton seen from the front, fitted as a plate a few mm thick
+        that closes across a part's extent the view did not measure -- a box part's dimension
+        with only the faces across it seen, as a carton seen from the front, fitted as a plate
+        a few mm thick; a curved part's depth along the line of sight, its back the fit's
+        extrapolation of the seen side
         (:meth:`~graspsim.planning.observed.ObservedChecks.unseen_depth`; the count in
         ``extra["observed"]``). False: such grasps offered. Paper mode and clouds without a
         viewpoint: never applied. A grasp across the unmeasured depth is still offered where

@@ -1,0 +1,234 @@
+"""Failed clutter grasps of one object judged against its true mesh (issue 34): what went wrong.
+
+Runs E10's protocol (``graspsim.tabletop.clutter.ClutterEpisode``: E10's seeds, scenes,
+camera, sensor noise and database, no execution error) on the scenes of a tuning set that
+hold ``--object``, executes the best grasp each time, and for every grasp aimed at that
+object (``grasp_target``) measures at the executed pose and opening, against the object's
+TRUE mesh where the simulator holds it (and against the convex hull, which mesh
+preparation simulates when decomposition runs out of time):
+
+* the fingers' samples inside the true mesh (> 1 mm), split into those in space the
+  camera did not see (behind the observed surfaces along the rays: ``ViewDepth``) and
+  those it saw, the deepest one, and the same depth against the hull;
+* the true surface between the pads (the fingers' y and z span, within the opening) and
+  its extent along the closing axis, beside the fitted parts' clearance to the fingers;
+* where the pads meet it: the contacts' height below the fingertips and their normals'
+  angle to the closing axis, and the centre of mass off the closing line;
+* the closing axis's angle to the line of sight (``|cos|``).
+
+Each failure gets a mechanism: a start collision with the finger in the true mesh on the
+unseen or the seen side, or in the hull only (the simulation model); no contact with
+nothing between the pads or with the object there; a drop with the contacts within 5 mm of
+the fingertips, the centre of mass more than 10 mm off the closing line, or neither.
+
+    python experiments/study_true_shape.py --db /work/runs/e10-fsdb --kinds pile packed --seeds 1 --scenes 8
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import derived_seed, experiment_database, map_config, opt, rng_for, start
+
+log = logging.getLogger("study_true_shape")
+
+#: a finger sample this deep inside a mesh [m] counts as inside
+INSIDE = 0.001
+#: contacts this near the fingertips [m] are "at the tips"; a centre of mass this far off the closing line is "off"
+TIP, OFF_COM = 0.005, 0.010
+
+
+@dataclass(frozen=True)
+class Config:
+    object: str = opt("duck", "the object whose grasps are judged (a mesh of the set)")
+    object_set: str = opt("household-tuning", "objects drawn from this set (never a held-out set)")
+    kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
+    seeds: int = opt(2, "E10's first seeds")
+    scenes: int = opt(4, "scenes per seed and kind (those without the object are skipped)")
+    seed: int = opt(0, "E10's run seed")
+    quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
+    db: str = opt("", "FS database folder, read only (default: OUT/fsdb, built fresh)")
+    QUICK: ClassVar[dict] = {"kinds": ("packed",), "seeds": 1, "scenes": 1, "quick_maps": True}
+
+    def __post_init__(self) -> None:
+        if self.object_set.endswith("heldout"):
+            raise ValueError("diagnose on tuning meshes only, never on a held-out set")
+
+
+def finger_samples_world(gripper, T: np.ndarray, opening: float, n=(7, 5, 9)) -> dict[str, np.ndarray]:
+    """Each finger box's grid of samples (7 x 5 x 9) in the world at wrist pose T and pad gap ``opening``."""
+    b = gripper.collision_boxes()
+    out = {}
+    for name, c, h, s in zip(b.names, b.centers, b.half_extents, b.x_sign):
+        if name.startswith("finger"):
+            g = np.stack(np.meshgrid(*[np.linspace(-hh, hh, k) for hh, k in zip(h, n)], indexing="ij"),
+                         -1).reshape(-1, 3) + c
+            g[:, 0] += s * 0.5 * opening
+            out[name] = g @ T[:3, :3].T + T[:3, 3]
+    return out
+
+
+def mechanism(r: dict) -> str:
+    """The failure's mechanism from a row's measures (see the module's docstring)."""
+    cause = r["cause"]
+    if cause.startswith("start_collision"):
+        f = r["fingers"].values()
+        if any(v["in_true_seen"] for v in f):
+            return "finger in the true mesh, seen side"
+        if any(v["in_true"] for v in f):
+            return "finger in the true mesh, unseen side"
+        if any(v["in_hull"] for v in f):
+            return "finger in the hull only (simulation model)"
+        return "neighbour or table"
+    if cause == "no_contact":
+        return "nothing between the pads" if not r["true_between"] else "object between the pads, pushed out"
+    if cause == "dropped":
+        if r.get("contact_below_tip_mm") is not None and max(r["contact_below_tip_mm"]) <= 1000 * TIP:
+            return "contacts at the fingertips"
+        if r.get("com_off_line_mm") is not None and r["com_off_line_mm"] > 1000 * OFF_COM:
+            return "centre of mass off the closing line"
+        return "dropped, other"
+    return cause
+
+
+def measure(ep, look, grasp, k: int, mesh, hull, gripper) -> dict:
+    """The measures of ``grasp`` (aimed at object ``k``) before it is executed."""
+    import trimesh
+
+    from graspsim.maps.occlusion import ViewDepth
+
+    T = np.asarray(grasp.T_world_wrist, float)
+    spec = ep.scene.objects[k].spec
+    T_w_file = ep.sim.pose(k) @ spec.T_obj_file
+    inv = np.linalg.inv(T_w_file)
+    eye = ep.camera.T_world_camera[:3, 3]
+    view = ViewDepth(look.view.world(), eye)
+    mem = look.plan.memory[grasp.segment]
+    parts = list(mem.ident.parts) if mem.ident else []
+    r = {"opening_mm": 1000 * grasp.opening, "score": grasp.score, "parts": [str(p.primitive()) for p in parts],
+         "fingers": {}}
+    for name, P in finger_samples_world(gripper, T, grasp.opening).items():
+        L = P @ inv[:3, :3].T + inv[:3, 3]
+        d_true, d_hull = (trimesh.proximity.signed_distance(m, L) for m in (mesh, hull))  # > 0 inside
+        occ = view.occluded(P)
+        gap = np.full(len(P), np.inf)
+        for p in parts:
+            Ti = np.linalg.inv(p.T_world_obj)
+            gap = np.minimum(gap, p.primitive().sdf(P @ Ti[:3, :3].T + Ti[:3, 3]))
+        inside = d_true > INSIDE
+        r["fingers"][name] = {"in_true": int(inside.sum()), "in_true_unseen": int((inside & occ).sum()),
+                              "in_true_seen": int((inside & ~occ).sum()), "in_hull": int((d_hull > INSIDE).sum()),
+                              "depth_true_mm": 1000 * float(d_true.max()), "depth_hull_mm": 1000 * float(d_hull.max()),
+                              "parts_clearance_mm": 1000 * float(gap.min()), "unseen_share": float(occ.mean())}
+    # the true surface between the pads, in the wrist frame
+    S, fi = trimesh.sample.sample_surface_even(mesh, 20000, seed=0)
+    W = np.linalg.inv(T) @ T_w_file
+    Sw, Nw = S @ W[:3, :3].T + W[:3, 3], mesh.face_normals[fi] @ W[:3, :3].T
+    between = ((np.abs(Sw[:, 1]) <= 0.5 * gripper.finger_size[1]) & (Sw[:, 2] >= gripper.jaw_base_z)
+               & (Sw[:, 2] <= gripper.fingertip_z) & (np.abs(Sw[:, 0]) <= 0.5 * grasp.opening + 0.002))
+    r["true_between"] = int(between.sum())
+    if between.any():
+        x = np.where(between, Sw[:, 0], np.nan)
+        lo, hi = int(np.nanargmin(x)), int(np.nanargmax(x))
+        r["true_extent_mm"] = [1000 * float(Sw[lo, 0]), 1000 * float(Sw[hi, 0])]
+        r["contact_below_tip_mm"] = [1000 * float(gripper.fingertip_z - Sw[j, 2]) for j in (lo, hi)]
+        r["contact_normal_deg"] = [float(np.degrees(np.arccos(np.clip(s * Nw[j, 0], -1, 1))))
+                                   for j, s in ((lo, -1.0), (hi, 1.0))]
+        com = (W @ np.r_[np.linalg.inv(spec.T_obj_file)[:3, 3], 1.0])[:3]
+        r["com_off_line_mm"] = 1000 * float(abs(com[1]))
+    at = T @ np.r_[gripper.nominal_tcp, 1.0]
+    sight = (at[:3] - eye) / np.linalg.norm(at[:3] - eye)
+    r["closing_sight_cos"] = float(abs(T[:3, 0] @ sight))
+    return r
+
+
+def episodes(cfg: Config, kind: str, db) -> list[dict]:
+    import e10_clutter_removal as e10
+    import trimesh
+
+    from graspsim.tabletop.clutter import ClutterEpisode, grasp_target
+    from graspsim.tabletop.scene_objects import ASSETS
+    from graspsim.tabletop.table_scene import make_scene
+
+    e10cfg = e10.Config(seed=cfg.seed, seeds=max(cfg.seeds, e10.Config().seeds), scenes=cfg.scenes)
+    clutter = e10._clutter_config({"kind": kind, "noise": "none", "ablation": None})
+    rows = []
+    for s in range(cfg.seeds):
+        sd = e10.seed_of(e10cfg, s)
+        for i in range(cfg.scenes):
+            scene = make_scene(5, kind, derived_seed(sd, "scene", i), object_set=cfg.object_set, gripper=db.gripper)
+            mine = [j for j, o in enumerate(scene.objects) if o.name == cfg.object]
+            if not mine:
+                continue
+            spec = scene.objects[mine[0]].spec
+            path = Path(spec.file) if Path(spec.file).is_absolute() else ASSETS / spec.file
+            mesh = trimesh.load(path, force="mesh")
+            mesh.apply_scale(spec.scale)
+            hull = mesh.convex_hull
+            ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=clutter)
+            try:
+                while ep.stop is None:
+                    look = ep.observe()
+                    if look is None:
+                        break
+                    g = look.best
+                    k = grasp_target(look, g, db.gripper)
+                    r = measure(ep, look, g, k, mesh, hull, db.gripper) if k in mine else None
+                    a = ep.execute(look, g)
+                    if r is not None:
+                        r.update(kind=kind, seed=s, scene=i, cause=a.cause)
+                        r["mechanism"] = "success" if a.success else mechanism(r)
+                        rows.append(r)
+                        log.info("%s seed %d scene %d: %s (%s)", kind, s, i, a.cause, r["mechanism"])
+            finally:
+                ep.close()
+    return rows
+
+
+def run(cfg: Config, db) -> dict:
+    rows = [r for kind in cfg.kinds for r in episodes(cfg, kind, db)]
+    mech: dict[str, int] = {}
+    for r in rows:
+        if r["cause"] != "success":
+            mech[r["mechanism"]] = mech.get(r["mechanism"], 0) + 1
+    return {"grasps": len(rows), "lifted": sum(r["cause"] == "success" for r in rows), "mechanisms": mech,
+            "rows": rows, "denominators": f"grasps aimed at the {cfg.object} in the scenes run"}
+
+
+def readme_section(s: dict) -> str:
+    c = s["config"]
+    L = [f"`{s['command']}`: {s['lifted']}/{s['grasps']} grasps aimed at the {c['object']} lifted it "
+         f"({', '.join(c['kinds'])}, {c['seeds']} seeds x {c['scenes']} scenes of {c['object_set']}).", "",
+         "| failure mechanism | grasps |", "|---|---|"]
+    L += [f"| {m} | {n} |" for m, n in sorted(s["mechanisms"].items(), key=lambda t: -t[1])]
+    L += ["", "| kind | seed | scene | parts | cause | mechanism | closing . sight | true in fingers (unseen/seen) "
+          "[mm deep] | hull [mm deep] | parts clearance [mm] |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in s["rows"]:
+        f = r["fingers"].values()
+        L.append(f"| {r['kind']} | {r['seed']} | {r['scene']} | {'; '.join(r['parts'])} | {r['cause']} | "
+                 f"{r['mechanism']} | {r['closing_sight_cos']:.2f} | "
+                 f"{'/'.join(str(v['in_true_unseen']) + ':' + str(v['in_true_seen']) for v in f)} "
+                 f"[{max(v['depth_true_mm'] for v in f):.1f}] | {max(v['depth_hull_mm'] for v in f):.1f} | "
+                 f"{min(v['parts_clearance_mm'] for v in f):.1f} |")
+    return "\n".join(L) + "\n"
+
+
+def main(argv=None) -> int:
+    from e10_clutter_removal import RunDatabase
+
+    cfg, out, record = start(Config, __file__, argv, __doc__)
+    root = experiment_database(cfg.db, out, map_config(cfg.quick_maps)).root
+    db = RunDatabase(root, config=map_config(cfg.quick_maps))  # read only, as in E10
+    print(record.write(out, {"config": cfg, **run(cfg, db)}, readme_section))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -171,8 +171,8 @@ def lift_clear(gmap: GraspabilityMap, T_table_obj: np.ndarray, gripper: GripperS
     if not len(rows):
         return none
     # one pose per closing line and roll: the lowest (lowest point nearest the target), one
-    # lifted before one moved down to the same height (to the micrometre)
-    by = np.lexsort((down, np.round(low_h, 6)))
+    # lifted before one moved down to the same height (1 nm, past the float noise)
+    by = np.argsort(low_h + 1e-9 * down, kind="stable")
     rows, s = rows[by], s[by]
     key = np.column_stack([gmap.contacts[rows].reshape(len(rows), 6), gmap.wrist_quat[rows]]).astype(np.float32)
     _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * key.shape[1]))).ravel(),

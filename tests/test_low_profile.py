@@ -65,6 +65,39 @@ def test_a_flat_box_has_no_pose_clear_of_the_table_but_lifted_ones_that_touch_it
     assert np.all(np.abs(lifted.contacts[:, 1] - lifted.contacts[:, 0]) @ np.abs(up) < 1e-3 + 0.5 * FLAT.x)
 
 
+def test_a_short_pad_with_one_planned_depth_gets_its_fingertips_lowered_to_the_table():
+    """A pad shorter than the maps' depth step has one planned depth (the Franka hand's 18 mm
+    pad at the 1 cm step): a plate seen a few mm higher than it lies (a domino's top face, the
+    table band cutting its sides) puts every fingertip between the target and the clearance,
+    none under the table to lift. Those poses move down to the target, contacts deeper on
+    the pad within its planned region."""
+    from dataclasses import replace
+
+    short = replace(GRIPPER, name="short_pad", pad_length=0.018, finger_size=(0.01, 0.02, 0.018))
+    cfg = replace(FAST, depth_step=0.01)
+    assert len(short.contact_depths(cfg.depth_step)) == 1
+    gmap = generate_fs_map(FLAT, short, config=cfg)
+    T = table_frame((1.0, 0.0, 0.0), -0.5 * FLAT.x - 0.005)  # the plate 5 mm up, its mid-plane at 8 mm
+    low = LowProfile()
+    rows, pos = lift_clear(gmap, T, short, 0.002, low)
+    assert len(rows) >= 5
+    lifted = replace(gmap.select(rows), wrist_position=pos)
+    h = heights_above(short, T, lifted.wrist_quat, lifted.wrist_position, lifted.width)
+    assert np.all(np.abs(h - low.clearance) < 1e-5)  # at the target, not left 1-2 mm up
+    d = short.contact_depth(lifted.grasp_point.astype(float), lifted.wrist_position.astype(float),
+                            lifted.approach.astype(float))
+    assert np.all(d >= low.min_depth - 1e-6) and np.all(d <= short.depth_hi + 1e-6)
+    assert np.any(d > short.depth_lo + 1e-4)  # moved down: contacts deeper than the one planned depth
+    free = boxes_clear_sdf(FLAT, short, lifted.T_obj_wrist, short.pregrasp_opening(lifted.width),
+                           tolerance=cfg.collision_tolerance)
+    assert free.all()
+    # the default gripper's deeper planned contacts lift to the same height: nothing moves down
+    full = generate_fs_map(FLAT, GRIPPER, config=cfg)
+    rows, pos = lift_clear(full, T, GRIPPER, 0.002, low)
+    d = GRIPPER.contact_depth(full.grasp_point[rows].astype(float), pos, full.approach[rows].astype(float))
+    assert len(rows) and np.all(d <= np.max(GRIPPER.contact_depths(cfg.depth_step)) + 1e-6)
+
+
 def test_which_parts_are_low_and_a_minimum_depth_beyond_the_pad_leaves_none():
     tall = Box(0.03, 0.04, 0.08)  # standing on its 30 x 40 face: its z is up
     T = table_frame((0.0, 0.0, 1.0), -0.5 * tall.z)

@@ -104,6 +104,27 @@ def test_the_chain_fk_is_mujocos_and_the_map_is_cached_by_content(kin, robot, tm
     assert c.key != a.key and len(list(tmp_path.iterdir())) == 2
 
 
+def test_a_cached_map_is_read_once_per_process_until_its_file_changes(robot, tmp_path):
+    """A clutter run asks for the map once per episode: the second read shares the first's
+    (read-only) arrays; a file rewritten since is read again."""
+    import os
+
+    B = base_transform()
+    cfg = CapabilityConfig(samples=20_000)
+    capability_map(robot, PANDA, B, cfg, cache_dir=tmp_path)  # built and written
+    a = capability_map(robot, PANDA, B, cfg, cache_dir=tmp_path)
+    b = capability_map(robot, PANDA, B, cfg, cache_dir=tmp_path)
+    assert b.cells is a.cells and b.q is a.q and not a.cells.flags.writeable and not a.q.flags.writeable
+    (path,) = tmp_path.iterdir()
+    with np.load(path) as z:
+        shape, flat, q = z["shape"], z["flat"], z["q"]
+    keep = slice(0, len(flat) // 2)  # another content under the same name, an older time stamp
+    np.savez_compressed(path, shape=shape, flat=flat[keep], q=q[keep])
+    os.utime(path, ns=(1, 1))
+    c = capability_map(robot, PANDA, B, cfg, cache_dir=tmp_path)
+    assert c.cells is not a.cells and (c.cells >= 0).sum() < (a.cells >= 0).sum()
+
+
 @pytest.fixture(scope="module")
 def box_scene():
     return build_arm_scene(object_from_shape(Box(0.05, 0.05, 0.05)), FRANKA)

@@ -187,6 +187,25 @@ def test_render_labels_match_the_objects(gl):
     sim.close()
 
 
+@pytest.mark.parametrize("robot", [False, True])
+def test_a_model_file_grippers_markers_stay_out_of_the_depth_image(gl, robot):
+    """The camera sees the table and the objects only: the Robotiq 2F-85's model carries a
+    grip-site cylinder metres long, which stood over the table as a rod of points (planned
+    as an object, grasped at nothing); with the arm too."""
+    from graspsim.grippers import get_gripper
+    from graspsim.robots import PANDA
+
+    kw = {"robot": PANDA} if robot else {}
+    sim = SceneSim([(BOX, _at(0.1, 0.1))], gripper=get_gripper("robotiq_2f85"), **kw)
+    cam = Camera(Intrinsics(320, 240, 170.0, 170.0, 159.5, 119.5), look_at([0.0, -0.35, 0.55], [0, 0, 0]))
+    v = backproject(sim.render(cam))
+    w = v.world()
+    ok = np.all(np.isfinite(w), axis=1)
+    assert np.abs(w[ok & (v.labels == -1), 2]).max() < 1e-3  # nothing but the table unlabelled
+    assert (v.labels == 0).sum() > 50
+    sim.close()
+
+
 def test_execution_noise_is_seeded_and_width_sets_the_opening():
     from graspsim.sim import ExecutionNoise
 

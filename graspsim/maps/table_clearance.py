@@ -121,17 +121,24 @@ def lift_clear(gmap: GraspabilityMap, T_table_obj: np.ndarray, gripper: GripperS
     ``T_table_obj`` in the map's object frame). A pose lower than that is moved back along
     its own approach (the wrist by -s x approach) until its lowest point is there, its grasp
     point and contacts unchanged, so the contacts sit s nearer the fingertip: contact depth
-    d - s; a pose between ``target`` and ``clearance`` stays as it is (s = 0). A pose is
+    d - s; a pose between ``target`` and ``clearance`` is moved down its approach to
+    ``target`` where its contacts then stay within the pad's planned region (d - s <=
+    ``gripper.depth_hi``, s < 0), else it stays as it is (s = 0): a pad with one planned
+    depth (shorter than the maps' depth step, as the Franka hand's) has no deeper pose to
+    lift to the target, and a plate seen a few mm above where it lies (a domino's top
+    face) would keep its fingertips 1-2 mm up, where most such grasps slip. A pose is
     offered where its contacts stay at least ``low.min_depth`` from the fingertip (else they
     would leave the pad) and both pads' tip edges at most ``low.max_tip`` above the table.
     Lifting cannot add a collision with the object the pose was checked against: the
     gripper's boxes nest (finger in jaw in housing in the arm keep-out, widening towards
     the wrist), so the moved gripper lies in the unmoved one but for a slab s thick behind
     the arm keep-out's far end, ``arm_length + fingertip_z - d`` behind the contacts (at
-    least 210 mm for the default gripper); the planner's checks against the observed
-    points and its robust score still see the whole moved gripper. Poses of one closing
+    least 210 mm for the default gripper); moving down can (the fingers go deeper over a
+    part that may widen towards the table): the robust score's primitives term judges it.
+    The planner's checks against the observed points and its robust score see the whole
+    moved gripper. Poses of one closing
     line and roll at several depths come to one pose (or to poses between ``target`` and
-    ``clearance``): the lowest of them stands for them.
+    ``clearance``): the lowest of them stands for them, a lifted one before one moved down.
 
     Returns (rows (K,) of ``gmap``, wrist positions (K, 3) of the lifted poses, object
     frame); the grasps are ``gmap.select(rows)`` with those positions."""
@@ -152,13 +159,20 @@ def lift_clear(gmap: GraspabilityMap, T_table_obj: np.ndarray, gripper: GripperS
     depth = gripper.contact_depth(gp, pos[below], a)
     hb = h[below]
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(hb >= target, 0.0, np.where(rise > 1e-6, (target - hb + 1e-7) / rise, np.inf))
+        up = np.where(rise > 1e-6, (target - hb + 1e-7) / rise, np.inf)  # moved to the target
+    # a pose between the target and the clearance moves down to the target, its contacts deeper
+    # on the pad while they stay in its planned region (depth_hi): for a pad whose depth grid
+    # has no deeper contact to lift from (the Franka hand's 18 mm pad has one depth at the maps'
+    # 1 cm step) the only pose with its fingertips at the target; one that cannot stays
+    down = (hb >= target) & np.isfinite(up) & (depth - up <= gripper.depth_hi + 1e-9)
+    s = np.where(down, up, np.where(hb >= target, 0.0, up))
     ok = np.isfinite(s) & (depth - s >= low.min_depth)
-    rows, s, low_h = below[ok], s[ok], hb[ok] + s[ok] * rise[ok]
+    rows, s, low_h, down = below[ok], s[ok], hb[ok] + s[ok] * rise[ok], down[ok]
     if not len(rows):
         return none
-    # one pose per closing line and roll: the lowest (lowest point nearest the target)
-    by = np.argsort(low_h, kind="stable")
+    # one pose per closing line and roll: the lowest (lowest point nearest the target), one
+    # lifted before one moved down to the same height (1 nm, past the float noise)
+    by = np.argsort(low_h + 1e-9 * down, kind="stable")
     rows, s = rows[by], s[by]
     key = np.column_stack([gmap.contacts[rows].reshape(len(rows), 6), gmap.wrist_quat[rows]]).astype(np.float32)
     _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * key.shape[1]))).ravel(),

@@ -342,6 +342,11 @@ class SceneSim:
             opt = mujoco.MjvOption()
             opt.geomgroup[GRIPPER_GROUP] = 0
             opt.geomgroup[BIN_GROUP] = 0
+            # sites and tendons are markers with no surface a camera could see: a model file's
+            # (the Robotiq 2F-85's 5 mm grip-site cylinder, metres long) stood in the depth
+            # image over the table as a rod of points, segmented and planned as an object
+            opt.sitegroup[:] = 0
+            opt.tendongroup[:] = 0
             self._renderer = DepthRenderer(self.model, intrinsics, scene_option=opt)
         return self._renderer
 

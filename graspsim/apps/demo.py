@@ -64,10 +64,6 @@ class DemoConfig:
             if self.robot not in ROBOTS:
                 raise InvalidParameterError(f"robot {self.robot!r} unknown; valid: {list(ROBOTS)}")
             base_transform(DEFAULT_BASE if self.robot_base is None else self.robot_base)
-            if self._gripper_spec.model is None:
-                raise InvalidParameterError(
-                    f"--robot {self.robot} carries grippers simulated from their model files and "
-                    f"{self._gripper_spec.name} has none: give --gripper franka_hand")
         if self.trials < 1:
             raise InvalidParameterError(f"trials must be >= 1, got {self.trials}")
         if self.renders < 0:

@@ -46,11 +46,6 @@ def _cmd_adapt(args) -> int:
         from graspsim.errors import InvalidParameterError
 
         raise InvalidParameterError("--reach-exact needs --robot panda")
-    if base is not None and gripper.model is None:
-        from graspsim.errors import InvalidParameterError
-
-        raise InvalidParameterError(f"--robot {args.robot} carries grippers simulated from their model files "
-                                    f"(e.g. --gripper franka_hand); {gripper.name!r} has none")
     cfg = adapt_config(mode=args.mode, table=None if args.table is None else (
         "auto" if args.table == "auto" else _height(args.table)), table_normal=args.table_normal,
         table_clearance=args.table_clearance, repetitions=args.repetitions, theta=args.theta,

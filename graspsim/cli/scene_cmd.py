@@ -94,10 +94,6 @@ def _cmd_scene(args) -> int:
     if base is not None:
         from graspsim.tabletop.clutter import ClutterRobot
 
-        if gripper.model is None:
-            raise InvalidParameterError(
-                f"--robot {args.robot} carries grippers simulated from their model files and {gripper.name} has none: "
-                "give --gripper franka_hand (or robotiq_2f85, rethink_gripper, an MJCF / URDF file)")
         robot = ClutterRobot(name=args.robot, base=base)
     planner = None
     if args.planner != "graspsim":

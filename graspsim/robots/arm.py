@@ -1,14 +1,19 @@
 """A robot arm carrying a graspsim gripper, as a MuJoCo model.
 
 The arm's model file (a vendored ``mjcf/<name>/<name>.xml``: the Franka Emika Panda) is
-attached to the world at the base pose ``T_world_base``; the gripper's model file is
-attached on the arm's flange as authored, exactly as the trial harness attaches it to
-its free wrist (:func:`graspsim.sim.authored_model.attach_model`: the same pad, force and
-gravity-compensation settings). The flange carries a ``wrist`` body whose frame is the
-gripper's wrist frame of :class:`~graspsim.grippers.GripperSpec` (the model's root body
-sits on the flange; the wrist is where the gripper's :class:`~graspsim.grippers.Mount`
-puts it), with the harness's ``wrist`` and ``tcp`` sites: maps' wrist poses are targets
-of that frame.
+attached to the world at the base pose ``T_world_base``; the gripper goes on the arm's
+flange as the trial harness puts it on its free wrist: a model file as authored
+(:func:`graspsim.sim.authored_model.attach_model`: the same pad, force and
+gravity-compensation settings), a gripper simulated from its spec (the Festo
+HGPL-25-60-A, a spec ``.json``) as the box model the harness generates from the spec
+(:func:`graspsim.sim.model.add_box_gripper`: the same housing, jaws, valve and pads). The
+flange carries a ``wrist`` body whose frame is the gripper's wrist frame of
+:class:`~graspsim.grippers.GripperSpec` (a model file's root body sits on the flange and
+the wrist is where the gripper's :class:`~graspsim.grippers.Mount` puts it; a box
+model's wrist, the top of its housing, is the flange), with the harness's ``wrist`` and
+``tcp`` sites: maps' wrist poses are targets of that frame. The spec's ``arm`` box (the
+planner's keep-out for whatever carries the gripper) is not simulated: the arm's own
+links are.
 
 The arm is driven by a position servo on each joint (:class:`ArmServos`, added after
 the gripper's actuators so that the gripper's come first, as the harness expects); its
@@ -155,10 +160,6 @@ def add_arm(spec: mujoco.MjSpec, arm: ArmSpec, gripper: GripperSpec, physics, *,
     from graspsim.sim.authored_model import attach_model
     from graspsim.sim.model import NAMES
 
-    if gripper.model is None:
-        raise InvalidParameterError(
-            f"gripper {gripper.name!r} has no model file: an arm carries grippers simulated from their "
-            "model files (e.g. franka_hand, robotiq_2f85)")
     child = _load_arm(arm)
     frame = spec.worldbody.add_frame(pos=list(T_world_base[:3, 3]), quat=list(matrix_to_quat(T_world_base[:3, :3])))
     spec.attach(child, prefix=ARM_PREFIX, frame=frame)
@@ -169,7 +170,13 @@ def add_arm(spec: mujoco.MjSpec, arm: ArmSpec, gripper: GripperSpec, physics, *,
                                    quat=list(matrix_to_quat(T_link_wrist[:3, :3])))
     wrist.add_site(name="wrist", size=[0.005] * 3, rgba=[0.2, 0.2, 0.9, 0.4], group=4)
     wrist.add_site(name="tcp", pos=gripper.nominal_tcp, size=[0.004] * 3, rgba=[0.2, 0.9, 0.2, 0.4], group=4)
-    attach_model(spec, wrist, gripper, physics, force=force, friction=friction, condim=condim)
+    if gripper.model is None:  # the box model generated from the spec, its wrist on the flange
+        from graspsim.sim.model import add_box_gripper
+
+        wrist.gravcomp = 1.0  # as the harness's free wrist: the housing's weight is not the servos' load
+        add_box_gripper(spec, wrist, gripper, physics, force=force, friction=friction, condim=condim)
+    else:
+        attach_model(spec, wrist, gripper, physics, force=force, friction=friction, condim=condim)
     for link in arm.hull_over_flange:
         for body in wrist.find_all(mujoco.mjtObj.mjOBJ_BODY):
             spec.add_exclude(bodyname1=ARM_PREFIX + link, bodyname2=body.name)

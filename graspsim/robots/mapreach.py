@@ -50,13 +50,6 @@ DEFAULT_EXACT = 100
 _CHUNK = 1 << 16  # rows per first-cut block: (4, 4) float64 poses of 65 536 rows, 8 MB
 
 
-def _check_gripper(gripper, robot: str) -> None:
-    if gripper.model is None:
-        raise InvalidParameterError(
-            f"the map's gripper {gripper.name!r} has no model file: --robot {robot} carries grippers simulated "
-            "from their model files (e.g. franka_hand, robotiq_2f85)")
-
-
 def reach_column(gmap: GraspabilityMap, *, robot: str = "panda", base=DEFAULT_BASE, exact: int = DEFAULT_EXACT,
                  rank: str = "robust", protocol: ArmLiftPlace = ArmLiftPlace(), map_dir=None,
                  capability: CapabilityConfig | None = None, capability_cache=None, cache_dir=None,
@@ -74,7 +67,6 @@ def reach_column(gmap: GraspabilityMap, *, robot: str = "panda", base=DEFAULT_BA
     arm = get_arm(robot)
     T_base = base_transform(base)
     gripper = map_gripper(gmap)
-    _check_gripper(gripper, robot)
     mu = gmap.meta.quality.get("friction")
     settings = SimSettings(friction=float(mu)) if mu else SimSettings()
     obj = map_object(gmap, map_dir=map_dir, density=settings.density, cache_dir=cache_dir)

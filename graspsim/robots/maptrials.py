@@ -66,12 +66,6 @@ def simulate_map_arm(path: str | os.PathLike, *, robot: str = "panda", base=DEFA
     T_base = base_transform(base)
     if not isinstance(protocol, ArmLiftPlace):
         raise InvalidParameterError("an arm executes the lift_place protocol (ArmLiftPlace) only")
-    def check_gripper(gripper):
-        if gripper.model is None:
-            raise InvalidParameterError(
-                f"the map's gripper {gripper.name!r} has no model file: --robot {robot} carries grippers simulated "
-                "from their model files (e.g. franka_hand, robotiq_2f85)")
-
     record = {}
 
     def selected(gmap, index):
@@ -96,4 +90,4 @@ def simulate_map_arm(path: str | os.PathLike, *, robot: str = "panda", base=DEFA
     return map_trials(path, scene_of, execute, protocol=protocol, top=top, sample=sample, min_grade=min_grade,
                       seed=seed, noise=noise, mesh=mesh, mesh_scale=mesh_scale, mass=mass, settings=settings,
                       write=write, replace_stored=replace_stored, cache_dir=cache_dir, on_selected=selected,
-                      rank=rank, separation=separation, dataset=dataset, check_gripper=check_gripper)
+                      rank=rank, separation=separation, dataset=dataset)

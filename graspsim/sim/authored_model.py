@@ -130,9 +130,12 @@ def attach_model(spec: mujoco.MjSpec, wrist: mujoco.MjsBody, gripper: GripperSpe
 
 def authored_names(gripper: GripperSpec) -> GripperNames:
     """The names of the elements of ``gripper``'s model as :func:`attach_model` attaches
-    it (prefixed; no coupling tendon, no housing geom) and of the harness's wrist."""
+    it (prefixed; no coupling tendon, no housing geom) and of the harness's wrist; a
+    gripper without a model file: the names of the box model generated from its spec."""
     from graspsim.grippers import mount
 
+    if gripper.model is None:
+        return NAMES
     return _names(mount(gripper.model))
 
 

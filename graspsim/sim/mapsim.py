@@ -285,20 +285,17 @@ def map_trials(path, scene_of, execute, *, protocol: Protocol, top: int | None =
                min_grade: float | None = None, seed: int = 0, noise: ExecutionNoise | None = None,
                mesh=None, mesh_scale: float = 1.0, mass: float | None = None, settings: SimSettings | None = None,
                write: bool = True, replace_stored: bool = False, cache_dir=None, on_selected=None,
-               rank: str = "robust", separation: tuple[float, float] | None = None, dataset: dict | None = None,
-               check_gripper=None) -> MapTrials:
+               rank: str = "robust", separation: tuple[float, float] | None = None,
+               dataset: dict | None = None) -> MapTrials:
     """The one path from a map file to its stored trial results, whatever executes the grasps:
     :func:`simulate_map` (the floating gripper) and the arm's
     :func:`graspsim.robots.simulate_map_arm` differ only in ``scene_of(obj, gripper, settings,
-    T_world_obj) -> scene`` and ``execute(scene, T_obj_wrist, width) -> TrialResults``
-    (``check_gripper(gripper)`` may refuse the map's gripper first). Selection, the
-    object and where it stands, the settings, the stored-results check and the storing are
+    T_world_obj) -> scene`` and ``execute(scene, T_obj_wrist, width) -> TrialResults``.
+    Selection, the object and where it stands, the settings, the stored-results check and the storing are
     :func:`simulate_map`'s (arguments as there)."""
     path, mesh = _simulated_file(Path(path), mesh, mesh_scale, dataset)
     gmap = load_map(path)
     gripper = map_gripper(gmap)
-    if check_gripper is not None:
-        check_gripper(gripper)
     if settings is None:
         mu = gmap.meta.quality.get("friction")
         settings = SimSettings(friction=float(mu)) if mu else SimSettings()

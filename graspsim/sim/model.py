@@ -37,7 +37,7 @@ import numpy as np
 from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 
-__all__ = ["GripperPhysics", "GripperNames", "NAMES", "build_gripper_spec", "gripper_xml",
+__all__ = ["GripperPhysics", "GripperNames", "NAMES", "build_gripper_spec", "add_box_gripper", "gripper_xml",
            "add_wrist", "add_weld", "drive_force", "GripDrive", "box_drive"]
 
 
@@ -201,12 +201,24 @@ def build_gripper_spec(
     (default: 35 cm up, approach pointing down).
     """
     force = drive_force(gripper, grip_force, condim)
-    g, n = gripper, NAMES
+    g = gripper
     spec = mujoco.MjSpec()
     spec.modelname = g.name
     spec.compiler.degree = False
 
     wrist = add_wrist(spec, g, home_pos, home_quat)
+    add_weld(spec, physics)
+    add_box_gripper(spec, wrist, g, physics, force=force, friction=friction, condim=condim)
+    return spec
+
+
+def add_box_gripper(spec: mujoco.MjSpec, wrist: mujoco.MjsBody, gripper: GripperSpec, physics: GripperPhysics, *,
+                    force: float, friction: tuple[float, float, float], condim: int) -> GripperNames:
+    """The box model generated from ``gripper`` (module doc: housing, jaws on synchronised
+    slides, the valve driving the ``opening`` tendon) on the body ``wrist``, whose frame
+    is the spec's wrist frame: the harness's free wrist, or an arm's flange; ``force``
+    per jaw [N] (:func:`drive_force`). Returns the names of its elements."""
+    g, n = gripper, NAMES
     boxes = g.collision_boxes()
     parts = dict(zip(boxes.names, zip(boxes.centers, boxes.half_extents)))
     c, h = parts["housing"]
@@ -231,7 +243,6 @@ def build_gripper_spec(
         )
     spec.add_exclude(bodyname1=n.jaw_neg, bodyname2=n.jaw_pos)
 
-    add_weld(spec, physics)
     sync = spec.add_equality(name=n.sync, type=mujoco.mjtEq.mjEQ_JOINT,
                              objtype=mujoco.mjtObj.mjOBJ_JOINT, name1=n.jaw_pos, name2=n.jaw_neg)
     sync.data[:5] = [0, 1, 0, 0, 0]
@@ -245,7 +256,7 @@ def build_gripper_spec(
     act.gainprm[0] = force
     act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
     act.ctrlrange = [-1.0, 1.0]
-    return spec
+    return n
 
 
 def add_wrist(spec: mujoco.MjSpec, gripper: GripperSpec, home_pos, home_quat) -> mujoco.MjsBody:

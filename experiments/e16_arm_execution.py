@@ -66,7 +66,7 @@ class Config:
     episodes: int = opt(6, "base placements per object")
     top: int = opt(10, "the map's best grasps tried per episode")
     distance: float = opt(0.5, "the base's distance from the object [m]")
-    gripper: str = opt("franka_hand", "the gripper on the arm's flange (a model-file gripper)")
+    gripper: str = opt("franka_hand", "the gripper on the arm's flange (a model file, or simulated from its spec)")
     coarse: bool = opt(True, "coarse FS maps (1 cm surface step, 22 deg rotations)")
     threads: int = opt(2, "simulation threads")
     clutter_scenes: int = opt(3, "clutter-removal scenes per seed, cleared by the arm and by the floating gripper "

@@ -128,22 +128,19 @@ def test_a_grasp_whose_approach_passes_through_a_neighbour_is_refused_never_exec
     assert r.attempts == () and r.stop == "unreachable" and r.left[0] == "unreachable"
 
 
-def test_robot_panda_with_a_spec_only_gripper_is_one_line(capsys, tmp_path):
-    code = main(["scene", "--robot", "panda", "--objects", "1", "--db", str(tmp_path / "db")])
-    err = capsys.readouterr().err
-    assert code == 2 and len(err.strip().splitlines()) == 1 and "--gripper franka_hand" in err
-    assert "Traceback" not in err and not (tmp_path / "db").exists()
+def test_robot_base_without_an_arm_is_one_line(capsys, tmp_path):
     code = main(["scene", "--robot-base", "0", "0", "0", "--objects", "1", "--db", str(tmp_path / "db")])
     err = capsys.readouterr().err
     assert code == 2 and "--robot-base needs --robot panda" in err and len(err.strip().splitlines()) == 1
 
 
-def test_the_clutter_env_takes_the_arm_and_refuses_a_spec_only_gripper():
+def test_the_clutter_env_takes_the_arm_with_any_gripper():
     from graspsim.envs.clutter_config import ClutterEnvConfig
     from graspsim.errors import InvalidParameterError
 
-    with pytest.raises(InvalidParameterError, match="gripper='franka_hand'"):
-        ClutterEnvConfig(robot="panda")
+    assert ClutterEnvConfig(robot="panda").to_dict()["gripper"] == "festo_hgpl_25_60_a"  # spec-built, on the flange
+    with pytest.raises(InvalidParameterError, match="no_such_gripper"):
+        ClutterEnvConfig(robot="panda", gripper="no_such_gripper")
     with pytest.raises(InvalidParameterError, match="robot 'ur5' unknown"):
         ClutterEnvConfig(robot="ur5", gripper="franka_hand")
     c = ClutterEnvConfig(robot="panda", gripper="franka_hand", robot_base=(-0.45, 0.1, 0.2))

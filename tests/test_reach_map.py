@@ -126,8 +126,7 @@ def test_adapt_refuses_an_arm_it_cannot_judge_before_reading_the_cloud(tmp_path,
     from graspsim.cli import main
 
     out = tmp_path / "a.h5"
-    for extra, words in ((["--robot", "panda"], "model files"),  # the default gripper has no model file
-                         (["--reach-exact", "5"], "--reach-exact needs --robot panda"),
+    for extra, words in ((["--reach-exact", "5"], "--reach-exact needs --robot panda"),
                          (["--robot", "panda", "--gripper", "franka_hand", "--robot-base", "0", "3", "0"],
                           "within 2 m")):
         assert main(["adapt", str(tmp_path / "missing.npy"), "-o", str(out), *extra]) == 2

@@ -29,6 +29,7 @@ from graspsim.robots.reach import pose_error
 from graspsim.sim import TrialOutcome, object_from_shape
 
 FRANKA = get_gripper("franka_hand")
+FESTO = get_gripper("festo_hgpl_25_60_a")  # simulated from its spec: the harness's box model
 TOP_DOWN = dict(grasp_point=[0, 0, 0], approach=[0, 0, -1], closing=[1, 0, 0])
 
 
@@ -89,6 +90,35 @@ def test_an_approach_through_the_table_is_rejected(kin):
     assert check_reach(kin, _pose(0.1, 0.10, 0.0), approach=0.3).ok  # level: clear
 
 
+def _side_pose(x, z, tilt_deg):
+    """A wrist pose at (x, 0, z) approaching along +x tilted up by ``tilt_deg``, the jaws
+    closing in the vertical plane (the closing axis upright, tilted back by the same)."""
+    t = math.radians(tilt_deg)
+    a, xw = np.array([math.cos(t), 0.0, math.sin(t)]), np.array([-math.sin(t), 0.0, math.cos(t)])
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = xw, np.cross(a, xw), a, [x, 0.0, z]
+    return T
+
+
+def test_the_reach_check_sees_the_festos_housing():
+    """The Festo on the flange: its housing (180 mm along the closing axis) is in the
+    arm's collision checks. Jaws upright, approached 10 deg up: the grasp 0.10 m up is
+    clear, but its pre-grasp 0.1 m back sits 17 mm lower and puts the housing's lower
+    end (90 mm below the axis) into the table, while the arm, the jaws and the fingers
+    stay clear."""
+    kin = ArmKinematics(build_robot_model(PANDA, FESTO), PANDA)
+    T = _side_pose(0.1, 0.10, 10.0)
+    assert check_reach(kin, T, approach=0.0).ok
+    r = check_reach(kin, T, approach=0.1)
+    assert r.reach is Reach.TABLE and r.stage == "pre_grasp"
+    assert r.contacts["arm_table"] == 0.0
+    t = math.radians(10.0)
+    housing = FESTO.collision_boxes().half_extents[FESTO.collision_boxes().names.index("housing")]
+    lowest = 0.10 - 0.1 * math.sin(t) - housing[0] * math.cos(t)  # the housing's lower edge at the pre-grasp
+    assert r.contacts["gripper_table"] == pytest.approx(-lowest, abs=1e-3)
+    assert check_reach(kin, _side_pose(0.1, 0.125, 10.0), approach=0.1).ok  # higher: the housing clears
+
+
 def test_the_chain_fk_is_mujocos_and_the_map_is_cached_by_content(kin, robot, tmp_path):
     fk = ChainFK(robot, PANDA)
     q = np.random.default_rng(3).uniform(kin.lower, kin.upper, (16, 7))
@@ -141,6 +171,22 @@ def test_the_arm_lifts_a_box_by_a_known_good_grasp(box_scene):
         assert r.metrics[k][0] == pytest.approx(70.0, rel=0.05)
 
 
+def test_the_arm_lifts_a_box_with_the_festo_simulated_from_its_spec():
+    """The spec-built Festo on the flange: the floating harness's box model (the same
+    jaws, valve and pads), driven as there, lifts the box by the same known-good grasp."""
+    scene = build_arm_scene(object_from_shape(Box(0.05, 0.05, 0.05)), FESTO)
+    m = scene.model
+    assert m.actuator(0).name == "grip" and m.body(int(m.geom("housing").bodyid[0])).name == "wrist"
+    assert m.body(int(m.body("wrist").parentid[0])).name == "arm/link7"  # on the flange, no free joint of its own
+    T = grasp_pose(depth=FESTO.nominal_depth, gripper=FESTO, **TOP_DOWN)
+    r = run_arm_trials(scene, T[None], [0.05], threads=1)
+    assert TrialOutcome(int(r.outcome[0])) is TrialOutcome.SUCCESS
+    assert r.metrics["lift_height"][0] == pytest.approx(0.12, abs=0.005)
+    assert r.metrics["reach_lin"][0] < 0.002 and r.metrics["approach_push"][0] < 0.002
+    for k in ("pad_force_neg", "pad_force_pos"):
+        assert r.metrics[k][0] == pytest.approx(FESTO.grip_force, rel=0.05)
+
+
 def test_an_unreachable_grasp_is_counted_a_failure_never_executed():
     far = build_arm_scene(object_from_shape(Box(0.05, 0.05, 0.05)), FRANKA, base=(-1.4, 0.0, 0.0))
     T = grasp_pose(depth=FRANKA.nominal_depth, gripper=FRANKA, **TOP_DOWN)
@@ -158,8 +204,6 @@ def test_bad_robot_settings_are_refused():
         get_arm("ur5")
     with pytest.raises(InvalidParameterError, match="x, y"):
         base_transform((0.1, 0.2))
-    with pytest.raises(InvalidParameterError, match="no model file"):
-        build_robot_model(PANDA, get_gripper("festo_hgpl_25_60_a"))
     with pytest.raises(InvalidParameterError, match="must be >= 0"):
         ArmLiftPlace(approach=-0.1)
     with pytest.raises(InvalidParameterError, match=r"^ArmLiftPlace\.step must be > 0, got 0"):

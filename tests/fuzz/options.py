@@ -107,7 +107,6 @@ NEWER_COMMANDS: dict[str, tuple[list[str], dict]] = {
               "--top": _COUNTS, "--pick": _COUNTS, "--colour": ["grade", "robust", "magic", ""],
               "--host": ["127.0.0.1", "0.0.0.0", "256.1.1.1", "", "no.such.host.invalid"], "--cloud": ["{cloud}",
               "{map}", "{dir}"], "--mesh": ["{mesh}", "{map}"], "--replay": ["{map}", "{out}"]}),
-    # the hand-made map's gripper has no model file: every run ends in that one-line refusal or an earlier one
     "reach": (["reach", "{map}", "--robot", "panda", "--exact", "1"],
               {"--robot": ["panda", "none", "ur5", ""], "--robot-base": ["0 0 0", "-0.5 0 0", "5 0 0", "nan 0 0",
                "0 0 inf", "1e300 0 0", "0 0", "abc 0 0"], "--exact": _COUNTS, "--rank": ["robust", "paper", "magic"],

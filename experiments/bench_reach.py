@@ -66,7 +66,7 @@ GOAL_FRAME_S = 1.0
 @dataclass(frozen=True)
 class Config:
     kinds: tuple[str, ...] = opt(("box", "cylinder"), "the paper's primitives", choices=KINDS)
-    gripper: str = opt("franka_hand", "the gripper on the arm's flange (a model-file gripper)")
+    gripper: str = opt("franka_hand", "the gripper on the arm's flange (a model file, or simulated from its spec)")
     best: int = opt(100, "the map's best grasps given exact IK")
     repeat: int = opt(3, "timed passes of the exact IK (median)")
     min_poses: int = opt(200_000, "poses looked up per map for the first cut's rate")

@@ -1,7 +1,7 @@
 """Clutter removal by the arm (``graspsim scene --robot panda``): a small scene cleared by
 the Panda with its causes recorded, a grasp whose approach passes through a neighbour
 refused (approach_collision) and never executed, an episode whose grasps the arm reaches
-none of stopped ``unreachable``, and a spec-only gripper refused in one line.
+none of stopped ``unreachable``, and the environment taking the arm with any gripper.
 
 A scripted planner (the clutter benchmark's planner interface) proposes fixed grasps on
 boxes whose poses the test sets, so nothing here depends on map generation."""

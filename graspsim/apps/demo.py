@@ -37,7 +37,7 @@ class DemoConfig:
     resolved once, here (:attr:`gripper_spec`); robot: ``"panda"``: the trials are planned
     and executed by the Panda arm standing at ``robot_base`` (x [m], y [m], yaw [rad] from
     the object; None: 0.5 m away, facing it), as ``graspsim trial --robot panda`` does
-    (:func:`graspsim.robots.run_arm_trials`; a model-file gripper; not rendered), ``"none"``:
+    (:func:`graspsim.robots.run_arm_trials`; any gripper; not rendered), ``"none"``:
     the floating gripper."""
 
     out: str = "graspsim-demo"

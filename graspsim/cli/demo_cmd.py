@@ -66,4 +66,4 @@ def register(sub) -> None:
                        help="coarse database in OUT/db and fewer trials: a fast smoke run (CI)")
         add_gripper_flag(p)
         add_robot_flags(p, robot_help="none: the floating gripper (default); panda: the Franka Emika Panda arm beside "
-                        "the table plans and executes the trials (a model-file --gripper, e.g. franka_hand)")
+                        "the table plans and executes the trials (with --gripper on its flange)")

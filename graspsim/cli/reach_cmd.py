@@ -25,7 +25,7 @@ def register(subparsers) -> None:
                  glossary=("robust score", "grade")) as p:
         p.add_argument("map", metavar="MAP.h5", help="graspability map file (updated in place, atomically)")
         add_robot_flags(p, required=True, robot_help="the arm: panda (the Franka Emika Panda carrying the map's "
-                        "gripper, a model-file gripper such as franka_hand)")
+                        "gripper on its flange)")
         p.add_argument("--exact", type=whole_number(0), default=100, metavar="N",
                        help="how many of the best grasps the first cut passes get the exact check (100)")
         p.add_argument("--rank", choices=("robust", "paper"), default="robust",

@@ -217,8 +217,8 @@ def register(sub) -> None:
                        help="repeat the benchmark over this many seeds (derived from --seed; 1: --seed itself) and "
                        "report GSR / DR per seed and their mean and std (the field's way)")
         add_robot_flags(p, robot_help="none: the floating gripper (default); panda: the Franka Emika Panda arm beside "
-                        "the table executes each grasp, the best the arm reaches (a model-file --gripper, e.g. "
-                        "franka_hand)")
+                        "the table executes each grasp, the best the arm reaches (with --gripper on its flange, "
+                        "simulated as the floating gripper is)")
         p.add_argument("--planner", default="graspsim", metavar="NAME|module:function",
                        help="the grasp planner: graspsim (default: its scene planner, plans reused between "
                        "frames), graspsim-interface (the same through the planner interface), antipodal (a "

@@ -59,7 +59,7 @@ def register(subparsers) -> None:
         p.add_argument("map", metavar="FILE", help="graspability map file, or an ACRONYM .h5 / GraspGen "
                        ".json / GraspNet .npy grasp file (results go to <stem>.graspsim.h5 beside it)")
         add_robot_flags(p, robot_help="none: the floating gripper (default); panda: the Franka Emika Panda arm beside "
-                        "the table carries the map's gripper (a model-file gripper, e.g. franka_hand), checks each "
+                        "the table carries the map's gripper (simulated as the floating gripper is), checks each "
                         "grasp's reachability and executes it with its joint servos (lift_place only); --top takes "
                         "the best grasps the map marks reachable first (graspsim reach)")
         p.add_argument("--protocol", choices=("lift_place", "tug"), default="lift_place",

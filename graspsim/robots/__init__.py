@@ -2,7 +2,8 @@
 executed by the arm in MuJoCo (reach-to-grasp).
 
 * :mod:`~graspsim.robots.arm`: the arm's model (the vendored Franka Emika Panda,
-  ``mjcf/panda``) on a base beside the table, the gripper's model file on its flange,
+  ``mjcf/panda``) on a base beside the table, the gripper on its flange (its model file,
+  or the box model generated from its spec),
   position servos on its joints;
 * :mod:`~graspsim.robots.reach`: inverse kinematics with mink, joint limits and
   collisions (MuJoCo's collision detection) of a grasp, its pre-grasp and its approach;

@@ -92,7 +92,7 @@ class SceneSim:
 
     robot: an arm (:class:`graspsim.robots.ArmSpec`) standing at ``base`` (x [m], y [m],
     yaw [rad] on the table top, default :data:`graspsim.robots.arm.DEFAULT_BASE`, or a
-    (4, 4) pose) carries the gripper (a model-file gripper) on its flange instead of the
+    (4, 4) pose) carries the gripper (any: see :mod:`graspsim.robots.arm`) on its flange instead of the
     floating wrist: it waits at its home pose, hidden from the camera like the floating
     gripper; :meth:`plan_arm` checks a grasp's reachability in the scene as it lies
     (:func:`graspsim.robots.execute.plan_grasp`: IK, the approach, collisions with the

@@ -178,7 +178,7 @@ def add_arm(spec: mujoco.MjSpec, arm: ArmSpec, gripper: GripperSpec, physics, *,
     else:
         attach_model(spec, wrist, gripper, physics, force=force, friction=friction, condim=condim)
     for link in arm.hull_over_flange:
-        for body in wrist.find_all(mujoco.mjtObj.mjOBJ_BODY):
+        for body in [wrist, *wrist.find_all(mujoco.mjtObj.mjOBJ_BODY)]:  # the box model's housing is on the wrist
             spec.add_exclude(bodyname1=ARM_PREFIX + link, bodyname2=body.name)
     bodies = tuple(ARM_PREFIX + b for b in arm.links)
     for b in bodies:

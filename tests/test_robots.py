@@ -192,6 +192,21 @@ def test_the_arm_lifts_a_box_with_the_festo_simulated_from_its_spec():
         assert r.metrics[k][0] == pytest.approx(FESTO.grip_force, rel=0.05)
 
 
+def test_a_gripper_given_as_a_spec_json_goes_on_the_flange_as_specified(tmp_path):
+    from dataclasses import replace
+
+    f = tmp_path / "wide.json"
+    f.write_text(replace(FESTO, name="wide", housing_size=(0.24, 0.05, 0.06), finger_size=(0.01, 0.02, 0.1)).to_json())
+    g = get_gripper(str(f))
+    m = build_robot_model(PANDA, g)
+    boxes = g.collision_boxes()
+    for name in ("housing", "finger_pos"):
+        i = boxes.names.index(name)
+        assert np.allclose(m.geom(name).size, boxes.half_extents[i]) and np.allclose(m.geom(name).pos, boxes.centers[i])
+    kin = ArmKinematics(m, PANDA)  # the wrist frame is the flange: the same pose as the Festo's
+    assert np.allclose(kin.fk(PANDA.home), ArmKinematics(build_robot_model(PANDA, FESTO), PANDA).fk(PANDA.home))
+
+
 def test_an_unreachable_grasp_is_counted_a_failure_never_executed():
     far = build_arm_scene(object_from_shape(Box(0.05, 0.05, 0.05)), FRANKA, base=(-1.4, 0.0, 0.0))
     T = grasp_pose(depth=FRANKA.nominal_depth, gripper=FRANKA, **TOP_DOWN)

@@ -6,10 +6,14 @@ challenge of a rotational part by the box, graspsim.perception.decompose)."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from graspsim.perception import IdentifyConfig, identify
+from graspsim.planning.scene_config import SCENE_FIT_POINTS, SCENE_MAX_NOISE_RATIO
 from graspsim.primitives import Cylinder, synthetic_cloud
 from graspsim.primitives.box import Box
 from graspsim.transforms import make_transform
@@ -27,7 +31,8 @@ def _view(box: Box, seed: int, noise: float):
     return synthetic_cloud(box, rng, resolution=0.003, noise=noise, camera=cam, T_world_obj=T).points
 
 
-SCENE = IdentifyConfig(fit_points=1000, max_noise_ratio=0.05)  # the scene planner's (scene_config)
+SCENE = IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO)  # the scene planner's
+DATA = Path(__file__).parent / "data"
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -39,12 +44,12 @@ def test_block_seen_on_two_faces_is_one_box(seed):
     assert 0.02 <= x <= 0.045 and 0.04 <= y <= 0.06 and 0.135 <= z <= 0.165
 
 
-@pytest.mark.parametrize("seed", [1, 6])
+@pytest.mark.parametrize("seed", range(3))
 def test_standing_domino_is_a_box(seed):
-    # both: a cylinder of radius 1.3-1.5 cm by the paper's rules alone
-    res = identify(_view(Box(0.025, 0.006, 0.051), seed, 0.002), rng=np.random.default_rng(seed), config=SCENE)
+    # a segment of E10's (tests/data): by the paper's rules alone a cone (seed 1) or a cylinder (seed 2)
+    pts = np.array(json.loads((DATA / "domino_standing_segment.json").read_text())["points"])
+    res = identify(pts, rng=np.random.default_rng(seed), config=SCENE)
     assert [p.shape.value for p in res.parts] == ["box"]
-    assert 0.04 <= max(res.parts[0].dims.values()) <= 0.065
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -55,3 +60,18 @@ def test_standing_can_stays_a_cylinder(seed):
     pts = synthetic_cloud(Cylinder(0.033, 0.093), rng, resolution=0.003, noise=0.0025, camera=cam).points
     res = identify(pts, rng=np.random.default_rng(seed), config=SCENE)
     assert [p.shape.value for p in res.parts] == ["cylinder"]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_lying_bottle_stays_a_cylinder(seed):
+    # a thin plate behind the curved strip a camera sees scores well on distances alone (its small area, its hidden
+    # back face catching the noise); its faces do not face as the points do (decompose._facing)
+    rng = np.random.default_rng([seed, 2])
+    yaw = rng.uniform(0.0, np.pi)
+    c, s = np.cos(yaw), np.sin(yaw)
+    T = make_transform(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.array(
+        [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]), [0.0, 0.0, 0.026])
+    cam = (np.linalg.inv(T) @ np.r_[EYE, 1.0])[:3]
+    pts = synthetic_cloud(Cylinder(0.026, 0.15), rng, resolution=0.003, noise=0.0025, camera=cam, T_world_obj=T).points
+    res = identify(pts, rng=np.random.default_rng(seed), config=SCENE)
+    assert "box" not in [p.shape.value for p in res.parts]

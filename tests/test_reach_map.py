@@ -106,12 +106,12 @@ def test_the_arm_marks_a_maps_grasps_and_graspsim_reach_writes_them(tmp_path, mo
     assert exc.value.code == 2
     capsys.readouterr()
     assert _digest(f) == before
-    # a gripper without a model file: one line, nothing written
+    # a gripper simulated from its spec (the Festo) goes on the flange too: its map is marked
     g = tmp_path / "festo.h5"
     save_map(hand_made_map(BOX, grasp_pose([0, 0, 0], [0, 0, -1], [1, 0, 0])[None], [0.05]), g)
-    before_g = _digest(g)
-    assert main(["reach", str(g), "--robot", "panda"]) == 2
-    assert "no model file" in capsys.readouterr().err and _digest(g) == before_g
+    assert main(["reach", str(g), "--robot", "panda"]) == 0
+    capsys.readouterr()
+    assert load_map(g).meta.extra["reach"]["robot"] == "panda"
     assert main(["reach", str(f), "--robot", "panda", "--robot-base", "-0.5", "0", "0", "--exact", "1",
                  "--json"]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])

@@ -701,6 +701,20 @@ def test_study_segmentation_quick_counts_every_object_once(tmp_path):
 
 
 @pytest.mark.slow
+def test_study_true_shape_quick(tmp_path):
+    """The duck's grasps in one packed scene judged against its true mesh: every grasp aimed at
+    it is a row, every failed one has a mechanism, the section names its command."""
+    out = tmp_path / "sts"
+    study = _load("study_true_shape")
+    assert study.main(["--quick", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["grasps"] == len(s["rows"]) >= 1 and 0 <= s["lifted"] <= s["grasps"]
+    assert sum(s["mechanisms"].values()) == s["grasps"] - s["lifted"]
+    assert all(-1.0 <= r["closing_sight_cos"] <= 1.0 and r["parts"] for r in s["rows"])
+    assert s["command"] in study.readme_section(s)
+
+
+@pytest.mark.slow
 def test_study_clutter_failures_quick(tmp_path):
     out = tmp_path / "scf"
     assert _load("study_clutter_failures").main(["--quick", "--out", str(out)]) == 0

@@ -301,6 +301,13 @@ def build_grid(db) -> list[str]:
     return empty
 
 
+def read_only_database(cfg, out: Path) -> RunDatabase:
+    """The database E10 plans against (read only), for a study of its clutter episodes with
+    E10's ``db`` and ``quick_maps`` options: ``cfg.db``, else one built in ``out``."""
+    config = map_config(cfg.quick_maps)
+    return RunDatabase(experiment_database(cfg.db, out, config).root, config=config)
+
+
 def _block(task) -> tuple[list, list, set]:
     """Scenes first .. first + n - 1 of a condition, against the run's database:
     (results, skipped scenes, keys of maps built in memory). A scene that cannot be

@@ -35,7 +35,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import derived_seed, experiment_database, map_config, opt, rng_for, start
+from _common import derived_seed, opt, rng_for, start
 
 log = logging.getLogger("study_true_shape")
 
@@ -221,11 +221,10 @@ def readme_section(s: dict) -> str:
 
 
 def main(argv=None) -> int:
-    from e10_clutter_removal import RunDatabase
+    from e10_clutter_removal import read_only_database
 
     cfg, out, record = start(Config, __file__, argv, __doc__)
-    root = experiment_database(cfg.db, out, map_config(cfg.quick_maps)).root
-    db = RunDatabase(root, config=map_config(cfg.quick_maps))  # read only, as in E10
+    db = read_only_database(cfg, out)
     print(record.write(out, {"config": cfg, **run(cfg, db)}, readme_section))
     return 0
 

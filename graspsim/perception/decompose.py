@@ -308,7 +308,8 @@ def _box_or_rotational(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> PartResu
     if not boxes:
         return part
     best, box = min(boxes, key=lambda b: b[0])
-    own_score = min(score(own), score(_widened(ctx, pts, own, score(own), part.noise)[0]))
+    plain = score(own)
+    own_score = min(plain, score(_widened(ctx, pts, own, plain, part.noise)[0]))
     if best >= own_score:
         return part
     nrm = ctx.cloud.normals[idx]

@@ -473,9 +473,9 @@ def _build(mesh, params: CoacdParams, name: str, progress) -> tuple[list[np.ndar
 
     # closed components first (fast: no remeshing), then open ones with what is left of the limit;
     # an open component spanning no volume (a stray triangle) adds nothing to either
-    closed = [c for c in rest if mesh.metadata.get("closed") or _closed(c)]
-    opened = [c for c in rest if not (mesh.metadata.get("closed") or _closed(c))
-              and _hull_part(c.vertices, 8) is not None]
+    is_closed = [bool(mesh.metadata.get("closed")) or _closed(c) for c in rest]
+    closed = [c for c, k in zip(rest, is_closed) if k]
+    opened = [c for c, k in zip(rest, is_closed) if not k and _hull_part(c.vertices, 8) is not None]
     groups = [(g, flag) for g, flag in ((closed, True), (opened, False)) if g]
     used, filled, whys, by_load = 0.0, [], [], False
     for group, closed in groups:

@@ -77,6 +77,7 @@ from pathlib import Path
 import numpy as np
 
 from graspsim._atomic import atomic_path
+from graspsim._cache import user_cache
 from graspsim.checks import Rule, check_fields
 from graspsim.errors import DependencyNotInstalled, InvalidParameterError, MeshError
 
@@ -194,13 +195,8 @@ class PreparedMesh:
 
 def default_cache_dir() -> Path:
     """``$GRASPSIM_CACHE_DIR/coacd``, else ``$XDG_CACHE_HOME/graspsim/coacd``, else
-    ``~/.cache/graspsim/coacd``."""
-    root = os.environ.get("GRASPSIM_CACHE_DIR")
-    if root:
-        return Path(root) / "coacd"
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg) if xdg and Path(xdg).is_absolute() else Path.home() / ".cache"
-    return base / "graspsim" / "coacd"
+    ``~/.cache/graspsim/coacd`` (:func:`graspsim._cache.user_cache`)."""
+    return user_cache("coacd")
 
 
 def check_mesh_path(path: str | os.PathLike) -> Path:

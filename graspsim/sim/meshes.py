@@ -132,12 +132,12 @@ class CoacdParams:
 
     threshold: float = 0.05
     max_parts: int = 16
-    preprocess_resolution: int = 50
+    preprocess_resolution: int = 50  # grid resolution of the manifold remeshing (CoACD: 20-100)
     seed: int = 0
-    resolution: int = 2000
-    mcts_iterations: int = 60
-    mcts_nodes: int = 20
-    mcts_max_depth: int = 3
+    resolution: int = 2000  # surface samples per Hausdorff-distance (concavity) estimate (CoACD: 1e3-1e4)
+    mcts_iterations: int = 60  # tree-search iterations per cut (CoACD: 60-2000)
+    mcts_nodes: int = 20  # candidate cutting planes tried at each node of the search tree (CoACD: 10-40)
+    mcts_max_depth: int = 3  # how many cuts ahead the search looks (CoACD: 2-7)
     time_limit: float = 15.0
     max_faces: int = 20_000
     max_hull_vertices: int = 1024

@@ -19,8 +19,8 @@ import pytest
 PKG = Path(__file__).resolve().parents[1] / "graspsim"
 
 #: The base: small modules every part may use (errors, settings checks, version, atomic writes, small
-#: input files, JSON, installed files, the GL backend, seeds, frames, executors, statistics).
-BASE = frozenset({"errors", "checks", "_version", "_atomic", "_files", "_jsonable", "_resources", "_gl",
+#: input files, JSON, installed files, the cache folders, the GL backend, seeds, frames, executors, statistics).
+BASE = frozenset({"errors", "checks", "_version", "_atomic", "_files", "_jsonable", "_resources", "_cache", "_gl",
                   "seeding", "transforms", "executors", "stats"})
 
 

@@ -42,7 +42,8 @@ fragments that rely on an includer's compiler, as robosuite's do). Whatever cann
 determined is a one-line :class:`~graspsim.errors.GripperError` naming the key.
 
 Results are cached on disk by the content hash of the model file, its meshes and the
-sidecar (``$GRASPSIM_CACHE_DIR/grippers`` or ``~/.cache/graspsim/grippers``).
+sidecar (``$GRASPSIM_CACHE_DIR/grippers``, else ``$XDG_CACHE_HOME/graspsim/grippers``, else
+``~/.cache/graspsim/grippers``: :mod:`graspsim._cache`).
 """
 
 from __future__ import annotations
@@ -50,12 +51,12 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from graspsim._cache import user_cache
 from graspsim._gl import import_mujoco
 from graspsim.errors import GripperError
 from graspsim.grippers.spec import GripperSpec
@@ -917,11 +918,6 @@ def _squeeze(path, opts, parts, ctrl_close, qtab, gaps, W, pa, pb, to_base) -> f
 
 
 # ----------------------------------------------------------------------------- public
-def _cache_dir() -> Path:
-    root = os.environ.get("GRASPSIM_CACHE_DIR")
-    return (Path(root) if root else Path.home() / ".cache" / "graspsim") / "grippers"
-
-
 def measure_model(path: str | Path, options: dict | None = None, *, model: str | None = None):
     """(GripperSpec, Mount) of the gripper model at ``path`` (see the module doc).
     options: the sidecar's keys (they override it); model: the spec's ``model`` (a
@@ -953,7 +949,7 @@ def _measured(path: str, digest: str, opts_json: str, model: str | None):
     from graspsim.grippers.vendored import Mount
 
     p, opts = Path(path), json.loads(opts_json)
-    cache = _cache_dir() / f"{digest[:40]}.json"
+    cache = user_cache("grippers") / f"{digest[:40]}.json"
     data = None
     try:
         data = json.loads(cache.read_text())

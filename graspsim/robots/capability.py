@@ -16,7 +16,8 @@ turns the hand nearly all the way round).
 
 The map is cached on disk keyed by the content that defines it: the arm's model file,
 the gripper's flange-to-wrist transform and the map's settings
-(``$GRASPSIM_CACHE_DIR/reach``, else ``~/.cache/graspsim/reach``).
+(``$GRASPSIM_CACHE_DIR/reach``, else ``$XDG_CACHE_HOME/graspsim/reach``, else
+``~/.cache/graspsim/reach``: :mod:`graspsim._cache`).
 """
 
 from __future__ import annotations
@@ -25,7 +26,6 @@ import hashlib
 import json
 import logging
 import math
-import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -33,6 +33,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from graspsim._cache import user_cache
 from graspsim.checks import POSITIVE, check_fields, integer
 from graspsim.errors import GraspsimError, InvalidParameterError
 from graspsim.robots.arm import ARM_PREFIX, ArmSpec
@@ -45,12 +46,8 @@ log = logging.getLogger(__name__)
 
 
 def default_cache_dir() -> Path:
-    root = os.environ.get("GRASPSIM_CACHE_DIR")
-    if root:
-        return Path(root) / "reach"
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg) if xdg and Path(xdg).is_absolute() else Path.home() / ".cache"
-    return base / "graspsim" / "reach"
+    """Where capability maps are kept: ``user_cache("reach")`` (:mod:`graspsim._cache`)."""
+    return user_cache("reach")
 
 
 def fibonacci_sphere(n: int) -> np.ndarray:

@@ -77,6 +77,7 @@ from pathlib import Path
 import numpy as np
 
 from graspsim._atomic import atomic_path
+from graspsim._cache import user_cache
 from graspsim.checks import Rule, check_fields
 from graspsim.errors import DependencyNotInstalled, InvalidParameterError, MeshError
 
@@ -131,12 +132,12 @@ class CoacdParams:
 
     threshold: float = 0.05
     max_parts: int = 16
-    preprocess_resolution: int = 50
+    preprocess_resolution: int = 50  # grid resolution of the manifold remeshing (CoACD: 20-100)
     seed: int = 0
-    resolution: int = 2000
-    mcts_iterations: int = 60
-    mcts_nodes: int = 20
-    mcts_max_depth: int = 3
+    resolution: int = 2000  # surface samples per Hausdorff-distance (concavity) estimate (CoACD: 1e3-1e4)
+    mcts_iterations: int = 60  # tree-search iterations per cut (CoACD: 60-2000)
+    mcts_nodes: int = 20  # candidate cutting planes tried at each node of the search tree (CoACD: 10-40)
+    mcts_max_depth: int = 3  # how many cuts ahead the search looks (CoACD: 2-7)
     time_limit: float = 15.0
     max_faces: int = 20_000
     max_hull_vertices: int = 1024
@@ -194,13 +195,8 @@ class PreparedMesh:
 
 def default_cache_dir() -> Path:
     """``$GRASPSIM_CACHE_DIR/coacd``, else ``$XDG_CACHE_HOME/graspsim/coacd``, else
-    ``~/.cache/graspsim/coacd``."""
-    root = os.environ.get("GRASPSIM_CACHE_DIR")
-    if root:
-        return Path(root) / "coacd"
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg) if xdg and Path(xdg).is_absolute() else Path.home() / ".cache"
-    return base / "graspsim" / "coacd"
+    ``~/.cache/graspsim/coacd`` (:func:`graspsim._cache.user_cache`)."""
+    return user_cache("coacd")
 
 
 def check_mesh_path(path: str | os.PathLike) -> Path:

@@ -135,17 +135,17 @@ class LiftPlace(Protocol):
     metric_names: ClassVar[tuple[str, ...]] = (
         "close_lin", "close_ang", "lift_lin", "lift_ang", "hold_lin", "hold_ang", "lift_height",
         "place_error", "place_tilt", "pad_force_neg", "pad_force_pos", "grip_force_closed")
-    settle_time: float = 0.02
-    close_time: float = 0.25
-    lift_height: float = 0.12
-    lift_time: float = 0.40
-    hold_time: float = 0.30
-    lower_time: float = 0.40
-    place_clearance: float = 0.002
-    open_time: float = 0.15
-    retract_distance: float = 0.05
-    retract_time: float = 0.20
-    rest_time: float = 0.30
+    settle_time: float = 0.02  # [s] gripper and object settle at the grasp pose, the jaws held at their opening
+    close_time: float = 0.25  # [s] the valve closes the jaws on the object
+    lift_height: float = 0.12  # [m] the wrist rises this far (minimum-jerk) over lift_time; at least 0.10
+    lift_time: float = 0.40  # [s]
+    hold_time: float = 0.30  # [s] held still at lift_height (slip is measured over it)
+    lower_time: float = 0.40  # [s] back down (minimum-jerk) to place_clearance above the grasp height
+    place_clearance: float = 0.002  # [m] the wrist's height above its grasp height when it releases the object
+    open_time: float = 0.15  # [s] the valve opens the jaws
+    retract_distance: float = 0.05  # [m] the wrist then backs off this far along its approach axis
+    retract_time: float = 0.20  # [s]
+    rest_time: float = 0.30  # [s] the object is left alone before it is judged (rest_speed at the end)
     lift_tolerance: float = 0.02
     hold_slip: float = 0.005
     place_height: float = 0.01
@@ -244,8 +244,8 @@ class Tug(Protocol):
     table: ClassVar[bool] = False
     gravity: ClassVar[bool] = False
     control_spec: ClassVar[int] = int(_CTRL | _XFRC | _MPOS | _MQUAT)
-    settle_time: float = 0.02
-    close_time: float = 0.25
+    settle_time: float = 0.02  # [s] gripper and object settle at the grasp pose, the jaws held at their opening
+    close_time: float = 0.25  # [s] the valve closes the jaws on the object
     force_g: float = 1.0
     directions: tuple[tuple[float, float, float], ...] = _DIRECTIONS
     ramp_time: float = 0.05

@@ -1,7 +1,7 @@
 """``graspsim scene``: clutter removal on simulated table-top scenes seen by a depth camera.
 
     graspsim scene [--objects N] [--scenes S] [--kind pile|packed] [--object-set SET | --objects-dir DIR]
-                   [--min-gap M] [--noise] [--no-neighbours] [--ground-truth] [--max-attempts M]
+                   [--min-gap M] [--noise [MM DEG]] [--no-neighbours] [--ground-truth] [--max-attempts M]
                    [--seed S] [--seeds N] [--planner NAME|module:function] [--db DIR]
                    [--gripper NAME|MODEL.xml|SPEC.json] [--robot none|panda [--robot-base X Y YAW]]
                    [--render DIR] [--save-scenes DIR] [--json]
@@ -46,6 +46,23 @@ from graspsim.cli.maps_cmd import _add_generation, _config
 __all__ = ["register"]
 
 
+def _execution(values):
+    """``--noise [MM DEG]`` as the execution error (None: not given)."""
+    import math
+
+    from graspsim.errors import InvalidParameterError
+    from graspsim.sim.noise import ExecutionNoise
+
+    if values is None:
+        return None
+    if not values:
+        return ExecutionNoise()
+    if len(values) != 2 or not all(math.isfinite(v) and v >= 0 for v in values):
+        raise InvalidParameterError(f"--noise takes no value (3 mm / 2 deg) or two: MM DEG, sigmas >= 0, "
+                                    f"got {' '.join(str(v) for v in values)}")
+    return ExecutionNoise(values[0] / 1000.0, math.radians(values[1]))
+
+
 def _cmd_scene(args) -> int:
     """Draw table-top scenes of several objects, settle them in MuJoCo, render them with
     a D435-like depth camera, and clear each table grasp by grasp: segment the cloud,
@@ -59,7 +76,6 @@ def _cmd_scene(args) -> int:
     from graspsim.maps.database import MapDatabase
     from graspsim.perception.segment import gap_link
     from graspsim.planning.scene_config import SceneConfig
-    from graspsim.sim.noise import ExecutionNoise
     from graspsim.tabletop.clutter import FAILURE_COLUMNS, ClutterConfig, failure_rows, run_benchmark, summarize
     from graspsim.tabletop.scene_objects import OBJECT_SETS, object_set_names, prepare_objects
     from graspsim.tabletop.table_scene import MAX_OBJECTS, known_gap
@@ -101,7 +117,7 @@ def _cmd_scene(args) -> int:
 
         planner = load_planner(args.planner)
     cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours, min_gap=gap, **budget),
-                        execution=ExecutionNoise() if args.noise else None, ground_truth=args.ground_truth,
+                        execution=_execution(args.noise), ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts, planner=planner, planner_name=args.planner, robot=robot)
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
@@ -203,8 +219,9 @@ def register(sub) -> None:
         p.add_argument("--objects-dir", default=None, metavar="DIR",
                        help="objects drawn from a folder of your mesh files (.stl .obj .ply .off .glb .gltf; an "
                        "optional objects.json or objects.toml gives per-file scale, mass or density, friction)")
-        p.add_argument("--noise", action="store_true", help="execution error: the arm misses each pose by 3 mm / 2 deg "
-                       "(sigma)")
+        p.add_argument("--noise", nargs="*", type=float, default=None, metavar=("MM", "DEG"),
+                       help="execution error: the arm misses each pose by Gaussian errors of these sigmas at the TCP "
+                       "(default 3 mm / 2 deg: --noise alone); the planner's robust score assumes the same error")
         p.add_argument("--no-neighbours", action="store_true",
                        help="ablation: check grasps against the object's own points only")
         p.add_argument("--ground-truth", action="store_true",

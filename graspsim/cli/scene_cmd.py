@@ -157,6 +157,8 @@ def _cmd_scene(args) -> int:
          "meshes": drawn if object_set not in OBJECT_SETS else None, "seed": args.seed,
          "planner": args.planner, "seeds": per_seed(by_seed), "gripper": db.gripper.name,
          "execution_noise": None if cfg.execution is None else cfg.execution.to_dict(),
+         "planned_for": {"position_sigma": cfg.planning.planner.robust.position_sigma,
+                         "rotation_sigma": cfg.planning.planner.robust.rotation_sigma},
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth, "min_gap": gap,
          "budget": cfg.scene.budget, "robot": args.robot,
          "robot_base": None if robot is None else (list(args.robot_base) if args.robot_base else [-0.5, 0.0, 0.0]),

@@ -33,6 +33,7 @@ from graspsim.maps.feature_grasps import FeatureConfig
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
+from graspsim.maps.occlusion import ViewDepth
 from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map, view_of
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table_clearance import (
@@ -48,6 +49,7 @@ from graspsim.perception import Identification, IdentificationStatus, IdentifyCo
 from graspsim.planning.observed import ObservedChecks
 from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
 from graspsim.planning.stages import StageClock
+from graspsim.planning.table_completion import complete_to_table
 from graspsim.primitives import Compound, Primitive
 from graspsim.primitives.compound import object_frame
 from graspsim.transforms import invert_transform
@@ -137,6 +139,14 @@ class PlannerConfig:
         band removes the side points that would bear them out); counts in the table record:
         ``low_parts``, ``lifted``. None: never (every such pose dropped, as before). Paper
         identification mode never lifts.
+    complete_to_table: robust identification of a single view with a ``table`` of known
+        height: a box part whose hidden far face hangs above the table, on a segment that
+        touches it, with the space between in the camera's shadow, is completed down to the
+        table plane (the object cannot float; a carton lying on its side fitted as a 2 cm
+        plate, a domino fitted 2 mm thick) and a grasp may close across that extent
+        (:func:`~graspsim.planning.table_completion.complete_to_table`; the count in
+        ``extra["table"]["completed"]``). False (default; single-object planning): parts as
+        identified. Scene planning turns it on.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -154,6 +164,7 @@ class PlannerConfig:
     hidden_faces: bool = True
     low_profile: LowProfile | None = field(default_factory=LowProfile)
     both_contacts_all_round: bool = True
+    complete_to_table: bool = False
 
     def __post_init__(self) -> None:
         if self.low_profile is not None and not isinstance(self.low_profile, LowProfile):
@@ -313,6 +324,23 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
                            db, cfg, source, t0, {"identify": 0.0}, time.thread_time(), scored_only=scored_only)
 
 
+def _completed(prims: list, T_cloud: list, points: np.ndarray, obstacles: np.ndarray | None,
+               table: TablePlane, viewpoint: np.ndarray) -> tuple[list, list, list]:
+    """``PlannerConfig.complete_to_table``: the parts (canonical boxes again), their poses
+    and per part the axis the table now bounds (None: left as identified)."""
+    seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
+    view = ViewDepth(seen, viewpoint)
+    out_p, out_T, bounded = [], [], []
+    for prim, T in zip(prims, T_cloud):
+        p, Tp, how = complete_to_table(prim, T, points, table, viewpoint, view)
+        if how.axis is not None:
+            p, Tp = canonical_box(p, Tp)
+        out_p.append(p)
+        out_T.append(Tp)
+        bounded.append(how.axis)
+    return out_p, out_T, bounded
+
+
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
                 ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
                 source: str, t0: float, timing: dict, cpu0: float, obstacles: np.ndarray | None = None,
@@ -320,6 +348,10 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
     part frames in the cloud's frame); ``cpu0``: the calling thread's CPU clock when
     identification ended; ``scored_only``: see :func:`plan_stream`."""
+    bounded: list = [None] * len(prims)  # per part: its axis the table bounds (completed down to it)
+    if (cfg.complete_to_table and cfg.table is not None and cfg.table.height is not None and viewpoint is not None
+            and ident is not None and ident.mode == "robust"):
+        prims, T_cloud, bounded = _completed(prims, T_cloud, points, obstacles, cfg.table, viewpoint)
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
@@ -368,7 +400,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 # top face, whose points' normals would count against every side contact, and a scene's
                 # table band removes the side points that bear them out)
                 part_map = observed.borne_out(part_map, T_cloud_map, prim, T_cloud[i])
-                part_map = observed.unseen_depth(part_map, prim, T_cloud[i], T_cloud_map)
+                part_map = observed.unseen_depth(part_map, prim, T_cloud[i], T_cloud_map, bounded=bounded[i])
             stage.lap("agreement")
             if compound is not None:
                 part_map, low = (m if m is None or not len(m) else combine_part(
@@ -418,6 +450,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     timing["maps"] = time.perf_counter() - t1
     if table is not None and lift is not None:
         table = {**table, "low_profile": lift.to_dict(), "low_parts": n_low, "lifted": n_lifted}
+    if table is not None and cfg.complete_to_table:
+        table = {**table, "completed": sum(b is not None for b in bounded)}
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
                   first_robust_cpu=first_robust_cpu, **stage.seconds)

@@ -147,6 +147,9 @@ class PlannerConfig:
         (:func:`~graspsim.planning.table_completion.complete_to_table`; the count in
         ``extra["table"]["completed"]``). False (default; single-object planning): parts as
         identified. Scene planning turns it on.
+    table_band: [m] with ``complete_to_table``: the height above the table below which the
+        cloud's points were cut away as the table's (a scene's ``SceneConfig.table_band``,
+        which sets it); the completed volume's hidden space is judged above it.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -165,6 +168,7 @@ class PlannerConfig:
     low_profile: LowProfile | None = field(default_factory=LowProfile)
     both_contacts_all_round: bool = True
     complete_to_table: bool = False
+    table_band: float = 0.006
 
     def __post_init__(self) -> None:
         if self.low_profile is not None and not isinstance(self.low_profile, LowProfile):
@@ -325,14 +329,14 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
 
 
 def _completed(prims: list, T_cloud: list, points: np.ndarray, obstacles: np.ndarray | None,
-               table: TablePlane, viewpoint: np.ndarray) -> tuple[list, list, list]:
+               table: TablePlane, viewpoint: np.ndarray, band: float) -> tuple[list, list, list]:
     """``PlannerConfig.complete_to_table``: the parts (canonical boxes again), their poses
     and per part the axis the table now bounds (None: left as identified)."""
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     view = ViewDepth(seen, viewpoint)
     out_p, out_T, bounded = [], [], []
     for prim, T in zip(prims, T_cloud):
-        p, Tp, how = complete_to_table(prim, T, points, table, viewpoint, view)
+        p, Tp, how = complete_to_table(prim, T, points, table, viewpoint, view, band=band)
         if how.axis is not None:
             p, Tp = canonical_box(p, Tp)
         out_p.append(p)
@@ -351,7 +355,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     bounded: list = [None] * len(prims)  # per part: its axis the table bounds (completed down to it)
     if (cfg.complete_to_table and cfg.table is not None and cfg.table.height is not None and viewpoint is not None
             and ident is not None and ident.mode == "robust"):
-        prims, T_cloud, bounded = _completed(prims, T_cloud, points, obstacles, cfg.table, viewpoint)
+        prims, T_cloud, bounded = _completed(prims, T_cloud, points, obstacles, cfg.table, viewpoint,
+                                             cfg.table_band)
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)

@@ -54,12 +54,16 @@ class TableCompletion:
 
 
 def complete_to_table(prim, T: np.ndarray, points: np.ndarray, table: TablePlane,
-                      viewpoint: np.ndarray, view: ViewDepth | None = None, samples: int = 6):
+                      viewpoint: np.ndarray, view: ViewDepth | None = None, samples: int = 6,
+                      band: float = 0.006):
     """Box part ``prim`` posed at ``T`` (4, 4, cloud frame), identified from ``points``
     (N, 3; the segment) seen from ``viewpoint`` (3,), resting on ``table`` (its height
     known): (prim, T, :class:`TableCompletion`), the part completed down to the table
     where its hidden far face hangs above it (see the module docstring), else as given.
-    ``view``: the depth image of what the camera saw near the part (default: ``points``)."""
+    ``view``: the depth image of what the camera saw near the part (default: ``points``);
+    ``band`` [m]: the height above the table below which the points were cut away as the
+    table's (``SceneConfig.table_band``): the added volume is judged above it only (within
+    it the camera's points, table or object, are gone)."""
     if prim.kind != "box" or table.height is None or viewpoint is None or len(points) < 3:
         return prim, T, TableCompletion()
     n = np.asarray(table.normal, float)
@@ -100,9 +104,9 @@ def complete_to_table(prim, T: np.ndarray, points: np.ndarray, table: TablePlane
     a, b, t = np.meshgrid(2 * u - 1, 2 * u - 1, u, indexing="ij")
     X = (face + a.reshape(-1, 1) * half[others[0]] * R[:, others[0]]
          + b.reshape(-1, 1) * half[others[1]] * R[:, others[1]] + t.reshape(-1, 1) * added * d)
-    X = X[X @ n - h0 > 0.0]  # the part above the table
+    X = X[X @ n - h0 > band]  # above the band: within it what the camera saw was cut away as table
     view = view if view is not None else ViewDepth(P, eye)
-    if not len(X) or float(np.mean(view.occluded(X))) < HIDDEN_SHARE:
+    if len(X) and float(np.mean(view.occluded(X))) < HIDDEN_SHARE:
         return prim, T, TableCompletion()
     dims = 2.0 * half
     dims[j] += added

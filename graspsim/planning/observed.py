@@ -263,6 +263,23 @@ class ObservedChecks:
         cloud = self.points if self.cloud_obj is None else np.asarray(self.cloud_obj, float) @ T[:3, :3].T + T[:3, 3]
         return ViewDepth(cloud, self.viewpoint)
 
+    @property
+    def least_hidden_depth(self) -> float:
+        """[m] the least extent a single view leaves a box along an axis it did not measure
+        (``PlannerConfig.hidden_depth``): a far face nearer its seen face than the contact
+        tolerance plus two noise sigmas lies among that face's own points, which then stand
+        as evidence against every contact on it; the view cannot tell such a depth from
+        this one."""
+        return self.contact_tolerance + 2.0 * self.noise
+
+    def unmeasured_axes(self, prim, T_cloud_part: np.ndarray) -> np.ndarray | None:
+        """(k, 3) the axes of box part ``prim`` (posed at ``T_cloud_part``, cloud frame) a
+        single view did not measure (see :meth:`unseen_depth`); None: none, too few points,
+        or no viewpoint."""
+        if self.viewpoint is None:
+            return None
+        return self._unmeasured_axes(prim, T_cloud_part)
+
     def _unmeasured_axes(self, prim, T_cloud_part: np.ndarray) -> np.ndarray | None:
         """(k, 3) the axes of box part ``prim`` (posed at ``T_cloud_part``) a single view did
         not measure, in the cloud frame (see :meth:`unseen_depth`); None: too few points on

@@ -145,3 +145,40 @@ def test_only_scene_planning_completes():
     assert PlannerConfig().complete_to_table is False
     assert SceneConfig().planner.complete_to_table is True
     assert replace(PlannerConfig(), complete_to_table=True).complete_to_table
+
+
+def test_a_domino_standing_face_on_is_given_the_depth_the_view_can_tell_and_grasps_across_it(db):
+    """A domino (24 x 6 x 48 mm) standing face-on to E10's camera shows only its front face;
+    the fit makes it a plate 2.6 mm thick. Its far contact then lies among the front face's
+    own noisy points, which face the other way: grasps across the thickness are taken as
+    contradicted (borne_out keeps a handful at the face's edges). ``hidden_depth`` gives the unmeasured depth at
+    least ``least_hidden_depth`` (contact tolerance + 2 sigmas), the seen face kept in place:
+    grasps across it are borne out again."""
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.planning.observed import ObservedChecks
+    from graspsim.planning.planner import _deepened
+
+    rng = np.random.default_rng(4)
+    front = np.column_stack([rng.uniform(-0.012, 0.012, 900), np.full(900, -0.003), rng.uniform(0.007, 0.048, 900)])
+    ray = (front - EYE) / np.linalg.norm(front - EYE, axis=1, keepdims=True)
+    pts = front + ray * rng.normal(0, 0.001, (len(front), 1))
+    T = np.eye(4)
+    T[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]  # the plate's x (its thickness) along the line of sight's y
+    T[:3, 3] = [0.0, -0.003 + 0.0013, 0.024]
+    plate = Box(0.0026, 0.024, 0.048)
+    checks = ObservedChecks(pts, None, np.eye(4), viewpoint=EYE, noise=0.001, gripper=G, quality=db.quality,
+                            cfg=PlannerConfig(hidden_depth=True))
+    (deep,), (T2,) = _deepened([plate], [T], [None], checks, TABLE, EYE)
+    assert deep.x >= checks.least_hidden_depth - 1e-9 and (deep.y, deep.z) == (plate.y, plate.z)
+    assert T2[1, 3] - 0.5 * deep.x == pytest.approx(-0.003, abs=1e-9)  # the seen face kept
+    (same,), _ = _deepened([plate], [T], [np.array([0.0, 1.0, 0.0])], checks, TABLE, EYE)
+    assert same == plate  # an axis the table bounds is left alone
+
+    def across(box, pose):
+        m = generate_fs_map(box, G, config=FAST)
+        kept = checks.borne_out(m, pose, box, pose)
+        u = (pose[:3, :3] @ kept.wrist_transforms()[:, :3, 0].T).T
+        return int(np.sum(np.abs(u[:, 1]) > 0.9))
+
+    thin, deeper = across(plate, T), across(deep, T2)
+    assert deeper > 20 * thin  # 15 vs 3753 when written: the thin plate's far contacts contradicted

@@ -11,7 +11,9 @@ such leftovers when their writer is no longer running or they have not been touc
 :data:`STALE_SECONDS`.
 
 :func:`check_output` and :func:`check_folder` say before any work starts whether an
-output can be written (the one check every command uses).
+output can be written (the one check every command uses). :func:`staged_folder` does for a folder of outputs
+written while a command runs (per-step figures, saved scenes) what :func:`atomic_paths`
+does for files: nothing reaches the folder unless the command succeeds.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from pathlib import Path
 from graspsim.errors import MapFileError, OutputPathError
 
 __all__ = ["atomic_path", "atomic_paths", "atomic_write_text", "check_output", "check_folder",
-           "STALE_SECONDS"]
+           "staged_folder", "STALE_SECONDS"]
 
 STALE_SECONDS = 3600.0  # a temporary untouched this long is a leftover, whoever wrote it
 
@@ -220,3 +222,37 @@ def atomic_path(path: str | os.PathLike, error=MapFileError) -> Iterator[Path]:
 def atomic_write_text(path: str | os.PathLike, text: str, error=MapFileError) -> None:
     with atomic_path(path, error) as tmp:
         tmp.write_text(text)
+
+
+@contextlib.contextmanager
+def staged_folder(path: str | os.PathLike, error=OutputPathError) -> Iterator[Path]:
+    """Yield a staging folder for the outputs meant for folder ``path``; when the block
+    succeeds its files are moved into ``path`` (created with its parents if missing; a
+    file of the same name replaced), otherwise the staging folder is removed and ``path``
+    is left as it was -- not created, no file added or replaced. The staging folder
+    (``.<name>.<pid>.<random>.tmp``) lies in the nearest existing ancestor of ``path``, so
+    the moves are renames on one file system."""
+    import shutil
+
+    path = Path(path)
+    existing = path.parent
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp", dir=existing))
+    except OSError as err:
+        raise error(f"cannot write {path}: {err.strerror or err}") from err
+    try:
+        yield stage
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+            for f in sorted(stage.rglob("*")):
+                target = path / f.relative_to(stage)
+                if f.is_dir():
+                    target.mkdir(exist_ok=True)
+                else:
+                    os.replace(f, target)
+        except OSError as err:
+            raise error(f"cannot write {path}: {err.strerror or err}") from err
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

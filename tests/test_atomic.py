@@ -12,7 +12,15 @@ from pathlib import Path
 
 import pytest
 
-from graspsim._atomic import STALE_SECONDS, atomic_path, atomic_paths, check_folder, check_output, remove_stale_temps
+from graspsim._atomic import (
+    STALE_SECONDS,
+    atomic_path,
+    atomic_paths,
+    check_folder,
+    check_output,
+    remove_stale_temps,
+    staged_folder,
+)
 from graspsim.errors import MapFileError, OutputPathError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -131,3 +139,27 @@ def test_check_output_refuses_what_cannot_be_written(tmp_path):
 def test_check_output_tries_the_folder_rather_than_trusting_permission_bits():
     with pytest.raises(OutputPathError, match="cannot write"):  # even root cannot create files here
         check_output("/proc/graspsim-test.h5", "map")
+
+
+def test_a_staged_folder_reaches_its_target_only_when_the_block_succeeds(tmp_path):
+    """Outputs written while a command runs (scene's per-step figures) land in the target
+    folder on success only: a failure leaves no new folder, no new file and no replaced
+    one, and no staging folder behind."""
+    target = tmp_path / "new" / "figures"
+    with pytest.raises(RuntimeError), staged_folder(target) as stage:
+        (stage / "step00.png").write_text("a")
+        raise RuntimeError("the run failed")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # not even the parent
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (kept / "step00.png").write_text("old")
+    with pytest.raises(RuntimeError), staged_folder(kept) as stage:
+        (stage / "step00.png").write_text("new")
+        raise RuntimeError("the run failed")
+    assert [p.name for p in kept.iterdir()] == ["step00.png"] and (kept / "step00.png").read_text() == "old"
+    with staged_folder(target) as stage:
+        (stage / "sub").mkdir()
+        (stage / "step00.png").write_text("a")
+        (stage / "sub" / "x.json").write_text("b")
+    assert (target / "step00.png").read_text() == "a" and (target / "sub" / "x.json").read_text() == "b"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept", "new"]  # the staging folder is gone

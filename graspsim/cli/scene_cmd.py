@@ -73,9 +73,10 @@ def _cmd_scene(args) -> int:
     plan every object (grasps checked against the whole scene), execute the best, remove
     what was lifted, render again. Reports the grasp success rate and the share of
     objects cleared."""
+    import contextlib
     from pathlib import Path
 
-    from graspsim._atomic import check_folder
+    from graspsim._atomic import check_folder, staged_folder
     from graspsim.errors import InvalidParameterError, MapDatabaseError
     from graspsim.maps.database import MapDatabase
     from graspsim.perception.segment import gap_link
@@ -132,26 +133,28 @@ def _cmd_scene(args) -> int:
     # files of one seed's scene i: scene{i:03d}..., of several seeds: seed{k}_scene{i:03d}... (no overwriting)
     prefix = ["" if len(seeds) == 1 else f"seed{k}_" for k in range(len(seeds))]
     current = {"prefix": ""}
-    on_step = None
-    if render is not None:
-        render.mkdir(parents=True, exist_ok=True)
-        on_step = _figure_writer(render, db.gripper, current)
     details = []
-
-    def on_scene(i, scene, result):
-        if saves is not None:  # for 'graspsim view --scene'
-            from graspsim.tabletop.table_scene import save_scene
-
-            saves.mkdir(parents=True, exist_ok=True)
-            save_scene(scene, saves / f"{current['prefix']}scene{i:03d}.json")
-        details.append({"scene": i, "seed": scene.seed, **result.to_dict(),
-                        "poses": [_pose(o) for o in scene.objects]})
-
     by_seed = {}
-    for k, sd in enumerate(seeds):
-        current["prefix"] = prefix[k]
-        by_seed[sd] = run_benchmark(args.objects, args.kind, args.scenes, sd, db=db, config=cfg,
-                                    object_set=object_set, on_step=on_step, on_scene=on_scene)
+    # figures and saved scenes are written while the scenes run, into staging folders that
+    # reach --render / --save-scenes only when every scene has run (a failure leaves them as
+    # they were)
+    with contextlib.ExitStack() as stack:
+        render_stage = None if render is None else stack.enter_context(staged_folder(render))
+        saves_stage = None if saves is None else stack.enter_context(staged_folder(saves))
+        on_step = None if render_stage is None else _figure_writer(render_stage, db.gripper, current)
+
+        def on_scene(i, scene, result):
+            if saves_stage is not None:  # for 'graspsim view --scene'
+                from graspsim.tabletop.table_scene import save_scene
+
+                save_scene(scene, saves_stage / f"{current['prefix']}scene{i:03d}.json")
+            details.append({"scene": i, "seed": scene.seed, **result.to_dict(),
+                            "poses": [_pose(o) for o in scene.objects]})
+
+        for k, sd in enumerate(seeds):
+            current["prefix"] = prefix[k]
+            by_seed[sd] = run_benchmark(args.objects, args.kind, args.scenes, sd, db=db, config=cfg,
+                                        object_set=object_set, on_step=on_step, on_scene=on_scene)
     results = [r for rs in by_seed.values() for r in rs]
     s = {"kind": args.kind, "objects": args.objects, "object_set": object_set,
          "meshes": drawn if object_set not in OBJECT_SETS else None, "seed": args.seed,

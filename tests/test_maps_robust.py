@@ -298,3 +298,58 @@ def test_a_skipped_block_never_holds_the_clearance(cell, monkeypatch):
         np.testing.assert_array_equal(a.clearance, b.clearance)
         np.testing.assert_array_equal(a.flags, b.flags)
     assert rng is not None
+
+
+def _front_view(cloud):
+    """A single view of the box from +x: the cloud's front face, the camera 0.5 m away."""
+    return cloud[cloud[:, 0] > 0.019], np.array([0.5, 0.0, 0.05])
+
+
+def test_a_finger_in_the_unseen_back_near_the_fitted_surface_ranks_below(box_map, cloud):
+    """Seen from the front only, the box's back is the fitted primitive's guess (issue 34:
+    a duck's back, a carton's depth went on 16 to 23 mm past the fit). Grasps closing along
+    the line of sight put the far finger there: they score below what they score without the
+    unseen margin and open wider to stand off the fitted back; grasps closing across it keep
+    their fingers in seen space and their scores."""
+    front, eye = _front_view(cloud)
+    rows = np.arange(len(box_map))
+    cfg = RobustConfig(samples=16)
+    on = score_rows(box_map, rows, front, cfg, viewpoint=eye)
+    off = score_rows(box_map, rows, front, replace(cfg, unseen_margin=0.0), viewpoint=eye)
+    along = np.abs(box_map.wrist_transforms()[:, 0, 0]) > 0.9  # closing along x, the line of sight
+    assert along.sum() >= 20 and (~along).sum() >= 20
+    unseen = along & (off.robust > 0)
+    assert unseen.sum() >= 10
+    # without the margin, a far finger 5 to 15 mm off the fitted back counts as clear
+    assert np.all(off.extra_opening <= max(cfg.openings))
+    assert np.all(on.extra_opening[unseen] > max(cfg.openings))  # the wider openings stand off the back
+    # with it, each such grasp is worth less than a grasp whose fingers stay in seen space
+    assert np.all(on.robust[unseen] < 0.9 * on.robust[~along].max())
+    clear = off.occluded == 0  # fingers in seen space at the opening chosen without the margin: unchanged
+    assert clear.sum() >= 20
+    np.testing.assert_array_equal(on.robust[clear], off.robust[clear])
+    np.testing.assert_array_equal(on.extra_opening[clear], off.extra_opening[clear])
+
+
+def test_unseen_clearance_measures_only_finger_samples_the_view_did_not_see(box_map, cloud):
+    from scipy.spatial import cKDTree
+
+    from graspsim.maps.occlusion import ViewDepth, unseen_clearance
+
+    front, eye = _front_view(cloud)
+    g = box_map.meta.gripper_spec
+    view = ViewDepth(front, eye)
+    back = cloud[cloud[:, 0] < -0.019]  # the fitted back: known, but not seen
+    known = cKDTree(np.concatenate([front, back]))
+    # wrist frames closing along x (fingers at +-x), the TCP at the box centre; the approach from -z... +z
+    R = np.array([[[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]])
+    tcp = np.asarray(g.nominal_tcp, float)
+    w = -(R[0] @ tcp)[None]
+    narrow, wide = (unseen_clearance(view, known, R, w, np.array([o]), g)[0] for o in (0.05, 0.09))
+    # the far finger's inner face 5 mm off the back at a 50 mm gap, 25 mm at 90 mm
+    assert 0.0 <= narrow < 0.008 and 0.018 < wide < 0.03
+    assert unseen_clearance(view, known, R, w, np.array([0.09]), g, upper=0.01)[0] == np.inf
+    # the same gripper turned to close across the line of sight: its fingers beside the box, where the
+    # view saw past it (but for the depth image's one-pixel rim): none comes as near as the far finger did
+    Ry = np.array([[[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]])
+    assert unseen_clearance(view, known, Ry, -(Ry[0] @ tcp)[None], np.array([0.06]), g)[0] > narrow + 0.004

@@ -197,7 +197,9 @@ def test_openings_scored_in_one_pass_equal_each_opening_alone(box_map, cloud, ca
     rng = np.random.default_rng(11)
     rows = np.arange(len(box_map))
     seen = np.concatenate([cloud] + [_handle_points(box_map, int(r)) for r in rng.choice(rows, 8, replace=False)])
-    cfg = RobustConfig(samples=16, margin=0.002 if case == "margin" else 0.0)
+    # (without the unseen margin: its wider openings join only grasps unseen at every regular opening,
+    # which a set of one opening offers them to more grasps; it is tested on its own below)
+    cfg = RobustConfig(samples=16, margin=0.002 if case == "margin" else 0.0, unseen_margin=0.0)
     gmap, kw = box_map, {}
     if case == "viewpoint":
         kw = {"viewpoint": np.array([0.3, 0.2, 0.4])}

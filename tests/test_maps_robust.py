@@ -355,3 +355,40 @@ def test_unseen_clearance_measures_only_finger_samples_the_view_did_not_see(box_
     # view saw past it (but for the depth image's one-pixel rim): none comes as near as the far finger did
     Ry = np.array([[[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]])
     assert unseen_clearance(view, known, Ry, -(Ry[0] @ tcp)[None], np.array([0.06]), g)[0] > narrow + 0.004
+
+
+def test_the_unseen_margin_is_bounded_by_the_shadow_an_object_casts_on_the_table(box_map, cloud, monkeypatch):
+    """A flat object hides only a sliver of the table behind it (the camera sees the table
+    past it): the margin there is that sliver's depth, not the 20 mm a tall object's back
+    may hide. Without a table the margin stands."""
+    from graspsim.maps._robust_geometry import object_points
+    from graspsim.maps.occlusion import shadow_depth
+
+    up = (np.array([0.0, 0.0, 1.0]), 0.0)
+    flat = np.array([[0.0, 0.0, 0.006], [0.04, 0.02, 0.0]])
+    eye = np.array([0.5, 0.0, 0.5])  # about 45 deg up
+    d = shadow_depth(eye, flat, up)
+    assert 0.004 < d < 0.008  # ~ the 6 mm top at 45 deg
+    assert shadow_depth(eye, np.array([[0.0, 0.0, 0.06]]), up) > 0.05  # a duck-sized back: the margin stands
+    assert shadow_depth(eye, flat, None) == np.inf
+    assert shadow_depth(np.array([0.5, 0.0, 0.0]), flat, up) == np.inf  # at the table's level: nothing bounds it
+
+    # the robust score keeps finger samples in unseen space that far off the known shape, no farther
+    import graspsim.maps.occlusion as occlusion
+
+    asked = []
+    real = occlusion.unseen_clearance
+    monkeypatch.setattr(occlusion, "unseen_clearance", lambda *a, **k: asked.append(k["upper"]) or real(*a, **k))
+    on_table = box_map.with_meta(extra={"T_cloud_obj": np.eye(4).tolist(),
+                                        "table": {"normal": [0, 0, 1], "height": -0.04, "clearance": 0.0}})
+    rows, cfg = np.arange(len(box_map)), RobustConfig(samples=4)
+    for cam, gmap, want in ((np.array([0.02, 0.0, 0.5]), on_table, "shadow"),  # from above: a short shadow
+                            (np.array([0.3, 0.2, 0.4]), on_table, "margin"),  # the 80 mm box's shadow is longer
+                            (np.array([0.02, 0.0, 0.5]), box_map, "margin")):  # no table known
+        asked.clear()
+        score_rows(gmap, rows, cloud, cfg, viewpoint=cam)
+        prim = object_points(gmap.meta, cfg.primitive_step)
+        bound = shadow_depth(cam, prim, (np.array([0.0, 0.0, 1.0]), -0.04)) if want == "shadow" else cfg.unseen_margin
+        np.testing.assert_allclose(asked, bound, rtol=1e-9)  # every opening asked for the same bound
+        assert asked
+        assert (bound < 0.5 * cfg.unseen_margin) == (want == "shadow")

@@ -29,7 +29,8 @@ from graspsim.errors import InvalidParameterError
 from graspsim.geometry.spacing import median_spacing
 from graspsim.grippers.spec import GripperSpec
 
-__all__ = ["ViewDepth", "finger_samples", "finger_occlusion", "unseen_clearance", "check_viewpoint", "MAX_VIEWPOINT"]
+__all__ = ["ViewDepth", "finger_samples", "finger_occlusion", "unseen_clearance", "shadow_depth", "check_viewpoint",
+           "MAX_VIEWPOINT"]
 
 _MAX_PIXELS = 1024  # per image side (memory bound)
 _PER_AXIS = (2, 3, 8)  # finger samples along the finger box's x, y, z
@@ -206,3 +207,23 @@ def unseen_clearance(view: ViewDepth, known, R: np.ndarray, w: np.ndarray, openi
     per = np.full(len(X), np.inf)
     per[occ] = d
     return per.reshape(n, -1).min(axis=1)
+
+
+def shadow_depth(viewpoint, points: np.ndarray, table: tuple[np.ndarray, float] | None) -> float:
+    """How far [m], across the table, the space hidden behind ``points`` (an object's
+    known shape, (M, 3)) reaches beyond them, seen from ``viewpoint`` (3,) (one frame;
+    ``table``: (unit normal, height along it) or None: inf): h / tan(elevation), h the
+    points' top above the table, the elevation the viewpoint's over the table seen from
+    the points' centre. Past that the camera saw the table (or what stands on it), so an
+    object resting there cannot go on further unseen: a domino lying flat hides a sliver
+    a few mm wide behind its far edge, a duck 60 mm tall seen from 45 deg up its whole back."""
+    P = np.asarray(points, float).reshape(-1, 3)
+    if table is None or not len(P):
+        return np.inf
+    n, height = np.asarray(table[0], float), float(table[1])
+    h = max(float(np.max(P @ n)) - height, 0.0)
+    to_eye = np.asarray(viewpoint, float) - P.mean(axis=0)
+    up = float(to_eye @ n) / max(float(np.linalg.norm(to_eye)), 1e-12)  # sin(elevation)
+    if up <= 1e-6:
+        return np.inf  # a camera at or below the table's level sees no table past the object
+    return h * np.sqrt(max(1.0 - up * up, 0.0)) / up

@@ -84,7 +84,10 @@ OCCLUSION_POWER = 2.0
 #: the box fitted to its front; ``experiments/study_true_shape.py --object any``). An opening
 #: at which a finger sample in unseen space comes nearer than this to a known point
 #: (:func:`graspsim.maps.occlusion.unseen_clearance`) scores 0; the wider
-#: ``unseen_openings`` let such a grasp stand off instead. 0 turns the requirement off.
+#: ``unseen_openings`` let such a grasp stand off instead. The margin is bounded, per object, by
+#: how far its shadow reaches across the table past its known shape
+#: (:func:`graspsim.maps.occlusion.shadow_depth`): the camera saw the table beyond it, so a flat
+#: object cannot go on further unseen. 0 turns the requirement off.
 #: (Scaling the score by min(clearance / margin, 1) instead left the same grasps first in
 #: the diagnosis scenes: they were the best their objects had.)
 UNSEEN_MARGIN = 0.020
@@ -225,12 +228,14 @@ def _perturbations(samples: int, seed: int, position_sigma: float, rotation_sigm
     return np.concatenate([np.eye(4)[None], T])  # index 0: the nominal pose
 
 
-def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, view=None) -> RobustScores:
+def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, view=None,
+           unseen_margin: float | None = None) -> RobustScores:
     """The robust score of wrist poses (R (n, 3, 3), w (n, 3)) with contact widths (n,),
     contacts and outward normals (n, 2, 3) against the points P (cloud first), the
     table rows of :func:`table_rows`, at every opening of ``cfg``; ``success_of(live)``
     the success probability of the live poses (bool mask); ``view``: a
-    :class:`~graspsim.maps.occlusion.ViewDepth` of the cloud, or None."""
+    :class:`~graspsim.maps.occlusion.ViewDepth` of the cloud, or None; ``unseen_margin``:
+    the unseen margin [m] bounded for this object (:func:`_unseen_margin`; None: the config's)."""
     from graspsim.maps._robust_blocks import BLOCK_CELL, blocks
     from graspsim.maps._robust_kernel import robust_flags
     from graspsim.maps.kernels import default_threads, run_chunks
@@ -249,8 +254,9 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
     tlen = np.linalg.norm(Dt - (np.asarray(pivot) - DR @ np.asarray(pivot)), axis=1)
     pad = np.array([0.5 * g.finger_size[1], g.fingertip_z - g.pad_length, g.fingertip_z])
     mask = np.uint8(sum(_BITS[t] for t in cfg.terms))
+    margin_unseen = float(cfg.unseen_margin if unseen_margin is None else unseen_margin)
     wider = tuple(v for v in cfg.unseen_openings if v > max(cfg.openings))
-    if view is None or not cfg.occlusion or cfg.unseen_margin <= 0:
+    if view is None or not cfg.occlusion or margin_unseen <= 0:
         wider = ()  # only the unseen margin asks for them
     extras = np.asarray(cfg.openings + wider, float)
     openings = g.pregrasp_opening(np.asarray(width, float))[:, None] + 2.0 * extras[None]  # (n, E)
@@ -261,7 +267,7 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
         occ = np.column_stack([finger_occlusion(view, R, w, openings[:, e], g) for e in range(len(extras))])
         if wider:  # the wider openings are for grasps with a finger unseen at every regular one
             reachable[:, len(cfg.openings):] &= np.all(occ[:, :len(cfg.openings)] > 0, axis=1)[:, None]
-        if cfg.unseen_margin > 0 and len(P) and np.any(occ > 0):
+        if margin_unseen > 0 and len(P) and np.any(occ > 0):
             from scipy.spatial import cKDTree
 
             from graspsim.maps.occlusion import unseen_clearance
@@ -270,8 +276,8 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
             for e in range(len(extras)):
                 k = np.flatnonzero(occ[:, e] > 0)  # no finger sample unseen: nothing to keep clear of
                 if len(k):
-                    c = unseen_clearance(view, known, R[k], w[k], openings[k, e], g, upper=cfg.unseen_margin)
-                    unseen[k, e] = c >= cfg.unseen_margin
+                    c = unseen_clearance(view, known, R[k], w[k], openings[k, e], g, upper=margin_unseen)
+                    unseen[k, e] = c >= margin_unseen
     # a row stops at the first opening where it is feasible under every perturbation with
     # no occluded finger volume: it already scores its success probability, the most any
     # opening can give it (exact: ties go to the narrowest)
@@ -332,10 +338,23 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     R = quat_to_matrix(gmap.wrist_quat[rows].astype(float))
     w = gmap.wrist_position[rows].astype(float)
     cos_fc = math.cos(gmap.meta.quality_model.friction_angle)
+    view = view if view is not None else view_of(cloud, viewpoint, cfg)
+    table = map_table(gmap)
     return _score(P, len(cloud), R, w, gmap.width[rows], gmap.contacts[rows].astype(float),
-                  gmap.normals[rows].astype(float), table_rows(map_table(gmap), R, w), g, cfg, cos_fc,
-                  lambda live: _success(gmap, rows[live], cfg.success),
-                  view if view is not None else view_of(cloud, viewpoint, cfg))
+                  gmap.normals[rows].astype(float), table_rows(table, R, w), g, cfg, cos_fc,
+                  lambda live: _success(gmap, rows[live], cfg.success), view,
+                  _unseen_margin(cfg, view, prim if len(prim) else cloud, table))
+
+
+def _unseen_margin(cfg: RobustConfig, view, shape: np.ndarray, table) -> float:
+    """``cfg.unseen_margin`` bounded by how far the object's shadow reaches past ``shape``
+    (its known points) across the ``table`` (:func:`~graspsim.maps.occlusion.shadow_depth`):
+    the object cannot go on unseen where the camera saw past it."""
+    if view is None or cfg.unseen_margin <= 0:
+        return float(cfg.unseen_margin)
+    from graspsim.maps.occlusion import shadow_depth
+
+    return float(min(cfg.unseen_margin, shadow_depth(view.viewpoint, shape, table)))
 
 
 def score_poses(T_wrist: np.ndarray, width: np.ndarray, contacts: np.ndarray, normals: np.ndarray,
@@ -353,10 +372,11 @@ def score_poses(T_wrist: np.ndarray, width: np.ndarray, contacts: np.ndarray, no
     cloud = np.asarray(cloud, float).reshape(-1, 3)
     R, w = T[:, :3, :3], T[:, :3, 3]
     P = np.ascontiguousarray(cloud, np.float32)
+    view = view_of(cloud, viewpoint, config)
     return _score(P, len(cloud), R, w, np.asarray(width, float).reshape(-1),
                   np.asarray(contacts, float).reshape(-1, 2, 3), np.asarray(normals, float).reshape(-1, 2, 3),
                   table_rows(table, R, w), gripper, config, math.cos(friction_angle),
-                  lambda live: np.ones(int(live.sum())), view_of(cloud, viewpoint, config))
+                  lambda live: np.ones(int(live.sum())), view, _unseen_margin(config, view, cloud, table))
 
 
 def _success(gmap, rows: np.ndarray, model: str) -> np.ndarray:

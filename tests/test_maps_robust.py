@@ -392,3 +392,12 @@ def test_the_unseen_margin_is_bounded_by_the_shadow_an_object_casts_on_the_table
         np.testing.assert_allclose(asked, bound, rtol=1e-9)  # every opening asked for the same bound
         assert asked
         assert (bound < 0.5 * cfg.unseen_margin) == (want == "shadow")
+    # a plate 4 mm thick (a domino lying in a pile, seen from the side: a long shadow): its hidden
+    # side is its underside, the margin its thickness
+    plate = Box(0.05, 0.04, 0.004)
+    pm = generate_fs_map(plate, config=MapConfig(surface_step=0.01)).filter(accepted=True)
+    pm = pm.sample_uniform_surface(100, np.random.default_rng(0))
+    seen = synthetic_cloud(plate, np.random.default_rng(1), resolution=0.004, noise=0.0002).points
+    asked.clear()
+    score_rows(pm, np.arange(len(pm)), seen, cfg, viewpoint=np.array([0.5, 0.0, 0.05]))
+    assert asked and max(asked) <= 0.0045 and min(asked) >= 0.0035

@@ -349,12 +349,22 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
 def _unseen_margin(cfg: RobustConfig, view, shape: np.ndarray, table) -> float:
     """``cfg.unseen_margin`` bounded by how far the object's shadow reaches past ``shape``
     (its known points) across the ``table`` (:func:`~graspsim.maps.occlusion.shadow_depth`):
-    the object cannot go on unseen where the camera saw past it."""
+    the object cannot go on unseen where the camera saw past it; and by the shape's
+    thickness (its extent along its thinnest principal axis): a fit's error on the side
+    the view missed is of the order of the object's size, and a part fitted as a plate a
+    few mm thick (a domino lying in a pile) has its far edge on the face the view saw, its
+    hidden underside a few mm off, not 20."""
     if view is None or cfg.unseen_margin <= 0:
         return float(cfg.unseen_margin)
     from graspsim.maps.occlusion import shadow_depth
 
-    return float(min(cfg.unseen_margin, shadow_depth(view.viewpoint, shape, table)))
+    P = np.asarray(shape, float).reshape(-1, 3)
+    thick = np.inf
+    if len(P) >= 3:
+        X = P - P.mean(axis=0)
+        axis = np.linalg.svd(X, full_matrices=False)[2][-1]  # the thinnest principal axis
+        thick = float(np.ptp(X @ axis))
+    return float(min(cfg.unseen_margin, shadow_depth(view.viewpoint, P, table), thick))
 
 
 def score_poses(T_wrist: np.ndarray, width: np.ndarray, contacts: np.ndarray, normals: np.ndarray,

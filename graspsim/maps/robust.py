@@ -265,8 +265,6 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
     unseen = np.ones((n, len(extras)), bool)  # the unseen margin kept (UNSEEN_MARGIN)
     if view is not None and cfg.occlusion:
         occ = np.column_stack([finger_occlusion(view, R, w, openings[:, e], g) for e in range(len(extras))])
-        if wider:  # the wider openings are for grasps with a finger unseen at every regular one
-            reachable[:, len(cfg.openings):] &= np.all(occ[:, :len(cfg.openings)] > 0, axis=1)[:, None]
         if margin_unseen > 0 and len(P) and np.any(occ > 0):
             from scipy.spatial import cKDTree
 
@@ -278,6 +276,9 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
                 if len(k):
                     c = unseen_clearance(view, known, R[k], w[k], openings[k, e], g, upper=margin_unseen)
                     unseen[k, e] = c >= margin_unseen
+        if wider:  # the wider openings are for grasps that keep the margin at no regular opening
+            E0 = len(cfg.openings)
+            reachable[:, E0:] &= ~np.any(unseen[:, :E0] & reachable[:, :E0], axis=1)[:, None]
     # a row stops at the first opening where it is feasible under every perturbation with
     # no occluded finger volume: it already scores its success probability, the most any
     # opening can give it (exact: ties go to the narrowest)

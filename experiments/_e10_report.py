@@ -132,6 +132,12 @@ def _median(spread: dict | None) -> str:
     return f"{spread['median']:.2f} s ({spread['count']})"
 
 
+def _per_grasp(p: dict) -> str:
+    """Every grasp's planning over the grasps (the mean over grasps: the planning a
+    clearing run spends per grasp, first frames included)."""
+    return "n/a" if p.get("mean") is None else f"{p['mean']:.2f} s"
+
+
 def readme_section(s: dict) -> str:
     """The README's E10 block (see ``experiments/report.py``)."""
     rows = rows_of(s)
@@ -146,9 +152,10 @@ def readme_section(s: dict) -> str:
          "leaves the table and counts in DR). DR = objects removed / placed (95 % Wilson intervals; grasps of "
          "one scene are correlated, so the intervals understate the spread between scenes). Planning per grasp: "
          "median seconds from the depth frame to the ranked grasps of the whole scene, in the first frame of a "
-         "scene and in later frames (which reuse the plans of segments that did not change).", "",
+         "scene and in later frames (which reuse the plans of segments that did not change), and per grasp: "
+         "the planning of every grasp's frame over the grasps (what clearing a scene spends per grasp).", "",
          "| object set | scene | objects | condition | scenes (of asked) | GSR | other object lifted | DR | "
-         "cleared scenes | one cluster (first frame) | planning: first frame / later | failure causes |",
+         "cleared scenes | one cluster (first frame) | planning: first frame / later / per grasp | failure causes |",
          "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         causes = ", ".join(f"{k} {v}" for k, v in r["failure_causes"].items() if k != OTHER) or "-"
@@ -160,7 +167,7 @@ def readme_section(s: dict) -> str:
                  f"{r.get('other_objects', 'n/a')} | "
                  f"{rate_ci(r['removed'], r['placed'], r['cleared_interval_95'])} | {r['scenes_cleared']} | "
                  f"{pct(seg['share'], 1)} % ({seg['one_cluster']}/{seg['objects_seen']}) | "
-                 f"{_median(p.get('first_frame'))} / {_median(p.get('later_frames'))} | {causes} |")
+                 f"{_median(p.get('first_frame'))} / {_median(p.get('later_frames'))} / {_per_grasp(p)} | {causes} |")
     L += ["", "In the field's form (GSR and DR per seed, mean ± sample std over the seeds; one seed: no spread):",
           "", *literature_lines(rows)]
     L += failure_lines(rows)

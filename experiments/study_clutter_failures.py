@@ -8,8 +8,10 @@ grasp: the object the chosen segment mostly shows (ground truth), whether the se
 was planned afresh or its plan reused, the parts it was identified as, the share of
 the segment's points lying more than 3 / 6 / 10 mm outside every identified part
 (observed volume the parts leave out), the grasp's robust score and clearance to the
-observed points, the outcome, and for a start collision which gripper part overlapped
-what and how deep (``SceneSim.overlaps`` at the executed pose).
+observed points, the gripper's lowest point above the table (z = 0) at the planned and
+at the executed pose (with execution error they differ: a low-profile grasp's fingertips
+pass 0.5 mm above the table), the outcome, and for a start collision which gripper part
+overlapped what and how deep (``SceneSim.overlaps`` at the executed pose).
 
     python experiments/study_clutter_failures.py --kind pile --scenes 5 9 16 30 33 36 --db results/e10-fsdb
     python experiments/study_clutter_failures.py --kind pile --noise default --scenes 0 2 6 14 40 --db results/e10-fsdb
@@ -58,6 +60,12 @@ def outside_shares(points: np.ndarray, ident) -> list[float]:
     return [float(np.mean(d > t)) for t in (0.003, 0.006, 0.010)]
 
 
+def lowest(gripper, T_world_wrist: np.ndarray, opening: float) -> float:
+    """The gripper's lowest point [m] above the table z = 0 at a wrist pose, jaws at ``opening``."""
+    T = np.asarray(T_world_wrist, float)
+    return float(gripper.lowest_along(T[2, :3][None], T[2, 3:4], np.array([opening]))[0])
+
+
 def episode(i: int, cfg: Config, db) -> list[dict]:
     """Scene ``i``'s episode, one row per executed grasp."""
     from graspsim.sim.noise import ExecutionNoise
@@ -79,12 +87,15 @@ def episode(i: int, cfg: Config, db) -> list[dict]:
             mem = sp.memory[g.segment]
             a = ep.execute(look, g)
             o = a.outcome
-            where = ep.sim.overlaps(np.asarray(o["T_world_wrist"]), o["opening"]) if o["collided"] else {}
+            executed = np.asarray(o.get("T_world_wrist", g.T_world_wrist), float)
+            where = ep.sim.overlaps(executed, o["opening"]) if o["collided"] else {}
             rows.append({"scene": i, "object": None if a.target is None else scene.objects[a.target].name,
                          "segment": sp.segments[g.segment].status,
                          "parts": [str(p.primitive()) for p in (mem.ident.parts if mem.ident else ())],
                          "outside_3_6_10mm": outside_shares(mem.points, mem.ident), "score": g.score,
                          "clearance_mm": 1000.0 * g.clearance, "cause": a.cause,
+                         "lowest_planned_mm": round(1000.0 * lowest(db.gripper, g.T_world_wrist, g.opening), 2),
+                         "lowest_executed_mm": round(1000.0 * lowest(db.gripper, executed, o["opening"]), 2),
                          "overlaps_mm": {f"{name}->{what}": round(1000.0 * v, 1)
                                          for (name, what), v in where.items() if v > 0.001}})
             log.info("%s", json.dumps(rows[-1]))
@@ -108,13 +119,15 @@ def readme_section(s: dict) -> str:
     """The failures, one row each."""
     L = [f"`{s['command']}`: {s['lifted_target']}/{s['grasps']} grasps lifted their target, "
          f"{s['removed']}/{s['placed']} objects removed.", "",
-         "| scene | object | segment | identified as | outside > 3/6/10 mm | score | cause | overlap [mm] |",
-         "|---|---|---|---|---|---|---|---|"]
+         "| scene | object | segment | identified as | outside > 3/6/10 mm | score | lowest planned / executed [mm] "
+         "| cause | overlap [mm] |",
+         "|---|---|---|---|---|---|---|---|---|"]
     for r in s["rows"]:
         if r["cause"] != "success":
             out = "/".join(f"{100 * v:.0f} %" for v in r["outside_3_6_10mm"])
             L.append(f"| {r['scene']} | {r['object']} | {r['segment']} | {', '.join(r['parts'])} | {out} | "
-                     f"{r['score']:.2f} | {r['cause']} | {r['overlaps_mm']} |")
+                     f"{r['score']:.2f} | {r['lowest_planned_mm']:.1f} / {r['lowest_executed_mm']:.1f} | "
+                     f"{r['cause']} | {r['overlaps_mm']} |")
     return "\n".join(L) + "\n"
 
 

@@ -725,6 +725,7 @@ def test_study_clutter_failures_quick(tmp_path):
         assert r["segment"] in ("planned", "reused") and 0.0 <= r["score"] <= 1.0
         assert all(0.0 <= v <= 1.0 for v in r["outside_3_6_10mm"]) and r["parts"]
         assert bool(r["overlaps_mm"]) <= r["cause"].startswith("start_collision")
+        assert r["lowest_planned_mm"] == r["lowest_executed_mm"]  # no execution error: the planned pose
 
 
 @pytest.mark.slow

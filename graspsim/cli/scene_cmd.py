@@ -1,7 +1,8 @@
 """``graspsim scene``: clutter removal on simulated table-top scenes seen by a depth camera.
 
     graspsim scene [--objects N] [--scenes S] [--kind pile|packed] [--object-set SET | --objects-dir DIR]
-                   [--min-gap M] [--noise] [--no-neighbours] [--ground-truth] [--max-attempts M]
+                   [--min-gap M] [--noise [--noise-pos M] [--noise-rot-deg DEG]] [--no-neighbours]
+                   [--ground-truth] [--max-attempts M]
                    [--seed S] [--seeds N] [--planner NAME|module:function] [--db DIR]
                    [--gripper NAME|MODEL.xml|SPEC.json] [--robot none|panda [--robot-base X Y YAW]]
                    [--render DIR] [--save-scenes DIR] [--json]
@@ -46,6 +47,26 @@ from graspsim.cli.maps_cmd import _add_generation, _config
 __all__ = ["register"]
 
 
+def _execution(args):
+    """``--noise [--noise-pos M] [--noise-rot-deg DEG]`` as the execution error (None: no --noise)."""
+    import math
+
+    from graspsim.errors import InvalidParameterError
+    from graspsim.maps.robust import POSITION_SIGMA, ROTATION_SIGMA
+    from graspsim.sim.noise import ExecutionNoise
+
+    if not args.noise:
+        if args.noise_pos is not None or args.noise_rot_deg is not None:
+            raise InvalidParameterError("--noise-pos / --noise-rot-deg set the execution error: give --noise too")
+        return None
+    pos = POSITION_SIGMA if args.noise_pos is None else args.noise_pos
+    rot = math.degrees(ROTATION_SIGMA) if args.noise_rot_deg is None else args.noise_rot_deg
+    if not (math.isfinite(pos) and 0 <= pos <= 0.05) or not (math.isfinite(rot) and 0 <= rot <= 45):
+        raise InvalidParameterError(f"--noise-pos must be in [0, 0.05] m and --noise-rot-deg in [0, 45] deg, "
+                                    f"got {pos!r} and {rot!r}")
+    return ExecutionNoise(pos, math.radians(rot))
+
+
 def _cmd_scene(args) -> int:
     """Draw table-top scenes of several objects, settle them in MuJoCo, render them with
     a D435-like depth camera, and clear each table grasp by grasp: segment the cloud,
@@ -59,7 +80,6 @@ def _cmd_scene(args) -> int:
     from graspsim.maps.database import MapDatabase
     from graspsim.perception.segment import gap_link
     from graspsim.planning.scene_config import SceneConfig
-    from graspsim.sim.noise import ExecutionNoise
     from graspsim.tabletop.clutter import FAILURE_COLUMNS, ClutterConfig, failure_rows, run_benchmark, summarize
     from graspsim.tabletop.scene_objects import OBJECT_SETS, object_set_names, prepare_objects
     from graspsim.tabletop.table_scene import MAX_OBJECTS, known_gap
@@ -101,7 +121,7 @@ def _cmd_scene(args) -> int:
 
         planner = load_planner(args.planner)
     cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours, min_gap=gap, **budget),
-                        execution=ExecutionNoise() if args.noise else None, ground_truth=args.ground_truth,
+                        execution=_execution(args), ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts, planner=planner, planner_name=args.planner, robot=robot)
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
@@ -137,6 +157,8 @@ def _cmd_scene(args) -> int:
          "meshes": drawn if object_set not in OBJECT_SETS else None, "seed": args.seed,
          "planner": args.planner, "seeds": per_seed(by_seed), "gripper": db.gripper.name,
          "execution_noise": None if cfg.execution is None else cfg.execution.to_dict(),
+         "planned_for": {"position_sigma": cfg.planning.planner.robust.position_sigma,
+                         "rotation_sigma": cfg.planning.planner.robust.rotation_sigma},
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth, "min_gap": gap,
          "budget": cfg.scene.budget, "robot": args.robot,
          "robot_base": None if robot is None else (list(args.robot_base) if args.robot_base else [-0.5, 0.0, 0.0]),
@@ -203,8 +225,13 @@ def register(sub) -> None:
         p.add_argument("--objects-dir", default=None, metavar="DIR",
                        help="objects drawn from a folder of your mesh files (.stl .obj .ply .off .glb .gltf; an "
                        "optional objects.json or objects.toml gives per-file scale, mass or density, friction)")
-        p.add_argument("--noise", action="store_true", help="execution error: the arm misses each pose by 3 mm / 2 deg "
-                       "(sigma)")
+        p.add_argument("--noise", action="store_true", help="execution error: the arm misses each pose by Gaussian "
+                       "errors at the TCP (sigmas: --noise-pos, --noise-rot-deg); the planner's robust score assumes "
+                       "the same error")
+        p.add_argument("--noise-pos", type=float, default=None, metavar="M",
+                       help="the execution error's position sigma [m] (0.003)")
+        p.add_argument("--noise-rot-deg", type=float, default=None, metavar="DEG",
+                       help="the execution error's rotation sigma [deg] (2)")
         p.add_argument("--no-neighbours", action="store_true",
                        help="ablation: check grasps against the object's own points only")
         p.add_argument("--ground-truth", action="store_true",

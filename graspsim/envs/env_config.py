@@ -54,7 +54,8 @@ class EnvConfig:
         camera_distance: single-view camera distance from the object.
     table_cut: the table is segmented out by dropping points below this height.
     position_noise, rotation_noise: execution error of the robot per trial, Gaussian at
-        the TCP (0 and 0: exact execution).
+        the TCP (0 and 0: exact execution); the planner's robust score assumes the same
+        error (:meth:`robust_sigmas`; with none, its default 3 mm / 2 deg).
     protocol: ``"lift_place"`` (default) or ``"tug"``, or a Protocol instance.
     reward: ``"binary"`` or ``"shaped"``.
     lying: probability that a cylinder lies on its side.
@@ -111,6 +112,14 @@ class EnvConfig:
     threads: int = 1
     openings: tuple[float, ...] = DEFAULT_OPENINGS
     gripper: object = "festo_hgpl_25_60_a"
+
+    def robust_sigmas(self) -> dict:
+        """The planner's robust pose error (``RobustConfig`` fields): the execution error
+        stated here where there is one, so the grasps ranked first are those that survive
+        it; with none (both 0) the robust score's own default (3 mm / 2 deg)."""
+        if self.position_noise > 0 or self.rotation_noise > 0:
+            return {"position_sigma": float(self.position_noise), "rotation_sigma": float(self.rotation_noise)}
+        return {}
 
     def __post_init__(self) -> None:
         objects = self.objects if isinstance(self.objects, str) else tuple(self.objects)

@@ -95,7 +95,7 @@ class GraspSelectEnv(TableTask):
             identify=IdentifyConfig(repetitions=c.identify_repetitions),
             scaling=ScalingConfig(first_batch=48, growth=1.0), build_missing=False,
             table=TablePlane(height=0.0, clearance=c.table_margin),
-            robust=RobustConfig(openings=c.openings), clear_observed=False, features=None)
+            robust=RobustConfig(openings=c.openings, **c.robust_sigmas()), clear_observed=False, features=None)
         self.plan_result: PlanResult | None = None
         self._obs: dict | None = None
         self._cand: dict | None = None

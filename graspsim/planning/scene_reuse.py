@@ -82,7 +82,7 @@ def nothing_new(old: np.ndarray | None, new: np.ndarray | None, *, tol: float, a
     far = new[~np.isfinite(cKDTree(old).query(new, distance_upper_bound=tol)[0])]
     if len(far) <= allowed:
         return True
-    crowd = np.array([len(n) - 1 for n in cKDTree(far).query_ball_point(far, 2.0 * tol)])
+    crowd = cKDTree(far).query_ball_point(far, 2.0 * tol, return_length=True) - 1  # neighbours but itself
     return int(np.sum(crowd >= 3)) <= allowed
 
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from graspsim.checks import check_fields, integer, or_none
+from graspsim.checks import BOOLEAN, check_fields, integer, or_none
 from graspsim.errors import InvalidParameterError
 from graspsim.geometry.camera import Camera, backproject, rig
 from graspsim.planning.scene import plan_scene
@@ -108,7 +108,11 @@ class ClutterConfig:
     since the previous frame keeps its plan (``plan_scene(previous=...)``), less the
     grasp that was executed; planner: one of :mod:`graspsim.tabletop.planners` (its name in ``planner_name``);
     robot: the arm that executes the grasps (:class:`ClutterRobot`; None: the floating
-    gripper), its gripper the database's (a model-file gripper)."""
+    gripper), its gripper the database's (a model-file gripper); plan_for_execution: with
+    an ``execution`` error, the planner's robust score assumes that error (its sigmas
+    replace ``scene.planner.robust``'s: :attr:`planning`), so the grasps it ranks first are
+    those that survive the arm the user stated; False: ``scene``'s own (3 mm / 2 deg by
+    default, also when the arm has no error)."""
 
     scene: SceneConfig = field(default_factory=SceneConfig)
     depth_noise: DepthNoise | None = field(default_factory=DepthNoise)
@@ -121,9 +125,21 @@ class ClutterConfig:
     planner: object = None  # a planner of graspsim.tabletop.planners' interface; None: plan_scene (with reuse)
     planner_name: str = "graspsim"
     robot: ClutterRobot | None = None
+    plan_for_execution: bool = True
 
     def __post_init__(self) -> None:
         check_fields(self, integer(1), "max_failures", "min_seen", owner="ClutterConfig")
+        check_fields(self, BOOLEAN, "plan_for_execution", owner="ClutterConfig")
+
+    @property
+    def planning(self) -> SceneConfig:
+        """The scene settings ``plan_scene`` runs with: ``scene``, its robust score's pose
+        error the ``execution`` error's where one is given and ``plan_for_execution``."""
+        if self.execution is None or not self.plan_for_execution:
+            return self.scene
+        robust = replace(self.scene.planner.robust, position_sigma=float(self.execution.position_sigma),
+                         rotation_sigma=float(self.execution.rotation_sigma))
+        return replace(self.scene, planner=replace(self.scene.planner, robust=robust))
         check_fields(self, or_none(integer(1)), "max_attempts", owner="ClutterConfig")
 
     def to_dict(self) -> dict:
@@ -131,7 +147,9 @@ class ClutterConfig:
                 else self.depth_noise.to_dict(), "execution": None if self.execution is None
                 else self.execution.to_dict(), "ground_truth": self.ground_truth,
                 "max_failures": self.max_failures, "max_attempts": self.max_attempts, "min_seen": self.min_seen,
-                "reuse": self.reuse, "planner": self.planner_name,
+                "reuse": self.reuse, "planner": self.planner_name, "plan_for_execution": self.plan_for_execution,
+                "robust_sigma": [self.planning.planner.robust.position_sigma,
+                                 self.planning.planner.robust.rotation_sigma],
                 **({} if self.robot is None else {"robot": self.robot.to_dict()})}
 
 
@@ -254,6 +272,7 @@ class ClutterEpisode:
     def __init__(self, scene, *, db, rng: np.random.Generator, config: ClutterConfig | None = None,
                  camera: Camera | None = None, rgb: bool = False):
         self.config = cfg = config or ClutterConfig(scene=scene_settings(scene.kind))
+        self._planning = cfg.planning  # the planner told the arm's error (ClutterConfig.plan_for_execution)
         self.scene, self.db, self.rgb = scene, db, rgb
         self.camera = camera or rig(1)[0]
         self.cap = cfg.max_attempts or 2 * len(scene.objects) + 2
@@ -337,11 +356,11 @@ class ClutterEpisode:
         view = backproject(frame)
         labels = view.labels if cfg.ground_truth else None
         eye = self.camera.T_world_camera[:3, 3]  # the occluded space behind what the camera saw
-        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
+        sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=self._planning, labels=labels,
                         previous=self._previous, viewpoint=eye)
         cands, best = self._candidates(sp.grasps)
         if best is None and self._previous is not None:  # reused plans kept scores from before: plan afresh
-            sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=cfg.scene, labels=labels,
+            sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=self._planning, labels=labels,
                             viewpoint=eye)
             cands, best = self._candidates(sp.grasps)
         return view, sp, cands, best, time.perf_counter() - t1

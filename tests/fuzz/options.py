@@ -118,7 +118,8 @@ NEWER_COMMANDS: dict[str, tuple[list[str], dict]] = {
                "--kind": ["pile", "packed", "heap"], "--min-gap": _LENGTHS, "--max-attempts": ["-1", "0", "abc"],
                "--budget": ["0:0", "abc", "-1:5"], "--seed": _SEEDS,
                "--object-set": ["mixed", "none", "", "random-heldout"], "--seeds": ["0", "2", "abc"],
-               "--render": ["{dir}/r", "{out}"], "--save-scenes": ["{dir}/s", "{out}"]}),
+               "--render": ["{dir}/r", "{out}"], "--save-scenes": ["{dir}/s", "{out}"],
+               "--noise-pos": _LENGTHS, "--noise-rot-deg": _ANGLES}),
 }
 
 

@@ -140,7 +140,13 @@ class RobustConfig:
     :data:`OCCLUSION_POWER` is the maximum-likelihood fit of P(no start collision | f) =
     (1 - f) ** k to the executed grasps of the household-tuning clutter scenes
     (``experiments/study_occlusion.py``): a finger 20 % in unseen space started in
-    collision far more often than a fifth of the time."""
+    collision far more often than a fifth of the time.
+    unseen_margin [m]: with a viewpoint, an opening at which a finger sample in unseen
+    space comes nearer than this to a known point (observed, or on the fitted primitives)
+    scores 0 -- the fit's back is a guess -- bounded per object by the shadow it casts
+    across the table and by its thickness (:data:`UNSEEN_MARGIN`; 0: off);
+    unseen_openings: the extra gaps per side [m] tried, beyond ``openings``, for a grasp that
+    keeps that margin at none of them (:data:`UNSEEN_OPENINGS`)."""
 
     position_sigma: float = POSITION_SIGMA
     rotation_sigma: float = ROTATION_SIGMA

@@ -9,7 +9,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.io import load_map, save_map
 from graspsim.maps.map_config import MapConfig
-from graspsim.maps.robust import RobustConfig, ranking, score_map, score_rows, wrist_perturbations
+from graspsim.maps.robust import UNSEEN_MARGIN, RobustConfig, ranking, score_map, score_rows, wrist_perturbations
 from graspsim.primitives import Box, synthetic_cloud
 from graspsim.transforms import make_transform
 
@@ -315,7 +315,8 @@ def test_a_finger_in_the_unseen_back_near_the_fitted_surface_ranks_below(box_map
     their fingers in seen space and their scores."""
     front, eye = _front_view(cloud)
     rows = np.arange(len(box_map))
-    cfg = RobustConfig(samples=16)
+    cfg = RobustConfig(samples=16, unseen_margin=UNSEEN_MARGIN)
+    assert RobustConfig().unseen_margin == 0.0  # opt-in: the default score is unchanged
     on = score_rows(box_map, rows, front, cfg, viewpoint=eye)
     off = score_rows(box_map, rows, front, replace(cfg, unseen_margin=0.0), viewpoint=eye)
     along = np.abs(box_map.wrist_transforms()[:, 0, 0]) > 0.9  # closing along x, the line of sight
@@ -381,7 +382,7 @@ def test_the_unseen_margin_is_bounded_by_the_shadow_an_object_casts_on_the_table
     monkeypatch.setattr(occlusion, "unseen_clearance", lambda *a, **k: asked.append(k["upper"]) or real(*a, **k))
     on_table = box_map.with_meta(extra={"T_cloud_obj": np.eye(4).tolist(),
                                         "table": {"normal": [0, 0, 1], "height": -0.04, "clearance": 0.0}})
-    rows, cfg = np.arange(len(box_map)), RobustConfig(samples=4)
+    rows, cfg = np.arange(len(box_map)), RobustConfig(samples=4, unseen_margin=UNSEEN_MARGIN)
     for cam, gmap, want in ((np.array([0.02, 0.0, 0.5]), on_table, "shadow"),  # from above: a short shadow
                             (np.array([0.3, 0.2, 0.4]), on_table, "margin"),  # the 80 mm box's shadow is longer
                             (np.array([0.02, 0.0, 0.5]), box_map, "margin")):  # no table known

@@ -212,12 +212,14 @@ def test_the_camera_viewpoint_scales_down_grasps_reaching_behind_what_it_saw(db)
     fingers reach into the space behind the box (unseen) score less; none scores more.
     (``hidden_faces`` off: with the camera's place the planner also offers grasps across
     the box's sides, which that camera sees edge-on -- grasps the blind plan cannot bear
-    out; the occlusion term is compared on the grasps both offer.)"""
+    out; ``hidden_depth`` and ``complete_to_table`` off: with it the planner also deepens
+    or completes the box's unseen extent, so the two plans hold other grasps; the
+    occlusion term is compared on the grasps both offer.)"""
     camera = np.array([0.0, -0.45, 0.55])
     pts, _, _ = table_scene_cloud([Box(0.06, 0.06, 0.06)], np.zeros((1, 2)), np.random.default_rng(4),
                                   noise=0.0005, camera=tuple(camera))
-    cfg = SceneConfig(planner=replace(SceneConfig().planner, hidden_faces=False), enough=10**6, per_segment=300,
-                      keep=300)
+    cfg = SceneConfig(planner=replace(SceneConfig().planner, hidden_faces=False, hidden_depth=False,
+                                      complete_to_table=False), enough=10**6, per_segment=300, keep=300)
     runs = {v: plan_scene(pts, db=db, rng=np.random.default_rng(5), config=cfg,
                           viewpoint=None if v == "blind" else camera) for v in ("blind", "camera")}
     blind = {g.T_world_wrist.tobytes(): g.score for g in runs["blind"].grasps}

@@ -196,7 +196,7 @@ class ObservedChecks:
         return axes if len(axes) else None
 
     def unseen_depth(self, part_map: GraspabilityMap, prim, T_cloud_part: np.ndarray,
-                     T_cloud_map: np.ndarray) -> GraspabilityMap:
+                     T_cloud_map: np.ndarray, bounded: np.ndarray | None = None) -> GraspabilityMap:
         """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) that do not
         close across an extent of part ``prim`` (posed at ``T_cloud_part``) that a single
         view did not measure (within :data:`UNSEEN_CONE_DEG`), unless its fingers stay in
@@ -223,6 +223,8 @@ class ObservedChecks:
         volume (at its pre-grasp opening) lies in space the view did not see: there the
         camera saw past the part, so the object does not go on where the far finger goes
         (a domino standing on its edge, grasped across its thickness from above).
+        ``bounded`` (3,): a box part's axis the table bounds (the part completed down to
+        it: :mod:`~graspsim.planning.table_completion`): measured, whatever its faces show.
         Unchanged without a viewpoint (a cloud seen all round shows depths) or with
         ``PlannerConfig.seen_depth`` off."""
         if self.viewpoint is None or not self.cfg.seen_depth or not len(part_map):
@@ -234,7 +236,9 @@ class ObservedChecks:
         cone = np.cos(np.radians(UNSEEN_CONE_DEG))
         if prim.kind == "box":
             thin = self._unmeasured_axes(prim, T_cloud_part)
-            if thin is None:
+            if thin is not None and bounded is not None:  # the table bounds that extent: measured
+                thin = thin[np.abs(thin @ np.asarray(bounded, float)) < cone]
+            if thin is None or not len(thin):
                 return part_map
             keep = np.all(np.abs(closing @ thin.T) < cone, axis=1)
         else:
@@ -258,6 +262,23 @@ class ObservedChecks:
         T = np.asarray(self.T_cloud_obj, float)
         cloud = self.points if self.cloud_obj is None else np.asarray(self.cloud_obj, float) @ T[:3, :3].T + T[:3, 3]
         return ViewDepth(cloud, self.viewpoint)
+
+    @property
+    def least_hidden_depth(self) -> float:
+        """[m] the least extent a single view leaves a box along an axis it did not measure
+        (``PlannerConfig.hidden_depth``): a far face nearer its seen face than the contact
+        tolerance plus two noise sigmas lies among that face's own points, which then stand
+        as evidence against every contact on it; the view cannot tell such a depth from
+        this one."""
+        return self.contact_tolerance + 2.0 * self.noise
+
+    def unmeasured_axes(self, prim, T_cloud_part: np.ndarray) -> np.ndarray | None:
+        """(k, 3) the axes of box part ``prim`` (posed at ``T_cloud_part``, cloud frame) a
+        single view did not measure (see :meth:`unseen_depth`); None: none, too few points,
+        or no viewpoint."""
+        if self.viewpoint is None:
+            return None
+        return self._unmeasured_axes(prim, T_cloud_part)
 
     def _unmeasured_axes(self, prim, T_cloud_part: np.ndarray) -> np.ndarray | None:
         """(k, 3) the axes of box part ``prim`` (posed at ``T_cloud_part``) a single view did

@@ -33,6 +33,7 @@ from graspsim.maps.feature_grasps import FeatureConfig
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta, Placement
 from graspsim.maps.match import MatchKind
+from graspsim.maps.occlusion import ViewDepth
 from graspsim.maps.robust import RANKS, RobustConfig, cloud_in_object, score_map, view_of
 from graspsim.maps.scaling import ScalingConfig, scale_stream
 from graspsim.maps.table_clearance import (
@@ -48,7 +49,8 @@ from graspsim.perception import Identification, IdentificationStatus, IdentifyCo
 from graspsim.planning.observed import ObservedChecks
 from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
 from graspsim.planning.stages import StageClock
-from graspsim.primitives import Compound, Primitive
+from graspsim.planning.table_completion import complete_to_table
+from graspsim.primitives import Compound, Primitive, make_primitive
 from graspsim.primitives.compound import object_frame
 from graspsim.transforms import invert_transform
 
@@ -137,6 +139,27 @@ class PlannerConfig:
         band removes the side points that would bear them out); counts in the table record:
         ``low_parts``, ``lifted``. None: never (every such pose dropped, as before). Paper
         identification mode never lifts.
+    complete_to_table: robust identification of a single view with a ``table`` of known
+        height: a box part whose hidden far face hangs above the table, on a segment that
+        touches it, with the space between in the camera's shadow, is completed down to the
+        table plane (the object cannot float; a carton lying on its side fitted as a 2 cm
+        plate, a domino fitted 2 mm thick) and a grasp may close across that extent
+        (:func:`~graspsim.planning.table_completion.complete_to_table`; the count in
+        ``extra["table"]["completed"]``). False (default; single-object planning): parts as
+        identified. Scene planning turns it on.
+    hidden_depth: robust identification of a single view: a box part's extent along an axis
+        the view did not measure (only the faces across it seen: a domino standing face-on
+        to the camera) is at least what the view can tell from its seen face -- the contact
+        tolerance plus two noise sigmas
+        (:attr:`~graspsim.planning.observed.ObservedChecks.least_hidden_depth`); the fit
+        makes it what the noise allows (a 6 mm domino 2.3 to 3.7 mm), which puts the far
+        contact among the seen face's own points, so every grasp across it is taken as
+        contradicted by them. Its far face moves away from the camera, not through the
+        table. False (default; single-object planning): parts as identified. Scene planning
+        turns it on.
+    table_band: [m] with ``complete_to_table``: the height above the table below which the
+        cloud's points were cut away as the table's (a scene's ``SceneConfig.table_band``,
+        which sets it); the completed volume's hidden space is judged above it.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -154,6 +177,9 @@ class PlannerConfig:
     hidden_faces: bool = True
     low_profile: LowProfile | None = field(default_factory=LowProfile)
     both_contacts_all_round: bool = True
+    complete_to_table: bool = False
+    table_band: float = 0.006
+    hidden_depth: bool = False
 
     def __post_init__(self) -> None:
         if self.low_profile is not None and not isinstance(self.low_profile, LowProfile):
@@ -313,6 +339,67 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
                            db, cfg, source, t0, {"identify": 0.0}, time.thread_time(), scored_only=scored_only)
 
 
+def _completed(prims: list, T_cloud: list, points: np.ndarray, obstacles: np.ndarray | None,
+               table: TablePlane, viewpoint: np.ndarray, band: float) -> tuple[list, list, list]:
+    """``PlannerConfig.complete_to_table``: the parts (canonical boxes again), their poses
+    and per part the axis the table now bounds (None: left as identified)."""
+    seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
+    view = ViewDepth(seen, viewpoint)
+    out_p, out_T, bounded = [], [], []
+    for prim, T in zip(prims, T_cloud):
+        p, Tp, how = complete_to_table(prim, T, points, table, viewpoint, view, band=band)
+        if how.axis is not None:
+            p, Tp = canonical_box(p, Tp)
+        out_p.append(p)
+        out_T.append(Tp)
+        bounded.append(how.axis)
+    return out_p, out_T, bounded
+
+
+def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedChecks, table: TablePlane | None,
+              viewpoint: np.ndarray) -> tuple[list, list]:
+    """``PlannerConfig.hidden_depth``: the parts with each box's unmeasured extent (no face
+    along it seen: :meth:`~graspsim.planning.observed.ObservedChecks.unmeasured_axes`) at
+    least :attr:`~graspsim.planning.observed.ObservedChecks.least_hidden_depth`, its far
+    face moved away from the camera (its seen face kept), not through the table; an
+    axis the table bounds (``bounded``) is left as it is."""
+    least = observed.least_hidden_depth
+    out_p, out_T = [], []
+    for prim, T, axis in zip(prims, T_cloud, bounded):
+        thin = observed.unmeasured_axes(prim, T) if prim.kind == "box" else None
+        if thin is None:
+            out_p.append(prim)
+            out_T.append(T)
+            continue
+        T = np.asarray(T, float).copy()
+        dims = np.array([prim.x, prim.y, prim.z])
+        changed = False
+        for u in thin:
+            j = int(np.argmax(np.abs(T[:3, :3].T @ u)))
+            if dims[j] >= least or (axis is not None and abs(float(u @ axis)) > 0.99):
+                continue
+            d = T[:3, j] * (1.0 if float((T[:3, 3] - viewpoint) @ T[:3, j]) >= 0.0 else -1.0)  # away from the camera
+            add = least - dims[j]
+            if table is not None and table.height is not None:  # not through the table
+                n = np.asarray(table.normal, float)
+                down = -float(d @ n)
+                if down > 1e-6:
+                    half = 0.5 * dims
+                    far = T[:3, 3] + d * half[j]
+                    spread = sum(abs(float(T[:3, k] @ n)) * half[k] for k in range(3) if k != j)
+                    add = min(add, max(0.0, (float(far @ n) - spread - table.height) / down))
+            if add <= 0.0:
+                continue
+            dims[j] += add
+            T[:3, 3] += 0.5 * add * d
+            changed = True
+        if changed:
+            prim, T = canonical_box(make_primitive("box", x=float(dims[0]), y=float(dims[1]), z=float(dims[2])), T)
+        out_p.append(prim)
+        out_T.append(T)
+    return out_p, out_T
+
+
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
                 ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
                 source: str, t0: float, timing: dict, cpu0: float, obstacles: np.ndarray | None = None,
@@ -320,6 +407,15 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
     part frames in the cloud's frame); ``cpu0``: the calling thread's CPU clock when
     identification ended; ``scored_only``: see :func:`plan_stream`."""
+    # the observed-point checks (robust mode); their object frame is set once the parts are final
+    observed = ObservedChecks.of_plan(ident, points, None, np.eye(4), viewpoint, db, cfg)
+    bounded: list = [None] * len(prims)  # per part: its axis the table bounds (completed down to it)
+    if (cfg.complete_to_table and cfg.table is not None and cfg.table.height is not None and viewpoint is not None
+            and observed is not None):
+        prims, T_cloud, bounded = _completed(prims, T_cloud, points, obstacles, cfg.table, viewpoint,
+                                             cfg.table_band)
+    if cfg.hidden_depth and observed is not None and viewpoint is not None:
+        prims, T_cloud = _deepened(prims, T_cloud, bounded, observed, cfg.table, viewpoint)
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
@@ -335,7 +431,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     cloud_obj = cloud_in_object(seen, T_cloud_obj)
     view_obj, view = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0], None
-    observed = ObservedChecks.of_plan(ident, points, cloud_obj, T_cloud_obj, viewpoint, db, cfg)
+    if observed is not None:
+        observed.cloud_obj, observed.T_cloud_obj = cloud_obj, T_cloud_obj
     stage = StageClock("adapt", "agreement", "combine", "table", "robust", "observed", "features")
     skip_spent = scored_only and cfg.rank == "robust"
     checks = check_config(db, cfg)
@@ -368,7 +465,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 # top face, whose points' normals would count against every side contact, and a scene's
                 # table band removes the side points that bear them out)
                 part_map = observed.borne_out(part_map, T_cloud_map, prim, T_cloud[i])
-                part_map = observed.unseen_depth(part_map, prim, T_cloud[i], T_cloud_map)
+                part_map = observed.unseen_depth(part_map, prim, T_cloud[i], T_cloud_map, bounded=bounded[i])
             stage.lap("agreement")
             if compound is not None:
                 part_map, low = (m if m is None or not len(m) else combine_part(
@@ -418,6 +515,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     timing["maps"] = time.perf_counter() - t1
     if table is not None and lift is not None:
         table = {**table, "low_profile": lift.to_dict(), "low_parts": n_low, "lifted": n_lifted}
+    if table is not None and cfg.complete_to_table:
+        table = {**table, "completed": sum(b is not None for b in bounded)}
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
                   first_robust_cpu=first_robust_cpu, **stage.seconds)

@@ -95,7 +95,8 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     against ``obstacles``: its SegmentPlan and best ``keep`` grasps. It draws nothing at
     random: the same inputs give the same plan in any process, in any order."""
     t0 = time.perf_counter()
-    pcfg = replace(cfg.planner, table=table, robust=replace(cfg.planner.robust, top=cfg.per_segment))
+    pcfg = replace(cfg.planner, table=table, table_band=cfg.table_band,
+                   robust=replace(cfg.planner.robust, top=cfg.per_segment))
     batches: list[GraspabilityMap] = []
     prims = tuple(p.shape.value for p in ident.parts)
     stream = plan_stream(seg, db=db, rng=None, config=pcfg, obstacles=obstacles, identification=ident,

@@ -1,0 +1,116 @@
+"""A single view's box parts completed down to the table they rest on.
+
+One camera sees a resting box's top and near faces; its far (hidden) extent is the fit's
+guess. Where the view measured no face along an axis -- a milk carton lying on its side
+seen from above and in front, a domino lying flat seen from above -- the fit makes the
+box as deep there as the seen faces' noise allows, a few mm (a 6 mm domino fitted 2 to
+4 mm thick, a 5 cm carton as a 2 cm plate), and the planner then refuses every grasp
+across that extent (:meth:`~graspsim.planning.observed.ObservedChecks.unseen_depth`):
+the object is left on the table with no grasp.
+
+An object resting on a known table cannot float: where the box's hidden far face points
+down to the table, the segment touches the table (its lowest seen points within
+:data:`TOUCH` of it) and the space between that face and the table is space the camera
+did not see (behind the object's seen surfaces, at least :data:`HIDDEN_SHARE` of it),
+the part is completed down to the table plane: its far face moved along that axis
+until the box's lowest corner reaches the table. The extent is then bounded by the
+table -- measured, as far as a grasp is concerned -- and a grasp may close across it.
+Where the camera saw past the far face (the table beside a box lying on a neighbour,
+the neighbour's own top), the box is left as fitted.
+
+Scene planning only (``PlannerConfig.complete_to_table``); single-object planning, and
+the paper's identification mode, are unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from graspsim.geometry.table import TablePlane
+from graspsim.maps.occlusion import ViewDepth
+from graspsim.primitives import make_primitive
+
+__all__ = ["TOUCH", "HIDDEN_SHARE", "DOWN_COS", "TableCompletion", "complete_to_table"]
+
+#: [m] a segment touches the table when its lowest seen points lie this near it (a scene's
+#: table band, 6 mm, removes the points nearer than that: the lowest ones left lie just above it)
+TOUCH = 0.012
+#: the share of the completed volume that must lie in space the camera did not see
+HIDDEN_SHARE = 0.9
+#: an axis points down to the table when within 60 deg of the table's downward normal
+DOWN_COS = 0.5
+#: [m] a far face this near the table already rests on it
+REST = 0.002
+
+
+class TableCompletion:
+    """What :func:`complete_to_table` did to one part: ``axis`` (3,) the completed axis
+    (cloud frame; None: left as fitted), ``added`` [m] the extent it gained."""
+
+    __slots__ = ("axis", "added")
+
+    def __init__(self, axis: np.ndarray | None = None, added: float = 0.0) -> None:
+        self.axis, self.added = axis, added
+
+
+def complete_to_table(prim, T: np.ndarray, points: np.ndarray, table: TablePlane,
+                      viewpoint: np.ndarray, view: ViewDepth | None = None, samples: int = 6,
+                      band: float = 0.006):
+    """Box part ``prim`` posed at ``T`` (4, 4, cloud frame), identified from ``points``
+    (N, 3; the segment) seen from ``viewpoint`` (3,), resting on ``table`` (its height
+    known): (prim, T, :class:`TableCompletion`), the part completed down to the table
+    where its hidden far face hangs above it (see the module docstring), else as given.
+    ``view``: the depth image of what the camera saw near the part (default: ``points``);
+    ``band`` [m]: the height above the table below which the points were cut away as the
+    table's (``SceneConfig.table_band``): the added volume is judged above it only (within
+    it the camera's points, table or object, are gone)."""
+    if prim.kind != "box" or table.height is None or viewpoint is None or len(points) < 3:
+        return prim, T, TableCompletion()
+    n = np.asarray(table.normal, float)
+    h0 = float(table.height)
+    P = np.asarray(points, float)
+    if float(np.min(P @ n)) - h0 > TOUCH:  # the segment does not reach the table: it may lie on a neighbour
+        return prim, T, TableCompletion()
+    T = np.asarray(T, float)
+    R, c = T[:3, :3], T[:3, 3]
+    half = 0.5 * np.array([prim.x, prim.y, prim.z])
+    eye = np.asarray(viewpoint, float)
+    best = None
+    for j in range(3):
+        for s in (1.0, -1.0):
+            d = s * R[:, j]
+            down = -float(d @ n)
+            if down < DOWN_COS or float((c - eye) @ d) <= 0.0:  # not down to the table, or a face turned to the camera
+                continue
+            face = c + d * half[j]
+            others = [k for k in range(3) if k != j]
+            corners = np.array([face + a * half[others[0]] * R[:, others[0]] + b * half[others[1]] * R[:, others[1]]
+                                for a in (-1, 1) for b in (-1, 1)])
+            gap = float(np.min(corners @ n)) - h0
+            if gap <= REST:
+                continue
+            added = gap / down
+            if best is None or down > best[1]:
+                best = (j, down, s, added, face)
+    if best is None:
+        return prim, T, TableCompletion()
+    j, _, s, added, face = best
+    d = s * R[:, j]
+    others = [k for k in range(3) if k != j]
+    if 2.0 * half[j] + added > 2.0 * max(half[others]):  # deeper than the box is long: not this box's far side
+        return prim, T, TableCompletion()
+    # the added slab, sampled inside (not on its faces: a sample on the seen faces' edges is not hidden)
+    u = (np.arange(samples) + 0.5) / samples
+    a, b, t = np.meshgrid(2 * u - 1, 2 * u - 1, u, indexing="ij")
+    X = (face + a.reshape(-1, 1) * half[others[0]] * R[:, others[0]]
+         + b.reshape(-1, 1) * half[others[1]] * R[:, others[1]] + t.reshape(-1, 1) * added * d)
+    X = X[X @ n - h0 > band]  # above the band: within it what the camera saw was cut away as table
+    view = view if view is not None else ViewDepth(P, eye)
+    if len(X) and float(np.mean(view.occluded(X))) < HIDDEN_SHARE:
+        return prim, T, TableCompletion()
+    dims = 2.0 * half
+    dims[j] += added
+    out = T.copy()
+    out[:3, 3] = c + 0.5 * added * d
+    new = make_primitive("box", x=float(dims[0]), y=float(dims[1]), z=float(dims[2]))
+    return new, out, TableCompletion(R[:, j].copy(), float(added))

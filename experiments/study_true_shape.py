@@ -47,7 +47,7 @@ TIP, OFF_COM = 0.005, 0.010
 
 @dataclass(frozen=True)
 class Config:
-    object: str = opt("duck", "the object whose grasps are judged (a mesh of the set)")
+    object: str = opt("duck", "the object whose grasps are judged (a mesh of the set; any: every object's)")
     object_set: str = opt("household-tuning", "objects drawn from this set (never a held-out set)")
     kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
     seeds: int = opt(2, "E10's first seeds")
@@ -164,14 +164,16 @@ def episodes(cfg: Config, kind: str, db) -> list[dict]:
         sd = e10.seed_of(e10cfg, s)
         for i in range(cfg.scenes):
             scene = make_scene(5, kind, derived_seed(sd, "scene", i), object_set=cfg.object_set, gripper=db.gripper)
-            mine = [j for j, o in enumerate(scene.objects) if o.name == cfg.object]
+            mine = [j for j, o in enumerate(scene.objects) if cfg.object in (o.name, "any")]
             if not mine:
                 continue
-            spec = scene.objects[mine[0]].spec
-            path = Path(spec.file) if Path(spec.file).is_absolute() else ASSETS / spec.file
-            mesh = trimesh.load(path, force="mesh")
-            mesh.apply_scale(spec.scale)
-            hull = mesh.convex_hull
+            meshes = {}
+            for j in mine:
+                spec = scene.objects[j].spec
+                path = Path(spec.file) if Path(spec.file).is_absolute() else ASSETS / spec.file
+                mesh = trimesh.load(path, force="mesh")
+                mesh.apply_scale(spec.scale)
+                meshes[j] = (mesh, mesh.convex_hull)
             ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=clutter)
             try:
                 while ep.stop is None:
@@ -180,10 +182,10 @@ def episodes(cfg: Config, kind: str, db) -> list[dict]:
                         break
                     g = look.best
                     k = grasp_target(look, g, db.gripper)
-                    r = measure(ep, look, g, k, mesh, hull, db.gripper) if k in mine else None
+                    r = measure(ep, look, g, k, *meshes[k], db.gripper) if k in meshes else None
                     a = ep.execute(look, g)
                     if r is not None:
-                        r.update(kind=kind, seed=s, scene=i, cause=a.cause)
+                        r.update(kind=kind, seed=s, scene=i, cause=a.cause, object=scene.objects[k].name)
                         r["mechanism"] = "success" if a.success else mechanism(r)
                         rows.append(r)
                         log.info("%s seed %d scene %d: %s (%s)", kind, s, i, a.cause, r["mechanism"])
@@ -199,7 +201,8 @@ def run(cfg: Config, db) -> dict:
         if r["cause"] != "success":
             mech[r["mechanism"]] = mech.get(r["mechanism"], 0) + 1
     return {"grasps": len(rows), "lifted": sum(r["cause"] == "success" for r in rows), "mechanisms": mech,
-            "rows": rows, "denominators": f"grasps aimed at the {cfg.object} in the scenes run"}
+            "rows": rows, "denominators": f"grasps aimed at the {cfg.object} in the scenes run"
+            + (" (any: every object's grasps)" if cfg.object == "any" else "")}
 
 
 def readme_section(s: dict) -> str:
@@ -208,11 +211,13 @@ def readme_section(s: dict) -> str:
          f"({', '.join(c['kinds'])}, {c['seeds']} seeds x {c['scenes']} scenes of {c['object_set']}).", "",
          "| failure mechanism | grasps |", "|---|---|"]
     L += [f"| {m} | {n} |" for m, n in sorted(s["mechanisms"].items(), key=lambda t: -t[1])]
-    L += ["", "| kind | seed | scene | parts | cause | mechanism | closing . sight | true in fingers (unseen/seen) "
-          "[mm deep] | hull [mm deep] | parts clearance [mm] |", "|---|---|---|---|---|---|---|---|---|---|"]
+    L += ["", "| kind | seed | scene | object | parts | cause | mechanism | closing . sight | "
+          "true in fingers (unseen/seen) [mm deep] | hull [mm deep] | parts clearance [mm] |",
+          "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in s["rows"]:
         f = r["fingers"].values()
-        L.append(f"| {r['kind']} | {r['seed']} | {r['scene']} | {'; '.join(r['parts'])} | {r['cause']} | "
+        L.append(f"| {r['kind']} | {r['seed']} | {r['scene']} | {r.get('object', c['object'])} | "
+                 f"{'; '.join(r['parts'])} | {r['cause']} | "
                  f"{r['mechanism']} | {r['closing_sight_cos']:.2f} | "
                  f"{'/'.join(str(v['in_true_unseen']) + ':' + str(v['in_true_seen']) for v in f)} "
                  f"[{max(v['depth_true_mm'] for v in f):.1f}] | {max(v['depth_hull_mm'] for v in f):.1f} | "

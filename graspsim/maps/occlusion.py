@@ -13,6 +13,9 @@ centroid: per pixel the nearest observed range, eroded by a pixel (the minimum o
 ``tolerance`` behind the observed surface along their ray. :func:`finger_occlusion`
 is the fraction of a gripper's finger volume (fingers at a pad gap) in occluded space,
 per wrist pose -- the robust score's occlusion term (:mod:`graspsim.maps.robust`).
+:func:`unseen_clearance` is how near those unseen finger samples come to what is known
+of the object (its observed points, its fitted primitives): the robust score's
+unseen margin (``RobustConfig.unseen_margin``).
 """
 
 from __future__ import annotations
@@ -26,7 +29,8 @@ from graspsim.errors import InvalidParameterError
 from graspsim.geometry.spacing import median_spacing
 from graspsim.grippers.spec import GripperSpec
 
-__all__ = ["ViewDepth", "finger_samples", "finger_occlusion", "check_viewpoint", "MAX_VIEWPOINT"]
+__all__ = ["ViewDepth", "finger_samples", "finger_occlusion", "unseen_clearance", "shadow_depth", "check_viewpoint",
+           "MAX_VIEWPOINT"]
 
 _MAX_PIXELS = 1024  # per image side (memory bound)
 _PER_AXIS = (2, 3, 8)  # finger samples along the finger box's x, y, z
@@ -174,3 +178,52 @@ def finger_occlusion_numpy(view: ViewDepth, R: np.ndarray, w: np.ndarray, openin
     local[:, :, 0] += s[None] * 0.5 * np.asarray(opening, float).reshape(-1)[:, None]
     X = np.einsum("nij,nsj->nsi", R, local) + np.asarray(w, float)[:, None]
     return view.occluded(X.reshape(-1, 3)).reshape(n, -1).mean(axis=1)
+
+
+def unseen_clearance(view: ViewDepth, known, R: np.ndarray, w: np.ndarray, opening: np.ndarray,
+                     gripper: GripperSpec, upper: float = np.inf) -> np.ndarray:
+    """(n,) per wrist pose (R (n, 3, 3), w (n, 3), the view's frame; pad gaps ``opening``
+    (n,) [m]) the distance [m] from its finger samples in occluded space to the nearest
+    point of ``known`` (a :class:`scipy.spatial.cKDTree` of what is known of the shapes:
+    observed points, fitted primitives' surface samples); inf where no finger sample is
+    occluded or none lies within ``upper``.
+
+    A single view sees the front of an object; its back is the fitted primitive's
+    extrapolation, and the true back may go on past it (a duck's back 10 to 17 mm beyond
+    the cylinder fitted to its flank). A finger in unseen space close to the fitted
+    surface may start inside the object; one that keeps its distance there does not."""
+    q, s = _finger_samples(gripper, _PER_AXIS)
+    n = len(R)
+    out = np.full(n, np.inf)
+    if not n:
+        return out
+    local = np.broadcast_to(q, (n, *q.shape)).copy()
+    local[:, :, 0] += s[None] * 0.5 * np.asarray(opening, float).reshape(-1)[:, None]
+    X = (np.einsum("nij,nsj->nsi", np.asarray(R, float), local) + np.asarray(w, float)[:, None]).reshape(-1, 3)
+    occ = view.occluded(X)
+    if not occ.any():
+        return out
+    d, _ = known.query(X[occ], k=1, distance_upper_bound=upper)
+    per = np.full(len(X), np.inf)
+    per[occ] = d
+    return per.reshape(n, -1).min(axis=1)
+
+
+def shadow_depth(viewpoint, points: np.ndarray, table: tuple[np.ndarray, float] | None) -> float:
+    """How far [m], across the table, the space hidden behind ``points`` (an object's
+    known shape, (M, 3)) reaches beyond them, seen from ``viewpoint`` (3,) (one frame;
+    ``table``: (unit normal, height along it) or None: inf): h / tan(elevation), h the
+    points' top above the table, the elevation the viewpoint's over the table seen from
+    the points' centre. Past that the camera saw the table (or what stands on it), so an
+    object resting there cannot go on further unseen: a domino lying flat hides a sliver
+    a few mm wide behind its far edge, a duck 60 mm tall seen from 45 deg up its whole back."""
+    P = np.asarray(points, float).reshape(-1, 3)
+    if table is None or not len(P):
+        return np.inf
+    n, height = np.asarray(table[0], float), float(table[1])
+    h = max(float(np.max(P @ n)) - height, 0.0)
+    to_eye = np.asarray(viewpoint, float) - P.mean(axis=0)
+    up = float(to_eye @ n) / max(float(np.linalg.norm(to_eye)), 1e-12)  # sin(elevation)
+    if up <= 1e-6:
+        return np.inf  # a camera at or below the table's level sees no table past the object
+    return h * np.sqrt(max(1.0 - up * up, 0.0)) / up

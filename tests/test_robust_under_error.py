@@ -90,6 +90,9 @@ def test_clutter_plans_for_the_execution_error_it_executes():
         assert (r.position_sigma, r.rotation_sigma) == (default.position_sigma, default.rotation_sigma)
     with pytest.raises(InvalidParameterError, match="plan_for_execution"):
         ClutterConfig(plan_for_execution="yes")
+    for bad in (0, -1, 1.5):  # the config's other checks still run
+        with pytest.raises(InvalidParameterError, match="max_attempts"):
+            ClutterConfig(max_attempts=bad)
 
 
 def test_the_clutter_episode_plans_with_the_execution_error(monkeypatch):

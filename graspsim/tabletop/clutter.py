@@ -130,6 +130,7 @@ class ClutterConfig:
     def __post_init__(self) -> None:
         check_fields(self, integer(1), "max_failures", "min_seen", owner="ClutterConfig")
         check_fields(self, BOOLEAN, "plan_for_execution", owner="ClutterConfig")
+        check_fields(self, or_none(integer(1)), "max_attempts", owner="ClutterConfig")
 
     @property
     def planning(self) -> SceneConfig:
@@ -140,7 +141,6 @@ class ClutterConfig:
         robust = replace(self.scene.planner.robust, position_sigma=float(self.execution.position_sigma),
                          rotation_sigma=float(self.execution.rotation_sigma))
         return replace(self.scene, planner=replace(self.scene.planner, robust=robust))
-        check_fields(self, or_none(integer(1)), "max_attempts", owner="ClutterConfig")
 
     def to_dict(self) -> dict:
         return {"scene": self.scene.to_dict(), "depth_noise": None if self.depth_noise is None

@@ -285,6 +285,10 @@ def test_glossary_terms_are_defined_in_the_readme_and_the_help_of_commands_print
         for term in terms:
             assert f"{term}: " + " ".join(GLOSSARY[term].split())[:40] in text, (command, term)
     assert 'python -m pytest -m "not slow"' in top and "graspsim demo" in top
+    from graspsim.maps.match import KNOWN_TOL  # the tolerance of known, as the rule has it
+
+    within = f"within {100 * KNOWN_TOL:g} %"
+    assert within in GLOSSARY["known / familiar / build"] and within in " ".join(top.split())
 
 
 def test_a_map_built_on_demand_reports_its_progress(tmp_path):

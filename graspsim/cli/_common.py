@@ -25,9 +25,9 @@ GLOSSARY = {
     "SR / VR": "surface rate / volume rate (the paper's eqs. 7-8): the share of the object's surface patches "
                "touched by some grasp, and of the voxels that can hold the wrist holding some grasp's wrist",
     "known / familiar / build": "how a primitive found in a cloud gets its map: known = a stored FS map of the "
-                                "same size (within 1 cm), used as is; familiar = the nearest stored map of the "
-                                "same primitive, scaled to its size; build = none near enough, so an FS map is "
-                                "built (and stored)",
+                                "same size (within 3 % on every dimension), used as is; familiar = the nearest "
+                                "stored map of the same primitive, scaled to its size; build = none near enough, "
+                                "so an FS map is built (and stored)",
     "robust score": "the chance a grasp succeeds when the arm misses the pose by a typical error (3 mm / 2 deg): "
                     "the share of perturbed poses that stay clear of the observed points, the object and the "
                     "table with both contacts on the pads, times the calibrated success of the contacts; 0 when "

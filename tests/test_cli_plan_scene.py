@@ -97,6 +97,33 @@ def test_the_budget_flags_help_names_the_default_scene_config_holds():
     assert f"SceneConfig's, {cfg.enough}:{cfg.per_segment})" in " ".join(p.format_help().split())
 
 
+def test_the_unseen_margin_flag_reaches_the_robust_score(tmp_path, capsys, db):
+    """--unseen-margin alone is the measured margin, with a value that value, absent the
+    planner's default (off); scene and plan-scene read it alike, and plan-scene records the
+    margin it planned with."""
+    from dataclasses import replace
+
+    from graspsim.cli import build_parser
+    from graspsim.cli._common import unseen_margin_from_args
+    from graspsim.maps.robust import UNSEEN_MARGIN
+
+    planner = SceneConfig().planner
+    for command in ("scene", "plan-scene"):
+        head = [command] if command == "scene" else [command, "c.npy", "-o", "g.json"]
+        for flag, want in (([], 0.0), (["--unseen-margin"], UNSEEN_MARGIN), (["--unseen-margin", "0.01"], 0.01)):
+            args = build_parser().parse_args([*head, *flag])
+            assert unseen_margin_from_args(args, planner).robust.unseen_margin == want, (command, flag)
+    assert UNSEEN_MARGIN > 0 and replace(planner.robust).unseen_margin == 0.0  # off by default
+    rng = np.random.default_rng(1)
+    table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), rng.normal(0, 0.0005, 3000)]
+    box = np.c_[rng.uniform(-0.03, 0.03, (800, 2)), rng.uniform(0, 0.06, 800)]
+    f, out = tmp_path / "cloud.npy", tmp_path / "grasps.json"
+    np.save(f, np.r_[table, box])
+    code, s, _ = _run(capsys, f, "-o", out, "--viewpoint", 0, -0.4, 0.5, "--unseen-margin", 0.015,
+                      "--db", db.root, *FAST_FLAGS)
+    assert code == 0 and json.loads(out.read_text())["unseen_margin"] == 0.015
+
+
 @pytest.mark.slow
 def test_a_smaller_planning_budget_scores_fewer_grasps_per_object(tmp_path, capsys, db, scene_cloud):
     path, _, _ = scene_cloud
@@ -252,6 +279,10 @@ def test_a_cloud_too_big_for_the_memory_budget_is_refused_before_any_work(tmp_pa
     ("ok", ["-o", "."], "directory"),
     ("ok", ["--screenshot", "."], "directory"),
     ("ok", ["--view", "--port", "70000"], "--port"),
+    ("ok", ["--unseen-margin"], "needs the camera's place"),
+    ("ok", ["--unseen-margin", "0.5", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
+    ("ok", ["--unseen-margin", "nan", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
+    ("ok", ["--unseen-margin", "0", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
 ])
 def test_bad_input_is_a_one_line_error_and_writes_nothing(how, args, message, tmp_path, capsys, db):
     rng = np.random.default_rng(1)

@@ -116,6 +116,37 @@ def budget_from_args(args) -> dict:
         raise InvalidParameterError(f"--budget: {err}") from None
 
 
+def add_unseen_margin_flag(p) -> None:
+    """``--unseen-margin [M]``, the robust score's opt-in margin against an object's unseen
+    back (read with :func:`unseen_margin_from_args`)."""
+    p.add_argument("--unseen-margin", type=float, nargs="?", const=True, default=None, metavar="M",
+                   help="opt-in: a grasp whose far finger passes within M [m] of the fitted back in space the "
+                   "camera did not see keeps only that share of M of its score, and wider openings are tried for "
+                   "it (alone: the measured 0.02; RobustConfig.unseen_margin); fewer start collisions with an "
+                   "object's unseen back on packed tables, fewer grasps in piles (docs/scenes.md); needs the "
+                   "camera's place")
+
+
+def unseen_margin_from_args(args, planner):
+    """``planner`` (a ``PlannerConfig``) with ``--unseen-margin`` in its robust score (the
+    same object without the flag); a margin outside (0, 0.1] m is an
+    :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
+    from dataclasses import replace
+
+    from graspsim.errors import InvalidParameterError
+
+    m = args.unseen_margin
+    if m is None:
+        return planner
+    if m is True:  # the flag alone (argparse's const: not a string, so not converted)
+        from graspsim.maps.robust import UNSEEN_MARGIN
+
+        m = UNSEEN_MARGIN
+    if not (math.isfinite(m) and 0 < m <= 0.1):
+        raise InvalidParameterError(f"--unseen-margin must be in (0, 0.1] m (alone: the measured 0.02), got {m!r}")
+    return replace(planner, robust=replace(planner.robust, unseen_margin=float(m)))
+
+
 class _DeprecatedAlias:
     """argparse action of an old flag name kept working: stores like the new one and says
     once on stderr that the new name is the one to use."""

@@ -18,7 +18,16 @@ the jaw opening to approach with, the robust score). Exit status 1, and no file 
 
 from __future__ import annotations
 
-from graspsim.cli._common import add_budget_flag, budget_from_args, command, emit, format_table, gripper_from_args
+from graspsim.cli._common import (
+    add_budget_flag,
+    add_unseen_margin_flag,
+    budget_from_args,
+    command,
+    emit,
+    format_table,
+    gripper_from_args,
+    unseen_margin_from_args,
+)
 from graspsim.cli.maps_cmd import _add_generation, _config
 
 __all__ = ["register"]
@@ -35,6 +44,7 @@ def _cmd_plan_scene(args) -> int:
 
     import numpy as np
 
+    from graspsim.errors import InvalidParameterError
     from graspsim.maps.database import MapDatabase
     from graspsim.planning.scene import plan_scene
     from graspsim.planning.scene_config import SceneConfig
@@ -52,8 +62,12 @@ def _cmd_plan_scene(args) -> int:
         viewpoint = check_viewpoint(loaded["viewpoint"])  # a file's camera record: checked as --viewpoint is
     if up is None and viewpoint is not None:  # the camera sees the table from above it
         up = viewpoint - np.median(pts, axis=0) if len(pts) else None
+    if args.unseen_margin is not None and viewpoint is None:
+        raise InvalidParameterError("--unseen-margin needs the camera's place: give --viewpoint X Y Z (or a cloud "
+                                    "with its camera record)")
     cfg = replace(SceneConfig(), min_gap=args.min_gap or None, up=None if up is None else tuple(map(float, up)),
                   **o["budget"])
+    cfg = replace(cfg, planner=o["planner"](cfg.planner))
     db = MapDatabase(args.db, gripper=o["gripper"], quality=o["quality"], config=o["map_cfg"])
     plan = plan_scene(pts, db=db, rng=np.random.default_rng(args.seed), config=cfg, viewpoint=viewpoint)
 
@@ -87,6 +101,7 @@ def _options(args) -> dict:
     from graspsim.errors import InvalidParameterError, MapDatabaseError, OutputPathError
     from graspsim.maps.occlusion import check_viewpoint
     from graspsim.perception.segment import gap_link
+    from graspsim.planning.scene_config import SceneConfig
 
     if args.view or args.screenshot:
         from graspsim.viewer import require_viser
@@ -116,6 +131,8 @@ def _options(args) -> dict:
     except InvalidParameterError:
         raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
     o["budget"] = budget_from_args(args)
+    unseen_margin_from_args(args, SceneConfig().planner)  # refused before the work
+    o["planner"] = lambda planner: unseen_margin_from_args(args, planner)
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
         raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
     o["depth"] = args.intrinsics is not None or args.camera is not None
@@ -144,7 +161,8 @@ def _record(args, plan, loaded, pts, viewpoint, cfg, crop, gripper: str) -> dict
     best = plan.best
     return {"graspsim": __version__, "cloud": str(Path(args.cloud).resolve()), **loaded["source"],
             "points": int(loaded["n_read"]), "used": int(len(pts)), "viewpoint": viewpoint, "up": cfg.up,
-            "crop": crop, "min_gap": cfg.min_gap, "budget": cfg.budget, "seed": args.seed, "gripper": gripper,
+            "crop": crop, "min_gap": cfg.min_gap, "budget": cfg.budget,
+            "unseen_margin": cfg.planner.robust.unseen_margin, "seed": args.seed, "gripper": gripper,
             "table": per.plane.to_dict(), "segments": segments, "grasps": [g.to_dict() for g in plan.grasps],
             "best": None if best is None else best.to_dict(), "timing": plan.timing}
 
@@ -324,6 +342,7 @@ def register(sub) -> None:
         p.add_argument("--labels", default=None, metavar="LABELS.npy",
                        help="also write each file point's segment (-1: table, cropped, no depth or noise) as .npy")
         add_budget_flag(p)
+        add_unseen_margin_flag(p)
         p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
         p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
                        "~/.cache/graspsim/db; maps of new sizes are built on first use)")

@@ -34,12 +34,14 @@ from __future__ import annotations
 from graspsim.cli._common import (
     add_budget_flag,
     add_robot_flags,
+    add_unseen_margin_flag,
     budget_from_args,
     command,
     emit,
     format_table,
     gripper_from_args,
     robot_base_from_args,
+    unseen_margin_from_args,
     whole_number,
 )
 from graspsim.cli.maps_cmd import _add_generation, _config
@@ -74,6 +76,7 @@ def _cmd_scene(args) -> int:
     what was lifted, render again. Reports the grasp success rate and the share of
     objects cleared."""
     import contextlib
+    from dataclasses import replace
     from pathlib import Path
 
     from graspsim._atomic import check_folder, staged_folder
@@ -121,7 +124,9 @@ def _cmd_scene(args) -> int:
         from graspsim.tabletop.planners import load_planner
 
         planner = load_planner(args.planner)
-    cfg = ClutterConfig(scene=SceneConfig(neighbours=not args.no_neighbours, min_gap=gap, **budget),
+    scene = SceneConfig(neighbours=not args.no_neighbours, min_gap=gap, **budget)
+    scene = replace(scene, planner=unseen_margin_from_args(args, scene.planner))
+    cfg = ClutterConfig(scene=scene,
                         execution=_execution(args), ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts, planner=planner, planner_name=args.planner, robot=robot)
     map_cfg, quality = _config(args)
@@ -162,6 +167,7 @@ def _cmd_scene(args) -> int:
          "execution_noise": None if cfg.execution is None else cfg.execution.to_dict(),
          "planned_for": {"position_sigma": cfg.planning.planner.robust.position_sigma,
                          "rotation_sigma": cfg.planning.planner.robust.rotation_sigma},
+         "unseen_margin": cfg.planning.planner.robust.unseen_margin,
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth, "min_gap": gap,
          "budget": cfg.scene.budget, "robot": args.robot,
          "robot_base": None if robot is None else (list(args.robot_base) if args.robot_base else [-0.5, 0.0, 0.0]),
@@ -242,6 +248,7 @@ def register(sub) -> None:
         p.add_argument("--max-attempts", type=whole_number(1), default=None,
                        help="grasps per scene at most (default 2 x objects + 2)")
         add_budget_flag(p)
+        add_unseen_margin_flag(p)
         p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
         p.add_argument("--seeds", type=whole_number(1), default=1,
                        help="repeat the benchmark over this many seeds (derived from --seed; 1: --seed itself) and "

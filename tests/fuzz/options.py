@@ -84,7 +84,8 @@ NEWER_COMMANDS: dict[str, tuple[list[str], dict]] = {
                     "nan 0 0 1 1 1", "0 0 0 0 0 0", "-1 -1 -1"], "--min-gap": _LENGTHS, "--budget": ["0:0", "1:1",
                     "4:20", "-1:5", "abc", "5", "1e9:1e9", ":", "nan:1"], "--seed": _SEEDS, "--units": ["m", "mm",
                     "km"], "--depth-scale": _LENGTHS, "--camera": ["d435", "kinect", ""], "--labels": ["{npyout}",
-                    "{out}", "{dir}"], "--gripper": _GRIPPERS + ["{spec}", "{nameless}"], "--threads": _COUNTS}),
+                    "{out}", "{dir}"], "--gripper": _GRIPPERS + ["{spec}", "{nameless}"], "--threads": _COUNTS,
+                    "--unseen-margin": _LENGTHS}),
     "adapt-gripper": (["adapt-gripper", "{map}", "--to-gripper", "franka_hand", "-o", "{out}"],
                       {"--to-gripper": _SPECS, "--source-min-grade": _GRADES, "-o": ["{out}", "{map}", "{dir}",
                                                                                      "{json}", "{png}"]}),
@@ -119,7 +120,7 @@ NEWER_COMMANDS: dict[str, tuple[list[str], dict]] = {
                "--budget": ["0:0", "abc", "-1:5"], "--seed": _SEEDS,
                "--object-set": ["mixed", "none", "", "random-heldout"], "--seeds": ["0", "2", "abc"],
                "--render": ["{dir}/r", "{out}"], "--save-scenes": ["{dir}/s", "{out}"],
-               "--noise-pos": _LENGTHS, "--noise-rot-deg": _ANGLES}),
+               "--noise-pos": _LENGTHS, "--noise-rot-deg": _ANGLES, "--unseen-margin": _LENGTHS}),
 }
 
 

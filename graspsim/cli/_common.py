@@ -147,6 +147,22 @@ def unseen_margin_from_args(args, planner):
     return replace(planner, robust=replace(planner.robust, unseen_margin=float(m)))
 
 
+def add_scene_planning_flags(p) -> None:
+    """The planning flags the scene commands (``scene``, ``plan-scene``) share:
+    ``--budget`` and ``--unseen-margin`` (read with :func:`scene_planning_from_args`)."""
+    add_budget_flag(p)
+    add_unseen_margin_flag(p)
+
+
+def scene_planning_from_args(args, scene):
+    """``scene`` (a ``SceneConfig``) with ``--budget`` and ``--unseen-margin`` applied; a bad
+    value is an :class:`~graspsim.errors.InvalidParameterError` naming its flag."""
+    from dataclasses import replace
+
+    scene = replace(scene, **budget_from_args(args))
+    return replace(scene, planner=unseen_margin_from_args(args, scene.planner))
+
+
 class _DeprecatedAlias:
     """argparse action of an old flag name kept working: stores like the new one and says
     once on stderr that the new name is the one to use."""

@@ -19,14 +19,12 @@ the jaw opening to approach with, the robust score). Exit status 1, and no file 
 from __future__ import annotations
 
 from graspsim.cli._common import (
-    add_budget_flag,
-    add_unseen_margin_flag,
-    budget_from_args,
+    add_scene_planning_flags,
     command,
     emit,
     format_table,
     gripper_from_args,
-    unseen_margin_from_args,
+    scene_planning_from_args,
 )
 from graspsim.cli.maps_cmd import _add_generation, _config
 
@@ -65,9 +63,8 @@ def _cmd_plan_scene(args) -> int:
     if args.unseen_margin is not None and viewpoint is None:
         raise InvalidParameterError("--unseen-margin needs the camera's place: give --viewpoint X Y Z (or a cloud "
                                     "with its camera record)")
-    cfg = replace(SceneConfig(), min_gap=args.min_gap or None, up=None if up is None else tuple(map(float, up)),
-                  **o["budget"])
-    cfg = replace(cfg, planner=o["planner"](cfg.planner))
+    cfg = scene_planning_from_args(args, replace(SceneConfig(), min_gap=args.min_gap or None,
+                                                 up=None if up is None else tuple(map(float, up))))
     db = MapDatabase(args.db, gripper=o["gripper"], quality=o["quality"], config=o["map_cfg"])
     plan = plan_scene(pts, db=db, rng=np.random.default_rng(args.seed), config=cfg, viewpoint=viewpoint)
 
@@ -130,9 +127,7 @@ def _options(args) -> dict:
         gap_link(args.min_gap or None)
     except InvalidParameterError:
         raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
-    o["budget"] = budget_from_args(args)
-    unseen_margin_from_args(args, SceneConfig().planner)  # refused before the work
-    o["planner"] = lambda planner: unseen_margin_from_args(args, planner)
+    scene_planning_from_args(args, SceneConfig())  # a bad --budget or --unseen-margin: refused before the work
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
         raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
     o["depth"] = args.intrinsics is not None or args.camera is not None
@@ -341,8 +336,7 @@ def register(sub) -> None:
                        "joined into one object; 0: unknown, default)")
         p.add_argument("--labels", default=None, metavar="LABELS.npy",
                        help="also write each file point's segment (-1: table, cropped, no depth or noise) as .npy")
-        add_budget_flag(p)
-        add_unseen_margin_flag(p)
+        add_scene_planning_flags(p)
         p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
         p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
                        "~/.cache/graspsim/db; maps of new sizes are built on first use)")

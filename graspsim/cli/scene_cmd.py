@@ -32,16 +32,14 @@ first scene, with a progress bar.
 from __future__ import annotations
 
 from graspsim.cli._common import (
-    add_budget_flag,
     add_robot_flags,
-    add_unseen_margin_flag,
-    budget_from_args,
+    add_scene_planning_flags,
     command,
     emit,
     format_table,
     gripper_from_args,
     robot_base_from_args,
-    unseen_margin_from_args,
+    scene_planning_from_args,
     whole_number,
 )
 from graspsim.cli.maps_cmd import _add_generation, _config
@@ -76,7 +74,6 @@ def _cmd_scene(args) -> int:
     what was lifted, render again. Reports the grasp success rate and the share of
     objects cleared."""
     import contextlib
-    from dataclasses import replace
     from pathlib import Path
 
     from graspsim._atomic import check_folder, staged_folder
@@ -111,7 +108,7 @@ def _cmd_scene(args) -> int:
         gap_link(gap)
     except InvalidParameterError:
         raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
-    budget = budget_from_args(args)
+    scene = scene_planning_from_args(args, SceneConfig(neighbours=not args.no_neighbours, min_gap=gap))
     gripper = gripper_from_args(args)
     robot = None
     base = robot_base_from_args(args)
@@ -124,8 +121,6 @@ def _cmd_scene(args) -> int:
         from graspsim.tabletop.planners import load_planner
 
         planner = load_planner(args.planner)
-    scene = SceneConfig(neighbours=not args.no_neighbours, min_gap=gap, **budget)
-    scene = replace(scene, planner=unseen_margin_from_args(args, scene.planner))
     cfg = ClutterConfig(scene=scene,
                         execution=_execution(args), ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts, planner=planner, planner_name=args.planner, robot=robot)
@@ -247,8 +242,7 @@ def register(sub) -> None:
                        help="ablation: segment by the simulator's object labels instead of clustering")
         p.add_argument("--max-attempts", type=whole_number(1), default=None,
                        help="grasps per scene at most (default 2 x objects + 2)")
-        add_budget_flag(p)
-        add_unseen_margin_flag(p)
+        add_scene_planning_flags(p)
         p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
         p.add_argument("--seeds", type=whole_number(1), default=1,
                        help="repeat the benchmark over this many seeds (derived from --seed; 1: --seed itself) and "

@@ -120,10 +120,10 @@ def add_unseen_margin_flag(p) -> None:
     """``--unseen-margin [M]``, the robust score's opt-in margin against an object's unseen
     back (read with :func:`unseen_margin_from_args`)."""
     p.add_argument("--unseen-margin", type=float, nargs="?", const=True, default=None, metavar="M",
-                   help="opt-in: a grasp whose far finger passes within M [m] of the fitted back in space the "
-                   "camera did not see keeps only that share of M of its score, and wider openings are tried for "
-                   "it (alone: the measured 0.02; RobustConfig.unseen_margin); fewer start collisions with an "
-                   "object's unseen back on packed tables, fewer grasps in piles (docs/scenes.md); needs the "
+                   help="opt-in: a grasp whose far finger comes within M [m] of the fitted back, in space the "
+                   "camera did not see, scores less (by the distance's share of M) and wider openings are tried "
+                   "for it (alone: the measured 0.02 m; RobustConfig.unseen_margin); on packed tables fewer start "
+                   "collisions with an object's unseen back, in piles fewer grasps (docs/scenes.md); needs the "
                    "camera's place")
 
 

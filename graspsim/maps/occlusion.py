@@ -170,14 +170,20 @@ def finger_occlusion_numpy(view: ViewDepth, R: np.ndarray, w: np.ndarray, openin
                            gripper: GripperSpec) -> np.ndarray:
     """:func:`finger_occlusion` with numpy over every sample at once through
     :meth:`ViewDepth.occluded`: the reference the compiled kernel is tested against."""
-    q, s = _finger_samples(gripper, _PER_AXIS)
     n = len(R)
     if not n:
         return np.zeros(0)
-    local = np.broadcast_to(q, (n, *q.shape)).copy()
-    local[:, :, 0] += s[None] * 0.5 * np.asarray(opening, float).reshape(-1)[:, None]
-    X = np.einsum("nij,nsj->nsi", R, local) + np.asarray(w, float)[:, None]
+    X = _posed_finger_samples(R, w, opening, gripper)
     return view.occluded(X.reshape(-1, 3)).reshape(n, -1).mean(axis=1)
+
+
+def _posed_finger_samples(R: np.ndarray, w: np.ndarray, opening: np.ndarray, gripper: GripperSpec) -> np.ndarray:
+    """(n, S, 3) the finger samples of each wrist pose (R (n, 3, 3), w (n, 3); pad gaps
+    ``opening`` (n,) [m]) in the poses' frame."""
+    q, s = _finger_samples(gripper, _PER_AXIS)
+    local = np.broadcast_to(q, (len(R), *q.shape)).copy()
+    local[:, :, 0] += s[None] * 0.5 * np.asarray(opening, float).reshape(-1)[:, None]
+    return np.einsum("nij,nsj->nsi", np.asarray(R, float), local) + np.asarray(w, float)[:, None]
 
 
 def unseen_clearance(view: ViewDepth, known, R: np.ndarray, w: np.ndarray, opening: np.ndarray,
@@ -192,14 +198,11 @@ def unseen_clearance(view: ViewDepth, known, R: np.ndarray, w: np.ndarray, openi
     extrapolation, and the true back may go on past it (a duck's back 10 to 17 mm beyond
     the cylinder fitted to its flank). A finger in unseen space close to the fitted
     surface may start inside the object; one that keeps its distance there does not."""
-    q, s = _finger_samples(gripper, _PER_AXIS)
     n = len(R)
     out = np.full(n, np.inf)
     if not n:
         return out
-    local = np.broadcast_to(q, (n, *q.shape)).copy()
-    local[:, :, 0] += s[None] * 0.5 * np.asarray(opening, float).reshape(-1)[:, None]
-    X = (np.einsum("nij,nsj->nsi", np.asarray(R, float), local) + np.asarray(w, float)[:, None]).reshape(-1, 3)
+    X = _posed_finger_samples(R, w, opening, gripper).reshape(-1, 3)
     occ = view.occluded(X)
     if not occ.any():
         return out

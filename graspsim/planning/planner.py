@@ -339,11 +339,11 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
                            db, cfg, source, t0, {"identify": 0.0}, time.thread_time(), scored_only=scored_only)
 
 
-def _completed(prims: list, T_cloud: list, points: np.ndarray, obstacles: np.ndarray | None,
+def _completed(prims: list, T_cloud: list, points: np.ndarray, seen: np.ndarray,
                table: TablePlane, viewpoint: np.ndarray, band: float) -> tuple[list, list, list]:
     """``PlannerConfig.complete_to_table``: the parts (canonical boxes again), their poses
-    and per part the axis the table now bounds (None: left as identified)."""
-    seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
+    and per part the axis the table now bounds (None: left as identified); ``seen``: the
+    segment's points and the obstacles'."""
     view = ViewDepth(seen, viewpoint)
     out_p, out_T, bounded = [], [], []
     for prim, T in zip(prims, T_cloud):
@@ -409,11 +409,11 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     identification ended; ``scored_only``: see :func:`plan_stream`."""
     # the observed-point checks (robust mode); their object frame is set once the parts are final
     observed = ObservedChecks.of_plan(ident, points, None, np.eye(4), viewpoint, db, cfg)
+    seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     bounded: list = [None] * len(prims)  # per part: its axis the table bounds (completed down to it)
     if (cfg.complete_to_table and cfg.table is not None and cfg.table.height is not None and viewpoint is not None
             and observed is not None):
-        prims, T_cloud, bounded = _completed(prims, T_cloud, points, obstacles, cfg.table, viewpoint,
-                                             cfg.table_band)
+        prims, T_cloud, bounded = _completed(prims, T_cloud, points, seen, cfg.table, viewpoint, cfg.table_band)
     if cfg.hidden_depth and observed is not None and viewpoint is not None:
         prims, T_cloud = _deepened(prims, T_cloud, bounded, observed, cfg.table, viewpoint)
     T_cloud_obj, compound = object_frame(prims, T_cloud)
@@ -428,7 +428,6 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     batches: list[GraspabilityMap] = []
     parts: list[PartPlan] = []
     first = tenth = first_robust = first_robust_cpu = None
-    seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     cloud_obj = cloud_in_object(seen, T_cloud_obj)
     view_obj, view = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0], None
     if observed is not None:

@@ -188,25 +188,14 @@ def _roll_minima(n, ca, cb, cna, cnb, cns, crt, chn, oF, oJ, oH, xF, xJ, xH, cr,
         vin[r] = _BIG
         vex[r] = _BIG
     for k in range(n):
-        a = ca[k]
-        b = cb[k]
-        na = cna[k]
-        nb = cnb[k]
-        ns = cns[k]
-        rt = crt[k]
-        hn = chn[k]
-        f = oF[k]
-        j = oJ[k]
-        h = oH[k]
-        ef = xF[k]
-        ej = xJ[k]
-        eh = xH[k]
         for r in range(R):
             # conservative: the sample's patch grown by its anisotropic extent
-            v = _patch_value(a, b, na, nb, ns, rt, hn, f, j, h, cr[r], sr[r], hyF, hyJ, hyH, fmargin)
+            v = _patch_value(ca[k], cb[k], cna[k], cnb[k], cns[k], crt[k], chn[k], oF[k], oJ[k], oH[k], cr[r], sr[r],
+                             hyF, hyJ, hyH, fmargin)
             vin[r] = v if v < vin[r] else vin[r]
             # exact: the sample itself (a surface point) with the exact footprints
-            v = _patch_value(a, b, na, nb, ns, _ZERO, _ZERO, ef, ej, eh, cr[r], sr[r], hyF, hyJ, hyH, _ZERO)
+            v = _patch_value(ca[k], cb[k], cna[k], cnb[k], cns[k], _ZERO, _ZERO, xF[k], xJ[k], xH[k], cr[r], sr[r],
+                             hyF, hyJ, hyH, _ZERO)
             vex[r] = v if v < vex[r] else vex[r]
 
 

@@ -13,7 +13,8 @@ from graspsim.errors import GripperError
 from graspsim.grippers import get_gripper, load_model_gripper, model_folder, mount
 from graspsim.grippers.model_file import GRID, pad_arc, straight_line_error
 from graspsim.sim import LiftPlace, TrialOutcome, build_scene, object_from_shape, run_trials
-from graspsim.sim.authored_model import PREFIX, build_vendored_gripper_spec
+from graspsim.sim.authored_model import PREFIX
+from graspsim.sim.harness import build_gripper_spec
 
 MODELS = ("franka_hand", "rethink_gripper", "robotiq_2f85")
 TOL = 1.5e-4  # [m] the Franka finger mesh's inner face lies 0.1 mm past its joint's zero
@@ -87,7 +88,7 @@ def _inner(m, d, pads, wrist) -> tuple[float, float]:
 @pytest.fixture(scope="module", params=MODELS)
 def mounted(request):
     g = get_gripper(request.param)
-    spec, _ = build_vendored_gripper_spec(g)
+    spec = build_gripper_spec(g)
     m = spec.compile()
     return g, mount(g.model), m
 
@@ -144,7 +145,7 @@ def test_the_2f85_pad_arc_matches_the_stepped_model_within_half_a_millimetre():
     assert g.arc_error == pytest.approx(np.abs(err["centre_offset"]).max(), abs=GRID)
     assert min(np.min(err["margin_upper"]), np.min(err["margin_lower"])) >= 0  # conservative at every row
     offsets = []
-    spec, names = build_vendored_gripper_spec(g)
+    spec = build_gripper_spec(g)
     spec.option.gravity = [0.0, 0.0, 0.0]
     m = spec.compile()
     d = mujoco.MjData(m)

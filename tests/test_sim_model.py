@@ -9,7 +9,8 @@ import pytest
 
 from graspsim.errors import InvalidParameterError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
-from graspsim.sim.model import NAMES, GripperPhysics, build_gripper_spec
+from graspsim.sim.harness import build_gripper_spec
+from graspsim.sim.model import NAMES, GripperPhysics
 from graspsim.sim.model_folder import default_folder, model_files
 
 MJCF = Path(__file__).resolve().parents[1] / "mjcf"

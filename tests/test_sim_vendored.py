@@ -10,7 +10,8 @@ from graspsim.grippers import get_gripper
 from graspsim.grippers.franka import hull_points
 from graspsim.primitives import Box
 from graspsim.sim import LiftPlace, SimSettings, TrialOutcome, build_scene, object_from_shape, run_trials
-from graspsim.sim.authored_model import PREFIX, build_vendored_gripper_spec
+from graspsim.sim.authored_model import PREFIX, authored_names
+from graspsim.sim.harness import build_gripper_spec
 
 FRANKA = get_gripper("franka_hand")
 BOX = Box(0.05, 0.05, 0.05)
@@ -31,7 +32,7 @@ def test_the_vendored_meshes_are_simulated_not_a_box_copy(franka_box_scene):
 
 @pytest.mark.parametrize("opening", [0.0, 0.03, 0.08])
 def test_the_mounted_pads_sit_at_the_spec_gap_and_tips_at_the_spec_fingertip(opening):
-    spec, names = build_vendored_gripper_spec(FRANKA)
+    spec, names = build_gripper_spec(FRANKA), authored_names(FRANKA)
     m = spec.compile()
     d = mujoco.MjData(m)
     for j in (names.jaw_neg, names.jaw_pos):

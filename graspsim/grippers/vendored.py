@@ -2,7 +2,7 @@
 
 A gripper with a ``model`` (a vendored folder name such as ``franka_hand``, in
 ``mjcf/<name>/<name>.xml``, or a model file's path) is simulated from its model file as it is:
-:func:`graspsim.sim.authored_model.build_vendored_gripper_spec` attaches the file's root body
+:func:`graspsim.sim.harness.build_gripper_spec` attaches the file's root body
 under the harness's wrist body at the pose its :class:`Mount` gives. The mount is
 measured from the file (:mod:`graspsim.grippers.model_file`): the gripper's joints and
 their positions at every opening of its table, the two jaw joints (one per side), the

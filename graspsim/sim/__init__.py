@@ -21,11 +21,11 @@ from graspsim._gl import default_gl
 
 default_gl()  # before any submodule imports mujoco
 
-from graspsim.sim.authored_model import build_vendored_gripper_spec  # noqa: E402
 from graspsim.sim.batch import initial_states, pregrasp_opening, run_trials, start_penetration  # noqa: E402
+from graspsim.sim.harness import build_gripper_spec, gripper_xml  # noqa: E402
 from graspsim.sim.mapsim import MapTrials, map_object, select_grasps, simulate_map, write_results  # noqa: E402
 from graspsim.sim.meshes import CoacdParams, PreparedMesh, convex_parts, load_mesh, prepare_mesh, surface_model  # noqa: E402
-from graspsim.sim.model import GripperPhysics, build_gripper_spec, gripper_xml  # noqa: E402
+from graspsim.sim.model import GripperPhysics  # noqa: E402
 from graspsim.sim.noise import ExecutionNoise  # noqa: E402
 from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape  # noqa: E402
 from graspsim.sim.outcomes import TrialOutcome  # noqa: E402
@@ -34,7 +34,7 @@ from graspsim.sim.results import RESULT_GROUPS, TrialResults  # noqa: E402
 from graspsim.sim.trial_scene import Scene, SimSettings, build_scene, resting_pose  # noqa: E402
 
 __all__ = [
-    "GripperPhysics", "build_gripper_spec", "gripper_xml", "build_vendored_gripper_spec",
+    "GripperPhysics", "build_gripper_spec", "gripper_xml",
     "SimObject", "object_from_shape", "object_from_mesh", "CoacdParams", "convex_parts", "load_mesh",
     "prepare_mesh", "PreparedMesh", "surface_model",
     "SimSettings", "Scene", "build_scene", "resting_pose",

@@ -30,9 +30,9 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.grippers.spec import GripperSpec
-from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, add_weld, add_wrist, drive_force
+from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics
 
-__all__ = ["build_vendored_gripper_spec", "attach_model", "authored_names", "model_drive", "PREFIX"]
+__all__ = ["attach_model", "authored_names", "model_drive", "PREFIX"]
 
 PREFIX = "gripper/"
 
@@ -50,31 +50,6 @@ def _load(mnt) -> mujoco.MjSpec:
 
 def _is_servo(act) -> bool:
     return act.biastype == mujoco.mjtBias.mjBIAS_AFFINE and act.biasprm[1] < 0
-
-
-def build_vendored_gripper_spec(
-    gripper: GripperSpec,
-    physics: GripperPhysics = GripperPhysics(),
-    *,
-    grip_force: float | None = None,
-    friction: tuple[float, float, float] = (1.0, 0.005, 0.0001),
-    condim: int = 4,
-    home_pos: tuple[float, float, float] = (0.0, 0.0, 0.35),
-    home_quat: tuple[float, float, float, float] = (0.0, 1.0, 0.0, 0.0),
-) -> tuple[mujoco.MjSpec, GripperNames]:
-    """A new ``MjSpec`` with the model of ``gripper.model`` on the harness's wrist, and
-    the names of its elements the harness uses (same arguments as
-    :func:`~graspsim.sim.model.build_gripper_spec`; grip_force per finger [N])."""
-    if gripper.model is None:
-        raise InvalidParameterError(f"gripper {gripper.name!r} has no model file")
-    force = drive_force(gripper, grip_force, condim)
-    spec = mujoco.MjSpec()
-    spec.modelname = gripper.name
-    spec.compiler.degree = False
-    wrist = add_wrist(spec, gripper, home_pos, home_quat)
-    names = attach_model(spec, wrist, gripper, physics, force=force, friction=friction, condim=condim)
-    add_weld(spec, physics)
-    return spec, names
 
 
 def attach_model(spec: mujoco.MjSpec, wrist: mujoco.MjsBody, gripper: GripperSpec,

@@ -35,9 +35,9 @@ import mujoco
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
-from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
+from graspsim.grippers.spec import GripperSpec
 
-__all__ = ["GripperPhysics", "GripperNames", "NAMES", "build_gripper_spec", "add_box_gripper", "gripper_xml",
+__all__ = ["GripperPhysics", "GripperNames", "NAMES", "add_box_gripper",
            "add_wrist", "add_weld", "drive_force", "GripDrive", "box_drive"]
 
 
@@ -183,35 +183,6 @@ def drive_force(gripper: GripperSpec, grip_force: float | None, condim: int) -> 
     return force
 
 
-def build_gripper_spec(
-    gripper: GripperSpec = HGPL_25_60_A,
-    physics: GripperPhysics = GripperPhysics(),
-    *,
-    grip_force: float | None = None,
-    friction: tuple[float, float, float] = (1.0, 0.005, 0.0001),
-    condim: int = 4,
-    home_pos: tuple[float, float, float] = (0.0, 0.0, 0.35),
-    home_quat: tuple[float, float, float, float] = (0.0, 1.0, 0.0, 0.0),
-) -> mujoco.MjSpec:
-    """A new ``MjSpec`` holding the gripper, its mocap target, drive and coupling.
-
-    grip_force: force per jaw [N]; default the spec's (bore x pressure x efficiency).
-    friction: pad friction (sliding, torsional, rolling); condim: pad contact dimension.
-    home_pos / home_quat (w, x, y, z): the wrist pose in the world at ``qpos0``
-    (default: 35 cm up, approach pointing down).
-    """
-    force = drive_force(gripper, grip_force, condim)
-    g = gripper
-    spec = mujoco.MjSpec()
-    spec.modelname = g.name
-    spec.compiler.degree = False
-
-    wrist = add_wrist(spec, g, home_pos, home_quat)
-    add_weld(spec, physics)
-    add_box_gripper(spec, wrist, g, physics, force=force, friction=friction, condim=condim)
-    return spec
-
-
 def add_box_gripper(spec: mujoco.MjSpec, wrist: mujoco.MjsBody, gripper: GripperSpec, physics: GripperPhysics, *,
                     force: float, friction: tuple[float, float, float], condim: int) -> GripperNames:
     """The box model generated from ``gripper`` (module doc: housing, jaws on synchronised
@@ -279,16 +250,3 @@ def add_weld(spec: mujoco.MjSpec, physics: GripperPhysics) -> None:
                              objtype=mujoco.mjtObj.mjOBJ_BODY, name1=NAMES.wrist, name2=NAMES.target)
     weld.data[:11] = [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1]
     weld.solref = physics.weld_solref
-
-
-def gripper_xml(gripper: GripperSpec = HGPL_25_60_A,
-                physics: GripperPhysics = GripperPhysics()) -> str:
-    """MJCF text of the stand-alone gripper (what ``mjcf/<name>/<name>.xml`` holds)."""
-    spec = build_gripper_spec(gripper, physics)
-    spec.option.timestep = 0.002
-    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    spec.option.impratio = 10.0
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_DIAGEXACT
-    spec.compile()
-    return spec.to_xml()

@@ -16,7 +16,8 @@ import sys
 from pathlib import Path
 
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
-from graspsim.sim.model import GripperPhysics, gripper_xml
+from graspsim.sim.harness import gripper_xml
+from graspsim.sim.model import GripperPhysics
 
 __all__ = ["scene_xml", "readme_text", "model_files", "write_model_folder", "default_folder"]
 

@@ -24,8 +24,9 @@ import numpy as np
 from graspsim.checks import NON_NEGATIVE, POSITIVE, check_fields
 from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
-from graspsim.sim.authored_model import build_vendored_gripper_spec, model_drive
-from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, box_drive, build_gripper_spec
+from graspsim.sim.authored_model import authored_names, model_drive
+from graspsim.sim.harness import build_gripper_spec
+from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, box_drive
 from graspsim.sim.objects import SimObject
 
 __all__ = ["SimSettings", "Scene", "build_scene", "observed_pose", "resting_pose", "add_gripper",
@@ -342,11 +343,8 @@ def add_gripper(gripper: GripperSpec, s: SimSettings, force: float,
     """A new spec holding the gripper on the harness's wrist: the box model generated from
     the spec, or the gripper's model file as authored (``gripper.model``)."""
     fric = (s.friction, s.torsional_friction, s.rolling_friction)
-    if gripper.model is None:
-        return build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric, condim=s.condim,
-                                  home_pos=home), NAMES
-    return build_vendored_gripper_spec(gripper, s.physics, grip_force=force, friction=fric, condim=s.condim,
-                                       home_pos=home)
+    spec = build_gripper_spec(gripper, s.physics, grip_force=force, friction=fric, condim=s.condim, home_pos=home)
+    return spec, authored_names(gripper)
 
 
 def add_pad_sensors(spec: mujoco.MjSpec, gripper: GripperSpec, names: GripperNames, body: str, suffix: str) -> None:

@@ -74,3 +74,11 @@ def test_the_trial_scene_steps_one_second_warning_free_closing_and_opening(frank
         mujoco.mj_step(m, d, nstep=int(round(1.0 / m.opt.timestep)))
         assert all(w.number == 0 for w in d.warning), [w.number for w in d.warning]
         assert np.all(np.isfinite(d.qpos))
+
+
+def test_the_harness_weld_follows_the_models_own_constraints():
+    """The harness adds its weld after the attached model's equality constraints: the
+    constraint order (which the solver's results depend on) of the models the model-file
+    grippers' trials were measured with; the box model's is held by the committed mjcf/."""
+    m = build_gripper_spec(FRANKA).compile()
+    assert [m.equality(i).name for i in range(m.neq)] == [PREFIX + "finger_coupling", "wrist_weld"]

@@ -47,7 +47,9 @@ What lives here, one of each:
   private ``<out>/fsdb`` built fresh from the paper's five shapes at the script's map
   config, so a rerun from a clean clone starts from the same maps, never the user's
   shared database another run has grown), :func:`database_record`,
-  :func:`database_note`.
+  :func:`database_note`; :func:`build_grid` (a size grid of maps, :data:`GRID`, stored
+  before a run) and :class:`RunDatabase` (the database read only during a run: what no
+  stored map serves is built in memory, never stored).
 
 Everything is imported from here (``from _common import ...``); ``_scenes.py`` and
 ``_timing.py`` hold parts of it. The statistics of the paper's table 2 (mixed ANOVA,
@@ -70,9 +72,13 @@ import typing
 from pathlib import Path
 
 from _scenes import (
+    GRID,
+    RunDatabase,
+    build_grid,
     database_note,
     database_record,
     experiment_database,
+    grid_shapes,
     map_config,
     noise_sigmas,
     standing_cloud,
@@ -88,7 +94,8 @@ __all__ = ["start", "opt", "parse_config", "RunRecord", "machine_load", "provena
            "rng_for", "derived_seed", "seed_sequence", "map_config", "standing_cloud",
            "Clock", "stopwatch", "load_average", "run_fresh", "run_cli_fresh",
            "write_json", "write_text", "write_config", "fmt", "md_table", "mean_sd_text", "pct", "rate_ci",
-           "noise_sigmas", "experiment_database", "database_record", "database_note"]
+           "noise_sigmas", "experiment_database", "database_record", "database_note", "RunDatabase", "GRID",
+           "grid_shapes", "build_grid"]
 
 EXPERIMENTS = Path(__file__).resolve().parent
 

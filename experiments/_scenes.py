@@ -6,7 +6,9 @@
 * :func:`noise_sigmas`: a ``--noise`` label (default, none, MM:DEG) as sigmas;
 * :func:`experiment_database`: the FS map database a run plans against (a private
   ``<out>/fsdb`` built fresh unless ``--db``), :func:`database_record`,
-  :func:`database_note`.
+  :func:`database_note`; :func:`build_grid` stores a size grid of maps in it before a
+  run, and :class:`RunDatabase` reads it during the run without ever storing (so every
+  scene, and every condition compared, plans against the same stored maps).
 
 Scripts import these through ``_common``.
 """
@@ -20,8 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
+from graspsim.errors import MapDatabaseError, NoFeasibleGraspError
+from graspsim.maps.database import MapDatabase
+from graspsim.maps.generate import generate_fs_map
+
 __all__ = ["map_config", "camera_position", "standing_cloud", "noise_sigmas", "experiment_database", "database_record",
-           "database_note"]
+           "database_note", "RunDatabase", "GRID", "grid_shapes", "build_grid"]
 
 
 def map_config(quick: bool = False, **kw):
@@ -113,3 +119,71 @@ def database_note(summary: dict) -> str:
     grew = f", {b} at the end: parts out of every stored map's range are built and stored during the run" \
         if b != a else ", none added during the run"
     return f" The FS map database held {a} maps at the start{grew}."
+
+
+class RunDatabase(MapDatabase):
+    """The run's database, read only: a part no stored map serves within the scaling
+    range gets its FS map built in memory (kept in this process, never stored), so
+    every scene plans against the same stored maps whatever ran before it. ``built``:
+    the keys of the maps served so (since it was last emptied)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.built: set[str] = set()
+        self._memory: dict = {}
+
+    def get(self, shape, *, build: bool = True, threads: int | None = None):
+        if self.contains(shape) or not build:
+            return super().get(shape, build=build, threads=threads)
+        key = self.key(shape)
+        self.built.add(key)
+        if key not in self._memory:
+            gmap = generate_fs_map(shape, self.gripper, self.quality, self.config, threads=threads)
+            self._memory[key] = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # as stored: best first
+            while len(self._memory) > 8:
+                self._memory.pop(next(iter(self._memory)))
+        return self._memory[key]
+
+
+#: the size grid of the run's database (the paper's five shapes besides): every
+#: dimension in steps of x4, so a part from 0.5 mm to 29 cm is within a ratio of 2 of a
+#: stored map on every dimension (the planner scales maps by up to 3)
+GRID = (0.0015, 0.006, 0.024, 0.096)
+
+
+def grid_shapes(config) -> list:
+    """The primitives of the run's database besides the paper's shapes: boxes with
+    sorted sides (identification orders them), cylinders, spheres, cones (tops down to
+    0.4 mm: identified cones are often pointed) and half-toroids of :data:`GRID` sizes,
+    those larger than the surface step of the map config ``config``."""
+    from itertools import combinations_with_replacement as cwr
+
+    from graspsim.primitives import make_primitive
+
+    g = GRID
+    out = [make_primitive("box", x=x, y=y, z=z) for x, y, z in cwr(g, 3)]
+    out += [make_primitive("cylinder", radius=r, height=h) for r in g for h in g]
+    out += [make_primitive("sphere", radius=r) for r in g[1:]]
+    out += [make_primitive("cone", bottom_radius=b, top_radius=t, height=h) for b in g[1:]
+            for t in (0.0004, *g) if t <= b for h in g[1:]]
+    out += [make_primitive("half_toroid", major_radius=a, minor_radius=b) for a in g for b in g if b < a]
+    return [s for s in out if s.size_scale > config.surface_step]
+
+
+def build_grid(db) -> list[str]:
+    """Store the maps of :func:`grid_shapes` in ``db`` (those stored already are kept);
+    returns the shapes that have no grasp at all (e.g. a 1.5 mm disc 19 cm wide, a
+    sphere wider than the gripper opens), which are not stored."""
+    empty = []
+    for shape in grid_shapes(db.config):
+        if db.contains(shape):
+            continue
+        try:
+            db.add(shape, threads=2)
+        except NoFeasibleGraspError:
+            empty.append(str(shape))
+        except MapDatabaseError as err:
+            if "no grasps" not in str(err):
+                raise
+            empty.append(str(shape))
+    return empty

@@ -49,8 +49,9 @@ from pathlib import Path
 from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import numpy as np
 from _common import (
+    RunDatabase,
+    build_grid,
     database_record,
     experiment_database,
     map_config,
@@ -60,9 +61,7 @@ from _common import (
 )
 from _e10_report import readme_section, rows_of
 
-from graspsim.errors import MapDatabaseError, NoFeasibleGraspError, SimulationError
-from graspsim.maps.database import MapDatabase
-from graspsim.maps.generate import generate_fs_map
+from graspsim.errors import SimulationError
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.stats import wilson_interval
 from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings, summarize
@@ -231,74 +230,6 @@ def _data(cfg: Config, conds: list, goal: list, done: list, skipped: list, built
                             "built_in_memory": sorted(b)}
                            for c, r, g, n, k, b in zip(conds, done, goal, counts, skipped, built)],
             "database": {"start": db_start, "end": db_end}}
-
-
-class RunDatabase(MapDatabase):
-    """The run's database, read only: a part no stored map serves within the scaling
-    range gets its FS map built in memory (kept in this process, never stored), so
-    every scene plans against the same stored maps whatever ran before it. ``built``:
-    the keys of the maps served so (since it was last emptied)."""
-
-    def __init__(self, *args, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self.built: set[str] = set()
-        self._memory: dict = {}
-
-    def get(self, shape, *, build: bool = True, threads: int | None = None):
-        if self.contains(shape) or not build:
-            return super().get(shape, build=build, threads=threads)
-        key = self.key(shape)
-        self.built.add(key)
-        if key not in self._memory:
-            gmap = generate_fs_map(shape, self.gripper, self.quality, self.config, threads=threads)
-            self._memory[key] = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # as stored: best first
-            while len(self._memory) > 8:
-                self._memory.pop(next(iter(self._memory)))
-        return self._memory[key]
-
-
-#: the size grid of the run's database (the paper's five shapes besides): every
-#: dimension in steps of x4, so a part from 0.5 mm to 29 cm is within a ratio of 2 of a
-#: stored map on every dimension (the planner scales maps by up to 3)
-GRID = (0.0015, 0.006, 0.024, 0.096)
-
-
-def grid_shapes(config) -> list:
-    """The primitives of the run's database besides the paper's shapes: boxes with
-    sorted sides (identification orders them), cylinders, spheres, cones (tops down to
-    0.4 mm: identified cones are often pointed) and half-toroids of :data:`GRID` sizes,
-    those larger than the surface step of the map config ``config``."""
-    from itertools import combinations_with_replacement as cwr
-
-    from graspsim.primitives import make_primitive
-
-    g = GRID
-    out = [make_primitive("box", x=x, y=y, z=z) for x, y, z in cwr(g, 3)]
-    out += [make_primitive("cylinder", radius=r, height=h) for r in g for h in g]
-    out += [make_primitive("sphere", radius=r) for r in g[1:]]
-    out += [make_primitive("cone", bottom_radius=b, top_radius=t, height=h) for b in g[1:]
-            for t in (0.0004, *g) if t <= b for h in g[1:]]
-    out += [make_primitive("half_toroid", major_radius=a, minor_radius=b) for a in g for b in g if b < a]
-    return [s for s in out if s.size_scale > config.surface_step]
-
-
-def build_grid(db) -> list[str]:
-    """Store the maps of :func:`grid_shapes` in ``db`` (those stored already are kept);
-    returns the shapes that have no grasp at all (e.g. a 1.5 mm disc 19 cm wide, a
-    sphere wider than the gripper opens), which are not stored."""
-    empty = []
-    for shape in grid_shapes(db.config):
-        if db.contains(shape):
-            continue
-        try:
-            db.add(shape, threads=2)
-        except NoFeasibleGraspError:
-            empty.append(str(shape))
-        except MapDatabaseError as err:
-            if "no grasps" not in str(err):
-                raise
-            empty.append(str(shape))
-    return empty
 
 
 def read_only_database(cfg, out: Path) -> RunDatabase:

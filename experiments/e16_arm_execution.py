@@ -29,7 +29,10 @@ Clutter removal by the arm (``--clutter-scenes`` per seed, ``--clutter-seeds`` s
 floating gripper and by the Panda at its default base (``ClutterConfig.robot``, what
 ``graspsim scene --robot panda`` runs), planned against one map database for
 ``--gripper`` (a private ``<out>/fsdb`` unless ``--db``), at the library's map resolution
-unless ``--coarse-clutter``. Reported: GSR and DR of each (pooled, and per seed mean
+unless ``--coarse-clutter``: E10's size grid of maps is stored in it first (``--grid``),
+and it is read only during the run (``_common.RunDatabase``: a part no stored map serves
+gets its map built in memory), so the arm and the floating gripper plan against the same
+stored maps whichever ran first. Reported: GSR and DR of each (pooled, and per seed mean
 +- std), per scene paired (objects removed), the failure causes, the episodes' stops
 (``unreachable``: grasps were left and the arm reached none) and what the arm's
 reachability check refused.
@@ -77,9 +80,11 @@ class Config:
     clutter_object_set: str = opt("household-tuning", "the clutter scenes' object set")
     coarse_clutter: bool = opt(False, "coarse maps for the clutter planner's database (1 cm, 22 deg)")
     db: str = opt("", "the clutter planner's map database folder (default: a private <out>/fsdb, built fresh)")
+    grid: bool = opt(True, "store E10's size grid of FS maps in the clutter database before the first scene "
+                           "(kept where stored already); the database is read only during the run")
     QUICK: ClassVar[dict] = {"kinds": ("box",), "episodes": 2, "top": 3, "clutter_scenes": 1, "clutter_seeds": 1,
                              "clutter_objects": 2, "clutter_kind": "packed", "clutter_object_set": "primitives",
-                             "coarse_clutter": True}
+                             "coarse_clutter": True, "grid": False}
 
     def __post_init__(self) -> None:
         if self.episodes < 1 or self.top < 1 or self.threads < 1:
@@ -143,13 +148,16 @@ def run_kind(kind: str, cfg: Config, gripper, out: Path) -> dict:
 
 def run_clutter_part(cfg: Config, gripper, out: Path) -> dict:
     """The same clutter scenes cleared by the floating gripper and by the arm (module doc)."""
-    from _common import experiment_database, map_config
+    from _common import RunDatabase, build_grid, database_record, experiment_database, map_config
 
     from graspsim.tabletop.clutter import ClutterConfig, ClutterRobot, run_benchmark, scene_settings, summarize
     from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
     from graspsim.tabletop.scene_objects import prepare_objects
 
-    db = experiment_database(cfg.db, out, map_config(cfg.coarse_clutter), gripper=gripper)
+    store = experiment_database(cfg.db, out, map_config(cfg.coarse_clutter), gripper=gripper)
+    empty = build_grid(store) if cfg.grid else []  # the maps the run plans from, before the first scene
+    db = RunDatabase(store.root, config=store.config, gripper=gripper)
+    database = {**database_record(store), "grid_without_grasps": empty}
     prepare_objects(cfg.clutter_object_set, gripper, progress=True)
     robot = ClutterRobot(cache_dir=out / "reach-cache")
     conds = {"floating": None, "arm": robot}
@@ -186,7 +194,8 @@ def run_clutter_part(cfg: Config, gripper, out: Path) -> dict:
             "robot": robot.to_dict(), "results": res, "paired": pairs,
             "arm_refused": dict(refused), "arm_looks_executed": looks,
             "arm_more": sum(p["arm"] > p["floating"] for p in pairs),
-            "floating_more": sum(p["floating"] > p["arm"] for p in pairs)}
+            "floating_more": sum(p["floating"] > p["arm"] for p in pairs),
+            "database": {**database, "built_in_memory": sorted(db.built)}}
 
 
 def main(argv=None) -> int:
@@ -279,6 +288,10 @@ def clutter_lines(c: dict) -> list[str]:
     L += ["", f"Per scene, objects removed: the arm more in {c['arm_more']}, the floating gripper more in "
           f"{c['floating_more']} of {len(c['paired'])}. Grasps the arm's check refused before the one it executed "
           f"(over {c['arm_looks_executed']} executed grasps): {refused}."]
+    d = c.get("database")
+    if d:
+        L += ["", f"Both planned against the same database, read only during the run: {len(d['maps'])} stored FS "
+              f"maps; {len(d['built_in_memory'])} maps built in memory for parts no stored map serves (not stored)."]
     return L
 
 

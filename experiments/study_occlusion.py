@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import load_sentence, opt, run_study
+from _common import RunDatabase, load_sentence, map_config, opt, run_study
 
 log = logging.getLogger("study_occlusion")
 
@@ -112,7 +112,7 @@ def run(cfg: Config) -> dict:
     import e10_clutter_removal as e10
 
     root = cfg.db or str(Path(e10.__file__).resolve().parent.parent / "results" / "e10-fsdb")
-    db = e10.RunDatabase(root, config=e10.map_config(e10.Config().quick_maps))
+    db = RunDatabase(root, config=map_config(e10.Config().quick_maps))
     rows = [r for kind in cfg.kinds for r in attempts(cfg, kind, db)]
     f = np.array([r["f"] for r in rows])
     hit = np.array([r["cause"].startswith("start_collision") and r["cause"] != "start_collision_table"

@@ -132,7 +132,7 @@ def _forget_objects() -> None:
 def episode(task) -> dict:
     """Scene ``i`` of ``kind`` cleared with budget ``budget`` (E10's protocol and seeds)."""
     kind, budget, i, cfg, root = task
-    from e10_clutter_removal import RunDatabase
+    from _common import RunDatabase
 
     from graspsim.errors import SimulationError
     from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings
@@ -306,7 +306,7 @@ def comparison(rows: list[dict], ref: str, episodes: list[dict] = (), goals: boo
 
 
 def main(argv=None) -> int:
-    from e10_clutter_removal import build_grid
+    from _common import build_grid
 
     cfg, out, record = start(Config, __file__, argv, __doc__)
     db = experiment_database(cfg.db, out, map_config(cfg.quick_maps))

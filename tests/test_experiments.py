@@ -832,4 +832,34 @@ def test_e16_quick_pairs_arm_and_floating_on_the_same_grasps(tmp_path):
     assert s["executed_unreachable"] == 0  # never executes what the check refused
     for e in s["rows"][0]["episodes"]:
         assert len(e["arm"]) == len(e["reach"]) == 3
+    d = s["clutter"]["database"]  # read only during the run: both conditions plan against the same stored maps
+    assert d["maps"] and len(list((tmp_path / "fsdb").rglob("*.h5"))) == len(d["maps"])
     assert s["command"] in mod.readme_section(s)
+
+
+def test_e16_clutter_plans_both_conditions_against_one_read_only_database(tmp_path, monkeypatch):
+    """The floating gripper and the arm clear their scenes against the same database,
+    never stored into during the run (a database grown by whichever ran first would
+    plan the second differently)."""
+    from graspsim.grippers import get_gripper
+    from graspsim.tabletop import clutter
+
+    mod = _load("e16_arm_execution")
+    common = _load("_common")
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def fake(*args, db, **kwargs):
+        seen.append(db)
+        if len(seen) == 2:
+            raise Stop
+        return []
+
+    monkeypatch.setattr(clutter, "run_benchmark", fake)
+    cfg = mod.Config(**mod.Config.QUICK)
+    with pytest.raises(Stop):
+        mod.run_clutter_part(cfg, get_gripper(cfg.gripper), tmp_path)
+    assert seen[0] is seen[1] and isinstance(seen[0], common.RunDatabase)
+    assert seen[0].root == tmp_path / "fsdb"

@@ -85,3 +85,31 @@ def test_the_reported_summary_renders():
     assert s["command"].startswith("python experiments/e09_everyday_objects.py") and s["command"] in md
     assert len(s["objects"]) == 42 and set(s["pooled"]) == {"full/paper", "full/robust", "single/paper",
                                                            "single/robust"}
+
+
+def test_the_unseen_margin_reaches_a_single_views_planning_only(monkeypatch):
+    """E09's --unseen-margin goes to adapt_config as `graspsim adapt --unseen-margin` does,
+    for single views (a viewpoint) only: full clouds have none, and the command refuses
+    the margin without one."""
+    e09 = _e09()
+    seen = []
+
+    class _Map(list):
+        accepted = np.zeros(0, bool)
+
+    class _Res:
+        status = type("S", (), {"value": "failed"})()
+        identification = type("I", (), {"parts": [], "unidentified": []})()
+        parts, timing, map = [], {}, _Map()
+
+    def stand_in(points, *, db, config, seed, viewpoint):
+        seen.append((config.robust.unseen_margin, viewpoint is not None))
+        return _Res()
+
+    monkeypatch.setattr(e09, "adapt_cloud", stand_in)
+    pts = np.zeros((5, 3))
+    for margin in (0.0, 0.02):
+        cfg = e09.Config(unseen_margin=margin)
+        e09._plan_entry(pts, None, "robust", cfg, viewpoint=np.array([0.0, 0.0, 1.0]))
+        e09._plan_entry(pts, None, "robust", cfg)
+    assert seen == [(0.0, True), (0.0, False), (0.02, True), (0.0, False)]

@@ -127,24 +127,33 @@ def add_unseen_margin_flag(p) -> None:
                    "camera's place")
 
 
-def unseen_margin_from_args(args, planner):
-    """``planner`` (a ``PlannerConfig``) with ``--unseen-margin`` in its robust score (the
-    same object without the flag); a margin outside (0, 0.1] m is an
-    :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
-    from dataclasses import replace
-
+def unseen_margin_value(args) -> float | None:
+    """``--unseen-margin`` as metres (the flag alone: the measured
+    :data:`~graspsim.maps.robust.UNSEEN_MARGIN`), None when not given; a margin outside
+    (0, 0.1] m is an :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
     from graspsim.errors import InvalidParameterError
 
-    m = args.unseen_margin
+    m = getattr(args, "unseen_margin", None)
     if m is None:
-        return planner
+        return None
     if m is True:  # the flag alone (argparse's const: not a string, so not converted)
         from graspsim.maps.robust import UNSEEN_MARGIN
 
         m = UNSEEN_MARGIN
     if not (math.isfinite(m) and 0 < m <= 0.1):
         raise InvalidParameterError(f"--unseen-margin must be in (0, 0.1] m (alone: the measured 0.02), got {m!r}")
-    return replace(planner, robust=replace(planner.robust, unseen_margin=float(m)))
+    return float(m)
+
+
+def unseen_margin_from_args(args, planner):
+    """``planner`` (a ``PlannerConfig``) with ``--unseen-margin`` in its robust score (the
+    same object without the flag); a bad margin: see :func:`unseen_margin_value`."""
+    from dataclasses import replace
+
+    m = unseen_margin_value(args)
+    if m is None:
+        return planner
+    return replace(planner, robust=replace(planner.robust, unseen_margin=m))
 
 
 def add_scene_planning_flags(p) -> None:

@@ -28,7 +28,7 @@ __all__ = ["adapt_config", "adapt_cloud"]
 def adapt_config(*, mode: str = "robust", table: str | float | None = None,
                  table_normal: Sequence[float] = (0.0, 0.0, 1.0), table_clearance: float = 0.002,
                  repetitions: int = 10, theta: float = 0.5, scaling: str = "combined",
-                 partial: bool = True, low_profile: float | None = None):
+                 partial: bool = True, low_profile: float | None = None, unseen_margin: float | None = None):
     """The :class:`~graspsim.planning.planner.PlannerConfig` of ``graspsim adapt``'s options:
     ``mode`` "robust" | "paper"; ``table`` None (no table, as the paper's maps), "auto"
     (the object's lowest point: :func:`~graspsim.maps.table_clearance.table_height`) or a height
@@ -37,7 +37,12 @@ def adapt_config(*, mode: str = "robust", table: str | float | None = None,
     ``low_profile``: the least contact depth [m] of a grasp lifted clear of the table
     (:attr:`PlannerConfig.low_profile <graspsim.planning.planner.PlannerConfig.low_profile>`'s
     ``min_depth``; None: the default :class:`~graspsim.maps.table_clearance.LowProfile`; "off":
-    none lifted)."""
+    none lifted); ``unseen_margin`` [m]: the robust score's margin against the unseen back
+    of a single view (:attr:`RobustConfig.unseen_margin <graspsim.maps.robust.RobustConfig.unseen_margin>`,
+    ``graspsim adapt --unseen-margin``; None or 0: off, the default; it needs a viewpoint:
+    :func:`adapt_cloud` refuses it without one)."""
+    from dataclasses import replace
+
     from graspsim.geometry.table import TablePlane
     from graspsim.maps.scaling import ScalingConfig
     from graspsim.perception import IdentifyConfig
@@ -56,8 +61,11 @@ def adapt_config(*, mode: str = "robust", table: str | float | None = None,
 
     lift = {} if low_profile is None else {
         "low_profile": None if low_profile == "off" else LowProfile(min_depth=float(low_profile))}
-    return PlannerConfig(identify=IdentifyConfig.preset(mode, repetitions=repetitions, theta=theta),
-                         scaling=ScalingConfig(method=scaling), partial=partial, table=plane, **lift)
+    cfg = PlannerConfig(identify=IdentifyConfig.preset(mode, repetitions=repetitions, theta=theta),
+                        scaling=ScalingConfig(method=scaling), partial=partial, table=plane, **lift)
+    if unseen_margin:
+        cfg = replace(cfg, robust=replace(cfg.robust, unseen_margin=float(unseen_margin)))
+    return cfg
 
 
 def adapt_cloud(cloud, *, db, config=None, seed: int = 0, source: str | None = None,
@@ -68,8 +76,11 @@ def adapt_cloud(cloud, *, db, config=None, seed: int = 0, source: str | None = N
     ``np.random.default_rng(seed)``. ``viewpoint`` (3,): where a single view was seen
     from, cloud frame [m] (the robust score's occluded-space term; the table of
     ``--table auto`` then may lie under the identified shape); None: seen all round.
-    Returns the planner's :class:`~graspsim.planning.planner.PlanResult`; its map records the
-    viewpoint (``meta.extra["viewpoint"]``)."""
+    A ``config`` with an unseen margin and no viewpoint is refused
+    (:class:`~graspsim.errors.InvalidParameterError`): the margin is about the side the
+    camera did not see. Returns the planner's :class:`~graspsim.planning.planner.PlanResult`;
+    its map records the viewpoint (``meta.extra["viewpoint"]``) and the robust score's
+    settings, the margin among them (``meta.extra["robust"]``)."""
     from graspsim.perception.cloud_input import LoadedCloud
     from graspsim.perception.prepare import canonical_points
     from graspsim.planning.planner import plan
@@ -85,5 +96,8 @@ def adapt_cloud(cloud, *, db, config=None, seed: int = 0, source: str | None = N
         if viewpoint.shape != (3,) or not np.all(np.isfinite(viewpoint)):
             raise InvalidParameterError(f"viewpoint must be three finite numbers [m], got {viewpoint!r}")
     config = config if config is not None else adapt_config()
+    if viewpoint is None and config.rank == "robust" and config.robust.unseen_margin > 0:
+        raise InvalidParameterError("the unseen margin needs the camera's place: a viewpoint (graspsim adapt "
+                                    "--viewpoint X Y Z, or a cloud with its camera record)")
     return plan(canonical_points(points), db=db, rng=np.random.default_rng(seed), config=config,
                 source=source or "array", viewpoint=viewpoint)

@@ -88,28 +88,28 @@ def test_the_reported_summary_renders():
 
 
 def test_the_unseen_margin_reaches_a_single_views_planning_only(monkeypatch):
-    """E09's --unseen-margin goes to adapt_config as `graspsim adapt --unseen-margin` does,
-    for single views (a viewpoint) only: full clouds have none, and the command refuses
-    the margin without one."""
+    """E09's --unseen-margin goes through adapt_config and adapt_cloud as `graspsim adapt
+    [--unseen-margin M]` does: single views (a viewpoint) get it -- by default the
+    command's -- and full clouds none (no viewpoint: nothing unseen)."""
+    import graspsim.planning.planner as planner
+    from graspsim.planning.adapt import DEFAULT_UNSEEN_MARGIN
+
     e09 = _e09()
     seen = []
 
-    class _Map(list):
-        accepted = np.zeros(0, bool)
+    class _Planned(Exception):
+        pass
 
-    class _Res:
-        status = type("S", (), {"value": "failed"})()
-        identification = type("I", (), {"parts": [], "unidentified": []})()
-        parts, timing, map = [], {}, _Map()
-
-    def stand_in(points, *, db, config, seed, viewpoint):
+    def stand_in(points, *, config, viewpoint, **kw):
         seen.append((config.robust.unseen_margin, viewpoint is not None))
-        return _Res()
+        raise _Planned
 
-    monkeypatch.setattr(e09, "adapt_cloud", stand_in)
-    pts = np.zeros((5, 3))
-    for margin in (0.0, 0.02):
+    monkeypatch.setattr(planner, "plan", stand_in)
+    pts = np.random.default_rng(0).normal(size=(50, 3))
+    for margin in (None, 0.0, 0.015):
         cfg = e09.Config(unseen_margin=margin)
-        e09._plan_entry(pts, None, "robust", cfg, viewpoint=np.array([0.0, 0.0, 1.0]))
-        e09._plan_entry(pts, None, "robust", cfg)
-    assert seen == [(0.0, True), (0.0, False), (0.02, True), (0.0, False)]
+        for vp in (np.array([0.0, 0.0, 1.0]), None):
+            with pytest.raises(_Planned):
+                e09._plan_entry(pts, None, "robust", cfg, viewpoint=vp)
+    assert seen == [(DEFAULT_UNSEEN_MARGIN, True), (0.0, False), (0.0, True), (0.0, False), (0.015, True), (0.0, False)]
+    assert DEFAULT_UNSEEN_MARGIN > 0

@@ -22,7 +22,15 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError
 
-__all__ = ["adapt_config", "adapt_cloud"]
+__all__ = ["DEFAULT_UNSEEN_MARGIN", "adapt_config", "adapt_cloud"]
+
+#: [m] The unseen margin ``graspsim adapt`` plans a single view with in robust mode (the
+#: measured :data:`graspsim.maps.robust.UNSEEN_MARGIN`; ``--unseen-margin 0``: none). The
+#: robust score's own default (``RobustConfig``) and the scene planner's stay without it.
+#: Made the default on E09's development meshes (single views, robust mode: more of the
+#: ten best placed, fewer start collisions, no mesh worse; docs/planner.md); a full cloud
+#: has no viewpoint and is planned as before.
+from graspsim.maps.robust import UNSEEN_MARGIN as DEFAULT_UNSEEN_MARGIN  # noqa: E402
 
 
 def adapt_config(*, mode: str = "robust", table: str | float | None = None,
@@ -39,8 +47,9 @@ def adapt_config(*, mode: str = "robust", table: str | float | None = None,
     ``min_depth``; None: the default :class:`~graspsim.maps.table_clearance.LowProfile`; "off":
     none lifted); ``unseen_margin`` [m]: the robust score's margin against the unseen back
     of a single view (:attr:`RobustConfig.unseen_margin <graspsim.maps.robust.RobustConfig.unseen_margin>`,
-    ``graspsim adapt --unseen-margin``; None or 0: off, the default; it needs a viewpoint:
-    :func:`adapt_cloud` refuses it without one)."""
+    ``graspsim adapt --unseen-margin``): None (default) :data:`DEFAULT_UNSEEN_MARGIN` in
+    robust mode, none in paper mode; 0: none; it counts only where :func:`adapt_cloud` is
+    given a viewpoint (a cloud seen all round has no unseen back: there it is set to 0)."""
     from dataclasses import replace
 
     from graspsim.geometry.table import TablePlane
@@ -63,9 +72,11 @@ def adapt_config(*, mode: str = "robust", table: str | float | None = None,
         "low_profile": None if low_profile == "off" else LowProfile(min_depth=float(low_profile))}
     cfg = PlannerConfig(identify=IdentifyConfig.preset(mode, repetitions=repetitions, theta=theta),
                         scaling=ScalingConfig(method=scaling), partial=partial, table=plane, **lift)
-    if unseen_margin:
-        cfg = replace(cfg, robust=replace(cfg.robust, unseen_margin=float(unseen_margin)))
-    return cfg
+    if unseen_margin is None:
+        unseen_margin = DEFAULT_UNSEEN_MARGIN if mode == "robust" else 0.0
+    if not (isinstance(unseen_margin, (int, float)) and 0 <= unseen_margin <= 0.1):
+        raise InvalidParameterError(f"unseen_margin must be in [0, 0.1] m (0: none), got {unseen_margin!r}")
+    return replace(cfg, robust=replace(cfg.robust, unseen_margin=float(unseen_margin)))
 
 
 def adapt_cloud(cloud, *, db, config=None, seed: int = 0, source: str | None = None,
@@ -76,11 +87,11 @@ def adapt_cloud(cloud, *, db, config=None, seed: int = 0, source: str | None = N
     ``np.random.default_rng(seed)``. ``viewpoint`` (3,): where a single view was seen
     from, cloud frame [m] (the robust score's occluded-space term; the table of
     ``--table auto`` then may lie under the identified shape); None: seen all round.
-    A ``config`` with an unseen margin and no viewpoint is refused
-    (:class:`~graspsim.errors.InvalidParameterError`): the margin is about the side the
-    camera did not see. Returns the planner's :class:`~graspsim.planning.planner.PlanResult`;
-    its map records the viewpoint (``meta.extra["viewpoint"]``) and the robust score's
-    settings, the margin among them (``meta.extra["robust"]``)."""
+    Without a viewpoint the unseen margin is set to 0 (it is about the side the camera
+    did not see; ``graspsim adapt`` refuses ``--unseen-margin`` without one). Returns the
+    planner's :class:`~graspsim.planning.planner.PlanResult`; its map records the viewpoint
+    (``meta.extra["viewpoint"]``) and the robust score's settings, the margin among them
+    (``meta.extra["robust"]``)."""
     from graspsim.perception.cloud_input import LoadedCloud
     from graspsim.perception.prepare import canonical_points
     from graspsim.planning.planner import plan
@@ -96,8 +107,9 @@ def adapt_cloud(cloud, *, db, config=None, seed: int = 0, source: str | None = N
         if viewpoint.shape != (3,) or not np.all(np.isfinite(viewpoint)):
             raise InvalidParameterError(f"viewpoint must be three finite numbers [m], got {viewpoint!r}")
     config = config if config is not None else adapt_config()
-    if viewpoint is None and config.rank == "robust" and config.robust.unseen_margin > 0:
-        raise InvalidParameterError("the unseen margin needs the camera's place: a viewpoint (graspsim adapt "
-                                    "--viewpoint X Y Z, or a cloud with its camera record)")
+    if viewpoint is None and config.robust.unseen_margin > 0:  # seen all round: no unseen back to keep clear of
+        from dataclasses import replace
+
+        config = replace(config, robust=replace(config.robust, unseen_margin=0.0))
     return plan(canonical_points(points), db=db, rng=np.random.default_rng(seed), config=config,
                 source=source or "array", viewpoint=viewpoint)

@@ -28,7 +28,7 @@ __all__ = ["DEFAULT_UNSEEN_MARGIN", "adapt_config", "adapt_cloud"]
 #: measured :data:`graspsim.maps.robust.UNSEEN_MARGIN`; ``--unseen-margin 0``: none). The
 #: robust score's own default (``RobustConfig``) and the scene planner's stay without it.
 #: Made the default on E09's development meshes (single views, robust mode: more of the
-#: ten best placed, fewer start collisions, no mesh worse; docs/planner.md); a full cloud
+#: ten best placed, fewer start collisions; docs/planner.md); a full cloud
 #: has no viewpoint and is planned as before.
 from graspsim.maps.robust import UNSEEN_MARGIN as DEFAULT_UNSEEN_MARGIN  # noqa: E402
 

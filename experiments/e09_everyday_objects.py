@@ -112,6 +112,10 @@ class Config:
     mesh_model: str = opt("parts", "the true mesh's collision model in the trials (graspsim trial --mesh-model): "
                           "parts (CoACD's convex parts within the CPU limit, else its hull) or surface (the mesh's "
                           "own surface, a prism per face: cavities kept)", choices=("parts", "surface"))
+    unseen_margin: float | None = opt(None, "single views: the robust score's margin against the unseen back [m] "
+                                      "(graspsim adapt --unseen-margin M; default: the command's, "
+                                      "graspsim.planning.adapt.DEFAULT_UNSEEN_MARGIN in robust mode; 0: none); "
+                                      "full clouds have no viewpoint, so none")
     coarse_db: bool = opt(False, "coarse FS maps (1 cm surface step, 22 deg rotations): for smoke runs")
     QUICK: ClassVar[dict] = {"resolution": 0.005, "coarse_db": True, "top": 4}
 
@@ -160,9 +164,12 @@ def _sim(map_path: Path, mesh_path: Path, cfg: Config, seed: int, separated: boo
 
 
 def _plan_entry(points, db, mode: str, cfg: Config, viewpoint=None) -> tuple[dict, object]:
-    """``graspsim adapt CLOUD --mode MODE --table TABLE --seed S [--viewpoint X Y Z]``,
-    through the functions the command is a layer over (:mod:`graspsim.planning.adapt`)."""
-    pc = adapt_config(mode=mode, table=cfg.table)
+    """``graspsim adapt CLOUD --mode MODE --table TABLE --seed S [--viewpoint X Y Z
+    [--unseen-margin M]]``, through the functions the command is a layer over
+    (:mod:`graspsim.planning.adapt`); the margin only with a viewpoint, as the command
+    refuses it without one."""
+    margin = cfg.unseen_margin if viewpoint is not None else None  # the command refuses it without a viewpoint
+    pc = adapt_config(mode=mode, table=cfg.table, unseen_margin=margin)
     t0 = time.perf_counter()
     res = adapt_cloud(points, db=db, config=pc, seed=cfg.seed, viewpoint=viewpoint)
     wall = time.perf_counter() - t0
@@ -334,6 +341,9 @@ def main(argv=None) -> int:
     if not Path(cfg.objects_dir).is_dir():
         print(f"e09: --objects-dir {cfg.objects_dir} is not a folder", file=sys.stderr)
         return 2
+    if cfg.unseen_margin is not None and not (math.isfinite(cfg.unseen_margin) and 0 <= cfg.unseen_margin <= 0.1):
+        print(f"e09: --unseen-margin must be in [0, 0.1] m (0: off), got {cfg.unseen_margin!r}", file=sys.stderr)
+        return 2
     map_cfg = map_config(cfg.coarse_db)
     db = experiment_database(cfg.db, out, map_cfg, threads=cfg.threads)
     db_start = database_record(db)
@@ -424,6 +434,21 @@ def _splits_text(s: dict) -> str:
     return "\n".join(L)
 
 
+def _margin_text(cfg: dict) -> str:
+    """How the run's single views were planned against their unseen back (runs before the
+    option record none)."""
+    if "unseen_margin" not in cfg:
+        return ""
+    m = cfg["unseen_margin"]
+    if m is None:
+        from graspsim.planning.adapt import DEFAULT_UNSEEN_MARGIN
+
+        return (", single views with `graspsim adapt`'s default unseen margin "
+                f"(robust mode: {DEFAULT_UNSEEN_MARGIN:g} m)")
+    return ", single views without the unseen margin (`--unseen-margin 0`)" if m == 0 else \
+        f", single views with `--unseen-margin {m:g}`"
+
+
 def _table_text(cfg: dict) -> str:
     t = cfg.get("table")
     if t is None:  # runs before the public path: the table known at z = 0
@@ -454,7 +479,9 @@ def readme_section(s: dict) -> str:
         f"({_RANK_TEXT[cfg.get('rank', 'robust')]}) lifted and placed in MuJoCo against the true mesh; ")
     L = [f"`{s['command']}`: {len(objs)} meshes, each resting on a table {rest}, at a random yaw; "
          f"a full cloud ({1000 * cfg['resolution']:g} mm spacing) and a single view, both with "
-         f"{1000 * cfg['noise']:g} mm noise, {_table_text(cfg)}, in paper and robust mode{path}. "
+         f"{1000 * cfg['noise']:g} mm noise, {_table_text(cfg)}"
+         + _margin_text(cfg)
+         + f", in paper and robust mode{path}. "
          f"{len(fit)} of {len(objs)} fit the gripper (rule: the shortest edge of the mesh's minimum-volume box is "
          f"at most the opening less the clearance, {1000 * (g['max_opening'] - 2 * g['approach_clearance']):.0f} mm). "
          + best +

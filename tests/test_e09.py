@@ -85,3 +85,31 @@ def test_the_reported_summary_renders():
     assert s["command"].startswith("python experiments/e09_everyday_objects.py") and s["command"] in md
     assert len(s["objects"]) == 42 and set(s["pooled"]) == {"full/paper", "full/robust", "single/paper",
                                                            "single/robust"}
+
+
+def test_the_unseen_margin_reaches_a_single_views_planning_only(monkeypatch):
+    """E09's --unseen-margin goes through adapt_config and adapt_cloud as `graspsim adapt
+    [--unseen-margin M]` does: single views (a viewpoint) get it -- by default the
+    command's -- and full clouds none (no viewpoint: nothing unseen)."""
+    import graspsim.planning.planner as planner
+    from graspsim.planning.adapt import DEFAULT_UNSEEN_MARGIN
+
+    e09 = _e09()
+    seen = []
+
+    class _Planned(Exception):
+        pass
+
+    def stand_in(points, *, config, viewpoint, **kw):
+        seen.append((config.robust.unseen_margin, viewpoint is not None))
+        raise _Planned
+
+    monkeypatch.setattr(planner, "plan", stand_in)
+    pts = np.random.default_rng(0).normal(size=(50, 3))
+    for margin in (None, 0.0, 0.015):
+        cfg = e09.Config(unseen_margin=margin)
+        for vp in (np.array([0.0, 0.0, 1.0]), None):
+            with pytest.raises(_Planned):
+                e09._plan_entry(pts, None, "robust", cfg, viewpoint=vp)
+    assert seen == [(DEFAULT_UNSEEN_MARGIN, True), (0.0, False), (0.0, True), (0.0, False), (0.015, True), (0.0, False)]
+    assert DEFAULT_UNSEEN_MARGIN > 0

@@ -351,3 +351,112 @@ def test_adapt_takes_the_viewpoint_into_the_robust_score_and_records_it(tmp_path
     capsys.readouterr()
     b = load_map(tmp_path / "b.h5")
     assert b.meta.extra["viewpoint"] is None and b.meta.extra["robust"]["viewpoint"] is False
+
+
+# ------------------------------------------------------------------ the unseen margin on a single view
+class _Planned(Exception):
+    """Raised by the stand-in planner once it has seen what ``adapt`` passes it."""
+
+
+def test_adapt_passes_the_unseen_margin_to_the_planner(tmp_path, capsys, monkeypatch):
+    """With a viewpoint, robust mode: the planner gets the default margin, the flag alone the
+    measured one, a value that value, 0 none; paper mode none unless given; a cloud without
+    a viewpoint none (nothing unseen). The planner is a stand-in: the option handling is
+    under test here, the score in the slow test below."""
+    import graspsim.planning.planner as planner
+    from graspsim.cli import main
+    from graspsim.maps.robust import UNSEEN_MARGIN
+    from graspsim.planning.adapt import DEFAULT_UNSEEN_MARGIN
+
+    seen = {}
+
+    def stand_in(points, *, config, viewpoint, **kw):
+        seen.update(margin=config.robust.unseen_margin, viewpoint=viewpoint)
+        raise _Planned
+
+    monkeypatch.setattr(planner, "plan", stand_in)
+    np.save(tmp_path / "view.npy", _cylinder_cloud())
+    head = ["adapt", str(tmp_path / "view.npy"), "-o", str(tmp_path / "a.h5"), "--db", str(tmp_path / "db")]
+    cam = ["--viewpoint", "0.4", "0", "0.5"]
+    for flag, want in (([*cam], DEFAULT_UNSEEN_MARGIN), ([*cam, "--unseen-margin"], UNSEEN_MARGIN),
+                       ([*cam, "--unseen-margin", "0.01"], 0.01), ([*cam, "--unseen-margin", "0"], 0.0),
+                       ([*cam, "--mode", "paper"], 0.0), ([*cam, "--mode", "paper", "--unseen-margin"], UNSEEN_MARGIN),
+                       ([], 0.0), (["--unseen-margin", "0"], 0.0)):
+        seen.clear()
+        with pytest.raises(_Planned):
+            main([*head, *flag])
+        assert seen["margin"] == want and (seen["viewpoint"] is not None) == bool(flag[:1] == cam[:1]), flag
+    assert DEFAULT_UNSEEN_MARGIN == UNSEEN_MARGIN > 0
+
+
+@pytest.mark.parametrize("flags, says", [
+    (["--unseen-margin", "0.5", "--viewpoint", "0", "0", "1"], "--unseen-margin must be in [0, 0.1] m"),
+    (["--unseen-margin", "-0.01", "--viewpoint", "0", "0", "1"], "--unseen-margin must be in [0, 0.1] m"),
+    (["--unseen-margin", "nan", "--viewpoint", "0", "0", "1"], "--unseen-margin must be in [0, 0.1] m"),
+    (["--unseen-margin", "0.02"], "--unseen-margin needs the camera's place"),
+    (["--unseen-margin"], "--unseen-margin needs the camera's place"),
+])
+def test_a_bad_unseen_margin_is_one_line_and_writes_nothing(tmp_path, capsys, flags, says):
+    from graspsim.cli import main
+
+    np.save(tmp_path / "view.npy", _cylinder_cloud())  # a .npy records no camera: no viewpoint
+    out = tmp_path / "a.h5"
+    code = main(["adapt", str(tmp_path / "view.npy"), "-o", str(out), "--db", str(tmp_path / "db"), *flags])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and says in err and len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert not out.exists() and not (tmp_path / "db").exists()  # refused before any work
+
+
+def test_the_api_plans_a_cloud_without_a_viewpoint_without_the_margin(monkeypatch):
+    import graspsim.planning.planner as planner
+    from graspsim.errors import InvalidParameterError
+    from graspsim.planning.adapt import DEFAULT_UNSEEN_MARGIN, adapt_cloud, adapt_config
+
+    seen = []
+
+    def stand_in(points, *, config, viewpoint, **kw):
+        seen.append(config.robust.unseen_margin)
+        raise _Planned
+
+    monkeypatch.setattr(planner, "plan", stand_in)
+    for vp, want in ((None, 0.0), (np.array([0.4, 0.0, 0.5]), DEFAULT_UNSEEN_MARGIN)):
+        with pytest.raises(_Planned):
+            adapt_cloud(_cylinder_cloud(), db=None, config=adapt_config(), viewpoint=vp)
+        assert seen[-1] == want
+    assert adapt_config(mode="paper").robust.unseen_margin == 0.0
+    assert adapt_config(unseen_margin=0).robust.unseen_margin == 0.0
+    for bad in (-0.01, 0.5, float("nan"), "abc"):
+        with pytest.raises(InvalidParameterError, match="unseen_margin must be in"):
+            adapt_config(unseen_margin=bad)
+
+
+@pytest.mark.slow
+def test_the_unseen_margin_changes_a_single_views_robust_scores_and_is_recorded(tmp_path, capsys):
+    """A box seen from one side: with an unseen margin the robust score of grasps whose far
+    finger passes near the fitted (unseen) back changes, and the map and the JSON record
+    the margin; with --unseen-margin 0 the map records none."""
+    from graspsim.cli import main
+    from graspsim.maps import load_map
+    from graspsim.primitives import Box, synthetic_cloud
+
+    T = np.eye(4)
+    T[:3, 3] = [0.5, 0.0, 0.03]
+    cam = np.array([0.5 + 0.45, 0.1, 0.4])
+    pts = synthetic_cloud(Box(0.05, 0.07, 0.06), np.random.default_rng(3), resolution=0.003, noise=0.0005,
+                          camera=cam, T_world_obj=T).points
+    np.save(tmp_path / "view.npy", pts)
+    args = ["--db", str(tmp_path / "db"), "--json", "--table", "auto", "--viewpoint", *map(str, cam), *COARSE]
+    runs = {}
+    for name, flag in (("off", ["--unseen-margin", "0"]), ("on", ["--unseen-margin", "0.015"])):
+        assert main(["adapt", str(tmp_path / "view.npy"), "-o", str(tmp_path / f"{name}.h5"), *args, *flag]) == 0
+        runs[name] = (json.loads(capsys.readouterr().out.strip().splitlines()[-1]), load_map(tmp_path / f"{name}.h5"))
+    (s_off, off), (s_on, on) = runs["off"], runs["on"]
+    assert s_off["unseen_margin"] == 0.0 and off.meta.extra["robust"]["unseen_margin"] == 0.0
+    assert s_on["unseen_margin"] == 0.015 and on.meta.extra["robust"]["unseen_margin"] == 0.015
+    # the same grasps planned (the margin only scores and so orders them), scored otherwise
+    a, b = (np.lexsort(np.c_[m.wrist_position, m.wrist_quat].T) for m in (off, on))
+    np.testing.assert_array_equal(off.wrist_position[a], on.wrist_position[b])
+    np.testing.assert_array_equal(off.wrist_quat[a], on.wrist_quat[b])
+    r_off, r_on = off.robust[a], on.robust[b]
+    scored = np.isfinite(r_off) & np.isfinite(r_on)
+    assert scored.sum() > 10 and not np.allclose(r_off[scored], r_on[scored])

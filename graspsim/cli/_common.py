@@ -116,35 +116,47 @@ def budget_from_args(args) -> dict:
         raise InvalidParameterError(f"--budget: {err}") from None
 
 
-def add_unseen_margin_flag(p) -> None:
-    """``--unseen-margin [M]``, the robust score's opt-in margin against an object's unseen
-    back (read with :func:`unseen_margin_from_args`)."""
+def add_unseen_margin_flag(p, help: str | None = None) -> None:
+    """``--unseen-margin [M]``, the robust score's margin against an object's unseen back
+    (read with :func:`unseen_margin_value` / :func:`unseen_margin_from_args`); ``help``:
+    the command's own text (default: the scene commands', where it is opt-in)."""
     p.add_argument("--unseen-margin", type=float, nargs="?", const=True, default=None, metavar="M",
-                   help="opt-in: a grasp whose far finger comes within M [m] of the fitted back, in space the "
+                   help=help or "opt-in: a grasp whose far finger comes within M [m] of the fitted back, in space the "
                    "camera did not see, scores less (by the distance's share of M) and wider openings are tried "
                    "for it (alone: the measured 0.02 m; RobustConfig.unseen_margin); on packed tables fewer start "
                    "collisions with an object's unseen back, in piles fewer grasps (docs/scenes.md); needs the "
                    "camera's place")
 
 
-def unseen_margin_from_args(args, planner):
-    """``planner`` (a ``PlannerConfig``) with ``--unseen-margin`` in its robust score (the
-    same object without the flag); a margin outside (0, 0.1] m is an
-    :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
-    from dataclasses import replace
-
+def unseen_margin_value(args, *, none: bool = False) -> float | None:
+    """``--unseen-margin`` as metres (the flag alone: the measured
+    :data:`~graspsim.maps.robust.UNSEEN_MARGIN`), None when not given; a margin outside
+    (0, 0.1] m -- [0, 0.1] with ``none`` (a command whose default has a margin: 0 turns it
+    off) -- is an :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
     from graspsim.errors import InvalidParameterError
 
-    m = args.unseen_margin
+    m = getattr(args, "unseen_margin", None)
     if m is None:
-        return planner
+        return None
     if m is True:  # the flag alone (argparse's const: not a string, so not converted)
         from graspsim.maps.robust import UNSEEN_MARGIN
 
         m = UNSEEN_MARGIN
-    if not (math.isfinite(m) and 0 < m <= 0.1):
-        raise InvalidParameterError(f"--unseen-margin must be in (0, 0.1] m (alone: the measured 0.02), got {m!r}")
-    return replace(planner, robust=replace(planner.robust, unseen_margin=float(m)))
+    if not (math.isfinite(m) and (0 <= m if none else 0 < m) and m <= 0.1):
+        raise InvalidParameterError(f"--unseen-margin must be in {'[0' if none else '(0'}, 0.1] m (alone: the measured "
+                                    f"0.02{'; 0: none' if none else ''}), got {m!r}")
+    return float(m)
+
+
+def unseen_margin_from_args(args, planner):
+    """``planner`` (a ``PlannerConfig``) with ``--unseen-margin`` in its robust score (the
+    same object without the flag); a bad margin: see :func:`unseen_margin_value`."""
+    from dataclasses import replace
+
+    m = unseen_margin_value(args)
+    if m is None:
+        return planner
+    return replace(planner, robust=replace(planner.robust, unseen_margin=m))
 
 
 def add_scene_planning_flags(p) -> None:

@@ -8,6 +8,7 @@ from graspsim.cli._common import (
     add_mode_flag,
     add_robot_flags,
     add_units_flag,
+    add_unseen_margin_flag,
     add_viewpoint_flag,
     command,
     dims_text,
@@ -16,6 +17,7 @@ from graspsim.cli._common import (
     gripper_from_args,
     robot_base_from_args,
     stored_text,
+    unseen_margin_value,
     viewpoint_from_args,
 )
 from graspsim.cli.maps_cmd import _add_generation, _config
@@ -49,7 +51,8 @@ def _cmd_adapt(args) -> int:
     cfg = adapt_config(mode=args.mode, table=None if args.table is None else (
         "auto" if args.table == "auto" else _height(args.table)), table_normal=args.table_normal,
         table_clearance=args.table_clearance, repetitions=args.repetitions, theta=args.theta,
-        scaling=args.scaling, partial=not args.no_partial, low_profile=_low_profile(args.low_profile))
+        scaling=args.scaling, partial=not args.no_partial, low_profile=_low_profile(args.low_profile),
+        unseen_margin=unseen_margin_value(args, none=True))
     viewpoint = viewpoint_from_args(args)
     map_cfg, quality = _config(args)
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
@@ -57,6 +60,11 @@ def _cmd_adapt(args) -> int:
 
         raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
     cloud = read_point_cloud(args.cloud, units=args.units)
+    if args.unseen_margin not in (None, 0.0) and viewpoint is None and cloud.viewpoint is None:
+        from graspsim.errors import InvalidParameterError
+
+        raise InvalidParameterError("--unseen-margin needs the camera's place: give --viewpoint X Y Z (or a cloud "
+                                    "with its camera record)")
     db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
     result = adapt_cloud(cloud, db=db, config=cfg, seed=args.seed, source=str(Path(args.cloud).resolve()),
                          viewpoint=viewpoint)
@@ -75,7 +83,8 @@ def _cmd_adapt(args) -> int:
     s = result.summary()
     vp = result.map.meta.extra.get("viewpoint")
     s.update(file=str(out) if why is None else None, cloud=args.cloud, points=len(cloud.points),
-             units=cloud.units, dropped=cloud.n_dropped, timing=result.timing, viewpoint=vp, seed=args.seed)
+             units=cloud.units, dropped=cloud.n_dropped, timing=result.timing, viewpoint=vp, seed=args.seed,
+             unseen_margin=result.map.meta.extra.get("robust", {}).get("unseen_margin", 0.0))
     if reach is not None:
         s["reach"] = {"robot": reach["robot"], "robot_base": reach["base"], **reach["counts"],
                       "exact_checked": reach["exact"]["rows"]}
@@ -90,6 +99,7 @@ def _cmd_adapt(args) -> int:
                 if s.get("table") and s["table"].get("lifted") else "")
              + (f"; viewpoint {' '.join(f'{v:g}' for v in vp)}" if vp is not None
                 else "; seen all round (no viewpoint)")
+             + (f", unseen margin {s['unseen_margin'] * 1e3:g} mm" if s["unseen_margin"] > 0 else "")
              + (f" -> {out}" if why is None else "")
              + (f"\n{FitQuality.from_dict(s['fit']).text()}" if s.get("fit") else "")
              + (f"\nreachable by {reach['robot']}: {reach['counts']['exact']} of the {reach['exact']['rows']} best "
@@ -160,6 +170,10 @@ def register(sub) -> None:
                        "least DEPTH [m] from it (low objects lying on the table: a domino, a lid); 'off': "
                        "dropped (0.001; --mode paper never lifts)")
         add_viewpoint_flag(p)
+        add_unseen_margin_flag(p, help="with a viewpoint, robust mode: a grasp whose far finger comes within M [m] of "
+                               "the fitted back, in space the camera did not see, scores less (by the distance's share "
+                               "of M) and wider openings are tried for it (default and alone: the measured 0.02 m; 0: "
+                               "none; paper mode: none unless given); needs the camera's place")
         add_robot_flags(p, robot_help="mark each grasp reachable or not for this arm at --robot-base (the map's "
                         "reachable column; its ranking then puts reachable grasps first; see graspsim reach)")
         from graspsim.cli._common import whole_number

@@ -127,24 +127,15 @@ def add_unseen_margin_flag(p) -> None:
                    "camera's place")
 
 
-def unseen_margin_from_args(args, planner):
-    """``planner`` (a ``PlannerConfig``) with ``--unseen-margin`` in its robust score (the
-    same object without the flag); a margin outside (0, 0.1] m is an
-    :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
-    from dataclasses import replace
-
-    from graspsim.errors import InvalidParameterError
-
+def unseen_margin_from_args(args) -> float | None:
+    """``--unseen-margin``'s margin [m] (alone: the measured ``UNSEEN_MARGIN``; None: not
+    given), for :func:`graspsim.planning.scene_config.with_unseen_margin`."""
     m = args.unseen_margin
-    if m is None:
-        return planner
     if m is True:  # the flag alone (argparse's const: not a string, so not converted)
         from graspsim.maps.robust import UNSEEN_MARGIN
 
         m = UNSEEN_MARGIN
-    if not (math.isfinite(m) and 0 < m <= 0.1):
-        raise InvalidParameterError(f"--unseen-margin must be in (0, 0.1] m (alone: the measured 0.02), got {m!r}")
-    return replace(planner, robust=replace(planner.robust, unseen_margin=float(m)))
+    return m
 
 
 def add_scene_planning_flags(p) -> None:
@@ -155,12 +146,19 @@ def add_scene_planning_flags(p) -> None:
 
 
 def scene_planning_from_args(args, scene):
-    """``scene`` (a ``SceneConfig``) with ``--budget`` and ``--unseen-margin`` applied; a bad
+    """``scene`` (a ``SceneConfig``) with ``--budget`` and ``--unseen-margin`` applied
+    (:func:`graspsim.planning.scene_config.with_unseen_margin`, E10's path too); a bad
     value is an :class:`~graspsim.errors.InvalidParameterError` naming its flag."""
     from dataclasses import replace
 
+    from graspsim.errors import InvalidParameterError
+    from graspsim.planning.scene_config import with_unseen_margin
+
     scene = replace(scene, **budget_from_args(args))
-    return replace(scene, planner=unseen_margin_from_args(args, scene.planner))
+    try:
+        return with_unseen_margin(scene, unseen_margin_from_args(args))
+    except InvalidParameterError as err:
+        raise InvalidParameterError(f"--unseen-margin: {err}") from None
 
 
 class _DeprecatedAlias:

@@ -83,7 +83,9 @@ OCCLUSION_POWER = 2.0
 #: fit (a duck's back past the sphere or cone fitted to its flank, a milk carton's depth past
 #: the box fitted to its front; ``experiments/study_true_shape.py --object any``). The score
 #: takes that excess as uniform on [0, margin]: at an opening where the finger samples in unseen
-#: space come within c of a known point (:func:`graspsim.maps.occlusion.unseen_clearance`) a
+#: space come within c of a known point of the object itself -- its observed points and fitted
+#: primitives, not its neighbours', whose surfaces the collision terms keep the gripper clear of
+#: (``score_rows(own=)``; :func:`graspsim.maps.occlusion.unseen_clearance`) -- a
 #: grasp keeps the share min(c / margin, 1) of its score, so that a grasp whose fingers keep
 #: clear of the unseen back ranks first and the wider ``unseen_openings`` count where they buy
 #: distance, while an object whose every grasp goes there keeps its best one. (Scoring such an
@@ -148,8 +150,9 @@ class RobustConfig:
     (``experiments/study_occlusion.py``): a finger 20 % in unseen space started in
     collision far more often than a fifth of the time.
     unseen_margin [m]: with a viewpoint, an opening at which the finger samples in unseen
-    space come within c of a known point (observed, or on the fitted primitives) keeps the
-    share min(c / margin, 1) of its score -- the fit's back is a guess -- the margin bounded
+    space come within c of a known point of the object itself (its observed points, its fitted
+    primitives; not its neighbours': ``score_rows(own=)``) keeps the share min(c / margin, 1)
+    of its score -- the fit's back is a guess -- the margin bounded
     per object by the shadow it casts across the table and by its thickness
     (default 0: off; :data:`UNSEEN_MARGIN` the value measured);
     unseen_openings: the extra gaps per side [m] tried, beyond ``openings``, for a grasp that

@@ -101,9 +101,11 @@ EXPERIMENTS = Path(__file__).resolve().parent
 
 
 # ------------------------------------------------------------------ config -> CLI
-def opt(default, help: str = "", *, choices=None, cli: bool = True):
-    """A config field with its CLI help (``cli=False``: no flag)."""
-    return dataclasses.field(default=default, metadata={"help": help, "choices": choices, "cli": cli})
+def opt(default, help: str = "", *, choices=None, cli: bool = True, const=None):
+    """A config field with its CLI help (``cli=False``: no flag; ``const``: the flag may
+    come alone, meaning this value, as ``--flag [VALUE]``)."""
+    return dataclasses.field(default=default, metadata={"help": help, "choices": choices, "cli": cli,
+                                                        "const": const})
 
 
 def _flag_kwargs(tp, default, f: dataclasses.Field) -> dict:
@@ -116,6 +118,8 @@ def _flag_kwargs(tp, default, f: dataclasses.Field) -> dict:
         tp = args[0]  # X | None: the flag takes an X
     if tp is bool:
         return {**kw, "action": argparse.BooleanOptionalAction}
+    if f.metadata.get("const") is not None:  # --flag [VALUE]: alone, the const
+        kw = {**kw, "nargs": "?", "const": f.metadata["const"]}
     if typing.get_origin(tp) in (tuple, list):
         elem = (typing.get_args(tp) or (str,))[0]
         return {**kw, "nargs": "+", "type": elem}

@@ -62,6 +62,8 @@ from _common import (
 from _e10_report import readme_section, rows_of
 
 from graspsim.errors import SimulationError
+from graspsim.maps.robust import UNSEEN_MARGIN
+from graspsim.planning.scene_config import SceneConfig, with_unseen_margin
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.stats import wilson_interval
 from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings, summarize
@@ -96,6 +98,9 @@ class Config:
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
     grid: bool = opt(True, "store FS maps of a size grid (GRID) in the database before the first scene")
     workers: int = opt(1, "processes; results do not depend on it (the database is read only during the run)")
+    unseen_margin: float | None = opt(None, "the robust score's margin [m] against an object's unseen back "
+                                      "(graspsim scene --unseen-margin; alone: the measured UNSEEN_MARGIN; "
+                                      "none: the scene planner's default)", const=UNSEEN_MARGIN)
     QUICK: ClassVar[dict] = {"scenes": 1, "seeds": 1, "block": 1, "objects": (2,), "kinds": ("packed",),
                              "noise": ("none",), "ablations": ("ground_truth",), "ablation_objects": (2,),
                              "quick_maps": True, "grid": False, "object_sets": ("primitives",)}
@@ -107,6 +112,7 @@ class Config:
             raise ValueError("--scenes and --seeds must be >= 1 and --object-sets not empty")
         for name in self.object_sets:
             check_object_set(name)
+        with_unseen_margin(SceneConfig(), self.unseen_margin)  # a bad margin: refused before the work
 
 
 def conditions(cfg: Config) -> list[dict]:
@@ -126,8 +132,11 @@ def seed_of(cfg: Config, k: int) -> int:
     return benchmark_seeds(cfg.seed, cfg.seeds)[k]
 
 
-def _clutter_config(c: dict) -> ClutterConfig:
-    return ClutterConfig(scene=scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"),
+def _clutter_config(c: dict, unseen_margin: float | None = None) -> ClutterConfig:
+    """A condition's clutter settings; ``unseen_margin`` [m]: ``Config.unseen_margin``
+    (``graspsim scene --unseen-margin``'s path: :func:`~graspsim.planning.scene_config.with_unseen_margin`)."""
+    scene = with_unseen_margin(scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"), unseen_margin)
+    return ClutterConfig(scene=scene,
                          execution=ExecutionNoise() if c["noise"] == "default" else None,
                          ground_truth=c["ablation"] == "ground_truth")
 
@@ -257,8 +266,9 @@ def _block(task) -> tuple[list, list, set]:
         k, i = divmod(j, per)
         sd = seed_of(cfg, k)
         try:
-            out += [(sd, r) for r in run_benchmark(c["objects"], c["kind"], 1, sd, db=db,
-                                                   config=_clutter_config(c), object_set=c["object_set"], first=i)]
+            config = _clutter_config(c, cfg.unseen_margin)
+            out += [(sd, r) for r in run_benchmark(c["objects"], c["kind"], 1, sd, db=db, config=config,
+                                                   object_set=c["object_set"], first=i)]
         except SimulationError as err:
             log.warning("%s seed %d scene %d skipped: %s", c, sd, i, err)
             skipped.append({"seed": sd, "scene": i, "reason": str(err)})

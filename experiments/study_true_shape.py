@@ -37,6 +37,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import derived_seed, opt, rng_for, start
 
+from graspsim.maps.robust import UNSEEN_MARGIN
+
 log = logging.getLogger("study_true_shape")
 
 #: a finger sample this deep inside a mesh [m] counts as inside
@@ -55,6 +57,9 @@ class Config:
     seed: int = opt(0, "E10's run seed")
     quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
     db: str = opt("", "FS database folder, read only (default: OUT/fsdb, built fresh)")
+    unseen_margin: float | None = opt(None, "the robust score's margin [m] against an object's unseen back "
+                                      "(E10's --unseen-margin; alone: the measured UNSEEN_MARGIN)",
+                                      const=UNSEEN_MARGIN)
     QUICK: ClassVar[dict] = {"kinds": ("packed",), "seeds": 1, "scenes": 1, "quick_maps": True}
 
     def __post_init__(self) -> None:
@@ -101,6 +106,7 @@ def mechanism(r: dict) -> str:
 def measure(ep, look, grasp, k: int, mesh, hull, gripper) -> dict:
     """The measures of ``grasp`` (aimed at object ``k``) before it is executed."""
     import trimesh
+    from scipy.spatial import cKDTree
 
     from graspsim.maps.occlusion import ViewDepth
 
@@ -123,10 +129,16 @@ def measure(ep, look, grasp, k: int, mesh, hull, gripper) -> dict:
             Ti = np.linalg.inv(p.T_world_obj)
             gap = np.minimum(gap, p.primitive().sdf(P @ Ti[:3, :3].T + Ti[:3, 3]))
         inside = d_true > INSIDE
+        U = P[occ]
+        to_target = to_scene = np.inf
+        if len(U):  # how near the unseen finger samples come to the target (its points, its parts) and to the scene
+            to_target = float(min(cKDTree(mem.points).query(U)[0].min(), np.abs(gap[occ]).min()))
+            to_scene = float(cKDTree(look.view.world()).query(U)[0].min())
         r["fingers"][name] = {"in_true": int(inside.sum()), "in_true_unseen": int((inside & occ).sum()),
                               "in_true_seen": int((inside & ~occ).sum()), "in_hull": int((d_hull > INSIDE).sum()),
                               "depth_true_mm": 1000 * float(d_true.max()), "depth_hull_mm": 1000 * float(d_hull.max()),
-                              "parts_clearance_mm": 1000 * float(gap.min()), "unseen_share": float(occ.mean())}
+                              "parts_clearance_mm": 1000 * float(gap.min()), "unseen_share": float(occ.mean()),
+                              "unseen_to_target_mm": 1000 * to_target, "unseen_to_scene_mm": 1000 * to_scene}
     # the true surface between the pads, in the wrist frame
     S, fi = trimesh.sample.sample_surface_even(mesh, 20000, seed=0)
     W = np.linalg.inv(T) @ T_w_file
@@ -158,7 +170,7 @@ def episodes(cfg: Config, kind: str, db) -> list[dict]:
     from graspsim.tabletop.table_scene import make_scene
 
     e10cfg = e10.Config(seed=cfg.seed, seeds=max(cfg.seeds, e10.Config().seeds), scenes=cfg.scenes)
-    clutter = e10._clutter_config({"kind": kind, "noise": "none", "ablation": None})
+    clutter = e10._clutter_config({"kind": kind, "noise": "none", "ablation": None}, cfg.unseen_margin)
     rows = []
     for s in range(cfg.seeds):
         sd = e10.seed_of(e10cfg, s)

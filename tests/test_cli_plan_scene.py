@@ -104,7 +104,7 @@ def test_the_unseen_margin_flag_reaches_the_robust_score(tmp_path, capsys, db):
     from dataclasses import replace
 
     from graspsim.cli import build_parser
-    from graspsim.cli._common import unseen_margin_from_args
+    from graspsim.cli._common import scene_planning_from_args
     from graspsim.maps.robust import UNSEEN_MARGIN
 
     planner = SceneConfig().planner
@@ -112,7 +112,8 @@ def test_the_unseen_margin_flag_reaches_the_robust_score(tmp_path, capsys, db):
         head = [command] if command == "scene" else [command, "c.npy", "-o", "g.json"]
         for flag, want in (([], 0.0), (["--unseen-margin"], UNSEEN_MARGIN), (["--unseen-margin", "0.01"], 0.01)):
             args = build_parser().parse_args([*head, *flag])
-            assert unseen_margin_from_args(args, planner).robust.unseen_margin == want, (command, flag)
+            got = scene_planning_from_args(args, SceneConfig()).planner.robust.unseen_margin
+            assert got == want, (command, flag)
     assert UNSEEN_MARGIN > 0 and replace(planner.robust).unseen_margin == 0.0  # off by default
     rng = np.random.default_rng(1)
     table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), rng.normal(0, 0.0005, 3000)]

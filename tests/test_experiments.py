@@ -863,3 +863,28 @@ def test_e16_clutter_plans_both_conditions_against_one_read_only_database(tmp_pa
         mod.run_clutter_part(cfg, get_gripper(cfg.gripper), tmp_path)
     assert seen[0] is seen[1] and isinstance(seen[0], common.RunDatabase)
     assert seen[0].root == tmp_path / "fsdb"
+
+
+def test_e10_unseen_margin_reaches_the_planner(tmp_path, monkeypatch, capsys):
+    """E10 --unseen-margin [M] (alone: the measured UNSEEN_MARGIN) reaches every scene's
+    planner through the scene commands' path (with_unseen_margin) and its config record;
+    without it the scene planner's default; a bad margin is a one-line error."""
+    from graspsim.maps.robust import UNSEEN_MARGIN
+    from graspsim.planning.scene_config import SceneConfig
+
+    mod = _load("e10_clutter_removal")
+    common = sys.modules["_common"]
+    seen = []
+    monkeypatch.setattr(mod, "run_benchmark", lambda *a, config, **k: seen.append(config) or [])
+    default = SceneConfig().planner.robust.unseen_margin
+    for argv, want in (([], default), (["--unseen-margin"], UNSEEN_MARGIN), (["--unseen-margin", "0.01"], 0.01)):
+        cfg, _ = common.parse_config(mod.Config, mod.__file__, ["--object-sets", "primitives", "--scenes", "1",
+                                                                "--seeds", "1", *argv])
+        assert cfg.unseen_margin == (None if not argv else want)
+        for c in mod.conditions(cfg)[:2]:
+            mod._block((c, cfg, str(tmp_path / "db"), 0, 1))
+            assert seen[-1].planning.planner.robust.unseen_margin == want, (argv, c)
+    assert UNSEEN_MARGIN > 0
+    with pytest.raises(SystemExit):
+        common.parse_config(mod.Config, mod.__file__, ["--object-sets", "primitives", "--unseen-margin", "0.5"])
+    assert "unseen margin" in capsys.readouterr().err

@@ -334,6 +334,30 @@ def test_a_finger_in_the_unseen_back_near_the_fitted_surface_ranks_below(box_map
     np.testing.assert_array_equal(on.extra_opening[clear], off.extra_opening[clear])
 
 
+def test_the_unseen_margin_keeps_the_fingers_off_the_objects_own_shape_not_its_neighbours(box_map, cloud):
+    """The margin stands for the object's own fit going on past its back unseen; points of
+    other objects (the cloud after the first ``own``) are surfaces the collision terms keep
+    the gripper clear of, and do not widen it: a neighbour's points lying where the box's
+    back is (here the back's own samples, given as a neighbour's, with the primitives term
+    off so the fitted back is not known either) demote grasps only when they count as the
+    object's."""
+    front, eye = _front_view(cloud)
+    other = cloud[cloud[:, 0] < -0.019]  # behind the box, unseen from +x
+    both = np.concatenate([front, other])
+    rows = np.arange(len(box_map))
+    cfg = RobustConfig(samples=16, unseen_margin=UNSEEN_MARGIN, terms=("cloud", "table", "pads", "force_closure"))
+    off = score_rows(box_map, rows, both, replace(cfg, unseen_margin=0.0), viewpoint=eye)
+    as_own = score_rows(box_map, rows, both, cfg, viewpoint=eye)  # own=None: every point the object's
+    mine = score_rows(box_map, rows, both, cfg, viewpoint=eye, own=len(front))
+    assert (off.robust > 0).sum() >= 100
+    assert (as_own.robust < off.robust - 1e-9).sum() >= 20  # the far finger near those points, unseen
+    # the object's own points (its front) are far from every finger sample the view did not see
+    np.testing.assert_array_equal(mine.robust, off.robust)
+    np.testing.assert_array_equal(mine.extra_opening, off.extra_opening)
+    same = score_rows(box_map, rows, both, cfg, viewpoint=eye, own=len(both))
+    np.testing.assert_array_equal(same.robust, as_own.robust)
+
+
 def test_unseen_clearance_measures_only_finger_samples_the_view_did_not_see(box_map, cloud):
     from scipy.spatial import cKDTree
 

@@ -118,7 +118,7 @@ def budget_from_args(args) -> dict:
 
 def add_unseen_margin_flag(p, help: str | None = None) -> None:
     """``--unseen-margin [M]``, the robust score's margin against an object's unseen back
-    (read with :func:`unseen_margin_value` / :func:`unseen_margin_from_args`); ``help``:
+    (read with :func:`unseen_margin_value`); ``help``:
     the command's own text (default: the scene commands', where it is opt-in)."""
     p.add_argument("--unseen-margin", type=float, nargs="?", const=True, default=None, metavar="M",
                    help=help or "opt-in: a grasp whose far finger comes within M [m] of the fitted back, in space the "
@@ -148,17 +148,6 @@ def unseen_margin_value(args, *, none: bool = False) -> float | None:
     return float(m)
 
 
-def unseen_margin_from_args(args, planner):
-    """``planner`` (a ``PlannerConfig``) with ``--unseen-margin`` in its robust score (the
-    same object without the flag); a bad margin: see :func:`unseen_margin_value`."""
-    from dataclasses import replace
-
-    m = unseen_margin_value(args)
-    if m is None:
-        return planner
-    return replace(planner, robust=replace(planner.robust, unseen_margin=m))
-
-
 def add_scene_planning_flags(p) -> None:
     """The planning flags the scene commands (``scene``, ``plan-scene``) share:
     ``--budget`` and ``--unseen-margin`` (read with :func:`scene_planning_from_args`)."""
@@ -167,12 +156,19 @@ def add_scene_planning_flags(p) -> None:
 
 
 def scene_planning_from_args(args, scene):
-    """``scene`` (a ``SceneConfig``) with ``--budget`` and ``--unseen-margin`` applied; a bad
+    """``scene`` (a ``SceneConfig``) with ``--budget`` and ``--unseen-margin`` applied
+    (:func:`graspsim.planning.scene_config.with_unseen_margin`, E10's path too); a bad
     value is an :class:`~graspsim.errors.InvalidParameterError` naming its flag."""
     from dataclasses import replace
 
+    from graspsim.errors import InvalidParameterError
+    from graspsim.planning.scene_config import with_unseen_margin
+
     scene = replace(scene, **budget_from_args(args))
-    return replace(scene, planner=unseen_margin_from_args(args, scene.planner))
+    try:
+        return with_unseen_margin(scene, unseen_margin_value(args))
+    except InvalidParameterError as err:
+        raise InvalidParameterError(f"--unseen-margin: {err}") from None
 
 
 class _DeprecatedAlias:

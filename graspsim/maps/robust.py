@@ -83,7 +83,9 @@ OCCLUSION_POWER = 2.0
 #: fit (a duck's back past the sphere or cone fitted to its flank, a milk carton's depth past
 #: the box fitted to its front; ``experiments/study_true_shape.py --object any``). The score
 #: takes that excess as uniform on [0, margin]: at an opening where the finger samples in unseen
-#: space come within c of a known point (:func:`graspsim.maps.occlusion.unseen_clearance`) a
+#: space come within c of a known point of the object itself -- its observed points and fitted
+#: primitives, not its neighbours', whose surfaces the collision terms keep the gripper clear of
+#: (``score_rows(own=)``; :func:`graspsim.maps.occlusion.unseen_clearance`) -- a
 #: grasp keeps the share min(c / margin, 1) of its score, so that a grasp whose fingers keep
 #: clear of the unseen back ranks first and the wider ``unseen_openings`` count where they buy
 #: distance, while an object whose every grasp goes there keeps its best one. (Scoring such an
@@ -96,6 +98,15 @@ OCCLUSION_POWER = 2.0
 #: error) it took packed GSR from 78.7 % to 90.5 % (start collisions with the target 8 -> 2) but
 #: piles from 100 % to 86.0 % (DR 100 -> 92.5 %; the cut above: packed 97.6 %, piles 89.5 %),
 #: so it is not the default (issue 34; the numbers and commands in the startcol branch's report).
+#: Most of that pile cost came from neighbours: with every observed point counted, a finger going
+#: down between touching objects is near one, and the grasps the margin left first failed
+#: (dropped, no contact). Kept off the object's own known shape only, on 4 seeds x 8 tuning scenes
+#: (no execution error; ``e10_clutter_removal.py --seeds 4 --scenes 8 --objects 5 --noise none
+#: --ablations none --object-sets household-tuning [--unseen-margin]``): packed GSR 86.0 -> 93.2 %,
+#: DR 88.8 -> 93.8 % (start collisions with the target 15 -> 4; counting the neighbours: 90.1 / 91.2 %),
+#: piles GSR 93.8 -> 91.6 %, DR 95.0 -> 95.6 % (counting them: 89.1 / 92.5 %); with the default
+#: execution error (2 seeds x 4): packed GSR 71.1 -> 86.4 %, piles 76.7 -> 75.0 %. Piles still
+#: lose grasps (8 scenes worse, 4 better), so the margin stays opt-in.
 UNSEEN_MARGIN = 0.020
 #: [m] Extra pad gaps per side beyond ``openings`` that the robust score also tries for a grasp
 #: that keeps the unseen margin at none of ``openings`` (``RobustConfig.unseen_openings``): with the
@@ -148,8 +159,9 @@ class RobustConfig:
     (``experiments/study_occlusion.py``): a finger 20 % in unseen space started in
     collision far more often than a fifth of the time.
     unseen_margin [m]: with a viewpoint, an opening at which the finger samples in unseen
-    space come within c of a known point (observed, or on the fitted primitives) keeps the
-    share min(c / margin, 1) of its score -- the fit's back is a guess -- the margin bounded
+    space come within c of a known point of the object itself (its observed points, its fitted
+    primitives; not its neighbours': ``score_rows(own=)``) keeps the share min(c / margin, 1)
+    of its score -- the fit's back is a guess -- the margin bounded
     per object by the shadow it casts across the table and by its thickness
     (default 0: off; :data:`UNSEEN_MARGIN` the value measured);
     unseen_openings: the extra gaps per side [m] tried, beyond ``openings``, for a grasp that
@@ -242,13 +254,14 @@ def _perturbations(samples: int, seed: int, position_sigma: float, rotation_sigm
 
 
 def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, view=None,
-           unseen_margin: float | None = None) -> RobustScores:
+           unseen_margin: float | None = None, known: np.ndarray | None = None) -> RobustScores:
     """The robust score of wrist poses (R (n, 3, 3), w (n, 3)) with contact widths (n,),
     contacts and outward normals (n, 2, 3) against the points P (cloud first), the
     table rows of :func:`table_rows`, at every opening of ``cfg``; ``success_of(live)``
     the success probability of the live poses (bool mask); ``view``: a
     :class:`~graspsim.maps.occlusion.ViewDepth` of the cloud, or None; ``unseen_margin``:
-    the unseen margin [m] bounded for this object (:func:`_unseen_margin`; None: the config's)."""
+    the unseen margin [m] bounded for this object (:func:`_unseen_margin`; None: the config's);
+    ``known``: the points the unseen margin is kept from (the object's own; None: ``P``)."""
     from graspsim.maps._robust_blocks import BLOCK_CELL, blocks
     from graspsim.maps._robust_kernel import robust_flags
     from graspsim.maps.kernels import default_threads, run_chunks
@@ -278,12 +291,13 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
     unseen = np.ones((n, len(extras)))  # the unseen margin's share of the score (UNSEEN_MARGIN)
     if view is not None and cfg.occlusion:
         occ = np.column_stack([finger_occlusion(view, R, w, openings[:, e], g) for e in range(len(extras))])
-        if margin_unseen > 0 and len(P) and np.any(occ > 0):
+        known = P if known is None else known
+        if margin_unseen > 0 and len(known) and np.any(occ > 0):
             from scipy.spatial import cKDTree
 
             from graspsim.maps.occlusion import unseen_clearance
 
-            known = cKDTree(np.asarray(P, float))
+            known = cKDTree(np.asarray(known, float))
             for e in range(len(extras)):
                 k = np.flatnonzero(occ[:, e] > 0)  # no finger sample unseen: nothing to keep clear of
                 if len(k):
@@ -335,14 +349,16 @@ def view_of(cloud: np.ndarray | None, viewpoint, config: RobustConfig):
 
 def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: RobustConfig = RobustConfig(),
                gripper: GripperSpec | None = None, *, viewpoint: np.ndarray | None = None,
-               view=None) -> RobustScores:
+               view=None, own: int | None = None) -> RobustScores:
     """Robust scores of the map's ``rows`` (indices) against ``cloud_obj`` (M, 3) observed
     points in the object frame (None: the identified shape is all that was seen), the
     map's identified shape and its table (``meta.placement``). ``viewpoint`` (3,): where
     a single-view cloud was seen from, object frame: finger volume in the space behind
     what it saw scales the score down (the occlusion term); None: no such term.
     ``view``: :func:`view_of` ``(cloud_obj, viewpoint, config)`` made already (the same
-    numbers; made here when None)."""
+    numbers; made here when None). ``own``: the first ``own`` points of ``cloud_obj`` are
+    the object's, the rest its neighbours' (None: all the object's): the unseen margin
+    keeps the fingers off the object's own known shape only (:func:`_unseen_margin`)."""
     cfg = config
     g = gripper or gmap.meta.gripper_spec
     rows = np.asarray(rows, int).reshape(-1)
@@ -354,10 +370,11 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     cos_fc = math.cos(gmap.meta.quality_model.friction_angle)
     view = view if view is not None else view_of(cloud, viewpoint, cfg)
     table = map_table(gmap)
+    known = P if own is None else np.concatenate([P[:int(own)], P[len(cloud):]])  # its points, its shape
     return _score(P, len(cloud), R, w, gmap.width[rows], gmap.contacts[rows].astype(float),
                   gmap.normals[rows].astype(float), table_rows(table, R, w), g, cfg, cos_fc,
                   lambda live: _success(gmap, rows[live], cfg.success), view,
-                  _unseen_margin(cfg, view, prim if len(prim) else cloud, table))
+                  _unseen_margin(cfg, view, prim if len(prim) else cloud, table), known)
 
 
 def _unseen_margin(cfg: RobustConfig, view, shape: np.ndarray, table) -> float:
@@ -442,16 +459,17 @@ def _pad_contact(gripper: str):
 
 def score_map(gmap, cloud_obj: np.ndarray | None = None, config: RobustConfig = RobustConfig(), *,
               rows: np.ndarray | None = None, gripper: GripperSpec | None = None,
-              viewpoint: np.ndarray | None = None, view=None):
+              viewpoint: np.ndarray | None = None, view=None, own: int | None = None):
     """The map with its robust columns filled for ``rows`` (default: the
     ``config.top`` best-graded rows), the others kept; provenance in
     ``meta.extra["robust"]``. ``cloud_obj``: observed points (M, 3), object frame;
     ``viewpoint`` (3,): where a single-view cloud was seen from, object frame (the
-    occlusion term; ``view``: its depth image made already; see :func:`score_rows`)."""
+    occlusion term; ``view``: its depth image made already; ``own``: how many of
+    ``cloud_obj``'s points, first, are the object's; see :func:`score_rows`)."""
     if rows is None:
         rows = np.argsort(-gmap.grade, kind="stable")[:config.top]
     rows = np.asarray(rows, int)
-    s = score_rows(gmap, rows, cloud_obj, config, gripper, viewpoint=viewpoint, view=view)
+    s = score_rows(gmap, rows, cloud_obj, config, gripper, viewpoint=viewpoint, view=view, own=own)
     n_cloud = 0 if cloud_obj is None else len(np.asarray(cloud_obj).reshape(-1, 3))
     cols = {k: getattr(gmap, k).copy() for k in ("clearance", "robust_feasible", "robust", "robust_extra_opening")}
     cols["clearance"][rows] = np.clip(s.clearance, -1.0, 1.0) if n_cloud else np.nan

@@ -489,7 +489,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 if view is None:  # the cloud's depth image from the viewpoint: one for every batch
                     view = view_of(cloud_obj, view_obj, cfg.robust)
                 batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper,
-                                  viewpoint=view_obj, view=view).ranked()
+                                  viewpoint=view_obj, view=view, own=len(points)).ranked()
                 budget -= len(rows)
                 stage.lap("robust")
                 if first_robust is None and bool(np.any(batch.robust > 0)):

@@ -15,8 +15,8 @@ from graspsim.perception.segment import gap_link
 from graspsim.planning.planner import PlannerConfig
 from graspsim.planning.scene_workers import scene_workers
 
-__all__ = ["SceneConfig", "budget_fields", "MAX_SCENE_EXTENT", "SCENE_BYTES_PER_POINT", "SCENE_FIT_POINTS",
-           "SCENE_COLLISION_TOLERANCE", "SCENE_MAX_NOISE_RATIO"]
+__all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "MAX_UNSEEN_MARGIN", "MAX_SCENE_EXTENT",
+           "SCENE_BYTES_PER_POINT", "SCENE_FIT_POINTS", "SCENE_COLLISION_TOLERANCE", "SCENE_MAX_NOISE_RATIO"]
 
 #: Widest plausible table-top scene [m]; wider clouds are taken for millimetres or centimetres.
 MAX_SCENE_EXTENT = 10.0
@@ -161,3 +161,26 @@ def budget_fields(label: str) -> dict[str, int]:
     if enough < 1 or per < 1:
         raise InvalidParameterError(f"a planning budget's numbers must be >= 1, got {label!r}")
     return {"enough": enough, "per_segment": per}
+
+
+#: [m] The widest unseen margin a scene's planning takes (:func:`with_unseen_margin`): 10 cm is
+#: past any table-top object's depth the gripper can close across.
+MAX_UNSEEN_MARGIN = 0.1
+
+
+def with_unseen_margin(scene: SceneConfig, margin: float | None) -> SceneConfig:
+    """``scene`` with its planner's robust score keeping ``margin`` [m] off an object's
+    unseen back (``RobustConfig.unseen_margin``; :data:`graspsim.maps.robust.UNSEEN_MARGIN`
+    the measured value); None: ``scene`` itself. The one path from a margin a user gives
+    (``graspsim scene`` / ``plan-scene --unseen-margin``, E10 ``--unseen-margin``) to the
+    planner; a margin outside (0, :data:`MAX_UNSEEN_MARGIN`] m is an
+    :class:`~graspsim.errors.InvalidParameterError`."""
+    from dataclasses import replace
+
+    if margin is None:
+        return scene
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not 0 < margin <= MAX_UNSEEN_MARGIN:
+        raise InvalidParameterError(f"the unseen margin must be in (0, {MAX_UNSEEN_MARGIN:g}] m "
+                                    f"(the measured: 0.02), got {margin!r}")
+    planner = scene.planner
+    return replace(scene, planner=replace(planner, robust=replace(planner.robust, unseen_margin=float(margin))))

@@ -223,8 +223,9 @@ class ObservedChecks:
         volume (at its pre-grasp opening) lies in space the view did not see: there the
         camera saw past the part, so the object does not go on where the far finger goes
         (a domino standing on its edge, grasped across its thickness from above).
-        ``bounded`` (3,): a box part's axis the table bounds (the part completed down to
-        it: :mod:`~graspsim.planning.table_completion`): measured, whatever its faces show.
+        ``bounded`` (3,) or (k, 3): a box part's axes the table bounds (the part completed
+        down to it) or its segment's own points do (deepened to them:
+        :mod:`~graspsim.planning.table_completion`): measured, whatever its faces show.
         Unchanged without a viewpoint (a cloud seen all round shows depths) or with
         ``PlannerConfig.seen_depth`` off."""
         if self.viewpoint is None or not self.cfg.seen_depth or not len(part_map):
@@ -236,8 +237,9 @@ class ObservedChecks:
         cone = np.cos(np.radians(UNSEEN_CONE_DEG))
         if prim.kind == "box":
             thin = self._unmeasured_axes(prim, T_cloud_part)
-            if thin is not None and bounded is not None:  # the table bounds that extent: measured
-                thin = thin[np.abs(thin @ np.asarray(bounded, float)) < cone]
+            if thin is not None and bounded is not None:  # the table or the segment bounds that extent: measured
+                B = np.asarray(bounded, float).reshape(-1, 3)
+                thin = thin[np.all(np.abs(thin @ B.T) < cone, axis=1)]
             if thin is None or not len(thin):
                 return part_map
             keep = np.all(np.abs(closing @ thin.T) < cone, axis=1)

@@ -479,7 +479,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 # (not the lifted poses: their contacts lie within the contact tolerance of a low part's
                 # top face, whose points' normals would count against every side contact, and a scene's
                 # table band removes the side points that bear them out)
-                part_map = observed.borne_out(part_map, T_cloud_map, prim, T_cloud[i])
+                part_map = observed.borne_out(part_map, T_cloud_map, prim, T_cloud[i], bounded=bounded[i])
                 part_map = observed.unseen_depth(part_map, prim, T_cloud[i], T_cloud_map, bounded=bounded[i])
             stage.lap("agreement")
             if compound is not None:

@@ -143,7 +143,9 @@ class PlannerConfig:
         height: a box part whose hidden far face hangs above the table, on a segment that
         touches it, with the space between in the camera's shadow, is completed down to the
         table plane (the object cannot float; a carton lying on its side fitted as a 2 cm
-        plate, a domino fitted 2 mm thick) and a grasp may close across that extent
+        plate, a domino fitted 2 mm thick) and a grasp may close across that extent; a segment
+        whose foot a neighbour hides is completed too where none of the neighbours' points
+        (``obstacles``) lies in the added volume
         (:func:`~graspsim.planning.table_completion.complete_to_table`; the count in
         ``extra["table"]["completed"]``). False (default; single-object planning): parts as
         identified. Scene planning turns it on.
@@ -154,9 +156,13 @@ class PlannerConfig:
         (:attr:`~graspsim.planning.observed.ObservedChecks.least_hidden_depth`); the fit
         makes it what the noise allows (a 6 mm domino 2.3 to 3.7 mm), which puts the far
         contact among the seen face's own points, so every grasp across it is taken as
-        contradicted by them. Its far face moves away from the camera, not through the
-        table. False (default; single-object planning): parts as identified. Scene planning
-        turns it on.
+        contradicted by them. It is also at least as deep as the segment's own points reach
+        behind the part, where the volume that adds lies in the camera's shadow (a standing
+        carton fitted as a plate on its front face, its top fitted apart:
+        :func:`~graspsim.planning.table_completion.segment_depth`; that extent then counts
+        as measured; the count in ``extra["table"]["segment_depth"]``). Its far face moves
+        away from the camera, not through the table. False (default; single-object
+        planning): parts as identified. Scene planning turns it on.
     table_band: [m] with ``complete_to_table``: the height above the table below which the
         cloud's points were cut away as the table's (a scene's ``SceneConfig.table_band``,
         which sets it); the completed volume's hidden space is judged above it.

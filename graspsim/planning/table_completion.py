@@ -16,9 +16,17 @@ the part is completed down to the table plane: its far face moved along that axi
 until the box's lowest corner reaches the table. The extent is then bounded by the
 table -- measured, as far as a grasp is concerned -- and a grasp may close across it.
 Where the camera saw past the far face (the table beside a box lying on a neighbour,
-the neighbour's own top), the box is left as fitted.
+the neighbour's own top), the box is left as fitted. A segment whose foot a neighbour in
+front of it hides (its lowest seen points higher than :data:`TOUCH`) is completed the
+same way when none of the neighbours' points lies in the added volume: an object lying
+on a neighbour stops on it.
 
-Scene planning only (``PlannerConfig.complete_to_table``); single-object planning, and
+The same view's other parts may show a depth the part's own faces do not: a standing
+carton fitted as a plate on its front face and a second part on its top, whose points
+reach back the carton's depth. :func:`segment_depth` deepens the part as far as its
+segment reaches (``PlannerConfig.hidden_depth``).
+
+Scene planning only (``PlannerConfig.complete_to_table``, ``.hidden_depth``); single-object planning, and
 the paper's identification mode, are unchanged.
 """
 

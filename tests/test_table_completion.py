@@ -252,3 +252,30 @@ def test_a_box_whose_foot_a_neighbour_hides_is_completed_unless_it_rests_on_one(
     held = np.concatenate([wall, under])
     assert complete_to_table(plate, T, pts, TABLE, EYE, ViewDepth(np.concatenate([pts, held]), EYE),
                              neighbours=held)[2].axis is None
+
+
+def test_parallel_box_parts_over_hidden_space_are_one_box_but_not_over_seen_space():
+    """A carton lying on its side (44 x 44 x 150 mm, long axis along x) fitted as two slabs
+    with an 8 mm gap between them under its seen top: the gap lies in the camera's shadow,
+    so the slabs are one box, their union. Two blocks side by side with the table seen
+    between them stay two."""
+    from graspsim.planning.box_merge import merge_boxes
+
+    rng = np.random.default_rng(7)
+    carton = _faces([0.150, 0.044, 0.044], [0.0, 0.0, 0.022], rng)
+    a, b = Box(0.150, 0.010, 0.044), Box(0.150, 0.026, 0.044)
+    Ta, Tb = np.eye(4), np.eye(4)
+    Ta[:3, 3] = [0.0, -0.017, 0.022]
+    Tb[:3, 3] = [0.0, 0.009, 0.022]  # 8 mm between the slabs
+    prims, poses, groups = merge_boxes([a, b], [Ta, Tb], ViewDepth(carton, EYE), TABLE)
+    box = canonical_box(prims[0], poses[0])[0]
+    assert groups == [[0, 1]] and (box.x, box.y, box.z) == pytest.approx((0.044, 0.044, 0.150), abs=1e-9)
+    assert poses[0][:3, 3] == pytest.approx([0.0, 0.0, 0.022], abs=1e-9)
+    # two such blocks 50 mm apart, the table seen between them: not one box
+    Ta[1, 3], Tb[1, 3] = -0.040, 0.030
+    two = np.concatenate([_faces([0.150, 0.010, 0.044], Ta[:3, 3], rng), _faces([0.150, 0.026, 0.044], Tb[:3, 3], rng),
+                          np.column_stack([rng.uniform(-0.075, 0.075, 4000), rng.uniform(-0.035, 0.017, 4000),
+                                           np.full(4000, 0.0)])])
+    assert len(merge_boxes([a, b], [Ta, Tb], ViewDepth(two, EYE), TABLE)[0]) == 2
+    hidden = np.concatenate([two[:-4000], _faces([0.150, 0.080, 0.044], [0.0, -0.005, 0.022], rng, n=6000)])
+    assert len(merge_boxes([a, b], [Ta, Tb], ViewDepth(hidden, EYE), TABLE)[0]) == 1  # a carton's top over them

@@ -46,6 +46,7 @@ from graspsim.maps.table_clearance import (
     table_height,
 )
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
+from graspsim.planning.box_merge import merge_boxes
 from graspsim.planning.observed import ObservedChecks
 from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
 from graspsim.planning.stages import StageClock
@@ -163,6 +164,13 @@ class PlannerConfig:
         as measured; the count in ``extra["table"]["segment_depth"]``). Its far face moves
         away from the camera, not through the table. False (default; single-object
         planning): parts as identified. Scene planning turns it on.
+    merge_boxes: robust identification of a single view: two box parts whose axes agree,
+        the volume of their union's box neither fills in the camera's shadow, are merged
+        into that box (a carton the fit cut into parallel slabs, whose
+        combined maps hold no grasp across the whole carton:
+        :func:`~graspsim.planning.box_merge.merge_boxes`; the count in
+        ``extra["identification"]["merged"]``), after ``complete_to_table``. False (default;
+        single-object planning): parts as identified. Scene planning turns it on.
     table_band: [m] with ``complete_to_table``: the height above the table below which the
         cloud's points were cut away as the table's (a scene's ``SceneConfig.table_band``,
         which sets it); the completed volume's hidden space is judged above it.
@@ -186,6 +194,7 @@ class PlannerConfig:
     complete_to_table: bool = False
     table_band: float = 0.006
     hidden_depth: bool = False
+    merge_boxes: bool = False
 
     def __post_init__(self) -> None:
         if self.low_profile is not None and not isinstance(self.low_profile, LowProfile):
@@ -434,6 +443,13 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         prims, T_cloud, bounded = _completed(prims, T_cloud, points, seen, cfg.table, viewpoint, cfg.table_band,
                                              None if obstacles is None else np.asarray(obstacles, float).reshape(-1, 3))
     n_completed = sum(b is not None for b in bounded)
+    if cfg.merge_boxes and observed is not None and viewpoint is not None and len(prims) > 1:  # one box
+        prims, T_cloud, groups = merge_boxes(prims, T_cloud, ViewDepth(seen, viewpoint), cfg.table, cfg.table_band)
+        if len(groups) < len(bounded):
+            prims, T_cloud = (list(x) for x in zip(*(canonical_box(p, T) for p, T in zip(prims, T_cloud))))
+            ident_info = {**(ident_info or {}), "merged": len(bounded) - len(groups)}
+            bounded = [None if all(bounded[i] is None for i in g)
+                       else np.vstack([bounded[i] for i in g if bounded[i] is not None]) for g in groups]
     n_bounded = sum(0 if b is None else len(b) for b in bounded)
     if cfg.hidden_depth and observed is not None and viewpoint is not None:
         prims, T_cloud, bounded = _deepened(prims, T_cloud, bounded, observed, cfg.table, viewpoint, points,

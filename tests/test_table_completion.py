@@ -146,6 +146,8 @@ def test_only_scene_planning_completes():
     assert PlannerConfig().complete_to_table is False
     assert SceneConfig().planner.complete_to_table is True
     assert replace(PlannerConfig(), complete_to_table=True).complete_to_table
+    assert PlannerConfig().merge_boxes is False and PlannerConfig().hidden_depth is False
+    assert SceneConfig().planner.merge_boxes is True and SceneConfig().planner.hidden_depth is True
 
 
 def test_a_domino_standing_face_on_is_given_the_depth_the_view_can_tell_and_grasps_across_it(db):

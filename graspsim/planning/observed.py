@@ -160,8 +160,9 @@ class ObservedChecks:
         end its height: :meth:`unseen_depth`'s test) -- the contacts' places and the
         hidden faces' extents are then the seen faces' edges, not a guess
         (``PlannerConfig.hidden_faces``). Without ``prim`` or a viewpoint, or with
-        ``hidden_faces`` off: the plain rule. ``bounded`` (k, 3): the part's axes the table or
-        its segment bounds (:meth:`unseen_depth`): their extents count as measured."""
+        ``hidden_faces`` off: the plain rule. ``bounded`` (k, 3): the part's axes the table
+        bounds or its segment's points reach along (its faces' extents along them no guess):
+        measured."""
         line = row_ids(part_map.contacts)
         c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
         agree, borne = self.surface.evidence(c, tol=self.contact_tolerance, max_angle=self.quality.friction_angle)
@@ -230,8 +231,8 @@ class ObservedChecks:
         camera saw past the part, so the object does not go on where the far finger goes
         (a domino standing on its edge, grasped across its thickness from above).
         ``bounded`` (3,) or (k, 3): a box part's axes the table bounds (the part completed
-        down to it) or its segment's own points do (deepened to them:
-        :mod:`~graspsim.planning.table_completion`): measured, whatever its faces show.
+        down to it: :mod:`~graspsim.planning.table_completion`): measured, whatever its
+        faces show.
         Unchanged without a viewpoint (a cloud seen all round shows depths) or with
         ``PlannerConfig.seen_depth`` off."""
         if self.viewpoint is None or not self.cfg.seen_depth or not len(part_map):
@@ -243,7 +244,7 @@ class ObservedChecks:
         cone = np.cos(np.radians(UNSEEN_CONE_DEG))
         if prim.kind == "box":
             thin = self._unmeasured_axes(prim, T_cloud_part)
-            if thin is not None and bounded is not None:  # the table or the segment bounds that extent: measured
+            if thin is not None and bounded is not None:  # the table bounds that extent: measured
                 B = np.asarray(bounded, float).reshape(-1, 3)
                 thin = thin[np.all(np.abs(thin @ B.T) < cone, axis=1)]
             if thin is None or not len(thin):

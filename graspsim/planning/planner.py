@@ -160,8 +160,9 @@ class PlannerConfig:
         contradicted by them. It is also at least as deep as the segment's own points reach
         behind the part, where the volume that adds lies in the camera's shadow (a standing
         carton fitted as a plate on its front face, its top fitted apart:
-        :func:`~graspsim.planning.table_completion.segment_depth`; that extent then counts
-        as measured; the count in ``extra["table"]["segment_depth"]``). Its far face moves
+        :func:`~graspsim.planning.table_completion.segment_depth`; a least depth: the faces
+        along it count as measured for ``hidden_faces``, a grasp across it is still judged by
+        ``seen_depth``; the count in ``extra["table"]["segment_depth"]``). Its far face moves
         away from the camera, not through the table. False (default; single-object
         planning): parts as identified. Scene planning turns it on.
     merge_boxes: robust identification of a single view: two box parts whose axes agree,
@@ -375,7 +376,8 @@ def _completed(prims: list, T_cloud: list, points: np.ndarray, seen: np.ndarray,
 
 
 def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedChecks, table: TablePlane | None,
-              viewpoint: np.ndarray, points: np.ndarray, view: ViewDepth, band: float) -> tuple[list, list, list]:
+              viewpoint: np.ndarray, points: np.ndarray, view: ViewDepth, band: float
+              ) -> tuple[list, list, list]:
     """``PlannerConfig.hidden_depth``: the parts with each box's unmeasured extent (no face
     along it seen: :meth:`~graspsim.planning.observed.ObservedChecks.unmeasured_axes`) at
     least :attr:`~graspsim.planning.observed.ObservedChecks.least_hidden_depth`, and as deep
@@ -383,15 +385,20 @@ def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedCheck
     camera's shadow (``view``; :func:`~graspsim.planning.table_completion.segment_depth`),
     its far face moved away from the camera (its seen face kept), not through the table; an
     axis the table bounds (``bounded``) is left as it is. Returns the parts, their poses and
-    per part the axes now bounded ((k, 3): the table's and the segment's; None: none)."""
+    per part the axes the segment's points deepened ((k, 3); None: none): a least depth, not
+    the depth (a carton's seen gable reaches back only to its ridge, half the carton), so
+    such an axis counts as measured for the extents of the faces along it
+    (:meth:`~graspsim.planning.observed.ObservedChecks.borne_out`), not for a grasp
+    closing across it (:meth:`~graspsim.planning.observed.ObservedChecks.unseen_depth`)."""
     least = observed.least_hidden_depth
     out_p, out_T, out_b = [], [], []
     for prim, T, axes in zip(prims, T_cloud, bounded):
         thin = observed.unmeasured_axes(prim, T) if prim.kind == "box" else None
+        floors = None
         if thin is None:
             out_p.append(prim)
             out_T.append(T)
-            out_b.append(axes)
+            out_b.append(floors)
             continue
         T = np.asarray(T, float).copy()
         dims = np.array([prim.x, prim.y, prim.z])
@@ -414,8 +421,8 @@ def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedCheck
                     add = min(add, max(0.0, (float(far @ n) - spread - table.height) / down))
             if add <= 0.0:
                 continue
-            if reach > 0.0 and add >= reach:  # the segment's own points measure this extent
-                axes = T[:3, j][None].copy() if axes is None else np.vstack([axes, T[:3, j]])
+            if reach > 0.0 and add >= reach:  # the segment's own points reach this deep: a least depth
+                floors = T[:3, j][None].copy() if floors is None else np.vstack([floors, T[:3, j]])
             dims[j] += add
             T[:3, 3] += 0.5 * add * d
             changed = True
@@ -423,8 +430,14 @@ def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedCheck
             prim, T = canonical_box(make_primitive("box", x=float(dims[0]), y=float(dims[1]), z=float(dims[2])), T)
         out_p.append(prim)
         out_T.append(T)
-        out_b.append(axes)
+        out_b.append(floors)
     return out_p, out_T, out_b
+
+
+def _axes(*sets) -> np.ndarray | None:
+    """The axes ((k, 3) each, or None) of ``sets`` stacked; None when there are none."""
+    got = [a for a in sets if a is not None]
+    return np.vstack(got) if got else None
 
 
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
@@ -437,7 +450,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     # the observed-point checks (robust mode); their object frame is set once the parts are final
     observed = ObservedChecks.of_plan(ident, points, None, np.eye(4), viewpoint, db, cfg)
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
-    bounded: list = [None] * len(prims)  # per part: its axes the table or the segment bounds ((k, 3))
+    bounded: list = [None] * len(prims)  # per part: its axes the table bounds ((k, 3))
     if (cfg.complete_to_table and cfg.table is not None and cfg.table.height is not None and viewpoint is not None
             and observed is not None):
         prims, T_cloud, bounded = _completed(prims, T_cloud, points, seen, cfg.table, viewpoint, cfg.table_band,
@@ -450,9 +463,9 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             ident_info = {**(ident_info or {}), "merged": len(bounded) - len(groups)}
             bounded = [None if all(bounded[i] is None for i in g)
                        else np.vstack([bounded[i] for i in g if bounded[i] is not None]) for g in groups]
-    n_bounded = sum(0 if b is None else len(b) for b in bounded)
+    floors: list = [None] * len(prims)  # per part: its axes the segment's points deepened (a least depth)
     if cfg.hidden_depth and observed is not None and viewpoint is not None:
-        prims, T_cloud, bounded = _deepened(prims, T_cloud, bounded, observed, cfg.table, viewpoint, points,
+        prims, T_cloud, floors = _deepened(prims, T_cloud, bounded, observed, cfg.table, viewpoint, points,
                                             ViewDepth(seen, viewpoint), cfg.table_band)
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
@@ -501,7 +514,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 # (not the lifted poses: their contacts lie within the contact tolerance of a low part's
                 # top face, whose points' normals would count against every side contact, and a scene's
                 # table band removes the side points that bear them out)
-                part_map = observed.borne_out(part_map, T_cloud_map, prim, T_cloud[i], bounded=bounded[i])
+                part_map = observed.borne_out(part_map, T_cloud_map, prim, T_cloud[i],
+                                              bounded=_axes(bounded[i], floors[i]))
                 part_map = observed.unseen_depth(part_map, prim, T_cloud[i], T_cloud_map, bounded=bounded[i])
             stage.lap("agreement")
             if compound is not None:
@@ -555,7 +569,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     if table is not None and cfg.complete_to_table:
         table = {**table, "completed": n_completed}
     if table is not None and cfg.hidden_depth:
-        table = {**table, "segment_depth": sum(0 if b is None else len(b) for b in bounded) - n_bounded}
+        table = {**table, "segment_depth": sum(0 if b is None else len(b) for b in floors)}
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
                   first_robust_cpu=first_robust_cpu, **stage.seconds)

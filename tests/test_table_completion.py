@@ -281,3 +281,22 @@ def test_parallel_box_parts_over_hidden_space_are_one_box_but_not_over_seen_spac
     assert len(merge_boxes([a, b], [Ta, Tb], ViewDepth(two, EYE), TABLE)[0]) == 2
     hidden = np.concatenate([two[:-4000], _faces([0.150, 0.080, 0.044], [0.0, -0.005, 0.022], rng, n=6000)])
     assert len(merge_boxes([a, b], [Ta, Tb], ViewDepth(hidden, EYE), TABLE)[0]) == 1  # a carton's top over them
+
+
+def test_an_axis_the_table_bounds_counts_as_measured_for_the_hidden_faces_rule(db):
+    """A block lying along the line of sight (30 x 150 x 40 mm) seen from above shows its top
+    alone: its height is a guess, so its edge-on long sides get no hidden-faces grasps. With
+    its height bounded (completed down to the table, or reached by its segment's points) the
+    sides' extents are no guess: the x axis, both of whose faces are edge-on, is returned."""
+    from graspsim.planning.observed import ObservedChecks
+
+    rng = np.random.default_rng(8)
+    top = np.column_stack([rng.uniform(-0.015, 0.015, 1500), rng.uniform(-0.075, 0.075, 1500), np.full(1500, 0.040)])
+    checks = ObservedChecks(top, None, np.eye(4), viewpoint=np.array([0.0, -0.4, 0.6]), noise=0.001, gripper=G,
+                            quality=db.quality, cfg=PlannerConfig(hidden_depth=True))
+    T = np.eye(4)
+    T[:3, 3] = [0.0, 0.0, 0.020]
+    block = Box(0.030, 0.150, 0.040)
+    assert checks._hidden_axes(block, T) is None
+    axes = checks._hidden_axes(block, T, np.array([[0.0, 0.0, 1.0]]))
+    assert axes is not None and len(axes) == 1 and abs(axes[0][0]) == pytest.approx(1.0)

@@ -66,8 +66,9 @@ def lowest(gripper, T_world_wrist: np.ndarray, opening: float) -> float:
     return float(gripper.lowest_along(T[2, :3][None], T[2, 3:4], np.array([opening]))[0])
 
 
-def episode(i: int, cfg: Config, db) -> list[dict]:
-    """Scene ``i``'s episode, one row per executed grasp."""
+def episode(i: int, cfg: Config, db) -> tuple[list[dict], list[dict]]:
+    """Scene ``i``'s episode: one row per executed grasp, and one per object left on the
+    table with why (``ClutterEpisode.left_reasons``: no_grasp, not_tried, ...)."""
     from graspsim.sim.noise import ExecutionNoise
     from graspsim.tabletop.clutter import ClutterConfig, ClutterEpisode, scene_settings
     from graspsim.tabletop.table_scene import make_scene
@@ -99,26 +100,36 @@ def episode(i: int, cfg: Config, db) -> list[dict]:
                          "overlaps_mm": {f"{name}->{what}": round(1000.0 * v, 1)
                                          for (name, what), v in where.items() if v > 0.001}})
             log.info("%s", json.dumps(rows[-1]))
+        left = [{"scene": i, "object": scene.objects[k].name, "why": why} for k, why in ep.left_reasons().items()]
     finally:
         ep.close()
-    return rows
+    return rows, left
 
 
 def run(cfg: Config, db) -> dict:
-    rows = [r for i in cfg.scenes for r in episode(i, cfg, db)]
+    done = [episode(i, cfg, db) for i in cfg.scenes]
+    rows = [r for e in done for r in e[0]]
+    left = [x for e in done for x in e[1]]
+    why: dict[str, dict[str, int]] = {}
+    for x in left:
+        why.setdefault(x["object"], {}).setdefault(x["why"], 0)
+        why[x["object"]][x["why"]] += 1
     removed = sum(r["cause"] in ("success", "success_other_object") for r in rows)
     causes: dict[str, int] = {}
     for r in rows:
         causes[r["cause"]] = causes.get(r["cause"], 0) + 1
     return {"grasps": len(rows), "lifted_target": causes.get("success", 0), "removed": removed,
-            "placed": cfg.objects * len(cfg.scenes), "causes": causes, "rows": rows,
+            "placed": cfg.objects * len(cfg.scenes), "causes": causes, "rows": rows, "left": left,
+            "left_by_object": why,
             "denominators": "grasps: executed in the listed scenes; placed: objects x scenes"}
 
 
 def readme_section(s: dict) -> str:
     """The failures, one row each."""
     L = [f"`{s['command']}`: {s['lifted_target']}/{s['grasps']} grasps lifted their target, "
-         f"{s['removed']}/{s['placed']} objects removed.", "",
+         f"{s['removed']}/{s['placed']} objects removed; left on the table: "
+         + ("; ".join(f"{o} {', '.join(f'{w} {n}' for w, n in ws.items())}" for o, ws in s["left_by_object"].items())
+            or "none") + ".", "",
          "| scene | object | segment | identified as | outside > 3/6/10 mm | score | lowest planned / executed [mm] "
          "| cause | overlap [mm] |",
          "|---|---|---|---|---|---|---|---|---|"]

@@ -11,10 +11,11 @@ from graspsim.geometry.table import TablePlane
 from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.map_config import MapConfig
+from graspsim.maps.occlusion import ViewDepth
 from graspsim.perception import identify
 from graspsim.planning.planner import PlannerConfig, canonical_box
 from graspsim.planning.scene_config import SceneConfig
-from graspsim.planning.table_completion import complete_to_table
+from graspsim.planning.table_completion import complete_to_table, segment_depth
 from graspsim.primitives import Box
 
 EYE = np.array([0.0, -0.402, 0.603])  # E10's camera: 0.4 m in front of the table's centre, 0.6 m above it
@@ -145,6 +146,8 @@ def test_only_scene_planning_completes():
     assert PlannerConfig().complete_to_table is False
     assert SceneConfig().planner.complete_to_table is True
     assert replace(PlannerConfig(), complete_to_table=True).complete_to_table
+    assert PlannerConfig().merge_boxes is False and PlannerConfig().hidden_depth is False
+    assert SceneConfig().planner.merge_boxes is True and SceneConfig().planner.hidden_depth is True
 
 
 def test_a_domino_standing_face_on_is_given_the_depth_the_view_can_tell_and_grasps_across_it(db):
@@ -168,10 +171,11 @@ def test_a_domino_standing_face_on_is_given_the_depth_the_view_can_tell_and_gras
     plate = Box(0.0026, 0.024, 0.048)
     checks = ObservedChecks(pts, None, np.eye(4), viewpoint=EYE, noise=0.001, gripper=G, quality=db.quality,
                             cfg=PlannerConfig(hidden_depth=True))
-    (deep,), (T2,) = _deepened([plate], [T], [None], checks, TABLE, EYE)
+    view = ViewDepth(pts, EYE)
+    (deep,), (T2,), _ = _deepened([plate], [T], [None], checks, TABLE, EYE, pts, view, 0.006)
     assert deep.x >= checks.least_hidden_depth - 1e-9 and (deep.y, deep.z) == (plate.y, plate.z)
     assert T2[1, 3] - 0.5 * deep.x == pytest.approx(-0.003, abs=1e-9)  # the seen face kept
-    (same,), _ = _deepened([plate], [T], [np.array([0.0, 1.0, 0.0])], checks, TABLE, EYE)
+    (same,), _, _ = _deepened([plate], [T], [np.array([[0.0, 1.0, 0.0]])], checks, TABLE, EYE, pts, view, 0.006)
     assert same == plate  # an axis the table bounds is left alone
 
     def across(box, pose):
@@ -182,3 +186,117 @@ def test_a_domino_standing_face_on_is_given_the_depth_the_view_can_tell_and_gras
 
     thin, deeper = across(plate, T), across(deep, T2)
     assert deeper > 20 * thin  # 15 vs 3753 when written: the thin plate's far contacts contradicted
+
+
+def _carton(rng, top=True):
+    """A standing carton (44 x 44 x 125 mm) seen by E10's camera: its front face (facing -y,
+    towards EYE) and, with ``top``, its top face, which reaches back its whole depth."""
+    front = np.column_stack([rng.uniform(-0.022, 0.022, 1200), np.full(1200, -0.022), rng.uniform(0.007, 0.125, 1200)])
+    pts = [front]
+    if top:
+        pts.append(np.column_stack([rng.uniform(-0.022, 0.022, 500), rng.uniform(-0.022, 0.022, 500),
+                                    np.full(500, 0.125)]))
+    return np.concatenate(pts)
+
+
+def test_a_box_part_is_as_deep_as_its_segment_reaches_behind_it():
+    """A standing carton fitted as a 4 mm plate on its front face (the top fitted apart, as
+    the milk carton's gable is): the segment's top points reach 44 mm back, so the plate's
+    unmeasured depth is at least that, where the volume gained lies in the camera's shadow."""
+    from graspsim.planning.observed import ObservedChecks
+    from graspsim.planning.planner import _deepened
+
+    rng = np.random.default_rng(5)
+    pts = _carton(rng)
+    plate = Box(0.004, 0.044, 0.118)
+    T = np.eye(4)
+    T[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]  # the plate's x (its thickness) along y
+    T[:3, 3] = [0.0, -0.022 + 0.002, 0.066]
+    d = np.array([0.0, 1.0, 0.0])  # away from the camera
+    view = ViewDepth(pts, EYE)
+    added = segment_depth(plate, T, 0, d, pts, view, TABLE)
+    assert 0.035 <= added <= 0.040 + 1e-9  # its top reaches 40 mm behind the plate (a quantile of it)
+    front = _carton(rng, top=False)
+    assert segment_depth(plate, T, 0, d, front, ViewDepth(front, EYE), TABLE) == 0.0  # nothing behind it
+    # the camera saw the space behind the plate (points beyond it, e.g. the table seen past it): not hidden
+    past = np.column_stack([rng.uniform(-0.02, 0.02, 3000), rng.uniform(-0.018, 0.02, 3000),
+                            rng.uniform(0.01, 0.12, 3000)])
+    open_view = ViewDepth(np.concatenate([pts[:1200], past[past[:, 2] < 0.02]]), EYE)
+    assert segment_depth(plate, T, 0, d, pts, open_view, TABLE) == 0.0
+    # through the planner's step: deepened to the segment's reach, that axis counted as measured
+    checks = ObservedChecks(pts, None, np.eye(4), viewpoint=EYE, noise=0.001, gripper=G, quality=None,
+                            cfg=PlannerConfig(hidden_depth=True))
+    (deep,), (T2,), (axes,) = _deepened([plate], [T], [None], checks, TABLE, EYE, pts, view, 0.006)
+    assert 0.039 <= deep.x <= 0.044 + 1e-9 and deep.z == plate.z
+    assert T2[1, 3] - 0.5 * deep.x == pytest.approx(-0.022, abs=1e-9)  # the seen face kept
+    assert axes is not None and abs(float(axes[0] @ d)) > 0.99
+
+
+def test_a_box_whose_foot_a_neighbour_hides_is_completed_unless_it_rests_on_one():
+    """A box 30 x 60 x 40 mm lying on the table behind a 20 mm neighbour: the camera sees its
+    top and its front face above 20 mm; fitted as a 12 mm plate. The neighbour's points are
+    in front of the volume down to the table, not in it: completed. A neighbour under it
+    (points inside that volume): left as fitted; without the neighbours: as before."""
+    rng = np.random.default_rng(6)
+    size, c = np.array([0.030, 0.060, 0.040]), np.array([0.0, 0.0, 0.020])
+    pts = _faces(size, c, rng)
+    pts = pts[pts[:, 2] > 0.020]
+    wall = np.column_stack([rng.uniform(-0.03, 0.03, 800), np.full(800, -0.045), rng.uniform(0.006, 0.020, 800)])
+    plate = Box(0.030, 0.060, 0.012)
+    T = np.eye(4)
+    T[:3, 3] = [0.0, 0.0, 0.034]
+    seen = np.concatenate([pts, wall])
+    new, T2, how = complete_to_table(plate, T, pts, TABLE, EYE, ViewDepth(seen, EYE), neighbours=wall)
+    assert how.axis is not None and new.z == pytest.approx(0.040, abs=1e-6)
+    assert T2[2, 3] - 0.5 * new.z == pytest.approx(0.0, abs=1e-6)  # down to the table
+    assert complete_to_table(plate, T, pts, TABLE, EYE, ViewDepth(seen, EYE))[2].axis is None
+    under = np.column_stack([rng.uniform(-0.01, 0.01, 50), rng.uniform(-0.02, 0.02, 50), np.full(50, 0.015)])
+    held = np.concatenate([wall, under])
+    assert complete_to_table(plate, T, pts, TABLE, EYE, ViewDepth(np.concatenate([pts, held]), EYE),
+                             neighbours=held)[2].axis is None
+
+
+def test_parallel_box_parts_over_hidden_space_are_one_box_but_not_over_seen_space():
+    """A carton lying on its side (44 x 44 x 150 mm, long axis along x) fitted as two slabs
+    with an 8 mm gap between them under its seen top: the gap lies in the camera's shadow,
+    so the slabs are one box, their union. Two blocks side by side with the table seen
+    between them stay two."""
+    from graspsim.planning.box_merge import merge_boxes
+
+    rng = np.random.default_rng(7)
+    carton = _faces([0.150, 0.044, 0.044], [0.0, 0.0, 0.022], rng)
+    a, b = Box(0.150, 0.010, 0.044), Box(0.150, 0.026, 0.044)
+    Ta, Tb = np.eye(4), np.eye(4)
+    Ta[:3, 3] = [0.0, -0.017, 0.022]
+    Tb[:3, 3] = [0.0, 0.009, 0.022]  # 8 mm between the slabs
+    prims, poses, groups = merge_boxes([a, b], [Ta, Tb], ViewDepth(carton, EYE), TABLE)
+    box = canonical_box(prims[0], poses[0])[0]
+    assert groups == [[0, 1]] and (box.x, box.y, box.z) == pytest.approx((0.044, 0.044, 0.150), abs=1e-9)
+    assert poses[0][:3, 3] == pytest.approx([0.0, 0.0, 0.022], abs=1e-9)
+    # two such blocks 50 mm apart, the table seen between them: not one box
+    Ta[1, 3], Tb[1, 3] = -0.040, 0.030
+    two = np.concatenate([_faces([0.150, 0.010, 0.044], Ta[:3, 3], rng), _faces([0.150, 0.026, 0.044], Tb[:3, 3], rng),
+                          np.column_stack([rng.uniform(-0.075, 0.075, 4000), rng.uniform(-0.035, 0.017, 4000),
+                                           np.full(4000, 0.0)])])
+    assert len(merge_boxes([a, b], [Ta, Tb], ViewDepth(two, EYE), TABLE)[0]) == 2
+    hidden = np.concatenate([two[:-4000], _faces([0.150, 0.080, 0.044], [0.0, -0.005, 0.022], rng, n=6000)])
+    assert len(merge_boxes([a, b], [Ta, Tb], ViewDepth(hidden, EYE), TABLE)[0]) == 1  # a carton's top over them
+
+
+def test_an_axis_the_table_bounds_counts_as_measured_for_the_hidden_faces_rule(db):
+    """A block lying along the line of sight (30 x 150 x 40 mm) seen from above shows its top
+    alone: its height is a guess, so its edge-on long sides get no hidden-faces grasps. With
+    its height bounded (completed down to the table, or reached by its segment's points) the
+    sides' extents are no guess: the x axis, both of whose faces are edge-on, is returned."""
+    from graspsim.planning.observed import ObservedChecks
+
+    rng = np.random.default_rng(8)
+    top = np.column_stack([rng.uniform(-0.015, 0.015, 1500), rng.uniform(-0.075, 0.075, 1500), np.full(1500, 0.040)])
+    checks = ObservedChecks(top, None, np.eye(4), viewpoint=np.array([0.0, -0.4, 0.6]), noise=0.001, gripper=G,
+                            quality=db.quality, cfg=PlannerConfig(hidden_depth=True))
+    T = np.eye(4)
+    T[:3, 3] = [0.0, 0.0, 0.020]
+    block = Box(0.030, 0.150, 0.040)
+    assert checks._hidden_axes(block, T) is None
+    axes = checks._hidden_axes(block, T, np.array([[0.0, 0.0, 1.0]]))
+    assert axes is not None and len(axes) == 1 and abs(axes[0][0]) == pytest.approx(1.0)

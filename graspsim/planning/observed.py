@@ -144,7 +144,7 @@ class ObservedChecks:
         return tol if self.min_observed < 2 else max(tol, SPACING_TOLERANCE * self.spacing)
 
     def borne_out(self, part_map: GraspabilityMap, T_cloud_map: np.ndarray, prim=None,
-                  T_cloud_part: np.ndarray | None = None) -> GraspabilityMap:
+                  T_cloud_part: np.ndarray | None = None, bounded: np.ndarray | None = None) -> GraspabilityMap:
         """The grasps of ``part_map`` (frame ``T_cloud_map`` in the cloud's) the observed
         cloud bears out (:meth:`~graspsim.maps.agreement.ObservedSurface.borne_out`, at
         :attr:`contact_tolerance` and :attr:`min_observed`); the answer depends on a
@@ -160,12 +160,14 @@ class ObservedChecks:
         end its height: :meth:`unseen_depth`'s test) -- the contacts' places and the
         hidden faces' extents are then the seen faces' edges, not a guess
         (``PlannerConfig.hidden_faces``). Without ``prim`` or a viewpoint, or with
-        ``hidden_faces`` off: the plain rule."""
+        ``hidden_faces`` off: the plain rule. ``bounded`` (k, 3): the part's axes the table
+        bounds or its segment's points reach along (its faces' extents along them no guess):
+        measured."""
         line = row_ids(part_map.contacts)
         c = part_map.contacts[first_rows(line)].astype(float) @ T_cloud_map[:3, :3].T + T_cloud_map[:3, 3]
         agree, borne = self.surface.evidence(c, tol=self.contact_tolerance, max_angle=self.quality.friction_angle)
         keep = agree & (borne >= self.min_observed)
-        hidden = self._hidden_axes(prim, T_cloud_part)
+        hidden = self._hidden_axes(prim, T_cloud_part, bounded)
         if hidden is not None and self.cfg.hidden_faces:
             unseen = agree & (borne == 0) & ~keep
             if unseen.any():
@@ -174,12 +176,13 @@ class ObservedChecks:
                 keep |= unseen & np.any(np.abs(u @ hidden.T) >= np.cos(np.radians(45.0)), axis=1)
         return part_map.select(keep[line])
 
-    def _hidden_axes(self, prim, T_cloud_part) -> np.ndarray | None:
+    def _hidden_axes(self, prim, T_cloud_part, bounded: np.ndarray | None = None) -> np.ndarray | None:
         """(k, 3) the axes of box part ``prim`` (at ``T_cloud_part``, cloud frame) whose
         faces a single view could not see (both turned more than :data:`HIDDEN_FACE_ANGLE`
         from the viewpoint), when it measured the part's extent along every axis (so also
         the hidden faces' own extents: a plate fitted to a block's top alone has its height
-        guessed, and contacts on its sides would hold the block by its top few mm); None:
+        guessed, and contacts on its sides would hold the block by its top few mm; an axis in
+        ``bounded`` (k, 3), which the table or the segment bounds, counts as measured); None:
         none, not every extent measured, not a box, or no viewpoint."""
         if self.viewpoint is None or prim is None or prim.kind != "box" or T_cloud_part is None:
             return None
@@ -190,7 +193,11 @@ class ObservedChecks:
         shares = self._along_shares(prim, T)
         if shares is None:
             return None
-        if np.any(shares < MEASURED_SHARE):  # a face's extent is a guess (a plate fitted to a block's top)
+        measured = shares >= MEASURED_SHARE
+        if bounded is not None:  # an extent the table or the segment bounds is no guess
+            B = np.asarray(bounded, float).reshape(-1, 3)
+            measured |= np.any(np.abs(T[:3, :3].T @ B.T) > np.cos(np.radians(UNSEEN_CONE_DEG)), axis=1)
+        if not np.all(measured):  # a face's extent is a guess (a plate fitted to a block's top)
             return None
         axes = T[:3, :3][:, faces_hidden].T
         return axes if len(axes) else None
@@ -223,8 +230,9 @@ class ObservedChecks:
         volume (at its pre-grasp opening) lies in space the view did not see: there the
         camera saw past the part, so the object does not go on where the far finger goes
         (a domino standing on its edge, grasped across its thickness from above).
-        ``bounded`` (3,): a box part's axis the table bounds (the part completed down to
-        it: :mod:`~graspsim.planning.table_completion`): measured, whatever its faces show.
+        ``bounded`` (3,) or (k, 3): a box part's axes the table bounds (the part completed
+        down to it: :mod:`~graspsim.planning.table_completion`): measured, whatever its
+        faces show.
         Unchanged without a viewpoint (a cloud seen all round shows depths) or with
         ``PlannerConfig.seen_depth`` off."""
         if self.viewpoint is None or not self.cfg.seen_depth or not len(part_map):
@@ -237,7 +245,8 @@ class ObservedChecks:
         if prim.kind == "box":
             thin = self._unmeasured_axes(prim, T_cloud_part)
             if thin is not None and bounded is not None:  # the table bounds that extent: measured
-                thin = thin[np.abs(thin @ np.asarray(bounded, float)) < cone]
+                B = np.asarray(bounded, float).reshape(-1, 3)
+                thin = thin[np.all(np.abs(thin @ B.T) < cone, axis=1)]
             if thin is None or not len(thin):
                 return part_map
             keep = np.all(np.abs(closing @ thin.T) < cone, axis=1)

@@ -46,10 +46,11 @@ from graspsim.maps.table_clearance import (
     table_height,
 )
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
+from graspsim.planning.box_merge import merge_boxes
 from graspsim.planning.observed import ObservedChecks
 from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
 from graspsim.planning.stages import StageClock
-from graspsim.planning.table_completion import complete_to_table
+from graspsim.planning.table_completion import complete_to_table, segment_depth
 from graspsim.primitives import Compound, Primitive, make_primitive
 from graspsim.primitives.compound import object_frame
 from graspsim.transforms import invert_transform
@@ -143,7 +144,9 @@ class PlannerConfig:
         height: a box part whose hidden far face hangs above the table, on a segment that
         touches it, with the space between in the camera's shadow, is completed down to the
         table plane (the object cannot float; a carton lying on its side fitted as a 2 cm
-        plate, a domino fitted 2 mm thick) and a grasp may close across that extent
+        plate, a domino fitted 2 mm thick) and a grasp may close across that extent; a segment
+        whose foot a neighbour hides is completed too where none of the neighbours' points
+        (``obstacles``) lies in the added volume
         (:func:`~graspsim.planning.table_completion.complete_to_table`; the count in
         ``extra["table"]["completed"]``). False (default; single-object planning): parts as
         identified. Scene planning turns it on.
@@ -154,9 +157,21 @@ class PlannerConfig:
         (:attr:`~graspsim.planning.observed.ObservedChecks.least_hidden_depth`); the fit
         makes it what the noise allows (a 6 mm domino 2.3 to 3.7 mm), which puts the far
         contact among the seen face's own points, so every grasp across it is taken as
-        contradicted by them. Its far face moves away from the camera, not through the
-        table. False (default; single-object planning): parts as identified. Scene planning
-        turns it on.
+        contradicted by them. It is also at least as deep as the segment's own points reach
+        behind the part, where the volume that adds lies in the camera's shadow (a standing
+        carton fitted as a plate on its front face, its top fitted apart:
+        :func:`~graspsim.planning.table_completion.segment_depth`; a least depth: the faces
+        along it count as measured for ``hidden_faces``, a grasp across it is still judged by
+        ``seen_depth``; the count in ``extra["table"]["segment_depth"]``). Its far face moves
+        away from the camera, not through the table. False (default; single-object
+        planning): parts as identified. Scene planning turns it on.
+    merge_boxes: robust identification of a single view: two box parts whose axes agree,
+        the volume of their union's box neither fills in the camera's shadow, are merged
+        into that box (a carton the fit cut into parallel slabs, whose
+        combined maps hold no grasp across the whole carton:
+        :func:`~graspsim.planning.box_merge.merge_boxes`; the count in
+        ``extra["identification"]["merged"]``), after ``complete_to_table``. False (default;
+        single-object planning): parts as identified. Scene planning turns it on.
     table_band: [m] with ``complete_to_table``: the height above the table below which the
         cloud's points were cut away as the table's (a scene's ``SceneConfig.table_band``,
         which sets it); the completed volume's hidden space is judged above it.
@@ -180,6 +195,7 @@ class PlannerConfig:
     complete_to_table: bool = False
     table_band: float = 0.006
     hidden_depth: bool = False
+    merge_boxes: bool = False
 
     def __post_init__(self) -> None:
         if self.low_profile is not None and not isinstance(self.low_profile, LowProfile):
@@ -340,46 +356,61 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
 
 
 def _completed(prims: list, T_cloud: list, points: np.ndarray, seen: np.ndarray,
-               table: TablePlane, viewpoint: np.ndarray, band: float) -> tuple[list, list, list]:
+               table: TablePlane, viewpoint: np.ndarray, band: float,
+               neighbours: np.ndarray | None = None) -> tuple[list, list, list]:
     """``PlannerConfig.complete_to_table``: the parts (canonical boxes again), their poses
-    and per part the axis the table now bounds (None: left as identified); ``seen``: the
-    segment's points and the obstacles'."""
+    and per part the axis the table now bounds ((1, 3); None: left as identified); ``seen``: the
+    segment's points and the obstacles'; ``neighbours``: the obstacles' alone (a segment whose
+    foot a neighbour hides is completed where none of them is in the way; None: only segments
+    touching the table)."""
     view = ViewDepth(seen, viewpoint)
     out_p, out_T, bounded = [], [], []
     for prim, T in zip(prims, T_cloud):
-        p, Tp, how = complete_to_table(prim, T, points, table, viewpoint, view, band=band)
+        p, Tp, how = complete_to_table(prim, T, points, table, viewpoint, view, band=band, neighbours=neighbours)
         if how.axis is not None:
             p, Tp = canonical_box(p, Tp)
         out_p.append(p)
         out_T.append(Tp)
-        bounded.append(how.axis)
+        bounded.append(None if how.axis is None else how.axis[None])
     return out_p, out_T, bounded
 
 
 def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedChecks, table: TablePlane | None,
-              viewpoint: np.ndarray) -> tuple[list, list]:
+              viewpoint: np.ndarray, points: np.ndarray, view: ViewDepth, band: float
+              ) -> tuple[list, list, list]:
     """``PlannerConfig.hidden_depth``: the parts with each box's unmeasured extent (no face
     along it seen: :meth:`~graspsim.planning.observed.ObservedChecks.unmeasured_axes`) at
-    least :attr:`~graspsim.planning.observed.ObservedChecks.least_hidden_depth`, its far
-    face moved away from the camera (its seen face kept), not through the table; an
-    axis the table bounds (``bounded``) is left as it is."""
+    least :attr:`~graspsim.planning.observed.ObservedChecks.least_hidden_depth`, and as deep
+    as the segment's own ``points`` reach along it where the volume that adds lies in the
+    camera's shadow (``view``; :func:`~graspsim.planning.table_completion.segment_depth`),
+    its far face moved away from the camera (its seen face kept), not through the table; an
+    axis the table bounds (``bounded``) is left as it is. Returns the parts, their poses and
+    per part the axes the segment's points deepened ((k, 3); None: none): a least depth, not
+    the depth (a carton's seen gable reaches back only to its ridge, half the carton), so
+    such an axis counts as measured for the extents of the faces along it
+    (:meth:`~graspsim.planning.observed.ObservedChecks.borne_out`), not for a grasp
+    closing across it (:meth:`~graspsim.planning.observed.ObservedChecks.unseen_depth`)."""
     least = observed.least_hidden_depth
-    out_p, out_T = [], []
-    for prim, T, axis in zip(prims, T_cloud, bounded):
+    out_p, out_T, out_b = [], [], []
+    for prim, T, axes in zip(prims, T_cloud, bounded):
         thin = observed.unmeasured_axes(prim, T) if prim.kind == "box" else None
+        floors = None
         if thin is None:
             out_p.append(prim)
             out_T.append(T)
+            out_b.append(floors)
             continue
         T = np.asarray(T, float).copy()
         dims = np.array([prim.x, prim.y, prim.z])
         changed = False
         for u in thin:
             j = int(np.argmax(np.abs(T[:3, :3].T @ u)))
-            if dims[j] >= least or (axis is not None and abs(float(u @ axis)) > 0.99):
+            if axes is not None and np.any(np.abs(axes @ u) > 0.99):
                 continue
             d = T[:3, j] * (1.0 if float((T[:3, 3] - viewpoint) @ T[:3, j]) >= 0.0 else -1.0)  # away from the camera
-            add = least - dims[j]
+            reach = segment_depth(make_primitive("box", x=float(dims[0]), y=float(dims[1]), z=float(dims[2])),
+                                  T, j, d, points, view, table, band)
+            add = max(least - dims[j], reach)
             if table is not None and table.height is not None:  # not through the table
                 n = np.asarray(table.normal, float)
                 down = -float(d @ n)
@@ -390,6 +421,8 @@ def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedCheck
                     add = min(add, max(0.0, (float(far @ n) - spread - table.height) / down))
             if add <= 0.0:
                 continue
+            if reach > 0.0 and add >= reach:  # the segment's own points reach this deep: a least depth
+                floors = T[:3, j][None].copy() if floors is None else np.vstack([floors, T[:3, j]])
             dims[j] += add
             T[:3, 3] += 0.5 * add * d
             changed = True
@@ -397,7 +430,14 @@ def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedCheck
             prim, T = canonical_box(make_primitive("box", x=float(dims[0]), y=float(dims[1]), z=float(dims[2])), T)
         out_p.append(prim)
         out_T.append(T)
-    return out_p, out_T
+        out_b.append(floors)
+    return out_p, out_T, out_b
+
+
+def _axes(*sets) -> np.ndarray | None:
+    """The axes ((k, 3) each, or None) of ``sets`` stacked; None when there are none."""
+    got = [a for a in sets if a is not None]
+    return np.vstack(got) if got else None
 
 
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
@@ -410,12 +450,23 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     # the observed-point checks (robust mode); their object frame is set once the parts are final
     observed = ObservedChecks.of_plan(ident, points, None, np.eye(4), viewpoint, db, cfg)
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
-    bounded: list = [None] * len(prims)  # per part: its axis the table bounds (completed down to it)
+    bounded: list = [None] * len(prims)  # per part: its axes the table bounds ((k, 3))
     if (cfg.complete_to_table and cfg.table is not None and cfg.table.height is not None and viewpoint is not None
             and observed is not None):
-        prims, T_cloud, bounded = _completed(prims, T_cloud, points, seen, cfg.table, viewpoint, cfg.table_band)
+        prims, T_cloud, bounded = _completed(prims, T_cloud, points, seen, cfg.table, viewpoint, cfg.table_band,
+                                             None if obstacles is None else np.asarray(obstacles, float).reshape(-1, 3))
+    n_completed = sum(b is not None for b in bounded)
+    if cfg.merge_boxes and observed is not None and viewpoint is not None and len(prims) > 1:  # one box
+        prims, T_cloud, groups = merge_boxes(prims, T_cloud, ViewDepth(seen, viewpoint), cfg.table, cfg.table_band)
+        if len(groups) < len(bounded):
+            prims, T_cloud = (list(x) for x in zip(*(canonical_box(p, T) for p, T in zip(prims, T_cloud))))
+            ident_info = {**(ident_info or {}), "merged": len(bounded) - len(groups)}
+            bounded = [None if all(bounded[i] is None for i in g)
+                       else np.vstack([bounded[i] for i in g if bounded[i] is not None]) for g in groups]
+    floors: list = [None] * len(prims)  # per part: its axes the segment's points deepened (a least depth)
     if cfg.hidden_depth and observed is not None and viewpoint is not None:
-        prims, T_cloud = _deepened(prims, T_cloud, bounded, observed, cfg.table, viewpoint)
+        prims, T_cloud, floors = _deepened(prims, T_cloud, bounded, observed, cfg.table, viewpoint, points,
+                                            ViewDepth(seen, viewpoint), cfg.table_band)
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)
@@ -463,7 +514,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                 # (not the lifted poses: their contacts lie within the contact tolerance of a low part's
                 # top face, whose points' normals would count against every side contact, and a scene's
                 # table band removes the side points that bear them out)
-                part_map = observed.borne_out(part_map, T_cloud_map, prim, T_cloud[i])
+                part_map = observed.borne_out(part_map, T_cloud_map, prim, T_cloud[i],
+                                              bounded=_axes(bounded[i], floors[i]))
                 part_map = observed.unseen_depth(part_map, prim, T_cloud[i], T_cloud_map, bounded=bounded[i])
             stage.lap("agreement")
             if compound is not None:
@@ -515,7 +567,9 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     if table is not None and lift is not None:
         table = {**table, "low_profile": lift.to_dict(), "low_parts": n_low, "lifted": n_lifted}
     if table is not None and cfg.complete_to_table:
-        table = {**table, "completed": sum(b is not None for b in bounded)}
+        table = {**table, "completed": n_completed}
+    if table is not None and cfg.hidden_depth:
+        table = {**table, "segment_depth": sum(0 if b is None else len(b) for b in floors)}
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)
     timing.update(total=time.perf_counter() - t0, first=first, tenth=tenth, first_robust=first_robust,
                   first_robust_cpu=first_robust_cpu, **stage.seconds)

@@ -12,6 +12,7 @@ from graspsim.cli import main
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.map_config import MapConfig
 from graspsim.perception import read_point_cloud
+from graspsim.planning.planner import PlannerConfig
 from graspsim.planning.scene import plan_scene
 from graspsim.planning.scene_config import SceneConfig
 from graspsim.primitives import Box, Cylinder, Sphere
@@ -98,9 +99,9 @@ def test_the_budget_flags_help_names_the_default_scene_config_holds():
 
 
 def test_the_unseen_margin_flag_reaches_the_robust_score(tmp_path, capsys, db):
-    """--unseen-margin alone is the measured margin, with a value that value, absent the
-    planner's default (off); scene and plan-scene read it alike, and plan-scene records the
-    margin it planned with."""
+    """--unseen-margin alone is the measured margin, with a value that value (0: none),
+    absent the scene planner's default (the measured margin); scene and plan-scene read it
+    alike, and plan-scene records the margin it planned with (none without a viewpoint)."""
     from dataclasses import replace
 
     from graspsim.cli import build_parser
@@ -110,11 +111,13 @@ def test_the_unseen_margin_flag_reaches_the_robust_score(tmp_path, capsys, db):
     planner = SceneConfig().planner
     for command in ("scene", "plan-scene"):
         head = [command] if command == "scene" else [command, "c.npy", "-o", "g.json"]
-        for flag, want in (([], 0.0), (["--unseen-margin"], UNSEEN_MARGIN), (["--unseen-margin", "0.01"], 0.01)):
+        for flag, want in (([], UNSEEN_MARGIN), (["--unseen-margin"], UNSEEN_MARGIN),
+                           (["--unseen-margin", "0.01"], 0.01), (["--unseen-margin", "0"], 0.0)):
             args = build_parser().parse_args([*head, *flag])
             got = scene_planning_from_args(args, SceneConfig()).planner.robust.unseen_margin
             assert got == want, (command, flag)
-    assert UNSEEN_MARGIN > 0 and replace(planner.robust).unseen_margin == 0.0  # off by default
+    assert UNSEEN_MARGIN > 0 and replace(planner.robust).unseen_margin == UNSEEN_MARGIN  # on by default in scenes
+    assert PlannerConfig().robust.unseen_margin == 0.0  # not in the single-object planner's settings
     rng = np.random.default_rng(1)
     table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), rng.normal(0, 0.0005, 3000)]
     box = np.c_[rng.uniform(-0.03, 0.03, (800, 2)), rng.uniform(0, 0.06, 800)]
@@ -123,6 +126,8 @@ def test_the_unseen_margin_flag_reaches_the_robust_score(tmp_path, capsys, db):
     code, s, _ = _run(capsys, f, "-o", out, "--viewpoint", 0, -0.4, 0.5, "--unseen-margin", 0.015,
                       "--db", db.root, *FAST_FLAGS)
     assert code == 0 and json.loads(out.read_text())["unseen_margin"] == 0.015
+    code, s, _ = _run(capsys, f, "-o", out, "--db", db.root, *FAST_FLAGS)  # no viewpoint: no unseen side known
+    assert code == 0 and json.loads(out.read_text())["unseen_margin"] == 0.0
 
 
 @pytest.mark.slow
@@ -283,7 +288,7 @@ def test_a_cloud_too_big_for_the_memory_budget_is_refused_before_any_work(tmp_pa
     ("ok", ["--unseen-margin"], "needs the camera's place"),
     ("ok", ["--unseen-margin", "0.5", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
     ("ok", ["--unseen-margin", "nan", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
-    ("ok", ["--unseen-margin", "0", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
+    ("ok", ["--unseen-margin", "-0.01", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
 ])
 def test_bad_input_is_a_one_line_error_and_writes_nothing(how, args, message, tmp_path, capsys, db):
     rng = np.random.default_rng(1)

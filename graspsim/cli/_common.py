@@ -119,13 +119,13 @@ def budget_from_args(args) -> dict:
 def add_unseen_margin_flag(p, help: str | None = None) -> None:
     """``--unseen-margin [M]``, the robust score's margin against an object's unseen back
     (read with :func:`unseen_margin_value`); ``help``:
-    the command's own text (default: the scene commands', where it is opt-in)."""
+    the command's own text (default: the scene commands')."""
     p.add_argument("--unseen-margin", type=float, nargs="?", const=True, default=None, metavar="M",
-                   help=help or "opt-in: a grasp whose far finger comes within M [m] of the fitted back, in space the "
-                   "camera did not see, scores less (by the distance's share of M) and wider openings are tried "
-                   "for it (alone: the measured 0.02 m; RobustConfig.unseen_margin); on packed tables fewer start "
-                   "collisions with an object's unseen back, in piles fewer grasps (docs/scenes.md); needs the "
-                   "camera's place")
+                   help=help or "with the camera's place known: a grasp whose far finger comes within M [m] of the "
+                   "object's own fitted back, in space the camera did not see, scores less (by the distance's share "
+                   "of M) and wider openings are tried for it (default and alone: the measured 0.02 m; 0: none; "
+                   "RobustConfig.unseen_margin); fewer start collisions with an object's unseen back "
+                   "(docs/scenes.md)")
 
 
 def unseen_margin_value(args, *, none: bool = False) -> float | None:
@@ -166,7 +166,7 @@ def scene_planning_from_args(args, scene):
 
     scene = replace(scene, **budget_from_args(args))
     try:
-        return with_unseen_margin(scene, unseen_margin_value(args))
+        return with_unseen_margin(scene, unseen_margin_value(args, none=True))
     except InvalidParameterError as err:
         raise InvalidParameterError(f"--unseen-margin: {err}") from None
 

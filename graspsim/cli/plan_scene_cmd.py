@@ -60,7 +60,7 @@ def _cmd_plan_scene(args) -> int:
         viewpoint = check_viewpoint(loaded["viewpoint"])  # a file's camera record: checked as --viewpoint is
     if up is None and viewpoint is not None:  # the camera sees the table from above it
         up = viewpoint - np.median(pts, axis=0) if len(pts) else None
-    if args.unseen_margin is not None and viewpoint is None:
+    if args.unseen_margin not in (None, 0.0) and viewpoint is None:
         raise InvalidParameterError("--unseen-margin needs the camera's place: give --viewpoint X Y Z (or a cloud "
                                     "with its camera record)")
     cfg = scene_planning_from_args(args, replace(SceneConfig(), min_gap=args.min_gap or None,
@@ -157,7 +157,8 @@ def _record(args, plan, loaded, pts, viewpoint, cfg, crop, gripper: str) -> dict
     return {"graspsim": __version__, "cloud": str(Path(args.cloud).resolve()), **loaded["source"],
             "points": int(loaded["n_read"]), "used": int(len(pts)), "viewpoint": viewpoint, "up": cfg.up,
             "crop": crop, "min_gap": cfg.min_gap, "budget": cfg.budget,
-            "unseen_margin": cfg.planner.robust.unseen_margin, "seed": args.seed, "gripper": gripper,
+            "unseen_margin": cfg.planner.robust.unseen_margin if viewpoint is not None else 0.0,  # applied with a view
+            "seed": args.seed, "gripper": gripper,
             "table": per.plane.to_dict(), "segments": segments, "grasps": [g.to_dict() for g in plan.grasps],
             "best": None if best is None else best.to_dict(), "timing": plan.timing}
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from graspsim.checks import POSITIVE, check_fields, integer
 from graspsim.errors import InvalidParameterError
+from graspsim.maps.robust import UNSEEN_MARGIN, RobustConfig
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.segment import gap_link
 from graspsim.planning.planner import PlannerConfig
@@ -53,8 +54,10 @@ def _scene_planner() -> PlannerConfig:
     # one contact borne out even without a viewpoint: a segment is not all of its object (thinned, cut at creases);
     # resting boxes completed down to the table (their hidden depth, a guess of a few mm, bounded by it);
     # a box's unmeasured depth at least what the view can tell from its seen face;
-    # box parts that are one box (a carton cut into parallel slabs) merged
-    return PlannerConfig(identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO),
+    # box parts that are one box (a carton cut into parallel slabs) merged;
+    # with a viewpoint, the robust score keeps the fingers UNSEEN_MARGIN off the object's own unseen back
+    return PlannerConfig(robust=RobustConfig(unseen_margin=UNSEEN_MARGIN),
+                         identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO),
                          collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=None,
                          both_contacts_all_round=False, complete_to_table=True,
                          hidden_depth=True, merge_boxes=True)
@@ -172,16 +175,16 @@ MAX_UNSEEN_MARGIN = 0.1
 def with_unseen_margin(scene: SceneConfig, margin: float | None) -> SceneConfig:
     """``scene`` with its planner's robust score keeping ``margin`` [m] off an object's
     unseen back (``RobustConfig.unseen_margin``; :data:`graspsim.maps.robust.UNSEEN_MARGIN`
-    the measured value); None: ``scene`` itself. The one path from a margin a user gives
-    (``graspsim scene`` / ``plan-scene --unseen-margin``, E10 ``--unseen-margin``) to the
-    planner; a margin outside (0, :data:`MAX_UNSEEN_MARGIN`] m is an
-    :class:`~graspsim.errors.InvalidParameterError`."""
+    the measured value and the scene planner's default; 0: none); None: ``scene`` itself.
+    The one path from a margin a user gives (``graspsim scene`` / ``plan-scene
+    --unseen-margin``, E10 ``--unseen-margin``) to the planner; a margin outside [0,
+    :data:`MAX_UNSEEN_MARGIN`] m is an :class:`~graspsim.errors.InvalidParameterError`."""
     from dataclasses import replace
 
     if margin is None:
         return scene
-    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not 0 < margin <= MAX_UNSEEN_MARGIN:
-        raise InvalidParameterError(f"the unseen margin must be in (0, {MAX_UNSEEN_MARGIN:g}] m "
-                                    f"(the measured: 0.02), got {margin!r}")
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not 0 <= margin <= MAX_UNSEEN_MARGIN:
+        raise InvalidParameterError(f"the unseen margin must be in [0, {MAX_UNSEEN_MARGIN:g}] m "
+                                    f"(the measured and default: 0.02; 0: none), got {margin!r}")
     planner = scene.planner
     return replace(scene, planner=replace(planner, robust=replace(planner.robust, unseen_margin=float(margin))))

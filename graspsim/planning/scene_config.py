@@ -12,7 +12,7 @@ from graspsim.checks import POSITIVE, check_fields, integer
 from graspsim.errors import InvalidParameterError
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.segment import gap_link
-from graspsim.planning.planner import PlannerConfig
+from graspsim.planning.planner import SCENE_TABLE_SKIP, PlannerConfig
 from graspsim.planning.scene_workers import scene_workers
 
 __all__ = ["SceneConfig", "budget_fields", "MAX_SCENE_EXTENT", "SCENE_BYTES_PER_POINT", "SCENE_FIT_POINTS",
@@ -52,11 +52,12 @@ def _scene_planner() -> PlannerConfig:
     # no cloud filter, no feature grasps: the clutter results and scene-planning times were measured without them;
     # one contact borne out even without a viewpoint: a segment is not all of its object (thinned, cut at creases);
     # resting boxes completed down to the table (their hidden depth, a guess of a few mm, bounded by it);
-    # a box's unmeasured depth at least what the view can tell from its seen face
+    # a box's unmeasured depth at least what the view can tell from its seen face;
+    # stored grasps predicted far under the table not scaled (the table filter drops them)
     return PlannerConfig(identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO),
                          collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=None,
                          both_contacts_all_round=False, complete_to_table=True,
-                         hidden_depth=True)
+                         hidden_depth=True, table_skip=SCENE_TABLE_SKIP)
 
 
 @dataclass(frozen=True)

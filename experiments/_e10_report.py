@@ -176,10 +176,11 @@ def readme_section(s: dict) -> str:
         L += ["", "Skipped (not counted above): " + "; ".join(
             f"{r['object_set']} {r['kind']} {r['objects']} {_label(r)}, seed "
             f"{k.get('seed', r['per_seed'][0]['seed'])} scene {k['scene']}: {k['reason']}" for r, k in lost) + "."]
-    L += ["", "Where the planning time goes (median seconds per grasp, `plan_scene`'s stages; the planning "
-          "column above also counts the back-projection): table fit, segmentation, identification of every "
-          "segment, maps and robust scores of every segment (including FS maps built in memory for parts no "
-          "stored map serves):", "",
+    L += ["", "Where the planning time goes (median seconds per grasp, `plan_scene`'s stages; medians, so "
+          "they do not add up to the planning column's per-grasp figure, a mean over every grasp that counts "
+          "first frames, a process's first scene and FS maps built in memory in full): table fit, "
+          "segmentation, identification of every segment, maps and robust scores of every segment "
+          "(including FS maps built in memory for parts no stored map serves):", "",
           "| object set | scene | objects | condition | table | segmentation | identification | maps + scores "
           "| total |",
           "|---|---|---|---|---|---|---|---|---|"]

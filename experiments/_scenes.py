@@ -121,6 +121,12 @@ def database_note(summary: dict) -> str:
     return f" The FS map database held {a} maps at the start{grew}."
 
 
+#: The most FS maps a :class:`RunDatabase` keeps built in memory (the first built out
+#: first): one is 14-18 s of building for a household part, a few MB to hold, and a user's
+#: writable database stores it for good, so a run should not rebuild what it built before.
+MEMORY_MAPS = 32
+
+
 class RunDatabase(MapDatabase):
     """The run's database, read only: a part no stored map serves within the scaling
     range gets its FS map built in memory (kept in this process, never stored), so
@@ -140,7 +146,7 @@ class RunDatabase(MapDatabase):
         if key not in self._memory:
             gmap = generate_fs_map(shape, self.gripper, self.quality, self.config, threads=threads)
             self._memory[key] = gmap.select(np.argsort(-gmap.grade, kind="stable"))  # as stored: best first
-            while len(self._memory) > 8:
+            while len(self._memory) > MEMORY_MAPS:
                 self._memory.pop(next(iter(self._memory)))
         return self._memory[key]
 

@@ -4,7 +4,7 @@ import math
 import pytest
 
 from graspsim.errors import MapDatabaseError, PrimitiveError
-from graspsim.maps.database import MapDatabase, size_grid
+from graspsim.maps.database import MapDatabase, map_bytes, size_grid
 from graspsim.maps.map_config import MapConfig
 from graspsim.maps.match import MatchKind
 from graspsim.primitives import Cylinder, Sphere
@@ -79,6 +79,34 @@ def test_uncached_database_reads_every_time(tmp_path):
     a = db.load_entry(e, accepted_only=True)
     b = db.load_entry(e, accepted_only=True)
     assert a is not b and len(a) == len(b) == e["accepted"]
+
+
+def test_cache_bounded_by_maps_and_bytes(tmp_path):
+    """The run-time cache keeps the maps planning reads (the same object again) up to
+    ``cache_size`` maps and ``cache_bytes`` bytes, the least recently used leaving first;
+    a map larger than the byte budget is read every time."""
+    db = MapDatabase(tmp_path, config=FAST)
+    shapes = [Sphere(0.02), Sphere(0.025), Sphere(0.03)]
+    for s in shapes:
+        db.add(s)
+    es = sorted(db.entries(), key=lambda e: e["key"])
+    sizes = [map_bytes(db.load_entry(e, accepted_only=True)) for e in es]
+
+    def cached(d):
+        return [d.load_entry(e, accepted_only=True) is d.load_entry(e, accepted_only=True) for e in es]
+
+    assert cached(db) == [True, True, True]  # the defaults hold them all
+    two = MapDatabase(tmp_path, config=FAST, cache_bytes=sizes[1] + sizes[2])
+    first = [two.load_entry(e, accepted_only=True) for e in es]  # the first read leaves to make room
+    assert two.load_entry(es[0], accepted_only=True) is not first[0]  # evicted: read again
+    assert two.load_entry(es[0], accepted_only=True) is two.load_entry(es[0], accepted_only=True)
+    assert two._cached_bytes <= sizes[1] + sizes[2]
+    small = MapDatabase(tmp_path, config=FAST, cache_bytes=min(sizes) - 1)
+    assert cached(small) == [False, False, False] and small._cached_bytes == 0
+    one = MapDatabase(tmp_path, config=FAST, cache_size=1)
+    one.load_entry(es[0], accepted_only=True)
+    a = one.load_entry(es[1], accepted_only=True)
+    assert one.load_entry(es[1], accepted_only=True) is a and len(one._cache) == 1
 
 
 def test_linked_copy_shares_the_maps_and_keeps_its_own(tmp_path):

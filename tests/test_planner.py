@@ -563,3 +563,32 @@ def test_unseen_depth_is_found_per_part_and_the_same_for_every_batch(db):
     again = checks.unseen_depth(m, plate, I, I)
     np.testing.assert_array_equal(again.wrist_transforms(), first.wrist_transforms())
     assert checks.unseen == 2 * (len(m) - len(first))
+
+
+def test_stored_grasps_predicted_far_under_the_table_are_not_scaled_and_no_kept_grasp_is_lost(db):
+    """``PlannerConfig.table_skip`` (scene planning's :data:`SCENE_TABLE_SKIP`): a sphere
+    resting on a table, scaled from a stored one -- the stored grasps predicted more than
+    3 cm under the table's clearance are not scaled, and the finished map holds exactly the
+    grasps of the plan that scaled them all (the table filter dropped every one of them);
+    fewer poses reach the table filter."""
+    from graspsim.planning.planner import SCENE_TABLE_SKIP
+    from graspsim.planning.scene_config import SceneConfig
+
+    assert SceneConfig().planner.table_skip == SCENE_TABLE_SKIP
+    with pytest.raises(InvalidParameterError):
+        PlannerConfig(table_skip=-0.01)
+    truth = Sphere(0.036)
+    T = make_transform(np.eye(3), [0.4, 0.0, 0.036])
+    cloud = synthetic_cloud(truth, np.random.default_rng(2), resolution=0.004, noise=0.0005, T_world_obj=T)
+    cfg = PlannerConfig(table=TablePlane(height=0.0), identify=IdentifyConfig.preset("paper"))
+    every = plan(cloud.points, db=db, rng=np.random.default_rng(0), config=cfg)
+    skip = plan(cloud.points, db=db, rng=np.random.default_rng(0), config=replace(cfg, table_skip=SCENE_TABLE_SKIP))
+    assert [p.match.value for p in skip.parts] == ["familiar"]
+
+    def rows(m):
+        return np.column_stack([m.wrist_position, m.wrist_quat, m.grade])
+
+    assert len(skip.map) > 0
+    np.testing.assert_array_equal(rows(skip.map), rows(every.map))
+    dropped = [r.map.meta.extra["table"]["dropped"] for r in (every, skip)]
+    assert dropped[1] < dropped[0] / 2  # most of the poses the table dropped were never scaled

@@ -121,22 +121,39 @@ def _digest(obj) -> str:
     return hashlib.sha1(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:10]
 
 
+#: Maps the run-time cache of a database holds at most (:meth:`MapDatabase.load_entry`).
+CACHE_MAPS = 64
+#: Bytes of map columns the run-time cache holds at most: a scene's parts draw on a few
+#: dozen stored maps (E10's household-tuning frames on 20, about 160 MB), which a cache of
+#: 8 maps loaded again and again (a read and a new scaling set-up each time).
+CACHE_BYTES = 512 * 2**20
+
+
+def map_bytes(gmap: GraspabilityMap) -> int:
+    """Bytes of a map's columns (what it holds in memory, its metadata aside)."""
+    return int(sum(v.nbytes for v in gmap.columns().values()))
+
+
 class MapDatabase:
     """FS maps on disk for one gripper, quality model and generation config. The folder
     is made if missing; with ``create=False`` (reading or checking a database) a missing
-    folder is a :class:`~graspsim.errors.MapDatabaseError` instead."""
+    folder is a :class:`~graspsim.errors.MapDatabaseError` instead. The maps planning
+    reads (:meth:`load_entry`) stay in memory, the least recently used leaving first
+    once more than ``cache_size`` maps or ``cache_bytes`` bytes are held (0: none kept)."""
 
     def __init__(self, root: str | os.PathLike | None = None, *,
                  gripper: GripperSpec = HGPL_25_60_A, quality: QualityModel | None = None,
-                 config: MapConfig | None = None, tol: float = KNOWN_TOL, cache_size: int = 8,
-                 create: bool = True):
+                 config: MapConfig | None = None, tol: float = KNOWN_TOL, cache_size: int = CACHE_MAPS,
+                 cache_bytes: int = CACHE_BYTES, create: bool = True):
         self.root = Path(root) if root is not None else default_root()
         self.gripper = gripper
         self.quality = quality or QualityModel()
         self.config = config or MapConfig()
         self.tol = float(tol)
         self.cache_size = int(cache_size)
-        self._cache: OrderedDict = OrderedDict()
+        self.cache_bytes = int(cache_bytes)
+        self._cache: OrderedDict = OrderedDict()  # key -> (map, its bytes)
+        self._cached_bytes = 0
         self._valid_of: tuple[bytes, list[int]] | None = None  # the index's bytes, its usable records
         if not create:  # read or check a database: one that is not there is an error, not made
             try:
@@ -159,7 +176,7 @@ class MapDatabase:
     def __getstate__(self) -> dict:
         """Pickled (sent to a worker process) without the maps it has loaded: a database
         is its folder and settings; the receiver loads what it needs."""
-        return {**self.__dict__, "_cache": OrderedDict(), "_valid_of": None}
+        return {**self.__dict__, "_cache": OrderedDict(), "_cached_bytes": 0, "_valid_of": None}
 
     # ------------------------------------------------------------------ index
     @property
@@ -246,28 +263,37 @@ class MapDatabase:
     def load_entry(self, entry: dict, *, accepted_only: bool = False) -> GraspabilityMap:
         """A stored map; with ``accepted_only`` just its grasps above the threshold --
         stored maps are sorted best first, so that is a prefix of the file (a partial
-        read) -- kept in a small in-memory cache for repeated run-time use. A stored
+        read) -- kept in the in-memory cache (see the class) for repeated run-time use. A stored
         map that cannot be read raises :class:`MapDatabaseError` saying how to repair."""
         path = self.root / entry["file"]
         try:
             if not accepted_only:
                 return self._ours(load_map(path, verify_transforms=False))
             key = (str(path), path.stat().st_mtime_ns)
-            gmap = self._cache.get(key)
-            if gmap is not None:
+            hit = self._cache.get(key)
+            if hit is not None:
                 self._cache.move_to_end(key)
-                return gmap
+                return hit[0]
             gmap = self._ours(load_map(path, rows=slice(0, int(entry["accepted"])), verify_transforms=False))
         except (OSError, KeyError, TypeError, ValueError) as err:  # MapFileError is an OSError
             raise MapDatabaseError(f"stored map {path} is unusable ({err}); `graspsim db check --repair "
                                    f"--root {self.root}` removes it (the next use rebuilds it)") from err
         if len(gmap) and not gmap.accepted.all():
             raise MapDatabaseError(f"{path} is not sorted best first; rebuild the database")
-        if self.cache_size > 0:
-            self._cache[key] = gmap
-            while len(self._cache) > self.cache_size:
-                self._cache.popitem(last=False)
+        self._keep(key, gmap)
         return gmap
+
+    def _keep(self, key, gmap: GraspabilityMap) -> None:
+        """Cache ``gmap``, then drop the least recently used maps while more than
+        ``cache_size`` maps or ``cache_bytes`` bytes are held (a map larger than the
+        byte budget is not kept)."""
+        size = map_bytes(gmap)
+        if self.cache_size <= 0 or size > self.cache_bytes:
+            return
+        self._cache[key] = (gmap, size)
+        self._cached_bytes += size
+        while len(self._cache) > self.cache_size or self._cached_bytes > self.cache_bytes:
+            self._cached_bytes -= self._cache.popitem(last=False)[1][1]
 
     def _ours(self, gmap: GraspabilityMap) -> GraspabilityMap:
         """A stored map as this database's gripper's: a map keyed by this gripper's digest

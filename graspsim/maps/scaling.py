@@ -208,7 +208,7 @@ def _check(target, gripper, cfg, gp, R, depth, width, line=None) -> np.ndarray:
 
 def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: QualityModel | None = None,
                  scaling: ScalingConfig | None = None, config: MapConfig | None = None,
-                 gripper: GripperSpec | None = None, prefer=None) -> Iterator[GraspabilityMap]:
+                 gripper: GripperSpec | None = None, prefer=None, skip=None) -> Iterator[GraspabilityMap]:
     """Scale ``fs_map`` (a primitive's FS map) to ``target`` (the same primitive at
     another size), yielding maps of kept grasps in batches, best FS lines first.
     quality, config, gripper: the map's own (from its metadata) unless given -- a
@@ -217,7 +217,9 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
     (m, 3) and contact widths (m,) in the target's frame, from the grasp's contacts
     mapped as Quality maps them, before the exact chord -- returning (m,) bool: those
     grasps are scaled first (see :func:`graspsim.maps.table_clearance.stream_order`); the same
-    grasps are kept, only the order they stream in changes."""
+    grasps are kept, only the order they stream in changes. ``skip``: a function of the
+    same predicted poses returning (m,) bool: those grasps are not scaled at all (a
+    caller that would drop them anyway, e.g. poses predicted far under the table)."""
     sc = scaling or ScalingConfig()
     source, ratios = _scalable(fs_map, target, sc.max_ratio)
     gripper = gripper or fs_map.meta.gripper_spec
@@ -234,15 +236,20 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
                           "source_grasps": int(len(src.rows)), "collision_tolerance": float(cfg.collision_tolerance)})
     lo = gripper.depth_lo - 1e-6
     hi = gripper.depth_hi + 1e-6
-    predicted = None
-    if prefer is not None:
-        def predicted(pos: np.ndarray) -> np.ndarray:
-            r = src.rows[pos]
-            c = fs_map.contacts[r].astype(float)
-            c2 = target.from_unit(source.to_unit(c.reshape(-1, 3))).reshape(c.shape)
-            wrist = fs_map.wrist_position[r] + ((c2[:, 0] + c2[:, 1]) / 2 - (c[:, 0] + c[:, 1]) / 2)  # = mean(1)
-            return prefer(fs_map.wrist_quat[r], wrist, np.linalg.norm(c2[:, 1] - c2[:, 0], axis=1))
+    def poses(pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Predicted scaled poses of rows ``pos``: wrist quaternions, positions, widths."""
+        r = src.rows[pos]
+        c = fs_map.contacts[r].astype(float)
+        c2 = target.from_unit(source.to_unit(c.reshape(-1, 3))).reshape(c.shape)
+        wrist = fs_map.wrist_position[r] + ((c2[:, 0] + c2[:, 1]) / 2 - (c[:, 0] + c[:, 1]) / 2)  # = mean(1)
+        return fs_map.wrist_quat[r], wrist, np.linalg.norm(c2[:, 1] - c2[:, 0], axis=1)
+
+    predicted = None if prefer is None else (lambda pos: prefer(*poses(pos)))
     for rows in stream_order(len(src.rows), sc.first_batch, sc.growth, predicted):
+        if skip is not None:
+            rows = rows[~np.asarray(skip(*poses(rows)), bool)]
+            if not len(rows):
+                continue
         line = src.line_of[rows]
         R = quat_to_matrix(fs_map.wrist_quat[src.rows[rows]])
         wrist = fs_map.wrist_position[src.rows[rows]].astype(float)

@@ -13,7 +13,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.maps.robust import UNSEEN_MARGIN, RobustConfig
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.segment import gap_link
-from graspsim.planning.planner import PlannerConfig
+from graspsim.planning.planner import SCENE_TABLE_SKIP, PlannerConfig
 from graspsim.planning.scene_workers import scene_workers
 
 __all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "MAX_UNSEEN_MARGIN", "MAX_SCENE_EXTENT",
@@ -55,12 +55,13 @@ def _scene_planner() -> PlannerConfig:
     # resting boxes completed down to the table (their hidden depth, a guess of a few mm, bounded by it);
     # a box's unmeasured depth at least what the view can tell from its seen face;
     # box parts that are one box (a carton cut into parallel slabs) merged;
-    # with a viewpoint, the robust score keeps the fingers UNSEEN_MARGIN off the object's own unseen back
+    # with a viewpoint, the robust score keeps the fingers UNSEEN_MARGIN off the object's own unseen back;
+    # stored grasps predicted far under the table not scaled (the table filter drops them)
     return PlannerConfig(robust=RobustConfig(unseen_margin=UNSEEN_MARGIN),
                          identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO),
                          collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=None,
                          both_contacts_all_round=False, complete_to_table=True,
-                         hidden_depth=True, merge_boxes=True)
+                         hidden_depth=True, merge_boxes=True, table_skip=SCENE_TABLE_SKIP)
 
 
 @dataclass(frozen=True)

@@ -143,7 +143,7 @@ def resident_database(db):
     elsewhere (this process, any other child process) ``db`` itself."""
     if not _in_worker:
         return db
-    key = (str(db.root), db.settings_digest, db.tol, db.cache_size)
+    key = (str(db.root), db.settings_digest, db.tol, db.cache_size, db.cache_bytes)
     return _databases.setdefault(key, db)
 
 

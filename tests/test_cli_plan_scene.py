@@ -310,6 +310,7 @@ def test_bad_input_is_a_one_line_error_and_writes_nothing(how, args, message, tm
     err = capsys.readouterr().err
     assert code == 2 and message in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1 or err.startswith("usage")
+    assert err.count("--unseen-margin") <= 1  # the flag named once, not prefixed again
     assert out.read_text() == "earlier" and not (tmp_path / "labels.txt").exists()
 
 

@@ -142,9 +142,11 @@ def unseen_margin_value(args, *, none: bool = False) -> float | None:
         from graspsim.maps.robust import UNSEEN_MARGIN
 
         m = UNSEEN_MARGIN
-    if not (math.isfinite(m) and (0 <= m if none else 0 < m) and m <= 0.1):
-        raise InvalidParameterError(f"--unseen-margin must be in {'[0' if none else '(0'}, 0.1] m (alone: the measured "
-                                    f"0.02{'; 0: none' if none else ''}), got {m!r}")
+    from graspsim.planning.scene_config import MAX_UNSEEN_MARGIN
+
+    if not (math.isfinite(m) and (0 <= m if none else 0 < m) and m <= MAX_UNSEEN_MARGIN):
+        raise InvalidParameterError(f"--unseen-margin must be in {'[0' if none else '(0'}, {MAX_UNSEEN_MARGIN:g}] m "
+                                    f"(alone: the measured 0.02{'; 0: none' if none else ''}), got {m!r}")
     return float(m)
 
 
@@ -161,14 +163,10 @@ def scene_planning_from_args(args, scene):
     value is an :class:`~graspsim.errors.InvalidParameterError` naming its flag."""
     from dataclasses import replace
 
-    from graspsim.errors import InvalidParameterError
     from graspsim.planning.scene_config import with_unseen_margin
 
     scene = replace(scene, **budget_from_args(args))
-    try:
-        return with_unseen_margin(scene, unseen_margin_value(args, none=True))
-    except InvalidParameterError as err:
-        raise InvalidParameterError(f"--unseen-margin: {err}") from None
+    return with_unseen_margin(scene, unseen_margin_value(args, none=True))  # the value checked, naming the flag
 
 
 class _DeprecatedAlias:

@@ -379,15 +379,14 @@ def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDa
                            db, cfg, source, t0, {"identify": 0.0}, time.thread_time(), scored_only=scored_only)
 
 
-def _completed(prims: list, T_cloud: list, points: np.ndarray, seen: np.ndarray,
+def _completed(prims: list, T_cloud: list, points: np.ndarray, view: ViewDepth,
                table: TablePlane, viewpoint: np.ndarray, band: float,
                neighbours: np.ndarray | None = None) -> tuple[list, list, list]:
     """``PlannerConfig.complete_to_table``: the parts (canonical boxes again), their poses
-    and per part the axis the table now bounds ((1, 3); None: left as identified); ``seen``: the
-    segment's points and the obstacles'; ``neighbours``: the obstacles' alone (a segment whose
-    foot a neighbour hides is completed where none of them is in the way; None: only segments
-    touching the table)."""
-    view = ViewDepth(seen, viewpoint)
+    and per part the axis the table now bounds ((1, 3); None: left as identified); ``view``:
+    the depth image of the segment's points and the obstacles'; ``neighbours``: the
+    obstacles' alone (a segment whose foot a neighbour hides is completed where none of them
+    is in the way; None: only segments touching the table)."""
     out_p, out_T, bounded = [], [], []
     for prim, T in zip(prims, T_cloud):
         p, Tp, how = complete_to_table(prim, T, points, table, viewpoint, view, band=band, neighbours=neighbours)
@@ -475,13 +474,17 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     observed = ObservedChecks.of_plan(ident, points, None, np.eye(4), viewpoint, db, cfg)
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     bounded: list = [None] * len(prims)  # per part: its axes the table bounds ((k, 3))
+    single_view_rules = cfg.complete_to_table or cfg.merge_boxes or cfg.hidden_depth
+    # what the camera saw (cloud frame), for those rules: one depth image serves them all
+    seen_view = ViewDepth(seen, viewpoint) if single_view_rules and viewpoint is not None and observed is not None \
+        else None
     if (cfg.complete_to_table and cfg.table is not None and cfg.table.height is not None and viewpoint is not None
             and observed is not None):
-        prims, T_cloud, bounded = _completed(prims, T_cloud, points, seen, cfg.table, viewpoint, cfg.table_band,
+        prims, T_cloud, bounded = _completed(prims, T_cloud, points, seen_view, cfg.table, viewpoint, cfg.table_band,
                                              None if obstacles is None else np.asarray(obstacles, float).reshape(-1, 3))
     n_completed = sum(b is not None for b in bounded)
     if cfg.merge_boxes and observed is not None and viewpoint is not None and len(prims) > 1:  # one box
-        prims, T_cloud, groups = merge_boxes(prims, T_cloud, ViewDepth(seen, viewpoint), cfg.table, cfg.table_band)
+        prims, T_cloud, groups = merge_boxes(prims, T_cloud, seen_view, cfg.table, cfg.table_band)
         if len(groups) < len(bounded):
             prims, T_cloud = (list(x) for x in zip(*(canonical_box(p, T) for p, T in zip(prims, T_cloud))))
             ident_info = {**(ident_info or {}), "merged": len(bounded) - len(groups)}
@@ -490,7 +493,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     floors: list = [None] * len(prims)  # per part: its axes the segment's points deepened (a least depth)
     if cfg.hidden_depth and observed is not None and viewpoint is not None:
         prims, T_cloud, floors = _deepened(prims, T_cloud, bounded, observed, cfg.table, viewpoint, points,
-                                            ViewDepth(seen, viewpoint), cfg.table_band)
+                                            seen_view, cfg.table_band)
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)

@@ -321,6 +321,26 @@ def test_identify_records_the_viewpoint(tmp_path, capsys):
     assert "--viewpoint" in capsys.readouterr().err
 
 
+def test_identify_judges_the_fit_from_the_given_viewpoint(tmp_path, capsys):
+    """The fit's coverage counts the surface facing the camera: the camera --viewpoint names,
+    over the cloud's own record and for a cloud without one."""
+    from graspsim.cli import main
+
+    pts = _cylinder_cloud()
+    pts = pts[pts[:, 0] > 0.005]  # the side a camera on +x sees
+    _write_pcd(tmp_path / "a.pcd", pts, "-0.5 0 0.05 1 0 0 0")  # a record of another camera
+    np.save(tmp_path / "a.npy", pts)
+
+    def covered(*args):
+        assert main(["identify", *map(str, args), "--db", str(tmp_path / "db"), "--json"]) == 0
+        return json.loads(capsys.readouterr().out.strip().splitlines()[-1])["fit"]["covered"]
+
+    seen = covered(tmp_path / "a.npy", "--viewpoint", 0.5, 0, 0.05)
+    assert seen > 0.8
+    assert covered(tmp_path / "a.pcd", "--viewpoint", 0.5, 0, 0.05) == pytest.approx(seen, abs=0.02)
+    assert covered(tmp_path / "a.npy") < seen - 0.2  # judged as seen all round: the back is missing
+
+
 @pytest.mark.slow
 def test_adapt_takes_the_viewpoint_into_the_robust_score_and_records_it(tmp_path, capsys):
     from graspsim.cli import main

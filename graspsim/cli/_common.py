@@ -9,7 +9,8 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
-__all__ = ["command", "emit", "add_json_flag", "add_units_flag", "add_executor_flags", "seed_value", "whole_number",
+__all__ = ["command", "emit", "add_json_flag", "add_units_flag", "add_object_cloud_flags", "add_executor_flags",
+           "seed_value", "whole_number",
            "executor_from_args", "format_table", "dims_text", "add_db_flag", "progress", "add_gripper_flag",
            "gripper_from_args", "VARIANT_HELP", "GLOSSARY", "glossary", "with_glossary"]
 
@@ -277,6 +278,20 @@ def whole_number(minimum: int):
 
 #: argparse type of ``--seed``: a whole number >= 0 (numpy's generators take no other).
 seed_value = whole_number(0)
+
+
+def add_object_cloud_flags(p, cloud_help: str) -> None:
+    """The object cloud and its identification, as ``identify`` and ``adapt`` take them: the
+    cloud file, ``--units``, ``--viewpoint``, ``--mode``, ``--repetitions``, ``--theta`` and
+    ``--seed``."""
+    p.add_argument("cloud", help=cloud_help)
+    add_units_flag(p)
+    add_viewpoint_flag(p)
+    add_mode_flag(p)
+    p.add_argument("--repetitions", type=int, default=10, help="MLESAC samples per model (default 10)")
+    p.add_argument("--theta", type=float, default=0.5,
+                   help="split threshold theta_th of eq. (1), in (0, 1] (default 0.5)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
 
 
 def add_mode_flag(p) -> None:

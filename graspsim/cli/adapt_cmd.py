@@ -5,11 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from graspsim.cli._common import (
-    add_mode_flag,
+    add_object_cloud_flags,
     add_robot_flags,
-    add_units_flag,
     add_unseen_margin_flag,
-    add_viewpoint_flag,
     command,
     dims_text,
     emit,
@@ -137,21 +135,15 @@ def _height(text: str) -> float:
 
 
 def register(sub) -> None:
-    from graspsim.cli._common import seed_value
 
     with command(sub, "adapt", run=_cmd_adapt, help="adapted graspability map of an object's point cloud",
                  glossary=("known / familiar / build", "FS map", "grade", "robust score")) as p:
-        p.add_argument("cloud", help="point cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m; see --units]")
-        add_units_flag(p)
+        add_object_cloud_flags(p, "point cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m; see --units]")
         p.add_argument("-o", "--output", required=True, help="map file to write (.h5)")
         p.add_argument("--scaling", choices=["combined", "quality", "feasibility"], default="combined",
                        help="map scaling for familiar objects (combined)")
         p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
                        "~/.cache/graspsim/db)")
-        p.add_argument("--repetitions", type=int, default=10, help="MLESAC repetitions (10)")
-        p.add_argument("--theta", type=float, default=0.5, help="split threshold theta_th (0.5)")
-        p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
-        add_mode_flag(p)
         p.add_argument("--no-partial", action="store_true",
                        help="no map at all when clustering fails (default: map of the identified parts)")
         p.add_argument("--table", default=None, metavar="auto|HEIGHT",
@@ -169,7 +161,6 @@ def register(sub) -> None:
                        "of it along its approach, its contacts held nearer the fingertip, where they stay at "
                        "least DEPTH [m] from it (low objects lying on the table: a domino, a lid); 'off': "
                        "dropped (0.001; --mode paper never lifts)")
-        add_viewpoint_flag(p)
         add_unseen_margin_flag(p, help="with a viewpoint, robust mode: a grasp whose far finger comes within M [m] of "
                                "the fitted back, in space the camera did not see, scores less (by the distance's share "
                                "of M) and wider openings are tried for it (default and alone: the measured 0.02 m; 0: "

@@ -24,9 +24,7 @@ import argparse
 
 from graspsim.cli._common import (
     add_gripper_flag,
-    add_mode_flag,
-    add_units_flag,
-    add_viewpoint_flag,
+    add_object_cloud_flags,
     command,
     dims_text,
     emit,
@@ -40,27 +38,18 @@ from graspsim.errors import DependencyNotInstalled
 __all__ = ["register", "run"]
 
 def register(subparsers) -> None:
-    from graspsim.cli._common import seed_value
 
     with command(subparsers, "identify", run=run,
                  help="identify shape primitives in a point cloud (.pcd, .ply, .npy, .xyz)",
                  glossary=("known / familiar / build", "FS map")) as p:
-        p.add_argument("cloud", help="point cloud file, coordinates in metres (see --units)")
-        add_units_flag(p)
-        p.add_argument("--repetitions", type=int, default=10,
-                       help="MLESAC samples per model (default 10)")
-        add_mode_flag(p)
-        p.add_argument("--theta", type=float, default=0.5,
-                       help="split threshold theta_th of eq. (1), in (0, 1] (default 0.5)")
+        add_object_cloud_flags(p, "point cloud file: .pcd, .ply, .npy (N x 3), .xyz/.txt [m; see --units]")
         p.add_argument("--noise", type=float, default=None,
                        help="sensor noise sigma in metres (default: estimated)")
-        p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
         p.add_argument("--db", metavar="DIR", default=None,
                        help="FS map database folder for the known/familiar decision (default: "
                        "$GRASPSIM_DB or ~/.cache/graspsim/db when it exists; never built here)")
         add_gripper_flag(p, help="whose maps --db's known / familiar decision reads: festo_hgpl_25_60_a "
                          "(default), franka_hand or a gripper spec .json")
-        add_viewpoint_flag(p)
 
 
 def _lookup(db_dir: str | None, gripper=None):
@@ -106,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     viewpoint = cloud.viewpoint if viewpoint is None else viewpoint
     lookup, db_root = _lookup(args.db, gripper_from_args(args))
     res = identify(cloud.points, rng=np.random.default_rng(args.seed), config=config)
-    fit = res.fit_quality(cloud.points, config.band, cloud.viewpoint)
+    fit = res.fit_quality(cloud.points, config.band, viewpoint)
     parts = []
     for p in res.parts:
         match, stored = lookup(p.shape.value, p.dims)

@@ -25,7 +25,6 @@ from graspsim.robots.capability import CapabilityConfig, capability_map
 from graspsim.robots.execute import ArmLiftPlace, build_arm_scene, run_arm_trials
 from graspsim.sim.mapsim import MapTrials, map_trials
 from graspsim.sim.noise import ExecutionNoise
-from graspsim.sim.trial_scene import SimSettings
 
 __all__ = ["simulate_map_arm", "reach_mismatch"]
 
@@ -50,18 +49,18 @@ def reach_mismatch(record: dict | None, robot: str, T_world_base: np.ndarray,
 
 
 def simulate_map_arm(path: str | os.PathLike, *, robot: str = "panda", base=DEFAULT_BASE,
-                     protocol: ArmLiftPlace = ArmLiftPlace(), top: int | None = None, sample: int | None = None,
-                     min_grade: float | None = None, threads: int | None = None, seed: int = 0,
-                     noise: ExecutionNoise | None = None, mesh=None, mesh_scale: float = 1.0,
-                     mass: float | None = None, settings: SimSettings | None = None, write: bool = True,
-                     replace_stored: bool = False, cache_dir=None, capability: CapabilityConfig | None = None,
-                     capability_cache=None, on_progress=None, on_selected=None, rank: str = "robust",
-                     separation: tuple[float, float] | None = None, dataset: dict | None = None) -> MapTrials:
+                     protocol: ArmLiftPlace = ArmLiftPlace(), threads: int | None = None, seed: int = 0,
+                     noise: ExecutionNoise | None = None, capability: CapabilityConfig | None = None,
+                     capability_cache=None, on_progress=None, on_selected=None, **selection) -> MapTrials:
     """Execute grasps of the map file ``path`` with the arm ``robot`` standing at ``base``
     (x [m], y [m], yaw [rad] on the table top, or a (4, 4) pose) and (``write``) store the
-    results in it. Every other argument as in :func:`~graspsim.sim.mapsim.simulate_map`;
-    ``capability`` / ``capability_cache``: the capability map's settings and cache folder
-    (``False``: no cache)."""
+    results in it. ``capability`` / ``capability_cache``: the capability map's settings and
+    cache folder (``False``: no cache). Every other argument as in
+    :func:`~graspsim.sim.mapsim.simulate_map`: ``selection`` holds the ones that choose the
+    grasps, the object and the settings and store the results (``top``, ``sample``,
+    ``min_grade``, ``rank``, ``separation``, ``mesh``, ``mesh_scale``, ``mass``,
+    ``settings``, ``write``, ``replace_stored``, ``cache_dir``, ``dataset``), passed to
+    :func:`~graspsim.sim.mapsim.map_trials` as they are."""
     arm = get_arm(robot)
     T_base = base_transform(base)
     if not isinstance(protocol, ArmLiftPlace):
@@ -87,7 +86,5 @@ def simulate_map_arm(path: str | os.PathLike, *, robot: str = "panda", base=DEFA
         return run_arm_trials(scene, T_obj_wrist, width, protocol, threads=threads, seed=seed, noise=noise,
                               capability=cmap, on_progress=on_progress)
 
-    return map_trials(path, scene_of, execute, protocol=protocol, top=top, sample=sample, min_grade=min_grade,
-                      seed=seed, noise=noise, mesh=mesh, mesh_scale=mesh_scale, mass=mass, settings=settings,
-                      write=write, replace_stored=replace_stored, cache_dir=cache_dir, on_selected=selected,
-                      rank=rank, separation=separation, dataset=dataset)
+    return map_trials(path, scene_of, execute, protocol=protocol, seed=seed, noise=noise, on_selected=selected,
+                      **selection)

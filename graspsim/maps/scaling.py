@@ -253,9 +253,10 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
 
     def predicted(pos: np.ndarray) -> np.ndarray:
         p = poses(pos)
+        first = prefer(*p)
         if skipped is not None:
             skipped[pos], known[pos] = np.asarray(skip(*p), bool), True
-        return prefer(*p)
+        return first
 
     for rows in stream_order(len(src.rows), sc.first_batch, sc.growth, None if prefer is None else predicted):
         if skip is not None:

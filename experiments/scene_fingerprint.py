@@ -1,7 +1,7 @@
 """A fingerprint of scene planning's results, to check that a change meant only to be
 faster changes no result.
 
-Plans the first frame of ``--scenes`` 5-object scenes of each kind as E10 renders and
+Plans the first frame of ``--scenes`` scenes (``--objects`` objects of ``--object-set``) of each kind as E10 renders and
 plans them (its camera, sensor noise and scene settings, the camera's position as the
 viewpoint; ``plan_scene`` in this process, ``workers=1``) against an FS map database,
 and writes, per frame, a SHA-256 of every result field: the segment labels; per segment
@@ -39,9 +39,12 @@ log = logging.getLogger("scene_fingerprint")
 
 @dataclass(frozen=True)
 class Config:
-    scenes: int = opt(12, "5-object scenes of each kind")
+    scenes: int = opt(12, "scenes of each kind")
     seed: int = opt(100, "first scene seed")
     kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
+    object_set: str = opt("mixed", "the scenes' object set: a named set (household-tuning, primitives, ...) "
+                                   "or a folder of meshes")
+    objects: int = opt(5, "objects per scene")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
     coarse_db: bool = opt(False, "coarse FS maps (for smoke runs)")
     compare: str = opt("", "an earlier fingerprint's summary.json: list the fields that differ")
@@ -49,6 +52,11 @@ class Config:
     def __post_init__(self) -> None:
         if self.scenes < 1:
             raise ValueError("--scenes must be >= 1")
+        if not 1 <= self.objects <= 10:
+            raise ValueError("--objects must be in [1, 10]")
+        from graspsim.tabletop.scene_objects import check_object_set
+
+        check_object_set(self.object_set)
 
 
 def _h(*parts) -> str:
@@ -59,7 +67,7 @@ def _h(*parts) -> str:
     return d.hexdigest()
 
 
-def fingerprint(kind: str, seed: int, db) -> dict:
+def fingerprint(kind: str, seed: int, db, object_set: str = "mixed", objects: int = 5) -> dict:
     """The hashes of one frame's planning results."""
     from dataclasses import replace
 
@@ -69,7 +77,7 @@ def fingerprint(kind: str, seed: int, db) -> dict:
     from graspsim.tabletop.table_scene import make_scene
 
     camera = rig(1)[0]
-    sim = make_scene(5, kind, seed).sim()
+    sim = make_scene(objects, kind, seed, object_set=object_set).sim()
     frame = sim.render(camera, noise=ClutterConfig().depth_noise, rng=rng_for(seed, "depth"))
     sim.close()
     sp = plan_scene(backproject(frame).world(), db=db, rng=rng_for(seed, "plan"),
@@ -83,7 +91,8 @@ def fingerprint(kind: str, seed: int, db) -> dict:
         segments.append(_h(m.points, *[x for part in parts for x in part], m.why, m.plan.status, m.plan.scored,
                            np.zeros(0) if m.solids is None else m.solids))
     grasps = [x for g in sp.grasps for x in (g.segment, g.T_world_wrist, g.opening, g.score, g.grade, g.clearance)]
-    return {"kind": kind, "seed": seed, "labels": _h(sp.perception.segment), "segments": segments,
+    return {"kind": kind, "seed": seed, "object_set": object_set, "objects": objects,
+            "labels": _h(sp.perception.segment), "segments": segments,
             "grasps": _h(*grasps), "n_segments": len(segments), "n_grasps": len(sp.grasps)}
 
 
@@ -106,10 +115,10 @@ def _code() -> dict:
 
 def differences(a: list[dict], b: list[dict]) -> list[str]:
     """The fields of frames that differ between two fingerprints (frames by kind and seed)."""
-    old = {(f["kind"], f["seed"]): f for f in a}
+    old = {(f["kind"], f["seed"], f.get("object_set", "mixed"), f.get("objects", 5)): f for f in a}
     out = []
     for f in b:
-        g = old.get((f["kind"], f["seed"]))
+        g = old.get((f["kind"], f["seed"], f.get("object_set", "mixed"), f.get("objects", 5)))
         if g is None:
             out.append(f"{f['kind']} {f['seed']}: not in the other fingerprint")
             continue
@@ -121,7 +130,8 @@ def main(argv=None) -> int:
     cfg, out, record = start(Config, __file__, argv, __doc__, quiet=("graspsim",))
     db = experiment_database(cfg.db or None, out, map_config(cfg.coarse_db))
     before = database_record(db)
-    frames = [fingerprint(kind, cfg.seed + i, db) for kind in cfg.kinds for i in range(cfg.scenes)]
+    frames = [fingerprint(kind, cfg.seed + i, db, cfg.object_set, cfg.objects)
+              for kind in cfg.kinds for i in range(cfg.scenes)]
     after = database_record(db)
     if after != before:
         log.warning("maps were built during the run: a second run against this database may differ")

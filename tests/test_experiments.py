@@ -888,3 +888,28 @@ def test_e10_unseen_margin_reaches_the_planner(tmp_path, monkeypatch, capsys):
     with pytest.raises(SystemExit):
         common.parse_config(mod.Config, mod.__file__, ["--object-sets", "primitives", "--unseen-margin", "0.5"])
     assert "unseen margin" in capsys.readouterr().err
+
+
+def test_scene_fingerprint_names_a_bad_object_set_or_size(tmp_path, capsys):
+    fp = _load("scene_fingerprint")
+    for argv, what in ((["--object-set", "no-such-set"], "unknown object set"), (["--objects", "11"], "--objects")):
+        with pytest.raises(SystemExit) as e:
+            fp.main([*argv, "--out", str(tmp_path / "x")])
+        assert e.value.code == 2 and what in capsys.readouterr().err
+    assert not (tmp_path / "x" / "summary.json").exists()
+
+
+@pytest.mark.slow
+def test_bench_first_frame_quick_plans_each_frame_cold_then_another_warm(tmp_path):
+    bench = _load("bench_first_frame")
+    assert bench.main(["--quick", "--out", str(tmp_path / "b")]) == 0
+    s = _summary(tmp_path / "b")
+    (g,) = s["groups"]
+    assert (g["kind"], g["objects"]) == ("pile", 5)
+    assert [(r["seed"], r["warm_seed"]) for r in g["runs"]] == [(500, 501), (501, 500)]  # each cold, the next warm
+    for r in g["runs"]:
+        for w in ("cold", "warm"):
+            assert r[w]["timing"]["total"] > 0 and r[w]["segments"] >= 1 and r[w]["grasps"] >= 1
+        assert r["wall_s"] > r["cold"]["timing"]["total"] + r["warm"]["timing"]["total"]
+    assert g["cold"]["total"]["n"] == g["warm"]["total"]["n"] == 2
+    assert "| pile, 5 objects (2) |" in bench.readme_section(s)

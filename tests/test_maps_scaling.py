@@ -111,3 +111,38 @@ def test_limits_and_wrong_primitive(cyl_fs):
         scale_map(cyl_fs, Cylinder(0.08, 0.12))
     with pytest.raises(InvalidParameterError, match="cylinder"):
         scale_map(cyl_fs, Sphere(0.02))
+
+
+def test_a_skip_with_a_preference_drops_the_same_grasps_predicting_each_once(cyl_fs):
+    """With a preference (stream order) and a skip (not scaled), each stored grasp's pose
+    is predicted once and asked about once by each; the preference changes only the order:
+    the grasps kept are those of the skip alone, and of a skip told nothing of the first."""
+    t = Cylinder(0.022, 0.13)
+    asked = {"prefer": 0, "skip": 0}
+    predicted = []  # the predictions the preference was given
+
+    def prefer(q, p, w):
+        asked["prefer"] += len(q)
+        predicted.append(p)
+        return p[:, 2] > 0.0  # e.g. poses above the object's middle first
+
+    def skip(q, p, w):
+        asked["skip"] += len(q)
+        assert any(p is x for x in predicted)  # the same prediction, not made again
+        return p[:, 0] > 0.0  # poses on one side not scaled
+
+    def rows(batches):
+        g = GraspabilityMap_concat(batches)
+        return np.unique(np.round(np.column_stack([g.wrist_position, g.wrist_quat, g.width]), 9), axis=0)
+
+    both = list(scale_stream(cyl_fs, t, prefer=prefer, skip=skip))
+    assert asked["prefer"] == asked["skip"] > 0  # one prediction: each asked about every row once
+    alone = list(scale_stream(cyl_fs, t, skip=lambda q, p, w: p[:, 0] > 0.0))
+    assert 0 < sum(len(b) for b in both) < len(scale_map(cyl_fs, t))
+    np.testing.assert_array_equal(rows(both), rows(alone))
+
+
+def GraspabilityMap_concat(batches):  # noqa: N802 -- the class's own concat, by name
+    from graspsim.maps.graspmap import GraspabilityMap
+
+    return GraspabilityMap.concat(batches, meta=batches[0].meta)

@@ -43,3 +43,21 @@ def test_non_finite_points_are_refused_by_name():
     P = np.concatenate([np.random.default_rng(1).normal(size=(50, 3)), [[np.inf, 0.0, 0.0]]])
     with pytest.raises(PointCloudError, match="1 of 51 points have NaN or inf"):
         median_spacing(P)
+
+
+def test_a_remembered_spacing_is_the_spacing_of_the_same_points():
+    """median_spacing keeps its last answers keyed by the points' bytes: asked again about
+    equal points it answers as measured; about points changed in place, or others of the
+    same shape, it measures afresh."""
+    from graspsim.geometry import spacing
+
+    rng = np.random.default_rng(3)
+    P = rng.normal(size=(600, 3)) * 0.02
+    first = median_spacing(P)
+    assert median_spacing(P.copy()) == first == float(np.median(_reference(P)))
+    P *= 2.0  # the same array, other points
+    assert median_spacing(P) == pytest.approx(2.0 * first, rel=1e-12)
+    assert median_spacing(P.astype(np.float32)) == float(np.median(_reference(P.astype(np.float32).astype(float))))
+    for _ in range(spacing.REMEMBERED + 5):  # bounded: the oldest answers go
+        median_spacing(rng.normal(size=(20, 3)))
+    assert len(spacing._memo) <= spacing.REMEMBERED

@@ -244,10 +244,24 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
         wrist = fs_map.wrist_position[r] + ((c2[:, 0] + c2[:, 1]) / 2 - (c[:, 0] + c[:, 1]) / 2)  # = mean(1)
         return fs_map.wrist_quat[r], wrist, np.linalg.norm(c2[:, 1] - c2[:, 0], axis=1)
 
-    predicted = None if prefer is None else (lambda pos: prefer(*poses(pos)))
-    for rows in stream_order(len(src.rows), sc.first_batch, sc.growth, predicted):
+    # with both a preference and a skip, one prediction per row serves both: the stream
+    # order asks about every row before it yields it, and the skip is asked then, about
+    # the same predicted poses (the same call: a caller may share work between the two)
+    skipped = known = None
+    if prefer is not None and skip is not None:
+        skipped, known = np.zeros(len(src.rows), bool), np.zeros(len(src.rows), bool)
+
+    def predicted(pos: np.ndarray) -> np.ndarray:
+        p = poses(pos)
+        first = prefer(*p)
+        if skipped is not None:
+            skipped[pos], known[pos] = np.asarray(skip(*p), bool), True
+        return first
+
+    for rows in stream_order(len(src.rows), sc.first_batch, sc.growth, None if prefer is None else predicted):
         if skip is not None:
-            rows = rows[~np.asarray(skip(*poses(rows)), bool)]
+            out = skipped[rows] if known is not None and known[rows].all() else np.asarray(skip(*poses(rows)), bool)
+            rows = rows[~out]
             if not len(rows):
                 continue
         line = src.line_of[rows]

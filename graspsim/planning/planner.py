@@ -268,6 +268,24 @@ _TABLE_TOLERANCE = 0.005
 SCENE_TABLE_SKIP = 0.03
 
 
+class _LastHeights:
+    """:func:`~graspsim.maps.table_clearance.heights_above` of predicted poses, the last
+    call's kept: the stream order's preference and the table skip ask about the same
+    poses one after the other (:func:`~graspsim.maps.scaling.scale_stream`), and the
+    second gets the first's heights (the same arrays: the same values)."""
+
+    def __init__(self, gripper, T_table_part: np.ndarray) -> None:
+        self.gripper, self.T = gripper, T_table_part
+        self.last: tuple = ()
+
+    def __call__(self, q: np.ndarray, p: np.ndarray, w: np.ndarray) -> np.ndarray:
+        if self.last and self.last[0] is q and self.last[1] is p and self.last[2] is w:
+            return self.last[3]
+        h = heights_above(self.gripper, self.T, q, p, w)
+        self.last = (q, p, w, h)
+        return h
+
+
 def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig, checks,
                  T_table_part: np.ndarray | None = None, low: bool = False
                  ) -> tuple[MatchKind, dict, Iterator, dict | None]:
@@ -282,10 +300,11 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig, checks,
     prefer = skip = None
     if T_table_part is not None:
         least = cfg.table.clearance + _TABLE_TOLERANCE
-        prefer = lambda q, p, w: heights_above(db.gripper, T_table_part, q, p, w) >= least  # noqa: E731
+        height = _LastHeights(db.gripper, T_table_part)
+        prefer = lambda q, p, w: height(q, p, w) >= least  # noqa: E731
         if cfg.table_skip is not None and not low:
             under = cfg.table.clearance - cfg.table_skip
-            skip = lambda q, p, w: heights_above(db.gripper, T_table_part, q, p, w) < under  # noqa: E731
+            skip = lambda q, p, w: height(q, p, w) < under  # noqa: E731
     stream = lambda g: _batches(g, cfg.scaling.first_batch, cfg.scaling.growth, prefer)  # noqa: E731
     used = None if m.entry is None else {"key": m.entry.get("key"), "ratio": m.ratio, "max_diff": m.max_diff}
     if m.match is MatchKind.KNOWN:  # the stored map as is (paper 2.2)

@@ -10,7 +10,7 @@ import numpy as np
 
 from graspsim.checks import POSITIVE, check_fields, integer
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.robust import UNSEEN_MARGIN, RobustConfig
+from graspsim.maps.robust import LIFT_CEILING, UNSEEN_MARGIN, RobustConfig
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.segment import gap_link
 from graspsim.planning.planner import SCENE_TABLE_SKIP, PlannerConfig
@@ -57,7 +57,8 @@ def _scene_planner() -> PlannerConfig:
     # box parts that are one box (a carton cut into parallel slabs) merged;
     # with a viewpoint, the robust score keeps the fingers UNSEEN_MARGIN off the object's own unseen back;
     # stored grasps predicted far under the table not scaled (the table filter drops them)
-    return PlannerConfig(robust=RobustConfig(unseen_margin=UNSEEN_MARGIN),
+    # a low-profile grasp's pose error counts the way up too (its pads lifted off a thin part)
+    return PlannerConfig(robust=RobustConfig(unseen_margin=UNSEEN_MARGIN, lift_ceiling=LIFT_CEILING),
                          identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO),
                          collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=None,
                          both_contacts_all_round=False, complete_to_table=True,

@@ -48,8 +48,8 @@ from graspsim.transforms import make_transform, quat_to_matrix
 log = logging.getLogger(__name__)
 
 __all__ = ["RobustConfig", "RobustScores", "TERMS", "RANKS", "ABLATIONS", "ABLATION_LABELS",
-           "POSITION_SIGMA", "ROTATION_SIGMA", "DEFAULT_OPENINGS", "LIFT_CEILING", "wrist_perturbations", "score_rows", "score_map",
-           "ranking", "cloud_in_object", "extra_openings", "executed_width", "score_poses"]
+           "POSITION_SIGMA", "ROTATION_SIGMA", "DEFAULT_OPENINGS", "LIFT_CEILING", "wrist_perturbations",
+           "score_rows", "score_map", "ranking", "cloud_in_object", "extra_openings", "executed_width", "score_poses"]
 
 #: The default wrist pose error at the TCP, one place for the planner's robustness model
 #: (:class:`RobustConfig`), the simulated execution error (``graspsim.sim.ExecutionNoise``)

@@ -289,6 +289,9 @@ def test_a_cloud_too_big_for_the_memory_budget_is_refused_before_any_work(tmp_pa
     ("ok", ["--unseen-margin", "0.5", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
     ("ok", ["--unseen-margin", "nan", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
     ("ok", ["--unseen-margin", "-0.01", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
+    ("ok", ["--pose-error", "-0.001", "2"], "--pose-error: the pose error must be"),
+    ("ok", ["--pose-error", "0.003", "nan"], "--pose-error: the pose error must be"),
+    ("ok", ["--pose-error", "0.5", "2"], "--pose-error: the pose error must be"),
 ])
 def test_bad_input_is_a_one_line_error_and_writes_nothing(how, args, message, tmp_path, capsys, db):
     rng = np.random.default_rng(1)
@@ -347,3 +350,27 @@ def test_a_planned_scene_cloud_in_the_viewer(tmp_path, capsys, db, scene_cloud):
     code, s, _ = _run(capsys, path, "-o", out, "--min-gap", 0.01, "--db", db.root, *FAST_FLAGS, "--screenshot", png,
                       "--port", 0)
     assert code == 0 and s["screenshot"] == str(png) and png.stat().st_size > 10_000 and out.exists()
+
+
+def test_pose_error_tells_the_planner_the_robots_accuracy():
+    """``--pose-error M DEG`` sets the robust score's sigmas (the one path,
+    ``with_pose_error``); without it the planner assumes the default 3 mm / 2 deg; a bad
+    value names what is valid."""
+    import math
+
+    from graspsim.cli import build_parser
+    from graspsim.cli.plan_scene_cmd import _pose_error
+    from graspsim.errors import InvalidParameterError
+    from graspsim.maps.robust import POSITION_SIGMA, ROTATION_SIGMA
+    from graspsim.planning.scene_config import SceneConfig, with_pose_error
+
+    head = ["plan-scene", "c.npy", "-o", "g.json"]
+    args = build_parser().parse_args([*head, "--pose-error", "0.001", "0.5"])
+    robust = _pose_error(args, SceneConfig()).planner.robust
+    assert robust.position_sigma == 0.001 and math.isclose(robust.rotation_sigma, math.radians(0.5))
+    plain = _pose_error(build_parser().parse_args(head), SceneConfig()).planner.robust
+    assert (plain.position_sigma, plain.rotation_sigma) == (POSITION_SIGMA, ROTATION_SIGMA)
+    assert with_pose_error(SceneConfig(), 0.0, 0.0).planner.robust.position_sigma == 0.0  # a perfect robot
+    for bad in ((0.021, 2.0), (0.003, 10.5), (True, 2.0), (0.003, float("inf")), ("3mm", 2.0)):
+        with pytest.raises(InvalidParameterError, match=r"position sigma in \[0, 0.02\] m and a rotation sigma"):
+            with_pose_error(SceneConfig(), *bad)

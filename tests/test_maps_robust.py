@@ -426,3 +426,40 @@ def test_the_unseen_margin_is_bounded_by_the_shadow_an_object_casts_on_the_table
     asked.clear()
     score_rows(pm, np.arange(len(pm)), seen, cfg, viewpoint=np.array([0.5, 0.0, 0.05]))
     assert asked and max(asked) <= 0.0045 and min(asked) >= 0.0035
+
+
+def test_a_low_profile_grasp_fails_the_perturbations_that_lift_it_off_the_table(box_map, cloud):
+    """A pose nearer the table than its clearance (a low-profile grasp, fingertips 0.5 mm up)
+    fails, with ``lift_ceiling``, every perturbation that takes its lowest point into the
+    table or more than the ceiling above it: the fraction an independent count of the same
+    perturbations gives. A pose clear of the table by its clearance is not judged so."""
+    from graspsim.maps.robust import LIFT_CEILING
+
+    row = 0
+    g = box_map.meta.gripper_spec
+    T = box_map.T_obj_wrist[row:row + 1]
+    opening = g.pregrasp_opening(box_map.width[row:row + 1])
+    low = float(g.lowest_point(T, opening)[0])
+    cfg = RobustConfig(samples=64, terms=("table",), success="none", openings=(0.0,))
+    D = wrist_perturbations(cfg.samples, np.random.default_rng(cfg.seed), cfg.position_sigma, cfg.rotation_sigma,
+                            np.asarray(g.nominal_tcp))
+    heights = g.lowest_point(T[0] @ D, np.repeat(opening, len(D))) - (low - 0.0005)
+    want = np.mean((heights >= 0) & (heights <= LIFT_CEILING))
+    near = box_map.with_meta(extra={"T_cloud_obj": np.eye(4).tolist(),
+                                    "table": {"normal": [0, 0, 1], "height": low - 0.0005, "clearance": 0.002}})
+    down_only = score_rows(near, [row], cloud, cfg).feasible[0]
+    both = score_rows(near, [row], cloud, replace(cfg, lift_ceiling=LIFT_CEILING)).feasible[0]
+    assert abs(down_only - np.mean(heights >= 0)) <= 1.5 / cfg.samples
+    assert abs(both - want) <= 1.5 / cfg.samples and both < down_only - 0.1
+    # clear of the table by more than its clearance (10 mm; a long box tilted 2 deg still reaches it
+    # sometimes): the ceiling does not apply
+    far = near.with_meta(extra={"T_cloud_obj": np.eye(4).tolist(),
+                                "table": {"normal": [0, 0, 1], "height": low - 0.01, "clearance": 0.002}})
+    assert (score_rows(far, [row], cloud, replace(cfg, lift_ceiling=LIFT_CEILING)).feasible[0]
+            == score_rows(far, [row], cloud, cfg).feasible[0] > 0.5)
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.001, float("nan"), float("inf"), True, "2mm"])
+def test_a_bad_lift_ceiling_is_refused(bad):
+    with pytest.raises(InvalidParameterError, match=r"lift_ceiling must be > 0 m or None"):
+        RobustConfig(lift_ceiling=bad)

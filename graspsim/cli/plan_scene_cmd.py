@@ -65,6 +65,7 @@ def _cmd_plan_scene(args) -> int:
                                     "with its camera record)")
     cfg = scene_planning_from_args(args, replace(SceneConfig(), min_gap=args.min_gap or None,
                                                  up=None if up is None else tuple(map(float, up))))
+    cfg = _pose_error(args, cfg)
     db = MapDatabase(args.db, gripper=o["gripper"], quality=o["quality"], config=o["map_cfg"])
     plan = plan_scene(pts, db=db, rng=np.random.default_rng(args.seed), config=cfg, viewpoint=viewpoint)
 
@@ -127,7 +128,8 @@ def _options(args) -> dict:
         gap_link(args.min_gap or None)
     except InvalidParameterError:
         raise InvalidParameterError(f"--min-gap must be in (0, 0.1] m, or 0 for none, got {args.min_gap!r}") from None
-    scene_planning_from_args(args, SceneConfig())  # a bad --budget or --unseen-margin: refused before the work
+    _pose_error(args, scene_planning_from_args(args, SceneConfig()))  # a bad --budget, --unseen-margin or
+    # --pose-error: refused before the work
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
         raise MapDatabaseError(f"--db {args.db} is not a folder (the FS map database is a folder of maps)")
     o["depth"] = args.intrinsics is not None or args.camera is not None
@@ -139,6 +141,20 @@ def _options(args) -> dict:
     o["gripper"] = gripper_from_args(args)
     o["map_cfg"], o["quality"] = _config(args)
     return o
+
+
+def _pose_error(args, scene):
+    """``scene`` planned for ``--pose-error M DEG`` (the robot's accuracy:
+    :func:`~graspsim.planning.scene_config.with_pose_error`); a bad value is refused naming the flag."""
+    if args.pose_error is None:
+        return scene
+    from graspsim.errors import InvalidParameterError
+    from graspsim.planning.scene_config import with_pose_error
+
+    try:
+        return with_pose_error(scene, *args.pose_error)
+    except InvalidParameterError as err:
+        raise InvalidParameterError(f"--pose-error: {err}") from None
 
 
 def _record(args, plan, loaded, pts, viewpoint, cfg, crop, gripper: str) -> dict:
@@ -158,6 +174,8 @@ def _record(args, plan, loaded, pts, viewpoint, cfg, crop, gripper: str) -> dict
             "points": int(loaded["n_read"]), "used": int(len(pts)), "viewpoint": viewpoint, "up": cfg.up,
             "crop": crop, "min_gap": cfg.min_gap, "budget": cfg.budget,
             "unseen_margin": cfg.planner.robust.unseen_margin if viewpoint is not None else 0.0,  # applied with a view
+            "planned_for": {"position_sigma": cfg.planner.robust.position_sigma,
+                            "rotation_sigma": cfg.planner.robust.rotation_sigma},
             "seed": args.seed, "gripper": gripper,
             "table": per.plane.to_dict(), "segments": segments, "grasps": [g.to_dict() for g in plan.grasps],
             "best": None if best is None else best.to_dict(), "timing": plan.timing}
@@ -338,6 +356,10 @@ def register(sub) -> None:
         p.add_argument("--labels", default=None, metavar="LABELS.npy",
                        help="also write each file point's segment (-1: table, cropped, no depth or noise) as .npy")
         add_scene_planning_flags(p)
+        p.add_argument("--pose-error", type=float, nargs=2, default=None, metavar=("M", "DEG"),
+                       help="your robot's accuracy at the TCP: position and rotation sigmas [m] [deg]; the robust "
+                       "score ranks grasps by how often they still hold under that error (default 0.003 2: a "
+                       "typical arm with hand-eye calibration; RobustConfig.position_sigma / rotation_sigma)")
         p.add_argument("--seed", type=seed_value, default=0, help="random seed (0)")
         p.add_argument("--db", default=None, help="FS map database folder (default $GRASPSIM_DB or "
                        "~/.cache/graspsim/db; maps of new sizes are built on first use)")

@@ -54,17 +54,28 @@ def map_table(gmap) -> tuple[np.ndarray, float] | None:
     return pl.T_cloud_obj[:3, :3].T @ n, float(pl.table["height"]) - float(n @ pl.T_cloud_obj[:3, 3])
 
 
-def table_rows(table: tuple[np.ndarray, float] | None, R: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """(n, 5) per wrist pose (R (n, 3, 3), w (n, 3)): the table's normal in the wrist
-    frame, the wrist origin's height above the table, the required height (0); no
-    table: a zero normal and 1 so that every box stays above it."""
-    out = np.zeros((len(R), 5))
+#: The ceiling column of :func:`table_rows` where there is none (the kernel runs with
+#: fastmath, which assumes finite numbers).
+NO_CEILING = 1e9
+
+
+def table_rows(table: tuple[np.ndarray, float] | None, R: np.ndarray, w: np.ndarray,
+               ceiling: np.ndarray | None = None) -> np.ndarray:
+    """(n, 6) per wrist pose (R (n, 3, 3), w (n, 3)): the table's normal in the wrist
+    frame, the wrist origin's height above the table, the required height (0), and the
+    ceiling [m] the gripper's lowest point must stay under (``ceiling`` (n,); None or
+    non-finite: none); no table: a zero normal and 1 so that every box stays above it."""
+    out = np.zeros((len(R), 6))
+    out[:, 5] = NO_CEILING
     if table is None:
         out[:, 3] = 1.0
         return out
     n_obj, h_obj = np.asarray(table[0], float), float(table[1])
     out[:, :3] = np.einsum("nji,j->ni", R, n_obj)
     out[:, 3] = w @ n_obj - h_obj
+    if ceiling is not None:
+        c = np.asarray(ceiling, float).reshape(-1)
+        out[:, 5] = np.where(np.isfinite(c), c, NO_CEILING)
     return out
 
 

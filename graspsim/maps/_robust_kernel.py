@@ -37,7 +37,8 @@ where every pose is feasible (nothing wider can score it higher).
 
 Per grasp, opening and perturbation the kernel writes a bit set (uint8): 1 a cloud point
 closer than ``margin`` to a box (cloud collision), 2 the same for a primitive surface
-sample, 4 a box below the table (lower than ``table[4]`` above the plane), 8 a contact
+sample, 4 a box below the table (lower than ``table[4]`` above the plane) or the gripper's
+lowest point higher than ``table[5]`` (a low-profile grasp lifted off a thin part), 8 a contact
 off its pad (outside the finger's width or the pad's length), 16 the closing axis
 outside either contact's friction cone. 0 means feasible; 255: the opening was not
 scored (the grasp stopped at a narrower one).
@@ -175,16 +176,22 @@ def _contacts(i, qc, nq, sign, DR, Dt, pad, cos_fc, out):  # pragma: no cover
 
 @njit(cache=True, nogil=True, fastmath=True)
 def _table(i, k, table, DR, Dt, bc, bh, bs, ho):  # pragma: no cover
-    """TABLE when a box of grasp i under perturbation k lies lower than required."""
+    """TABLE when a box of grasp i under perturbation k lies lower than required
+    (``table[i, 4]``), or when the gripper's lowest point rises higher than ``table[i, 5]``
+    (a low-profile grasp whose pads would overlap a thin part too little)."""
     nx = DR[k, 0, 0] * table[i, 0] + DR[k, 1, 0] * table[i, 1] + DR[k, 2, 0] * table[i, 2]
     ny = DR[k, 0, 1] * table[i, 0] + DR[k, 1, 1] * table[i, 1] + DR[k, 2, 1] * table[i, 2]
     nz = DR[k, 0, 2] * table[i, 0] + DR[k, 1, 2] * table[i, 1] + DR[k, 2, 2] * table[i, 2]
     base = table[i, 3] + table[i, 0] * Dt[k, 0] + table[i, 1] * Dt[k, 1] + table[i, 2] * Dt[k, 2]
+    lowest = 1e30
     for b in range(bc.shape[0]):
         h = (base + nx * (bc[b, 0] + bs[b] * ho) + ny * bc[b, 1] + nz * bc[b, 2]
              - bh[b, 0] * abs(nx) - bh[b, 1] * abs(ny) - bh[b, 2] * abs(nz))
         if h < table[i, 4]:
             return TABLE
+        lowest = min(lowest, h)
+    if lowest > table[i, 5]:  # the whole gripper above the ceiling: lifted off a thin part
+        return TABLE
     return 0
 
 
@@ -302,8 +309,9 @@ def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, si
 
     qc, nq: (N, 2, 3) contacts and outward normals in each grasp's nominal wrist frame;
     sign (N,): +1 when contact 1 lies on the +x side of contact 0. table: (nr_x, nr_y,
-    nr_z, height of the wrist origin, required height) with nr (N, ...) given per grasp
-    as table[i] (a row of zeros and a huge height: no table). pad: (half width, z_lo,
+    nr_z, height of the wrist origin, required height, ceiling of the lowest point) with nr
+    (N, ...) given per grasp as table[i] (a row of zeros and a huge height: no table; a huge
+    ceiling: none). pad: (half width, z_lo,
     z_hi) of the pads in the wrist frame. point_blocks: P's blocks, :func:`graspsim.maps._robust_blocks.blocks`'s
     (order, start, centre, radius, cloud) (any block size gives the same results; see
     the module docstring)."""

@@ -10,13 +10,14 @@ import numpy as np
 
 from graspsim.checks import POSITIVE, check_fields, integer
 from graspsim.errors import InvalidParameterError
-from graspsim.maps.robust import UNSEEN_MARGIN, RobustConfig
+from graspsim.maps.robust import LIFT_CEILING, UNSEEN_MARGIN, RobustConfig
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.segment import gap_link
 from graspsim.planning.planner import SCENE_TABLE_SKIP, PlannerConfig
 from graspsim.planning.scene_workers import scene_workers
 
-__all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "MAX_UNSEEN_MARGIN", "MAX_SCENE_EXTENT",
+__all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "with_pose_error", "MAX_POSE_ERROR",
+           "MAX_UNSEEN_MARGIN", "MAX_SCENE_EXTENT",
            "SCENE_BYTES_PER_POINT", "SCENE_FIT_POINTS", "SCENE_COLLISION_TOLERANCE", "SCENE_MAX_NOISE_RATIO"]
 
 #: Widest plausible table-top scene [m]; wider clouds are taken for millimetres or centimetres.
@@ -57,7 +58,8 @@ def _scene_planner() -> PlannerConfig:
     # box parts that are one box (a carton cut into parallel slabs) merged;
     # with a viewpoint, the robust score keeps the fingers UNSEEN_MARGIN off the object's own unseen back;
     # stored grasps predicted far under the table not scaled (the table filter drops them)
-    return PlannerConfig(robust=RobustConfig(unseen_margin=UNSEEN_MARGIN),
+    # a low-profile grasp's pose error counts the way up too (its pads lifted off a thin part)
+    return PlannerConfig(robust=RobustConfig(unseen_margin=UNSEEN_MARGIN, lift_ceiling=LIFT_CEILING),
                          identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO),
                          collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=None,
                          both_contacts_all_round=False, complete_to_table=True,
@@ -189,3 +191,30 @@ def with_unseen_margin(scene: SceneConfig, margin: float | None) -> SceneConfig:
                                     f"(the measured and default: 0.02; 0: none), got {margin!r}")
     planner = scene.planner
     return replace(scene, planner=replace(planner, robust=replace(planner.robust, unseen_margin=float(margin))))
+
+
+#: The largest pose error a scene's planning takes (:func:`with_pose_error`): 2 cm and 10 deg
+#: sigmas at the TCP, past which a two-jaw grasp of a table-top object is a guess.
+MAX_POSE_ERROR = (0.02, 10.0)
+
+
+def with_pose_error(scene: SceneConfig, position_sigma: float, rotation_deg: float) -> SceneConfig:
+    """``scene`` with its planner's robust score judging every grasp under the robot's pose
+    error: Gaussian sigmas at the TCP, ``position_sigma`` [m] and ``rotation_deg`` [deg]
+    (``RobustConfig.position_sigma`` / ``rotation_sigma``; the default 3 mm / 2 deg,
+    :data:`graspsim.maps.robust.POSITION_SIGMA`). The one path from the accuracy a user
+    states (``graspsim plan-scene --pose-error``) to the planner, as ``graspsim scene
+    --noise`` (``ClutterConfig.plan_for_execution``) passes the simulated arm's. A sigma
+    outside [0, :data:`MAX_POSE_ERROR`] is an :class:`~graspsim.errors.InvalidParameterError`."""
+    import math
+    from dataclasses import replace
+
+    values = (position_sigma, rotation_deg)
+    if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in values) or not (
+            0 <= position_sigma <= MAX_POSE_ERROR[0] and 0 <= rotation_deg <= MAX_POSE_ERROR[1]):
+        raise InvalidParameterError(f"the pose error must be a position sigma in [0, {MAX_POSE_ERROR[0]:g}] m and a "
+                                    f"rotation sigma in [0, {MAX_POSE_ERROR[1]:g}] deg (default 0.003 m, 2 deg), "
+                                    f"got {position_sigma!r} m, {rotation_deg!r} deg")
+    planner = scene.planner
+    robust = replace(planner.robust, position_sigma=float(position_sigma), rotation_sigma=math.radians(rotation_deg))
+    return replace(scene, planner=replace(planner, robust=robust))

@@ -426,3 +426,47 @@ def test_the_unseen_margin_is_bounded_by_the_shadow_an_object_casts_on_the_table
     asked.clear()
     score_rows(pm, np.arange(len(pm)), seen, cfg, viewpoint=np.array([0.5, 0.0, 0.05]))
     assert asked and max(asked) <= 0.0045 and min(asked) >= 0.0035
+
+
+def test_a_grasp_closing_along_the_line_of_sight_onto_the_unseen_back_ranks_below(box_map, cloud):
+    """RobustConfig.unseen_contact: seen from the front only, a grasp with a contact on the box's
+    unseen back closes across a width the view did not measure (the fit's guess of the back): it
+    keeps 1 - |cos| of its score, the angle between its closing axis and the line of sight; a grasp
+    whose contacts the view saw keeps its score, and the term is off by default and off without
+    a viewpoint."""
+    from graspsim.maps.occlusion import ViewDepth
+    from graspsim.maps.robust import unseen_contact_share
+
+    front, eye = _front_view(cloud)
+    rows = np.arange(len(box_map))
+    cfg = RobustConfig(samples=16, unseen_contact=True)
+    assert RobustConfig().unseen_contact is False  # opt-in: the default score is unchanged
+    on = score_rows(box_map, rows, front, cfg, viewpoint=eye)
+    off = score_rows(box_map, rows, front, replace(cfg, unseen_contact=False), viewpoint=eye)
+    R = box_map.wrist_transforms()[:, :3, :3]
+    C = box_map.contacts.astype(float)
+    hidden = ViewDepth(front, eye).occluded(C.reshape(-1, 3)).reshape(-1, 2).any(axis=1)
+    sight = C.mean(axis=1) - eye
+    cos = np.abs(np.einsum("ni,ni->n", R[:, :, 0], sight / np.linalg.norm(sight, axis=1, keepdims=True)))
+    along = hidden & (cos > 0.9) & (off.robust > 0)  # one contact on the back, closing along the sight line
+    across = hidden & (cos < 0.1) & (off.robust > 0)  # contacts on the sides the silhouette bounds
+    assert along.sum() >= 10 and across.sum() >= 10 and (~hidden & (off.robust > 0)).sum() >= 1
+    np.testing.assert_allclose(on.robust[hidden], off.robust[hidden] * (1.0 - cos[hidden]), rtol=1e-6, atol=1e-9)
+    assert np.all(on.robust[along] < 0.1 * off.robust[along])
+    assert np.all(on.robust[across] >= 0.9 * off.robust[across])
+    assert on.robust[across].max() > on.robust[along].max()  # a grasp across the sight line ranks first
+    np.testing.assert_array_equal(on.robust[~hidden], off.robust[~hidden])  # contacts the view saw: unchanged
+    # no viewpoint: no term, whatever the config says
+    np.testing.assert_array_equal(score_rows(box_map, rows, front, cfg).robust,
+                                  score_rows(box_map, rows, front, replace(cfg, unseen_contact=False)).robust)
+    share = unseen_contact_share(ViewDepth(front, eye), R, C)
+    assert np.all((share >= 0) & (share <= 1)) and np.all(share[~hidden] == 1.0)
+
+
+def test_adapt_scores_a_single_views_unseen_contacts_in_robust_mode_only():
+    """`graspsim adapt` turns RobustConfig.unseen_contact on in robust mode (it counts only where
+    a viewpoint is given) and leaves the paper's mode without it."""
+    from graspsim.planning.adapt import adapt_config
+
+    assert adapt_config(mode="robust").robust.unseen_contact is True
+    assert adapt_config(mode="paper").robust.unseen_contact is False

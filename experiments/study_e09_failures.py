@@ -18,7 +18,9 @@ where the view did not see), ``start: seen side, off the cloud`` (in the true me
 view saw, yet > 3 mm from every observed point: a thin part or an edge the sampling missed),
 ``start: seen side, at the cloud`` (at observed points: the robust score let it through),
 ``start: table``, ``start: model only`` (nothing of the true mesh in the fingers at the planned
-pose: the simulation's convex parts), and for the others the trial's outcome. An object with
+pose: the simulation's convex parts), and for the others the trial's outcome, marked ``true mesh
+wider than planned`` where the true mesh between the pads spans more than 6 mm beyond the planned
+contact width along the closing axis (the back went on past the fit). An object with
 no accepted grasp counts as ``no usable map``, with its parts.
 
     python experiments/study_e09_failures.py --run /work/runs/e09gen/before-el20
@@ -41,6 +43,7 @@ log = logging.getLogger("study_e09_failures")
 
 INSIDE = 0.001  # [m] a finger sample this deep inside the true mesh counts as inside
 NEAR = 0.003  # [m] a sample this near an observed point lies "at the cloud"
+WIDER = 0.006  # [m] the true mesh between the pads this much wider than the planned contact width: "wider"
 
 
 @dataclass(frozen=True)
@@ -133,6 +136,8 @@ def judge(gmap, rows, outcome, mesh, cloud, viewpoint) -> list[dict]:
                 m = "start: table"
             else:
                 m = "start: model only"
+        elif r.get("true_width_mm", 0.0) > r["planned_width_mm"] + 1000 * WIDER:
+            m = f"{o.label}: true mesh wider than planned"
         else:
             m = o.label
         r["mechanism"] = m

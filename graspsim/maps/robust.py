@@ -49,7 +49,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["RobustConfig", "RobustScores", "TERMS", "RANKS", "ABLATIONS", "ABLATION_LABELS",
            "POSITION_SIGMA", "ROTATION_SIGMA", "DEFAULT_OPENINGS", "wrist_perturbations", "score_rows", "score_map",
-           "ranking", "cloud_in_object", "extra_openings", "executed_width", "score_poses", "unseen_contact_share"]
+           "ranking", "cloud_in_object", "extra_openings", "executed_width", "score_poses"]
 
 #: The default wrist pose error at the TCP, one place for the planner's robustness model
 #: (:class:`RobustConfig`), the simulated execution error (``graspsim.sim.ExecutionNoise``)
@@ -168,13 +168,7 @@ class RobustConfig:
     per object by the shadow it casts across the table and by its thickness
     (default 0: off; :data:`UNSEEN_MARGIN` the value measured);
     unseen_openings: the extra gaps per side [m] tried, beyond ``openings``, for a grasp that
-    keeps that margin at none of them (:data:`UNSEEN_OPENINGS`);
-    unseen_contact: with a viewpoint, a grasp with a contact in unseen space keeps the share
-    1 - |cos a| of its score, a the angle between its closing axis and the line of sight to
-    its contacts (:func:`unseen_contact_share`): the width it closes across is then measured
-    by the view only in its component across the line of sight, the rest is the fit's guess of
-    the back (default False: off; ``graspsim adapt`` turns it on for single views in robust
-    mode)."""
+    keeps that margin at none of them (:data:`UNSEEN_OPENINGS`)."""
 
     position_sigma: float = POSITION_SIGMA
     rotation_sigma: float = ROTATION_SIGMA
@@ -191,7 +185,6 @@ class RobustConfig:
     occlusion_power: float = OCCLUSION_POWER
     unseen_margin: float = 0.0
     unseen_openings: tuple[float, ...] = UNSEEN_OPENINGS
-    unseen_contact: bool = False
 
     def __post_init__(self) -> None:
         check_fields(self, NON_NEGATIVE, "position_sigma", "rotation_sigma", "margin", "occlusion_power",
@@ -278,7 +271,6 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
     from graspsim.maps.occlusion import finger_occlusion
 
     n = len(R)
-    contacts = c  # (c is reused below)
     centers, half, x_sign = merged_boxes(g)
     qc = np.einsum("nji,nkj->nki", R, c - w[:, None])
     nq = np.einsum("nji,nkj->nki", R, nrm)
@@ -337,44 +329,12 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
     live_any = np.any([r[3] for r in results], axis=0)
     success = np.zeros(n)
     success[live_any] = success_of(live_any)  # only where it can matter
-    share = np.ones(n)  # the width along the line of sight is a guess (RobustConfig.unseen_contact)
-    if view is not None and cfg.occlusion and cfg.unseen_contact:
-        share = unseen_contact_share(view, R, contacts)
-    scores = np.array([np.where(r[3], r[2] * success * share * (1.0 - r[4]) ** cfg.occlusion_power * r[5], 0.0)
+    scores = np.array([np.where(r[3], r[2] * success * (1.0 - r[4]) ** cfg.occlusion_power * r[5], 0.0)
                        for r in results])  # (E, n)
     best = np.argmax(scores, axis=0)  # the first (narrowest) on ties
     idx = np.arange(n)
     pick = [np.array([r[j] for r in results])[best, idx] for j in (0, 1, 2, 4)]
     return RobustScores(pick[0], pick[2], success, scores[best, idx], pick[1], extras[best], pick[3])
-
-
-def unseen_contact_share(view, R: np.ndarray, contacts: np.ndarray) -> np.ndarray:
-    """(n,) the share of its score a grasp keeps under ``RobustConfig.unseen_contact``: 1 - |cos a|,
-    a the angle between its closing axis (the wrist's x, ``R`` (n, 3, 3)) and the line of sight from
-    the ``view``'s viewpoint to the middle of its ``contacts`` (n, 2, 3), where a contact lies in
-    space the view did not see (:meth:`~graspsim.maps.occlusion.ViewDepth.occluded`); 1 elsewhere.
-
-    A single view measures an object's extent across its line of sight (the silhouette) but not
-    along it: the back is the fitted primitive's extrapolation. On E09's development meshes in
-    harder single views (the camera at 20 deg, trimesh's stable poses; ``experiments/study_e09_failures.py``)
-    most failed grasps (drops, slips, failed placements, not start collisions) closed on a back
-    6 to 25 mm deeper than the fit, where the unseen contact lay far from where it was planned:
-    the grasp's grade was computed on a surface that is not there. A grasp closing across the line
-    of sight has both contacts on surfaces the silhouette bounds; one closing along it rests on the
-    guess. Objects every grasp of which closes along it keep their order (the share scales them alike)."""
-    n = len(R)
-    out = np.ones(n)
-    if view is None or not n:
-        return out
-    C = np.asarray(contacts, float).reshape(n, 2, 3)
-    hidden = view.occluded(C.reshape(-1, 3)).reshape(n, 2).any(axis=1)
-    if not hidden.any():
-        return out
-    sight = C.mean(axis=1) - view.viewpoint
-    sight /= np.maximum(np.linalg.norm(sight, axis=1, keepdims=True), 1e-12)
-    cos = np.abs(np.einsum("ni,ni->n", np.asarray(R, float)[:, :, 0], sight))
-    out[hidden] = 1.0 - np.clip(cos[hidden], 0.0, 1.0)
-    return out
 
 
 def view_of(cloud: np.ndarray | None, viewpoint, config: RobustConfig):
@@ -523,7 +483,6 @@ def score_map(gmap, cloud_obj: np.ndarray | None = None, config: RobustConfig = 
             "pivot": "nominal_tcp", "viewpoint": viewpoint is not None and config.occlusion,
             "model": "robust_feasible x success x (1 - occluded finger fraction) ** occlusion_power; "
                      "x min(unseen finger clearance / unseen_margin, 1); "
-                     "x (1 - |cos(closing axis, line of sight)|) with a contact unseen (unseen_contact); "
                      "0 if the nominal pose collides",
             "success_model": success_source(gmap, config.success),
             "module": "graspsim.maps.robust"}

@@ -76,10 +76,7 @@ def adapt_config(*, mode: str = "robust", table: str | float | None = None,
         unseen_margin = DEFAULT_UNSEEN_MARGIN if mode == "robust" else 0.0
     if not (isinstance(unseen_margin, (int, float)) and 0 <= unseen_margin <= 0.1):
         raise InvalidParameterError(f"unseen_margin must be in [0, 0.1] m (0: none), got {unseen_margin!r}")
-    # a single view's contacts on the unseen back: robust mode only, and only with a viewpoint (the
-    # occlusion terms need one: without, nothing changes)
-    return replace(cfg, robust=replace(cfg.robust, unseen_margin=float(unseen_margin),
-                                       unseen_contact=mode == "robust"))
+    return replace(cfg, robust=replace(cfg.robust, unseen_margin=float(unseen_margin)))
 
 
 def adapt_cloud(cloud, *, db, config=None, seed: int = 0, source: str | None = None,

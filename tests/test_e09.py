@@ -113,3 +113,51 @@ def test_the_unseen_margin_reaches_a_single_views_planning_only(monkeypatch):
                 e09._plan_entry(pts, None, "robust", cfg, viewpoint=vp)
     assert seen == [(DEFAULT_UNSEEN_MARGIN, True), (0.0, False), (0.0, True), (0.0, False), (0.015, True), (0.0, False)]
     assert DEFAULT_UNSEEN_MARGIN > 0
+
+
+def _study():
+    _e09()  # experiments/ on the path, E09 importable
+    spec = importlib.util.spec_from_file_location("study_e09_failures", EXPERIMENTS / "study_e09_failures.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["study_e09_failures"] = mod  # (its dataclasses look their module up)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_failure_study_refuses_a_held_out_mesh(tmp_path):
+    """study_e09_failures judges development meshes only: a run holding a held-out mesh is refused
+    before anything of it is read but its name."""
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "config.json").write_text(json.dumps({"objects_dir": "x"}))
+    (run / "results.json").write_text(json.dumps({"objects": [{"object": "pybullet/random_003.stl", "fits": True}]}))
+    study = _study()
+    with pytest.raises(ValueError, match="held-out"):
+        study.run(study.Config(run=str(run)))
+    assert study.main(["--run", str(tmp_path / "nothing"), "--out", str(tmp_path / "o")]) == 2
+
+
+@pytest.mark.slow
+def test_the_failure_study_gives_every_failed_trial_one_mechanism(tmp_path):
+    """A quick E09 run on a vendored development mesh (random_022: its quick single view fails some
+    of its best), then the study: every simulated trial of a robust map is judged, the failed ones
+    each with one mechanism, and the counts add up to them."""
+    e09 = _e09()
+    out = tmp_path / "e09"
+    assert e09.main(["--quick", "--objects-dir", str(ROOT / "assets" / "objects"), "--out", str(out),
+                     "--objects", "pybullet/random_022.stl", "--separation-mm", "0"]) == 0
+    study = _study()
+    assert study.main(["--run", str(out), "--out", str(tmp_path / "st")]) == 0
+    s = json.loads((tmp_path / "st" / "failures.json").read_text())
+    r = json.loads((out / "results.json").read_text())
+    (row,) = r["objects"]
+    for view in ("full", "single"):
+        sim = row[f"{view}/robust"]["sim"]
+        trials = [t for t in s["trials"] if t["view"] == view]
+        if sim is None or row[f"{view}/robust"]["accepted"] == 0:
+            assert not trials
+            continue
+        assert len(trials) == sim["trials"] and sum(t["failed"] for t in trials) == sim["trials"] - sim["placed"]
+        assert sum(c["n"] for c in s["counts"].get(view, {}).values()) == sim["trials"] - sim["placed"]
+        assert all((t["mechanism"] == "success") != t["failed"] for t in trials)
+    assert any(t["failed"] for t in s["trials"])  # something to judge

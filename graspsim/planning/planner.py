@@ -47,7 +47,7 @@ from graspsim.maps.table_clearance import (
 )
 from graspsim.perception import Identification, IdentificationStatus, IdentifyConfig, identify
 from graspsim.planning.box_merge import merge_boxes
-from graspsim.planning.observed import ObservedChecks
+from graspsim.planning.observed import ObservedChecks, first_clear
 from graspsim.planning.plan_results import GraspBatch, PartPlan, PlanResult, PlanStatus
 from graspsim.planning.stages import StageClock
 from graspsim.planning.table_completion import complete_to_table, segment_depth
@@ -178,6 +178,16 @@ class PlannerConfig:
         predicted orientation and moves by millimetres); not for a low part, whose poses
         under the table are lifted clear (``low_profile``). None (default): every stored grasp
         is scaled. Scene planning sets :data:`~graspsim.planning.planner.SCENE_TABLE_SKIP`.
+    clear_first: robust ranking: a batch's robust-scoring budget (``robust.top`` per part) goes
+        to its best-graded grasps whose gripper holds no observed point -- the object's, and the
+        ``obstacles`` (a scene's neighbours) -- at the nominal pose at some opening the score may
+        choose (:func:`~graspsim.planning.observed.first_clear`: one pass of the robust score's
+        kernel at no pose error); the grasps passed over, which the robust score would give 0,
+        are left out of the batch (counts in ``extra["clear_first"]``). In a crowded pile every
+        one of a lying bottle's best-graded grasps can close on a neighbour: the budget went to
+        them and the object was left with no grasp, while grasps lower in the grade order
+        cleared. False (default): the budget to the best-graded grasps as they come. Scene
+        planning turns it on.
     table_band: [m] with ``complete_to_table``: the height above the table below which the
         cloud's points were cut away as the table's (a scene's ``SceneConfig.table_band``,
         which sets it); the completed volume's hidden space is judged above it.
@@ -203,6 +213,7 @@ class PlannerConfig:
     hidden_depth: bool = False
     merge_boxes: bool = False
     table_skip: float | None = None
+    clear_first: bool = False
 
     def __post_init__(self) -> None:
         if self.low_profile is not None and not isinstance(self.low_profile, LowProfile):
@@ -510,7 +521,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     view_obj, view = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0], None
     if observed is not None:
         observed.cloud_obj, observed.T_cloud_obj = cloud_obj, T_cloud_obj
-    stage = StageClock("adapt", "agreement", "combine", "table", "robust", "observed", "features")
+    stage = StageClock("adapt", "agreement", "combine", "table", "robust", "observed", "features", "clear_first")
+    n_checked = n_cut = 0  # clear_first: rows checked, rows passed over
     skip_spent = scored_only and cfg.rank == "robust"
     checks = check_config(db, cfg)
     t1 = time.perf_counter()
@@ -566,6 +578,19 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             if budget > 0:  # robustness of the batch's best-graded grasps, then its order
                 stage.start()
                 rows = np.argsort(-batch.grade, kind="stable")[:budget]
+                if cfg.clear_first:  # the budget to the best-graded grasps that can score: none holding a point
+                    order = np.argsort(-batch.grade, kind="stable")
+                    rows, checked = first_clear(batch, order, budget, cloud_obj, cfg.robust, db.gripper)
+                    passed = np.setdiff1d(order[:checked], rows)  # each would score 0: not offered
+                    n_checked, n_cut = n_checked + checked, n_cut + len(passed)
+                    if len(passed):
+                        keep = np.ones(len(batch), bool)
+                        keep[passed] = False
+                        rows = (np.cumsum(keep) - 1)[rows]  # their rows once the passed ones are gone
+                        batch = batch.select(keep)
+                    stage.lap("clear_first")
+                    if not len(rows):  # the whole batch held points
+                        continue
                 if view is None:  # the cloud's depth image from the viewpoint: one for every batch
                     view = view_of(cloud_obj, view_obj, cfg.robust)
                 batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper,
@@ -596,6 +621,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
         table = {**table, "low_profile": lift.to_dict(), "low_parts": n_low, "lifted": n_lifted}
     if table is not None and cfg.complete_to_table:
         table = {**table, "completed": n_completed}
+    if cfg.clear_first and cfg.rank == "robust":
+        extra = {**extra, "clear_first": {"checked": n_checked, "passed_over": n_cut}}
     if table is not None and cfg.hidden_depth:
         table = {**table, "segment_depth": sum(0 if b is None else len(b) for b in floors)}
     full = _finished(batches, parts, extra, table, n_below, obj_meta, compound is not None, cfg, T_cloud_obj)

@@ -15,7 +15,7 @@ from graspsim.maps.map_config import MapConfig
 from graspsim.maps.robust import RobustConfig, score_map
 from graspsim.planning.observed import clear_of_cloud, first_clear
 from graspsim.planning.planner import PlannerConfig, plan_stream
-from graspsim.primitives import Box, Cylinder, synthetic_cloud
+from graspsim.primitives import Cylinder, synthetic_cloud
 from graspsim.transforms import make_transform
 
 FAST = MapConfig(surface_step=0.008, rotation_step=math.radians(22))

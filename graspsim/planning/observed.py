@@ -38,8 +38,8 @@ from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.table_clearance import clears_table
 from graspsim.planning.plan_results import GraspBatch
 
-__all__ = ["ObservedChecks", "clear_of_cloud", "first_clear", "HIDDEN_FACE_ANGLE", "MEASURED_SHARE", "SEEN_FINGER_SHARE",
-           "SPACING_TOLERANCE", "UNSEEN_CONE_DEG"]
+__all__ = ["ObservedChecks", "clear_of_cloud", "first_clear", "HIDDEN_FACE_ANGLE", "MEASURED_SHARE",
+           "SEEN_FINGER_SHARE", "SPACING_TOLERANCE", "UNSEEN_CONE_DEG"]
 
 #: A box part's extent along an axis counts as measured by a single view when at least this share
 #: of its points lie on faces running along the axis (normal > 60 deg from it): ObservedChecks.unseen_depth

@@ -41,11 +41,12 @@ def test_a_grasp_through_a_neighbour_is_cut_and_a_free_one_kept(cylinder_map):
     order = np.argsort(-m.grade, kind="stable")
     n = 40
     rows, checked = first_clear(m, order, n, wall, ROBUST, G)
-    free, _ = clear_of_cloud(m, order, wall, replace(ROBUST, openings=ROBUST.openings + ROBUST.unseen_openings), G)
-    assert len(rows) == n and (~free).any() and free.any()  # some grasps go through the wall, others not
+    head = order[:1000]  # the best-graded rows, where the first n free ones lie
+    free, _ = clear_of_cloud(m, head, wall, replace(ROBUST, openings=ROBUST.openings + ROBUST.unseen_openings), G)
+    assert len(rows) == n and (~free).any() and free.sum() >= n  # some grasps go through the wall, others not
     # the first n free rows in the grade order, found without checking the whole map
-    assert np.array_equal(rows, order[free][:n])
-    assert checked <= len(order) and np.array_equal(order[:checked][free[:checked]], rows)  # none clear left over
+    assert np.array_equal(rows, head[free][:n])
+    assert checked <= len(head) and np.array_equal(order[:checked][free[:checked]], rows)  # none clear left over
     passed = np.setdiff1d(order[:checked], rows)
     assert len(passed) > 0  # the wall cut some of the best-graded grasps
     # what was passed over is exactly what the robust score gives 0 (a pose holding a point at every opening)

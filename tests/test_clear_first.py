@@ -60,23 +60,34 @@ def test_a_grasp_through_a_neighbour_is_cut_and_a_free_one_kept(cylinder_map):
     assert first_clear(m, order, 0, wall, ROBUST, G)[0].size == 0
 
 
-def test_the_budget_goes_to_grasps_clear_of_a_neighbour(tmp_path):
+@pytest.fixture(scope="module")
+def db(tmp_path_factory):
+    d = MapDatabase(tmp_path_factory.mktemp("db"), config=FAST)
+    d.build([Cylinder(0.025, 0.1)])
+    return d
+
+
+T = make_transform(np.eye(3), [0.4, -0.1, 0.25])
+BASE = PlannerConfig(robust=replace(ROBUST, top=30), features=None, clear_observed=False)
+
+
+def _run(db, cloud, obstacles, first: bool):
+    out = list(plan_stream(cloud.points, db=db, rng=np.random.default_rng(2), obstacles=obstacles,
+                           config=replace(BASE, clear_first=first), scored_only=True))
+    return out[-1]
+
+
+def test_the_budget_goes_to_grasps_clear_of_a_neighbour(db):
     """A cylinder with a board standing against one side: the best-graded grasps close
     through the board. With ``clear_first`` the same scoring budget finds more grasps that
     can score, none of the grasps offered holds a board point, and each passed-over grasp
     is counted."""
-    db = MapDatabase(tmp_path, config=FAST)
-    db.build([Cylinder(0.025, 0.1)])
     rng = np.random.default_rng(1)
-    T = make_transform(np.eye(3), [0.4, -0.1, 0.25])
     cloud = synthetic_cloud(Cylinder(0.025, 0.1), rng, resolution=0.004, noise=0.0003, T_world_obj=T)
     board = _wall(0.03, rng, 3000) + T[:3, 3]
-    base = PlannerConfig(robust=replace(ROBUST, top=30), features=None, clear_observed=False)
 
     def run(first: bool):
-        out = list(plan_stream(cloud.points, db=db, rng=np.random.default_rng(2), obstacles=board,
-                               config=replace(base, clear_first=first), scored_only=True))
-        return out[-1]
+        return _run(db, cloud, board, first)
 
     before, after = run(False), run(True)
     good = [int(np.sum(r.map.robust > 0)) for r in (before, after)]
@@ -89,3 +100,18 @@ def test_the_budget_goes_to_grasps_clear_of_a_neighbour(tmp_path):
     scored = np.flatnonzero(np.isfinite(m.robust))
     wide = replace(ROBUST, openings=ROBUST.openings + ROBUST.unseen_openings)
     assert np.all(clear_of_cloud(m, scored, board_obj, wide, G)[0])
+
+
+def test_a_part_with_no_clear_grasp_is_checked_only_down_to_the_span(db):
+    """Boards on every side and above: no grasp clears. The check stops CLEAR_FIRST_SPAN x
+    the budget down the part's grade order (not at the end of its maps), and nothing is scored."""
+    from graspsim.planning.planner import CLEAR_FIRST_SPAN
+
+    rng = np.random.default_rng(4)
+    cloud = synthetic_cloud(Cylinder(0.025, 0.1), rng, resolution=0.004, noise=0.0003, T_world_obj=T)
+    cage = [_wall(0.03, rng, 3000), -_wall(0.03, rng, 3000)]
+    cage += [b[:, [1, 0, 2]] for b in cage] + [b[:, [1, 2, 0]] for b in cage]  # the other sides, top and bottom
+    res = _run(db, cloud, np.concatenate(cage) + T[:3, 3], True)
+    rec = res.map.meta.extra["clear_first"]
+    assert rec["span_reached"] == 1 and rec["checked"] == CLEAR_FIRST_SPAN * BASE.robust.top
+    assert rec["passed_over"] == rec["checked"] and not np.isfinite(res.map.robust).any()

@@ -274,8 +274,8 @@ def _batches(gmap: GraspabilityMap, first: int, growth: float, prefer=None) -> I
 #: on the frames of two E10 household-tuning pile scenes that stopped on no_grasp, the first grasp clear of
 #: the neighbours of a segment whose 200 best-graded grasps all held a point lay at ranks 71 to 1134 (9
 #: segment frames; one more segment at 5843 in two frames, which the span leaves without a grasp), while
-#: a segment with none clear (a bottle lying in a pile's middle) streamed 7000 to 10000 grasps to the end of its maps: unbounded, the
-#: check cost one frame 1.2 s of CPU (14 000 rows; 0.6 s with the span).
+#: a segment with none clear (a bottle lying in a pile's middle) streamed 7000 to 10000 grasps to the end
+#: of its maps: unbounded, the check cost one frame 1.2 s of CPU (14 000 rows; 0.6 s with the span).
 CLEAR_FIRST_SPAN = 10
 
 # only predicted poses this far above the table's clearance stream first: the

@@ -38,8 +38,8 @@ from graspsim.maps.rowids import first_rows, row_ids
 from graspsim.maps.table_clearance import clears_table
 from graspsim.planning.plan_results import GraspBatch
 
-__all__ = ["ObservedChecks", "clear_of_cloud", "HIDDEN_FACE_ANGLE", "MEASURED_SHARE", "SEEN_FINGER_SHARE",
-           "SPACING_TOLERANCE", "UNSEEN_CONE_DEG"]
+__all__ = ["ObservedChecks", "clear_of_cloud", "first_clear", "HIDDEN_FACE_ANGLE", "MEASURED_SHARE",
+           "SEEN_FINGER_SHARE", "SPACING_TOLERANCE", "UNSEEN_CONE_DEG"]
 
 #: A box part's extent along an axis counts as measured by a single view when at least this share
 #: of its points lie on faces running along the axis (normal > 60 deg from it): ObservedChecks.unseen_depth
@@ -89,6 +89,34 @@ def clear_of_cloud(gmap, rows: np.ndarray, cloud_obj: np.ndarray, config: Robust
     s = score_rows(gmap, rows, cloud_obj, nominal, gripper)
     keep = s.robust > 0
     return keep, np.where(keep, s.extra_opening, 0.0)
+
+
+def first_clear(gmap, order: np.ndarray, n: int, cloud_obj: np.ndarray, config: RobustConfig = RobustConfig(),
+                gripper: GripperSpec | None = None) -> tuple[np.ndarray, int]:
+    """The first ``n`` rows of ``order`` (the map's rows, best first) whose gripper holds
+    no point of ``cloud_obj`` (M, 3, object frame; the object's and its neighbours')
+    at its nominal pose at some opening the robust score may choose -- ``config.openings``
+    and the wider ``unseen_openings`` -- as :func:`clear_of_cloud` checks them: (those
+    rows in ``order``'s order, how many rows were checked). The rows passed over would
+    score 0 (the robust score is 0 for a pose that holds a point at every opening), so a
+    scoring budget spent on the rows returned goes to grasps that can score. The rows
+    are checked in chunks of the rows still wanted (at least 64), stopping once ``n``
+    are found; rows after the ``n``-th clear one count as unchecked."""
+    order = np.asarray(order, int).reshape(-1)
+    if n <= 0 or not len(order):
+        return order[:0], 0
+    wide = replace(config, openings=tuple(config.openings) + tuple(
+        v for v in config.unseen_openings if v > max(config.openings)))
+    found: list[np.ndarray] = []
+    got = at = 0
+    while got < n and at < len(order):
+        chunk = order[at:at + max(n - got, 64)]
+        ok = np.flatnonzero(clear_of_cloud(gmap, chunk, cloud_obj, wide, gripper)[0])[:n - got]
+        found.append(chunk[ok])
+        got += len(ok)
+        # checked: up to the n-th clear row (the clear rows after it in the chunk are not passed over)
+        at += int(ok[-1]) + 1 if got >= n else len(chunk)
+    return np.concatenate(found), at
 
 
 class ObservedChecks:

@@ -17,7 +17,10 @@ ablation). :func:`graspsim.planning.planner.plan_stream` streams best-first; pla
 segment stops once ``enough`` grasps with a positive robust score are found or
 ``per_segment`` grasps per part are scored (later batches would not be scored), and
 a part whose ``per_segment`` are scored yields to the next (``scored_only``: its
-unscored batches are not made).
+unscored batches are not made). That budget goes to grasps whose gripper holds no
+point of the scene at their pose (``PlannerConfig.clear_first``): in a crowded pile a
+lying bottle's best-graded grasps can all close on a neighbour, and the clear ones lie
+further down the grade order.
 
 Frames: the cloud's frame is called the world here (``T_world_wrist``); a cloud in the
 camera's frame gives poses in the camera's frame.

@@ -57,13 +57,15 @@ def _scene_planner() -> PlannerConfig:
     # a box's unmeasured depth at least what the view can tell from its seen face;
     # box parts that are one box (a carton cut into parallel slabs) merged;
     # with a viewpoint, the robust score keeps the fingers UNSEEN_MARGIN off the object's own unseen back;
-    # stored grasps predicted far under the table not scaled (the table filter drops them)
-    # a low-profile grasp's pose error counts the way up too (its pads lifted off a thin part)
+    # stored grasps predicted far under the table not scaled (the table filter drops them);
+    # a low-profile grasp's pose error counts the way up too (its pads lifted off a thin part);
+    # the scoring budget to grasps that hold no point of the scene at their pose (in a pile every best-graded
+    # grasp of a lying bottle can close on a neighbour)
     return PlannerConfig(robust=RobustConfig(unseen_margin=UNSEEN_MARGIN, lift_ceiling=LIFT_CEILING),
                          identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO),
                          collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=None,
                          both_contacts_all_round=False, complete_to_table=True,
-                         hidden_depth=True, merge_boxes=True, table_skip=SCENE_TABLE_SKIP)
+                         hidden_depth=True, merge_boxes=True, table_skip=SCENE_TABLE_SKIP, clear_first=True)
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.map_config import MapConfig
 from graspsim.maps.match import MatchKind
+from graspsim.maps.robust import RobustConfig
 from graspsim.perception import IdentifyConfig
 from graspsim.planning.planner import GraspBatch, PlannerConfig, PlanResult, PlanStatus, plan, plan_stream
 from graspsim.primitives import Box, Compound, Cylinder, Sphere, synthetic_cloud
@@ -135,6 +136,15 @@ def test_same_seed_same_plan(db):
     b = plan(cloud.points, db=db, rng=np.random.default_rng(9))
     np.testing.assert_array_equal(a.map.wrist_position, b.map.wrist_position)
     np.testing.assert_array_equal(a.T_cloud_obj, b.T_cloud_obj)
+
+
+def test_a_robust_budget_of_zero_scores_nothing_and_orders_by_grade(db):
+    cloud = _cloud(Cylinder(0.023, 0.15), 6)
+    cfg = PlannerConfig(robust=RobustConfig(top=0))
+    res = plan(cloud.points, db=db, rng=np.random.default_rng(9), config=cfg)
+    assert len(res.map) and res.map.meta.extra["robust"]["scored"] == 0
+    assert res.map.robust is None or not np.isfinite(res.map.robust).any()
+    assert np.all(np.diff(res.map.grade) <= 0)
 
 
 def test_table_plane_drops_exactly_the_poses_below_the_table(db):

@@ -687,9 +687,10 @@ def _finished(batches: list, parts: list, extra: dict, table: dict | None, n_bel
         final.update(Placement(T_cloud_obj, {**table, "dropped": n_below}).to_extra())
     meta = replace(obj_meta, method="adapted/" + ("combined" if combined else "single"), extra=final)
     full = GraspabilityMap.concat(batches, meta=meta) if batches else GraspabilityMap.empty(meta)
-    if cfg.rank == "robust" and batches:
-        prov = {**batches[0].meta.extra["robust"], "scored": int(np.isfinite(full.robust).sum())}
-        full = full.with_meta(extra={**final, "robust": prov})
+    if cfg.rank == "robust" and batches:  # no batch scored (a budget of 0): the settings, none scored
+        prov = next((b.meta.extra["robust"] for b in batches if "robust" in b.meta.extra), cfg.robust.to_dict())
+        scored = 0 if full.robust is None else int(np.isfinite(full.robust).sum())
+        full = full.with_meta(extra={**final, "robust": {**prov, "scored": scored}})
     return full.ranked(cfg.rank)
 
 

@@ -57,6 +57,10 @@ class Config:
     seed: int = opt(0, "run seed (E10's)")
     quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
     db: str = opt("", "FS database folder, read only (default: OUT/fsdb, built fresh)")
+    impratio: float | None = opt(None, "the episodes' MuJoCo impratio, scene settling included (None: SimSettings' "
+                                 "default; 10 replays runs made before it became 100)")
+    variants: tuple[str, ...] = opt(("noslip10", "impratio100", "timestep_0.5ms"),
+                                    "simulation variants each replayed grasp is simulated again under")
 
 
 def _line_distance(p: np.ndarray, a: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -65,6 +69,11 @@ def _line_distance(p: np.ndarray, a: np.ndarray, u: np.ndarray) -> np.ndarray:
     r = p - a
     perp = r - (r @ u) * u
     return perp
+
+
+# simulation variants the same grasp is replayed under (is the simulation at fault?)
+VARIANTS = {"noslip10": {"noslip_iterations": 10}, "impratio100": {"impratio": 100.0},
+            "timestep_0.5ms": {"timestep": 0.0005}}
 
 
 def pad_contacts(sim, d, target: int) -> dict:
@@ -101,20 +110,21 @@ def pad_contacts(sim, d, target: int) -> dict:
     return out
 
 
-def replay(sim, state_pre: np.ndarray, T: np.ndarray, opening: float, target: int, seg_centroid) -> dict:
+def replay(sim, state_pre: np.ndarray, T: np.ndarray, opening: float, target: int, seg_centroid,
+           variants=tuple(VARIANTS)) -> dict:
     """Simulate the grasp again from ``state_pre`` (the scene before it), step by step."""
     from graspsim.sim.protocols import LiftPlace  # noqa: F401  (the scene's protocol)
     from graspsim.transforms import quat_to_matrix
 
     m, p = sim.model, sim.protocol
     d = sim.data
-    keep = np.empty(sim.nstate)
-    mujoco.mj_getState(m, d, keep, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    whole = mujoco.mjtState.mjSTATE_INTEGRATION  # warm start included: the episode goes on exactly as without
+    keep = np.empty(mujoco.mj_stateSize(m, whole))
+    mujoco.mj_getState(m, d, keep, whole)
     mujoco.mj_setState(m, d, state_pre, mujoco.mjtState.mjSTATE_FULLPHYSICS)
     mujoco.mj_forward(m, d)
     state0 = sim._start_state(T, opening)
-    mujoco.mj_setState(m, d, keep, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    mujoco.mj_forward(m, d)
+    mujoco.mj_setState(m, d, keep, whole)
     ph = p.steps(m.opt.timestep)
     c1, l1, h1 = ph["close"][1], ph["lift"][1], ph["hold"][1]
     control = p.controls(sim, T[None], np.array([opening]))[0, :h1 + 1]
@@ -155,13 +165,8 @@ def replay(sim, state_pre: np.ndarray, T: np.ndarray, opening: float, target: in
                         "pads_left": sorted(pc)}
     rec["lost"] = lost
     rec["traj"] = traj
-    rec["variants"] = {name: _held_with(sim, state0, control, target, h1, opts) for name, opts in VARIANTS.items()}
+    rec["variants"] = {name: _held_with(sim, state0, control, target, h1, VARIANTS[name]) for name in variants}
     return rec
-
-
-# simulation variants the same grasp is replayed under (is the simulation at fault?)
-VARIANTS = {"noslip10": {"noslip_iterations": 10}, "impratio100": {"impratio": 100.0},
-            "timestep_0.5ms": {"timestep": 0.0005}}
 
 
 def _held_with(sim, state0, control, target, h1, opts) -> dict:
@@ -230,13 +235,19 @@ def episode(k: int, i: int, cfg: Config, db) -> list[dict]:
     from graspsim.seeding import derived_seed, rng_for
     from graspsim.tabletop.clutter import ClutterEpisode
     from graspsim.tabletop.clutter_stats import benchmark_seeds
+    from graspsim.tabletop.planners import grasp_target
     from graspsim.tabletop.table_scene import make_scene
 
     sd = benchmark_seeds(cfg.seed, cfg.seeds)[k]
     c = {"kind": cfg.kind, "noise": cfg.noise, "ablation": None}
+    from graspsim.sim import SimSettings
+
+    settings = SimSettings() if cfg.impratio is None else SimSettings(impratio=cfg.impratio)
     scene = make_scene(cfg.objects, cfg.kind, derived_seed(sd, "scene", i), object_set=cfg.object_set,
-                       gripper=db.gripper)
+                       gripper=db.gripper, settings=settings)
     ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=_clutter_config(c, None))
+    ep.sim.close()
+    ep.sim = scene.sim(gripper=db.gripper, settings=settings)  # the episode's physics too
     rows = []
     try:
         while ep.stop is None:
@@ -247,15 +258,21 @@ def episode(k: int, i: int, cfg: Config, db) -> list[dict]:
             mem = sp.memory[g.segment]
             pre = np.empty(ep.sim.nstate)
             mujoco.mj_getState(ep.sim.model, ep.sim.data, pre, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+            cen = np.asarray(mem.points, float).mean(0) if len(mem.points) else None
+            target = grasp_target(look, g, db.gripper)
+            det = None
+            if cfg.noise == "none" and target is not None:  # the pose executed is the planned one: replay it
+                det = replay(ep.sim, pre, np.asarray(g.T_world_wrist, float), float(g.opening), target, cen,
+                             cfg.variants)  # before a picked object leaves the scene
             a = ep.execute(look, g)
             if a.cause not in cfg.causes or a.target is None:
                 rows.append({"case": f"{k}:{i}", "cause": a.cause,
                              "object": None if a.target is None else scene.objects[a.target].name})
                 continue
             o = a.outcome
-            T = np.asarray(o["T_world_wrist"], float)
-            cen = np.asarray(mem.points, float).mean(0) if len(mem.points) else None
-            det = replay(ep.sim, pre, T, float(o["opening"]), a.target, cen)
+            if det is None:  # with execution error: the pose the arm missed by; a failure leaves the object in
+                det = replay(ep.sim, pre, np.asarray(o["T_world_wrist"], float), float(o["opening"]), a.target, cen,
+                             cfg.variants)
             tcp, ax = _line_of(g, db.gripper)
             alts = []
             for h in look.candidates[:20]:

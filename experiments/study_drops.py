@@ -31,6 +31,7 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -61,6 +62,9 @@ class Config:
                                  "default; 10 replays runs made before it became 100)")
     variants: tuple[str, ...] = opt(("noslip10", "impratio100", "timestep_0.5ms"),
                                     "simulation variants each replayed grasp is simulated again under")
+    QUICK: ClassVar[dict] = {"kind": "packed", "objects": 2, "seeds": 1, "cases": ("0:0",), "object_set": "primitives",
+                             "quick_maps": True, "causes": ("success", "dropped", "slipped", "no_contact"),
+                             "variants": ("impratio100",)}
 
 
 def _line_distance(p: np.ndarray, a: np.ndarray, u: np.ndarray) -> np.ndarray:

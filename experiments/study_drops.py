@@ -20,7 +20,13 @@ so the same trajectory), and records from the simulation:
   candidates of that look, how many ranked above / how many within 0.05 of its score and
   their contact lines' distances to the segment centroid.
 
-    python experiments/study_drops.py --kind pile --seeds 5 --cases 4:14 0:14 --db /work/runs/e10-fsdb
+``--impratio 10`` replays runs made before ``SimSettings.impratio`` became 100 (their
+episodes reproduce exactly); ``--scene-impratio`` draws and settles the scenes at another
+setting than the grasps are simulated at (the same scenes, only the grasps' physics
+changed); ``--causes none`` records each grasp's cause without replaying any.
+
+    python experiments/study_drops.py --kind pile --seeds 5 --cases 4:14 0:14 --impratio 10 --db /work/runs/e10-fsdb
+    python experiments/study_drops.py --kind pile --seeds 4 --cases 0:0 0:1 --scene-impratio 10 --causes none
 """
 
 from __future__ import annotations
@@ -53,13 +59,17 @@ class Config:
     noise: str = opt("none", "execution error: none, default (3 mm / 2 deg)", choices=("none", "default"))
     seeds: int = opt(5, "seeds of the E10 run the cases come from (--seeds of e10_clutter_removal.py)")
     cases: tuple[str, ...] = opt(("0:14",), "cases SEED_INDEX:SCENE (scene index within its seed)")
-    causes: tuple[str, ...] = opt(("dropped", "slipped"), "causes replayed in detail")
+    causes: tuple[str, ...] = opt(("dropped", "slipped"), "causes replayed in detail (none: no replay, each "
+                                                          "grasp's cause recorded)")
     object_set: str = opt("household-tuning", "object set")
     seed: int = opt(0, "run seed (E10's)")
     quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
     db: str = opt("", "FS database folder, read only (default: OUT/fsdb, built fresh)")
     impratio: float | None = opt(None, "the episodes' MuJoCo impratio, scene settling included (None: SimSettings' "
                                  "default; 10 replays runs made before it became 100)")
+    scene_impratio: float | None = opt(None, "the impratio the scenes are drawn and settled with (None: "
+                                       "--impratio's): the same scenes as a run made at another setting, only "
+                                       "the grasps' physics changed")
     variants: tuple[str, ...] = opt(("noslip10", "impratio100", "timestep_0.5ms"),
                                     "simulation variants each replayed grasp is simulated again under")
     QUICK: ClassVar[dict] = {"kind": "packed", "objects": 2, "seeds": 1, "cases": ("0:0",), "object_set": "primitives",
@@ -247,8 +257,9 @@ def episode(k: int, i: int, cfg: Config, db) -> list[dict]:
     from graspsim.sim import SimSettings
 
     settings = SimSettings() if cfg.impratio is None else SimSettings(impratio=cfg.impratio)
+    drawn = settings if cfg.scene_impratio is None else SimSettings(impratio=cfg.scene_impratio)
     scene = make_scene(cfg.objects, cfg.kind, derived_seed(sd, "scene", i), object_set=cfg.object_set,
-                       gripper=db.gripper, settings=settings)
+                       gripper=db.gripper, settings=drawn)
     ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=_clutter_config(c, None))
     ep.sim.close()
     ep.sim = scene.sim(gripper=db.gripper, settings=settings)  # the episode's physics too
@@ -265,7 +276,8 @@ def episode(k: int, i: int, cfg: Config, db) -> list[dict]:
             cen = np.asarray(mem.points, float).mean(0) if len(mem.points) else None
             target = grasp_target(look, g, db.gripper)
             det = None
-            if cfg.noise == "none" and target is not None:  # the pose executed is the planned one: replay it
+            replaying = target is not None and set(cfg.causes) != {"none"}
+            if cfg.noise == "none" and replaying:  # the pose executed is the planned one: replay it
                 det = replay(ep.sim, pre, np.asarray(g.T_world_wrist, float), float(g.opening), target, cen,
                              cfg.variants)  # before a picked object leaves the scene
             a = ep.execute(look, g)

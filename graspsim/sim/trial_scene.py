@@ -11,7 +11,7 @@ elliptic friction cone with impratio 100 (the pyramidal cone with impratio 1 dro
 spheres; at impratio 10 MuJoCo's soft friction let a light object held at the full
 grip force creep in the hand at loads well inside the friction cone -- a contact
 normal 15-25 deg off the closing axis turns a 250 N grip into a 60-110 N tangential
-load -- until it slipped out: every such clutter "drop" replayed by
+load -- until it slipped out: 17 of the 20 clutter "drops" replayed by
 ``experiments/study_drops.py`` held at impratio 100, while those whose contact normals
 lay outside the cone still dropped; the Coulomb limit itself is unchanged),
 implicitfast integration at 2 ms (4 ms steps gave ~16 % false failures), and

@@ -913,3 +913,19 @@ def test_bench_first_frame_quick_plans_each_frame_cold_then_another_warm(tmp_pat
         assert r["wall_s"] > r["cold"]["timing"]["total"] + r["warm"]["timing"]["total"]
     assert g["cold"]["total"]["n"] == g["warm"]["total"]["n"] == 2
     assert "| pile, 5 objects (2) |" in bench.readme_section(s)
+
+
+@pytest.mark.slow
+def test_study_drops_quick_replays_the_grasps_it_executed(tmp_path):
+    out = tmp_path / "sd"
+    assert _load("study_drops").main(["--quick", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    replayed = [r for r in s["rows"] if "replay" in r]
+    assert replayed and all(r["cause"] in ("success", "dropped", "slipped", "no_contact") for r in replayed)
+    for r in replayed:
+        rep = r["replay"]
+        assert rep["mass_kg"] > 0 and set(rep["variants"]) == {"impratio100"}
+        if r["cause"] == "success":  # the step-by-step replay is the executed grasp: held through the hold
+            assert rep["lost"] is None and rep["variants"]["impratio100"]["held"]
+            pads = rep["close"]["pads"]
+            assert set(pads) == {"neg", "pos"} and all(0.0 <= p["normal_vs_axis_deg"] <= 90.0 for p in pads.values())

@@ -38,7 +38,7 @@ def test_settings_are_pinned_to_the_documented_defaults():
     m = build_scene(object_from_shape(Box(0.05, 0.05, 0.05)), settings=s).model
     assert m.opt.timestep == 0.002
     assert m.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
-    assert m.opt.impratio == pytest.approx(10.0)
+    assert m.opt.impratio == pytest.approx(100.0)
     assert m.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     assert m.opt.enableflags & mujoco.mjtEnableBit.mjENBL_DIAGEXACT
     for name in ("finger_neg", "finger_pos", "object_0"):

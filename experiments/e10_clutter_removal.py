@@ -311,17 +311,27 @@ def _warm_up(c: dict, cfg: Config, db) -> set:
 
 
 def headline(s: dict) -> str:
-    """The README's headline line (see ``experiments/report.py``): clutter removal with
-    execution error and the full method, per object set, scene kind and size, with the
-    seeds x scenes it pooled (a summary written before object sets and seeds: the "mixed"
-    set and its one seed)."""
-    rows = [r for r in rows_of(s) if r["noise"] == "default" and not r["ablation"]]
-    return ("Clutter removal with execution error (GSR: grasps that lifted their target; DR: objects "
-            "removed; seeds x scenes): " + "; ".join(
-                f"{r['object_set']} {r['kind']} of {r['objects']} ({len(r['per_seed'])} x "
-                f"{max(x['scenes'] for x in r['per_seed'])}): GSR {rate_ci(r['successes'], r['attempts'])}, "
-                f"DR {rate_ci(r['removed'], r['placed'])}" for r in rows) + ".")
+    """The README's headline line (see ``experiments/report.py``): clutter removal by the
+    full method without and with execution error (the conditions the run has), per object
+    set, scene kind and size, with the seeds x scenes it pooled (a summary written before
+    object sets and seeds: the "mixed" set and its one seed)."""
+    groups: dict[tuple, dict] = {}
+    for r in rows_of(s):
+        if not r["ablation"]:
+            groups.setdefault((r["object_set"], r["kind"], r["objects"]), {})[r["noise"]] = r
+    order = [n for n in ("none", "default") if any(n in g for g in groups.values())]
+    label = " / ".join({"none": "without", "default": "with"}[n] for n in order)
 
+    def rates(g: dict, num: str, den: str) -> str:
+        return " / ".join(rate_ci(g[n][num], g[n][den]) if n in g else "not run" for n in order)
+
+    def group(key: tuple, g: dict) -> str:
+        r = next(iter(g.values()))
+        return (f"{key[0]} {key[1]} of {key[2]} ({len(r['per_seed'])} x {max(x['scenes'] for x in r['per_seed'])}): "
+                f"GSR {rates(g, 'successes', 'attempts')}, DR {rates(g, 'removed', 'placed')}")
+
+    return (f"Clutter removal {label} execution error (GSR: grasps that lifted their target; DR: objects "
+            "removed; seeds x scenes): " + "; ".join(group(k, g) for k, g in groups.items()) + ".")
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -650,8 +650,9 @@ def test_e10_seeds_are_graspsim_scenes_and_old_summaries_say_their_set_and_seed(
     assert s["config"]["object_sets"] and all("per_seed" in r for r in s["conditions"])
     seeds, scenes = s["config"]["seeds"], s["config"]["scenes"]
     head = mod.headline(s)
-    n = sum(r["noise"] == "default" and not r["ablation"] for r in s["conditions"])
+    n = len({(r["object_set"], r["kind"], r["objects"]) for r in s["conditions"] if not r["ablation"]})
     assert head.count(f"({seeds} x {scenes})") == n and all(o in head for o in s["config"]["object_sets"])
+    assert head.startswith("Clutter removal without / with execution error") and "not run" not in head
     # a summary written before object sets and seeds (its config names one object_set, its conditions
     # no set and no per-seed rows): the "mixed" set and one seed
     old = {**s, "config": {**{k: v for k, v in s["config"].items() if k not in ("seeds", "object_sets")},
@@ -660,6 +661,7 @@ def test_e10_seeds_are_graspsim_scenes_and_old_summaries_say_their_set_and_seed(
                            if k not in ("object_set", "per_seed", "gsr_over_seeds", "dr_over_seeds", "per_object")}
                           for r in s["conditions"]]}
     head = mod.headline(old)
+    n = len({(r["kind"], r["objects"]) for r in s["conditions"] if not r["ablation"]})  # one set then
     assert head.count("mixed ") == n and head.count(f"(1 x {s['conditions'][0]['scenes']})") == n
     block = mod.readme_section(old)
     assert "| - |" not in block and "n/a (" not in block

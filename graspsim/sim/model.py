@@ -172,6 +172,9 @@ _DARK = (0.25, 0.27, 0.3, 1.0)
 _PAD = (0.15, 0.15, 0.15, 1.0)
 
 
+IMPRATIO = 100.0  # MuJoCo friction stiffness of every simulation (why: graspsim.sim.trial_scene's docstring)
+
+
 def drive_force(gripper: GripperSpec, grip_force: float | None, condim: int) -> float:
     """The grip force per jaw [N] a model is built with (``grip_force`` or the spec's),
     validated with the pad contact dimension."""

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.harness import gripper_xml
-from graspsim.sim.model import GripperPhysics
+from graspsim.sim.model import IMPRATIO, GripperPhysics
 
 __all__ = ["scene_xml", "readme_text", "model_files", "write_model_folder", "default_folder"]
 
@@ -105,7 +105,7 @@ No data sheet was at hand: dimensions and masses are estimates (see the spec's c
   pad contacts solref {p.pad_solref[0]:g} s / solimp {p.pad_solimp[0]:g} {p.pad_solimp[1]:g}
   {p.pad_solimp[2]:g} (stiff, with a 5 mm impedance ramp: a 1 mm ramp let pads on
   multi-part CoACD meshes fall into a contact on/off limit cycle),
-  exact constraint diagonal (`diagexact`), elliptic cone, impratio 10, implicitfast, 2 ms.
+  exact constraint diagonal (`diagexact`), elliptic cone, impratio {IMPRATIO:g}, implicitfast, 2 ms.
 - Pads: condim 4 (torsional friction), priority {p.pad_priority} (they set pad-object contact
   parameters). The planner's `arm` keep-out box is not simulated.
 

@@ -32,7 +32,7 @@ from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.authored_model import authored_names, model_drive
 from graspsim.sim.harness import build_gripper_spec
-from graspsim.sim.model import NAMES, GripDrive, GripperNames, GripperPhysics, box_drive
+from graspsim.sim.model import IMPRATIO, NAMES, GripDrive, GripperNames, GripperPhysics, box_drive
 from graspsim.sim.objects import SimObject
 
 __all__ = ["SimSettings", "Scene", "build_scene", "observed_pose", "resting_pose", "add_gripper",
@@ -74,7 +74,7 @@ class SimSettings:
     grip_force: float | None = None
     density: float = 1000.0
     timestep: float = 0.002
-    impratio: float = 100.0
+    impratio: float = IMPRATIO
     cone: str = "elliptic"
     integrator: str = "implicitfast"
     condim: int = 4

@@ -146,3 +146,59 @@ def GraspabilityMap_concat(batches):  # noqa: N802 -- the class's own concat, by
     from graspsim.maps.graspmap import GraspabilityMap
 
     return GraspabilityMap.concat(batches, meta=batches[0].meta)
+
+
+def _same_batches(a, b):
+    assert [len(x) for x in a] == [len(x) for x in b]
+    for x, y in zip(a, b):
+        for name in ("wrist_position", "wrist_quat", "grasp_point", "contacts", "normals", "width", "grade", "part"):
+            np.testing.assert_array_equal(getattr(x, name), getattr(y, name))
+
+
+def test_scaled_rows_are_kept_and_a_changed_target_is_scaled_afresh(cyl_fs, monkeypatch):
+    """The process keeps what it scaled: the same target again, in another order (another
+    frame's table), gives the batches a cold scaling gives, bit for bit, without scaling a
+    row again; a stream left early and then continued past where it stopped scales the
+    rest; a target 0.1 mm larger is not served another's grasps."""
+    import graspsim.maps.scaling as sc
+
+    t, other = Cylinder(0.022, 0.13), Cylinder(0.0221, 0.13)
+    first = lambda q, p, w: p[:, 2] > 0.0  # noqa: E731
+    second = lambda q, p, w: p[:, 0] > 0.0  # noqa: E731
+    sc.clear_scaled()
+    cold = {k: list(scale_stream(cyl_fs, t, prefer=f)) for k, f in (("a", first), ("b", second))}
+    sc.clear_scaled()
+    cold_other = list(scale_stream(cyl_fs, other, prefer=second))
+    sc.clear_scaled()
+    calls = {"n": 0}
+    chords = sc._chords
+
+    def counted(*args, **kwargs):
+        calls["n"] += 1
+        return chords(*args, **kwargs)
+
+    monkeypatch.setattr(sc, "_chords", counted)
+    stream = scale_stream(cyl_fs, t, prefer=first)
+    early = [next(stream) for _ in range(3)]  # left early: later rows never scaled
+    stream.close()
+    _same_batches(early, cold["a"][:3])
+    # another order: batches of rows scaled before and rows not scaled yet
+    _same_batches(list(scale_stream(cyl_fs, t, prefer=second)), cold["b"])
+    n = calls["n"]
+    _same_batches(list(scale_stream(cyl_fs, t, prefer=first)), cold["a"])  # every row kept: none scaled
+    assert calls["n"] == n
+    _same_batches(list(scale_stream(cyl_fs, other, prefer=second)), cold_other)
+    assert calls["n"] > n
+
+
+def test_the_scaled_rows_kept_are_bounded(cyl_fs, monkeypatch):
+    import graspsim.maps.scaling as sc
+
+    sc.clear_scaled()
+    list(scale_stream(cyl_fs, Cylinder(0.022, 0.13)))
+    one = sum(s.nbytes for s in sc._SCALED.values())
+    monkeypatch.setattr(sc, "SCALED_BYTES", int(1.5 * one))
+    for r in (0.021, 0.023, 0.024):
+        list(scale_stream(cyl_fs, Cylinder(r, 0.13)))
+    assert len(sc._SCALED) < 4 and sum(s.nbytes for s in sc._SCALED.values()) <= 1.5 * one
+    sc.clear_scaled()

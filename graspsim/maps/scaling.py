@@ -25,8 +25,9 @@ A process keeps what it scaled (:class:`_Scaled`): a scene seen frame after fram
 the same part again (its identification reused), and the same FS rows scaled to the same
 target give the same grasps, whatever order a frame's table puts them in. A batch whose
 rows were all scaled before is assembled from the kept results (the same columns, in
-the same order: the same batch); one with any row not yet scaled is scaled whole, as
-without the cache, and kept. Bounded by :data:`SCALED_BYTES`, least recently used first out.
+the same order: the same batch); the rows of a batch not scaled yet are scaled (each
+row's grasps do not depend on the rows scaled with it) and kept. Bounded by
+:data:`SCALED_BYTES`, least recently used first out.
 """
 
 from __future__ import annotations
@@ -234,6 +235,11 @@ class _Scaled:
     def nbytes(self) -> int:
         return self.piece.nbytes + self.slot.nbytes + sum(c.nbytes for c in (self.cols or {}).values())
 
+    def unscaled(self, rows: np.ndarray) -> np.ndarray:
+        """The batch-local indices of ``rows`` not scaled yet."""
+        with self.lock:
+            return np.flatnonzero(self.piece[rows] == -2)
+
     def pieces(self, rows: np.ndarray) -> list | None:
         """The pieces (columns, batch-local rows) of batch ``rows`` (positions), or None
         when some row was not scaled yet."""
@@ -351,19 +357,8 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
             skipped[pos], known[pos] = np.asarray(skip(*p), bool), True
         return first
 
-    memo = _scaled(fs_map, len(src.rows), (target, sc, gripper, quality, cfg, float(src_min), float(keep_min)))
-    for rows in stream_order(len(src.rows), sc.first_batch, sc.growth, None if prefer is None else predicted):
-        if skip is not None:
-            out = skipped[rows] if known is not None and known[rows].all() else np.asarray(skip(*poses(rows)), bool)
-            rows = rows[~out]
-            if not len(rows):
-                continue
-        kept_before = memo.pieces(rows)
-        if kept_before is not None:  # every row scaled before (an earlier frame's, an earlier call's)
-            batch = _assemble(kept_before, fs_map, src.rows[rows], meta)
-            if len(batch):
-                yield batch
-            continue
+    def scale_rows(rows: np.ndarray) -> list:
+        """The pieces (method index, columns, batch-local rows) of scaling ``rows`` (positions)."""
         line = src.line_of[rows]
         R = quat_to_matrix(fs_map.wrist_quat[src.rows[rows]])
         wrist = fs_map.wrist_position[src.rows[rows]].astype(float)
@@ -409,8 +404,21 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
                           chf.width[cand])
             kept = cand[free]
             pieces.append((2, _columns(chf, kept, R[rest][kept], depth[rest][kept], gripper), rest[kept]))
-        memo.keep(rows, pieces)
-        batch = _assemble([(c, k) for _, c, k in pieces], fs_map, src.rows[rows], meta)
+        return pieces
+
+    memo = _scaled(fs_map, len(src.rows), (target, sc, gripper, quality, cfg, float(src_min), float(keep_min)))
+    for rows in stream_order(len(src.rows), sc.first_batch, sc.growth, None if prefer is None else predicted):
+        if skip is not None:
+            out = skipped[rows] if known is not None and known[rows].all() else np.asarray(skip(*poses(rows)), bool)
+            rows = rows[~out]
+            if not len(rows):
+                continue
+        kept_before = memo.pieces(rows)
+        if kept_before is None:  # rows not scaled before: scaled now (only those), and kept
+            todo = memo.unscaled(rows)
+            memo.keep(rows[todo], scale_rows(rows[todo]))
+            kept_before = memo.pieces(rows)
+        batch = _assemble(kept_before, fs_map, src.rows[rows], meta)
         if len(batch):
             yield batch
 

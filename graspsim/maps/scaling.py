@@ -20,23 +20,13 @@ Every candidate is recentred on the new object's chord along its closing axis (n
 contacts, width), re-graded with the same quality model and re-checked for collision;
 only collision-free grasps within the opening range and above ``keep_min_grade`` are
 kept. :func:`scale_stream` yields the result best-first in growing batches.
-
-A process keeps what it scaled (:class:`_Scaled`): a scene seen frame after frame shows
-the same part again (its identification reused), and the same FS rows scaled to the same
-target give the same grasps, whatever order a frame's table puts them in. A batch whose
-rows were all scaled before is assembled from the kept results (the same columns, in
-the same order: the same batch); the rows of a batch not scaled yet are scaled (each
-row's grasps do not depend on the rows scaled with it) and kept. Bounded by
-:data:`SCALED_BYTES`, least recently used first out.
 """
 
 from __future__ import annotations
 
 import logging
-import threading
 import time
 import weakref
-from collections import OrderedDict
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from enum import Enum
@@ -55,8 +45,7 @@ from graspsim.maps.table_clearance import stream_order
 from graspsim.primitives import Primitive
 from graspsim.transforms import quat_to_matrix
 
-__all__ = ["ScalingMethod", "ScalingConfig", "scale_map", "scale_stream", "scale_factors", "clear_scaled",
-           "SCALED_BYTES"]
+__all__ = ["ScalingMethod", "ScalingConfig", "scale_map", "scale_stream", "scale_factors"]
 
 log = logging.getLogger(__name__)
 
@@ -211,94 +200,6 @@ def _line_structure(fs_map: GraspabilityMap, min_grade: float) -> _Source:
     return _Source(rows, line, c.mean(axis=1), u)
 
 
-#: [bytes] the scaled grasps a process keeps (:class:`_Scaled`), over every map and target
-SCALED_BYTES = 256 * 2**20
-_SCALED: OrderedDict = OrderedDict()  # (id(map), target, settings) -> _Scaled, least recently used first
-_SCALED_LOCK = threading.Lock()
-
-
-class _Scaled:
-    """What scaling one FS map to one target (with one set of settings) kept, per row
-    position of its :class:`_Source`: ``piece`` -2 not scaled yet, -1 scaled and not
-    kept, else the index of the method piece that kept it (0 Quality, 1 Combined's
-    slide, 2 Feasibility, as :func:`scale_stream` makes them), ``slot`` its row in
-    ``cols`` (the piece's columns, as :func:`_columns` made them)."""
-
-    def __init__(self, fs_map: GraspabilityMap, n: int) -> None:
-        self.map = weakref.ref(fs_map)
-        self.piece = np.full(n, -2, np.int8)
-        self.slot = np.zeros(n, np.int32)
-        self.cols: dict[str, np.ndarray] | None = None
-        self.lock = threading.Lock()
-
-    @property
-    def nbytes(self) -> int:
-        return self.piece.nbytes + self.slot.nbytes + sum(c.nbytes for c in (self.cols or {}).values())
-
-    def unscaled(self, rows: np.ndarray) -> np.ndarray:
-        """The batch-local indices of ``rows`` not scaled yet."""
-        with self.lock:
-            return np.flatnonzero(self.piece[rows] == -2)
-
-    def pieces(self, rows: np.ndarray) -> list | None:
-        """The pieces (columns, batch-local rows) of batch ``rows`` (positions), or None
-        when some row was not scaled yet."""
-        with self.lock:
-            piece = self.piece[rows]
-            if np.any(piece == -2):
-                return None
-            out = []
-            for m in range(3):
-                local = np.flatnonzero(piece == m)
-                if len(local):
-                    at = self.slot[rows[local]]
-                    out.append(({k: v[at] for k, v in self.cols.items()}, local))
-            return out
-
-    def keep(self, rows: np.ndarray, pieces: list) -> None:
-        """Keep batch ``rows``' scaling: ``pieces`` as :func:`scale_stream` made them
-        (the method's index, its columns, its batch-local rows)."""
-        with self.lock:
-            self.piece[rows] = -1
-            for m, cols, local in pieces:
-                if not len(local):
-                    continue
-                start = 0 if self.cols is None else len(next(iter(self.cols.values())))
-                self.cols = dict(cols) if self.cols is None else {
-                    k: np.concatenate([v, cols[k]]) for k, v in self.cols.items()}
-                self.piece[rows[local]] = m
-                self.slot[rows[local]] = start + np.arange(len(local))
-        _trim()
-
-
-def _scaled(fs_map: GraspabilityMap, n: int, key: tuple) -> _Scaled:
-    """The process's :class:`_Scaled` for ``fs_map`` (its ``n`` source rows) and ``key``
-    (the target and the settings), made if new; the oldest dropped over SCALED_BYTES."""
-    full = (id(fs_map), *key)
-    with _SCALED_LOCK:
-        got = _SCALED.get(full)
-        if got is None or got.map() is not fs_map:  # new, or another map at a reused address
-            got = _SCALED[full] = _Scaled(fs_map, n)
-        _SCALED.move_to_end(full)
-    _trim()
-    return got
-
-
-def _trim() -> None:
-    """The least recently used dropped while the kept grasps are over SCALED_BYTES (the
-    latest kept, whatever its size)."""
-    with _SCALED_LOCK:
-        total = sum(s.nbytes for s in _SCALED.values())
-        while total > SCALED_BYTES and len(_SCALED) > 1:
-            total -= _SCALED.popitem(last=False)[1].nbytes
-
-
-def clear_scaled() -> None:
-    """Forget every scaled grasp this process kept (:class:`_Scaled`)."""
-    with _SCALED_LOCK:
-        _SCALED.clear()
-
-
 def _check(target, gripper, cfg, gp, R, depth, width, line=None) -> np.ndarray:
     if len(gp) == 0:
         return np.zeros(0, bool)
@@ -357,8 +258,12 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
             skipped[pos], known[pos] = np.asarray(skip(*p), bool), True
         return first
 
-    def scale_rows(rows: np.ndarray) -> list:
-        """The pieces (method index, columns, batch-local rows) of scaling ``rows`` (positions)."""
+    for rows in stream_order(len(src.rows), sc.first_batch, sc.growth, None if prefer is None else predicted):
+        if skip is not None:
+            out = skipped[rows] if known is not None and known[rows].all() else np.asarray(skip(*poses(rows)), bool)
+            rows = rows[~out]
+            if not len(rows):
+                continue
         line = src.line_of[rows]
         R = quat_to_matrix(fs_map.wrist_quat[src.rows[rows]])
         wrist = fs_map.wrist_position[src.rows[rows]].astype(float)
@@ -379,7 +284,7 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
             free = _check(target, gripper, cfg, ch.gp[li[cand]], R[cand], depth[cand],
                           ch.width[li[cand]], line=li[cand])
             kept = cand[free]
-            pieces.append((0, _columns(ch, li[kept], R[kept], depth[kept], gripper), kept))
+            pieces.append((_columns(ch, li[kept], R[kept], depth[kept], gripper), kept))
             left = np.ones(len(rows), bool)
             left[kept] = False
             rest = np.flatnonzero(left)
@@ -393,7 +298,7 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
             free = _check(target, gripper, cfg, ch.gp[li[cand]], R[cand], d2[on_pad],
                           ch.width[li[cand]], line=li[cand])
             kept = cand[free]
-            pieces.append((1, _columns(ch, li[kept], R[kept], d2[on_pad][free], gripper), kept))
+            pieces.append((_columns(ch, li[kept], R[kept], d2[on_pad][free], gripper), kept))
             rest = rest[~on_pad]  # off the pad or no chord: try the feasibility pose
         if sc.method in (ScalingMethod.FEASIBILITY, ScalingMethod.COMBINED) and len(rest):
             shift = _feasibility_shift(source, target, wrist[rest])
@@ -403,22 +308,8 @@ def scale_stream(fs_map: GraspabilityMap, target: Primitive, *, quality: Quality
             free = _check(target, gripper, cfg, chf.gp[cand], R[rest][cand], depth[rest][cand],
                           chf.width[cand])
             kept = cand[free]
-            pieces.append((2, _columns(chf, kept, R[rest][kept], depth[rest][kept], gripper), rest[kept]))
-        return pieces
-
-    memo = _scaled(fs_map, len(src.rows), (target, sc, gripper, quality, cfg, float(src_min), float(keep_min)))
-    for rows in stream_order(len(src.rows), sc.first_batch, sc.growth, None if prefer is None else predicted):
-        if skip is not None:
-            out = skipped[rows] if known is not None and known[rows].all() else np.asarray(skip(*poses(rows)), bool)
-            rows = rows[~out]
-            if not len(rows):
-                continue
-        kept_before = memo.pieces(rows)
-        if kept_before is None:  # rows not scaled before: scaled now (only those), and kept
-            todo = memo.unscaled(rows)
-            memo.keep(rows[todo], scale_rows(rows[todo]))
-            kept_before = memo.pieces(rows)
-        batch = _assemble(kept_before, fs_map, src.rows[rows], meta)
+            pieces.append((_columns(chf, kept, R[rest][kept], depth[rest][kept], gripper), rest[kept]))
+        batch = _assemble(pieces, fs_map, src.rows[rows], meta)
         if len(batch):
             yield batch
 

@@ -463,3 +463,37 @@ def test_a_low_profile_grasp_fails_the_perturbations_that_lift_it_off_the_table(
 def test_a_bad_lift_ceiling_is_refused(bad):
     with pytest.raises(InvalidParameterError, match=r"lift_ceiling must be > 0 m or None"):
         RobustConfig(lift_ceiling=bad)
+
+
+def _in_wrist_frame(gmap, row, local):
+    T = gmap.T_obj_wrist[row]
+    return local @ T[:3, :3].T + T[:3, 3]
+
+
+def test_a_grasp_stops_only_where_no_wider_opening_can_free_it(box_map):
+    """A grasp whose every pose holds a point in a box that does not move with the jaws
+    (the housing) is not scored at wider openings (the kernel stops there: none can
+    score); one whose finger holds a point at its opening but not at a wider one is: both
+    as scoring each opening alone gives them, bit for bit."""
+    from graspsim.maps._robust_geometry import merged_boxes
+
+    g = box_map.meta.gripper_spec
+    centers, half, sign = merged_boxes(g)
+    row = int(np.flatnonzero(g.pregrasp_opening(box_map.width) <= 0.06)[0])  # room to open 3 cm wider
+    ho = 0.5 * float(g.pregrasp_opening(box_map.width[row]))
+    finger = int(np.flatnonzero(sign > 0)[-1])  # the +x fingertip
+    inner = centers[finger, 0] + ho - half[finger, 0]  # its inner face at the grasp's opening
+    x, y, z = np.meshgrid(inner + np.linspace(0.0005, 0.006, 4), np.linspace(-0.6, 0.6, 4) * half[finger, 1],
+                          np.linspace(-0.6, 0.6, 4) * half[finger, 2])
+    in_finger = np.column_stack([x.ravel(), y.ravel() + centers[finger, 1], z.ravel() + centers[finger, 2]])
+    housing = int(np.flatnonzero(sign == 0)[0])
+    in_housing = centers[housing] + np.array([[0.0, 0.0, 0.0], [0.3, 0.3, 0.3]]) * half[housing]
+    cfg = RobustConfig(samples=8, openings=(0.0, 0.015), terms=("cloud",), unseen_margin=0.0)
+    for local, freed in ((in_finger, True), (in_housing, False)):
+        pts = _in_wrist_frame(box_map, row, local)
+        got = score_rows(box_map, np.array([row]), pts, cfg)
+        pick, extra, _ = _each_opening_alone(box_map, np.array([row]), pts, cfg)
+        np.testing.assert_array_equal(got.extra_opening, extra)
+        for k, v in pick.items():
+            np.testing.assert_array_equal(getattr(got, k), v, err_msg=k)
+        assert (got.robust[0] > 0) == freed and (got.extra_opening[0] == 0.015) == freed

@@ -22,6 +22,19 @@ BLOCK_CELL = 0.02  # [m] the grid the points are blocked on (a gripper's finger 
 
 
 @njit(cache=True, nogil=True)
+def _cell_hash(i, j, k, H):  # pragma: no cover
+    """A cell's bucket in 0..H-1 (H a power of two): the cell's integer coordinates mixed
+    over all 64 bits (splitmix64's finaliser), so that a scene's few hundred cells share a
+    bucket rarely (cells sharing one make a block as wide as both: near every grasp)."""
+    u8 = np.uint64
+    h = u8(i) * u8(0x9E3779B97F4A7C15) + u8(j) * u8(0xC2B2AE3D27D4EB4F) + u8(k) * u8(0x165667B19E3779F9)
+    h = (h ^ (h >> u8(30))) * u8(0xBF58476D1CE4E5B9)
+    h = (h ^ (h >> u8(27))) * u8(0x94D049BB133111EB)
+    h = h ^ (h >> u8(31))
+    return np.int64(h & u8(H - 1))
+
+
+@njit(cache=True, nogil=True)
 def blocks(P, n_cloud, cell):  # pragma: no cover
     """The points P (M, 3) in blocks: the cells of a grid ``cell`` [m] wide (hashed; a
     block may hold several cells). Returns order (M,) (block by block), start (B + 1,),
@@ -29,14 +42,13 @@ def blocks(P, n_cloud, cell):  # pragma: no cover
     and cloud (B,) (the block holds a point below ``n_cloud``)."""
     M = P.shape[0]
     H = 16
-    while H < M:
+    while H < 2 * M:
         H *= 2
     key = np.empty(M, np.int64)
     count = np.zeros(H + 1, np.int64)
     for m in range(M):
-        h = ((np.int64(np.floor(P[m, 0] / cell)) * 73856093) ^ (np.int64(np.floor(P[m, 1] / cell)) * 19349663)
-             ^ (np.int64(np.floor(P[m, 2] / cell)) * 83492791))
-        key[m] = h & (H - 1)
+        key[m] = _cell_hash(np.int64(np.floor(P[m, 0] / cell)), np.int64(np.floor(P[m, 1] / cell)),
+                            np.int64(np.floor(P[m, 2] / cell)), H)
         count[key[m] + 1] += 1
     B = 0
     for h in range(H):

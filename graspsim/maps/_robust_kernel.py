@@ -33,7 +33,10 @@ s_swept + D: only the points that could lie within reach of a box, or attain the
 cloud's clearance, at some opening are kept, and each opening measures those exactly
 (the same float32 arithmetic as measuring every point: results do not change). The
 openings are scored in order, and a grasp stops at the first opening ``allow`` admits
-where every pose is feasible (nothing wider can score it higher).
+where every pose is feasible (nothing wider can score it higher), or at the first where
+every pose holds a cloud point in a box that does not move with the jaws (no wider
+opening frees it: none can score, and the score reports the narrowest opening of the
+best; in a pile, most grasps the clear-first check passes over).
 
 Per grasp, opening and perturbation the kernel writes a bit set (uint8): 1 a cloud point
 closer than ``margin`` to a box (cloud collision), 2 the same for a primitive surface
@@ -197,13 +200,20 @@ def _table(i, k, table, DR, Dt, bc, bh, bs, ho):  # pragma: no cover
 
 @njit(cache=True, nogil=True, fastmath=True)
 def _points_hit(near, ns, nr, nb, ncl, n, D, theta, tlen, margin, bc, bh, bs, ho, px, py, pz, live, inside,
-                out):  # pragma: no cover
+                out, n0, fixed, fixed_in):  # pragma: no cover
     """CLOUD / PRIMITIVE bits per perturbation (out (K,)): a near point inside a box it
     can reach (grown by margin) under perturbation k. The loops over the K
-    perturbations (D (12, K): DR[k] row-major, then Dt[k]) run in SIMD lanes."""
+    perturbations (D (12, K): DR[k] row-major, then Dt[k]) run in SIMD lanes.
+
+    fixed (K,): a cloud point whose distance to the boxes that do not move with the jaws
+    (n0, at every opening at least its distance ns here) is within the perturbation's
+    reach lies inside one of those boxes (grown by margin) under perturbation k: the
+    same arithmetic on the same numbers finds it there at every opening (conservative:
+    a pose hit first by another point, or by a moving box, is not marked)."""
     K = theta.shape[0]
     for k in range(K):
         out[k] = 0
+        fixed[k] = False
     for j in range(n):
         bit = CLOUD if ncl[j] else PRIMITIVE
         x, y, z, s, r = near[j, 0], near[j, 1], near[j, 2], ns[j], nr[j]
@@ -221,22 +231,28 @@ def _points_hit(near, ns, nr, nb, ncl, n, D, theta, tlen, margin, bc, bh, bs, ho
             py[k] = D[1, k] * ax + D[4, k] * ay + D[7, k] * az
             pz[k] = D[2, k] * ax + D[5, k] * ay + D[8, k] * az
             inside[k] = False
+            fixed_in[k] = False
         for b in range(bc.shape[0]):  # inside a reachable box grown by the margin
             if (nb[j] >> b) & 1:
                 for k in range(K):
-                    inside[k] |= ((abs(px[k] - bc[b, 0] - bs[b] * ho) < bh[b, 0] + margin)
-                                  & (abs(py[k] - bc[b, 1]) < bh[b, 1] + margin)
-                                  & (abs(pz[k] - bc[b, 2]) < bh[b, 2] + margin))
+                    hit = ((abs(px[k] - bc[b, 0] - bs[b] * ho) < bh[b, 0] + margin)
+                           & (abs(py[k] - bc[b, 1]) < bh[b, 1] + margin)
+                           & (abs(pz[k] - bc[b, 2]) < bh[b, 2] + margin))
+                    inside[k] |= hit
+                    fixed_in[k] |= hit & (bs[b] == 0)
+        s0 = n0[j]
         for k in range(K):
             out[k] |= bit * np.int32(live[k] & inside[k])
+            fixed[k] |= ncl[j] & live[k] & fixed_in[k] & (s0 <= theta[k] * r + tlen[k] + margin)
 
 
 @njit(cache=True, nogil=True, fastmath=True)
 def _opening(i, e, ho, cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl, nc, sd, bits, near, ns, nr, nb, ncl, cf,
              bc, bh, bs, DR, Dt, D, theta, tlen, table, margin, px, py, pz, live, inside, hits, clearance,
-             flags):  # pragma: no cover
+             flags, n0, fixed, fixed_in):  # pragma: no cover
     """Grasp i at opening e (half gap ho): the kept points' exact distances and reach
-    bits with the moving boxes there, the clearance, and the flags of every pose."""
+    bits with the moving boxes there, the clearance, and the flags of every pose
+    (fixed: see :func:`_points_hit`)."""
     f4 = np.float32
     for j in range(nc):
         sd[j] = csd0[j]
@@ -255,12 +271,14 @@ def _opening(i, e, ho, cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl, nc, sd, bit
             near[n, 1] = cqy[j]
             near[n, 2] = cqz[j]
             ns[n] = sd[j]
+            n0[n] = csd0[j]
             nr[n] = cr[j]
             nb[n] = bits[j]
             ncl[n] = ccl[j]
             n += 1
     clearance[i, e] = clear
-    _points_hit(near, ns, nr, nb, ncl, n, D, theta, tlen, margin, bc, bh, bs, ho, px, py, pz, live, inside, hits)
+    _points_hit(near, ns, nr, nb, ncl, n, D, theta, tlen, margin, bc, bh, bs, ho, px, py, pz, live, inside, hits,
+                n0, fixed, fixed_in)
     for k in range(DR.shape[0]):
         flags[i, e, k] = hits[k] | _table(i, k, table, DR, Dt, bc, bh, bs, ho) | cf[k]
 
@@ -304,8 +322,11 @@ def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, si
     """Grasps [lo, hi): clearance (N, E) to the cloud points P[:n_cloud] and flags
     (N, E, K) at the pad gaps ``openings`` (N, E) (in order) for perturbations DR
     (K, 3, 3), Dt (K, 3) (theta, tlen (K,): their bounds). A grasp stops after the
-    first opening e with ``allow[i, e]`` where no flag has a bit of ``mask``; the wider
-    ones get clearance inf and flags NOT_SCORED.
+    first opening e with ``allow[i, e]`` where no flag has a bit of ``mask``, or -- with
+    CLOUD in ``mask`` -- where every pose holds a cloud point in a box that does not move
+    with the jaws (the housing, the arm's keep-out: it holds it at every wider opening,
+    none of which can then be feasible); the wider ones get clearance inf and flags
+    NOT_SCORED.
 
     qc, nq: (N, 2, 3) contacts and outward normals in each grasp's nominal wrist frame;
     sign (N,): +1 when contact 1 lies on the +x side of contact 0. table: (nr_x, nr_y,
@@ -330,6 +351,8 @@ def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, si
     cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl = kept
     sd, bits = np.empty(M, f4), np.empty(M, np.int32)
     near, ns, nr, nb, ncl = np.empty((M, 3)), np.empty(M), np.empty(M), np.empty(M, np.int32), np.empty(M, np.bool_)
+    n0, fixed, fixed_in = np.empty(M), np.empty(K, np.bool_), np.empty(K, np.bool_)
+    cloud_masked = (mask & CLOUD) != 0
     cf, hits = np.empty(K, np.int32), np.empty(K, np.int32)
     px, py, pz, live, inside = np.empty(K), np.empty(K), np.empty(K), np.empty(K, np.bool_), np.empty(K, np.bool_)
     D = np.empty((12, K))  # the perturbations' rotations (row-major) and translations, one lane each
@@ -359,7 +382,12 @@ def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, si
                 continue
             _opening(i, e, 0.5 * openings[i, e], cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl, nc, sd, bits, near,
                      ns, nr, nb, ncl, cf, bc, bh, bs, DR, Dt, D, theta, tlen, table, margin, px, py, pz, live, inside,
-                     hits, clearance, flags)
+                     hits, clearance, flags, n0, fixed, fixed_in)
             done = allow[i, e]
             for k in range(K):
                 done = done and (flags[i, e, k] & mask) == 0
+            if cloud_masked and not done:  # every pose holds a cloud point in a box that does not move: at
+                held = True  # every wider opening too, so no opening can score (the caller reports this one)
+                for k in range(K):
+                    held = held and fixed[k]
+                done = held

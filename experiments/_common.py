@@ -188,12 +188,20 @@ def default_out(script: str) -> str:
 
 def provenance() -> dict:
     """Code state the results came from: git commit (``-dirty`` if the working tree has
-    uncommitted changes: the tree is shared, so say so), graspsim version, CPU count."""
+    uncommitted changes: the tree is shared, so say so; the published summaries in
+    ``experiments/reported/`` do not count: they are results, which ``--publish`` itself
+    writes, not code), graspsim version, CPU count."""
     import graspsim
 
+    def git(*args: str) -> str:
+        return subprocess.run(["git", *args], capture_output=True, text=True, cwd=EXPERIMENTS,
+                              timeout=10).stdout.strip()
+
     try:
-        commit = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True, text=True,
-                                cwd=EXPERIMENTS, timeout=10).stdout.strip() or None
+        commit = git("describe", "--always") or None
+        code = ("--", ":/", ":(exclude,top)experiments/reported")
+        if commit and git("status", "--porcelain", "--untracked-files=no", *code):
+            commit += "-dirty"
     except (OSError, subprocess.SubprocessError):
         commit = None
     return {"commit": commit, "graspsim": graspsim.__version__, "cpus": os.cpu_count()}

@@ -931,3 +931,33 @@ def test_study_drops_quick_replays_the_grasps_it_executed(tmp_path):
             assert rep["lost"] is None and rep["variants"]["impratio100"]["held"]
             pads = rep["close"]["pads"]
             assert set(pads) == {"neg", "pos"} and all(0.0 <= p["normal_vs_axis_deg"] <= 90.0 for p in pads.values())
+
+
+def test_provenance_calls_a_tree_dirty_for_code_not_for_published_summaries(tmp_path, monkeypatch):
+    """A run's ``--publish`` writes experiments/reported/: that alone must not mark the next
+    run's commit ``-dirty``; a changed tracked file anywhere else must."""
+    import shutil
+    import subprocess
+
+    if shutil.which("git") is None:
+        pytest.skip("git not installed")
+    common = _load("_common")
+    repo = tmp_path / "repo"
+    (repo / "experiments" / "reported").mkdir(parents=True)
+    (repo / "experiments" / "reported" / "e.json").write_text("{}")
+    (repo / "code.py").write_text("x = 1\n")
+
+    def git(*a):
+        subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *a], cwd=repo, check=True,
+                       capture_output=True)
+
+    git("init", "-q")
+    git("add", "-A")
+    git("commit", "-q", "-m", "init")
+    monkeypatch.setattr(common, "EXPERIMENTS", repo / "experiments")
+    assert not common.provenance()["commit"].endswith("-dirty")
+    (repo / "experiments" / "reported" / "e.json").write_text('{"new": 1}')
+    (repo / "scratch.txt").write_text("untracked")
+    assert not common.provenance()["commit"].endswith("-dirty")
+    (repo / "code.py").write_text("x = 2\n")
+    assert common.provenance()["commit"].endswith("-dirty")

@@ -17,8 +17,8 @@ start collision leaves the scene as it was):
 * the point's signed distance to the parts the planner identified on the grasp's
   segment (negative: inside the fit), and the fit itself: the parts, the segment's
   points' share more than 3 / 6 / 10 mm outside every part, their median |distance|;
-* the object's pose: its height over its widest horizontal extent, the tilt of its
-  mesh frame's z axis from vertical;
+* the object's pose: its height, footprint and lowest point, the tilt of its mesh frame's
+  z axis from vertical;
 * the planner's robust score, grade, clearance to the observed points, opening.
 
     python experiments/study_start_collisions.py --kind packed --seeds 5 --cases 1:6 2:7 --db /work/runs/e10-fsdb
@@ -75,7 +75,7 @@ def _parts_sdf(ident, points: np.ndarray) -> np.ndarray:
 
 
 def _object_shape(sim, k: int) -> dict:
-    """Height over the widest horizontal extent of object ``k`` now, and its frame's tilt."""
+    """Object ``k``'s height, world-axis footprint and lowest point now, and its frame's tilt."""
     m, d = sim.model, sim.data
     body = sim.body[k]
     verts = []
@@ -89,9 +89,8 @@ def _object_shape(sim, k: int) -> dict:
     out = {"frame_z_tilt_deg": round(math.degrees(math.acos(np.clip(R[2, 2], -1, 1))), 1)}
     if verts:
         v = np.concatenate(verts)
-        xy = v[:, :2] - v[:, :2].mean(0)
-        w = 2 * float(np.max(np.linalg.norm(xy, axis=1)))
-        out.update(height_mm=round(1000 * float(np.ptp(v[:, 2])), 1), widest_mm=round(1000 * w, 1),
+        out.update(height_mm=round(1000 * float(np.ptp(v[:, 2])), 1),
+                   footprint_xy_mm=[round(1000 * float(x), 1) for x in np.ptp(v[:, :2], axis=0)],
                    bottom_mm=round(1000 * float(v[:, 2].min()), 1))
     return out
 

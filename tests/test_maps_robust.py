@@ -497,3 +497,41 @@ def test_a_grasp_stops_only_where_no_wider_opening_can_free_it(box_map):
         for k, v in pick.items():
             np.testing.assert_array_equal(getattr(got, k), v, err_msg=k)
         assert (got.robust[0] > 0) == freed and (got.extra_opening[0] == 0.015) == freed
+
+
+def test_an_unseen_finger_inside_the_objects_known_solid_counts_as_on_its_shape(box_map, cloud):
+    """A box seen on its front and top only (a carton in a packed scene): the parts fitted to
+    those faces are slabs, and a finger down in the box's hidden interior is more than the
+    unseen margin from every known point. The convex hull of what is known of the object and
+    of its feet on the table (it rests there) holds that interior: a finger sample deeper
+    than SOLID_DEPTH inside it is on the shape (clearance 0); beside the box it is not."""
+    from scipy.spatial import cKDTree
+
+    from graspsim.maps.occlusion import SOLID_DEPTH, ViewDepth, known_solid, unseen_clearance
+    from graspsim.maps.robust import resting
+
+    seen = cloud[(cloud[:, 0] > 0.019) | (cloud[:, 2] > 0.039)]  # the front (+x) and the top
+    eye = np.array([0.5, 0.0, 0.4])
+    view, known = ViewDepth(seen, eye), cKDTree(seen)
+    table = (np.array([0.0, 0.0, 1.0]), -0.04)  # the box's bottom face
+    solid = known_solid(resting(seen, table))
+    assert known_solid(seen[:3]) is None and known_solid(np.zeros((10, 3))) is None  # no volume: no solid
+    # the feet: each point dropped onto the table, the points themselves kept
+    feet = resting(seen, table)
+    np.testing.assert_allclose(feet[len(seen):, 2], -0.04)
+    np.testing.assert_array_equal(feet[:len(seen)], seen)
+    g = box_map.meta.gripper_spec
+    # approach along +y, closing along x, the TCP 10 mm behind and 20 mm below the box's centre, 10 mm gap
+    R = np.array([[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]])
+    tcp = np.asarray(g.nominal_tcp, float)
+
+    def clearance(x_tcp, opening, with_solid):
+        w = (np.array([x_tcp, 0.0, -0.02]) - R[0] @ tcp)[None]
+        return unseen_clearance(view, known, R, w, np.array([opening]), g, solid=solid if with_solid else None)[0]
+
+    inside_without = clearance(-0.01, 0.01, False)
+    assert 0.01 < inside_without < np.inf  # over half the margin from every known point
+    assert clearance(-0.01, 0.01, True) == 0.0
+    # the same grasp 60 mm to -x: both fingers beside the box, in unseen space or not, never inside the solid
+    beside = clearance(-0.07, 0.01, True)
+    assert beside == clearance(-0.07, 0.01, False) and beside > SOLID_DEPTH

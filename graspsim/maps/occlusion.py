@@ -29,8 +29,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.geometry.spacing import median_spacing
 from graspsim.grippers.spec import GripperSpec
 
-__all__ = ["ViewDepth", "finger_samples", "finger_occlusion", "unseen_clearance", "known_solid", "SOLID_DEPTH",
-           "shadow_depth", "check_viewpoint",
+__all__ = ["ViewDepth", "finger_samples", "finger_occlusion", "unseen_clearance", "shadow_depth", "check_viewpoint",
            "MAX_VIEWPOINT"]
 
 _MAX_PIXELS = 1024  # per image side (memory bound)
@@ -188,22 +187,17 @@ def _posed_finger_samples(R: np.ndarray, w: np.ndarray, opening: np.ndarray, gri
 
 
 def unseen_clearance(view: ViewDepth, known, R: np.ndarray, w: np.ndarray, opening: np.ndarray,
-                     gripper: GripperSpec, upper: float = np.inf, solid: np.ndarray | None = None) -> np.ndarray:
+                     gripper: GripperSpec, upper: float = np.inf) -> np.ndarray:
     """(n,) per wrist pose (R (n, 3, 3), w (n, 3), the view's frame; pad gaps ``opening``
     (n,) [m]) the distance [m] from its finger samples in occluded space to the nearest
     point of ``known`` (a :class:`scipy.spatial.cKDTree` of what is known of the shapes:
     observed points, fitted primitives' surface samples); inf where no finger sample is
-    occluded or none lies within ``upper``. ``solid``: the facets (F, 4) of the convex
-    hull of the object's known shape (:func:`known_solid`): an occluded finger sample more
-    than :data:`SOLID_DEPTH` inside it counts as on the known shape (distance 0).
+    occluded or none lies within ``upper``.
 
     A single view sees the front of an object; its back is the fitted primitive's
     extrapolation, and the true back may go on past it (a duck's back 10 to 17 mm beyond
     the cylinder fitted to its flank). A finger in unseen space close to the fitted
-    surface may start inside the object; one that keeps its distance there does not --
-    unless it keeps it by standing between the faces the view saw: the parts fitted to a
-    carton's two seen faces are slabs a few mm thick, and a finger in the carton's hidden
-    interior is 20 mm from both."""
+    surface may start inside the object; one that keeps its distance there does not."""
     n = len(R)
     out = np.full(n, np.inf)
     if not n:
@@ -213,33 +207,9 @@ def unseen_clearance(view: ViewDepth, known, R: np.ndarray, w: np.ndarray, openi
     if not occ.any():
         return out
     d, _ = known.query(X[occ], k=1, distance_upper_bound=upper)
-    if solid is not None and len(solid):
-        inside = np.max(X[occ] @ solid[:, :3].T + solid[:, 3], axis=1) < -SOLID_DEPTH
-        d = np.where(inside, 0.0, d)
     per = np.full(len(X), np.inf)
     per[occ] = d
     return per.reshape(n, -1).min(axis=1)
-
-
-#: [m] How deep inside the convex hull of an object's known shape an unseen finger sample must
-#: lie to count as in the object (:func:`unseen_clearance`'s ``solid``): the depth noise and
-#: the finger's own surface standing on a seen face are not.
-SOLID_DEPTH = 0.003
-
-
-def known_solid(points: np.ndarray) -> np.ndarray | None:
-    """Facets (F, 4) of the convex hull of an object's known shape ``points`` (M, 3)
-    (rows (n, d): n . x + d <= 0 inside, n the outward unit normal), or None when the
-    points span no volume."""
-    from scipy.spatial import ConvexHull, QhullError
-
-    P = np.asarray(points, float).reshape(-1, 3)
-    if len(P) < 4:
-        return None
-    try:
-        return ConvexHull(P).equations
-    except (QhullError, ValueError):
-        return None
 
 
 def shadow_depth(viewpoint, points: np.ndarray, table: tuple[np.ndarray, float] | None) -> float:

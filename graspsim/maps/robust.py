@@ -110,13 +110,6 @@ OCCLUSION_POWER = 2.0
 #: lose grasps (8 scenes worse, 4 better; not significant) while packed scenes gain more (pooled GSR
 #: 89.8 -> 92.4 %, DR 91.9 -> 94.7 %), so the scene planner keeps it on by default
 #: (``planning.scene_config``); ``RobustConfig``'s own default stays 0.
-#: With impratio 100 (E10 republished), the standing milk carton's start collisions in packed scenes
-#: were fingertips 1 to 18 mm in the carton 18 to 33 mm past the slabs fitted to its seen faces,
-#: more than this margin from every known point (``experiments/study_start_collisions.py``). Counting
-#: an unseen finger sample inside the hull of the known shape and its feet on the table as on it
-#: (``unseen_clearance(solid=)``) took packed start collisions with the target from 15 to 12 in
-#: 5 x 20 tuning scenes (GSR 95.0 -> 95.5 %, DR 98.0 % both), piles 4 x 8: DR 154 -> 155 / 160; the
-#: rest of those fingers lie past even that hull (the carton's depth neither seen nor implied).
 UNSEEN_MARGIN = 0.020
 #: [m] Extra pad gaps per side beyond ``openings`` that the robust score also tries for a grasp
 #: that keeps the unseen margin at none of ``openings`` (``RobustConfig.unseen_openings``): with the
@@ -185,9 +178,7 @@ class RobustConfig:
     unseen_margin [m]: with a viewpoint, an opening at which the finger samples in unseen
     space come within c of a known point of the object itself (its observed points, its fitted
     primitives; not its neighbours': ``score_rows(own=)``) keeps the share min(c / margin, 1)
-    of its score -- the fit's back is a guess -- (c = 0 for a sample more than
-    ``occlusion.SOLID_DEPTH`` inside the convex hull of that known shape and its feet on the
-    table: the object's hidden interior, :func:`resting`), the margin bounded
+    of its score -- the fit's back is a guess -- the margin bounded
     per object by the shadow it casts across the table and by its thickness
     (default 0: off; :data:`UNSEEN_MARGIN` the value measured);
     unseen_openings: the extra gaps per side [m] tried, beyond ``openings``, for a grasp that
@@ -292,8 +283,7 @@ def _perturbations(samples: int, seed: int, position_sigma: float, rotation_sigm
 
 
 def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, view=None,
-           unseen_margin: float | None = None, known: np.ndarray | None = None,
-           solid: np.ndarray | None = None) -> RobustScores:
+           unseen_margin: float | None = None, known: np.ndarray | None = None) -> RobustScores:
     """The robust score of wrist poses (R (n, 3, 3), w (n, 3)) with contact widths (n,),
     contacts and outward normals (n, 2, 3) against the points P (cloud first), the
     table rows of :func:`table_rows`, at every opening of ``cfg``; ``success_of(live)``
@@ -340,8 +330,7 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
             for e in range(len(extras)):
                 k = np.flatnonzero(occ[:, e] > 0)  # no finger sample unseen: nothing to keep clear of
                 if len(k):
-                    c = unseen_clearance(view, known, R[k], w[k], openings[k, e], g, upper=margin_unseen,
-                                         solid=solid)
+                    c = unseen_clearance(view, known, R[k], w[k], openings[k, e], g, upper=margin_unseen)
                     unseen[k, e] = np.clip(c / margin_unseen, 0.0, 1.0)
         if wider:  # the wider openings are for grasps that keep the margin at no regular opening
             E0 = len(cfg.openings)
@@ -416,25 +405,10 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     if cfg.lift_ceiling is not None and clearance is not None and len(rows):
         low = g.lowest_along(trows[:, :3], trows[:, 3], g.pregrasp_opening(gmap.width[rows])) < float(clearance)
         trows[:, 5] = np.where(low, float(cfg.lift_ceiling), trows[:, 5])
-    from graspsim.maps.occlusion import known_solid
-
     return _score(P, len(cloud), R, w, gmap.width[rows], gmap.contacts[rows].astype(float),
                   gmap.normals[rows].astype(float), trows, g, cfg, cos_fc,
                   lambda live: _success(gmap, rows[live], cfg.success), view,
-                  _unseen_margin(cfg, view, prim if len(prim) else cloud, table), known,
-                  None if view is None or cfg.unseen_margin <= 0 else known_solid(resting(known, table)))
-
-
-def resting(points: np.ndarray, table: tuple[np.ndarray, float] | None) -> np.ndarray:
-    """An object's known shape ``points`` (M, 3) and, with a ``table`` (unit normal,
-    height along it), their feet on it: an object resting on the table fills the space
-    between what the view saw of it and the table (a carton seen on its top and one face
-    goes down to the table behind that face as well), but for its overhangs."""
-    P = np.asarray(points, float).reshape(-1, 3)
-    if table is None or not len(P):
-        return P
-    n, h = np.asarray(table[0], float), float(table[1])
-    return np.concatenate([P, P - ((P @ n) - h)[:, None] * n[None]])
+                  _unseen_margin(cfg, view, prim if len(prim) else cloud, table), known)
 
 
 def _unseen_margin(cfg: RobustConfig, view, shape: np.ndarray, table) -> float:

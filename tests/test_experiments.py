@@ -918,6 +918,37 @@ def test_bench_first_frame_quick_plans_each_frame_cold_then_another_warm(tmp_pat
 
 
 @pytest.mark.slow
+def test_study_start_collisions_finds_the_gripper_part_in_an_object(tmp_path):
+    """The gripper posed with its pads' centre at an object's centre, jaws open less than the
+    object is wide: study_start_collisions.contacts names a pad (finger) in that object, a
+    few mm deep; lifted 30 cm clear, nothing. The quick run replays an episode."""
+    study = _load("study_start_collisions")
+    from graspsim.tabletop.table_scene import make_scene
+
+    scene = make_scene(1, "packed", 3, object_set="primitives")
+    sim = scene.sim()
+    try:
+        g = sim.gripper
+        c = sim.data.xipos[sim.body[0]].copy()
+        R = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])  # from above, closing along x
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, c - R @ np.asarray(g.nominal_tcp, float)
+        hits = study.contacts(sim, T, 0.005)
+        assert hits and hits[0]["what"] == 0 and hits[0]["depth"] > 0.001
+        assert any(h["part"].startswith("finger") and h["what"] == 0 for h in hits)
+        T[2, 3] += 0.3
+        assert not [h for h in study.contacts(sim, T, 0.005) if h["depth"] > 0]
+    finally:
+        sim.close()
+    out = tmp_path / "ssc"
+    assert study.main(["--quick", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["rows"] and all(r["case"] == "0:0" for r in s["rows"])
+    for r in s["rows"]:
+        assert ("hits" in r) == r["cause"].startswith("start_collision")
+
+
+@pytest.mark.slow
 def test_study_drops_quick_replays_the_grasps_it_executed(tmp_path):
     out = tmp_path / "sd"
     assert _load("study_drops").main(["--quick", "--out", str(out)]) == 0

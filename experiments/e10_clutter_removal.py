@@ -255,23 +255,6 @@ def read_only_database(cfg, out: Path) -> RunDatabase:
     return RunDatabase(experiment_database(cfg.db, out, config).root, config=config)
 
 
-def replay_cases_main(config_cls, script: str, argv, doc: str, episode, shown: str) -> int:
-    """The ``main`` of a study that replays E10 episodes (``study_drops``, ``study_start_collisions``):
-    each of ``cfg.cases`` ("SEED_INDEX:SCENE[:...]", split into ints) gives its rows by
-    ``episode(fields, cfg, db)`` against :func:`read_only_database`; the rows are written as
-    the run's record, and those holding ``shown`` printed."""
-    import json
-
-    cfg, out, record = start(config_cls, script, argv, doc)
-    db = read_only_database(cfg, out)
-    rows = []
-    for case in cfg.cases:
-        rows += episode([int(x) for x in case.split(":")], cfg, db)
-    record.write(out, {"config": cfg, "rows": rows}, lambda s: "")
-    print(json.dumps([r for r in rows if shown in r], indent=1))
-    return 0
-
-
 def _block(task) -> tuple[list, list, set]:
     """Scenes first .. first + n - 1 of a condition, against the run's database:
     (results, skipped scenes, keys of maps built in memory). A scene that cannot be

@@ -42,7 +42,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import opt
+from _common import opt, start
 
 from graspsim._gl import import_mujoco
 
@@ -314,10 +314,17 @@ def episode(k: int, i: int, cfg: Config, db) -> list[dict]:
 
 
 def main(argv=None) -> int:
-    from e10_clutter_removal import replay_cases_main
+    from e10_clutter_removal import read_only_database
 
-    return replay_cases_main(Config, __file__, argv, __doc__, lambda f, cfg, db: episode(f[0], f[1], cfg, db),
-                             "replay")
+    cfg, out, record = start(Config, __file__, argv, __doc__)
+    db = read_only_database(cfg, out)
+    rows = []
+    for case in cfg.cases:
+        k, i = (int(x) for x in case.split(":"))
+        rows += episode(k, i, cfg, db)
+    record.write(out, {"config": cfg, "rows": rows}, lambda s: "")
+    print(json.dumps([r for r in rows if "replay" in r], indent=1))
+    return 0
 
 
 if __name__ == "__main__":

@@ -48,7 +48,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import opt
+from _common import opt, start
 
 from graspsim._gl import import_mujoco
 
@@ -225,10 +225,17 @@ def episode(k: int, i: int, stop_after: int | None, cfg: Config, db) -> list[dic
 
 
 def main(argv=None) -> int:
-    from e10_clutter_removal import replay_cases_main
+    from e10_clutter_removal import read_only_database
 
-    return replay_cases_main(Config, __file__, argv, __doc__,
-                             lambda f, cfg, db: episode(f[0], f[1], f[2] if len(f) > 2 else None, cfg, db), "hits")
+    cfg, out, record = start(Config, __file__, argv, __doc__)
+    db = read_only_database(cfg, out)
+    rows = []
+    for case in cfg.cases:
+        f = [int(x) for x in case.split(":")]
+        rows += episode(f[0], f[1], f[2] if len(f) > 2 else None, cfg, db)
+    record.write(out, {"config": cfg, "rows": rows}, lambda s: "")
+    print(json.dumps([r for r in rows if "hits" in r], indent=1))
+    return 0
 
 
 if __name__ == "__main__":

@@ -45,6 +45,7 @@ last; a part no stored map serves gets a map built in memory, not stored.
 
 from __future__ import annotations
 
+import json
 import logging
 import signal
 import sys
@@ -253,6 +254,31 @@ def read_only_database(cfg, out: Path) -> RunDatabase:
     E10's ``db`` and ``quick_maps`` options: ``cfg.db``, else one built in ``out``."""
     config = map_config(cfg.quick_maps)
     return RunDatabase(experiment_database(cfg.db, out, config).root, config=config)
+
+
+def looks(ep, stop_after: int | None = None):
+    """A study's walk through a clutter episode ``ep``: each look that found a grasp, as
+    (look, its best grasp, the plan, that grasp's segment memory), until the episode
+    stops or ``stop_after`` grasps were executed; the caller executes each."""
+    while ep.stop is None and (stop_after is None or len(ep.attempts) < stop_after):
+        look = ep.observe()
+        if look is None:
+            return
+        yield look, look.best, look.plan, look.plan.memory[look.best.segment]
+
+
+def replay_cases(cfg, out: Path, record, replay, shown: str) -> int:
+    """The rest of a replay study's ``main`` after ``start``: every case of ``cfg.cases``
+    ("K:I[:...]", as integers) replayed by ``replay(numbers, db)`` against E10's database
+    (:func:`read_only_database`) into rows, the rows recorded, and those holding the key
+    ``shown`` printed."""
+    db = read_only_database(cfg, out)
+    rows = []
+    for case in cfg.cases:
+        rows += replay([int(x) for x in case.split(":")], db)
+    record.write(out, {"config": cfg, "rows": rows}, lambda s: "")
+    print(json.dumps([r for r in rows if shown in r], indent=1))
+    return 0
 
 
 def _block(task) -> tuple[list, list, set]:

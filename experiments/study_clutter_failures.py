@@ -69,6 +69,8 @@ def lowest(gripper, T_world_wrist: np.ndarray, opening: float) -> float:
 def episode(i: int, cfg: Config, db) -> tuple[list[dict], list[dict]]:
     """Scene ``i``'s episode: one row per executed grasp, and one per object left on the
     table with why (``ClutterEpisode.left_reasons``: no_grasp, not_tried, ...)."""
+    from e10_clutter_removal import looks
+
     from graspsim.sim.noise import ExecutionNoise
     from graspsim.tabletop.clutter import ClutterConfig, ClutterEpisode, scene_settings
     from graspsim.tabletop.table_scene import make_scene
@@ -80,12 +82,7 @@ def episode(i: int, cfg: Config, db) -> tuple[list[dict], list[dict]]:
                                              execution=ExecutionNoise() if cfg.noise == "default" else None))
     rows = []
     try:
-        while ep.stop is None:
-            look = ep.observe()
-            if look is None:
-                break
-            g, sp = look.best, look.plan
-            mem = sp.memory[g.segment]
+        for look, g, sp, mem in looks(ep):
             a = ep.execute(look, g)
             o = a.outcome
             executed = np.asarray(o.get("T_world_wrist", g.T_world_wrist), float)

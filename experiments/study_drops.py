@@ -244,7 +244,7 @@ def _line_of(g, gripper) -> tuple[np.ndarray, np.ndarray]:
 
 
 def episode(k: int, i: int, cfg: Config, db) -> list[dict]:
-    from e10_clutter_removal import _clutter_config
+    from e10_clutter_removal import _clutter_config, looks
 
     from graspsim.seeding import derived_seed, rng_for
     from graspsim.tabletop.clutter import ClutterEpisode
@@ -265,12 +265,7 @@ def episode(k: int, i: int, cfg: Config, db) -> list[dict]:
     ep.sim = scene.sim(gripper=db.gripper, settings=settings)  # the episode's physics too
     rows = []
     try:
-        while ep.stop is None:
-            look = ep.observe()
-            if look is None:
-                break
-            g, sp = look.best, look.plan
-            mem = sp.memory[g.segment]
+        for look, g, _, mem in looks(ep):
             pre = np.empty(ep.sim.nstate)
             mujoco.mj_getState(ep.sim.model, ep.sim.data, pre, mujoco.mjtState.mjSTATE_FULLPHYSICS)
             cen = np.asarray(mem.points, float).mean(0) if len(mem.points) else None
@@ -314,18 +309,10 @@ def episode(k: int, i: int, cfg: Config, db) -> list[dict]:
 
 
 def main(argv=None) -> int:
-    from e10_clutter_removal import read_only_database
+    from e10_clutter_removal import replay_cases
 
     cfg, out, record = start(Config, __file__, argv, __doc__)
-    db = read_only_database(cfg, out)
-    rows = []
-    for case in cfg.cases:
-        k, i = (int(x) for x in case.split(":"))
-        rows += episode(k, i, cfg, db)
-    record.write(out, {"config": cfg, "rows": rows}, lambda s: "")
-    print(json.dumps([r for r in rows if "replay" in r], indent=1))
-    return 0
-
+    return replay_cases(cfg, out, record, lambda n, db: episode(n[0], n[1], cfg, db), shown="replay")
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -155,7 +155,7 @@ def _seen(view, eye: np.ndarray, p: np.ndarray, k: int) -> dict:
 
 
 def episode(k: int, i: int, stop_after: int | None, cfg: Config, db) -> list[dict]:
-    from e10_clutter_removal import _clutter_config
+    from e10_clutter_removal import _clutter_config, looks
     from study_clutter_failures import outside_shares
 
     from graspsim.seeding import derived_seed, rng_for
@@ -174,12 +174,7 @@ def episode(k: int, i: int, stop_after: int | None, cfg: Config, db) -> list[dic
     names = [o.name for o in scene.objects]
     rows = []
     try:
-        while ep.stop is None and (stop_after is None or len(ep.attempts) < stop_after):
-            look = ep.observe()
-            if look is None:
-                break
-            g, sp = look.best, look.plan
-            mem = sp.memory[g.segment]
+        for look, g, sp, mem in looks(ep, stop_after):
             a = ep.execute(look, g)
             rows.append({"case": f"{k}:{i}", "grasp": len(ep.attempts) - 1, "cause": a.cause,
                          "target": None if a.target is None else names[a.target]})
@@ -225,18 +220,11 @@ def episode(k: int, i: int, stop_after: int | None, cfg: Config, db) -> list[dic
 
 
 def main(argv=None) -> int:
-    from e10_clutter_removal import read_only_database
+    from e10_clutter_removal import replay_cases
 
     cfg, out, record = start(Config, __file__, argv, __doc__)
-    db = read_only_database(cfg, out)
-    rows = []
-    for case in cfg.cases:
-        f = [int(x) for x in case.split(":")]
-        rows += episode(f[0], f[1], f[2] if len(f) > 2 else None, cfg, db)
-    record.write(out, {"config": cfg, "rows": rows}, lambda s: "")
-    print(json.dumps([r for r in rows if "hits" in r], indent=1))
-    return 0
-
+    return replay_cases(cfg, out, record, lambda n, db: episode(n[0], n[1], n[2] if len(n) > 2 else None, cfg, db),
+                        shown="hits")
 
 if __name__ == "__main__":
     raise SystemExit(main())

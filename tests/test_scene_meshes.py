@@ -4,6 +4,7 @@ its held-out split, masses, frames, and saved scenes that reload with their mesh
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -144,6 +145,31 @@ def test_a_folder_without_fitting_meshes_is_refused_naming_the_units(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(InvalidParameterError, match="no mesh file"):
         read_folder(tmp_path / "empty")
+
+
+def test_a_folder_of_unusable_meshes_is_refused_naming_each_file_and_its_fault(tmp_path):
+    """Each mesh left out is named with its own fault (unreadable, flat, too wide, in
+    millimetres), and the scale hint names the folder's manifest, not another command's flag."""
+    import trimesh
+
+    d = tmp_path / "bad"
+    d.mkdir()
+    (d / "notes.stl").write_text("not a mesh")
+    trimesh.Trimesh([[0, 0, 0], [0.05, 0, 0], [0, 0.05, 0]], [[0, 1, 2]]).export(d / "sheet.stl")
+    trimesh.creation.box([0.3, 0.3, 0.3]).export(d / "crate.stl")
+    with pytest.raises(InvalidParameterError) as err:
+        draw_object(np.random.default_rng(0), str(d))
+    text = str(err.value)
+    assert "notes.stl holds no triangles" in text and "sheet.stl is flat" in text
+    assert re.search(r"crate\.stl is \d+ mm across at its narrowest, wider than the gripper", text)
+    assert "scale" not in text  # no unit problem here: no hint about units
+    trimesh.creation.box([50.0, 40.0, 80.0]).export(d / "mm.stl")
+    with pytest.raises(InvalidParameterError, match="the manifest's scale 0.001") as err:
+        draw_object(np.random.default_rng(0), str(d))
+    assert "--mesh-scale" not in str(err.value)
+    (d / "objects.json").write_text(json.dumps({"objects": {"mm.stl": {"scale": 0.001, "friction": 0}}}))
+    with pytest.raises(InvalidParameterError, match=r"objects\.json, mm\.stl: friction must be a number > 0"):
+        read_folder(d)
 
 
 def test_the_shipped_split_is_the_documented_rule():

@@ -225,11 +225,14 @@ def _check_scale(scale: float) -> float:
     return s
 
 
-def check_mesh_arrays(vertices, faces, *, scale: float = 1.0, name: str = "the mesh") -> None:
+def check_mesh_arrays(vertices, faces, *, scale: float = 1.0, name: str = "the mesh",
+                      scale_option: str = "--mesh-scale") -> None:
     """Raise :class:`MeshError` (one line: what is wrong, what is valid) unless the raw
     arrays (V, 3) and (F, 3), times ``scale``, are a mesh that can be simulated: at least
     one triangle, finite vertices, face indices in range, some extent in every
-    direction, and between :data:`MIN_MESH_EXTENT` and :data:`MAX_MESH_EXTENT` across."""
+    direction, and between :data:`MIN_MESH_EXTENT` and :data:`MAX_MESH_EXTENT` across.
+    ``scale_option``: how the caller's user sets the scale, named in the hints
+    (``graspsim trial``'s ``--mesh-scale``; a folder manifest's ``scale``)."""
     v = np.asarray(vertices)
     f = np.asarray(faces)
     if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0 or v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
@@ -246,14 +249,14 @@ def check_mesh_arrays(vertices, faces, *, scale: float = 1.0, name: str = "the m
     width = np.ptp(used, axis=0)
     big = float(width.max())
     if big > MAX_MESH_EXTENT:
-        hints = [f"{u} ({big / k:.4g} m with --mesh-scale {scale / k:g})"
+        hints = [f"{u} ({big / k:.4g} m with {scale_option} {scale / k:g})"
                  for u, k in (("millimetres", 1000.0), ("centimetres", 100.0)) if big / k <= MAX_MESH_EXTENT]
-        hint = ("is it in " + " or ".join(hints) + "?") if hints else "convert it to metres with --mesh-scale S"
+        hint = ("is it in " + " or ".join(hints) + "?") if hints else f"convert it to metres with {scale_option} S"
         raise MeshError(f"{name} is {big:.4g} m across, implausible for a graspable object (at most "
                         f"{MAX_MESH_EXTENT:g} m); {hint}")
     if big < MIN_MESH_EXTENT:
         raise MeshError(f"{name} is only {big * 1000:.3g} mm across, smaller than any graspable object (at least "
-                        f"{MIN_MESH_EXTENT * 1000:g} mm); is it in another unit? scale it with --mesh-scale S "
+                        f"{MIN_MESH_EXTENT * 1000:g} mm); is it in another unit? scale it with {scale_option} S "
                         "(S multiplies the file's coordinates to give metres)")
     if float(width.min()) < 1e-6 * big or not _some_area(v, f, 1e-12 * big * big / scale**2):
         raise MeshError(f"{name} is flat or degenerate (its extents are {np.round(width * 1000, 3).tolist()} mm); "
@@ -300,16 +303,17 @@ def _clean(vertices: np.ndarray, faces: np.ndarray, scale: float, name: str):
     return mesh
 
 
-def load_mesh(path: str | os.PathLike, *, scale: float = 1.0):
+def load_mesh(path: str | os.PathLike, *, scale: float = 1.0, scale_option: str = "--mesh-scale"):
     """Read a triangle mesh (OBJ, STL, PLY, ...) as one ``trimesh.Trimesh`` [m].
 
     Raises :class:`MeshError` if the file is missing or unreadable, or fails
-    :func:`check_mesh_arrays` (no triangles, NaN vertices, implausible size in metres).
+    :func:`check_mesh_arrays` (no triangles, NaN vertices, implausible size in metres;
+    its hints name ``scale_option``).
     """
     path = check_mesh_path(path)
     scale = _check_scale(scale)
     vertices, faces = _read_arrays(path)
-    check_mesh_arrays(vertices, faces, scale=scale, name=f"mesh {path.name}")
+    check_mesh_arrays(vertices, faces, scale=scale, name=f"mesh {path.name}", scale_option=scale_option)
     return _clean(vertices, faces, scale, f"mesh {path.name}")
 
 

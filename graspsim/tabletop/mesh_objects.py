@@ -159,12 +159,13 @@ def mesh_set(name: str) -> MeshSet:
     return read_folder(name)
 
 
-def _manifest(folder: Path) -> dict:
+def _manifest(folder: Path) -> tuple[dict, Path | None]:
+    """The folder's manifest (empty without one) and its path."""
     found = [folder / m for m in MANIFESTS if (folder / m).is_file()]
     if len(found) > 1:
         raise InvalidParameterError(f"{folder} holds both {MANIFESTS[0]} and {MANIFESTS[1]}; keep one")
     if not found:
-        return {}
+        return {}, None
     path = found[0]
     try:
         if path.suffix == ".json":
@@ -181,7 +182,7 @@ def _manifest(folder: Path) -> dict:
     for k in ("defaults", "objects"):
         if not isinstance(d.get(k, {}), dict):
             raise InvalidParameterError(f"manifest {path}: '{k}' must be a table of settings")
-    return d
+    return d, path
 
 
 def _positive(path, key: str, v) -> float | None:
@@ -203,8 +204,7 @@ def read_folder(folder: str | os.PathLike) -> MeshSet:
     files = sorted(p for p in root.iterdir() if p.is_file() and p.suffix.lower() in _SUFFIXES)
     if not files:
         raise InvalidParameterError(f"objects folder {folder} holds no mesh file ({' '.join(_SUFFIXES)})")
-    man = _manifest(root)
-    where = root / "objects manifest"
+    man, where = _manifest(root)
     defaults, per = man.get("defaults", {}), man.get("objects", {})
     names = {p.name for p in files}
     if set(per) - names:
@@ -224,9 +224,10 @@ def read_folder(folder: str | os.PathLike) -> MeshSet:
             continue
         if s.get("mass") is not None and s.get("density") is not None:
             raise InvalidParameterError(f"manifest of {folder}, {p.name}: give mass or density, not both")
-        out.append(MeshEntry(p.stem, str(p), file_sha256(p), _positive(where, "scale", s.get("scale")) or 1.0,
-                             _positive(where, "mass", s.get("mass")), _positive(where, "density", s.get("density")),
-                             _positive(where, "friction", s.get("friction"))))
+        at = f"{where}, {p.name}"
+        out.append(MeshEntry(p.stem, str(p), file_sha256(p), _positive(at, "scale", s.get("scale")) or 1.0,
+                             _positive(at, "mass", s.get("mass")), _positive(at, "density", s.get("density")),
+                             _positive(at, "friction", s.get("friction"))))
     if not out:
         raise InvalidParameterError(f"every mesh of {folder} is excluded by its manifest")
     return MeshSet(str(root), tuple(out))

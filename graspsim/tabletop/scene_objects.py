@@ -20,6 +20,7 @@ import json
 import logging
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -45,6 +46,8 @@ __all__ = ["ObjectSpec", "OBJECT_SETS", "draw_object", "narrowest_extent", "MESH
            "object_set_names", "prepare_objects", "mesh_spec"]
 
 log = logging.getLogger(__name__)
+#: How a folder's user scales a mesh, named in the hints of a mesh refused for its size.
+_SCALE_OPTION = "the manifest's scale"
 
 #: The mesh of the "meshes" set (of "mixed"): name -> (file under ASSETS, scale).
 MESHES = {"bread": ("robosuite/bread.stl", 1.0)}
@@ -218,27 +221,27 @@ def _fit_entries(ms: MeshSet, limit: float) -> tuple[MeshEntry, ...]:
     from graspsim.sim.meshes import load_mesh
 
     name = ms.label
-    fits, out = [], []
+    fits, out = [], []  # out: (entry, narrowest width [m] or None, why it is not drawn)
     for e in ms.entries:
         try:
-            w = narrowest_extent(load_mesh(e.path, scale=e.scale).vertices)
-        except MeshError as err:  # e.g. wider than 2 m or under 5 mm: its units are not metres
-            log.warning("%s: %s: not drawn (the manifest's scale converts a file to metres)", e.file, err)
-            out.append((e, None))
-            continue
-        (fits if w <= limit else out).append((e, w))
-    for e, w in out:
-        if w is not None:
-            log.warning("%s is %.0f mm across at its narrowest, wider than the gripper spans (%.0f mm)%s: not drawn",
-                        e.file, w * 1000, limit * 1000, "; a file in millimetres needs scale 0.001 in the manifest"
-                        if w > 2.0 else "")
+            w = narrowest_extent(load_mesh(e.path, scale=e.scale, scale_option=_SCALE_OPTION).vertices)
+        except MeshError as err:  # unreadable, flat, or wider than 2 m / under 5 mm: its units are not metres
+            out.append((e, None, str(err)))
+        else:
+            if w <= limit:
+                fits.append(e)
+                continue
+            out.append((e, w, f"{Path(e.file).name} is {w * 1000:.0f} mm across at its narrowest, wider than the "
+                              f"gripper spans ({limit * 1000:.0f} mm)"))
     if not fits:
-        widths = ", ".join(f"{e.name} {w * 1000:.0f} mm" if w is not None else f"{e.name} implausible in metres"
-                           for e, w in out)
-        raise InvalidParameterError(f"no mesh of {name} fits a {limit * 1000:.0f} mm grasp (narrowest widths "
-                                    f"{widths}); scale them "
-                                    "in the manifest (objects.json: {\"defaults\": {\"scale\": 0.001}} for mm)")
-    return tuple(e for e, _ in fits)
+        units = any(w is None and ("across" in why) for _, w, why in out)
+        raise InvalidParameterError(
+            f"no mesh of {name} can be drawn: " + "; ".join(why for _, _, why in out)
+            + ("; scale a folder's meshes to metres in its manifest (objects.json: {\"defaults\": {\"scale\": "
+               "0.001}} for mm)" if units else ""))
+    for _, _, why in out:
+        log.warning("%s: not drawn", why)
+    return tuple(fits)
 
 
 def prepare_objects(object_set: str, gripper: GripperSpec = HGPL_25_60_A, *, progress: bool = False) -> list[str]:

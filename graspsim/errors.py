@@ -24,6 +24,7 @@ __all__ = [
     "SimulationError",
     "CampaignError",
     "DependencyNotInstalled",
+    "PlannerError",
 ]
 
 
@@ -89,6 +90,11 @@ class SimulationError(GraspsimError):
 class CampaignError(SimulationError):
     """A simulation campaign folder that does not match the requested campaign, or is
     damaged (:mod:`graspsim.apps.campaign`)."""
+
+
+class PlannerError(GraspsimError):
+    """A user's grasp planner (``graspsim scene --planner module:function``) raised or
+    returned something that is not grasps; the message names the planner and the fault."""
 
 
 class DependencyNotInstalled(GraspsimError, ImportError):

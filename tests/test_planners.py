@@ -7,11 +7,11 @@ import textwrap
 import numpy as np
 import pytest
 
-from graspsim.errors import InvalidParameterError
+from graspsim.errors import InvalidParameterError, PlannerError
 from graspsim.grippers import get_gripper
 from graspsim.tabletop.clutter import ClutterResult
 from graspsim.tabletop.clutter_stats import per_seed
-from graspsim.tabletop.planners import Observation, Proposals, antipodal, load_planner
+from graspsim.tabletop.planners import Observation, Proposals, antipodal, load_planner, plan_frame
 
 FRANKA = get_gripper("franka_hand")
 
@@ -77,6 +77,56 @@ def test_load_planner_names_and_errors(tmp_path, monkeypatch):
     for bad in ("nonsense", "no_such_module:plan", "my_adapter:missing"):
         with pytest.raises(InvalidParameterError, match="--planner"):
             load_planner(bad)
+
+
+FAULTY = '''
+import numpy as np
+
+
+def boom(obs):
+    raise RuntimeError("model weights not found")
+
+
+def nothing(obs):
+    return None
+
+
+def ragged(obs):
+    return np.eye(4)[None], np.zeros(2), np.zeros(1)
+
+
+def two(obs, extra):
+    return None
+
+
+class NoGpu:
+    def __init__(self):
+        raise OSError("no GPU")
+'''
+
+
+def test_a_faulty_planner_is_one_error_naming_it(tmp_path, monkeypatch):
+    """A user's planner that cannot be made, takes the wrong arguments, raises, or returns
+    something other than grasps: an InvalidParameterError (when loaded) or a PlannerError
+    (when called), one line naming the planner and its fault -- the CLI prints it without
+    a traceback."""
+    from graspsim.geometry.camera import Camera, DepthFrame, Intrinsics
+
+    (tmp_path / "faulty.py").write_text(FAULTY)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(InvalidParameterError, match="one argument, the Observation"):
+        load_planner("faulty:two")
+    with pytest.raises(InvalidParameterError, match="NoGpu.. failed: OSError: no GPU"):
+        load_planner("faulty:NoGpu")
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    T[2, 3] = 0.5
+    frame = DepthFrame(np.full((48, 64), 0.5, np.float32), Camera(Intrinsics(64, 48, 60.0, 60.0, 32.0, 24.0), T))
+    rng = np.random.default_rng(0)
+    for name, message in (("boom", "boom raised RuntimeError: model weights not found"),
+                          ("nothing", "nothing returned NoneType"), ("ragged", "ragged returned grasps of the wrong")):
+        with pytest.raises(PlannerError, match=message):
+            plan_frame(load_planner(f"faulty:{name}"), frame, FRANKA, rng)
 
 
 @pytest.mark.slow

@@ -31,12 +31,16 @@ against the cloud and the fitted table and ranked by clearance).
 from __future__ import annotations
 
 import importlib
+import inspect
+import logging
 from dataclasses import dataclass
 
 import numpy as np
 
-from graspsim.errors import InvalidParameterError
+from graspsim.errors import GraspsimError, InvalidParameterError, PlannerError
 from graspsim.grippers.spec import GripperSpec
+
+log = logging.getLogger(__name__)
 
 __all__ = ["Observation", "Proposals", "ProposedGrasp", "load_planner", "GraspsimPlanner", "antipodal", "BUILTIN",
            "plan_frame", "grasp_target"]
@@ -100,9 +104,19 @@ def load_planner(name: str):
         obj = getattr(importlib.import_module(mod), attr)
     except (ImportError, AttributeError) as err:
         raise InvalidParameterError(f"--planner {name!r}: cannot import {attr} from {mod}: {err}") from err
-    planner = obj() if isinstance(obj, type) else obj
+    try:
+        planner = obj() if isinstance(obj, type) else obj
+    except Exception as err:  # the user's class: one line, not its traceback
+        raise InvalidParameterError(f"--planner {name!r}: making {attr}() failed: {type(err).__name__}: {err}") from err
     if not callable(planner):
         raise InvalidParameterError(f"--planner {name!r} is not callable")
+    try:
+        inspect.signature(planner).bind(None)
+    except TypeError as err:
+        raise InvalidParameterError(f"--planner {name!r}: a planner is called with one argument, the Observation "
+                                    f"(planner(obs) -> Proposals); {attr} cannot be: {err}") from None
+    except ValueError:  # some built-ins have no signature to check: the first call tells
+        pass
     return planner
 
 
@@ -116,8 +130,25 @@ def plan_frame(planner, frame, gripper: GripperSpec, rng: np.random.Generator):
     t1 = time.perf_counter()
     view = backproject(frame)
     cam = frame.camera
-    props = planner(Observation(frame.depth, cam.intrinsics, cam.T_world_camera, view.world(), gripper, rng))
-    props = props if isinstance(props, Proposals) else Proposals(*props)
+    obs = Observation(frame.depth, cam.intrinsics, cam.T_world_camera, view.world(), gripper, rng)
+    who = getattr(planner, "__qualname__", type(planner).__qualname__)
+    try:
+        props = planner(obs)
+    except GraspsimError:
+        raise
+    except Exception as err:  # a user's planner: one line naming it; its traceback with -v
+        log.info("the planner %s raised:", who, exc_info=True)
+        raise PlannerError(f"the planner {who} raised {type(err).__name__}: {err} (run with -v for its "
+                           "traceback)") from err
+    if not isinstance(props, Proposals):
+        if not isinstance(props, (tuple, list)) or len(props) != 3:
+            raise PlannerError(f"the planner {who} returned {type(props).__name__}; a planner returns Proposals "
+                               "(or a tuple: T_world_wrist (K, 4, 4), opening (K,), score (K,))")
+        try:
+            props = Proposals(*props)
+        except (TypeError, ValueError) as err:
+            raise PlannerError(f"the planner {who} returned grasps of the wrong shape ({err}); T_world_wrist "
+                               "(K, 4, 4), opening (K,), score (K,)") from err
     planning = time.perf_counter() - t1
     grasps = tuple(ProposedGrasp(T, float(o), float(sc))
                    for T, o, sc in zip(props.T_world_wrist, props.opening, props.score))

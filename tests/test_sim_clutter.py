@@ -185,6 +185,7 @@ def test_cli_scene_honours_gripper(tmp_path, capsys):
     (["--budget", "8:"], "--budget"),
     (["--budget", "8:0"], "--budget"),
     (["--objects-dir", "no/such/folder"], "--objects-dir"),
+    (["--scenes", "100", "--seeds", "100"], "--scenes x --seeds is 10000 scenes"),
     (["--objects-dir", ".", "--object-set", "primitives"], "not both"),
 ])
 def test_cli_scene_bad_arguments_are_one_line_errors(args, message, capsys, tmp_path):

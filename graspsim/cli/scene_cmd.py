@@ -47,6 +47,12 @@ from graspsim.cli.maps_cmd import _add_generation, _config
 __all__ = ["register"]
 
 
+#: The most scenes (``--scenes`` x ``--seeds``) one run takes, and the seconds a 5-object
+#: scene takes on two cores (E10's per-scene time, rounded up), for the refusal's estimate.
+MAX_SCENES = 2000
+SCENE_SECONDS = 15
+
+
 def _execution(args):
     """``--noise [--noise-pos M] [--noise-rot-deg DEG]`` as the execution error (None: no --noise)."""
     import math
@@ -87,6 +93,11 @@ def _cmd_scene(args) -> int:
 
     if args.objects > MAX_OBJECTS:
         raise InvalidParameterError(f"--objects must be at most {MAX_OBJECTS}, got {args.objects}")
+    if args.scenes * args.seeds > MAX_SCENES:  # a scene takes seconds to a minute: refuse days of work
+        raise InvalidParameterError(
+            f"--scenes x --seeds is {args.scenes * args.seeds} scenes, over the {MAX_SCENES} one run takes (about "
+            f"{args.scenes * args.seeds * SCENE_SECONDS / 3600:.0f} h at {SCENE_SECONDS} s a scene); split the work "
+            "over runs with different --seed values")
     if args.objects_dir is not None:
         if args.object_set is not None:
             raise InvalidParameterError("give --object-set or --objects-dir, not both")

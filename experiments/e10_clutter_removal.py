@@ -109,6 +109,8 @@ class Config:
     unseen_margin: float | None = opt(None, "the robust score's margin [m] against an object's unseen back "
                                       "(graspsim scene --unseen-margin; alone: the measured UNSEEN_MARGIN; "
                                       "none: the scene planner's default)", const=UNSEEN_MARGIN)
+    plan_all: bool = opt(False, "plan every object at every look (graspsim scene --plan-all; default: the highest "
+                         "first until a grasp's robust score reaches ClutterConfig.good_enough)")
     QUICK: ClassVar[dict] = {"scenes": 1, "seeds": 1, "block": 1, "objects": (2,), "kinds": ("packed",),
                              "noise": ("none",), "ablations": ("ground_truth",), "ablation_objects": (2,),
                              "quick_maps": True, "grid": False, "object_sets": ("primitives",)}
@@ -140,13 +142,14 @@ def seed_of(cfg: Config, k: int) -> int:
     return benchmark_seeds(cfg.seed, cfg.seeds)[k]
 
 
-def _clutter_config(c: dict, unseen_margin: float | None = None) -> ClutterConfig:
+def _clutter_config(c: dict, unseen_margin: float | None = None, plan_all: bool = False) -> ClutterConfig:
     """A condition's clutter settings; ``unseen_margin`` [m]: ``Config.unseen_margin``
-    (``graspsim scene --unseen-margin``'s path: :func:`~graspsim.planning.scene_config.with_unseen_margin`)."""
+    (``graspsim scene --unseen-margin``'s path: :func:`~graspsim.planning.scene_config.with_unseen_margin`);
+    ``plan_all``: every object planned at every look (``graspsim scene --plan-all``)."""
     scene = with_unseen_margin(scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"), unseen_margin)
     return ClutterConfig(scene=scene,
                          execution=ExecutionNoise() if c["noise"] == "default" else None,
-                         ground_truth=c["ablation"] == "ground_truth")
+                         ground_truth=c["ablation"] == "ground_truth", **({"good_enough": None} if plan_all else {}))
 
 
 def _row(c: dict, pairs: list) -> dict:
@@ -301,7 +304,7 @@ def _block(task) -> tuple[list, list, set]:
         k, i = divmod(j, per)
         sd = seed_of(cfg, k)
         try:
-            config = _clutter_config(c, cfg.unseen_margin)
+            config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all)
             out += [(sd, r) for r in run_benchmark(c["objects"], c["kind"], 1, sd, db=db, config=config,
                                                    object_set=c["object_set"], first=i)]
         except SimulationError as err:
@@ -328,7 +331,8 @@ def _warm_up(c: dict, cfg: Config, db) -> set:
     db.built = set()
     scene = make_scene(c["objects"], c["kind"], derived_seed(cfg.seed, "warm-up"), object_set=c["object_set"],
                        gripper=db.gripper)
-    ep = ClutterEpisode(scene, db=db, rng=rng_for(cfg.seed, "warm-up"), config=_clutter_config(c, cfg.unseen_margin))
+    ep = ClutterEpisode(scene, db=db, rng=rng_for(cfg.seed, "warm-up"),
+                        config=_clutter_config(c, cfg.unseen_margin, cfg.plan_all))
     try:
         ep.observe()
     finally:

@@ -77,6 +77,7 @@ class _Plan:
     grasps: tuple
     timing: dict
     memory: tuple = ()
+    segments: tuple = tuple(SimpleNamespace(status="planned") for _ in range(3))  # none "deferred"
 
 
 def _at(x: float) -> np.ndarray:
@@ -194,3 +195,33 @@ def test_an_object_whose_planned_grasps_all_failed_is_left_excluded_not_no_grasp
                     config=ClutterConfig(depth_noise=None, max_failures=3, reuse=False))
     assert [a.score for a in r.attempts] == [0.9, 0.5] and r.stop == "no_grasp"
     assert r.left == {0: "excluded", 1: "no_grasp", 2: "no_grasp"}
+
+
+def test_a_lazy_look_whose_planned_grasps_are_spent_plans_every_object(monkeypatch):
+    """``ClutterConfig.good_enough``: the look plans the highest objects only (the others
+    "deferred"); when its planned grasps are all spent (here: the one failed grasp's
+    twin), the same look plans every object (``good_enough`` None) before the episode
+    stops for want of a grasp. An object still deferred when the episode stops was not
+    tried (not "no_grasp"). Mutation caught: no fallback (the episode stopped no_grasp)."""
+    asked = []
+
+    def plan(points, *, db, rng, config, labels, previous=None, viewpoint=None):
+        asked.append(config.good_enough)
+        truth = _View.labels
+        if config.good_enough is None:  # every object planned: a grasp on object 1 too
+            grasps, status = (_Best(0, _at(0.0)), _Best(1, _at(0.5), score=0.8)), ("planned",) * 3
+        else:  # lazily: object 0 only, at the pose that failed
+            grasps, status = (_Best(0, _at(0.0)),), ("planned", "deferred", "deferred")
+        segs = tuple(SimpleNamespace(status=s) for s in status)
+        return _Plan(_Per(np.arange(150), truth.copy(), 3), grasps, {"total": 0.0}, segments=segs)
+
+    monkeypatch.setattr(clutter, "plan_scene", plan)
+    monkeypatch.setattr(clutter, "backproject", lambda frame: _View())
+    r = run_clutter(_Scene([None, 1]), db=None, rng=np.random.default_rng(0),
+                    config=ClutterConfig(depth_noise=None, reuse=False, max_attempts=2))
+    assert asked == [0.9, 0.9, None]  # the second look: lazily, then every object
+    assert [a.cause for a in r.attempts][:2] == ["no_contact", "success"] and r.attempts[1].target == 1
+    asked.clear()
+    r = run_clutter(_Scene([None]), db=None, rng=np.random.default_rng(0),
+                    config=ClutterConfig(depth_noise=None, reuse=False, max_attempts=1))
+    assert r.stop == "max_attempts" and r.left == {0: "not_tried", 1: "not_tried", 2: "not_tried"}

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from graspsim.errors import InvalidParameterError
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.map_config import MapConfig
 from graspsim.planning.scene import plan_scene
@@ -69,6 +70,29 @@ def test_unchanged_segments_keep_their_plan_moved_ones_are_planned_again(db):
     sp5 = plan_scene(pts5, db=db, rng=np.random.default_rng(3), config=cfg, previous=sp4)
     assert sp5.segments[_segment_of(sp5, truth5, 1)].status == "planned"
     assert sp5.segments[_segment_of(sp5, truth5, 0)].status == "planned"
+
+
+def test_lazy_planning_plans_the_highest_objects_until_a_grasp_is_good_enough(db):
+    """``SceneConfig.good_enough``: segments planned highest first, two at a time, until a
+    grasp reaches the score; the rest "deferred" (no grasps), planned by a later frame
+    once the planned ones are gone. The planned segments' grasps are the full plan's.
+    Mutation caught: the rest planned anyway (no "deferred")."""
+    pts, truth = _frame((0, 1, 2), XY, 1)
+    full = plan_scene(pts, db=db, rng=np.random.default_rng(0), config=SceneConfig())
+    lazy = plan_scene(pts, db=db, rng=np.random.default_rng(0), config=SceneConfig(good_enough=0.5))
+    box, cyl, ball = (_segment_of(lazy, truth, k) for k in range(3))  # 6, 12 and 7 cm high
+    assert full.best.score >= 0.5
+    assert [lazy.segments[k].status for k in (cyl, ball, box)] == ["planned", "planned", "deferred"]
+    assert lazy.segments[box].primitives and not any(g.segment == box for g in lazy.grasps)
+    same = [g for g in full.grasps if g.segment != box]
+    assert [g.T_world_wrist.tolist() for g in lazy.grasps] == [g.T_world_wrist.tolist() for g in same]
+    # the cylinder and the ball picked: the box is planned now
+    pts2, truth2 = _frame((0,), XY, 2)
+    sp2 = plan_scene(pts2, db=db, rng=np.random.default_rng(1), config=SceneConfig(good_enough=0.5), previous=lazy)
+    assert [p.status for p in sp2.segments] == ["planned"] and sp2.best is not None
+    for bad in (0.0, 1.5, True):
+        with pytest.raises(InvalidParameterError, match="good_enough"):
+            SceneConfig(good_enough=bad)
 
 
 def test_drop_grasp_removes_the_executed_pose_and_its_near_twins():

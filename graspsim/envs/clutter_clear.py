@@ -89,7 +89,7 @@ class ClutterClearEnv(gym.Env):
         self.clutter_config = ClutterConfig(
             scene=scene_settings(c.kind, neighbours=c.neighbours), depth_noise=DepthNoise() if c.depth_noise else None,
             execution=ExecutionNoise() if c.execution_error else None, max_failures=c.max_failures,
-            max_attempts=c.max_attempts,
+            max_attempts=c.max_attempts, good_enough=None,  # the candidates: every object's best grasps
             robot=None if c.robot == "none" else ClutterRobot(name=c.robot, base=c.robot_base))
         self.camera = rig(1)[0]
         K, N, F = c.n_candidates, c.cloud_size, len(CLUTTER_FEATURES)

@@ -68,6 +68,11 @@ def _scene_planner() -> PlannerConfig:
                          hidden_depth=True, merge_boxes=True, table_skip=SCENE_TABLE_SKIP, clear_first=True)
 
 
+#: Segments planned together while a scene is planned lazily (``SceneConfig.good_enough``):
+#: a constant, not the worker count, so which segments are planned does not depend on it.
+LAZY_BATCH = 2
+
+
 @dataclass(frozen=True)
 class SceneConfig:
     """planner: the per-segment planner settings (its ``table`` is replaced by the
@@ -98,7 +103,13 @@ class SceneConfig:
     (``plan_scene(previous=...)``); up: the
     table's upward direction if known (cloud frame); workers: processes the segments are
     identified on (None: one per core; 1: in this process; see
-    :mod:`~graspsim.planning.scene_workers` -- the result does not depend on it)."""
+    :mod:`~graspsim.planning.scene_workers` -- the result does not depend on it);
+    good_enough: None plans every segment that needs it (every object's grasps ranked:
+    ``plan-scene``, the clutter environment's candidates); a score in (0, 1]: the segments
+    are planned highest first, :data:`LAZY_BATCH` at a time, until the scene holds a grasp
+    whose robust score reaches it, and the rest are left ``"deferred"`` (no grasps; the
+    next frame plans them when it needs them) -- a clutter-removal loop executes one grasp
+    a look (:attr:`graspsim.tabletop.clutter.ClutterConfig.good_enough`)."""
 
     planner: PlannerConfig = field(default_factory=_scene_planner)
     plane_sigma: float = 0.002
@@ -122,6 +133,7 @@ class SceneConfig:
     reuse_tol: float = 0.005
     up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
     workers: int | None = None
+    good_enough: float | None = None
 
     def __post_init__(self) -> None:
         check_fields(self, POSITIVE.saying("> 0 m"), "plane_sigma", "table_band", "max_height", "voxel", "max_radius",
@@ -139,6 +151,11 @@ class SceneConfig:
         check_fields(self, integer(1), "plane_repetitions", "min_points", "per_segment", "enough", "keep",
                      owner="SceneConfig")
         scene_workers(self.workers)  # validates it
+        if self.good_enough is not None and not (isinstance(self.good_enough, (int, float))
+                                                 and not isinstance(self.good_enough, bool)
+                                                 and 0 < self.good_enough <= 1):
+            raise InvalidParameterError(f"SceneConfig.good_enough must be a robust score in (0, 1] or None, "
+                                        f"got {self.good_enough!r}")
         if self.plane_confidence is not None and not 0 < self.plane_confidence < 1:
             raise InvalidParameterError(f"SceneConfig.plane_confidence must be in (0, 1) or None, "
                                         f"got {self.plane_confidence!r}")

@@ -55,7 +55,8 @@ class SceneGrasp:
 @dataclass(frozen=True, eq=False)
 class SegmentPlan:
     """One segment's planning: points (count), status ("planned": grasps found, "reused": the previous frame's,
-    "no_grasp", "failed": identification could not run, with ``reason``), the primitives
+    "no_grasp", "failed": identification could not run, with ``reason``, "deferred": not
+    planned, another segment's grasp was good enough: ``SceneConfig.good_enough``), the primitives
     identified, grasps scored, seconds."""
 
     segment: int
@@ -134,7 +135,7 @@ def settled_plan(k: int, seg: np.ndarray, ident: Identification | None, why: str
     else None."""
     if ident is None:
         return SegmentPlan(k, len(seg), "failed", why, (), 0, 0.0), []
-    if old is None or old.plan.status == "failed":
+    if old is None or old.plan.status in ("failed", "deferred"):  # deferred: never planned
         return None
     if not nothing_new(old.obstacles, obstacles, tol=cfg.reuse_tol, within=_inner(seg, cfg), own=seg):
         return None

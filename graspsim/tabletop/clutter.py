@@ -162,7 +162,7 @@ class ClutterConfig:
                 else self.execution.to_dict(), "ground_truth": self.ground_truth,
                 "max_failures": self.max_failures, "max_attempts": self.max_attempts, "min_seen": self.min_seen,
                 "reuse": self.reuse, "planner": self.planner_name, "plan_for_execution": self.plan_for_execution,
-                "robust_sigma": [self.planning.planner.robust.position_sigma,
+                "good_enough": self.good_enough, "robust_sigma": [self.planning.planner.robust.position_sigma,
                                  self.planning.planner.robust.rotation_sigma],
                 **({} if self.robot is None else {"robot": self.robot.to_dict()})}
 

@@ -76,11 +76,7 @@ def attempts(cfg: Config, kind: str, db) -> list[dict]:
             scene = make_scene(5, kind, derived_seed(sd, "scene", i), object_set=cfg.object_set, gripper=db.gripper)
             ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=clutter)
             try:
-                while ep.stop is None:
-                    look = ep.observe()
-                    if look is None:
-                        break
-                    g = look.best
+                for look, g, _, _ in e10.looks(ep):
                     eye = ep.camera.T_world_camera[:3, 3]
                     T = np.asarray(g.T_world_wrist, float)
                     f = float(finger_occlusion(ViewDepth(look.view.world(), eye), T[None, :3, :3], T[None, :3, 3],

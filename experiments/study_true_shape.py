@@ -188,11 +188,7 @@ def episodes(cfg: Config, kind: str, db) -> list[dict]:
                 meshes[j] = (mesh, mesh.convex_hull)
             ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=clutter)
             try:
-                while ep.stop is None:
-                    look = ep.observe()
-                    if look is None:
-                        break
-                    g = look.best
+                for look, g, _, _ in e10.looks(ep):
                     k = grasp_target(look, g, db.gripper)
                     r = measure(ep, look, g, k, *meshes[k], db.gripper) if k in meshes else None
                     a = ep.execute(look, g)

@@ -28,7 +28,7 @@ class _Sim:
     def render(self, cam, **kw):
         return "frame"
 
-    def execute(self, T, opening, *, target, noise, rng):
+    def execute(self, T, opening, *, target, noise, rng, plan=None):
         picked = self.picks.pop(0)
         if picked is None:
             return SceneOutcome(TrialOutcome.NO_CONTACT, None, target, "no_contact")
@@ -45,7 +45,7 @@ class _Scene:
         self.objects = [SimpleNamespace(name=n) for n in ("box", "can", "cup")]
         self.picks = picks
 
-    def sim(self):
+    def sim(self, **arm):  # with an arm (robot, base): the same scripted simulation
         return _Sim(list(self.picks), {0, 1, 2})
 
 
@@ -225,3 +225,34 @@ def test_a_lazy_look_whose_planned_grasps_are_spent_plans_every_object(monkeypat
     r = run_clutter(_Scene([None]), db=None, rng=np.random.default_rng(0),
                     config=ClutterConfig(depth_noise=None, reuse=False, max_attempts=1))
     assert r.stop == "max_attempts" and r.left == {0: "not_tried", 1: "not_tried", 2: "not_tried"}
+
+
+def test_a_lazy_look_whose_planned_grasps_the_arm_cannot_reach_plans_every_object(monkeypatch):
+    """With an arm: the look's planned grasps (object 0's; the others deferred) are all
+    refused by the reachability check, so the look plans every object and the arm
+    executes one it reaches (on object 1) instead of stopping "unreachable". Mutation
+    caught: no fallback for the arm (the episode stopped unreachable)."""
+    from graspsim.tabletop.clutter import ClutterEpisode, ClutterRobot
+
+    asked = []
+
+    def plan(points, *, db, rng, config, labels, previous=None, viewpoint=None):
+        asked.append(config.good_enough)
+        if config.good_enough is None:
+            grasps, status = (_Best(0, _at(0.0)), _Best(1, _at(0.5), score=0.8)), ("planned",) * 3
+        else:
+            grasps, status = (_Best(0, _at(0.0)),), ("planned", "deferred", "deferred")
+        return _Plan(_Per(np.arange(150), _View.labels.copy(), 3), grasps, {"total": 0.0},
+                     segments=tuple(SimpleNamespace(status=s) for s in status))
+
+    def reachable(self, cands, positive):  # the arm reaches object 1's grasps only
+        g = next((g for g in cands if g.segment == 1), None)
+        return g, None, {"candidates": len(cands), "refused": [] if g else [{"cause": "unreachable"}]}
+
+    monkeypatch.setattr(clutter, "plan_scene", plan)
+    monkeypatch.setattr(clutter, "backproject", lambda frame: _View())
+    monkeypatch.setattr(clutter, "_arm", lambda robot: None)
+    monkeypatch.setattr(ClutterEpisode, "_reachable", reachable)
+    r = run_clutter(_Scene([1]), db=None, rng=np.random.default_rng(0),
+                    config=ClutterConfig(depth_noise=None, reuse=False, robot=ClutterRobot(), max_attempts=1))
+    assert asked == [0.9, None] and r.attempts[0].target == 1 and r.attempts[0].success

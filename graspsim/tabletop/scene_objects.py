@@ -236,7 +236,8 @@ def _fit_entries(ms: MeshSet, limit: float) -> tuple[MeshEntry, ...]:
     if not fits:
         units = any(w is None and ("across" in why) for _, w, why in out)
         raise InvalidParameterError(
-            f"no mesh of {name} can be drawn: " + "; ".join(why for _, _, why in out)
+            f"no mesh of {name} can be drawn: " + "; ".join(why for _, _, why in out[:5])
+            + (f"; and {len(out) - 5} more" if len(out) > 5 else "")
             + ("; scale a folder's meshes to metres in its manifest (objects.json: {\"defaults\": {\"scale\": "
                "0.001}} for mm)" if units else ""))
     for _, _, why in out:

@@ -3,6 +3,7 @@
     scene cloud -> table plane (MLESAC, :mod:`~graspsim.perception.plane`) -> the points
     above it, thinned to a voxel grid -> objects by Euclidean clustering
     (:mod:`~graspsim.perception.segment`) -> every segment identified -> every segment
+    (with ``SceneConfig.good_enough``: the highest first, until a grasp scores that well)
     planned by the run-time planner (stored/scaled/combined maps, the table as its
     ``TablePlane``) with the robust score computed against the WHOLE scene near it, not
     the segment's points alone -> one ranking of every segment's best grasps

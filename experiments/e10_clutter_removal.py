@@ -252,6 +252,23 @@ def _data(cfg: Config, conds: list, goal: list, done: list, skipped: list, built
             "database": {"start": db_start, "end": db_end}}
 
 
+@dataclass(frozen=True)
+class E10Cases:
+    """The settings that name an E10 run's clutter episodes, for the studies that replay
+    them (:func:`replay_cases`): scene kind and size, execution error, E10's seed count and
+    seed, the object set, and its map database (``db`` read only; :func:`read_only_database`).
+    A study's ``Config`` derives from it and adds its ``cases`` and its own settings."""
+
+    kind: str = opt("pile", "scene kind", choices=("pile", "packed"))
+    objects: int = opt(5, "objects per scene")
+    noise: str = opt("none", "execution error: none, default (3 mm / 2 deg)", choices=("none", "default"))
+    seeds: int = opt(5, "seeds of the E10 run the cases come from (--seeds of e10_clutter_removal.py)")
+    object_set: str = opt("household-tuning", "object set")
+    seed: int = opt(0, "run seed (E10's)")
+    quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
+    db: str = opt("", "FS database folder, read only (default: OUT/fsdb, built fresh)")
+
+
 def read_only_database(cfg, out: Path) -> RunDatabase:
     """The database E10 plans against (read only), for a study of its clutter episodes with
     E10's ``db`` and ``quick_maps`` options: ``cfg.db``, else one built in ``out``."""

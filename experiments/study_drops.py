@@ -43,6 +43,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import opt, start
+from e10_clutter_removal import E10Cases
 
 from graspsim._gl import import_mujoco
 
@@ -53,18 +54,10 @@ G = 9.81
 
 
 @dataclass(frozen=True)
-class Config:
-    kind: str = opt("pile", "scene kind", choices=("pile", "packed"))
-    objects: int = opt(5, "objects per scene")
-    noise: str = opt("none", "execution error: none, default (3 mm / 2 deg)", choices=("none", "default"))
-    seeds: int = opt(5, "seeds of the E10 run the cases come from (--seeds of e10_clutter_removal.py)")
+class Config(E10Cases):
     cases: tuple[str, ...] = opt(("0:14",), "cases SEED_INDEX:SCENE (scene index within its seed)")
     causes: tuple[str, ...] = opt(("dropped", "slipped"), "causes replayed in detail (none: no replay, each "
                                                           "grasp's cause recorded)")
-    object_set: str = opt("household-tuning", "object set")
-    seed: int = opt(0, "run seed (E10's)")
-    quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
-    db: str = opt("", "FS database folder, read only (default: OUT/fsdb, built fresh)")
     impratio: float | None = opt(None, "the episodes' MuJoCo impratio, scene settling included (None: SimSettings' "
                                  "default; 10 replays runs made before it became 100)")
     scene_impratio: float | None = opt(None, "the impratio the scenes are drawn and settled with (None: "

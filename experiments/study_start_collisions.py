@@ -49,6 +49,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import opt, start
+from e10_clutter_removal import E10Cases
 
 from graspsim._gl import import_mujoco
 
@@ -58,17 +59,9 @@ log = logging.getLogger("study_start_collisions")
 
 
 @dataclass(frozen=True)
-class Config:
-    kind: str = opt("pile", "scene kind", choices=("pile", "packed"))
-    objects: int = opt(5, "objects per scene")
-    noise: str = opt("none", "execution error: none, default (3 mm / 2 deg)", choices=("none", "default"))
-    seeds: int = opt(5, "seeds of the E10 run the cases come from (--seeds of e10_clutter_removal.py)")
+class Config(E10Cases):
     cases: tuple[str, ...] = opt(("0:2",), "cases SEED_INDEX:SCENE[:GRASPS] (scene index within its seed; "
                                            "GRASPS: stop after that many executed grasps)")
-    object_set: str = opt("household-tuning", "object set")
-    seed: int = opt(0, "run seed (E10's)")
-    quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
-    db: str = opt("", "FS database folder, read only (default: OUT/fsdb, built fresh)")
     workers: int = opt(1, "planning processes (SceneConfig.workers; the result does not depend on it)")
     QUICK: ClassVar[dict] = {"kind": "packed", "objects": 2, "seeds": 1, "cases": ("0:0",), "object_set": "primitives",
                              "quick_maps": True}

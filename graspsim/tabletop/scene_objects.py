@@ -234,7 +234,7 @@ def _fit_entries(ms: MeshSet, limit: float) -> tuple[MeshEntry, ...]:
             out.append((e, w, f"{Path(e.file).name} is {w * 1000:.0f} mm across at its narrowest, wider than the "
                               f"gripper spans ({limit * 1000:.0f} mm)"))
     if not fits:
-        units = any(w is None and ("across" in why) for _, w, why in out)
+        units = any(_SCALE_OPTION in why for _, _, why in out)  # a size refused as not in metres
         raise InvalidParameterError(
             f"no mesh of {name} can be drawn: " + "; ".join(why for _, _, why in out[:5])
             + (f"; and {len(out) - 5} more" if len(out) > 5 else "")

@@ -131,7 +131,14 @@ class RunDatabase(MapDatabase):
     """The run's database, read only: a part no stored map serves within the scaling
     range gets its FS map built in memory (kept in this process, never stored), so
     every scene plans against the same stored maps whatever ran before it. ``built``:
-    the keys of the maps served so (since it was last emptied)."""
+    the keys of the maps served so (since it was last emptied).
+
+    Its copies in a scene's worker processes plan as it does (``copies_plan_alike``):
+    only a part that no stored map serves reaches the maps built in memory, and a
+    segment with such a part is planned in this process
+    (:func:`~graspsim.planning.scene_segments.plan_segments`), where ``built`` records it."""
+
+    copies_plan_alike = True
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)

@@ -592,6 +592,42 @@ def test_e10_run_database_builds_missing_maps_in_memory_only(tmp_path):
     assert len(m) == len(ref) and np.array_equal(m.grade, ref.grade) and np.array_equal(m.T_obj_wrist, ref.T_obj_wrist)
 
 
+def test_e10_run_database_plans_on_the_scene_workers_and_records_maps_built_in_memory(tmp_path, monkeypatch):
+    """E10's read-only database has a scene's segments planned on the workers (its copies
+    plan alike: issue 34's planning time as a user's loop meets it), with the grasps the
+    plain database gives; a segment whose part no stored map serves is planned in this
+    process, whose ``built`` records the map built in memory."""
+    from graspsim.maps.database import MapDatabase
+    from graspsim.planning import scene_segments
+    from graspsim.planning.scene import plan_scene
+    from graspsim.planning.scene_config import SceneConfig
+    from graspsim.primitives import Box, Cylinder, Sphere
+    from graspsim.primitives.clouds import table_scene_cloud
+
+    mod = _load("e10_clutter_removal")
+    cfg = mod.map_config(True)
+    plain = MapDatabase(tmp_path / "db", config=cfg)
+    plain.build([Box(0.06, 0.06, 0.06), Sphere(0.035)])
+    run = mod.RunDatabase(tmp_path / "db", config=cfg)
+    assert scene_segments.copies_plan_alike(run)
+    asked = []
+    real = scene_segments.run_segments
+    monkeypatch.setattr(scene_segments, "run_segments",
+                        lambda fn, tasks, sizes, workers=1: asked.append(workers) or real(fn, tasks, sizes, workers))
+    shapes = [Box(0.05, 0.06, 0.07), Sphere(0.03)]
+    pts = table_scene_cloud(shapes, np.array([[-0.05, 0.0], [0.05, 0.0]]), np.random.default_rng(3), noise=0.0005)[0]
+    record = lambda sp: ([(s.status, s.primitives) for s in sp.segments],  # noqa: E731
+                         [(g.T_world_wrist.tobytes(), g.score) for g in sp.grasps])
+    there = plan_scene(pts, db=run, rng=np.random.default_rng(1), config=SceneConfig(workers=2))
+    here = plan_scene(pts, db=plain, rng=np.random.default_rng(1), config=SceneConfig(workers=1))
+    assert asked == [2, 1] and record(there) == record(here) and not run.built
+    pts = table_scene_cloud([Box(0.05, 0.06, 0.07), Cylinder(0.025, 0.1)], np.array([[-0.05, 0.0], [0.05, 0.0]]),
+                            np.random.default_rng(3), noise=0.0005)[0]
+    sp = plan_scene(pts, db=run, rng=np.random.default_rng(1), config=SceneConfig(workers=2))
+    assert "cylinder" in {p for s in sp.segments for p in s.primitives}  # no stored cylinder map: one is built
+    assert asked[-1] == 1 and run.built  # in this process, in memory, recorded
+
+
 def test_e10_others_cut_only_the_conditions_outside_the_goals():
     mod = _load("e10_clutter_removal")
     cfg = mod.Config(scenes=50, others=20, seeds=1, object_sets=("primitives",))

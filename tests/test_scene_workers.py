@@ -223,6 +223,28 @@ def test_a_database_subclass_is_planned_in_this_process(db, monkeypatch):
     assert asked == [1] and [s.status for s in sp.segments] == ["planned", "planned"]
 
 
+class _AlikeDatabase(MapDatabase):
+    """A database subclass whose copies plan alike (as E10's RunDatabase says of itself)."""
+
+    copies_plan_alike = True
+
+
+def test_a_database_subclass_whose_copies_plan_alike_is_planned_on_the_workers(db, monkeypatch):
+    """A subclass that says its copies plan alike has its segments planned side by side on
+    the workers, with every grasp as a plain database planned here gives; one that does
+    not say so (or says so with anything but True) is planned here."""
+    asked = _spy_workers(monkeypatch)
+    pts = _scene([Box(0.05, 0.06, 0.07), Sphere(0.03)], 7)
+    here = plan_scene(pts, db=db, rng=np.random.default_rng(9), config=SceneConfig(workers=1))
+    alike = _AlikeDatabase(db.root, config=db.config)
+    there = plan_scene(pts, db=alike, rng=np.random.default_rng(9), config=SceneConfig(workers=2))
+    assert asked == [1, 2] and _plan_record(there) == _plan_record(here)
+    assert scene_segments.copies_plan_alike(db) and scene_segments.copies_plan_alike(alike)
+    assert not scene_segments.copies_plan_alike(_OwnDatabase(db.root, config=db.config))
+    monkeypatch.setattr(_AlikeDatabase, "copies_plan_alike", "yes")
+    assert not scene_segments.copies_plan_alike(alike)
+
+
 def _resident_is_given(db) -> bool:
     from graspsim.planning.scene_workers import resident_database
 

@@ -6,7 +6,8 @@ the scene around it -- the segments side by side on the scene's worker processes
 (:mod:`~graspsim.planning.scene_workers`; a segment's planning draws nothing at random,
 so the result does not depend on where or in which order), or in this process, in
 segment order, when a plan could store a new FS map (later plans match against it) or
-the database is a subclass with state of its own.
+the database is a subclass with state of its own that a copy in a worker would not
+share (:func:`copies_plan_alike`).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from graspsim.planning.scene_workers import resident_database, run_segments
 if TYPE_CHECKING:  # the scene's settings (scene.py imports this module)
     from graspsim.planning.scene_config import SceneConfig
 
-__all__ = ["SceneGrasp", "SegmentPlan", "builds_maps", "settled_plan", "plan_segments"]
+__all__ = ["SceneGrasp", "SegmentPlan", "builds_maps", "copies_plan_alike", "settled_plan", "plan_segments"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,13 +144,22 @@ def settled_plan(k: int, seg: np.ndarray, ident: Identification | None, why: str
     return (replace(old.plan, segment=k, status="reused", seconds=0.0), g) if g else None
 
 
+def copies_plan_alike(db) -> bool:
+    """Whether a copy of ``db`` in a scene worker plans a segment as ``db`` does, so long
+    as no part needs an FS map built (:func:`builds_maps`): a plain
+    :class:`~graspsim.maps.database.MapDatabase`, or a subclass that says so with a true
+    class attribute ``copies_plan_alike`` (its own state -- e.g. maps it built in memory --
+    serves only parts that need a map built, and those are planned in this process). Any
+    other subclass may keep state a copy would not share: planned in this process."""
+    return type(db) is MapDatabase or getattr(type(db), "copies_plan_alike", False) is True
+
+
 def plan_segments(tasks: list[tuple], db, cfg: SceneConfig) -> list[tuple[SegmentPlan, list[SceneGrasp]]]:
     """:func:`_plan_segment` of every task, on the scene's worker processes unless a
     plan could build (and store) an FS map -- then in this process, in segment order,
-    as each plan matches against the maps stored before it -- or the database is a
-    subclass of :class:`~graspsim.maps.database.MapDatabase` (it may keep state a copy
-    in a worker would not share, e.g. maps built in memory): in this process too."""
-    parallel = type(db) is MapDatabase and not any(builds_maps(t[2], db, cfg.planner) for t in tasks)
+    as each plan matches against the maps stored before it -- or the database's copy in
+    a worker might plan otherwise (:func:`copies_plan_alike`): in this process too."""
+    parallel = copies_plan_alike(db) and not any(builds_maps(t[2], db, cfg.planner) for t in tasks)
     workers = cfg.workers if parallel else 1
     # the longest plans first: parts (each streams its own maps), then points
     return run_segments(_plan_segment_there, tasks, [len(t[2].parts) * 1e6 + len(t[0]) for t in tasks], workers)

@@ -145,6 +145,13 @@ class RunDatabase(MapDatabase):
         self.built: set[str] = set()
         self._memory: dict = {}
 
+    def __getstate__(self) -> dict:
+        """Pickled (sent to a scene worker with every segment) without the maps built in
+        memory, as the loaded maps are left out: a copy never builds one (see above),
+        and up to :data:`MEMORY_MAPS` maps of a few MB each, sent with every segment,
+        made a long run's planning slower with every map built."""
+        return {**super().__getstate__(), "built": set(), "_memory": {}}
+
     def get(self, shape, *, build: bool = True, threads: int | None = None):
         if self.contains(shape) or not build:
             return super().get(shape, build=build, threads=threads)

@@ -626,6 +626,12 @@ def test_e10_run_database_plans_on_the_scene_workers_and_records_maps_built_in_m
     sp = plan_scene(pts, db=run, rng=np.random.default_rng(1), config=SceneConfig(workers=2))
     assert "cylinder" in {p for s in sp.segments for p in s.primitives}  # no stored cylinder map: one is built
     assert asked[-1] == 1 and run.built  # in this process, in memory, recorded
+    # sent to a worker without the maps built in memory (a map each, with every segment sent)
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(run))
+    assert run._memory and not copy._memory and not copy.built and copy.root == run.root
+    assert len(pickle.dumps(run)) < 100_000
 
 
 def test_e10_others_cut_only_the_conditions_outside_the_goals():

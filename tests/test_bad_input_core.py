@@ -299,16 +299,35 @@ def test_flat_split_boxes_gain_no_volume():
 
 
 def test_flat_face_split_off_a_box_is_no_sub_millimetre_box():
-    # E01 partial box (variant 4, trial 2): one face split off was "identified" as a
-    # box 0.6 mm thick (a 2-part result); now that cluster is left unidentified
+    """E01 partial box (variant 4, trial 2): one face split off was "identified" as a box
+    0.6 mm thick (a 2-part result). Whether this cloud splits a face off at all depends on the
+    machine's floating point; what may not happen on any machine is a part under 1 mm. The
+    mechanism itself, on clusters made for it: a thin slab whose box fit is under 1 mm is left
+    unidentified, with the degenerate fit as its reason where the box otherwise fits."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
     from _identification_trials import CloudSpec, trial_cloud  # E01's trial clouds
+
+    from graspsim.perception.cluster import identify_cluster
+    from graspsim.perception.identify_config import IdentifyConfig
 
     seed = np.random.SeedSequence(entropy=20180101, spawn_key=(1, 0, 4, 10, 2))
     cloud, rng = trial_cloud("box", 4, seed, CloudSpec(noise=0.001, outliers=0.01, partial=True))
     res = identify(cloud.points, rng=rng)
     assert all(min(p.dims.values()) >= 0.001 for p in res.parts) and len(res.parts) == 1
-    assert any("degenerate box fit" in p.reason for p in res.unidentified)
+    assert all(u.reason for u in res.unidentified)
+    reasons = []
+    for t in (0.0003, 0.0005, 0.0007):
+        for k in range(4):
+            r = np.random.default_rng(k)
+            z = r.choice([-t / 2, t / 2], 1500)
+            pts = np.column_stack([r.uniform(-0.02, 0.02, 1500), r.uniform(-0.015, 0.015, 1500),
+                                   z + r.normal(0, 3e-5, 1500)])
+            normals = np.zeros((1500, 3))
+            normals[:, 2] = np.sign(z)
+            part = identify_cluster(pts, normals, np.arange(1500), 1e-4, np.random.default_rng(k), IdentifyConfig())
+            assert part.shape.value == "unidentified" and part.reason and not part.dims
+            reasons.append(part.reason)
+    assert any(x.startswith("degenerate box fit") for x in reasons)
 
 
 # ------------------------------------------------------------------ clouds: density

@@ -139,14 +139,15 @@ def test_the_failure_study_refuses_a_held_out_mesh(tmp_path):
 
 @pytest.mark.slow
 def test_the_failure_study_gives_every_failed_trial_one_mechanism(tmp_path):
-    """A quick E09 run on a vendored development mesh (random_022 under 3 mm sensor noise: its quick
-    single view fails some of its best; at 1 mm none has failed since the simulation's friction became
-    stiffer), then the study: every simulated trial of a robust map is judged, the failed ones each
-    with one mechanism, and the counts add up to them."""
+    """A quick E09 run on a vendored development mesh (random_022 under 5 mm sensor noise, so that some
+    of its best fail: at 1 mm none has failed since the simulation's friction became stiffer, and at
+    3 mm some failed on one machine and none on another, whose floating point differs), then the
+    study: every simulated trial of a robust map is judged, the failed ones each with one mechanism,
+    and the counts add up to them."""
     e09 = _e09()
     out = tmp_path / "e09"
     assert e09.main(["--quick", "--objects-dir", str(ROOT / "assets" / "objects"), "--out", str(out),
-                     "--objects", "pybullet/random_022.stl", "--separation-mm", "0", "--noise", "0.003"]) == 0
+                     "--objects", "pybullet/random_022.stl", "--separation-mm", "0", "--noise", "0.005"]) == 0
     study = _study()
     assert study.main(["--run", str(out), "--out", str(tmp_path / "st")]) == 0
     s = json.loads((tmp_path / "st" / "failures.json").read_text())

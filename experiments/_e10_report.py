@@ -17,6 +17,8 @@ def _label(c: dict) -> str:
         return "no neighbour check"
     if c["ablation"] == "ground_truth":
         return "ground-truth segmentation"
+    if c["ablation"] == "no_feel":
+        return "no felt evidence (ClutterConfig.feel off)"
     return "with execution error" if c["noise"] == "default" else "no execution error"
 
 

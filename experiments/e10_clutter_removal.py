@@ -13,7 +13,9 @@ told it, as a user states their robot's accuracy (``ClutterConfig.plan_for_execu
 path of ``graspsim scene --noise``; ``graspsim plan-scene --pose-error`` for a real cloud):
 its robust score draws the same 3 mm / 2 deg; without, it keeps that default as a margin.
 Ablations (without execution
-error): no neighbour check; the render's ground-truth segmentation instead of clustering.
+error): no neighbour check; the render's ground-truth segmentation instead of clustering;
+no felt evidence (a grasp that started in collision with an object tells the next plans
+nothing but its contacts: ``ClutterConfig.feel`` off).
 Every condition meets the same scenes and the same random draws (paired).
 
 As the clutter-removal literature reports it (GIGA, EdgeGraspNet): ``--seeds`` seeds of
@@ -79,7 +81,7 @@ from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
 from graspsim.tabletop.scene_objects import prepare_objects
 
 log = logging.getLogger("e10")
-ABLATIONS = ("no_neighbours", "ground_truth")
+ABLATIONS = ("no_neighbours", "ground_truth", "no_feel")
 
 
 @dataclass(frozen=True)
@@ -149,7 +151,8 @@ def _clutter_config(c: dict, unseen_margin: float | None = None, plan_all: bool 
     scene = with_unseen_margin(scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"), unseen_margin)
     return ClutterConfig(scene=scene,
                          execution=ExecutionNoise() if c["noise"] == "default" else None,
-                         ground_truth=c["ablation"] == "ground_truth", **({"good_enough": None} if plan_all else {}))
+                         ground_truth=c["ablation"] == "ground_truth", feel=c["ablation"] != "no_feel",
+                         **({"good_enough": None} if plan_all else {}))
 
 
 def _row(c: dict, pairs: list) -> dict:

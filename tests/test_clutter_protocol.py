@@ -93,7 +93,7 @@ def _scripted(monkeypatch, targets, poses=None):
     order = list(targets)
     where = list(poses) if poses is not None else [0.1 * k for k in range(len(order))]
 
-    def plan(points, *, db, rng, config, labels, previous, viewpoint):
+    def plan(points, *, db, rng, config, labels, previous, viewpoint, felt=None):
         truth = _View.labels
         k = order.pop(0)
         grasps = (_Best(k, _at(where.pop(0))), _Best(k, _at(1.0), score=0.5))
@@ -165,7 +165,7 @@ def test_a_frame_whose_reused_plans_offer_nothing_is_planned_afresh(monkeypatch)
     before the episode stops for want of a grasp."""
     calls, views = [], []
 
-    def plan(points, *, db, rng, config, labels, previous=None, viewpoint=None):
+    def plan(points, *, db, rng, config, labels, previous=None, viewpoint=None, felt=None):
         calls.append(previous is not None)
         views.append(viewpoint)
         truth = _View.labels
@@ -205,7 +205,7 @@ def test_a_lazy_look_whose_planned_grasps_are_spent_plans_every_object(monkeypat
     tried (not "no_grasp"). Mutation caught: no fallback (the episode stopped no_grasp)."""
     asked = []
 
-    def plan(points, *, db, rng, config, labels, previous=None, viewpoint=None):
+    def plan(points, *, db, rng, config, labels, previous=None, viewpoint=None, felt=None):
         asked.append(config.good_enough)
         truth = _View.labels
         if config.good_enough is None:  # every object planned: a grasp on object 1 too
@@ -236,7 +236,7 @@ def test_a_lazy_look_whose_planned_grasps_the_arm_cannot_reach_plans_every_objec
 
     asked = []
 
-    def plan(points, *, db, rng, config, labels, previous=None, viewpoint=None):
+    def plan(points, *, db, rng, config, labels, previous=None, viewpoint=None, felt=None):
         asked.append(config.good_enough)
         if config.good_enough is None:
             grasps, status = (_Best(0, _at(0.0)), _Best(1, _at(0.5), score=0.8)), ("planned",) * 3
@@ -256,3 +256,74 @@ def test_a_lazy_look_whose_planned_grasps_the_arm_cannot_reach_plans_every_objec
     r = run_clutter(_Scene([1]), db=None, rng=np.random.default_rng(0),
                     config=ClutterConfig(depth_noise=None, reuse=False, robot=ClutterRobot(), max_attempts=1))
     assert asked == [0.9, None] and r.attempts[0].target == 1 and r.attempts[0].success
+
+
+def test_a_start_collision_with_an_object_is_felt_by_the_next_plans_until_the_scene_changes(monkeypatch):
+    """``ClutterConfig.feel``: a grasp that started in collision with an object hands the
+    next plans its finger volume the camera did not see (``plan_scene(felt=...)``: here
+    all of it, behind a wall of observed points, above the table), at the pose executed;
+    a start collision with the table adds nothing and keeps it (the scene is as it was);
+    a grasp that changed the scene (a success) clears it. feel=False: never handed on.
+    Mutations caught: felt not passed, not cleared after a success, the table's added."""
+    from graspsim.geometry.table import TablePlane
+    from graspsim.grippers import HGPL_25_60_A
+    from graspsim.maps.occlusion import ViewDepth, felt_volume
+
+    eye = rig(1)[0].T_world_camera[:3, 3]
+    p = np.array([0.0, 0.0, 0.05])
+    T = np.diag([1.0, -1.0, -1.0, 1.0])  # top down, the fingers' middle at p
+    T[:3, 3] = p + [0.0, 0.0, 0.115]
+    u = (eye - p) / np.linalg.norm(eye - p)  # a wall of seen points 15 cm before p, across the view
+    a = np.cross(u, [1.0, 0.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(u, a)
+    g = np.linspace(-0.15, 0.15, 101)
+    wall = p + 0.15 * u + g[:, None, None] * a + g[None, :, None] * b
+    wall = wall.reshape(-1, 3)
+    table = TablePlane(normal=(0.0, 0.0, 1.0), height=0.0)
+    expected = felt_volume(HGPL_25_60_A, T, 0.03, ViewDepth(wall, eye), ((0.0, 0.0, 1.0), 0.0))
+    assert len(expected) > 100
+
+    causes = ["start_collision_target", "start_collision_table", "success", "no_contact"]
+
+    class Sim(_Sim):
+        gripper = HGPL_25_60_A
+
+        def execute(self, T_, opening, *, target, noise, rng, plan=None):
+            cause = causes[4 - len(self.picks)]
+            self.picks.pop(0)
+            extra = {"T_world_wrist": T.tolist(), "opening": 0.03}  # the pose executed
+            if cause == "success":
+                self.left.discard(0)
+                return SceneOutcome(TrialOutcome.SUCCESS, 0, target, cause, extra=extra)
+            out = TrialOutcome.NO_CONTACT if cause == "no_contact" else TrialOutcome.START_COLLISION
+            return SceneOutcome(out, None, target, cause, extra=extra)
+
+    class Scene(_Scene):
+        def sim(self, **arm):
+            return Sim([None] * 4, {0, 1, 2})
+
+    given = []
+
+    def plan(points, *, db, rng, config, labels, previous=None, viewpoint=None, felt=None):
+        given.append(None if felt is None else np.array(felt))
+        per = SimpleNamespace(indices=np.arange(150), segment=_View.labels.copy(), n_segments=3, points=wall)
+        grasps = (_Best(0, _at(0.1 * len(given))), _Best(0, _at(1.0 + 0.1 * len(given)), score=0.5))
+        return SimpleNamespace(perception=per, grasps=grasps, timing={"total": 0.0}, memory=(), table=table,
+                               segments=tuple(SimpleNamespace(status="planned") for _ in range(3)))
+
+    monkeypatch.setattr(clutter, "plan_scene", plan)
+    monkeypatch.setattr(clutter, "backproject", lambda frame: _View())
+    for feel in (True, False):
+        given.clear()
+        r = run_clutter(Scene([]), db=None, rng=np.random.default_rng(0),
+                        config=ClutterConfig(depth_noise=None, reuse=False, max_failures=3, max_attempts=4, feel=feel))
+        assert [a.cause for a in r.attempts] == causes
+        assert len(given) == 4
+        if not feel:
+            assert all(f is None for f in given)
+            continue
+        assert given[0] is None
+        np.testing.assert_allclose(given[1], expected)  # felt: the target's start collision
+        np.testing.assert_allclose(given[2], expected)  # the table's adds nothing
+        assert given[3] is None  # a success changed the scene

@@ -652,6 +652,19 @@ def test_e10_others_cut_only_the_conditions_outside_the_goals():
     assert sum(len(x) for x in mod.rounds(mod.Config(scenes=3, block=2, seeds=1), conds)) == 3 * len(conds)
 
 
+def test_e10_ablations_turn_off_one_thing_each():
+    """Each E10 ablation changes its one setting of the clutter protocol and no other."""
+    mod = _load("e10_clutter_removal")
+    full = mod._clutter_config({"kind": "pile", "noise": "none", "ablation": None})
+    assert full.feel and not full.ground_truth and full.scene.neighbours
+    changed = {}
+    for a in mod.ABLATIONS:
+        c = mod._clutter_config({"kind": "pile", "noise": "none", "ablation": a})
+        changed[a] = sorted(k for k in ("feel", "ground_truth") if getattr(c, k) != getattr(full, k)) + \
+            (["neighbours"] if c.scene.neighbours != full.scene.neighbours else [])
+    assert changed == {"no_neighbours": ["neighbours"], "ground_truth": ["ground_truth"], "no_feel": ["feel"]}
+
+
 def test_e10_reports_per_seed_and_mean_std_over_seeds():
     """Seeds are the field's unit: GSR and DR per seed, mean +- sample std over them, each
     object set apart, every seed's scenes from its own derived seed."""

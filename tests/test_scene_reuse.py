@@ -125,3 +125,75 @@ def test_same_points_and_nothing_new_tolerances():
     speckle = rng.uniform(0.06, 0.3, (30, 3))  # 30 isolated points: the sensor's speckle
     assert nothing_new(a[:200], np.concatenate([a[:200], speckle]), tol=0.005)
     assert nothing_new(None, None, tol=0.005) and not nothing_new(None, a, tol=0.005)
+
+
+def _in_fingers(gripper, T, opening, P):
+    """(K,) whether points P (K, 3) lie in the finger boxes of wrist pose T at pad gap opening."""
+    b = gripper.collision_boxes()
+    q = (P - T[:3, 3]) @ T[:3, :3]
+    inside = np.zeros(len(P), bool)
+    for name, c, h, s in zip(b.names, b.centers, b.half_extents, b.x_sign):
+        if name.startswith("finger"):
+            inside |= np.all(np.abs(q - (c + [s * 0.5 * opening, 0.0, 0.0])) <= h + 1e-9, axis=1)
+    return inside
+
+
+def test_felt_volume_is_the_finger_volume_behind_the_seen_surface_above_the_table():
+    """A wall of observed points at z = 0.18 seen from above, the fingers of a top-down
+    pose through it, the table at z = 0.16: the felt points are the fingers' volume between
+    the table and the wall (less the tolerance), none above the wall (seen free) or under
+    the table, spread so densely that no point of that volume is farther than half a step's
+    diagonal from one. Bad input: one line naming what is valid."""
+    from graspsim.grippers import HGPL_25_60_A as g
+    from graspsim.maps.occlusion import FELT_STEP, ViewDepth, felt_volume
+
+    x = np.linspace(-0.1, 0.1, 101)
+    wall = np.stack(np.meshgrid(x, x, [0.18], indexing="ij"), axis=-1).reshape(-1, 3)
+    view = ViewDepth(wall, np.array([0.0, 0.0, 1.0]))
+    T = np.diag([1.0, -1.0, -1.0, 1.0])
+    T[:3, 3] = [0.0, 0.0, 0.30]  # the fingers from z = 0.145 to 0.225
+    felt = felt_volume(g, T, 0.02, view, ((0.0, 0.0, 1.0), 0.16))
+    assert len(felt) > 100 and _in_fingers(g, T, 0.02, felt).all()
+    assert felt[:, 2].min() > 0.16 and felt[:, 2].max() < 0.18 - view.tolerance + 1e-9
+    assert (felt[:, 0] < 0).any() and (felt[:, 0] > 0).any()  # both fingers
+    rng = np.random.default_rng(0)
+    probe = rng.uniform([-0.03, -0.01, 0.161], [0.03, 0.01, 0.18 - view.tolerance - 0.001], (4000, 3))
+    probe = probe[_in_fingers(g, T, 0.02, probe)]
+    gap = np.linalg.norm(probe[:, None] - felt[None], axis=2).min(axis=1)
+    assert len(probe) > 500 and gap.max() <= 0.5 * FELT_STEP * math.sqrt(3) + 1e-9
+    assert len(felt_volume(g, T, 0.02, view)) > len(felt)  # no table: below 0.16 too
+    for bad, what in ((dict(opening=-0.01), "opening"), (dict(step=0.0), "step"),
+                      (dict(T_wrist=np.full((4, 4), np.nan)), "T_wrist")):
+        args = {"T_wrist": T, "opening": 0.02, **bad}
+        with pytest.raises(InvalidParameterError, match=what):
+            felt_volume(g, args.pop("T_wrist"), args.pop("opening"), view, **args)
+
+
+def test_felt_points_keep_a_scene_plan_clear_of_them_and_replan_their_segment(db):
+    """``plan_scene(felt=...)``: the finger volume of the best grasp of a plan handed back
+    as felt points: its segment is planned again (not reused), and no grasp of the new
+    plan with a score > 0 has a felt point in its fingers, where the first plan's best had
+    them all. Bad felt: one line, nothing planned.
+    Mutation caught: felt ignored (the best grasp reused)."""
+    from graspsim.maps.occlusion import felt_volume
+
+    cfg = SceneConfig()
+    pts, truth = _frame((0, 1, 2), XY, 1)
+    sp1 = plan_scene(pts, db=db, rng=np.random.default_rng(0), config=cfg)
+    best = sp1.best
+    g = db.gripper
+
+    class Everywhere:  # a view in which all of the fingers' volume is unseen
+        def occluded(self, P):
+            return np.ones(len(P), bool)
+
+    felt = felt_volume(g, best.T_world_wrist, best.opening, Everywhere())
+    assert _in_fingers(g, best.T_world_wrist, best.opening, felt).all()
+    sp2 = plan_scene(pts, db=db, rng=np.random.default_rng(0), config=cfg, previous=sp1, felt=felt)
+    k = best.segment
+    assert sp2.segments[k].status == "planned"
+    live = [x for x in sp2.grasps if x.score > 0]
+    assert live and not any(_in_fingers(g, x.T_world_wrist, x.opening, felt).any() for x in live)
+    for bad in (np.zeros((4, 2)), np.full((2, 3), np.nan), "felt"):
+        with pytest.raises(InvalidParameterError, match="felt must be finite points"):
+            plan_scene(pts, db=db, rng=np.random.default_rng(0), config=cfg, felt=bad)

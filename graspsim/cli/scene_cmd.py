@@ -135,7 +135,7 @@ def _cmd_scene(args) -> int:
     cfg = ClutterConfig(scene=scene,
                         execution=_execution(args), ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts, planner=planner, planner_name=args.planner, robot=robot,
-                        **({"good_enough": None} if args.plan_all else {}))
+                        feel=not args.no_feel, **({"good_enough": None} if args.plan_all else {}))
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
     drawn = prepare_objects(object_set, db.gripper, progress=not args.json)  # decompositions before scene 0
@@ -176,7 +176,8 @@ def _cmd_scene(args) -> int:
          "planned_for": {"position_sigma": cfg.planning.planner.robust.position_sigma,
                          "rotation_sigma": cfg.planning.planner.robust.rotation_sigma},
          "unseen_margin": cfg.planning.planner.robust.unseen_margin,
-         "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth, "min_gap": gap,
+         "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth,
+         "felt_evidence": cfg.feel, "min_gap": gap,
          "budget": cfg.scene.budget, "robot": args.robot,
          "robot_base": None if robot is None else (list(args.robot_base) if args.robot_base else [-0.5, 0.0, 0.0]),
          **summarize(results), "render": None if render is None else str(render), "details": details}
@@ -253,6 +254,10 @@ def register(sub) -> None:
                        help="ablation: check grasps against the object's own points only")
         p.add_argument("--ground-truth", action="store_true",
                        help="ablation: segment by the simulator's object labels instead of clustering")
+        p.add_argument("--no-feel", action="store_true",
+                       help="ablation: a grasp that started in collision with an object tells the next plans nothing "
+                            "but its contacts (default: its finger volume the camera did not see is kept clear of "
+                            "until an attempt changes the scene; ClutterConfig.feel)")
         p.add_argument("--max-attempts", type=whole_number(1), default=None,
                        help="grasps per scene at most (default 2 x objects + 2)")
         add_scene_planning_flags(p)

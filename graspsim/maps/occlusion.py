@@ -15,7 +15,9 @@ is the fraction of a gripper's finger volume (fingers at a pad gap) in occluded 
 per wrist pose -- the robust score's occlusion term (:mod:`graspsim.maps.robust`).
 :func:`unseen_clearance` is how near those unseen finger samples come to what is known
 of the object (its observed points, its fitted primitives): the robust score's
-unseen margin (``RobustConfig.unseen_margin``).
+unseen margin (``RobustConfig.unseen_margin``). :func:`felt_volume` is what a grasp that
+started in collision tells of that space: the finger volume at its pose the camera did not
+see, which something there filled (a scene's next plans keep clear of it).
 """
 
 from __future__ import annotations
@@ -29,8 +31,8 @@ from graspsim.errors import InvalidParameterError
 from graspsim.geometry.spacing import median_spacing
 from graspsim.grippers.spec import GripperSpec
 
-__all__ = ["ViewDepth", "finger_samples", "finger_occlusion", "unseen_clearance", "shadow_depth", "check_viewpoint",
-           "MAX_VIEWPOINT"]
+__all__ = ["ViewDepth", "finger_samples", "felt_volume", "finger_occlusion", "unseen_clearance", "shadow_depth",
+           "check_viewpoint", "MAX_VIEWPOINT", "FELT_STEP"]
 
 _MAX_PIXELS = 1024  # per image side (memory bound)
 _PER_AXIS = (2, 3, 8)  # finger samples along the finger box's x, y, z
@@ -146,6 +148,47 @@ def _finger_samples(gripper: GripperSpec, per_axis: tuple[int, int, int]) -> tup
     q.setflags(write=False)
     s.setflags(write=False)
     return q, s
+
+
+#: spacing [m] of :func:`felt_volume`'s samples: under the robust score's default margin
+#: plus a finger's half thickness, so no finger fits between them
+FELT_STEP = 0.003
+
+
+def felt_volume(gripper: GripperSpec, T_wrist: np.ndarray, opening: float, view: ViewDepth,
+                table: tuple[np.ndarray, float] | None = None, step: float = FELT_STEP) -> np.ndarray:
+    """(K, 3) points [m, the view's frame] of the fingers' boxes at wrist pose ``T_wrist``
+    (4, 4) with the pads ``opening`` [m] apart, a grid ``step`` apart through each box,
+    that lie in ``view``'s occluded space (:meth:`ViewDepth.occluded`) and above the
+    ``table`` (unit upward normal (3,), height along it; None: no table).
+
+    What a grasp that started in collision with an object tells: the fingers met
+    something there. Where the camera saw through, nothing was; the rest of the finger
+    volume is where it may be -- a carton's depth behind the face the camera saw, a
+    handle behind the body. A plan that keeps its fingers clear of these points does not
+    try that space again, as a plan keeps clear of the neighbours' observed points."""
+    T = np.asarray(T_wrist, float)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise InvalidParameterError(f"T_wrist must be a finite 4x4 transform, got shape {T.shape}")
+    if not (np.isfinite(opening) and opening >= 0.0):
+        raise InvalidParameterError(f"opening must be a finite pad gap >= 0 [m], got {opening!r}")
+    if not (np.isfinite(step) and step > 0.0):
+        raise InvalidParameterError(f"step must be > 0 [m], got {step!r}")
+    b = gripper.collision_boxes()
+    pts = []
+    for name, c, h, s in zip(b.names, b.centers, b.half_extents, b.x_sign):
+        if not name.startswith("finger"):
+            continue
+        axes = [np.linspace(-hh, hh, int(np.ceil(2.0 * hh / step)) + 1) for hh in h]
+        g = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3) + c
+        g[:, 0] += float(s) * 0.5 * float(opening)
+        pts.append(g)
+    P = np.concatenate(pts) @ T[:3, :3].T + T[:3, 3]
+    keep = view.occluded(P)
+    if table is not None:
+        n, height = np.asarray(table[0], float), float(table[1])
+        keep &= P @ n > height
+    return P[keep]
 
 
 def finger_occlusion(view: ViewDepth, R: np.ndarray, w: np.ndarray, opening: np.ndarray,

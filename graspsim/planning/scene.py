@@ -209,14 +209,37 @@ def _solid_samples(seg: np.ndarray, ident: Identification | None, plane: PlaneFi
     return np.concatenate(out)
 
 
-def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray], reach: float) -> np.ndarray:
-    """What the gripper must clear besides segment ``k``: the scene's points above the
-    table outside it (noise points included: they were seen) and the surface samples
-    of the other segments' identified primitives, within ``reach`` of its bounding box."""
+def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray] | None, reach: float,
+               felt: np.ndarray | None = None) -> np.ndarray | None:
+    """What the gripper must clear besides segment ``k``, within ``reach`` of its bounding
+    box: the scene's points above the table outside it (noise points included: they were
+    seen) and the surface samples of the other segments' identified primitives (both
+    only with ``solids``: ``SceneConfig.neighbours``), and the ``felt`` points (see
+    :func:`plan_scene`). None: nothing to clear."""
     own = per.segment == k
     lo, hi = per.points[own].min(axis=0) - reach, per.points[own].max(axis=0) + reach
-    pts = np.concatenate([per.points[~own], *(s for j, s in enumerate(solids) if j != k)])
+    got = [] if solids is None else [per.points[~own], *(s for j, s in enumerate(solids) if j != k)]
+    if felt is not None and len(felt):
+        got.append(felt)
+    if solids is None and len(got) == 0:
+        return None
+    pts = np.concatenate(got) if got else np.zeros((0, 3))
     return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+
+
+def _check_felt(felt) -> np.ndarray | None:
+    """``plan_scene``'s ``felt`` as a finite (K, 3) float array (None or no rows: None), or
+    an :class:`InvalidParameterError` naming what is valid."""
+    if felt is None:
+        return None
+    try:
+        F = np.asarray(felt, float)
+    except (TypeError, ValueError):
+        F = None
+    if F is None or F.ndim != 2 or F.shape[1] != 3 or not np.all(np.isfinite(F)):
+        raise InvalidParameterError(f"felt must be finite points (K, 3) [m, the cloud's frame], got "
+                                    f"{getattr(F, 'shape', type(felt).__name__)}")
+    return F if len(F) else None
 
 
 def _identify_new(segs: list[np.ndarray], olds: list, rng: np.random.Generator, cfg: SceneConfig) -> list:
@@ -231,7 +254,7 @@ def _identify_new(segs: list[np.ndarray], olds: list, rng: np.random.Generator, 
 
 def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: SceneConfig | None = None,
                labels: np.ndarray | None = None, previous: ScenePlan | None = None,
-               viewpoint: np.ndarray | None = None) -> ScenePlan:
+               viewpoint: np.ndarray | None = None, felt: np.ndarray | None = None) -> ScenePlan:
     """Ranked grasps for every object of a scene cloud (N, 3) [m] (see the module
     docstring); ``db``: the :class:`~graspsim.maps.database.MapDatabase`; ``labels``:
     see :func:`perceive_scene`; ``previous``: the plan of the previous frame of the same
@@ -240,13 +263,19 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     (:mod:`~graspsim.planning.scene_reuse`; status ``"reused"``); ``viewpoint`` (3,):
     where the camera that saw the cloud was (cloud frame): finger volume in the space
     behind what it saw -- an object's far side, what lies under a neighbour -- scales the
-    robust score down (:mod:`~graspsim.maps.occlusion`); None: no such term."""
+    robust score down (:mod:`~graspsim.maps.occlusion`); None: no such term. ``felt``
+    (K, 3) [m, cloud frame]: where the gripper met something the camera did not see (a
+    grasp that started in collision with an object:
+    :func:`~graspsim.maps.occlusion.felt_volume`); every segment's grasps keep clear of
+    these points as of its neighbours' (a segment they come near is planned again, not
+    reused); None: none."""
     from graspsim.maps.occlusion import check_viewpoint
     from graspsim.seeding import check_rng
 
     cfg = config or SceneConfig()
     t0 = time.perf_counter()
     viewpoint = check_viewpoint(viewpoint)  # before the work: a bad one fails now, in one line
+    felt = _check_felt(felt)
     check_rng(rng)
     per = perceive_scene(points, rng, cfg, labels=labels, viewpoint=viewpoint)
     table = per.plane.table(cfg.clearance)
@@ -258,7 +287,7 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     solids = [o.solids if o is not None and o.solids is not None else _solid_samples(seg, i, per.plane, cfg.solid_step)
               for seg, (i, _), o in zip(segs, idents, olds)] if cfg.neighbours else []
     t2 = time.perf_counter()
-    obstacles = [_obstacles(per, k, solids, cfg.reach) if cfg.neighbours else None for k in range(len(segs))]
+    obstacles = [_obstacles(per, k, solids if cfg.neighbours else None, cfg.reach, felt) for k in range(len(segs))]
     done = [settled_plan(k, segs[k], ident, why, olds[k], obstacles[k], cfg)
             for k, (ident, why) in enumerate(idents)]
     todo = [k for k, d in enumerate(done) if d is None]

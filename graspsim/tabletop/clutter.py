@@ -122,7 +122,13 @@ class ClutterConfig:
     look needs them -- one grasp is executed a look, and an object's plan is often
     outdated by the time its turn comes (a pile shifts); a look whose planned grasps are
     all spent (failed twins, or none the arm reaches) plans every object; None: every
-    object every look (the clutter environment's candidates)."""
+    object every look (the clutter environment's candidates); feel: a grasp that started
+    in collision with an object tells where something the camera did not see is (its
+    finger volume in the camera's shadow, :func:`~graspsim.maps.occlusion.felt_volume`),
+    and the next looks' plans keep clear of it (``plan_scene(felt=...)``) until an attempt
+    changes the scene (any but a start collision, which leaves it as it was); False: a
+    failed grasp only rules out grasps on its contacts. graspsim's planner only (a
+    planner of :mod:`graspsim.tabletop.planners` is not told)."""
 
     scene: SceneConfig = field(default_factory=SceneConfig)
     depth_noise: DepthNoise | None = field(default_factory=DepthNoise)
@@ -137,11 +143,12 @@ class ClutterConfig:
     robot: ClutterRobot | None = None
     plan_for_execution: bool = True
     good_enough: float | None = GOOD_ENOUGH
+    feel: bool = True
 
     def __post_init__(self) -> None:
         replace(self.scene, good_enough=self.good_enough)  # validates it
         check_fields(self, integer(1), "max_failures", "min_seen", owner="ClutterConfig")
-        check_fields(self, BOOLEAN, "plan_for_execution", owner="ClutterConfig")
+        check_fields(self, BOOLEAN, "plan_for_execution", "feel", owner="ClutterConfig")
         check_fields(self, or_none(integer(1)), "max_attempts", owner="ClutterConfig")
 
     @property
@@ -162,7 +169,8 @@ class ClutterConfig:
                 else self.execution.to_dict(), "ground_truth": self.ground_truth,
                 "max_failures": self.max_failures, "max_attempts": self.max_attempts, "min_seen": self.min_seen,
                 "reuse": self.reuse, "planner": self.planner_name, "plan_for_execution": self.plan_for_execution,
-                "good_enough": self.good_enough, "robust_sigma": [self.planning.planner.robust.position_sigma,
+                "good_enough": self.good_enough, "feel": self.feel,
+                "robust_sigma": [self.planning.planner.robust.position_sigma,
                                  self.planning.planner.robust.rotation_sigma],
                 **({} if self.robot is None else {"robot": self.robot.to_dict()})}
 
@@ -302,6 +310,7 @@ class ClutterEpisode:
         self.last: ClutterFrame | None = None  # the latest look, also when it found no grasp
         self._previous = None  # the plan the next look may reuse (ClutterConfig.reuse)
         self.failed: list[np.ndarray] = []  # wrist poses of the episode's failed grasps
+        self.felt = np.zeros((0, 3))  # where grasps that started in collision met something unseen (ClutterConfig.feel)
         self.reach = float(db.gripper.fingertip_z) if db is not None else 0.0  # wrist to fingertips [m]
         self.stop: str | None = None if self.sim.objects_left() else "cleared"
 
@@ -378,7 +387,7 @@ class ClutterEpisode:
         labels = view.labels if cfg.ground_truth else None
         eye = self.camera.T_world_camera[:3, 3]  # the occluded space behind what the camera saw
         sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=self._planning, labels=labels,
-                        previous=self._previous, viewpoint=eye)
+                        previous=self._previous, viewpoint=eye, felt=self._felt())
         cands, best = self._candidates(sp.grasps)
         if best is None and (self._previous is not None or _deferred(sp)):
             sp, cands, best = self._plan_all(view, labels, eye)
@@ -388,7 +397,7 @@ class ClutterEpisode:
         """The frame planned afresh, every segment (reused plans kept scores from before,
         and deferred segments were not planned): (plan, candidates, best)."""
         sp = plan_scene(view.world(), db=self.db, rng=self._plan_rng, config=replace(self._planning, good_enough=None),
-                        labels=labels, viewpoint=eye)
+                        labels=labels, viewpoint=eye, felt=self._felt())
         cands, best = self._candidates(sp.grasps)
         return sp, cands, best
 
@@ -425,6 +434,8 @@ class ClutterEpisode:
         self.failures = 0 if out.success else self.failures + 1
         if not out.success:
             self.failed.append(np.asarray(grasp.T_world_wrist, float))
+        if cfg.feel and not external:
+            self._feel(look, grasp, out)
         if self.failures >= cfg.max_failures:
             self.stop = "failures"
         elif not self.sim.objects_left():
@@ -432,6 +443,30 @@ class ClutterEpisode:
         elif len(self.attempts) >= self.cap:
             self.stop = "max_attempts"
         return a
+
+    def _felt(self) -> np.ndarray | None:
+        return self.felt if self.config.feel and len(self.felt) else None
+
+    def _feel(self, look: ClutterFrame, grasp, out) -> None:
+        """``ClutterConfig.feel``: a start collision with an object adds the finger volume
+        the look's camera did not see, at the pose executed, to ``felt``; any attempt but a
+        start collision changed the scene, and clears it."""
+        if not out.cause.startswith("start_collision"):
+            self.felt = np.zeros((0, 3))
+            return
+        if out.cause == "start_collision_table":  # the table is known: nothing unseen was met
+            return
+        from graspsim.maps.occlusion import ViewDepth, felt_volume
+
+        per, table = look.plan.perception, look.plan.table
+        if len(per.points) < 3:
+            return
+        view = ViewDepth(per.points, self.camera.T_world_camera[:3, 3])
+        T = np.asarray(out.extra.get("T_world_wrist", grasp.T_world_wrist), float)
+        opening = float(out.extra.get("opening", grasp.opening))
+        got = felt_volume(self.sim.gripper, T, opening, view,
+                          None if table.height is None else (np.asarray(table.normal, float), float(table.height)))
+        self.felt = np.concatenate([self.felt, got])
 
     @property
     def removed(self) -> int:

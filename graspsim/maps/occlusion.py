@@ -174,16 +174,9 @@ def felt_volume(gripper: GripperSpec, T_wrist: np.ndarray, opening: float, view:
         raise InvalidParameterError(f"opening must be a finite pad gap >= 0 [m], got {opening!r}")
     if not (np.isfinite(step) and step > 0.0):
         raise InvalidParameterError(f"step must be > 0 [m], got {step!r}")
-    b = gripper.collision_boxes()
-    pts = []
-    for name, c, h, s in zip(b.names, b.centers, b.half_extents, b.x_sign):
-        if not name.startswith("finger"):
-            continue
-        axes = [np.linspace(-hh, hh, int(np.ceil(2.0 * hh / step)) + 1) for hh in h]
-        g = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3) + c
-        g[:, 0] += float(s) * 0.5 * float(opening)
-        pts.append(g)
-    P = np.concatenate(pts) @ T[:3, :3].T + T[:3, 3]
+    q, x_sign = finger_samples(gripper, tuple(int(np.ceil(float(v) / step)) + 1 for v in gripper.finger_size))
+    q[:, 0] += x_sign * 0.5 * float(opening)
+    P = q @ T[:3, :3].T + T[:3, 3]
     keep = view.occluded(P)
     if table is not None:
         n, height = np.asarray(table[0], float), float(table[1])

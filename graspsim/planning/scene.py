@@ -221,9 +221,9 @@ def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray] | None, re
     got = [] if solids is None else [per.points[~own], *(s for j, s in enumerate(solids) if j != k)]
     if felt is not None and len(felt):
         got.append(felt)
-    if solids is None and len(got) == 0:
+    if not got:
         return None
-    pts = np.concatenate(got) if got else np.zeros((0, 3))
+    pts = np.concatenate(got)
     return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
 
 

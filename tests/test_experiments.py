@@ -771,6 +771,23 @@ def test_study_true_shape_quick(tmp_path):
     assert s["command"] in study.readme_section(s)
 
 
+def test_study_light_objects_quick_grasps_each_mass_alike(tmp_path):
+    """One domino at two masses, the same level grasp at each: a row per mass, the heavy one
+    held with its pads' sink measured (under the pads' 5 mm impedance ramp) and smaller than the
+    light one's, the section naming its command."""
+    study = _load("study_light_objects")
+    out = tmp_path / "slo"
+    assert study.main(["--quick", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    light, heavy = s["rows"]
+    assert heavy["mass_kg"] == pytest.approx(30 * light["mass_kg"]) and light["grasps"] == heavy["grasps"] == 1
+    assert s["up"] == [0.0, 1.0, 0.0] and light["extent_mm"] == pytest.approx([50.8, 25.4], abs=0.5)  # lying flat
+    assert heavy["held"] == 1 and 0.0 < heavy["sink_mm_median"] < 5.0
+    # MuJoCo's contacts are accelerations: the pads go deeper into the lighter one, whose mass the sim holds
+    assert light["sink_mm_median"] is None or light["sink_mm_median"] > 2 * heavy["sink_mm_median"]
+    assert s["command"] in study.readme_section(s)
+
+
 @pytest.mark.slow
 def test_study_clutter_failures_quick(tmp_path):
     out = tmp_path / "scf"

@@ -1,17 +1,15 @@
 """Light objects in the simulation: does a grasp's outcome depend on the object's mass?
 
 E10's tuning piles lose most grasps on the domino (3.3 g at the household density) by
-``no_contact``: the jaws close, the domino leaves the space between the pads. Replayed
-alone on the table at the pose of such a failure, the same level grasp fails when centred
-and holds 3 mm off centre, at any of MuJoCo's time steps (``--timestep``). The cause is the
-contact model, not the grasp: MuJoCo's soft contacts are set as accelerations (``solref``,
-``solimp``), so the force a given penetration produces scales with the effective mass of
-the contact, here the light object's. Under the gripper's full force (about 250 N for the
-Festo at 6 bar) the pads sink into a light object far deeper than into a heavy one (at
-equilibrium about F (1 - d) / (d m k), with d the impedance and k = 1 / (d tau)^2 of the
-pads' ``solref``: ~9 mm at 180 N for 3.3 g, 0.1 mm for 300 g), the object pitches between
-them and squirts out under a fingertip. A friction grip of a rigid object does not depend
-on its mass like that, so outcomes that do measure the simulator.
+``no_contact``: the jaws close, the domino leaves the space between the pads. The cause is
+the contact model more than the grasp: MuJoCo's soft contacts are set as accelerations
+(``solref``, ``solimp``), so the force a given penetration produces scales with the
+effective mass of the contact, here the light object's. Under the gripper's full force
+(about 250 N for the Festo at 6 bar) the pads sink far deeper into a light object than
+into a heavy one (this study: 4.6 mm into the 3.3 g domino, 1 mm at 98 g), the object
+pitches between them and may squirt out under a fingertip. A friction grip of a rigid
+object does not depend on its mass like that, so outcomes that do measure the simulator;
+the same at a smaller time step (``--timestep``) rules out the integration.
 
 The study puts one mesh of a set alone on the table, resting on a face (``--up``; default:
 its shortest extent up, a domino lying flat), gives it each of ``--masses`` (multiples of

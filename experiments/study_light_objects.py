@@ -22,8 +22,12 @@ jaws closed, in the grasps that held, beyond the object's extent along the closi
 (half the footprint's length less the pads' gap at the end of the close: how far each
 pad went into the object).
 
+``--timestep``, ``--pad-solref`` and ``--pad-solimp`` try other contact models on the same
+grid (``SimSettings.timestep``, ``GripperPhysics.pad_solref`` / ``.pad_solimp``).
+
     python experiments/study_light_objects.py
     python experiments/study_light_objects.py --object lemon --masses 1 3 10
+    python experiments/study_light_objects.py --timestep 0.001 --pad-solref 0.002 1 --pad-solimp 0.95 0.99 0.002 0.5 2
 """
 
 from __future__ import annotations
@@ -55,6 +59,8 @@ class Config:
     yaws: tuple[float, ...] = opt((0.0, 5.0), "the closing axis turned about the vertical [deg]")
     timestep: float | None = opt(None, "MuJoCo's time step [s] (default: the scene's, 2 ms; the protocol's phases "
                                        "keep their durations)")
+    pad_solref: tuple[float, ...] = opt((), "the pads' MuJoCo solref, 2 numbers (default: GripperPhysics's)")
+    pad_solimp: tuple[float, ...] = opt((), "the pads' MuJoCo solimp, 5 numbers (default: GripperPhysics's)")
     QUICK: ClassVar[dict] = {"masses": (1.0, 30.0), "heights": (0.0005,), "offsets": (0.0,), "yaws": (0.0,)}
 
 
@@ -112,6 +118,16 @@ def _closed_gap(sim, T: np.ndarray, opening: float) -> float:
     return float(np.sum(states[0, c1, 1 + sim.drive.qadr]))  # each jaw's value is its pad's distance from the centre
 
 
+def settings(cfg: Config):
+    """The scene's simulation settings with the study's time step and pad contact parameters."""
+    from graspsim.sim.trial_scene import SimSettings
+
+    base = SimSettings()
+    physics = replace(base.physics, **({"pad_solref": cfg.pad_solref} if cfg.pad_solref else {}),
+                      **({"pad_solimp": cfg.pad_solimp} if cfg.pad_solimp else {}))
+    return replace(base, physics=physics, **({"timestep": cfg.timestep} if cfg.timestep is not None else {}))
+
+
 def run(cfg: Config) -> dict:
     from graspsim.sim.trial_scene import resting_pose
     from graspsim.tabletop.scene_objects import mesh_spec
@@ -122,13 +138,12 @@ def run(cfg: Config) -> dict:
     obj = spec.sim_object()
     ext = np.ptp(np.asarray(obj.surface.vertices, float), axis=0)
     up = np.asarray(cfg.up, float) if cfg.up else np.eye(3)[int(np.argmin(ext))]
+    sim_settings = settings(cfg)
     rows = []
     for k in cfg.masses:
         mass = float(k * base)
-        sim = SceneSim([(replace(spec, mass=mass), resting_pose(obj, up=up))])
+        sim = SceneSim([(replace(spec, mass=mass), resting_pose(obj, up=up))], settings=sim_settings)
         try:
-            if cfg.timestep is not None:
-                sim.model.opt.timestep = cfg.timestep
             sim.settle()
             centre, axis, extent = _footprint(sim)
             opening = float(min(sim.gripper.max_opening, extent[0] + 0.03))
@@ -149,16 +164,19 @@ def run(cfg: Config) -> dict:
             log.info("%.1f g: %d of %d held", 1000 * mass, held, n)
         finally:
             sim.close()
-    return {"object": cfg.object, "up": up.tolist(), "timestep": cfg.timestep, "rows": rows,
+    return {"object": cfg.object, "up": up.tolist(), "timestep": sim_settings.timestep,
+            "physics": sim_settings.physics.to_dict(), "rows": rows,
             "denominators": "grasps: every yaw x height x offset of the grid, per mass; held: the clutter "
                             "benchmark's success (lifted and held); sink: median over the grasps that held"}
 
 
 def readme_section(s: dict) -> str:
-    dt = "the scene's 2 ms" if s.get("timestep") is None else f"{1000 * s['timestep']:g} ms"
+    ph = s["physics"]
+    dt = (f"time step {1000 * s['timestep']:g} ms, the pads' solref {ph['pad_solref']}, solimp "
+          f"{ph['pad_solimp']}")
     L = [f"`{s['command']}`: {s['object']} alone on the table ({s['rows'][0]['extent_mm'][0]} x "
          f"{s['rows'][0]['extent_mm'][1]} mm footprint, up = object axis {s['up']}), the same grid of level "
-         f"top-down grasps at every mass (SceneSim.execute, the clutter benchmark's simulation; time step {dt}); "
+         f"top-down grasps at every mass (SceneSim.execute, the clutter benchmark's simulation; {dt}); "
          "sink: how far "
          "each pad went into the object by the end of the close, median over the grasps that held.", "",
          "| mass | x the set's | held | pads' sink [mm] |", "|---|---|---|---|"]

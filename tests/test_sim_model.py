@@ -101,3 +101,20 @@ def test_import_graspsim_does_not_load_mujoco_until_sim_names_are_used():
     code = ("import sys, graspsim; assert 'mujoco' not in sys.modules; "
             "graspsim.TrialOutcome; assert 'mujoco' in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_a_light_object_is_announced_once_a_heavy_one_not(caplog):
+    """Under LIGHT_MASS the simulated pads sink millimetres into an object (study_light_objects):
+    building one says so, once per object, naming its mass; a heavier one builds silently."""
+    import logging
+
+    from graspsim.primitives import Box
+    from graspsim.sim.objects import LIGHT_MASS, object_from_shape
+
+    caplog.set_level(logging.WARNING, logger="graspsim.sim.objects")
+    object_from_shape(Box(0.05, 0.05, 0.05), mass=10 * LIGHT_MASS)
+    assert not caplog.records
+    for _ in range(2):
+        object_from_shape(Box(0.0123, 0.0123, 0.0123), mass=0.0037)
+    (r,) = caplog.records
+    assert "3.7 g" in r.getMessage() and "study_light_objects" in r.getMessage()

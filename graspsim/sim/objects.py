@@ -15,6 +15,8 @@ it is not watertight) for meshes.
 
 from __future__ import annotations
 
+import functools
+import logging
 import math
 import os
 from dataclasses import dataclass, field
@@ -26,7 +28,15 @@ from graspsim.primitives import Box, Compound, Cone, Cylinder, HalfToroid, Primi
 from graspsim.sim.meshes import CoacdParams, PreparedMesh, prepare_mesh
 from graspsim.transforms import matrix_to_quat, quat_to_matrix, transform_points
 
-__all__ = ["GeomPart", "SimObject", "object_from_shape", "object_from_mesh"]
+__all__ = ["GeomPart", "SimObject", "object_from_shape", "object_from_mesh", "LIGHT_MASS"]
+
+log = logging.getLogger(__name__)
+
+#: [kg] Below this an object's simulated grasps measure the contact model as well as the grasp:
+#: MuJoCo's contacts are accelerations, so the pads sink deeper into a lighter object at the
+#: same grip force (4.6 mm into a 3.3 g domino at 250 N, 1 mm at 100 g; a grid of level grasps
+#: holds half the time at 3.3 g and always from 33 g: ``experiments/study_light_objects.py``).
+LIGHT_MASS = 0.01
 
 
 @dataclass(frozen=True)
@@ -68,6 +78,20 @@ class SimObject:
             raise SimulationError("object has no collision geometry")
         if self.friction is not None and not (math.isfinite(self.friction) and self.friction > 0):
             raise SimulationError(f"object friction must be a finite value > 0, got {self.friction!r}")
+
+
+@functools.lru_cache(maxsize=256)
+def _say_light(what: str, grams: float) -> None:
+    log.warning("%s weighs %.1f g: under %g g the simulated pads sink millimetres into an object at the "
+                "gripper's full force, so its outcomes measure the contact model as well as the grasp "
+                "(docs/design.md, Simulation; experiments/study_light_objects.py)", what, grams, 1000 * LIGHT_MASS)
+
+
+def _light(obj: SimObject, what: str) -> SimObject:
+    """``obj``; once per process and object, a warning when it weighs under :data:`LIGHT_MASS`."""
+    if obj.mass < LIGHT_MASS:
+        _say_light(what, round(1000.0 * obj.mass, 1))
+    return obj
 
 
 def _mass(volume: float, mass: float | None, density: float) -> float:
@@ -125,13 +149,14 @@ def object_from_shape(shape: Primitive | Compound, *, mass: float | None = None,
             mp = m * v / vols.sum()
             R, c = T[:3, :3], T[:3, 3]
             inertia += R @ part.inertia(mp) @ R.T + mp * (c @ c * np.eye(3) - np.outer(c, c))
-        return SimObject(tuple(geoms), m, np.zeros(3), inertia, shape.mesh(32), shape.to_dict())
+        return _light(SimObject(tuple(geoms), m, np.zeros(3), inertia, shape.mesh(32), shape.to_dict()),
+                      "the compound object")
     if not isinstance(shape, Primitive):
         raise SimulationError(f"cannot simulate a {type(shape).__name__}; give a primitive, "
                               "a compound or a mesh file")
     m = _mass(shape.volume, mass, density)
-    return SimObject(tuple(_primitive_geoms(shape, pieces)), m, np.zeros(3), shape.inertia(m),
-                     shape.mesh(32), shape.to_dict())
+    return _light(SimObject(tuple(_primitive_geoms(shape, pieces)), m, np.zeros(3), shape.inertia(m),
+                            shape.mesh(32), shape.to_dict()), f"the {shape.kind}")
 
 
 def object_from_mesh(path, *, T_obj_mesh: np.ndarray | None = None,
@@ -165,5 +190,6 @@ def object_from_mesh(path, *, T_obj_mesh: np.ndarray | None = None,
     m = _mass(prepared.volume, mass, density)
     desc = {"primitive": "mesh", "file": prepared.source, "scale": prepared.scale, "parts": len(prepared.parts),
             "model": prepared.describe()}
-    return SimObject(tuple(GeomPart("mesh", vertices=transform_points(T, p)) for p in prepared.parts), m,
-                     R @ prepared.com + T[:3, 3], m * (R @ prepared.unit_inertia @ R.T), surface, desc, friction)
+    return _light(SimObject(tuple(GeomPart("mesh", vertices=transform_points(T, p)) for p in prepared.parts), m,
+                            R @ prepared.com + T[:3, 3], m * (R @ prepared.unit_inertia @ R.T), surface, desc,
+                            friction), f"mesh {os.path.basename(str(prepared.source))}")

@@ -149,7 +149,10 @@ def readme_section(s: dict) -> str:
          + ("" if not short else f" ({len(short)} of {len(rows)} conditions did not run all the scenes asked: "
             "the run was cut short, each row holds the scenes it finished)")
          + f"; objects from the {sets} set(s), one D435-like depth camera with sensor noise; "
-         "grasps until the table is clear, two failures in a row, or no grasp found. GSR = grasps that lifted "
+         + ("" if s.get("config", {}).get("contacts", "default") == "default" else
+            f"simulated with the {s['config']['contacts']!r} contact model (graspsim.sim.contact_model), not the "
+            "default of every other block; ")
+         + "grasps until the table is clear, two failures in a row, or no grasp found. GSR = grasps that lifted "
          "their target / grasps; a grasp that lifted another object is no success (its own column; the object "
          "leaves the table and counts in DR). DR = objects removed / placed (95 % Wilson intervals; grasps of "
          "one scene are correlated, so the intervals understate the spread between scenes). Planning per grasp: "

@@ -75,6 +75,7 @@ from graspsim.errors import SimulationError
 from graspsim.maps.robust import UNSEEN_MARGIN
 from graspsim.planning.scene_config import SceneConfig, with_unseen_margin
 from graspsim.sim.noise import ExecutionNoise
+from graspsim.sim.trial_scene import contact_model
 from graspsim.stats import wilson_interval
 from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings, summarize
 from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
@@ -113,6 +114,9 @@ class Config:
                                       "none: the scene planner's default)", const=UNSEEN_MARGIN)
     plan_all: bool = opt(False, "plan every object at every look (graspsim scene --plan-all; default: the highest "
                          "first until a grasp's robust score reaches ClutterConfig.good_enough)")
+    contacts: str = opt("default", "the simulation's contact model (graspsim.sim.contact_model; ClutterConfig.sim): "
+                        "default, or stiff (stiffer pads at 1 ms steps: light objects held as heavy ones)",
+                        choices=("default", "stiff"))
     QUICK: ClassVar[dict] = {"scenes": 1, "seeds": 1, "block": 1, "objects": (2,), "kinds": ("packed",),
                              "noise": ("none",), "ablations": ("ground_truth",), "ablation_objects": (2,),
                              "quick_maps": True, "grid": False, "object_sets": ("primitives",)}
@@ -144,15 +148,18 @@ def seed_of(cfg: Config, k: int) -> int:
     return benchmark_seeds(cfg.seed, cfg.seeds)[k]
 
 
-def _clutter_config(c: dict, unseen_margin: float | None = None, plan_all: bool = False) -> ClutterConfig:
+def _clutter_config(c: dict, unseen_margin: float | None = None, plan_all: bool = False,
+                    contacts: str = "default") -> ClutterConfig:
     """A condition's clutter settings; ``unseen_margin`` [m]: ``Config.unseen_margin``
     (``graspsim scene --unseen-margin``'s path: :func:`~graspsim.planning.scene_config.with_unseen_margin`);
-    ``plan_all``: every object planned at every look (``graspsim scene --plan-all``)."""
+    ``plan_all``: every object planned at every look (``graspsim scene --plan-all``); ``contacts``: the
+    simulation's contact model (:func:`graspsim.sim.contact_model`; ``default``: ``SimSettings()``)."""
     scene = with_unseen_margin(scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"), unseen_margin)
     return ClutterConfig(scene=scene,
                          execution=ExecutionNoise() if c["noise"] == "default" else None,
                          ground_truth=c["ablation"] == "ground_truth", feel=c["ablation"] != "no_feel",
-                         **({"good_enough": None} if plan_all else {}))
+                         **({"good_enough": None} if plan_all else {}),
+                         **({} if contacts == "default" else {"sim": contact_model(contacts)}))
 
 
 def _row(c: dict, pairs: list) -> dict:
@@ -324,7 +331,7 @@ def _block(task) -> tuple[list, list, set]:
         k, i = divmod(j, per)
         sd = seed_of(cfg, k)
         try:
-            config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all)
+            config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts)
             out += [(sd, r) for r in run_benchmark(c["objects"], c["kind"], 1, sd, db=db, config=config,
                                                    object_set=c["object_set"], first=i)]
         except SimulationError as err:
@@ -349,10 +356,10 @@ def _warm_up(c: dict, cfg: Config, db) -> set:
     from graspsim.tabletop.table_scene import make_scene
 
     db.built = set()
+    config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts)
     scene = make_scene(c["objects"], c["kind"], derived_seed(cfg.seed, "warm-up"), object_set=c["object_set"],
-                       gripper=db.gripper)
-    ep = ClutterEpisode(scene, db=db, rng=rng_for(cfg.seed, "warm-up"),
-                        config=_clutter_config(c, cfg.unseen_margin, cfg.plan_all))
+                       gripper=db.gripper, **({} if config.sim is None else {"settings": config.sim}))
+    ep = ClutterEpisode(scene, db=db, rng=rng_for(cfg.seed, "warm-up"), config=config)
     try:
         ep.observe()
     finally:

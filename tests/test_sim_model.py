@@ -118,3 +118,16 @@ def test_a_light_object_is_announced_once_a_heavy_one_not(caplog):
         object_from_shape(Box(0.0123, 0.0123, 0.0123), mass=0.0037)
     (r,) = caplog.records
     assert "3.7 g" in r.getMessage() and "study_light_objects" in r.getMessage()
+
+
+def test_the_stiff_contact_model_halves_the_step_and_stiffens_the_pads_and_unknown_ones_are_named():
+    from graspsim.sim import CONTACT_MODELS, SimSettings, contact_model
+
+    assert contact_model("default") == SimSettings()
+    stiff = contact_model("stiff")
+    assert stiff.timestep == SimSettings().timestep / 2
+    assert stiff.physics.pad_solref[0] < SimSettings().physics.pad_solref[0]
+    assert stiff.physics.pad_solimp[2] < SimSettings().physics.pad_solimp[2]  # the impedance ramp [m]
+    assert stiff.physics.pad_solref[0] >= 2 * stiff.timestep  # MuJoCo's floor for a stable contact
+    with pytest.raises(InvalidParameterError, match="valid: " + ", ".join(CONTACT_MODELS)):
+        contact_model("soft")

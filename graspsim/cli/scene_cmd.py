@@ -87,6 +87,7 @@ def _cmd_scene(args) -> int:
     from graspsim.maps.database import MapDatabase
     from graspsim.perception.segment import gap_link
     from graspsim.planning.scene_config import SceneConfig
+    from graspsim.sim.trial_scene import contact_model
     from graspsim.tabletop.clutter import FAILURE_COLUMNS, ClutterConfig, failure_rows, run_benchmark, summarize
     from graspsim.tabletop.scene_objects import OBJECT_SETS, object_set_names, prepare_objects
     from graspsim.tabletop.table_scene import MAX_OBJECTS, known_gap
@@ -135,7 +136,8 @@ def _cmd_scene(args) -> int:
     cfg = ClutterConfig(scene=scene,
                         execution=_execution(args), ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts, planner=planner, planner_name=args.planner, robot=robot,
-                        feel=not args.no_feel, **({"good_enough": None} if args.plan_all else {}))
+                        feel=not args.no_feel, **({"good_enough": None} if args.plan_all else {}),
+                        **({} if args.contacts == "default" else {"sim": contact_model(args.contacts)}))
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
     drawn = prepare_objects(object_set, db.gripper, progress=not args.json)  # decompositions before scene 0
@@ -177,7 +179,7 @@ def _cmd_scene(args) -> int:
                          "rotation_sigma": cfg.planning.planner.robust.rotation_sigma},
          "unseen_margin": cfg.planning.planner.robust.unseen_margin,
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth,
-         "felt_evidence": cfg.feel, "min_gap": gap,
+         "felt_evidence": cfg.feel, "contacts": args.contacts, "min_gap": gap,
          "budget": cfg.scene.budget, "robot": args.robot,
          "robot_base": None if robot is None else (list(args.robot_base) if args.robot_base else [-0.5, 0.0, 0.0]),
          **summarize(results), "render": None if render is None else str(render), "details": details}
@@ -258,6 +260,9 @@ def register(sub) -> None:
                        help="ablation: a grasp that started in collision with an object tells the next plans nothing "
                             "but its contacts (default: its finger volume the camera did not see is kept clear of "
                             "until an attempt changes the scene; ClutterConfig.feel)")
+        p.add_argument("--contacts", choices=("default", "stiff"), default="default",
+                       help="the simulation's contact model: default, or stiff (stiffer pads at 1 ms steps, twice the "
+                            "steps: an object of a few grams is held as a heavy one; graspsim.sim.contact_model)")
         p.add_argument("--max-attempts", type=whole_number(1), default=None,
                        help="grasps per scene at most (default 2 x objects + 2)")
         add_scene_planning_flags(p)

@@ -34,6 +34,7 @@ from graspsim.planning.scene import plan_scene
 from graspsim.planning.scene_config import SceneConfig
 from graspsim.planning.scene_reuse import drop_grasp, near_pose
 from graspsim.sim.noise import ExecutionNoise
+from graspsim.sim.trial_scene import SimSettings
 from graspsim.tabletop.clutter_metrics import (
     ARM_STOPS,
     FAILURE_COLUMNS,
@@ -128,7 +129,10 @@ class ClutterConfig:
     and the next looks' plans keep clear of it (``plan_scene(felt=...)``) until an attempt
     changes the scene (any but a start collision, which leaves it as it was); False: a
     failed grasp only rules out grasps on its contacts. graspsim's planner only (a
-    planner of :mod:`graspsim.tabletop.planners` is not told)."""
+    planner of :mod:`graspsim.tabletop.planners` is not told). sim: the simulation's
+    settings (e.g. :func:`graspsim.sim.contact_model`'s ``"stiff"``) for the scenes
+    :func:`run_benchmark` draws and settles and for every episode's simulation; None:
+    ``SimSettings()``."""
 
     scene: SceneConfig = field(default_factory=SceneConfig)
     depth_noise: DepthNoise | None = field(default_factory=DepthNoise)
@@ -144,9 +148,12 @@ class ClutterConfig:
     plan_for_execution: bool = True
     good_enough: float | None = GOOD_ENOUGH
     feel: bool = True
+    sim: SimSettings | None = None
 
     def __post_init__(self) -> None:
         replace(self.scene, good_enough=self.good_enough)  # validates it
+        if self.sim is not None and not isinstance(self.sim, SimSettings):
+            raise InvalidParameterError(f"ClutterConfig.sim must be SimSettings or None, got {type(self.sim).__name__}")
         check_fields(self, integer(1), "max_failures", "min_seen", owner="ClutterConfig")
         check_fields(self, BOOLEAN, "plan_for_execution", "feel", owner="ClutterConfig")
         check_fields(self, or_none(integer(1)), "max_attempts", owner="ClutterConfig")
@@ -170,6 +177,7 @@ class ClutterConfig:
                 "max_failures": self.max_failures, "max_attempts": self.max_attempts, "min_seen": self.min_seen,
                 "reuse": self.reuse, "planner": self.planner_name, "plan_for_execution": self.plan_for_execution,
                 "good_enough": self.good_enough, "feel": self.feel,
+                **({} if self.sim is None else {"sim": self.sim.to_dict()}),
                 "robust_sigma": [self.planning.planner.robust.position_sigma,
                                  self.planning.planner.robust.rotation_sigma],
                 **({} if self.robot is None else {"robot": self.robot.to_dict()})}
@@ -301,6 +309,8 @@ class ClutterEpisode:
         self._t0 = time.perf_counter()
         # the database's gripper executes what was planned for it (the default gripper: scene.sim()'s own)
         grip = {} if db is None else {"gripper": db.gripper}
+        if cfg.sim is not None:
+            grip["settings"] = cfg.sim
         self.sim = scene.sim(**grip) if cfg.robot is None else scene.sim(
             **grip, robot=_arm(cfg.robot), base=cfg.robot.base)
         self._depth_rng, self._plan_rng, self._exec_rng = rng.spawn(3)
@@ -573,7 +583,8 @@ def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, conf
     out = []
     for i in range(first, first + scenes):
         scene = make_scene(n_objects, kind, derived_seed(seed, "scene", i), object_set=object_set,
-                           gripper=db.gripper)
+                           gripper=db.gripper, **({} if config is None or config.sim is None
+                                                  else {"settings": config.sim}))
         step = None if on_step is None else (lambda *a, i=i: on_step(i, *a))
         r = run_clutter(scene, db=db, rng=rng_for(seed, "clutter", i), config=config, on_step=step)
         out.append(r)

@@ -90,6 +90,8 @@ class Config:
     candidates: int = opt(40000, "rows regraded for the pad-contact selection")
     threads: int = opt(2, "simulation and map threads")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
+    contacts: str = opt("default", "the simulation's contact model (graspsim.sim.contact_model; SimCondition.contacts)",
+                        choices=("default", "stiff"))
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"per_case": 10, "paper_test_repeats": 2, "sizes": (1.0, 1.25),
                              "primitives": ("box", "cylinder"), "analogs": ("glue_bottle",), "candidates": 5000,
@@ -226,7 +228,8 @@ def main(argv=None) -> int:
     grade = get_grade("pad_contact")
     prim = primitive_cases(cfg)
     analogs, plan_info = analog_cases(cfg, out)
-    conditions = [SimCondition("exact"), SimCondition("noise", noise=ExecutionNoise(*cfg.noise))]
+    conditions = [SimCondition("exact", contacts=cfg.contacts),
+                  SimCondition("noise", noise=ExecutionNoise(*cfg.noise), contacts=cfg.contacts)]
     glue = next((c for c in analogs if c.group == "glue_bottle"), None)
     part_a = None if glue is None else paper_test(glue, conditions, cfg)
     tables = []
@@ -327,7 +330,10 @@ def readme_section(s: dict) -> str:
          f"analogs {', '.join(c['analogs'])} planned from their complete clouds{failed}; "
          f"{s['config']['per_case']} grasps drawn per "
          f"map and selection, uniformly over the surface, each simulated without and with execution noise "
-         f"of {noise}):", ""]
+         f"of {noise}"
+         + ("" if s["config"].get("contacts", "default") == "default" else
+            f"; the {s['config']['contacts']!r} contact model (graspsim.sim.contact_model), not the default")
+         + "):", ""]
     head = ["grasps drawn from", "drawn", "start in collision (no noise)", "success of feasible, no noise",
             f"with {noise} noise, of feasible without it", "with noise, of drawn"]
     rows = []

@@ -190,6 +190,30 @@ def box_case():
                            group="box")
 
 
+def test_a_condition_names_its_contact_model_and_its_trials_simulate_with_it(box_case, monkeypatch):
+    """SimCondition.contacts: recorded when not the default, an unknown name refused in one line
+    naming the valid ones, and the trials' scene built with that model's settings."""
+    import graspsim.sim as sim
+    from graspsim.calibration import SimCondition, draw_samples, simulate_samples
+
+    assert "contacts" not in SimCondition().to_dict()
+    assert SimCondition(contacts="stiff").to_dict()["contacts"] == "stiff"
+    with pytest.raises(InvalidParameterError, match="valid: default, stiff"):
+        SimCondition(contacts="soft")
+    built = []
+
+    def stop(obj, gripper, settings, **kw):
+        built.append(settings)
+        raise RuntimeError("enough")
+
+    monkeypatch.setattr(sim, "build_scene", stop)
+    (smp,) = draw_samples([box_case], 1, seed=5)
+    for contacts in ("stiff", "default"):
+        with pytest.raises(RuntimeError, match="enough"):
+            simulate_samples([smp], SimCondition(contacts=contacts), seed=5, threads=1)
+    assert built == [sim.contact_model("stiff", sim.SimSettings()), sim.SimSettings()]
+
+
 def test_campaign_draws_clear_poses_and_is_deterministic(box_case):
     from graspsim.calibration import SimCondition, draw_samples, simulate_samples
     from graspsim.calibration.trials import table_features

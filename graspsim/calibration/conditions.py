@@ -39,7 +39,8 @@ __all__ = ["SimCondition", "FRICTION_LIMITED", "CONDITIONS", "condition", "condi
 class SimCondition:
     """Physics of calibration trials: pad friction mu, grip force per jaw [N] (None: the
     gripper spec's), object mass [kg] (None: the map's), then scaled by ``mass_scale``,
-    execution noise (an :class:`~graspsim.sim.ExecutionNoise`; None = exact execution)."""
+    execution noise (an :class:`~graspsim.sim.ExecutionNoise`; None = exact execution),
+    contacts: the simulation's contact model (:func:`graspsim.sim.contact_model`)."""
 
     name: str = "default"
     friction: float = 0.5
@@ -47,9 +48,14 @@ class SimCondition:
     mass_scale: float = 1.0
     noise: ExecutionNoise | None = None
     mass: float | None = None
+    contacts: str = "default"
 
     def __post_init__(self) -> None:
         check_fields(self, POSITIVE, "friction", "mass_scale", owner="SimCondition")
+        if self.contacts != "default":
+            from graspsim.sim.trial_scene import contact_model
+
+            contact_model(self.contacts)  # an unknown name: one line naming the valid ones
         if self.noise is not None:
             from graspsim.sim.noise import ExecutionNoise
 
@@ -69,7 +75,8 @@ class SimCondition:
         n = self.noise
         return {"name": self.name, "friction": self.friction, "grip_force": self.grip_force,
                 "mass_scale": self.mass_scale, "noise_position": n.position_sigma if n else 0.0,
-                "noise_rotation": n.rotation_sigma if n else 0.0, "mass": self.mass}
+                "noise_rotation": n.rotation_sigma if n else 0.0, "mass": self.mass,
+                **({} if self.contacts == "default" else {"contacts": self.contacts})}
 
 
 FRICTION_LIMITED = SimCondition("friction_limited", grip_force=8.0, mass=0.5)

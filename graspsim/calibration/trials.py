@@ -152,10 +152,11 @@ class _CaseJob:
 
 def _simulate_case(job: _CaseJob) -> TrialTable:
     """Simulate one case's samples (runs in this process or an executor's worker)."""
-    from graspsim.sim import SimSettings, build_scene, run_trials
+    from graspsim.sim import SimSettings, build_scene, contact_model, run_trials
 
     smp, condition, protocol = job.sample, job.condition, job.protocol
-    settings = SimSettings(friction=condition.friction, grip_force=condition.grip_force)
+    settings = contact_model(condition.contacts, SimSettings(friction=condition.friction,
+                                                             grip_force=condition.grip_force))
     noise = condition.noise if condition.noisy else None
     case, rows = smp.case, smp.rows
     obj = conditioned_object(_sim_object(case), condition)

@@ -32,7 +32,7 @@ from __future__ import annotations
 import logging
 import math
 import sys
-from dataclasses import astuple, dataclass
+from dataclasses import astuple, dataclass, replace
 from pathlib import Path
 from typing import ClassVar
 
@@ -76,6 +76,8 @@ class Config:
     study_per_bin: int = opt(40, "grasps per bin of the study replay")
     closing_cone_deg: float = opt(math.degrees(CALIBRATION_CONE), cli=False)
     report_only: bool = opt(False, "recompute the report from the saved trials_*.npz (no maps, no simulation)")
+    contacts: str = opt("default", "the simulation's contact model of every condition (graspsim.sim.contact_model; "
+                        "SimCondition.contacts)", choices=("default", "stiff"))
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"objects": ("box_5x7x9", "sphere_r40"), "per_bin": 4, "sensitivity_per_bin": 2,
                              "n_boot": 20, "sensitivity_boot": 10, "frictions": (0.5, 1.0), "forces": (30.0, 250.0),
@@ -92,6 +94,11 @@ class Config:
 
 
 def conditions(cfg: Config) -> list[SimCondition]:
+    """The sensitivity's conditions, each with the run's contact model."""
+    return [replace(c, contacts=cfg.contacts) for c in _conditions(cfg)]
+
+
+def _conditions(cfg: Config) -> list[SimCondition]:
     out = [SimCondition("default")]
     out += [SimCondition(f"mu_{m:g}", friction=m) for m in cfg.frictions if m != 0.5]
     out += [SimCondition(f"force_{f:g}", grip_force=f) for f in cfg.forces if f != 250.0]
@@ -148,7 +155,7 @@ def run_tables(cfg: Config, out: Path) -> tuple[dict, dict, dict | None]:
 
     main_reports = {}
     for cname in cfg.main_conditions:
-        cond = condition(cname)
+        cond = condition(cname, contacts=cfg.contacts) if cfg.contacts != "default" else condition(cname)
         t = table(f"main_{cname}", "main", cond)
         rep = calibrate(t, SCORES, target=cfg.target, reference=ref, n_boot=cfg.n_boot, seed=cfg.seed,
                         components=COMPONENTS)
@@ -174,7 +181,8 @@ def run_tables(cfg: Config, out: Path) -> tuple[dict, dict, dict | None]:
     study = None
     if cfg.study:
         study = {}
-        for cond in (SimCondition("default"), SimCondition("study_100N_mu0.6", friction=0.6, grip_force=100.0)):
+        for cond in (SimCondition("default", contacts=cfg.contacts),
+                     SimCondition("study_100N_mu0.6", friction=0.6, grip_force=100.0, contacts=cfg.contacts)):
             t = table(f"study_{cond.name}", "study", cond)
             r = calibrate(t, SCORES, target=cfg.target, reference=ref, n_boot=cfg.sensitivity_boot,
                           seed=cfg.seed)
@@ -308,7 +316,10 @@ def readme_section(summary: dict) -> str:
                         f"recall {_pct(own['recall'])} | {fmt(d['pad_contact']['auc'], 2)} |")
     noise = summary["sensitivity"].get("noise")
     lines = [
-        f"`{summary['command']}`" + (f" ({summary['reduced']})" if summary.get("reduced") else ""), "",
+        f"`{summary['command']}`" + (f" ({summary['reduced']})" if summary.get("reduced") else "")
+        + ("" if summary.get("config", {}).get("contacts", "default") == "default" else
+           f" (the {summary['config']['contacts']!r} contact model, graspsim.sim.contact_model, not the default)"),
+        "",
         "Held-out objects (sizes and shapes the calibrated grade was not fitted on), grasps drawn evenly over "
         "ten paper-grade bins among the poses that clear the table, lift-and-place in MuJoCo. Rates are "
         "population estimates (sampling weights); the base rate is the success of *all* table-clear grasps "

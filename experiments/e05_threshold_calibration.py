@@ -211,10 +211,11 @@ def main(argv=None) -> int:
 
 
 def _reduced(cfg: Config) -> str | None:
-    """What this run left out of the full configuration (None: nothing)."""
+    """What this run left out of the full configuration (None: nothing); the contact model is
+    no reduction (the block names it apart)."""
     full = Config()
     diff = {f: getattr(cfg, f) for f in cfg.__dataclass_fields__
-            if getattr(cfg, f) != getattr(full, f) and f not in ("threads", "report_only")}
+            if getattr(cfg, f) != getattr(full, f) and f not in ("threads", "report_only", "contacts")}
     return None if not diff else "reduced configuration: " + ", ".join(f"{k}={v}" for k, v in diff.items())
 
 

@@ -70,6 +70,8 @@ class Config:
     sizes: tuple[float, ...] = opt((0.8, 1.0, 1.25), "sizes relative to the paper's")
     primitives: tuple[str, ...] = opt(tuple(PAPER_SHAPES), choices=tuple(PAPER_SHAPES))
     threads: int = opt(2, "simulation and map threads")
+    contacts: str = opt("default", "the simulation's contact model (graspsim.sim.contact_model; SimCondition.contacts)",
+                        choices=("default", "stiff"))
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"per_case": 6, "sizes": (1.0,), "primitives": ("box", "sphere"), "quick": True}
 
@@ -131,7 +133,8 @@ def outcome_rates(outcomes: np.ndarray, upright: np.ndarray | None = None) -> di
             **_rate(int(np.sum(outcomes == TrialOutcome.SUCCESS)), int(feas.sum())), "failures": fails, **extra}
 
 
-def settle_check(samples: list[CaseSample], table, rest: float, seed: int, threads: int) -> np.ndarray:
+def settle_check(samples: list[CaseSample], table, rest: float, seed: int, threads: int,
+                 contacts: str = "default") -> np.ndarray:
     """(N,) bool over the table: PLACE_FAILED trials that, simulated again with a
     ``rest``-second rest (the same trial until then), end a SUCCESS: the object stands
     upright (within the protocol's tilt and height), at rest, where it was placed."""
@@ -147,7 +150,8 @@ def settle_check(samples: list[CaseSample], table, rest: float, seed: int, threa
         pick = np.flatnonzero(moving & (case_col == smp.case.name))
         if len(pick):
             redo.append((pick, CaseSample(smp.case, row_col[pick], np.ones(len(pick)), smp.eligible, smp.total)))
-    again = simulate_samples([r[1] for r in redo], SimCondition("exact"), protocol=replace(proto, rest_time=rest),
+    again = simulate_samples([r[1] for r in redo], SimCondition("exact", contacts=contacts),
+                             protocol=replace(proto, rest_time=rest),
                              seed=seed, threads=threads, features=())
     ok = np.asarray(again["outcome"]) == TrialOutcome.SUCCESS
     upright[np.concatenate([r[0] for r in redo])] = ok  # simulate_samples keeps the samples' order
@@ -158,11 +162,13 @@ def main(argv=None) -> int:
     cfg, out, run = start(Config, __file__, argv, __doc__, log_format=NAMED, quiet=("graspsim.sim.batch",))
     gripper = get_gripper(cfg.gripper)
     samples, info = cases(cfg, gripper)
-    table = simulate_samples(samples, SimCondition("exact"), seed=cfg.seed, threads=cfg.threads, features=())
+    table = simulate_samples(samples, SimCondition("exact", contacts=cfg.contacts), seed=cfg.seed, threads=cfg.threads,
+                             features=())
     table.save(out / "trials.npz")
     oc = np.asarray(table["outcome"]) if len(table) else np.zeros(0, np.int8)
     case_col = np.asarray(table["case"]) if len(table) else np.zeros(0, str)
-    upright = settle_check(samples, table, cfg.settle, cfg.seed, cfg.threads) if len(table) else np.zeros(0, bool)
+    upright = (settle_check(samples, table, cfg.settle, cfg.seed, cfg.threads, cfg.contacts) if len(table)
+               else np.zeros(0, bool))
     for row in info:
         row.update(outcome_rates(oc[case_col == row["case"]], upright[case_col == row["case"]]))
     prim = np.array([c.split("@")[0] for c in case_col])
@@ -204,6 +210,8 @@ def readme_section(s: dict) -> str:
          f"{', '.join(f'{x:g}' for x in c['sizes'])}× the paper's size; {c['per_case']} {_accepted(s)} per map "
          "drawn uniformly over the surface among the poses clear of the table; lift-and-place without "
          "execution error; the feasible poses are the denominator"
+         + ("" if c.get("contacts", "default") == "default" else
+            f"; the {c['contacts']!r} contact model (graspsim.sim.contact_model), not the default")
          + (f"; last column: the place failures that, simulated again with a {settle:g} s rest instead of "
             f"0.3 s, stand upright and at rest where they were placed" if settle else "") + "):", ""]
     head = ["primitive (all sizes)", "drawn", "start in collision", "success of feasible", "failures"]

@@ -114,9 +114,9 @@ class SimSettings:
 #: contacts are accelerations, so the default pads sink millimetres into an object of a few
 #: grams at the full grip force, and a grasp of it measures that as well
 #: (``experiments/study_light_objects.py``); the stiff pads hold a level grasp of a 3.3 g
-#: domino as of a 100 g one, at twice the steps per simulated second. E04 and E05 run on it
-#: keep the grade's separation and both thresholds (docs/results.md); the other experiments
-#: (E13's grippers first) have not been: not the default.
+#: domino as of a 100 g one, at twice the steps per simulated second. E04, E05 and E13 (the
+#: Franka hand, the Festo) run on it keep the grade's separation, both thresholds and the
+#: grippers' rates (docs/results.md); the other experiments have not been: not the default.
 CONTACT_MODELS = ("default", "stiff")
 
 

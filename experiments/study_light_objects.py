@@ -134,8 +134,8 @@ def run(cfg: Config) -> dict:
     from graspsim.tabletop.scene_sim import SceneSim
 
     spec = mesh_spec(_entry(cfg))
-    base = spec.sim_object().mass
     obj = spec.sim_object()
+    base = obj.mass
     ext = np.ptp(np.asarray(obj.surface.vertices, float), axis=0)
     up = np.asarray(cfg.up, float) if cfg.up else np.eye(3)[int(np.argmin(ext))]
     sim_settings = settings(cfg)

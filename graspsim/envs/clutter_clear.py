@@ -77,6 +77,7 @@ class ClutterClearEnv(gym.Env):
         from graspsim.grippers import get_gripper
         from graspsim.maps.database import MapDatabase
         from graspsim.sim.noise import ExecutionNoise
+        from graspsim.sim.trial_scene import contact_model
         from graspsim.tabletop.clutter import ClutterConfig, ClutterRobot, scene_settings
         from graspsim.tabletop.depth_noise import DepthNoise
 
@@ -90,7 +91,8 @@ class ClutterClearEnv(gym.Env):
             scene=scene_settings(c.kind, neighbours=c.neighbours), depth_noise=DepthNoise() if c.depth_noise else None,
             execution=ExecutionNoise() if c.execution_error else None, max_failures=c.max_failures,
             max_attempts=c.max_attempts, good_enough=None,  # the candidates: every object's best grasps
-            robot=None if c.robot == "none" else ClutterRobot(name=c.robot, base=c.robot_base))
+            robot=None if c.robot == "none" else ClutterRobot(name=c.robot, base=c.robot_base),
+            sim=None if c.contacts == "default" else contact_model(c.contacts))
         self.camera = rig(1)[0]
         K, N, F = c.n_candidates, c.cloud_size, len(CLUTTER_FEATURES)
         lo = np.array([0, *[-CLOUD_BOUND] * 3, *[-1.0] * 4, 0, 0, 0, -_CLEARANCE_CAP], np.float32)
@@ -142,8 +144,9 @@ class ClutterClearEnv(gym.Env):
         if seed not in self._scenes:
             if len(self._scenes) >= 8:
                 self._scenes.pop(next(iter(self._scenes)))
+            sim = self.clutter_config.sim
             self._scenes[seed] = make_scene(c.n_objects, c.kind, seed, object_set=c.object_set,
-                                            gripper=self.db.gripper)
+                                            gripper=self.db.gripper, **({} if sim is None else {"settings": sim}))
         return self._scenes[seed]
 
     def _start(self, scene, ep_rng: np.random.Generator, sample_rng: np.random.Generator) -> None:

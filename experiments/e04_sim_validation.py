@@ -62,7 +62,7 @@ from graspsim.maps.map_config import MapConfig
 from graspsim.maps.scaling import scale_map
 from graspsim.planning.planner import plan
 from graspsim.primitives.case_study import ANALOGS
-from graspsim.sim import ExecutionNoise, object_from_shape, select_grasps
+from graspsim.sim import CONTACT_MODELS, ExecutionNoise, object_from_shape, select_grasps
 from graspsim.stats import cluster_bootstrap_interval
 from graspsim.transforms import invert_transform
 
@@ -91,7 +91,7 @@ class Config:
     threads: int = opt(2, "simulation and map threads")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
     contacts: str = opt("default", "the simulation's contact model (graspsim.sim.contact_model; SimCondition.contacts)",
-                        choices=("default", "stiff"))
+                        choices=CONTACT_MODELS)
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"per_case": 10, "paper_test_repeats": 2, "sizes": (1.0, 1.25),
                              "primitives": ("box", "cylinder"), "analogs": ("glue_bottle",), "candidates": 5000,

@@ -48,7 +48,7 @@ from graspsim.calibration.study_shapes import CALIBRATION_CONE, HELD_OUT_SHAPES,
 from graspsim.calibration.trials import fs_cases
 from graspsim.grades import get_grade
 from graspsim.maps.map_config import MapConfig
-from graspsim.sim import ExecutionNoise
+from graspsim.sim import CONTACT_MODELS, ExecutionNoise
 
 log = logging.getLogger("e05")
 
@@ -77,7 +77,7 @@ class Config:
     closing_cone_deg: float = opt(math.degrees(CALIBRATION_CONE), cli=False)
     report_only: bool = opt(False, "recompute the report from the saved trials_*.npz (no maps, no simulation)")
     contacts: str = opt("default", "the simulation's contact model of every condition (graspsim.sim.contact_model; "
-                        "SimCondition.contacts)", choices=("default", "stiff"))
+                        "SimCondition.contacts)", choices=CONTACT_MODELS)
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"objects": ("box_5x7x9", "sphere_r40"), "per_bin": 4, "sensitivity_per_bin": 2,
                              "n_boot": 20, "sensitivity_boot": 10, "frictions": (0.5, 1.0), "forces": (30.0, 250.0),
@@ -155,7 +155,7 @@ def run_tables(cfg: Config, out: Path) -> tuple[dict, dict, dict | None]:
 
     main_reports = {}
     for cname in cfg.main_conditions:
-        cond = condition(cname, contacts=cfg.contacts) if cfg.contacts != "default" else condition(cname)
+        cond = condition(cname, contacts=cfg.contacts)
         t = table(f"main_{cname}", "main", cond)
         rep = calibrate(t, SCORES, target=cfg.target, reference=ref, n_boot=cfg.n_boot, seed=cfg.seed,
                         components=COMPONENTS)

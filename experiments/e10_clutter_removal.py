@@ -75,7 +75,7 @@ from graspsim.errors import SimulationError
 from graspsim.maps.robust import UNSEEN_MARGIN
 from graspsim.planning.scene_config import SceneConfig, with_unseen_margin
 from graspsim.sim.noise import ExecutionNoise
-from graspsim.sim.trial_scene import contact_model
+from graspsim.sim.trial_scene import CONTACT_MODELS, contact_model
 from graspsim.stats import wilson_interval
 from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings, summarize
 from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
@@ -116,7 +116,7 @@ class Config:
                          "first until a grasp's robust score reaches ClutterConfig.good_enough)")
     contacts: str = opt("default", "the simulation's contact model (graspsim.sim.contact_model; ClutterConfig.sim): "
                         "default, or stiff (stiffer pads at 1 ms steps: light objects held as heavy ones)",
-                        choices=("default", "stiff"))
+                        choices=CONTACT_MODELS)
     QUICK: ClassVar[dict] = {"scenes": 1, "seeds": 1, "block": 1, "objects": (2,), "kinds": ("packed",),
                              "noise": ("none",), "ablations": ("ground_truth",), "ablation_objects": (2,),
                              "quick_maps": True, "grid": False, "object_sets": ("primitives",)}

@@ -53,7 +53,7 @@ from graspsim.grippers import get_gripper
 from graspsim.maps.database import PAPER_SHAPES, size_grid
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.map_config import MapConfig
-from graspsim.sim import LiftPlace, select_grasps
+from graspsim.sim import CONTACT_MODELS, LiftPlace, select_grasps
 from graspsim.sim.outcomes import TrialOutcome
 
 log = logging.getLogger("e13")
@@ -71,7 +71,7 @@ class Config:
     primitives: tuple[str, ...] = opt(tuple(PAPER_SHAPES), choices=tuple(PAPER_SHAPES))
     threads: int = opt(2, "simulation and map threads")
     contacts: str = opt("default", "the simulation's contact model (graspsim.sim.contact_model; SimCondition.contacts)",
-                        choices=("default", "stiff"))
+                        choices=CONTACT_MODELS)
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"per_case": 6, "sizes": (1.0,), "primitives": ("box", "sphere"), "quick": True}
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import mujoco
 import numpy as np
@@ -123,8 +123,6 @@ CONTACT_MODELS = ("default", "stiff")
 def contact_model(name: str, base: SimSettings | None = None) -> SimSettings:
     """``base`` (default ``SimSettings()``) with the contact model ``name`` of
     :data:`CONTACT_MODELS`; any other name is an :class:`InvalidParameterError` naming them."""
-    from dataclasses import replace
-
     base = base or SimSettings()
     if name == "default":
         return base

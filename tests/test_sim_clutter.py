@@ -115,14 +115,21 @@ def test_cli_scene_json_and_renders(tmp_path, capsys, db):
 
 
 @pytest.mark.slow
-def test_cli_scene_saves_every_seed_apart(tmp_path, capsys, db):
+def test_cli_scene_saves_every_seed_apart(tmp_path, capsys, db, monkeypatch):
     """--seeds 2 --save-scenes: one file per seed and scene (the second seed's scene 0 once
-    overwrote the first's), each reloading as the scene its seed drew."""
+    overwrote the first's), each reloading as the scene its seed drew; --contacts stiff reaches
+    the clutter runs' ClutterConfig.sim."""
+    import graspsim.tabletop.clutter as clutter
+    from graspsim.sim import contact_model
+
+    run, sims = clutter.run_benchmark, []
+    monkeypatch.setattr(clutter, "run_benchmark", lambda *a, **kw: sims.append(kw["config"].sim) or run(*a, **kw))
     code = main(["scene", "--objects", "1", "--kind", "packed", "--object-set", "primitives", "--seeds", "2",
                  "--max-attempts", "1", "--db", str(db.root), *FAST_FLAGS, "--save-scenes", str(tmp_path / "s"),
                  "--no-feel", "--contacts", "stiff", "--json"])
     s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert code == 0 and len(s["details"]) == 2 and s["felt_evidence"] is False and s["contacts"] == "stiff"
+    assert sims == [contact_model("stiff")] * 2  # one run per seed, each with the stiff settings
     files = sorted(p.name for p in (tmp_path / "s").iterdir())
     assert files == ["seed0_scene000.json", "seed1_scene000.json"]
     seeds = [load_scene(tmp_path / "s" / f).seed for f in files]

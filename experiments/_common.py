@@ -225,6 +225,16 @@ def load_sentence(summary: dict) -> str:
             f"{m['cpus']} cores.")
 
 
+def contacts_clause(config: dict, lead: str = "; ") -> str:
+    """The contact model a run simulated (its ``config["contacts"]``, graspsim.sim.contact_model)
+    as a clause of its block: empty for ``stiff``, the default; a run that recorded none or
+    ``"default"`` ran before ``stiff`` became the default, on the ``soft`` model."""
+    name = config.get("contacts", "default")
+    name = "soft" if name == "default" else name
+    return "" if name == "stiff" else (f"{lead}the {name!r} contact model (graspsim.sim.contact_model; 2 ms steps "
+                                       "and softer pads, the default until 'stiff' replaced it)")
+
+
 class RunRecord:
     """The record every experiment's ``summary.json`` carries: the exact command line,
     machine facts (cores, load average at the start and the end, wall and CPU time),

@@ -5,7 +5,7 @@ per object and where the planning time goes."""
 
 from __future__ import annotations
 
-from _common import database_note, pct, rate_ci
+from _common import contacts_clause, database_note, pct, rate_ci
 
 from graspsim.tabletop.clutter import FAILURE_COLUMNS, OTHER, failure_rows
 
@@ -149,9 +149,7 @@ def readme_section(s: dict) -> str:
          + ("" if not short else f" ({len(short)} of {len(rows)} conditions did not run all the scenes asked: "
             "the run was cut short, each row holds the scenes it finished)")
          + f"; objects from the {sets} set(s), one D435-like depth camera with sensor noise; "
-         + ("" if s.get("config", {}).get("contacts", "default") == "default" else
-            f"simulated with the {s['config']['contacts']!r} contact model (graspsim.sim.contact_model), not the "
-            "default of every other block; ")
+         + (f"simulated with {cl}; " if (cl := contacts_clause(s.get("config", {}), lead="")) else "")
          + "grasps until the table is clear, two failures in a row, or no grasp found. GSR = grasps that lifted "
          "their target / grasps; a grasp that lifted another object is no success (its own column; the object "
          "leaves the table and counts in DR). DR = objects removed / placed (95 % Wilson intervals; grasps of "

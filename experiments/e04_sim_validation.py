@@ -39,6 +39,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import (
     NAMED,
+    contacts_clause,
     derived_seed,
     experiment_database,
     map_config,
@@ -90,7 +91,7 @@ class Config:
     candidates: int = opt(40000, "rows regraded for the pad-contact selection")
     threads: int = opt(2, "simulation and map threads")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
-    contacts: str = opt("default", "the simulation's contact model (graspsim.sim.contact_model; SimCondition.contacts)",
+    contacts: str = opt("stiff", "the simulation's contact model (graspsim.sim.contact_model; SimCondition.contacts)",
                         choices=CONTACT_MODELS)
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"per_case": 10, "paper_test_repeats": 2, "sizes": (1.0, 1.25),
@@ -331,8 +332,7 @@ def readme_section(s: dict) -> str:
          f"{s['config']['per_case']} grasps drawn per "
          f"map and selection, uniformly over the surface, each simulated without and with execution noise "
          f"of {noise}"
-         + ("" if s["config"].get("contacts", "default") == "default" else
-            f"; the {s['config']['contacts']!r} contact model (graspsim.sim.contact_model), not the default")
+         + contacts_clause(s["config"])
          + "):", ""]
     head = ["grasps drawn from", "drawn", "start in collision (no noise)", "success of feasible, no noise",
             f"with {noise} noise, of feasible without it", "with noise, of drawn"]

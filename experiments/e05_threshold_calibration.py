@@ -39,7 +39,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import NAMED, derived_seed, fmt, map_config, md_table, opt, pct, start, write_text
+from _common import NAMED, contacts_clause, derived_seed, fmt, map_config, md_table, opt, pct, start, write_text
 
 from graspsim.calibration import TrialTable, calibrate, draw_samples, simulate_samples
 from graspsim.calibration.conditions import SimCondition, condition
@@ -76,7 +76,7 @@ class Config:
     study_per_bin: int = opt(40, "grasps per bin of the study replay")
     closing_cone_deg: float = opt(math.degrees(CALIBRATION_CONE), cli=False)
     report_only: bool = opt(False, "recompute the report from the saved trials_*.npz (no maps, no simulation)")
-    contacts: str = opt("default", "the simulation's contact model of every condition (graspsim.sim.contact_model; "
+    contacts: str = opt("stiff", "the simulation's contact model of every condition (graspsim.sim.contact_model; "
                         "SimCondition.contacts)", choices=CONTACT_MODELS)
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"objects": ("box_5x7x9", "sphere_r40"), "per_bin": 4, "sensitivity_per_bin": 2,
@@ -318,8 +318,7 @@ def readme_section(summary: dict) -> str:
     noise = summary["sensitivity"].get("noise")
     lines = [
         f"`{summary['command']}`" + (f" ({summary['reduced']})" if summary.get("reduced") else "")
-        + ("" if summary.get("config", {}).get("contacts", "default") == "default" else
-           f" (the {summary['config']['contacts']!r} contact model, graspsim.sim.contact_model, not the default)"),
+        + contacts_clause(summary.get("config", {}), lead=" with "),
         "",
         "Held-out objects (sizes and shapes the calibrated grade was not fitted on), grasps drawn evenly over "
         "ten paper-grade bins among the poses that clear the table, lift-and-place in MuJoCo. Rates are "

@@ -114,7 +114,7 @@ class Config:
                                       "none: the scene planner's default)", const=UNSEEN_MARGIN)
     plan_all: bool = opt(False, "plan every object at every look (graspsim scene --plan-all; default: the highest "
                          "first until a grasp's robust score reaches ClutterConfig.good_enough)")
-    contacts: str = opt("default", "the simulation's contact model (graspsim.sim.contact_model; ClutterConfig.sim): "
+    contacts: str = opt("stiff", "the simulation's contact model (graspsim.sim.contact_model; ClutterConfig.sim): "
                         "default, or stiff (stiffer pads at 1 ms steps: light objects held as heavy ones)",
                         choices=CONTACT_MODELS)
     QUICK: ClassVar[dict] = {"scenes": 1, "seeds": 1, "block": 1, "objects": (2,), "kinds": ("packed",),
@@ -149,7 +149,7 @@ def seed_of(cfg: Config, k: int) -> int:
 
 
 def _clutter_config(c: dict, unseen_margin: float | None = None, plan_all: bool = False,
-                    contacts: str = "default") -> ClutterConfig:
+                    contacts: str = "stiff") -> ClutterConfig:
     """A condition's clutter settings; ``unseen_margin`` [m]: ``Config.unseen_margin``
     (``graspsim scene --unseen-margin``'s path: :func:`~graspsim.planning.scene_config.with_unseen_margin`);
     ``plan_all``: every object planned at every look (``graspsim scene --plan-all``); ``contacts``: the
@@ -159,7 +159,7 @@ def _clutter_config(c: dict, unseen_margin: float | None = None, plan_all: bool 
                          execution=ExecutionNoise() if c["noise"] == "default" else None,
                          ground_truth=c["ablation"] == "ground_truth", feel=c["ablation"] != "no_feel",
                          **({"good_enough": None} if plan_all else {}),
-                         **({} if contacts == "default" else {"sim": contact_model(contacts)}))
+                         **({} if contacts == "stiff" else {"sim": contact_model(contacts)}))
 
 
 def _row(c: dict, pairs: list) -> dict:

@@ -43,7 +43,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import NAMED, map_config, md_table, opt, rate_ci, rng_for, start, write_text
+from _common import NAMED, contacts_clause, map_config, md_table, opt, rate_ci, rng_for, start, write_text
 
 from graspsim.calibration import CalibrationCase, SimCondition, simulate_samples, wilson_interval
 from graspsim.calibration.trials import CaseSample, case_clears_table
@@ -70,7 +70,7 @@ class Config:
     sizes: tuple[float, ...] = opt((0.8, 1.0, 1.25), "sizes relative to the paper's")
     primitives: tuple[str, ...] = opt(tuple(PAPER_SHAPES), choices=tuple(PAPER_SHAPES))
     threads: int = opt(2, "simulation and map threads")
-    contacts: str = opt("default", "the simulation's contact model (graspsim.sim.contact_model; SimCondition.contacts)",
+    contacts: str = opt("stiff", "the simulation's contact model (graspsim.sim.contact_model; SimCondition.contacts)",
                         choices=CONTACT_MODELS)
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"per_case": 6, "sizes": (1.0,), "primitives": ("box", "sphere"), "quick": True}
@@ -134,7 +134,7 @@ def outcome_rates(outcomes: np.ndarray, upright: np.ndarray | None = None) -> di
 
 
 def settle_check(samples: list[CaseSample], table, rest: float, seed: int, threads: int,
-                 contacts: str = "default") -> np.ndarray:
+                 contacts: str = "stiff") -> np.ndarray:
     """(N,) bool over the table: PLACE_FAILED trials that, simulated again with a
     ``rest``-second rest (the same trial until then), end a SUCCESS: the object stands
     upright (within the protocol's tilt and height), at rest, where it was placed."""
@@ -210,8 +210,7 @@ def readme_section(s: dict) -> str:
          f"{', '.join(f'{x:g}' for x in c['sizes'])}× the paper's size; {c['per_case']} {_accepted(s)} per map "
          "drawn uniformly over the surface among the poses clear of the table; lift-and-place without "
          "execution error; the feasible poses are the denominator"
-         + ("" if c.get("contacts", "default") == "default" else
-            f"; the {c['contacts']!r} contact model (graspsim.sim.contact_model), not the default")
+         + contacts_clause(c)
          + (f"; last column: the place failures that, simulated again with a {settle:g} s rest instead of "
             f"0.3 s, stand upright and at rest where they were placed" if settle else "") + "):", ""]
     head = ["primitive (all sizes)", "drawn", "start in collision", "success of feasible", "failures"]

@@ -6,7 +6,8 @@ the contact model more than the grasp: MuJoCo's soft contacts are set as acceler
 (``solref``, ``solimp``), so the force a given penetration produces scales with the
 effective mass of the contact, here the light object's. Under the gripper's full force
 (about 250 N for the Festo at 6 bar) the pads sink far deeper into a light object than
-into a heavy one (this study: 4.6 mm into the 3.3 g domino, 1 mm at 98 g), the object
+into a heavy one (this study, with the ``soft`` contacts of the results published before
+``stiff`` became the default: 4.6 mm into the 3.3 g domino, 1 mm at 98 g), the object
 pitches between them and may squirt out under a fingertip. A friction grip of a rigid
 object does not depend on its mass like that, so outcomes that do measure the simulator;
 the same at a smaller time step (``--timestep``) rules out the integration.
@@ -22,12 +23,13 @@ jaws closed, in the grasps that held, beyond the object's extent along the closi
 (half the footprint's length less the pads' gap at the end of the close: how far each
 pad went into the object).
 
-``--timestep``, ``--pad-solref`` and ``--pad-solimp`` try other contact models on the same
-grid (``SimSettings.timestep``, ``GripperPhysics.pad_solref`` / ``.pad_solimp``).
+``--contacts`` picks a named contact model (``graspsim.sim.contact_model``: ``stiff``, the
+default, or ``soft``); ``--timestep``, ``--pad-solref`` and ``--pad-solimp`` change it on the
+same grid (``SimSettings.timestep``, ``GripperPhysics.pad_solref`` / ``.pad_solimp``).
 
     python experiments/study_light_objects.py
     python experiments/study_light_objects.py --object lemon --masses 1 3 10
-    python experiments/study_light_objects.py --timestep 0.001 --pad-solref 0.002 1 --pad-solimp 0.95 0.99 0.002 0.5 2
+    python experiments/study_light_objects.py --contacts soft [--timestep 0.0005]
 """
 
 from __future__ import annotations
@@ -43,6 +45,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import opt, start
 
+from graspsim.sim import CONTACT_MODELS
+
 log = logging.getLogger("study_light_objects")
 
 
@@ -57,10 +61,12 @@ class Config:
     offsets: tuple[float, ...] = opt((-0.003, -0.0015, 0.0, 0.0015, 0.003),
                                      "the grasp moved along its closing axis [m]")
     yaws: tuple[float, ...] = opt((0.0, 5.0), "the closing axis turned about the vertical [deg]")
-    timestep: float | None = opt(None, "MuJoCo's time step [s] (default: the scene's, 2 ms; the protocol's phases "
-                                       "keep their durations)")
-    pad_solref: tuple[float, ...] = opt((), "the pads' MuJoCo solref, 2 numbers (default: GripperPhysics's)")
-    pad_solimp: tuple[float, ...] = opt((), "the pads' MuJoCo solimp, 5 numbers (default: GripperPhysics's)")
+    contacts: str = opt("stiff", "the named contact model (graspsim.sim.contact_model) the next three change",
+                        choices=CONTACT_MODELS)
+    timestep: float | None = opt(None, "MuJoCo's time step [s] (default: the contact model's; the protocol's "
+                                       "phases keep their durations)")
+    pad_solref: tuple[float, ...] = opt((), "the pads' MuJoCo solref, 2 numbers (default: the contact model's)")
+    pad_solimp: tuple[float, ...] = opt((), "the pads' MuJoCo solimp, 5 numbers (default: the contact model's)")
     QUICK: ClassVar[dict] = {"masses": (1.0, 30.0), "heights": (0.0005,), "offsets": (0.0,), "yaws": (0.0,)}
 
 
@@ -120,9 +126,9 @@ def _closed_gap(sim, T: np.ndarray, opening: float) -> float:
 
 def settings(cfg: Config):
     """The scene's simulation settings with the study's time step and pad contact parameters."""
-    from graspsim.sim.trial_scene import SimSettings
+    from graspsim.sim.trial_scene import contact_model
 
-    base = SimSettings()
+    base = contact_model(cfg.contacts)
     physics = replace(base.physics, **({"pad_solref": cfg.pad_solref} if cfg.pad_solref else {}),
                       **({"pad_solimp": cfg.pad_solimp} if cfg.pad_solimp else {}))
     return replace(base, physics=physics, **({"timestep": cfg.timestep} if cfg.timestep is not None else {}))

@@ -197,9 +197,9 @@ def test_a_condition_names_its_contact_model_and_its_trials_simulate_with_it(box
     from graspsim.calibration import SimCondition, draw_samples, simulate_samples
 
     assert "contacts" not in SimCondition().to_dict()
-    assert SimCondition(contacts="stiff").to_dict()["contacts"] == "stiff"
-    with pytest.raises(InvalidParameterError, match="valid: default, stiff"):
-        SimCondition(contacts="soft")
+    assert SimCondition(contacts="soft").to_dict()["contacts"] == "soft"
+    with pytest.raises(InvalidParameterError, match="valid: stiff, soft"):
+        SimCondition(contacts="default")
     built = []
 
     def stop(obj, gripper, settings, **kw):
@@ -208,10 +208,10 @@ def test_a_condition_names_its_contact_model_and_its_trials_simulate_with_it(box
 
     monkeypatch.setattr(sim, "build_scene", stop)
     (smp,) = draw_samples([box_case], 1, seed=5)
-    for contacts in ("stiff", "default"):
+    for contacts in ("soft", "stiff"):
         with pytest.raises(RuntimeError, match="enough"):
             simulate_samples([smp], SimCondition(contacts=contacts), seed=5, threads=1)
-    assert built == [sim.contact_model("stiff", sim.SimSettings()), sim.SimSettings()]
+    assert built == [sim.contact_model("soft", sim.SimSettings()), sim.SimSettings()]
 
 
 def test_campaign_draws_clear_poses_and_is_deterministic(box_case):

@@ -330,7 +330,7 @@ def test_a_start_collision_with_an_object_is_felt_by_the_next_plans_until_the_sc
 
 
 def test_clutter_config_sim_settles_the_drawn_scene_and_simulates_the_episode_with_it(monkeypatch):
-    """ClutterConfig.sim (e.g. the stiff contact model) reaches both the scene run_benchmark draws
+    """ClutterConfig.sim (e.g. the soft contact model) reaches both the scene run_benchmark draws
     and settles and the episode's simulation; anything but SimSettings is refused."""
     import pytest
 
@@ -339,14 +339,14 @@ def test_clutter_config_sim_settles_the_drawn_scene_and_simulates_the_episode_wi
     from graspsim.grippers.spec import HGPL_25_60_A
     from graspsim.sim import contact_model
 
-    stiff = contact_model("stiff")
+    soft = contact_model("soft")
     drawn, simulated = {}, {}
     scene = SimpleNamespace(kind="packed", objects=(), sim=lambda **kw: simulated.update(kw) or SimpleNamespace(
         objects_left=lambda: [], outside=lambda: [], close=lambda: None))
     monkeypatch.setattr(table_scene, "make_scene", lambda *a, **kw: drawn.update(kw) or scene)
     db = SimpleNamespace(gripper=HGPL_25_60_A)
-    clutter.run_benchmark(1, "packed", 1, 0, db=db, config=ClutterConfig(sim=stiff))
-    assert drawn["settings"] is stiff and simulated["settings"] is stiff
+    clutter.run_benchmark(1, "packed", 1, 0, db=db, config=ClutterConfig(sim=soft))
+    assert drawn["settings"] is soft and simulated["settings"] is soft
     drawn.clear(), simulated.clear()
     clutter.run_benchmark(1, "packed", 1, 0, db=db, config=ClutterConfig())
     assert "settings" not in drawn and "settings" not in simulated  # SimSettings() by default

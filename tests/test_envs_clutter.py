@@ -140,21 +140,21 @@ def test_masked_choice_ends_the_episode_without_a_grasp_and_depth_is_observed(kw
 @pytest.mark.parametrize("bad, message", [
     ({"n_objects": 0}, "n_objects"), ({"kind": "heap"}, "kind"), ({"object_set": "toys"}, "object_set"),
     ({"max_attempts": 0}, "max_attempts"), ({"colour": 1}, "unknown environment option"),
-    ({"depth_image": "yes"}, "depth_image"), ({"contacts": "soft"}, "valid: default, stiff"),
+    ({"depth_image": "yes"}, "depth_image"), ({"contacts": "default"}, "valid: stiff, soft"),
 ])
 def test_bad_settings_are_clear_errors(bad, message, kw):
     with pytest.raises(InvalidParameterError, match=message):
         gym.make(CLUTTER_CLEAR_ID, **{**kw, **bad})
 
 
-def test_the_stiff_contact_model_settles_and_simulates_the_drawn_scenes(kw):
-    """contacts="stiff": the episodes' ClutterConfig carries the stiff settings, and the scenes
-    reset draws are settled and simulated under them (1 ms steps); the default carries none."""
+def test_the_soft_contact_model_settles_and_simulates_the_drawn_scenes(kw):
+    """contacts="soft": the episodes' ClutterConfig carries the soft settings, and the scenes
+    reset draws are settled and simulated under them (2 ms steps); the default carries none."""
     from graspsim.sim import contact_model
 
     assert _make(kw).clutter_config.sim is None
-    env = _make(kw, contacts="stiff")
-    assert env.clutter_config.sim == contact_model("stiff")
+    env = _make(kw, contacts="soft")
+    assert env.clutter_config.sim == contact_model("soft")
     env.reset(seed=3)
-    assert env.episode.sim.model.opt.timestep == pytest.approx(0.001)
+    assert env.episode.sim.model.opt.timestep == pytest.approx(0.002)
     env.close()

@@ -107,7 +107,7 @@ def test_cli_scene_json_and_renders(tmp_path, capsys, db):
     assert s["min_gap"] == PACKED_GAP  # a packed scene's objects stand apart: segmentation relies on it
     assert s["budget"] == "32:200"  # SceneConfig's planning budget (no --budget)
     assert s["felt_evidence"] is True  # ClutterConfig.feel, unless --no-feel
-    assert s["contacts"] == "default"  # the simulation's contact model, unless --contacts
+    assert s["contacts"] == "stiff"  # the simulation's contact model, unless --contacts
     assert s["grasp_success_rate"] == s["successes"] / s["attempts"] and s["cleared_rate"] == s["removed"] / 2
     assert len(s["details"]) == 1 and s["details"][0]["attempts"] == s["attempts"]
     assert len(list((tmp_path / "r").glob("scene000_step*.png"))) == s["attempts"]
@@ -117,7 +117,7 @@ def test_cli_scene_json_and_renders(tmp_path, capsys, db):
 @pytest.mark.slow
 def test_cli_scene_saves_every_seed_apart(tmp_path, capsys, db, monkeypatch):
     """--seeds 2 --save-scenes: one file per seed and scene (the second seed's scene 0 once
-    overwrote the first's), each reloading as the scene its seed drew; --contacts stiff reaches
+    overwrote the first's), each reloading as the scene its seed drew; --contacts soft reaches
     the clutter runs' ClutterConfig.sim."""
     import graspsim.tabletop.clutter as clutter
     from graspsim.sim import contact_model
@@ -126,10 +126,10 @@ def test_cli_scene_saves_every_seed_apart(tmp_path, capsys, db, monkeypatch):
     monkeypatch.setattr(clutter, "run_benchmark", lambda *a, **kw: sims.append(kw["config"].sim) or run(*a, **kw))
     code = main(["scene", "--objects", "1", "--kind", "packed", "--object-set", "primitives", "--seeds", "2",
                  "--max-attempts", "1", "--db", str(db.root), *FAST_FLAGS, "--save-scenes", str(tmp_path / "s"),
-                 "--no-feel", "--contacts", "stiff", "--json"])
+                 "--no-feel", "--contacts", "soft", "--json"])
     s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert code == 0 and len(s["details"]) == 2 and s["felt_evidence"] is False and s["contacts"] == "stiff"
-    assert sims == [contact_model("stiff")] * 2  # one run per seed, each with the stiff settings
+    assert code == 0 and len(s["details"]) == 2 and s["felt_evidence"] is False and s["contacts"] == "soft"
+    assert sims == [contact_model("soft")] * 2  # one run per seed, each with the soft settings
     files = sorted(p.name for p in (tmp_path / "s").iterdir())
     assert files == ["seed0_scene000.json", "seed1_scene000.json"]
     seeds = [load_scene(tmp_path / "s" / f).seed for f in files]

@@ -120,14 +120,18 @@ def test_a_light_object_is_announced_once_a_heavy_one_not(caplog):
     assert "3.7 g" in r.getMessage() and "study_light_objects" in r.getMessage()
 
 
-def test_the_stiff_contact_model_halves_the_step_and_stiffens_the_pads_and_unknown_ones_are_named():
+def test_the_stiff_contact_model_is_the_default_the_soft_one_doubles_the_step_and_unknown_ones_are_named():
     from graspsim.sim import CONTACT_MODELS, SimSettings, contact_model
 
-    assert contact_model("default") == SimSettings()
-    stiff = contact_model("stiff")
-    assert stiff.timestep == SimSettings().timestep / 2
-    assert stiff.physics.pad_solref[0] < SimSettings().physics.pad_solref[0]
-    assert stiff.physics.pad_solimp[2] < SimSettings().physics.pad_solimp[2]  # the impedance ramp [m]
-    assert stiff.physics.pad_solref[0] >= 2 * stiff.timestep  # MuJoCo's floor for a stable contact
+    assert CONTACT_MODELS[0] == "stiff" and contact_model("stiff") == SimSettings()
+    soft = contact_model("soft")
+    assert soft.timestep == SimSettings().timestep * 2
+    assert soft.physics.pad_solref[0] > SimSettings().physics.pad_solref[0]
+    assert soft.physics.pad_solimp[2] > SimSettings().physics.pad_solimp[2]  # the impedance ramp [m]
+    for s in (soft, SimSettings()):
+        assert s.physics.pad_solref[0] >= 2 * s.timestep  # MuJoCo's floor for a stable contact
+    # a model sets its own contacts and keeps the rest of the base settings
+    base = contact_model("soft", SimSettings(friction=0.3))
+    assert base.friction == 0.3 and contact_model("stiff", base) == SimSettings(friction=0.3)
     with pytest.raises(InvalidParameterError, match="valid: " + ", ".join(CONTACT_MODELS)):
-        contact_model("soft")
+        contact_model("default")

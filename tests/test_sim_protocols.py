@@ -24,7 +24,7 @@ def test_lift_place_schedule(scenes):
     T = scene.T_world_obj @ grasp_pose([0, 0, 0], [-1, 0, 0], [0, 1, 0])
     c = p.controls(scene, T[None])[0]
     ph = p.steps(scene.model.opt.timestep)
-    assert c.shape == (p.nstep(0.002), 8)
+    assert c.shape == (p.nstep(scene.model.opt.timestep), 8)
     assert np.all(c[: ph["settle"][1] + 1, 0] == 0)  # valve shut while settling
     assert np.all(c[ph["close"][0]: ph["open"][0], 0] == -1)
     assert np.all(c[ph["open"][0]:, 0] == 1)
@@ -44,7 +44,7 @@ def test_tug_pulls_one_weight_along_each_gripper_direction(scenes):
     c = p.controls(scene, T[None])[0]
     nb = scene.model.nbody
     x = c[:, 1:1 + 6 * nb].reshape(len(c), nb, 6)[:, scene.obj_body, :3]
-    ph = p.steps(0.002)
+    ph = p.steps(scene.model.opt.timestep)
     mid = (ph["pull0"][0] + ph["pull0"][1]) // 2
     np.testing.assert_allclose(x[mid], scene.obj.mass * 9.81 * (T[:3, :3] @ [1, 0, 0]), atol=1e-9)
     assert np.abs(x[: ph["close"][1] + 1]).max() == 0

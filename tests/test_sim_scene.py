@@ -28,7 +28,7 @@ def test_objects_rest_on_the_table_and_step_warning_free(shape):
     z0 = d.qpos[scene.qadr_obj + 2]
     lowest = obj.surface.vertices[:, 2].min()
     assert z0 + lowest == pytest.approx(0.0, abs=1e-9)  # bottom on the table top
-    mujoco.mj_step(m, d, nstep=500)  # 1 s, gripper hanging above
+    mujoco.mj_step(m, d, nstep=int(round(1.0 / m.opt.timestep)))  # 1 s, gripper hanging above
     assert all(w.number == 0 for w in d.warning)
     assert abs(d.qpos[scene.qadr_obj + 2] - z0) < 0.002  # stays where it was put
 
@@ -36,7 +36,7 @@ def test_objects_rest_on_the_table_and_step_warning_free(shape):
 def test_settings_are_pinned_to_the_documented_defaults():
     s = SimSettings()
     m = build_scene(object_from_shape(Box(0.05, 0.05, 0.05)), settings=s).model
-    assert m.opt.timestep == 0.002
+    assert m.opt.timestep == 0.001
     assert m.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
     assert m.opt.impratio == pytest.approx(100.0)
     assert m.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST

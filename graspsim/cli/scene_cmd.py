@@ -137,7 +137,7 @@ def _cmd_scene(args) -> int:
                         execution=_execution(args), ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts, planner=planner, planner_name=args.planner, robot=robot,
                         feel=not args.no_feel, **({"good_enough": None} if args.plan_all else {}),
-                        **({} if args.contacts == "default" else {"sim": contact_model(args.contacts)}))
+                        **({} if args.contacts == "stiff" else {"sim": contact_model(args.contacts)}))
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
     drawn = prepare_objects(object_set, db.gripper, progress=not args.json)  # decompositions before scene 0
@@ -260,9 +260,10 @@ def register(sub) -> None:
                        help="ablation: a grasp that started in collision with an object tells the next plans nothing "
                             "but its contacts (default: its finger volume the camera did not see is kept clear of "
                             "until an attempt changes the scene; ClutterConfig.feel)")
-        p.add_argument("--contacts", choices=("default", "stiff"), default="default",
-                       help="the simulation's contact model: default, or stiff (stiffer pads at 1 ms steps, twice the "
-                            "steps: an object of a few grams is held as a heavy one; graspsim.sim.contact_model)")
+        p.add_argument("--contacts", choices=("stiff", "soft"), default="stiff",
+                       help="the simulation's contact model: stiff (default: 1 ms steps, stiff pads that hold an "
+                            "object of a few grams as a heavy one), or soft (2 ms steps, softer pads: the results "
+                            "published before stiff became the default; graspsim.sim.contact_model)")
         p.add_argument("--max-attempts", type=whole_number(1), default=None,
                        help="grasps per scene at most (default 2 x objects + 2)")
         add_scene_planning_flags(p)

@@ -46,8 +46,8 @@ class ClutterEnvConfig:
         its gripper must be simulated from its model file (e.g. ``gripper="franka_hand"``);
         a chosen grasp it cannot reach or approach is a failed step (cause ``unreachable``
         / ``approach_collision``, never executed); ``"none"``: the floating gripper.
-    contacts: the simulation's contact model (:func:`graspsim.sim.contact_model`: ``"default"``
-        or ``"stiff"``, as ``graspsim scene --contacts``).
+    contacts: the simulation's contact model (:func:`graspsim.sim.contact_model`: ``"stiff"``,
+        the default, or ``"soft"``, the earlier one; as ``graspsim scene --contacts``).
     """
 
     n_objects: int = 3
@@ -67,7 +67,7 @@ class ClutterEnvConfig:
     gripper: object = "festo_hgpl_25_60_a"
     robot: str = "none"
     robot_base: tuple = (-0.5, 0.0, 0.0)
-    contacts: str = "default"
+    contacts: str = "stiff"
 
     def __post_init__(self) -> None:
         check_fields(self, integer(1), "n_objects", "n_candidates", "cloud_size", "max_failures", "max_redraws")
@@ -83,7 +83,7 @@ class ClutterEnvConfig:
         except InvalidParameterError as err:
             raise InvalidParameterError(f"object_set: {err}") from None
         check_fields(self, BOOLEAN, "depth_image", "depth_noise", "execution_error", "neighbours")
-        if self.contacts != "default":
+        if self.contacts != "stiff":
             from graspsim.sim.trial_scene import contact_model
 
             contact_model(self.contacts)  # an unknown name: one line naming the valid ones

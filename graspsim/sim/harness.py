@@ -14,7 +14,7 @@ import mujoco
 
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.authored_model import attach_model
-from graspsim.sim.model import IMPRATIO, GripperPhysics, add_box_gripper, add_weld, add_wrist, drive_force
+from graspsim.sim.model import IMPRATIO, TIMESTEP, GripperPhysics, add_box_gripper, add_weld, add_wrist, drive_force
 
 __all__ = ["build_gripper_spec", "gripper_xml"]
 
@@ -59,7 +59,7 @@ def gripper_xml(gripper: GripperSpec = HGPL_25_60_A,
                 physics: GripperPhysics = GripperPhysics()) -> str:
     """MJCF text of the stand-alone gripper (what ``mjcf/<name>/<name>.xml`` holds)."""
     spec = build_gripper_spec(gripper, physics)
-    spec.option.timestep = 0.002
+    spec.option.timestep = TIMESTEP  # the trials' own step
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
     spec.option.impratio = IMPRATIO  # the trials' own friction stiffness
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST

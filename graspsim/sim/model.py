@@ -132,20 +132,21 @@ class GripperPhysics:
     jaw_armature: reflected inertia of piston + rack on each jaw joint [kg]; with
         100 g jaws alone, 300 N against a 2 ms contact chatters.
     pad_solref: (time constant [s], damping ratio) of pad contacts and jaw end stops: as
-        stiff as a 2 ms step allows (MuJoCo's default 20 ms would let 300 N sink the
-        pads ~1 cm into the object).
+        stiff as the default 1 ms step allows (MuJoCo's default 20 ms would let 300 N sink
+        the pads ~1 cm into the object).
     pad_solimp: MuJoCo solimp of pad contacts and jaw end stops. The impedance ramps over
-        5 mm: with MuJoCo's 1 mm, pads on overlapping CoACD parts fell into a limit
-        cycle (contacts on/off every ~20 steps, the object reported as dropped);
-        300 N then sinks the pads 0.9 mm into a box.
+        2 mm: with MuJoCo's 1 mm, pads on overlapping CoACD parts fell into a limit
+        cycle (contacts on/off every ~20 steps, the object reported as dropped); with the
+        5 mm of the ``soft`` contact model (``graspsim.sim.contact_model``) 250 N sank
+        the pads 4.6 mm into a 3.3 g domino and squeezed it out, 1.5 mm with these.
     pad_priority: pads decide the contact parameters of pad-object pairs.
     weld_solref: stiffness of the arm (the mocap weld), (time constant [s], damping).
     jaw_frictionloss: dry friction of the jaw guides [N].
     """
 
     jaw_armature: float = 0.25
-    pad_solref: tuple[float, float] = (0.004, 1.0)
-    pad_solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.005, 0.5, 2.0)
+    pad_solref: tuple[float, float] = (0.002, 1.0)
+    pad_solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.002, 0.5, 2.0)
     pad_priority: int = 1
     weld_solref: tuple[float, float] = (0.01, 1.0)
     jaw_frictionloss: float = 1.0
@@ -173,6 +174,7 @@ _PAD = (0.15, 0.15, 0.15, 1.0)
 
 
 IMPRATIO = 100.0  # MuJoCo friction stiffness of every simulation (why: graspsim.sim.trial_scene's docstring)
+TIMESTEP = 0.001  # [s] the default step of every simulation (SimSettings; why: trial_scene.CONTACT_MODELS)
 
 
 def drive_force(gripper: GripperSpec, grip_force: float | None, condim: int) -> float:

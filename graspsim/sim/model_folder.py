@@ -17,7 +17,7 @@ from pathlib import Path
 
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.harness import gripper_xml
-from graspsim.sim.model import IMPRATIO, GripperPhysics
+from graspsim.sim.model import IMPRATIO, TIMESTEP, GripperPhysics
 
 __all__ = ["scene_xml", "readme_text", "model_files", "write_model_folder", "default_folder"]
 
@@ -103,9 +103,11 @@ No data sheet was at hand: dimensions and masses are estimates (see the spec's c
   move at {g.closing_speed:g} m/s and blocked jaws push with the full grip force.
 - Stability at up to 300 N per jaw: jaw armature {p.jaw_armature:g} kg (piston and rack),
   pad contacts solref {p.pad_solref[0]:g} s / solimp {p.pad_solimp[0]:g} {p.pad_solimp[1]:g}
-  {p.pad_solimp[2]:g} (stiff, with a 5 mm impedance ramp: a 1 mm ramp let pads on
-  multi-part CoACD meshes fall into a contact on/off limit cycle),
-  exact constraint diagonal (`diagexact`), elliptic cone, impratio {IMPRATIO:g}, implicitfast, 2 ms.
+  {p.pad_solimp[2]:g} (stiff, with a {p.pad_solimp[2] * 1000:g} mm impedance ramp: a 1 mm ramp let pads on
+  multi-part CoACD meshes fall into a contact on/off limit cycle, and softer pads squeezed an
+  object of a few grams out of the grasp),
+  exact constraint diagonal (`diagexact`), elliptic cone, impratio {IMPRATIO:g}, implicitfast,
+  {TIMESTEP * 1000:g} ms.
 - Pads: condim 4 (torsional friction), priority {p.pad_priority} (they set pad-object contact
   parameters). The planner's `arm` keep-out box is not simulated.
 

@@ -34,8 +34,10 @@ log = logging.getLogger(__name__)
 
 #: [kg] Below this an object's simulated grasps measure the contact model as well as the grasp:
 #: MuJoCo's contacts are accelerations, so the pads sink deeper into a lighter object at the
-#: same grip force (4.6 mm into a 3.3 g domino at 250 N, 1 mm at 100 g; a grid of level grasps
-#: holds half the time at 3.3 g and always from 33 g: ``experiments/study_light_objects.py``).
+#: same grip force (with the default ``stiff`` contacts 1.5 mm into a 3.3 g domino at 250 N,
+#: 0.2 mm at 98 g, and a grid of level grasps holds at every mass; with the ``soft`` ones of
+#: the results published before, 4.6 and 1 mm, and the grid holds half the time at 3.3 g:
+#: ``experiments/study_light_objects.py``).
 LIGHT_MASS = 0.01
 
 
@@ -82,9 +84,10 @@ class SimObject:
 
 @functools.lru_cache(maxsize=256)
 def _say_light(what: str, grams: float) -> None:
-    log.warning("%s weighs %.1f g: under %g g the simulated pads sink millimetres into an object at the "
-                "gripper's full force, so its outcomes measure the contact model as well as the grasp "
-                "(docs/design.md, Simulation; experiments/study_light_objects.py)", what, grams, 1000 * LIGHT_MASS)
+    log.warning("%s weighs %.1f g: under %g g the simulated pads sink deeper into an object at the "
+                "gripper's full force than into a heavier one, so its outcomes measure the contact model as "
+                "well as the grasp (docs/design.md, Simulation; experiments/study_light_objects.py)",
+                what, grams, 1000 * LIGHT_MASS)
 
 
 def _light(obj: SimObject, what: str) -> SimObject:

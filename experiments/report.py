@@ -58,7 +58,7 @@ NUMBER = re.compile(r"(?<![\w.])\d+(?:[.,]\d+)*\s*(?:%|ms\b|s\b|min\b|minutes\b|
                     r"|(?<![\w.])\d+\s*/\s*\d+(?!\w|\.\d)|(?<![\w.])\d+ of \d+(?!\w|\.\d)")
 #: settings of the method and bounds asserted by the test suite (not measured results)
 #: that look like results to NUMBER
-SETTINGS = ("2 ms steps", "on at least 99.5 % of random poses")
+SETTINGS = ("2 ms steps", "1 ms steps", "on at least 99.5 % of random poses")
 
 
 class ReportError(Exception):

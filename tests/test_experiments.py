@@ -772,9 +772,10 @@ def test_study_true_shape_quick(tmp_path):
 
 
 def test_study_light_objects_quick_grasps_each_mass_alike(tmp_path):
-    """One domino at two masses, the same level grasp at each: a row per mass, the heavy one
-    held with its pads' sink measured (under the pads' 5 mm impedance ramp) and smaller than the
-    light one's, the section naming its command."""
+    """One domino at two masses, the same level grasp at each: a row per mass, both held with
+    their pads' sink measured, the heavy one's smaller than the light one's, and the light one's
+    shallow under the default (stiff) contacts -- the soft ones sank 4.6 mm into it; the section
+    naming its command."""
     study = _load("study_light_objects")
     out = tmp_path / "slo"
     assert study.main(["--quick", "--out", str(out)]) == 0
@@ -784,7 +785,8 @@ def test_study_light_objects_quick_grasps_each_mass_alike(tmp_path):
     assert s["up"] == [0.0, 1.0, 0.0] and light["extent_mm"] == pytest.approx([50.8, 25.4], abs=0.5)  # lying flat
     assert heavy["held"] == 1 and 0.0 < heavy["sink_mm_median"] < 5.0
     # MuJoCo's contacts are accelerations: the pads go deeper into the lighter one, whose mass the sim holds
-    assert light["sink_mm_median"] is None or light["sink_mm_median"] > 2 * heavy["sink_mm_median"]
+    assert light["held"] == 1 and light["sink_mm_median"] > 2 * heavy["sink_mm_median"]
+    assert light["sink_mm_median"] < 3.0  # the stiff pads (1.5 mm); the soft ones' 4.6 mm fails here
     assert s["command"] in study.readme_section(s)
 
 

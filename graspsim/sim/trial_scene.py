@@ -61,8 +61,9 @@ class SimSettings:
     density [kg/m^3]: object mass when none is given (water: a conservative default).
     timestep [s], impratio, cone, integrator, condim, diagexact, iterations,
     ls_iterations, tolerance: MuJoCo options (see the module docstring; impratio 10
-        was the default before the clutter drops were diagnosed: ``SimSettings(impratio=10)``
-        reproduces the earlier trials).
+        was the default before the clutter drops were diagnosed, and the ``soft`` contact
+        model before the light objects were: ``contact_model("soft", SimSettings(impratio=10))``
+        reproduces the earliest trials, ``contact_model("soft")`` those in between).
     start_penetration [m]: deeper overlaps of gripper and object/table at t = 0 make the
         trial START_COLLISION (the pose is infeasible, not a failed grasp).
     physics: the gripper's model parameters (:class:`GripperPhysics`).

@@ -32,9 +32,12 @@ def library_versions() -> dict:
     try:
         out["git_commit"] = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
                                            text=True, timeout=5).stdout.strip() or None
-        # uncommitted changes to the code that produced the results (None: no git)
+        # uncommitted changes to the code that produced the results (None: no git); the published
+        # summaries in experiments/reported/ are results, which --publish itself writes, not code
+        # (as experiments/_common.provenance counts them)
         st = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", "graspsim",
-                             "experiments"], cwd=root, capture_output=True, text=True, timeout=10)
+                             "experiments", ":(exclude)experiments/reported"], cwd=root, capture_output=True,
+                            text=True, timeout=10)
         out["git_dirty"] = bool(st.stdout.strip()) if st.returncode == 0 and out["git_commit"] else None
     except (OSError, subprocess.SubprocessError):
         out["git_commit"] = out["git_dirty"] = None

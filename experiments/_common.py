@@ -88,6 +88,7 @@ from _timing import Clock, load_average, run_cli_fresh, run_fresh, stopwatch
 from graspsim._jsonable import to_jsonable
 from graspsim.calibration.markdown import fmt, md_table
 from graspsim.calibration.outputs import library_versions, write_json, write_text
+from graspsim.contacts import DEFAULT_CONTACTS
 from graspsim.seeding import derived_seed, rng_for, seed_sequence
 
 __all__ = ["start", "opt", "parse_config", "RunRecord", "machine_load", "provenance", "default_out",
@@ -231,8 +232,10 @@ def contacts_clause(config: dict, lead: str = "; ") -> str:
     ``"default"`` ran before ``stiff`` became the default, on the ``soft`` model."""
     name = config.get("contacts", "default")
     name = "soft" if name == "default" else name
-    return "" if name == "stiff" else (f"{lead}the {name!r} contact model (graspsim.sim.contact_model; 2 ms steps "
-                                       "and softer pads, the default until 'stiff' replaced it)")
+    if name == DEFAULT_CONTACTS:
+        return ""
+    return (f"{lead}the {name!r} contact model (graspsim.sim.contact_model; 2 ms steps and softer pads, the default "
+            "until 'stiff' replaced it)")
 
 
 class RunRecord:

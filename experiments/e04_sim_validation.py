@@ -56,6 +56,7 @@ from _paired_trials import rate_rows, rates, simulate_paired
 
 from graspsim.calibration import CalibrationCase, SimCondition, TrialTable
 from graspsim.calibration.trials import CaseSample, case_clears_table
+from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS
 from graspsim.grades import get_grade
 from graspsim.maps.database import PAPER_SHAPES, size_grid
 from graspsim.maps.generate import generate_fs_map
@@ -63,7 +64,7 @@ from graspsim.maps.map_config import MapConfig
 from graspsim.maps.scaling import scale_map
 from graspsim.planning.planner import plan
 from graspsim.primitives.case_study import ANALOGS
-from graspsim.sim import CONTACT_MODELS, ExecutionNoise, object_from_shape, select_grasps
+from graspsim.sim import ExecutionNoise, object_from_shape, select_grasps
 from graspsim.stats import cluster_bootstrap_interval
 from graspsim.transforms import invert_transform
 
@@ -91,7 +92,8 @@ class Config:
     candidates: int = opt(40000, "rows regraded for the pad-contact selection")
     threads: int = opt(2, "simulation and map threads")
     db: str = opt("", "FS database folder (default: OUT/fsdb, built fresh)")
-    contacts: str = opt("stiff", "the simulation's contact model (graspsim.sim.contact_model; SimCondition.contacts)",
+    contacts: str = opt(DEFAULT_CONTACTS, "the simulation's contact model (graspsim.sim.contact_model; "
+                        "SimCondition.contacts)",
                         choices=CONTACT_MODELS)
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"per_case": 10, "paper_test_repeats": 2, "sizes": (1.0, 1.25),

@@ -46,9 +46,10 @@ from graspsim.calibration.conditions import SimCondition, condition
 from graspsim.calibration.figures import plot_reliability, plot_roc, plot_threshold_sweep
 from graspsim.calibration.study_shapes import CALIBRATION_CONE, HELD_OUT_SHAPES, paper_size_grid
 from graspsim.calibration.trials import fs_cases
+from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS
 from graspsim.grades import get_grade
 from graspsim.maps.map_config import MapConfig
-from graspsim.sim import CONTACT_MODELS, ExecutionNoise
+from graspsim.sim import ExecutionNoise
 
 log = logging.getLogger("e05")
 
@@ -76,8 +77,8 @@ class Config:
     study_per_bin: int = opt(40, "grasps per bin of the study replay")
     closing_cone_deg: float = opt(math.degrees(CALIBRATION_CONE), cli=False)
     report_only: bool = opt(False, "recompute the report from the saved trials_*.npz (no maps, no simulation)")
-    contacts: str = opt("stiff", "the simulation's contact model of every condition (graspsim.sim.contact_model; "
-                        "SimCondition.contacts)", choices=CONTACT_MODELS)
+    contacts: str = opt(DEFAULT_CONTACTS, "the simulation's contact model of every condition "
+                        "(graspsim.sim.contact_model; SimCondition.contacts)", choices=CONTACT_MODELS)
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"objects": ("box_5x7x9", "sphere_r40"), "per_bin": 4, "sensitivity_per_bin": 2,
                              "n_boot": 20, "sensitivity_boot": 10, "frictions": (0.5, 1.0), "forces": (30.0, 250.0),

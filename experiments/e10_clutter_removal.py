@@ -71,11 +71,11 @@ from _common import (
 )
 from _e10_report import readme_section, rows_of
 
+from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS, contact_settings
 from graspsim.errors import SimulationError
 from graspsim.maps.robust import UNSEEN_MARGIN
 from graspsim.planning.scene_config import SceneConfig, with_unseen_margin
 from graspsim.sim.noise import ExecutionNoise
-from graspsim.sim.trial_scene import CONTACT_MODELS, contact_model
 from graspsim.stats import wilson_interval
 from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings, summarize
 from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed
@@ -114,8 +114,8 @@ class Config:
                                       "none: the scene planner's default)", const=UNSEEN_MARGIN)
     plan_all: bool = opt(False, "plan every object at every look (graspsim scene --plan-all; default: the highest "
                          "first until a grasp's robust score reaches ClutterConfig.good_enough)")
-    contacts: str = opt("stiff", "the simulation's contact model (graspsim.sim.contact_model; ClutterConfig.sim): "
-                        "default, or stiff (stiffer pads at 1 ms steps: light objects held as heavy ones)",
+    contacts: str = opt(DEFAULT_CONTACTS, "the simulation's contact model (graspsim.sim.contact_model; "
+                        "ClutterConfig.sim): stiff, the default, or soft (the results published before it)",
                         choices=CONTACT_MODELS)
     QUICK: ClassVar[dict] = {"scenes": 1, "seeds": 1, "block": 1, "objects": (2,), "kinds": ("packed",),
                              "noise": ("none",), "ablations": ("ground_truth",), "ablation_objects": (2,),
@@ -149,17 +149,17 @@ def seed_of(cfg: Config, k: int) -> int:
 
 
 def _clutter_config(c: dict, unseen_margin: float | None = None, plan_all: bool = False,
-                    contacts: str = "stiff") -> ClutterConfig:
+                    contacts: str = DEFAULT_CONTACTS) -> ClutterConfig:
     """A condition's clutter settings; ``unseen_margin`` [m]: ``Config.unseen_margin``
     (``graspsim scene --unseen-margin``'s path: :func:`~graspsim.planning.scene_config.with_unseen_margin`);
     ``plan_all``: every object planned at every look (``graspsim scene --plan-all``); ``contacts``: the
-    simulation's contact model (:func:`graspsim.sim.contact_model`; ``default``: ``SimSettings()``)."""
+    simulation's contact model (:func:`graspsim.sim.contact_model`; the default: ``SimSettings()``)."""
     scene = with_unseen_margin(scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"), unseen_margin)
     return ClutterConfig(scene=scene,
                          execution=ExecutionNoise() if c["noise"] == "default" else None,
                          ground_truth=c["ablation"] == "ground_truth", feel=c["ablation"] != "no_feel",
                          **({"good_enough": None} if plan_all else {}),
-                         **({} if contacts == "stiff" else {"sim": contact_model(contacts)}))
+                         sim=contact_settings(contacts))
 
 
 def _row(c: dict, pairs: list) -> dict:

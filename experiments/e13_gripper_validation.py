@@ -47,13 +47,14 @@ from _common import NAMED, contacts_clause, map_config, md_table, opt, rate_ci, 
 
 from graspsim.calibration import CalibrationCase, SimCondition, simulate_samples, wilson_interval
 from graspsim.calibration.trials import CaseSample, case_clears_table
+from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS
 from graspsim.errors import NoFeasibleGraspError
 from graspsim.grades import get_grade, regrade
 from graspsim.grippers import get_gripper
 from graspsim.maps.database import PAPER_SHAPES, size_grid
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.map_config import MapConfig
-from graspsim.sim import CONTACT_MODELS, LiftPlace, select_grasps
+from graspsim.sim import LiftPlace, select_grasps
 from graspsim.sim.outcomes import TrialOutcome
 
 log = logging.getLogger("e13")
@@ -70,7 +71,8 @@ class Config:
     sizes: tuple[float, ...] = opt((0.8, 1.0, 1.25), "sizes relative to the paper's")
     primitives: tuple[str, ...] = opt(tuple(PAPER_SHAPES), choices=tuple(PAPER_SHAPES))
     threads: int = opt(2, "simulation and map threads")
-    contacts: str = opt("stiff", "the simulation's contact model (graspsim.sim.contact_model; SimCondition.contacts)",
+    contacts: str = opt(DEFAULT_CONTACTS, "the simulation's contact model (graspsim.sim.contact_model; "
+                        "SimCondition.contacts)",
                         choices=CONTACT_MODELS)
     quick: bool = opt(False, "coarse maps (1 cm / 22 deg)", cli=False)
     QUICK: ClassVar[dict] = {"per_case": 6, "sizes": (1.0,), "primitives": ("box", "sphere"), "quick": True}
@@ -134,7 +136,7 @@ def outcome_rates(outcomes: np.ndarray, upright: np.ndarray | None = None) -> di
 
 
 def settle_check(samples: list[CaseSample], table, rest: float, seed: int, threads: int,
-                 contacts: str = "stiff") -> np.ndarray:
+                 contacts: str = DEFAULT_CONTACTS) -> np.ndarray:
     """(N,) bool over the table: PLACE_FAILED trials that, simulated again with a
     ``rest``-second rest (the same trial until then), end a SUCCESS: the object stands
     upright (within the protocol's tilt and height), at rest, where it was placed."""

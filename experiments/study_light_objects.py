@@ -45,7 +45,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import opt, start
 
-from graspsim.sim import CONTACT_MODELS
+from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS
 
 log = logging.getLogger("study_light_objects")
 
@@ -61,7 +61,7 @@ class Config:
     offsets: tuple[float, ...] = opt((-0.003, -0.0015, 0.0, 0.0015, 0.003),
                                      "the grasp moved along its closing axis [m]")
     yaws: tuple[float, ...] = opt((0.0, 5.0), "the closing axis turned about the vertical [deg]")
-    contacts: str = opt("stiff", "the named contact model (graspsim.sim.contact_model) the next three change",
+    contacts: str = opt(DEFAULT_CONTACTS, "the named contact model (graspsim.sim.contact_model) the next three change",
                         choices=CONTACT_MODELS)
     timestep: float | None = opt(None, "MuJoCo's time step [s] (default: the contact model's; the protocol's "
                                        "phases keep their durations)")

@@ -135,3 +135,22 @@ def test_the_stiff_contact_model_is_the_default_the_soft_one_doubles_the_step_an
     assert base.friction == 0.3 and contact_model("stiff", base) == SimSettings(friction=0.3)
     with pytest.raises(InvalidParameterError, match="valid: " + ", ".join(CONTACT_MODELS)):
         contact_model("default")
+
+
+def test_contact_names_resolve_without_the_simulator_and_the_default_leaves_the_callers_settings():
+    """graspsim.contacts: the configurations' one check and resolution of a model's name --
+    None for the default (the caller's own SimSettings stand), the soft model's settings
+    otherwise -- importable without MuJoCo."""
+    import subprocess
+    import sys
+
+    from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS, check_contacts, contact_settings
+    from graspsim.sim import contact_model
+
+    assert DEFAULT_CONTACTS == CONTACT_MODELS[0] == "stiff" and check_contacts("soft") == "soft"
+    assert contact_settings(DEFAULT_CONTACTS) is None and contact_settings("soft") == contact_model("soft")
+    with pytest.raises(InvalidParameterError, match="valid: stiff, soft"):
+        contact_settings("default")
+    code = ("import sys\nimport graspsim.contacts, graspsim.envs.clutter_config, graspsim.calibration.conditions\n"
+            "assert 'mujoco' not in sys.modules")
+    assert subprocess.run([sys.executable, "-c", code], timeout=120).returncode == 0

@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from graspsim.checks import POSITIVE, check_fields, or_none
+from graspsim.contacts import DEFAULT_CONTACTS, check_contacts
 from graspsim.errors import InvalidParameterError
 
 if TYPE_CHECKING:  # graspsim.sim loads mujoco
@@ -48,14 +49,11 @@ class SimCondition:
     mass_scale: float = 1.0
     noise: ExecutionNoise | None = None
     mass: float | None = None
-    contacts: str = "stiff"
+    contacts: str = DEFAULT_CONTACTS
 
     def __post_init__(self) -> None:
         check_fields(self, POSITIVE, "friction", "mass_scale", owner="SimCondition")
-        if self.contacts != "stiff":
-            from graspsim.sim.trial_scene import contact_model
-
-            contact_model(self.contacts)  # an unknown name: one line naming the valid ones
+        check_contacts(self.contacts)  # an unknown name: one line naming the valid ones
         if self.noise is not None:
             from graspsim.sim.noise import ExecutionNoise
 
@@ -76,7 +74,7 @@ class SimCondition:
         return {"name": self.name, "friction": self.friction, "grip_force": self.grip_force,
                 "mass_scale": self.mass_scale, "noise_position": n.position_sigma if n else 0.0,
                 "noise_rotation": n.rotation_sigma if n else 0.0, "mass": self.mass,
-                **({} if self.contacts == "stiff" else {"contacts": self.contacts})}
+                **({} if self.contacts == DEFAULT_CONTACTS else {"contacts": self.contacts})}
 
 
 FRICTION_LIMITED = SimCondition("friction_limited", grip_force=8.0, mass=0.5)

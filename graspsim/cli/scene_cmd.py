@@ -43,6 +43,7 @@ from graspsim.cli._common import (
     whole_number,
 )
 from graspsim.cli.maps_cmd import _add_generation, _config
+from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS
 
 __all__ = ["register"]
 
@@ -83,11 +84,11 @@ def _cmd_scene(args) -> int:
     from pathlib import Path
 
     from graspsim._atomic import check_folder, staged_folder
+    from graspsim.contacts import contact_settings
     from graspsim.errors import InvalidParameterError, MapDatabaseError
     from graspsim.maps.database import MapDatabase
     from graspsim.perception.segment import gap_link
     from graspsim.planning.scene_config import SceneConfig
-    from graspsim.sim.trial_scene import contact_model
     from graspsim.tabletop.clutter import FAILURE_COLUMNS, ClutterConfig, failure_rows, run_benchmark, summarize
     from graspsim.tabletop.scene_objects import OBJECT_SETS, object_set_names, prepare_objects
     from graspsim.tabletop.table_scene import MAX_OBJECTS, known_gap
@@ -137,7 +138,7 @@ def _cmd_scene(args) -> int:
                         execution=_execution(args), ground_truth=args.ground_truth,
                         max_attempts=args.max_attempts, planner=planner, planner_name=args.planner, robot=robot,
                         feel=not args.no_feel, **({"good_enough": None} if args.plan_all else {}),
-                        **({} if args.contacts == "stiff" else {"sim": contact_model(args.contacts)}))
+                        sim=contact_settings(args.contacts))
     map_cfg, quality = _config(args)
     db = MapDatabase(args.db, gripper=gripper, quality=quality, config=map_cfg)
     drawn = prepare_objects(object_set, db.gripper, progress=not args.json)  # decompositions before scene 0
@@ -260,7 +261,7 @@ def register(sub) -> None:
                        help="ablation: a grasp that started in collision with an object tells the next plans nothing "
                             "but its contacts (default: its finger volume the camera did not see is kept clear of "
                             "until an attempt changes the scene; ClutterConfig.feel)")
-        p.add_argument("--contacts", choices=("stiff", "soft"), default="stiff",
+        p.add_argument("--contacts", choices=CONTACT_MODELS, default=DEFAULT_CONTACTS,
                        help="the simulation's contact model: stiff (default: 1 ms steps, stiff pads that hold an "
                             "object of a few grams as a heavy one), or soft (2 ms steps, softer pads: the results "
                             "published before stiff became the default; graspsim.sim.contact_model)")

@@ -73,11 +73,11 @@ class ClutterClearEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 2}
 
     def __init__(self, render_mode: str | None = None, *, config: ClutterEnvConfig | None = None, **kwargs):
+        from graspsim.contacts import contact_settings
         from graspsim.geometry.camera import rig
         from graspsim.grippers import get_gripper
         from graspsim.maps.database import MapDatabase
         from graspsim.sim.noise import ExecutionNoise
-        from graspsim.sim.trial_scene import contact_model
         from graspsim.tabletop.clutter import ClutterConfig, ClutterRobot, scene_settings
         from graspsim.tabletop.depth_noise import DepthNoise
 
@@ -92,7 +92,7 @@ class ClutterClearEnv(gym.Env):
             execution=ExecutionNoise() if c.execution_error else None, max_failures=c.max_failures,
             max_attempts=c.max_attempts, good_enough=None,  # the candidates: every object's best grasps
             robot=None if c.robot == "none" else ClutterRobot(name=c.robot, base=c.robot_base),
-            sim=None if c.contacts == "stiff" else contact_model(c.contacts))
+            sim=contact_settings(c.contacts))
         self.camera = rig(1)[0]
         K, N, F = c.n_candidates, c.cloud_size, len(CLUTTER_FEATURES)
         lo = np.array([0, *[-CLOUD_BOUND] * 3, *[-1.0] * 4, 0, 0, 0, -_CLEARANCE_CAP], np.float32)

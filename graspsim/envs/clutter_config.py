@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from graspsim.checks import BOOLEAN, check_fields, integer, or_none
+from graspsim.contacts import DEFAULT_CONTACTS, check_contacts
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.map_config import MapConfig
 
@@ -67,7 +68,7 @@ class ClutterEnvConfig:
     gripper: object = "festo_hgpl_25_60_a"
     robot: str = "none"
     robot_base: tuple = (-0.5, 0.0, 0.0)
-    contacts: str = "stiff"
+    contacts: str = DEFAULT_CONTACTS
 
     def __post_init__(self) -> None:
         check_fields(self, integer(1), "n_objects", "n_candidates", "cloud_size", "max_failures", "max_redraws")
@@ -83,10 +84,7 @@ class ClutterEnvConfig:
         except InvalidParameterError as err:
             raise InvalidParameterError(f"object_set: {err}") from None
         check_fields(self, BOOLEAN, "depth_image", "depth_noise", "execution_error", "neighbours")
-        if self.contacts != "stiff":
-            from graspsim.sim.trial_scene import contact_model
-
-            contact_model(self.contacts)  # an unknown name: one line naming the valid ones
+        check_contacts(self.contacts)  # an unknown name: one line naming the valid ones
         from graspsim.envs.env_config import check_database_fields
 
         check_database_fields(self)

@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 
 from graspsim.checks import NON_NEGATIVE, POSITIVE, check_fields
+from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS, check_contacts
 from graspsim.errors import InvalidParameterError, SimulationError
 from graspsim.grippers.spec import HGPL_25_60_A, GripperSpec
 from graspsim.sim.authored_model import authored_names, model_drive
@@ -111,7 +112,7 @@ class SimSettings:
         return d
 
 
-#: Named contact models (:func:`contact_model`), the default first. ``stiff`` (the default,
+#: The named contact models (:data:`graspsim.contacts.CONTACT_MODELS`, the default first). ``stiff`` (the default,
 #: ``SimSettings()``): 1 ms steps, the pads' ``solref`` 2 ms and impedance ramp 2 mm.
 #: ``soft``: 2 ms steps, the pads' ``solref`` 4 ms and ramp 5 mm -- every simulated result
 #: published before ``stiff`` became the default (docs/results.md says which), kept to
@@ -120,7 +121,6 @@ class SimSettings:
 #: few grams at the full grip force and squeeze it out of a grasp a heavier one holds
 #: (``experiments/study_light_objects.py``); the stiff pads hold a level grasp of a 3.3 g
 #: domino as of a 100 g one, at twice the steps per simulated second.
-CONTACT_MODELS = ("stiff", "soft")
 _SOFT_PADS = dict(pad_solref=(0.004, 1.0), pad_solimp=(0.95, 0.99, 0.005, 0.5, 2.0))
 
 
@@ -129,13 +129,11 @@ def contact_model(name: str, base: SimSettings | None = None) -> SimSettings:
     :data:`CONTACT_MODELS`: its timestep and its pads' ``solref``/``solimp`` (the rest of
     ``base`` kept); any other name is an :class:`InvalidParameterError` naming them."""
     base = base or SimSettings()
-    if name == "stiff":
+    if check_contacts(name) == DEFAULT_CONTACTS:
         stock = GripperPhysics()
         return replace(base, timestep=TIMESTEP,
                        physics=replace(base.physics, pad_solref=stock.pad_solref, pad_solimp=stock.pad_solimp))
-    if name == "soft":
-        return replace(base, timestep=0.002, physics=replace(base.physics, **_SOFT_PADS))
-    raise InvalidParameterError(f"contact model {name!r} unknown; valid: {', '.join(CONTACT_MODELS)}")
+    return replace(base, timestep=0.002, physics=replace(base.physics, **_SOFT_PADS))  # "soft"
 
 
 @dataclass(frozen=True, eq=False)

@@ -53,3 +53,29 @@ def test_adapt_bad_cloud_file(tmp_path, capsys):
     (tmp_path / "bad.npy").write_bytes(b"nope")
     code = main(["adapt", str(tmp_path / "bad.npy"), "-o", str(tmp_path / "x.h5")])
     assert code == 2 and "error" in capsys.readouterr().err
+
+
+def test_adapt_restarts_reach_the_planner_and_a_bad_count_is_one_line(tmp_path, capsys, monkeypatch):
+    """--restarts N is PlannerConfig.restarts (default: the planner's); more than 10, or not a
+    whole number, is refused with one error line (argparse's usage above it for a malformed
+    one), and no map is written."""
+    import graspsim.planning.adapt as adapt
+    from graspsim.planning.planner import PlannerConfig
+
+    seen = []
+    real = adapt.adapt_config
+    monkeypatch.setattr(adapt, "adapt_config", lambda **kw: seen.append(real(**kw).restarts) or real(**kw))
+    np.save(tmp_path / "cloud.npy", np.zeros((5, 3)))  # too few points: planning fails after the config is made
+    for flag, want in (([], PlannerConfig().restarts), (["--restarts", "0"], 0), (["--restarts", "5"], 5)):
+        main(["adapt", str(tmp_path / "cloud.npy"), "-o", str(tmp_path / "m.h5"), "--db", str(tmp_path / "db"),
+              *flag])
+        assert seen[-1] == want
+    capsys.readouterr()
+    for bad in ("11", "-1", "two"):
+        try:
+            code = main(["adapt", str(tmp_path / "cloud.npy"), "-o", str(tmp_path / "m.h5"), "--restarts", bad])
+        except SystemExit as e:  # argparse's own refusal
+            code = e.code
+        err = capsys.readouterr().err
+        assert code == 2 and "restarts" in err.strip().splitlines()[-1] and "Traceback" not in err
+    assert not (tmp_path / "m.h5").exists()

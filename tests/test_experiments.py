@@ -1066,3 +1066,18 @@ def test_provenance_calls_a_tree_dirty_for_code_not_for_published_summaries(tmp_
     assert not common.provenance()["commit"].endswith("-dirty")
     (repo / "code.py").write_text("x = 2\n")
     assert common.provenance()["commit"].endswith("-dirty")
+
+
+def test_study_identification_stability_counts_each_variant_once(tmp_path):
+    """The study adapts a cloud and its jittered variants through adapt_cloud: one record per
+    variant, with its attempts, and the pooled rows add up."""
+    study = _load("study_identification_stability")
+    assert study.main(["--objects-dir", "assets/objects", "--objects", "pybullet/lego.stl", "--views", "full",
+                       "--jitters", "2", "--db", str(tmp_path / "db"), "--out", str(tmp_path / "s")]) == 0
+    s = _summary(tmp_path / "s")
+    (row,) = s["rows"]
+    assert len(row["variants"]) == 3 and row["usable"] == sum(v["accepted"] > 0 for v in row["variants"])
+    assert all(v["attempts"] is None or v["attempts"] >= 1 for v in row["variants"])
+    pool = s["pooled"]["development/full"]
+    assert pool["variants"] == 3 and pool["usable"] == row["usable"] and pool["clouds"] == 1
+    assert s["command"] in study.readme_section(s)

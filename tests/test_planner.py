@@ -122,12 +122,54 @@ def test_stream_yields_grasps_before_the_result(db):
 
 
 def test_sparse_gappy_cloud_fails_cleanly(db):
+    r = plan(_gappy_ball(), db=db, rng=np.random.default_rng(0))
+    assert r.status is PlanStatus.FAILED and len(r.map) == 0
+
+
+def _gappy_ball() -> np.ndarray:
     rng = np.random.default_rng(6)  # six separate 1 cm patches of a 5 cm ball, 15 points each
     centres = rng.normal(size=(6, 3))
     d = centres[:, None, :] + 0.2 * rng.normal(size=(6, 15, 3))
-    pts = 0.05 * (d / np.linalg.norm(d, axis=2, keepdims=True)).reshape(-1, 3)
-    r = plan(pts, db=db, rng=np.random.default_rng(0))
-    assert r.status is PlanStatus.FAILED and len(r.map) == 0
+    return 0.05 * (d / np.linalg.norm(d, axis=2, keepdims=True)).reshape(-1, 3)
+
+
+def test_a_map_without_an_accepted_grasp_is_planned_again_from_the_same_generator(db, monkeypatch):
+    """PlannerConfig.restarts: the first identification made to fail (as a decomposition
+    with no accepted grasp would), robust planning identifies again and keeps the first map
+    with an accepted grasp, recording the attempts; with restarts=0, or in paper mode, the
+    failed attempt is the answer; when every attempt fails, restarts + 1 are made."""
+    import graspsim.planning.planner as planner
+
+    real, calls = planner.identify, []
+
+    def failing(first: int):
+        def identify(points, *, rng, config):
+            calls.append(len(points))
+            return real(_gappy_ball() if len(calls) <= first else points, rng=rng, config=config)
+        return identify
+
+    cloud = _cloud(Cylinder(0.025, 0.16), 1)
+    monkeypatch.setattr(planner, "identify", failing(1))
+    r = plan(cloud.points, db=db, rng=np.random.default_rng(0))
+    assert len(calls) == 2 and r.status is PlanStatus.COMPLETE and r.map.accepted.any()
+    assert r.map.meta.extra["identification"]["attempts"] == 2
+    calls.clear()
+    again = plan(cloud.points, db=db, rng=np.random.default_rng(0))
+    np.testing.assert_array_equal(again.map.wrist_position, r.map.wrist_position)  # the same seed, the same answer
+    for cfg in (PlannerConfig(restarts=0), PlannerConfig(identify=IdentifyConfig.preset("paper"))):
+        calls.clear()
+        r = plan(cloud.points, db=db, rng=np.random.default_rng(0), config=cfg)
+        assert len(calls) == 1 and r.status is PlanStatus.FAILED and len(r.map) == 0
+    monkeypatch.setattr(planner, "identify", failing(99))
+    calls.clear()
+    r = plan(cloud.points, db=db, rng=np.random.default_rng(0), config=PlannerConfig(restarts=3))
+    assert len(calls) == 4 and r.status is PlanStatus.FAILED
+
+
+@pytest.mark.parametrize("bad", [-1, 11, 1.5, True, "2"])
+def test_restarts_are_a_small_whole_number(bad):
+    with pytest.raises(InvalidParameterError, match="restarts must be an integer in"):
+        PlannerConfig(restarts=bad)
 
 
 def test_same_seed_same_plan(db):

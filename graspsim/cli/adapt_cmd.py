@@ -50,7 +50,7 @@ def _cmd_adapt(args) -> int:
         "auto" if args.table == "auto" else _height(args.table)), table_normal=args.table_normal,
         table_clearance=args.table_clearance, repetitions=args.repetitions, theta=args.theta,
         scaling=args.scaling, partial=not args.no_partial, low_profile=_low_profile(args.low_profile),
-        unseen_margin=unseen_margin_value(args, none=True))
+        unseen_margin=unseen_margin_value(args, none=True), restarts=args.restarts)
     viewpoint = viewpoint_from_args(args)
     map_cfg, quality = _config(args)
     if args.db is not None and Path(args.db).exists() and not Path(args.db).is_dir():
@@ -169,6 +169,10 @@ def register(sub) -> None:
                         "reachable column; its ranking then puts reachable grasps first; see graspsim reach)")
         from graspsim.cli._common import whole_number
 
+        p.add_argument("--restarts", type=whole_number(0), default=None, metavar="N",
+                       help="robust mode: when the map holds no accepted grasp, identify the cloud again, up to N "
+                       "more times (identification is a randomised search; the same --seed gives the same "
+                       "answer; default 2, at most 10; 0: once)")
         p.add_argument("--reach-exact", type=whole_number(0), default=100, metavar="N",
                        help="with --robot: how many of the best grasps get the exact reach check (100)")
         _add_generation(p)

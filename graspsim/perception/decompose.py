@@ -162,7 +162,9 @@ def _peel(ctx: _Ctx, idx: np.ndarray, part: PartResult) -> list[PartResult] | No
     return [_leaf(ctx, idx[~out]), _leaf(ctx, idx[out])]
 
 
-def _split(ctx: _Ctx, idx: np.ndarray) -> list[PartResult] | None:
+def _split(ctx: _Ctx, idx: np.ndarray, force: bool = False) -> list[PartResult] | None:
+    """The cluster's best MVBB split into two identified pieces, if it gains volume
+    (theta* below ``max_theta``) or ``force``."""
     pts = ctx.cloud.points[idx]
     if len(idx) < 2 * ctx.cfg.min_cluster_points:
         return None
@@ -171,7 +173,7 @@ def _split(ctx: _Ctx, idx: np.ndarray) -> list[PartResult] | None:
     if split is None:
         return None
     theta = theta_star(box.volume, (split.boxes[0].volume, split.boxes[1].volume), 0.0)
-    if theta >= max(ctx.cfg.max_theta, ctx.cfg.theta):
+    if theta >= max(ctx.cfg.max_theta, ctx.cfg.theta) and not force:
         return None
     return [_leaf(ctx, idx[split.mask]), _leaf(ctx, idx[~split.mask])]
 
@@ -221,11 +223,16 @@ def _solve(ctx: _Ctx, idx: np.ndarray, depth: int, part: PartResult | None = Non
         c = make(ctx, idx, part)
         if c is not None:
             cands.append(_assigned(ctx, idx, c))
+    split = None
     if not any(_settled(ctx, c) for c in cands[1:]):
-        c = _split(ctx, idx)
-        if c is not None:
-            cands.append(c)
+        split = _split(ctx, idx)
+        if split is not None:
+            cands.append(split)
     best = min(cands, key=lambda c: _score(ctx, idx, c))
+    if best is cands[0] and first.shape is Shape.UNIDENTIFIED and depth + 1 < _MAX_DEPTH:
+        # nothing explains the cluster, not even roughly: its pieces, split where that gains no volume too (an
+        # irregular object's lumps are fitted where the whole is not), rather than no part at all
+        best = split or _split(ctx, idx, force=True) or best
     if len(best) == 1 or depth + 1 >= _MAX_DEPTH:
         return best
     # the pieces of the chosen decomposition that are still not explained: again

@@ -36,7 +36,8 @@ from graspsim.maps.robust import UNSEEN_MARGIN as DEFAULT_UNSEEN_MARGIN  # noqa:
 def adapt_config(*, mode: str = "robust", table: str | float | None = None,
                  table_normal: Sequence[float] = (0.0, 0.0, 1.0), table_clearance: float = 0.002,
                  repetitions: int = 10, theta: float = 0.5, scaling: str = "combined",
-                 partial: bool = True, low_profile: float | None = None, unseen_margin: float | None = None):
+                 partial: bool = True, low_profile: float | None = None, unseen_margin: float | None = None,
+                 restarts: int | None = None):
     """The :class:`~graspsim.planning.planner.PlannerConfig` of ``graspsim adapt``'s options:
     ``mode`` "robust" | "paper"; ``table`` None (no table, as the paper's maps), "auto"
     (the object's lowest point: :func:`~graspsim.maps.table_clearance.table_height`) or a height
@@ -49,7 +50,10 @@ def adapt_config(*, mode: str = "robust", table: str | float | None = None,
     of a single view (:attr:`RobustConfig.unseen_margin <graspsim.maps.robust.RobustConfig.unseen_margin>`,
     ``graspsim adapt --unseen-margin``): None (default) :data:`DEFAULT_UNSEEN_MARGIN` in
     robust mode, none in paper mode; 0: none; it counts only where :func:`adapt_cloud` is
-    given a viewpoint (a cloud seen all round has no unseen back: there it is set to 0)."""
+    given a viewpoint (a cloud seen all round has no unseen back: there it is set to 0);
+    ``restarts``: robust mode, how many more times a cloud whose map holds no accepted
+    grasp is identified (:attr:`PlannerConfig.restarts
+    <graspsim.planning.planner.PlannerConfig.restarts>`; None: its default)."""
     from dataclasses import replace
 
     from graspsim.geometry.table import TablePlane
@@ -71,7 +75,8 @@ def adapt_config(*, mode: str = "robust", table: str | float | None = None,
     lift = {} if low_profile is None else {
         "low_profile": None if low_profile == "off" else LowProfile(min_depth=float(low_profile))}
     cfg = PlannerConfig(identify=IdentifyConfig.preset(mode, repetitions=repetitions, theta=theta),
-                        scaling=ScalingConfig(method=scaling), partial=partial, table=plane, **lift)
+                        scaling=ScalingConfig(method=scaling), partial=partial, table=plane, **lift,
+                        **({} if restarts is None else {"restarts": restarts}))
     if unseen_margin is None:
         unseen_margin = DEFAULT_UNSEEN_MARGIN if mode == "robust" else 0.0
     if not (isinstance(unseen_margin, (int, float)) and 0 <= unseen_margin <= 0.1):

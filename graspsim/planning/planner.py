@@ -192,6 +192,16 @@ class PlannerConfig:
     table_band: [m] with ``complete_to_table``: the height above the table below which the
         cloud's points were cut away as the table's (a scene's ``SceneConfig.table_band``,
         which sets it); the completed volume's hidden space is judged above it.
+    restarts: robust identification made by the planner (not given to it): when the map of
+        a cloud's identification holds no accepted grasp, the cloud is identified again, the
+        generator drawn on (so the same seed gives the same answer), up to this many more
+        times; the first map with an accepted grasp stands, else the last (the attempts made:
+        ``extra["identification"]["attempts"]``). Identification is a randomised search over
+        discrete decompositions: a cloud near a decision's edge comes out otherwise when its
+        points move by micrometres, and some of the decompositions it can come out as -- a
+        duck's body as two short cylinders whose ends its head and tail cover -- hold no
+        accepted grasp where the others do (``experiments/study_identification_stability.py``).
+        0: one attempt. Paper mode never restarts.
     """
 
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
@@ -215,6 +225,7 @@ class PlannerConfig:
     merge_boxes: bool = False
     table_skip: float | None = None
     clear_first: bool = False
+    restarts: int = 2
 
     def __post_init__(self) -> None:
         if self.low_profile is not None and not isinstance(self.low_profile, LowProfile):
@@ -231,6 +242,8 @@ class PlannerConfig:
         if skip is not None and (isinstance(skip, bool) or not isinstance(skip, (int, float))
                                  or not (np.isfinite(skip) and skip >= 0)):
             raise InvalidParameterError(f"PlannerConfig.table_skip must be >= 0 m or None (off), got {skip!r}")
+        if isinstance(self.restarts, bool) or not isinstance(self.restarts, int) or not 0 <= self.restarts <= 10:
+            raise InvalidParameterError(f"PlannerConfig.restarts must be an integer in [0, 10], got {self.restarts!r}")
         if not isinstance(self.robust, RobustConfig):
             raise InvalidParameterError(f"PlannerConfig.robust must be a RobustConfig, got {self.robust!r}")
 
@@ -368,6 +381,23 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
         check_rng(rng)
     viewpoint = check_viewpoint(viewpoint)  # a bad one fails now, not after the identification
     points = np.asarray(points, float)
+    restarts = cfg.restarts if identification is None and cfg.identify.is_robust else 0
+    for attempt in range(restarts + 1):
+        result = None
+        for item in _plan_identified(points, identification, rng, db, cfg, source, obstacles, viewpoint, scored_only,
+                                     t0, attempt):
+            if isinstance(item, PlanResult):
+                result = item
+            else:
+                yield item
+        if attempt == restarts or result.map.accepted.any():
+            yield result
+            return
+
+
+def _plan_identified(points, identification, rng, db: MapDatabase, cfg: PlannerConfig, source: str, obstacles,
+                     viewpoint, scored_only: bool, t0: float, attempt: int) -> Iterator[GraspBatch | PlanResult]:
+    """:func:`plan_stream`'s one attempt (``attempt``: the restarts before it)."""
     ident = identification if identification is not None else identify(points, rng=rng, config=cfg.identify)
     timing = {"identify": time.perf_counter() - t0}
     cpu0 = time.thread_time()
@@ -389,7 +419,8 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
             "downsampling": None if ident.downsampling is None else ident.downsampling.to_dict(),
             "mode": ident.mode, "uncovered": ident.uncovered,
             "approximate": [i for i, p in enumerate(ident.parts) if p.approximate],
-            "fit": ident.fit_quality(points, cfg.identify.band, viewpoint).to_dict()}
+            "fit": ident.fit_quality(points, cfg.identify.band, viewpoint).to_dict(),
+            **({"attempts": attempt + 1} if attempt else {})}
     yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0,
                            obstacles, viewpoint, scored_only)
 

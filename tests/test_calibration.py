@@ -268,3 +268,31 @@ def test_e05_readme_section_from_the_reported_summary():
         assert f"| {cond} | ≤ 22° |" in md
     assert "44°" in md and "22°" in md and "per attempt" in md
 
+
+
+def test_the_recorded_commit_is_dirty_for_changed_code_not_for_published_summaries(tmp_path):
+    """git_state (library_versions' commit record): a changed summary under
+    experiments/reported/ -- what --publish writes, run after run in one worktree -- leaves the
+    code clean; a changed file under experiments/ or graspsim/ makes it dirty."""
+    import shutil
+    import subprocess
+
+    from graspsim.calibration.outputs import git_state
+
+    if shutil.which("git") is None:
+        pytest.skip("no git")
+    git = ["git", "-c", "user.email=t@example.org", "-c", "user.name=t", "-c", "commit.gpgsign=false"]
+    for f in ("graspsim/a.py", "experiments/e.py", "experiments/reported/e.json"):
+        (tmp_path / f).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / f).write_text("1\n")
+    subprocess.run([*git, "init", "-q"], cwd=tmp_path, check=True)
+    subprocess.run([*git, "add", "-A"], cwd=tmp_path, check=True)
+    subprocess.run([*git, "commit", "-qm", "x"], cwd=tmp_path, check=True)
+    s = git_state(tmp_path)
+    assert len(s["git_commit"]) == 40 and s["git_dirty"] is False
+    (tmp_path / "experiments/reported/e.json").write_text("2\n")
+    assert git_state(tmp_path)["git_dirty"] is False
+    for f in ("experiments/e.py", "graspsim/a.py"):
+        (tmp_path / f).write_text("2\n")
+        assert git_state(tmp_path)["git_dirty"] is True
+        subprocess.run([*git, "checkout", "-q", "--", f], cwd=tmp_path, check=True)

@@ -28,21 +28,26 @@ def library_versions() -> dict:
             out[pkg] = md.version(pkg)
         except md.PackageNotFoundError:
             out[pkg] = None
-    root = Path(__file__).resolve().parents[2]
+    out.update(git_state(Path(__file__).resolve().parents[2]))
+    out["date"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    return out
+
+
+def git_state(root: Path) -> dict:
+    """``{"git_commit": HEAD or None, "git_dirty": bool or None}`` of the checkout at
+    ``root``: dirty when the code that produces results (``graspsim/``, ``experiments/``)
+    differs from the commit; the published summaries in ``experiments/reported/`` are
+    results, which ``--publish`` itself writes, not code (as ``experiments/_common.provenance``
+    counts them). None where there is no git."""
     try:
-        out["git_commit"] = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
-                                           text=True, timeout=5).stdout.strip() or None
-        # uncommitted changes to the code that produced the results (None: no git); the published
-        # summaries in experiments/reported/ are results, which --publish itself writes, not code
-        # (as experiments/_common.provenance counts them)
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True,
+                                timeout=5).stdout.strip() or None
         st = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", "graspsim",
                              "experiments", ":(exclude)experiments/reported"], cwd=root, capture_output=True,
                             text=True, timeout=10)
-        out["git_dirty"] = bool(st.stdout.strip()) if st.returncode == 0 and out["git_commit"] else None
     except (OSError, subprocess.SubprocessError):
-        out["git_commit"] = out["git_dirty"] = None
-    out["date"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-    return out
+        return {"git_commit": None, "git_dirty": None}
+    return {"git_commit": commit, "git_dirty": bool(st.stdout.strip()) if st.returncode == 0 and commit else None}
 
 
 def write_json(path: str | os.PathLike, obj) -> Path:

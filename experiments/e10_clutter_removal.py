@@ -71,11 +71,12 @@ from _common import (
 )
 from _e10_report import readme_section, rows_of
 
-from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS, contact_settings
+from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS
 from graspsim.errors import SimulationError
 from graspsim.maps.robust import UNSEEN_MARGIN
 from graspsim.planning.scene_config import SceneConfig, with_unseen_margin
 from graspsim.sim.noise import ExecutionNoise
+from graspsim.sim.trial_scene import contact_settings
 from graspsim.stats import wilson_interval
 from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings, summarize
 from graspsim.tabletop.clutter_stats import benchmark_seeds, per_seed

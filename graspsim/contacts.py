@@ -1,17 +1,17 @@
-"""The names of the simulation's contact models, without importing MuJoCo.
+"""The names of the simulation's contact models, without importing MuJoCo (a base module).
 
 The models themselves (a timestep and the pads' ``solref``/``solimp``) are
-:func:`graspsim.sim.contact_model`'s; configurations that name one (``ClutterConfig``,
+:func:`graspsim.sim.contact_model`'s, and a name's settings
+:func:`graspsim.sim.contact_settings`'; configurations that name one (``ClutterConfig``,
 ``ClutterClear-v0``, ``SimCondition``, ``graspsim scene --contacts``, the experiments'
-``--contacts``) check and resolve the name here, so that importing them does not load
-the simulator.
+``--contacts``) check the name here, so that importing them does not load the simulator.
 """
 
 from __future__ import annotations
 
 from graspsim.errors import InvalidParameterError
 
-__all__ = ["CONTACT_MODELS", "DEFAULT_CONTACTS", "check_contacts", "contact_settings"]
+__all__ = ["CONTACT_MODELS", "DEFAULT_CONTACTS", "check_contacts"]
 
 #: Named contact models, the default first (why each: :func:`graspsim.sim.contact_model`).
 CONTACT_MODELS = ("stiff", "soft")
@@ -25,13 +25,3 @@ def check_contacts(name: str) -> str:
     if name not in CONTACT_MODELS:
         raise InvalidParameterError(f"contact model {name!r} unknown; valid: {', '.join(CONTACT_MODELS)}")
     return name
-
-
-def contact_settings(name: str):
-    """The ``SimSettings`` of the contact model ``name``, or None for
-    :data:`DEFAULT_CONTACTS` (the caller's own default settings then stand)."""
-    if check_contacts(name) == DEFAULT_CONTACTS:
-        return None
-    from graspsim.sim.trial_scene import contact_model
-
-    return contact_model(name)

@@ -138,14 +138,14 @@ def test_the_stiff_contact_model_is_the_default_the_soft_one_doubles_the_step_an
 
 
 def test_contact_names_resolve_without_the_simulator_and_the_default_leaves_the_callers_settings():
-    """graspsim.contacts: the configurations' one check and resolution of a model's name --
-    None for the default (the caller's own SimSettings stand), the soft model's settings
-    otherwise -- importable without MuJoCo."""
+    """graspsim.contacts, the configurations' one check of a model's name, importable without
+    MuJoCo; sim.contact_settings resolves it: None for the default (the caller's own
+    SimSettings stand), the soft model's settings otherwise."""
     import subprocess
     import sys
 
-    from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS, check_contacts, contact_settings
-    from graspsim.sim import contact_model
+    from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS, check_contacts
+    from graspsim.sim import contact_model, contact_settings
 
     assert DEFAULT_CONTACTS == CONTACT_MODELS[0] == "stiff" and check_contacts("soft") == "soft"
     assert contact_settings(DEFAULT_CONTACTS) is None and contact_settings("soft") == contact_model("soft")

@@ -84,11 +84,11 @@ def _cmd_scene(args) -> int:
     from pathlib import Path
 
     from graspsim._atomic import check_folder, staged_folder
-    from graspsim.contacts import contact_settings
     from graspsim.errors import InvalidParameterError, MapDatabaseError
     from graspsim.maps.database import MapDatabase
     from graspsim.perception.segment import gap_link
     from graspsim.planning.scene_config import SceneConfig
+    from graspsim.sim.trial_scene import contact_settings
     from graspsim.tabletop.clutter import FAILURE_COLUMNS, ClutterConfig, failure_rows, run_benchmark, summarize
     from graspsim.tabletop.scene_objects import OBJECT_SETS, object_set_names, prepare_objects
     from graspsim.tabletop.table_scene import MAX_OBJECTS, known_gap

@@ -73,11 +73,11 @@ class ClutterClearEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 2}
 
     def __init__(self, render_mode: str | None = None, *, config: ClutterEnvConfig | None = None, **kwargs):
-        from graspsim.contacts import contact_settings
         from graspsim.geometry.camera import rig
         from graspsim.grippers import get_gripper
         from graspsim.maps.database import MapDatabase
         from graspsim.sim.noise import ExecutionNoise
+        from graspsim.sim.trial_scene import contact_settings
         from graspsim.tabletop.clutter import ClutterConfig, ClutterRobot, scene_settings
         from graspsim.tabletop.depth_noise import DepthNoise
 

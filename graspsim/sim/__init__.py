@@ -31,13 +31,21 @@ from graspsim.sim.objects import SimObject, object_from_mesh, object_from_shape 
 from graspsim.sim.outcomes import TrialOutcome  # noqa: E402
 from graspsim.sim.protocols import PROTOCOLS, LiftPlace, Protocol, Tug, make_protocol  # noqa: E402
 from graspsim.sim.results import RESULT_GROUPS, TrialResults  # noqa: E402
-from graspsim.sim.trial_scene import CONTACT_MODELS, Scene, SimSettings, build_scene, contact_model, resting_pose  # noqa: E402
+from graspsim.sim.trial_scene import (  # noqa: E402
+    CONTACT_MODELS,
+    Scene,
+    SimSettings,
+    build_scene,
+    contact_model,
+    contact_settings,
+    resting_pose,
+)
 
 __all__ = [
     "GripperPhysics", "build_gripper_spec", "gripper_xml",
     "SimObject", "object_from_shape", "object_from_mesh", "CoacdParams", "convex_parts", "load_mesh",
     "prepare_mesh", "PreparedMesh", "surface_model",
-    "SimSettings", "CONTACT_MODELS", "contact_model", "Scene", "build_scene", "resting_pose",
+    "SimSettings", "CONTACT_MODELS", "contact_model", "contact_settings", "Scene", "build_scene", "resting_pose",
     "Protocol", "LiftPlace", "Tug", "PROTOCOLS", "make_protocol", "ExecutionNoise",
     "TrialOutcome", "TrialResults", "RESULT_GROUPS",
     "run_trials", "start_penetration", "initial_states", "pregrasp_opening",

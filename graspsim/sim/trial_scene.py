@@ -37,8 +37,8 @@ from graspsim.sim.harness import build_gripper_spec
 from graspsim.sim.model import IMPRATIO, NAMES, TIMESTEP, GripDrive, GripperNames, GripperPhysics, box_drive
 from graspsim.sim.objects import SimObject
 
-__all__ = ["SimSettings", "CONTACT_MODELS", "contact_model", "Scene", "build_scene", "observed_pose", "resting_pose",
-           "add_gripper", "gripper_drive", "gripper_geoms"]
+__all__ = ["SimSettings", "CONTACT_MODELS", "contact_model", "contact_settings", "Scene", "build_scene",
+           "observed_pose", "resting_pose", "add_gripper", "gripper_drive", "gripper_geoms"]
 
 log = logging.getLogger(__name__)
 
@@ -134,6 +134,14 @@ def contact_model(name: str, base: SimSettings | None = None) -> SimSettings:
         return replace(base, timestep=TIMESTEP,
                        physics=replace(base.physics, pad_solref=stock.pad_solref, pad_solimp=stock.pad_solimp))
     return replace(base, timestep=0.002, physics=replace(base.physics, **_SOFT_PADS))  # "soft"
+
+
+def contact_settings(name: str) -> SimSettings | None:
+    """The settings of the contact model ``name`` for a configuration's ``sim`` field, or
+    None for :data:`~graspsim.contacts.DEFAULT_CONTACTS` (the caller's own default
+    settings then stand); an unknown name is an :class:`InvalidParameterError` naming the
+    valid ones."""
+    return None if check_contacts(name) == DEFAULT_CONTACTS else contact_model(name)
 
 
 @dataclass(frozen=True, eq=False)

@@ -152,7 +152,8 @@ def test_a_map_without_an_accepted_grasp_is_planned_again_from_the_same_generato
     monkeypatch.setattr(planner, "identify", failing(1))
     r = plan(cloud.points, db=db, rng=np.random.default_rng(0))
     assert len(calls) == 2 and r.status is PlanStatus.COMPLETE and r.map.accepted.any()
-    assert r.map.meta.extra["identification"]["attempts"] == 2
+    assert r.map.meta.extra["identification"]["attempts"] == r.attempts == 2
+    assert r.summary()["identification"]["attempts"] == 2
     calls.clear()
     again = plan(cloud.points, db=db, rng=np.random.default_rng(0))
     np.testing.assert_array_equal(again.map.wrist_position, r.map.wrist_position)  # the same seed, the same answer
@@ -163,7 +164,7 @@ def test_a_map_without_an_accepted_grasp_is_planned_again_from_the_same_generato
     monkeypatch.setattr(planner, "identify", failing(99))
     calls.clear()
     r = plan(cloud.points, db=db, rng=np.random.default_rng(0), config=PlannerConfig(restarts=3))
-    assert len(calls) == 4 and r.status is PlanStatus.FAILED
+    assert len(calls) == 4 and r.status is PlanStatus.FAILED and r.attempts == 4
 
 
 @pytest.mark.parametrize("bad", [-1, 11, 1.5, True, "2"])

@@ -91,6 +91,8 @@ def _cmd_adapt(args) -> int:
     human = (format_table(rows, ["part", "dims", "match", "stored map (size ratio)"]) +
              f"\n{s['status']}: {s['grasps']} grasps, {s['accepted']} > 0.7 in {s['seconds']:.3f} s"
              + (f"; first grasp > 0.95 after {first * 1e3:.1f} ms" if first is not None else "")
+             + (f"; identified {result.attempts} times (the earlier maps held no grasp > 0.7)"
+                if result.attempts > 1 else "")
              + (f"; {s['table']['dropped']} grasps below the table (height "
                 f"{s['table']['height']:.4f} m) dropped" if s.get("table") and "dropped" in s["table"] else "")
              + (f", {s['table']['lifted']} lifted clear of it (contacts nearer the fingertip)"

@@ -67,7 +67,9 @@ class PlanResult:
     > 0.95, None if never), ``first_robust`` (time to the first grasp with a robust
     score > 0; None if never or ``rank="paper"``), ``first_robust_cpu`` (the calling
     thread's CPU seconds from the end of identification to that grasp: a measure that
-    other processes' load barely changes) and ``robust`` (seconds spent scoring)."""
+    other processes' load barely changes) and ``robust`` (seconds spent scoring). attempts:
+    the identifications made (``PlannerConfig.restarts``: more than one when the first maps
+    held no accepted grasp); the result is the last one's, and its timing counts them all."""
 
     status: PlanStatus
     map: GraspabilityMap
@@ -75,6 +77,7 @@ class PlanResult:
     identification: Identification | None
     T_cloud_obj: np.ndarray
     timing: dict
+    attempts: int = 1
 
     def summary(self) -> dict:
         return {"status": self.status.value, "parts": [p.to_dict() for p in self.parts],
@@ -85,6 +88,6 @@ class PlanResult:
                 "T_cloud_obj": self.T_cloud_obj.tolist(),
                 "identification": None if self.identification is None else {
                     "mode": self.identification.mode, "uncovered": self.identification.uncovered,
-                    "approximate": [p.approximate for p in self.identification.parts]},
+                    "approximate": [p.approximate for p in self.identification.parts], "attempts": self.attempts},
                 "fit": (self.map.meta.extra.get("identification") or {}).get("fit"),
                 "table": None if self.map.meta.placement is None else self.map.meta.placement.table}

@@ -391,7 +391,7 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
             else:
                 yield item
         if attempt == restarts or result.map.accepted.any():
-            yield result
+            yield result if not attempt else replace(result, attempts=attempt + 1)
             return
 
 

@@ -136,7 +136,7 @@ class RunDatabase(MapDatabase):
     Its copies in a scene's worker processes plan as it does (``copies_plan_alike``):
     only a part that no stored map serves reaches the maps built in memory, and a
     segment with such a part is planned in this process
-    (:func:`~graspsim.planning.scene_segments.plan_segments`), where ``built`` records it."""
+    (:func:`~graspsim.planning.scene_segments.plan_batches`), where ``built`` records it."""
 
     copies_plan_alike = True
 

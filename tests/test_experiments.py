@@ -610,10 +610,14 @@ def test_e10_run_database_plans_on_the_scene_workers_and_records_maps_built_in_m
     plain.build([Box(0.06, 0.06, 0.06), Sphere(0.035)])
     run = mod.RunDatabase(tmp_path / "db", config=cfg)
     assert scene_segments.copies_plan_alike(run)
-    asked = []
-    real = scene_segments.run_segments
-    monkeypatch.setattr(scene_segments, "run_segments",
-                        lambda fn, tasks, sizes, workers=1: asked.append(workers) or real(fn, tasks, sizes, workers))
+    asked = []  # per batch: the workers it was planned on (1: in this process)
+    real = scene_segments.stream_segments
+
+    def spy(fn, groups, workers=1):
+        asked.extend(workers if parallel else 1 for _, _, parallel in groups)
+        return real(fn, groups, workers)
+
+    monkeypatch.setattr(scene_segments, "stream_segments", spy)
     shapes = [Box(0.05, 0.06, 0.07), Sphere(0.03)]
     pts = table_scene_cloud(shapes, np.array([[-0.05, 0.0], [0.05, 0.0]]), np.random.default_rng(3), noise=0.0005)[0]
     record = lambda sp: ([(s.status, s.primitives) for s in sp.segments],  # noqa: E731

@@ -86,6 +86,12 @@ def test_lazy_planning_plans_the_highest_objects_until_a_grasp_is_good_enough(db
     assert lazy.segments[box].primitives and not any(g.segment == box for g in lazy.grasps)
     same = [g for g in full.grasps if g.segment != box]
     assert [g.T_world_wrist.tolist() for g in lazy.grasps] == [g.T_world_wrist.tolist() for g in same]
+    # planned in this process: the same (on workers the box's plan may start ahead, and is given up)
+    here = plan_scene(pts, db=db, rng=np.random.default_rng(0), config=SceneConfig(good_enough=0.5, workers=1))
+    assert [(p.status, p.primitives, p.scored) for p in here.segments] == [
+        (p.status, p.primitives, p.scored) for p in lazy.segments]
+    assert [(g.T_world_wrist.tobytes(), g.score) for g in here.grasps] == [
+        (g.T_world_wrist.tobytes(), g.score) for g in lazy.grasps]
     # the cylinder and the ball picked: the box is planned now
     pts2, truth2 = _frame((0,), XY, 2)
     sp2 = plan_scene(pts2, db=db, rng=np.random.default_rng(1), config=SceneConfig(good_enough=0.5), previous=lazy)

@@ -27,6 +27,7 @@ from graspsim.planning.scene_workers import (
     scene_workers,
     shutdown_workers,
     start_workers,
+    stream_segments,
 )
 from graspsim.primitives import Box, Cylinder, Sphere, synthetic_cloud
 from graspsim.primitives.clouds import table_scene_cloud
@@ -153,14 +154,20 @@ def _plan_record(sp) -> list:
 
 
 def _spy_workers(monkeypatch) -> list:
-    """The worker counts the scene's segment planning asked for (one per plan_scene)."""
+    """The worker counts the scene's segment planning asked for (one per batch planned:
+    1 where the batch was planned in this process)."""
     asked = []
 
-    def spy(fn, tasks, sizes, workers=1):
-        asked.append(workers)
-        return run_segments(fn, tasks, sizes, workers)
+    def spy(fn, groups, workers=1):
+        stream = stream_segments(fn, groups, workers)
+        try:
+            for (_, _, parallel), out in zip(groups, stream):
+                asked.append(workers if parallel else 1)
+                yield out
+        finally:
+            stream.close()
 
-    monkeypatch.setattr(scene_segments, "run_segments", spy)
+    monkeypatch.setattr(scene_segments, "stream_segments", spy)
     return asked
 
 
@@ -302,3 +309,78 @@ def test_started_workers_warm_up_and_are_the_pool_scenes_use(tmp_path, monkeypat
     assert list(workers_mod._pools) == [3] and workers_mod._pools[3][1] is pool  # no pool per task count
     shutdown_workers()
     assert not workers_mod._pools
+
+
+def _await_file(path, seconds):
+    """Wait for ``path`` to exist (at most ``seconds``): whether it came."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if os.path.exists(path):
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def _touch(path):
+    open(path, "w").close()
+    return os.getpid()
+
+
+def _until_given_up(started, path, seconds):
+    """Mark ``started``, then spin until the caller gives this task up (then mark
+    ``path``) or ``seconds`` pass."""
+    open(started, "w").close()
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if workers_mod.cancelled():
+            open(path, "w").close()
+            return "given up"
+        time.sleep(0.01)
+    return "ran out"
+
+
+def test_streamed_groups_give_each_groups_results_in_order_here_and_on_workers():
+    groups = [([(-1,), (-2,), (-3,)], [1, 3, 2], True), ([(-4,)], [1], False), ([(-5,), (-6,)], [1, 1], True)]
+    for workers in (1, 2):
+        assert list(stream_segments(abs, groups, workers)) == [[1, 2, 3], [4], [5, 6]]
+    assert list(stream_segments(abs, [], 2)) == [] and list(stream_segments(abs, [([], [], True)], 2)) == [[]]
+
+
+@pytest.mark.skipif(scene_workers(2) < 2, reason="no fork here: segments are planned in this process")
+def test_a_free_worker_starts_the_next_group_ahead_and_a_closed_stream_gives_it_up(tmp_path):
+    """While the first group's task waits for a file that only the second group's task
+    writes, that task starts on the free worker (without it the wait runs out); a third
+    group's task started ahead is given up when the caller closes the stream, and the
+    worker is free again at once."""
+    mark, started, gone = (str(tmp_path / n) for n in ("second ran", "third started", "given up"))
+    groups = [([(mark, 60)], [1], True), ([(mark,)], [1], True), ([(started, gone, 120)], [1], True)]
+    fns = {0: _await_file, 1: _touch, 2: _until_given_up}
+    stream = stream_segments(_dispatch, [([(fns[g], *t) for t in tasks], s, p) for g, (tasks, s, p)
+                                         in enumerate(groups)], 2)
+    assert next(stream) == [True]  # the second group's task ran while the first group's waited
+    assert next(stream)[0] != os.getpid()
+    assert _await_file(started, 60)  # the third group's task began ahead, on the free worker
+    t0 = time.monotonic()
+    stream.close()  # the third group's task (started ahead on the free worker) is given up
+    assert run_segments(abs, [(-1,), (-2,)], [1, 1], 2) == [1, 2]
+    assert _await_file(gone, 60) and time.monotonic() - t0 < 60  # it saw it was given up
+
+
+def _dispatch(fn, *args):
+    return fn(*args)
+
+
+def test_a_group_planned_here_waits_for_every_group_before_it_and_none_after_it_starts_first(tmp_path):
+    """A group that is not parallel (its plans may store a map later ones match against)
+    runs in this process after the groups before it, and no later group's task starts
+    before it has run: the later task marks a file the moment it starts, which the group
+    run here watches for a second."""
+    later = str(tmp_path / "later started")
+    groups = [([(_touch, str(tmp_path / "a"))], [1], True), ([(_where_and_whether, later, 1.0)], [1], False),
+              ([(_touch, later)], [1], True)]
+    out = list(stream_segments(_dispatch, groups, 2))
+    assert out[1] == [(os.getpid(), False)] and os.path.exists(later)
+
+
+def _where_and_whether(path, seconds):
+    return os.getpid(), _await_file(path, seconds)

@@ -30,6 +30,7 @@ camera's frame gives poses in the camera's frame.
 from __future__ import annotations
 
 import time
+from contextlib import closing
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -43,7 +44,7 @@ from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
 from graspsim.perception.segment import cluster_radius, euclidean_clusters, gap_link
 from graspsim.planning.scene_config import LAZY_BATCH, MAX_SCENE_EXTENT, SCENE_BYTES_PER_POINT, SceneConfig
 from graspsim.planning.scene_reuse import SegmentMemory, find_previous
-from graspsim.planning.scene_segments import SceneGrasp, SegmentPlan, plan_segments, settled_plan
+from graspsim.planning.scene_segments import SceneGrasp, SegmentPlan, plan_batches, settled_plan
 from graspsim.planning.scene_workers import identify_segments, start_workers
 from graspsim.primitives import Box
 from graspsim.primitives.base import MIN_DIM
@@ -298,16 +299,18 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
         todo.sort(key=lambda k: (-top[k], k))
         batches = [todo[i:i + LAZY_BATCH] for i in range(0, len(todo), LAZY_BATCH)]
     best = max((g.score for d in done if d is not None for g in d[1]), default=0.0)
-    for b, batch in enumerate(batches):
-        if cfg.good_enough is not None and best >= cfg.good_enough:
-            for k in (k for rest in batches[b:] for k in rest):
-                done[k] = (SegmentPlan(k, len(segs[k]), "deferred", None,
-                                       tuple(p.shape.value for p in idents[k][0].parts), 0, 0.0), [])
-            break
-        for k, d in zip(batch, plan_segments([(segs[k], k, idents[k][0], obstacles[k], db, cfg, table, viewpoint)
-                                               for k in batch], db, cfg)):
-            done[k] = d
-            best = max([best, *(g.score for g in d[1])])
+    stream = plan_batches([[(segs[k], k, idents[k][0], obstacles[k], db, cfg, table, viewpoint) for k in batch]
+                           for batch in batches], db, cfg)
+    with closing(stream):  # stopped early: the next batch's plans started ahead are given up
+        for b, batch in enumerate(batches):
+            if cfg.good_enough is not None and best >= cfg.good_enough:
+                for k in (k for rest in batches[b:] for k in rest):
+                    done[k] = (SegmentPlan(k, len(segs[k]), "deferred", None,
+                                           tuple(p.shape.value for p in idents[k][0].parts), 0, 0.0), [])
+                break
+            for k, d in zip(batch, next(stream)):
+                done[k] = d
+                best = max([best, *(g.score for g in d[1])])
     plans, grasps, memory = [], [], []
     for k, (p, g) in enumerate(done):
         plans.append(p)

@@ -4,7 +4,9 @@ without planning when its identification failed or the previous frame's grasps s
 (:mod:`~graspsim.planning.scene_reuse`), else planned by the run-time planner against
 the scene around it -- the segments side by side on the scene's worker processes
 (:mod:`~graspsim.planning.scene_workers`; a segment's planning draws nothing at random,
-so the result does not depend on where or in which order), or in this process, in
+so the result does not depend on where or in which order; a scene planned lazily
+streams its batches, and a worker free before its batch ends starts the next batch's
+segments ahead: :func:`plan_batches`), or in this process, in
 segment order, when a plan could store a new FS map (later plans match against it) or
 the database is a subclass with state of its own that a copy in a worker would not
 share (:func:`copies_plan_alike`).
@@ -13,6 +15,7 @@ share (:func:`copies_plan_alike`).
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -26,12 +29,12 @@ from graspsim.maps.robust import executed_width
 from graspsim.perception.identify import Identification
 from graspsim.planning.planner import PlannerConfig, PlanResult, canonical_box, plan_stream
 from graspsim.planning.scene_reuse import nothing_new, reused_grasps
-from graspsim.planning.scene_workers import resident_database, run_segments
+from graspsim.planning.scene_workers import cancelled, resident_database, stream_segments
 
 if TYPE_CHECKING:  # the scene's settings (scene.py imports this module)
     from graspsim.planning.scene_config import SceneConfig
 
-__all__ = ["SceneGrasp", "SegmentPlan", "builds_maps", "copies_plan_alike", "settled_plan", "plan_segments"]
+__all__ = ["SceneGrasp", "SegmentPlan", "builds_maps", "copies_plan_alike", "settled_plan", "plan_batches"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,10 +95,13 @@ def _inner(seg: np.ndarray, cfg: SceneConfig) -> tuple[np.ndarray, np.ndarray]:
 
 def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.ndarray | None, db,
                   cfg: SceneConfig, table: TablePlane, viewpoint: np.ndarray | None = None
-                  ) -> tuple[SegmentPlan, list[SceneGrasp]]:
+                  ) -> tuple[SegmentPlan, list[SceneGrasp]] | None:
     """Segment ``k`` (its thinned points ``seg`` (M, 3), identified as ``ident``) planned
     against ``obstacles``: its SegmentPlan and best ``keep`` grasps. It draws nothing at
-    random: the same inputs give the same plan in any process, in any order."""
+    random: the same inputs give the same plan in any process, in any order. None: a
+    plan started ahead that its caller gave up (:func:`~graspsim.planning.scene_workers.cancelled`)."""
+    if cancelled():  # given up before it began
+        return None
     t0 = time.perf_counter()
     pcfg = replace(cfg.planner, table=table, table_band=cfg.table_band,
                    robust=replace(cfg.planner.robust, top=cfg.per_segment))
@@ -106,6 +112,8 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     good = scored = 0  # over the batches so far
     try:
         for item in stream:
+            if cancelled():
+                return None
             if isinstance(item, PlanResult):
                 break
             batches.append(item.map)
@@ -154,15 +162,21 @@ def copies_plan_alike(db) -> bool:
     return type(db) is MapDatabase or getattr(type(db), "copies_plan_alike", False) is True
 
 
-def plan_segments(tasks: list[tuple], db, cfg: SceneConfig) -> list[tuple[SegmentPlan, list[SceneGrasp]]]:
-    """:func:`_plan_segment` of every task, on the scene's worker processes unless a
-    plan could build (and store) an FS map -- then in this process, in segment order,
-    as each plan matches against the maps stored before it -- or the database's copy in
-    a worker might plan otherwise (:func:`copies_plan_alike`): in this process too."""
-    parallel = copies_plan_alike(db) and not any(builds_maps(t[2], db, cfg.planner) for t in tasks)
-    workers = cfg.workers if parallel else 1
+def plan_batches(batches: list[list[tuple]], db, cfg: SceneConfig
+                 ) -> Iterator[list[tuple[SegmentPlan, list[SceneGrasp]]]]:
+    """:func:`_plan_segment` of every task of each batch, yielded batch after batch (see
+    :func:`~graspsim.planning.scene_workers.stream_segments`: a worker free before its
+    batch ends starts the next batch's tasks; closing the generator gives those up). A
+    batch is planned on the scene's worker processes unless a plan could build (and
+    store) an FS map -- then in this process, in segment order, as each plan matches
+    against the maps stored before it, and no later batch starts before it -- or the
+    database's copy in a worker might plan otherwise (:func:`copies_plan_alike`): in this
+    process too."""
+    alike = copies_plan_alike(db)
     # the longest plans first: parts (each streams its own maps), then points
-    return run_segments(_plan_segment_there, tasks, [len(t[2].parts) * 1e6 + len(t[0]) for t in tasks], workers)
+    groups = [(tasks, [len(t[2].parts) * 1e6 + len(t[0]) for t in tasks],
+               alike and not any(builds_maps(t[2], db, cfg.planner) for t in tasks)) for tasks in batches]
+    return stream_segments(_plan_segment_there, groups, cfg.workers)
 
 
 def _plan_segment_there(seg, k, ident, obstacles, db, *args):

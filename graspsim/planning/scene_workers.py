@@ -28,16 +28,27 @@ workers load in the background while the caller waits for something else (a came
 first frame). Where the caller is busy meanwhile, on as many cores as there are
 workers, the warm-up only competes with it (``experiments/bench_scene.py`` measures
 both on 2 cores: no faster there).
+
+A caller that plans segments in groups and may stop after any group (a scene planned
+lazily: ``SceneConfig.good_enough``) streams them (:func:`stream_segments`): a worker
+that finishes its task while the group's last one still runs starts the next group's
+first task ahead of time instead of waiting idle. A group's results are those of
+planning the groups one after another (each task is planned alone, from its own
+inputs); the caller takes them group by group, and when it stops, the tasks begun
+ahead of time are given up -- each stops at its next :func:`cancelled` check, and its
+result is never read.
 """
 
 from __future__ import annotations
 
 import atexit
+import ctypes
 import logging
 import multiprocessing as mp
 import os
 import threading
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
@@ -46,8 +57,8 @@ from graspsim.errors import IdentificationError, InvalidParameterError, PointClo
 from graspsim.perception.identify import Identification, identify
 from graspsim.perception.identify_config import IdentifyConfig
 
-__all__ = ["identify_segment", "identify_segments", "run_segments", "resident_database", "scene_workers",
-           "start_workers", "shutdown_workers"]
+__all__ = ["cancelled", "identify_segment", "identify_segments", "run_segments", "stream_segments",
+           "resident_database", "scene_workers", "start_workers", "shutdown_workers"]
 
 log = logging.getLogger(__name__)
 
@@ -55,6 +66,12 @@ _pools: dict[int, tuple[int, ProcessPoolExecutor]] = {}  # workers -> (pid, pool
 _lock = threading.Lock()
 _databases: dict[tuple, object] = {}  # in a worker: the map databases sent to it, by folder and settings
 _in_worker = False  # this process is one of the scene's workers
+# tasks of stream_segments are numbered (tickets, in the process that streams); one numbered
+# below this shared value was given up. Shared memory made before any pool forks, so every
+# worker reads the value the caller writes.
+_given_up_below = mp.RawValue(ctypes.c_longlong, 0)
+_tickets = 0  # in the streaming process: the tickets handed out so far
+_ticket: int | None = None  # in a worker: the ticket of the task it runs (None: a task without one)
 
 
 def identify_segment(points: np.ndarray, rng: np.random.Generator, config: IdentifyConfig
@@ -159,6 +176,23 @@ def shutdown_workers() -> None:
 atexit.register(shutdown_workers)
 
 
+def cancelled() -> bool:
+    """Whether the task this process runs was given up by the caller that streamed it
+    (:func:`stream_segments`; its result will not be read): a long task checks between
+    its steps and returns early. False outside such a task."""
+    return _ticket is not None and _ticket < _given_up_below.value
+
+
+def _ticketed(ticket: int, fn: Callable, *task):
+    """``fn(*task)`` run as task number ``ticket`` (what :func:`cancelled` checks)."""
+    global _ticket
+    _ticket = ticket
+    try:
+        return fn(*task)
+    finally:
+        _ticket = None
+
+
 def identify_segments(segments: list[np.ndarray], rngs: list[np.random.Generator], config: IdentifyConfig,
                       workers: int | None = 1) -> list[tuple[Identification | None, str]]:
     """:func:`identify_segment` of every segment (M_i, 3) [m] with its own generator,
@@ -187,8 +221,72 @@ def run_segments(fn, tasks: list[tuple], sizes: list[float], workers: int | None
     except BrokenProcessPool as err:  # a worker was killed (e.g. out of memory): go on without them
         log.warning("a scene worker process died (%s); its pool is dropped and the segments are handled in "
                     "this process (the result is the same)", err)
-        with _lock:
-            if _pools.get(n, (None, None))[1] is pool:
-                del _pools[n]
-        pool.shutdown(wait=False, cancel_futures=True)
+        _drop(n, pool)
         return [fn(*t) for t in tasks]
+
+
+def stream_segments(fn: Callable, groups: list[tuple[list[tuple], list[float], bool]], workers: int | None = 1
+                    ) -> Iterator[list]:
+    """The results of ``fn(*task)`` for each group ``(tasks, sizes, parallel)``, one list
+    per group in task order, yielded group after group: the same results as
+    :func:`run_segments` on each group in turn. A parallel group's tasks run on
+    ``workers`` processes (see :func:`scene_workers`), its largest ``sizes`` first; a
+    worker free before its group ends starts the next groups' tasks -- up to the next
+    group that is not parallel, which runs in this process once every group before it
+    has been yielded (a task that may change what later ones read). Closing the
+    generator (the caller needs no more groups) gives up the tasks started ahead: those
+    not begun are cancelled, those running stop at their next :func:`cancelled` check,
+    and their results are never read."""
+    global _tickets
+    n = scene_workers(workers)
+    if n <= 1:
+        for tasks, _, _ in groups:
+            yield [fn(*t) for t in tasks]
+        return
+    # the order tasks are started in: group by group, each group's largest first
+    order = [(g, i) for g, (tasks, sizes, _) in enumerate(groups)
+             for i in sorted(range(len(tasks)), key=lambda i: -sizes[i])]
+    futures: dict[tuple[int, int], Future] = {}
+    at = 0  # the next task in ``order`` to start
+    pool: ProcessPoolExecutor | None = _pool(n)
+    try:
+        for g, (tasks, _, parallel) in enumerate(groups):
+            if not parallel or pool is None:  # here, after every earlier group (none of its tasks started ahead)
+                yield [fn(*t) for t in tasks]
+                at = max(at, next((j for j, (h, _) in enumerate(order) if h > g), len(order)))
+                continue
+            try:
+                while True:
+                    running = [f for f in futures.values() if not f.done()]
+                    # started in order, so never past a group that runs here (one not parallel)
+                    while len(running) < n and at < len(order) and groups[order[at][0]][2]:
+                        h, i = order[at]
+                        futures[h, i] = pool.submit(_ticketed, _tickets, fn, *groups[h][0][i])
+                        _tickets += 1
+                        running.append(futures[h, i])
+                        at += 1
+                    if all((g, i) in futures and futures[g, i].done() for i in range(len(tasks))):
+                        break
+                    wait(running, return_when=FIRST_COMPLETED)
+                out = [futures.pop((g, i)).result() for i in range(len(tasks))]
+            except BrokenProcessPool as err:  # a worker was killed (e.g. out of memory): go on without them
+                log.warning("a scene worker process died (%s); its pool is dropped and the segments are handled in "
+                            "this process (the result is the same)", err)
+                _drop(n, pool)
+                pool = None
+                futures.clear()
+                out = [fn(*t) for t in tasks]
+                at = max(at, next((j for j, (h, _) in enumerate(order) if h > g), len(order)))
+            yield out
+    finally:  # the caller stopped (or every group is done): give up what was started ahead
+        for f in futures.values():
+            f.cancel()
+        _given_up_below.value = _tickets
+
+
+def _drop(n: int, pool: ProcessPoolExecutor) -> None:
+    """Forget the pool of ``n`` workers (one died): the next call starts a new one."""
+    with _lock:
+        if _pools.get(n, (None, None))[1] is pool:
+            del _pools[n]
+    pool.shutdown(wait=False, cancel_futures=True)

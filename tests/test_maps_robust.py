@@ -215,6 +215,34 @@ def test_openings_scored_in_one_pass_equal_each_opening_alone(box_map, cloud, ca
     assert len(set(extra.tolist())) >= 3  # several openings chosen: the case tests something
 
 
+@pytest.mark.parametrize("case", ["nominal", "default", "margin", "viewpoint", "table"])
+def test_scores_without_the_clearance_are_the_same_scores(box_map, cloud, case):
+    # the nominal check (first_clear) asks only whether a pose holds a point: the kernel
+    # then skips the cloud's farther points, which set no flag -- every field but the
+    # clearance (not measured: inf) is bit for bit the full score's
+    rng = np.random.default_rng(12)
+    rows = np.arange(len(box_map))
+    d = rng.normal(size=(100, 3))  # neighbours 15 to 40 cm away, most out of a pose's reach
+    far = d / np.linalg.norm(d, axis=1, keepdims=True) * rng.uniform(0.15, 0.4, (100, 1))
+    seen = np.concatenate([cloud, far] + [_handle_points(box_map, int(r)) for r in rng.choice(rows, 8, replace=False)])
+    cfg = RobustConfig(samples=16, margin=0.002 if case == "margin" else 0.0)
+    if case == "nominal":  # first_clear's settings
+        cfg = replace(cfg, position_sigma=0.0, rotation_sigma=0.0, samples=1, terms=("cloud",), success="none",
+                      occlusion=False)
+    gmap, kw = box_map, {}
+    if case == "viewpoint":
+        kw = {"viewpoint": np.array([0.3, 0.2, 0.4])}
+    if case == "table":
+        gmap = box_map.with_meta(extra={"T_cloud_obj": np.eye(4).tolist(),
+                                        "table": {"normal": [0, 0, 1], "height": -0.045, "clearance": 0.0}})
+    full = score_rows(gmap, rows, seen, cfg, **kw)
+    fast = score_rows(gmap, rows, seen, cfg, with_clearance=False, **kw)
+    for k in ("robust", "feasible", "success", "flags", "extra_opening", "occluded"):
+        np.testing.assert_array_equal(getattr(fast, k), getattr(full, k), err_msg=k)
+    assert np.all(np.isinf(fast.clearance)) and np.all(np.isfinite(full.clearance))
+    assert 0 < np.mean(full.robust > 0) < 1  # some poses hold a point, some do not
+
+
 def test_every_opening_matches_brute_force(box_map, cloud):
     rows = np.arange(0, len(box_map), 10)
     cfg = RobustConfig(samples=8, seed=4, terms=("cloud",))

@@ -23,7 +23,11 @@ scoring call by :func:`graspsim.maps._robust_blocks.blocks`): a block whose boun
 sphere lies farther from every (swept) box than the reach of its farthest point, and --
 for cloud points -- farther than the clearance the nearer blocks already attain, holds
 no point the pass would keep, by more than float32 rounding (``BLOCK_SLACK``). The kept
-points, and so the results, are those of the pass over every point.
+points, and so the results, are those of the pass over every point. A caller that asks
+only whether a pose holds a point (``with_clearance`` False: the planner's check of the
+nominal poses, ``first_clear``) skips the cloud's farther blocks and keeps only the points
+within reach: the flags are the same (a point out of reach sets none), the clearance is
+not measured.
 
 The openings share that pass over all points: the points go into the wrist frame once,
 the boxes that do not move with the jaws (the housing) are measured once, and the moving
@@ -284,19 +288,25 @@ def _opening(i, e, ho, cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl, nc, sd, bit
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _kept_points(P, n_cloud, R, w, i, pivot, th, pm, ho_lo, ho_hi, bc, bh, bs, blk, work, kept):  # pragma: no cover
-    """Grasp i's pass over the points: the blocks near enough first, then the cloud's
-    blocks that may hold its clearance; the points any opening needs go to ``kept``
-    (wrist coordinates, pivot distance, reach, sd0, bits0, cloud flag). Returns their count."""
+def _kept_points(P, n_cloud, R, w, i, pivot, th, pm, ho_lo, ho_hi, bc, bh, bs, blk, work, kept,
+                 with_clearance):  # pragma: no cover
+    """Grasp i's pass over the points: the blocks near enough first, then (``with_clearance``)
+    the cloud's blocks that may hold its clearance; the points any opening needs go to
+    ``kept`` (wrist coordinates, pivot distance, reach, sd0, bits0, cloud flag). Returns
+    their count. Without the clearance only the points within reach of a box are kept:
+    the flags are those of every point (a point out of reach sets no bit), the
+    clearance is not measured."""
     order, start, centre, radius, cloud, low, near, take = blk
     idx, qx, qy, qz, rr, reach, cl, sd0, bits0, lb, keep = work
-    cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl = kept
     f4 = np.float32
     th4, pm4 = f4(th), f4(pm)
     near_blocks(R, w, i, pivot, th, pm, bc, bh, bs, ho_lo, ho_hi, centre, radius, low, near)
     n = gather(order, start, near, idx, 0)
     _wrist_points(P, R, w, i, pivot, th4, pm4, idx, 0, n, n_cloud, qx, qy, qz, rr, reach, cl)
     _distances(qx, qy, qz, 0, n, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, keep)
+    if not with_clearance:  # no cloud point is kept for the clearance alone
+        _keep(n, cl, reach, sd0, lb, f4(-_BIG), keep)
+        return _compact(n, keep, qx, qy, qz, rr, reach, sd0, bits0, cl, kept)
     sweep = f4(ho_hi - ho_lo)
     upper = _upper(cl, sd0, lb, sweep, 0, n, f4(_BIG))
     for j in range(take.shape[0]):  # cloud blocks that may come closer than what the near ones attain
@@ -307,6 +317,13 @@ def _kept_points(P, n_cloud, R, w, i, pivot, th, pm, ho_lo, ho_hi, bc, bh, bs, b
     _distances(qx, qy, qz, n1, n, reach, bc, bh, bs, ho_lo, ho_hi, sd0, bits0, lb, keep)
     upper = _upper(cl, sd0, lb, sweep, n1, n, upper)
     _keep(n, cl, reach, sd0, lb, upper, keep)
+    return _compact(n, keep, qx, qy, qz, rr, reach, sd0, bits0, cl, kept)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _compact(n, keep, qx, qy, qz, rr, reach, sd0, bits0, cl, kept):  # pragma: no cover
+    """The points 0..n marked in ``keep`` copied to ``kept`` in order. Returns their count."""
+    cqx, cqy, cqz, cr, creach, csd0, cbits0, ccl = kept
     nc = 0
     for m in range(n):
         if keep[m]:
@@ -318,7 +335,8 @@ def _kept_points(P, n_cloud, R, w, i, pivot, th, pm, ho_lo, ho_hi, bc, bh, bs, b
 
 @njit(cache=True, nogil=True, fastmath=True)
 def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, sign, DR, Dt, theta, tlen, pivot,
-                 table, pad, cos_fc, margin, point_blocks, lo, hi, clearance, flags):  # pragma: no cover
+                 table, pad, cos_fc, margin, point_blocks, with_clearance, lo, hi, clearance,
+                 flags):  # pragma: no cover
     """Grasps [lo, hi): clearance (N, E) to the cloud points P[:n_cloud] and flags
     (N, E, K) at the pad gaps ``openings`` (N, E) (in order) for perturbations DR
     (K, 3, 3), Dt (K, 3) (theta, tlen (K,): their bounds). A grasp stops after the
@@ -335,7 +353,9 @@ def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, si
     ceiling: none). pad: (half width, z_lo,
     z_hi) of the pads in the wrist frame. point_blocks: P's blocks, :func:`graspsim.maps._robust_blocks.blocks`'s
     (order, start, centre, radius, cloud) (any block size gives the same results; see
-    the module docstring)."""
+    the module docstring). with_clearance: False leaves ``clearance`` unmeasured (the
+    flags are the same; a caller that asks only whether a pose holds a point skips the
+    cloud's farther blocks)."""
     M = P.shape[0]
     K = DR.shape[0]
     E = openings.shape[1]
@@ -371,7 +391,7 @@ def robust_flags(P, n_cloud, R, w, openings, allow, mask, bc, bh, bs, qc, nq, si
         for e in range(E):
             ho_lo, ho_hi = min(ho_lo, 0.5 * openings[i, e]), max(ho_hi, 0.5 * openings[i, e])
         nc = _kept_points(P, n_cloud, R, w, i, pivot, thmax, pmax + margin, ho_lo, ho_hi, bc, bh, bs, blk, work,
-                          kept)
+                          kept, with_clearance)
         _contacts(i, qc, nq, sign, DR, Dt, pad, cos_fc, cf)
         done = False
         for e in range(E):

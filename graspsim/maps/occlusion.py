@@ -66,9 +66,12 @@ class ViewDepth:
     """The depth image of ``points`` (M, 3) seen from ``viewpoint`` (3,), one frame [m].
     tolerance [m]: how far behind the observed surface a point must lie to count as
     occluded (default: 2 point spacings, at least 2 mm: fingers touching the surface
-    are not occluded)."""
+    are not occluded). spacing [m]: the points' median spacing when the caller knows it
+    (:func:`~graspsim.geometry.spacing.median_spacing` of these points, or of the same
+    points in another frame: the same up to rounding); None: measured here."""
 
-    def __init__(self, points: np.ndarray, viewpoint: np.ndarray, tolerance: float | None = None):
+    def __init__(self, points: np.ndarray, viewpoint: np.ndarray, tolerance: float | None = None, *,
+                 spacing: float | None = None):
         P = np.asarray(points, float).reshape(-1, 3)
         P = P[np.all(np.isfinite(P), axis=1)]
         v = check_viewpoint(viewpoint)
@@ -85,7 +88,7 @@ class ViewDepth:
         b1 = np.cross(a, helper)
         b1 /= np.linalg.norm(b1)
         self.basis = np.stack([b1, np.cross(a, b1), a])  # rows: image x, image y, optical axis
-        spacing = max(median_spacing(P), 1e-4)
+        spacing = max(median_spacing(P) if spacing is None else float(spacing), 1e-4)
         self.tolerance = max(2.0 * spacing, 0.002) if tolerance is None else float(tolerance)
         uv, r, front = self._project(P)
         if not front.all():

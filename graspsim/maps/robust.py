@@ -283,14 +283,16 @@ def _perturbations(samples: int, seed: int, position_sigma: float, rotation_sigm
 
 
 def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, view=None,
-           unseen_margin: float | None = None, known: np.ndarray | None = None) -> RobustScores:
+           unseen_margin: float | None = None, known: np.ndarray | None = None,
+           with_clearance: bool = True) -> RobustScores:
     """The robust score of wrist poses (R (n, 3, 3), w (n, 3)) with contact widths (n,),
     contacts and outward normals (n, 2, 3) against the points P (cloud first), the
     table rows of :func:`table_rows`, at every opening of ``cfg``; ``success_of(live)``
     the success probability of the live poses (bool mask); ``view``: a
     :class:`~graspsim.maps.occlusion.ViewDepth` of the cloud, or None; ``unseen_margin``:
     the unseen margin [m] bounded for this object (:func:`_unseen_margin`; None: the config's);
-    ``known``: the points the unseen margin is kept from (the object's own; None: ``P``)."""
+    ``known``: the points the unseen margin is kept from (the object's own; None: ``P``);
+    ``with_clearance`` False: the clearance is not measured (inf; the scores are the same)."""
     from graspsim.maps._robust_blocks import BLOCK_CELL, blocks
     from graspsim.maps._robust_kernel import robust_flags
     from graspsim.maps.kernels import default_threads, run_chunks
@@ -344,12 +346,14 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
     args = (P, n_cloud, np.ascontiguousarray(R), np.ascontiguousarray(w), np.ascontiguousarray(openings), allow,
             int(mask), centers, half, x_sign, np.ascontiguousarray(qc), np.ascontiguousarray(nq), sign, DR, Dt,
             theta, tlen, np.asarray(pivot), np.ascontiguousarray(table), pad, cos_fc, float(cfg.margin),
-            blocks(P, n_cloud, BLOCK_CELL))  # the points' blocks: once, for every thread's chunk
+            blocks(P, n_cloud, BLOCK_CELL), bool(with_clearance))  # the points' blocks: once, for every chunk
     run_chunks(lambda lo, hi: robust_flags(*args, lo, hi, clearance, flags), n,
                default_threads(cfg.threads) if n >= 256 else 1)
     ok = (flags & mask) == 0
     feasible = ok[:, :, 1:].mean(axis=2)
     live = ok[:, :, 0] & (feasible > 0) & reachable
+    if not with_clearance:
+        clearance[:] = np.inf
     results = [(np.where(clearance[:, e] > 1e8, np.inf, clearance[:, e]), flags[:, e], feasible[:, e], live[:, e],
                 occ[:, e], unseen[:, e]) for e in range(len(extras))]
     live_any = np.any([r[3] for r in results], axis=0)
@@ -363,22 +367,23 @@ def _score(P, n_cloud, R, w, width, c, nrm, table, g, cfg, cos_fc, success_of, v
     return RobustScores(pick[0], pick[2], success, scores[best, idx], pick[1], extras[best], pick[3])
 
 
-def view_of(cloud: np.ndarray | None, viewpoint, config: RobustConfig):
+def view_of(cloud: np.ndarray | None, viewpoint, config: RobustConfig, spacing: float | None = None):
     """The depth image (:class:`~graspsim.maps.occlusion.ViewDepth`) of the observed
     ``cloud`` (M, 3) from ``viewpoint`` (3,) that the occlusion term measures against,
     or None (no viewpoint, the term off, fewer than 3 points). A caller scoring several
-    batches against one cloud makes it once and passes it as ``view``."""
+    batches against one cloud makes it once and passes it as ``view``; ``spacing``: the
+    cloud's median spacing if the caller measured it (ViewDepth's)."""
     from graspsim.maps.occlusion import ViewDepth
 
     cloud = np.zeros((0, 3)) if cloud is None else np.asarray(cloud, float).reshape(-1, 3)
     if viewpoint is None or not config.occlusion or len(cloud) < 3:
         return None
-    return ViewDepth(cloud, viewpoint)
+    return ViewDepth(cloud, viewpoint, spacing=spacing)
 
 
 def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: RobustConfig = RobustConfig(),
                gripper: GripperSpec | None = None, *, viewpoint: np.ndarray | None = None,
-               view=None, own: int | None = None) -> RobustScores:
+               view=None, own: int | None = None, with_clearance: bool = True) -> RobustScores:
     """Robust scores of the map's ``rows`` (indices) against ``cloud_obj`` (M, 3) observed
     points in the object frame (None: the identified shape is all that was seen), the
     map's identified shape and its table (``meta.placement``). ``viewpoint`` (3,): where
@@ -387,7 +392,9 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     ``view``: :func:`view_of` ``(cloud_obj, viewpoint, config)`` made already (the same
     numbers; made here when None). ``own``: the first ``own`` points of ``cloud_obj`` are
     the object's, the rest its neighbours' (None: all the object's): the unseen margin
-    keeps the fingers off the object's own known shape only (:func:`_unseen_margin`)."""
+    keeps the fingers off the object's own known shape only (:func:`_unseen_margin`).
+    ``with_clearance`` False: the clearance to the cloud is not measured (inf): the same
+    scores, sooner (a caller that asks only whether a pose holds a point)."""
     cfg = config
     g = gripper or gmap.meta.gripper_spec
     rows = np.asarray(rows, int).reshape(-1)
@@ -408,7 +415,7 @@ def score_rows(gmap, rows: np.ndarray, cloud_obj: np.ndarray | None, config: Rob
     return _score(P, len(cloud), R, w, gmap.width[rows], gmap.contacts[rows].astype(float),
                   gmap.normals[rows].astype(float), trows, g, cfg, cos_fc,
                   lambda live: _success(gmap, rows[live], cfg.success), view,
-                  _unseen_margin(cfg, view, prim if len(prim) else cloud, table), known)
+                  _unseen_margin(cfg, view, prim if len(prim) else cloud, table), known, with_clearance)
 
 
 def _unseen_margin(cfg: RobustConfig, view, shape: np.ndarray, table) -> float:

@@ -86,7 +86,7 @@ def clear_of_cloud(gmap, rows: np.ndarray, cloud_obj: np.ndarray, config: Robust
     success term, the table and the primitives not asked."""
     nominal = replace(config, position_sigma=0.0, rotation_sigma=0.0, samples=1, terms=("cloud",),
                       success="none", occlusion=False)
-    s = score_rows(gmap, rows, cloud_obj, nominal, gripper)
+    s = score_rows(gmap, rows, cloud_obj, nominal, gripper, with_clearance=False)  # whether, not how far
     keep = s.robust > 0
     return keep, np.where(keep, s.extra_opening, 0.0)
 
@@ -134,6 +134,7 @@ class ObservedChecks:
         self.noise, self.gripper, self.quality, self.cfg = float(noise), gripper, quality, cfg
         self.dropped = self.unseen = 0
         self.features: int | None = None
+        self.view: ViewDepth | None = None  # the depth image of cloud_obj in the cloud frame, if the caller has it
         self._unmeasured: dict[bytes, np.ndarray | None] = {}  # unseen_depth's per-part axes, by part size and pose
 
     @classmethod
@@ -295,7 +296,10 @@ class ObservedChecks:
     def _view(self) -> ViewDepth:
         """The depth image, from the viewpoint, of what the gripper must keep clear of (the
         object's points and any obstacles: ``cloud_obj``, else the plan's points) in the
-        cloud frame, as the robust score's occlusion term sees it."""
+        cloud frame, as the robust score's occlusion term sees it (``view`` when the
+        caller made it already)."""
+        if self.view is not None:
+            return self.view
         T = np.asarray(self.T_cloud_obj, float)
         cloud = self.points if self.cloud_obj is None else np.asarray(self.cloud_obj, float) @ T[:3, :3].T + T[:3, 3]
         return ViewDepth(cloud, self.viewpoint)

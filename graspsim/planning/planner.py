@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
+from graspsim.geometry.spacing import median_spacing
 from graspsim.geometry.table import TablePlane, table_frame
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
@@ -579,8 +580,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     first = tenth = first_robust = first_robust_cpu = None
     cloud_obj = cloud_in_object(seen, T_cloud_obj)
     view_obj, view = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0], None
-    if observed is not None:
-        observed.cloud_obj, observed.T_cloud_obj = cloud_obj, T_cloud_obj
+    if observed is not None:  # the same points: the depth image of what was seen serves its checks
+        observed.cloud_obj, observed.T_cloud_obj, observed.view = cloud_obj, T_cloud_obj, seen_view
     stage = StageClock("adapt", "agreement", "combine", "table", "robust", "observed", "features", "clear_first")
     n_checked = n_cut = n_span = 0  # clear_first: rows checked, rows passed over, parts checked to the span
     skip_spent = scored_only and cfg.rank == "robust"
@@ -657,8 +658,10 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                         if skip_spent and budget <= 0:
                             break
                         continue
-                if view is None:  # the cloud's depth image from the viewpoint: one for every batch
-                    view = view_of(cloud_obj, view_obj, cfg.robust)
+                if view is None:  # the cloud's depth image from the viewpoint: one for every batch (in the object
+                    # frame: the seen points' spacing, measured for seen_view, serves it)
+                    view = view_of(cloud_obj, view_obj, cfg.robust,
+                                   None if seen_view is None else median_spacing(seen))
                 batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper,
                                   viewpoint=view_obj, view=view, own=len(points)).ranked()
                 budget -= len(rows)

@@ -190,6 +190,17 @@ def _each_opening_alone(gmap, rows, cloud, cfg, **kw):
     return pick, np.asarray(cfg.openings)[best], np.max([s.success for s in alone], axis=0)
 
 
+def _case_map(box_map, case):
+    """The map and score_rows keywords of a scoring case: a viewpoint (the occlusion
+    term), a table in the map's placement, else the map as it is."""
+    if case == "viewpoint":
+        return box_map, {"viewpoint": np.array([0.3, 0.2, 0.4])}
+    if case == "table":
+        return box_map.with_meta(extra={"T_cloud_obj": np.eye(4).tolist(),
+                                        "table": {"normal": [0, 0, 1], "height": -0.045, "clearance": 0.0}}), {}
+    return box_map, {}
+
+
 @pytest.mark.parametrize("case", ["default", "margin", "viewpoint", "table"])
 def test_openings_scored_in_one_pass_equal_each_opening_alone(box_map, cloud, case):
     # the kernel measures every opening from one pass over the points (the moving boxes
@@ -200,12 +211,7 @@ def test_openings_scored_in_one_pass_equal_each_opening_alone(box_map, cloud, ca
     # (without the unseen margin: its wider openings join only grasps unseen at every regular opening,
     # which a set of one opening offers them to more grasps; it is tested on its own below)
     cfg = RobustConfig(samples=16, margin=0.002 if case == "margin" else 0.0, unseen_margin=0.0)
-    gmap, kw = box_map, {}
-    if case == "viewpoint":
-        kw = {"viewpoint": np.array([0.3, 0.2, 0.4])}
-    if case == "table":
-        gmap = box_map.with_meta(extra={"T_cloud_obj": np.eye(4).tolist(),
-                                        "table": {"normal": [0, 0, 1], "height": -0.045, "clearance": 0.0}})
+    gmap, kw = _case_map(box_map, case)
     both = score_rows(gmap, rows, seen, cfg, **kw)
     pick, extra, success = _each_opening_alone(gmap, rows, seen, cfg, **kw)
     np.testing.assert_array_equal(both.extra_opening, extra)
@@ -229,12 +235,7 @@ def test_scores_without_the_clearance_are_the_same_scores(box_map, cloud, case):
     if case == "nominal":  # first_clear's settings
         cfg = replace(cfg, position_sigma=0.0, rotation_sigma=0.0, samples=1, terms=("cloud",), success="none",
                       occlusion=False)
-    gmap, kw = box_map, {}
-    if case == "viewpoint":
-        kw = {"viewpoint": np.array([0.3, 0.2, 0.4])}
-    if case == "table":
-        gmap = box_map.with_meta(extra={"T_cloud_obj": np.eye(4).tolist(),
-                                        "table": {"normal": [0, 0, 1], "height": -0.045, "clearance": 0.0}})
+    gmap, kw = _case_map(box_map, case)
     full = score_rows(gmap, rows, seen, cfg, **kw)
     fast = score_rows(gmap, rows, seen, cfg, with_clearance=False, **kw)
     for k in ("robust", "feasible", "success", "flags", "extra_opening", "occluded"):

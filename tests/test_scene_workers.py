@@ -384,3 +384,17 @@ def test_a_group_planned_here_waits_for_every_group_before_it_and_none_after_it_
 
 def _where_and_whether(path, seconds):
     return os.getpid(), _await_file(path, seconds)
+
+
+@pytest.mark.skipif(scene_workers(2) < 2, reason="no fork here: segments are planned in this process")
+def test_a_stream_gives_up_only_its_own_tasks(tmp_path):
+    """Another stream ending (another thread's scene, say) leaves this stream's task
+    started ahead running; this stream's close gives it up."""
+    started, gone = str(tmp_path / "started"), str(tmp_path / "given up")
+    mine = stream_segments(_dispatch, [([(_await_file, started, 60)], [1], True),
+                                       ([(_until_given_up, started, gone, 60)], [1], True)], 2)
+    assert next(mine) == [True]  # its second group's task runs ahead, on the other worker
+    assert list(stream_segments(abs, [([(-1,)], [1], True)], 2)) == [[1]]  # another stream, run to its end
+    assert not _await_file(gone, 1.0)  # this stream's task was not given up by it
+    mine.close()
+    assert _await_file(gone, 60)

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import atexit
 import ctypes
+import itertools
 import logging
 import multiprocessing as mp
 import os
@@ -66,11 +67,14 @@ _pools: dict[int, tuple[int, ProcessPoolExecutor]] = {}  # workers -> (pid, pool
 _lock = threading.Lock()
 _databases: dict[tuple, object] = {}  # in a worker: the map databases sent to it, by folder and settings
 _in_worker = False  # this process is one of the scene's workers
-# tasks of stream_segments are numbered (tickets, in the process that streams); one numbered
-# below this shared value was given up. Shared memory made before any pool forks, so every
-# worker reads the value the caller writes.
-_given_up_below = mp.RawValue(ctypes.c_longlong, 0)
-_tickets = 0  # in the streaming process: the tickets handed out so far
+# tasks of stream_segments are numbered (tickets, in the process that streams); a task whose
+# ticket's slot (ticket mod _SLOTS) is set was given up by its stream. Shared memory made
+# before any pool forks, so every worker reads what the caller writes; a stream sets only its
+# own tickets' slots (streams in other threads go on), and a slot is cleared as its ticket is
+# handed out (a task would have to run while _SLOTS more are handed out to read another's).
+_SLOTS = 4096
+_given_up = mp.RawArray(ctypes.c_ubyte, _SLOTS)
+_tickets = itertools.count()  # in the streaming process: the next ticket
 _ticket: int | None = None  # in a worker: the ticket of the task it runs (None: a task without one)
 
 
@@ -180,7 +184,7 @@ def cancelled() -> bool:
     """Whether the task this process runs was given up by the caller that streamed it
     (:func:`stream_segments`; its result will not be read): a long task checks between
     its steps and returns early. False outside such a task."""
-    return _ticket is not None and _ticket < _given_up_below.value
+    return _ticket is not None and _given_up[_ticket % _SLOTS] != 0
 
 
 def _ticketed(ticket: int, fn: Callable, *task):
@@ -237,7 +241,6 @@ def stream_segments(fn: Callable, groups: list[tuple[list[tuple], list[float], b
     generator (the caller needs no more groups) gives up the tasks started ahead: those
     not begun are cancelled, those running stop at their next :func:`cancelled` check,
     and their results are never read."""
-    global _tickets
     n = scene_workers(workers)
     if n <= 1:
         for tasks, _, _ in groups:
@@ -247,6 +250,7 @@ def stream_segments(fn: Callable, groups: list[tuple[list[tuple], list[float], b
     order = [(g, i) for g, (tasks, sizes, _) in enumerate(groups)
              for i in sorted(range(len(tasks)), key=lambda i: -sizes[i])]
     futures: dict[tuple[int, int], Future] = {}
+    tickets: dict[tuple[int, int], int] = {}
     at = 0  # the next task in ``order`` to start
     pool: ProcessPoolExecutor | None = _pool(n)
     try:
@@ -261,8 +265,10 @@ def stream_segments(fn: Callable, groups: list[tuple[list[tuple], list[float], b
                     # started in order, so never past a group that runs here (one not parallel)
                     while len(running) < n and at < len(order) and groups[order[at][0]][2]:
                         h, i = order[at]
-                        futures[h, i] = pool.submit(_ticketed, _tickets, fn, *groups[h][0][i])
-                        _tickets += 1
+                        ticket = next(_tickets)
+                        _given_up[ticket % _SLOTS] = 0
+                        futures[h, i] = pool.submit(_ticketed, ticket, fn, *groups[h][0][i])
+                        tickets[h, i] = ticket
                         running.append(futures[h, i])
                         at += 1
                     if all((g, i) in futures and futures[g, i].done() for i in range(len(tasks))):
@@ -279,9 +285,9 @@ def stream_segments(fn: Callable, groups: list[tuple[list[tuple], list[float], b
                 at = max(at, next((j for j, (h, _) in enumerate(order) if h > g), len(order)))
             yield out
     finally:  # the caller stopped (or every group is done): give up what was started ahead
-        for f in futures.values():
-            f.cancel()
-        _given_up_below.value = _tickets
+        for key, f in futures.items():
+            if not f.cancel() and not f.done():  # running: it stops at its next check
+                _given_up[tickets[key] % _SLOTS] = 1
 
 
 def _drop(n: int, pool: ProcessPoolExecutor) -> None:

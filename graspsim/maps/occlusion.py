@@ -68,7 +68,8 @@ class ViewDepth:
     occluded (default: 2 point spacings, at least 2 mm: fingers touching the surface
     are not occluded). spacing [m]: the points' median spacing when the caller knows it
     (:func:`~graspsim.geometry.spacing.median_spacing` of these points, or of the same
-    points in another frame: the same up to rounding); None: measured here."""
+    points in another frame: the same up to rounding); None: measured here. Its
+    ``spacing`` attribute: the spacing used (at least 0.1 mm)."""
 
     def __init__(self, points: np.ndarray, viewpoint: np.ndarray, tolerance: float | None = None, *,
                  spacing: float | None = None):
@@ -88,7 +89,7 @@ class ViewDepth:
         b1 = np.cross(a, helper)
         b1 /= np.linalg.norm(b1)
         self.basis = np.stack([b1, np.cross(a, b1), a])  # rows: image x, image y, optical axis
-        spacing = max(median_spacing(P) if spacing is None else float(spacing), 1e-4)
+        self.spacing = spacing = max(median_spacing(P) if spacing is None else float(spacing), 1e-4)
         self.tolerance = max(2.0 * spacing, 0.002) if tolerance is None else float(tolerance)
         uv, r, front = self._project(P)
         if not front.all():

@@ -26,7 +26,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from graspsim.errors import InvalidParameterError
-from graspsim.geometry.spacing import median_spacing
 from graspsim.geometry.table import TablePlane, table_frame
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
@@ -660,8 +659,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                         continue
                 if view is None:  # the cloud's depth image from the viewpoint: one for every batch (in the object
                     # frame: the seen points' spacing, measured for seen_view, serves it)
-                    view = view_of(cloud_obj, view_obj, cfg.robust,
-                                   None if seen_view is None else median_spacing(seen))
+                    view = view_of(cloud_obj, view_obj, cfg.robust, None if seen_view is None else seen_view.spacing)
                 batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper,
                                   viewpoint=view_obj, view=view, own=len(points)).ranked()
                 budget -= len(rows)

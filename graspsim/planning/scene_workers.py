@@ -51,6 +51,7 @@ import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import closing
 
 import numpy as np
 
@@ -217,16 +218,8 @@ def run_segments(fn, tasks: list[tuple], sizes: list[float], workers: int | None
     n = scene_workers(workers)
     if min(n, len(tasks)) <= 1:
         return [fn(*t) for t in tasks]
-    pool = _pool(n)  # one pool per size asked for (not per scene's segment count): started once
-    order = sorted(range(len(tasks)), key=lambda i: -sizes[i])
-    try:
-        futures = {i: pool.submit(fn, *tasks[i]) for i in order}
-        return [futures[i].result() for i in range(len(tasks))]
-    except BrokenProcessPool as err:  # a worker was killed (e.g. out of memory): go on without them
-        log.warning("a scene worker process died (%s); its pool is dropped and the segments are handled in "
-                    "this process (the result is the same)", err)
-        _drop(n, pool)
-        return [fn(*t) for t in tasks]
+    with closing(stream_segments(fn, [(tasks, sizes, True)], n)) as stream:  # one group
+        return next(stream)
 
 
 def stream_segments(fn: Callable, groups: list[tuple[list[tuple], list[float], bool]], workers: int | None = 1
@@ -281,8 +274,7 @@ def stream_segments(fn: Callable, groups: list[tuple[list[tuple], list[float], b
                 _drop(n, pool)
                 pool = None
                 futures.clear()
-                out = [fn(*t) for t in tasks]
-                at = max(at, next((j for j, (h, _) in enumerate(order) if h > g), len(order)))
+                out = [fn(*t) for t in tasks]  # and every later group, as pool is None
             yield out
     finally:  # the caller stopped (or every group is done): give up what was started ahead
         for key, f in futures.items():

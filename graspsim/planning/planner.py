@@ -192,6 +192,15 @@ class PlannerConfig:
     table_band: [m] with ``complete_to_table``: the height above the table below which the
         cloud's points were cut away as the table's (a scene's ``SceneConfig.table_band``,
         which sets it); the completed volume's hidden space is judged above it.
+    seen_between: robust identification: the budget of robust scores goes only to grasps whose
+        closing region (between the pads at the pre-grasp opening, across the finger width,
+        along the pad: :meth:`~graspsim.grippers.spec.GripperSpec.points_between`) holds at
+        least this many of the plan's own observed points (not its obstacles'); the others are
+        not offered. A grasp closing where the camera saw nothing of the object closes on the
+        parts' extrapolation alone: in clutter, an organic object's fitted box or cylinder
+        went on where the object did not, and the pads met nothing
+        (:data:`~graspsim.planning.observed.SEEN_BETWEEN`, the value the scene planner sets).
+        0 (default): off. Paper mode never applies it.
     restarts: robust identification made by the planner (not given to it): when the map of
         a cloud's identification holds no accepted grasp, the cloud is identified again, the
         generator drawn on (so the same seed gives the same answer), up to this many more
@@ -225,6 +234,7 @@ class PlannerConfig:
     merge_boxes: bool = False
     table_skip: float | None = None
     clear_first: bool = False
+    seen_between: int = 0
     restarts: int = 2
 
     def __post_init__(self) -> None:
@@ -242,6 +252,9 @@ class PlannerConfig:
         if skip is not None and (isinstance(skip, bool) or not isinstance(skip, (int, float))
                                  or not (np.isfinite(skip) and skip >= 0)):
             raise InvalidParameterError(f"PlannerConfig.table_skip must be >= 0 m or None (off), got {skip!r}")
+        if isinstance(self.seen_between, bool) or not isinstance(self.seen_between, int) or self.seen_between < 0:
+            raise InvalidParameterError(f"PlannerConfig.seen_between must be an integer >= 0 (0: off), "
+                                        f"got {self.seen_between!r}")
         if isinstance(self.restarts, bool) or not isinstance(self.restarts, int) or not 0 <= self.restarts <= 10:
             raise InvalidParameterError(f"PlannerConfig.restarts must be an integer in [0, 10], got {self.restarts!r}")
         if not isinstance(self.robust, RobustConfig):
@@ -639,24 +652,31 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
             if budget > 0:  # robustness of the batch's best-graded grasps, then its order
                 stage.start()
                 rows = np.argsort(-batch.grade, kind="stable")[:budget]
+                closes = None if observed is None or not cfg.seen_between else (
+                    lambda r, b=batch: observed.closes_on_seen(b, r))  # seen_between: on the object's points
+                passed = rows[:0]
                 if cfg.clear_first:  # the budget to the best-graded grasps that can score: none holding a point
                     order = np.argsort(-batch.grade, kind="stable")[:span - part_checked]
-                    rows, checked = first_clear(batch, order, budget, cloud_obj, cfg.robust, db.gripper)
-                    passed = np.setdiff1d(order[:checked], rows)  # each would score 0: not offered
+                    rows, checked = first_clear(batch, order, budget, cloud_obj, cfg.robust, db.gripper, also=closes)
+                    passed = np.setdiff1d(order[:checked], rows)  # each would score 0 or close on nothing: not offered
                     n_checked, n_cut, part_checked = n_checked + checked, n_cut + len(passed), part_checked + checked
                     if part_checked >= span:  # as far down the part's grade order as the check goes
                         n_span += 1
                         budget = len(rows)  # spent once these are scored
-                    if len(passed):
-                        keep = np.ones(len(batch), bool)
-                        keep[passed] = False
-                        rows = (np.cumsum(keep) - 1)[rows]  # their rows once the passed ones are gone
-                        batch = batch.select(keep)
+                elif closes is not None:
+                    ok = closes(rows)
+                    passed, rows = rows[~ok], rows[ok]
+                if len(passed):
+                    keep = np.ones(len(batch), bool)
+                    keep[passed] = False
+                    rows = (np.cumsum(keep) - 1)[rows]  # their rows once the passed ones are gone
+                    batch = batch.select(keep)
+                if cfg.clear_first or closes is not None:
                     stage.lap("clear_first")
-                    if not len(rows):  # the whole batch held points
-                        if skip_spent and budget <= 0:
-                            break
-                        continue
+                if not len(rows):  # the whole batch held points or closed on nothing
+                    if skip_spent and budget <= 0:
+                        break
+                    continue
                 if view is None:  # the cloud's depth image from the viewpoint: one for every batch (in the object
                     # frame: the seen points' spacing, measured for seen_view, serves it)
                     view = view_of(cloud_obj, view_obj, cfg.robust, None if seen_view is None else seen_view.spacing)

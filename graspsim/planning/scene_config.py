@@ -13,6 +13,7 @@ from graspsim.errors import InvalidParameterError
 from graspsim.maps.robust import LIFT_CEILING, UNSEEN_MARGIN, RobustConfig
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.segment import gap_link
+from graspsim.planning.observed import SEEN_BETWEEN
 from graspsim.planning.planner import SCENE_TABLE_SKIP, PlannerConfig
 from graspsim.planning.scene_workers import scene_workers
 
@@ -60,12 +61,13 @@ def _scene_planner() -> PlannerConfig:
     # stored grasps predicted far under the table not scaled (the table filter drops them);
     # a low-profile grasp's pose error counts the way up too (its pads lifted off a thin part);
     # the scoring budget to grasps that hold no point of the scene at their pose (in a pile every best-graded
-    # grasp of a lying bottle can close on a neighbour)
+    # grasp of a lying bottle can close on a neighbour), and to grasps that close on points of the object itself
     return PlannerConfig(robust=RobustConfig(unseen_margin=UNSEEN_MARGIN, lift_ceiling=LIFT_CEILING),
                          identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO),
                          collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=None,
                          both_contacts_all_round=False, complete_to_table=True,
-                         hidden_depth=True, merge_boxes=True, table_skip=SCENE_TABLE_SKIP, clear_first=True)
+                         hidden_depth=True, merge_boxes=True, table_skip=SCENE_TABLE_SKIP, clear_first=True,
+                         seen_between=SEEN_BETWEEN)
 
 
 #: Segments planned together while a scene is planned lazily (``SceneConfig.good_enough``):

@@ -125,7 +125,9 @@ def test_the_unseen_margin_flag_reaches_the_robust_score(tmp_path, capsys, db):
     np.save(f, np.r_[table, box])
     code, s, _ = _run(capsys, f, "-o", out, "--viewpoint", 0, -0.4, 0.5, "--unseen-margin", 0.015,
                       "--db", db.root, *FAST_FLAGS)
-    assert code == 0 and json.loads(out.read_text())["unseen_margin"] == 0.015
+    rec = json.loads(out.read_text())
+    assert code == 0 and rec["unseen_margin"] == 0.015
+    assert rec["seen_between"] == SceneConfig().planner.seen_between > 0  # the record says what the plan asked
     code, s, _ = _run(capsys, f, "-o", out, "--db", db.root, *FAST_FLAGS)  # no viewpoint: no unseen side known
     assert code == 0 and json.loads(out.read_text())["unseen_margin"] == 0.0
 

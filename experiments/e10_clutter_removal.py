@@ -74,7 +74,7 @@ from _e10_report import readme_section, rows_of
 from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS
 from graspsim.errors import SimulationError
 from graspsim.maps.robust import UNSEEN_MARGIN
-from graspsim.planning.scene_config import SceneConfig, with_unseen_margin
+from graspsim.planning.scene_config import SceneConfig, with_seen_between, with_unseen_margin
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.trial_scene import contact_settings
 from graspsim.stats import wilson_interval
@@ -113,6 +113,9 @@ class Config:
     unseen_margin: float | None = opt(None, "the robust score's margin [m] against an object's unseen back "
                                       "(graspsim scene --unseen-margin; alone: the measured UNSEEN_MARGIN; "
                                       "none: the scene planner's default)", const=UNSEEN_MARGIN)
+    seen_between: int | None = opt(None, "the points of its own segment a grasp must close on (graspsim scene "
+                                   "--seen-between; 0: off; none: the scene planner's default, the measured "
+                                   "SEEN_BETWEEN)")
     plan_all: bool = opt(False, "plan every object at every look (graspsim scene --plan-all; default: the highest "
                          "first until a grasp's robust score reaches ClutterConfig.good_enough)")
     contacts: str = opt(DEFAULT_CONTACTS, "the simulation's contact model (graspsim.sim.contact_model; "
@@ -129,7 +132,8 @@ class Config:
             raise ValueError("--scenes and --seeds must be >= 1 and --object-sets not empty")
         for name in self.object_sets:
             check_object_set(name)
-        with_unseen_margin(SceneConfig(), self.unseen_margin)  # a bad margin: refused before the work
+        with_seen_between(with_unseen_margin(SceneConfig(), self.unseen_margin),  # bad values: refused before
+                          self.seen_between)  # the work
 
 
 def conditions(cfg: Config) -> list[dict]:
@@ -150,12 +154,15 @@ def seed_of(cfg: Config, k: int) -> int:
 
 
 def _clutter_config(c: dict, unseen_margin: float | None = None, plan_all: bool = False,
-                    contacts: str = DEFAULT_CONTACTS) -> ClutterConfig:
+                    contacts: str = DEFAULT_CONTACTS, seen_between: int | None = None) -> ClutterConfig:
     """A condition's clutter settings; ``unseen_margin`` [m]: ``Config.unseen_margin``
     (``graspsim scene --unseen-margin``'s path: :func:`~graspsim.planning.scene_config.with_unseen_margin`);
+    ``seen_between``: ``Config.seen_between`` (``--seen-between``'s path:
+    :func:`~graspsim.planning.scene_config.with_seen_between`);
     ``plan_all``: every object planned at every look (``graspsim scene --plan-all``); ``contacts``: the
     simulation's contact model (:func:`graspsim.sim.contact_model`; the default: ``SimSettings()``)."""
-    scene = with_unseen_margin(scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"), unseen_margin)
+    scene = with_seen_between(with_unseen_margin(scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"),
+                                                 unseen_margin), seen_between)
     return ClutterConfig(scene=scene,
                          execution=ExecutionNoise() if c["noise"] == "default" else None,
                          ground_truth=c["ablation"] == "ground_truth", feel=c["ablation"] != "no_feel",
@@ -332,7 +339,7 @@ def _block(task) -> tuple[list, list, set]:
         k, i = divmod(j, per)
         sd = seed_of(cfg, k)
         try:
-            config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts)
+            config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts, cfg.seen_between)
             out += [(sd, r) for r in run_benchmark(c["objects"], c["kind"], 1, sd, db=db, config=config,
                                                    object_set=c["object_set"], first=i)]
         except SimulationError as err:
@@ -357,7 +364,7 @@ def _warm_up(c: dict, cfg: Config, db) -> set:
     from graspsim.tabletop.table_scene import make_scene
 
     db.built = set()
-    config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts)
+    config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts, cfg.seen_between)
     scene = make_scene(c["objects"], c["kind"], derived_seed(cfg.seed, "warm-up"), object_set=c["object_set"],
                        gripper=db.gripper, **({} if config.sim is None else {"settings": config.sim}))
     ep = ClutterEpisode(scene, db=db, rng=rng_for(cfg.seed, "warm-up"), config=config)

@@ -132,6 +132,34 @@ def test_the_unseen_margin_flag_reaches_the_robust_score(tmp_path, capsys, db):
     assert code == 0 and json.loads(out.read_text())["unseen_margin"] == 0.0
 
 
+def test_the_seen_between_flag_reaches_the_planner(tmp_path, capsys, db):
+    """--seen-between N sets the points of its own segment a grasp must close on (0: off),
+    absent the scene planner's default (the measured SEEN_BETWEEN); scene and plan-scene
+    read it alike, and plan-scene records the count it planned with."""
+    import argparse
+
+    from graspsim.cli import build_parser
+    from graspsim.cli._common import add_seen_between_flag, scene_planning_from_args
+    from graspsim.planning.observed import SEEN_BETWEEN
+
+    for command in ("scene", "plan-scene"):
+        head = [command] if command == "scene" else [command, "c.npy", "-o", "g.json"]
+        for flag, want in (([], SEEN_BETWEEN), (["--seen-between", "0"], 0), (["--seen-between", "12"], 12)):
+            args = build_parser().parse_args([*head, *flag])
+            assert scene_planning_from_args(args, SceneConfig()).planner.seen_between == want, (command, flag)
+    assert SEEN_BETWEEN > 0 and PlannerConfig().seen_between == 0  # on in scenes, off for single objects
+    p = argparse.ArgumentParser()
+    add_seen_between_flag(p)
+    assert f"the measured {SEEN_BETWEEN};" in " ".join(p.format_help().split())  # the help says the value in use
+    rng = np.random.default_rng(1)
+    table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), rng.normal(0, 0.0005, 3000)]
+    box = np.c_[rng.uniform(-0.03, 0.03, (800, 2)), rng.uniform(0, 0.06, 800)]
+    f, out = tmp_path / "cloud.npy", tmp_path / "grasps.json"
+    np.save(f, np.r_[table, box])
+    code, _, _ = _run(capsys, f, "-o", out, "--seen-between", 0, "--db", db.root, *FAST_FLAGS)
+    assert code == 0 and json.loads(out.read_text())["seen_between"] == 0
+
+
 @pytest.mark.slow
 def test_a_smaller_planning_budget_scores_fewer_grasps_per_object(tmp_path, capsys, db, scene_cloud):
     path, _, _ = scene_cloud
@@ -291,6 +319,9 @@ def test_a_cloud_too_big_for_the_memory_budget_is_refused_before_any_work(tmp_pa
     ("ok", ["--unseen-margin", "0.5", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
     ("ok", ["--unseen-margin", "nan", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
     ("ok", ["--unseen-margin", "-0.01", "--viewpoint", "0", "0", "1"], "--unseen-margin"),
+    ("ok", ["--seen-between", "-1"], "--seen-between must be a whole number"),
+    ("ok", ["--seen-between", "2.5"], "--seen-between must be a whole number"),
+    ("ok", ["--seen-between", "many"], "--seen-between must be a whole number"),
     ("ok", ["--pose-error", "-0.001", "2"], "--pose-error: the pose error must be"),
     ("ok", ["--pose-error", "0.003", "nan"], "--pose-error: the pose error must be"),
     ("ok", ["--pose-error", "0.5", "2"], "--pose-error: the pose error must be"),

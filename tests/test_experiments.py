@@ -970,6 +970,27 @@ def test_e10_unseen_margin_reaches_the_planner(tmp_path, monkeypatch, capsys):
     assert "unseen margin" in capsys.readouterr().err
 
 
+def test_e10_seen_between_reaches_the_planner(tmp_path, monkeypatch, capsys):
+    """E10 --seen-between N reaches every scene's planner through the scene commands' path
+    (with_seen_between); without it the scene planner's default; a bad count is refused."""
+    from graspsim.planning.scene_config import SceneConfig
+
+    mod = _load("e10_clutter_removal")
+    common = sys.modules["_common"]
+    seen = []
+    monkeypatch.setattr(mod, "run_benchmark", lambda *a, config, **k: seen.append(config) or [])
+    for argv, want in (([], SceneConfig().planner.seen_between), (["--seen-between", "0"], 0),
+                       (["--seen-between", "9"], 9)):
+        cfg, _ = common.parse_config(mod.Config, mod.__file__, ["--object-sets", "primitives", "--scenes", "1",
+                                                                "--seeds", "1", *argv])
+        for c in mod.conditions(cfg)[:2]:
+            mod._block((c, cfg, str(tmp_path / "db"), 0, 1))
+            assert seen[-1].planning.planner.seen_between == want, (argv, c)
+    with pytest.raises(SystemExit):
+        common.parse_config(mod.Config, mod.__file__, ["--object-sets", "primitives", "--seen-between", "-2"])
+    assert "whole number >= 0" in capsys.readouterr().err
+
+
 def test_scene_fingerprint_names_a_bad_object_set_or_size(tmp_path, capsys):
     fp = _load("scene_fingerprint")
     for argv, what in ((["--object-set", "no-such-set"], "unknown object set"), (["--objects", "11"], "--objects")):

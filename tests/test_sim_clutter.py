@@ -211,3 +211,27 @@ def test_cli_scene_render_into_a_file_fails_before_the_work(tmp_path, capsys):
     f.write_text("x")
     assert main(["scene", "--render", str(f), "--db", str(tmp_path / "db")]) == 2
     assert "not a folder" in capsys.readouterr().err and not (tmp_path / "db").exists()
+
+
+def test_an_attempt_records_the_seen_points_it_closed_on(db):
+    """Attempt.between: the points of the grasp's segment (the frame it was planned from)
+    between the pads at the pose and opening executed; the scene planner's grasps close on
+    at least PlannerConfig.seen_between of them."""
+    from graspsim.planning.observed import SEEN_BETWEEN
+
+    ep = ClutterEpisode(make_scene(3, "packed", 2, object_set="primitives"), db=db, rng=np.random.default_rng(1))
+    try:
+        assert ep.config.scene.planner.seen_between == SEEN_BETWEEN > 0
+        while ep.stop is None and (look := ep.observe()) is not None:
+            g = look.best
+            a = ep.execute(look, g)
+            own = look.plan.perception.segment_points(g.segment)
+            want = db.gripper.points_between(np.asarray(g.T_world_wrist)[None], np.array([g.opening]), own)[0]
+            assert isinstance(a.between, int) and a.between == want >= SEEN_BETWEEN
+            assert a.to_dict()["between"] == a.between
+            frame = db.gripper.points_between(np.asarray(g.T_world_wrist)[None], np.array([g.opening]),
+                                                  look.plan.perception.points)[0]
+            assert a.between <= frame  # the segment's share of what the frame has there
+        assert ep.attempts
+    finally:
+        ep.close()

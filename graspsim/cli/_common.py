@@ -151,23 +151,58 @@ def unseen_margin_value(args, *, none: bool = False) -> float | None:
     return float(m)
 
 
+def add_seen_between_flag(p) -> None:
+    """``--seen-between N``, the points of its own segment a scene grasp must close on
+    (read with :func:`scene_planning_from_args`); its help names the measured
+    :data:`~graspsim.planning.observed.SEEN_BETWEEN` (not imported: building the parser
+    stays light)."""
+    p.add_argument("--seen-between", default=None, metavar="N",
+                   help="a grasp must have at least N of its object's seen points between its pads, so that it "
+                   "closes on what the camera saw and not on a fitted part's extrapolation (default: the measured "
+                   "5; 0: off; PlannerConfig.seen_between, docs/scenes.md)")
+
+
+def seen_between_value(args) -> int | None:
+    """``--seen-between`` as a whole number of points, None when not given; anything else
+    is an :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
+    from graspsim.errors import InvalidParameterError
+
+    v = getattr(args, "seen_between", None)
+    if v is None:
+        return None
+    try:
+        n = int(str(v).strip())
+    except ValueError:
+        n = -1
+    if n < 0:
+        from graspsim.planning.observed import SEEN_BETWEEN
+
+        raise InvalidParameterError(f"--seen-between must be a whole number of points >= 0 (the measured "
+                                    f"{SEEN_BETWEEN}; 0: off), got {v!r}")
+    return n
+
+
 def add_scene_planning_flags(p) -> None:
     """The planning flags the scene commands (``scene``, ``plan-scene``) share:
-    ``--budget`` and ``--unseen-margin`` (read with :func:`scene_planning_from_args`)."""
+    ``--budget``, ``--unseen-margin`` and ``--seen-between`` (read with
+    :func:`scene_planning_from_args`)."""
     add_budget_flag(p)
     add_unseen_margin_flag(p)
+    add_seen_between_flag(p)
 
 
 def scene_planning_from_args(args, scene):
-    """``scene`` (a ``SceneConfig``) with ``--budget`` and ``--unseen-margin`` applied
-    (:func:`graspsim.planning.scene_config.with_unseen_margin`, E10's path too); a bad
+    """``scene`` (a ``SceneConfig``) with ``--budget``, ``--unseen-margin`` and
+    ``--seen-between`` applied (:func:`graspsim.planning.scene_config.with_unseen_margin`,
+    :func:`~graspsim.planning.scene_config.with_seen_between`, E10's path too); a bad
     value is an :class:`~graspsim.errors.InvalidParameterError` naming its flag."""
     from dataclasses import replace
 
-    from graspsim.planning.scene_config import with_unseen_margin
+    from graspsim.planning.scene_config import with_seen_between, with_unseen_margin
 
     scene = replace(scene, **budget_from_args(args))
-    return with_unseen_margin(scene, unseen_margin_value(args, none=True))  # the value checked, naming the flag
+    scene = with_unseen_margin(scene, unseen_margin_value(args, none=True))  # the value checked, naming the flag
+    return with_seen_between(scene, seen_between_value(args))
 
 
 class _DeprecatedAlias:

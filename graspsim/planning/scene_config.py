@@ -17,8 +17,8 @@ from graspsim.planning.observed import SEEN_BETWEEN
 from graspsim.planning.planner import SCENE_TABLE_SKIP, PlannerConfig
 from graspsim.planning.scene_workers import scene_workers
 
-__all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "with_pose_error", "MAX_POSE_ERROR",
-           "MAX_UNSEEN_MARGIN", "MAX_SCENE_EXTENT",
+__all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "with_seen_between", "with_pose_error",
+           "MAX_POSE_ERROR", "MAX_UNSEEN_MARGIN", "MAX_SCENE_EXTENT",
            "SCENE_BYTES_PER_POINT", "SCENE_FIT_POINTS", "SCENE_COLLISION_TOLERANCE", "SCENE_MAX_NOISE_RATIO"]
 
 #: Widest plausible table-top scene [m]; wider clouds are taken for millimetres or centimetres.
@@ -212,6 +212,24 @@ def with_unseen_margin(scene: SceneConfig, margin: float | None) -> SceneConfig:
                                     f"(the measured and default: 0.02; 0: none), got {margin!r}")
     planner = scene.planner
     return replace(scene, planner=replace(planner, robust=replace(planner.robust, unseen_margin=float(margin))))
+
+
+def with_seen_between(scene: SceneConfig, points: int | None) -> SceneConfig:
+    """``scene`` with its planner keeping only grasps that close on at least ``points`` of
+    their own segment's points (``PlannerConfig.seen_between``;
+    :data:`~graspsim.planning.observed.SEEN_BETWEEN` the measured value and the scene
+    planner's default; 0: off); None: ``scene`` itself. The one path from a count a user
+    gives (``graspsim scene`` / ``plan-scene --seen-between``, E10 ``--seen-between``) to
+    the planner; anything but a whole number >= 0 is an
+    :class:`~graspsim.errors.InvalidParameterError`."""
+    from dataclasses import replace
+
+    if points is None:
+        return scene
+    if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 0:
+        raise InvalidParameterError(f"the points a grasp must close on must be a whole number >= 0 (the measured "
+                                    f"and default: {SEEN_BETWEEN}; 0: off), got {points!r}")
+    return replace(scene, planner=replace(scene.planner, seen_between=int(points)))
 
 
 #: The largest pose error a scene's planning takes (:func:`with_pose_error`): 2 cm and 10 deg

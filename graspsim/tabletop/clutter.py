@@ -190,7 +190,10 @@ class Attempt:
     (``success_other_object``: another object came up; not a success), score (robust),
     planning [s] (depth frame to ranked grasps; ``timing`` per stage), segments found,
     objects seen, and of those segmented as one cluster; reach (with an arm): what the
-    look's reachability check found (:meth:`ClutterEpisode.observe`)."""
+    look's reachability check found (:meth:`ClutterEpisode.observe`); between: the points
+    of the grasp's segment in its closing region at the pose and opening executed
+    (:meth:`~graspsim.grippers.spec.GripperSpec.points_between`, what
+    ``PlannerConfig.seen_between`` asks of a plan; None with an external planner)."""
 
     target: int | None
     outcome: dict
@@ -203,9 +206,10 @@ class Attempt:
     seen: int
     one_cluster: int
     reach: dict | None = None
+    between: int | None = None
 
     def to_dict(self) -> dict:
-        return {k: v for k, v in self.__dict__.items() if k != "reach" or v is not None}
+        return {k: v for k, v in self.__dict__.items() if k not in ("reach", "between") or v is not None}
 
 
 
@@ -436,9 +440,13 @@ class ClutterEpisode:
             self._previous = replace(sp, memory=drop_grasp(sp.memory, grasp.T_world_wrist, reach=self.reach))
         hit = out.success and out.picked == target  # the target came up (None: unknown target)
         cause = OTHER if out.success and not hit else out.cause
+        gripper = self.db.gripper if self.db is not None else None  # the planner's (the simulated one too)
+        between = None if external or gripper is None else int(gripper.points_between(
+            np.asarray(grasp.T_world_wrist, float)[None], np.array([grasp.opening]),
+            sp.perception.segment_points(grasp.segment))[0])
         a = Attempt(target, out.to_dict(), hit, cause, grasp.score, look.planning, {} if external else sp.timing,
                     0 if external else sp.perception.n_segments, look.seen, look.one_cluster,
-                    look.reach if grasp is look.best else None)
+                    look.reach if grasp is look.best else None, between)
         self.attempts.append(a)
         # a grasp that lifted another object is no success, but the scene changed: no failure in a row
         self.failures = 0 if out.success else self.failures + 1

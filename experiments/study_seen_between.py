@@ -1,0 +1,176 @@
+"""Seen-points study: how many of its object's seen points a grasp that lifts has between
+its pads, and how many a grasp that closes on nothing has -- the evidence for the scene
+planner's ``PlannerConfig.seen_between`` (:data:`graspsim.planning.observed.SEEN_BETWEEN`).
+
+A grasp planned on a fitted part may close where the camera saw nothing of the object: on
+the part's extrapolation alone (a box fitted across a rounded flank, a face seen edge-on).
+This study clears E10's scenes of the tuning meshes only (``household-tuning`` and
+``random-tuning``: the held-out third is never used to set anything), 5-object piles and
+packed scenes, no execution error, E10's seeds, camera, sensor noise and database, with
+``--seen-between`` as the planner's setting while the scenes are cleared (0, the default
+here: off, so the grasps it would refuse are executed and their outcome seen). Every
+executed grasp records (``Attempt.between``) the points of its segment in its closing
+region at the pose and opening executed (``GripperSpec.points_between``); the table
+counts the grasps of each band of that number and what became of them.
+
+    python experiments/study_seen_between.py --db results/e10-fsdb --workers 2 --publish
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from dataclasses import dataclass
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RunDatabase, load_sentence, map_config, md_table, opt, rate_ci, start
+
+log = logging.getLogger("study_seen_between")
+
+#: bands of the points between the pads for the table: [lo, hi] inclusive (None: no upper end)
+BANDS = ((0, 0), (1, 4), (5, 9), (10, 49), (50, None))
+
+
+@dataclass(frozen=True)
+class Config:
+    seeds: int = opt(5, "seeds: E10's first ones (derived from --seed as E10 derives them)")
+    scenes: int = opt(10, "scenes per seed, kind and object set (E10's first ones)")
+    kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
+    object_sets: tuple[str, ...] = opt(("household-tuning", "random-tuning"),
+                                       "object sets (tuning sets only, never a held-out set)")
+    seen_between: int = opt(0, "the planner's PlannerConfig.seen_between while the scenes are cleared (0: off)")
+    seed: int = opt(0, "E10's seed")
+    db: str = opt("", "the FS map database, read only (E10's --db; empty: E10's default folder)")
+    workers: int = opt(1, "processes; results do not depend on it")
+
+    def __post_init__(self) -> None:
+        if self.seeds < 1 or self.scenes < 1 or self.workers < 1 or self.seen_between < 0:
+            raise ValueError("--seeds, --scenes and --workers must be >= 1, --seen-between >= 0")
+        if any(s.endswith("heldout") for s in self.object_sets) or not self.object_sets:
+            raise ValueError("the setting is measured on tuning meshes only, never on a held-out set")
+
+
+_DATABASES: dict = {}
+
+
+def episode(task) -> dict:
+    """Scene ``i`` of seed index ``k`` of ``kind`` and ``object_set`` cleared as E10 clears
+    it, with the planner's ``seen_between`` at ``cfg.seen_between``: its executed grasps."""
+    object_set, kind, k, i, cfg, root = task
+    import e10_clutter_removal as e10
+
+    from graspsim.errors import SimulationError
+    from graspsim.tabletop.clutter import run_benchmark
+
+    if root not in _DATABASES:  # one per process: its cache of loaded maps serves every task
+        _DATABASES[root] = RunDatabase(root, config=map_config(False))
+    db = _DATABASES[root]
+    e10cfg = e10.Config(seed=cfg.seed, seeds=max(cfg.seeds, e10.Config().seeds), object_sets=(object_set,))
+    sd = e10.seed_of(e10cfg, k)
+    c = {"object_set": object_set, "kind": kind, "objects": 5, "noise": "none", "ablation": None}
+    head = {"object_set": object_set, "kind": kind, "seed": sd, "scene": i}
+    try:
+        (r,) = run_benchmark(5, kind, 1, sd, db=db, config=e10._clutter_config(c, seen_between=cfg.seen_between),
+                             object_set=object_set, first=i)
+    except SimulationError as err:  # a scene that does not settle: skipped, as E10 skips it
+        log.warning("%s skipped: %s", head, err)
+        return {**head, "skipped": str(err)}
+    names = r.names
+    return {**head, "skipped": None, "placed": r.placed, "removed": r.removed,
+            "grasps": [{"between": a.between, "cause": a.cause, "success": a.success, "score": a.score,
+                        "target": None if a.target is None else names[a.target]} for a in r.attempts]}
+
+
+def bands(grasps: list[dict]) -> list[dict]:
+    """The table's rows: per band of points between the pads, the grasps and their outcomes."""
+    out = []
+    n = np.array([g["between"] for g in grasps], int)
+    for lo, hi in BANDS:
+        m = (n >= lo) & (n <= (hi if hi is not None else np.iinfo(int).max))
+        gs = [g for g, keep in zip(grasps, m) if keep]
+        causes = [g["cause"] for g in gs]
+        out.append({"band": [lo, hi], "grasps": len(gs), "lifted": sum(g["success"] for g in gs),
+                    "no_contact": causes.count("no_contact"),
+                    "start_collision": sum(c.startswith("start_collision") for c in causes),
+                    "other_failures": sum(not g["success"] and c != "no_contact" and not c.startswith("start_collision")
+                                          for g, c in zip(gs, causes))})
+    return out
+
+
+def summarize(episodes: list[dict]) -> dict:
+    done = [e for e in episodes if not e["skipped"]]
+    grasps = [g for e in done for g in e["grasps"]]
+    lifted = [g["between"] for g in grasps if g["success"]]
+    rows = []
+    for o in dict.fromkeys(e["object_set"] for e in done):
+        for kind in dict.fromkeys(e["kind"] for e in done):
+            es = [e for e in done if e["object_set"] == o and e["kind"] == kind]
+            gs = [g for e in es for g in e["grasps"]]
+            rows.append({"object_set": o, "kind": kind, "scenes": len(es), "attempts": len(gs),
+                         "successes": sum(g["success"] for g in gs), "removed": sum(e["removed"] for e in es),
+                         "placed": sum(e["placed"] for e in es),
+                         "no_contact": sum(g["cause"] == "no_contact" for g in gs)})
+    return {"bands": bands(grasps), "rows": rows, "grasps": len(grasps),
+            "lifted_median_between": float(np.median(lifted)) if lifted else None,
+            "skipped": [{k: e[k] for k in ("object_set", "kind", "seed", "scene", "skipped")}
+                        for e in episodes if e["skipped"]]}
+
+
+def readme_section(s: dict) -> str:
+    c = s["config"]
+    L = [f"`{s['command']}`: E10's conditions on the tuning meshes ({', '.join(c['object_sets'])}; the held-out "
+         f"third not used), {', '.join(c['kinds'])} of 5 objects, no execution error, E10's first {c['seeds']} "
+         f"seeds x {c['scenes']} scenes each, the planner's `seen_between` at {c['seen_between']} while the scenes "
+         "were cleared (0: off). *Between*: the points of the grasp's own segment (the frame it was planned from, "
+         "thinned to the planner's 3 mm grid) in its closing region -- between the pads at the opening executed, "
+         "across the finger width, along the pad (`Attempt.between`); *lifted*: the grasp lifted its target; "
+         "*no contact*: the jaws closed on nothing; *start collision*: with the target, a neighbour or the table.", ""]
+    rows = []
+    for b in s["bands"]:
+        lo, hi = b["band"]
+        label = f"{lo}" if hi == lo else (f"{lo}-{hi}" if hi is not None else f">= {lo}")
+        rows.append([label, b["grasps"], b["lifted"], b["no_contact"], b["start_collision"], b["other_failures"]])
+    L.append(md_table(["between", "grasps", "lifted", "no contact", "start collision", "other failures"], rows))
+    L += ["", "Per condition (GSR = grasps that lifted their target / grasps, DR = objects removed / placed, 95 % "
+          "Wilson intervals):", ""]
+    L.append(md_table(["object set", "kind", "scenes", "GSR", "DR", "no contact"],
+                      [[r["object_set"], r["kind"], r["scenes"], rate_ci(r["successes"], r["attempts"]),
+                        rate_ci(r["removed"], r["placed"]), r["no_contact"]] for r in s["rows"]]))
+    med = s["lifted_median_between"]
+    L += ["", f"{s['grasps']} grasps executed; the median of *between* over the grasps that lifted: "
+          f"{'-' if med is None else f'{med:g}'}; scenes skipped (not settled): {len(s['skipped'])}. "
+          f"{s['config']['workers']} processes. " + load_sentence(s)]
+    return "\n".join(L) + "\n"
+
+
+def main(argv=None) -> int:
+    import e10_clutter_removal as e10
+
+    cfg, out, record = start(Config, __file__, argv, __doc__)
+    root = cfg.db or str(Path(e10.__file__).resolve().parent.parent / "results" / "e10-fsdb")
+    if not Path(root, "index.json").is_file():
+        raise SystemExit(f"study_seen_between: no FS map database at {root} (run E10 first, or give --db)")
+    tasks = [(o, kind, k, i, cfg, root) for o in cfg.object_sets for kind in cfg.kinds for k in range(cfg.seeds)
+             for i in range(cfg.scenes)]
+    pool = get_context("spawn").Pool(cfg.workers) if cfg.workers > 1 else None
+    episodes = []
+    try:
+        for e in (pool.imap(episode, tasks) if pool is not None else map(episode, tasks)):
+            episodes.append(e)
+            log.info("%d of %d scenes: %s %s seed %d scene %d", len(episodes), len(tasks), e["object_set"],
+                     e["kind"], e["seed"], e["scene"])
+    finally:
+        if pool is not None:
+            pool.close()
+            pool.join()
+    text = record.write(out, {"config": cfg, **summarize(episodes), "episodes": episodes}, readme_section)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1106,3 +1106,23 @@ def test_study_identification_stability_counts_each_variant_once(tmp_path):
     pool = s["pooled"]["development/full"]
     assert pool["variants"] == 3 and pool["usable"] == row["usable"] and pool["clouds"] == 1
     assert s["command"] in study.readme_section(s)
+
+
+def test_seen_between_study_counts_each_grasp_in_one_band_and_refuses_held_out_sets(capsys):
+    """study_seen_between: every grasp lands in exactly one band of its point count, its
+    outcome in exactly one column; a held-out set is refused before any work."""
+    mod = _load("study_seen_between")
+    common = sys.modules["_common"]
+    grasps = [{"between": n, "cause": c, "success": c == "success"}
+              for n, c in ((0, "success"), (0, "no_contact"), (3, "start_collision_target"), (4, "dropped"),
+                           (5, "success"), (9, "no_contact"), (10, "success"), (49, "slipped"), (50, "success"),
+                           (10_000, "start_collision_table"))]
+    rows = mod.bands(grasps)
+    assert [r["grasps"] for r in rows] == [2, 2, 2, 2, 2]
+    for r in rows:
+        assert r["lifted"] + r["no_contact"] + r["start_collision"] + r["other_failures"] == r["grasps"]
+    assert [r["lifted"] for r in rows] == [1, 0, 1, 1, 1] and rows[1]["other_failures"] == 1
+    assert rows[-1]["start_collision"] == 1
+    with pytest.raises(SystemExit):
+        common.parse_config(mod.Config, mod.__file__, ["--object-sets", "household-heldout"])
+    assert "held-out" in capsys.readouterr().err

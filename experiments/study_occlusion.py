@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 import sys
 from dataclasses import dataclass, replace
+from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -42,20 +43,26 @@ class Config:
     scenes: int = opt(4, "scenes per seed and kind")
     kinds: tuple[str, ...] = opt(("pile", "packed"), "scene kinds", choices=("pile", "packed"))
     seed: int = opt(0, "E10's seed")
-    object_set: str = opt("household-tuning", "objects drawn from this set (never a held-out set)")
+    object_sets: tuple[str, ...] = opt(("household-tuning",), "objects drawn from these sets (never a held-out set)")
     occlusion_power: float = opt(1.0, "the occlusion term's exponent while the scenes are cleared (1: the plain "
                                       "fraction)")
     db: str = opt("", "the FS map database (E10's --db; empty: E10's default folder)")
+    workers: int = opt(1, "processes; results do not depend on it")
 
     def __post_init__(self) -> None:
-        if self.seeds < 1 or self.scenes < 1 or self.occlusion_power < 0:
-            raise ValueError("--seeds and --scenes >= 1, --occlusion-power >= 0")
-        if self.object_set.endswith("heldout"):
+        if self.seeds < 1 or self.scenes < 1 or self.occlusion_power < 0 or self.workers < 1:
+            raise ValueError("--seeds, --scenes and --workers >= 1, --occlusion-power >= 0")
+        if not self.object_sets or any(o.endswith("heldout") for o in self.object_sets):
             raise ValueError("the exponent is fitted on tuning meshes only, never on a held-out set")
 
 
-def attempts(cfg: Config, kind: str, db) -> list[dict]:
-    """(f, cause, target name) of every grasp executed in ``kind`` scenes."""
+_DATABASES: dict = {}
+
+
+def attempts(task) -> list[dict]:
+    """(f, cause, target name) of every grasp executed in scene ``i`` of seed index ``k``
+    of ``kind`` scenes of ``object_set``."""
+    object_set, kind, k, i, cfg, root = task
     import e10_clutter_removal as e10
 
     from graspsim.maps.occlusion import ViewDepth, finger_occlusion
@@ -63,6 +70,9 @@ def attempts(cfg: Config, kind: str, db) -> list[dict]:
     from graspsim.tabletop.clutter import ClutterEpisode, grasp_target
     from graspsim.tabletop.table_scene import make_scene
 
+    if root not in _DATABASES:  # one per process: its cache of loaded maps serves every task
+        _DATABASES[root] = RunDatabase(root, config=map_config(e10.Config().quick_maps))
+    db = _DATABASES[root]
     # E10's seeds: derived from --seed as E10 derives its five (one seed would be --seed itself)
     e10cfg = e10.Config(seed=cfg.seed, seeds=max(cfg.seeds, e10.Config().seeds), scenes=cfg.scenes)
     clutter = e10._clutter_config({"kind": kind, "noise": "none", "ablation": None})
@@ -70,25 +80,22 @@ def attempts(cfg: Config, kind: str, db) -> list[dict]:
     clutter = replace(clutter, scene=replace(clutter.scene, planner=replace(
         planner, robust=replace(planner.robust, occlusion_power=cfg.occlusion_power))))
     out = []
-    for k in range(cfg.seeds):
-        sd = e10.seed_of(e10cfg, k)
-        for i in range(cfg.scenes):
-            scene = make_scene(5, kind, derived_seed(sd, "scene", i), object_set=cfg.object_set, gripper=db.gripper)
-            ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=clutter)
-            try:
-                for look, g, _, _ in e10.looks(ep):
-                    eye = ep.camera.T_world_camera[:3, 3]
-                    T = np.asarray(g.T_world_wrist, float)
-                    f = float(finger_occlusion(ViewDepth(look.view.world(), eye), T[None, :3, :3], T[None, :3, 3],
-                                               np.array([g.opening]), db.gripper)[0])
-                    target = grasp_target(look, g, db.gripper)
-                    a = ep.execute(look, g)
-                    name = None if target is None else scene.objects[target].name
-                    out.append({"kind": kind, "seed": sd, "scene": i, "f": f, "cause": a.cause, "target": name,
-                                "score": a.score})
-            finally:
-                ep.close()
-            log.info("%s seed %d scene %d: %d grasps so far", kind, k, i, len(out))
+    sd = e10.seed_of(e10cfg, k)
+    scene = make_scene(5, kind, derived_seed(sd, "scene", i), object_set=object_set, gripper=db.gripper)
+    ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=clutter)
+    try:
+        for look, g, _, _ in e10.looks(ep):
+            eye = ep.camera.T_world_camera[:3, 3]
+            T = np.asarray(g.T_world_wrist, float)
+            f = float(finger_occlusion(ViewDepth(look.view.world(), eye), T[None, :3, :3], T[None, :3, 3],
+                                       np.array([g.opening]), db.gripper)[0])
+            target = grasp_target(look, g, db.gripper)
+            a = ep.execute(look, g)
+            name = None if target is None else scene.objects[target].name
+            out.append({"object_set": object_set, "kind": kind, "seed": sd, "scene": i, "f": f, "cause": a.cause,
+                        "target": name, "score": a.score})
+    finally:
+        ep.close()
     return out
 
 
@@ -108,8 +115,18 @@ def run(cfg: Config) -> dict:
     import e10_clutter_removal as e10
 
     root = cfg.db or str(Path(e10.__file__).resolve().parent.parent / "results" / "e10-fsdb")
-    db = RunDatabase(root, config=map_config(e10.Config().quick_maps))
-    rows = [r for kind in cfg.kinds for r in attempts(cfg, kind, db)]
+    tasks = [(o, kind, k, i, cfg, root) for o in cfg.object_sets for kind in cfg.kinds for k in range(cfg.seeds)
+             for i in range(cfg.scenes)]
+    pool = get_context("spawn").Pool(cfg.workers) if cfg.workers > 1 else None
+    rows = []
+    try:
+        for j, got in enumerate(pool.imap(attempts, tasks) if pool is not None else map(attempts, tasks)):
+            rows += got
+            log.info("%d of %d scenes: %d grasps so far", j + 1, len(tasks), len(rows))
+    finally:
+        if pool is not None:
+            pool.close()
+            pool.join()
     f = np.array([r["f"] for r in rows])
     hit = np.array([r["cause"].startswith("start_collision") and r["cause"] != "start_collision_table"
                     for r in rows])
@@ -126,7 +143,8 @@ def run(cfg: Config) -> dict:
 
 def readme_section(s: dict) -> str:
     c, fit = s["config"], s["fit"]
-    L = [f"`{s['command']}`: E10's conditions on the tuning meshes (\"{c['object_set']}\"; the held-out third "
+    sets = ", ".join(f'"{o}"' for o in c.get("object_sets", [c.get("object_set")]))  # one set before 2026-11-30
+    L = [f"`{s['command']}`: E10's conditions on the tuning meshes ({sets}; the held-out third "
          f"not used), {', '.join(c['kinds'])} of 5 objects, no execution error, {c['seeds']} seeds x "
          f"{c['scenes']} scenes each, the occlusion term's exponent at {c['occlusion_power']:g} while the scenes "
          "were cleared. *f*: the fraction of the finger volume in space the camera did not see (behind the observed "

@@ -185,7 +185,9 @@ def _row(c: dict, pairs: list) -> dict:
     return {**c, **s, "gsr_interval_95": gsr, "cleared_interval_95": dr, "per_seed": ps["per_seed"],
             "gsr_over_seeds": ps["gsr"], "dr_over_seeds": ps["dr"],
             "episodes": [{"seed": k, "scene": i, **{key: v for key, v in r.to_dict().items() if key != "steps"},
-                          "causes": [a.cause for a in r.attempts], "planning": [a.planning for a in r.attempts]}
+                          "causes": [a.cause for a in r.attempts], "planning": [a.planning for a in r.attempts],
+                          "scores": [round(a.score, 4) for a in r.attempts],  # the robust score of each grasp
+                          "between": [a.between for a in r.attempts]}  # its seen points between the pads
                          for i, (k, r) in enumerate(pairs)]}
 
 

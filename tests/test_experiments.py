@@ -1130,3 +1130,33 @@ def test_seen_between_study_counts_each_grasp_in_one_band_and_refuses_held_out_s
     with pytest.raises(SystemExit):
         common.parse_config(mod.Config, mod.__file__, ["--object-sets", "household-heldout"])
     assert "held-out" in capsys.readouterr().err
+
+
+def test_e10_paired_counts_same_better_and_worse_episodes(tmp_path, capsys):
+    """e10_paired pairs two runs' episodes by condition, seed and scene: same (causes and
+    removed equal), more or fewer removed, as many by other attempts; a condition in one
+    run only is named and skipped; a missing file is one line."""
+    mod = _load("e10_paired")
+
+    def cond(kind, eps):
+        return {"object_set": "s", "kind": kind, "objects": 5, "noise": "none", "ablation": None,
+                "episodes": [{"seed": 1, "scene": i, "causes": c, "removed": r, "placed": 5,
+                              "successes": c.count("success"), "attempts": len(c)} for i, (c, r) in enumerate(eps)]}
+
+    ok, fail = "success", "no_contact"
+    base = {"conditions": [cond("pile", [([ok] * 5, 5), ([ok, fail, fail], 1), ([ok] * 5, 5), ([fail, ok], 1)]),
+                           cond("packed", [([ok], 1)])]}
+    new = {"conditions": [cond("pile", [([ok] * 5, 5), ([ok] * 5, 5), ([ok, fail, fail], 1), ([ok, fail], 1)])]}
+    rows, only = mod.compare(base, new)
+    (r,) = rows
+    assert (r["paired"], r["same"], r["more_removed"], r["fewer_removed"], r["otherwise"]) == (4, 1, 1, 1, 1)
+    assert r["base_removed"] == r["new_removed"] == 12 and r["new_attempts"] == 15
+    assert only == ["s packed of 5, no execution error"]
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_text(json.dumps(base))
+    b.write_text(json.dumps(new))
+    assert mod.main([str(a), str(b)]) == 0
+    out = capsys.readouterr()
+    assert "1 of 4 paired episodes the same" in out.out and "only in one run" in out.err
+    with pytest.raises(SystemExit, match="not a file"):
+        mod.main([str(tmp_path / "missing.json"), str(b)])

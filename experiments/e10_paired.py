@@ -8,20 +8,29 @@ paired by condition (object set, kind, objects, execution error, ablation), seed
 scene; a condition in only one of the runs is named and skipped. *Same*: the attempts'
 causes in order and the objects removed are equal (the grasps themselves may differ).
 
-    python experiments/e10_paired.py be26750:experiments/reported/e10_clutter_removal.json \\
-        experiments/reported/e10_clutter_removal.json
+    python experiments/e10_paired.py --base 759a455:experiments/reported/e10_clutter_removal.json \\
+        --new experiments/reported/e10_clutter_removal.json
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import opt, start
 
 ROOT = Path(__file__).resolve().parent.parent
 KEY = ("object_set", "kind", "objects", "noise", "ablation")
+
+
+@dataclass(frozen=True)
+class Config:
+    base: str = opt("", "the earlier run's summary: a file or REV:PATH (a file as committed at git revision REV)")
+    new: str = opt("", "the later run's summary: a file or REV:PATH")
 
 
 def load(spec: str) -> dict:
@@ -73,22 +82,27 @@ def _rate(k: int, n: int) -> str:
     return f"{100 * k / n:.1f}" if n else "-"
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("base", help="the earlier run's summary: a file or REV:PATH")
-    p.add_argument("new", help="the later run's summary: a file or REV:PATH")
-    args = p.parse_args(argv)
-    base, new = load(args.base), load(args.new)
-    rows, only = compare(base, new)
-    print("| condition | paired episodes | same | more removed | fewer removed | as many, otherwise | GSR before -> "
-          "after | DR before -> after |")
-    print("|---|---|---|---|---|---|---|---|")
+def table(rows: list[dict]) -> str:
+    L = ["| condition | paired episodes | same | more removed | fewer removed | as many, otherwise | GSR before -> "
+         "after | DR before -> after |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        print(f"| {r['condition']} | {r['paired']} | {r['same']} | {r['more_removed']} | {r['fewer_removed']} | "
-              f"{r['otherwise']} | {_rate(r['base_successes'], r['base_attempts'])} -> "
-              f"{_rate(r['new_successes'], r['new_attempts'])} | {_rate(r['base_removed'], r['base_placed'])} -> "
-              f"{_rate(r['new_removed'], r['new_placed'])} |")
-    print(f"\nIn all: {sum(r['same'] for r in rows)} of {sum(r['paired'] for r in rows)} paired episodes the same.")
+        L.append(f"| {r['condition']} | {r['paired']} | {r['same']} | {r['more_removed']} | {r['fewer_removed']} | "
+                 f"{r['otherwise']} | {_rate(r['base_successes'], r['base_attempts'])} -> "
+                 f"{_rate(r['new_successes'], r['new_attempts'])} | {_rate(r['base_removed'], r['base_placed'])} -> "
+                 f"{_rate(r['new_removed'], r['new_placed'])} |")
+    L.append(f"\nIn all: {sum(r['same'] for r in rows)} of {sum(r['paired'] for r in rows)} paired episodes the same.")
+    return "\n".join(L)
+
+
+def main(argv=None) -> int:
+    cfg, out, record = start(Config, __file__, argv, __doc__)
+    if not cfg.base or not cfg.new:
+        raise SystemExit("e10_paired: --base and --new name the two runs' summaries (a file or REV:PATH)")
+    base, new = load(cfg.base), load(cfg.new)
+    rows, only = compare(base, new)
+    text = table(rows)
+    record.write(out, {"config": cfg, "rows": rows, "only_in_one": only})
+    print(text)
     for label in only:
         print(f"only in one run (skipped): {label}", file=sys.stderr)
     return 0

@@ -1155,8 +1155,9 @@ def test_e10_paired_counts_same_better_and_worse_episodes(tmp_path, capsys):
     a, b = tmp_path / "a.json", tmp_path / "b.json"
     a.write_text(json.dumps(base))
     b.write_text(json.dumps(new))
-    assert mod.main([str(a), str(b)]) == 0
+    assert mod.main(["--base", str(a), "--new", str(b), "--out", str(tmp_path / "out")]) == 0
     out = capsys.readouterr()
     assert "1 of 4 paired episodes the same" in out.out and "only in one run" in out.err
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["rows"][0]["same"] == 1
     with pytest.raises(SystemExit, match="not a file"):
-        mod.main([str(tmp_path / "missing.json"), str(b)])
+        mod.main(["--base", str(tmp_path / "missing.json"), "--new", str(b), "--out", str(tmp_path / "out")])

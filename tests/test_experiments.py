@@ -495,8 +495,9 @@ def test_bench_scene_quick(tmp_path):
     (p,) = s["planning"]["rows"]  # one 5-object pile planned from its first frame
     stages = sum(p[k] for k in ("backproject", "table", "segment", "identify", "plan"))
     assert p["segments"] >= 1 and 0 < stages <= p["total"] + 1e-6
-    # the budget held: at most 50 grasps robust-scored per identified part (E10's budget scores up to 200)
-    assert any(n for n, _ in p["scored"]) and all(n <= 50 * parts for n, parts in p["scored"])
+    # the budget held: at most 50 grasps robust-scored per identified part, and as many on the cloud's own
+    # features where the parts gave too few (E10's budget scores up to 200)
+    assert any(n for n, _ in p["scored"]) and all(n <= 50 * (parts + 1) for n, parts in p["scored"])
     assert p["cpu"] > 0 and s["planning"]["warmup_scenes"] == bench.WARMUP  # timed cold, after other scenes
     text = bench.readme_section(s)
     assert "| pile, 5 objects | 1 |" in text and "as a user meets a new frame" in text

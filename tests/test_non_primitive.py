@@ -147,24 +147,26 @@ def test_clear_observed_off_keeps_colliding_grasps(db):
     assert np.any(_holding_points(m, rows, obj))
 
 
-def test_scene_planning_adds_feature_grasps_but_keeps_no_cloud_filter():
-    """Scene planning adds grasps fitted to the cloud's own features where the parts give
-    too few (E10's tuning sets measured both ways: docs/results.md), but does not drop
-    grasps holding observed points (its clear-first check and the robust score judge the
-    scene); a one-object plan does both by default."""
+def test_scene_planning_keeps_neither_the_cloud_filter_nor_feature_grasps():
+    """Scene planning's published behaviour: the per-segment planner neither drops grasps
+    holding observed points nor adds feature grasps (with them E10's ten-object piles
+    removed fewer objects and planned slower: docs/results.md); a one-object plan does
+    both by default."""
     from graspsim.planning.scene_config import SceneConfig
 
     scene = SceneConfig().planner
-    assert scene.clear_observed is False and scene.features == PlannerConfig().features is not None
-    assert PlannerConfig().clear_observed is True
+    assert scene.clear_observed is False and scene.features is None
+    assert PlannerConfig().clear_observed is True and PlannerConfig().features is not None
 
 
 def test_a_bowl_on_a_table_gets_grasps_in_a_scene_from_its_features_alone(db):
     """A thin-walled bowl wider than the gripper opens, seen on a table from one camera:
-    its one sphere gives no grasp; the scene planner's feature grasps give it some that
-    score > 0, each closing on seen points of the bowl; without them, none."""
+    its one sphere gives no grasp; feature grasps turned on in the scene planner
+    (``PlannerConfig.features``) give it some that score > 0, each closing on seen points
+    of the bowl; without them (the scene planner's default), none."""
     from dataclasses import replace
 
+    from graspsim.maps.feature_grasps import FeatureConfig
     from graspsim.planning.scene import plan_scene
     from graspsim.planning.scene_config import SceneConfig
 
@@ -177,8 +179,8 @@ def test_a_bowl_on_a_table_gets_grasps_in_a_scene_from_its_features_alone(db):
     plans = {}
     for features in (True, False):
         cfg = SceneConfig(workers=1)
-        if not features:
-            cfg = replace(cfg, planner=replace(cfg.planner, features=None))
+        if features:
+            cfg = replace(cfg, planner=replace(cfg.planner, features=FeatureConfig()))
         plans[features] = plan_scene(pts, db=db, rng=np.random.default_rng(5), config=cfg, viewpoint=eye)
     on, off = plans[True], plans[False]
     assert off.segments and not any(g.score > 0 for g in off.grasps)  # the near wall and the far one: no grasp

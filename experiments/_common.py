@@ -21,7 +21,9 @@ A script is thin (STYLE.md 16)::
 What lives here, one of each:
 
 * **The start of a run**: :func:`start` (``main``'s preamble: the config from the
-  command line, logging, the :class:`RunRecord` and the output folder).
+  command line, logging, the :class:`RunRecord` and the output folder);
+  :func:`task_results` (a run's tasks on its worker processes, in order) and
+  :func:`resident_run_database` (a process's one read-only database).
 * **Config -> CLI**: :func:`opt`, :func:`parse_config` (a flag per dataclass field, the
   dataclass default shown in ``--help``; ``--out``, ``--publish`` and, when the class
   has ``QUICK``, ``--quick``; a value the config rejects exits 2 with one line).
@@ -69,6 +71,7 @@ import subprocess
 import sys
 import types
 import typing
+from multiprocessing import get_context
 from pathlib import Path
 
 from _scenes import (
@@ -81,6 +84,7 @@ from _scenes import (
     grid_shapes,
     map_config,
     noise_sigmas,
+    resident_run_database,
     standing_cloud,
 )
 from _timing import Clock, load_average, run_cli_fresh, run_fresh, stopwatch
@@ -96,7 +100,7 @@ __all__ = ["start", "opt", "parse_config", "RunRecord", "machine_load", "provena
            "Clock", "stopwatch", "load_average", "run_fresh", "run_cli_fresh",
            "write_json", "write_text", "write_config", "fmt", "md_table", "mean_sd_text", "pct", "rate_ci",
            "noise_sigmas", "experiment_database", "database_record", "database_note", "RunDatabase", "GRID",
-           "grid_shapes", "build_grid"]
+           "grid_shapes", "build_grid", "resident_run_database", "task_results"]
 
 EXPERIMENTS = Path(__file__).resolve().parent
 
@@ -217,6 +221,18 @@ def run_study(cls, script: str, run, readme_section, argv=None, description: str
     record.write(out, {"config": cfg, **res}, readme_section)
     print(readme_section(json.loads((out / "summary.json").read_text())))
     return 0
+
+
+def task_results(fn, tasks: list, workers: int):
+    """``fn`` of each task, in the tasks' order, on ``workers`` spawned processes (1: in
+    this one), yielded as each is done; the pool is closed when the caller is done."""
+    pool = get_context("spawn").Pool(workers) if workers > 1 else None
+    try:
+        yield from (pool.imap(fn, tasks) if pool is not None else map(fn, tasks))
+    finally:
+        if pool is not None:
+            pool.close()
+            pool.join()
 
 
 def load_sentence(summary: dict) -> str:

@@ -171,6 +171,19 @@ class RunDatabase(MapDatabase):
 GRID = (0.0015, 0.006, 0.024, 0.096)
 
 
+_RESIDENT: dict = {}
+
+
+def resident_run_database(root, quick_maps: bool = False) -> RunDatabase:
+    """This process's one :class:`RunDatabase` on ``root`` at the (quick or default) map
+    config: a worker process's loaded maps and maps built in memory serve every task it
+    runs."""
+    key = (str(root), bool(quick_maps))
+    if key not in _RESIDENT:
+        _RESIDENT[key] = RunDatabase(root, config=map_config(quick_maps))
+    return _RESIDENT[key]
+
+
 def grid_shapes(config) -> list:
     """The primitives of the run's database besides the paper's shapes: boxes with
     sorted sides (identification orders them), cylinders, spheres, cones (tops down to

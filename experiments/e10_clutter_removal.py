@@ -66,6 +66,7 @@ from _common import (
     map_config,
     opt,
     rate_ci,
+    resident_run_database,
     rng_for,
     start,
 )
@@ -330,9 +331,7 @@ def _block(task) -> tuple[list, list, set]:
     c, cfg, root, first, n = task
     per = scenes_per_seed(cfg, c)
     key = (root, cfg.quick_maps)
-    if key not in _DATABASES:  # one per process: its cache of loaded maps serves every task
-        _DATABASES[key] = RunDatabase(root, config=map_config(cfg.quick_maps))
-    db = _DATABASES[key]
+    db = resident_run_database(root, cfg.quick_maps)
     warm = _warm_up(c, cfg, db) if key not in _WARM else set()
     _WARM.add(key)
     db.built = set(warm)
@@ -350,7 +349,6 @@ def _block(task) -> tuple[list, list, set]:
     return out, skipped, db.built
 
 
-_DATABASES: dict = {}
 _WARM: set = set()
 
 

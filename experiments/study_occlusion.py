@@ -23,13 +23,12 @@ from __future__ import annotations
 import logging
 import sys
 from dataclasses import dataclass, replace
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunDatabase, load_sentence, map_config, opt, run_study
+from _common import load_sentence, opt, resident_run_database, run_study, task_results
 
 log = logging.getLogger("study_occlusion")
 
@@ -56,9 +55,6 @@ class Config:
             raise ValueError("the exponent is fitted on tuning meshes only, never on a held-out set")
 
 
-_DATABASES: dict = {}
-
-
 def attempts(task) -> list[dict]:
     """(f, cause, target name) of every grasp executed in scene ``i`` of seed index ``k``
     of ``kind`` scenes of ``object_set``."""
@@ -70,9 +66,7 @@ def attempts(task) -> list[dict]:
     from graspsim.tabletop.clutter import ClutterEpisode, grasp_target
     from graspsim.tabletop.table_scene import make_scene
 
-    if root not in _DATABASES:  # one per process: its cache of loaded maps serves every task
-        _DATABASES[root] = RunDatabase(root, config=map_config(e10.Config().quick_maps))
-    db = _DATABASES[root]
+    db = resident_run_database(root, e10.Config().quick_maps)
     # E10's seeds: derived from --seed as E10 derives its five (one seed would be --seed itself)
     e10cfg = e10.Config(seed=cfg.seed, seeds=max(cfg.seeds, e10.Config().seeds), scenes=cfg.scenes)
     clutter = e10._clutter_config({"kind": kind, "noise": "none", "ablation": None})
@@ -117,16 +111,10 @@ def run(cfg: Config) -> dict:
     root = cfg.db or str(Path(e10.__file__).resolve().parent.parent / "results" / "e10-fsdb")
     tasks = [(o, kind, k, i, cfg, root) for o in cfg.object_sets for kind in cfg.kinds for k in range(cfg.seeds)
              for i in range(cfg.scenes)]
-    pool = get_context("spawn").Pool(cfg.workers) if cfg.workers > 1 else None
     rows = []
-    try:
-        for j, got in enumerate(pool.imap(attempts, tasks) if pool is not None else map(attempts, tasks)):
-            rows += got
-            log.info("%d of %d scenes: %d grasps so far", j + 1, len(tasks), len(rows))
-    finally:
-        if pool is not None:
-            pool.close()
-            pool.join()
+    for j, got in enumerate(task_results(attempts, tasks, cfg.workers)):
+        rows += got
+        log.info("%d of %d scenes: %d grasps so far", j + 1, len(tasks), len(rows))
     f = np.array([r["f"] for r in rows])
     hit = np.array([r["cause"].startswith("start_collision") and r["cause"] != "start_collision_table"
                     for r in rows])

@@ -32,12 +32,21 @@ import statistics
 import sys
 import time
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import derived_seed, experiment_database, map_config, opt, rate_ci, rng_for, start
+from _common import (
+    derived_seed,
+    experiment_database,
+    map_config,
+    opt,
+    rate_ci,
+    resident_run_database,
+    rng_for,
+    start,
+    task_results,
+)
 
 from graspsim.planning.scene_config import budget_fields
 
@@ -112,7 +121,6 @@ def _warm_up(kind: str, cfg: Config, db) -> None:
         ep.close()
 
 
-_DATABASES: dict = {}
 _WARM: set = set()
 
 
@@ -132,15 +140,11 @@ def _forget_objects() -> None:
 def episode(task) -> dict:
     """Scene ``i`` of ``kind`` cleared with budget ``budget`` (E10's protocol and seeds)."""
     kind, budget, i, cfg, root = task
-    from _common import RunDatabase
 
     from graspsim.errors import SimulationError
     from graspsim.tabletop.clutter import ClutterConfig, run_benchmark, scene_settings
 
-    key = (root, cfg.quick_maps)
-    if key not in _DATABASES:  # one per process: its cache of loaded maps serves every task
-        _DATABASES[key] = RunDatabase(root, config=map_config(cfg.quick_maps))
-    db = _DATABASES[key]
+    db = resident_run_database(root, cfg.quick_maps)
     if kind not in _WARM:
         _warm_up(kind, cfg, db)
         _WARM.add(kind)
@@ -315,13 +319,7 @@ def main(argv=None) -> int:
     # the budgets interleaved scene by scene: every budget meets the same load
     tasks = [(kind, b, i, cfg, str(db.root)) for i in range(cfg.first, cfg.first + cfg.scenes) for kind in cfg.kinds
              for b in cfg.budgets]
-    pool = get_context("spawn").Pool(cfg.workers) if cfg.workers > 1 else None
-    try:
-        episodes = list(pool.imap(episode, tasks) if pool is not None else map(episode, tasks))
-    finally:
-        if pool is not None:
-            pool.close()
-            pool.join()
+    episodes = list(task_results(episode, tasks, cfg.workers))
     from e10_clutter_removal import Config as E10Config
 
     from graspsim.planning.scene_config import SceneConfig

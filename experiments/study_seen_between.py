@@ -21,13 +21,12 @@ from __future__ import annotations
 import logging
 import sys
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RunDatabase, load_sentence, map_config, md_table, opt, rate_ci, start
+from _common import load_sentence, md_table, opt, rate_ci, resident_run_database, start, task_results
 
 log = logging.getLogger("study_seen_between")
 
@@ -54,9 +53,6 @@ class Config:
             raise ValueError("the setting is measured on tuning meshes only, never on a held-out set")
 
 
-_DATABASES: dict = {}
-
-
 def episode(task) -> dict:
     """Scene ``i`` of seed index ``k`` of ``kind`` and ``object_set`` cleared as E10 clears
     it, with the planner's ``seen_between`` at ``cfg.seen_between``: its executed grasps."""
@@ -66,9 +62,7 @@ def episode(task) -> dict:
     from graspsim.errors import SimulationError
     from graspsim.tabletop.clutter import run_benchmark
 
-    if root not in _DATABASES:  # one per process: its cache of loaded maps serves every task
-        _DATABASES[root] = RunDatabase(root, config=map_config(False))
-    db = _DATABASES[root]
+    db = resident_run_database(root)
     e10cfg = e10.Config(seed=cfg.seed, seeds=max(cfg.seeds, e10.Config().seeds), object_sets=(object_set,))
     sd = e10.seed_of(e10cfg, k)
     c = {"object_set": object_set, "kind": kind, "objects": 5, "noise": "none", "ablation": None}
@@ -156,17 +150,11 @@ def main(argv=None) -> int:
         raise SystemExit(f"study_seen_between: no FS map database at {root} (run E10 first, or give --db)")
     tasks = [(o, kind, k, i, cfg, root) for o in cfg.object_sets for kind in cfg.kinds for k in range(cfg.seeds)
              for i in range(cfg.scenes)]
-    pool = get_context("spawn").Pool(cfg.workers) if cfg.workers > 1 else None
     episodes = []
-    try:
-        for e in (pool.imap(episode, tasks) if pool is not None else map(episode, tasks)):
-            episodes.append(e)
-            log.info("%d of %d scenes: %s %s seed %d scene %d", len(episodes), len(tasks), e["object_set"],
-                     e["kind"], e["seed"], e["scene"])
-    finally:
-        if pool is not None:
-            pool.close()
-            pool.join()
+    for e in task_results(episode, tasks, cfg.workers):
+        episodes.append(e)
+        log.info("%d of %d scenes: %s %s seed %d scene %d", len(episodes), len(tasks), e["object_set"],
+                 e["kind"], e["seed"], e["scene"])
     text = record.write(out, {"config": cfg, **summarize(episodes), "episodes": episodes}, readme_section)
     print(text)
     return 0

@@ -645,3 +645,25 @@ def test_stored_grasps_predicted_far_under_the_table_are_not_scaled_and_no_kept_
     np.testing.assert_array_equal(rows(skip.map), rows(every.map))
     dropped = [r.map.meta.extra["table"]["dropped"] for r in (every, skip)]
     assert dropped[1] < dropped[0] / 2  # most of the poses the table dropped were never scaled
+
+
+def test_a_part_no_chord_of_which_fits_the_gripper_gives_no_grasps_and_the_others_are_planned(db):
+    """A part identified a millimetre thick (a disc a cone was fitted to, in an E10 packed
+    scene) has no chord the gripper can close on, so no FS map can be built for it: that
+    part gives no grasps, no map is stored for it, and the object's other parts are
+    planned as ever (it ended a whole clutter run with NoFeasibleGraspError)."""
+    from graspsim.errors import NoFeasibleGraspError
+    from graspsim.maps.generate import generate_fs_map
+    from graspsim.planning.planner import plan_shape
+    from graspsim.primitives import Cone
+
+    disc = Cone(0.0393, 0.0343, 0.00111)
+    with pytest.raises(NoFeasibleGraspError):
+        generate_fs_map(disc, G, config=FAST)
+    shape = Compound.from_parts([Cylinder(0.02, 0.2), disc],
+                                [make_transform(np.eye(3), [0, 0, 0.1]), make_transform(np.eye(3), [0, 0, 0.2006])])
+    before = len(db.entries())
+    r = plan_shape(shape, make_transform(np.eye(3), [0.3, 0.1, 0.2]), db=db)
+    assert len(r.parts) == 2 and len(r.map) and set(np.unique(r.map.part)) == {0}
+    assert r.parts[0].match == "known" and r.parts[1].match == "build"
+    assert len(db.entries()) == before  # nothing stored for the disc

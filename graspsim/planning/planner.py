@@ -25,7 +25,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from graspsim.errors import InvalidParameterError
+from graspsim.errors import InvalidParameterError, NoFeasibleGraspError
 from graspsim.geometry.table import TablePlane, table_frame
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
@@ -365,7 +365,10 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig, checks,
     if not cfg.build_missing:
         return MatchKind.BUILD, {}, iter(()), None
     # no map of this primitive within the scaling range: add one to the database
-    fs = db.get(prim)  # sorted best first: the accepted grasps are a prefix
+    try:
+        fs = db.get(prim)  # sorted best first: the accepted grasps are a prefix
+    except NoFeasibleGraspError:  # no chord of it fits the gripper (a part fitted a mm thick): it gives no grasps,
+        return MatchKind.BUILD, {}, iter(()), None  # and the object's other parts (and features) are still planned
     fs = fs.select(np.arange(int(fs.accepted.sum())))
     return MatchKind.BUILD, fs.meta.object, stream(fs), {"key": db.key(prim), "ratio": 1.0, "max_diff": 0.0}
 

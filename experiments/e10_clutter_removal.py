@@ -75,7 +75,13 @@ from _e10_report import readme_section, rows_of
 from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS
 from graspsim.errors import SimulationError
 from graspsim.maps.robust import UNSEEN_MARGIN
-from graspsim.planning.scene_config import SceneConfig, with_seen_between, with_unseen_margin
+from graspsim.planning.scene_config import (
+    FEATURE_GRASPS,
+    SceneConfig,
+    with_feature_grasps,
+    with_seen_between,
+    with_unseen_margin,
+)
 from graspsim.sim.noise import ExecutionNoise
 from graspsim.sim.trial_scene import contact_settings
 from graspsim.stats import wilson_interval
@@ -117,6 +123,9 @@ class Config:
     seen_between: int | None = opt(None, "the points of its own segment a grasp must close on (graspsim scene "
                                    "--seen-between; 0: off; none: the scene planner's default, the measured "
                                    "SEEN_BETWEEN)")
+    feature_grasps: str = opt("apart", "where a segment's planning adds grasps on its cloud's own features "
+                              "(graspsim scene --feature-grasps; SceneConfig.feature_grasps): apart, the default, "
+                              "on packed tables only", choices=FEATURE_GRASPS)
     plan_all: bool = opt(False, "plan every object at every look (graspsim scene --plan-all; default: the highest "
                          "first until a grasp's robust score reaches ClutterConfig.good_enough)")
     contacts: str = opt(DEFAULT_CONTACTS, "the simulation's contact model (graspsim.sim.contact_model; "
@@ -133,8 +142,8 @@ class Config:
             raise ValueError("--scenes and --seeds must be >= 1 and --object-sets not empty")
         for name in self.object_sets:
             check_object_set(name)
-        with_seen_between(with_unseen_margin(SceneConfig(), self.unseen_margin),  # bad values: refused before
-                          self.seen_between)  # the work
+        with_feature_grasps(with_seen_between(with_unseen_margin(SceneConfig(), self.unseen_margin),  # bad values:
+                                              self.seen_between), self.feature_grasps)  # refused before the work
 
 
 def conditions(cfg: Config) -> list[dict]:
@@ -155,15 +164,18 @@ def seed_of(cfg: Config, k: int) -> int:
 
 
 def _clutter_config(c: dict, unseen_margin: float | None = None, plan_all: bool = False,
-                    contacts: str = DEFAULT_CONTACTS, seen_between: int | None = None) -> ClutterConfig:
+                    contacts: str = DEFAULT_CONTACTS, seen_between: int | None = None,
+                    feature_grasps: str | None = None) -> ClutterConfig:
     """A condition's clutter settings; ``unseen_margin`` [m]: ``Config.unseen_margin``
     (``graspsim scene --unseen-margin``'s path: :func:`~graspsim.planning.scene_config.with_unseen_margin`);
     ``seen_between``: ``Config.seen_between`` (``--seen-between``'s path:
-    :func:`~graspsim.planning.scene_config.with_seen_between`);
+    :func:`~graspsim.planning.scene_config.with_seen_between`); ``feature_grasps``: ``Config.feature_grasps``
+    (``--feature-grasps``' path: :func:`~graspsim.planning.scene_config.with_feature_grasps`; None: the default);
     ``plan_all``: every object planned at every look (``graspsim scene --plan-all``); ``contacts``: the
     simulation's contact model (:func:`graspsim.sim.contact_model`; the default: ``SimSettings()``)."""
     scene = with_seen_between(with_unseen_margin(scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"),
                                                  unseen_margin), seen_between)
+    scene = with_feature_grasps(scene, feature_grasps)
     return ClutterConfig(scene=scene,
                          execution=ExecutionNoise() if c["noise"] == "default" else None,
                          ground_truth=c["ablation"] == "ground_truth", feel=c["ablation"] != "no_feel",
@@ -340,7 +352,8 @@ def _block(task) -> tuple[list, list, set]:
         k, i = divmod(j, per)
         sd = seed_of(cfg, k)
         try:
-            config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts, cfg.seen_between)
+            config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts, cfg.seen_between,
+                                     cfg.feature_grasps)
             out += [(sd, r) for r in run_benchmark(c["objects"], c["kind"], 1, sd, db=db, config=config,
                                                    object_set=c["object_set"], first=i)]
         except SimulationError as err:
@@ -364,7 +377,7 @@ def _warm_up(c: dict, cfg: Config, db) -> set:
     from graspsim.tabletop.table_scene import make_scene
 
     db.built = set()
-    config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts, cfg.seen_between)
+    config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts, cfg.seen_between, cfg.feature_grasps)
     scene = make_scene(c["objects"], c["kind"], derived_seed(cfg.seed, "warm-up"), object_set=c["object_set"],
                        gripper=db.gripper, **({} if config.sim is None else {"settings": config.sim}))
     ep = ClutterEpisode(scene, db=db, rng=rng_for(cfg.seed, "warm-up"), config=config)

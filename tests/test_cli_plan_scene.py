@@ -160,6 +160,30 @@ def test_the_seen_between_flag_reaches_the_planner(tmp_path, capsys, db):
     assert code == 0 and json.loads(out.read_text())["seen_between"] == 0
 
 
+def test_the_feature_grasps_flag_reaches_the_planner(tmp_path, capsys, db):
+    """--feature-grasps {apart,always,never} says where a segment's planning adds grasps on
+    its cloud's own features; absent: apart (only with a known gap between objects); scene
+    and plan-scene read it alike, and plan-scene records it."""
+    from graspsim.cli import build_parser
+    from graspsim.cli._common import scene_planning_from_args
+    from graspsim.planning.scene_config import FEATURE_GRASPS
+
+    for command in ("scene", "plan-scene"):
+        head = [command] if command == "scene" else [command, "c.npy", "-o", "g.json"]
+        for flag, want in (([], "apart"), *((["--feature-grasps", w], w) for w in FEATURE_GRASPS)):
+            args = build_parser().parse_args([*head, *flag])
+            assert scene_planning_from_args(args, SceneConfig()).feature_grasps == want, (command, flag)
+    rng = np.random.default_rng(1)
+    table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), rng.normal(0, 0.0005, 3000)]
+    box = np.c_[rng.uniform(-0.03, 0.03, (800, 2)), rng.uniform(0, 0.06, 800)]
+    f, out = tmp_path / "cloud.npy", tmp_path / "grasps.json"
+    np.save(f, np.r_[table, box])
+    code, _, _ = _run(capsys, f, "-o", out, "--db", db.root, *FAST_FLAGS)
+    assert code == 0 and json.loads(out.read_text())["feature_grasps"] == "apart"
+    code, _, _ = _run(capsys, f, "-o", out, "--feature-grasps", "never", "--db", db.root, *FAST_FLAGS)
+    assert code == 0 and json.loads(out.read_text())["feature_grasps"] == "never"
+
+
 @pytest.mark.slow
 def test_a_smaller_planning_budget_scores_fewer_grasps_per_object(tmp_path, capsys, db, scene_cloud):
     path, _, _ = scene_cloud
@@ -322,6 +346,7 @@ def test_a_cloud_too_big_for_the_memory_budget_is_refused_before_any_work(tmp_pa
     ("ok", ["--seen-between", "-1"], "--seen-between must be a whole number"),
     ("ok", ["--seen-between", "2.5"], "--seen-between must be a whole number"),
     ("ok", ["--seen-between", "many"], "--seen-between must be a whole number"),
+    ("ok", ["--feature-grasps", "sometimes"], "--feature-grasps"),
     ("ok", ["--pose-error", "-0.001", "2"], "--pose-error: the pose error must be"),
     ("ok", ["--pose-error", "0.003", "nan"], "--pose-error: the pose error must be"),
     ("ok", ["--pose-error", "0.5", "2"], "--pose-error: the pose error must be"),

@@ -147,26 +147,43 @@ def test_clear_observed_off_keeps_colliding_grasps(db):
     assert np.any(_holding_points(m, rows, obj))
 
 
-def test_scene_planning_keeps_neither_the_cloud_filter_nor_feature_grasps():
-    """Scene planning's published behaviour: the per-segment planner neither drops grasps
-    holding observed points nor adds feature grasps (with them E10's ten-object piles
-    removed fewer objects and planned slower: docs/results.md); a one-object plan does
+def test_scene_planning_keeps_no_cloud_filter_and_feature_grasps_only_where_objects_stand_apart():
+    """Scene planning's published behaviour: the per-segment planner never drops grasps
+    holding observed points; it adds feature grasps only where the objects are known to
+    stand apart (``min_gap``: packed tables; in piles they removed fewer objects and planned
+    slower: docs/results.md), unless ``feature_grasps`` says otherwise; a one-object plan does
     both by default."""
-    from graspsim.planning.scene_config import SceneConfig
+    from dataclasses import replace
 
-    scene = SceneConfig().planner
-    assert scene.clear_observed is False and scene.features is None
+    import pytest
+
+    from graspsim.errors import InvalidParameterError
+    from graspsim.planning.scene_config import FEATURE_GRASPS, SceneConfig, with_feature_grasps
+
+    scene = SceneConfig()
+    assert scene.planner.clear_observed is False and scene.planner.features is not None
     assert PlannerConfig().clear_observed is True and PlannerConfig().features is not None
+    assert scene.feature_grasps == "apart" and FEATURE_GRASPS == ("apart", "always", "never")
+    on = {(when, gap): with_feature_grasps(replace(scene, min_gap=gap), when).segment_features is not None
+          for when in FEATURE_GRASPS for gap in (None, 0.01)}
+    assert on == {("apart", None): False, ("apart", 0.01): True, ("always", None): True, ("always", 0.01): True,
+                  ("never", None): False, ("never", 0.01): False}
+    assert with_feature_grasps(scene, None) is scene
+    off = replace(scene, planner=replace(scene.planner, features=None), feature_grasps="always")
+    assert off.segment_features is None  # no settings: none, whatever feature_grasps says
+    for bad in ("sometimes", "", 1, None):
+        with pytest.raises(InvalidParameterError, match="feature_grasps must be one of apart, always, never"):
+            SceneConfig(feature_grasps=bad)
+    with pytest.raises(InvalidParameterError, match="feature grasps must be one of apart, always, never"):
+        with_feature_grasps(scene, "Always")
 
 
 def test_a_bowl_on_a_table_gets_grasps_in_a_scene_from_its_features_alone(db):
     """A thin-walled bowl wider than the gripper opens, seen on a table from one camera:
-    its one sphere gives no grasp; feature grasps turned on in the scene planner
-    (``PlannerConfig.features``) give it some that score > 0, each closing on seen points
-    of the bowl; without them (the scene planner's default), none."""
-    from dataclasses import replace
-
-    from graspsim.maps.feature_grasps import FeatureConfig
+    its one sphere gives no grasp; feature grasps (``PlannerConfig.features``), which a scene
+    planner makes where objects are known to stand apart (a ``min_gap``), give it some that
+    score > 0, each closing on seen points of the bowl; with no ``min_gap`` (objects may
+    touch: a pile), or with ``feature_grasps="never"``, none."""
     from graspsim.planning.scene import plan_scene
     from graspsim.planning.scene_config import SceneConfig
 
@@ -177,14 +194,15 @@ def test_a_bowl_on_a_table_gets_grasps_in_a_scene_from_its_features_alone(db):
     table = np.c_[rng.uniform(-0.25, 0.25, (6000, 2)), rng.normal(0, 0.0005, 6000)]
     pts = np.r_[table[np.linalg.norm(table[:, :2], axis=1) > 0.08], seen]
     plans = {}
-    for features in (True, False):
-        cfg = SceneConfig(workers=1)
-        if features:
-            cfg = replace(cfg, planner=replace(cfg.planner, features=FeatureConfig()))
-        plans[features] = plan_scene(pts, db=db, rng=np.random.default_rng(5), config=cfg, viewpoint=eye)
-    on, off = plans[True], plans[False]
-    assert off.segments and not any(g.score > 0 for g in off.grasps)  # the near wall and the far one: no grasp
-    assert {s.status for s in off.segments} == {"no_grasp"}
+    for name, cfg in {"apart": SceneConfig(workers=1, min_gap=0.01),
+                      "may touch": SceneConfig(workers=1),
+                      "never": SceneConfig(workers=1, min_gap=0.01, feature_grasps="never")}.items():
+        plans[name] = plan_scene(pts, db=db, rng=np.random.default_rng(5), config=cfg, viewpoint=eye)
+    on = plans["apart"]
+    for name in ("may touch", "never"):
+        off = plans[name]
+        assert off.segments and not any(g.score > 0 for g in off.grasps), name  # the near wall and the far one
+        assert {s.status for s in off.segments} == {"no_grasp"}, name
     assert "planned" in {s.status for s in on.segments} and any(g.score > 0 for g in on.grasps)
     g = db.gripper
     for sg in on.grasps:

@@ -182,27 +182,43 @@ def seen_between_value(args) -> int | None:
     return n
 
 
+def add_feature_grasps_flag(p) -> None:
+    """``--feature-grasps {apart,always,never}``, where a scene segment's planning adds
+    grasps on its cloud's own features (``SceneConfig.feature_grasps``, read with
+    :func:`scene_planning_from_args`; the choices are
+    :data:`~graspsim.planning.scene_config.FEATURE_GRASPS`, written out: building the
+    parser stays light)."""
+    p.add_argument("--feature-grasps", choices=["apart", "always", "never"], default=None,
+                   help="where an object whose fitted parts give too few grasps (a bowl seen as one sphere, a blob "
+                   "seen as a plate) also gets grasps on its cloud's own features: apart (default) only where "
+                   "objects are known to stand apart (--min-gap, or a packed scene), always, or never "
+                   "(SceneConfig.feature_grasps, docs/scenes.md)")
+
+
 def add_scene_planning_flags(p) -> None:
     """The planning flags the scene commands (``scene``, ``plan-scene``) share:
-    ``--budget``, ``--unseen-margin`` and ``--seen-between`` (read with
-    :func:`scene_planning_from_args`)."""
+    ``--budget``, ``--unseen-margin``, ``--seen-between`` and ``--feature-grasps`` (read
+    with :func:`scene_planning_from_args`)."""
     add_budget_flag(p)
     add_unseen_margin_flag(p)
     add_seen_between_flag(p)
+    add_feature_grasps_flag(p)
 
 
 def scene_planning_from_args(args, scene):
-    """``scene`` (a ``SceneConfig``) with ``--budget``, ``--unseen-margin`` and
-    ``--seen-between`` applied (:func:`graspsim.planning.scene_config.with_unseen_margin`,
-    :func:`~graspsim.planning.scene_config.with_seen_between`, E10's path too); a bad
+    """``scene`` (a ``SceneConfig``) with ``--budget``, ``--unseen-margin``, ``--seen-between``
+    and ``--feature-grasps`` applied (:func:`graspsim.planning.scene_config.with_unseen_margin`,
+    :func:`~graspsim.planning.scene_config.with_seen_between`,
+    :func:`~graspsim.planning.scene_config.with_feature_grasps`, E10's path too); a bad
     value is an :class:`~graspsim.errors.InvalidParameterError` naming its flag."""
     from dataclasses import replace
 
-    from graspsim.planning.scene_config import with_seen_between, with_unseen_margin
+    from graspsim.planning.scene_config import with_feature_grasps, with_seen_between, with_unseen_margin
 
     scene = replace(scene, **budget_from_args(args))
     scene = with_unseen_margin(scene, unseen_margin_value(args, none=True))  # the value checked, naming the flag
-    return with_seen_between(scene, seen_between_value(args))
+    scene = with_seen_between(scene, seen_between_value(args))
+    return with_feature_grasps(scene, getattr(args, "feature_grasps", None))
 
 
 class _DeprecatedAlias:

@@ -179,7 +179,7 @@ def _cmd_scene(args) -> int:
          "planned_for": {"position_sigma": cfg.planning.planner.robust.position_sigma,
                          "rotation_sigma": cfg.planning.planner.robust.rotation_sigma},
          "unseen_margin": cfg.planning.planner.robust.unseen_margin,
-         "seen_between": cfg.planning.planner.seen_between,
+         "seen_between": cfg.planning.planner.seen_between, "feature_grasps": cfg.scene.feature_grasps,
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth,
          "felt_evidence": cfg.feel, "contacts": args.contacts, "min_gap": gap,
          "budget": cfg.scene.budget, "robot": args.robot,

@@ -10,6 +10,7 @@ import numpy as np
 
 from graspsim.checks import POSITIVE, check_fields, integer
 from graspsim.errors import InvalidParameterError
+from graspsim.maps.feature_grasps import FeatureConfig
 from graspsim.maps.robust import LIFT_CEILING, UNSEEN_MARGIN, RobustConfig
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.segment import gap_link
@@ -17,7 +18,8 @@ from graspsim.planning.observed import SEEN_BETWEEN
 from graspsim.planning.planner import SCENE_TABLE_SKIP, PlannerConfig
 from graspsim.planning.scene_workers import scene_workers
 
-__all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "with_seen_between", "with_pose_error",
+__all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "with_seen_between", "with_feature_grasps",
+           "with_pose_error", "FEATURE_GRASPS",
            "MAX_POSE_ERROR", "MAX_UNSEEN_MARGIN", "MAX_SCENE_EXTENT",
            "SCENE_BYTES_PER_POINT", "SCENE_FIT_POINTS", "SCENE_COLLISION_TOLERANCE", "SCENE_MAX_NOISE_RATIO"]
 
@@ -52,9 +54,8 @@ SCENE_MAX_NOISE_RATIO = 0.05
 
 
 def _scene_planner() -> PlannerConfig:
-    # no cloud filter, and no grasps fitted to the cloud's own features: with them (PlannerConfig.features) E10's
-    # five-object scenes removed more objects, its ten-object piles fewer, and their planning per grasp went past
-    # issue 34's goal (docs/results.md, "Feature grasps in scenes"); a user turns them on in the SceneConfig;
+    # no cloud filter; grasps fitted to the cloud's own features (PlannerConfig.features) where the parts give too
+    # few, in the scenes SceneConfig.feature_grasps says (by default where objects are known to stand apart);
     # one contact borne out even without a viewpoint: a segment is not all of its object (thinned, cut at creases);
     # resting boxes completed down to the table (their hidden depth, a guess of a few mm, bounded by it);
     # a box's unmeasured depth at least what the view can tell from its seen face;
@@ -66,7 +67,7 @@ def _scene_planner() -> PlannerConfig:
     # grasp of a lying bottle can close on a neighbour), and to grasps that close on points of the object itself
     return PlannerConfig(robust=RobustConfig(unseen_margin=UNSEEN_MARGIN, lift_ceiling=LIFT_CEILING),
                          identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO),
-                         collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=None,
+                         collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=FeatureConfig(),
                          both_contacts_all_round=False, complete_to_table=True,
                          hidden_depth=True, merge_boxes=True, table_skip=SCENE_TABLE_SKIP, clear_first=True,
                          seen_between=SEEN_BETWEEN)
@@ -76,13 +77,23 @@ def _scene_planner() -> PlannerConfig:
 #: a constant, not the worker count, so which segments are planned does not depend on it.
 LAZY_BATCH = 2
 
+#: Where a scene segment's planning adds grasps on its cloud's own features (``PlannerConfig.features``,
+#: when its parts give too few): ``"apart"`` only in scenes whose objects are known to stand apart
+#: (``SceneConfig.min_gap`` given: a packed table), where a segment is one whole object; ``"always"``;
+#: ``"never"``. ``"apart"`` is the default, from E10's tuning sets (docs/results.md, "Feature grasps in
+#: scenes"): on packed tables they removed more objects (a rounded blob seen from one side is fitted as
+#: a plate too wide to grasp; a bowl as a sphere), in piles, where a segment can be two touching objects
+#: or a part of one, their grasps closed on nothing or dropped more often and the ten-object piles
+#: lost objects and planning time.
+FEATURE_GRASPS = ("apart", "always", "never")
+
 
 @dataclass(frozen=True)
 class SceneConfig:
     """planner: the per-segment planner settings (its ``table`` is replaced by the
     fitted plane; by default robust identification on at most :data:`SCENE_FIT_POINTS`
     points of a segment, ``IdentifyConfig(fit_points=None)`` for all of them; neither
-    ``clear_observed`` nor ``features``).
+    ``clear_observed``; grasps on the cloud's own features, ``features``, where ``feature_grasps`` says).
     plane_sigma [m], plane_repetitions, plane_confidence: the table fit (its planes are
     scored until the RANSAC bound at this confidence is met; None: all of them, see
     :func:`~graspsim.perception.plane.fit_table`); table_band [m]:
@@ -114,7 +125,9 @@ class SceneConfig:
     are planned highest first, :data:`LAZY_BATCH` at a time, until the scene holds a grasp
     whose robust score reaches it, and the rest are left ``"deferred"`` (no grasps; the
     next frame plans them when it needs them) -- a clutter-removal loop executes one grasp
-    a look (:attr:`graspsim.tabletop.clutter.ClutterConfig.good_enough`)."""
+    a look (:attr:`graspsim.tabletop.clutter.ClutterConfig.good_enough`); feature_grasps: where a segment's
+    planning adds grasps on its cloud's own features (the planner's ``features``, when the parts give too
+    few): one of :data:`FEATURE_GRASPS`, by default ``"apart"``, in scenes with a ``min_gap`` only."""
 
     planner: PlannerConfig = field(default_factory=_scene_planner)
     plane_sigma: float = 0.002
@@ -139,6 +152,7 @@ class SceneConfig:
     up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
     workers: int | None = None
     good_enough: float | None = None
+    feature_grasps: str = "apart"
 
     def __post_init__(self) -> None:
         check_fields(self, POSITIVE.saying("> 0 m"), "plane_sigma", "table_band", "max_height", "voxel", "max_radius",
@@ -164,12 +178,22 @@ class SceneConfig:
         if self.plane_confidence is not None and not 0 < self.plane_confidence < 1:
             raise InvalidParameterError(f"SceneConfig.plane_confidence must be in (0, 1) or None, "
                                         f"got {self.plane_confidence!r}")
+        if self.feature_grasps not in FEATURE_GRASPS:
+            raise InvalidParameterError(f"SceneConfig.feature_grasps must be one of {', '.join(FEATURE_GRASPS)}, "
+                                        f"got {self.feature_grasps!r}")
         if not isinstance(self.planner, PlannerConfig) or self.planner.rank != "robust":
             raise InvalidParameterError("SceneConfig.planner must be a PlannerConfig ranking by the robust score "
                                         f"(the scene check is part of it), got {self.planner!r}")
 
     def to_dict(self) -> dict:
         return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "planner"}
+
+    @property
+    def segment_features(self) -> FeatureConfig | None:
+        """The feature-grasp settings a segment of this scene is planned with: the planner's
+        ``features`` where :attr:`feature_grasps` applies to this scene, else None."""
+        on = self.feature_grasps == "always" or (self.feature_grasps == "apart" and self.min_gap is not None)
+        return self.planner.features if on else None
 
     @property
     def budget(self) -> str:
@@ -233,6 +257,22 @@ def with_seen_between(scene: SceneConfig, points: int | None) -> SceneConfig:
         raise InvalidParameterError(f"the points a grasp must close on must be a whole number >= 0 (the measured "
                                     f"and default: {SEEN_BETWEEN}; 0: off), got {points!r}")
     return replace(scene, planner=replace(scene.planner, seen_between=int(points)))
+
+
+def with_feature_grasps(scene: SceneConfig, when: str | None) -> SceneConfig:
+    """``scene`` with its segments given grasps on their cloud's own features ``when`` (one of
+    :data:`FEATURE_GRASPS`: ``SceneConfig.feature_grasps``); None: ``scene`` itself. The one
+    path from a user's choice (``graspsim scene`` / ``plan-scene --feature-grasps``, E10
+    ``--feature-grasps``) to the planner; anything else is an
+    :class:`~graspsim.errors.InvalidParameterError`."""
+    from dataclasses import replace
+
+    if when is None:
+        return scene
+    if when not in FEATURE_GRASPS:
+        raise InvalidParameterError(f"feature grasps must be one of {', '.join(FEATURE_GRASPS)} (the default, apart: "
+                                    f"only where objects are known to stand apart), got {when!r}")
+    return replace(scene, feature_grasps=when)
 
 
 #: The largest pose error a scene's planning takes (:func:`with_pose_error`): 2 cm and 10 deg

@@ -103,7 +103,7 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     if cancelled():  # given up before it began
         return None
     t0 = time.perf_counter()
-    pcfg = replace(cfg.planner, table=table, table_band=cfg.table_band,
+    pcfg = replace(cfg.planner, table=table, table_band=cfg.table_band, features=cfg.segment_features,
                    robust=replace(cfg.planner.robust, top=cfg.per_segment))
     batches: list[GraspabilityMap] = []
     prims = tuple(p.shape.value for p in ident.parts)

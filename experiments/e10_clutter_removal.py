@@ -200,7 +200,8 @@ def _row(c: dict, pairs: list) -> dict:
             "episodes": [{"seed": k, "scene": i, **{key: v for key, v in r.to_dict().items() if key != "steps"},
                           "causes": [a.cause for a in r.attempts], "planning": [a.planning for a in r.attempts],
                           "scores": [round(a.score, 4) for a in r.attempts],  # the robust score of each grasp
-                          "between": [a.between for a in r.attempts]}  # its seen points between the pads
+                          "between": [a.between for a in r.attempts],  # its seen points between the pads
+                          "sources": [a.source for a in r.attempts]}  # what it was planned from
                          for i, (k, r) in enumerate(pairs)]}
 
 

@@ -209,6 +209,7 @@ def test_a_bowl_on_a_table_gets_grasps_in_a_scene_from_its_features_alone(db):
         if sg.score > 0:
             own = on.perception.segment_points(sg.segment)
             assert g.points_between(sg.T_world_wrist[None], np.array([sg.opening]), own)[0] >= 5
+            assert sg.source == "features"  # the sphere gave none: each was planned from the bowl's own points
 
 
 def _facing(points: np.ndarray, eye: np.ndarray, voxel: float = 0.004) -> np.ndarray:

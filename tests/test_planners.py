@@ -171,3 +171,4 @@ def test_a_third_party_planner_runs_the_benchmark_through_the_cli(tmp_path, monk
     assert s["planner"] == "my_adapter:plan" and s["attempts"] >= 1
     assert s["seeds"]["per_seed"][0]["grasps"] == s["attempts"]
     assert len(sys.modules["my_adapter"].__dict__) and all(a["segments"] == 0 for a in s["details"][0]["steps"])
+    assert s["per_source"] == {} and not any("source" in a for a in s["details"][0]["steps"])  # not known

@@ -184,10 +184,10 @@ def test_the_shipped_split_is_the_documented_rule():
 
 
 def test_the_failure_table_counts_each_object_by_name():
-    from graspsim.tabletop.clutter import Attempt, ClutterResult, failure_rows, per_object, summarize
+    from graspsim.tabletop.clutter import Attempt, ClutterResult, failure_rows, per_object, per_source, summarize
 
-    def a(target, ok, cause):
-        return Attempt(target, {}, ok, cause, 1.0, 0.1, {}, 2, 2, 2)
+    def a(target, ok, cause, source=None):
+        return Attempt(target, {}, ok, cause, 1.0, 0.1, {}, 2, 2, 2, source=source)
 
     r1 = ClutterResult(3, (a(0, True, "success"), a(1, False, "start_collision_target"), a(1, False, "slipped")),
                        1, "failures", 3, 2, 1.0, ("mug", "can", "lemon"), {1: "no_grasp", 2: "merged"})
@@ -200,6 +200,19 @@ def test_the_failure_table_counts_each_object_by_name():
     assert t["mug"]["placed"] == t["mug"]["removed"] == t["mug"]["lifted"] == 2
     assert summarize([r1, r2])["per_object"] == t
     assert failure_rows(t)[0] == ("can", 2, 1, 3, 1, "slipped 1, start_collision_target 1", "no_grasp 1")
+    assert per_source([r1, r2]) == {} and summarize([r1, r2])["per_source"] == {}  # sources not known
+    r3 = ClutterResult(2, (a(0, True, "success", "box"), a(1, False, "no_contact", "features"),
+                           a(1, True, "success", "features"), a(0, False, "dropped", "cylinder"),
+                           a(1, True, "success")), 2, "cleared", 2, 2, 1.0, ("can", "mug"))
+    assert per_source([r3]) == {"features": {"grasps": 2, "lifted": 1, "failed": {"no_contact": 1}},
+                                "box": {"grasps": 1, "lifted": 1, "failed": {}},
+                                "cylinder": {"grasps": 1, "lifted": 0, "failed": {"dropped": 1}}}
+    assert list(per_source([r3])) == ["features", "box", "cylinder"]  # most grasps first, then by name
+    from graspsim.cli.scene_cmd import _sources_line
+
+    assert _sources_line(per_source([r3])).strip() == "grasps by source (lifted/grasps): features 1/2, box 1/1, " \
+                                                      "cylinder 0/1"
+    assert _sources_line({}) == ""
 
 
 def test_the_clutter_env_takes_a_folder_or_a_named_mesh_set(tmp_path):

@@ -110,6 +110,11 @@ def test_cli_scene_json_and_renders(tmp_path, capsys, db):
     assert s["contacts"] == "stiff"  # the simulation's contact model, unless --contacts
     assert s["grasp_success_rate"] == s["successes"] / s["attempts"] and s["cleared_rate"] == s["removed"] / 2
     assert len(s["details"]) == 1 and s["details"][0]["attempts"] == s["attempts"]
+    assert s["feature_grasps"] == "apart"  # feature grasps where objects stand apart, unless --feature-grasps
+    steps = s["details"][0]["steps"]
+    assert sum(r["grasps"] for r in s["per_source"].values()) == s["attempts"] == len(steps)
+    assert {st["source"] for st in steps} == set(s["per_source"]) <= {"box", "cylinder", "sphere", "cone",
+                                                                      "half_toroid", "features"}
     assert len(list((tmp_path / "r").glob("scene000_step*.png"))) == s["attempts"]
     assert [o.name for o in load_scene(tmp_path / "s" / "scene000.json").objects] == s["details"][0]["objects"]
 
@@ -216,7 +221,8 @@ def test_cli_scene_render_into_a_file_fails_before_the_work(tmp_path, capsys):
 def test_an_attempt_records_the_seen_points_it_closed_on(db):
     """Attempt.between: the points of the grasp's segment (the frame it was planned from)
     between the pads at the pose and opening executed; the scene planner's grasps close on
-    at least PlannerConfig.seen_between of them."""
+    at least PlannerConfig.seen_between of them. Attempt.source: what the grasp was planned
+    from, one of its segment's parts or its features."""
     from graspsim.planning.observed import SEEN_BETWEEN
 
     ep = ClutterEpisode(make_scene(3, "packed", 2, object_set="primitives"), db=db, rng=np.random.default_rng(1))
@@ -232,6 +238,9 @@ def test_an_attempt_records_the_seen_points_it_closed_on(db):
             frame = db.gripper.points_between(np.asarray(g.T_world_wrist)[None], np.array([g.opening]),
                                                   look.plan.perception.points)[0]
             assert a.between <= frame  # the segment's share of what the frame has there
+            prims = {p for sp in look.plan.segments if sp.segment == g.segment for p in sp.primitives}
+            assert a.source == g.source and a.to_dict()["source"] == g.source
+            assert g.source in prims | {"features"}  # a part of its segment, or the segment's own features
         assert ep.attempts
     finally:
         ep.close()

@@ -191,6 +191,7 @@ def _cmd_scene(args) -> int:
     human = (format_table(rows, ["scene", "objects", "removed", "grasps", "lifted", "stop", "one cluster"])
              + "\n\nper object (failed grasps by cause; objects left by why):\n"
              + format_table(failure_rows(s["per_object"]), list(FAILURE_COLUMNS))
+             + _sources_line(s["per_source"])
              + f"\ngrasp success {s['successes']}/{s['attempts']}"
              + ("" if gsr is None else f" ({100 * gsr:.1f} %)")
              + f", cleared {s['removed']}/{s['placed']} objects ({100 * s['cleared_rate']:.1f} %)"
@@ -202,6 +203,14 @@ def _cmd_scene(args) -> int:
                 if s["planning_s"]["median"] is not None else ""))
     emit(s, args.json, human)
     return 0
+
+
+def _sources_line(table: dict) -> str:
+    """The grasps by what they were planned from, as one line ("" when none is known)."""
+    if not table:
+        return ""
+    return "\ngrasps by source (lifted/grasps): " + ", ".join(f"{k} {v['lifted']}/{v['grasps']}"
+                                                            for k, v in table.items())
 
 
 def _pose(placed) -> dict:

@@ -42,7 +42,9 @@ class SceneGrasp:
     """segment: which segment it grasps; T_world_wrist (4, 4) in the cloud's frame;
     opening: the pad gap to open the jaws to before closing [m]; score: the robust score
     (expected success; 0: colliding with the scene at its pose); grade: the map's grade;
-    clearance: distance of the gripper to the nearest observed point [m]."""
+    clearance: distance of the gripper to the nearest observed point [m]; source: what it was
+    planned from, the identified part's primitive (``"box"``, ``"cylinder"``, ...) or
+    ``"features"`` (the segment's own points: ``PlannerConfig.features``); None: not known."""
 
     segment: int
     T_world_wrist: np.ndarray
@@ -50,10 +52,11 @@ class SceneGrasp:
     score: float
     grade: float
     clearance: float
+    source: str | None = None
 
     def to_dict(self) -> dict:
         return {"segment": self.segment, "T_world_wrist": self.T_world_wrist.tolist(), "opening": self.opening,
-                "score": self.score, "grade": self.grade, "clearance": self.clearance}
+                "score": self.score, "grade": self.grade, "clearance": self.clearance, "source": self.source}
 
 
 @dataclass(frozen=True, eq=False)
@@ -132,8 +135,9 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     g = db.gripper
     opening = g.pregrasp_opening(executed_width(gmap))
     score = np.nan_to_num(gmap.robust.astype(float), nan=0.0)
-    grasps = [SceneGrasp(k, T[i], float(opening[i]), float(score[i]), float(gmap.grade[i]),
-                         float(gmap.clearance[i])) for i in range(len(gmap))]
+    source = [prims[p] if p < len(prims) else "features" for p in np.asarray(gmap.part, int)]  # part len(parts):
+    grasps = [SceneGrasp(k, T[i], float(opening[i]), float(score[i]), float(gmap.grade[i]),  # the features'
+                         float(gmap.clearance[i]), source[i]) for i in range(len(gmap))]
     return SegmentPlan(k, len(seg), "planned", None, prims, scored, time.perf_counter() - t0), grasps
 
 

@@ -45,6 +45,7 @@ from graspsim.tabletop.clutter_metrics import (
     object_segmentation,
     one_cluster_objects,
     per_object,
+    per_source,
     summarize,
 )
 from graspsim.tabletop.depth_noise import DepthNoise
@@ -53,7 +54,8 @@ from graspsim.tabletop.table_scene import known_gap
 
 __all__ = ["scene_settings", "ClutterRobot", "ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame",
            "ClutterEpisode", "run_clutter", "run_benchmark", "summarize", "one_cluster_objects", "object_segmentation",
-           "per_object", "failure_rows", "FAILURE_COLUMNS", "STOPS", "ARM_STOPS", "OTHER", "LEFT", "GOOD_ENOUGH"]
+           "per_object", "per_source", "failure_rows", "FAILURE_COLUMNS", "STOPS", "ARM_STOPS", "OTHER", "LEFT",
+           "GOOD_ENOUGH"]
 
 #: The robust score a clutter look stops planning further objects at (``ClutterConfig.good_enough``):
 #: a grasp that at most one in ten of the sampled execution errors makes fail. Set before any
@@ -193,7 +195,9 @@ class Attempt:
     look's reachability check found (:meth:`ClutterEpisode.observe`); between: the points
     of the grasp's segment in its closing region at the pose and opening executed
     (:meth:`~graspsim.grippers.spec.GripperSpec.points_between`, what
-    ``PlannerConfig.seen_between`` asks of a plan; None with an external planner)."""
+    ``PlannerConfig.seen_between`` asks of a plan; None with an external planner); source: what
+    the grasp was planned from (:attr:`SceneGrasp.source <graspsim.planning.scene.SceneGrasp.source>`:
+    a part's primitive or ``"features"``; None with an external planner)."""
 
     target: int | None
     outcome: dict
@@ -207,9 +211,10 @@ class Attempt:
     one_cluster: int
     reach: dict | None = None
     between: int | None = None
+    source: str | None = None
 
     def to_dict(self) -> dict:
-        return {k: v for k, v in self.__dict__.items() if k not in ("reach", "between") or v is not None}
+        return {k: v for k, v in self.__dict__.items() if k not in ("reach", "between", "source") or v is not None}
 
 
 
@@ -446,7 +451,8 @@ class ClutterEpisode:
             sp.perception.segment_points(grasp.segment))[0])
         a = Attempt(target, out.to_dict(), hit, cause, grasp.score, look.planning, {} if external else sp.timing,
                     0 if external else sp.perception.n_segments, look.seen, look.one_cluster,
-                    look.reach if grasp is look.best else None, between)
+                    look.reach if grasp is look.best else None, between,
+                    None if external else getattr(grasp, "source", None))
         self.attempts.append(a)
         # a grasp that lifted another object is no success, but the scene changed: no failure in a row
         self.failures = 0 if out.success else self.failures + 1

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["STOPS", "ARM_STOPS", "OTHER", "LEFT", "FAILURE_COLUMNS", "summarize", "per_object", "failure_rows",
+__all__ = ["STOPS", "ARM_STOPS", "OTHER", "LEFT", "FAILURE_COLUMNS", "summarize", "per_object", "per_source",
+           "failure_rows",
            "one_cluster_objects", "object_segmentation"]
 
 #: Why an episode ended.
@@ -109,6 +110,26 @@ def per_object(results: list) -> dict:
                                                      -(kv[1]["grasps"] - kv[1]["lifted"]), kv[0])))
 
 
+def per_source(results: list) -> dict:
+    """The grasps by what they were planned from (``Attempt.source``: an identified part's
+    primitive, or ``"features"``, the segment's own points): grasps, those that lifted
+    their target, the failed ones by cause. Grasps of unknown source (an external
+    planner's) are left out. Sorted by grasps, most first."""
+    rows: dict[str, dict] = {}
+    for a in (a for r in results for a in r.attempts):
+        src = getattr(a, "source", None)
+        if src is None:
+            continue
+        row = rows.setdefault(src, {"grasps": 0, "lifted": 0, "failed": {}})
+        row["grasps"] += 1
+        row["lifted"] += a.success
+        if not a.success:
+            row["failed"][a.cause] = row["failed"].get(a.cause, 0) + 1
+    for row in rows.values():
+        row["failed"] = dict(sorted(row["failed"].items()))
+    return dict(sorted(rows.items(), key=lambda kv: (-kv[1]["grasps"], kv[0])))
+
+
 #: The columns of :func:`failure_rows`.
 FAILURE_COLUMNS = ("object", "placed", "removed", "grasps", "lifted", "failed grasps", "left on the table")
 
@@ -130,8 +151,8 @@ def summarize(results: list) -> dict:
     planning seconds per grasp (count, mean, median, max; of the episodes' first frames
     and of later frames, which may reuse plans, apart; median per stage of
     ``plan_scene``), segmentation quality of the first frames
-    (objects seen, segmented as one cluster), and the failure table per object
-    (:func:`per_object`)."""
+    (objects seen, segmented as one cluster), the failure table per object
+    (:func:`per_object`) and the grasps by what they were planned from (:func:`per_source`)."""
     attempts = [a for r in results for a in r.attempts]
     ok = sum(a.success for a in attempts)
     placed, removed = sum(r.placed for r in results), sum(r.removed for r in results)
@@ -156,4 +177,4 @@ def summarize(results: list) -> dict:
                            "first_frame": _spread(first), "later_frames": _spread(later)},
             "segmentation": {"objects_seen": seen, "one_cluster": one,
                              "share": one / seen if seen else None},
-            "per_object": per_object(results)}
+            "per_object": per_object(results), "per_source": per_source(results)}

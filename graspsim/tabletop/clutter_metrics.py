@@ -78,6 +78,14 @@ def _spread(values: list[float]) -> dict:
     return {"count": len(v), "mean": float(v.mean()), "median": float(np.median(v)), "max": float(v.max())}
 
 
+def _count_grasp(row: dict, a) -> None:
+    """Attempt ``a`` counted into a failure-table ``row``: a grasp, lifted or failed by its cause."""
+    row["grasps"] += 1
+    row["lifted"] += a.success
+    if not a.success:
+        row["failed"][a.cause] = row["failed"].get(a.cause, 0) + 1
+
+
 def per_object(results: list) -> dict:
     """The failure table per object name, over episodes: placed, removed, grasps aimed
     at it (the target: the object most of the chosen segment's points show), those that
@@ -98,11 +106,7 @@ def per_object(results: list) -> dict:
         for a in r.attempts:
             if a.target is None:
                 continue
-            row = rows[names[a.target]]
-            row["grasps"] += 1
-            row["lifted"] += a.success
-            if not a.success:
-                row["failed"][a.cause] = row["failed"].get(a.cause, 0) + 1
+            _count_grasp(rows[names[a.target]], a)
     for row in rows.values():
         row["failed"] = dict(sorted(row["failed"].items()))
         row["left"] = dict(sorted(row["left"].items()))
@@ -120,11 +124,7 @@ def per_source(results: list) -> dict:
         src = getattr(a, "source", None)
         if src is None:
             continue
-        row = rows.setdefault(src, {"grasps": 0, "lifted": 0, "failed": {}})
-        row["grasps"] += 1
-        row["lifted"] += a.success
-        if not a.success:
-            row["failed"][a.cause] = row["failed"].get(a.cause, 0) + 1
+        _count_grasp(rows.setdefault(src, {"grasps": 0, "lifted": 0, "failed": {}}), a)
     for row in rows.values():
         row["failed"] = dict(sorted(row["failed"].items()))
     return dict(sorted(rows.items(), key=lambda kv: (-kv[1]["grasps"], kv[0])))

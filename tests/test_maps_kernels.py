@@ -113,6 +113,8 @@ pts = table_scene_cloud(shapes, np.array([[-0.05, 0.0], [0.05, 0.0]]), np.random
 sp = plan_scene(pts, db=db, rng=np.random.default_rng(1), config=SceneConfig(workers=1),
                 viewpoint=np.array([0.0, -0.4, 0.5]))
 assert sum(s.status == "planned" for s in sp.segments) == 2, sp.segments
+from graspsim.maps.feature_grasps import feature_columns  # a segment whose parts give too few grasps (a bowl)
+feature_columns(pts[pts[:, 2] > 0.01], db.gripper, db.quality, gap=0.006, up=sp.table.normal)
 """ + _LIST
 _COMPILE_ALL = "import json\nfrom graspsim.maps.warmup import compile_all\ncompile_all()\n" + _LIST
 
@@ -127,13 +129,13 @@ def _signatures(code: str, *args) -> dict:
 def test_compile_all_compiles_every_kernel_for_the_types_a_scene_plan_passes(tmp_path):
     """``graspsim warmup`` (compile_all) leaves nothing for a machine's first scene plan
     to compile: every kernel signature planning a scene uses, identification, robust
-    scores against the neighbours and their occlusion term, collision samples and the
-    pad-contact grade, is one compile_all compiles."""
+    scores against the neighbours and their occlusion term, collision samples, the
+    pad-contact grade and the feature grasps' chords, is one compile_all compiles."""
     planned = _signatures(_PLAN_A_SCENE, str(tmp_path / "db"))
     warmed = _signatures(_COMPILE_ALL)
     for name in ("maps._robust_kernel.robust_flags", "primitives.sdf_kernel.model_sdf_into",
                  "maps._hierarchy_kernel.regroup", "maps._hierarchy_kernel.cluster_tree",
-                 "maps._occlusion_kernel.occluded_fraction"):
+                 "maps._occlusion_kernel.occluded_fraction", "maps._feature_kernel.seed_chords"):
         assert planned[f"graspsim.{name}"], name  # the plan did use them
     assert any(planned[f"graspsim.grades.pad_kernel.{k}"] for k in ("pad_patches", "pad_patches_serial"))
     missing = {k: sorted(v - warmed[k]) for k, v in planned.items() if v - warmed[k]}

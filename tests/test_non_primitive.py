@@ -229,3 +229,45 @@ def _facing(points: np.ndarray, eye: np.ndarray, voxel: float = 0.004) -> np.nda
     return out
 
 
+
+
+def _reference_chords(x, Y, Z, depths, half_w, pad_length, gap, end_band, margin, widest):
+    """The feature chords' rule written as numpy loops (what ``seed_chords`` compiles):
+    [(j, k, lo, hi, zc)] for approach j and depth k, in that order."""
+    out = []
+    for j in range(Y.shape[1]):
+        across = np.abs(Y[:, j]) <= half_w
+        for k, d in enumerate(depths):
+            foot = across & (Z[:, j] <= d) & (Z[:, j] >= d - pad_length)
+            xs = np.sort(x[foot])
+            if not len(xs):
+                continue
+            i0 = min(int(np.searchsorted(xs, 0.0)), len(xs) - 1)
+            breaks = np.flatnonzero(np.diff(xs) > gap)
+            before, after = breaks[breaks < i0], breaks[breaks >= i0]
+            lo = xs[int(before[-1]) + 1 if len(before) else 0]
+            hi = xs[int(after[0]) if len(after) else len(xs) - 1]
+            if not hi - lo <= widest:
+                continue
+            ends = foot & ((np.abs(x - lo) <= end_band) | (np.abs(x - hi) <= end_band))
+            out.append((j, k, lo, hi, min(float(np.median(Z[ends, j])), d - margin)))
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_compiled_feature_chords_are_the_numpy_rule_exactly(seed):
+    """seed_chords (numba) gives the very numbers of the rule written in numpy: which
+    approach and depth hold a chord, its ends and its contacts' height (odd and even
+    counts of end points, gaps, chords too wide, empty footprints)."""
+    from graspsim.maps._feature_kernel import seed_chords
+
+    rng = np.random.default_rng(seed)
+    M, J = int(rng.integers(1, 400)), int(rng.integers(1, 9))
+    x = rng.normal(0, 0.03, M) * rng.choice([1.0, 3.0], M)
+    Y, Z = rng.normal(0, 0.015, (M, J)), rng.uniform(-0.05, 0.04, (M, J))
+    depths = np.array([0.006, 0.014, 0.022])
+    args = (depths, 0.01, 0.04, float(rng.uniform(0.002, 0.02)), 0.004, 0.005, 0.11)
+    ok, lo, hi, zc = seed_chords(x, Y, Z, *args)
+    got = [(int(f) // 3, int(f) % 3, lo[f], hi[f], zc[f]) for f in np.flatnonzero(ok)]
+    assert got == _reference_chords(x, Y, Z, *args)
+    assert 0 < len(got) < 3 * J or J == 1  # footprints with a chord and without (empty or too wide)

@@ -107,18 +107,6 @@ def _axes(points, tree, seeds, radius: float, up: np.ndarray | None):
     return out
 
 
-def _chord(xs: np.ndarray, gap: float) -> tuple[float, float] | None:
-    """The contiguous run (gaps <= ``gap``) of the sorted ``xs`` through 0, or nearest it."""
-    if not len(xs):
-        return None
-    i0 = min(int(np.searchsorted(xs, 0.0)), len(xs) - 1)
-    breaks = np.flatnonzero(np.diff(xs) > gap)
-    before, after = breaks[breaks < i0], breaks[breaks >= i0]
-    lo = int(before[-1]) + 1 if len(before) else 0
-    hi = int(after[0]) if len(after) else len(xs) - 1
-    return float(xs[lo]), float(xs[hi])
-
-
 def feature_columns(points: np.ndarray, gripper: GripperSpec, quality: QualityModel, *, gap: float,
                     config: FeatureConfig = FeatureConfig(), part: int = 0,
                     up: np.ndarray | None = None) -> dict[str, np.ndarray]:
@@ -128,6 +116,8 @@ def feature_columns(points: np.ndarray, gripper: GripperSpec, quality: QualityMo
     spacing and noise; ``config.gap`` overrides it); ``up`` (3,): the table's normal
     in the same frame, if there is one (horizontal closing axes and straight-down
     approaches are then among the candidates). Deterministic: no draw."""
+    from graspsim.maps._feature_kernel import seed_chords  # compiled: the loops over approaches and depths
+
     P = np.asarray(points, float).reshape(-1, 3)
     P = P[np.all(np.isfinite(P), axis=1)]
     gap = float(config.gap if config.gap is not None else gap)
@@ -141,8 +131,8 @@ def feature_columns(points: np.ndarray, gripper: GripperSpec, quality: QualityMo
     widest = gripper.max_opening - 2.0 * gripper.approach_clearance
     half_w = 0.5 * gripper.finger_size[1]
     reach = math.hypot(0.5 * gripper.max_opening, math.hypot(half_w, gripper.pad_length))
-    depths = [d for d in config.depths
-              if gripper.contact_depth_margin <= d <= gripper.pad_length - gripper.contact_depth_margin]
+    margin = gripper.contact_depth_margin
+    depths = np.array([d for d in config.depths if margin <= d <= gripper.pad_length - margin], float)
     ang = 2.0 * math.pi * np.arange(config.approaches) / config.approaches
     end_band = 0.5 * gap
     rows = []
@@ -158,21 +148,17 @@ def feature_columns(points: np.ndarray, gripper: GripperSpec, quality: QualityMo
             v = np.cross(c, u)
             A = np.cos(ang)[:, None] * u + np.sin(ang)[:, None] * v  # approaches about c
             x = near @ c
-            Z = near @ A.T  # (M, approaches)
-            Y = near @ np.cross(A, c).T
-            for j in range(len(A)):
-                across = np.abs(Y[:, j]) <= half_w
-                for d in depths:
-                    # the pads' footprint about the closing line: finger width x pad length, tip d past it
-                    foot = across & (Z[:, j] <= d) & (Z[:, j] >= d - gripper.pad_length)
-                    run = _chord(np.sort(x[foot]), gap)
-                    if run is None or not run[1] - run[0] <= widest:
-                        continue
-                    # the contacts at the middle height (along the approach) of the points at the
-                    # chord's two ends -- a bar's sides, not its top corners -- the fingertips kept
-                    ends = foot & ((np.abs(x - run[0]) <= end_band) | (np.abs(x - run[1]) <= end_band))
-                    zc = min(float(np.median(Z[ends, j])), d - gripper.contact_depth_margin)
-                    rows.append((P[s] + 0.5 * (run[0] + run[1]) * c + zc * A[j], c, A[j], run[1] - run[0], d - zc))
+            Z = np.ascontiguousarray(near @ A.T)  # (M, approaches)
+            Y = np.ascontiguousarray(near @ np.cross(A, c).T)
+            # per approach and depth, the chord in the pads' footprint (finger width x pad length, tip
+            # that deep) and its contacts at the middle height (along the approach) of the points at
+            # its two ends -- a bar's sides, not its top corners -- the fingertips kept
+            ok, lo, hi, zc = seed_chords(x, Y, Z, depths, half_w, gripper.pad_length, gap, end_band,
+                                         gripper.contact_depth_margin, widest)
+            for f in np.flatnonzero(ok):
+                j, d = divmod(int(f), len(depths))
+                rows.append((P[s] + 0.5 * (lo[f] + hi[f]) * c + zc[f] * A[j], c, A[j], hi[f] - lo[f],
+                             depths[d] - zc[f]))
     if not rows:
         return empty
     gp = np.array([r[0] for r in rows])

@@ -19,7 +19,7 @@ log = logging.getLogger(__name__)
 KERNEL_MODULES = ("graspsim.maps._kernel", "graspsim.maps._assemble_kernel", "graspsim.maps._hierarchy_kernel",
                   "graspsim.maps._robust_kernel", "graspsim.maps._robust_blocks", "graspsim.maps._occlusion_kernel",
                   "graspsim.primitives.sdf_kernel",
-                  "graspsim.geometry.spacing_kernel", "graspsim.grades.pad_kernel")
+                  "graspsim.geometry.spacing_kernel", "graspsim.grades.pad_kernel", "graspsim.maps._feature_kernel")
 
 
 def compiled_kernels() -> dict:
@@ -46,7 +46,9 @@ def compile_all(*, parallel: bool = True) -> bool:
 
     from graspsim.geometry.spacing import median_spacing
     from graspsim.grades.pad_kernel import SERIAL_BELOW, run_pad_patches
+    from graspsim.grades.paper import QualityModel
     from graspsim.grippers.spec import HGPL_25_60_A
+    from graspsim.maps.feature_grasps import feature_columns
     from graspsim.maps.hierarchy import build_levels, clusters
     from graspsim.maps.map_config import MapConfig
     from graspsim.maps.robust import score_poses
@@ -69,6 +71,8 @@ def compile_all(*, parallel: bool = True) -> bool:
     coarse = MapConfig(collision_step=0.01, collision_tolerance=0.004)
     lv = build_levels(Box(0.03, 0.03, 0.03), coarse)  # collision samples
     clusters(lv["Q"], lv["RT"] + lv["HN"])
+    bar = np.stack(np.meshgrid(np.arange(8) * 0.003, np.arange(4) * 0.003, [0.0, 0.01]), -1).reshape(-1, 3)
+    feature_columns(bar, HGPL_25_60_A, QualityModel(), gap=0.005, up=np.array([0.0, 0.0, 1.0]))  # feature chords
     for n in ((1, SERIAL_BELOW) if parallel else (1,)):  # the pad-contact grade's, serial and threaded
         run_pad_patches(pts, np.tile([0.0, 0.0, 1.0], (len(pts), 1)), np.full(len(pts), 1e-6),
                         np.repeat(np.eye(3)[None], n, axis=0), np.zeros((n, 3)), 0.01, 0.0, 0.02, 0.001)

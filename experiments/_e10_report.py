@@ -9,7 +9,7 @@ from _common import contacts_clause, database_note, pct, rate_ci
 
 from graspsim.tabletop.clutter import FAILURE_COLUMNS, OTHER, failure_rows
 
-__all__ = ["readme_section", "rows_of", "literature_lines", "failure_lines", "PUBLISHED"]
+__all__ = ["readme_section", "rows_of", "literature_lines", "failure_lines", "source_lines", "PUBLISHED"]
 
 
 def _label(c: dict) -> str:
@@ -122,6 +122,35 @@ def failure_lines(rows: list) -> list[str]:
     return L
 
 
+def source_lines(rows: list) -> list[str]:
+    """The grasps by what they were planned from (``summarize``'s ``per_source``: a part's
+    primitive or the segment's own features), per object set and kind, pooled over the
+    full method's conditions; nothing for runs that did not record it."""
+    L = []
+    for o, kind in dict.fromkeys((r["object_set"], r["kind"]) for r in rows):
+        t: dict[str, dict] = {}
+        for r in rows:
+            if (r["object_set"], r["kind"]) != (o, kind) or r["ablation"] is not None:
+                continue
+            for src, v in (r.get("per_source") or {}).items():
+                d = t.setdefault(src, {"grasps": 0, "lifted": 0, "failed": {}})
+                d["grasps"] += v["grasps"]
+                d["lifted"] += v["lifted"]
+                for why, n in v["failed"].items():
+                    d["failed"][why] = d["failed"].get(why, 0) + n
+        if not t:
+            continue
+        if not L:
+            L += ["", "Grasps by what they were planned from (an identified part's primitive, or the segment's own "
+                  "features), the full method's conditions pooled:", "",
+                  "| object set | scene | source | grasps | lifted | failed grasps |", "|---|---|---|---|---|---|"]
+        for src, v in sorted(t.items(), key=lambda kv: (-kv[1]["grasps"], kv[0])):
+            failed = ", ".join(f"{k} {n}" for k, n in sorted(v["failed"].items())) or "-"
+            L.append(f"| {o} | {kind} | {src} | {v['grasps']} | {v['lifted']} ({pct(v['lifted'] / v['grasps'])} %) "
+                     f"| {failed} |")
+    return L
+
+
 def _memory_note(rows: list) -> str:
     keys = {k for r in rows for k in r.get("built_in_memory", ())}
     return f" {len(keys)} FS maps were built in memory during the run (parts no stored map serves; not stored)." \
@@ -174,6 +203,7 @@ def readme_section(s: dict) -> str:
     L += ["", "In the field's form (GSR and DR per seed, mean ± sample std over the seeds; one seed: no spread):",
           "", *literature_lines(rows)]
     L += failure_lines(rows)
+    L += source_lines(rows)
     lost = [(r, k) for r in rows for k in r.get("skipped", [])]
     if lost:
         L += ["", "Skipped (not counted above): " + "; ".join(

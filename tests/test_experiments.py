@@ -700,6 +700,11 @@ def test_e10_reports_per_seed_and_mean_std_over_seeds():
 
     text = "\n".join(sys.modules["_e10_report"].literature_lines([row]))
     assert "75.0 ± 35.4 (2)" in text and "GIGA" in text and "EdgeGraspNet" in text
+    rep = sys.modules["_e10_report"]
+    table = rep.source_lines([row, {**row, "ablation": "no_feel"}])  # the full method's conditions only
+    assert table[-2:] == ["| x | pile | box | 12 | 10 (83.3 %) | slipped 2 |",
+                          "| x | pile | features | 4 | 2 (50.0 %) | slipped 2 |"]
+    assert rep.source_lines([{k: v for k, v in row.items() if k != "per_source"}]) == []  # runs before it
 
 
 def test_e10_seeds_are_graspsim_scenes_and_old_summaries_say_their_set_and_seed():

@@ -67,17 +67,24 @@ def _ms(d: dict | None) -> str:
                                        else "") + f" ({n})"
 
 
-def _merge_tables(tables: list[dict]) -> dict:
-    """Per-object failure tables (``summarize``'s ``per_object``) summed, ordered as it orders them."""
+def _sum_tables(tables: list[dict], counts: tuple[str, ...], tallies: tuple[str, ...]) -> dict:
+    """Failure tables (``summarize``'s ``per_object`` or ``per_source``) summed row by row:
+    the ``counts`` added, the ``tallies`` (cause -> n) merged; in first-seen order."""
     out: dict[str, dict] = {}
     for t in tables:
         for name, r in t.items():
-            o = out.setdefault(name, {"placed": 0, "removed": 0, "grasps": 0, "lifted": 0, "failed": {}, "left": {}})
-            for k in ("placed", "removed", "grasps", "lifted"):
+            o = out.setdefault(name, {**{k: 0 for k in counts}, **{k: {} for k in tallies}})
+            for k in counts:
                 o[k] += r[k]
-            for k in ("failed", "left"):
+            for k in tallies:
                 for why, n in r[k].items():
                     o[k][why] = o[k].get(why, 0) + n
+    return out
+
+
+def _merge_tables(tables: list[dict]) -> dict:
+    """Per-object failure tables (``summarize``'s ``per_object``) summed, ordered as it orders them."""
+    out = _sum_tables(tables, ("placed", "removed", "grasps", "lifted"), ("failed", "left"))
     return dict(sorted(out.items(), key=lambda kv: (-(kv[1]["placed"] - kv[1]["removed"]),
                                                     -(kv[1]["grasps"] - kv[1]["lifted"]), kv[0])))
 
@@ -128,16 +135,9 @@ def source_lines(rows: list) -> list[str]:
     full method's conditions; nothing for runs that did not record it."""
     L = []
     for o, kind in dict.fromkeys((r["object_set"], r["kind"]) for r in rows):
-        t: dict[str, dict] = {}
-        for r in rows:
-            if (r["object_set"], r["kind"]) != (o, kind) or r["ablation"] is not None:
-                continue
-            for src, v in (r.get("per_source") or {}).items():
-                d = t.setdefault(src, {"grasps": 0, "lifted": 0, "failed": {}})
-                d["grasps"] += v["grasps"]
-                d["lifted"] += v["lifted"]
-                for why, n in v["failed"].items():
-                    d["failed"][why] = d["failed"].get(why, 0) + n
+        t = _sum_tables([r.get("per_source") or {} for r in rows
+                         if (r["object_set"], r["kind"]) == (o, kind) and r["ablation"] is None],
+                        ("grasps", "lifted"), ("failed",))
         if not t:
             continue
         if not L:

@@ -35,12 +35,14 @@ def seed_chords(x, Y, Z, depths, half_w, pad_length, gap, end_band, margin, wide
     zc = np.zeros(J * K)
     buf = np.empty(M)
     zb = np.empty(M)
+    foot = np.empty(M, np.int64)  # the footprint's points
     for j in range(J):
         for k in range(K):
             d = depths[k]
             n = 0
             for i in range(M):
                 if abs(Y[i, j]) <= half_w and Z[i, j] <= d and Z[i, j] >= d - pad_length:
+                    foot[n] = i
                     buf[n] = x[i]
                     n += 1
             if n == 0:
@@ -59,9 +61,9 @@ def seed_chords(x, Y, Z, depths, half_w, pad_length, gap, end_band, margin, wide
             if not r1 - r0 <= widest:
                 continue
             m = 0
-            for i in range(M):
-                if abs(Y[i, j]) <= half_w and Z[i, j] <= d and Z[i, j] >= d - pad_length \
-                        and (abs(x[i] - r0) <= end_band or abs(x[i] - r1) <= end_band):
+            for t in range(n):  # its points at either end, in input order
+                i = foot[t]
+                if abs(x[i] - r0) <= end_band or abs(x[i] - r1) <= end_band:
                     zb[m] = Z[i, j]
                     m += 1
             f = j * K + k

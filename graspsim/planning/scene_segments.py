@@ -135,8 +135,9 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     g = db.gripper
     opening = g.pregrasp_opening(executed_width(gmap))
     score = np.nan_to_num(gmap.robust.astype(float), nan=0.0)
-    source = [prims[p] if p < len(prims) else "features" for p in np.asarray(gmap.part, int)]  # part len(parts):
-    grasps = [SceneGrasp(k, T[i], float(opening[i]), float(score[i]), float(gmap.grade[i]),  # the features'
+    # the part each grasp came from; part len(parts) is the segment's own features
+    source = [prims[p] if p < len(prims) else "features" for p in np.asarray(gmap.part, int)]
+    grasps = [SceneGrasp(k, T[i], float(opening[i]), float(score[i]), float(gmap.grade[i]),
                          float(gmap.clearance[i]), source[i]) for i in range(len(gmap))]
     return SegmentPlan(k, len(seg), "planned", None, prims, scored, time.perf_counter() - t0), grasps
 

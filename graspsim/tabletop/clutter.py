@@ -452,7 +452,7 @@ class ClutterEpisode:
         a = Attempt(target, out.to_dict(), hit, cause, grasp.score, look.planning, {} if external else sp.timing,
                     0 if external else sp.perception.n_segments, look.seen, look.one_cluster,
                     look.reach if grasp is look.best else None, between,
-                    None if external else getattr(grasp, "source", None))
+                    None if external else getattr(grasp, "source", None))  # a stand-in grasp may lack it
         self.attempts.append(a)
         # a grasp that lifted another object is no success, but the scene changed: no failure in a row
         self.failures = 0 if out.success else self.failures + 1

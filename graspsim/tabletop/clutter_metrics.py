@@ -120,11 +120,8 @@ def per_source(results: list) -> dict:
     their target, the failed ones by cause. Grasps of unknown source (an external
     planner's) are left out. Sorted by grasps, most first."""
     rows: dict[str, dict] = {}
-    for a in (a for r in results for a in r.attempts):
-        src = getattr(a, "source", None)
-        if src is None:
-            continue
-        _count_grasp(rows.setdefault(src, {"grasps": 0, "lifted": 0, "failed": {}}), a)
+    for a in (a for r in results for a in r.attempts if a.source is not None):
+        _count_grasp(rows.setdefault(a.source, {"grasps": 0, "lifted": 0, "failed": {}}), a)
     for row in rows.values():
         row["failed"] = dict(sorted(row["failed"].items()))
     return dict(sorted(rows.items(), key=lambda kv: (-kv[1]["grasps"], kv[0])))

@@ -1,6 +1,8 @@
 """Seen-points study: how many of its object's seen points a grasp that lifts has between
 its pads, and how many a grasp that closes on nothing has -- the evidence for the scene
-planner's ``PlannerConfig.seen_between`` (:data:`graspsim.planning.observed.SEEN_BETWEEN`).
+planner's ``PlannerConfig.seen_between`` (:data:`graspsim.planning.observed.SEEN_BETWEEN`)
+and ``SceneConfig.sparse_between`` (:data:`graspsim.planning.scene_config.SPARSE_BETWEEN`,
+:data:`~graspsim.planning.scene_config.SPARSE_SHARE`).
 
 A grasp planned on a fitted part may close where the camera saw nothing of the object: on
 the part's extrapolation alone (a box fitted across a rounded flank, a face seen edge-on).
@@ -8,12 +10,15 @@ This study clears E10's scenes of the tuning meshes only (``household-tuning`` a
 ``random-tuning``: the held-out third is never used to set anything), 5-object piles and
 packed scenes, no execution error, E10's seeds, camera, sensor noise and database, with
 ``--seen-between`` as the planner's setting while the scenes are cleared (0, the default
-here: off, so the grasps it would refuse are executed and their outcome seen). Every
+here: off, so the grasps it would refuse are executed and their outcome seen) and
+``--sparse-between`` as the scene's (0, the default here: off, so sparse grasps rank by their
+score alone; without the flag: the scene planner's default). Every
 executed grasp records (``Attempt.between``) the points of its segment in its closing
 region at the pose and opening executed (``GripperSpec.points_between``); the table
 counts the grasps of each band of that number and what became of them.
 
     python experiments/study_seen_between.py --db results/e10-fsdb --workers 2 --publish
+    python experiments/study_seen_between.py --db results/e10-fsdb --workers 2 --seen-between 5 --sparse-between 30
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ from _common import load_sentence, md_table, opt, rate_ci, resident_run_database
 log = logging.getLogger("study_seen_between")
 
 #: bands of the points between the pads for the table: [lo, hi] inclusive (None: no upper end)
-BANDS = ((0, 0), (1, 4), (5, 9), (10, 49), (50, None))
+BANDS = ((0, 0), (1, 4), (5, 9), (10, 29), (30, 49), (50, None))
 
 
 @dataclass(frozen=True)
@@ -42,20 +47,22 @@ class Config:
     object_sets: tuple[str, ...] = opt(("household-tuning", "random-tuning"),
                                        "object sets (tuning sets only, never a held-out set)")
     seen_between: int = opt(0, "the planner's PlannerConfig.seen_between while the scenes are cleared (0: off)")
+    sparse_between: int = opt(0, "the scene's SceneConfig.sparse_between while the scenes are cleared (0: off)")
     seed: int = opt(0, "E10's seed")
     db: str = opt("", "the FS map database, read only (E10's --db; empty: E10's default folder)")
     workers: int = opt(1, "processes; results do not depend on it")
 
     def __post_init__(self) -> None:
-        if self.seeds < 1 or self.scenes < 1 or self.workers < 1 or self.seen_between < 0:
-            raise ValueError("--seeds, --scenes and --workers must be >= 1, --seen-between >= 0")
+        if self.seeds < 1 or self.scenes < 1 or self.workers < 1 or self.seen_between < 0 or self.sparse_between < 0:
+            raise ValueError("--seeds, --scenes and --workers must be >= 1, --seen-between and --sparse-between >= 0")
         if any(s.endswith("heldout") for s in self.object_sets) or not self.object_sets:
             raise ValueError("the setting is measured on tuning meshes only, never on a held-out set")
 
 
 def episode(task) -> dict:
     """Scene ``i`` of seed index ``k`` of ``kind`` and ``object_set`` cleared as E10 clears
-    it, with the planner's ``seen_between`` at ``cfg.seen_between``: its executed grasps."""
+    it, with the planner's ``seen_between`` at ``cfg.seen_between`` and the scene's ``sparse_between`` at
+    ``cfg.sparse_between``: its executed grasps."""
     object_set, kind, k, i, cfg, root = task
     import e10_clutter_removal as e10
 
@@ -68,7 +75,8 @@ def episode(task) -> dict:
     c = {"object_set": object_set, "kind": kind, "objects": 5, "noise": "none", "ablation": None}
     head = {"object_set": object_set, "kind": kind, "seed": sd, "scene": i}
     try:
-        (r,) = run_benchmark(5, kind, 1, sd, db=db, config=e10._clutter_config(c, seen_between=cfg.seen_between),
+        (r,) = run_benchmark(5, kind, 1, sd, db=db, config=e10._clutter_config(c, seen_between=cfg.seen_between,
+                                                                          sparse_between=cfg.sparse_between),
                              object_set=object_set, first=i)
     except SimulationError as err:  # a scene that does not settle: skipped, as E10 skips it
         log.warning("%s skipped: %s", head, err)
@@ -118,7 +126,8 @@ def readme_section(s: dict) -> str:
     c = s["config"]
     L = [f"`{s['command']}`: E10's conditions on the tuning meshes ({', '.join(c['object_sets'])}; the held-out "
          f"third not used), {', '.join(c['kinds'])} of 5 objects, no execution error, E10's first {c['seeds']} "
-         f"seeds x {c['scenes']} scenes each, the planner's `seen_between` at {c['seen_between']} while the scenes "
+         f"seeds x {c['scenes']} scenes each, the planner's `seen_between` at {c['seen_between']} "
+         f"and the scene's `sparse_between` at {c.get('sparse_between', 0)} while the scenes "
          "were cleared (0: off). *Between*: the points of the grasp's own segment (the frame it was planned from, "
          "thinned to the planner's 3 mm grid) in its closing region -- between the pads at the opening executed, "
          "across the finger width, along the pad (`Attempt.between`); *lifted*: the grasp lifted its target; "

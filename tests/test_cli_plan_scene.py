@@ -160,6 +160,43 @@ def test_the_seen_between_flag_reaches_the_planner(tmp_path, capsys, db):
     assert code == 0 and json.loads(out.read_text())["seen_between"] == 0
 
 
+def test_the_sparse_between_flag_reaches_the_planner(tmp_path, capsys, db):
+    """--sparse-between N sets the points below which a scene grasp's score is discounted
+    (0: off), absent the measured SPARSE_BETWEEN; scene and plan-scene read it alike,
+    plan-scene records it, and a bad count is one line naming the flag."""
+    import argparse
+
+    from graspsim.cli import build_parser
+    from graspsim.cli._common import add_sparse_between_flag, scene_planning_from_args
+    from graspsim.errors import InvalidParameterError
+    from graspsim.planning.scene_config import SPARSE_BETWEEN
+
+    for command in ("scene", "plan-scene"):
+        head = [command] if command == "scene" else [command, "c.npy", "-o", "g.json"]
+        for flag, want in (([], SPARSE_BETWEEN), (["--sparse-between", "0"], 0), (["--sparse-between", "12"], 12)):
+            args = build_parser().parse_args([*head, *flag])
+            assert scene_planning_from_args(args, SceneConfig()).sparse_between == want, (command, flag)
+        for bad in ("-1", "2.5", "many"):
+            args = build_parser().parse_args([*head, "--sparse-between", bad])
+            with pytest.raises(InvalidParameterError, match="--sparse-between must be a whole number"):
+                scene_planning_from_args(args, SceneConfig())
+    p = argparse.ArgumentParser()
+    add_sparse_between_flag(p)
+    assert f"the measured {SPARSE_BETWEEN};" in " ".join(p.format_help().split())  # the help says the value in use
+    rng = np.random.default_rng(1)
+    table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), rng.normal(0, 0.0005, 3000)]
+    box = np.c_[rng.uniform(-0.03, 0.03, (800, 2)), rng.uniform(0, 0.06, 800)]
+    f, out = tmp_path / "cloud.npy", tmp_path / "grasps.json"
+    np.save(f, np.r_[table, box])
+    code, _, _ = _run(capsys, f, "-o", out, "--db", db.root, *FAST_FLAGS)
+    assert code == 0 and json.loads(out.read_text())["sparse_between"] == SPARSE_BETWEEN
+    code, _, _ = _run(capsys, f, "-o", out, "--sparse-between", 0, "--db", db.root, *FAST_FLAGS)
+    assert code == 0 and json.loads(out.read_text())["sparse_between"] == 0
+    code, _, err = _run(capsys, f, "-o", tmp_path / "other.json", "--sparse-between", -3, "--db", db.root, *FAST_FLAGS)
+    assert code != 0 and "--sparse-between must be a whole number" in err and "Traceback" not in err
+    assert not (tmp_path / "other.json").exists()
+
+
 def test_the_feature_grasps_flag_reaches_the_planner(tmp_path, capsys, db):
     """--feature-grasps {apart,always,never} says where a segment's planning adds grasps on
     its cloud's own features; absent: apart (only with a known gap between objects); scene

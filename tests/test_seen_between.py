@@ -137,3 +137,55 @@ def test_the_scene_planner_asks_for_seen_points_and_bad_values_are_refused():
     for bad in (-1, 2.5, True, "5"):
         with pytest.raises(InvalidParameterError, match="seen_between"):
             PlannerConfig(seen_between=bad)
+
+
+def test_sparse_grasps_keep_a_share_of_their_score(db):
+    """``discount_sparse``: the grasps whose closing region (at the opening they execute)
+    holds fewer of the segment's points than asked keep :data:`SPARSE_SHARE` of their robust
+    score, the others keep theirs, and 0 asks nothing. The cylinder seen with a band missing
+    (above): grasps at the band's edge close on few points."""
+    from graspsim.maps.robust import executed_width
+    from graspsim.planning.scene_config import SPARSE_BETWEEN, SPARSE_SHARE
+    from graspsim.planning.scene_segments import discount_sparse
+
+    T = make_transform(np.eye(3), [0.4, -0.1, 0.25])
+    cloud = synthetic_cloud(Cylinder(0.025, 0.1), np.random.default_rng(1), resolution=0.003, noise=0.0002)
+    P = cloud.points
+    pts = _posed(P[(P[:, 2] < 0.0) | (P[:, 2] > 0.04)], T)
+    cfg = PlannerConfig(robust=replace(ROBUST, top=200), features=None, clear_observed=False, clear_first=True)
+    m = list(plan_stream(pts, db=db, rng=np.random.default_rng(2), config=cfg, scored_only=True))[-1].map
+    m = m.select(np.isfinite(m.robust))
+    Tw = m.meta.placement.T_cloud_obj @ m.T_obj_wrist
+    counts = G.points_between(Tw, G.pregrasp_opening(executed_width(m)), pts)
+    need = int(np.median(counts))
+    assert counts.min() < need <= counts.max()
+    out = discount_sparse(m, pts, G, need)
+    sparse = counts < need
+    assert np.allclose(out.robust[sparse], SPARSE_SHARE * m.robust[sparse], rtol=1e-6)
+    assert np.array_equal(out.robust[~sparse], m.robust[~sparse])
+    assert len(out) == len(m) and np.array_equal(out.grade, m.grade)
+    assert discount_sparse(m, pts, G, 0) is m
+    assert 0 < SPARSE_SHARE < 1 and SceneConfig().sparse_between == SPARSE_BETWEEN > SEEN_BETWEEN
+    for bad in (-1, 2.5, True, "30", None):
+        with pytest.raises(InvalidParameterError, match="sparse_between"):
+            SceneConfig(sparse_between=bad)
+
+
+def test_the_scene_planner_discounts_sparse_grasps(db):
+    """Through ``plan_scene``: asked for more points than any grasp closes on, every grasp of
+    the scene keeps :data:`SPARSE_SHARE` of the score it has with the discount off, in the
+    same order; asked for none, the scores are the off ones."""
+    from graspsim.planning.scene import plan_scene
+    from graspsim.planning.scene_config import SPARSE_SHARE
+
+    rng = np.random.default_rng(4)
+    T = make_transform(np.eye(3), [0.0, 0.0, 0.05])
+    cyl = _posed(synthetic_cloud(Cylinder(0.025, 0.1), rng, resolution=0.003, noise=0.0002).points, T)
+    table = np.c_[rng.uniform(-0.2, 0.2, (5000, 2)), rng.normal(0, 0.0005, 5000)]
+    pts = np.r_[table[np.linalg.norm(table[:, :2], axis=1) > 0.035], cyl[cyl[:, 2] > 0.008]]
+    scores = {}
+    for need in (0, 10**6):
+        sp = plan_scene(pts, db=db, rng=np.random.default_rng(5), config=SceneConfig(workers=1, sparse_between=need))
+        scores[need] = [g.score for g in sp.grasps]
+    assert scores[0] and max(scores[0]) > 0
+    assert np.allclose(scores[10**6], SPARSE_SHARE * np.array(scores[0]), rtol=1e-6)

@@ -162,12 +162,39 @@ def add_seen_between_flag(p) -> None:
                    "5; 0: off; PlannerConfig.seen_between, docs/scenes.md)")
 
 
+def add_sparse_between_flag(p) -> None:
+    """``--sparse-between N``: a scene grasp closing on fewer of its own segment's points
+    keeps a share of its score (read with :func:`scene_planning_from_args`; the measured
+    :data:`~graspsim.planning.scene_config.SPARSE_BETWEEN` written out: building the parser
+    stays light)."""
+    p.add_argument("--sparse-between", default=None, metavar="N",
+                   help="a grasp with fewer than N of its object's seen points between its pads ranks after "
+                   "better-seen grasps (its score times SPARSE_SHARE; default: the measured 30; 0: off; "
+                   "SceneConfig.sparse_between, docs/scenes.md)")
+
+
 def seen_between_value(args) -> int | None:
     """``--seen-between`` as a whole number of points, None when not given; anything else
     is an :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
+    from graspsim.planning.observed import SEEN_BETWEEN
+
+    return _points_value(args, "seen_between", SEEN_BETWEEN)
+
+
+def sparse_between_value(args) -> int | None:
+    """``--sparse-between`` as a whole number of points, None when not given; anything else
+    is an :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
+    from graspsim.planning.scene_config import SPARSE_BETWEEN
+
+    return _points_value(args, "sparse_between", SPARSE_BETWEEN)
+
+
+def _points_value(args, name: str, measured: int) -> int | None:
+    """Flag ``--NAME`` (attribute ``name``) as a whole number of points, None when not given;
+    anything else is an :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
     from graspsim.errors import InvalidParameterError
 
-    v = getattr(args, "seen_between", None)
+    v = getattr(args, name, None)
     if v is None:
         return None
     try:
@@ -175,10 +202,8 @@ def seen_between_value(args) -> int | None:
     except ValueError:
         n = -1
     if n < 0:
-        from graspsim.planning.observed import SEEN_BETWEEN
-
-        raise InvalidParameterError(f"--seen-between must be a whole number of points >= 0 (the measured "
-                                    f"{SEEN_BETWEEN}; 0: off), got {v!r}")
+        raise InvalidParameterError(f"--{name.replace('_', '-')} must be a whole number of points >= 0 (the "
+                                    f"measured {measured}; 0: off), got {v!r}")
     return n
 
 
@@ -197,27 +222,36 @@ def add_feature_grasps_flag(p) -> None:
 
 def add_scene_planning_flags(p) -> None:
     """The planning flags the scene commands (``scene``, ``plan-scene``) share:
-    ``--budget``, ``--unseen-margin``, ``--seen-between`` and ``--feature-grasps`` (read
-    with :func:`scene_planning_from_args`)."""
+    ``--budget``, ``--unseen-margin``, ``--seen-between``, ``--sparse-between`` and
+    ``--feature-grasps`` (read with :func:`scene_planning_from_args`)."""
     add_budget_flag(p)
     add_unseen_margin_flag(p)
     add_seen_between_flag(p)
+    add_sparse_between_flag(p)
     add_feature_grasps_flag(p)
 
 
 def scene_planning_from_args(args, scene):
-    """``scene`` (a ``SceneConfig``) with ``--budget``, ``--unseen-margin``, ``--seen-between``
-    and ``--feature-grasps`` applied (:func:`graspsim.planning.scene_config.with_unseen_margin`,
+    """``scene`` (a ``SceneConfig``) with ``--budget``, ``--unseen-margin``, ``--seen-between``,
+    ``--sparse-between`` and ``--feature-grasps`` applied
+    (:func:`graspsim.planning.scene_config.with_unseen_margin`,
     :func:`~graspsim.planning.scene_config.with_seen_between`,
+    :func:`~graspsim.planning.scene_config.with_sparse_between`,
     :func:`~graspsim.planning.scene_config.with_feature_grasps`, E10's path too); a bad
     value is an :class:`~graspsim.errors.InvalidParameterError` naming its flag."""
     from dataclasses import replace
 
-    from graspsim.planning.scene_config import with_feature_grasps, with_seen_between, with_unseen_margin
+    from graspsim.planning.scene_config import (
+        with_feature_grasps,
+        with_seen_between,
+        with_sparse_between,
+        with_unseen_margin,
+    )
 
     scene = replace(scene, **budget_from_args(args))
     scene = with_unseen_margin(scene, unseen_margin_value(args, none=True))  # the value checked, naming the flag
     scene = with_seen_between(scene, seen_between_value(args))
+    scene = with_sparse_between(scene, sparse_between_value(args))
     return with_feature_grasps(scene, getattr(args, "feature_grasps", None))
 
 

@@ -28,13 +28,15 @@ from graspsim.maps.match import MatchKind
 from graspsim.maps.robust import executed_width
 from graspsim.perception.identify import Identification
 from graspsim.planning.planner import PlannerConfig, PlanResult, canonical_box, plan_stream
+from graspsim.planning.scene_config import SPARSE_SHARE
 from graspsim.planning.scene_reuse import nothing_new, reused_grasps
 from graspsim.planning.scene_workers import cancelled, resident_database, stream_segments
 
 if TYPE_CHECKING:  # the scene's settings (scene.py imports this module)
     from graspsim.planning.scene_config import SceneConfig
 
-__all__ = ["SceneGrasp", "SegmentPlan", "builds_maps", "copies_plan_alike", "settled_plan", "plan_batches"]
+__all__ = ["SceneGrasp", "SegmentPlan", "builds_maps", "copies_plan_alike", "discount_sparse", "settled_plan",
+           "plan_batches"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,10 +131,10 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     if not batches:
         return SegmentPlan(k, len(seg), "no_grasp", None, prims, 0, time.perf_counter() - t0), []
     gmap = GraspabilityMap.concat(batches, meta=batches[0].meta)
-    gmap = gmap.select(np.isfinite(gmap.robust)).top_k(cfg.keep)  # the rows scored against the scene
-    T_world_obj = gmap.meta.placement.T_cloud_obj
-    T = T_world_obj @ gmap.T_obj_wrist
+    gmap = gmap.select(np.isfinite(gmap.robust))  # the rows scored against the scene
     g = db.gripper
+    gmap = discount_sparse(gmap, seg, g, cfg.sparse_between).top_k(cfg.keep)
+    T = gmap.meta.placement.T_cloud_obj @ gmap.T_obj_wrist
     opening = g.pregrasp_opening(executed_width(gmap))
     score = np.nan_to_num(gmap.robust.astype(float), nan=0.0)
     # the part each grasp came from; part len(parts) is the segment's own features
@@ -140,6 +142,20 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     grasps = [SceneGrasp(k, T[i], float(opening[i]), float(score[i]), float(gmap.grade[i]),
                          float(gmap.clearance[i]), source[i]) for i in range(len(gmap))]
     return SegmentPlan(k, len(seg), "planned", None, prims, scored, time.perf_counter() - t0), grasps
+
+
+def discount_sparse(gmap: GraspabilityMap, seg: np.ndarray, gripper, need: int) -> GraspabilityMap:
+    """``gmap`` (a segment's scored grasps, placed in the scene) with the robust score of every
+    grasp whose closing region holds fewer than ``need`` of the segment's points ``seg`` (M, 3) at
+    the opening it executes (``SceneConfig.sparse_between``) multiplied by :data:`SPARSE_SHARE`;
+    ``need`` 0: ``gmap`` itself."""
+    if need <= 0 or not len(gmap):
+        return gmap
+    T = gmap.meta.placement.T_cloud_obj @ gmap.T_obj_wrist
+    sparse = gripper.points_between(T, gripper.pregrasp_opening(executed_width(gmap)), seg) < need
+    if not sparse.any():
+        return gmap
+    return replace(gmap, robust=np.where(sparse, gmap.robust * SPARSE_SHARE, gmap.robust).astype(gmap.robust.dtype))
 
 
 def settled_plan(k: int, seg: np.ndarray, ident: Identification | None, why: str, old, obstacles, cfg: SceneConfig

@@ -103,6 +103,26 @@ def bands(grasps: list[dict]) -> list[dict]:
     return out
 
 
+def sparse_split(episodes: list[dict]) -> list[dict]:
+    """Per scene kind and pooled: the grasps with at least ``SEEN_BETWEEN`` but fewer than
+    ``SPARSE_BETWEEN`` points between the pads (*sparse*) and those with more, the grasps
+    and how many lifted their target -- what ``SPARSE_SHARE`` is measured from."""
+    from graspsim.planning.observed import SEEN_BETWEEN
+    from graspsim.planning.scene_config import SPARSE_BETWEEN
+
+    out = []
+    if not episodes:
+        return out
+    for kind in [*dict.fromkeys(e["kind"] for e in episodes), None]:
+        gs = [g for e in episodes if kind in (None, e["kind"]) for g in e["grasps"] if g["between"] >= SEEN_BETWEEN]
+        row = {"kind": kind or "both"}
+        for name, keep in (("sparse", lambda n: n < SPARSE_BETWEEN), ("other", lambda n: n >= SPARSE_BETWEEN)):
+            sel = [g for g in gs if keep(g["between"])]
+            row[name] = {"grasps": len(sel), "lifted": sum(g["success"] for g in sel)}
+        out.append(row)
+    return out
+
+
 def summarize(episodes: list[dict]) -> dict:
     done = [e for e in episodes if not e["skipped"]]
     grasps = [g for e in done for g in e["grasps"]]
@@ -143,6 +163,21 @@ def readme_section(s: dict) -> str:
     L.append(md_table(["object set", "kind", "scenes", "GSR", "DR", "no contact"],
                       [[r["object_set"], r["kind"], r["scenes"], rate_ci(r["successes"], r["attempts"]),
                         rate_ci(r["removed"], r["placed"]), r["no_contact"]] for r in s["rows"]]))
+    split = sparse_split([e for e in s.get("episodes", ()) if not e["skipped"]])  # from the grasps recorded
+    if split:
+        from graspsim.planning.observed import SEEN_BETWEEN
+        from graspsim.planning.scene_config import SPARSE_BETWEEN
+
+        L += ["", f"Lift rates of the grasps with {SEEN_BETWEEN} to {SPARSE_BETWEEN - 1} points between the pads "
+              f"(*sparse*, `SPARSE_BETWEEN`) and of those with {SPARSE_BETWEEN} or more, and their ratio "
+              "(`SPARSE_SHARE` is measured from it):", ""]
+        srows = []
+        for r in split:
+            a, b = r["sparse"], r["other"]
+            ratio = (a["lifted"] / a["grasps"]) / (b["lifted"] / b["grasps"]) if a["grasps"] and b["lifted"] else None
+            srows.append([r["kind"], rate_ci(a["lifted"], a["grasps"]), rate_ci(b["lifted"], b["grasps"]),
+                          "-" if ratio is None else f"{ratio:.2f}"])
+        L.append(md_table(["kind", "sparse: lifted", "the others: lifted", "ratio"], srows))
     med = s["lifted_median_between"]
     L += ["", f"{s['grasps']} grasps executed; the median of *between* over the grasps that lifted: "
           f"{'-' if med is None else f'{med:g}'}; scenes skipped (not settled): {len(s['skipped'])}. "

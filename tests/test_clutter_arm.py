@@ -161,7 +161,9 @@ def test_the_clutter_env_steps_with_the_arm(tmp_path, monkeypatch):
                    map_config=fast, n_candidates=6, cloud_size=256, gripper="franka_hand", robot="panda").unwrapped
     env.reset(seed=5)
     assert env.episode.sim.robot is PANDA
-    obs, r, term, trunc, info = env.step(0)
+    look = env.episode.last  # the arm's choice: the best-ranked candidate its check found a plan for
+    act = next(i for i, g in enumerate(look.candidates[:6]) if g is look.best)
+    obs, r, term, trunc, info = env.step(act)
     a = env.episode.attempts[0]
     assert r == float(info["success"]) and a.reach is not None and a.reach["checked"] >= 1
     assert info["outcome"] == a.cause and (a.cause == "success") == info["success"]

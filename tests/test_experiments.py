@@ -1150,14 +1150,21 @@ def test_seen_between_study_counts_each_grasp_in_one_band_and_refuses_held_out_s
     common = sys.modules["_common"]
     grasps = [{"between": n, "cause": c, "success": c == "success"}
               for n, c in ((0, "success"), (0, "no_contact"), (3, "start_collision_target"), (4, "dropped"),
-                           (5, "success"), (9, "no_contact"), (10, "success"), (49, "slipped"), (50, "success"),
-                           (10_000, "start_collision_table"))]
+                           (5, "success"), (9, "no_contact"), (10, "success"), (29, "no_contact"), (30, "success"),
+                           (49, "slipped"), (50, "success"), (10_000, "start_collision_table"))]
     rows = mod.bands(grasps)
-    assert [r["grasps"] for r in rows] == [2, 2, 2, 2, 2]
+    assert [r["grasps"] for r in rows] == [2, 2, 2, 2, 2, 2]
     for r in rows:
         assert r["lifted"] + r["no_contact"] + r["start_collision"] + r["other_failures"] == r["grasps"]
-    assert [r["lifted"] for r in rows] == [1, 0, 1, 1, 1] and rows[1]["other_failures"] == 1
+    assert [r["lifted"] for r in rows] == [1, 0, 1, 1, 1, 1] and rows[1]["other_failures"] == 1
     assert rows[-1]["start_collision"] == 1
+    # the sparse split: 5 to SPARSE_BETWEEN - 1 points against the rest, per kind and pooled; under 5: neither
+    eps = [{"kind": "pile", "skipped": None, "grasps": grasps[:8]}, {"kind": "packed", "skipped": None,
+                                                                    "grasps": grasps[8:]}]
+    split = {r["kind"]: r for r in mod.sparse_split(eps)}
+    assert split["pile"]["sparse"] == {"grasps": 4, "lifted": 2} and split["pile"]["other"]["grasps"] == 0
+    assert split["packed"]["other"] == {"grasps": 4, "lifted": 2}
+    assert split["both"]["sparse"]["grasps"] + split["both"]["other"]["grasps"] == 8 and mod.sparse_split([]) == []
     with pytest.raises(SystemExit):
         common.parse_config(mod.Config, mod.__file__, ["--object-sets", "household-heldout"])
     assert "held-out" in capsys.readouterr().err

@@ -60,12 +60,25 @@ def test_every_case_has_a_floor_and_a_ceiling_that_can_fail():
     assert band_problems(GOLDEN["bands"]) == []
 
 
+def _same(a, b) -> bool:
+    """Nested dicts and lists equal: floats to a relative 1e-9, everything else exactly."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) or isinstance(b, float):
+        return a == pytest.approx(b, rel=1e-9)
+    return a == b
+
+
 def test_bands_follow_the_stated_rule_from_the_golden_counts():
     """The committed bands are what the rule gives for the golden counts (no hand edits),
     and together they false-alarm less than once in a thousand runs."""
     again = regression_bands({c: {s: {"k": v["k"], "n": v["n"]} for s, v in sets.items()}
                               for c, sets in GOLDEN["golden"].items()}, PROV["test_sizes"])
-    assert again["bands"] == GOLDEN["bands"]["bands"]
+    # the counts exactly; the false-alarm probabilities to a relative 1e-9 (scipy's binomial tail
+    # differs in its last bits between releases)
+    assert _same(again["bands"], GOLDEN["bands"]["bands"])
     total = sum(b["p_false_alarm"] for sets in again["bands"].values() for b in sets.values())
     assert total <= FAMILY_ALPHA
     # the golden run drew ten times the test's grasps (or more), from non-empty pools

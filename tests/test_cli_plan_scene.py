@@ -132,68 +132,48 @@ def test_the_unseen_margin_flag_reaches_the_robust_score(tmp_path, capsys, db):
     assert code == 0 and json.loads(out.read_text())["unseen_margin"] == 0.0
 
 
-def test_the_seen_between_flag_reaches_the_planner(tmp_path, capsys, db):
-    """--seen-between N sets the points of its own segment a grasp must close on (0: off),
-    absent the scene planner's default (the measured SEEN_BETWEEN); scene and plan-scene
-    read it alike, and plan-scene records the count it planned with."""
+@pytest.mark.parametrize("name", ["seen_between", "sparse_between"])
+def test_the_point_count_flags_reach_the_planner(tmp_path, capsys, db, name):
+    """--seen-between N, the points of its own segment a grasp must close on, and
+    --sparse-between N, the points below which a scene grasp's score is discounted (0: off
+    for both), absent the scene planner's measured defaults (SEEN_BETWEEN, SPARSE_BETWEEN);
+    scene and plan-scene read them alike, plan-scene records the count it planned with, and
+    a bad count is one line naming the flag, with nothing written."""
     import argparse
 
-    from graspsim.cli import build_parser
-    from graspsim.cli._common import add_seen_between_flag, scene_planning_from_args
-    from graspsim.planning.observed import SEEN_BETWEEN
-
-    for command in ("scene", "plan-scene"):
-        head = [command] if command == "scene" else [command, "c.npy", "-o", "g.json"]
-        for flag, want in (([], SEEN_BETWEEN), (["--seen-between", "0"], 0), (["--seen-between", "12"], 12)):
-            args = build_parser().parse_args([*head, *flag])
-            assert scene_planning_from_args(args, SceneConfig()).planner.seen_between == want, (command, flag)
-    assert SEEN_BETWEEN > 0 and PlannerConfig().seen_between == 0  # on in scenes, off for single objects
-    p = argparse.ArgumentParser()
-    add_seen_between_flag(p)
-    assert f"the measured {SEEN_BETWEEN};" in " ".join(p.format_help().split())  # the help says the value in use
-    rng = np.random.default_rng(1)
-    table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), rng.normal(0, 0.0005, 3000)]
-    box = np.c_[rng.uniform(-0.03, 0.03, (800, 2)), rng.uniform(0, 0.06, 800)]
-    f, out = tmp_path / "cloud.npy", tmp_path / "grasps.json"
-    np.save(f, np.r_[table, box])
-    code, _, _ = _run(capsys, f, "-o", out, "--seen-between", 0, "--db", db.root, *FAST_FLAGS)
-    assert code == 0 and json.loads(out.read_text())["seen_between"] == 0
-
-
-def test_the_sparse_between_flag_reaches_the_planner(tmp_path, capsys, db):
-    """--sparse-between N sets the points below which a scene grasp's score is discounted
-    (0: off), absent the measured SPARSE_BETWEEN; scene and plan-scene read it alike,
-    plan-scene records it, and a bad count is one line naming the flag."""
-    import argparse
-
-    from graspsim.cli import build_parser
-    from graspsim.cli._common import add_sparse_between_flag, scene_planning_from_args
+    from graspsim.cli import _common, build_parser
     from graspsim.errors import InvalidParameterError
+    from graspsim.planning.observed import SEEN_BETWEEN
     from graspsim.planning.scene_config import SPARSE_BETWEEN
 
+    flag = "--" + name.replace("_", "-")
+    measured, read = {"seen_between": (SEEN_BETWEEN, lambda sc: sc.planner.seen_between),
+                      "sparse_between": (SPARSE_BETWEEN, lambda sc: sc.sparse_between)}[name]
     for command in ("scene", "plan-scene"):
         head = [command] if command == "scene" else [command, "c.npy", "-o", "g.json"]
-        for flag, want in (([], SPARSE_BETWEEN), (["--sparse-between", "0"], 0), (["--sparse-between", "12"], 12)):
-            args = build_parser().parse_args([*head, *flag])
-            assert scene_planning_from_args(args, SceneConfig()).sparse_between == want, (command, flag)
+        for given, want in (([], measured), ([flag, "0"], 0), ([flag, "12"], 12)):
+            args = build_parser().parse_args([*head, *given])
+            assert read(_common.scene_planning_from_args(args, SceneConfig())) == want, (command, given)
         for bad in ("-1", "2.5", "many"):
-            args = build_parser().parse_args([*head, "--sparse-between", bad])
-            with pytest.raises(InvalidParameterError, match="--sparse-between must be a whole number"):
-                scene_planning_from_args(args, SceneConfig())
+            args = build_parser().parse_args([*head, flag, bad])
+            with pytest.raises(InvalidParameterError, match=f"{flag} must be a whole number"):
+                _common.scene_planning_from_args(args, SceneConfig())
+    assert SEEN_BETWEEN > 0 and PlannerConfig().seen_between == 0  # on in scenes, off for single objects
+    assert SPARSE_BETWEEN > SEEN_BETWEEN
     p = argparse.ArgumentParser()
-    add_sparse_between_flag(p)
-    assert f"the measured {SPARSE_BETWEEN};" in " ".join(p.format_help().split())  # the help says the value in use
+    getattr(_common, f"add_{name}_flag")(p)
+    assert f"the measured {measured};" in " ".join(p.format_help().split())  # the help says the value in use
     rng = np.random.default_rng(1)
     table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), rng.normal(0, 0.0005, 3000)]
     box = np.c_[rng.uniform(-0.03, 0.03, (800, 2)), rng.uniform(0, 0.06, 800)]
     f, out = tmp_path / "cloud.npy", tmp_path / "grasps.json"
     np.save(f, np.r_[table, box])
     code, _, _ = _run(capsys, f, "-o", out, "--db", db.root, *FAST_FLAGS)
-    assert code == 0 and json.loads(out.read_text())["sparse_between"] == SPARSE_BETWEEN
-    code, _, _ = _run(capsys, f, "-o", out, "--sparse-between", 0, "--db", db.root, *FAST_FLAGS)
-    assert code == 0 and json.loads(out.read_text())["sparse_between"] == 0
-    code, _, err = _run(capsys, f, "-o", tmp_path / "other.json", "--sparse-between", -3, "--db", db.root, *FAST_FLAGS)
-    assert code != 0 and "--sparse-between must be a whole number" in err and "Traceback" not in err
+    assert code == 0 and json.loads(out.read_text())[name] == measured
+    code, _, _ = _run(capsys, f, "-o", out, flag, 0, "--db", db.root, *FAST_FLAGS)
+    assert code == 0 and json.loads(out.read_text())[name] == 0
+    code, _, err = _run(capsys, f, "-o", tmp_path / "other.json", flag, -3, "--db", db.root, *FAST_FLAGS)
+    assert code != 0 and f"{flag} must be a whole number" in err and "Traceback" not in err
     assert not (tmp_path / "other.json").exists()
 
 

@@ -383,6 +383,26 @@ def test_robust_ranking_streams_first_and_never_offers_a_pose_into_the_cloud(db)
     assert not p.map.has_robust and p.timing["first_robust"] is None
 
 
+@pytest.mark.parametrize("rank", ["robust", "paper"])
+def test_every_streamed_batch_is_best_first_on_a_compound(db, rank):
+    """A two-part bottle spends a part's robust budget and streams that part's later maps
+    unscored: those batches too come best-graded first, and the final map is the same
+    rows in the ranking's order."""
+    from graspsim.maps.robust import ranking
+
+    cfg = PlannerConfig(rank=rank, robust=RobustConfig(top=300, samples=8))
+    items = list(plan_stream(_cloud(_bottle(), 4).points, db=db, rng=np.random.default_rng(0), config=cfg))
+    batches = [i.map for i in items[:-1]]
+    assert {int(b.part[0]) for b in batches} == {0, 1}
+    if rank == "robust":  # the case that matters: unscored batches after scored ones
+        assert any(not np.isfinite(b.robust).any() for b in batches)
+    for b in batches:
+        np.testing.assert_array_equal(ranking(b, rank), np.arange(len(b)))
+    final = items[-1].map
+    assert len(final) == sum(len(b) for b in batches)
+    np.testing.assert_array_equal(ranking(final, rank), np.arange(len(final)))
+
+
 def test_scored_only_skips_a_parts_unscored_batches_and_keeps_every_scored_one(db):
     """scored_only (a scene's planning): once a part's robust budget is spent, the rest
     of its maps are skipped -- the batches streamed are exactly the plain stream's

@@ -49,7 +49,9 @@ class PartPlan:
 
 @dataclass(frozen=True)
 class GraspBatch:
-    """Grasps found so far: ``map`` (object frame), seconds since the cloud arrived. When the
+    """Grasps found so far: ``map`` (object frame), best first in the plan's ranking
+    (:func:`~graspsim.maps.robust.ranking`: a scored batch by its robust scores, an unscored
+    one by grade), seconds since the cloud arrived. When the
     planner identifies the cloud again (``PlannerConfig.restarts``: the map so far held no
     accepted grasp), the batches start again: the final map holds only the last attempt's."""
 

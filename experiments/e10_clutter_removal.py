@@ -208,7 +208,9 @@ def _row(c: dict, pairs: list) -> dict:
                           "causes": [a.cause for a in r.attempts], "planning": [a.planning for a in r.attempts],
                           "scores": [round(a.score, 4) for a in r.attempts],  # the robust score of each grasp
                           "between": [a.between for a in r.attempts],  # its seen points between the pads
-                          "sources": [a.source for a in r.attempts]}  # what it was planned from
+                          "sources": [a.source for a in r.attempts],  # what it was planned from
+                          "targets": [None if a.target is None or a.target >= len(r.names) else r.names[a.target]
+                                      for a in r.attempts]}  # the object it was aimed at (ground truth)
                          for i, (k, r) in enumerate(pairs)]}
 
 

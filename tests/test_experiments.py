@@ -681,8 +681,8 @@ def test_e10_reports_per_seed_and_mean_std_over_seeds():
     assert {c["object_set"] for c in mod.conditions(cfg)} == {"household-tuning", "household-heldout"}
 
     def ep(ok: int, n: int, removed: int) -> ClutterResult:
-        a = [Attempt(0, {}, j < ok, "success" if j < ok else "slipped", 1.0 - 0.1 * j, 0.1, {}, 1, 1, 1,
-                     between=7 + j, source="features" if j == 3 else "box") for j in range(n)]
+        a = [Attempt(j if j < 3 else None, {}, j < ok, "success" if j < ok else "slipped", 1.0 - 0.1 * j, 0.1, {},
+                     1, 1, 1, between=7 + j, source="features" if j == 3 else "box") for j in range(n)]
         return ClutterResult(5, tuple(a), removed, "cleared", 5, 5, 1.0, ("a", "b", "c", "d", "e"))
 
     pairs = [(0, ep(4, 4, 4)), (0, ep(4, 4, 4)), (1, ep(2, 4, 2)), (1, ep(2, 4, 2))]
@@ -691,6 +691,7 @@ def test_e10_reports_per_seed_and_mean_std_over_seeds():
     assert e["causes"] == ["success"] * 2 + ["slipped"] * 2 and e["scores"] == [1.0, 0.9, 0.8, 0.7]
     assert e["between"] == [7, 8, 9, 10]
     assert e["sources"] == ["box", "box", "box", "features"]
+    assert e["targets"] == ["a", "b", "c", None]  # the object each was aimed at, by name
     assert row["per_source"] == {"box": {"grasps": 12, "lifted": 10, "failed": {"slipped": 2}},
                                  "features": {"grasps": 4, "lifted": 2, "failed": {"slipped": 2}}}
     assert [s["gsr"] for s in row["per_seed"]] == [1.0, 0.5] and [s["dr"] for s in row["per_seed"]] == [0.8, 0.4]

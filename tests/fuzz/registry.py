@@ -1,5 +1,5 @@
 """The fuzz properties by name: what each generates, what it checks, how many examples
-the CI suite runs. ``tests/fuzz/test_fuzz_*.py`` and ``experiments/fuzz_long.py`` both
+the CI suite runs. ``tests/fuzz/test_fuzz.py`` and ``experiments/fuzz_long.py`` both
 run them from here, so the nightly run checks exactly what CI checks, only more often.
 """
 

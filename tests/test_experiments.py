@@ -1171,6 +1171,45 @@ def test_seen_between_study_counts_each_grasp_in_one_band_and_refuses_held_out_s
     assert "held-out" in capsys.readouterr().err
 
 
+def test_e10_score_bands_counts_each_grasp_in_its_band_source_and_object(tmp_path, capsys):
+    """e10_score_bands: every grasp of the chosen execution error in one score band (edges
+    belong to the band above), lifted and start collisions counted; by source and by
+    object only where the run records them; bad edges and no runs are one line."""
+    mod = _load("e10_score_bands")
+
+    def cond(noise, eps, extra=True):
+        return {"object_set": "s", "kind": "pile", "objects": 5, "noise": noise, "ablation": None,
+                "episodes": [{"causes": c, "scores": sc, **({"sources": src, "targets": t} if extra else {})}
+                             for c, sc, src, t in eps]}
+
+    ok, sc, nc = "success", "start_collision_target", "no_contact"
+    run = {"conditions": [
+        cond("none", [([ok, sc], [0.9, 0.3], ["box", "features"], ["a", "b"]),
+                      ([nc, ok, ok], [0.5, 0.85, 0.2], ["cylinder", "box", "box"], ["a", "a", "b"])]),
+        cond("default", [([sc], [0.1], ["box"], ["a"])]),
+        {**cond("none", [([ok], [0.99], None, None)], extra=False), "object_set": "t"}]}
+    s = mod.score_bands([run])
+    assert s["bands"] == ["< 0.5", "0.5 to 0.85", ">= 0.85"]
+    assert s["sets"]["s"] == {"< 0.5": {"grasps": 2, "lifted": 1, "start_collision": 1},
+                              "0.5 to 0.85": {"grasps": 1, "lifted": 0, "start_collision": 0},
+                              ">= 0.85": {"grasps": 2, "lifted": 2, "start_collision": 0}}
+    assert s["sets"]["t"][">= 0.85"]["grasps"] == 1  # no sources or targets recorded: counted all the same
+    (label,) = s["by_source"]
+    assert s["by_source"][label]["box"]["< 0.5"] == {"grasps": 1, "lifted": 1, "start_collision": 0}
+    assert s["by_source"][label]["other"]["0.5 to 0.85"]["grasps"] == 1  # the cylinder
+    assert s["below_top_by_object"][label] == {"b": {"grasps": 2, "below": 2, "below_failed": 1},
+                                               "a": {"grasps": 3, "below": 1, "below_failed": 1}}
+    assert mod.score_bands([run], "default")["sets"]["s"]["< 0.5"]["start_collision"] == 1
+    f = tmp_path / "run.json"
+    f.write_text(json.dumps(run))
+    assert mod.main(["--runs", str(f), "--out", str(tmp_path / "out")]) == 0
+    assert "| s | 1/2, 1 start coll. | 0/1, 0 start coll. | 2/2, 0 start coll. |" in capsys.readouterr().out
+    with pytest.raises(SystemExit, match="ascend"):
+        mod.main(["--runs", str(f), "--edges", "0.9", "0.5", "--out", str(tmp_path / "out")])
+    with pytest.raises(SystemExit, match="--runs"):
+        mod.main(["--out", str(tmp_path / "out")])
+
+
 def test_e10_paired_counts_same_better_and_worse_episodes(tmp_path, capsys):
     """e10_paired pairs two runs' episodes by condition, seed and scene: same (causes and
     removed equal), more or fewer removed, as many by other attempts; a condition in one

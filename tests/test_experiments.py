@@ -1239,3 +1239,32 @@ def test_e10_paired_counts_same_better_and_worse_episodes(tmp_path, capsys):
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["rows"][0]["same"] == 1
     with pytest.raises(SystemExit, match="not a file"):
         mod.main(["--base", str(tmp_path / "missing.json"), "--new", str(b), "--out", str(tmp_path / "out")])
+
+
+@pytest.mark.slow
+def test_study_timestep_simulates_each_grasp_at_every_step_then_executes_it_as_run(tmp_path, monkeypatch):
+    """study_timestep: every executed grasp is simulated, uncommitted, at the run's step and
+    at each finer one, then executed by the episode at the run's step (the model's step
+    restored); the simulation at the run's step gives the episode's outcome."""
+    from graspsim.tabletop.scene_sim import SceneSim
+
+    seen = []
+    real = SceneSim.execute
+
+    def spy(self, *a, commit=True, **k):
+        seen.append((round(float(self.model.opt.timestep), 7), commit))
+        return real(self, *a, commit=commit, **k)
+
+    monkeypatch.setattr(SceneSim, "execute", spy)
+    out = tmp_path / "st"
+    assert _load("study_timestep").main(["--quick", "--steps", "0.0005", "0.00025", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    rows = s["rows"]
+    assert rows and seen == [(0.001, False), (0.0005, False), (0.00025, False), (0.001, True)] * len(rows)
+    for r in rows:
+        assert set(r["again"]) == {repr(0.001), repr(0.0005), repr(0.00025)} and r["again"][repr(0.001)] == r["cause"]
+    (c,) = s["conditions"]
+    assert c["grasps"] == len(rows) and c["as_run_differs"] == 0
+    for key, v in c["steps"].items():
+        assert v["lifted"] == sum(r["again"][key] == "success" for r in rows)
+        assert len(v["changed"]) == sum(r["again"][key] != r["cause"] for r in rows)

@@ -65,6 +65,28 @@ def test_points_between_is_the_same_in_chunks():
     assert G.points_between(T, opening, np.empty((0, 3))).tolist() == [0] * len(T)
 
 
+def _between_numpy(g, T, opening, P):
+    """The count as numpy made it before the compiled kernel: every point in every wrist frame."""
+    local = np.einsum("nji,nmj->nmi", T[:, :3, :3], P[None] - T[:, None, :3, 3])
+    half = 0.5 * np.asarray(opening, float)[:, None]
+    return ((np.abs(local[..., 0]) < half) & (np.abs(local[..., 1]) < 0.5 * g.finger_size[1])
+            & (local[..., 2] > g.fingertip_z - g.pad_length) & (local[..., 2] < g.fingertip_z)).sum(axis=1)
+
+
+def test_points_between_counts_as_the_numpy_reference_does():
+    """The compiled count gives numpy's counts, pose by pose, for poses around a cloud
+    (rotations and openings at random, the cloud dense enough that many counts are large)."""
+    rng = np.random.default_rng(11)
+    pts = rng.normal(0.0, 0.03, (5000, 3))
+    T = np.stack([make_transform(Rotation.random(random_state=rng).as_matrix(), rng.normal(0, 0.01, 3))
+                  for _ in range(300)])
+    T[:, :3, 3] -= np.einsum("nij,j->ni", T[:, :3, :3], [0.0, 0.0, G.fingertip_z - 0.5 * G.pad_length])
+    opening = rng.uniform(0.005, 0.1, len(T))
+    got = G.points_between(T, opening, pts)
+    assert got.dtype == np.int64 and got.tolist() == _between_numpy(G, T, opening, pts).tolist()
+    assert (got > 100).sum() > 50  # the pads' region sits in the cloud for most poses
+
+
 def test_first_clear_also_passes_over_the_rows_a_further_test_rejects():
     """``also`` is asked of the clear rows only, and the budget is filled further down the
     order with rows that pass it."""

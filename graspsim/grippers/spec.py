@@ -305,20 +305,17 @@ class GripperSpec:
         pad faces at the pad gap ``opening`` (N,) [m] (strictly inside), across the finger
         width, along the pad (its ``pad_length`` up from the fingertips), at wrist poses
         ``T_wrist`` (N, 4, 4) in the points' frame -- what the pads would close on."""
+        from graspsim.grippers._between_kernel import count_between  # numba: loaded on first use
+
         T = np.asarray(T_wrist, float).reshape(-1, 4, 4)
-        half = 0.5 * np.broadcast_to(np.asarray(opening, float), (len(T),))
-        P = np.asarray(points, float).reshape(-1, 3)
+        half = np.ascontiguousarray(0.5 * np.broadcast_to(np.asarray(opening, float), (len(T),)))
+        P = np.ascontiguousarray(np.asarray(points, float).reshape(-1, 3))
         out = np.zeros(len(T), np.int64)
-        if not len(P):
+        if not len(P) or not len(T):
             return out
-        z_lo, z_hi, y_half = self.fingertip_z - self.pad_length, self.fingertip_z, 0.5 * self.finger_size[1]
-        step = max(1, 2_000_000 // len(P))  # poses per chunk: (chunk, M) arrays of a few tens of MB at most
-        for s in range(0, len(T), step):
-            R, t = T[s:s + step, :3, :3], T[s:s + step, :3, 3]
-            local = np.einsum("nji,nmj->nmi", R, P[None] - t[:, None])  # the points in each wrist frame
-            inside = ((np.abs(local[..., 0]) < half[s:s + step, None]) & (np.abs(local[..., 1]) < y_half)
-                      & (local[..., 2] > z_lo) & (local[..., 2] < z_hi))
-            out[s:s + step] = inside.sum(axis=1)
+        count_between(np.ascontiguousarray(T[:, :3, :3]), np.ascontiguousarray(T[:, :3, 3]), half, P,
+                      0.5 * float(self.finger_size[1]), float(self.fingertip_z - self.pad_length),
+                      float(self.fingertip_z), out)
         return out
 
     # ------------------------------------------------------------------ storage

@@ -19,7 +19,8 @@ log = logging.getLogger(__name__)
 KERNEL_MODULES = ("graspsim.maps._kernel", "graspsim.maps._assemble_kernel", "graspsim.maps._hierarchy_kernel",
                   "graspsim.maps._robust_kernel", "graspsim.maps._robust_blocks", "graspsim.maps._occlusion_kernel",
                   "graspsim.primitives.sdf_kernel",
-                  "graspsim.geometry.spacing_kernel", "graspsim.grades.pad_kernel", "graspsim.maps._feature_kernel")
+                  "graspsim.geometry.spacing_kernel", "graspsim.grades.pad_kernel", "graspsim.maps._feature_kernel",
+                  "graspsim.grippers._between_kernel")
 
 
 def compiled_kernels() -> dict:
@@ -68,6 +69,7 @@ def compile_all(*, parallel: bool = True) -> bool:
     c = np.array([[[-0.02, 0.0, 0.0], [0.02, 0.0, 0.0]]])
     score_poses(T, np.array([0.04]), c, -c / 0.02, pts, HGPL_25_60_A,  # the robust score's kernels
                 table=(np.array([0.0, 0.0, 1.0]), -0.1), viewpoint=np.array([0.0, 0.0, 0.5]))
+    HGPL_25_60_A.points_between(T, np.array([0.04]), pts)  # the closing region's point count (seen between)
     coarse = MapConfig(collision_step=0.01, collision_tolerance=0.004)
     lv = build_levels(Box(0.03, 0.03, 0.03), coarse)  # collision samples
     clusters(lv["Q"], lv["RT"] + lv["HN"])

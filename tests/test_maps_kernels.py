@@ -136,7 +136,7 @@ def test_compile_all_compiles_every_kernel_for_the_types_a_scene_plan_passes(tmp
     for name in ("maps._robust_kernel.robust_flags", "primitives.sdf_kernel.model_sdf_into",
                  "maps._hierarchy_kernel.regroup", "maps._hierarchy_kernel.cluster_tree",
                  "maps._occlusion_kernel.occluded_fraction", "maps._feature_kernel.seed_chords",
-                 "grippers._between_kernel.count_between"):
+                 "grippers.between_kernel.count_between"):
         assert planned[f"graspsim.{name}"], name  # the plan did use them
     assert any(planned[f"graspsim.grades.pad_kernel.{k}"] for k in ("pad_patches", "pad_patches_serial"))
     missing = {k: sorted(v - warmed[k]) for k, v in planned.items() if v - warmed[k]}

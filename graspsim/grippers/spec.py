@@ -305,7 +305,7 @@ class GripperSpec:
         pad faces at the pad gap ``opening`` (N,) [m] (strictly inside), across the finger
         width, along the pad (its ``pad_length`` up from the fingertips), at wrist poses
         ``T_wrist`` (N, 4, 4) in the points' frame -- what the pads would close on."""
-        from graspsim.grippers._between_kernel import count_between  # numba: loaded on first use
+        from graspsim.grippers.between_kernel import count_between  # numba: loaded on first use
 
         T = np.asarray(T_wrist, float).reshape(-1, 4, 4)
         half = np.ascontiguousarray(0.5 * np.broadcast_to(np.asarray(opening, float), (len(T),)))

@@ -20,7 +20,7 @@ KERNEL_MODULES = ("graspsim.maps._kernel", "graspsim.maps._assemble_kernel", "gr
                   "graspsim.maps._robust_kernel", "graspsim.maps._robust_blocks", "graspsim.maps._occlusion_kernel",
                   "graspsim.primitives.sdf_kernel",
                   "graspsim.geometry.spacing_kernel", "graspsim.grades.pad_kernel", "graspsim.maps._feature_kernel",
-                  "graspsim.grippers._between_kernel")
+                  "graspsim.grippers.between_kernel")
 
 
 def compiled_kernels() -> dict:

@@ -160,8 +160,8 @@ def readme_section(s: dict) -> str:
          "| object set | scene | episodes | grasps | step | lifted | changed | failed -> lifted | lifted -> failed |",
          "|---|---|---|---|---|---|---|---|---|"]
     for c in s["conditions"]:
-        run = ", ".join(f"{1000 * x:g} ms" for x in c["run_steps"])
-        L.append(f"| {c['object_set']} | {c['kind']} | {c['episodes']} | {c['grasps']} | {run} (as run) | "
+        as_run = ", ".join(f"{1000 * x:g} ms" for x in c["run_steps"])
+        L.append(f"| {c['object_set']} | {c['kind']} | {c['episodes']} | {c['grasps']} | {as_run} (as run) | "
                  f"{c['lifted']} | - | - | - |")
         for key, v in c["steps"].items():
             L.append(f"| | | | | {1000 * float(key):g} ms | {v['lifted']} | {len(v['changed'])} | {v['to_lifted']} | "

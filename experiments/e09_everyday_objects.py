@@ -375,8 +375,9 @@ def _timing_line(fit: list[dict]) -> str:
     for key in ("full/paper", "full/robust", "single/paper", "single/robust"):
         ident = [o[key]["identify_s"] for o in fit]
         total = [o[key]["seconds"] for o in fit if not o[key]["built"]]
-        out.append(f"{key.replace('/', ', ')}: {np.median(ident):.2f} s identification, "
-                   f"{np.median(total):.2f} s with adaptation ({len(total)} runs without a build)")
+        adapted = (f"{np.median(total):.2f} s with adaptation ({len(total)} runs without a build)" if total
+                   else "every run built a new FS map (no adaptation time without one)")
+        out.append(f"{key.replace('/', ', ')}: {np.median(ident):.2f} s identification, {adapted}")
     return "; ".join(out)
 
 

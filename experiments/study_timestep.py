@@ -71,20 +71,16 @@ def episode(task) -> list[dict]:
     from _scenes import resident_run_database
     from e10_clutter_removal import _clutter_config, looks
 
-    from graspsim.seeding import derived_seed, rng_for
-    from graspsim.tabletop.clutter import OTHER, ClutterEpisode
+    from graspsim.tabletop.clutter import OTHER, benchmark_episode
     from graspsim.tabletop.clutter_stats import benchmark_seeds
     from graspsim.tabletop.planners import grasp_target
-    from graspsim.tabletop.table_scene import make_scene
 
     (kind, object_set), k, i, cfg, root = task
     db = resident_run_database(root, cfg.quick_maps)
-    sd = benchmark_seeds(cfg.seed, cfg.seeds)[k]
-    c = {"kind": kind, "noise": "none", "ablation": None}
-    config = _clutter_config(c)
-    scene = make_scene(cfg.objects, kind, derived_seed(sd, "scene", i), object_set=object_set, gripper=db.gripper,
-                       **({} if config.sim is None else {"settings": config.sim}))
-    ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=config)
+    config = _clutter_config({"kind": kind, "noise": "none", "ablation": None})
+    ep = benchmark_episode(cfg.objects, kind, benchmark_seeds(cfg.seed, cfg.seeds)[k], i, db=db, config=config,
+                           object_set=object_set)
+    scene = ep.scene
     rows = []
     try:
         m = ep.sim.model

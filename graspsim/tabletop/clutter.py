@@ -53,7 +53,8 @@ from graspsim.tabletop.planners import grasp_target
 from graspsim.tabletop.table_scene import known_gap
 
 __all__ = ["scene_settings", "ClutterRobot", "ClutterConfig", "Attempt", "ClutterResult", "ClutterFrame",
-           "ClutterEpisode", "run_clutter", "run_benchmark", "summarize", "one_cluster_objects", "object_segmentation",
+           "ClutterEpisode", "run_clutter", "run_benchmark", "benchmark_episode", "summarize", "one_cluster_objects",
+           "object_segmentation",
            "per_object", "per_source", "failure_rows", "FAILURE_COLUMNS", "STOPS", "ARM_STOPS", "OTHER", "LEFT",
            "GOOD_ENOUGH"]
 
@@ -568,7 +569,11 @@ def run_clutter(scene, *, db, rng: np.random.Generator, config: ClutterConfig | 
     on_step(view, frame, plan, attempt): called after each executed grasp with the
     back-projected view, the depth frame (colour rendered too), the ScenePlan and the
     Attempt (e.g. to draw it: :func:`~graspsim.tabletop.clutter_figure.save_step_figure`)."""
-    ep = ClutterEpisode(scene, db=db, rng=rng, config=config, camera=camera, rgb=on_step is not None)
+    return _play(ClutterEpisode(scene, db=db, rng=rng, config=config, camera=camera, rgb=on_step is not None), on_step)
+
+
+def _play(ep: ClutterEpisode, on_step=None) -> ClutterResult:
+    """Episode ``ep`` played to its end, the best grasp executed at each look (:func:`run_clutter`)."""
     try:
         while ep.stop is None:
             look = ep.observe()
@@ -589,19 +594,29 @@ def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, conf
     episode draws from ``rng_for(seed, "clutter", i)``: every condition (noise,
     ablation) meets the same scenes and the same draws. on_step(i, view, frame, plan,
     attempt) as :func:`run_clutter`'s; on_scene(i, scene, result) after each episode."""
-    from graspsim.seeding import derived_seed, rng_for
-    from graspsim.tabletop.table_scene import make_scene
-
     if isinstance(scenes, bool) or not isinstance(scenes, int) or scenes < 1:
         raise InvalidParameterError(f"scenes must be a whole number >= 1, got {scenes!r}")
     out = []
     for i in range(first, first + scenes):
-        scene = make_scene(n_objects, kind, derived_seed(seed, "scene", i), object_set=object_set,
-                           gripper=db.gripper, **({} if config is None or config.sim is None
-                                                  else {"settings": config.sim}))
+        ep = benchmark_episode(n_objects, kind, seed, i, db=db, config=config, object_set=object_set,
+                               rgb=on_step is not None)
         step = None if on_step is None else (lambda *a, i=i: on_step(i, *a))
-        r = run_clutter(scene, db=db, rng=rng_for(seed, "clutter", i), config=config, on_step=step)
+        r = _play(ep, step)
         out.append(r)
         if on_scene is not None:
-            on_scene(i, scene, r)
+            on_scene(i, ep.scene, r)
     return out
+
+
+def benchmark_episode(n_objects: int, kind: str, seed: int, i: int, *, db, config: ClutterConfig | None = None,
+                      object_set: str = "mixed", rgb: bool = False) -> ClutterEpisode:
+    """Episode ``i`` of :func:`run_benchmark` with ``seed``, not yet played: its scene drawn and
+    settled, its draws from ``rng_for(seed, "clutter", i)`` -- a caller that walks it look by
+    look (a study replaying a benchmark's episodes) meets what the benchmark met."""
+    from graspsim.seeding import derived_seed, rng_for
+    from graspsim.tabletop.table_scene import make_scene
+
+    scene = make_scene(n_objects, kind, derived_seed(seed, "scene", i), object_set=object_set,
+                       gripper=db.gripper, **({} if config is None or config.sim is None
+                                              else {"settings": config.sim}))
+    return ClutterEpisode(scene, db=db, rng=rng_for(seed, "clutter", i), config=config, rgb=rgb)

@@ -30,7 +30,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import derived_seed, opt, rng_for, start
+from _common import opt, start
 
 log = logging.getLogger("study_clutter_failures")
 
@@ -72,14 +72,12 @@ def episode(i: int, cfg: Config, db) -> tuple[list[dict], list[dict]]:
     from e10_clutter_removal import looks
 
     from graspsim.sim.noise import ExecutionNoise
-    from graspsim.tabletop.clutter import ClutterConfig, ClutterEpisode, scene_settings
-    from graspsim.tabletop.table_scene import make_scene
+    from graspsim.tabletop.clutter import ClutterConfig, benchmark_episode, scene_settings
 
-    scene = make_scene(cfg.objects, cfg.kind, derived_seed(cfg.seed, "scene", i), object_set=cfg.object_set,
-                       gripper=db.gripper)
-    ep = ClutterEpisode(scene, db=db, rng=rng_for(cfg.seed, "clutter", i),
-                        config=ClutterConfig(scene=scene_settings(cfg.kind),
-                                             execution=ExecutionNoise() if cfg.noise == "default" else None))
+    ep = benchmark_episode(cfg.objects, cfg.kind, cfg.seed, i, db=db, object_set=cfg.object_set,
+                           config=ClutterConfig(scene=scene_settings(cfg.kind),
+                                                execution=ExecutionNoise() if cfg.noise == "default" else None))
+    scene = ep.scene
     rows = []
     try:
         for look, g, sp, mem in looks(ep):

@@ -35,7 +35,7 @@ import json
 import logging
 import math
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import ClassVar
 
@@ -239,23 +239,22 @@ def _line_of(g, gripper) -> tuple[np.ndarray, np.ndarray]:
 def episode(k: int, i: int, cfg: Config, db) -> list[dict]:
     from e10_clutter_removal import _clutter_config, looks
 
-    from graspsim.seeding import derived_seed, rng_for
-    from graspsim.tabletop.clutter import ClutterEpisode
+    from graspsim.sim import SimSettings
+    from graspsim.tabletop.clutter import benchmark_episode
     from graspsim.tabletop.clutter_stats import benchmark_seeds
     from graspsim.tabletop.planners import grasp_target
-    from graspsim.tabletop.table_scene import make_scene
 
     sd = benchmark_seeds(cfg.seed, cfg.seeds)[k]
     c = {"kind": cfg.kind, "noise": cfg.noise, "ablation": None}
-    from graspsim.sim import SimSettings
-
     settings = SimSettings() if cfg.impratio is None else SimSettings(impratio=cfg.impratio)
     drawn = settings if cfg.scene_impratio is None else SimSettings(impratio=cfg.scene_impratio)
-    scene = make_scene(cfg.objects, cfg.kind, derived_seed(sd, "scene", i), object_set=cfg.object_set,
-                       gripper=db.gripper, settings=drawn)
-    ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=_clutter_config(c, None))
-    ep.sim.close()
-    ep.sim = scene.sim(gripper=db.gripper, settings=settings)  # the episode's physics too
+    # the scene drawn and settled at `drawn`; the grasps simulated at `settings`
+    ep = benchmark_episode(cfg.objects, cfg.kind, sd, i, db=db, config=replace(_clutter_config(c, None), sim=drawn),
+                           object_set=cfg.object_set)
+    if settings != drawn:
+        ep.sim.close()
+        ep.sim = ep.scene.sim(gripper=db.gripper, settings=settings)
+    scene = ep.scene
     rows = []
     try:
         for look, g, _, mem in looks(ep):

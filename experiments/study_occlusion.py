@@ -62,9 +62,7 @@ def attempts(task) -> list[dict]:
     import e10_clutter_removal as e10
 
     from graspsim.maps.occlusion import ViewDepth, finger_occlusion
-    from graspsim.seeding import derived_seed, rng_for
-    from graspsim.tabletop.clutter import ClutterEpisode, grasp_target
-    from graspsim.tabletop.table_scene import make_scene
+    from graspsim.tabletop.clutter import benchmark_episode, grasp_target
 
     db = resident_run_database(root, e10.Config().quick_maps)
     # E10's seeds: derived from --seed as E10 derives its five (one seed would be --seed itself)
@@ -75,8 +73,7 @@ def attempts(task) -> list[dict]:
         planner, robust=replace(planner.robust, occlusion_power=cfg.occlusion_power))))
     out = []
     sd = e10.seed_of(e10cfg, k)
-    scene = make_scene(5, kind, derived_seed(sd, "scene", i), object_set=object_set, gripper=db.gripper)
-    ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=clutter)
+    ep = benchmark_episode(5, kind, sd, i, db=db, config=clutter, object_set=object_set)
     try:
         for look, g, _, _ in e10.looks(ep):
             eye = ep.camera.T_world_camera[:3, 3]
@@ -85,7 +82,7 @@ def attempts(task) -> list[dict]:
                                        np.array([g.opening]), db.gripper)[0])
             target = grasp_target(look, g, db.gripper)
             a = ep.execute(look, g)
-            name = None if target is None else scene.objects[target].name
+            name = None if target is None else ep.scene.objects[target].name
             out.append({"object_set": object_set, "kind": kind, "seed": sd, "scene": i, "f": f, "cause": a.cause,
                         "target": name, "score": a.score})
     finally:

@@ -151,18 +151,15 @@ def episode(k: int, i: int, stop_after: int | None, cfg: Config, db) -> list[dic
     from e10_clutter_removal import _clutter_config, looks
     from study_clutter_failures import outside_shares
 
-    from graspsim.seeding import derived_seed, rng_for
-    from graspsim.tabletop.clutter import ClutterEpisode
+    from graspsim.tabletop.clutter import benchmark_episode
     from graspsim.tabletop.clutter_stats import benchmark_seeds
-    from graspsim.tabletop.table_scene import make_scene
 
     sd = benchmark_seeds(cfg.seed, cfg.seeds)[k]
     c = {"kind": cfg.kind, "noise": cfg.noise, "ablation": None}
-    scene = make_scene(cfg.objects, cfg.kind, derived_seed(sd, "scene", i), object_set=cfg.object_set,
-                       gripper=db.gripper)
     config = _clutter_config(c, None)
     config = replace(config, scene=replace(config.scene, workers=cfg.workers))
-    ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=config)
+    ep = benchmark_episode(cfg.objects, cfg.kind, sd, i, db=db, config=config, object_set=cfg.object_set)
+    scene = ep.scene
     eye = ep.camera.T_world_camera[:3, 3]
     names = [o.name for o in scene.objects]
     rows = []

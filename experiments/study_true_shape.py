@@ -35,7 +35,7 @@ from typing import ClassVar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import derived_seed, opt, rng_for, start
+from _common import opt, start
 
 from graspsim.maps.robust import UNSEEN_MARGIN
 
@@ -165,9 +165,8 @@ def episodes(cfg: Config, kind: str, db) -> list[dict]:
     import e10_clutter_removal as e10
     import trimesh
 
-    from graspsim.tabletop.clutter import ClutterEpisode, grasp_target
+    from graspsim.tabletop.clutter import benchmark_episode, grasp_target
     from graspsim.tabletop.scene_objects import ASSETS
-    from graspsim.tabletop.table_scene import make_scene
 
     e10cfg = e10.Config(seed=cfg.seed, seeds=max(cfg.seeds, e10.Config().seeds), scenes=cfg.scenes)
     clutter = e10._clutter_config({"kind": kind, "noise": "none", "ablation": None}, cfg.unseen_margin)
@@ -175,9 +174,11 @@ def episodes(cfg: Config, kind: str, db) -> list[dict]:
     for s in range(cfg.seeds):
         sd = e10.seed_of(e10cfg, s)
         for i in range(cfg.scenes):
-            scene = make_scene(5, kind, derived_seed(sd, "scene", i), object_set=cfg.object_set, gripper=db.gripper)
+            ep = benchmark_episode(5, kind, sd, i, db=db, config=clutter, object_set=cfg.object_set)
+            scene = ep.scene
             mine = [j for j, o in enumerate(scene.objects) if cfg.object in (o.name, "any")]
             if not mine:
+                ep.close()
                 continue
             meshes = {}
             for j in mine:
@@ -186,7 +187,6 @@ def episodes(cfg: Config, kind: str, db) -> list[dict]:
                 mesh = trimesh.load(path, force="mesh")
                 mesh.apply_scale(spec.scale)
                 meshes[j] = (mesh, mesh.convex_hull)
-            ep = ClutterEpisode(scene, db=db, rng=rng_for(sd, "clutter", i), config=clutter)
             try:
                 for look, g, _, _ in e10.looks(ep):
                     k = grasp_target(look, g, db.gripper)

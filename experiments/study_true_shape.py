@@ -14,7 +14,12 @@ preparation simulates when decomposition runs out of time):
   its extent along the closing axis, beside the fitted parts' clearance to the fingers;
 * where the pads meet it: the contacts' height below the fingertips and their normals'
   angle to the closing axis, and the centre of mass off the closing line;
-* the closing axis's angle to the line of sight (``|cos|``).
+* the closing axis's angle to the line of sight (``|cos|``);
+* the segment's observed points in the same region and their extent along the closing axis.
+
+Per cause, where the object lay between the pads (:func:`off_centre`): how many grasps had the
+middle of its true extent more than 8 mm from the gripper's centre, and how many would have had
+it, had each grasp been centred on the extent its observed points span there.
 
 Each failure gets a mechanism: a start collision with the finger in the true mesh on the
 unseen or the seen side, or in the hull only (the simulation model); no contact with
@@ -45,6 +50,8 @@ log = logging.getLogger("study_true_shape")
 INSIDE = 0.001
 #: contacts this near the fingertips [m] are "at the tips"; a centre of mass this far off the closing line is "off"
 TIP, OFF_COM = 0.005, 0.010
+#: an object whose extent between the pads has its middle this far [m] from the gripper's centre is "off centre"
+OFF_CENTRE = 0.008
 
 
 @dataclass(frozen=True)
@@ -103,6 +110,39 @@ def mechanism(r: dict) -> str:
     return cause
 
 
+def _in_closing_region(P: np.ndarray, gripper, opening: float) -> np.ndarray:
+    """Which wrist-frame points ``P`` (N, 3) lie between the fingers: across the finger width, from the
+    jaws to the fingertips, within the pad gap ``opening`` (+ 2 mm)."""
+    return ((np.abs(P[:, 1]) <= 0.5 * gripper.finger_size[1]) & (P[:, 2] >= gripper.jaw_base_z)
+            & (P[:, 2] <= gripper.fingertip_z) & (np.abs(P[:, 0]) <= 0.5 * opening + 0.002))
+
+
+def off_centre(rows: list[dict]) -> dict:
+    """Where the object lies between the pads, by outcome: per cause, the grasps whose rows hold the
+    true extent along the closing axis, how many had its middle more than :data:`OFF_CENTRE` from the
+    gripper's centre (the first pad to touch pushes the object that far before the other arrives), the
+    median distance, and the same if each grasp had been centred on the extent the segment's observed
+    points span there (``seen_extent_mm``; grasps with both)."""
+    out: dict[str, dict] = {}
+    for r in rows:
+        if "true_extent_mm" not in r:
+            continue
+        t = 0.5 * sum(r["true_extent_mm"])
+        g = out.setdefault(r["cause"], {"grasps": 0, "off": [], "off_if_centred_on_seen": []})
+        g["grasps"] += 1
+        g["off"].append(abs(t))
+        if "seen_extent_mm" in r:
+            g["off_if_centred_on_seen"].append(abs(t - 0.5 * sum(r["seen_extent_mm"])))
+    lim = 1000 * OFF_CENTRE
+    return {c: {"grasps": g["grasps"], "off_centre": sum(x > lim for x in g["off"]),
+                "median_off_mm": float(np.median(g["off"])),
+                "with_seen": len(g["off_if_centred_on_seen"]),
+                "off_centre_if_centred_on_seen": sum(x > lim for x in g["off_if_centred_on_seen"]),
+                "median_off_if_centred_on_seen_mm": float(np.median(g["off_if_centred_on_seen"]))
+                if g["off_if_centred_on_seen"] else None}
+            for c, g in sorted(out.items(), key=lambda t: -t[1]["grasps"])}
+
+
 def measure(ep, look, grasp, k: int, mesh, hull, gripper) -> dict:
     """The measures of ``grasp`` (aimed at object ``k``) before it is executed."""
     import trimesh
@@ -143,9 +183,14 @@ def measure(ep, look, grasp, k: int, mesh, hull, gripper) -> dict:
     S, fi = trimesh.sample.sample_surface_even(mesh, 20000, seed=0)
     W = np.linalg.inv(T) @ T_w_file
     Sw, Nw = S @ W[:3, :3].T + W[:3, 3], mesh.face_normals[fi] @ W[:3, :3].T
-    between = ((np.abs(Sw[:, 1]) <= 0.5 * gripper.finger_size[1]) & (Sw[:, 2] >= gripper.jaw_base_z)
-               & (Sw[:, 2] <= gripper.fingertip_z) & (np.abs(Sw[:, 0]) <= 0.5 * grasp.opening + 0.002))
+    between = _in_closing_region(Sw, gripper, grasp.opening)
     r["true_between"] = int(between.sum())
+    # the segment's observed points in the same region: what the planner saw of that extent
+    Pw = np.asarray(mem.points, float) @ np.linalg.inv(T)[:3, :3].T + np.linalg.inv(T)[:3, 3]
+    seen = _in_closing_region(Pw, gripper, grasp.opening)
+    r["seen_between"] = int(seen.sum())
+    if seen.any():
+        r["seen_extent_mm"] = [1000 * float(Pw[seen, 0].min()), 1000 * float(Pw[seen, 0].max())]
     if between.any():
         x = np.where(between, Sw[:, 0], np.nan)
         lo, hi = int(np.nanargmin(x)), int(np.nanargmax(x))
@@ -209,7 +254,8 @@ def run(cfg: Config, db) -> dict:
         if r["cause"] != "success":
             mech[r["mechanism"]] = mech.get(r["mechanism"], 0) + 1
     return {"grasps": len(rows), "lifted": sum(r["cause"] == "success" for r in rows), "mechanisms": mech,
-            "rows": rows, "denominators": f"grasps aimed at the {cfg.object} in the scenes run"
+            "off_centre": off_centre(rows), "rows": rows,
+            "denominators": f"grasps aimed at the {cfg.object} in the scenes run"
             + (" (any: every object's grasps)" if cfg.object == "any" else "")}
 
 
@@ -219,6 +265,17 @@ def readme_section(s: dict) -> str:
          f"({', '.join(c['kinds'])}, {c['seeds']} seeds x {c['scenes']} scenes of {c['object_set']}).", "",
          "| failure mechanism | grasps |", "|---|---|"]
     L += [f"| {m} | {n} |" for m, n in sorted(s["mechanisms"].items(), key=lambda t: -t[1])]
+    if s.get("off_centre"):
+        lim = f"{1000 * OFF_CENTRE:g} mm"
+        L += ["", f"Where the object lay between the pads (its true extent along the closing axis; off centre: its "
+                  f"middle more than {lim} from the gripper's centre), and had each grasp been centred on the "
+                  "extent its segment's observed points span there:", "",
+              "| cause | grasps | off centre | median offset [mm] | with seen points | off centre if centred on them "
+              "| median offset then [mm] |", "|---|---|---|---|---|---|---|"]
+        for cause, g in s["off_centre"].items():
+            then = g["median_off_if_centred_on_seen_mm"]
+            L.append(f"| {cause} | {g['grasps']} | {g['off_centre']} | {g['median_off_mm']:.1f} | {g['with_seen']} | "
+                     f"{g['off_centre_if_centred_on_seen']} | {'-' if then is None else f'{then:.1f}'} |")
     L += ["", "| kind | seed | scene | object | parts | cause | mechanism | closing . sight | "
           "true in fingers (unseen/seen) [mm deep] | hull [mm deep] | parts clearance [mm] |",
           "|---|---|---|---|---|---|---|---|---|---|---|"]

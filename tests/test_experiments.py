@@ -787,6 +787,34 @@ def test_study_true_shape_quick(tmp_path):
     assert sum(s["mechanisms"].values()) == s["grasps"] - s["lifted"]
     assert all(-1.0 <= r["closing_sight_cos"] <= 1.0 and r["parts"] for r in s["rows"])
     assert s["command"] in study.readme_section(s)
+    with_extent = [r for r in s["rows"] if "true_extent_mm" in r]
+    assert sum(g["grasps"] for g in s["off_centre"].values()) == len(with_extent)
+    for r in with_extent:  # the object's extent lies between the pads (+ 2 mm)
+        lo, hi = r["true_extent_mm"]
+        assert -r["opening_mm"] / 2 - 2.5 <= lo <= hi <= r["opening_mm"] / 2 + 2.5
+    for r in s["rows"]:  # the scene planner's grasps close on >= 5 of their segment's points (SEEN_BETWEEN)
+        assert r["seen_between"] >= 5
+        lo, hi = r["seen_extent_mm"]
+        assert -r["opening_mm"] / 2 - 2.5 <= lo <= hi <= r["opening_mm"] / 2 + 2.5
+
+
+def test_study_true_shape_off_centre_counts_by_cause():
+    """off_centre: per cause, the grasps whose object's true middle is more than 8 mm from the
+    gripper's centre, and what centring on the observed extent would have left."""
+    study = _load("study_true_shape")
+    rows = [{"cause": "success", "true_extent_mm": [-20.0, 20.0], "seen_extent_mm": [-20.0, 10.0]},
+            {"cause": "success", "true_extent_mm": [-10.0, 30.0]},  # middle 10 mm off; nothing seen there
+            {"cause": "no_contact", "true_extent_mm": [0.0, 30.0], "seen_extent_mm": [1.0, 29.0]},
+            {"cause": "no_contact", "true_extent_mm": [-30.0, -10.0], "seen_extent_mm": [-40.0, 40.0]},
+            {"cause": "dropped"}]  # no true surface between the pads: not counted
+    o = study.off_centre(rows)
+    assert list(o) == ["success", "no_contact"]
+    assert o["success"] == {"grasps": 2, "off_centre": 1, "median_off_mm": 5.0, "with_seen": 1,
+                            "off_centre_if_centred_on_seen": 0, "median_off_if_centred_on_seen_mm": 5.0}
+    # centred on what was seen: 15 -> 0 mm off, and -20 -> -20 mm (the seen points spanned both sides)
+    assert o["no_contact"]["off_centre"] == 2 and o["no_contact"]["median_off_mm"] == 17.5
+    assert o["no_contact"]["off_centre_if_centred_on_seen"] == 1
+    assert o["no_contact"]["median_off_if_centred_on_seen_mm"] == 10.0
 
 
 def test_study_light_objects_quick_grasps_each_mass_alike(tmp_path):

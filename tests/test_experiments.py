@@ -259,6 +259,10 @@ def test_e15_quick_same_scenes_for_both_planners(tmp_path):
         assert [x["seed"] for x in r["per_seed"]] == [x["seed"] for x in by["graspsim"]["per_seed"]]
         assert [x["placed"] for x in r["per_seed"]] == [x["placed"] for x in by["graspsim"]["per_seed"]]
         assert r["gsr"]["seeds"] <= 2
+    # two processes, one seed of one planner a task: the same episodes
+    assert mod.main(["--quick", "--workers", "2", "--out", str(tmp_path / "w2")]) == 0
+    assert [r["pooled"] for r in _summary(tmp_path / "w2")["results"]] == [r["pooled"] for r in s["results"]]
+    assert s["config"]["object_set"] == "primitives"
 
 
 @pytest.mark.slow

@@ -223,3 +223,28 @@ def test_the_clutter_env_takes_a_folder_or_a_named_mesh_set(tmp_path):
     assert ClutterEnvConfig(object_set="household-heldout").object_set == "household-heldout"
     with pytest.raises(InvalidParameterError, match="object_set"):
         ClutterEnvConfig(object_set=str(tmp_path / "nowhere"))
+
+
+def test_the_benchmark_draws_from_the_household_set_wherever_no_set_is_named(monkeypatch):
+    """graspsim scene, run_benchmark / benchmark_episode, ClutterClear-v0 and E15 draw from one
+    default set, the shipped household meshes (BENCHMARK_SET): a user's Python call meets the
+    scenes the command reports on."""
+    import inspect
+    from types import SimpleNamespace
+
+    import graspsim.tabletop.table_scene as table_scene
+    from graspsim.envs.clutter_config import ClutterEnvConfig
+    from graspsim.grippers.spec import HGPL_25_60_A
+    from graspsim.tabletop import clutter
+    from graspsim.tabletop.mesh_objects import BENCHMARK_SET, SHIPPED
+
+    assert BENCHMARK_SET == "household" and BENCHMARK_SET in SHIPPED
+    for f in (clutter.run_benchmark, clutter.benchmark_episode):
+        assert inspect.signature(f).parameters["object_set"].default == BENCHMARK_SET
+    assert ClutterEnvConfig().object_set == BENCHMARK_SET
+    drawn = {}
+    scene = SimpleNamespace(kind="packed", objects=(), sim=lambda **kw: SimpleNamespace(
+        objects_left=lambda: [], outside=lambda: [], close=lambda: None))
+    monkeypatch.setattr(table_scene, "make_scene", lambda *a, **kw: drawn.update(kw) or scene)
+    clutter.run_benchmark(1, "packed", 1, 0, db=SimpleNamespace(gripper=HGPL_25_60_A))
+    assert drawn["object_set"] == BENCHMARK_SET

@@ -108,7 +108,9 @@ def _cmd_scene(args) -> int:
                                         "is expected)")
         object_set = str(Path(args.objects_dir).resolve())
     else:
-        object_set = args.object_set or "household"
+        from graspsim.tabletop.mesh_objects import BENCHMARK_SET
+
+        object_set = args.object_set or BENCHMARK_SET
         if object_set not in object_set_names():
             raise InvalidParameterError(f"--object-set {object_set!r} unknown; valid: {list(object_set_names())} "
                                         "(a folder of meshes: --objects-dir)")

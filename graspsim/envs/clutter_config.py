@@ -26,8 +26,8 @@ class ClutterEnvConfig:
 
     n_objects, kind (``"pile"`` | ``"packed"``), object_set: the scenes drawn at reset
         (:func:`graspsim.tabletop.table_scene.make_scene`; a set of :mod:`graspsim.tabletop.scene_objects`:
-        ``"mixed"``, ``"household"``, ... or a folder of the user's mesh files, as
-        ``graspsim scene --objects-dir``).
+        ``"household"``, the clutter benchmark's (``graspsim scene``'s default), ``"mixed"``, ... or a
+        folder of the user's mesh files, as ``graspsim scene --objects-dir``).
     n_candidates: K, candidate grasps offered per step (the scene's ranking, best first).
     cloud_size: N, points of the observed depth cloud (a fixed-size sample of the frame's
         back-projected points, with repeats when it has fewer).
@@ -53,7 +53,7 @@ class ClutterEnvConfig:
 
     n_objects: int = 3
     kind: str = "pile"
-    object_set: str = "mixed"
+    object_set: str = "household"  # graspsim.tabletop.mesh_objects.BENCHMARK_SET, as graspsim scene
     n_candidates: int = 16
     cloud_size: int = 2048
     depth_image: bool = False

@@ -49,6 +49,7 @@ from graspsim.tabletop.clutter_metrics import (
     summarize,
 )
 from graspsim.tabletop.depth_noise import DepthNoise
+from graspsim.tabletop.mesh_objects import BENCHMARK_SET
 from graspsim.tabletop.planners import grasp_target
 from graspsim.tabletop.table_scene import known_gap
 
@@ -588,9 +589,11 @@ def _play(ep: ClutterEpisode, on_step=None) -> ClutterResult:
 
 
 def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, config: ClutterConfig | None = None,
-                  object_set: str = "mixed", first: int = 0, on_step=None, on_scene=None) -> list[ClutterResult]:
+                  object_set: str = BENCHMARK_SET, first: int = 0, on_step=None, on_scene=None) -> list[ClutterResult]:
     """``scenes`` episodes on scenes ``first``, ``first + 1``, ... of ``n_objects`` of
-    ``kind`` ("pile" | "packed"). Scene ``i`` is ``make_scene(n_objects, kind, derived_seed(seed, "scene", i))`` and its
+    ``kind`` ("pile" | "packed") from ``object_set`` (by default the benchmark's,
+    :data:`~graspsim.tabletop.mesh_objects.BENCHMARK_SET`: the shipped real meshes, as ``graspsim scene``).
+    Scene ``i`` is ``make_scene(n_objects, kind, derived_seed(seed, "scene", i))`` and its
     episode draws from ``rng_for(seed, "clutter", i)``: every condition (noise,
     ablation) meets the same scenes and the same draws. on_step(i, view, frame, plan,
     attempt) as :func:`run_clutter`'s; on_scene(i, scene, result) after each episode."""
@@ -609,7 +612,7 @@ def run_benchmark(n_objects: int, kind: str, scenes: int, seed: int, *, db, conf
 
 
 def benchmark_episode(n_objects: int, kind: str, seed: int, i: int, *, db, config: ClutterConfig | None = None,
-                      object_set: str = "mixed", rgb: bool = False) -> ClutterEpisode:
+                      object_set: str = BENCHMARK_SET, rgb: bool = False) -> ClutterEpisode:
     """Episode ``i`` of :func:`run_benchmark` with ``seed``, not yet played: its scene drawn and
     settled, its draws from ``rng_for(seed, "clutter", i)`` -- a caller that walks it look by
     look (a study replaying a benchmark's episodes) meets what the benchmark met."""

@@ -58,7 +58,7 @@ from graspsim.errors import InvalidParameterError, MeshError
 
 __all__ = ["ASSETS", "MeshEntry", "MeshSet", "SHIPPED", "FILL_DENSITY", "SHELL_DENSITY", "SOLID_SHARE",
            "MANIFESTS", "file_sha256", "default_mass", "read_folder", "shipped_set",
-           "mesh_set", "is_mesh_set", "heldout_split"]
+           "mesh_set", "is_mesh_set", "heldout_split", "BENCHMARK_SET"]
 
 #: Where the shipped meshes live: ``assets/objects``, installed with the package.
 ASSETS = package_path("assets", "objects")
@@ -73,6 +73,11 @@ MANIFESTS = ("objects.json", "objects.toml")
 _KEYS = {"scale", "mass", "density", "friction", "exclude"}
 _SUFFIXES = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")  # graspsim.sim.meshes.MESH_SUFFIXES
 
+#: The object set of the clutter benchmark where none is named: ``graspsim scene``,
+#: :func:`~graspsim.tabletop.clutter.run_benchmark`, :func:`~graspsim.tabletop.clutter.benchmark_episode`,
+#: the ``ClutterClear-v0`` environment (``ClutterEnvConfig.object_set``, which repeats the name so that
+#: the environment's settings load without the simulator) and E15: the shipped real meshes.
+BENCHMARK_SET = "household"
 #: The shipped sets: name -> files under ASSETS.
 SHIPPED = {
     "household": ("robosuite/bottle.stl", "robosuite/bread.stl", "robosuite/can.stl", "robosuite/cereal.stl",

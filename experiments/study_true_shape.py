@@ -259,9 +259,15 @@ def run(cfg: Config, db) -> dict:
             + (" (any: every object's grasps)" if cfg.object == "any" else "")}
 
 
+def _extent(e) -> str:
+    return "-" if e is None else f"{e[0]:.0f} to {e[1]:.0f}"
+
+
 def readme_section(s: dict) -> str:
     c = s["config"]
-    L = [f"`{s['command']}`: {s['lifted']}/{s['grasps']} grasps aimed at the {c['object']} lifted it "
+    aimed = "grasps lifted the object they were aimed at" if c["object"] == "any" else \
+        f"grasps aimed at the {c['object']} lifted it"
+    L = [f"`{s['command']}`: {s['lifted']}/{s['grasps']} {aimed} "
          f"({', '.join(c['kinds'])}, {c['seeds']} seeds x {c['scenes']} scenes of {c['object_set']}).", "",
          "| failure mechanism | grasps |", "|---|---|"]
     L += [f"| {m} | {n} |" for m, n in sorted(s["mechanisms"].items(), key=lambda t: -t[1])]
@@ -276,17 +282,20 @@ def readme_section(s: dict) -> str:
             then = g["median_off_if_centred_on_seen_mm"]
             L.append(f"| {cause} | {g['grasps']} | {g['off_centre']} | {g['median_off_mm']:.1f} | {g['with_seen']} | "
                      f"{g['off_centre_if_centred_on_seen']} | {'-' if then is None else f'{then:.1f}'} |")
-    L += ["", "| kind | seed | scene | object | parts | cause | mechanism | closing . sight | "
-          "true in fingers (unseen/seen) [mm deep] | hull [mm deep] | parts clearance [mm] |",
-          "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in s["rows"]:
+    L += ["", "The failed grasps:", "",
+          "| kind | seed | scene | object | parts | cause | mechanism | closing . sight | "
+          "true in fingers (unseen/seen) [mm deep] | hull [mm deep] | parts clearance [mm] | true / seen extent "
+          "between the pads [mm] |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in (r for r in s["rows"] if r["cause"] != "success"):
         f = r["fingers"].values()
         L.append(f"| {r['kind']} | {r['seed']} | {r['scene']} | {r.get('object', c['object'])} | "
                  f"{'; '.join(r['parts'])} | {r['cause']} | "
                  f"{r['mechanism']} | {r['closing_sight_cos']:.2f} | "
                  f"{'/'.join(str(v['in_true_unseen']) + ':' + str(v['in_true_seen']) for v in f)} "
                  f"[{max(v['depth_true_mm'] for v in f):.1f}] | {max(v['depth_hull_mm'] for v in f):.1f} | "
-                 f"{min(v['parts_clearance_mm'] for v in f):.1f} |")
+                 f"{min(v['parts_clearance_mm'] for v in f):.1f} | {_extent(r.get('true_extent_mm'))} / "
+                 f"{_extent(r.get('seen_extent_mm'))} |")
     return "\n".join(L) + "\n"
 
 

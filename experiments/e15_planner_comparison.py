@@ -71,7 +71,6 @@ def _seed(task) -> list:
     db = resident_run_database(root, cfg.quick_maps)
     planner = None if name == "graspsim" else load_planner(name)
     config = ClutterConfig(scene=scene_settings(kind), planner=planner, planner_name=name)
-    log.info("%s, %s: seed %d", kind, name, sd)
     return run_benchmark(cfg.objects, kind, cfg.scenes, sd, db=db, config=config, object_set=cfg.object_set)
 
 
@@ -85,8 +84,13 @@ def main(argv=None) -> int:
     combos = [(kind, name) for kind in cfg.kinds for name in cfg.planners]
     tasks = [(kind, name, sd, cfg, str(db.root)) for kind, name in combos for sd in seeds]
     pool = get_context("spawn").Pool(cfg.workers) if cfg.workers > 1 else None
+    results = []
     try:
-        results = list(pool.imap(_seed, tasks) if pool is not None else map(_seed, tasks))
+        for (kind, name, sd, _, _), r in zip(tasks, pool.imap(_seed, tasks) if pool is not None else map(_seed, tasks)):
+            results.append(r)
+            log.info("%s, %s: seed %d done, %d of %d tasks, %d of its %d grasps lifted", kind, name, sd,
+                     len(results), len(tasks), sum(len([a for a in x.attempts if a.success]) for x in r),
+                     sum(len(x.attempts) for x in r))
     finally:
         if pool is not None:
             pool.close()

@@ -111,6 +111,19 @@ def main(argv=None) -> int:
     return 0
 
 
+def headline(s: dict) -> str:
+    """The README's E15 line (see ``experiments/report.py``): GSR and DR (mean over seeds) per
+    scene kind, each planner's, on the same scenes."""
+    c = s["config"]
+    parts = []
+    for kind in c["kinds"]:
+        rows = [r for r in s["results"] if r["kind"] == kind]
+        parts.append(f"{kind}: " + "; ".join(f"{r['planner']} GSR {r['gsr_text']}, DR {r['dr_text']}" for r in rows))
+    return (f"The same scenes cleared by each planner ({c['seeds']} seeds x {c['scenes']} scenes of {c['objects']} "
+            f"objects from the \"{c.get('object_set', 'mixed')}\" set; GSR and DR mean ± std over seeds): "
+            + "; ".join(parts) + ".")
+
+
 def readme_section(s: dict) -> str:
     """The README's E15 paragraph and table (see ``experiments/report.py``)."""
     c = s["config"]

@@ -27,7 +27,10 @@ class ClutterEnvConfig:
     n_objects, kind (``"pile"`` | ``"packed"``), object_set: the scenes drawn at reset
         (:func:`graspsim.tabletop.table_scene.make_scene`; a set of :mod:`graspsim.tabletop.scene_objects`:
         ``"household"``, the clutter benchmark's (``graspsim scene``'s default), ``"mixed"``, ... or a
-        folder of the user's mesh files, as ``graspsim scene --objects-dir``).
+        folder of the user's mesh files, as ``graspsim scene --objects-dir``). The first reset that
+        draws a mesh prepares its simulation body (convex parts, up to 15 s of CPU a mesh, then cached
+        on disk), silently: ``graspsim.tabletop.scene_objects.prepare_objects(object_set, progress=True)``
+        prepares a set's every mesh ahead, with a progress bar (``graspsim scene`` does).
     n_candidates: K, candidate grasps offered per step (the scene's ranking, best first).
     cloud_size: N, points of the observed depth cloud (a fixed-size sample of the frame's
         back-projected points, with repeats when it has fewer).

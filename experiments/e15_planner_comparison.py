@@ -89,19 +89,19 @@ def main(argv=None) -> int:
         for (kind, name, sd, _, _), r in zip(tasks, pool.imap(_seed, tasks) if pool is not None else map(_seed, tasks)):
             results.append(r)
             log.info("%s, %s: seed %d done, %d of %d tasks, %d of its %d grasps lifted", kind, name, sd,
-                     len(results), len(tasks), sum(len([a for a in x.attempts if a.success]) for x in r),
+                     len(results), len(tasks), sum(a.success for x in r for a in x.attempts),
                      sum(len(x.attempts) for x in r))
     finally:
         if pool is not None:
             pool.close()
             pool.join()
     rows = []
-    for k, (kind, name) in enumerate(combos):
-        by_seed = dict(zip(seeds, results[k * len(seeds):(k + 1) * len(seeds)]))
+    for j, (kind, name) in enumerate(combos):
+        by_seed = dict(zip(seeds, results[j * len(seeds):(j + 1) * len(seeds)]))
         pooled = summarize([r for rs in by_seed.values() for r in rs])
         rows.append({"kind": kind, "planner": name, **per_seed(by_seed),
                      "pooled": {k: pooled[k] for k in ("attempts", "successes", "placed", "removed",
-                                                       "failure_causes", "stops")},
+                                                       "failure_causes", "stops", "per_source")},
                      "planning_median_s": pooled["planning_s"]["median"]})
     data = {"config": cfg, "gripper": db.gripper.name, "results": rows,
             "database": {"start": start_db, "end": database_record(db)}}

@@ -263,6 +263,8 @@ def test_e15_quick_same_scenes_for_both_planners(tmp_path):
     assert mod.main(["--quick", "--workers", "2", "--out", str(tmp_path / "w2")]) == 0
     assert [r["pooled"] for r in _summary(tmp_path / "w2")["results"]] == [r["pooled"] for r in s["results"]]
     assert s["config"]["object_set"] == "primitives"
+    # graspsim's grasps name the part they were planned from, an external planner's none
+    assert by["graspsim"]["pooled"]["per_source"] and not by["antipodal"]["pooled"]["per_source"]
     assert "packed: graspsim GSR" in mod.headline(s) and "antipodal GSR" in mod.headline(s)
 
 

@@ -19,10 +19,10 @@ import pytest
 PKG = Path(__file__).resolve().parents[1] / "graspsim"
 
 #: The base: small modules every part may use (errors, settings checks, version, atomic writes, small
-#: input files, JSON, installed files, the cache folders, the GL backend, seeds, frames, executors, statistics,
-#: the contact models' names).
+#: input files, JSON, installed files, the cache folders, the GL backend, progress bars, seeds, frames, executors,
+#: statistics, the contact models' names).
 BASE = frozenset({"errors", "checks", "_version", "_atomic", "_files", "_jsonable", "_resources", "_cache", "_gl",
-                  "seeding", "transforms", "executors", "stats", "contacts"})
+                  "_progress", "seeding", "transforms", "executors", "stats", "contacts"})
 
 
 def _above(*parts: str) -> frozenset[str]:

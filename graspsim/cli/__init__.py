@@ -118,21 +118,10 @@ def main(argv: list[str] | None = None) -> int:
 def _show_build_progress() -> None:
     """A progress bar (on a terminal) for FS maps the database builds on demand (the
     planner's build case, e.g. the demo's sixth map): ``BUILD_PROGRESS``."""
-    import contextlib
-
-    from graspsim.cli._common import progress
+    from graspsim._progress import map_build_bar
     from graspsim.maps.database import BUILD_PROGRESS
 
-    @contextlib.contextmanager
-    def bar(shape):
-        with progress(100, f"building the FS map of {shape} (stored for next time)", unit="%") as b:
-            def report(frac: float) -> None:
-                b.n = int(100 * frac)
-                b.refresh()
-
-            yield report
-
-    BUILD_PROGRESS.set(bar)
+    BUILD_PROGRESS.set(map_build_bar)
 
 
 class _ProgressLineHandler(logging.StreamHandler):

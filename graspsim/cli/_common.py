@@ -9,6 +9,8 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
+from graspsim._progress import progress
+
 __all__ = ["command", "emit", "add_json_flag", "add_units_flag", "add_object_cloud_flags", "add_executor_flags",
            "seed_value", "whole_number",
            "executor_from_args", "format_table", "dims_text", "add_db_flag", "progress", "add_gripper_flag",
@@ -430,37 +432,6 @@ def _fmt(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.4g}"
     return str(v)
-
-
-def progress(total: int | None, desc: str, enabled: bool = True, unit: str = "it", delay: float = 0.0, *,
-             tick: float | None = None):
-    """A tqdm progress bar on stderr (disabled when not wanted or not a terminal; shown
-    only after ``delay`` seconds). With
-    ``tick`` [s] the bar is redrawn that often even when nothing finished (its elapsed
-    time runs: steps that take long, such as maps built in worker processes, do not look
-    stuck); the redrawing stops when the bar is closed."""
-    import threading
-
-    from tqdm.auto import tqdm
-
-    on = enabled and sys.stderr.isatty()
-    bar = tqdm(total=total, desc=desc, unit=unit, disable=not on, file=sys.stderr, leave=False, delay=delay)
-    if on and tick:
-        stop = threading.Event()
-
-        def redraw() -> None:
-            while not stop.wait(tick):
-                bar.refresh()
-
-        threading.Thread(target=redraw, name="graspsim-progress", daemon=True).start()
-        close = bar.close
-
-        def closing() -> None:
-            stop.set()
-            close()
-
-        bar.close = closing
-    return bar
 
 
 def add_viewpoint_flag(p) -> None:

@@ -45,6 +45,7 @@ has ``stop`` (None while running; else :data:`graspsim.tabletop.clutter.STOPS` o
 
 from __future__ import annotations
 
+import contextlib
 import time
 
 import gymnasium as gym
@@ -62,6 +63,7 @@ CLOUD_BOUND = 2.0  # [m]
 MAX_SEGMENTS = 255
 MAX_DEPTH = 10.0  # [m]
 _CLEARANCE_CAP = 0.05
+_BAR_DELAY = 2.0  # [s] progress bars show once work takes longer (cached meshes and stored maps: quiet)
 #: terminated ("unreachable": with an arm); "max_attempts": truncated
 _ENDS = {"cleared", "failures", "no_grasp", "unreachable", "invalid_action"}
 
@@ -113,6 +115,7 @@ class ClutterClearEnv(gym.Env):
         self._obs: dict | None = None
         self._stop: str | None = None
         self._scenes: dict[int, object] = {}  # drawn scenes by seed (a seeded reset settles once)
+        self._prepared = False  # the object set's meshes prepared (the first reset that draws a scene)
         self.timing: dict[str, float] = {}
 
     # ------------------------------------------------------------------ reset
@@ -124,17 +127,47 @@ class ClutterClearEnv(gym.Env):
             raise InvalidParameterError(f"unknown reset option(s) {sorted(opts)}; valid: ['scene']")
         t0 = time.perf_counter()
         tries = 1 if given is not None else self.config.max_redraws
-        for _ in range(tries):
-            scene = given if given is not None else self._draw_scene()
-            ep_rng, sample_rng = np.random.default_rng(int(self.np_random.integers(0, 2**63))).spawn(2)
-            self._start(scene, ep_rng, sample_rng)
-            if self._look is not None:
-                break
-        else:
+        with self._bars():
+            if given is None and not self._prepared:  # the set's meshes, once (graspsim scene does the same)
+                from graspsim.tabletop.scene_objects import prepare_objects
+
+                prepare_objects(self.config.object_set, self.db.gripper, progress=self.config.progress,
+                                delay=_BAR_DELAY)
+                self._prepared = True
+            for _ in range(tries):
+                scene = given if given is not None else self._draw_scene()
+                ep_rng, sample_rng = np.random.default_rng(int(self.np_random.integers(0, 2**63))).spawn(2)
+                self._start(scene, ep_rng, sample_rng)
+                if self._look is not None:
+                    break
+        if self._look is None:
             what = "the given scene" if given is not None else f"{tries} scenes drawn"
             raise NoFeasibleGraspError(f"{what} offered no grasp with a robust score > 0 in the first frame")
         self.timing = {"reset": time.perf_counter() - t0, "planning": self._look.planning}
         return self._observation(), self._info()
+
+    @contextlib.contextmanager
+    def _bars(self):
+        """Progress bars (``config.progress``) for FS maps built while planning, unless the
+        caller set its own: each drawn at once when the reset or step has already taken
+        ``_BAR_DELAY`` (several short builds in a row are not silent), else after the rest of it."""
+        from graspsim.maps.database import BUILD_PROGRESS
+
+        if not self.config.progress or BUILD_PROGRESS.get() is not None:
+            yield
+            return
+        from graspsim._progress import map_build_bar
+
+        shown = time.monotonic() + _BAR_DELAY  # bars once the reset or step has taken that long
+
+        def bar(shape):
+            return map_build_bar(shape, delay=max(0.0, shown - time.monotonic()))
+
+        token = BUILD_PROGRESS.set(bar)
+        try:
+            yield
+        finally:
+            BUILD_PROGRESS.reset(token)
 
     def _draw_scene(self):
         from graspsim.tabletop.table_scene import make_scene
@@ -179,7 +212,8 @@ class ClutterClearEnv(gym.Env):
             info = self._info(outcome="invalid_action", success=False, target=None, picked=None, candidate=a)
             return self._observation(), 0.0, True, False, info
         attempt = ep.execute(self._look, self._look.candidates[a])
-        self._look = ep.observe() if ep.stop is None else None
+        with self._bars():
+            self._look = ep.observe() if ep.stop is None else None
         self._stop = ep.stop
         self._observe()
         self.timing = {"step": time.perf_counter() - t0,

@@ -27,10 +27,9 @@ class ClutterEnvConfig:
     n_objects, kind (``"pile"`` | ``"packed"``), object_set: the scenes drawn at reset
         (:func:`graspsim.tabletop.table_scene.make_scene`; a set of :mod:`graspsim.tabletop.scene_objects`:
         ``"household"``, the clutter benchmark's (``graspsim scene``'s default), ``"mixed"``, ... or a
-        folder of the user's mesh files, as ``graspsim scene --objects-dir``). The first reset that
-        draws a mesh prepares its simulation body (convex parts, up to 15 s of CPU a mesh, then cached
-        on disk), silently: ``graspsim.tabletop.scene_objects.prepare_objects(object_set, progress=True)``
-        prepares a set's every mesh ahead, with a progress bar (``graspsim scene`` does).
+        folder of the user's mesh files, as ``graspsim scene --objects-dir``). The first reset
+        prepares the simulation body of every mesh the set draws, as ``graspsim scene`` does (convex
+        parts, up to 15 s of CPU a mesh the first time, then cached on disk: well under a second).
     n_candidates: K, candidate grasps offered per step (the scene's ranking, best first).
     cloud_size: N, points of the observed depth cloud (a fixed-size sample of the frame's
         back-projected points, with repeats when it has fewer).
@@ -50,6 +49,10 @@ class ClutterEnvConfig:
         its gripper must be simulated from its model file (e.g. ``gripper="franka_hand"``);
         a chosen grasp it cannot reach or approach is a failed step (cause ``unreachable``
         / ``approach_collision``, never executed); ``"none"``: the floating gripper.
+    progress: progress bars on stderr, when it is a terminal, for work that takes longer than 2 s:
+        the first reset's mesh preparation, and FS maps of new sizes that a reset or step builds
+        (False: quiet; bars a caller set itself through ``graspsim.maps.database.BUILD_PROGRESS``
+        are left as they are).
     contacts: the simulation's contact model (:func:`graspsim.sim.contact_model`: ``"stiff"``,
         the default, or ``"soft"``, the earlier one; as ``graspsim scene --contacts``).
     """
@@ -72,6 +75,7 @@ class ClutterEnvConfig:
     robot: str = "none"
     robot_base: tuple = (-0.5, 0.0, 0.0)
     contacts: str = DEFAULT_CONTACTS
+    progress: bool = True
 
     def __post_init__(self) -> None:
         check_fields(self, integer(1), "n_objects", "n_candidates", "cloud_size", "max_failures", "max_redraws")
@@ -86,7 +90,7 @@ class ClutterEnvConfig:
             check_object_set(self.object_set)
         except InvalidParameterError as err:
             raise InvalidParameterError(f"object_set: {err}") from None
-        check_fields(self, BOOLEAN, "depth_image", "depth_noise", "execution_error", "neighbours")
+        check_fields(self, BOOLEAN, "depth_image", "depth_noise", "execution_error", "neighbours", "progress")
         check_contacts(self.contacts)  # an unknown name: one line naming the valid ones
         from graspsim.envs.env_config import check_database_fields
 

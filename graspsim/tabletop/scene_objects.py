@@ -245,20 +245,24 @@ def _fit_entries(ms: MeshSet, limit: float) -> tuple[MeshEntry, ...]:
     return tuple(fits)
 
 
-def prepare_objects(object_set: str, gripper: GripperSpec = HGPL_25_60_A, *, progress: bool = False) -> list[str]:
+def prepare_objects(object_set: str, gripper: GripperSpec = HGPL_25_60_A, *, progress: bool = False,
+                    delay: float = 0.0) -> list[str]:
     """Build the simulation body of every mesh ``object_set`` draws (a mesh set; nothing
     for the built-in sets), so a first scene does not wait on convex decompositions;
-    ``progress``: a bar on stderr. Returns the names of the meshes drawn."""
+    ``progress``: a bar on stderr when it is a terminal, shown once the work has taken
+    ``delay`` seconds (cached meshes take well under a second). Returns the names of the
+    meshes drawn."""
     check_object_set(object_set)
     if object_set in OBJECT_SETS:
         return []
     _, entries = _fitting(object_set, gripper.max_opening - 2 * gripper.approach_clearance)
-    from tqdm import tqdm
+    from graspsim._progress import progress as stderr_bar
 
-    bar = tqdm(entries, desc="preparing meshes", unit="mesh", disable=not progress)
-    for e in bar:
-        bar.set_postfix_str(e.name)  # the mesh being decomposed (a first decomposition can take minutes)
-        mesh_spec(e).sim_object()
+    with stderr_bar(len(entries), "preparing meshes", enabled=progress, unit="mesh", delay=delay, tick=1.0) as bar:
+        for e in entries:
+            bar.set_postfix_str(e.name, refresh=False)  # the mesh being decomposed (a first one can take minutes)
+            mesh_spec(e).sim_object()
+            bar.update()
     return [e.name for e in entries]
 
 

@@ -80,6 +80,7 @@ from graspsim.planning.scene_config import (
     SceneConfig,
     with_feature_grasps,
     with_seen_between,
+    with_shadow_depth,
     with_sparse_between,
     with_unseen_margin,
 )
@@ -127,6 +128,9 @@ class Config:
     sparse_between: int | None = opt(None, "a grasp closing on fewer of its segment's points keeps SPARSE_SHARE of "
                                      "its score (graspsim scene --sparse-between; 0: off; none: the scene planner's "
                                      "default, the measured SPARSE_BETWEEN)")
+    shadow_depth: float | None = opt(None, "the depth [m] behind each neighbour's seen points, along the camera's "
+                                     "rays, kept clear as an obstacle (SceneConfig.shadow_depth; 0: off; none: the "
+                                     "scene planner's default, off)")
     feature_grasps: str = opt("apart", "where a segment's planning adds grasps on its cloud's own features "
                               "(graspsim scene --feature-grasps; SceneConfig.feature_grasps): apart, the default, "
                               "on packed tables only", choices=FEATURE_GRASPS)
@@ -147,7 +151,8 @@ class Config:
         for name in self.object_sets:
             check_object_set(name)
         scene = with_seen_between(with_unseen_margin(SceneConfig(), self.unseen_margin), self.seen_between)
-        with_feature_grasps(with_sparse_between(scene, self.sparse_between), self.feature_grasps)  # bad values:
+        scene = with_shadow_depth(with_sparse_between(scene, self.sparse_between), self.shadow_depth)
+        with_feature_grasps(scene, self.feature_grasps)  # bad values:
         # refused before the work
 
 
@@ -170,19 +175,22 @@ def seed_of(cfg: Config, k: int) -> int:
 
 def _clutter_config(c: dict, unseen_margin: float | None = None, plan_all: bool = False,
                     contacts: str = DEFAULT_CONTACTS, seen_between: int | None = None,
-                    feature_grasps: str | None = None, sparse_between: int | None = None) -> ClutterConfig:
+                    feature_grasps: str | None = None, sparse_between: int | None = None,
+                    shadow_depth: float | None = None) -> ClutterConfig:
     """A condition's clutter settings; ``unseen_margin`` [m]: ``Config.unseen_margin``
     (``graspsim scene --unseen-margin``'s path: :func:`~graspsim.planning.scene_config.with_unseen_margin`);
     ``seen_between``: ``Config.seen_between`` (``--seen-between``'s path:
     :func:`~graspsim.planning.scene_config.with_seen_between`); ``feature_grasps``: ``Config.feature_grasps``
     (``--feature-grasps``' path: :func:`~graspsim.planning.scene_config.with_feature_grasps`; None: the default);
     ``sparse_between``: ``Config.sparse_between`` (``--sparse-between``'s path:
-    :func:`~graspsim.planning.scene_config.with_sparse_between`);
+    :func:`~graspsim.planning.scene_config.with_sparse_between`); ``shadow_depth``: ``Config.shadow_depth``
+    (:func:`~graspsim.planning.scene_config.with_shadow_depth`);
     ``plan_all``: every object planned at every look (``graspsim scene --plan-all``); ``contacts``: the
     simulation's contact model (:func:`graspsim.sim.contact_model`; the default: ``SimSettings()``)."""
     scene = with_seen_between(with_unseen_margin(scene_settings(c["kind"], neighbours=c["ablation"] != "no_neighbours"),
                                                  unseen_margin), seen_between)
     scene = with_sparse_between(with_feature_grasps(scene, feature_grasps), sparse_between)
+    scene = with_shadow_depth(scene, shadow_depth)
     return ClutterConfig(scene=scene,
                          execution=ExecutionNoise() if c["noise"] == "default" else None,
                          ground_truth=c["ablation"] == "ground_truth", feel=c["ablation"] != "no_feel",
@@ -363,7 +371,7 @@ def _block(task) -> tuple[list, list, set]:
         sd = seed_of(cfg, k)
         try:
             config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts, cfg.seen_between,
-                                     cfg.feature_grasps, cfg.sparse_between)
+                                     cfg.feature_grasps, cfg.sparse_between, cfg.shadow_depth)
             out += [(sd, r) for r in run_benchmark(c["objects"], c["kind"], 1, sd, db=db, config=config,
                                                    object_set=c["object_set"], first=i)]
         except SimulationError as err:
@@ -388,7 +396,7 @@ def _warm_up(c: dict, cfg: Config, db) -> set:
 
     db.built = set()
     config = _clutter_config(c, cfg.unseen_margin, cfg.plan_all, cfg.contacts, cfg.seen_between, cfg.feature_grasps,
-                             cfg.sparse_between)
+                             cfg.sparse_between, cfg.shadow_depth)
     scene = make_scene(c["objects"], c["kind"], derived_seed(cfg.seed, "warm-up"), object_set=c["object_set"],
                        gripper=db.gripper, **({} if config.sim is None else {"settings": config.sim}))
     ep = ClutterEpisode(scene, db=db, rng=rng_for(cfg.seed, "warm-up"), config=config)

@@ -210,16 +210,36 @@ def _solid_samples(seg: np.ndarray, ident: Identification | None, plane: PlaneFi
     return np.concatenate(out)
 
 
+def _shadow_samples(seg: np.ndarray, plane: PlaneFit, viewpoint: np.ndarray, depth: float,
+                    step: float) -> np.ndarray:
+    """Samples (M, 3) [m, cloud frame] of the space up to ``depth`` behind segment points
+    ``seg`` along the camera's rays from ``viewpoint``, every ``step`` (the points thinned to
+    that grid first), above the table: where the object the camera saw goes on, at the least
+    depth its front tells nothing against."""
+    if len(seg) == 0 or depth <= 0:
+        return np.zeros((0, 3))
+    _, first = np.unique(np.floor(seg / step).astype(np.int64), axis=0, return_index=True)
+    p = seg[np.sort(first)]
+    u = p - viewpoint
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    t = np.arange(1, int(np.floor(depth / step + 1e-9)) + 1) * step
+    out = (p[:, None, :] + t[None, :, None] * u[:, None, :]).reshape(-1, 3)
+    return out[plane.heights(out) > 0.0]
+
+
 def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray] | None, reach: float,
-               felt: np.ndarray | None = None) -> np.ndarray | None:
+               felt: np.ndarray | None = None, shadows: list[np.ndarray] | None = None) -> np.ndarray | None:
     """What the gripper must clear besides segment ``k``, within ``reach`` of its bounding
     box: the scene's points above the table outside it (noise points included: they were
     seen) and the surface samples of the other segments' identified primitives (both
-    only with ``solids``: ``SceneConfig.neighbours``), and the ``felt`` points (see
+    only with ``solids``: ``SceneConfig.neighbours``), the other segments' ``shadows``
+    (:func:`_shadow_samples`; ``SceneConfig.shadow_depth``), and the ``felt`` points (see
     :func:`plan_scene`). None: nothing to clear."""
     own = per.segment == k
     lo, hi = per.points[own].min(axis=0) - reach, per.points[own].max(axis=0) + reach
     got = [] if solids is None else [per.points[~own], *(s for j, s in enumerate(solids) if j != k)]
+    if shadows is not None:
+        got += [s for j, s in enumerate(shadows) if j != k]
     if felt is not None and len(felt):
         got.append(felt)
     if not got:
@@ -288,7 +308,10 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     solids = [o.solids if o is not None and o.solids is not None else _solid_samples(seg, i, per.plane, cfg.solid_step)
               for seg, (i, _), o in zip(segs, idents, olds)] if cfg.neighbours else []
     t2 = time.perf_counter()
-    obstacles = [_obstacles(per, k, solids if cfg.neighbours else None, cfg.reach, felt) for k in range(len(segs))]
+    shadows = [_shadow_samples(seg, per.plane, viewpoint, cfg.shadow_depth, cfg.solid_step) for seg in segs] \
+        if cfg.neighbours and cfg.shadow_depth > 0 and viewpoint is not None else None
+    obstacles = [_obstacles(per, k, solids if cfg.neighbours else None, cfg.reach, felt, shadows)
+                 for k in range(len(segs))]
     done = [settled_plan(k, segs[k], ident, why, olds[k], obstacles[k], cfg)
             for k, (ident, why) in enumerate(idents)]
     todo = [k for k, d in enumerate(done) if d is None]

@@ -19,7 +19,7 @@ from graspsim.planning.planner import SCENE_TABLE_SKIP, PlannerConfig
 from graspsim.planning.scene_workers import scene_workers
 
 __all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "with_seen_between", "with_sparse_between",
-           "with_feature_grasps",
+           "with_feature_grasps", "with_shadow_depth", "MAX_SHADOW_DEPTH",
            "with_pose_error", "FEATURE_GRASPS", "SPARSE_BETWEEN", "SPARSE_SHARE",
            "MAX_POSE_ERROR", "MAX_UNSEEN_MARGIN", "MAX_SCENE_EXTENT",
            "SCENE_BYTES_PER_POINT", "SCENE_FIT_POINTS", "SCENE_COLLISION_TOLERANCE", "SCENE_MAX_NOISE_RATIO"]
@@ -145,7 +145,11 @@ class SceneConfig:
     planning adds grasps on its cloud's own features (the planner's ``features``, when the parts give too
     few): one of :data:`FEATURE_GRASPS`, by default ``"apart"``, in scenes with a ``min_gap`` only;
     sparse_between: a grasp closing on fewer of its segment's points than this keeps
-    :data:`SPARSE_SHARE` of its robust score (:data:`SPARSE_BETWEEN`, the default; 0: off)."""
+    :data:`SPARSE_SHARE` of its robust score (:data:`SPARSE_BETWEEN`, the default; 0: off);
+    shadow_depth [m]: with the camera's viewpoint known and ``neighbours`` on, the space up to
+    this far behind each other segment's seen points, along the camera's rays, is one more
+    obstacle of a segment's grasps (an object goes on behind its seen front; sampled every
+    ``solid_step``, above the table); 0: off, the default."""
 
     planner: PlannerConfig = field(default_factory=_scene_planner)
     plane_sigma: float = 0.002
@@ -172,6 +176,7 @@ class SceneConfig:
     good_enough: float | None = None
     feature_grasps: str = "apart"
     sparse_between: int = SPARSE_BETWEEN
+    shadow_depth: float = 0.0
 
     def __post_init__(self) -> None:
         check_fields(self, POSITIVE.saying("> 0 m"), "plane_sigma", "table_band", "max_height", "voxel", "max_radius",
@@ -189,6 +194,10 @@ class SceneConfig:
         check_fields(self, integer(1), "plane_repetitions", "min_points", "per_segment", "enough", "keep",
                      owner="SceneConfig")
         check_fields(self, integer(0), "sparse_between", owner="SceneConfig")
+        if isinstance(self.shadow_depth, bool) or not isinstance(self.shadow_depth, (int, float)) \
+                or not 0 <= self.shadow_depth <= MAX_SHADOW_DEPTH:
+            raise InvalidParameterError(f"SceneConfig.shadow_depth must be in [0, {MAX_SHADOW_DEPTH:g}] m (0: off), "
+                                        f"got {self.shadow_depth!r}")
         scene_workers(self.workers)  # validates it
         if self.good_enough is not None and not (isinstance(self.good_enough, (int, float))
                                                  and not isinstance(self.good_enough, bool)
@@ -237,6 +246,10 @@ def budget_fields(label: str) -> dict[str, int]:
         raise InvalidParameterError(f"a planning budget's numbers must be >= 1, got {label!r}")
     return {"enough": enough, "per_segment": per}
 
+
+#: [m] The deepest shadow a scene's planning keeps clear behind a neighbour's seen points
+#: (:attr:`SceneConfig.shadow_depth`): past a table-top object's depth.
+MAX_SHADOW_DEPTH = 0.1
 
 #: [m] The widest unseen margin a scene's planning takes (:func:`with_unseen_margin`): 10 cm is
 #: past any table-top object's depth the gripper can close across.
@@ -294,6 +307,20 @@ def with_sparse_between(scene: SceneConfig, points: int | None) -> SceneConfig:
         raise InvalidParameterError(f"the points below which a grasp's score is discounted must be a whole number "
                                     f">= 0 (the measured and default: {SPARSE_BETWEEN}; 0: off), got {points!r}")
     return replace(scene, sparse_between=int(points))
+
+
+def with_shadow_depth(scene: SceneConfig, depth: float | None) -> SceneConfig:
+    """``scene`` with the space up to ``depth`` [m] behind each neighbour's seen points kept
+    clear (``SceneConfig.shadow_depth``; 0: off, the default); None: ``scene`` itself. The one
+    path from a depth a user gives (E10 ``--shadow-depth``) to the planner; a depth outside
+    [0, :data:`MAX_SHADOW_DEPTH`] m is an :class:`~graspsim.errors.InvalidParameterError`."""
+    from dataclasses import replace
+
+    if depth is None:
+        return scene
+    if isinstance(depth, bool) or not isinstance(depth, (int, float)) or not 0 <= depth <= MAX_SHADOW_DEPTH:
+        raise InvalidParameterError(f"the shadow depth must be in [0, {MAX_SHADOW_DEPTH:g}] m (0: off), got {depth!r}")
+    return replace(scene, shadow_depth=float(depth))
 
 
 def with_feature_grasps(scene: SceneConfig, when: str | None) -> SceneConfig:

@@ -449,3 +449,34 @@ def test_pose_error_tells_the_planner_the_robots_accuracy():
     for bad in ((0.021, 2.0), (0.003, 10.5), (True, 2.0), (0.003, float("inf")), ("3mm", 2.0)):
         with pytest.raises(InvalidParameterError, match=r"position sigma in \[0, 0.02\] m and a rotation sigma"):
             with_pose_error(SceneConfig(), *bad)
+
+
+def test_the_shadow_depth_flag_reaches_the_planner(tmp_path, capsys, db):
+    """--shadow-depth M (SceneConfig.shadow_depth): scene and plan-scene read it alike,
+    absent the scene planner's default; plan-scene records it when a viewpoint makes it
+    apply (0 without one); a depth out of range is one line naming the flag, nothing written."""
+    from graspsim.cli import _common, build_parser
+    from graspsim.errors import InvalidParameterError
+
+    for command in ("scene", "plan-scene"):
+        head = [command] if command == "scene" else [command, "c.npy", "-o", "g.json"]
+        for given, want in (([], SceneConfig().shadow_depth), (["--shadow-depth", "0.03"], 0.03),
+                            (["--shadow-depth", "0"], 0.0)):
+            args = build_parser().parse_args([*head, *given])
+            assert _common.scene_planning_from_args(args, SceneConfig()).shadow_depth == want, (command, given)
+        for bad in ("-0.01", "0.5", "nan"):
+            args = build_parser().parse_args([*head, "--shadow-depth", bad])
+            with pytest.raises(InvalidParameterError, match="--shadow-depth must be in"):
+                _common.scene_planning_from_args(args, SceneConfig())
+    rng = np.random.default_rng(1)
+    table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), rng.normal(0, 0.0005, 3000)]
+    box = np.c_[rng.uniform(-0.03, 0.03, (800, 2)), rng.uniform(0, 0.06, 800)]
+    f, out = tmp_path / "cloud.npy", tmp_path / "grasps.json"
+    np.save(f, np.r_[table, box])
+    code, _, _ = _run(capsys, f, "-o", out, "--viewpoint", 0, -0.4, 0.5, "--shadow-depth", 0.03, "--db", db.root,
+                      *FAST_FLAGS)
+    assert code == 0 and json.loads(out.read_text())["shadow_depth"] == 0.03
+    code, _, _ = _run(capsys, f, "-o", out, "--shadow-depth", 0.03, "--db", db.root, *FAST_FLAGS)
+    assert code == 0 and json.loads(out.read_text())["shadow_depth"] == 0.0  # no viewpoint: no shadows
+    code, _, err = _run(capsys, f, "-o", tmp_path / "other.json", "--shadow-depth", 0.5, "--db", db.root, *FAST_FLAGS)
+    assert code == 2 and "--shadow-depth" in err and not (tmp_path / "other.json").exists()

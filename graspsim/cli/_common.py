@@ -175,6 +175,29 @@ def add_sparse_between_flag(p) -> None:
                    "SceneConfig.sparse_between, docs/scenes.md)")
 
 
+def add_shadow_depth_flag(p) -> None:
+    """``--shadow-depth M``: the depth behind each neighbour's seen points kept clear
+    (``SceneConfig.shadow_depth``, read with :func:`scene_planning_from_args`)."""
+    p.add_argument("--shadow-depth", type=float, default=None, metavar="M",
+                   help="with the camera's place known: the space up to M [m] behind each other object's seen points, "
+                   "along the camera's rays, is kept clear like the object itself -- an object goes on behind its seen "
+                   "front (default: the scene planner's; 0: off; SceneConfig.shadow_depth, docs/scenes.md)")
+
+
+def shadow_depth_value(args) -> float | None:
+    """``--shadow-depth`` in metres, None when not given; outside [0, MAX_SHADOW_DEPTH] m an
+    :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
+    from graspsim.errors import InvalidParameterError
+    from graspsim.planning.scene_config import MAX_SHADOW_DEPTH
+
+    m = getattr(args, "shadow_depth", None)
+    if m is None:
+        return None
+    if not (math.isfinite(m) and 0 <= m <= MAX_SHADOW_DEPTH):
+        raise InvalidParameterError(f"--shadow-depth must be in [0, {MAX_SHADOW_DEPTH:g}] m (0: off), got {m!r}")
+    return float(m)
+
+
 def seen_between_value(args) -> int | None:
     """``--seen-between`` as a whole number of points, None when not given; anything else
     is an :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
@@ -224,21 +247,23 @@ def add_feature_grasps_flag(p) -> None:
 
 def add_scene_planning_flags(p) -> None:
     """The planning flags the scene commands (``scene``, ``plan-scene``) share:
-    ``--budget``, ``--unseen-margin``, ``--seen-between``, ``--sparse-between`` and
-    ``--feature-grasps`` (read with :func:`scene_planning_from_args`)."""
+    ``--budget``, ``--unseen-margin``, ``--seen-between``, ``--sparse-between``,
+    ``--shadow-depth`` and ``--feature-grasps`` (read with :func:`scene_planning_from_args`)."""
     add_budget_flag(p)
     add_unseen_margin_flag(p)
     add_seen_between_flag(p)
     add_sparse_between_flag(p)
+    add_shadow_depth_flag(p)
     add_feature_grasps_flag(p)
 
 
 def scene_planning_from_args(args, scene):
     """``scene`` (a ``SceneConfig``) with ``--budget``, ``--unseen-margin``, ``--seen-between``,
-    ``--sparse-between`` and ``--feature-grasps`` applied
+    ``--sparse-between``, ``--shadow-depth`` and ``--feature-grasps`` applied
     (:func:`graspsim.planning.scene_config.with_unseen_margin`,
     :func:`~graspsim.planning.scene_config.with_seen_between`,
     :func:`~graspsim.planning.scene_config.with_sparse_between`,
+    :func:`~graspsim.planning.scene_config.with_shadow_depth`,
     :func:`~graspsim.planning.scene_config.with_feature_grasps`, E10's path too); a bad
     value is an :class:`~graspsim.errors.InvalidParameterError` naming its flag."""
     from dataclasses import replace
@@ -246,6 +271,7 @@ def scene_planning_from_args(args, scene):
     from graspsim.planning.scene_config import (
         with_feature_grasps,
         with_seen_between,
+        with_shadow_depth,
         with_sparse_between,
         with_unseen_margin,
     )
@@ -254,6 +280,7 @@ def scene_planning_from_args(args, scene):
     scene = with_unseen_margin(scene, unseen_margin_value(args, none=True))  # the value checked, naming the flag
     scene = with_seen_between(scene, seen_between_value(args))
     scene = with_sparse_between(scene, sparse_between_value(args))
+    scene = with_shadow_depth(scene, shadow_depth_value(args))
     return with_feature_grasps(scene, getattr(args, "feature_grasps", None))
 
 

@@ -182,6 +182,7 @@ def _cmd_scene(args) -> int:
                          "rotation_sigma": cfg.planning.planner.robust.rotation_sigma},
          "unseen_margin": cfg.planning.planner.robust.unseen_margin,
          "seen_between": cfg.planning.planner.seen_between, "sparse_between": cfg.scene.sparse_between,
+         "shadow_depth": cfg.scene.shadow_depth,
          "feature_grasps": cfg.scene.feature_grasps,
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth,
          "felt_evidence": cfg.feel, "contacts": args.contacts, "min_gap": gap,

@@ -128,9 +128,9 @@ class Config:
     sparse_between: int | None = opt(None, "a grasp closing on fewer of its segment's points keeps SPARSE_SHARE of "
                                      "its score (graspsim scene --sparse-between; 0: off; none: the scene planner's "
                                      "default, the measured SPARSE_BETWEEN)")
-    shadow_depth: float | None = opt(None, "the depth [m] behind each neighbour's seen points, along the camera's "
-                                     "rays, kept clear as an obstacle (SceneConfig.shadow_depth; 0: off; none: the "
-                                     "scene planner's default, off)")
+    shadow_depth: float | None = opt(None, "in piles, the depth [m] behind each neighbour's seen points, along the "
+                                     "camera's rays, kept clear as an obstacle (graspsim scene --shadow-depth; 0: off; "
+                                     "none: the scene planner's default, the measured SHADOW_DEPTH)")
     feature_grasps: str = opt("apart", "where a segment's planning adds grasps on its cloud's own features "
                               "(graspsim scene --feature-grasps; SceneConfig.feature_grasps): apart, the default, "
                               "on packed tables only", choices=FEATURE_GRASPS)

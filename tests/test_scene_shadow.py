@@ -14,7 +14,7 @@ from graspsim.maps.database import MapDatabase
 from graspsim.maps.map_config import MapConfig
 from graspsim.perception.plane import PlaneFit
 from graspsim.planning.scene import _shadow_samples, plan_scene
-from graspsim.planning.scene_config import MAX_SHADOW_DEPTH, SceneConfig, with_shadow_depth
+from graspsim.planning.scene_config import MAX_SHADOW_DEPTH, SHADOW_DEPTH, SceneConfig, with_shadow_depth
 from graspsim.primitives import Box, Cylinder, synthetic_cloud
 
 FAST = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
@@ -46,7 +46,9 @@ def test_the_shadow_depth_is_bounded(bad):
         SceneConfig(shadow_depth=bad)
     with pytest.raises(InvalidParameterError, match="shadow"):
         with_shadow_depth(SceneConfig(), bad)
-    assert SceneConfig().shadow_depth == 0.0 and with_shadow_depth(SceneConfig(), 0.03).shadow_depth == 0.03
+    assert SceneConfig().shadow_depth == SHADOW_DEPTH > 0
+    assert with_shadow_depth(SceneConfig(), 0.05).shadow_depth == 0.05
+    assert with_shadow_depth(SceneConfig(), 0).shadow_depth == 0.0
 
 
 @pytest.fixture(scope="module")
@@ -92,6 +94,12 @@ def test_a_scene_planned_with_shadows_keeps_grasps_out_of_them(db):
         assert mine, "the can keeps grasps"
         if depth > 0:
             assert not any(_in_fingers(g, shadow).any() for g in mine)
+    # a known gap between objects turns the shadows off: the plan is the one without them
+    apart = [plan_scene(pts, db=db, rng=np.random.default_rng(5), viewpoint=eye,
+                        config=SceneConfig(workers=1, shadow_depth=d, crease_angle=None, min_gap=0.01))
+             for d in (0.0, 0.1)]
+    assert [(g.segment, g.score, g.T_world_wrist.tolist()) for g in apart[0].grasps] == \
+        [(g.segment, g.score, g.T_world_wrist.tolist()) for g in apart[1].grasps]
     # the obstacles of a segment hold the other segments' shadows, not its own
     from graspsim.planning.scene import _obstacles
 

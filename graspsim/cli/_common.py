@@ -179,9 +179,10 @@ def add_shadow_depth_flag(p) -> None:
     """``--shadow-depth M``: the depth behind each neighbour's seen points kept clear
     (``SceneConfig.shadow_depth``, read with :func:`scene_planning_from_args`)."""
     p.add_argument("--shadow-depth", type=float, default=None, metavar="M",
-                   help="with the camera's place known: the space up to M [m] behind each other object's seen points, "
-                   "along the camera's rays, is kept clear like the object itself -- an object goes on behind its seen "
-                   "front (default: the scene planner's; 0: off; SceneConfig.shadow_depth, docs/scenes.md)")
+                   help="where objects may touch (no --min-gap) and the camera's place is known: the space up to M [m] "
+                   "behind each other object's seen points, along the camera's rays, is kept clear like the object "
+                   "itself -- an object goes on behind its seen front (default: the measured 0.03; 0: off; "
+                   "SceneConfig.shadow_depth, docs/scenes.md)")
 
 
 def shadow_depth_value(args) -> float | None:

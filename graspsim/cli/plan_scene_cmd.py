@@ -175,7 +175,8 @@ def _record(args, plan, loaded, pts, viewpoint, cfg, crop, gripper: str) -> dict
             "crop": crop, "min_gap": cfg.min_gap, "budget": cfg.budget,
             "unseen_margin": cfg.planner.robust.unseen_margin if viewpoint is not None else 0.0,  # applied with a view
             "seen_between": cfg.planner.seen_between, "sparse_between": cfg.sparse_between,
-            "shadow_depth": cfg.shadow_depth if viewpoint is not None else 0.0,  # applied with a view
+            "shadow_depth": cfg.shadow_depth if viewpoint is not None and cfg.min_gap is None else 0.0,  # applied:
+            # with a view, where objects may touch
             "feature_grasps": cfg.feature_grasps,
             "planned_for": {"position_sigma": cfg.planner.robust.position_sigma,
                             "rotation_sigma": cfg.planner.robust.rotation_sigma},

@@ -182,7 +182,7 @@ def _cmd_scene(args) -> int:
                          "rotation_sigma": cfg.planning.planner.robust.rotation_sigma},
          "unseen_margin": cfg.planning.planner.robust.unseen_margin,
          "seen_between": cfg.planning.planner.seen_between, "sparse_between": cfg.scene.sparse_between,
-         "shadow_depth": cfg.scene.shadow_depth,
+         "shadow_depth": cfg.scene.shadow_depth if cfg.scene.min_gap is None else 0.0,  # where objects may touch
          "feature_grasps": cfg.scene.feature_grasps,
          "neighbour_check": not args.no_neighbours, "ground_truth_segmentation": args.ground_truth,
          "felt_evidence": cfg.feel, "contacts": args.contacts, "min_gap": gap,

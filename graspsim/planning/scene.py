@@ -309,7 +309,7 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
               for seg, (i, _), o in zip(segs, idents, olds)] if cfg.neighbours else []
     t2 = time.perf_counter()
     shadows = [_shadow_samples(seg, per.plane, viewpoint, cfg.shadow_depth, cfg.solid_step) for seg in segs] \
-        if cfg.neighbours and cfg.shadow_depth > 0 and viewpoint is not None else None
+        if cfg.neighbours and cfg.shadow_depth > 0 and cfg.min_gap is None and viewpoint is not None else None
     obstacles = [_obstacles(per, k, solids if cfg.neighbours else None, cfg.reach, felt, shadows)
                  for k in range(len(segs))]
     done = [settled_plan(k, segs[k], ident, why, olds[k], obstacles[k], cfg)

@@ -74,8 +74,17 @@ def test_a_folder_of_meshes_is_prepared_behind_a_bar(tmp_path, monkeypatch):
     assert "preparing meshes" in terminal.getvalue()
 
 
+@pytest.fixture
+def no_caller_bar():
+    """BUILD_PROGRESS unset for the test (a command run in this process before sets it for
+    the rest of the process, as ``graspsim`` does on a terminal), restored after."""
+    token = BUILD_PROGRESS.set(None)
+    yield
+    BUILD_PROGRESS.reset(token)
+
+
 @pytest.mark.parametrize("on", [True, False])
-def test_the_clutter_env_shows_its_map_builds_unless_told_not_to(on, tmp_path, monkeypatch):
+def test_the_clutter_env_shows_its_map_builds_unless_told_not_to(on, tmp_path, monkeypatch, no_caller_bar):
     """A first reset on an empty database builds maps of new sizes: with ``progress`` each
     build is a bar (the delay set to 0 here), without it stderr stays empty; a bar the
     caller set through BUILD_PROGRESS is the one used, either way."""

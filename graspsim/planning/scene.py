@@ -284,7 +284,9 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     (:mod:`~graspsim.planning.scene_reuse`; status ``"reused"``); ``viewpoint`` (3,):
     where the camera that saw the cloud was (cloud frame): finger volume in the space
     behind what it saw -- an object's far side, what lies under a neighbour -- scales the
-    robust score down (:mod:`~graspsim.maps.occlusion`); None: no such term. ``felt``
+    robust score down (:mod:`~graspsim.maps.occlusion`), and where objects may touch (no
+    ``min_gap``) the space up to ``SceneConfig.shadow_depth`` behind each other segment's seen
+    points is an obstacle (:func:`_shadow_samples`); None: neither. ``felt``
     (K, 3) [m, cloud frame]: where the gripper met something the camera did not see (a
     grasp that started in collision with an object:
     :func:`~graspsim.maps.occlusion.felt_volume`); every segment's grasps keep clear of

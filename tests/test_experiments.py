@@ -1303,3 +1303,23 @@ def test_study_timestep_simulates_each_grasp_at_every_step_then_executes_it_as_r
     for key, v in c["steps"].items():
         assert v["lifted"] == sum(r["again"][key] == "success" for r in rows)
         assert len(v["changed"]) == sum(r["again"][key] != r["cause"] for r in rows)
+
+
+@pytest.mark.slow
+def test_bench_scene_replay_quick(tmp_path):
+    """A capture of E10's frames replays as the episode planned them (every frame, every
+    timed round), and a replay of the saved capture plans them alike again."""
+    bench = _load("bench_scene_replay")
+    out = tmp_path / "bsr"
+    assert bench.main(["--quick", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["frames"] >= 1 and len(s["digests"]) == s["frames"]
+    assert s["episode_unlike_replay"] == 0 and s["replays_unlike_first"] == 0
+    assert s["cpu_per_frame"] > 0 and all(len(r) == s["frames"] for r in s["cpu_s"])
+    shares = [v["share"] for v in s["segments"].values()]
+    assert shares and abs(sum(shares) - 1.0) < 1e-9
+    assert s["command"] in bench.readme_section(s)
+    again = tmp_path / "bsr2"
+    assert bench.main(["--quick", "--frames", str(out / "frames.pkl"), "--out", str(again)]) == 0
+    s2 = json.loads((again / "summary.json").read_text())
+    assert s2["digests"] == s["digests"] and s2["episode_unlike_replay"] is None

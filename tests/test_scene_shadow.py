@@ -10,12 +10,14 @@ import numpy as np
 import pytest
 
 from graspsim.errors import InvalidParameterError
+from graspsim.grippers.spec import HGPL_25_60_A
 from graspsim.maps.database import MapDatabase
 from graspsim.maps.map_config import MapConfig
 from graspsim.perception.plane import PlaneFit
-from graspsim.planning.scene import _shadow_samples, plan_scene
+from graspsim.planning.scene import _shadow_samples, plan_scene, shadow_step
 from graspsim.planning.scene_config import MAX_SHADOW_DEPTH, SHADOW_DEPTH, SceneConfig, with_shadow_depth
 from graspsim.primitives import Box, Cylinder, synthetic_cloud
+from graspsim.transforms import quat_to_matrix
 
 FAST = MapConfig(surface_step=0.008, rotation_step=math.radians(22))
 TABLE = PlaneFit(np.array([0.0, 0.0, 1.0]), 0.0, np.zeros(0, bool), 0.0, 1.0)
@@ -40,6 +42,32 @@ def test_shadow_samples_lie_on_the_rays_behind_each_point_and_above_the_table():
     assert len(_shadow_samples(seg, TABLE, eye, 0.0, 0.004)) == 0
 
 
+def test_the_step_along_the_rays_keeps_a_finger_from_fitting_between_samples():
+    """Along the rays the samples lie twice the grid step apart, less where the finger is
+    thinner, never closer than the grid; on a regular 4 mm grid seen from afar, every
+    10 mm cube (the Festo finger's thinnest side, in any direction) inside a shadow holds
+    a sample."""
+    from dataclasses import replace
+
+    assert shadow_step(0.004, HGPL_25_60_A) == pytest.approx(0.008)
+    assert shadow_step(0.004, replace(HGPL_25_60_A, finger_size=(0.0075, 0.02, 0.08))) == pytest.approx(0.006)
+    assert shadow_step(0.004, replace(HGPL_25_60_A, finger_size=(0.003, 0.02, 0.08))) == pytest.approx(0.004)
+    eye = np.array([0.0, 0.0, 50.0])  # far above: the rays nearly parallel, straight down
+    g = (np.arange(-12, 13) + 0.5) * 0.004
+    wall = np.c_[np.repeat(g, len(g)), np.tile(g, len(g)), np.full(len(g) ** 2, 0.08)]  # a flat top, 4 mm grid
+    along = shadow_step(0.004, HGPL_25_60_A)
+    s = _shadow_samples(wall, TABLE, eye, 0.04, 0.004, along)
+    behind = 0.08 - s[:, 2]
+    assert np.allclose(np.unique(np.round(behind, 5)), np.arange(1, 6) * along, atol=1e-4)
+    rng = np.random.default_rng(3)
+    for _ in range(300):  # 10 mm cubes, any orientation, wholly within the shadow (under the top, 40 mm deep)
+        q = rng.normal(size=4)
+        R = quat_to_matrix(q / np.linalg.norm(q))
+        c = np.r_[rng.uniform(-0.03, 0.03, 2), rng.uniform(0.08 - 0.04 + 0.009, 0.08 - 0.009)]
+        local = (s - c) @ R
+        assert np.any(np.all(np.abs(local) <= 0.005, axis=1)), "a finger-thick cube between the samples"
+
+
 @pytest.mark.parametrize("bad", [-0.01, MAX_SHADOW_DEPTH + 0.01, True, "0.03", float("nan")])
 def test_the_shadow_depth_is_bounded(bad):
     with pytest.raises(InvalidParameterError, match="shadow"):
@@ -58,11 +86,23 @@ def db(tmp_path_factory):
     return d
 
 
-def test_a_scene_planned_with_shadows_keeps_grasps_out_of_them(db):
+def test_a_scene_planned_with_shadows_keeps_grasps_out_of_them(db, monkeypatch):
     """A can behind a lower plate, both seen from one camera in front: with a 4 cm shadow
     depth no grasp of the can puts a finger behind the plate's seen face, within the depth,
     and the can keeps grasps; a segment's obstacles hold the other segment's shadow samples,
-    not its own."""
+    not its own; each segment's depth image has the pixel of its own points' spacing, not
+    of the shadow and solid samples among its obstacles."""
+    import graspsim.planning.planner as planner
+    from graspsim.geometry.spacing import median_spacing
+
+    views = []
+
+    class Recorded(planner.ViewDepth):
+        def __init__(self, points, viewpoint, tolerance=None, *, spacing=None):
+            super().__init__(points, viewpoint, tolerance, spacing=spacing)
+            views.append((len(points), self.spacing))
+
+    monkeypatch.setattr(planner, "ViewDepth", Recorded)
     rng = np.random.default_rng(4)
     eye = np.array([0.0, -0.6, 0.5])
     lo, hi = np.array([-0.04, -0.055, 0.0]), np.array([0.04, -0.045, 0.06])  # the plate
@@ -85,6 +125,11 @@ def test_a_scene_planned_with_shadows_keeps_grasps_out_of_them(db):
         sp = plan_scene(pts, db=db, rng=np.random.default_rng(5), viewpoint=eye,
                         config=SceneConfig(workers=1, shadow_depth=depth, crease_angle=None))
         out[depth] = sp
+        segs = {len(sp.perception.segment_points(k)): sp.perception.segment_points(k) for k in range(2)}
+        own = sorted(median_spacing(p) for p in segs.values())
+        assert views and all(any(abs(v - o) < 1e-12 for o in own) for _, v in views)
+        assert max(n for n, _ in views) > 2 * max(segs)  # the obstacles outnumber a segment's points
+        views.clear()
     for depth, sp in out.items():
         assert sp.perception.n_segments == 2
         seg_of = [sp.perception.segment_points(k) for k in range(2)]

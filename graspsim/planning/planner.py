@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from graspsim.errors import InvalidParameterError, NoFeasibleGraspError
+from graspsim.geometry.spacing import median_spacing
 from graspsim.geometry.table import TablePlane, table_frame
 from graspsim.maps.combine import combine_part
 from graspsim.maps.database import MapDatabase
@@ -562,9 +563,11 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
     bounded: list = [None] * len(prims)  # per part: its axes the table bounds ((k, 3))
     single_view_rules = cfg.complete_to_table or cfg.merge_boxes or cfg.hidden_depth
-    # what the camera saw (cloud frame), for those rules: one depth image serves them all
-    seen_view = ViewDepth(seen, viewpoint) if single_view_rules and viewpoint is not None and observed is not None \
-        else None
+    # what the camera saw (cloud frame), for those rules: one depth image serves them all; its pixel
+    # follows the spacing of the camera's points on the object (a scene's obstacles hold samples of the
+    # neighbours' primitives and shadows at steps of their own, and many more of them than the camera's)
+    seen_view = ViewDepth(seen, viewpoint, spacing=median_spacing(points)) \
+        if single_view_rules and viewpoint is not None and observed is not None else None
     if (cfg.complete_to_table and cfg.table is not None and cfg.table.height is not None and viewpoint is not None
             and observed is not None):
         prims, T_cloud, bounded = _completed(prims, T_cloud, points, seen_view, cfg.table, viewpoint, cfg.table_band,

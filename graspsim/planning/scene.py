@@ -42,7 +42,14 @@ from graspsim.perception.mvbb import min_volume_box
 from graspsim.perception.plane import PlaneFit, fit_table
 from graspsim.perception.prepare import as_coordinates, check_extent, voxel_keep
 from graspsim.perception.segment import cluster_radius, euclidean_clusters, gap_link
-from graspsim.planning.scene_config import LAZY_BATCH, MAX_SCENE_EXTENT, SCENE_BYTES_PER_POINT, SceneConfig
+from graspsim.planning.scene_config import (
+    LAZY_BATCH,
+    MAX_SCENE_EXTENT,
+    SCENE_BYTES_PER_POINT,
+    SHADOW_ALONG,
+    SHADOW_FINGER_SHARE,
+    SceneConfig,
+)
 from graspsim.planning.scene_reuse import SegmentMemory, find_previous
 from graspsim.planning.scene_segments import SceneGrasp, SegmentPlan, plan_batches, settled_plan
 from graspsim.planning.scene_workers import identify_segments, start_workers
@@ -50,7 +57,7 @@ from graspsim.primitives import Box
 from graspsim.primitives.base import MIN_DIM
 
 __all__ = ["ScenePerception", "SceneGrasp", "SegmentPlan", "ScenePlan", "perceive_scene", "plan_scene",
-           "start_workers"]
+           "shadow_step", "start_workers"]
 
 @dataclass(frozen=True, eq=False)
 class ScenePerception:
@@ -211,20 +218,30 @@ def _solid_samples(seg: np.ndarray, ident: Identification | None, plane: PlaneFi
 
 
 def _shadow_samples(seg: np.ndarray, plane: PlaneFit, viewpoint: np.ndarray, depth: float,
-                    step: float) -> np.ndarray:
+                    step: float, along: float | None = None) -> np.ndarray:
     """Samples (M, 3) [m, cloud frame] of the space up to ``depth`` behind segment points
-    ``seg`` along the camera's rays from ``viewpoint``, every ``step`` (the points thinned to
-    that grid first), above the table: where the object the camera saw goes on, at the least
-    depth its front tells nothing against."""
+    ``seg`` along the camera's rays from ``viewpoint``: the points thinned to a ``step`` grid,
+    every ``along`` (None: ``step``; :func:`shadow_step`) along each ray, above the table:
+    where the object the camera saw goes on, at the least depth its front tells nothing
+    against."""
     if len(seg) == 0 or depth <= 0:
         return np.zeros((0, 3))
+    along = step if along is None else along
     _, first = np.unique(np.floor(seg / step).astype(np.int64), axis=0, return_index=True)
     p = seg[np.sort(first)]
     u = p - viewpoint
     u /= np.linalg.norm(u, axis=1, keepdims=True)
-    t = np.arange(1, int(np.floor(depth / step + 1e-9)) + 1) * step
+    t = np.arange(1, int(np.floor(depth / along + 1e-9)) + 1) * along
     out = (p[:, None, :] + t[None, :, None] * u[:, None, :]).reshape(-1, 3)
     return out[plane.heights(out) > 0.0]
+
+
+def shadow_step(step: float, gripper) -> float:
+    """[m] The spacing of a shadow's samples along the camera's rays (:func:`_shadow_samples`):
+    :data:`SHADOW_ALONG` times the grid ``step`` across them, less where the ``gripper``'s
+    finger is thinner (``SHADOW_FINGER_SHARE`` of its thinnest side: a finger that crosses the
+    rays inside a shadow holds a sample), never under ``step``."""
+    return max(step, min(SHADOW_ALONG * step, SHADOW_FINGER_SHARE * float(min(gripper.finger_size))))
 
 
 def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray] | None, reach: float,
@@ -310,7 +327,8 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     solids = [o.solids if o is not None and o.solids is not None else _solid_samples(seg, i, per.plane, cfg.solid_step)
               for seg, (i, _), o in zip(segs, idents, olds)] if cfg.neighbours else []
     t2 = time.perf_counter()
-    shadows = [_shadow_samples(seg, per.plane, viewpoint, cfg.shadow_depth, cfg.solid_step) for seg in segs] \
+    along = shadow_step(cfg.solid_step, db.gripper)
+    shadows = [_shadow_samples(seg, per.plane, viewpoint, cfg.shadow_depth, cfg.solid_step, along) for seg in segs] \
         if cfg.neighbours and cfg.shadow_depth > 0 and cfg.min_gap is None and viewpoint is not None else None
     obstacles = [_obstacles(per, k, solids if cfg.neighbours else None, cfg.reach, felt, shadows)
                  for k in range(len(segs))]

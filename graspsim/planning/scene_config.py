@@ -19,7 +19,8 @@ from graspsim.planning.planner import SCENE_TABLE_SKIP, PlannerConfig
 from graspsim.planning.scene_workers import scene_workers
 
 __all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "with_seen_between", "with_sparse_between",
-           "with_feature_grasps", "with_shadow_depth", "MAX_SHADOW_DEPTH", "SHADOW_DEPTH",
+           "with_feature_grasps", "with_shadow_depth", "MAX_SHADOW_DEPTH", "SHADOW_DEPTH", "SHADOW_ALONG",
+           "SHADOW_FINGER_SHARE",
            "with_pose_error", "FEATURE_GRASPS", "SPARSE_BETWEEN", "SPARSE_SHARE",
            "MAX_POSE_ERROR", "MAX_UNSEEN_MARGIN", "MAX_SCENE_EXTENT",
            "SCENE_BYTES_PER_POINT", "SCENE_FIT_POINTS", "SCENE_COLLISION_TOLERANCE", "SCENE_MAX_NOISE_RATIO"]
@@ -120,6 +121,15 @@ MAX_SHADOW_DEPTH = 0.1
 #: turns it off. docs/scenes.md.
 SHADOW_DEPTH = 0.03
 
+#: A shadow's samples lie this many times farther apart along the camera's rays than across
+#: them (:func:`~graspsim.planning.scene.shadow_step`; the grid across is ``solid_step``), and
+#: at most :data:`SHADOW_FINGER_SHARE` of the gripper's thinnest finger side apart, so that a
+#: finger crossing the rays within a shadow still holds a sample: 8 mm for the Festo's 10 mm
+#: finger at the 4 mm grid. A segment's obstacles held several times more shadow samples than
+#: camera points, and every check of a grasp against them paid for it.
+SHADOW_ALONG = 2.0
+SHADOW_FINGER_SHARE = 0.8
+
 
 @dataclass(frozen=True)
 class SceneConfig:
@@ -166,7 +176,8 @@ class SceneConfig:
     shadow_depth [m]: where objects may touch (no ``min_gap``), with the camera's viewpoint
     known and ``neighbours`` on, the space up to this far behind each other segment's seen
     points, along the camera's rays, is one more obstacle of a segment's grasps (an object
-    goes on behind its seen front; sampled every ``solid_step``, above the table);
+    goes on behind its seen front; sampled on a ``solid_step`` grid across the rays and more
+    sparsely along them, :func:`~graspsim.planning.scene.shadow_step`, above the table);
     :data:`SHADOW_DEPTH`, the measured default; 0: off."""
 
     planner: PlannerConfig = field(default_factory=_scene_planner)

@@ -101,6 +101,13 @@ def test_fit_quality_high_for_a_primitive_low_for_a_bowl_and_a_flat_tool():
     assert flat.score < 0.7
     # with no part nothing is explained
     assert fit_quality(tool, [], [], band=0.003).score == 0.0
+    # a part smaller than the inlier band and the spacing (a pile's 4.4 mm sphere, seen at 10 mm
+    # reach) is sampled within its size, not refused: the points on it cover it
+    tiny = Sphere(0.0044)
+    Tt = make_transform(np.eye(3), [0.0, 0.0, 0.0044])
+    pts = tiny.surface_samples(0.002).points + Tt[:3, 3]
+    q = fit_quality(pts, [tiny], [Tt], band=0.004, spacing=0.007)
+    assert q.explained == 1.0 and q.covered == 1.0
 
 
 @pytest.fixture(scope="module")

@@ -187,7 +187,7 @@ def fit_quality(points: np.ndarray, shapes, poses, band: float, spacing: float =
     reach = band + spacing
     tree, area, seen = cKDTree(P), 0.0, 0.0
     for k, (shape, T) in enumerate(zip(shapes, poses)):
-        s = shape.surface_samples(max(reach, 0.002))
+        s = shape.surface_samples(min(max(reach, 0.002), 0.5 * shape.size_scale))  # a part smaller than the reach
         q = s.points @ T[:3, :3].T + T[:3, 3]
         outer = union_sdf(q, skip=k) > -band  # surface buried in another part is never seen
         if viewpoint is not None:  # one view: the surface facing the camera

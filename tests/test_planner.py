@@ -173,6 +173,17 @@ def test_restarts_are_a_small_whole_number(bad):
         PlannerConfig(restarts=bad)
 
 
+@pytest.mark.parametrize("obstacles,seen,match", [
+    (None, np.ones(3, bool), "obstacles_seen needs obstacles"),
+    (np.zeros((3, 3)), np.ones(2, bool), r"obstacles_seen must be \(3,\) bool"),
+    (np.zeros((3, 3)), np.ones(3), r"obstacles_seen must be \(3,\) bool")])
+def test_which_obstacles_were_seen_is_one_bool_per_obstacle_point(db, obstacles, seen, match):
+    cloud = _cloud(Sphere(0.03), 1)
+    with pytest.raises(InvalidParameterError, match=match):
+        next(plan_stream(cloud.points, db=db, rng=np.random.default_rng(0), obstacles=obstacles,
+                         obstacles_seen=seen))
+
+
 def test_same_seed_same_plan(db):
     cloud = _cloud(Cylinder(0.023, 0.15), 6)
     a = plan(cloud.points, db=db, rng=np.random.default_rng(9))

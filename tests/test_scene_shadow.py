@@ -90,19 +90,26 @@ def test_a_scene_planned_with_shadows_keeps_grasps_out_of_them(db, monkeypatch):
     """A can behind a lower plate, both seen from one camera in front: with a 4 cm shadow
     depth no grasp of the can puts a finger behind the plate's seen face, within the depth,
     and the can keeps grasps; a segment's obstacles hold the other segment's shadow samples,
-    not its own; each segment's depth image has the pixel of its own points' spacing, not
-    of the shadow and solid samples among its obstacles."""
+    not its own; each segment's depth images (the single-view rules', the occlusion term's)
+    hold what the camera saw alone, not the shadow and solid samples among its obstacles,
+    and have the pixel of its own points' spacing."""
+    import graspsim.maps.occlusion as occlusion
     import graspsim.planning.planner as planner
     from graspsim.geometry.spacing import median_spacing
 
-    views = []
+    views, scored = [], []
 
     class Recorded(planner.ViewDepth):
-        def __init__(self, points, viewpoint, tolerance=None, *, spacing=None):
+        def __init__(self, points, viewpoint, tolerance=None, *, spacing=None, into=views):
             super().__init__(points, viewpoint, tolerance, spacing=spacing)
-            views.append((len(points), self.spacing))
+            into.append((np.asarray(points, float).copy(), self.spacing))
+
+    class Scored(Recorded):  # the occlusion term's (object frame)
+        def __init__(self, points, viewpoint, tolerance=None, *, spacing=None):
+            super().__init__(points, viewpoint, tolerance, spacing=spacing, into=scored)
 
     monkeypatch.setattr(planner, "ViewDepth", Recorded)
+    monkeypatch.setattr(occlusion, "ViewDepth", Scored)
     rng = np.random.default_rng(4)
     eye = np.array([0.0, -0.6, 0.5])
     lo, hi = np.array([-0.04, -0.055, 0.0]), np.array([0.04, -0.045, 0.06])  # the plate
@@ -127,9 +134,13 @@ def test_a_scene_planned_with_shadows_keeps_grasps_out_of_them(db, monkeypatch):
         out[depth] = sp
         segs = {len(sp.perception.segment_points(k)): sp.perception.segment_points(k) for k in range(2)}
         own = sorted(median_spacing(p) for p in segs.values())
-        assert views and all(any(abs(v - o) < 1e-12 for o in own) for _, v in views)
-        assert max(n for n, _ in views) > 2 * max(segs)  # the obstacles outnumber a segment's points
+        assert views and scored and all(any(abs(v - o) < 1e-12 for o in own) for _, v in views + scored)
+        camera = {tuple(p) for p in np.round(sp.perception.points, 9)}
+        for P, _ in views:  # the camera's points only (the cloud frame), each segment's with its neighbour's
+            assert len(P) > max(segs) and all(tuple(p) in camera for p in np.round(P, 9))
+        assert {len(P) for P, _ in scored} <= {len(P) for P, _ in views}  # the same points, in the object frame
         views.clear()
+        scored.clear()
     for depth, sp in out.items():
         assert sp.perception.n_segments == 2
         seg_of = [sp.perception.segment_points(k) for k in range(2)]
@@ -151,10 +162,12 @@ def test_a_scene_planned_with_shadows_keeps_grasps_out_of_them(db, monkeypatch):
     per = out[0.04].perception
     shadows = [_shadow_samples(per.segment_points(k), per.plane, eye, 0.04, 0.004) for k in range(2)]
     for k in range(2):
-        obs = _obstacles(per, k, [np.zeros((0, 3))] * 2, 1.0, None, shadows)
+        obs, seen = _obstacles(per, k, [np.zeros((0, 3))] * 2, 1.0, None, shadows)
         as_set = {tuple(p) for p in np.round(obs, 9)}
         assert all(tuple(p) in as_set for p in np.round(shadows[1 - k], 9))
         assert not any(tuple(p) in as_set for p in np.round(shadows[k], 9))
+        # of them, the camera saw the other segment's points, not the shadow's samples
+        assert np.array_equal(obs[seen], per.points[per.segment != k]) and len(obs[~seen]) == len(shadows[1 - k])
 
 
 def _in_fingers(g, pts: np.ndarray) -> np.ndarray:

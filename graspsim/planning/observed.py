@@ -151,7 +151,8 @@ class ObservedChecks:
         self.noise, self.gripper, self.quality, self.cfg = float(noise), gripper, quality, cfg
         self.dropped = self.unseen = self.on_nothing = 0
         self.features: int | None = None
-        self.view: ViewDepth | None = None  # the depth image of cloud_obj in the cloud frame, if the caller has it
+        self.view: ViewDepth | None = None  # the depth image of what was seen, cloud frame, if the caller has it
+        self.camera: np.ndarray | None = None  # what the camera saw (cloud frame) if cloud_obj holds more
         self._unmeasured: dict[bytes, np.ndarray | None] = {}  # unseen_depth's per-part axes, by part size and pose
 
     @classmethod
@@ -311,14 +312,15 @@ class ObservedChecks:
 
     @cached_property
     def _view(self) -> ViewDepth:
-        """The depth image, from the viewpoint, of what the gripper must keep clear of (the
+        """The depth image, from the viewpoint, of what the camera saw (``camera``, else the
         object's points and any obstacles: ``cloud_obj``, else the plan's points) in the
         cloud frame, as the robust score's occlusion term sees it (``view`` when the
         caller made it already)."""
         if self.view is not None:
             return self.view
         T = np.asarray(self.T_cloud_obj, float)
-        cloud = self.points if self.cloud_obj is None else np.asarray(self.cloud_obj, float) @ T[:3, :3].T + T[:3, 3]
+        cloud = self.camera if self.camera is not None else self.points if self.cloud_obj is None \
+            else np.asarray(self.cloud_obj, float) @ T[:3, :3].T + T[:3, 3]
         return ViewDepth(cloud, self.viewpoint)
 
     @property

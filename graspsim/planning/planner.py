@@ -377,10 +377,15 @@ def _part_stream(prim: Primitive, db: MapDatabase, cfg: PlannerConfig, checks,
 def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator,
                 config: PlannerConfig | None = None, source: str = "array",
                 obstacles: np.ndarray | None = None, identification: Identification | None = None,
-                viewpoint: np.ndarray | None = None, scored_only: bool = False) -> Iterator[GraspBatch | PlanResult]:
+                viewpoint: np.ndarray | None = None, scored_only: bool = False,
+                obstacles_seen: np.ndarray | None = None) -> Iterator[GraspBatch | PlanResult]:
     """Yield :class:`GraspBatch` es as grasps are found, then the :class:`PlanResult`.
-    obstacles: (M, 3) further observed points [m, cloud frame] the robust score keeps the
+    obstacles: (M, 3) further points [m, cloud frame] the robust score keeps the
     gripper clear of besides the object's own (a scene's neighbours); None: none.
+    obstacles_seen: (M,) bool, which obstacles the camera saw -- the others inferred (a
+    scene's samples of its neighbours' hidden sides and shadows): the depth image of what
+    was seen (the occlusion term, the single-view rules) holds ``points`` and these alone;
+    None: every obstacle was seen.
     identification: the cloud's, when the caller has identified it already (``points``
     must be the cloud it was made from); None: identified here. viewpoint: (3,) where a
     single-view cloud was seen from [m, cloud frame] (the robust score's occlusion term);
@@ -398,11 +403,12 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
         check_rng(rng)
     viewpoint = check_viewpoint(viewpoint)  # a bad one fails now, not after the identification
     points = np.asarray(points, float)
+    obstacles, obstacles_seen = _check_obstacles(obstacles, obstacles_seen)
     restarts = cfg.restarts if identification is None and cfg.identify.is_robust else 0
     for attempt in range(restarts + 1):
         result = None
         for item in _plan_identified(points, identification, rng, db, cfg, source, obstacles, viewpoint, scored_only,
-                                     t0, attempt):
+                                     t0, attempt, obstacles_seen):
             if isinstance(item, PlanResult):
                 result = item
             else:
@@ -412,8 +418,26 @@ def plan_stream(points: np.ndarray, *, db: MapDatabase, rng: np.random.Generator
             return
 
 
+def _check_obstacles(obstacles, seen) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``plan_stream``'s ``obstacles`` as (M, 3) floats (None: none) and ``obstacles_seen`` as
+    (M,) bool (None: all seen), or an :class:`InvalidParameterError` naming what is valid."""
+    if obstacles is None:
+        if seen is not None:
+            raise InvalidParameterError("obstacles_seen needs obstacles: give both, or neither")
+        return None, None
+    O = np.asarray(obstacles, float).reshape(-1, 3)
+    if seen is None:
+        return O, None
+    S = np.asarray(seen)
+    if S.dtype != bool or S.shape != (len(O),):
+        raise InvalidParameterError(f"obstacles_seen must be ({len(O)},) bool, one per obstacle point, got "
+                                    f"{S.dtype} {S.shape}")
+    return O, S
+
+
 def _plan_identified(points, identification, rng, db: MapDatabase, cfg: PlannerConfig, source: str, obstacles,
-                     viewpoint, scored_only: bool, t0: float, attempt: int) -> Iterator[GraspBatch | PlanResult]:
+                     viewpoint, scored_only: bool, t0: float, attempt: int,
+                     obstacles_seen: np.ndarray | None = None) -> Iterator[GraspBatch | PlanResult]:
     """:func:`plan_stream`'s one attempt (``attempt``: the restarts before it)."""
     ident = identification if identification is not None else identify(points, rng=rng, config=cfg.identify)
     timing = {"identify": time.perf_counter() - t0}
@@ -439,7 +463,7 @@ def _plan_identified(points, identification, rng, db: MapDatabase, cfg: PlannerC
             "fit": ident.fit_quality(points, cfg.identify.band, viewpoint).to_dict(),
             **({"attempts": attempt + 1} if attempt else {})}
     yield from _plan_parts(prims, T_cloud, status, ident, info, points, db, cfg, source, t0, timing, cpu0,
-                           obstacles, viewpoint, scored_only)
+                           obstacles, viewpoint, scored_only, obstacles_seen)
 
 
 def plan_shape_stream(shape, T_world_obj: np.ndarray | None = None, *, db: MapDatabase,
@@ -554,19 +578,22 @@ def _axes(*sets) -> np.ndarray | None:
 def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identification | None,
                 ident_info: dict | None, points: np.ndarray, db: MapDatabase, cfg: PlannerConfig,
                 source: str, t0: float, timing: dict, cpu0: float, obstacles: np.ndarray | None = None,
-                viewpoint: np.ndarray | None = None, scored_only: bool = False) -> Iterator[GraspBatch | PlanResult]:
+                viewpoint: np.ndarray | None = None, scored_only: bool = False,
+                obstacles_seen: np.ndarray | None = None) -> Iterator[GraspBatch | PlanResult]:
     """Retrieval, scaling and combination of parts ``prims`` posed at ``T_cloud`` (the
     part frames in the cloud's frame); ``cpu0``: the calling thread's CPU clock when
-    identification ended; ``scored_only``: see :func:`plan_stream`."""
+    identification ended; ``scored_only``, ``obstacles_seen``: see :func:`plan_stream`."""
     # the observed-point checks (robust mode); their object frame is set once the parts are final
     observed = ObservedChecks.of_plan(ident, points, None, np.eye(4), viewpoint, db, cfg)
     seen = points if obstacles is None else np.concatenate([points, np.asarray(obstacles, float).reshape(-1, 3)])
+    # what the camera saw: the object's points and the obstacles it saw (not a scene's samples of its
+    # neighbours' hidden sides and shadows, which lie in space the camera did not see)
+    camera = seen if obstacles_seen is None else np.concatenate([points, obstacles[obstacles_seen]])
     bounded: list = [None] * len(prims)  # per part: its axes the table bounds ((k, 3))
     single_view_rules = cfg.complete_to_table or cfg.merge_boxes or cfg.hidden_depth
-    # what the camera saw (cloud frame), for those rules: one depth image serves them all; its pixel
-    # follows the spacing of the camera's points on the object (a scene's obstacles hold samples of the
-    # neighbours' primitives and shadows at steps of their own, and many more of them than the camera's)
-    seen_view = ViewDepth(seen, viewpoint, spacing=median_spacing(points)) \
+    # its depth image (cloud frame), for those rules: one serves them all; its pixel follows the spacing
+    # of the camera's points on the object
+    seen_view = ViewDepth(camera, viewpoint, spacing=median_spacing(points)) \
         if single_view_rules and viewpoint is not None and observed is not None else None
     if (cfg.complete_to_table and cfg.table is not None and cfg.table.height is not None and viewpoint is not None
             and observed is not None):
@@ -600,6 +627,7 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
     view_obj, view = None if viewpoint is None else cloud_in_object(viewpoint, T_cloud_obj)[0], None
     if observed is not None:  # the same points: the depth image of what was seen serves its checks
         observed.cloud_obj, observed.T_cloud_obj, observed.view = cloud_obj, T_cloud_obj, seen_view
+        observed.camera = None if camera is seen else camera
     stage = StageClock("adapt", "agreement", "combine", "table", "robust", "observed", "features", "clear_first")
     n_checked = n_cut = n_span = 0  # clear_first: rows checked, rows passed over, parts checked to the span
     skip_spent = scored_only and cfg.rank == "robust"
@@ -685,7 +713,8 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                     continue
                 if view is None:  # the cloud's depth image from the viewpoint: one for every batch (in the object
                     # frame: the seen points' spacing, measured for seen_view, serves it)
-                    view = view_of(cloud_obj, view_obj, cfg.robust, None if seen_view is None else seen_view.spacing)
+                    view = view_of(cloud_obj if camera is seen else cloud_in_object(camera, T_cloud_obj), view_obj,
+                                   cfg.robust, None if seen_view is None else seen_view.spacing)
                 batch = score_map(batch, cloud_obj, cfg.robust, rows=rows, gripper=db.gripper,
                                   viewpoint=view_obj, view=view, own=len(points)).ranked()
                 budget -= len(rows)

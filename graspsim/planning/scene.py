@@ -245,13 +245,16 @@ def shadow_step(step: float, gripper) -> float:
 
 
 def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray] | None, reach: float,
-               felt: np.ndarray | None = None, shadows: list[np.ndarray] | None = None) -> np.ndarray | None:
+               felt: np.ndarray | None = None, shadows: list[np.ndarray] | None = None
+               ) -> tuple[np.ndarray | None, np.ndarray | None]:
     """What the gripper must clear besides segment ``k``, within ``reach`` of its bounding
     box: the scene's points above the table outside it (noise points included: they were
     seen) and the surface samples of the other segments' identified primitives (both
     only with ``solids``: ``SceneConfig.neighbours``), the other segments' ``shadows``
     (:func:`_shadow_samples`; ``SceneConfig.shadow_depth``), and the ``felt`` points (see
-    :func:`plan_scene`). None: nothing to clear."""
+    :func:`plan_scene`); and which of them the camera saw (bool, the scene's points: the
+    planner's depth image of what was seen holds these alone, ``plan_stream``'s
+    ``obstacles_seen``). (None, None): nothing to clear."""
     own = per.segment == k
     lo, hi = per.points[own].min(axis=0) - reach, per.points[own].max(axis=0) + reach
     got = [] if solids is None else [per.points[~own], *(s for j, s in enumerate(solids) if j != k)]
@@ -260,9 +263,13 @@ def _obstacles(per: ScenePerception, k: int, solids: list[np.ndarray] | None, re
     if felt is not None and len(felt):
         got.append(felt)
     if not got:
-        return None
+        return None, None
     pts = np.concatenate(got)
-    return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+    seen = np.zeros(len(pts), bool)
+    if solids is not None:
+        seen[:int(np.count_nonzero(~own))] = True
+    near = np.all((pts >= lo) & (pts <= hi), axis=1)
+    return pts[near], seen[near]
 
 
 def _check_felt(felt) -> np.ndarray | None:
@@ -330,8 +337,8 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
     along = shadow_step(cfg.solid_step, db.gripper)
     shadows = [_shadow_samples(seg, per.plane, viewpoint, cfg.shadow_depth, cfg.solid_step, along) for seg in segs] \
         if cfg.neighbours and cfg.shadow_depth > 0 and cfg.min_gap is None and viewpoint is not None else None
-    obstacles = [_obstacles(per, k, solids if cfg.neighbours else None, cfg.reach, felt, shadows)
-                 for k in range(len(segs))]
+    obstacles, seen = zip(*(_obstacles(per, k, solids if cfg.neighbours else None, cfg.reach, felt, shadows)
+                            for k in range(len(segs)))) if segs else ((), ())
     done = [settled_plan(k, segs[k], ident, why, olds[k], obstacles[k], cfg)
             for k, (ident, why) in enumerate(idents)]
     todo = [k for k, d in enumerate(done) if d is None]
@@ -342,7 +349,7 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
         todo.sort(key=lambda k: (-top[k], k))
         batches = [todo[i:i + LAZY_BATCH] for i in range(0, len(todo), LAZY_BATCH)]
     best = max((g.score for d in done if d is not None for g in d[1]), default=0.0)
-    stream = plan_batches([[(segs[k], k, idents[k][0], obstacles[k], db, cfg, table, viewpoint) for k in batch]
+    stream = plan_batches([[(segs[k], k, idents[k][0], obstacles[k], db, cfg, table, viewpoint, seen[k]) for k in batch]
                            for batch in batches], db, cfg)
     with closing(stream):  # stopped early: the next batch's plans started ahead are given up
         for b, batch in enumerate(batches):

@@ -99,10 +99,11 @@ def _inner(seg: np.ndarray, cfg: SceneConfig) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.ndarray | None, db,
-                  cfg: SceneConfig, table: TablePlane, viewpoint: np.ndarray | None = None
-                  ) -> tuple[SegmentPlan, list[SceneGrasp]] | None:
+                  cfg: SceneConfig, table: TablePlane, viewpoint: np.ndarray | None = None,
+                  seen: np.ndarray | None = None) -> tuple[SegmentPlan, list[SceneGrasp]] | None:
     """Segment ``k`` (its thinned points ``seg`` (M, 3), identified as ``ident``) planned
-    against ``obstacles``: its SegmentPlan and best ``keep`` grasps. It draws nothing at
+    against ``obstacles`` (``seen``: which of them the camera saw, ``plan_stream``'s
+    ``obstacles_seen``): its SegmentPlan and best ``keep`` grasps. It draws nothing at
     random: the same inputs give the same plan in any process, in any order. None: a
     plan started ahead that its caller gave up (:func:`~graspsim.planning.scene_workers.cancelled`)."""
     if cancelled():  # given up before it began
@@ -112,8 +113,8 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
                    robust=replace(cfg.planner.robust, top=cfg.per_segment))
     batches: list[GraspabilityMap] = []
     prims = tuple(p.shape.value for p in ident.parts)
-    stream = plan_stream(seg, db=db, rng=None, config=pcfg, obstacles=obstacles, identification=ident,
-                         viewpoint=viewpoint, scored_only=True)  # identified already: no draws
+    stream = plan_stream(seg, db=db, rng=None, config=pcfg, obstacles=obstacles, obstacles_seen=seen,
+                         identification=ident, viewpoint=viewpoint, scored_only=True)  # identified already: no draws
     good = scored = 0  # over the batches so far
     try:
         for item in stream:

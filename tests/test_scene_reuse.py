@@ -101,6 +101,49 @@ def test_lazy_planning_plans_the_highest_objects_until_a_grasp_is_good_enough(db
             SceneConfig(good_enough=bad)
 
 
+
+def test_lazy_planning_aims_a_segment_at_good_enough(db):
+    """In a lazily planned scene a segment's planning goes on past ``enough`` grasps
+    scoring > 0 until one reaches ``good_enough`` or its scoring budget is spent. With an
+    aim no grasp of this scene reaches, every segment spends its whole budget, where the
+    same budget without an aim stops at the first batch holding a grasp > 0.
+    Mutation caught: the aim ignored (planning stops at ``enough``)."""
+    pts, _ = _frame((0, 1, 2), XY, 1)
+    budget = dict(enough=1, per_segment=60)
+    full = plan_scene(pts, db=db, rng=np.random.default_rng(0), config=SceneConfig(**budget))
+    aimed = plan_scene(pts, db=db, rng=np.random.default_rng(0), config=SceneConfig(**budget, good_enough=1.0))
+    assert max(g.score for g in aimed.grasps) < 1.0  # the aim is out of reach here
+    assert [p.status for p in aimed.segments] == ["planned"] * 3
+    for a, f in zip(aimed.segments, full.segments):
+        assert a.scored >= 60 * len(a.primitives) and f.scored < a.scored
+
+
+def test_lazy_planning_plans_a_reused_segment_again_when_under_the_aim_and_freed(db):
+    """A lazily planned scene reuses an unchanged segment's remembered grasps while the
+    scene around it stays as it was (new sensor noise), even when they are under
+    ``good_enough``; once a neighbour is gone, remembered grasps under the aim (scored
+    against the neighbour: lower bounds) are planned again, and grasps that reach it are
+    kept. Without an aim (``good_enough`` None) the segments are reused as before.
+    Mutation caught: a freed segment under the aim reused."""
+    pts, truth = _frame((0, 1, 2), XY, 1)
+    cfg = SceneConfig(good_enough=1.0)  # out of reach: every segment planned, every one under it
+    sp1 = plan_scene(pts, db=db, rng=np.random.default_rng(0), config=cfg)
+    assert [p.status for p in sp1.segments] == ["planned"] * 3 and sp1.best.score < 1.0
+    pts2, _ = _frame((0, 1, 2), XY, 2)  # new noise, nothing gone: reused
+    sp2 = plan_scene(pts2, db=db, rng=np.random.default_rng(1), config=cfg, previous=sp1)
+    assert [p.status for p in sp2.segments] == ["reused"] * 3
+    pts3, truth3 = _frame((0, 1), XY, 3)  # the sphere picked: the cylinder beside it freed, under the aim
+    sp3 = plan_scene(pts3, db=db, rng=np.random.default_rng(2), config=cfg, previous=sp1)
+    box, cyl = (_segment_of(sp3, truth3, k) for k in range(2))
+    assert sp3.segments[cyl].status == "planned"
+    assert sp3.segments[box].status == "reused"  # the sphere stood beyond the box's reach: nothing gone there
+    met = plan_scene(pts3, db=db, rng=np.random.default_rng(2), config=replace(cfg, good_enough=0.05),
+                     previous=sp1)  # the remembered grasps reach this aim: kept
+    assert met.segments[cyl].status == "reused"
+    off = plan_scene(pts3, db=db, rng=np.random.default_rng(2), config=replace(cfg, good_enough=None),
+                     previous=sp1)
+    assert [p.status for p in off.segments] == ["reused"] * 2
+
 def test_drop_grasp_removes_the_executed_pose_and_its_near_twins():
     from scipy.spatial.transform import Rotation
 

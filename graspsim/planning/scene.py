@@ -15,7 +15,8 @@ table), and the table as a plane. A grasp whose fingers would close on a neighbo
 collides at its nominal pose, so its robust score is 0 and it ranks last.
 ``SceneConfig(neighbours=False)`` scores each segment against its own points only (the
 ablation). :func:`graspsim.planning.planner.plan_stream` streams best-first; planning of a
-segment stops once ``enough`` grasps with a positive robust score are found or
+segment stops once ``enough`` grasps with a positive robust score are found (planned
+lazily, ``good_enough``: and one of them reaches it) or
 ``per_segment`` grasps per part are scored (later batches would not be scored), and
 a part whose ``per_segment`` are scored yields to the next (``scored_only``: its
 unscored batches are not made). That budget goes to grasps whose gripper holds no

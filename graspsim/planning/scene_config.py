@@ -156,7 +156,8 @@ class SceneConfig:
     neighbours' identified primitives added to the check (their unseen sides);
     per_segment: grasps scored per part of a segment at most (and as many for the grasps on
     its cloud's own features, with ``PlannerConfig.features`` on); enough: planning of a segment
-    stops at this many grasps with a robust score > 0; keep: grasps per segment in the
+    stops at this many grasps with a robust score > 0 (in a lazily planned scene, once one of
+    them also reaches ``good_enough``, or when its budget is spent); keep: grasps per segment in the
     scene ranking; clearance [m]: the gripper's clearance above the table; reuse_tol
     [m]: how far points may move between frames for a segment to count as unchanged
     (``plan_scene(previous=...)``); up: the
@@ -168,7 +169,9 @@ class SceneConfig:
     are planned highest first, :data:`LAZY_BATCH` at a time, until the scene holds a grasp
     whose robust score reaches it, and the rest are left ``"deferred"`` (no grasps; the
     next frame plans them when it needs them) -- a clutter-removal loop executes one grasp
-    a look (:attr:`graspsim.tabletop.clutter.ClutterConfig.good_enough`); feature_grasps: where a segment's
+    a look; each segment is planned until a grasp reaches it (see ``enough``), and an
+    unchanged segment whose remembered grasps are under it is planned again once a
+    neighbour near it is gone (:func:`~graspsim.planning.scene_segments.settled_plan`) (:attr:`graspsim.tabletop.clutter.ClutterConfig.good_enough`); feature_grasps: where a segment's
     planning adds grasps on its cloud's own features (the planner's ``features``, when the parts give too
     few): one of :data:`FEATURE_GRASPS`, by default ``"apart"``, in scenes with a ``min_gap`` only;
     sparse_between: a grasp closing on fewer of its segment's points than this keeps

@@ -104,8 +104,11 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     """Segment ``k`` (its thinned points ``seg`` (M, 3), identified as ``ident``) planned
     against ``obstacles`` (``seen``: which of them the camera saw, ``plan_stream``'s
     ``obstacles_seen``): its SegmentPlan and best ``keep`` grasps. It draws nothing at
-    random: the same inputs give the same plan in any process, in any order. None: a
-    plan started ahead that its caller gave up (:func:`~graspsim.planning.scene_workers.cancelled`)."""
+    random: the same inputs give the same plan in any process, in any order. Its planning
+    stops at ``enough`` grasps scoring > 0 -- in a lazily planned scene, once one of them
+    (before :func:`discount_sparse`) also reaches ``good_enough`` -- or when its scoring
+    budget (``per_segment`` per part) is spent. None: a plan started ahead that its caller
+    gave up (:func:`~graspsim.planning.scene_workers.cancelled`)."""
     if cancelled():  # given up before it began
         return None
     t0 = time.perf_counter()
@@ -116,6 +119,8 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
     stream = plan_stream(seg, db=db, rng=None, config=pcfg, obstacles=obstacles, obstacles_seen=seen,
                          identification=ident, viewpoint=viewpoint, scored_only=True)  # identified already: no draws
     good = scored = 0  # over the batches so far
+    top = 0.0  # the best robust score so far
+    aim = 0.0 if cfg.good_enough is None else cfg.good_enough  # lazily planned: one must reach it
     try:
         for item in stream:
             if cancelled():
@@ -125,8 +130,9 @@ def _plan_segment(seg: np.ndarray, k: int, ident: Identification, obstacles: np.
             batches.append(item.map)
             good += int(np.sum(item.map.robust > 0))
             scored += int(np.isfinite(item.map.robust).sum())
-            if good >= cfg.enough or scored >= cfg.per_segment * len(ident.parts):
-                break  # enough found, or every part's scoring budget spent: the rest is unscored
+            top = max(top, float(np.nanmax(item.map.robust, initial=0.0)))
+            if (good >= cfg.enough and top >= aim) or scored >= cfg.per_segment * len(ident.parts):
+                break  # enough found (one reaching the aim), or the budget spent: the rest is unscored
     finally:
         stream.close()
     if not batches:
@@ -163,7 +169,10 @@ def settled_plan(k: int, seg: np.ndarray, ident: Identification | None, why: str
                       ) -> tuple[SegmentPlan, list[SceneGrasp]] | None:
     """Segment ``k``'s plan and grasps when it needs no planning: its identification
     failed, or the previous frame's grasps stand (:mod:`~graspsim.planning.scene_reuse`);
-    else None."""
+    else None. In a lazily planned scene (``SceneConfig.good_enough``) remembered grasps
+    that all score under it stand only while nothing near the segment is gone: their
+    scores were taken against the neighbours of then, a lower bound once one of them has
+    left (the object just picked), and the segment is planned again."""
     if ident is None:
         return SegmentPlan(k, len(seg), "failed", why, (), 0, 0.0), []
     if old is None or old.plan.status in ("failed", "deferred"):  # deferred: never planned
@@ -171,6 +180,9 @@ def settled_plan(k: int, seg: np.ndarray, ident: Identification | None, why: str
     if not nothing_new(old.obstacles, obstacles, tol=cfg.reuse_tol, within=_inner(seg, cfg), own=seg):
         return None
     g = reused_grasps(old, k)
+    if (cfg.good_enough is not None and max((s.score for s in g), default=0.0) < cfg.good_enough
+            and not nothing_new(obstacles, old.obstacles, tol=cfg.reuse_tol, within=_inner(seg, cfg), own=seg)):
+        return None  # under the aim, and an obstacle is gone: the remembered scores are lower bounds
     return (replace(old.plan, segment=k, status="reused", seconds=0.0), g) if g else None
 
 

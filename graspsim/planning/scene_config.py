@@ -169,9 +169,10 @@ class SceneConfig:
     are planned highest first, :data:`LAZY_BATCH` at a time, until the scene holds a grasp
     whose robust score reaches it, and the rest are left ``"deferred"`` (no grasps; the
     next frame plans them when it needs them) -- a clutter-removal loop executes one grasp
-    a look; each segment is planned until a grasp reaches it (see ``enough``), and an
-    unchanged segment whose remembered grasps are under it is planned again once a
-    neighbour near it is gone (:func:`~graspsim.planning.scene_segments.settled_plan`) (:attr:`graspsim.tabletop.clutter.ClutterConfig.good_enough`); feature_grasps: where a segment's
+    a look (:attr:`graspsim.tabletop.clutter.ClutterConfig.good_enough`); each segment is
+    planned until a grasp reaches it (see ``enough``), and an unchanged segment whose
+    remembered grasps are under it is planned again once a neighbour near it is gone
+    (:func:`~graspsim.planning.scene_segments.settled_plan`); feature_grasps: where a segment's
     planning adds grasps on its cloud's own features (the planner's ``features``, when the parts give too
     few): one of :data:`FEATURE_GRASPS`, by default ``"apart"``, in scenes with a ``min_gap`` only;
     sparse_between: a grasp closing on fewer of its segment's points than this keeps

@@ -145,7 +145,7 @@ def source_lines(rows: list) -> list[str]:
                   "features), the full method's conditions pooled:", "",
                   "| object set | scene | source | grasps | lifted | failed grasps |", "|---|---|---|---|---|---|"]
         for src, v in sorted(t.items(), key=lambda kv: (-kv[1]["grasps"], kv[0])):
-            failed = ", ".join(f"{k} {n}" for k, n in sorted(v["failed"].items())) or "-"
+            failed = ", ".join(f"{k} {n}" for k, n in sorted(v["failed"].items())) or "none"
             L.append(f"| {o} | {kind} | {src} | {v['grasps']} | {v['lifted']} ({pct(v['lifted'] / v['grasps'])} %) "
                      f"| {failed} |")
     return L
@@ -190,7 +190,7 @@ def readme_section(s: dict) -> str:
          "cleared scenes | one cluster (first frame) | planning: first frame / later / per grasp | failure causes |",
          "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        causes = ", ".join(f"{k} {v}" for k, v in r["failure_causes"].items() if k != OTHER) or "-"
+        causes = ", ".join(f"{k} {v}" for k, v in r["failure_causes"].items() if k != OTHER) or "none"
         seg = r["segmentation"]
         p = r["planning_s"]
         L.append(f"| {r['object_set']} | {r['kind']} | {r['objects']} | {_label(r)} | "

@@ -101,7 +101,6 @@ def test_lazy_planning_plans_the_highest_objects_until_a_grasp_is_good_enough(db
             SceneConfig(good_enough=bad)
 
 
-
 def test_lazy_planning_aims_a_segment_at_good_enough(db):
     """In a lazily planned scene a segment's planning goes on past ``enough`` grasps
     scoring > 0 until one reaches ``good_enough`` or its scoring budget is spent. With an
@@ -143,6 +142,7 @@ def test_lazy_planning_plans_a_reused_segment_again_when_under_the_aim_and_freed
     off = plan_scene(pts3, db=db, rng=np.random.default_rng(2), config=replace(cfg, good_enough=None),
                      previous=sp1)
     assert [p.status for p in off.segments] == ["reused"] * 2
+
 
 def test_drop_grasp_removes_the_executed_pose_and_its_near_twins():
     from scipy.spatial.transform import Rotation

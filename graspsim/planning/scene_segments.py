@@ -177,13 +177,16 @@ def settled_plan(k: int, seg: np.ndarray, ident: Identification | None, why: str
         return SegmentPlan(k, len(seg), "failed", why, (), 0, 0.0), []
     if old is None or old.plan.status in ("failed", "deferred"):  # deferred: never planned
         return None
-    if not nothing_new(old.obstacles, obstacles, tol=cfg.reuse_tol, within=_inner(seg, cfg), own=seg):
+    box = _inner(seg, cfg)
+    if not nothing_new(old.obstacles, obstacles, tol=cfg.reuse_tol, within=box, own=seg):
         return None
     g = reused_grasps(old, k)
-    if (cfg.good_enough is not None and max((s.score for s in g), default=0.0) < cfg.good_enough
-            and not nothing_new(obstacles, old.obstacles, tol=cfg.reuse_tol, within=_inner(seg, cfg), own=seg)):
+    if not g:
+        return None
+    if (cfg.good_enough is not None and max(s.score for s in g) < cfg.good_enough
+            and not nothing_new(obstacles, old.obstacles, tol=cfg.reuse_tol, within=box, own=seg)):
         return None  # under the aim, and an obstacle is gone: the remembered scores are lower bounds
-    return (replace(old.plan, segment=k, status="reused", seconds=0.0), g) if g else None
+    return replace(old.plan, segment=k, status="reused", seconds=0.0), g
 
 
 def copies_plan_alike(db) -> bool:

@@ -56,10 +56,20 @@ def test_scaling_range_decides_familiar_or_build():
     assert d.match is MatchKind.BUILD and d.entry is None and d.max_diff == math.inf
 
 
-def test_zero_dimensions_match_only_zero():
+def test_a_pointed_cone_top_is_as_near_a_stored_sub_millimetre_top_as_another_point():
     assert _m("cone", bottom_radius=0.05, top_radius=0.0, height=0.1).ratio == pytest.approx(1.25)
+    # a cone identified with a top of 0 and the grid's 0.4 mm top: both below MIN_DIM (1 mm),
+    # both points -- it was an infinite ratio, and every pointed cone built a map of its own
+    tips = [{"primitive": "cone", "dims": {"bottom_radius": 0.024, "top_radius": 0.0004, "height": 0.024},
+             "key": "tip"}]
+    d = match_entries("cone", {"bottom_radius": 0.0307, "top_radius": 0.0, "height": 0.0387}, tips,
+                      tol=KNOWN_TOL, max_ratio=3.0)
+    assert d.match is MatchKind.FAMILIAR and d.entry["key"] == "tip" and d.ratio == pytest.approx(38.7 / 24)
     d = _m("cone", max_ratio=10, tol=0.0, bottom_radius=0.04, top_radius=0.001, height=0.1)
-    assert d.match is MatchKind.BUILD and d.ratio == math.inf
+    assert d.match is MatchKind.KNOWN and d.ratio == 1.0  # 1 mm is MIN_DIM: still a point's size
+    # above MIN_DIM a top is a size again: 3 mm against a point is a factor 3
+    assert _m("cone", max_ratio=10, bottom_radius=0.04, top_radius=0.003, height=0.1).ratio == pytest.approx(3.0)
+    assert _m("cone", max_ratio=2, bottom_radius=0.04, top_radius=0.003, height=0.1).match is MatchKind.BUILD
 
 
 def test_boxes_compare_edges_by_name_as_scaling_pairs_them_and_bad_input():

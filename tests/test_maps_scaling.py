@@ -11,7 +11,7 @@ from graspsim.grippers.spec import HGPL_25_60_A as G
 from graspsim.maps.collide import boxes_clear_sdf
 from graspsim.maps.generate import generate_fs_map
 from graspsim.maps.map_config import MapConfig
-from graspsim.maps.scaling import ScalingConfig, ScalingMethod, scale_map, scale_stream
+from graspsim.maps.scaling import ScalingConfig, ScalingMethod, scale_factors, scale_map, scale_stream
 from graspsim.primitives import Box, Cone, Cylinder, HalfToroid, Sphere
 
 FAST = MapConfig(surface_step=0.01, rotation_step=math.radians(22))
@@ -83,6 +83,26 @@ def test_every_primitive_scales(shape, target):
     m = scale_map(fs, target)
     assert len(m) > 0
     assert np.abs(target.sdf(m.contacts.reshape(-1, 3).astype(float))).max() < 2e-6
+
+
+def test_a_pointed_cone_scales_from_and_to_a_sub_millimetre_top():
+    """Matching takes a top below MIN_DIM as a point (maps/match.py), so the grid's 0.4 mm
+    tops serve identified tops of 0 and the other way round: scaled, with finite factors
+    (the top's counted as 1), contacts on the target. A pointed cone's map has no grasp
+    across the tip, so scaling to one keeps what its own map would: the side grasps."""
+    tip = generate_fs_map(Cone(0.03, 0.0004, 0.05), config=FAST)
+    m = scale_map(tip, Cone(0.035, 0.0008, 0.06))
+    assert len(m) > 0 and m.meta.extra["factors"]["top_radius"] == 1.0
+    assert np.abs(Cone(0.035, 0.0008, 0.06).sdf(m.contacts.reshape(-1, 3).astype(float))).max() < 2e-6
+    for source, target in ((tip, Cone(0.035, 0.0, 0.06)),
+                           (generate_fs_map(Cone(0.03, 0.0, 0.05), config=FAST), Cone(0.035, 0.0008, 0.06))):
+        assert scale_factors(source.meta.shape, target) == pytest.approx(
+            {"bottom_radius": 3.5 / 3, "top_radius": 1.0, "height": 1.2})
+        m = scale_map(source, target)  # within the range: no error
+        own = generate_fs_map(target, config=FAST)
+        assert len(m) <= max(int(own.accepted.sum()), int(source.accepted.sum()))
+        if len(m):
+            assert np.abs(target.sdf(m.contacts.reshape(-1, 3).astype(float))).max() < 2e-6
 
 
 def test_stream_is_best_first_and_matches_the_whole(cyl_fs):

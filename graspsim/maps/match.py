@@ -4,7 +4,10 @@ The one rule, used by :meth:`MapDatabase.match <graspsim.maps.database.MapDataba
 and through it by the planner and the CLI:
 
 * the stored maps of the same primitive kind are ranked by the size change scaling would
-  need -- the largest per-dimension ratio ``max(v / w, w / v)`` (1 for equal dims);
+  need -- the largest per-dimension ratio ``max(v / w, w / v)`` (1 for equal dims), each
+  value taken as at least ``MIN_DIM`` (1 mm, the thinnest a primitive is: a cone's top
+  radius below it is a point, and a pointed cone's 0 is as near a stored 0.4 mm top as
+  to another 0; :func:`size_ratio`);
 * *known*: a stored map lies within the relative tolerance ``tol`` (:data:`KNOWN_TOL`,
   3 %) on every dimension -- its ratio is at most ``1 + tol`` -- and the nearest of those
   (by the ratio) serves the primitive as is. The paper's 1 cm on every dimension took a
@@ -45,8 +48,9 @@ from typing import Any
 
 from graspsim.errors import InvalidParameterError
 from graspsim.primitives import make_primitive
+from graspsim.primitives.base import MIN_DIM
 
-__all__ = ["MatchKind", "MatchDecision", "match_entries", "classify_match", "covers", "KNOWN_TOL"]
+__all__ = ["MatchKind", "MatchDecision", "match_entries", "classify_match", "covers", "size_ratio", "KNOWN_TOL"]
 
 #: The relative tolerance of *known* (3 %): a stored map serves a primitive unscaled
 #: only when no dimension differs by more than this fraction. Its bound is what scaling
@@ -80,10 +84,15 @@ class MatchDecision:
     ratio: float
 
 
-def _ratio(v: float, w: float) -> float:
-    if v == 0 or w == 0:  # e.g. a cone's zero top radius: only equal to zero
-        return 1.0 if v == w else math.inf
-    return max(v / w, w / v)
+def size_ratio(v: float, w: float) -> float:
+    """The size change (>= 1) between two values [m] of one dimension: ``max(v / w, w /
+    v)`` with each value taken as at least :data:`~graspsim.primitives.base.MIN_DIM`.
+    Only a cone's radii may be thinner than that (one of them, a pointed top), and below
+    it a radius is a point: a cone identified with a top of 0 and a stored one with a
+    0.4 mm top differ by less than the primitives resolve, not by an infinite factor
+    (which sent every pointed cone to a map build of its own)."""
+    a, b = max(float(v), MIN_DIM), max(float(w), MIN_DIM)
+    return max(a / b, b / a)
 
 
 def _dims_of(entry: dict, dims: dict[str, float], kind: str) -> dict[str, float]:
@@ -154,7 +163,7 @@ def match_entries(kind: str, dims: dict[str, float], entries: Iterable[dict], *,
         if max_width is not None and not covers(kind, dims, stored, max_width):
             continue
         pairs = _pairs(dims, stored)
-        r = max([1.0, *(_ratio(v, w) for v, w in pairs)])
+        r = max([1.0, *(size_ratio(v, w) for v, w in pairs)])
         d = max(abs(v - w) for v, w in pairs)
         if best is None or r < best[0]:
             best = (r, d, e)

@@ -41,8 +41,10 @@ from graspsim.maps.collide import grasps_collision_free
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
 from graspsim.maps.map_config import MapConfig
+from graspsim.maps.match import size_ratio
 from graspsim.maps.table_clearance import stream_order
 from graspsim.primitives import Primitive
+from graspsim.primitives.base import MIN_DIM
 from graspsim.transforms import quat_to_matrix
 
 __all__ = ["ScalingMethod", "ScalingConfig", "scale_map", "scale_stream", "scale_factors"]
@@ -91,12 +93,9 @@ class ScalingConfig:
 
 
 def scale_factors(source: Primitive, target: Primitive) -> dict[str, float]:
-    """Per-dimension ratios target / source (0 dims of a full cone give ratio 1)."""
-    out = {}
-    for k, v in source.dims.items():
-        t = target.dims[k]
-        out[k] = 1.0 if v == 0 and t == 0 else (t / v if v > 0 else float("inf"))
-    return out
+    """Per-dimension ratios target / source, each value taken as at least ``MIN_DIM``
+    (a cone's pointed top: :func:`~graspsim.maps.match.size_ratio`'s rule)."""
+    return {k: max(float(target.dims[k]), MIN_DIM) / max(float(v), MIN_DIM) for k, v in source.dims.items()}
 
 
 def _feasibility_shift(source: Primitive, target: Primitive, points: np.ndarray) -> np.ndarray:
@@ -323,7 +322,7 @@ def _scalable(fs_map: GraspabilityMap, target: Primitive, max_ratio: float) -> t
             f"can only scale a map of a {target.kind} to another {target.kind}; the map is of "
             f"{fs_map.meta.object.get('primitive')}")
     ratios = scale_factors(source, target)
-    bad = {k: r for k, r in ratios.items() if not (1 / max_ratio <= r <= max_ratio)}
+    bad = {k: r for k, r in ratios.items() if size_ratio(source.dims[k], target.dims[k]) > max_ratio}
     if bad:
         raise InvalidParameterError(
             f"scaling {source} to {target} changes {sorted(bad)} by more than the allowed "

@@ -279,7 +279,7 @@ def test_warm_loads_what_planning_uses_in_a_fresh_process():
     import sys
 
     names = ["numba", "h5py", "graspsim.maps._kernel", "graspsim.maps._robust_kernel",
-             "graspsim.primitives.sdf_kernel", "graspsim.maps._hierarchy_kernel", "graspsim.grades.models"]
+             "graspsim.primitives.sdf_kernel", "graspsim.maps._hierarchy_kernel", "graspsim.grades.models", "trimesh"]
     code = ("import sys; from graspsim.planning.scene_workers import _warm; "
             f"before = [n in sys.modules for n in {names!r}]; _warm(); "
             f"print(sum(before), all(n in sys.modules for n in {names!r}))")

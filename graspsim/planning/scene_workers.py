@@ -136,8 +136,9 @@ def _warm() -> None:
     from graspsim.maps.warmup import compile_all
 
     compile_all(parallel=False)
+    # trimesh: a part's mesh (``maps.table_clearance.low_part``), 0.7 s to import where the caller had not
     for name in ("graspsim.perception.decompose", "graspsim.perception.acceptance", "graspsim.maps.occlusion",
-                 "graspsim.grades.models"):
+                 "graspsim.grades.models", "trimesh"):
         importlib.import_module(name)
 
 

@@ -41,7 +41,6 @@ from graspsim.maps.collide import grasps_collision_free
 from graspsim.maps.generate import object_description
 from graspsim.maps.graspmap import GraspabilityMap, MapMeta
 from graspsim.maps.map_config import MapConfig
-from graspsim.maps.match import size_ratio
 from graspsim.maps.table_clearance import stream_order
 from graspsim.primitives import Primitive
 from graspsim.primitives.base import MIN_DIM
@@ -322,7 +321,7 @@ def _scalable(fs_map: GraspabilityMap, target: Primitive, max_ratio: float) -> t
             f"can only scale a map of a {target.kind} to another {target.kind}; the map is of "
             f"{fs_map.meta.object.get('primitive')}")
     ratios = scale_factors(source, target)
-    bad = {k: r for k, r in ratios.items() if size_ratio(source.dims[k], target.dims[k]) > max_ratio}
+    bad = {k: r for k, r in ratios.items() if max(r, 1.0 / r) > max_ratio}
     if bad:
         raise InvalidParameterError(
             f"scaling {source} to {target} changes {sorted(bad)} by more than the allowed "

@@ -88,8 +88,8 @@ def test_every_primitive_scales(shape, target):
 def test_a_pointed_cone_scales_from_and_to_a_sub_millimetre_top():
     """Matching takes a top below MIN_DIM as a point (maps/match.py), so the grid's 0.4 mm
     tops serve identified tops of 0 and the other way round: scaled, with finite factors
-    (the top's counted as 1), contacts on the target. A pointed cone's map has no grasp
-    across the tip, so scaling to one keeps what its own map would: the side grasps."""
+    (the top's counted as 1), contacts on the target, and no more grasps than the source's
+    or the target's own map offers (a pointed tip has no grasp across it)."""
     tip = generate_fs_map(Cone(0.03, 0.0004, 0.05), config=FAST)
     m = scale_map(tip, Cone(0.035, 0.0008, 0.06))
     assert len(m) > 0 and m.meta.extra["factors"]["top_radius"] == 1.0

@@ -7,9 +7,9 @@ import pytest
 
 from graspsim.errors import InvalidParameterError
 from graspsim.perception.hypotheses import SAMPLE_SIZE, hypothesise
-from graspsim.perception.mlesac import fit_model, mixture_loglik
+from graspsim.perception.mlesac import fit_from, fit_model, mixture_loglik
 from graspsim.perception.normals import estimate_local_surface
-from graspsim.primitives import synthetic_cloud
+from graspsim.primitives import Box, synthetic_cloud
 from graspsim.primitives.sdf import KINDS, fit_to_object, model_sdf
 from graspsim.transforms import invert_transform, make_transform, random_rotation, transform_points
 from tests.conftest import PAPER_SHAPES
@@ -127,3 +127,24 @@ def test_sphere_hypotheses_of_a_plane_are_rejected():
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     fit = fit_model("sphere", p, n, rng, repetitions=20, sigma=1e-4)
     assert fit is None or fit.dims[0] <= 0.6 * np.linalg.norm(np.ptp(p, axis=0))
+
+
+def test_a_box_is_cut_back_to_the_points_that_hold_it():
+    """A 43 x 26 x 153 mm box seen from one side (its -x, -y and -z faces unseen), with
+    a hypothesis whose unseen -z end runs 224 mm past the points (the 153 -> 376 mm box
+    that refinement made of a tuning pile's segment): the end moves in to the points,
+    the seen faces stay where they are, and a hypothesis that fits is left alone."""
+    rng = np.random.default_rng(5)
+    box = Box(0.043, 0.026, 0.153)
+    cloud = synthetic_cloud(box, rng, resolution=0.003, noise=0.001, camera=np.array([0.4, 0.3, 0.5]))
+    pts = cloud.points
+    assert pts[:, 2].min() > -0.08  # the far end is unseen: nothing holds it
+    dims = np.array([0.043, 0.026, 0.3765])
+    long = fit_from("box", pts, np.eye(3), np.array([0.0, 0.0, 0.0765 - 0.5 * dims[2]]), dims,
+                    sigma=0.001, refine=False)
+    assert abs(long.dims[2] - 0.153) <= 0.003, long.dims
+    assert abs(long.t[2] + 0.5 * long.dims[2] - 0.0765) <= 0.001  # the seen +z end stays
+    np.testing.assert_allclose(long.dims[:2], [0.043, 0.026], atol=0.002)
+    true = fit_from("box", pts, np.eye(3), np.zeros(3), box.dims_vector(), sigma=0.001, refine=False)
+    np.testing.assert_array_equal(true.dims, box.dims_vector())
+    np.testing.assert_array_equal(true.t, np.zeros(3))

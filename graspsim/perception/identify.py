@@ -16,7 +16,7 @@ orientation and the sensor-noise estimate, over neighbourhoods wider than the no
 
 Per cluster, beyond the paper's MLESAC fits: a cylinder is also refined as a cone (a
 weak taper is ill-posed for four-point cone samples) and an untapered cone yields a
-cylinder; cylinder and cone ends nobody saw are cut back to their points; a model
+cylinder; box faces and cylinder and cone ends nobody saw are cut back to their points; a model
 larger than its cluster is no hypothesis, and a candidate that reaches beyond its
 points while little of its surface has points near it is rejected (see support).
 Every random draw comes from the caller's

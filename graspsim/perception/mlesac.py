@@ -221,11 +221,17 @@ def _finish(kind, points, best, sigma, nu, refine, max_refine_points, n_hyp, n_v
 
 
 def _trim_to_support(kind, R, t, dims, inliers, sigma):
-    """A cylinder or cone cut back to the axial extent of its inliers (0.5-99.5 %
-    quantiles) where it reaches more than 2 sigma beyond it, as (t, dims); else None.
-    Nothing in the likelihood holds the end of a side nobody saw (the bottom of an
-    object on a table): hypotheses and refinement may leave it anywhere beyond."""
-    if kind not in ("cylinder", "cone") or len(inliers) < 10:
+    """A box, cylinder or cone cut back to the extent of its inliers (0.5-99.5 %
+    quantiles) along its axis (cylinder, cone) or each of its edges (box) where it
+    reaches more than 2 sigma beyond it, as (t, dims); else None. Nothing in the
+    likelihood holds the end of a side nobody saw (the bottom of an object on a table,
+    the far end of a box seen along its length): hypotheses and refinement may leave it
+    anywhere beyond (a 153 mm box hypothesis refined to 376 mm on 156 mm of points)."""
+    if len(inliers) < 10:
+        return None
+    if kind == "box":
+        return _trim_box(R, t, dims, inliers, sigma)
+    if kind not in ("cylinder", "cone"):
         return None
     a = R[:, 2]
     z = (inliers - t) @ a
@@ -240,6 +246,21 @@ def _trim_to_support(kind, R, t, dims, inliers, sigma):
     r0, r1 = dims[0], dims[1]
     rad = lambda zz: r0 + (r1 - r0) * (zz + 0.5 * h) / h  # noqa: E731
     return t2, np.array([max(rad(lo), 0.0), max(rad(hi), 0.0), hi - lo])
+
+
+def _trim_box(R, t, dims, inliers, sigma):
+    """:func:`_trim_to_support` for a box: each face that lies more than 2 sigma beyond
+    its inliers' extent along its edge moves in to that extent; the other faces stay."""
+    t2, d2, changed = np.array(t, float), np.array(dims, float), False
+    for i in range(3):
+        z = (inliers - t) @ R[:, i]
+        lo, hi = np.quantile(z, [0.005, 0.995])
+        h = dims[i]
+        lo = lo if lo + 0.5 * h > 2.0 * sigma else -0.5 * h
+        hi = hi if 0.5 * h - hi > 2.0 * sigma else 0.5 * h
+        if (lo > -0.5 * h or hi < 0.5 * h) and hi > lo:
+            t2, d2[i], changed = t2 + 0.5 * (lo + hi) * R[:, i], hi - lo, True
+    return (t2, d2) if changed else None
 
 
 def residual_sigma(fit: ModelFit, points: np.ndarray) -> float:

@@ -74,9 +74,9 @@ from _e10_report import readme_section, rows_of
 
 from graspsim.contacts import CONTACT_MODELS, DEFAULT_CONTACTS
 from graspsim.errors import SimulationError
+from graspsim.maps.robust import UNSEEN_MARGIN
 from graspsim.planning.scene_config import (
     FEATURE_GRASPS,
-    SCENE_UNSEEN_MARGIN,
     SceneConfig,
     with_feature_grasps,
     with_seen_between,
@@ -120,8 +120,8 @@ class Config:
     grid: bool = opt(True, "store FS maps of a size grid (GRID) in the database before the first scene")
     workers: int = opt(1, "processes; results do not depend on it (the database is read only during the run)")
     unseen_margin: float | None = opt(None, "the robust score's margin [m] against an object's unseen back "
-                                      "(graspsim scene --unseen-margin; alone: the measured SCENE_UNSEEN_MARGIN; "
-                                      "none: the scene planner's default)", const=SCENE_UNSEEN_MARGIN)
+                                      "(graspsim scene --unseen-margin; alone: the measured UNSEEN_MARGIN; "
+                                      "none: the scene planner's default)", const=UNSEEN_MARGIN)
     seen_between: int | None = opt(None, "the points of its own segment a grasp must close on (graspsim scene "
                                    "--seen-between; 0: off; none: the scene planner's default, the measured "
                                    "SEEN_BETWEEN)")

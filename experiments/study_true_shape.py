@@ -42,7 +42,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import opt, start
 
-from graspsim.planning.scene_config import SCENE_UNSEEN_MARGIN
+from graspsim.maps.robust import UNSEEN_MARGIN
 
 log = logging.getLogger("study_true_shape")
 
@@ -65,8 +65,8 @@ class Config:
     quick_maps: bool = opt(False, "coarse FS maps (1 cm, 22 deg)")
     db: str = opt("", "FS database folder, read only (default: OUT/fsdb, built fresh)")
     unseen_margin: float | None = opt(None, "the robust score's margin [m] against an object's unseen back "
-                                      "(E10's --unseen-margin; alone: the measured SCENE_UNSEEN_MARGIN)",
-                                      const=SCENE_UNSEEN_MARGIN)
+                                      "(E10's --unseen-margin; alone: the measured UNSEEN_MARGIN)",
+                                      const=UNSEEN_MARGIN)
     QUICK: ClassVar[dict] = {"kinds": ("packed",), "seeds": 1, "scenes": 1, "quick_maps": True}
 
     def __post_init__(self) -> None:

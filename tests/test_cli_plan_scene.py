@@ -106,7 +106,7 @@ def test_the_unseen_margin_flag_reaches_the_robust_score(tmp_path, capsys, db):
 
     from graspsim.cli import build_parser
     from graspsim.cli._common import scene_planning_from_args
-    from graspsim.planning.scene_config import SCENE_UNSEEN_MARGIN as UNSEEN_MARGIN
+    from graspsim.maps.robust import UNSEEN_MARGIN
 
     planner = SceneConfig().planner
     for command in ("scene", "plan-scene"):

@@ -995,10 +995,10 @@ def test_e16_clutter_plans_both_conditions_against_one_read_only_database(tmp_pa
 
 
 def test_e10_unseen_margin_reaches_the_planner(tmp_path, monkeypatch, capsys):
-    """E10 --unseen-margin [M] (alone: the scene planner's measured margin) reaches every scene's
+    """E10 --unseen-margin [M] (alone: the measured UNSEEN_MARGIN) reaches every scene's
     planner through the scene commands' path (with_unseen_margin) and its config record;
     without it the scene planner's default; a bad margin is a one-line error."""
-    from graspsim.planning.scene_config import SCENE_UNSEEN_MARGIN as UNSEEN_MARGIN
+    from graspsim.maps.robust import UNSEEN_MARGIN
     from graspsim.planning.scene_config import SceneConfig
 
     mod = _load("e10_clutter_removal")

@@ -126,15 +126,14 @@ def add_unseen_margin_flag(p, help: str | None = None) -> None:
     p.add_argument("--unseen-margin", type=float, nargs="?", const=True, default=None, metavar="M",
                    help=help or "with the camera's place known: a grasp whose far finger comes within M [m] of the "
                    "object's own fitted back, in space the camera did not see, scores less (by the distance's share "
-                   "of M) and wider openings are tried for it (default and alone: the scene planner's measured 0.03 m; "
-                   "0: none; RobustConfig.unseen_margin); fewer start collisions with an object's unseen back "
+                   "of M) and wider openings are tried for it (default and alone: the measured 0.02 m; 0: none; "
+                   "RobustConfig.unseen_margin); fewer start collisions with an object's unseen back "
                    "(docs/scenes.md)")
 
 
-def unseen_margin_value(args, *, none: bool = False, scene: bool = False) -> float | None:
+def unseen_margin_value(args, *, none: bool = False) -> float | None:
     """``--unseen-margin`` as metres (the flag alone: the measured
-    :data:`~graspsim.maps.robust.UNSEEN_MARGIN`, a single view's; with ``scene`` the scene
-    planner's :data:`~graspsim.planning.scene_config.SCENE_UNSEEN_MARGIN`), None when not given; a margin outside
+    :data:`~graspsim.maps.robust.UNSEEN_MARGIN`), None when not given; a margin outside
     (0, 0.1] m -- [0, 0.1] with ``none`` (a command whose default has a margin: 0 turns it
     off) -- is an :class:`~graspsim.errors.InvalidParameterError` naming the flag."""
     from graspsim.errors import InvalidParameterError
@@ -142,16 +141,15 @@ def unseen_margin_value(args, *, none: bool = False, scene: bool = False) -> flo
     m = getattr(args, "unseen_margin", None)
     if m is None:
         return None
-    from graspsim.maps.robust import UNSEEN_MARGIN
-    from graspsim.planning.scene_config import MAX_UNSEEN_MARGIN, SCENE_UNSEEN_MARGIN
-
-    alone = SCENE_UNSEEN_MARGIN if scene else UNSEEN_MARGIN
     if m is True:  # the flag alone (argparse's const: not a string, so not converted)
-        m = alone
+        from graspsim.maps.robust import UNSEEN_MARGIN
+
+        m = UNSEEN_MARGIN
+    from graspsim.planning.scene_config import MAX_UNSEEN_MARGIN
 
     if not (math.isfinite(m) and (0 <= m if none else 0 < m) and m <= MAX_UNSEEN_MARGIN):
         raise InvalidParameterError(f"--unseen-margin must be in {'[0' if none else '(0'}, {MAX_UNSEEN_MARGIN:g}] m "
-                                    f"(alone: the measured {alone:g}{'; 0: none' if none else ''}), got {m!r}")
+                                    f"(alone: the measured 0.02{'; 0: none' if none else ''}), got {m!r}")
     return float(m)
 
 
@@ -280,7 +278,7 @@ def scene_planning_from_args(args, scene):
     )
 
     scene = replace(scene, **budget_from_args(args))
-    scene = with_unseen_margin(scene, unseen_margin_value(args, none=True, scene=True))  # checked, naming the flag
+    scene = with_unseen_margin(scene, unseen_margin_value(args, none=True))  # the value checked, naming the flag
     scene = with_seen_between(scene, seen_between_value(args))
     scene = with_sparse_between(scene, sparse_between_value(args))
     scene = with_shadow_depth(scene, shadow_depth_value(args))

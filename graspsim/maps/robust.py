@@ -110,9 +110,8 @@ OCCLUSION_POWER = 2.0
 #: piles GSR 93.8 -> 91.6 %, DR 95.0 -> 95.6 % (counting them: 89.1 / 92.5 %); with the default
 #: execution error (2 seeds x 4): packed GSR 71.1 -> 86.4 %, piles 76.7 -> 75.0 %. Piles still
 #: lose grasps (8 scenes worse, 4 better; not significant) while packed scenes gain more (pooled GSR
-#: 89.8 -> 92.4 %, DR 91.9 -> 94.7 %), so the scene planner keeps it on by default, since widened
-#: to 30 mm in scenes (``planning.scene_config.SCENE_UNSEEN_MARGIN``); ``graspsim adapt`` keeps
-#: this value for a single view; ``RobustConfig``'s own default stays 0.
+#: 89.8 -> 92.4 %, DR 91.9 -> 94.7 %), so the scene planner keeps it on by default
+#: (``planning.scene_config``); ``RobustConfig``'s own default stays 0.
 UNSEEN_MARGIN = 0.020
 #: [m] Extra pad gaps per side beyond ``openings`` that the robust score also tries for a grasp
 #: that keeps the unseen margin at none of ``openings`` (``RobustConfig.unseen_openings``): with the

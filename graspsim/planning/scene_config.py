@@ -11,7 +11,7 @@ import numpy as np
 from graspsim.checks import POSITIVE, check_fields, integer
 from graspsim.errors import InvalidParameterError
 from graspsim.maps.feature_grasps import FeatureConfig
-from graspsim.maps.robust import LIFT_CEILING, RobustConfig
+from graspsim.maps.robust import LIFT_CEILING, UNSEEN_MARGIN, RobustConfig
 from graspsim.perception.identify_config import IdentifyConfig
 from graspsim.perception.segment import gap_link
 from graspsim.planning.observed import SEEN_BETWEEN
@@ -20,7 +20,7 @@ from graspsim.planning.scene_workers import scene_workers
 
 __all__ = ["SceneConfig", "budget_fields", "with_unseen_margin", "with_seen_between", "with_sparse_between",
            "with_feature_grasps", "with_shadow_depth", "MAX_SHADOW_DEPTH", "SHADOW_DEPTH", "SHADOW_ALONG",
-           "SHADOW_FINGER_SHARE", "SCENE_UNSEEN_MARGIN",
+           "SHADOW_FINGER_SHARE",
            "with_pose_error", "FEATURE_GRASPS", "SPARSE_BETWEEN", "SPARSE_SHARE",
            "MAX_POSE_ERROR", "MAX_UNSEEN_MARGIN", "MAX_SCENE_EXTENT",
            "SCENE_BYTES_PER_POINT", "SCENE_FIT_POINTS", "SCENE_COLLISION_TOLERANCE", "SCENE_MAX_NOISE_RATIO"]
@@ -55,23 +55,6 @@ SCENE_COLLISION_TOLERANCE = 0.001
 SCENE_MAX_NOISE_RATIO = 0.05
 
 
-#: [m] The unseen margin the scene planner keeps (``RobustConfig.unseen_margin``; ``graspsim scene`` /
-#: ``plan-scene --unseen-margin``'s default): wider than the single view's
-#: :data:`~graspsim.maps.robust.UNSEEN_MARGIN` (20 mm, which ``graspsim adapt`` keeps). In packed
-#: scenes a standing milk carton seen mostly on one face was fitted as slabs 1 to 10 mm thick, and the
-#: fingers (once the housing) of its grasps that started in collision were 11 to 34 mm past the fit,
-#: inside its 48 to 53 mm depth (``experiments/study_start_collisions.py --kind packed --cases 1:7 3:3 3:8``).
-#: Chosen on E10's household-tuning set (5 seeds x 20 scenes of 5 objects, paired with the same scenes
-#: at 20 mm; ``e10_clutter_removal.py --seeds 5 --scenes 20 --objects 5 --ablations none
-#: --object-sets household-tuning --unseen-margin 0.03``): no execution error, piles GSR 96.8 -> 96.8 %,
-#: DR 96.8 -> 97.8 % (no grasp 6 -> 1), packed GSR 97.4 -> 97.8 %, DR 99.0 -> 99.2 % (start
-#: collisions with the target 6 -> 3); with the default execution error, piles GSR 89.2 -> 89.8 %,
-#: DR 94.8 -> 95.9 %, packed 97.1 -> 97.5 %, DR 98.6 -> 99.3 % (the first 88 scenes of each). Wider
-#: margins were not measured. A replay of the same frames at both margins costs the same CPU time.
-#: The held-out set, measured once with it, is mixed: docs/results.md, *A wider unseen margin in scenes*.
-SCENE_UNSEEN_MARGIN = 0.030
-
-
 def _scene_planner() -> PlannerConfig:
     # no cloud filter; grasps fitted to the cloud's own features (PlannerConfig.features) where the parts give too
     # few, in the scenes SceneConfig.feature_grasps says (by default where objects are known to stand apart);
@@ -79,12 +62,12 @@ def _scene_planner() -> PlannerConfig:
     # resting boxes completed down to the table (their hidden depth, a guess of a few mm, bounded by it);
     # a box's unmeasured depth at least what the view can tell from its seen face;
     # box parts that are one box (a carton cut into parallel slabs) merged;
-    # with a viewpoint, the robust score keeps the fingers SCENE_UNSEEN_MARGIN off the object's own unseen back;
+    # with a viewpoint, the robust score keeps the fingers UNSEEN_MARGIN off the object's own unseen back;
     # stored grasps predicted far under the table not scaled (the table filter drops them);
     # a low-profile grasp's pose error counts the way up too (its pads lifted off a thin part);
     # the scoring budget to grasps that hold no point of the scene at their pose (in a pile every best-graded
     # grasp of a lying bottle can close on a neighbour), and to grasps that close on points of the object itself
-    return PlannerConfig(robust=RobustConfig(unseen_margin=SCENE_UNSEEN_MARGIN, lift_ceiling=LIFT_CEILING),
+    return PlannerConfig(robust=RobustConfig(unseen_margin=UNSEEN_MARGIN, lift_ceiling=LIFT_CEILING),
                          identify=IdentifyConfig(fit_points=SCENE_FIT_POINTS, max_noise_ratio=SCENE_MAX_NOISE_RATIO),
                          collision_tolerance=SCENE_COLLISION_TOLERANCE, clear_observed=False, features=FeatureConfig(),
                          both_contacts_all_round=False, complete_to_table=True,
@@ -304,8 +287,8 @@ MAX_UNSEEN_MARGIN = 0.1
 
 def with_unseen_margin(scene: SceneConfig, margin: float | None) -> SceneConfig:
     """``scene`` with its planner's robust score keeping ``margin`` [m] off an object's
-    unseen back (``RobustConfig.unseen_margin``; :data:`SCENE_UNSEEN_MARGIN`
-    the scene planner's measured default; 0: none); None: ``scene`` itself.
+    unseen back (``RobustConfig.unseen_margin``; :data:`graspsim.maps.robust.UNSEEN_MARGIN`
+    the measured value and the scene planner's default; 0: none); None: ``scene`` itself.
     The one path from a margin a user gives (``graspsim scene`` / ``plan-scene
     --unseen-margin``, E10 ``--unseen-margin``) to the planner; a margin outside [0,
     :data:`MAX_UNSEEN_MARGIN`] m is an :class:`~graspsim.errors.InvalidParameterError`."""

@@ -60,6 +60,10 @@ Bonferroni post-hoc) are in ``_stats.py``.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import argparse
 import dataclasses
 import json
@@ -196,7 +200,6 @@ def provenance() -> dict:
     uncommitted changes: the tree is shared, so say so; the published summaries in
     ``experiments/reported/`` do not count: they are results, which ``--publish`` itself
     writes, not code), graspsim version, CPU count."""
-    import graspsim
 
     def git(*args: str) -> str:
         return subprocess.run(["git", *args], capture_output=True, text=True, cwd=EXPERIMENTS,

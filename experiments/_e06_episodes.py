@@ -7,6 +7,10 @@ and the robust score's ablations recorded, then the highest-grade candidate step
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace

@@ -6,6 +6,10 @@ cost."""
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import math
 
 import numpy as np

@@ -5,6 +5,10 @@ per object and where the planning time goes."""
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 from _common import contacts_clause, database_note, pct, rate_ci
 
 from graspsim.tabletop.clutter import FAILURE_COLUMNS, OTHER, failure_rows

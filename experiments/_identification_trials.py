@@ -13,6 +13,10 @@ the grid, so results do not depend on how many worker processes run them.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import time
 from dataclasses import dataclass
 

@@ -4,6 +4,10 @@ object at run time), the median of ``repeats`` runs kept with every run's record
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import gc
 import statistics
 

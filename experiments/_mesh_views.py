@@ -5,6 +5,10 @@ camera sees, z-buffered; noise along the ray). World frame, table at z = 0, metr
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import math
 
 import numpy as np

@@ -6,6 +6,10 @@ noise, rates are given of the poses feasible without it and of all drawn poses, 
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import numpy as np
 
 from graspsim.calibration import CaseSample, SimCondition, TrialTable, simulate_samples, wilson_interval

@@ -11,6 +11,10 @@ extruded (1 mm pixels), the tube is swept rings with capped ends.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import math
 
 import numpy as np

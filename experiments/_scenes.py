@@ -15,6 +15,10 @@ Scripts import these through ``_common``.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import math
 import os
 import shutil

@@ -4,6 +4,10 @@ through ``_common``."""
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import os
 import subprocess
 import sys

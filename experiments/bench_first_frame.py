@@ -21,6 +21,10 @@ machine may be shared: compare runs made under the same load).
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import statistics
 import sys

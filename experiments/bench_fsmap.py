@@ -27,6 +27,10 @@ every measurement; CPU time (all threads) measures the work itself.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import math
 import multiprocessing as mp

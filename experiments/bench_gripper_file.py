@@ -17,6 +17,10 @@ The wall times of both and their sum, with the machine's load average before and
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import shutil
 import sys

@@ -24,6 +24,10 @@ time including Python's start and imports, beside the plan time the CLI reports.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import logging
 import statistics

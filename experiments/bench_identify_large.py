@@ -17,6 +17,10 @@ Goal (issue 13): 10^6 points identified in <= 5 s with <= 1 GiB peak memory.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import statistics
 import sys

@@ -19,6 +19,10 @@ h 20 cm, default settings: ~1.4 M grasps) is generated first (a few minutes).
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import sys
 import tempfile

@@ -17,6 +17,10 @@ it allocates the map's columns.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import multiprocessing as mp
 import sys
 import tempfile

@@ -30,6 +30,10 @@ decimated, then decomposed within the time limit). Quick mode: a 64-section tube
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import logging
 import sys

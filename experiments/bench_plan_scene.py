@@ -18,6 +18,10 @@ grasps it wrote. Per kind and input: the first scene's run and the median of the
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import statistics
 import sys

@@ -41,6 +41,10 @@ not change), each with the load average.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import shutil
 import statistics

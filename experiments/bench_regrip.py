@@ -14,6 +14,10 @@ changes less with other processes' load than the wall time).
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import statistics
 import sys

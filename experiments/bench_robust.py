@@ -23,6 +23,10 @@ built fresh at the default map settings (``--quick``: coarse) before the first p
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import shutil
 import statistics

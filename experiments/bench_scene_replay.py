@@ -31,6 +31,10 @@ and plan records have the same fields.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import copy
 import hashlib
 import json

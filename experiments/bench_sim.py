@@ -22,6 +22,10 @@ cores (median). Writes summary.json, table.md and config.json into ``--out``.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import os
 import statistics

@@ -24,6 +24,10 @@ and after each measurement (the machine is shared).
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import os
 import signal

@@ -26,6 +26,10 @@ config.json to ``--out``.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import gc
 import logging
 import math

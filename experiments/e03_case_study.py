@@ -35,6 +35,10 @@ main row, the figures and the saved maps (maps/<object>.h5, for simulated valida
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import gc
 import logging
 import math

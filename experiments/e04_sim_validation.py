@@ -27,6 +27,10 @@ feasible without noise and of all drawn poses (95 % Wilson intervals throughout)
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import math
 import sys

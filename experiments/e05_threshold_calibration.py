@@ -29,6 +29,10 @@ Each simulated table is saved (trials_<name>.npz) and reused when its settings m
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import math
 import sys

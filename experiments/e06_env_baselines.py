@@ -44,6 +44,10 @@ published ``--perception model`` run's summary is copied by hand to ``...model.j
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per worker process
@@ -77,7 +81,6 @@ from _common import (
 from _e06_episodes import collect
 from _e06_evaluation import MAP_ONLY, OUTCOMES, POLICIES, PRE_ROBUST, choices, costs, evaluate, stack
 
-import graspsim  # noqa: F401  (registers the environments)
 from graspsim.envs.baselines import (
     FEATURE_NAMES,
     LogisticPolicy,

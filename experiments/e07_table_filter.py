@@ -20,6 +20,10 @@ intervals). Writes summary.json, README.md, table.md and config.json to ``--out`
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import math
 import sys

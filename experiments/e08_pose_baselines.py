@@ -51,6 +51,10 @@ its plan draws from ``rng_for(s, "plan")`` and the random policy's action from
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import math
 import sys
@@ -78,7 +82,6 @@ from _common import (
     write_json,
 )
 
-import graspsim  # noqa: F401  (registers the environments)
 from graspsim.envs.baselines import planner_pose
 from graspsim.envs.top_down import robust_top_down, top_down_pose
 from graspsim.geometry.table import TablePlane

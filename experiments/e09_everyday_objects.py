@@ -40,6 +40,10 @@ across) is at most the gripper's opening less the approach clearance on both sid
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import math
 import sys

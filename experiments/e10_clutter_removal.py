@@ -47,6 +47,10 @@ last; a part no stored map serves gets a map built in memory, not stored.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import logging
 import signal

@@ -14,6 +14,10 @@ causes in order and the objects removed are equal (the grasps themselves may dif
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import subprocess
 import sys

@@ -14,6 +14,10 @@ Each argument is a published summary (a file, or ``REV:PATH`` as in ``e10_paired
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import sys
 from collections import Counter
 from dataclasses import dataclass

@@ -24,6 +24,10 @@ C. **Adapted vs own**: the FS map of each primitive (paper size, library resolut
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import math
 import sys

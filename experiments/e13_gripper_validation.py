@@ -34,6 +34,10 @@ spec's error (issue 37's goal: at most 2 % of the drawn poses).
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import sys
 from dataclasses import dataclass, replace

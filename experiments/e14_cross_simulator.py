@@ -54,6 +54,10 @@ cores (806 CPU seconds), nearly all of it the surface model's trials.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import math
 import sys

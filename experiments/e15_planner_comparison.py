@@ -21,6 +21,10 @@ scene, read only during the run), so the planners meet what E10's planner meets.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import sys
 from dataclasses import dataclass

@@ -44,6 +44,10 @@ reachability check refused.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import math
 import sys

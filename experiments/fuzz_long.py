@@ -17,6 +17,10 @@ with reproducers, wall time, machine load) and ``README.md`` to ``--out``.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import base64
 import collections
 import pickle

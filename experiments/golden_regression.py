@@ -24,6 +24,10 @@ tests/data/regression_mutations.json: which bands each break trips.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import logging
 import sys

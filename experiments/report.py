@@ -34,6 +34,10 @@ listed as pending, not checked.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import argparse
 import hashlib
 import importlib.util

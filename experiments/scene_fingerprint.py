@@ -22,6 +22,10 @@ first on ``PYTHONPATH`` (``code`` in the summary records which graspsim ran).
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import hashlib
 import json
 import logging
@@ -102,7 +106,6 @@ def _code() -> dict:
     with ``PYTHONPATH``)."""
     import subprocess
 
-    import graspsim
 
     where = Path(graspsim.__file__).resolve().parent
     try:

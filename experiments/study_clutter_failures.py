@@ -20,6 +20,10 @@ overlapped what and how deep (``SceneSim.overlaps`` at the executed pose).
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import logging
 import sys

@@ -31,6 +31,10 @@ changed); ``--causes none`` records each grasp's cause without replaying any.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import logging
 import math

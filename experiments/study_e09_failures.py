@@ -28,6 +28,10 @@ no accepted grasp counts as ``no usable map``, with its parts.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import logging
 import sys

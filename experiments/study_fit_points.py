@@ -25,6 +25,10 @@ of identification per condition, summed over the clouds.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import sys
 import time

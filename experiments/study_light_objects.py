@@ -34,6 +34,10 @@ same grid (``SimSettings.timestep``, ``GripperPhysics.pad_solref`` / ``.pad_soli
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import sys
 from dataclasses import dataclass, replace

@@ -28,6 +28,10 @@ unscored). The FS map database is ``OUT/fsdb``, built fresh from the paper's fiv
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import logging
 import math

@@ -20,6 +20,10 @@ collision | f) = (1 - f) ** k, with a 95 % profile-likelihood interval.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import sys
 from dataclasses import dataclass, replace

@@ -27,6 +27,10 @@ at least about half of it: ``bench_scene.py`` measures that).
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import statistics
 import sys

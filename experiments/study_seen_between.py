@@ -23,6 +23,10 @@ counts the grasps of each band of that number and what became of them.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import sys
 from dataclasses import dataclass

@@ -26,6 +26,10 @@ No planning, no grasps.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import sys
 from collections import Counter

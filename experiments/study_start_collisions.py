@@ -37,6 +37,10 @@ tilted mug (2), one graze under execution error.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import json
 import logging
 import math

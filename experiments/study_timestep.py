@@ -25,6 +25,10 @@ gripper's pose against the settled scene), so it is the same at every step.
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import sys
 from dataclasses import dataclass
 from pathlib import Path

@@ -31,6 +31,10 @@ the fingertips, the centre of mass more than 10 mm off the closing line, or neit
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import logging
 import sys
 from dataclasses import dataclass

@@ -22,6 +22,10 @@ Needs the viewer extra and Chromium. The picture depends on the simulated outcom
 
 from __future__ import annotations
 
+import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins the BLAS kernels)
+
+# isort: split
+
 import argparse
 import subprocess
 import sys

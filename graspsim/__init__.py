@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import importlib
 
+from graspsim._blas import pin_blas as _pin_blas
 from graspsim._version import __version__  # noqa: E402
 from graspsim.envs import register_when_imported as _register_envs
 from graspsim.errors import (
@@ -54,6 +55,8 @@ from graspsim.errors import (
     PrimitiveError,
     SimulationError,
 )
+
+_pin_blas()  # before numpy loads: the same BLAS kernels on every x86-64 CPU with AVX2 (graspsim._blas)
 
 
 def _from(module: str, *names: str) -> dict[str, str]:

@@ -19,7 +19,8 @@ __all__ = ["library_versions", "to_jsonable", "write_json", "write_text"]
 
 def library_versions() -> dict:
     """Versions of the libraries results depend on, the git commit (and whether the
-    code under graspsim/ and experiments/ differs from it) and the host."""
+    code under graspsim/ and experiments/ differs from it), the host and the BLAS kernels
+    it ran (:func:`graspsim._blas.blas_cores`)."""
     import importlib.metadata as md
 
     out = {"python": sys.version.split()[0], "platform": platform.platform()}
@@ -29,6 +30,9 @@ def library_versions() -> dict:
         except md.PackageNotFoundError:
             out[pkg] = None
     out.update(git_state(Path(__file__).resolve().parents[2]))
+    from graspsim._blas import blas_cores
+
+    out["blas"] = blas_cores()  # the BLAS kernels: results repeat to the bit only on the same ones (graspsim._blas)
     out["date"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     return out
 

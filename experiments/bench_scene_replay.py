@@ -26,6 +26,7 @@ and plan records have the same fields.
     python experiments/bench_scene_replay.py --object-set household-heldout --kind pile \
         --seeds 5 --first-seed 1 --walk-seeds 1 --scenes 8 --db /work/runs/s19/fsdb
     python experiments/bench_scene_replay.py --frames OUT/frames.pkl --rounds 3 --db /work/runs/s19/fsdb
+    python experiments/bench_scene_replay.py --frames OUT/frames.pkl --unseen-margin 0.03 --db /work/runs/s19/fsdb
     python experiments/bench_scene_replay.py --quick --out results/bench_scene_replay-quick
 """
 
@@ -63,6 +64,9 @@ class Config(E10Cases):
     scenes: int = opt(4, "scenes walked per seed (E10's scenes 0, 1, ... of each)")
     frames: str = opt("", "replay this capture (OUT/frames.pkl of an earlier run) instead of capturing")
     rounds: int = opt(2, "timed replays of every frame")
+    unseen_margin: float | None = opt(None, "the robust score's margin [m] against an object's unseen back, in the "
+                                      "episodes captured and in every frame replayed (E10's --unseen-margin; "
+                                      "none: the settings each frame was captured with)")
     QUICK: ClassVar[dict] = {"kind": "packed", "objects": 2, "seeds": 1, "scenes": 1, "object_set": "primitives",
                              "quick_maps": True, "rounds": 1}
 
@@ -93,7 +97,7 @@ def capture(cfg: Config, db) -> tuple[list[tuple[np.ndarray, dict]], list[str]]:
         return sp
 
     config = _clutter_config({"objects": cfg.objects, "kind": cfg.kind, "noise": cfg.noise, "ablation": None,
-                              "object_set": cfg.object_set})
+                              "object_set": cfg.object_set}, cfg.unseen_margin)
     seeds = benchmark_seeds(cfg.seed, cfg.seeds)[cfg.first_seed:cfg.first_seed + cfg.walk_seeds]
     with mock.patch.object(clutter, "plan_scene", recorded):
         for sd in seeds:
@@ -115,13 +119,16 @@ def _digest(sp) -> str:
     return hashlib.sha1(json.dumps(rows).encode()).hexdigest()[:12]
 
 
-def replay(frames: list[tuple[np.ndarray, dict]], db, rounds: int) -> dict:
-    """Each frame planned once untimed, then ``rounds`` times timed, in this process."""
+def replay(frames: list[tuple[np.ndarray, dict]], db, rounds: int, unseen_margin: float | None = None) -> dict:
+    """Each frame planned once untimed, then ``rounds`` times timed, in this process;
+    ``unseen_margin``: each frame's settings with that margin (the path of E10's
+    ``--unseen-margin``, :func:`~graspsim.planning.scene_config.with_unseen_margin`), None: as captured."""
     from graspsim.planning.scene import plan_scene
+    from graspsim.planning.scene_config import with_unseen_margin
 
     def one(points, kw):
         kw = {**kw, "rng": copy.deepcopy(kw["rng"]), "previous": copy.deepcopy(kw.get("previous")),
-              "config": replace(kw["config"], workers=1)}
+              "config": with_unseen_margin(replace(kw["config"], workers=1), unseen_margin)}
         c0, w0 = time.process_time(), time.perf_counter()
         sp = plan_scene(points, db=db, **kw)
         return sp, time.process_time() - c0, time.perf_counter() - w0
@@ -167,7 +174,7 @@ def run(cfg: Config, out: Path) -> dict:
             pickle.dump(frames, fh)
     if not frames:
         raise SystemExit("no frame was captured: every episode ended before its first plan")
-    got = replay(frames, db, cfg.rounds)
+    got = replay(frames, db, cfg.rounds, cfg.unseen_margin)
     # a faithful capture: each frame replayed plans as the episode's own call did
     unlike = None if live is None else int(sum(a != b for a, b in zip(live, got["digests"])))
     return {"frames_file": source, "episode_unlike_replay": unlike, **got}

@@ -1305,6 +1305,31 @@ def test_study_timestep_simulates_each_grasp_at_every_step_then_executes_it_as_r
         assert len(v["changed"]) == sum(r["again"][key] != r["cause"] for r in rows)
 
 
+def test_bench_scene_replay_gives_every_frame_the_margin_asked_for():
+    """``--unseen-margin`` reaches the planner of every frame replayed, by E10's path
+    (``with_unseen_margin``), and without it each frame keeps the settings it was captured with."""
+    import types
+    from unittest import mock
+
+    from graspsim.planning.scene_config import SceneConfig, with_unseen_margin
+
+    bench = _load("bench_scene_replay")
+    seen = []
+
+    def plan(points, *, db, config, **kw):
+        seen.append((config.workers, config.planner.robust.unseen_margin))
+        return types.SimpleNamespace(grasps=[], segments=[], timing={})
+
+    captured = with_unseen_margin(SceneConfig(), 0.01)
+    frames = [(np.zeros((3, 3)), {"config": captured, "rng": np.random.default_rng(0), "previous": None})] * 2
+    with mock.patch("graspsim.planning.scene.plan_scene", plan):
+        bench.replay(frames, None, 1, unseen_margin=0.03)
+        assert seen == [(1, 0.03)] * 4  # an untimed and a timed plan of each frame, in this process
+        seen.clear()
+        bench.replay(frames, None, 1)
+    assert seen == [(1, 0.01)] * 4
+
+
 @pytest.mark.slow
 def test_bench_scene_replay_quick(tmp_path):
     """A capture of E10's frames replays as the episode planned them (every frame, every

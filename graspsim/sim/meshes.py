@@ -48,8 +48,11 @@ and the limit is wall-clock time.
 
 Every caller in graspsim uses the default :class:`CoacdParams` -- ``trial --mesh``, a
 user's folder of scene meshes and the meshes shipped for scenes alike: since the limit is
-CPU time, the default already gives the same model on every machine, and it keeps a first
-use to seconds per mesh (without a limit CoACD took 10-50 minutes for the shipped Lego
+CPU time, the default gives the same model on an idle and a loaded machine, and on a faster or
+a slower CPU so long as no mesh needs nearly the limit (a CPU is not a clock: one a third
+slower spends a third more CPU seconds; the slowest shipped mesh that finishes took 8.7 s of
+the 15 on the slower of two hosts measured, the three that fall back need minutes), and it
+keeps a first use to seconds per mesh (without a limit CoACD took 10-50 minutes for the shipped Lego
 brick, can and mug on a loaded machine). The price, measured on the shipped household set:
 9 of its 12 meshes get CoACD's parts or are convex (the duck among them, since closed meshes
 skip the remeshing), and the open parts of the Lego brick, the mug (its handle; its closed

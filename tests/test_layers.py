@@ -22,7 +22,7 @@ PKG = Path(__file__).resolve().parents[1] / "graspsim"
 #: input files, JSON, installed files, the cache folders, the GL backend, progress bars, seeds, frames, executors,
 #: statistics, the contact models' names).
 BASE = frozenset({"errors", "checks", "_version", "_atomic", "_files", "_jsonable", "_resources", "_cache", "_gl",
-                  "_progress", "seeding", "transforms", "executors", "stats", "contacts"})
+                  "_blas", "_progress", "seeding", "transforms", "executors", "stats", "contacts"})
 
 
 def _above(*parts: str) -> frozenset[str]:

@@ -7,11 +7,11 @@ last bits between two machines. A clutter episode amplifies such bits (a score t
 an object that settles one way or the other), so the same command, seed and database gave
 different episodes on two machines: E10's household-tuning piles (25 scenes, 5 seeds x 5,
 no execution error, ``3dc1ce2``'s code, the same map database), run on two hosts, had the
-same grasp scores in 5 of the 25 episodes and the same outcomes in 21. On one host, the
-only change OpenBLAS's Sandybridge kernels instead of the Haswell ones it picks
-(``OPENBLAS_CORETYPE=Sandybridge``) left the scores alike in 7 of the 25 and the outcomes
-in 22, while disabling numpy's own AVX2 loops (``NPY_DISABLE_CPU_FEATURES=X86_V3``) or
-numba's host-specific code (``NUMBA_CPU_NAME=generic``) changed nothing
+same grasp scores in 5 of the 25 episodes and the same outcomes in 21. On one host, with
+one thing changed at a time: OpenBLAS's Sandybridge kernels instead of the Haswell ones it
+picks (``OPENBLAS_CORETYPE=Sandybridge``) left the scores alike in 7 of the 25 and the
+outcomes in 22, while numpy's own AVX2 loops turned off (``NPY_DISABLE_CPU_FEATURES=X86_V3``)
+or numba's code for no particular CPU (``NUMBA_CPU_NAME=generic``) changed nothing
 (docs/results.md, *Episodes across machines*).
 
 OpenBLAS reads ``OPENBLAS_CORETYPE`` once, when it loads (numpy's first import). So
@@ -20,9 +20,9 @@ every x86-64 CPU since 2013 has (Intel Haswell, AMD Zen and later) -- on such a 
 Linux, unless the variable is set already (set it yourself to choose other kernels). The
 ``graspsim`` command and the experiments import graspsim first; a process that imported
 numpy first keeps the kernels OpenBLAS picked, and :func:`blas_cores` says which (the
-experiments record it). MuJoCo, the depth renderer and numba were not seen to depend on
-the CPU here, but only one CPU kind was at hand to check: a result is reproduced to the
-episode on an x86-64 machine with the same library versions and BLAS kernels.
+experiments record it). MuJoCo, the depth renderer and CoACD are compiled code that could
+part on another CPU as well; with one CPU kind at hand that was not tested. So a result is
+reproduced to the episode where the library versions, the BLAS kernels and the CPU kind match.
 """
 
 from __future__ import annotations

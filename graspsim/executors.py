@@ -114,6 +114,9 @@ class RayExecutor(Executor):
                 kw["num_cpus"] = num_cpus or os.cpu_count()
             else:
                 kw["address"] = address
+            blas = os.environ.get("OPENBLAS_CORETYPE")  # graspsim._blas's pin (or the user's choice)
+            if blas:  # a local instance's workers inherit it; a cluster's are told (every node must run them)
+                kw["runtime_env"] = {"env_vars": {"OPENBLAS_CORETYPE": blas}}
             os.environ.setdefault("RAY_AUTH_MODE", "disabled")
             ray.init(**kw)
             self._owns = True

@@ -62,3 +62,23 @@ def test_bad_executor_and_missing_ray(monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)
     with pytest.raises(DependencyNotInstalled, match="pip install"):
         make_executor("ray")
+
+
+def test_ray_workers_get_the_pinned_blas_kernels(monkeypatch):
+    """A Ray cluster's workers are told graspsim._blas's OPENBLAS_CORETYPE (they import
+    numpy before any task runs, so graspsim cannot pin them there)."""
+    import types
+
+    from graspsim.executors import RayExecutor
+
+    seen = {}
+    fake = types.SimpleNamespace(is_initialized=lambda: False, init=lambda **kw: seen.update(kw))
+    monkeypatch.setitem(sys.modules, "ray", fake)
+    monkeypatch.setenv("OPENBLAS_CORETYPE", "Haswell")
+    RayExecutor(address="ray://head:10001")
+    assert seen["address"] == "ray://head:10001"
+    assert seen["runtime_env"] == {"env_vars": {"OPENBLAS_CORETYPE": "Haswell"}}
+    seen.clear()
+    monkeypatch.delenv("OPENBLAS_CORETYPE")
+    RayExecutor(num_cpus=1)
+    assert "runtime_env" not in seen

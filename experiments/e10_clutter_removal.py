@@ -135,9 +135,10 @@ class Config:
     shadow_depth: float | None = opt(None, "in piles, the depth [m] behind each neighbour's seen points, along the "
                                      "camera's rays, kept clear as an obstacle (graspsim scene --shadow-depth; 0: off; "
                                      "none: the scene planner's default, the measured SHADOW_DEPTH)")
-    feature_grasps: str = opt("apart", "where a segment's planning adds grasps on its cloud's own features "
-                              "(graspsim scene --feature-grasps; SceneConfig.feature_grasps): apart, the default, "
-                              "on packed tables only", choices=FEATURE_GRASPS)
+    feature_grasps: str = opt("fallback", "where a segment's planning adds grasps on its cloud's own features "
+                              "(graspsim scene --feature-grasps; SceneConfig.feature_grasps): fallback, the default, "
+                              "on packed tables, and in a pile's frame whose parts give no grasp at all; apart: on "
+                              "packed tables only", choices=FEATURE_GRASPS)
     plan_all: bool = opt(False, "plan every object at every look (graspsim scene --plan-all; default: the highest "
                          "first until a grasp's robust score reaches ClutterConfig.good_enough)")
     contacts: str = opt(DEFAULT_CONTACTS, "the simulation's contact model (graspsim.sim.contact_model; "

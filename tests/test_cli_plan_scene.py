@@ -187,7 +187,7 @@ def test_the_feature_grasps_flag_reaches_the_planner(tmp_path, capsys, db):
 
     for command in ("scene", "plan-scene"):
         head = [command] if command == "scene" else [command, "c.npy", "-o", "g.json"]
-        for flag, want in (([], "apart"), *((["--feature-grasps", w], w) for w in FEATURE_GRASPS)):
+        for flag, want in (([], "fallback"), *((["--feature-grasps", w], w) for w in FEATURE_GRASPS)):
             args = build_parser().parse_args([*head, *flag])
             assert scene_planning_from_args(args, SceneConfig()).feature_grasps == want, (command, flag)
     rng = np.random.default_rng(1)
@@ -196,7 +196,7 @@ def test_the_feature_grasps_flag_reaches_the_planner(tmp_path, capsys, db):
     f, out = tmp_path / "cloud.npy", tmp_path / "grasps.json"
     np.save(f, np.r_[table, box])
     code, _, _ = _run(capsys, f, "-o", out, "--db", db.root, *FAST_FLAGS)
-    assert code == 0 and json.loads(out.read_text())["feature_grasps"] == "apart"
+    assert code == 0 and json.loads(out.read_text())["feature_grasps"] == "fallback"
     code, _, _ = _run(capsys, f, "-o", out, "--feature-grasps", "never", "--db", db.root, *FAST_FLAGS)
     assert code == 0 and json.loads(out.read_text())["feature_grasps"] == "never"
 

@@ -1042,13 +1042,15 @@ def test_e10_seen_between_reaches_the_planner(tmp_path, monkeypatch, capsys):
 
 def test_e10_feature_grasps_reach_the_planner(tmp_path, monkeypatch, capsys):
     """E10 --feature-grasps reaches every scene's settings through the scene commands' path
-    (with_feature_grasps): by default (apart) feature grasps on packed tables only; always
-    and never as said; a bad value is refused."""
+    (with_feature_grasps): by default (fallback) feature grasps on packed tables, and in piles
+    only as a frame's last resort (not in the segments' settings); apart, always and never as
+    said; a bad value is refused."""
     mod = _load("e10_clutter_removal")
     common = sys.modules["_common"]
     seen = []
     monkeypatch.setattr(mod, "run_benchmark", lambda *a, config, **k: seen.append(config) or [])
-    for argv, want in (([], {"pile": False, "packed": True}), (["--feature-grasps", "always"], {"pile": True,
+    for argv, want in (([], {"pile": False, "packed": True}), (["--feature-grasps", "apart"], {"pile": False,
+                       "packed": True}), (["--feature-grasps", "always"], {"pile": True,
                        "packed": True}), (["--feature-grasps", "never"], {"pile": False, "packed": False})):
         cfg, _ = common.parse_config(mod.Config, mod.__file__, ["--object-sets", "primitives", "--scenes", "1",
                                                                 "--seeds", "1", "--kinds", "pile", "packed", *argv])
@@ -1057,6 +1059,7 @@ def test_e10_feature_grasps_reach_the_planner(tmp_path, monkeypatch, capsys):
         for c in conds:
             mod._block((c, cfg, str(tmp_path / "db"), 0, 1))
             assert (seen[-1].planning.segment_features is not None) == want[c["kind"]], (argv, c)
+            assert seen[-1].planning.feature_grasps == (argv[1] if argv else "fallback")
     with pytest.raises(SystemExit):
         common.parse_config(mod.Config, mod.__file__, ["--object-sets", "primitives", "--feature-grasps", "x"])
     assert "--feature-grasps" in capsys.readouterr().err

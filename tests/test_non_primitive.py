@@ -170,18 +170,19 @@ def test_scene_planning_keeps_no_cloud_filter_and_feature_grasps_only_where_obje
     scene = SceneConfig()
     assert scene.planner.clear_observed is False and scene.planner.features is not None
     assert PlannerConfig().clear_observed is True and PlannerConfig().features is not None
-    assert scene.feature_grasps == "apart" and FEATURE_GRASPS == ("apart", "always", "never")
+    assert scene.feature_grasps == "fallback" and FEATURE_GRASPS == ("apart", "fallback", "always", "never")
     on = {(when, gap): with_feature_grasps(replace(scene, min_gap=gap), when).segment_features is not None
           for when in FEATURE_GRASPS for gap in (None, 0.01)}
     assert on == {("apart", None): False, ("apart", 0.01): True, ("always", None): True, ("always", 0.01): True,
-                  ("never", None): False, ("never", 0.01): False}
+                  ("never", None): False, ("never", 0.01): False,  # fallback: where apart, else only when stuck
+                  ("fallback", None): False, ("fallback", 0.01): True}
     assert with_feature_grasps(scene, None) is scene
     off = replace(scene, planner=replace(scene.planner, features=None), feature_grasps="always")
     assert off.segment_features is None  # no settings: none, whatever feature_grasps says
     for bad in ("sometimes", "", 1, None):
-        with pytest.raises(InvalidParameterError, match="feature_grasps must be one of apart, always, never"):
+        with pytest.raises(InvalidParameterError, match="feature_grasps must be one of apart, fallback, always, never"):
             SceneConfig(feature_grasps=bad)
-    with pytest.raises(InvalidParameterError, match="feature grasps must be one of apart, always, never"):
+    with pytest.raises(InvalidParameterError, match="feature grasps must be one of apart, fallback, always, never"):
         with_feature_grasps(scene, "Always")
 
 
@@ -190,7 +191,8 @@ def test_a_bowl_on_a_table_gets_grasps_in_a_scene_from_its_features_alone(db):
     its one sphere gives no grasp; feature grasps (``PlannerConfig.features``), which a scene
     planner makes where objects are known to stand apart (a ``min_gap``), give it some that
     score > 0, each closing on seen points of the bowl; with no ``min_gap`` (objects may
-    touch: a pile), or with ``feature_grasps="never"``, none."""
+    touch: a pile) and ``feature_grasps="apart"``, or with ``"never"``, none; with ``"fallback"``
+    (the default) in a pile too, as the frame's parts give no grasp at all."""
     from graspsim.planning.scene import plan_scene
     from graspsim.planning.scene_config import SceneConfig
 
@@ -202,9 +204,15 @@ def test_a_bowl_on_a_table_gets_grasps_in_a_scene_from_its_features_alone(db):
     pts = np.r_[table[np.linalg.norm(table[:, :2], axis=1) > 0.08], seen]
     plans = {}
     for name, cfg in {"apart": SceneConfig(workers=1, min_gap=0.01),
-                      "may touch": SceneConfig(workers=1),
-                      "never": SceneConfig(workers=1, min_gap=0.01, feature_grasps="never")}.items():
+                      "may touch": SceneConfig(workers=1, feature_grasps="apart"),
+                      "never": SceneConfig(workers=1, min_gap=0.01, feature_grasps="never"),
+                      "fallback": SceneConfig(workers=1, feature_grasps="fallback"),
+                      "lazy fallback": SceneConfig(workers=1, feature_grasps="fallback", good_enough=0.5)}.items():
         plans[name] = plan_scene(pts, db=db, rng=np.random.default_rng(5), config=cfg, viewpoint=eye)
+    for name in ("fallback", "lazy fallback"):  # objects may touch, but the frame's parts give no grasp at all
+        fb = plans[name]
+        assert any(g.score > 0 for g in fb.grasps) and {g.source for g in fb.grasps} == {"features"}, name
+        assert not any(s.status == "deferred" for s in fb.segments), name
     on = plans["apart"]
     for name in ("may touch", "never"):
         off = plans[name]

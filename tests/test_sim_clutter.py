@@ -110,7 +110,7 @@ def test_cli_scene_json_and_renders(tmp_path, capsys, db):
     assert s["contacts"] == "stiff"  # the simulation's contact model, unless --contacts
     assert s["grasp_success_rate"] == s["successes"] / s["attempts"] and s["cleared_rate"] == s["removed"] / 2
     assert len(s["details"]) == 1 and s["details"][0]["attempts"] == s["attempts"]
-    assert s["feature_grasps"] == "apart"  # feature grasps where objects stand apart, unless --feature-grasps
+    assert s["feature_grasps"] == "fallback"  # where objects stand apart or nothing else gives one (--feature-grasps)
     steps = s["details"][0]["steps"]
     assert sum(r["grasps"] for r in s["per_source"].values()) == s["attempts"] == len(steps)
     assert {st["source"] for st in steps} == set(s["per_source"]) <= {"box", "cylinder", "sphere", "cone",

@@ -234,15 +234,16 @@ def _points_value(args, name: str, measured: int) -> int | None:
 
 
 def add_feature_grasps_flag(p) -> None:
-    """``--feature-grasps {apart,always,never}``, where a scene segment's planning adds
+    """``--feature-grasps {apart,fallback,always,never}``, where a scene segment's planning adds
     grasps on its cloud's own features (``SceneConfig.feature_grasps``, read with
     :func:`scene_planning_from_args`; the choices are
     :data:`~graspsim.planning.scene_config.FEATURE_GRASPS`, written out: building the
     parser stays light)."""
-    p.add_argument("--feature-grasps", choices=["apart", "always", "never"], default=None,
+    p.add_argument("--feature-grasps", choices=["apart", "fallback", "always", "never"], default=None,
                    help="where an object whose fitted parts give too few grasps (a bowl seen as one sphere, a blob "
-                   "seen as a plate) also gets grasps on its cloud's own features: apart (default) only where "
-                   "objects are known to stand apart (--min-gap, or a packed scene), always, or never "
+                   "seen as a plate) also gets grasps on its cloud's own features: fallback (default) where "
+                   "objects are known to stand apart (--min-gap, or a packed scene) and elsewhere when no object "
+                   "gets a grasp otherwise, apart only where they stand apart, always, or never "
                    "(SceneConfig.feature_grasps, docs/scenes.md)")
 
 

@@ -298,6 +298,25 @@ def _identify_new(segs: list[np.ndarray], olds: list, rng: np.random.Generator, 
     return [(o.ident, o.why) if o is not None else made[k] for k, o in enumerate(olds)]
 
 
+def _with_features(done: list, segs: list, idents: list, obstacles, seen, db, cfg: SceneConfig, table,
+                   viewpoint) -> list:
+    """``done`` with every identified segment that holds no grasp scoring > 0 planned again
+    with grasps on its cloud's own features (``SceneConfig.feature_grasps`` ``"fallback"``: a
+    frame planned afresh -- no segment's plan reused from the previous frame, whose remembered
+    scores a fresh plan could better -- whose parts give no grasp at all, which would end a
+    clutter-removal episode with objects left); the others as they were."""
+    again = [k for k, (p, g) in enumerate(done) if idents[k][0] is not None and not any(x.score > 0 for x in g)]
+    if not again:
+        return done
+    fcfg = replace(cfg, feature_grasps="always", good_enough=None)
+    out = list(done)
+    with closing(plan_batches([[(segs[k], k, idents[k][0], obstacles[k], db, fcfg, table, viewpoint, seen[k])
+                                for k in again]], db, fcfg)) as stream:
+        for k, d in zip(again, next(stream)):
+            out[k] = d
+    return out
+
+
 def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: SceneConfig | None = None,
                labels: np.ndarray | None = None, previous: ScenePlan | None = None,
                viewpoint: np.ndarray | None = None, felt: np.ndarray | None = None) -> ScenePlan:
@@ -362,6 +381,9 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
             for k, d in zip(batch, next(stream)):
                 done[k] = d
                 best = max([best, *(g.score for g in d[1])])
+    if (best <= 0.0 and cfg.feature_grasps == "fallback" and cfg.segment_features is None
+            and not any(p.status == "reused" for p, _ in done)):  # planned afresh: nothing else gives a grasp
+        done = _with_features(done, segs, idents, obstacles, seen, db, cfg, table, viewpoint)
     plans, grasps, memory = [], [], []
     for k, (p, g) in enumerate(done):
         plans.append(p)

@@ -81,13 +81,17 @@ LAZY_BATCH = 2
 
 #: Where a scene segment's planning adds grasps on its cloud's own features (``PlannerConfig.features``,
 #: when its parts give too few): ``"apart"`` only in scenes whose objects are known to stand apart
-#: (``SceneConfig.min_gap`` given: a packed table), where a segment is one whole object; ``"always"``;
-#: ``"never"``. ``"apart"`` is the default, from E10's tuning sets (docs/results.md, "Feature grasps in
-#: scenes"): on packed tables they removed more objects (a rounded blob seen from one side is fitted as
-#: a plate too wide to grasp; a bowl as a sphere), in piles, where a segment can be two touching objects
-#: or a part of one, their grasps closed on nothing or dropped more often and the ten-object piles
-#: lost objects and planning time.
-FEATURE_GRASPS = ("apart", "always", "never")
+#: (``SceneConfig.min_gap`` given: a packed table), where a segment is one whole object; ``"fallback"``
+#: (the default) as ``"apart"``, and in any other scene for a frame planned afresh whose parts give no
+#: grasp at all (every segment without a grasp is planned again with them: a pile that would otherwise
+#: end with objects left and nothing planned); ``"always"``; ``"never"``. From E10's tuning sets
+#: (docs/results.md, "Feature grasps in scenes", "Feature grasps as a pile's fallback"): on packed
+#: tables they removed more objects (a rounded blob seen from one side is fitted as a plate too wide to
+#: grasp; a bowl as a sphere); in piles, where a segment can be two touching objects or a part of one,
+#: their grasps closed on nothing or dropped more often and the ten-object piles lost objects and
+#: planning time -- but as the last resort of a frame with no other grasp they removed most of the
+#: objects that would have been left.
+FEATURE_GRASPS = ("apart", "fallback", "always", "never")
 
 #: A scene grasp whose closing region holds fewer than this many of its own segment's points
 #: (``SceneConfig.sparse_between``; the count ``PlannerConfig.seen_between`` floors, at the opening
@@ -174,7 +178,8 @@ class SceneConfig:
     remembered grasps are under it is planned again once a neighbour near it is gone
     (:func:`~graspsim.planning.scene_segments.settled_plan`); feature_grasps: where a segment's
     planning adds grasps on its cloud's own features (the planner's ``features``, when the parts give too
-    few): one of :data:`FEATURE_GRASPS`, by default ``"apart"``, in scenes with a ``min_gap`` only;
+    few): one of :data:`FEATURE_GRASPS`, by default ``"fallback"``: in scenes with a ``min_gap``, and
+    in others only for a frame planned afresh whose parts give no grasp at all;
     sparse_between: a grasp closing on fewer of its segment's points than this keeps
     :data:`SPARSE_SHARE` of its robust score (:data:`SPARSE_BETWEEN`, the default; 0: off);
     shadow_depth [m]: where objects may touch (no ``min_gap``), with the camera's viewpoint
@@ -207,7 +212,7 @@ class SceneConfig:
     up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
     workers: int | None = None
     good_enough: float | None = None
-    feature_grasps: str = "apart"
+    feature_grasps: str = "fallback"
     sparse_between: int = SPARSE_BETWEEN
     shadow_depth: float = SHADOW_DEPTH
 
@@ -253,8 +258,11 @@ class SceneConfig:
     @property
     def segment_features(self) -> FeatureConfig | None:
         """The feature-grasp settings a segment of this scene is planned with: the planner's
-        ``features`` where :attr:`feature_grasps` applies to this scene, else None."""
-        on = self.feature_grasps == "always" or (self.feature_grasps == "apart" and self.min_gap is not None)
+        ``features`` where :attr:`feature_grasps` applies to this scene, else None (``"fallback"``
+        outside a scene with a ``min_gap``: :func:`~graspsim.planning.scene.plan_scene` turns them
+        on for a frame with no other grasp)."""
+        apart = self.feature_grasps in ("apart", "fallback") and self.min_gap is not None
+        on = self.feature_grasps == "always" or apart
         return self.planner.features if on else None
 
     @property
@@ -362,8 +370,9 @@ def with_feature_grasps(scene: SceneConfig, when: str | None) -> SceneConfig:
     if when is None:
         return scene
     if when not in FEATURE_GRASPS:
-        raise InvalidParameterError(f"feature grasps must be one of {', '.join(FEATURE_GRASPS)} (the default, apart: "
-                                    f"only where objects are known to stand apart), got {when!r}")
+        raise InvalidParameterError(f"feature grasps must be one of {', '.join(FEATURE_GRASPS)} (the default, "
+                                    f"fallback: where objects are known to stand apart, elsewhere only when "
+                                    f"nothing else gives a grasp), got {when!r}")
     return replace(scene, feature_grasps=when)
 
 

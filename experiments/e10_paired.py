@@ -6,7 +6,10 @@ Each argument is a published summary: a file (``experiments/reported/KEY.json`` 
 ``summary.json``) or ``REV:PATH``, the file as committed at git revision REV. Episodes are
 paired by condition (object set, kind, objects, execution error, ablation), seed and
 scene; a condition in only one of the runs is named and skipped. *Same*: the attempts'
-causes in order and the objects removed are equal (the grasps themselves may differ).
+causes in order and the objects removed are equal (the grasps themselves may differ). Of
+the episodes that changed, those the earlier run had ended with no grasp planned are
+counted apart: a change that only acts where a frame has no grasp (the scene planner's
+feature-grasp fallback) can change those alone, the rest is the machine or the code.
 
     python experiments/e10_paired.py --base 759a455:experiments/reported/e10_clutter_removal.json \\
         --new experiments/reported/e10_clutter_removal.json
@@ -70,13 +73,16 @@ def compare(base: dict, new: dict) -> tuple[list[dict], list[str]]:
         ea = {(e["seed"], e["scene"]): e for e in a[key]["episodes"]}
         eb = {(e["seed"], e["scene"]): e for e in b[key]["episodes"]}
         pairs = [(ea[k], eb[k]) for k in ea if k in eb]
-        same = sum(x["causes"] == y["causes"] and x["removed"] == y["removed"] for x, y in pairs)
+        alike = [x["causes"] == y["causes"] and x["removed"] == y["removed"] for x, y in pairs]
+        same = sum(alike)
+        ended = [x.get("stop") == "no_grasp" for x, _ in pairs]
         tot = {f"{w}_{q}": sum(p[i][q] for p in pairs) for i, w in ((0, "base"), (1, "new"))
                for q in ("successes", "attempts", "removed", "placed")}
         rows.append({"condition": condition_label(b[key]), "paired": len(pairs), "same": same,
                      "more_removed": sum(y["removed"] > x["removed"] for x, y in pairs),
                      "fewer_removed": sum(y["removed"] < x["removed"] for x, y in pairs),
                      "otherwise": sum(y["removed"] == x["removed"] and x["causes"] != y["causes"] for x, y in pairs),
+                     "base_no_grasp": sum(ended), "changed_no_grasp": sum(e and not s for e, s in zip(ended, alike)),
                      **tot})
     only = [condition_label(c) for k, c in {**a, **b}.items() if (k in a) != (k in b)]
     return rows, only
@@ -87,11 +93,13 @@ def _rate(k: int, n: int) -> str:
 
 
 def table(rows: list[dict]) -> str:
-    L = ["| condition | paired episodes | same | more removed | fewer removed | as many, otherwise | GSR before -> "
-         "after | DR before -> after |", "|---|---|---|---|---|---|---|---|"]
+    L = ["| condition | paired episodes | same | more removed | fewer removed | as many, otherwise | changed, of the "
+         "before run's no-grasp ends | GSR before -> after | DR before -> after |",
+         "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         L.append(f"| {r['condition']} | {r['paired']} | {r['same']} | {r['more_removed']} | {r['fewer_removed']} | "
-                 f"{r['otherwise']} | {_rate(r['base_successes'], r['base_attempts'])} -> "
+                 f"{r['otherwise']} | {r['changed_no_grasp']} of {r['base_no_grasp']} | "
+                 f"{_rate(r['base_successes'], r['base_attempts'])} -> "
                  f"{_rate(r['new_successes'], r['new_attempts'])} | {_rate(r['base_removed'], r['base_placed'])} -> "
                  f"{_rate(r['new_removed'], r['new_placed'])} |")
     L.append(f"\nIn all: {sum(r['same'] for r in rows)} of {sum(r['paired'] for r in rows)} paired episodes the same.")

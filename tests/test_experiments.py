@@ -1250,14 +1250,17 @@ def test_e10_score_bands_counts_each_grasp_in_its_band_source_and_object(tmp_pat
 
 def test_e10_paired_counts_same_better_and_worse_episodes(tmp_path, capsys):
     """e10_paired pairs two runs' episodes by condition, seed and scene: same (causes and
-    removed equal), more or fewer removed, as many by other attempts; a condition in one
-    run only is named and skipped; a missing file is one line."""
+    removed equal), more or fewer removed, as many by other attempts, the changed ones among
+    the episodes the earlier run ended with no grasp; a condition in one run only is named
+    and skipped; a missing file is one line."""
     mod = _load("e10_paired")
 
     def cond(kind, eps):
         return {"object_set": "s", "kind": kind, "objects": 5, "noise": "none", "ablation": None,
                 "episodes": [{"seed": 1, "scene": i, "causes": c, "removed": r, "placed": 5,
-                              "successes": c.count("success"), "attempts": len(c)} for i, (c, r) in enumerate(eps)]}
+                              "successes": c.count("success"), "attempts": len(c),
+                              "stop": "cleared" if r == 5 else "no_grasp" if c[-1] == "success" else "failures"}
+                             for i, (c, r) in enumerate(eps)]}
 
     ok, fail = "success", "no_contact"
     base = {"conditions": [cond("pile", [([ok] * 5, 5), ([ok, fail, fail], 1), ([ok] * 5, 5), ([fail, ok], 1)]),
@@ -1267,6 +1270,7 @@ def test_e10_paired_counts_same_better_and_worse_episodes(tmp_path, capsys):
     (r,) = rows
     assert (r["paired"], r["same"], r["more_removed"], r["fewer_removed"], r["otherwise"]) == (4, 1, 1, 1, 1)
     assert r["base_removed"] == r["new_removed"] == 12 and r["new_attempts"] == 15
+    assert (r["base_no_grasp"], r["changed_no_grasp"]) == (1, 1)  # [fail, ok] ended with no grasp, then changed
     assert only == ["s packed of 5, no execution error"]
     a, b = tmp_path / "a.json", tmp_path / "b.json"
     a.write_text(json.dumps(base))

@@ -213,6 +213,11 @@ def test_a_bowl_on_a_table_gets_grasps_in_a_scene_from_its_features_alone(db):
         fb = plans[name]
         assert any(g.score > 0 for g in fb.grasps) and {g.source for g in fb.grasps} == {"features"}, name
         assert not any(s.status == "deferred" for s in fb.segments), name
+    # planned with a previous frame (its identifications reused): not afresh, so no fallback -- a
+    # clutter loop plans the frame afresh before it gives up
+    again = plan_scene(pts, db=db, rng=np.random.default_rng(5), config=SceneConfig(workers=1), viewpoint=eye,
+                       previous=plans["may touch"])
+    assert again.segments and not any(g.score > 0 for g in again.grasps)
     on = plans["apart"]
     for name in ("may touch", "never"):
         off = plans[name]

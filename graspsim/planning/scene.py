@@ -302,9 +302,10 @@ def _with_features(done: list, segs: list, idents: list, obstacles, seen, db, cf
                    viewpoint) -> list:
     """``done`` with every identified segment that holds no grasp scoring > 0 planned again
     with grasps on its cloud's own features (``SceneConfig.feature_grasps`` ``"fallback"``: a
-    frame planned afresh -- no segment's plan reused from the previous frame, whose remembered
-    scores a fresh plan could better -- whose parts give no grasp at all, which would end a
-    clutter-removal episode with objects left); the others as they were."""
+    frame planned afresh -- no ``previous`` frame: a frame planned with one reuses its
+    identifications and plans, and a clutter-removal loop plans it afresh before it gives up
+    -- whose parts give no grasp at all, which would end the loop with objects left); the
+    others as they were."""
     again = [k for k, (p, g) in enumerate(done) if idents[k][0] is not None and not any(x.score > 0 for x in g)]
     if not again:
         return done
@@ -381,8 +382,7 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
             for k, d in zip(batch, next(stream)):
                 done[k] = d
                 best = max([best, *(g.score for g in d[1])])
-    if (best <= 0.0 and cfg.feature_grasps == "fallback" and cfg.segment_features is None
-            and not any(p.status == "reused" for p, _ in done)):  # planned afresh: nothing else gives a grasp
+    if best <= 0.0 and cfg.feature_grasps == "fallback" and cfg.segment_features is None and previous is None:
         done = _with_features(done, segs, idents, obstacles, seen, db, cfg, table, viewpoint)
     plans, grasps, memory = [], [], []
     for k, (p, g) in enumerate(done):

@@ -306,7 +306,7 @@ def _with_features(done: list, segs: list, idents: list, obstacles, seen, db, cf
     identifications and plans, and a clutter-removal loop plans it afresh before it gives up
     -- whose parts give no grasp at all, which would end the loop with objects left); the
     others as they were."""
-    again = [k for k, (p, g) in enumerate(done) if idents[k][0] is not None and not any(x.score > 0 for x in g)]
+    again = [k for k, (_, g) in enumerate(done) if idents[k][0] is not None and not any(x.score > 0 for x in g)]
     if not again:
         return done
     fcfg = replace(cfg, feature_grasps="always", good_enough=None)

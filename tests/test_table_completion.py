@@ -300,3 +300,46 @@ def test_an_axis_the_table_bounds_counts_as_measured_for_the_hidden_faces_rule(d
     assert checks._hidden_axes(block, T) is None
     axes = checks._hidden_axes(block, T, np.array([[0.0, 0.0, 1.0]]))
     assert axes is not None and len(axes) == 1 and abs(axes[0][0]) == pytest.approx(1.0)
+
+
+def test_an_object_seen_on_one_face_is_taken_as_deep_as_that_face_is_narrow(db):
+    """A standing carton seen on its front face alone is fitted as a plate whose depth the view
+    did not measure: the object behind the face is taken to be as deep as the face is narrow
+    (planner._face_depth, 44 mm here), and the scene planner scores its grasps with that as
+    its unseen margin where it is wider than the default. The same carton with its top seen
+    (its depth measured), an axis the table bounds, and a part that is not a box keep none."""
+    from graspsim.planning.observed import ObservedChecks
+    from graspsim.planning.planner import _face_depth, plan
+    from graspsim.primitives import Cylinder
+
+    rng = np.random.default_rng(5)
+    front = _carton(rng, top=False)
+    plate = Box(0.004, 0.044, 0.118)
+    T = np.eye(4)
+    T[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]  # the plate's x (its thickness) along y, the line of sight
+    T[:3, 3] = [0.0, -0.022 + 0.002, 0.066]
+
+    def checks(pts):
+        return ObservedChecks(pts, None, np.eye(4), viewpoint=EYE, noise=0.001, gripper=G, quality=None,
+                              cfg=PlannerConfig(hidden_depth=True))
+
+    assert _face_depth([plate], [T], [None], checks(front)) == pytest.approx(0.044)
+    assert _face_depth([plate], [T], [np.array([[0.0, 1.0, 0.0]])], checks(front)) == 0.0  # the table bounds it
+    whole = Box(0.044, 0.044, 0.118)
+    Tw = np.eye(4)
+    Tw[:3, 3] = [0.0, 0.0, 0.066]
+    assert _face_depth([whole], [Tw], [None], checks(_carton(rng))) == 0.0  # its top seen: the depth measured
+    assert _face_depth([Cylinder(0.02, 0.1)], [Tw], [None], checks(front)) == 0.0
+
+    # through the scene planner: the plan's robust settings carry the object's margin
+    scene = SceneConfig().planner
+    rng = np.random.default_rng(5)
+    front = _carton(rng, top=False)
+    ray = (front - EYE) / np.linalg.norm(front - EYE, axis=1, keepdims=True)
+    noisy = front + ray * rng.normal(0, 0.001, (len(front), 1))  # depth noise along the line of sight
+    got = plan(noisy, db=db, rng=np.random.default_rng(0), config=scene, viewpoint=EYE)
+    margin = got.map.meta.extra["observed"]["unseen_margin"]
+    assert margin > scene.robust.unseen_margin and margin == pytest.approx(0.044, abs=0.003)
+    top = _carton(rng)  # its top seen too: the depth measured, the settings' margin
+    got = plan(top + rng.normal(0, 0.0005, top.shape), db=db, rng=np.random.default_rng(0), config=scene, viewpoint=EYE)
+    assert got.map.meta.extra["observed"]["unseen_margin"] == scene.robust.unseen_margin

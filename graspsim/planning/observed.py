@@ -456,10 +456,15 @@ class ObservedChecks:
 
     def record(self, parts: int) -> dict:
         """The map's record of these checks (``extra`` entries); ``parts``: the parts
-        planned (the feature grasps' part index)."""
+        planned (the feature grasps' part index). ``unseen_margin``: the margin the object's
+        grasps were scored with (``RobustConfig.unseen_margin``: the settings', or the
+        object's own where the scene planner widened it for a face seen alone,
+        ``planner._face_depth``; the score bounds it further by the object's shadow and
+        thickness)."""
         f = self.cfg.features
         return {"observed": {"clear_observed": bool(self.cfg.clear_observed), "dropped": self.dropped,
                              "seen_depth": bool(self.cfg.seen_depth), "unseen_depth": self.unseen,
                              "seen_between": int(self.cfg.seen_between), "on_nothing": self.on_nothing,
-                             "contact_tolerance": self.contact_tolerance, "min_observed": self.min_observed},
+                             "contact_tolerance": self.contact_tolerance, "min_observed": self.min_observed,
+                             "unseen_margin": float(self.cfg.robust.unseen_margin)},
                 "features": None if f is None else {**f.to_dict(), "grasps": self.features or 0, "part": parts}}

@@ -164,8 +164,10 @@ class PlannerConfig:
         :func:`~graspsim.planning.table_completion.segment_depth`; a least depth: the faces
         along it count as measured for ``hidden_faces``, a grasp across it is still judged by
         ``seen_depth``; the count in ``extra["table"]["segment_depth"]``). Its far face moves
-        away from the camera, not through the table. False (default; single-object
-        planning): parts as identified. Scene planning turns it on.
+        away from the camera, not through the table. With the robust score's unseen margin
+        on, an object with such a part is taken to be as deep as the part's seen face is
+        narrow, and that is its margin where it is wider (:func:`_face_depth`). False
+        (default; single-object planning): parts as identified. Scene planning turns it on.
     merge_boxes: robust identification of a single view: two box parts whose axes agree,
         the volume of their union's box neither fills in the camera's shadow, are merged
         into that box (a carton the fit cut into parallel slabs, whose
@@ -569,6 +571,43 @@ def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedCheck
     return out_p, out_T, out_b
 
 
+#: [m] The most :func:`_face_depth` takes an object seen on one face to reach behind it: the widest
+#: unseen margin a scene takes (``planning.scene_config.MAX_UNSEEN_MARGIN``).
+MAX_FACE_DEPTH = 0.1
+
+
+def _face_depth(prims: list, T_cloud: list, bounded: list, observed: ObservedChecks) -> float:
+    """[m] How deep an object may reach behind a box part that a single view saw on one
+    face only (an axis no face along it was seen: :meth:`ObservedChecks.unmeasured_axes`,
+    the parts as fitted; an axis the table bounds, ``bounded``, left out: :func:`_deepened`'s axes):
+    the narrower of that face's two extents (the widest such over the parts; at most
+    :data:`MAX_FACE_DEPTH`); 0 when every box part's axes were measured. The fit makes such
+    a part a plate a few mm deep (its depth then the view's least, ``hidden_depth``); the
+    object behind the face is taken to be as deep as the face is narrow. With the scene
+    planner's unseen margin on, it is the object's margin where it is wider
+    (``RobustConfig.unseen_margin``), bounded as the margin always is by the shadow the
+    object casts and the thickness of its known shape (:func:`graspsim.maps.robust.score_rows`):
+    a milk carton standing face-on to the camera, fitted as a plate on its front and its
+    gable apart, had grasps from the side closing up and down across its top whose lower
+    finger went 23 to 33 mm past every known point of it, into its 52 mm depth, and kept
+    their whole score at the 20 mm margin."""
+    deep = 0.0
+    for prim, T, table_axes in zip(prims, T_cloud, bounded):
+        if prim.kind != "box":
+            continue
+        axes = observed.unmeasured_axes(prim, T)
+        if axes is None:
+            continue
+        dims = np.array([prim.x, prim.y, prim.z])
+        R = np.asarray(T, float)[:3, :3]
+        for u in axes:
+            if table_axes is not None and np.any(np.abs(table_axes @ u) > 0.99):
+                continue
+            j = int(np.argmax(np.abs(R.T @ u)))
+            deep = max(deep, float(np.min(np.delete(dims, j))))
+    return min(deep, MAX_FACE_DEPTH)
+
+
 def _axes(*sets) -> np.ndarray | None:
     """The axes ((k, 3) each, or None) of ``sets`` stacked; None when there are none."""
     got = [a for a in sets if a is not None]
@@ -609,8 +648,12 @@ def _plan_parts(prims: list, T_cloud: list, status: PlanStatus, ident: Identific
                        else np.vstack([bounded[i] for i in g if bounded[i] is not None]) for g in groups]
     floors: list = [None] * len(prims)  # per part: its axes the segment's points deepened (a least depth)
     if cfg.hidden_depth and observed is not None and viewpoint is not None:
+        face = _face_depth(prims, T_cloud, bounded, observed)  # as fitted: _deepened's own axes
         prims, T_cloud, floors = _deepened(prims, T_cloud, bounded, observed, cfg.table, viewpoint, points,
                                             seen_view, cfg.table_band)
+        if cfg.robust.unseen_margin > 0 and face > cfg.robust.unseen_margin:  # this object's margin, its checks' too
+            cfg = replace(cfg, robust=replace(cfg.robust, unseen_margin=face))
+            observed.cfg = cfg
     T_cloud_obj, compound = object_frame(prims, T_cloud)
     T_obj_part = [invert_transform(T_cloud_obj) @ T for T in T_cloud]
     obj_meta = _object_meta(prims[0] if compound is None else compound, db)

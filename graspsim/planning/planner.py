@@ -530,9 +530,9 @@ def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedCheck
     least = observed.least_hidden_depth
     out_p, out_T, out_b = [], [], []
     for prim, T, axes in zip(prims, T_cloud, bounded):
-        thin = observed.unmeasured_axes(prim, T) if prim.kind == "box" else None
+        thin = _open_axes(prim, T, axes, observed)
         floors = None
-        if thin is None:
+        if not thin:
             out_p.append(prim)
             out_T.append(T)
             out_b.append(floors)
@@ -540,10 +540,7 @@ def _deepened(prims: list, T_cloud: list, bounded: list, observed: ObservedCheck
         T = np.asarray(T, float).copy()
         dims = np.array([prim.x, prim.y, prim.z])
         changed = False
-        for u in thin:
-            j = int(np.argmax(np.abs(T[:3, :3].T @ u)))
-            if axes is not None and np.any(np.abs(axes @ u) > 0.99):
-                continue
+        for j in thin:
             d = T[:3, j] * (1.0 if float((T[:3, 3] - viewpoint) @ T[:3, j]) >= 0.0 else -1.0)  # away from the camera
             reach = segment_depth(make_primitive("box", x=float(dims[0]), y=float(dims[1]), z=float(dims[2])),
                                   T, j, d, points, view, table, band)
@@ -593,19 +590,22 @@ def _face_depth(prims: list, T_cloud: list, bounded: list, observed: ObservedChe
     their whole score at the 20 mm margin."""
     deep = 0.0
     for prim, T, table_axes in zip(prims, T_cloud, bounded):
-        if prim.kind != "box":
-            continue
-        axes = observed.unmeasured_axes(prim, T)
-        if axes is None:
-            continue
-        dims = np.array([prim.x, prim.y, prim.z])
-        R = np.asarray(T, float)[:3, :3]
-        for u in axes:
-            if table_axes is not None and np.any(np.abs(table_axes @ u) > 0.99):
-                continue
-            j = int(np.argmax(np.abs(R.T @ u)))
-            deep = max(deep, float(np.min(np.delete(dims, j))))
+        for j in _open_axes(prim, T, table_axes, observed):
+            deep = max(deep, float(np.min(np.delete(np.array([prim.x, prim.y, prim.z]), j))))
     return min(deep, MAX_FACE_DEPTH)
+
+
+def _open_axes(prim, T, table_axes: np.ndarray | None, observed: ObservedChecks) -> list[int]:
+    """The axes (indices in the part's frame) of part ``prim`` (posed at ``T``, cloud frame)
+    that a single view did not measure (a box's only: :meth:`ObservedChecks.unmeasured_axes`)
+    and the table does not bound (``table_axes``, (k, 3) or None): what :func:`_deepened`
+    deepens and :func:`_face_depth` reads."""
+    thin = observed.unmeasured_axes(prim, T) if prim.kind == "box" else None
+    if thin is None:
+        return []
+    R = np.asarray(T, float)[:3, :3]
+    return [int(np.argmax(np.abs(R.T @ u))) for u in thin
+            if table_axes is None or not np.any(np.abs(table_axes @ u) > 0.99)]
 
 
 def _axes(*sets) -> np.ndarray | None:

@@ -91,7 +91,7 @@ from _scenes import (
     resident_run_database,
     standing_cloud,
 )
-from _timing import Clock, load_average, run_cli_fresh, run_fresh, stopwatch
+from _timing import Clock, host_reference, load_average, run_cli_fresh, run_fresh, stopwatch
 
 from graspsim._jsonable import to_jsonable
 from graspsim.calibration.markdown import fmt, md_table
@@ -101,7 +101,7 @@ from graspsim.seeding import derived_seed, rng_for, seed_sequence
 
 __all__ = ["start", "opt", "parse_config", "RunRecord", "machine_load", "provenance", "default_out",
            "rng_for", "derived_seed", "seed_sequence", "map_config", "standing_cloud",
-           "Clock", "stopwatch", "load_average", "run_fresh", "run_cli_fresh",
+           "Clock", "stopwatch", "load_average", "host_reference", "reference_clause", "run_fresh", "run_cli_fresh",
            "write_json", "write_text", "write_config", "fmt", "md_table", "mean_sd_text", "pct", "rate_ci",
            "noise_sigmas", "experiment_database", "database_record", "database_note", "RunDatabase", "GRID",
            "grid_shapes", "build_grid", "resident_run_database", "task_results"]
@@ -239,10 +239,21 @@ def task_results(fn, tasks: list, workers: int):
 
 
 def load_sentence(summary: dict) -> str:
-    """The sentence 'Load average A at the start, B at the end, N cores.' of a run's summary."""
+    """The sentence 'Load average A at the start, B at the end, N cores.' of a run's summary,
+    with the host's reference time (:func:`reference_clause`) where the run recorded it."""
     m = summary["machine"]
     return (f"Load average {m['load_avg_start'][0]:.1f} at the start, {m['load_avg_end'][0]:.1f} at the end, "
-            f"{m['cpus']} cores.")
+            f"{m['cpus']} cores{reference_clause(summary)}.")
+
+
+def reference_clause(summary: dict) -> str:
+    """", host reference R s (...)" of a run that recorded ``machine.reference_s``
+    (:func:`~_timing.host_reference`); empty for runs made before it was recorded."""
+    r = summary.get("machine", {}).get("reference_s")
+    if r is None:
+        return ""
+    return (f", host reference {1000 * r:.0f} ms (a fixed workload timed as the run ended: timings of "
+            "two runs compare where it matches)")
 
 
 def contacts_clause(config: dict, lead: str = "; ") -> str:
@@ -279,8 +290,8 @@ class RunRecord:
         return {"experiment": self.stem, "command": self.command, **data,
                 "machine": {"cpus": os.cpu_count(), "load_avg_start": self.clock.load,
                             "load_avg_end": load_average(), "wall_s": self.clock.wall,
-                            "cpu_s": self.clock.cpu, "platform": versions.pop("platform", None),
-                            "date": versions.pop("date", None)},
+                            "cpu_s": self.clock.cpu, "reference_s": host_reference(),
+                            "platform": versions.pop("platform", None), "date": versions.pop("date", None)},
                 "versions": versions, "provenance": self.provenance}
 
     def write(self, out: str | Path, data: dict, readme_section=None, *, publish: bool | None = None,

@@ -9,7 +9,7 @@ import graspsim  # noqa: F401  (first, before numpy loads: graspsim._blas pins t
 
 # isort: split
 
-from _common import contacts_clause, database_note, pct, rate_ci
+from _common import contacts_clause, database_note, pct, rate_ci, reference_clause
 
 from graspsim.tabletop.clutter import FAILURE_COLUMNS, OTHER, failure_rows
 
@@ -230,6 +230,7 @@ def readme_section(s: dict) -> str:
     L += ["", f"Planning = depth frame to ranked grasps for the whole scene (table, segmentation, identification "
           f"of every segment, maps, robust scores against the scene), measured at load "
           f"{m['load_avg_start'][0] if m.get('load_avg_start') else 'n/a'} (start) to "
-          f"{m['load_avg_end'][0] if m.get('load_avg_end') else 'n/a'} (end) on {m['cpus']} cores."
+          f"{m['load_avg_end'][0] if m.get('load_avg_end') else 'n/a'} (end) on {m['cpus']} cores"
+          f"{reference_clause(s)}."
           + database_note(s) + _memory_note(rows)]
     return "\n".join(L) + "\n"

@@ -15,7 +15,7 @@ import tempfile
 import time
 from contextlib import contextmanager
 
-__all__ = ["load_average", "Clock", "stopwatch", "run_fresh", "run_cli_fresh"]
+__all__ = ["load_average", "host_reference", "Clock", "stopwatch", "run_fresh", "run_cli_fresh"]
 
 
 def load_average() -> list[float]:
@@ -24,6 +24,34 @@ def load_average() -> list[float]:
         return [round(x, 2) for x in os.getloadavg()]
     except OSError:  # pragma: no cover - not on every platform
         return []
+
+
+def host_reference(repeats: int = 5) -> float:
+    """Wall seconds of a fixed workload of the kinds planning does (a k-d tree over a few
+    thousand points and its neighbour queries, batched 3 x 3 eigendecompositions, a loop of
+    small numpy calls), the best of ``repeats``. No change to graspsim moves it, the host's
+    speed does: a shared or virtual machine of one name ran the same planning half as fast
+    again in the evening as in the morning of one day (docs/results.md). Every run records it
+    when it ends (``machine.reference_s``; at the end, so that no run's own first-run timings
+    follow it), so that a change in two runs' timings can be told apart from a change of host."""
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(0)
+    P = rng.normal(size=(4000, 3))
+    A = rng.normal(size=(2000, 3, 3))
+    A = A @ A.transpose(0, 2, 1)
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        cKDTree(P).query(P, k=8)
+        np.linalg.eigh(A)
+        x = P[:64].copy()
+        for _ in range(300):
+            x = x + 1e-3 * np.cross(x, P[:64])
+            np.median(np.linalg.norm(x, axis=1))
+        best = min(best, time.perf_counter() - t0)
+    return best
 
 
 class Clock:

@@ -51,7 +51,7 @@ from unittest import mock
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import machine_load, opt, start
+from _common import machine_load, opt, reference_clause, start
 from e10_clutter_removal import E10Cases
 
 STATUSES = ("planned", "no_grasp", "reused", "deferred", "failed")
@@ -192,7 +192,7 @@ def readme_section(s: dict) -> str:
             + ("" if s.get("episode_unlike_replay") is None else
                f", {s['episode_unlike_replay']} frames otherwise than the episode's own call") + ". "
             f"Load average {load0[0]:.2f} at the start, {load1[0]:.2f} at the end, "
-            f"{s['machine']['cpus']} cores.")
+            f"{s['machine']['cpus']} cores{reference_clause(s)}.")
 
 
 def main(argv=None) -> int:

@@ -74,7 +74,8 @@ def test_run_record_writes_summary_readme_config_and_publishes(tmp_path, monkeyp
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["command"] == "python experiments/e99_x.py --quick --out 'a b'" and s["experiment"] == "e99_x"
     assert s["headline"] == {"k": 3, "n": 4, "rate": 0.75, "nan": None}
-    assert set(s["machine"]) >= {"cpus", "load_avg_start", "load_avg_end", "wall_s", "cpu_s", "date"}
+    assert set(s["machine"]) >= {"cpus", "load_avg_start", "load_avg_end", "wall_s", "cpu_s", "date", "reference_s"}
+    assert 0 < s["machine"]["reference_s"] < 60
     assert {"numpy", "git_commit"} <= set(s["versions"]) and "commit" in s["provenance"]
     assert text == "`python experiments/e99_x.py --quick --out 'a b'`: 3/4"
     assert (tmp_path / "out" / "README.md").read_text() == text + "\n"
@@ -113,6 +114,17 @@ def test_publishing_a_variant_writes_its_own_reported_json(tmp_path, monkeypatch
     assert json.loads((reported / "e99_x.noise.json").read_text())["experiment"] == "e99_x"
     assert json.loads((reported / "e99_x.json").read_text()) == {"kept": True}
     assert run.report_key(tmp_path / "e99_xy") == run.report_key(tmp_path / "e99_x.") == "e99_x"
+
+
+def test_host_reference_is_said_only_where_a_run_recorded_it():
+    """The host's reference time (_timing.host_reference, recorded as the run ends) joins the
+    load sentence; a summary from before it was recorded reads as it did."""
+    old = {"machine": {"load_avg_start": [1.0], "load_avg_end": [2.0], "cpus": 2}}
+    new = {"machine": {**old["machine"], "reference_s": 0.0571}}
+    assert h.load_sentence(old) == "Load average 1.0 at the start, 2.0 at the end, 2 cores."
+    assert h.load_sentence(new).startswith("Load average 1.0 at the start, 2.0 at the end, 2 cores, "
+                                           "host reference 57 ms")
+    assert h.reference_clause(old) == ""
 
 
 def test_machine_load_reads_old_and_new_summaries():

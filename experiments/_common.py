@@ -247,7 +247,7 @@ def load_sentence(summary: dict) -> str:
 
 
 def reference_clause(summary: dict) -> str:
-    """", host reference R s (...)" of a run that recorded ``machine.reference_s``
+    """", host reference R ms (...)" of a run that recorded ``machine.reference_s``
     (:func:`~_timing.host_reference`); empty for runs made before it was recorded."""
     r = summary.get("machine", {}).get("reference_s")
     if r is None:

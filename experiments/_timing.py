@@ -30,7 +30,7 @@ def host_reference(repeats: int = 5) -> float:
     """Wall seconds of a fixed workload of the kinds planning does (a k-d tree over a few
     thousand points and its neighbour queries, batched 3 x 3 eigendecompositions, a loop of
     small numpy calls), the best of ``repeats``. No change to graspsim moves it, the host's
-    speed does: a shared or virtual machine of one name ran the same planning half as fast
+    speed does: on a shared or virtual machine of one name the same planning took half as long
     again in the evening as in the morning of one day (docs/results.md). Every run records it
     when it ends (``machine.reference_s``; at the end, so that no run's own first-run timings
     follow it), so that a change in two runs' timings can be told apart from a change of host."""

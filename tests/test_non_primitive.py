@@ -232,6 +232,94 @@ def test_a_bowl_on_a_table_gets_grasps_in_a_scene_from_its_features_alone(db):
             assert sg.source == "features"  # the sphere gave none: each was planned from the bowl's own points
 
 
+def _brick_scene(rng):
+    """A 32 x 32 x 23 mm brick on a table seen from one camera (top and front face): the
+    cloud and the camera's place."""
+    eye = np.array([0.0, -0.35, 0.45])
+    brick = _box_surface(rng, 3000, (0.016, 0.016, 0.0115), make_transform(np.eye(3), [0.0, 0.0, 0.0115]))
+    seen = brick[_facing(brick, eye)] + rng.normal(0, 0.0005, (int(_facing(brick, eye).sum()), 3))
+    table = np.c_[rng.uniform(-0.25, 0.25, (6000, 2)), rng.normal(0, 0.0005, 6000)]
+    return np.r_[table[np.abs(table[:, :2]).max(axis=1) > 0.02], seen], eye
+
+
+def test_other_models_are_the_other_fits_that_make_a_primitive_best_first():
+    """``other_models``: an identified part as each other kind its cluster fitted, by RMS --
+    those whose fit rate reaches the threshold and whose surface was not rejected for
+    reaching beyond the points; none for an unidentified part or where no other kind
+    qualifies. A scene's fallback tries them as whole identifications, the r-th of every part
+    together. Mutation caught: ranking by fit rate (the first kind's name on ties)."""
+    from dataclasses import replace
+
+    from graspsim.perception.classify import Shape
+    from graspsim.perception.cluster import other_models
+    from graspsim.perception.identify import identify
+    from graspsim.perception.identify_config import IdentifyConfig
+    from graspsim.planning.scene import _other_identifications
+
+    pts, eye = _brick_scene(np.random.default_rng(1))
+    brick = pts[pts[:, 2] > 0.004]
+    cfg = IdentifyConfig()
+    ident = identify(brick, rng=np.random.default_rng(0), config=cfg)
+    part = ident.parts[0]
+    assert {"box", "cylinder", "half_toroid"} <= {k for k, f in part.fits.items() if f is not None}
+    # the brick's own fits, made to qualify with RMS in the reverse order of fit rate and name
+    # (by RMS: half_toroid, cylinder, box; by fit rate or name: box, cylinder, half_toroid)
+    made = {"half_toroid": (cfg.min_fit_rate, 1e-4), "cylinder": (0.9, 2e-4), "box": (0.99, 3e-4)}
+    fits = {k: replace(f, fit_rate=made[k][0], rms=made[k][1]) if k in made else f for k, f in part.fits.items()}
+    as_sphere = replace(part, shape=Shape.SPHERE, fits=fits, coverage={})  # as the rule base might have named it
+    alts = other_models(as_sphere, cfg)
+    assert [a.shape.value for a in alts] == ["half_toroid", "cylinder", "box"]
+    for a in alts:
+        assert a.rms == fits[a.shape.value].rms and a.primitive() is not None
+        assert np.array_equal(a.indices, part.indices) and a.reason == ""
+    below = {**fits, "half_toroid": replace(fits["half_toroid"], fit_rate=np.nextafter(cfg.min_fit_rate, 0))}
+    assert [a.shape.value for a in other_models(replace(as_sphere, fits=below), cfg)] == ["cylinder", "box"]
+    beyond = replace(as_sphere, coverage={"cylinder": cfg.min_coverage / 2})  # its surface reaching beyond the points
+    assert [a.shape.value for a in other_models(beyond, cfg)] == ["half_toroid", "box"]
+    assert other_models(replace(part, shape=Shape.UNIDENTIFIED), cfg) == []
+    # a scene's fallback tries the r-th other model of every part together (a part with fewer as it is)
+    two = replace(ident, parts=(as_sphere, replace(as_sphere, fits=below)))
+    assert [[p.shape.value for p in a.parts] for a in _other_identifications(two, cfg)] == [
+        ["half_toroid", "cylinder"], ["cylinder", "box"], ["box", "sphere"]]
+
+
+def test_a_brick_named_a_sphere_is_planned_as_its_box_when_a_frame_has_no_grasp(db, monkeypatch):
+    """A frame planned afresh whose parts give no grasp at all (``feature_grasps="fallback"``)
+    is planned again with the cloud's features added, and so with each other model its
+    clusters fitted, and each segment keeps the plan whose best grasp scores highest: a brick
+    the rule base named a sphere wider than the gripper (as a Lego brick's studs made it one
+    in E10's piles) gets its grasps on its box, which score higher than those on its seen
+    faces' features (the far face unseen), and the plan keeps the box identification (what a
+    next frame reuses). ``"apart"`` in a pile gives none. Mutations caught: no other models in
+    the fallback, and the features' plan kept whenever it holds a grasp (the grasps' source
+    is then the features)."""
+    import graspsim.planning.scene as scene_mod
+    from graspsim.perception.classify import Shape
+    from graspsim.planning.scene_config import SceneConfig
+
+    pts, eye = _brick_scene(np.random.default_rng(1))
+    identify_new = scene_mod._identify_new
+
+    def as_big_sphere(segs, olds, rng, cfg):  # the rule base's wrong name for the brick
+        from dataclasses import replace
+        out = []
+        for ident, why in identify_new(segs, olds, rng, cfg):
+            parts = tuple(replace(p, shape=Shape.SPHERE, dims={"radius": 0.09}) for p in ident.parts)
+            out.append((replace(ident, parts=parts), why))
+        return out
+
+    monkeypatch.setattr(scene_mod, "_identify_new", as_big_sphere)
+    plans = {name: scene_mod.plan_scene(pts, db=db, rng=np.random.default_rng(5), viewpoint=eye,
+                                        config=SceneConfig(workers=1, feature_grasps=name))
+             for name in ("apart", "fallback")}
+    off, on = plans["apart"], plans["fallback"]
+    assert len(off.segments) == len(on.segments) == 1 and not any(g.score > 0 for g in off.grasps)
+    assert off.memory[0].ident.parts[0].shape is Shape.SPHERE
+    good = [g for g in on.grasps if g.score > 0]
+    assert good and {g.source for g in good} == {"box"} and on.segments[0].status == "planned"
+    assert [p.shape for p in on.memory[0].ident.parts] == [Shape.BOX]
+
+
 def _facing(points: np.ndarray, eye: np.ndarray, voxel: float = 0.004) -> np.ndarray:
     """(N,) bool: the points a camera at ``eye`` sees -- the nearest along each ray, by
     binning the directions from ``eye`` (a z-buffer over angles)."""

@@ -22,7 +22,7 @@ from graspsim.perception.shape_features import ShapeFeatures, shape_features
 from graspsim.perception.support import extent_ratio, surface_coverage
 from graspsim.primitives.sdf import KINDS, fit_to_object
 
-__all__ = ["Cloud", "identify_cluster"]
+__all__ = ["Cloud", "identify_cluster", "other_models"]
 
 
 def _continuity(points: np.ndarray, link_factor: float) -> tuple[float, float, cKDTree]:
@@ -190,3 +190,28 @@ class Cloud:
         """The paper's identification of the cluster of local indices ``idx``."""
         return identify_cluster(self.points[idx], self.normals[idx], np.flatnonzero(self.reliable[idx]),
                                 self.noise, rng, cfg, self.kept[idx], check_noise=self.check_noise)
+
+
+def other_models(part: PartResult, config: IdentifyConfig) -> list[PartResult]:
+    """An identified ``part`` as each model its cluster fitted besides its own, best first:
+    the other kinds whose fit rate reaches ``config.min_fit_rate``, whose surface was not
+    rejected for reaching beyond the points (``coverage`` below ``config.min_coverage``)
+    and that make a primitive, by RMS residual (kind name on a tie); none for an
+    unidentified part. The rule base chose the part's own model from shape features;
+    where that model gives the planner nothing (a Lego brick whose studs make it a sphere
+    wider than the brick, its corners outside it) a model its points fit about as well
+    may (``SceneConfig.feature_grasps`` ``"fallback"``)."""
+    if part.shape is Shape.UNIDENTIFIED:
+        return []
+    ranked = sorted((f.rms, k, f) for k, f in part.fits.items()
+                    if f is not None and k != part.shape.value and f.fit_rate >= config.min_fit_rate
+                    and part.coverage.get(k, 1.0) >= config.min_coverage)
+    out = []
+    for _, kind, fit in ranked:
+        try:
+            prim, T = fit_to_object(kind, fit.R, fit.t, fit.dims)
+        except PrimitiveError:  # below the primitive floor (a slab fitted a mm thick)
+            continue
+        out.append(PartResult(Shape(kind), prim.dims, T, fit.fit_rate, fit.rms, part.indices, part.features,
+                              part.noise, part.fits, "", part.coverage))
+    return out

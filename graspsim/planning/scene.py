@@ -38,6 +38,7 @@ import numpy as np
 
 from graspsim.errors import InvalidParameterError, PointCloudError
 from graspsim.geometry.table import TablePlane
+from graspsim.perception.cluster import other_models
 from graspsim.perception.identify import Identification
 from graspsim.perception.mvbb import min_volume_box
 from graspsim.perception.plane import PlaneFit, fit_table
@@ -298,24 +299,48 @@ def _identify_new(segs: list[np.ndarray], olds: list, rng: np.random.Generator, 
     return [(o.ident, o.why) if o is not None else made[k] for k, o in enumerate(olds)]
 
 
-def _with_features(done: list, segs: list, idents: list, obstacles, seen, db, cfg: SceneConfig, table,
-                   viewpoint) -> list:
-    """``done`` with every identified segment that holds no grasp scoring > 0 planned again
-    with grasps on its cloud's own features (``SceneConfig.feature_grasps`` ``"fallback"``: a
-    frame planned afresh -- no ``previous`` frame: a frame planned with one reuses its
-    identifications and plans, and a clutter-removal loop plans it afresh before it gives up
-    -- whose parts give no grasp at all, which would end the loop with objects left); the
+def _best(plan: tuple) -> float:
+    """The best robust score of a segment's (SegmentPlan, grasps); 0 with none."""
+    return max((g.score for g in plan[1]), default=0.0)
+
+
+def _other_identifications(ident: Identification, config) -> list[Identification]:
+    """``ident`` with its parts as the other models their clusters fitted, best first
+    (:func:`~graspsim.perception.cluster.other_models`): the r-th has each part as its r-th
+    other model (a part with fewer as it is); none when no part has another."""
+    alts = [other_models(p, config) for p in ident.parts]
+    return [replace(ident, parts=tuple(a[r] if r < len(a) else p for a, p in zip(alts, ident.parts)))
+            for r in range(max(map(len, alts), default=0))]
+
+
+def _fallback(done: list, segs: list, idents: list, obstacles, seen, db, cfg: SceneConfig, table,
+              viewpoint) -> tuple[list, list]:
+    """(``done``, ``idents``) with every identified segment that holds no grasp scoring > 0
+    planned again (``SceneConfig.feature_grasps`` ``"fallback"``: a frame planned afresh --
+    no ``previous`` frame: a frame planned with one reuses its identifications and plans,
+    and a clutter-removal loop plans it afresh before it gives up -- whose parts give no
+    grasp at all, which would end the loop with objects left): with grasps on its cloud's
+    own features added, and so with each of the other models its parts' clusters fitted
+    (:func:`_other_identifications`: a brick the rule base named a sphere wider than it is
+    planned as the box it fits as well), all side by side. A segment keeps the plan whose
+    best grasp scores highest -- the planner's own estimate of a grasp's success, whatever
+    model it was planned on -- and that plan's identification (which a next frame reuses);
+    on a tie the first: its own identification, then the other models best fit first. The
     others as they were."""
-    again = [k for k, (_, g) in enumerate(done) if idents[k][0] is not None and not any(x.score > 0 for x in g)]
+    again = [k for k, d in enumerate(done) if idents[k][0] is not None and _best(d) <= 0.0]
     if not again:
-        return done
+        return done, idents
     fcfg = replace(cfg, feature_grasps="always", good_enough=None)
-    out = list(done)
-    with closing(plan_batches([[(segs[k], k, idents[k][0], obstacles[k], db, fcfg, table, viewpoint, seen[k])
-                                for k in again]], db, fcfg)) as stream:
-        for k, d in zip(again, next(stream)):
-            out[k] = d
-    return out
+    tried = [(k, ident) for k in again
+             for ident in [idents[k][0], *_other_identifications(idents[k][0], cfg.planner.identify)]]
+    with closing(plan_batches([[(segs[k], k, ident, obstacles[k], db, fcfg, table, viewpoint, seen[k])
+                                for k, ident in tried]], db, fcfg)) as stream:
+        plans = next(stream)
+    out, ids = list(done), list(idents)
+    for (k, ident), d in zip(tried, plans):
+        if ident is idents[k][0] or _best(d) > _best(out[k]):
+            out[k], ids[k] = d, (ident, idents[k][1])
+    return out, ids
 
 
 def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: SceneConfig | None = None,
@@ -383,7 +408,7 @@ def plan_scene(points: np.ndarray, *, db, rng: np.random.Generator, config: Scen
                 done[k] = d
                 best = max([best, *(g.score for g in d[1])])
     if best <= 0.0 and cfg.feature_grasps == "fallback" and cfg.segment_features is None and previous is None:
-        done = _with_features(done, segs, idents, obstacles, seen, db, cfg, table, viewpoint)
+        done, idents = _fallback(done, segs, idents, obstacles, seen, db, cfg, table, viewpoint)
     plans, grasps, memory = [], [], []
     for k, (p, g) in enumerate(done):
         plans.append(p)

@@ -84,7 +84,8 @@ LAZY_BATCH = 2
 #: (``SceneConfig.min_gap`` given: a packed table), where a segment is one whole object; ``"fallback"``
 #: (the default) as ``"apart"``, and in any other scene for a frame planned afresh (``plan_scene`` with no
 #: ``previous`` frame) whose parts give no grasp at all (every segment without a grasp is planned again
-#: with them: a pile that would otherwise end with objects left and nothing planned); ``"always"``;
+#: with them, and as each other model its clusters fitted, keeping the plan whose best grasp scores
+#: highest: a pile that would otherwise end with objects left and nothing planned); ``"always"``;
 #: ``"never"``. From E10's tuning sets
 #: (docs/results.md, "Feature grasps in scenes", "Feature grasps as a pile's fallback"): on packed
 #: tables they removed more objects (a rounded blob seen from one side is fitted as a plate too wide to
@@ -180,7 +181,8 @@ class SceneConfig:
     (:func:`~graspsim.planning.scene_segments.settled_plan`); feature_grasps: where a segment's
     planning adds grasps on its cloud's own features (the planner's ``features``, when the parts give too
     few): one of :data:`FEATURE_GRASPS`, by default ``"fallback"``: in scenes with a ``min_gap``, and
-    in others only for a frame planned afresh (no ``previous``) whose parts give no grasp at all;
+    in others only for a frame planned afresh (no ``previous``) whose parts give no grasp at all (with
+    the other models its clusters fitted, too: the plan whose best grasp scores highest is kept);
     sparse_between: a grasp closing on fewer of its segment's points than this keeps
     :data:`SPARSE_SHARE` of its robust score (:data:`SPARSE_BETWEEN`, the default; 0: off);
     shadow_depth [m]: where objects may touch (no ``min_gap``), with the camera's viewpoint
